@@ -1,0 +1,34 @@
+# Every target bootstraps .venv itself, so a fresh clone needs only `make run` or `make test`.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+export QT_QPA_PLATFORM ?= offscreen
+
+.PHONY: run test bench demo venv resources clean
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e ".[test,studies]"
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+run: $(STAMP)
+	QT_QPA_PLATFORM= $(BIN)/dualrgb gui --virtual-lab
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	$(BIN)/python -m bench.run
+
+demo: $(STAMP)
+	$(BIN)/dualrgb demo --out demo-out
+
+resources: $(STAMP)
+	$(BIN)/python -m resources.generate
+
+clean:
+	rm -rf $(VENV) .pytest_cache bench/results

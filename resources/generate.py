@@ -1,0 +1,148 @@
+"""Rebuild every CSV under resources/ (run ``python -m resources.generate``; deterministic).
+
+* LEDs: thesis Table 4.2 peaks and relative/absolute peak values, each shaped with colour-science's
+  ``sd_single_led`` (Ohno 2005) at half spectral width 25 nm, 380-780 nm at 1 nm.
+* Camera: colour-science's 'Nikon 5100 (NPL)' sensitivities, a stand-in for the D610 (thesis 4.2).
+* Reflective targets: rawtoaces v1 training set (190 reflectances) and BabelColor Average ColorChecker (24).
+* Film targets: a three-dye Beer-Lambert film model, T = 10^-(base + c*Dc + m*Dm + y*Dy) with Gaussian dye
+  densities; an IT8.7/1-like 288-patch training film (264 Sobol-sampled dye mixes + 24 neutral steps) and
+  the ColorChecker 24 reproduced on film (dye amounts fitted per patch to the chart's D65 Lab).
+"""
+from __future__ import annotations
+
+import logging
+
+import colour
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import qmc
+
+from resources import path
+from simulation.spectral_io import write_spectral_csv
+
+log = logging.getLogger(__name__)
+
+LED_PEAKS_NM = (416, 448, 467, 491, 520, 545, 572, 597, 626, 680)
+LED_RELATIVE_PEAKS = (0.88, 1.00, 0.663, 0.183, 0.198, 0.014, 0.003, 0.165, 0.300, 0.565)
+LED_ABSOLUTE_PEAKS = (0.0244621, 0.0275599, 0.0182769, 0.00504516, 0.0054696, 0.00037581, 0.0000795212,
+                      0.00455702, 0.00827383, 0.0155592)  # W sr^-1 m^-2 (thesis Table 4.2)
+LED_HALF_SPECTRAL_WIDTH = 25.0
+FILM_BASE_DENSITY = 0.05
+# Dye density peaks and widths (nm): yellow absorbs blue, magenta green, cyan red.
+DYES = {"cyan": (660.0, 45.0), "magenta": (545.0, 35.0), "yellow": (445.0, 30.0)}
+FILM_SHAPE = colour.SpectralShape(380, 780, 5)
+SCRIPT = "resources/generate.py (python -m resources.generate)"
+
+
+def _led_csvs() -> None:
+    shape = colour.SpectralShape(380, 780, 1)
+    wl = shape.wavelengths
+    base = np.stack([colour.sd_single_led(p, shape=shape, half_spectral_width=LED_HALF_SPECTRAL_WIDTH).values
+                     for p in LED_PEAKS_NM], axis=1)
+    base /= base.max(axis=0)
+    names = [f"LED{i}" for i in range(1, 11)]
+    common = {
+        "peaks_nm": " ".join(str(p) for p in LED_PEAKS_NM),
+        "model": f"colour.sd_single_led (Ohno 2005), half_spectral_width={LED_HALF_SPECTRAL_WIDTH:g} nm",
+        "source": "thesis Table 4.2 (peak wavelengths and peak values of the 10-LED integrating sphere)",
+        "generated_by": SCRIPT,
+    }
+    write_spectral_csv(path("leds", "sphere10_relative.csv"), wl, base * np.array(LED_RELATIVE_PEAKS), names,
+                       {"title": "10-LED sphere spectra, relative", "units": "relative radiance (LED 2 peak = 1)",
+                        **common})
+    write_spectral_csv(path("leds", "sphere10_absolute.csv"), wl, base * np.array(LED_ABSOLUTE_PEAKS), names,
+                       {"title": "10-LED sphere spectra, absolute", "units": "spectral radiance W sr^-1 m^-2 nm^-1",
+                        **common})
+
+
+def _camera_csv() -> None:
+    msds = colour.characterisation.MSDS_CAMERA_SENSITIVITIES["Nikon 5100 (NPL)"]
+    write_spectral_csv(path("cameras", "nikon_5100_npl.csv"), msds.wavelengths, msds.values, ["red", "green", "blue"],
+                       {"title": "Camera spectral sensitivity (stand-in for the Nikon D610)",
+                        "units": "relative sensitivity (peak-normalised)",
+                        "source": "colour-science MSDS_CAMERA_SENSITIVITIES['Nikon 5100 (NPL)'] (NPL measurements)",
+                        "generated_by": SCRIPT})
+
+
+def _reflective_csvs() -> None:
+    train = colour.characterisation.read_training_data_rawtoaces_v1()
+    # the source holds rounding residues down to -7e-18: clip them to 0 so the file passes strict validation
+    assert train.values.min() > -1e-9
+    write_spectral_csv(path("targets", "reflective_train_rawtoaces190.csv"), train.wavelengths,
+                       np.clip(train.values, 0.0, None),
+                       [str(n) for n in train.labels],
+                       {"title": "Reflective training target (190 samples)", "units": "reflectance factor (0..1; a few fluorescent samples reach 1.44)",
+                        "source": "colour-science read_training_data_rawtoaces_v1() (rawtoaces training data; residues < 1e-9 clipped to 0)",
+                        "generated_by": SCRIPT})
+    cc = colour.SDS_COLOURCHECKERS["BabelColor Average"]
+    names = list(cc)
+    wl = next(iter(cc.values())).wavelengths
+    vals = np.stack([cc[n].values for n in names], axis=1)
+    write_spectral_csv(path("targets", "reflective_test_babelcolor_cc24.csv"), wl, vals, names,
+                       {"title": "Reflective test target ColorChecker Classic 24", "units": "reflectance factor 0..1",
+                        "source": "colour-science SDS_COLOURCHECKERS['BabelColor Average']", "layout": "4x6",
+                        "generated_by": SCRIPT})
+
+
+def dye_densities(wavelengths: np.ndarray) -> np.ndarray:
+    """Unit dye density spectra, shape (n_wavelengths, 3) for cyan, magenta, yellow."""
+    return np.stack([np.exp(-0.5 * ((wavelengths - p) / w) ** 2) for p, w in DYES.values()], axis=1)
+
+
+def film_transmittance(amounts: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
+    """Beer-Lambert film: amounts (n, 3) of c, m, y -> transmittance (n_wavelengths, n)."""
+    density = FILM_BASE_DENSITY + dye_densities(wavelengths) @ np.atleast_2d(amounts).T
+    return 10.0 ** (-density)
+
+
+def _lab_d65(values: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
+    shape = colour.SpectralShape(wavelengths[0], wavelengths[-1], wavelengths[1] - wavelengths[0])
+    msds = colour.MultiSpectralDistributions(values, wavelengths)
+    xyz = colour.msds_to_XYZ(msds, colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape),
+                             colour.SDS_ILLUMINANTS["D65"].copy().align(shape), method="Integration") / 100
+    white = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    return colour.XYZ_to_Lab(xyz, white)
+
+
+def _film_csvs() -> None:
+    wl = FILM_SHAPE.wavelengths
+    sampler = qmc.Sobol(d=3, scramble=True, seed=87)
+    amounts = sampler.random(264) * 2.2
+    greys = np.linspace(0.0, 2.6, 24)
+    amounts = np.vstack([amounts, np.stack([greys, greys * 0.93, greys * 0.88], axis=1)])
+    t_train = film_transmittance(amounts, wl)
+    names = [f"IT8-{i + 1:03d}" for i in range(264)] + [f"GS{i:02d}" for i in range(24)]
+    write_spectral_csv(path("targets", "film_train_it87_288.csv"), wl, t_train, names,
+                       {"title": "IT8.7/1-like film training target (288 patches)", "units": "transmittance 0..1",
+                        "source": "three-dye Beer-Lambert film model (synthetic, stands in for a measured IT8.7/1)",
+                        "model": f"T=10^-({FILM_BASE_DENSITY}+c*Dc+m*Dm+y*Dy); dyes {DYES} (peak nm, sigma nm)",
+                        "layout": "12x22 + 24 grey scale", "generated_by": SCRIPT})
+
+    cc = colour.SDS_COLOURCHECKERS["BabelColor Average"]
+    cc_names = list(cc)
+    cc_vals = np.stack([cc[n].copy().align(FILM_SHAPE).values for n in cc_names], axis=1)
+    target_lab = _lab_d65(cc_vals, wl)
+    fitted = []
+    for lab in target_lab:
+        res = least_squares(lambda a: _lab_d65(film_transmittance(a[None, :], wl), wl)[0] - lab,
+                            x0=np.array([0.5, 0.5, 0.5]), bounds=(0.0, 4.0))
+        fitted.append(res.x)
+    t_test = film_transmittance(np.array(fitted), wl)
+    write_spectral_csv(path("targets", "film_test_cc24.csv"), wl, t_test, cc_names,
+                       {"title": "ColorChecker 24 reproduced on film", "units": "transmittance 0..1",
+                        "source": "three-dye Beer-Lambert film model with dye amounts fitted to BabelColor Average "
+                                  "CC24 D65 Lab (scipy least_squares, amounts 0..4)",
+                        "layout": "4x6", "generated_by": SCRIPT})
+
+
+def main() -> None:
+    logging.basicConfig(level=logging.INFO)
+    _led_csvs()
+    _camera_csv()
+    _reflective_csvs()
+    _film_csvs()
+    log.info("resources written under %s", path())
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,38 @@
+"""The camera model of eq 5.10: c_i = sum_lambda L_i(lambda) R(lambda) CSRF_c(lambda) (R -> T for film).
+
+Reflective and transmissive modes share the equation; only the sample spectra differ (reflectance factor vs
+transmittance). Values are relative (the fit is scale-free); the virtual camera scales them to digital numbers.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+CHANNELS = ("R", "G", "B")
+
+
+def channel_responses(lights: np.ndarray, samples: np.ndarray, camera: np.ndarray) -> np.ndarray:
+    """Eq 5.10 for N lights: lights (n_lights, n_wl), samples (n, n_wl), camera (n_wl, 3) -> (n, 3 * n_lights).
+
+    Columns are ordered light-major: R1, G1, B1, R2, G2, B2, ...
+    """
+    lights = np.atleast_2d(np.asarray(lights, dtype=float))
+    per_light = np.einsum("lw,nw,wc->nlc", lights, np.atleast_2d(samples), camera)
+    return per_light.reshape(per_light.shape[0], -1)
+
+
+def led_responses(leds: np.ndarray, samples: np.ndarray, camera: np.ndarray) -> np.ndarray:
+    """Response of each camera channel to each LED alone at full level: (n_leds, n, 3).
+
+    By superposition (thesis 3.1.2) a light with levels w gives sum_k w_k * led_responses[k].
+    """
+    return np.einsum("kw,nw,wc->knc", leds, np.atleast_2d(samples), camera)
+
+
+def channel_names(n_lights: int) -> list[str]:
+    return [f"{c}{i + 1}" for i in range(n_lights) for c in CHANNELS]
+
+
+def effective_sensitivities(lights: np.ndarray, camera: np.ndarray) -> np.ndarray:
+    """Eq 5.15: the N-light system's channel sensitivities L_i(lambda) * CSRF_c(lambda), shape (n_wl, 3 * n_lights)."""
+    lights = np.atleast_2d(lights)
+    return (lights[:, :, None] * camera[None]).transpose(1, 0, 2).reshape(camera.shape[0], -1)

@@ -1,0 +1,154 @@
+"""The packaged data the simulation runs on, and loading of users' own measured CSVs.
+
+Defaults reproduce the thesis (../shared/FACTS.md): 410-780 nm at 10 nm, CIE 1931 2-degree CMFs, D65,
+the 10-LED sphere of Table 4.2, 'Nikon 5100 (NPL)' as the camera, rawtoaces-190 / CC24 (reflective)
+and the IT8.7/1-like / CC24-on-film targets (transmissive).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+import colour
+import numpy as np
+
+import resources
+from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
+from simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv
+
+log = logging.getLogger(__name__)
+
+MODES = ("reflective", "transmissive")
+TARGET_FILES = {
+    "reflective": ("reflective_train_rawtoaces190.csv", "reflective_test_babelcolor_cc24.csv"),
+    "transmissive": ("film_train_it87_288.csv", "film_test_cc24.csv"),
+}
+
+
+@dataclass
+class Target:
+    """Patch spectra on a grid: ``spectra`` has shape (n_patches, n_wavelengths) (reflectance or transmittance)."""
+
+    name: str
+    spectra: np.ndarray
+    patch_names: list[str]
+    layout: tuple[int, int] | None = None
+    source: str = ""
+
+    def __len__(self) -> int:
+        return self.spectra.shape[0]
+
+
+@dataclass
+class SimulationSetup:
+    """Everything one simulation needs, resampled to one grid."""
+
+    mode: str
+    grid: SpectralGrid
+    leds: np.ndarray                # (n_leds, n_wl), relative radiance
+    camera: np.ndarray              # (n_wl, 3) R, G, B sensitivities
+    illuminant: np.ndarray          # (n_wl,) D65 for ground truth (eq 4.2) and the 3-channel baseline
+    cmfs: np.ndarray                # (n_wl, 3)
+    train: Target
+    test: Target
+    camera_name: str = "Nikon 5100 (NPL)"
+    led_names: list[str] = field(default_factory=lambda: [f"LED{i}" for i in range(1, 11)])
+
+    def describe(self) -> dict:
+        return {"mode": self.mode, "grid": self.grid.label(), "camera": self.camera_name,
+                "train": f"{self.train.name} ({len(self.train)})", "test": f"{self.test.name} ({len(self.test)})",
+                "leds": len(self.led_names)}
+
+
+def _layout(meta: dict[str, str]) -> tuple[int, int] | None:
+    text = meta.get("layout", "").split()[0] if meta.get("layout") else ""
+    if "x" in text:
+        rows, cols = text.split("x")
+        try:
+            return int(rows), int(cols)
+        except ValueError:
+            return None
+    return None
+
+
+def load_target(path: str | Path, grid: SpectralGrid = DEFAULT_GRID, name: str | None = None) -> Target:
+    """A target CSV (reflectance factor or transmittance, one column per patch), resampled to ``grid``.
+
+    Values above 1 are accepted up to 2 (fluorescent samples have reflectance factors above 1).
+    """
+    table = read_spectral_csv(path, max_value=2.0)
+    _check_covers(table, grid)
+    return Target(name or table.meta.get("title", Path(path).stem), resample(table.wavelengths, table.values, grid).T,
+                  table.columns, _layout(table.meta), table.source)
+
+
+def load_camera(path: str | Path, grid: SpectralGrid = DEFAULT_GRID) -> np.ndarray:
+    """A camera sensitivity CSV with exactly three columns (R, G, B), resampled to ``grid``."""
+    table = read_spectral_csv(path, expected_columns=3)
+    _check_covers(table, grid)
+    return resample(table.wavelengths, table.values, grid)
+
+
+def load_leds(path: str | Path, grid: SpectralGrid = DEFAULT_GRID, expected: int | None = None) -> np.ndarray:
+    """An LED spectra CSV (one column per LED, LED 1 first), resampled to ``grid``: shape (n_leds, n_wl)."""
+    table = read_spectral_csv(path, expected_columns=expected)
+    _check_covers(table, grid)
+    return resample(table.wavelengths, table.values, grid).T
+
+
+def _check_covers(table: SpectralTable, grid: SpectralGrid, max_gap_nm: float = 60.0) -> None:
+    """Extrapolation is constant; refuse data that misses a large part of the grid."""
+    lo, hi = table.wavelengths[0], table.wavelengths[-1]
+    if lo - grid.start > max_gap_nm or grid.end - hi > max_gap_nm:
+        raise SpectralDataError(
+            f"{table.source}: covers {lo:g}-{hi:g} nm but the simulation grid is {grid.label()}"
+        )
+
+
+@lru_cache(maxsize=16)
+def _colorimetry(grid: SpectralGrid) -> tuple[np.ndarray, np.ndarray]:
+    shape = colour.SpectralShape(grid.start, grid.end, grid.step)
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape)
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(shape)
+    return np.asarray(cmfs.values), np.asarray(d65.values)
+
+
+def led_spectra(grid: SpectralGrid = DEFAULT_GRID, absolute: bool = False) -> np.ndarray:
+    name = "sphere10_absolute.csv" if absolute else "sphere10_relative.csv"
+    return load_leds(resources.path("leds", name), grid, expected=10)
+
+
+@lru_cache(maxsize=16)
+def _default_setup(mode: str, grid: SpectralGrid) -> SimulationSetup:
+    if mode not in MODES:
+        raise ValueError(f"mode {mode!r}: expected one of {', '.join(MODES)}")
+    train_file, test_file = TARGET_FILES[mode]
+    cmfs, d65 = _colorimetry(grid)
+    return SimulationSetup(
+        mode=mode, grid=grid, leds=led_spectra(grid),
+        camera=load_camera(resources.path("cameras", "nikon_5100_npl.csv"), grid),
+        illuminant=d65, cmfs=cmfs,
+        train=load_target(resources.path("targets", train_file), grid),
+        test=load_target(resources.path("targets", test_file), grid),
+    )
+
+
+def default_setup(mode: str = "reflective", grid: SpectralGrid = DEFAULT_GRID, *, camera_csv: str | None = None,
+                  leds_csv: str | None = None, train_csv: str | None = None,
+                  test_csv: str | None = None) -> SimulationSetup:
+    """The packaged data for ``mode``, optionally with a user's own measured CSVs replacing parts of it."""
+    base = _default_setup(mode, grid)
+    if not any((camera_csv, leds_csv, train_csv, test_csv)):
+        return base
+    cmfs, d65 = _colorimetry(grid)
+    return SimulationSetup(
+        mode=mode, grid=grid,
+        leds=load_leds(leds_csv, grid) if leds_csv else base.leds,
+        camera=load_camera(camera_csv, grid) if camera_csv else base.camera,
+        illuminant=d65, cmfs=cmfs,
+        train=load_target(train_csv, grid) if train_csv else base.train,
+        test=load_target(test_csv, grid) if test_csv else base.test,
+        camera_name=Path(camera_csv).stem if camera_csv else base.camera_name,
+    )

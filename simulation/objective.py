@@ -1,0 +1,142 @@
+"""The search objective: mean CIEDE2000 on the training target of the characterisation fitted for a light set.
+
+A *light set* is a weight array W (..., n_lights, n_leds): the level of every LED in every light (0 where an
+LED is not used). Everything is precomputed at patch level, so one evaluation never touches spectra:
+  per-LED responses R[k, j, c]  ->  camera values C = sum_k W[l, k] R[k, :, c]  (superposition)
+  normal equations from Gram matrices G = R^T R, H = R^T XYZ  ->  A (rank-safe, batched)
+  predictions XYZ' = R_flat @ M with M[k, c, :] = sum_l W[l, k] A[(l, c), :]  (one GEMM for the batch)
+  mean dE00 by the fused float32 kernel (simulation.fast_de); reports use the float64 reference.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from simulation.camera_model import channel_names, channel_responses, led_responses
+from simulation.characterisation import RIDGE, CharacterisationMatrix, _check_patches, fit_matrix
+from simulation.fast_linalg import fit_light_sets
+from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
+from simulation.datasets import SimulationSetup, Target
+from simulation.fast_de import mean_de2000_mapped
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    mean: float
+    median: float
+    p90: float
+    max: float
+
+    @classmethod
+    def of(cls, errors: np.ndarray) -> "ErrorStats":
+        e = np.asarray(errors, dtype=float)
+        return cls(float(e.mean()), float(np.median(e)), float(np.percentile(e, 90)), float(e.max()))
+
+    def to_dict(self) -> dict:
+        return {"mean": self.mean, "median": self.median, "p90": self.p90, "max": self.max}
+
+
+class PatchSet:
+    """One target's patch-level data under one setup."""
+
+    def __init__(self, setup: SimulationSetup, target: Target):
+        self.target = target
+        self.xyz = tristimulus(target.spectra, setup.illuminant, setup.cmfs)
+        self.white = white_point(setup.illuminant, setup.cmfs)
+        self.lab = xyz_to_lab(self.xyz, self.white)
+        self.R = led_responses(setup.leds, target.spectra, setup.camera)     # (K, n, 3)
+        self._lab32 = [np.ascontiguousarray(self.lab[:, i], dtype=np.float32) for i in range(3)]
+
+    def __len__(self) -> int:
+        return self.xyz.shape[0]
+
+    def camera_values(self, W: np.ndarray) -> np.ndarray:
+        """(..., n_lights, K) -> (..., n, 3 * n_lights)."""
+        C = np.einsum("...lk,knc->...nlc", W, self.R)
+        return C.reshape(C.shape[:-2] + (-1,))
+
+
+class Evaluator:
+    """Fits on the training target and evaluates on training and test targets."""
+
+    def __init__(self, setup: SimulationSetup):
+        self.setup = setup
+        self.train = PatchSet(setup, setup.train)
+        self.test = PatchSet(setup, setup.test)
+        scale = float(np.abs(self.train.R).max()) or 1.0
+        self.train.R = self.train.R / scale      # the fit is scale-free; keep numbers near 1
+        self.test.R = self.test.R / scale
+        K, n, _ = self.train.R.shape
+        self.n_leds = K
+        R_flat = self.train.R.transpose(1, 0, 2).reshape(n, K * 3)            # (n, K*3), column (k, c)
+        self._R_flat = R_flat
+        self._RT = np.ascontiguousarray(R_flat.T)
+        self._G = (R_flat.T @ R_flat).reshape(K, 3, K, 3)
+        self._H = (R_flat.T @ self.train.xyz).reshape(K, 3, 3)
+        self.evaluations = 0
+
+    # ---- batched path (optimisers) ----
+    def fit_indexed(self, idx: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Batch characterisation: idx (P, L, m) 0-based LED indices, w (P, L, m) levels -> (M, A)."""
+        idx = np.ascontiguousarray(idx, dtype=np.int64)
+        w = np.ascontiguousarray(w, dtype=np.float64)
+        P, L, m = w.shape
+        _check_patches(len(self.train), 3 * L)
+        M = np.empty((3, self.n_leds * 3, P))
+        A = np.empty((P, 3 * L, 3))
+        fit_light_sets(idx, w, self._G, self._H, RIDGE, M, A)
+        return M, A
+
+    def cost_indexed(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Mean training dE00 for a batch given as LED indices and levels: the optimisers' objective.
+
+        """
+        M, _ = self.fit_indexed(idx, w)
+        out = np.empty(M.shape[2], dtype=np.float32)
+        L1, a1, b1 = self.train._lab32
+        mean_de2000_mapped(M, self._RT, self.train.white, L1, a1, b1, out)
+        self.evaluations += M.shape[2]
+        return out.astype(np.float64)
+
+    def cost(self, W: np.ndarray) -> np.ndarray:
+        """Mean training dE00 for dense light sets W (P, L, K) (every LED listed; zeros allowed)."""
+        W = np.asarray(W, dtype=float)
+        P, L, K = W.shape
+        idx = np.broadcast_to(np.arange(K), (P, L, K))
+        return self.cost_indexed(idx, W)
+
+    # ---- exact path (reports) ----
+    def characterise(self, W: np.ndarray) -> CharacterisationMatrix:
+        W = np.asarray(W, dtype=float)
+        return fit_matrix(self.train.camera_values(W), self.train.xyz, channel_names(W.shape[0]))
+
+    def patch_errors(self, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-patch float64 dE00 (train, test) for one light set W (L, K)."""
+        W = np.asarray(W, dtype=float)
+        A = self.characterise(W)
+        out = []
+        for ps in (self.train, self.test):
+            pred = A.apply(ps.camera_values(W))
+            out.append(delta_e_2000(ps.lab, xyz_to_lab(pred, ps.white)))
+        return out[0], out[1]
+
+    def stats(self, W: np.ndarray) -> tuple[ErrorStats, ErrorStats]:
+        tr, te = self.patch_errors(W)
+        return ErrorStats.of(tr), ErrorStats.of(te)
+
+
+def three_channel(setup: SimulationSetup) -> tuple[np.ndarray, np.ndarray, CharacterisationMatrix]:
+    """The 3-channel baseline: the camera under D65 (thesis 5.4.2). Returns per-patch dE00 (train, test)."""
+    train = PatchSet(setup, setup.train)
+    test = PatchSet(setup, setup.test)
+    C_train = channel_responses(setup.illuminant, setup.train.spectra, setup.camera)
+    A = fit_matrix(C_train, train.xyz, channel_names(1))
+    errs = []
+    for ps, target in ((train, setup.train), (test, setup.test)):
+        pred = A.apply(channel_responses(setup.illuminant, target.spectra, setup.camera))
+        errs.append(delta_e_2000(ps.lab, xyz_to_lab(pred, ps.white)))
+    return errs[0], errs[1], A

@@ -1,0 +1,139 @@
+"""Candidate light sets and the exhaustive full-intensity search (thesis 5.3.1).
+
+LEDs are split into bins (default 3/3/4, from shortest to longest wavelength); a light source takes one LED
+from each bin (36 triplets) and a dual-RGB setup is an unordered pair of distinct triplets (630 pairs).
+The unbinned space (every pair of distinct non-empty LED subsets, ~523 k pairs) is available too.
+"""
+from __future__ import annotations
+
+import itertools
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Optional, Sequence
+
+import numpy as np
+
+from simulation.lightsource import LightSource
+from simulation.objective import ErrorStats, Evaluator
+from simulation.progress import CancelToken, ProgressCallback, check, report
+
+log = logging.getLogger(__name__)
+
+DEFAULT_BINS = (3, 3, 4)
+Group = tuple[tuple[int, ...], ...]   # one tuple of 1-based LED numbers per light
+
+
+def triplets(bins: Sequence[int] = DEFAULT_BINS) -> list[tuple[int, ...]]:
+    """All light sources taking one LED per bin, 1-based: (1, 4, 7), (1, 4, 8), ..."""
+    if any(b < 1 for b in bins):
+        raise ValueError(f"bins {tuple(bins)}: every bin needs at least one LED")
+    edges = np.cumsum((0,) + tuple(bins))
+    return list(itertools.product(*(range(edges[i] + 1, edges[i + 1] + 1) for i in range(len(bins)))))
+
+
+def light_pairs(bins: Sequence[int] = DEFAULT_BINS, n_lights: int = 2) -> list[Group]:
+    """Unordered sets of ``n_lights`` distinct binned light sources (630 pairs for 3/3/4)."""
+    return list(itertools.combinations(triplets(bins), n_lights))
+
+
+def unbinned_pairs(n_leds: int = 10) -> list[Group]:
+    """Every unordered pair of distinct non-empty LED subsets (C(2^n - 1, 2) = 522 753 for 10 LEDs)."""
+    subsets = [tuple(i + 1 for i in range(n_leds) if mask >> i & 1) for mask in range(1, 2**n_leds)]
+    return list(itertools.combinations(subsets, 2))
+
+
+def group_arrays(groups: Sequence[Group]) -> tuple[np.ndarray, np.ndarray]:
+    """(idx, mask): 0-based LED indices (G, L, m) padded with 0 and a (G, L, m) mask of real entries."""
+    L = len(groups[0])
+    m = max(len(light) for g in groups for light in g)
+    idx = np.zeros((len(groups), L, m), dtype=np.int64)
+    mask = np.zeros((len(groups), L, m), dtype=bool)
+    for gi, g in enumerate(groups):
+        if len(g) != L:
+            raise ValueError(f"light set {g}: expected {L} lights like the others")
+        for li, light in enumerate(g):
+            idx[gi, li, :len(light)] = np.asarray(light) - 1
+            mask[gi, li, :len(light)] = True
+    return idx, mask
+
+
+@dataclass
+class Candidate:
+    """One light set with its optimised levels and errors."""
+
+    sources: tuple[LightSource, ...]
+    train_cost: float                       # objective value found by the search (float32 kernel)
+    train: Optional[ErrorStats] = None      # float64 re-evaluation (filled for the reported top K)
+    test: Optional[ErrorStats] = None
+
+    def weights(self, n_leds: int) -> np.ndarray:
+        return np.stack([s.weights(n_leds) for s in self.sources])
+
+    def to_dict(self) -> dict:
+        d: dict = {}
+        for i, s in enumerate(self.sources, start=1):
+            d[f"source{i}"] = list(s.leds)
+        for i, s in enumerate(self.sources, start=1):
+            d[f"intensities{i}"] = [round(v, 4) for v in s.levels]
+        d["train_de00_mean"] = round(self.train.mean if self.train else self.train_cost, 4)
+        d["test_de00_mean"] = round(self.test.mean, 4) if self.test else None
+        if self.train:
+            d["train"] = {k: round(v, 4) for k, v in self.train.to_dict().items()}
+        if self.test:
+            d["test"] = {k: round(v, 4) for k, v in self.test.to_dict().items()}
+        return d
+
+
+@dataclass
+class SearchOutcome:
+    method: str
+    seed: Optional[int]
+    elapsed_s: float
+    evaluations: int
+    candidates: list[Candidate]             # best first
+    history: list[float] = field(default_factory=list)   # best cost after each iteration (optimisers)
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def best(self) -> Candidate:
+        return self.candidates[0]
+
+
+def candidates_from(groups: Sequence[Group], levels: np.ndarray, costs: np.ndarray) -> list[Candidate]:
+    """Candidates sorted by cost; ``levels`` (G, L, m) aligned with each group's LEDs."""
+    order = np.argsort(costs, kind="stable")
+    out = []
+    for gi in order:
+        g = groups[gi]
+        sources = tuple(LightSource(light, tuple(float(v) for v in levels[gi, li, :len(light)]))
+                        for li, light in enumerate(g))
+        out.append(Candidate(sources, float(costs[gi])))
+    return out
+
+
+def refine_top(evaluator: Evaluator, outcome: SearchOutcome, top: int) -> SearchOutcome:
+    """Re-evaluate the best ``top`` candidates with the float64 reference (train and test stats)."""
+    for cand in outcome.candidates[:top]:
+        cand.train, cand.test = evaluator.stats(cand.weights(evaluator.n_leds))
+    head = sorted(outcome.candidates[:top], key=lambda c: c.train.mean)
+    outcome.candidates[:top] = head
+    return outcome
+
+
+def exhaustive(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, *, batch: int = 20000,
+               progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+    """Full-intensity search over ``groups`` (default: the 630 binned pairs)."""
+    groups = list(groups) if groups is not None else light_pairs()
+    t0 = time.perf_counter()
+    n0 = evaluator.evaluations
+    costs = np.empty(len(groups))
+    idx_all, mask_all = group_arrays(groups)
+    for lo in range(0, len(groups), batch):
+        check(cancel)
+        hi = min(len(groups), lo + batch)
+        costs[lo:hi] = evaluator.cost_indexed(idx_all[lo:hi], mask_all[lo:hi].astype(float))
+        report(progress, hi / len(groups), f"exhaustive: {hi}/{len(groups)} light sets")
+    cands = candidates_from(groups, mask_all.astype(float), costs)
+    return SearchOutcome("exhaustive", None, time.perf_counter() - t0, evaluator.evaluations - n0, cands,
+                         settings={"light_sets": len(groups)})

@@ -1,0 +1,155 @@
+"""Reading and writing spectral CSV files (resources and user-supplied measurements), with validation.
+
+Format: optional ``# key: value`` comment lines (units, source, how it was made), one header row
+``wavelength_nm,<name>,<name>,...`` and one data row per wavelength, strictly increasing.
+Every problem raises :class:`SpectralDataError` with a one-line message naming file, line and problem.
+"""
+from __future__ import annotations
+
+import csv
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+
+class SpectralDataError(ValueError):
+    """A spectral CSV is malformed; the message is one line: ``file:line: problem``."""
+
+
+@dataclass
+class SpectralTable:
+    """Tabulated spectra: ``values`` has shape (n_wavelengths, n_columns)."""
+
+    wavelengths: np.ndarray
+    values: np.ndarray
+    columns: list[str]
+    meta: dict[str, str] = field(default_factory=dict)
+    source: str = ""
+
+    def column(self, name: str) -> np.ndarray:
+        try:
+            return self.values[:, self.columns.index(name)]
+        except ValueError:
+            raise KeyError(f"{self.source}: no column {name!r}; columns are {', '.join(self.columns)}") from None
+
+
+def read_spectral_csv(
+    path: str | Path,
+    *,
+    expected_columns: int | None = None,
+    allow_negative: bool = False,
+    max_value: float | None = None,
+    wavelength_range: tuple[float, float] = (200.0, 2500.0),
+) -> SpectralTable:
+    """Read and validate a spectral CSV. ``max_value`` bounds the data (1.0 for reflectance/transmittance)."""
+    path = Path(path)
+    name = str(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except OSError as exc:
+        raise SpectralDataError(f"{name}: cannot read file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise SpectralDataError(f"{name}: not a UTF-8 text CSV file") from None
+    return parse_spectral_csv(
+        text, name, expected_columns=expected_columns, allow_negative=allow_negative,
+        max_value=max_value, wavelength_range=wavelength_range,
+    )
+
+
+def parse_spectral_csv(
+    text: str,
+    name: str = "<text>",
+    *,
+    expected_columns: int | None = None,
+    allow_negative: bool = False,
+    max_value: float | None = None,
+    wavelength_range: tuple[float, float] = (200.0, 2500.0),
+) -> SpectralTable:
+    meta: dict[str, str] = {}
+    header: list[str] | None = None
+    rows: list[list[float]] = []
+    wavelengths: list[float] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line:
+            continue
+        if line.startswith("#"):
+            key, sep, value = line.lstrip("#").partition(":")
+            if sep:
+                meta[key.strip().lower()] = value.strip()
+            continue
+        cells = [c.strip() for c in next(csv.reader([line]))]
+        if header is None:
+            if len(cells) < 2:
+                raise SpectralDataError(f"{name}:{lineno}: header needs a wavelength column and at least one data column")
+            try:
+                float(cells[0])
+            except ValueError:
+                pass
+            else:
+                raise SpectralDataError(f"{name}:{lineno}: expected a header row (wavelength_nm,<names>...), found numbers")
+            header = cells
+            if expected_columns is not None and len(header) - 1 != expected_columns:
+                raise SpectralDataError(
+                    f"{name}:{lineno}: expected {expected_columns} data columns after the wavelength, found {len(header) - 1}"
+                )
+            continue
+        if len(cells) != len(header):
+            raise SpectralDataError(f"{name}:{lineno}: expected {len(header)} columns as in the header, found {len(cells)}")
+        values: list[float] = []
+        for col, cell in zip(header, cells):
+            try:
+                v = float(cell)
+            except ValueError:
+                raise SpectralDataError(f"{name}:{lineno}: column {col!r}: {cell!r} is not a number") from None
+            if math.isnan(v) or math.isinf(v):
+                raise SpectralDataError(f"{name}:{lineno}: column {col!r}: {cell} is not a finite number")
+            values.append(v)
+        wl = values[0]
+        if not wavelength_range[0] <= wl <= wavelength_range[1]:
+            raise SpectralDataError(
+                f"{name}:{lineno}: wavelength {wl:g} nm is outside {wavelength_range[0]:g}-{wavelength_range[1]:g} nm"
+                " (is the first column in nm?)"
+            )
+        if wavelengths and wl <= wavelengths[-1]:
+            raise SpectralDataError(
+                f"{name}:{lineno}: wavelengths must increase strictly; {wl:g} nm follows {wavelengths[-1]:g} nm"
+            )
+        for col, v in zip(header[1:], values[1:]):
+            if v < 0 and not allow_negative:
+                raise SpectralDataError(f"{name}:{lineno}: column {col!r}: negative value {v:g}")
+            if max_value is not None and v > max_value * (1 + 1e-9):
+                raise SpectralDataError(f"{name}:{lineno}: column {col!r}: value {v:g} exceeds {max_value:g}")
+        wavelengths.append(wl)
+        rows.append(values[1:])
+    if header is None:
+        raise SpectralDataError(f"{name}:1: no header row and no data")
+    if len(rows) < 2:
+        raise SpectralDataError(f"{name}:{len(text.splitlines())}: need at least two wavelength rows, found {len(rows)}")
+    table = SpectralTable(np.array(wavelengths), np.array(rows, dtype=float), header[1:], meta, name)
+    log.debug("read %s: %d wavelengths x %d columns", name, *table.values.shape)
+    return table
+
+
+def write_spectral_csv(
+    path: str | Path, wavelengths: np.ndarray, values: np.ndarray, columns: list[str], meta: dict[str, str],
+    fmt: str = "%.8g",
+) -> None:
+    """Write a spectral CSV with ``# key: value`` header lines (units, source, generated-by...)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    values = np.asarray(values, dtype=float).reshape(len(wavelengths), -1)
+    if values.shape[1] != len(columns):
+        raise ValueError(f"{path}: {values.shape[1]} value columns but {len(columns)} names")
+    with path.open("w", encoding="utf-8", newline="") as fh:
+        for key, value in meta.items():
+            fh.write(f"# {key}: {value}\n")
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(["wavelength_nm", *columns])
+        for wl, row in zip(wavelengths, values):
+            writer.writerow([f"{wl:g}", *(fmt % v for v in row)])
