@@ -1,0 +1,53 @@
+"""The ``dualrgb`` command line. Each subcommand lives in its own module under app/commands/ and exposes
+``register(subparsers)``; the module list below is the one place that names them.
+
+Errors a user can cause (bad file, no device, bad value) print one line ``dualrgb: error: ...`` and exit 1.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from typing import Optional, Sequence
+
+log = logging.getLogger(__name__)
+
+COMMAND_MODULES = (
+    "app.commands.simulate",
+)
+
+
+class UserError(Exception):
+    """An error with a one-line message meant for the user (no traceback)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dualrgb", description="Dual-RGB multispectral capture and simulation")
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
+                        format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("dualrgb: interrupted", file=sys.stderr)
+        return 130
+    except (UserError, OSError, ValueError) as exc:
+        if args.verbose >= 2:
+            log.exception("command failed")
+        print(f"dualrgb: error: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
