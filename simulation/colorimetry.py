@@ -66,7 +66,8 @@ def delta_e_2000_components(L1, a1, b1, L2, a2, b2) -> np.ndarray:
     """
     dt = np.result_type(L1, L2, np.float32)
     one = dt.type(1.0)
-    L1, a1, b1, L2, a2, b2 = (np.asarray(x, dtype=dt) for x in (L1, a1, b1, L2, a2, b2))
+    shape = np.broadcast_shapes(*(np.shape(x) for x in (L1, a1, b1, L2, a2, b2)))
+    L1, a1, b1, L2, a2, b2 = (np.atleast_1d(np.asarray(x, dtype=dt)) for x in (L1, a1, b1, L2, a2, b2))
     C1 = np.sqrt(a1 * a1 + b1 * b1)   # (np.hypot is ~6x slower and overflow is impossible here)
     Cm = np.sqrt(a2 * a2 + b2 * b2)
     Cm += C1
@@ -157,7 +158,7 @@ def delta_e_2000_components(L1, a1, b1, L2, a2, b2) -> np.ndarray:
     RT *= dH
     out += RT
     np.maximum(out, 0, out=out)
-    return np.sqrt(out, out=out)
+    return np.sqrt(out, out=out).reshape(shape)
 
 
 def grid_white(grid: SpectralGrid, illuminant: np.ndarray, cmfs: np.ndarray) -> np.ndarray:  # pragma: no cover

@@ -1,0 +1,61 @@
+"""``dualrgb simulate``: the light-source search of thesis chapters 5, 6 and 9 from the command line."""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+from simulation.datasets import MODES, default_setup
+from simulation.grid import SpectralGrid
+from simulation.presets import save_preset
+from simulation.runner import METHODS, format_table, run
+
+log = logging.getLogger(__name__)
+
+
+def _bins(text: str) -> tuple[int, ...]:
+    try:
+        bins = tuple(int(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"bins {text!r}: expected comma-separated integers like 3,3,4") from None
+    if sum(bins) != 10 or any(b < 1 for b in bins):
+        raise argparse.ArgumentTypeError(f"bins {text!r}: expected positive sizes adding up to the 10 LEDs")
+    return bins
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("simulate", help="search light-source pairs (three-channel, exhaustive, PSO, GA)",
+                       description="Simulate dual-RGB capture and search the sphere's light-source pairs.")
+    p.add_argument("--mode", choices=MODES, default="reflective")
+    p.add_argument("--method", choices=METHODS, default="exhaustive")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--top", type=int, default=5, help="how many light sets to print and write (default 5)")
+    p.add_argument("--json", type=Path, help="write the result as JSON here")
+    p.add_argument("--preset-out", type=Path, help="save the best light pair as a preset JSON here")
+    p.add_argument("--bins", type=_bins, default=(3, 3, 4), help="LED bins, shortest wavelengths first (3,3,4)")
+    p.add_argument("--step", type=float, default=10.0, help="spectral step in nm (default 10)")
+    p.add_argument("--camera-csv", help="measured camera sensitivities (wavelength_nm,R,G,B)")
+    p.add_argument("--leds-csv", help="measured LED spectra (wavelength_nm,LED1..LED10)")
+    p.add_argument("--train-csv", help="measured training target spectra")
+    p.add_argument("--test-csv", help="measured test target spectra")
+    p.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    setup = default_setup(args.mode, SpectralGrid(410.0, 780.0, args.step), camera_csv=args.camera_csv,
+                          leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv)
+    if args.top < 1:
+        raise ValueError(f"--top {args.top}: expected at least 1")
+    result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins,
+                 progress=lambda f, m: log.info("%3.0f%% %s", 100 * f, m))
+    print(format_table(result))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(result.to_json(), indent=2) + "\n", encoding="utf-8")
+        print(f"wrote {args.json}", file=sys.stderr)
+    if args.preset_out:
+        save_preset(result.preset(), args.preset_out)
+        print(f"wrote preset {args.preset_out}", file=sys.stderr)
+    return 0

@@ -1,0 +1,103 @@
+"""(mu + lambda) genetic algorithm on LED levels (thesis Algorithm 2, section 6.4): the "second opinion".
+
+Per light set: mu random individuals; each generation makes lambda offspring, each by one-point crossover of
+two random parents (probability p_c) or else by mutating one random parent (one random gene replaced by a
+uniform random level with probability p_mutation, otherwise the child is a copy). Children identical to a
+parent inherit its fitness instead of being evaluated (as Algorithm 2). The next population is the best mu
+of parents and offspring. The same constraints as PSO apply (clip negatives, normalise each light by its max).
+Vectorised over light sets like simulation.pso, with one random generator per light set.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from simulation.objective import Evaluator
+from simulation.progress import CancelToken, ProgressCallback, check, report
+from simulation.pso import _rngs, enforce_constraints
+from simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class GaSettings:
+    """Budget comparable to the thesis PSO (~2 000 evaluations per light set)."""
+
+    mu: int = 20
+    lam: int = 200
+    generations: int = 10
+    p_crossover: float = 0.5
+    p_mutation: float = 0.9
+
+
+def ga(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings: GaSettings = GaSettings(),
+       seed: int = 0, *, chunk: int = 16, progress: Optional[ProgressCallback] = None,
+       cancel: Optional[CancelToken] = None) -> SearchOutcome:
+    groups = list(groups) if groups is not None else light_pairs()
+    idx_all, mask_all = group_arrays(groups)
+    G, L, m = idx_all.shape
+    D = L * m
+    mu, lam = settings.mu, settings.lam
+    t0 = time.perf_counter()
+    n0 = evaluator.evaluations
+    best_x = np.empty((G, L, m))
+    best_c = np.empty(G)
+    history = np.full((G, settings.generations + 1), np.inf)
+    for lo in range(0, G, chunk):
+        hi = min(G, lo + chunk)
+        g = hi - lo
+        rngs = _rngs(seed, lo, g)
+        mask = mask_all[lo:hi, None].astype(float)
+        flat_mask = mask.reshape(g, 1, D)
+        pop = enforce_constraints(np.stack([r.random((mu, L, m)) for r in rngs]), mask).reshape(g, mu, D)
+        fit = evaluator.cost_indexed(np.broadcast_to(idx_all[lo:hi, None], (g, mu, L, m)).reshape(-1, L, m),
+                                     pop.reshape(-1, L, m)).reshape(g, mu)
+        history[lo:hi, 0] = fit.min(axis=1)
+        for gen in range(1, settings.generations + 1):
+            check(cancel)
+            kids = np.empty((g, lam, D))
+            inherit = np.full((g, lam), np.nan)
+            for gi, r in enumerate(rngs):
+                cross = r.random(lam) <= settings.p_crossover
+                pa = r.integers(0, mu, lam)
+                pb = r.integers(0, mu, lam)
+                cut = r.integers(1, D, lam)
+                gene = r.integers(0, D, lam)
+                mutate = r.random(lam) <= settings.p_mutation
+                new_val = r.random(lam)
+                k = pop[gi, pa].copy()
+                cols = np.arange(D)[None, :]
+                k = np.where(cross[:, None] & (cols >= cut[:, None]), pop[gi, pb], k)
+                mut_rows = ~cross & mutate
+                k[mut_rows, gene[mut_rows]] = new_val[mut_rows]
+                k = enforce_constraints(k.reshape(lam, L, m), mask[gi]).reshape(lam, D)
+                same_a = np.all(k == pop[gi, pa], axis=1)
+                same_b = cross & np.all(k == pop[gi, pb], axis=1)
+                inherit[gi] = np.where(same_a, fit[gi, pa], np.where(same_b, fit[gi, pb], np.nan))
+                kids[gi] = k
+            todo = np.isnan(inherit)
+            kid_fit = inherit.copy()
+            if todo.any():
+                sel = np.nonzero(todo)
+                kid_fit[sel] = evaluator.cost_indexed(idx_all[lo:hi][sel[0]], kids[sel].reshape(-1, L, m))
+            allx = np.concatenate([pop, kids], axis=1)
+            allf = np.concatenate([fit, kid_fit], axis=1)
+            order = np.argsort(allf, axis=1, kind="stable")[:, :mu]
+            pop = np.take_along_axis(allx, order[..., None], axis=1)
+            fit = np.take_along_axis(allf, order, axis=1)
+            history[lo:hi, gen] = fit[:, 0]
+        best_x[lo:hi] = pop[:, 0].reshape(g, L, m) * flat_mask.reshape(g, L, m)
+        best_c[lo:hi] = fit[:, 0]
+        report(progress, hi / G, f"GA: {hi}/{G} light sets, best {best_c[:hi].min():.4f} dE00")
+    outcome = SearchOutcome("ga", seed, time.perf_counter() - t0, evaluator.evaluations - n0,
+                            candidates_from(groups, best_x, best_c),
+                            history=[float(h) for h in history.min(axis=0)],
+                            settings={**asdict(settings), "light_sets": G})
+    log.info("GA over %d light sets: %.2f s, %d evaluations, best %.4f", G, outcome.elapsed_s,
+             outcome.evaluations, outcome.best.train_cost)
+    return outcome

@@ -1,0 +1,54 @@
+import json
+import subprocess
+import sys
+
+import pytest
+
+from app.cli import main
+from simulation.presets import PresetError, load_preset
+
+
+def test_simulate_json_schema_and_preset(tmp_path, capsys):
+    out, preset = tmp_path / "r.json", tmp_path / "p.json"
+    assert main(["simulate", "--method", "exhaustive", "--top", "3", "--json", str(out),
+                 "--preset-out", str(preset)]) == 0
+    table = capsys.readouterr().out
+    assert "(1, 6, 8)" in table and "(3, 5, 9)" in table
+    data = json.loads(out.read_text())
+    assert {"mode", "method", "seed", "elapsed_s", "evaluations", "three_channel", "results"} <= set(data)
+    assert set(data["three_channel"]) == {"train", "test"}
+    r0 = data["results"][0]
+    assert r0["source1"] == [1, 6, 8] and r0["source2"] == [3, 5, 9]
+    assert r0["intensities1"] == [1.0, 1.0, 1.0]
+    assert r0["train_de00_mean"] <= data["results"][1]["train_de00_mean"]
+    p = load_preset(preset)
+    assert [s.leds for s in p.sources] == [(1, 6, 8), (3, 5, 9)] and p.method == "exhaustive"
+
+
+def test_three_channel_method(tmp_path):
+    out = tmp_path / "r.json"
+    assert main(["simulate", "--method", "three-channel", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["results"] == [] and 1.0 < data["three_channel"]["train"] < 1.5
+
+
+def test_bad_csv_is_one_line_error_without_traceback(tmp_path):
+    bad = tmp_path / "cam.csv"
+    bad.write_text("wavelength_nm,R,G,B\n400,1,2\n")
+    r = subprocess.run([sys.executable, "-m", "app.cli", "simulate", "--camera-csv", str(bad)],
+                       capture_output=True, text=True)
+    assert r.returncode == 1
+    assert r.stderr.strip().count("\n") == 0 and "Traceback" not in r.stderr
+    assert f"{bad}:2:" in r.stderr
+
+
+@pytest.mark.parametrize("text,fragment", [
+    ("{", "not valid JSON"),
+    ('{"sources": []}', "non-empty 'sources'"),
+    ('{"sources": [{"leds": [11], "levels": [1]}]}', "source 1: light source"),
+])
+def test_bad_presets(tmp_path, text, fragment):
+    p = tmp_path / "p.json"
+    p.write_text(text)
+    with pytest.raises(PresetError, match=fragment):
+        load_preset(p)
