@@ -1,9 +1,10 @@
 """Characterisation: the matrix A of eqs 5.2-5.4 / 5.11-5.14 mapping N-channel camera values to XYZ.
 
-Least squares as the thesis (Moore-Penrose, eq 5.4), made rank-safe: columns are equilibrated (scaled to unit
-norm) and a tiny ridge is added, so a channel that is all zero (an LED clipped to 0, a light switched off)
-gets a zero row in A instead of a singular system or NaN. A batched form fits many light settings at once
-from precomputed Gram matrices, which is what the optimisers use.
+Least squares as the thesis (Moore-Penrose, eq 5.4), rank-safe: a single fit uses SVD least squares (the
+pseudo-inverse; an all-zero channel from an LED clipped to 0 or a light switched off gets a zero row, never
+a singular system or NaN). The batched form the optimisers use solves the normal equations from precomputed
+Gram matrices with columns equilibrated (unit norm) and a tiny ridge; it equals the pseudo-inverse to ~1e-6
+for well-conditioned light sets and stays finite for degenerate ones.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from simulation.fast_linalg import solve_spd
 
 log = logging.getLogger(__name__)
 
-RIDGE = 1e-10  # relative to the equilibrated diagonal (= 1); bias far below float64 noise for sound fits
+RIDGE = 1e-12  # relative to the equilibrated diagonal (= 1): regularises only singular values below ~1e-6
 
 
 class CharacterisationError(ValueError):
@@ -75,5 +76,7 @@ def fit_matrix(values: np.ndarray, xyz: np.ndarray, channels: list[str] | None =
     if not (np.isfinite(values).all() and np.isfinite(xyz).all()):
         raise CharacterisationError("camera values or XYZ contain NaN or infinity")
     _check_patches(*values.shape)
-    A = solve_normal_equations((values.T @ values)[None], (values.T @ xyz)[None])[0]
+    # SVD least squares = the Moore-Penrose solution of eq 5.4; the minimum-norm answer gives a zero row for
+    # an all-zero channel, so rank deficiency is safe here too
+    A = np.linalg.lstsq(values, xyz, rcond=None)[0]
     return CharacterisationMatrix(A, channels or [f"ch{i + 1}" for i in range(values.shape[1])])

@@ -1,0 +1,1 @@
+"""Benchmarks (``make bench``): timings and memory, printed and written to bench/results/*.json. Not tests."""

@@ -1,0 +1,78 @@
+"""Benchmark of the virtual lab camera at full D610 size: render, DNG write, cached re-render, preview.
+
+``bench_render()`` returns a dict of timings (s) and peak memory (MiB); not wired into bench/run.py here.
+Run alone: ``python -m bench.virtual_camera``.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import time
+import tracemalloc
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drivers.virtual.camera import VirtualCamera, mosaic_to_dng
+from drivers.virtual.scene import Scene
+from simulation.datasets import default_setup
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class _Snapshot:
+    levels: np.ndarray
+    peak_shift_nm: np.ndarray = field(default_factory=lambda: np.zeros(10))
+    light_on: bool = True
+
+
+def bench_render(width: int = 6080, height: int = 4028, mode: str = "transmissive") -> dict[str, float | int | str]:
+    """Render the training target (ND half on) at ``width`` x ``height``: first (cold caches) and second
+    capture, a capture under a drifted light (per-LED responses recomputed), the DNG write and a preview.
+
+    Peak memory is numpy's + Python's allocations during the run (tracemalloc), which is what the render
+    adds on top of the interpreter.
+    """
+    levels = np.zeros(10)
+    levels[[0, 5, 7]] = 1.0
+    snap = _Snapshot(levels)
+    target = default_setup(mode).train
+    cam = VirtualCamera(lambda: snap, Scene.with_target(target, width, height, nd_filter=True), mode=mode, seed=1)
+    cam.open()
+    out: dict[str, float | int | str] = {"width": width, "height": height, "megapixels": round(width * height / 1e6, 2),
+                                         "patches": len(target)}
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    mosaic = cam.render_mosaic(1 / 60)
+    out["render_cold_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    mosaic = cam.render_mosaic(1 / 60)
+    out["render_warm_s"] = time.perf_counter() - t0
+    snap.peak_shift_nm = np.linspace(0.0, 7.0, 10)
+    t0 = time.perf_counter()
+    cam.render_mosaic(1 / 60)
+    out["render_new_drift_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    data = mosaic_to_dng(mosaic, exposure_s=1 / 60, iso=50, aperture=8.0)
+    out["dng_write_s"] = time.perf_counter() - t0
+    out["dng_mib"] = round(len(data) / 2**20, 1)
+    del data
+    t0 = time.perf_counter()
+    cam.capture(1 / 60)
+    out["capture_total_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    cam.preview()
+    out["preview_s"] = time.perf_counter() - t0
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    out["peak_traced_mib"] = round(peak / 2**20, 1)
+    cam.close()
+    for k, v in out.items():
+        if k.endswith("_s"):
+            out[k] = round(float(v), 3)
+    return out
+
+
+if __name__ == "__main__":
+    print(json.dumps(bench_render(), indent=2))
