@@ -1,0 +1,120 @@
+"""The sequence contract shared by every capture workflow (dark series, flats, dual-RGB, HDR, CRF ...).
+
+    seq = DarkSeries(lab.camera, lab.sphere, session, exposures=[1/60, 1/500])
+    print(seq.plan())                 # frames and estimated time, before anything moves
+    for event in seq.run():           # generator: one event per step; the GUI runs this in a worker thread
+        show(event.fraction, event.message, event.time_left_s)
+    seq.cancel() / seq.pause() / seq.resume() from any thread
+
+Guarantees: the cancel flag is checked between steps (never in the middle of a download), the LEDs are off
+after cancel, error or completion, and every frame is saved to the session before the next step starts.
+"""
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Iterator, Optional
+
+log = logging.getLogger(__name__)
+
+
+class SequenceCancelled(Exception):
+    """Raised inside ``run()`` when the user cancels; the generator cleans up (LEDs off) and ends."""
+
+
+@dataclass
+class PlannedFrame:
+    role: str                    # 'dark', 'flat', 'target', 'hdr', 'crf', ...
+    exposure_s: float
+    light: str = ""              # light source label ('' = lights off)
+    note: str = ""
+
+
+@dataclass
+class ProgressEvent:
+    step: int                    # steps completed so far
+    total: int                   # steps planned
+    message: str
+    kind: str = "progress"       # 'progress' | 'frame' (a frame was saved) | 'prompt' (needs the user) | 'done'
+    time_left_s: Optional[float] = None
+    data: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def fraction(self) -> float:
+        return 0.0 if self.total <= 0 else min(1.0, self.step / self.total)
+
+
+class Sequence:
+    """Base class: subclasses implement ``plan()`` and ``_steps()`` (a generator of ProgressEvents).
+
+    ``run()`` wraps ``_steps()`` with pause/cancel handling between steps, time-left estimates and a
+    guaranteed ``_cleanup()`` (lights off) whatever happens.
+    """
+
+    name = "sequence"
+
+    def __init__(self) -> None:
+        self._cancel = threading.Event()
+        self._running = threading.Event()
+        self._running.set()
+        self._t0: Optional[float] = None
+
+    # ---- control (thread-safe) ----
+    def cancel(self) -> None:
+        self._cancel.set()
+        self._running.set()          # a paused sequence must wake up to notice the cancel
+
+    def pause(self) -> None:
+        self._running.clear()
+
+    def resume(self) -> None:
+        self._running.set()
+
+    @property
+    def cancelled(self) -> bool:
+        return self._cancel.is_set()
+
+    @property
+    def paused(self) -> bool:
+        return not self._running.is_set()
+
+    # ---- to implement ----
+    def plan(self) -> list[PlannedFrame]:
+        raise NotImplementedError
+
+    def _steps(self) -> Iterator[ProgressEvent]:
+        raise NotImplementedError
+
+    def _cleanup(self) -> None:
+        """Turn lights off etc.; called after completion, cancel and error."""
+
+    # ---- driver ----
+    def checkpoint(self) -> None:
+        """Call between steps: blocks while paused, raises SequenceCancelled when cancelled."""
+        self._running.wait()
+        if self._cancel.is_set():
+            raise SequenceCancelled(f"{self.name} cancelled")
+
+    def estimate_left(self, step: int, total: int) -> Optional[float]:
+        if self._t0 is None or step <= 0:
+            return None
+        return (time.monotonic() - self._t0) / step * max(total - step, 0)
+
+    def run(self) -> Iterator[ProgressEvent]:
+        self._t0 = time.monotonic()
+        try:
+            for event in self._steps():
+                if event.time_left_s is None:
+                    event.time_left_s = self.estimate_left(event.step, event.total)
+                yield event
+                self.checkpoint()
+        except SequenceCancelled:
+            log.info("%s cancelled", self.name)
+            yield ProgressEvent(0, 0, f"{self.name} cancelled; lights off", kind="cancelled")
+        finally:
+            try:
+                self._cleanup()
+            except Exception:  # cleanup must never mask the original error; it is logged loudly
+                log.exception("%s cleanup failed", self.name)
