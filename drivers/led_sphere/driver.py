@@ -1,0 +1,366 @@
+"""LedSphere: the host side of the 10-LED integrating sphere over a serial port (pyserial).
+
+Every exchange is one request line and one reply line (drivers/led_sphere/protocol.py), bounded by ``timeout``;
+a request that gets no matching reply in time is sent once more (every command is idempotent: it sets absolute
+values), then :class:`SphereError` is raised. Replies to an earlier request that arrive late are recognised by
+their keyword/echo and skipped. Anything else that goes wrong is a :class:`SphereError` too, with a one-line
+message saying what happened and what to do.
+
+Safety (artworks under the light): used as a context manager the sphere is left with every LED at 0 and the light
+off on exit, also when an exception leaves the block; if even that fails the sphere's own watchdog switches the
+LEDs off after ``watchdog_s`` without requests (call :meth:`LedSphere.keepalive` more often than that while the
+light must stay on).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from typing import Any, Optional, Sequence
+
+import serial
+
+from drivers.led_sphere import protocol as P
+from drivers.led_sphere.errors import SphereError
+from simulation.lightsource import N_SPHERE_LEDS, LightSource
+
+log = logging.getLogger(__name__)
+
+try:                                    # pyserial's POSIX backend lets termios.error (not an OSError) through
+    from termios import error as _TermiosError
+except ImportError:                     # pragma: no cover - Windows
+    class _TermiosError(Exception):
+        pass
+
+DEFAULT_TIMEOUT_S = 1.0
+_IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
+_MAX_LINES_PER_ATTEMPT = 8     # stale replies skipped per attempt before giving up (a chattering line)
+
+
+class LedSphere:
+    """The LED sphere on ``port``: a pyserial URL (``/dev/ttyUSB0``, a pty path, ``loop://``) or an already
+    open serial-like object (``write``, ``read_until``; optional ``reset_input_buffer``, ``flush``, ``close``).
+
+    >>> with LedSphere("/dev/ttyACM0") as sphere:          # doctest: +SKIP
+    ...     sphere.apply(LightSource((1, 6, 8)))
+    ...     sphere.on()
+    ...     ...                                             # capture
+    # every LED off and the light off here, whatever happened in the block
+    """
+
+    def __init__(self, port: Any, timeout: float = DEFAULT_TIMEOUT_S, channels: int = N_SPHERE_LEDS,
+                 clock=time.monotonic):
+        if not (isinstance(timeout, (int, float)) and math.isfinite(timeout) and timeout > 0):
+            raise SphereError(f"timeout {timeout!r} must be a positive number of seconds", kind="argument")
+        self.timeout = float(timeout)
+        self.channels = int(channels)
+        self._clock = clock
+        self._lock = threading.RLock()
+        self._owns_port = isinstance(port, str)
+        self._url = port if isinstance(port, str) else getattr(port, "port", None) or type(port).__name__
+        self._ser: Any = None if isinstance(port, str) else port
+        self._light_on_since: Optional[float] = None
+        self._last_exchange: Optional[float] = None
+        if self._ser is not None:
+            self._configure(self._ser)
+
+    # ------------------------------------------------------------------------------------------- port
+    @property
+    def port(self) -> str:
+        return str(self._url)
+
+    @property
+    def is_open(self) -> bool:
+        return self._ser is not None
+
+    def open(self) -> "LedSphere":
+        """Open the serial port (a no-op for an object passed in already open)."""
+        if self._ser is None:
+            try:
+                self._ser = serial.serial_for_url(
+                    self._url, baudrate=P.BAUDRATE, bytesize=P.BYTESIZE, parity=P.PARITY, stopbits=P.STOPBITS,
+                    timeout=self.timeout, write_timeout=self.timeout)
+            except (serial.SerialException, OSError, ValueError) as exc:
+                raise SphereError(f"cannot open LED sphere port {self._url}: {exc}; check the cable and the "
+                                  "port name (ls /dev/ttyACM* /dev/ttyUSB*) and that no other program uses it",
+                                  kind="port") from None
+            self._configure(self._ser)
+            log.info("opened LED sphere port %s", self._url)
+        return self
+
+    def _configure(self, ser: Any) -> None:
+        for name in ("timeout", "write_timeout"):
+            if hasattr(ser, name):
+                try:
+                    setattr(ser, name, self.timeout)
+                except (AttributeError, ValueError, serial.SerialException):
+                    log.debug("could not set %s on %r", name, ser)
+
+    def close(self) -> None:
+        """Close the port (only if this object opened it). Does not switch anything off: see :meth:`shutdown`."""
+        ser, self._ser = self._ser, None
+        if ser is not None and self._owns_port:
+            try:
+                ser.close()
+            except _IO_ERRORS as exc:
+                log.warning("closing %s: %s", self._url, exc)
+
+    def __enter__(self) -> "LedSphere":
+        return self.open()
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            self.shutdown()
+        except SphereError as off_error:
+            if exc is None:
+                raise
+            log.error("could not switch the LED sphere off after an error: %s", off_error)
+            exc.add_note(f"and the LED sphere could not be switched off: {off_error}")
+        finally:
+            self.close()
+
+    def shutdown(self) -> None:
+        """Every LED to 0, then the light off. Tries both even if the first fails; raises the first error."""
+        first: Optional[SphereError] = None
+        for name, args in (("all_off", {}), ("set_light", {"state": 0})):
+            try:
+                self.exchange(name, **args)
+            except SphereError as exc:
+                first = first or exc
+        if first is None:
+            self._light_on_since = None
+            log.info("LED sphere %s: all LEDs off, light off", self._url)
+        else:
+            note = "" if "watchdog" in str(first) else " (the sphere's watchdog switches the LEDs off once it hears nothing)"
+            raise SphereError(f"{first}{note}", kind=first.kind, code=first.code)
+
+    # ------------------------------------------------------------------------------------------- exchanges
+    def exchange(self, name: str, **args: Any) -> Any:
+        """Send command ``name`` of protocol.TABLE with ``args`` (wire units); return its reply's value."""
+        cmd = P.COMMANDS[name]
+        try:
+            request = cmd.encode(**args)
+        except (ValueError, TypeError) as exc:
+            raise SphereError(f"invalid {name} request: {exc}", kind="argument") from None
+        with self._lock:
+            if self._ser is None:
+                raise SphereError(f"LED sphere port {self._url} is not open; use 'with LedSphere(port) as s:' "
+                                  "or call open()", kind="port")
+            shown = request.decode("ascii").strip()
+            skipped: list[str] = []
+            for attempt in (1, 2):
+                self._send(request, shown)
+                try:
+                    fields = self._receive(cmd, args, shown, skipped)
+                except TimeoutError:
+                    log.warning("LED sphere %s: no reply to %r within %.2f s (attempt %d)",
+                                self._url, shown, self.timeout, attempt)
+                    continue
+                self._last_exchange = self._clock()
+                return cmd.value(fields)
+            extra = f"; skipped unrelated replies {', '.join(skipped[:2])}" if skipped else ""
+            raise SphereError(f"LED sphere {self._url}: no reply to {shown!r} within {self.timeout:.2f} s "
+                              f"(sent twice){extra}; check that the sphere is powered and connected and that "
+                              "the port is the sphere's", kind="timeout")
+
+    def _send(self, request: bytes, shown: str) -> None:
+        ser = self._ser
+        try:
+            reset = getattr(ser, "reset_input_buffer", None)
+            if reset is not None:
+                reset()             # drop late replies to earlier requests
+            ser.write(request)
+            flush = getattr(ser, "flush", None)
+            if flush is not None:
+                flush()
+        except serial.SerialTimeoutException:
+            raise SphereError(f"LED sphere {self._url}: could not send {shown!r} within {self.timeout:.2f} s; "
+                              "check the cable and that the sphere is powered", kind="timeout") from None
+        except _IO_ERRORS as exc:
+            raise SphereError(f"LED sphere {self._url} disconnected while sending {shown!r} ({exc}); reconnect "
+                              "it (the sphere's watchdog switches the LEDs off)", kind="disconnected") from None
+        log.debug("-> %r", request)
+
+    def _receive(self, cmd: P.Command, args: dict, shown: str, skipped: list[str]) -> dict:
+        """Read lines until the reply to ``cmd``; TimeoutError when none arrives before the deadline."""
+        deadline = time.monotonic() + self.timeout
+        for _ in range(_MAX_LINES_PER_ATTEMPT):
+            if time.monotonic() >= deadline:
+                break
+            try:
+                line = self._ser.read_until(P.TERMINATOR, P.MAX_REPLY_BYTES)
+            except _IO_ERRORS as exc:
+                raise SphereError(f"LED sphere {self._url} disconnected while waiting for the reply to {shown!r} "
+                                  f"({exc}); reconnect it (the sphere's watchdog switches the LEDs off)",
+                                  kind="disconnected") from None
+            line = bytes(line or b"")
+            log.debug("<- %r", line)
+            if not line.endswith(P.TERMINATOR):
+                if len(line) >= P.MAX_REPLY_BYTES:
+                    raise SphereError(f"LED sphere {self._url}: overlong reply {P._show(line)} to {shown!r}; "
+                                      "check baud rate 115200 and that the port is the sphere's", kind="garbled")
+                if line:
+                    skipped.append(P._show(line))      # a fragment: the rest never came in time
+                raise TimeoutError
+            try:
+                return cmd.decode(line, args)
+            except P.StaleReply as exc:
+                log.info("LED sphere %s: skipping late reply (%s)", self._url, exc)
+                skipped.append(P._show(line))
+                continue
+            except P.DeviceReply as exc:
+                try:
+                    advice = P.ERROR_ADVICE[P.ErrorCode(exc.code)]
+                except ValueError:
+                    advice = "unknown error code; check the firmware version (identify)"
+                raise SphereError(f"LED sphere {self._url} refused {shown!r}: {exc.message} (error {exc.code}); "
+                                  f"{advice}", kind="device", code=exc.code) from None
+            except P.ReplyError as exc:
+                raise SphereError(f"LED sphere {self._url}: garbled answer to {shown!r}: {exc}; check baud rate "
+                                  "115200, the cable, and that no other program uses the port",
+                                  kind="garbled") from None
+        raise TimeoutError
+
+    # ------------------------------------------------------------------------------------------- validation
+    def _check_led(self, led: Any) -> int:
+        if isinstance(led, bool) or not isinstance(led, (int, float)) or not float(led).is_integer() \
+                or not 1 <= led <= self.channels:
+            raise SphereError(f"LED {led!r} does not exist: use 1..{self.channels}", kind="argument")
+        return int(led)
+
+    @staticmethod
+    def _check_level(level: Any, what: str = "level") -> float:
+        try:
+            value = float(level)
+        except (TypeError, ValueError):
+            raise SphereError(f"{what} {level!r} is not a number: use 0..1", kind="argument") from None
+        if isinstance(level, bool) or not math.isfinite(value) or not 0.0 <= value <= 1.0:
+            raise SphereError(f"{what} {level!r} is outside 0..1", kind="argument")
+        return value
+
+    # ------------------------------------------------------------------------------------------- commands
+    def identify(self) -> dict[str, str]:
+        """{'model', 'firmware', 'serial'}."""
+        return self.exchange("identify")
+
+    def channel_count(self) -> int:
+        return self.exchange("channels")
+
+    def set_level(self, led: int, level: float) -> float:
+        """One LED's level 0..1 (sent as 16-bit PWM); returns the level the sphere took (PWM-quantised)."""
+        led = self._check_led(led)
+        pwm = P.level_to_pwm(self._check_level(level, f"LED {led} level"))
+        return P.pwm_to_level(self.exchange("set_level", led=led, pwm=pwm))
+
+    def level(self, led: int) -> float:
+        return P.pwm_to_level(self.exchange("get_level", led=self._check_led(led)))
+
+    def set_levels(self, levels: Sequence[float]) -> list[float]:
+        """Every channel's level in one exchange (``channels`` values, LED 1 first); returns what was taken."""
+        levels = list(levels)
+        if len(levels) != self.channels:
+            raise SphereError(f"{len(levels)} levels given, the sphere has {self.channels} LEDs", kind="argument")
+        pwms = tuple(P.level_to_pwm(self._check_level(v, f"LED {i} level")) for i, v in enumerate(levels, 1))
+        taken = self.exchange("set_levels", pwms=pwms)
+        if self._light_on_since is not None:
+            self._check_faults()
+        return [P.pwm_to_level(p) for p in taken]
+
+    def levels(self) -> list[float]:
+        return [P.pwm_to_level(p) for p in self.exchange("get_levels")]
+
+    def apply(self, light: LightSource) -> list[float]:
+        """Set all channels to ``light`` in one exchange (LEDs not in it to 0); the light switch is unchanged."""
+        if not isinstance(light, LightSource):
+            raise SphereError(f"apply() takes a LightSource, not {type(light).__name__}", kind="argument")
+        taken = self.set_levels(light.weights(self.channels))
+        log.info("LED sphere %s: applied %s", self._url, light.label())
+        return taken
+
+    def all_off(self) -> None:
+        """Every LED's level to 0 (the light switch is unchanged)."""
+        self.exchange("all_off")
+
+    def on(self) -> None:
+        """Light on (master enable); then checks that no driven LED reports a fault."""
+        self.exchange("set_light", state=1)
+        self._light_on_since = self._clock()
+        self._check_faults()
+
+    def off(self) -> None:
+        """Light off (master enable; levels are kept)."""
+        self.exchange("set_light", state=0)
+        self._light_on_since = None
+
+    def light_on(self) -> bool:
+        return bool(self.exchange("get_light"))
+
+    def _check_faults(self) -> None:
+        mask = self.exchange("faults")
+        if mask:
+            leds = [i + 1 for i in range(P.MAX_CHANNELS) if mask >> i & 1]
+            try:
+                self.shutdown()
+            except SphereError as exc:
+                log.error("switching off after an LED fault: %s", exc)
+            raise SphereError(f"LED sphere {self._url}: LED {', '.join(map(str, leds))} reports a fault (open "
+                              "circuit / driver) and emits nothing; the sphere was switched off - check the LED's "
+                              "connector and driver, or use a preset without it", kind="fault")
+
+    def faulty_leds(self) -> list[int]:
+        mask = self.exchange("faults")
+        return [i + 1 for i in range(P.MAX_CHANNELS) if mask >> i & 1]
+
+    def temperature_c(self) -> float:
+        return float(self.exchange("temperature"))
+
+    def on_time_s(self) -> float:
+        """Seconds since this driver switched the light on (host clock); 0.0 while off."""
+        return 0.0 if self._light_on_since is None else max(0.0, self._clock() - self._light_on_since)
+
+    def device_on_time_s(self) -> float:
+        """Seconds since the light was switched on, as the sphere counts them (0.0 while off)."""
+        return float(self.exchange("on_time"))
+
+    def led_on_time_s(self, led: int) -> float:
+        """Seconds the LED has been emitting continuously, as the sphere counts them (thesis 4.3.2: the
+        peak wavelength does not drift in the first 10 s)."""
+        return float(self.exchange("led_on_time", led=self._check_led(led)))
+
+    def keepalive(self) -> None:
+        """Restart the sphere's watchdog (any request does; this one does nothing else)."""
+        self.exchange("ping")
+
+    def set_watchdog(self, seconds: float) -> float:
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not math.isfinite(seconds) \
+                or not P.WATCHDOG_MIN_MS <= seconds * 1000 <= P.WATCHDOG_MAX_MS:
+            raise SphereError(f"watchdog {seconds!r} s is outside {P.WATCHDOG_MIN_MS / 1000:g}.."
+                              f"{P.WATCHDOG_MAX_MS / 1000:g} s", kind="argument")
+        return self.exchange("set_watchdog", ms=int(round(seconds * 1000))) / 1000
+
+    def watchdog_s(self) -> float:
+        return self.exchange("get_watchdog") / 1000
+
+    @property
+    def seconds_since_last_exchange(self) -> Optional[float]:
+        return None if self._last_exchange is None else self._clock() - self._last_exchange
+
+    def status(self) -> dict[str, Any]:
+        """Light, levels, temperature, on-times (host and device), watchdog, trip flag, faulty LEDs (2 exchanges)."""
+        s = self.exchange("status")
+        levels = self.levels()
+        if not s["light"]:
+            self._light_on_since = None
+        return {
+            "port": self.port,
+            "light_on": bool(s["light"]),
+            "levels": levels,
+            "temperature_c": s["temp"],
+            "on_time_s": self.on_time_s(),
+            "device_on_time_s": s["ontime"],
+            "watchdog_s": s["wdog"] / 1000,
+            "watchdog_tripped": bool(s["trip"]),
+            "faulty_leds": [i + 1 for i in range(P.MAX_CHANNELS) if s["fault"] >> i & 1],
+        }
+

@@ -1,0 +1,31 @@
+"""The one error type the LED sphere driver raises."""
+from __future__ import annotations
+
+from typing import Optional
+
+#: What went wrong, as ``SphereError.kind``.
+KINDS = (
+    "argument",      # the caller passed an invalid LED number / level / time (nothing was sent)
+    "port",          # the serial port could not be opened
+    "timeout",       # no (matching) reply within the timeout, after one retry
+    "garbled",       # a reply that is not a well-formed answer to the command
+    "device",        # the sphere answered ERR <code> <message>
+    "fault",         # the sphere reports an LED channel fault (open circuit) while lit
+    "disconnected",  # the port went away (unplugged, emulator stopped)
+)
+
+
+class SphereError(RuntimeError):
+    """An LED sphere problem, with a one-line message: what happened and what to do about it.
+
+    ``kind`` is one of :data:`KINDS`; ``code`` is the device's error code for ``kind == "device"``
+    (see docs/led-sphere-protocol.md) and ``None`` otherwise.
+    """
+
+    def __init__(self, message: str, kind: str = "device", code: Optional[int] = None):
+        if kind not in KINDS:
+            raise ValueError(f"unknown SphereError kind {kind!r}")
+        # One line, always: messages may quote device bytes.
+        super().__init__(" ".join(str(message).split()))
+        self.kind = kind
+        self.code = code

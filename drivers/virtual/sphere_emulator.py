@@ -1,0 +1,490 @@
+"""SphereEmulator: the LED sphere's firmware, speaking drivers/led_sphere/protocol.py on a real pseudo-terminal.
+
+``start()`` opens a pty (os.openpty) and serves it from a background thread; any serial client (the LedSphere
+driver, pyserial, ``screen``) opens the returned slave path as if it were /dev/ttyACM0. The emulator keeps the
+physical state the virtual camera needs, readable at any time with the thread-safe :meth:`snapshot`:
+
+* levels (16-bit PWM per LED), the master switch, what each LED actually emits now;
+* per-LED continuous on-time, and the light dose (emitted level x seconds, artwork exposure);
+* temperature, rising with emitted power towards ambient + ``HEAT_C_PER_LED`` per LED at full level
+  (first order, ``THERMAL_TAU_S``), over-temperature protection at ``OVER_TEMPERATURE_C``;
+* peak-wavelength drift with continuous on-time as measured in thesis 4.3.2 (Fig. 4.10): none during the first
+  10 s, then growing towards a per-LED maximum reached after about an hour (LED 4 ~7 nm, LED 7 none, the
+  others a few nm); LED 10 also fades after ~40 min on and does not recover (it "died" in the thesis run);
+* the watchdog: no request for ``watchdog_s`` -> every LED to 0 and the light off, ``trip`` set.
+
+Physics is evaluated lazily against the injectable ``clock`` (exact, piecewise-constant levels), so tests can
+move a fake clock by an hour instead of sleeping. Wire delays (fault "slow") use real time.
+
+Faults (:meth:`inject`): ``no_reply`` (reply lost; ``execute=False``: firmware hung), ``garbled`` (reply bytes
+corrupted), ``slow`` (reply after ``delay_s``), ``disconnect`` (pty closed, as if unplugged; the sphere keeps
+its own power, so its watchdog switches the LEDs off), ``led_fail`` (``led=N``, ``mode="dark"``: takes levels
+but emits nothing, FAULT? reports it while driven; ``mode="error"``: a non-zero level for it gets ERR 6).
+``inject(None)`` clears every fault (except a disconnect: start() again for a new pty).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import os
+import select
+import threading
+import time
+import tty
+from dataclasses import dataclass
+from typing import Any, Callable, Optional
+
+import numpy as np
+
+from drivers.led_sphere import protocol as P
+
+log = logging.getLogger(__name__)
+
+# Thesis 4.3.2 / Fig. 4.10: maximum peak shift after ~1 h (LED 4 7 nm, LED 7 none, others a few nm).
+MAX_SHIFT_NM = np.array([2.0, 3.0, 3.0, 7.0, 4.0, 3.0, 0.0, 3.0, 4.0, 5.0])
+DRIFT_ONSET_S = 10.0          # no shift at all during the first 10 s on
+DRIFT_TAU_S = 900.0           # 1 - exp(-(3600 - 10) / 900) = 0.98 of the maximum after an hour
+FADE_LED = 10                 # LED 10 malfunctioned towards the end of the hour (thesis 4.3.2)
+FADE_START_S = 2400.0         # its output starts to fall after 40 min continuously on ...
+FADE_TAU_S = 600.0            # ... to exp(-2) = 14 % after an hour; the loss is permanent
+AMBIENT_C = 24.0
+HEAT_C_PER_LED = 1.2          # steady-state rise per LED at full level
+THERMAL_TAU_S = 240.0
+OVER_TEMPERATURE_C = 45.0
+
+FAULTS = ("no_reply", "garbled", "slow", "disconnect", "led_fail")
+
+
+def peak_shift_nm(on_time_s: np.ndarray | float, max_shift_nm: np.ndarray | float = MAX_SHIFT_NM) -> np.ndarray:
+    """Peak-wavelength drift (nm, towards longer wavelengths) after ``on_time_s`` seconds continuously on."""
+    t = np.maximum(np.asarray(on_time_s, dtype=float) - DRIFT_ONSET_S, 0.0)
+    return np.asarray(max_shift_nm, dtype=float) * -np.expm1(-t / DRIFT_TAU_S)
+
+
+def fade_factor(on_time_s: float) -> float:
+    """LED 10's relative output after ``on_time_s`` seconds continuously on (1 before FADE_START_S)."""
+    return 1.0 if on_time_s <= FADE_START_S else math.exp(-(on_time_s - FADE_START_S) / FADE_TAU_S)
+
+
+@dataclass(frozen=True)
+class SphereSnapshot:
+    levels: np.ndarray          # (10,) float 0..1 actually emitted now (0 when master off, LED failed or off)
+    on_time_s: np.ndarray       # (10,) seconds each LED has been continuously on
+    peak_shift_nm: np.ndarray   # (10,) current peak-wavelength drift per LED (thesis 4.3.2)
+    temperature_c: float
+    light_on: bool
+
+
+class SphereEmulator:
+    """The sphere's firmware on a pty; see the module docstring."""
+
+    model = "DRGB-SPHERE10-EMU"
+    firmware = "1.0.0"
+    serial = "EMU-0001"
+
+    def __init__(self, n_leds: int = 10, watchdog_s: float = 30.0, clock: Callable[[], float] = time.monotonic):
+        if not 1 <= n_leds <= P.MAX_CHANNELS:
+            raise ValueError(f"n_leds {n_leds} outside 1..{P.MAX_CHANNELS}")
+        wd_ms = int(round(watchdog_s * 1000))
+        if not P.WATCHDOG_MIN_MS <= wd_ms <= P.WATCHDOG_MAX_MS:
+            raise ValueError(f"watchdog {watchdog_s} s outside {P.WATCHDOG_MIN_MS / 1000}..{P.WATCHDOG_MAX_MS / 1000} s")
+        self.n_leds = n_leds
+        self._clock = clock
+        self._lock = threading.RLock()
+        self.max_shift_nm = np.resize(MAX_SHIFT_NM, n_leds) if n_leds > 10 else MAX_SHIFT_NM[:n_leds].copy()
+        self.ambient_c = AMBIENT_C
+        self.over_temperature_c = OVER_TEMPERATURE_C
+        # physical state
+        self._t = clock()
+        self._pwm = np.zeros(n_leds, dtype=np.int64)
+        self._light = False
+        self._light_since: Optional[float] = None
+        self._on_time = np.zeros(n_leds)
+        self._dose = np.zeros(n_leds)
+        self._health = np.ones(n_leds)
+        self._temp = self.ambient_c
+        self._watchdog_ms = wd_ms
+        self._last_rx = self._t
+        self._trip = False
+        # faults and wire
+        self._faults: dict[str, dict[str, Any]] = {}
+        self._failed: dict[int, str] = {}
+        self._rng = np.random.default_rng(0)
+        self._master: Optional[int] = None
+        self._slave: Optional[int] = None
+        self._wake: Optional[tuple[int, int]] = None
+        self._port = ""
+        self._thread: Optional[threading.Thread] = None
+        self._stop = threading.Event()
+        self._pending: list[tuple[float, bytes]] = []
+        self.requests: list[bytes] = []       # every request line received (for tests / the GUI's log)
+
+    # ------------------------------------------------------------------------------------------ serving
+    def start(self) -> str:
+        """Open a pty and serve it in a background thread; returns the path a serial client opens."""
+        if self._thread is not None and self._thread.is_alive():
+            return self._port
+        master, slave = os.openpty()
+        tty.setraw(slave)                   # no echo, no CR/LF translation: bytes pass verbatim
+        os.set_blocking(master, False)
+        self._master, self._slave = master, slave   # holding the slave open keeps the master readable
+        self._port = os.ttyname(slave)
+        self._wake = os.pipe()
+        self._stop.clear()
+        with self._lock:
+            self._advance(self._clock())
+            self._last_rx = self._t
+        self._thread = threading.Thread(target=self._serve, name=f"sphere-emulator {self._port}", daemon=True)
+        self._thread.start()
+        log.info("sphere emulator serving on %s (watchdog %.1f s)", self._port, self._watchdog_ms / 1000)
+        return self._port
+
+    @property
+    def port(self) -> str:
+        return self._port
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def stop(self) -> None:
+        """Stop serving and close the pty; the sphere is powered off (every LED off, light off)."""
+        self._close_pty()
+        with self._lock:
+            self._advance(self._clock())
+            self._pwm[:] = 0
+            self._set_light(False)
+            self._settle()
+
+    def _close_pty(self) -> None:
+        self._stop.set()
+        if self._wake is not None:
+            try:
+                os.write(self._wake[1], b"x")
+            except OSError:
+                pass
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=5)
+        self._thread = None
+        for fd in (self._master, self._slave, *(self._wake or ())):
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+        self._master = self._slave = self._wake = None
+        self._pending.clear()
+
+    def __enter__(self) -> "SphereEmulator":
+        self.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def _serve(self) -> None:
+        buf = bytearray()
+        discarding = False
+        master, wake = self._master, self._wake[0]
+        while not self._stop.is_set():
+            wait = 0.05
+            if self._pending:
+                wait = max(0.0, min(wait, self._pending[0][0] - time.monotonic()))
+            try:
+                ready, _, _ = select.select([master, wake], [], [], wait)
+            except (OSError, ValueError):
+                break
+            if self._stop.is_set():
+                break
+            if master in ready:
+                try:
+                    data = os.read(master, 4096)
+                except BlockingIOError:
+                    data = b""
+                except OSError as exc:      # EIO: no slave open (cannot happen while we hold it) or closed
+                    log.debug("pty read: %s", exc)
+                    data = b""
+                buf += data
+                while True:
+                    nl = buf.find(b"\n")
+                    if nl < 0:
+                        if len(buf) >= P.MAX_REQUEST_BYTES:
+                            if not discarding:
+                                self._respond(P.render_error(P.ErrorCode.LINE_TOO_LONG,
+                                                             f"line longer than {P.MAX_REQUEST_BYTES} bytes"))
+                            discarding = True
+                            buf.clear()
+                        break
+                    line, buf = bytes(buf[:nl]), buf[nl + 1:]
+                    if discarding:
+                        discarding = False
+                        continue
+                    self._on_line(line.rstrip(b"\r"))
+            self._flush_pending()
+            with self._lock:
+                self._advance(self._clock())
+
+    def _on_line(self, line: bytes) -> None:
+        faults = dict(self._faults)
+        hung = "no_reply" in faults and not faults["no_reply"].get("execute", True)
+        if hung:
+            log.debug("emulator hung: ignoring %r", line)
+            return
+        reply = self.handle(line)
+        if "no_reply" in faults:
+            return
+        if "garbled" in faults:
+            reply = self._garble(reply)
+        self._respond(reply, float(faults["slow"].get("delay_s", 1.0)) if "slow" in faults else 0.0)
+
+    def _garble(self, reply: bytes) -> bytes:
+        body = bytearray(reply[:-1] or b"OK")
+        hits = self._rng.random(len(body)) < 0.35
+        hits[0] = True
+        body = bytearray(int(self._rng.integers(0x80, 0x100)) if h else b for b, h in zip(body, hits))
+        return bytes(body) + b"\n"
+
+    def _respond(self, reply: bytes, delay_s: float = 0.0) -> None:
+        if delay_s > 0:
+            self._pending.append((time.monotonic() + delay_s, reply))
+            self._pending.sort(key=lambda p: p[0])
+        else:
+            self._write(reply)
+
+    def _flush_pending(self) -> None:
+        now = time.monotonic()
+        while self._pending and self._pending[0][0] <= now:
+            self._write(self._pending.pop(0)[1])
+
+    def _write(self, data: bytes) -> None:
+        if self._master is None:
+            return
+        try:
+            os.write(self._master, data)
+        except OSError as exc:              # client not reading and the pty buffer full: the reply is lost
+            log.warning("sphere emulator: reply %r dropped (%s)", data, exc)
+
+    # ------------------------------------------------------------------------------------------ faults
+    def inject(self, fault: str | None, **params: Any) -> None:
+        """Start a fault (see the module docstring), or clear them all with ``None``."""
+        if fault is None:
+            with self._lock:
+                self._faults.clear()
+                self._failed.clear()
+                self._settle()
+            log.info("sphere emulator: faults cleared")
+            return
+        if fault not in FAULTS:
+            raise ValueError(f"unknown fault {fault!r}; expected one of {', '.join(FAULTS)} or None")
+        log.info("sphere emulator: inject %s %s", fault, params)
+        if fault == "disconnect":
+            self._close_pty()
+            return
+        if fault == "led_fail":
+            led = int(params.get("led", 1))
+            mode = params.get("mode", "dark")
+            if not 1 <= led <= self.n_leds or mode not in ("dark", "error"):
+                raise ValueError(f"led_fail needs led=1..{self.n_leds} and mode='dark' or 'error'")
+            with self._lock:
+                self._advance(self._clock())
+                self._failed[led] = mode
+                self._settle()
+            return
+        if fault == "slow" and float(params.get("delay_s", 1.0)) <= 0:
+            raise ValueError("slow needs delay_s > 0")
+        self._faults[fault] = dict(params)
+
+    # ------------------------------------------------------------------------------------------ physics
+    def _emitting(self) -> np.ndarray:
+        on = (self._pwm > 0) & self._light
+        for led, _mode in self._failed.items():
+            on[led - 1] = False
+        return on
+
+    def _emitted(self) -> np.ndarray:
+        return np.where(self._emitting(), self._pwm / P.PWM_MAX * self._health, 0.0)
+
+    def _settle(self) -> None:
+        """After a state change: LEDs that stopped emitting have no continuous on-time any more."""
+        self._on_time[~self._emitting()] = 0.0
+
+    def _advance(self, now: float) -> None:
+        """Bring the physical state to clock time ``now`` (watchdog trip at its exact moment)."""
+        if now <= self._t:
+            return
+        if self._light or self._pwm.any():
+            trip_at = self._last_rx + self._watchdog_ms / 1000
+            if trip_at < now:
+                if trip_at > self._t:
+                    self._integrate(trip_at)
+                self._trip_watchdog()
+        self._integrate(now)
+        if self._light and self._temp > self.over_temperature_c:
+            log.warning("sphere emulator: over temperature (%.1f C): light off", self._temp)
+            self._set_light(False)
+            self._settle()
+
+    def _integrate(self, t1: float) -> None:
+        dt = t1 - self._t
+        emitted = self._emitted()
+        on = self._emitting()
+        self._dose += emitted * dt
+        self._on_time = np.where(on, self._on_time + dt, 0.0)
+        if FADE_LED <= self.n_leds and on[FADE_LED - 1]:
+            i = FADE_LED - 1
+            self._health[i] = min(self._health[i], fade_factor(self._on_time[i]))
+        target = self.ambient_c + HEAT_C_PER_LED * float(emitted.sum())
+        self._temp = target + (self._temp - target) * math.exp(-dt / THERMAL_TAU_S)
+        self._t = t1
+
+    def _trip_watchdog(self) -> None:
+        log.warning("sphere emulator: watchdog (%.1f s without a request): all LEDs off", self._watchdog_ms / 1000)
+        self._pwm[:] = 0
+        self._set_light(False)
+        self._trip = True
+        self._settle()
+
+    def _set_light(self, on: bool) -> None:
+        if on and not self._light:
+            self._light_since = self._t
+        if not on:
+            self._light_since = None
+        self._light = on
+
+    def _fault_mask(self) -> int:
+        mask = 0
+        for led, mode in self._failed.items():
+            if mode == "error" or (self._light and self._pwm[led - 1] > 0):
+                mask |= 1 << (led - 1)
+        return mask
+
+    # ------------------------------------------------------------------------------------------ views
+    def snapshot(self) -> SphereSnapshot:
+        """What the sphere physically does right now (thread-safe; the virtual camera reads this)."""
+        with self._lock:
+            self._advance(self._clock())
+            return SphereSnapshot(levels=self._emitted(), on_time_s=self._on_time.copy(),
+                                  peak_shift_nm=peak_shift_nm(self._on_time, self.max_shift_nm),
+                                  temperature_c=float(self._temp), light_on=bool(self._light))
+
+    def light_dose(self) -> np.ndarray:
+        """(n_leds,) emitted level x seconds per LED since the emulator was made (artwork light exposure)."""
+        with self._lock:
+            self._advance(self._clock())
+            return self._dose.copy()
+
+    def output_health(self) -> np.ndarray:
+        """(n_leds,) permanent output factor per LED (1 = as new; LED 10 fades after long on-time)."""
+        with self._lock:
+            return self._health.copy()
+
+    def commanded_levels(self) -> np.ndarray:
+        """(n_leds,) levels as set by the host (PWM / 65535), whatever the master switch and faults."""
+        with self._lock:
+            self._advance(self._clock())
+            return self._pwm / P.PWM_MAX
+
+    @property
+    def watchdog_s(self) -> float:
+        return self._watchdog_ms / 1000
+
+    @property
+    def watchdog_tripped(self) -> bool:
+        with self._lock:
+            self._advance(self._clock())
+            return self._trip
+
+    # ------------------------------------------------------------------------------------------ firmware
+    def handle(self, line: bytes) -> bytes:
+        """One request line (no terminator) -> one reply line; the firmware's command interpreter."""
+        with self._lock:
+            now = self._clock()
+            self._advance(now)
+            self._last_rx = max(now, self._t)
+            self.requests.append(line)
+            try:
+                cmd, args = P.parse_request(line)
+                values = getattr(self, f"_cmd_{cmd.name}")(**args)
+            except P.RequestError as exc:
+                log.debug("emulator: %r -> ERR %d %s", line, exc.code, exc.message)
+                return P.render_error(exc.code, exc.message)
+            self._settle()
+            return cmd.render_reply(**(values or {}))
+
+    def _led(self, led: int) -> int:
+        if led > self.n_leds:
+            raise P.RequestError(P.ErrorCode.OUT_OF_RANGE, f"led outside 1..{self.n_leds}")
+        return led - 1
+
+    def _refuse_failed(self, pwms: dict[int, int]) -> None:
+        for led, pwm in pwms.items():
+            if pwm > 0 and self._failed.get(led) == "error":
+                raise P.RequestError(P.ErrorCode.LED_FAULT, f"LED {led} driver fault")
+
+    def _cmd_identify(self) -> dict:
+        return {"model": self.model, "firmware": self.firmware, "serial": self.serial}
+
+    def _cmd_channels(self) -> dict:
+        return {"count": self.n_leds}
+
+    def _cmd_set_level(self, led: int, pwm: int) -> dict:
+        i = self._led(led)
+        self._refuse_failed({led: pwm})
+        self._pwm[i] = pwm
+        return {"led": led, "pwm": pwm}
+
+    def _cmd_get_level(self, led: int) -> dict:
+        return {"led": led, "pwm": int(self._pwm[self._led(led)])}
+
+    def _cmd_set_levels(self, pwms: tuple[int, ...]) -> dict:
+        if len(pwms) != self.n_leds:
+            raise P.RequestError(P.ErrorCode.ARGUMENT_COUNT, f"LEVELS takes exactly {self.n_leds} values")
+        self._refuse_failed({i + 1: p for i, p in enumerate(pwms)})
+        self._pwm[:] = pwms
+        return {"pwms": pwms}
+
+    def _cmd_get_levels(self) -> dict:
+        return {"pwms": tuple(int(p) for p in self._pwm)}
+
+    def _cmd_all_off(self) -> None:
+        self._pwm[:] = 0
+
+    def _cmd_set_light(self, state: int) -> dict:
+        if state and self._temp > self.over_temperature_c:
+            raise P.RequestError(P.ErrorCode.OVER_TEMPERATURE, f"temperature {self._temp:.1f} C, light stays off")
+        if state:
+            self._trip = False
+        self._set_light(bool(state))
+        return {"state": state}
+
+    def _cmd_get_light(self) -> dict:
+        return {"state": int(self._light)}
+
+    def _cmd_temperature(self) -> dict:
+        return {"celsius": round(self._temp, 2)}
+
+    def _light_on_time(self) -> float:
+        return 0.0 if self._light_since is None else self._t - self._light_since
+
+    def _cmd_on_time(self) -> dict:
+        return {"seconds": self._light_on_time()}
+
+    def _cmd_led_on_time(self, led: int) -> dict:
+        return {"led": led, "seconds": float(self._on_time[self._led(led)])}
+
+    def _cmd_set_watchdog(self, ms: int) -> dict:
+        self._watchdog_ms = ms
+        return {"ms": ms}
+
+    def _cmd_get_watchdog(self) -> dict:
+        return {"ms": self._watchdog_ms}
+
+    def _cmd_ping(self) -> None:
+        return None
+
+    def _cmd_faults(self) -> dict:
+        return {"mask": self._fault_mask()}
+
+    def _cmd_status(self) -> dict:
+        return {"light": int(self._light), "ontime": self._light_on_time(), "temp": round(self._temp, 2),
+                "wdog": self._watchdog_ms, "trip": int(self._trip), "fault": self._fault_mask()}
