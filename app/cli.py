@@ -15,6 +15,7 @@ log = logging.getLogger(__name__)
 
 COMMAND_MODULES = (
     "app.commands.simulate",
+    "app.commands.sphere",
 )
 
 
@@ -50,4 +51,6 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    # `python -m app.cli`: run the imported module's main, so commands' `app.cli.UserError` is the one caught here
+    from app.cli import main as _main
+    sys.exit(_main())

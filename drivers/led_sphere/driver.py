@@ -132,7 +132,8 @@ class LedSphere:
             self._light_on_since = None
             log.info("LED sphere %s: all LEDs off, light off", self._url)
         else:
-            note = "" if "watchdog" in str(first) else " (the sphere's watchdog switches the LEDs off once it hears nothing)"
+            note = "" if "watchdog" in str(first) else \
+                " (the sphere's watchdog switches the LEDs off once it hears nothing)"
             raise SphereError(f"{first}{note}", kind=first.kind, code=first.code)
 
     # ------------------------------------------------------------------------------------------- exchanges
@@ -154,7 +155,7 @@ class LedSphere:
                 try:
                     fields = self._receive(cmd, args, shown, skipped)
                 except TimeoutError:
-                    log.warning("LED sphere %s: no reply to %r within %.2f s (attempt %d)",
+                    log.info("LED sphere %s: no reply to %r within %.2f s (attempt %d)",
                                 self._url, shown, self.timeout, attempt)
                     continue
                 self._last_exchange = self._clock()
@@ -303,7 +304,7 @@ class LedSphere:
             try:
                 self.shutdown()
             except SphereError as exc:
-                log.error("switching off after an LED fault: %s", exc)
+                log.info("switching off after an LED fault: %s", exc)
             raise SphereError(f"LED sphere {self._url}: LED {', '.join(map(str, leds))} reports a fault (open "
                               "circuit / driver) and emits nothing; the sphere was switched off - check the LED's "
                               "connector and driver, or use a preset without it", kind="fault")
