@@ -29,6 +29,7 @@ demo: $(STAMP)
 
 resources: $(STAMP)
 	$(BIN)/python -m resources.generate
+	$(BIN)/python -m resources.make_presets
 
 clean:
 	rm -rf $(VENV) .pytest_cache bench/results

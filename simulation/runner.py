@@ -85,8 +85,8 @@ def format_table(result: RunResult) -> str:
              f"3-channel (D65) baseline: train {result.three_channel['train']:.3f}  "
              f"test {result.three_channel['test']:.3f} mean dE00"]
     if result.outcome:
-        lines.append(f"{'#':>3}  {'light source 1':<28} {'light source 2':<28} {'train':>7} {'test':>7}")
+        lines.append(f"{'#':>3}  {'light source 1':<34} {'light source 2':<34} {'train':>7} {'test':>7}")
         for i, c in enumerate(result.outcome.candidates[:result.top], start=1):
             s1, s2 = (s.label() for s in c.sources[:2])
-            lines.append(f"{i:>3}  {s1:<28} {s2:<28} {c.train.mean:>7.3f} {c.test.mean:>7.3f}")
+            lines.append(f"{i:>3}  {s1:<34} {s2:<34} {c.train.mean:>7.3f} {c.test.mean:>7.3f}")
     return "\n".join(lines)
