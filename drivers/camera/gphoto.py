@@ -251,6 +251,7 @@ class GPhotoCamera(Camera):
     noise reduction takes as long again as the exposure, which is added on top).
     ``delete_from_card``: delete each file from the camera after download (only matters when capturing
     to the memory card; Internal RAM files are gone after download anyway).
+    ``gp_module``, ``sleep``, ``clock``: stand-ins for gphoto2, time.sleep and time.monotonic (tests).
     """
 
     name = "gphoto2"
@@ -258,7 +259,8 @@ class GPhotoCamera(Camera):
     def __init__(self, model: Optional[str] = None, port: Optional[str] = None, *,
                  bulb_limit_s: float = BULB_LIMIT_S, file_timeout_s: float = 60.0,
                  busy_tries: int = 3, busy_delay_s: float = 0.5, delete_from_card: bool = False,
-                 gp_module: Any = None, sleep: Callable[[float], None] = time.sleep):
+                 gp_module: Any = None, sleep: Callable[[float], None] = time.sleep,
+                 clock: Callable[[], float] = time.monotonic):
         self.model = model
         self.port = port
         self.bulb_limit_s = bulb_limit_s
@@ -268,6 +270,7 @@ class GPhotoCamera(Camera):
         self.delete_from_card = delete_from_card
         self._gp = gp_module
         self._sleep = sleep
+        self._clock = clock
         self._cam: Any = None
         self._names: dict[str, str] = {}        # config name -> widget kind
         self._lock = threading.RLock()
@@ -591,9 +594,9 @@ class GPhotoCamera(Camera):
     def _wait_for_file(self, timeout_s: float) -> tuple[str, str]:
         cam = self._require_open()
         gp = self._gp_module()
-        deadline = time.monotonic() + timeout_s
+        deadline = self._clock() + timeout_s
         while True:
-            left = deadline - time.monotonic()
+            left = deadline - self._clock()
             if left <= 0:
                 raise CameraError(f"capture: no file arrived within {timeout_s:.0f} s after the exposure ended "
                                   "(check the card/Internal RAM and the camera display)", GP_ERROR_TIMEOUT)
