@@ -16,6 +16,8 @@ log = logging.getLogger(__name__)
 COMMAND_MODULES = (
     "app.commands.simulate",
     "app.commands.sphere",
+    "app.commands.raw_info",
+    "app.commands.devices",
 )
 
 
