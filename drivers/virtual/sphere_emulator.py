@@ -210,8 +210,7 @@ class SphereEmulator:
                     if nl < 0:
                         if len(buf) >= P.MAX_REQUEST_BYTES:
                             if not discarding:
-                                self._respond(P.render_error(P.ErrorCode.LINE_TOO_LONG,
-                                                             f"line longer than {P.MAX_REQUEST_BYTES} bytes"))
+                                self._on_line(bytes(buf), too_long=True)
                             discarding = True
                             buf.clear()
                         break
@@ -219,18 +218,24 @@ class SphereEmulator:
                     if discarding:
                         discarding = False
                         continue
-                    self._on_line(line.rstrip(b"\r"))
+                    self._on_line(line.rstrip(b"\r"), too_long=len(line) + 1 > P.MAX_REQUEST_BYTES)
             self._flush_pending()
             with self._lock:
                 self._advance(self._clock())
 
-    def _on_line(self, line: bytes) -> None:
+    def _on_line(self, line: bytes, too_long: bool = False) -> None:
         faults = dict(self._faults)
         hung = "no_reply" in faults and not faults["no_reply"].get("execute", True)
         if hung:
             log.debug("emulator hung: ignoring %r", line)
             return
-        reply = self.handle(line)
+        if too_long:
+            with self._lock:
+                self._advance(self._clock())
+                self._last_rx = max(self._clock(), self._t)
+            reply = P.render_error(P.ErrorCode.LINE_TOO_LONG, f"line longer than {P.MAX_REQUEST_BYTES} bytes")
+        else:
+            reply = self.handle(line)
         if "no_reply" in faults:
             return
         if "garbled" in faults:
