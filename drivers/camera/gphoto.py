@@ -259,17 +259,19 @@ class GPhotoCamera(Camera):
     def __init__(self, model: Optional[str] = None, port: Optional[str] = None, *,
                  bulb_limit_s: float = BULB_LIMIT_S, file_timeout_s: float = 60.0,
                  busy_tries: int = 3, busy_delay_s: float = 0.5, delete_from_card: bool = False,
-                 gp_module: Any = None, sleep: Callable[[float], None] = time.sleep,
+                 gp_module: Any = None, sleep: Optional[Callable[[float], None]] = None,
                  clock: Callable[[], float] = time.monotonic):
-        self.model = model
+        self.model = model                  # after open(): the model libgphoto2 reports
         self.port = port
+        self._requested_model = model       # what open() asks for (reopen() asks the same again)
         self.bulb_limit_s = bulb_limit_s
         self.file_timeout_s = file_timeout_s
         self.busy_tries = busy_tries
         self.busy_delay_s = busy_delay_s
         self.delete_from_card = delete_from_card
         self._gp = gp_module
-        self._sleep = sleep
+        self._abort_event = threading.Event()
+        self._sleep = sleep if sleep is not None else self._abort_event.wait  # abort() ends a bulb wait early
         self._clock = clock
         self._cam: Any = None
         self._names: dict[str, str] = {}        # config name -> widget kind
@@ -325,13 +327,13 @@ class GPhotoCamera(Camera):
                 raise CameraError(f"open camera: no USB/serial port {self.port} (the camera was unplugged or "
                                   "re-enumerated): run `dualrgb devices` and reopen", GP_ERROR_IO_USB_FIND)
             cam.set_port_info(match[0])
-        if self.model:
+        if self._requested_model:
             abilities = gp.CameraAbilitiesList()
             abilities.load()
             try:
-                cam.set_abilities(abilities[abilities.lookup_model(self.model)])
+                cam.set_abilities(abilities[abilities.lookup_model(self._requested_model)])
             except gp.GPhoto2Error as exc:
-                raise camera_error(exc, f"open camera {self.model}") from exc
+                raise camera_error(exc, f"open camera {self._requested_model}") from exc
         self._call(f"open camera{where}", cam.init)
         self._cam = cam
         try:
@@ -363,6 +365,15 @@ class GPhotoCamera(Camera):
         log.info("closed %s", self.model)
 
     release = close  # 'release the camera' = give the USB device back to the system
+
+    def reopen(self) -> None:
+        """Close and open again: the way back after -52 (the camera re-enumerated on USB after sleeping)."""
+        self.close()
+        self.open()
+
+    def abort(self) -> None:
+        """End a running bulb exposure early (safe to call from another thread); capture() then raises."""
+        self._abort_event.set()
 
     # ---------------------------------------------------------------------------------- configuration
     def _walk_config(self, widget: Any) -> list[ConfigEntry]:
@@ -609,7 +620,9 @@ class GPhotoCamera(Camera):
         cam = self._require_open()
         gp = self._gp_module()
         self._drain_events()
+        self._abort_event.clear()
         opened = False
+        started = self._clock()
         try:
             self._set_on(cam, "bulb", 1)
             opened = True
@@ -624,6 +637,10 @@ class GPhotoCamera(Camera):
                     raise CameraError("bulb could not be ended: the shutter may still be open; switch the "
                                       f"camera off and on ({exc})", gphoto_error_code(exc)) from exc
                 log.debug("releasing bulb after a failed start: %s", exc)
+        if self._abort_event.is_set():
+            self._abort_event.clear()
+            raise CameraError(f"capture: bulb exposure aborted after {self._clock() - started:.0f} s of "
+                              f"{exposure_s:g} s (the camera may still store the short frame)", GP_ERROR_CANCEL)
         return self._wait_for_file(self.file_timeout_s + exposure_s)
 
     def capture(self, exposure_s: Optional[float] = None) -> RawCapture:

@@ -72,6 +72,8 @@ def session() -> dict:
             except CameraError as exc:
                 errors[key] = _err(exc)
         out["errors"] = errors
+        cam.reopen()  # the recovery after -52 (the virtual camera resets its settings; a real one keeps them)
+        out["reopened"] = {"open": cam.is_open, "f_number": cam.get_config_value("f-number")}
     out["closed"] = not cam.is_open
     try:
         cam.settings()

@@ -399,3 +399,30 @@ def test_detect_with_fake_list():
 
     gp = SimpleNamespace(Camera=SimpleNamespace(autodetect=lambda: CameraList()), GPhoto2Error=FakeGPhoto2Error)
     assert GPhotoCamera.detect(gp) == [("Nikon DSC D610", "usb:001,007")]
+
+
+def test_abort_ends_a_bulb_exposure_and_closes_the_shutter():
+    d610 = FakeD610()
+    cam = GPhotoCamera(gp_module=fake_module(d610))          # default sleep: waits on the abort event
+    cam.open()
+    real_set = d610.set_single_config
+
+    def press_abort_when_bulb_opens(name, widget):
+        real_set(name, widget)
+        if name == "bulb" and widget.value == 1:
+            cam.abort()                                      # as the GUI's Abort button would, from its thread
+
+    d610.set_single_config = press_abort_when_bulb_opens
+    with pytest.raises(CameraError, match="bulb exposure aborted after 0 s of 600 s") as err:
+        cam.capture(600.0)
+    assert err.value.code == -112
+    assert d610.writes[-1] == ("bulb", 0)
+    # the next capture is not affected by the earlier abort
+    d610.set_single_config = real_set
+    assert cam.capture(0.5).filename.endswith(".NEF")
+
+
+def test_reopen_after_reenumeration():
+    cam, d610, _ = open_fake()
+    cam.reopen()
+    assert d610.exited and cam.is_open

@@ -119,6 +119,7 @@ def test_user_errors_are_one_line_with_codes(session):
 
 
 def test_close_releases_and_reopen_works(session):
+    assert session["reopened"]["open"] is True and session["reopened"]["f_number"].startswith("f/")
     assert session["closed"] is True
     assert "not open" in session["after_close"]["message"]
     assert session["reopen_model"] == "Nikon DSC D750"
