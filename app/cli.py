@@ -18,6 +18,8 @@ COMMAND_MODULES = (
     "app.commands.sphere",
     "app.commands.raw_info",
     "app.commands.devices",
+    "app.commands.gui",
+    "app.commands.demo",
 )
 
 

@@ -1,0 +1,56 @@
+"""``dualrgb demo``: the whole capture + processing workflow on the virtual lab, headless."""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from app.demo import DemoSettings, run_demo
+
+log = logging.getLogger(__name__)
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"frame size {text!r}: expected WIDTHxHEIGHT like 600x400") from None
+    if w < 64 or h < 64:
+        raise argparse.ArgumentTypeError(f"frame size {text!r}: expected at least 64x64")
+    return w, h
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="run the whole workflow headless on the virtual lab",
+                       description="Presets, darks, flats, train/test captures, processing and report on the "
+                                   "virtual lab (sphere emulator on a pty + virtual camera).")
+    p.add_argument("--out", type=Path, required=True, help="output folder (session, presets, report.json)")
+    p.add_argument("--mode", choices=("reflective", "transmissive"), default="reflective")
+    p.add_argument("--hdr", action="store_true", help="add the ND 2.0-filtered scene with HDR brackets")
+    p.add_argument("--frame-size", type=_size, default=(600, 400), help="virtual frame WxH (default 600x400)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--dark-frames", type=int, default=10)
+    p.add_argument("--no-de-fit", action="store_true", help="skip the dE00-optimised characterisation")
+    p.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
+                            seed=args.seed, dark_frames=args.dark_frames, optimise_matrix=not args.no_de_fit)
+    last = [-1]
+
+    def progress(f: float, msg: str) -> None:
+        pct = int(100 * f)
+        if pct != last[0]:
+            last[0] = pct
+            print(f"[{pct:3d}%] {msg}", file=sys.stderr, flush=True)
+
+    data = run_demo(settings, progress)
+    print(f"{'condition':<22} {'train mean':>10} {'test mean':>10} {'sim train':>10} {'sim test':>10}")
+    for name, c in data["conditions"].items():
+        print(f"{name:<22} {c['train']['mean']:>10.3f} {c['test']['mean']:>10.3f} "
+              f"{c['simulated']['train']:>10.3f} {c['simulated']['test']:>10.3f}")
+    print(f"frames {data['frames']}, lost {data['lost_frames']}, light dose {data['light_dose']['lux_s']:.0f} lux.s, "
+          f"{data['elapsed_s']:.1f} s -> {args.out / 'report.json'}")
+    return 0

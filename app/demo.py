@@ -1,0 +1,292 @@
+"""The whole workflow, headless, on the virtual lab (``dualrgb demo``; Qt-free so the GUI can run it too).
+
+presets from the optimiser (exhaustive = dual-RGB, PSO = dual-RGB-PSO, NNLS D65 mix = 3-channel baseline)
+-> the sphere emulator on a real pty + the virtual camera -> auto-exposure on the open gate -> (HDR plan on
+the ND-covered target) -> dark series at every exposure -> open-gate flats -> train and test captures ->
+master darks, eq 7.1 flat field / eq 8.9 HDR merge -> per-light superpixel images stacked to N channels ->
+patch means (PatchGrid on the target's corners) -> characterisation (least squares and dE00-optimised) ->
+report.json (+ figures and TIFF outputs where app.processing provides them).
+"""
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from app.processing.calibration import FlatField, MasterDark
+from app.processing.characterise import characterise
+from app.processing.hdr import HdrMerge
+from app.processing.mosaic import superpixel
+from app.processing.patches import PatchGrid
+from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure, exposure_key
+from app.sequences.capture import TargetCapture
+from app.sequences.hdr import HdrPlan, plan_hdr
+from app.sequences.shooter import SafetySettings, Shooter
+from app.session import CaptureSession
+from app.virtual_lab import VirtualLab
+from simulation.colorimetry import tristimulus, white_point
+from simulation.lightsource import LightSource
+from simulation.objective import ErrorStats, Evaluator
+from simulation.presets import Preset, d65_mix, save_preset
+from simulation.progress import CancelToken, ProgressCallback, check, report
+from simulation.runner import run as run_simulation
+
+log = logging.getLogger(__name__)
+
+CONDITIONS = ("three_channel", "dual_rgb", "dual_rgb_pso")
+
+
+@dataclass
+class DemoSettings:
+    out: Path
+    mode: str = "reflective"
+    hdr: bool = False
+    frame_size: tuple[int, int] = (600, 400)
+    seed: int = 0
+    dark_frames: int = 10
+    flat_frames: int = 3
+    settle_s: float = 0.05
+    optimise_matrix: bool = True          # also fit the dE00-optimised matrix (Beyond RGB)
+    conditions: tuple[str, ...] = CONDITIONS
+
+
+@dataclass
+class Condition:
+    name: str
+    lights: list[NamedLight]
+    simulated: dict = field(default_factory=dict)
+    exposure: dict[str, float] = field(default_factory=dict)        # base (open-gate) exposure per light
+    hdr_plan: dict[str, HdrPlan] = field(default_factory=dict)
+
+
+def _lights(preset: Preset, prefix: str) -> list[NamedLight]:
+    return [NamedLight(f"{prefix}-LS{i}", s) for i, s in enumerate(preset.sources, start=1)]
+
+
+def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback] = None) -> tuple[list[Condition], dict]:
+    """Presets from the optimiser (#2) and their simulated errors."""
+    from simulation.datasets import default_setup
+    setup = default_setup(settings.mode)
+    ev = Evaluator(setup)
+    presets = {}
+    report(progress, 0.0, "optimiser: exhaustive search")
+    presets["dual_rgb"] = run_simulation(setup, "exhaustive", top=1).preset(name=f"dual-RGB {settings.mode}")
+    report(progress, 0.02, "optimiser: PSO (thesis settings)")
+    presets["dual_rgb_pso"] = run_simulation(setup, "pso", seed=settings.seed, top=1).preset(
+        name=f"dual-RGB-PSO {settings.mode}")
+    mix, duv = d65_mix(setup.leds, setup.illuminant, setup.cmfs)
+    presets["three_channel"] = Preset("3-channel D65 mix", (mix,), method="nnls-d65", mode=settings.mode,
+                                      model={"duv_to_d65": duv})
+    out = []
+    for name in settings.conditions:
+        p = presets[name]
+        W = np.stack([s.weights(ev.n_leds) for s in p.sources])
+        tr, te = ev.stats(W)
+        out.append(Condition(name, _lights(p, name), {"train": round(tr.mean, 4), "test": round(te.mean, 4)}))
+        save_preset(p, settings.out / "presets" / f"{name}.json")
+    return out, {k: v.to_dict() for k, v in presets.items()}
+
+
+def _grid(scene, rows_cols) -> PatchGrid:
+    corners_rc = np.asarray(scene.corners(), dtype=float)
+    rows, cols = rows_cols
+    return PatchGrid(corners_rc[:, ::-1], rows, cols, fraction=0.5)     # (row, col) -> (x, y)
+
+
+class DemoRun:
+    """State of one demo run; ``run()`` returns the report dict."""
+
+    def __init__(self, settings: DemoSettings, progress: Optional[ProgressCallback] = None,
+                 cancel: Optional[CancelToken] = None):
+        self.s = settings
+        self.progress = progress
+        self.cancel = cancel
+        self.t0 = time.perf_counter()
+
+    def _drive(self, seq, frac0: float, frac1: float) -> None:
+        for ev in seq.run():
+            check(self.cancel)
+            report(self.progress, frac0 + (frac1 - frac0) * ev.fraction, ev.message)
+            if ev.kind == "cancelled":
+                raise RuntimeError(ev.message)
+
+    def run(self) -> dict:
+        s = self.s
+        s.out.mkdir(parents=True, exist_ok=True)
+        conds, presets = make_conditions(s, self.progress)
+        report(self.progress, 0.1, "starting the virtual lab")
+        with VirtualLab(mode=s.mode, frame_size=s.frame_size, seed=s.seed) as lab:
+            session_dir = s.out / "session"
+            session = (CaptureSession.open(session_dir) if (session_dir / "manifest.jsonl").exists()
+                       else CaptureSession.create(session_dir, {"mode": s.mode, "demo": True}))
+            shooter = Shooter(lab.camera, lab.sphere, session, stand=lab.place,
+                              safety=SafetySettings(settle_s=s.settle_s))
+            self.lab, self.session, self.shooter = lab, session, shooter
+            # 1. exposures from the open gate
+            for c in conds:
+                for nl in c.lights:
+                    check(self.cancel)
+                    c.exposure[nl.name], _ = auto_exposure(shooter, nl)
+            report(self.progress, 0.2, "auto-exposure done")
+            # 2. HDR plans from a first frame of the ND-covered training target
+            if s.hdr:
+                for c in conds:
+                    if c.name == "three_channel":
+                        continue
+                    scene = lab.scene_for("train", nd=True)
+                    for nl in c.lights:
+                        t0 = c.exposure[nl.name]
+                        shooter.place("train", True)
+                        entry = shooter.shoot("hdr-meter", nl.light, t0, f"hdrmeter/{nl.name}/{exposure_key(t0)}",
+                                              light_name=nl.name)
+                        c.hdr_plan[nl.name] = plan_hdr(shooter.frame(entry), t0, scene.patch_boxes(),
+                                                       lab.camera.shutter_speeds(),
+                                                       max_exposure_s=shooter.safety.max_on_s - shooter.safety.settle_s)
+            exposures = {nl.name: sorted({c.exposure[nl.name], *(c.hdr_plan[nl.name].exposures
+                                                                  if nl.name in c.hdr_plan else [])})
+                         for c in conds for nl in c.lights}
+            # 3. darks and flats at every exposure used
+            all_t = sorted({t for ts in exposures.values() for t in ts})
+            self._drive(DarkSeries(shooter, all_t, frames=s.dark_frames), 0.22, 0.35)
+            all_lights = [nl for c in conds for nl in c.lights]
+            self._drive(FlatSeries(shooter, all_lights, exposures, frames=s.flat_frames), 0.35, 0.45)
+            # 4. targets
+            for i, c in enumerate(conds):
+                for target in ("train", "test"):
+                    self._drive(TargetCapture(shooter, c.lights, {nl.name: [c.exposure[nl.name]] for nl in c.lights},
+                                              target, condition=c.name), 0.45 + 0.03 * i, 0.45 + 0.03 * (i + 1))
+                    if c.hdr_plan:
+                        self._drive(TargetCapture(shooter, c.lights, {n: p.exposures for n, p in c.hdr_plan.items()},
+                                                  target, nd=True, condition="hdr_" + c.name), 0.55, 0.6)
+            report(self.progress, 0.6, "captures done; processing")
+            result = self.process(conds)
+        verify = session.verify()
+        frames = len(session.entries())
+        report_data = {
+            "mode": s.mode, "frame_size": list(s.frame_size), "hdr": s.hdr,
+            **result,
+            "presets": presets,
+            "exposures": {k: v for k, v in exposures.items()},
+            "frames": frames,
+            "lost_frames": len(verify.missing) + len(verify.corrupted),
+            "session_valid": verify.valid,
+            "light_dose": shooter.dose.to_dict(),
+            "elapsed_s": round(time.perf_counter() - self.t0, 2),
+            "session": str(session.path),
+        }
+        (s.out / "report.json").write_text(json.dumps(report_data, indent=2, default=_json) + "\n")
+        report(self.progress, 1.0, f"report written: {s.out / 'report.json'}")
+        return report_data
+
+    # ---- processing ----
+    def process(self, conds: list[Condition]) -> dict:
+        session, shooter = self.session, self.shooter
+        darks = MasterDark()
+        by_t: dict[str, list] = {}
+        for e in session.entries("dark"):
+            by_t.setdefault(exposure_key(e.exposure_s), []).append(e)
+        for key, entries in by_t.items():
+            darks.add(entries[0].exposure_s, [shooter.frame(e) for e in entries])
+        shooter.forget()
+        white_level = float(shooter.frame(session.entries("dark")[0]).white_level)
+
+        def mean_mosaic(entries) -> np.ndarray:
+            acc = None
+            for e in entries:
+                m = shooter.frame(e).mosaic.astype(np.float32)
+                acc = m if acc is None else acc + m
+            shooter.forget()
+            return acc / len(entries)
+
+        whites: dict[tuple[str, str], np.ndarray] = {}          # (light, exposure key) -> mean raw white
+        for e in session.entries("flat"):
+            key = (e.meta.get("light_name"), exposure_key(e.exposure_s))
+            whites.setdefault(key, [])
+            whites[key].append(e)
+        white_raw = {k: mean_mosaic(v) for k, v in whites.items()}
+
+        def radiance(frames_t: list[tuple[np.ndarray, float]]) -> np.ndarray:
+            merge = HdrMerge(white_level)
+            for mosaic, t in frames_t:
+                merge.add(mosaic, t, darks.get(t))
+            return merge.result().radiance
+
+        def white_for(light: str, ts: list[float]) -> FlatField:
+            return FlatField(radiance([(white_raw[(light, exposure_key(t))], t) for t in ts]))
+
+        def target_values(condition: str, target: str, nd: bool, lights: list[NamedLight],
+                          ts: dict[str, list[float]]) -> tuple[np.ndarray, np.ndarray]:
+            scene = self.lab.scene_for(target, nd=nd)
+            grid = _grid(scene, scene.layout).scaled(0.5)
+            chans = []
+            for nl in lights:
+                frames = []
+                for t in ts[nl.name]:
+                    e = session.entry(f"target/{condition}/{target}/{'nd' if nd else 'plain'}/{nl.name}/{exposure_key(t)}")
+                    frames.append((shooter.frame(e).mosaic, t))
+                img = white_for(nl.name, ts[nl.name]).apply(radiance(frames))
+                shooter.forget()
+                chans.append(superpixel(img, "RGGB"))
+            stack = np.concatenate(chans, axis=2)
+            vals = grid.sample(stack).mean[:scene.n_patches]
+            return vals, scene.nd_patches()
+
+        setup = self.lab.setup
+        out: dict = {}
+        for c in conds:
+            check(self.cancel)
+            base = {nl.name: [c.exposure[nl.name]] for nl in c.lights}
+            variants = [(c.name, c.name, False, base)]
+            if c.hdr_plan:
+                full = {n: p.exposures for n, p in c.hdr_plan.items()}
+                variants += [("hdr_" + c.name, "hdr_" + c.name, True, full),
+                             ("single_" + c.name, "hdr_" + c.name, True, base)]
+            for label, cond_key, nd, ts in variants:
+                tr_vals, tr_nd = target_values(cond_key, "train", nd, c.lights, ts)
+                te_vals, te_nd = target_values(cond_key, "test", nd, c.lights, ts)
+                scale = {"train": np.where(tr_nd, 0.01, 1.0), "test": np.where(te_nd, 0.01, 1.0)}
+                xyz = {t: tristimulus(self.lab.target(t).spectra * scale[t][:, None], setup.illuminant, setup.cmfs)
+                       for t in ("train", "test")}
+                white = white_point(setup.illuminant, setup.cmfs)
+                ch = characterise(tr_vals, xyz["train"], white, te_vals, xyz["test"],
+                                  channels=[f"{b}{i}" for i in range(1, len(c.lights) + 1) for b in "RGB"],
+                                  optimise=self.s.optimise_matrix)
+                best = ch.results[ch.best]
+                entry = {"train": best.train.to_dict(), "test": best.test.to_dict(), "simulated": c.simulated,
+                         "matrix_method": ch.best,
+                         "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
+                         "lights": [{"name": nl.name, **nl.light.to_dict(),
+                                     "exposures_s": ts[nl.name]} for nl in c.lights]}
+                if nd:
+                    entry["nd_patches"] = {
+                        "train": ErrorStats.of(best.train_errors[tr_nd]).to_dict(),
+                        "test": ErrorStats.of(best.test_errors[te_nd]).to_dict()}
+                    entry["hdr_plan"] = {n: p.to_dict() for n, p in c.hdr_plan.items()}
+                out[label] = entry
+                np.savez_compressed(self.s.out / f"patches_{label}.npz", train=tr_vals, test=te_vals,
+                                    train_xyz=xyz["train"], test_xyz=xyz["test"],
+                                    train_errors=best.train_errors, test_errors=best.test_errors,
+                                    matrix=best.matrix.matrix)
+        return {"conditions": out, **{k: v for k, v in out.items()}}
+
+
+def _json(obj):
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    if isinstance(obj, LightSource):
+        return obj.to_dict()
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def run_demo(settings: DemoSettings, progress: Optional[ProgressCallback] = None,
+             cancel: Optional[CancelToken] = None) -> dict:
+    return DemoRun(settings, progress, cancel).run()

@@ -1,0 +1,140 @@
+"""Dark series, open-gate flats and auto-exposure (thesis 7, 8.2.1, 8.2.2).
+
+* DarkSeries: N frames (default 10) with the lens cap on at each exposure time that will be used; the master
+  dark per exposure is computed by app.processing (mean with hot-outlier rejection).
+* FlatSeries: open-gate frames per light source (and per exposure for HDR): the white images of eq 7.1.
+* auto_exposure: from the open gate, the exposure that puts the brightest channel at ~80 % of the sensor's
+  linear limit (default 11 000 DN of 14 bits, thesis 4.1), snapped to the camera's shutter list.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Iterator, Optional, Sequence
+
+from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
+from app.sequences.shooter import Shooter, channel_levels
+from simulation.lightsource import LightSource
+
+log = logging.getLogger(__name__)
+
+LINEAR_LIMIT_DN = 11000.0
+
+
+def exposure_key(t: float) -> str:
+    return f"{t:.6g}"
+
+
+@dataclass
+class NamedLight:
+    name: str
+    light: LightSource
+
+
+class DarkSeries(BaseSequence):
+    name = "dark series"
+
+    def __init__(self, shooter: Shooter, exposures: Sequence[float], frames: int = 10):
+        super().__init__()
+        if frames < 1:
+            raise ValueError(f"dark frames {frames}: expected at least 1")
+        self.shooter = shooter
+        self.exposures = sorted(set(float(t) for t in exposures))
+        self.frames = frames
+
+    def plan(self) -> list[PlannedFrame]:
+        return [PlannedFrame("dark", t, "", "lens cap on") for t in self.exposures for _ in range(self.frames)]
+
+    def _steps(self) -> Iterator[ProgressEvent]:
+        total = len(self.exposures) * self.frames
+        if not self.shooter.place("lens-cap"):
+            yield ProgressEvent(0, total, "Put the lens cap on, then continue", kind="prompt",
+                                data={"place": "lens-cap"})
+        self.shooter.lights_off()
+        step = 0
+        for t in self.exposures:
+            for i in range(self.frames):
+                entry = self.shooter.shoot("dark", None, t, f"dark/{exposure_key(t)}/{i}", frame_index=i)
+                step += 1
+                yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {t:g} s", kind="frame",
+                                    data={"entry": entry.seq, "exposure_s": t})
+
+    def _cleanup(self) -> None:
+        self.shooter.lights_off()
+
+
+class FlatSeries(BaseSequence):
+    """Open-gate frames: ``plan`` maps each light name to the exposures it needs."""
+
+    name = "open-gate flats"
+
+    def __init__(self, shooter: Shooter, lights: Sequence[NamedLight], exposures: dict[str, Sequence[float]],
+                 frames: int = 3):
+        super().__init__()
+        self.shooter = shooter
+        self.lights = list(lights)
+        self.exposures = {k: sorted(set(float(t) for t in v)) for k, v in exposures.items()}
+        self.frames = frames
+        for nl in self.lights:
+            for t in self.exposures.get(nl.name, []):
+                shooter.check_light_time(t)
+
+    def plan(self) -> list[PlannedFrame]:
+        return [PlannedFrame("flat", t, nl.light.label(), "open gate") for nl in self.lights
+                for t in self.exposures.get(nl.name, []) for _ in range(self.frames)]
+
+    def _steps(self) -> Iterator[ProgressEvent]:
+        total = len(self.plan())
+        if not self.shooter.place("open-gate"):
+            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind="prompt",
+                                data={"place": "open-gate"})
+        step = 0
+        for nl in self.lights:
+            for t in self.exposures.get(nl.name, []):
+                for i in range(self.frames):
+                    entry = self.shooter.shoot("flat", nl.light, t, f"flat/{nl.name}/{exposure_key(t)}/{i}",
+                                               light_name=nl.name, frame_index=i)
+                    step += 1
+                    yield ProgressEvent(step, total, f"flat {nl.name} {i + 1}/{self.frames} at {t:g} s",
+                                        kind="frame", data={"entry": entry.seq, "exposure_s": t})
+
+    def _cleanup(self) -> None:
+        self.shooter.lights_off()
+
+
+def snap_down(shutters: Sequence[float], t: float) -> float:
+    """The longest offered exposure not above ``t`` (the shortest if all are longer)."""
+    ok = [s for s in shutters if s <= t * (1 + 1e-6)]
+    return max(ok) if ok else min(shutters)
+
+
+def auto_exposure(shooter: Shooter, nl: NamedLight, *, start_s: float = 1 / 60, target_fraction: float = 0.8,
+                  linear_limit: float = LINEAR_LIMIT_DN, max_tries: int = 5) -> tuple[float, list[int]]:
+    """Exposure putting the open gate's brightest channel at ``target_fraction`` of the linear limit.
+
+    The metering frames are kept in the session (role 'metering'); returns (exposure_s, their entry seqs).
+    """
+    shutters = shooter.camera.shutter_speeds()
+    usable = [s for s in shutters if s + shooter.safety.settle_s <= shooter.safety.max_on_s]
+    if not usable:
+        raise ValueError(f"no shutter speed fits the {shooter.safety.max_on_s:g} s light-on limit")
+    shooter.place("open-gate")
+    t = snap_down(usable, start_s)
+    seqs = []
+    goal = target_fraction * linear_limit
+    for attempt in range(max_tries):
+        entry = shooter.shoot("metering", nl.light, t, f"meter/{nl.name}/{exposure_key(t)}", light_name=nl.name)
+        seqs.append(entry.seq)
+        frame = shooter.frame(entry)
+        level = float(channel_levels(frame).max())
+        headroom = frame.white_level - max(frame.black_levels)
+        if level >= 0.97 * headroom:                 # clipped: cannot scale from it, step down 3 stops
+            new_t = snap_down(usable, t / 8)
+        else:
+            new_t = snap_down(usable, t * goal / max(level, 1.0))
+        log.info("auto-exposure %s: %g s -> level %.0f DN; next %g s", nl.name, t, level, new_t)
+        if new_t == t or (level < 0.97 * headroom and abs(math.log2(new_t / t)) < 0.34):
+            return new_t, seqs
+        t = new_t
+    return t, seqs

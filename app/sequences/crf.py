@@ -1,0 +1,95 @@
+"""CRF and exposure-time linearity sweep (thesis 4.1, appendix A) on the open gate.
+
+For each light level, exposures run from the shortest offered time upwards until the field clips (or the
+light-on limit is reached); the mean green signal above black of the central region is recorded per frame,
+and app.crf.analyse_crf finds the linear limit and flags exposure times that depart from linearity.
+Several light levels give every exposure time a sample inside the linear range (appendix A.2.1).
+"""
+from __future__ import annotations
+
+import logging
+from typing import Iterator, Optional, Sequence
+
+import numpy as np
+
+from app.crf import CrfResult, analyse_crf
+from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
+from app.sequences.calibration import exposure_key
+from app.sequences.shooter import Shooter
+from simulation.lightsource import LightSource
+
+log = logging.getLogger(__name__)
+
+
+def green_mean(frame, region: float = 0.3) -> float:
+    h, w = frame.mosaic.shape
+    r0, r1 = int(h * (1 - region) / 2) // 2 * 2, int(h * (1 + region) / 2) // 2 * 2
+    c0, c1 = int(w * (1 - region) / 2) // 2 * 2, int(w * (1 + region) / 2) // 2 * 2
+    vals = []
+    for name, (r, c), idx in frame.channels():
+        if name.startswith("G"):
+            vals.append(float(frame.mosaic[r0 + r:r1:2, c0 + c:c1:2].mean()) - frame.black_levels[idx])
+    return float(np.mean(vals))
+
+
+class CrfSweep(BaseSequence):
+    name = "CRF sweep"
+
+    def __init__(self, shooter: Shooter, light: LightSource, levels: Sequence[float] = (1.0, 0.25, 0.0625),
+                 exposures: Optional[Sequence[float]] = None, min_exposure_s: float = 1 / 4000):
+        super().__init__()
+        self.shooter = shooter
+        self.light = light
+        self.levels = list(levels)
+        limit = shooter.safety.max_on_s - shooter.safety.settle_s
+        offered = exposures or shooter.camera.shutter_speeds()
+        self.exposures = [t for t in sorted(offered) if min_exposure_s <= t <= limit]
+        self.samples: dict[float, list[tuple[float, float]]] = {}
+        self.results: dict[float, CrfResult] = {}
+
+    def plan(self) -> list[PlannedFrame]:
+        return [PlannedFrame("crf", t, f"{self.light.label()} x {lv:g}", "open gate, until clipping")
+                for lv in self.levels for t in self.exposures]
+
+    def _scaled(self, level: float) -> LightSource:
+        return LightSource(self.light.leds, tuple(v * level for v in self.light.levels), f"CRF x{level:g}")
+
+    def _steps(self) -> Iterator[ProgressEvent]:
+        total = len(self.levels) * len(self.exposures)
+        if not self.shooter.place("open-gate"):
+            yield ProgressEvent(0, total, "Open gate (no target), then continue", kind="prompt",
+                                data={"place": "open-gate"})
+        step = 0
+        for lv in self.levels:
+            light = self._scaled(lv)
+            pts: list[tuple[float, float]] = []
+            clipped = 0
+            for t in self.exposures:
+                entry = self.shooter.shoot("crf", light, t, f"crf/{lv:g}/{exposure_key(t)}", crf_level=lv)
+                frame = self.shooter.frame(entry)
+                g = green_mean(frame)
+                pts.append((t, g))
+                self.shooter.forget()
+                step += 1
+                yield ProgressEvent(step, total, f"CRF x{lv:g}: {t:g} s -> {g:.0f} DN", kind="frame",
+                                    data={"exposure_s": t, "signal_dn": g, "level": lv})
+                if g >= 0.97 * (frame.white_level - max(frame.black_levels)):
+                    clipped += 1
+                    if clipped >= 2:
+                        break
+            self.samples[lv] = pts
+            try:
+                self.results[lv] = analyse_crf([p[0] for p in pts], [p[1] for p in pts])
+            except ValueError as exc:
+                log.info("CRF x%g: %s", lv, exc)
+        yield ProgressEvent(total, total, "CRF sweep analysed", kind="done", data={"result": self.summary()})
+
+    def summary(self) -> dict:
+        flagged = sorted({t for r in self.results.values() for t in r.flagged})
+        limits = [r.linear_limit_dn for r in self.results.values()]
+        return {"levels": {f"{lv:g}": r.to_dict() for lv, r in self.results.items()},
+                "linear_limit_dn": float(np.median(limits)) if limits else None,
+                "flagged_exposures": flagged}
+
+    def _cleanup(self) -> None:
+        self.shooter.lights_off()

@@ -1,0 +1,94 @@
+"""The built-in virtual lab: the sphere emulator on a real pseudo-terminal, the LedSphere driver talking to
+it through that pty (the same code path as real hardware), and the virtual camera rendering what lies on
+the copy stand under the emulator's current light.
+
+    with VirtualLab(mode="reflective", frame_size=(600, 400)) as lab:
+        lab.place("open-gate")
+        lab.sphere.apply(light); lab.sphere.on(); raw = lab.camera.capture(1 / 60); lab.sphere.off()
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+from typing import Optional
+
+from drivers.led_sphere import LedSphere
+from drivers.virtual.camera import VirtualCamera
+from drivers.virtual.scene import Scene
+from drivers.virtual.sphere_emulator import SphereEmulator
+from simulation.datasets import Target, default_setup
+
+log = logging.getLogger(__name__)
+
+PLACES = ("train", "test", "open-gate", "lens-cap")
+
+
+class VirtualLab:
+    def __init__(self, mode: str = "reflective", frame_size: tuple[int, int] = (600, 400), seed: int = 0,
+                 watchdog_s: float = 30.0, bumps: bool = False, timeout_s: float = 1.0):
+        self.mode = mode
+        self.width, self.height = (int(frame_size[0]) // 2 * 2, int(frame_size[1]) // 2 * 2)
+        self.seed = seed
+        self.setup = default_setup(mode)
+        self.emulator = SphereEmulator(watchdog_s=watchdog_s)
+        self._timeout = timeout_s
+        self._bumps = bumps
+        self.sphere: Optional[LedSphere] = None
+        self.camera: Optional[VirtualCamera] = None
+        self.placed = ""
+
+    # ---- lifecycle ----
+    def start(self) -> "VirtualLab":
+        port = self.emulator.start()
+        log.info("virtual sphere emulator on %s", port)
+        self.sphere = LedSphere(port, timeout=self._timeout).open()
+        self.camera = VirtualCamera(self.emulator.snapshot, mode=self.mode, seed=self.seed,
+                                    bumps_enabled=self._bumps)
+        self.camera.open()
+        self.place("open-gate")
+        return self
+
+    def stop(self) -> None:
+        if self.sphere is not None:
+            try:
+                self.sphere.close()         # leaves every LED off
+            finally:
+                self.sphere = None
+        if self.camera is not None:
+            self.camera.close()
+        self.emulator.stop()
+
+    def __enter__(self) -> "VirtualLab":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    @property
+    def port(self) -> str:
+        return self.emulator.port
+
+    # ---- the copy stand ----
+    def target(self, which: str) -> Target:
+        return {"train": self.setup.train, "test": self.setup.test}[which]
+
+    def place(self, what: str, nd: bool = False) -> Scene:
+        """Put the training or test target, the open gate or the lens cap on the stand (ND 2.0 over half)."""
+        if what not in PLACES:
+            raise ValueError(f"cannot place {what!r}: expected one of {', '.join(PLACES)}")
+        size = {"width": self.width, "height": self.height}
+        if what == "open-gate":
+            scene = Scene.open_gate(**size)
+        elif what == "lens-cap":
+            scene = Scene.lens_cap(**size)
+        else:
+            scene = Scene.with_target(self.target(what), **size, nd_filter=nd, name=what)
+        self.camera.scene = scene
+        self.placed = what + (" + ND" if nd else "")
+        return scene
+
+    def scene_for(self, what: str, nd: bool = False) -> Scene:
+        """The scene ``place(what, nd)`` would put on the stand (for patch geometry) without placing it."""
+        if what in ("train", "test"):
+            return Scene.with_target(self.target(what), width=self.width, height=self.height, nd_filter=nd)
+        return dataclasses.replace(self.camera.scene)
