@@ -110,7 +110,9 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
         print(f"model {info['model']}, firmware {info['firmware']}, serial {info['serial']}")
     elif args.action == "status":
         for key, value in sphere.status().items():
-            if isinstance(value, float):
+            if value is None:
+                value = "-"
+            elif isinstance(value, float):
                 value = f"{value:.3f}"
             elif key == "levels":
                 value = " ".join(f"{v:.4f}" for v in value)

@@ -51,9 +51,9 @@ class LedSphere:
 
     def __init__(self, port: Any, timeout: float = DEFAULT_TIMEOUT_S, channels: int = N_SPHERE_LEDS,
                  clock=time.monotonic):
-        if not (isinstance(timeout, (int, float)) and math.isfinite(timeout) and timeout > 0):
-            raise SphereError(f"timeout {timeout!r} must be a positive number of seconds", kind="argument")
-        self.timeout = float(timeout)
+        self._timeout = DEFAULT_TIMEOUT_S
+        self._ser: Any = None
+        self.timeout = timeout
         self.channels = int(channels)
         self._clock = clock
         self._lock = threading.RLock()
@@ -66,6 +66,20 @@ class LedSphere:
             self._configure(self._ser)
 
     # ------------------------------------------------------------------------------------------- port
+    @property
+    def timeout(self) -> float:
+        """Seconds to wait for each reply (and for each write); a timed-out request is sent once more."""
+        return self._timeout
+
+    @timeout.setter
+    def timeout(self, seconds: float) -> None:
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not math.isfinite(seconds) \
+                or seconds <= 0:
+            raise SphereError(f"timeout {seconds!r} must be a positive number of seconds", kind="argument")
+        self._timeout = float(seconds)
+        if self._ser is not None:
+            self._configure(self._ser)
+
     @property
     def port(self) -> str:
         return str(self._url)
@@ -348,7 +362,8 @@ class LedSphere:
         return None if self._last_exchange is None else self._clock() - self._last_exchange
 
     def status(self) -> dict[str, Any]:
-        """Light, levels, temperature, on-times (host and device), watchdog, trip flag, faulty LEDs (2 exchanges)."""
+        """Light, levels, temperature, on-times (host: None when this object did not switch the light on; device),
+        watchdog, trip flag, faulty LEDs (2 exchanges)."""
         s = self.exchange("status")
         levels = self.levels()
         if not s["light"]:
@@ -358,7 +373,8 @@ class LedSphere:
             "light_on": bool(s["light"]),
             "levels": levels,
             "temperature_c": s["temp"],
-            "on_time_s": self.on_time_s(),
+            # None: the light was switched on by someone else (another process), the host has no start time
+            "on_time_s": None if self._light_on_since is None else self.on_time_s(),
             "device_on_time_s": s["ontime"],
             "watchdog_s": s["wdog"] / 1000,
             "watchdog_tripped": bool(s["trip"]),

@@ -46,10 +46,11 @@ EXCHANGES = [
     (lambda s: s.keepalive(), [(b"PING\n", b"OK PING\n")], None),
     (lambda s: s.faulty_leds(), [(b"FAULT?\n", b"OK FAULT 520\n")], [4, 10]),
     (lambda s: s.shutdown(), [(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")], None),
-    (lambda s: {k: v for k, v in s.status().items() if k not in ("port", "on_time_s")},
+    (lambda s: {k: v for k, v in s.status().items() if k != "port"},
      [(b"STATUS?\n", b"OK STATUS light=1 ontime=2.250 temp=25.10 wdog=30000 trip=0 fault=8\n"),
       (b"LEVELS?\n", b"OK LEVELS 0 0 0 65535 0 0 0 0 0 0\n")],
-     {"light_on": True, "levels": [0, 0, 0, 1.0, 0, 0, 0, 0, 0, 0], "temperature_c": 25.1, "device_on_time_s": 2.25,
+     {"light_on": True, "levels": [0, 0, 0, 1.0, 0, 0, 0, 0, 0, 0], "temperature_c": 25.1, "on_time_s": None,
+      "device_on_time_s": 2.25,
       "watchdog_s": 30.0, "watchdog_tripped": False, "faulty_leds": [4]}),
 ]
 
