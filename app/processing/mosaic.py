@@ -1,0 +1,120 @@
+"""Bayer-mosaic helpers shared by the processing steps (numpy only, no demosaicing).
+
+Every calibration step (dark subtraction, eq 7.1 flat field, eq 8.9 HDR merge) is a per-pixel operation, so
+it runs on the raw mosaic itself: each pixel is processed with the dark/white values of the same pixel, i.e.
+of its own CFA channel. Only at the end is the mosaic reduced to a half-size "superpixel" image, one RGB value
+per 2x2 cell (R, mean(G1, G2), B), which needs no interpolation and is what patch statistics and the 6-channel
+(dual-RGB) stack use.
+
+Inputs may be a ``drivers.raw.RawFrame`` (as ``drivers.raw.load_raw`` returns), a path to a raw file, or a
+bare 2-D numpy mosaic (tests, virtual camera). Large frames are processed in horizontal bands of an even
+number of rows (``row_bands``) so temporaries stay small and the CFA phase is the same in every band.
+"""
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+from typing import Any, Iterator, Union
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+DEFAULT_BAND_ROWS = 256
+CFA_LETTERS = "RGB"
+
+FrameLike = Union[np.ndarray, "os.PathLike[str]", str, Any]   # ndarray, path or drivers.raw.RawFrame
+
+
+def mosaic_of(frame: FrameLike) -> np.ndarray:
+    """The 2-D raw mosaic of ``frame`` (a RawFrame, a path read with drivers.raw.load_raw, or an array)."""
+    if isinstance(frame, np.ndarray):
+        m = frame
+    elif isinstance(frame, (str, Path, os.PathLike)):
+        from drivers.raw import load_raw
+
+        m = load_raw(frame).mosaic
+    elif hasattr(frame, "mosaic"):
+        m = frame.mosaic
+    else:
+        raise TypeError(f"expected a raw mosaic array, a RawFrame or a path, got {type(frame).__name__}")
+    if m.ndim != 2:
+        raise ValueError(f"raw mosaic must be 2-D, got shape {m.shape}")
+    return m
+
+
+def load_frame(frame: FrameLike) -> Any:
+    """A RawFrame for paths (read once), the object itself otherwise."""
+    if isinstance(frame, (str, Path, os.PathLike)):
+        from drivers.raw import load_raw
+
+        return load_raw(frame)
+    return frame
+
+
+def cfa_of(frame: Any, default: str = "RGGB") -> str:
+    """The 2x2 CFA in raster order ('RGGB', 'BGGR', ...) of a RawFrame, else ``default``."""
+    pattern = getattr(frame, "cfa_pattern", None)
+    return str(pattern) if pattern else default
+
+
+def white_level_of(frame: Any, default: float = 16383.0) -> float:
+    w = getattr(frame, "white_level", None)
+    return float(w) if w else float(default)
+
+
+def check_cfa(cfa: str) -> str:
+    cfa = cfa.upper()
+    if len(cfa) != 4 or sorted(cfa) != ["B", "G", "G", "R"]:
+        raise ValueError(f"CFA pattern {cfa!r} is not a 2x2 RGB Bayer pattern like 'RGGB'")
+    return cfa
+
+
+def row_bands(height: int, band_rows: int = DEFAULT_BAND_ROWS) -> Iterator[slice]:
+    """Row slices covering ``height`` in bands of an even number of rows (keeps the CFA phase)."""
+    band = max(2, int(band_rows) // 2 * 2)
+    for start in range(0, height, band):
+        yield slice(start, min(start + band, height))
+
+
+def superpixel(mosaic: np.ndarray, cfa: str = "RGGB", out: np.ndarray | None = None) -> np.ndarray:
+    """(H/2, W/2, 3) float32 R, (G1 + G2) / 2, B of each 2x2 cell of a processed mosaic (odd edges dropped).
+
+    NaN in a green pixel makes that cell's G NaN (not silently the other green): invalid stays visible.
+    """
+    cfa = check_cfa(cfa)
+    h2, w2 = mosaic.shape[0] // 2, mosaic.shape[1] // 2
+    if out is None:
+        out = np.empty((h2, w2, 3), dtype=np.float32)
+    greens = []
+    for k, letter in enumerate(cfa):
+        r, c = divmod(k, 2)
+        plane = mosaic[r: 2 * h2: 2, c: 2 * w2: 2]
+        if letter == "R":
+            out[..., 0] = plane
+        elif letter == "B":
+            out[..., 2] = plane
+        else:
+            greens.append(plane)
+    np.add(greens[0], greens[1], out=out[..., 1], dtype=np.float32)
+    out[..., 1] *= 0.5
+    return out
+
+
+def cfa_channel_index(cfa: str) -> np.ndarray:
+    """(2, 2) array of channel indices 0 = R, 1 = G, 2 = B for the cell."""
+    cfa = check_cfa(cfa)
+    return np.array([CFA_LETTERS.index(ch) for ch in cfa], dtype=np.int8).reshape(2, 2)
+
+
+def mosaic_from_rgb(rgb: np.ndarray, cfa: str = "RGGB") -> np.ndarray:
+    """Build a (2h, 2w) mosaic from an (h, w, 3) image (each cell gets the pixel's R, G, G, B): the inverse of
+    ``superpixel`` for synthetic frames (tests, virtual camera)."""
+    idx = cfa_channel_index(cfa)
+    h, w, _ = rgb.shape
+    out = np.empty((2 * h, 2 * w), dtype=rgb.dtype)
+    for r in range(2):
+        for c in range(2):
+            out[r::2, c::2] = rgb[..., idx[r, c]]
+    return out

@@ -1,0 +1,234 @@
+"""From raw files to the N-channel stack, the characterisation, the output files and the report.
+
+Steps (thesis 7 and 8.2):
+  1. master dark per exposure time (8.2.1), built lazily from the dark frames when an exposure first needs it;
+  2. per light, the HDR white (8.2.2): dark-subtracted, per-second, eq 8.9-weighted mean of the white exposures;
+  3. per light and subject, the HDR image (8.2.3) of the subject's exposures, flat-fielded by that white
+     (eq 7.1), reduced to the half-size superpixel RGB (no demosaic);
+  4. the lights' RGBs side by side: an (H/2, W/2, 3 x n_lights) float32 stack, channels R1 G1 B1 R2 G2 B2 ...
+
+Each raw file is decoded once per use and processed in row bands; the mosaic-size buffers alive at a time are
+the master darks in use, one HDR accumulator (3 arrays) and one HDR white per light, so a 24 MP dual-RGB HDR
+set stays well under 2.5 GB (see bench/bench_processing.py for the measured figures).
+
+API for the sequences and the demo::
+
+    proc = CaptureProcessor(dark_frames=[ExposureRef(path, t), ...], white_level=15520)
+    proc.set_white("light 1", [ExposureRef(white_short, 1/250), ExposureRef(white_long, 1/15)])
+    proc.set_white("light 2", [...])
+    stack = proc.stack({"light 1": [ExposureRef(...), ...], "light 2": [...]})  # ChannelStack
+    train = grid.sample(stack.data)                                          # PatchGrid -> PatchValues
+
+    # or everything from a CaptureSession (roles dark / flat / target / object, meta 'target' / 'subject'):
+    proc, subjects = processor_from_session(session)
+    stack = proc.stack(subjects["target:train"])
+"""
+from __future__ import annotations
+
+import logging
+from collections import OrderedDict, defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping, Optional, Sequence
+
+import numpy as np
+
+from app.processing.calibration import FlatField, MasterDark
+from app.processing.hdr import LINEAR_LIMIT_DN, HdrMerge, HdrResult
+from app.processing.mosaic import FrameLike, cfa_of, load_frame, mosaic_of, row_bands, superpixel, white_level_of
+from simulation.camera_model import CHANNELS
+from simulation.progress import CancelToken, ProgressCallback, check, report
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class ExposureRef:
+    """One raw exposure: a path, a drivers.raw.RawFrame or a mosaic array, and its exposure time (s).
+
+    For bare arrays pass ``white_level`` and ``black_level`` to the CaptureProcessor (files carry their own)."""
+
+    source: FrameLike
+    exposure_s: float
+    label: str = ""
+
+
+@dataclass
+class ChannelStack:
+    """Flat-fielded HDR superpixel channels: ``data`` (H/2, W/2, C) float32, channel names R1, G1, B1, ..."""
+
+    data: np.ndarray
+    channels: list[str]
+    lights: list[str]
+    clipped_fraction: dict[str, float] = field(default_factory=dict)
+
+    def rgb(self, light_index: int = 0) -> np.ndarray:
+        return self.data[..., 3 * light_index: 3 * light_index + 3]
+
+
+def _sub(progress: Optional[ProgressCallback], lo: float, hi: float) -> Optional[ProgressCallback]:
+    if progress is None:
+        return None
+    return lambda f, m: progress(lo + (hi - lo) * min(max(f, 0.0), 1.0), m)
+
+
+class CaptureProcessor:
+    """Darks -> HDR whites -> flat-fielded HDR stacks, with caching of master darks and whites."""
+
+    def __init__(self, *, darks: Optional[MasterDark] = None, dark_frames: Sequence[ExposureRef] = (),
+                 white_level: Optional[float] = None, black_level: Optional[float] = None,
+                 linear_limit: Optional[float] = LINEAR_LIMIT_DN, cfa: Optional[str] = None, band_rows: int = 256,
+                 reject_high: int = 1, reject_low: int = 1):
+        self.darks = darks or MasterDark()
+        self._dark_frames: dict[float, list[ExposureRef]] = defaultdict(list)
+        for ref in dark_frames:
+            self._dark_frames[self._dark_key(ref.exposure_s)].append(ref)
+        self.white_level = white_level
+        self.black_level = black_level
+        self.linear_limit = linear_limit
+        self.cfa = cfa
+        self.band_rows = band_rows
+        self.reject = (reject_high, reject_low)
+        self._whites: "OrderedDict[str, FlatField]" = OrderedDict()
+
+    def _dark_key(self, t: float) -> float:
+        for k in self._dark_frames:
+            if abs(k - t) <= 0.02 * max(k, t):
+                return k
+        return float(t)
+
+    # ---- darks ----
+    def master_dark(self, exposure_s: float, *, progress: Optional[ProgressCallback] = None,
+                    cancel: Optional[CancelToken] = None) -> Optional[np.ndarray]:
+        """The master dark for ``exposure_s`` (built from the dark frames on first use), or None if none."""
+        if exposure_s in self.darks:
+            return self.darks.get(exposure_s)
+        refs = self._dark_frames.get(self._dark_key(exposure_s))
+        if not refs:
+            return None
+        self.darks.add(exposure_s, [r.source for r in refs], reject_high=self.reject[0],
+                       reject_low=self.reject[1], progress=progress, cancel=cancel)
+        return self.darks.get(exposure_s)
+
+    def _dark_for(self, frame, exposure_s: float, cancel) -> np.ndarray | float:
+        d = self.master_dark(exposure_s, cancel=cancel)
+        if d is not None:
+            return d
+        black = getattr(frame, "black_levels", None)
+        level = float(np.mean(black)) if black else 0.0
+        log.warning("no dark frames for %.6g s: subtracting the file's black level (%.1f DN) instead", exposure_s,
+                    level)
+        return level
+
+    # ---- HDR ----
+    def hdr(self, refs: Sequence[ExposureRef], *, progress: Optional[ProgressCallback] = None,
+            cancel: Optional[CancelToken] = None) -> HdrResult:
+        """Dark-subtracted, eq 8.9-weighted HDR mosaic (DN/s) of the exposures of one light and subject."""
+        if not refs:
+            raise ValueError("no exposures to merge")
+        merge: Optional[HdrMerge] = None
+        for i, ref in enumerate(sorted(refs, key=lambda r: r.exposure_s)):
+            check(cancel)
+            frame = load_frame(ref.source)
+            if self.white_level is None:
+                self.white_level = white_level_of(frame)
+            if self.cfa is None:
+                self.cfa = cfa_of(frame)
+            if self.black_level is None:
+                black = getattr(frame, "black_levels", None)
+                self.black_level = float(np.mean(black)) if black else 0.0
+            if merge is None:
+                merge = HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level,
+                                 band_rows=self.band_rows)
+            dark = self._dark_for(frame, ref.exposure_s, cancel)
+            merge.add(mosaic_of(frame), ref.exposure_s, dark, cancel=cancel)
+            del frame
+            report(progress, (i + 1) / len(refs), f"exposure {ref.exposure_s:.6g} s {ref.label}".strip())
+        return merge.result()
+
+    def set_white(self, light: str, refs: Sequence[ExposureRef], *, min_fraction: float = 0.01,
+                  progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> FlatField:
+        """HDR white of one light (8.2.2), kept for flat-fielding that light's images."""
+        res = self.hdr(refs, progress=progress, cancel=cancel)
+        ff = FlatField(res.radiance, min_fraction=min_fraction)
+        self._whites[light] = ff
+        log.info("white for %s: %d exposures, %.3f %% clipped", light, len(refs), 100 * res.clipped_fraction)
+        return ff
+
+    def has_white(self, light: str) -> bool:
+        return light in self._whites
+
+    def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: Optional[ProgressCallback] = None,
+              cancel: Optional[CancelToken] = None) -> ChannelStack:
+        """Flat-fielded HDR superpixel RGB of each light (in mapping order), stacked into one image."""
+        lights = list(scenes)
+        missing = [n for n in lights if n not in self._whites]
+        if missing:
+            raise ValueError(f"no white (flat) frames for {', '.join(missing)}: call set_white first")
+        out: Optional[np.ndarray] = None
+        clipped = {}
+        for li, name in enumerate(lights):
+            res = self.hdr(scenes[name], progress=_sub(progress, li / len(lights), (li + 0.8) / len(lights)),
+                           cancel=cancel)
+            clipped[name] = res.clipped_fraction
+            img = res.radiance
+            ff = self._whites[name]
+            if img.shape != ff.white.shape:
+                raise ValueError(f"{name}: image {img.shape} and white {ff.white.shape} differ in size")
+            for rows in row_bands(img.shape[0], self.band_rows):   # eq 7.1 in place, band by band
+                check(cancel)
+                ff.apply(img[rows], rows=rows, out=img[rows])
+            sp = superpixel(img, self.cfa or "RGGB")
+            del img, res
+            if out is None:
+                out = np.empty(sp.shape[:2] + (3 * len(lights),), dtype=np.float32)
+            out[..., 3 * li: 3 * li + 3] = sp
+            del sp
+            report(progress, (li + 1) / len(lights), f"{name} flat-fielded")
+        channels = [f"{c}{i + 1}" for i in range(len(lights)) for c in CHANNELS]
+        return ChannelStack(out, channels, lights, clipped)
+
+
+def _group_refs(session, entries) -> dict[str, list[ExposureRef]]:
+    by_light: "OrderedDict[str, list[ExposureRef]]" = OrderedDict()
+    for e in entries:
+        if e.exposure_s is None:
+            raise ValueError(f"{e.file}: no exposure time in the session manifest")
+        by_light.setdefault(e.light_name or "light", []).append(
+            ExposureRef(session.file_path(e), float(e.exposure_s), e.file))
+    return by_light
+
+
+def processor_from_session(session, *, white_level: Optional[float] = None,
+                           linear_limit: Optional[float] = LINEAR_LIMIT_DN, white_role: str = "flat",
+                           progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+                           ) -> tuple[CaptureProcessor, dict[str, dict[str, list[ExposureRef]]]]:
+    """A processor with the session's darks and (HDR) whites, and the subjects to stack.
+
+    Subjects are keyed ``"<role>"`` or ``"<role>:<meta target/subject>"`` (e.g. ``"target:train"``,
+    ``"object:folio 3"``); each maps light name -> exposures. Whites are merged here (progress 0..1).
+    """
+    darks = [ExposureRef(session.file_path(e), float(e.exposure_s), e.file) for e in session.entries("dark")
+             if e.exposure_s]
+    proc = CaptureProcessor(dark_frames=darks, white_level=white_level, linear_limit=linear_limit)
+    whites = _group_refs(session, session.entries(white_role))
+    for i, (light, refs) in enumerate(whites.items()):
+        proc.set_white(light, refs, progress=_sub(progress, i / max(len(whites), 1), (i + 1) / max(len(whites), 1)),
+                       cancel=cancel)
+    subjects: dict[str, list] = defaultdict(list)
+    for e in session.entries():
+        if e.role in ("dark", white_role, "crf"):
+            continue
+        tag = e.meta.get("target") or e.meta.get("subject")
+        subjects[f"{e.role}:{tag}" if tag else e.role].append(e)
+    return proc, {k: _group_refs(session, v) for k, v in subjects.items()}
+
+
+def write_stack_outputs(out_dir: Path, stack: ChannelStack, characterisation, *, prefix: str = "image",
+                        progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+                        ) -> dict[str, Path]:
+    """The output files for one stack with the best matrix of ``characterisation`` (outputs module)."""
+    from app.processing.outputs import write_image_outputs
+
+    return write_image_outputs(Path(out_dir), stack.data, stack.channels, characterisation.matrix,
+                               characterisation.white, prefix=prefix, progress=progress, cancel=cancel)
