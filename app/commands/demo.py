@@ -6,8 +6,6 @@ import logging
 import sys
 from pathlib import Path
 
-from app.demo import DemoSettings, run_demo
-
 log = logging.getLogger(__name__)
 
 
@@ -36,6 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from app.demo import DemoSettings, run_demo   # heavy imports only when the demo runs
+
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
                             seed=args.seed, dark_frames=args.dark_frames, optimise_matrix=not args.no_de_fit)
     last = [-1]

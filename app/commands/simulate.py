@@ -7,11 +7,6 @@ import logging
 import sys
 from pathlib import Path
 
-from simulation.datasets import MODES, default_setup
-from simulation.grid import SpectralGrid
-from simulation.presets import save_preset
-from simulation.runner import METHODS, format_table, run
-
 log = logging.getLogger(__name__)
 
 
@@ -23,6 +18,10 @@ def _bins(text: str) -> tuple[int, ...]:
     if sum(bins) != 10 or any(b < 1 for b in bins):
         raise argparse.ArgumentTypeError(f"bins {text!r}: expected positive sizes adding up to the 10 LEDs")
     return bins
+
+
+MODES = ("reflective", "transmissive")                       # simulation.datasets.MODES
+METHODS = ("three-channel", "exhaustive", "pso", "ga")      # simulation.runner.METHODS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -44,6 +43,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    # imported here so that other subcommands start without loading colour-science and numba
+    from simulation.datasets import default_setup
+    from simulation.grid import SpectralGrid
+    from simulation.presets import save_preset
+    from simulation.runner import format_table, run
+
     setup = default_setup(args.mode, SpectralGrid(410.0, 780.0, args.step), camera_csv=args.camera_csv,
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv)
     if args.top < 1:

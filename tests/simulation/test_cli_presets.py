@@ -52,3 +52,10 @@ def test_bad_presets(tmp_path, text, fragment):
     p.write_text(text)
     with pytest.raises(PresetError, match=fragment):
         load_preset(p)
+
+
+def test_cli_modes_and_methods_match_the_simulation():
+    from app.commands import simulate
+    from simulation.datasets import MODES
+    from simulation.runner import METHODS
+    assert simulate.MODES == MODES and simulate.METHODS == METHODS

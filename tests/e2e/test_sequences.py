@@ -1,0 +1,143 @@
+"""Every sequence end to end on the virtual lab: sphere emulator on a real pty + virtual camera (DNGs)."""
+import threading
+
+import numpy as np
+import pytest
+
+from app.session import CaptureSession, SessionError
+from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure
+from app.sequences.capture import TargetCapture
+from app.sequences.crf import CrfSweep
+from app.sequences.shooter import LightSafetyError, SafetySettings, Shooter, channel_levels
+from app.virtual_lab import VirtualLab
+from drivers.camera.base import CameraError
+from drivers.led_sphere import SphereError
+from simulation.lightsource import LightSource
+
+LS1 = NamedLight("LS1", LightSource((1, 6, 8)))
+LS2 = NamedLight("LS2", LightSource((3, 5, 9)))
+
+
+@pytest.fixture()
+def lab():
+    with VirtualLab(frame_size=(240, 160), timeout_s=0.3, bumps=True) as lab:
+        yield lab
+
+
+@pytest.fixture()
+def shooter(lab, tmp_path):
+    session = CaptureSession.create(tmp_path / "s", {"test": True})
+    return Shooter(lab.camera, lab.sphere, session, stand=lab.place, safety=SafetySettings(settle_s=0.0))
+
+
+def lights_off(lab) -> bool:
+    snap = lab.emulator.snapshot()
+    return not snap.light_on and not np.any(snap.levels)
+
+
+def test_auto_exposure_hits_80_percent_of_the_linear_limit(shooter, lab):
+    t, seqs = auto_exposure(shooter, LS1)
+    assert t in lab.camera.shutter_speeds() and seqs
+    lab.place("open-gate")
+    e = shooter.shoot("check", LS1.light, t, "check")
+    level = channel_levels(shooter.frame(e)).max()
+    assert 0.55 * 11000 <= level <= 0.9 * 11000          # within a third of a stop below the 80 % goal
+    assert lights_off(lab)
+
+
+def test_dark_series_and_flats_record_everything_with_lights_off(shooter, lab):
+    seq = DarkSeries(shooter, [1 / 60, 1 / 500], frames=3)
+    assert len(seq.plan()) == 6
+    events = list(seq.run())
+    assert [e.kind for e in events].count("frame") == 6
+    darks = shooter.session.entries("dark")
+    assert len(darks) == 6 and all(e.light is None for e in darks)
+    mean = shooter.frame(darks[0]).mosaic.mean()
+    assert 598 < mean < 606                                 # lens cap: black level + noise
+    flats = FlatSeries(shooter, [LS1, LS2], {"LS1": [1 / 80], "LS2": [1 / 200]}, frames=2)
+    list(flats.run())
+    assert len(shooter.session.entries("flat")) == 4
+    assert shooter.dose.on_s > 0 and shooter.dose.lux_s > 0
+    assert lights_off(lab)
+
+
+def test_cancel_mid_sequence_leaves_lights_off_and_resume_finishes(shooter, lab):
+    seq = TargetCapture(shooter, [LS1, LS2], {"LS1": [1 / 80, 1 / 40], "LS2": [1 / 200]}, "train")
+    it = seq.run()
+    first = next(it)
+    assert first.kind == "frame"
+    seq.cancel()
+    rest = list(it)
+    assert rest[-1].kind == "cancelled"
+    assert lights_off(lab)
+    done = len(shooter.session.entries("target"))
+    assert done == 1
+    again = TargetCapture(shooter, [LS1, LS2], {"LS1": [1 / 80, 1 / 40], "LS2": [1 / 200]}, "train")
+    list(again.run())
+    assert len(shooter.session.entries("target")) == 3        # the first frame was not shot again
+
+
+def test_pause_and_resume_from_another_thread(shooter, lab):
+    seq = DarkSeries(shooter, [1 / 100], frames=4)
+    it = seq.run()
+    next(it)
+    seq.pause()
+    assert seq.paused
+    threading.Timer(0.2, seq.resume).start()
+    rest = list(it)
+    assert len([e for e in rest if e.kind == "frame"]) == 3
+
+
+def test_light_on_limit_refuses_long_exposures_before_switching_on(shooter, lab):
+    with pytest.raises(LightSafetyError, match="over the 10 s limit"):
+        shooter.shoot("target", LS1.light, 15.0, "too-long")
+    assert lights_off(lab) and len(shooter.session) == 0
+
+
+@pytest.mark.parametrize("fault", ["no_reply", "disconnect", "garbled"])
+def test_sphere_fault_stops_cleanly_with_session_valid(shooter, lab, fault):
+    seq = TargetCapture(shooter, [LS1, LS2], {"LS1": [1 / 80], "LS2": [1 / 200]}, "train")
+    it = seq.run()
+    next(it)
+    lab.emulator.inject(fault)
+    with pytest.raises(SphereError):
+        list(it)
+    lab.emulator.inject(None)
+    assert not lab.emulator.snapshot().light_on or fault != "no_reply"
+    assert shooter.session.verify().valid and len(shooter.session.entries("target")) == 1
+
+
+def test_camera_gone_mid_sequence_turns_lights_off(shooter, lab, monkeypatch):
+    def gone(*_a, **_k):
+        raise CameraError("[-52] camera disappeared: reconnect it", code=-52)
+    monkeypatch.setattr(lab.camera, "capture", gone)
+    seq = TargetCapture(shooter, [LS1], {"LS1": [1 / 80]}, "test")
+    with pytest.raises(CameraError):
+        list(seq.run())
+    assert lights_off(lab) and shooter.session.verify().valid
+
+
+def test_disk_full_stops_cleanly(shooter, lab, monkeypatch):
+    import errno
+
+    def full(*_a, **_k):
+        raise SessionError(errno.ENOSPC, "disk full while writing the raw file")
+    monkeypatch.setattr(shooter.session, "record", full)
+    with pytest.raises(SessionError, match="disk full"):
+        list(TargetCapture(shooter, [LS1], {"LS1": [1 / 80]}, "test").run())
+    assert lights_off(lab)
+
+
+def test_crf_sweep_finds_linear_limit_and_flags_the_shutter_bump(shooter, lab):
+    seq = CrfSweep(shooter, LightSource((2, 5, 9)), levels=(1.0, 0.25))
+    events = list(seq.run())
+    summary = events[-1].data["result"]
+    assert 9500 < summary["linear_limit_dn"] < 12500           # thesis 4.1: ~11 000 DN
+    assert any(abs(t - 1 / 60) < 1e-9 for t in summary["flagged_exposures"])   # +3 % bump at 1/60 s
+    assert lights_off(lab)
+
+
+def test_session_reopens_after_the_lab_is_gone(shooter, lab, tmp_path):
+    list(DarkSeries(shooter, [1 / 100], frames=2).run())
+    reopened = CaptureSession.open(shooter.session.path)
+    assert len(reopened.entries("dark")) == 2 and reopened.verify().valid
