@@ -100,7 +100,7 @@ def main(args: argparse.Namespace) -> int:
                             "after its timeout)") from None
         raise UserError(f"{exc} (all LEDs and the light were switched off)") from None
     finally:
-        sphere.close()
+        sphere.close(leave_on=True)         # levels and light stay as set; on failure shutdown() was just tried
     return 0
 
 

@@ -7,7 +7,7 @@ their keyword/echo and skipped. Anything else that goes wrong is a :class:`Spher
 message saying what happened and what to do.
 
 Safety (artworks under the light): used as a context manager the sphere is left with every LED at 0 and the light
-off on exit, also when an exception leaves the block; if even that fails the sphere's own watchdog switches the
+off on exit, also when an exception leaves the block (``close()`` switches off too); if even that fails the sphere's own watchdog switches the
 LEDs off after ``watchdog_s`` without requests (call :meth:`LedSphere.keepalive` more often than that while the
 light must stay on).
 """
@@ -111,8 +111,15 @@ class LedSphere:
                 except (AttributeError, ValueError, serial.SerialException):
                     log.debug("could not set %s on %r", name, ser)
 
-    def close(self) -> None:
-        """Close the port (only if this object opened it). Does not switch anything off: see :meth:`shutdown`."""
+    def close(self, leave_on: bool = False) -> None:
+        """Switch every LED and the light off (best effort: a failure is logged, the watchdog is the backstop),
+        then close the port (only if this object opened it). ``leave_on=True`` closes without switching off
+        (the command line's ``set``/``on``, whose effect must outlast the process)."""
+        if self._ser is not None and not leave_on:
+            try:
+                self.shutdown()
+            except SphereError as exc:
+                log.warning("closing LED sphere %s: %s", self._url, exc)
         ser, self._ser = self._ser, None
         if ser is not None and self._owns_port:
             try:
@@ -132,7 +139,7 @@ class LedSphere:
             log.error("could not switch the LED sphere off after an error: %s", off_error)
             exc.add_note(f"and the LED sphere could not be switched off: {off_error}")
         finally:
-            self.close()
+            self.close(leave_on=True)           # shutdown() was just tried
 
     def shutdown(self) -> None:
         """Every LED to 0, then the light off. Tries both even if the first fails; raises the first error."""

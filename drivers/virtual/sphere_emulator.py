@@ -24,6 +24,7 @@ but emits nothing, FAULT? reports it while driven; ``mode="error"``: a non-zero 
 """
 from __future__ import annotations
 
+import collections
 import logging
 import math
 import os
@@ -117,7 +118,7 @@ class SphereEmulator:
         self._thread: Optional[threading.Thread] = None
         self._stop = threading.Event()
         self._pending: list[tuple[float, bytes]] = []
-        self.requests: list[bytes] = []       # every request line received (for tests / the GUI's log)
+        self.requests: collections.deque[bytes] = collections.deque(maxlen=1000)   # recent request lines (log)
 
     # ------------------------------------------------------------------------------------------ serving
     def start(self) -> str:
@@ -358,8 +359,8 @@ class SphereEmulator:
 
     def _fault_mask(self) -> int:
         mask = 0
-        for led, mode in self._failed.items():
-            if mode == "error" or (self._light and self._pwm[led - 1] > 0):
+        for led in self._failed:            # current sensing: only a driven channel can show its fault
+            if self._light and self._pwm[led - 1] > 0:
                 mask |= 1 << (led - 1)
         return mask
 

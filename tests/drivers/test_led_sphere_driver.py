@@ -198,7 +198,7 @@ def test_loop_url_echo_is_garbled():
             sphere.identify()
         assert info.value.kind == "garbled"
     finally:
-        sphere.close()
+        sphere.close(leave_on=True)
 
 
 def test_not_open():
@@ -252,6 +252,20 @@ def test_context_manager_switches_off_on_normal_exit():
     with LedSphere(port, timeout=0.05):
         pass
     assert port.done
+
+
+def test_close_switches_off_unless_told_not_to():
+    port = ScriptedSerial([(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")])
+    sphere = LedSphere(port, timeout=0.05)
+    sphere.close()
+    assert port.done and not sphere.is_open
+    sphere.close()                                   # twice is harmless
+    port = ScriptedSerial([])
+    LedSphere(port, timeout=0.05).close(leave_on=True)
+
+
+def test_close_survives_a_dead_link():
+    LedSphere(BrokenSerial("write"), timeout=0.05).close()
 
 
 def test_off_failure_during_exception_is_noted_not_hidden():

@@ -224,7 +224,7 @@ def test_watchdog_with_a_short_real_time():
         sphere.set_level(2, 1.0)
         sphere.on()
         assert emu.snapshot().levels[1] == 1.0
-        sphere.close()                               # host gone silent (no shutdown)
+        sphere.close(leave_on=True)                  # host gone silent (no shutdown)
         deadline = time.monotonic() + 10
         while emu.snapshot().light_on and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -353,3 +353,16 @@ def test_inject_rejects_unknown_faults():
         emu.inject("led_fail", led=11)
     with pytest.raises(ValueError):
         emu.inject("slow", delay_s=0)
+
+
+def test_a_faulty_led_outside_the_preset_does_not_block(lab):
+    emu, clock, port = lab
+    emu.inject("led_fail", led=10, mode="dark")
+    with LedSphere(port, timeout=OK_TIMEOUT) as sphere:
+        sphere.apply(LightSource((1, 6, 8)))
+        sphere.on()
+        assert sphere.faulty_leds() == []
+        assert emu.snapshot().levels[[0, 5, 7]] == pytest.approx([1, 1, 1])
+        with pytest.raises(SphereError, match="LED 10 reports a fault"):
+            sphere.set_levels([0] * 9 + [1])
+        assert not emu.snapshot().light_on
