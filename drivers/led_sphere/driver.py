@@ -7,9 +7,9 @@ their keyword/echo and skipped. Anything else that goes wrong is a :class:`Spher
 message saying what happened and what to do.
 
 Safety (artworks under the light): used as a context manager the sphere is left with every LED at 0 and the light
-off on exit, also when an exception leaves the block (``close()`` switches off too); if even that fails the sphere's own watchdog switches the
-LEDs off after ``watchdog_s`` without requests (call :meth:`LedSphere.keepalive` more often than that while the
-light must stay on).
+off on exit, also when an exception leaves the block (``close()`` switches off too); if even that fails, the
+sphere's own watchdog switches the LEDs off after ``watchdog_s`` without requests (call
+:meth:`LedSphere.keepalive` more often than that while the light must stay on).
 """
 from __future__ import annotations
 

@@ -10,7 +10,9 @@ physical state the virtual camera needs, readable at any time with the thread-sa
   (first order, ``THERMAL_TAU_S``), over-temperature protection at ``OVER_TEMPERATURE_C``;
 * peak-wavelength drift with continuous on-time as measured in thesis 4.3.2 (Fig. 4.10): none during the first
   10 s, then growing towards a per-LED maximum reached after about an hour (LED 4 ~7 nm, LED 7 none, the
-  others a few nm); LED 10 also fades after ~40 min on and does not recover (it "died" in the thesis run);
+  others a few nm); LED 10 also fades after ~40 min on and does not recover (it "died" in the thesis run).
+  Drift depends on continuous on-time only, not on the level (the thesis measured at full level), and starts
+  over when the LED goes dark;
 * the watchdog: no request for ``watchdog_s`` -> every LED to 0 and the light off, ``trip`` set.
 
 Physics is evaluated lazily against the injectable ``clock`` (exact, piecewise-constant levels), so tests can
@@ -88,7 +90,8 @@ class SphereEmulator:
             raise ValueError(f"n_leds {n_leds} outside 1..{P.MAX_CHANNELS}")
         wd_ms = int(round(watchdog_s * 1000))
         if not P.WATCHDOG_MIN_MS <= wd_ms <= P.WATCHDOG_MAX_MS:
-            raise ValueError(f"watchdog {watchdog_s} s outside {P.WATCHDOG_MIN_MS / 1000}..{P.WATCHDOG_MAX_MS / 1000} s")
+            raise ValueError(f"watchdog {watchdog_s} s outside "
+                             f"{P.WATCHDOG_MIN_MS / 1000}..{P.WATCHDOG_MAX_MS / 1000} s")
         self.n_leds = n_leds
         self._clock = clock
         self._lock = threading.RLock()
@@ -225,7 +228,8 @@ class SphereEmulator:
                 self._advance(self._clock())
 
     def _on_line(self, line: bytes, too_long: bool = False) -> None:
-        faults = dict(self._faults)
+        with self._lock:
+            faults = dict(self._faults)
         hung = "no_reply" in faults and not faults["no_reply"].get("execute", True)
         if hung:
             log.debug("emulator hung: ignoring %r", line)
@@ -298,7 +302,8 @@ class SphereEmulator:
             return
         if fault == "slow" and float(params.get("delay_s", 1.0)) <= 0:
             raise ValueError("slow needs delay_s > 0")
-        self._faults[fault] = dict(params)
+        with self._lock:
+            self._faults[fault] = dict(params)
 
     # ------------------------------------------------------------------------------------------ physics
     def _emitting(self) -> np.ndarray:

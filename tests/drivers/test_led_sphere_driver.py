@@ -7,7 +7,6 @@ import random
 from pathlib import Path
 
 import pytest
-import serial
 
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.led_sphere import protocol as P

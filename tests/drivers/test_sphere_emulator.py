@@ -59,7 +59,8 @@ def _ok(emu: SphereEmulator, line: bytes) -> bytes:
 
 
 @pytest.mark.parametrize("line,code", [
-    (b"FOO", P.ErrorCode.UNKNOWN_COMMAND), (b"", P.ErrorCode.UNKNOWN_COMMAND), (b"\xff\xfe", P.ErrorCode.UNKNOWN_COMMAND),
+    (b"FOO", P.ErrorCode.UNKNOWN_COMMAND), (b"", P.ErrorCode.UNKNOWN_COMMAND),
+    (b"\xff\xfe", P.ErrorCode.UNKNOWN_COMMAND),
     (b"LEVEL 4", P.ErrorCode.ARGUMENT_COUNT), (b"LEVEL 4 1 2", P.ErrorCode.ARGUMENT_COUNT),
     (b"PING 1", P.ErrorCode.ARGUMENT_COUNT), (b"LEVELS 1 2 3", P.ErrorCode.ARGUMENT_COUNT),
     (b"LEVELS", P.ErrorCode.ARGUMENT_COUNT), (b"LEVELS " + b"1 " * 17, P.ErrorCode.ARGUMENT_COUNT),
