@@ -1,0 +1,70 @@
+"""Least-squares vs mean-dE00-optimised characterisation on simulated dual-RGB patch values."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.processing.characterise import (DE2000, LEAST_SQUARES, characterise, fit_de2000, fit_least_squares,
+                                         patch_errors)
+from simulation.datasets import default_setup
+from simulation.lightsource import LightSource
+from simulation.objective import PatchSet
+from simulation.progress import CancelToken, Cancelled
+
+
+@pytest.fixture(scope="module")
+def data():
+    setup = default_setup("reflective")
+    train, test = PatchSet(setup, setup.train), PatchSet(setup, setup.test)
+    W = np.stack([LightSource((1, 6, 8)).weights(), LightSource((3, 5, 9)).weights()])
+    rng = np.random.default_rng(0)
+    vt = train.camera_values(W) * (1 + 0.01 * rng.standard_normal((len(train), 6)))   # 1 % capture noise
+    vs = test.camera_values(W) * (1 + 0.01 * rng.standard_normal((len(test), 6)))
+    return vt, train.xyz, vs, test.xyz, train.white
+
+
+def test_de2000_matrix_is_not_worse_than_least_squares_on_train(data):
+    vt, xt, vs, xs, white = data
+    ls = fit_least_squares(vt, xt)
+    opt = fit_de2000(vt, xt, white, start=ls)
+    e_ls = patch_errors(ls, vt, xt, white).mean()
+    e_opt = patch_errors(opt, vt, xt, white).mean()
+    assert e_opt <= e_ls
+    assert e_opt < 0.99 * e_ls, "the optimiser should find a real improvement on the training set"
+    assert opt.method == DE2000 and ls.method == LEAST_SQUARES
+
+
+def test_characterise_reports_both_and_picks_best_on_test(data):
+    vt, xt, vs, xs, white = data
+    seen = []
+    c = characterise(vt, xt, white, vs, xs, ["R1", "G1", "B1", "R2", "G2", "B2"],
+                     progress=lambda f, m: seen.append(f))
+    assert set(c.results) == {LEAST_SQUARES, DE2000}
+    r = c.results
+    assert r[DE2000].train.mean <= r[LEAST_SQUARES].train.mean
+    best = min(r, key=lambda k: r[k].test.mean)
+    assert c.best == best and c.matrix is r[best].matrix
+    assert np.allclose(r[LEAST_SQUARES].test_errors, patch_errors(r[LEAST_SQUARES].matrix, vs, xs, white))
+    assert 0 < r[LEAST_SQUARES].train.mean < 3 and seen and seen[-1] == 1.0
+    d = c.to_dict()
+    assert d["best"] == best and d["methods"][DE2000]["test"]["p90"] > 0
+
+
+def test_characterise_rejects_nan_patches_and_can_be_cancelled(data):
+    vt, xt, vs, xs, white = data
+    bad = vt.copy()
+    bad[3, 2] = np.nan
+    with pytest.raises(ValueError, match="training patches 4"):
+        characterise(bad, xt, white)
+    tok = CancelToken()
+    tok.cancel()
+    with pytest.raises(Cancelled):
+        fit_de2000(vt, xt, white, cancel=tok)
+
+
+def test_zero_channel_stays_zero(data):
+    vt, xt, _, _, white = data
+    v = vt.copy()
+    v[:, 4] = 0.0                                     # an LED clipped to 0: one channel carries nothing
+    opt = fit_de2000(v, xt, white)
+    assert np.all(opt.matrix[4] == 0) and np.isfinite(opt.matrix).all()
