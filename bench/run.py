@@ -15,6 +15,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 # name -> (module, function, kwargs); each returns a JSON-able dict
 BENCHES = {
     "simulation": ("bench.simulation_bench", "bench_simulation", {}),
+    "virtual_camera": ("bench.virtual_camera", "bench_render", {}),
 }
 
 
