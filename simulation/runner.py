@@ -58,7 +58,10 @@ class RunResult:
 
 def run(setup: SimulationSetup, method: str, seed: int = 0, top: int = 10, bins: Sequence[int] = DEFAULT_BINS,
         pso_settings: PsoSettings = PsoSettings(), ga_settings: GaSettings = GaSettings(),
-        progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> RunResult:
+        progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None,
+        evaluator: Optional[Evaluator] = None) -> RunResult:
+    """``evaluator``: an Evaluator built on ``setup`` to use instead of a new one (the GUI passes a subclass
+    that reports the best cost so far for its live convergence plot)."""
     if method not in METHODS:
         raise ValueError(f"method {method!r}: expected one of {', '.join(METHODS)}")
     t0 = time.perf_counter()
@@ -66,7 +69,7 @@ def run(setup: SimulationSetup, method: str, seed: int = 0, top: int = 10, bins:
     baseline = {"train": round(float(tr.mean()), 4), "test": round(float(te.mean()), 4)}
     if method == "three-channel":
         return RunResult(setup.mode, method, None, time.perf_counter() - t0, 1, baseline, None, setup, top)
-    evaluator = Evaluator(setup)
+    evaluator = evaluator if evaluator is not None else Evaluator(setup)
     groups = light_pairs(bins)
     if method == "exhaustive":
         outcome = exhaustive(evaluator, groups, progress=progress, cancel=cancel)

@@ -1,0 +1,100 @@
+"""Starting the GUI: display check, QApplication, the window, the virtual lab, the screenshot run."""
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from pathlib import Path
+from typing import Mapping, Optional
+
+log = logging.getLogger(__name__)
+
+HEADLESS_PLATFORMS = ("offscreen", "minimal", "vnc", "eglfs", "linuxfb", "vkkhrdisplay")
+NO_DISPLAY = ("no display found; set QT_QPA_PLATFORM=offscreen for headless use or run on a desktop")
+
+
+def display_problem(env: Optional[Mapping[str, str]] = None) -> Optional[str]:
+    """A one-line reason the GUI cannot open a window here, or None. Checked before Qt is touched (Qt would
+    abort the whole process with a core dump)."""
+    env = os.environ if env is None else env
+    platform = (env.get("QT_QPA_PLATFORM") or "").split(":")[0].strip().lower()
+    if platform in HEADLESS_PLATFORMS:
+        return None
+    if sys.platform in ("win32", "darwin"):
+        return None
+    if platform.startswith("wayland") and env.get("WAYLAND_DISPLAY"):
+        return None
+    if platform == "xcb" and env.get("DISPLAY"):
+        return None
+    if not platform and (env.get("DISPLAY") or env.get("WAYLAND_DISPLAY")):
+        return None
+    if platform in ("xcb",) or platform.startswith("wayland"):
+        return f"QT_QPA_PLATFORM={platform} but no matching display is set; " + NO_DISPLAY
+    return NO_DISPLAY
+
+
+def pyside_drops_none_references() -> bool:
+    """True for a PySide6 build that loses a reference to None on every void call (6.12.0 on Python < 3.12):
+    such a window aborts with 'deallocating None' after a while, so it is refused up front."""
+    if sys.version_info >= (3, 12):          # None is immortal there
+        return False
+    from PySide6.QtCore import QObject
+
+    probe = QObject()
+    before = sys.getrefcount(None)
+    for _ in range(200):
+        probe.setObjectName("probe")
+    return before - sys.getrefcount(None) >= 150
+
+
+def application(argv: Optional[list[str]] = None):
+    """The QApplication (created once), with pyqtgraph's defaults for white plots."""
+    from PySide6.QtWidgets import QApplication
+    import pyqtgraph as pg
+
+    app = QApplication.instance()
+    if app is None:
+        QApplication.setOrganizationName("dualrgb")
+        QApplication.setApplicationName("dualrgb")
+        app = QApplication(argv or [sys.argv[0]])
+    pg.setConfigOptions(antialias=True, background="w", foreground="k", imageAxisOrder="row-major")
+    return app
+
+
+def run(virtual_lab: bool = False, screenshot_dir: Optional[Path] = None,
+        frame_size: tuple[int, int] = (600, 400)) -> int:
+    if screenshot_dir is not None and display_problem() is not None:
+        os.environ["QT_QPA_PLATFORM"] = "offscreen"      # screenshots need no screen
+    problem = display_problem()
+    if problem is not None:
+        from app.cli import UserError
+        raise UserError(problem)
+    if pyside_drops_none_references():
+        from app.cli import UserError
+        import PySide6
+        raise UserError(f"PySide6 {PySide6.__version__} has a reference-count bug that crashes the window on this "
+                        "Python; install another version: pip install 'PySide6-Essentials!=6.12.0'")
+    app = application()
+    from app.gui.main_window import MainWindow
+
+    if screenshot_dir is not None:
+        from app.gui.screenshots import ScreenshotRun
+        from app.gui.context import default_settings
+        from PySide6.QtCore import QSettings
+        import tempfile
+
+        tmp = Path(tempfile.mkdtemp(prefix="dualrgb-screens-"))
+        settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.IniFormat)
+        window = MainWindow(settings, frame_size=(240, 160), show_dialogs=False)
+        window.resize(1400, 900)
+        window.show()
+        run_ = ScreenshotRun(window, Path(screenshot_dir), tmp)
+        run_.start()
+        app.exec()
+        return run_.exit_code
+
+    window = MainWindow(frame_size=frame_size)
+    window.show()
+    if virtual_lab:
+        window.lab.start_virtual_lab()
+    return app.exec()

@@ -1,0 +1,308 @@
+"""The devices and the capture session the window works with, behind one QObject.
+
+Every device call is submitted to the runner's ``devices`` pool (one thread, in order); results and errors come
+back on the GUI thread as signals. The virtual lab (app.virtual_lab.VirtualLab: the sphere emulator on a pty,
+the LedSphere driver over it, the virtual camera) is started on first use of a virtual device.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+from typing import Any, Callable, Optional
+
+from PySide6.QtCore import QObject, QTimer, Signal
+
+from app.gui.viewmodel import DoseFeed, light_from_levels
+from app.gui.workers import TaskHandle, TaskRunner
+from drivers.camera.base import Camera, CameraError
+from drivers.led_sphere import LedSphere, SphereError
+from simulation.lightsource import LightSource
+
+log = logging.getLogger(__name__)
+
+VIRTUAL_SPHERE = "virtual sphere (emulator)"
+VIRTUAL_CAMERA = "virtual camera (virtual lab)"
+NO_CAMERA_ADVICE = ("no camera found: connect the camera by USB, switch it on (mode dial to M) and press "
+                    "'Detect' again; on a desktop, close photo programs that grab it (gvfs)")
+
+
+def serial_ports() -> list[str]:
+    """Serial ports the sphere may be on (pyserial's list), the emulator entry first."""
+    from serial.tools import list_ports
+    return [VIRTUAL_SPHERE] + sorted(p.device for p in list_ports.comports())
+
+
+def detect_cameras() -> list[tuple[str, str]]:
+    """(model, port) of cameras libgphoto2 sees; a missing gphoto2 install is reported as no camera."""
+    from drivers.camera.gphoto import GPhotoCamera
+    try:
+        return GPhotoCamera.detect()
+    except ImportError as exc:
+        log.warning("gphoto2 is not available (%s): only the virtual camera can be used", exc)
+        return []
+
+
+class Lab(QObject):
+    sphereChanged = Signal()
+    cameraChanged = Signal()
+    sphereStatus = Signal(object)          # dict: LedSphere.status() plus 'dose' (app.light_dose.LightDose)
+    sessionChanged = Signal()
+    lightApplied = Signal(object)          # LightSource now on the sphere
+    virtualLabChanged = Signal()
+    failed = Signal(str, object)           # title, exception: shown by the window as an actionable dialog
+    message = Signal(str)                  # one line for the status bar
+
+    def __init__(self, runner: TaskRunner, parent: Optional[QObject] = None,
+                 frame_size: tuple[int, int] = (600, 400), mode: str = "reflective", seed: int = 0):
+        super().__init__(parent)
+        self.runner = runner
+        self.frame_size = frame_size
+        self.mode = mode
+        self.seed = seed
+        self.virtual_lab: Any = None
+        self.sphere: Optional[LedSphere] = None
+        self.sphere_port: str = ""
+        self.camera: Optional[Camera] = None
+        self.camera_name: str = ""
+        self.session: Any = None                  # app.session.CaptureSession
+        self.last_status: dict = {}
+        self.dose = DoseFeed()
+        self._poll_pending = False
+        self._status_timer = QTimer(self)
+        self._status_timer.setInterval(1000)
+        self._status_timer.timeout.connect(self.poll_status)
+        self._status_timer.start()
+
+    # ------------------------------------------------------------------ helpers
+    def device_call(self, fn: Callable[[], Any], title: str, *, on_result: Optional[Callable[[Any], None]] = None,
+                    on_finished: Optional[Callable[[], None]] = None,
+                    on_error: Optional[Callable[[BaseException], None]] = None) -> TaskHandle:
+        """Run ``fn`` on the devices thread; errors become a dialog titled ``title``."""
+        def failed(exc: BaseException) -> None:
+            if on_error is not None:
+                on_error(exc)
+            self.failed.emit(title, exc)
+        return self.runner.submit(fn, pool="devices", name=title, on_result=on_result, on_error=failed,
+                                  on_finished=on_finished)
+
+    @property
+    def is_virtual(self) -> bool:
+        return self.virtual_lab is not None
+
+    def _ensure_virtual_lab(self) -> Any:      # devices thread
+        if self.virtual_lab is None:
+            from app.virtual_lab import VirtualLab
+            lab = VirtualLab(mode=self.mode, frame_size=self.frame_size, seed=self.seed)
+            lab.start()
+            self.virtual_lab = lab
+            log.info("virtual lab started: sphere emulator on %s, %dx%d frames", lab.port, *self.frame_size)
+        return self.virtual_lab
+
+    # ------------------------------------------------------------------ virtual lab
+    def start_virtual_lab(self, on_done: Optional[Callable[[], None]] = None) -> TaskHandle:
+        """Start the virtual lab and connect both its devices."""
+        def work() -> tuple[str, Any, Any]:
+            lab = self._ensure_virtual_lab()
+            return lab.port, lab.sphere, lab.camera
+
+        def done(result: tuple[str, Any, Any]) -> None:
+            port, sphere, camera = result
+            self._set_sphere(sphere, VIRTUAL_SPHERE)
+            self._set_camera(camera, VIRTUAL_CAMERA)
+            self.virtualLabChanged.emit()
+            self.message.emit(f"virtual lab ready: sphere emulator on {port}, virtual camera")
+            if on_done:
+                on_done()
+        return self.device_call(work, "Start the virtual lab", on_result=done)
+
+    def place(self, what: str, nd: bool = False, on_done: Optional[Callable[[], None]] = None) -> TaskHandle:
+        """Virtual lab only: put a target / the open gate / the lens cap on the copy stand."""
+        def work() -> str:
+            lab = self._ensure_virtual_lab()
+            lab.place(what, nd=nd)
+            return lab.placed
+        return self.device_call(work, "Place on the copy stand",
+                                on_result=lambda placed: (self.message.emit(f"on the copy stand: {placed}"),
+                                                          on_done() if on_done else None))
+
+    # ------------------------------------------------------------------ sphere
+    def connect_sphere(self, port: str, on_done: Optional[Callable[[bool], None]] = None) -> TaskHandle:
+        def work() -> LedSphere:
+            if port == VIRTUAL_SPHERE:
+                return self._ensure_virtual_lab().sphere
+            sphere = LedSphere(port).open()
+            try:
+                info = sphere.identify()
+                sphere.shutdown()               # start from a known state: every LED 0, light off
+            except SphereError:
+                sphere.close()
+                raise
+            log.info("LED sphere on %s: %s firmware %s", port, info.get("model"), info.get("firmware"))
+            return sphere
+
+        def done(sphere: LedSphere) -> None:
+            self._set_sphere(sphere, port)
+            if on_done:
+                on_done(True)
+        return self.device_call(work, "Connect the LED sphere", on_result=done,
+                                on_error=lambda exc: on_done(False) if on_done else None)
+
+    def _set_sphere(self, sphere: Optional[LedSphere], port: str) -> None:
+        self.sphere = sphere
+        self.sphere_port = port if sphere is not None else ""
+        self.dose.reset()
+        self.last_status = {}
+        self.sphereChanged.emit()
+        if sphere is not None:
+            self.message.emit(f"LED sphere connected on {sphere.port}")
+            self.poll_status()
+
+    def disconnect_sphere(self) -> Optional[TaskHandle]:
+        sphere, port = self.sphere, self.sphere_port
+        if sphere is None:
+            return None
+        self._set_sphere(None, "")
+
+        def work() -> None:
+            try:
+                sphere.shutdown()
+            finally:
+                if port != VIRTUAL_SPHERE:      # the virtual lab keeps its own port open for the camera
+                    sphere.close()
+        return self.device_call(work, "Disconnect the LED sphere",
+                                on_finished=lambda: self.message.emit("LED sphere off and disconnected"))
+
+    def poll_status(self) -> None:
+        """Ask the sphere for its status (light, levels, temperature, on-time); also keeps its watchdog fed."""
+        sphere = self.sphere
+        if sphere is None or self._poll_pending:
+            return
+        self._poll_pending = True
+
+        def work() -> dict:
+            return sphere.status()
+
+        def done(status: dict) -> None:
+            if sphere is not self.sphere:
+                return
+            status = dict(status)
+            status["dose"] = self.dose.update(time.monotonic(), status["light_on"], status["levels"])
+            self.last_status = status
+            self.sphereStatus.emit(status)
+
+        def failed(exc: BaseException) -> None:
+            log.warning("LED sphere status: %s", exc)
+
+        self.runner.submit(work, pool="devices", name="sphere status", on_result=done, on_error=failed,
+                           on_finished=lambda: setattr(self, "_poll_pending", False))
+
+    def apply_light(self, light: LightSource, switch_on: Optional[bool] = None,
+                    on_done: Optional[Callable[[], None]] = None) -> Optional[TaskHandle]:
+        sphere = self.sphere
+        if sphere is None:
+            self.failed.emit("Apply the light", SphereError(
+                "the LED sphere is not connected: connect it in Devices first", kind="port"))
+            return None
+
+        def work() -> list[float]:
+            taken = sphere.apply(light)
+            if switch_on is True:
+                sphere.on()
+            elif switch_on is False:
+                sphere.off()
+            return taken
+
+        def done(_taken: list[float]) -> None:
+            self.lightApplied.emit(light)
+            self.poll_status()
+            if on_done:
+                on_done()
+        return self.device_call(work, "Apply the light", on_result=done)
+
+    def set_light_on(self, on: bool) -> Optional[TaskHandle]:
+        sphere = self.sphere
+        if sphere is None:
+            self.failed.emit("Switch the light", SphereError(
+                "the LED sphere is not connected: connect it in Devices first", kind="port"))
+            return None
+        return self.device_call(sphere.on if on else sphere.shutdown, "Switch the light",
+                                on_finished=self.poll_status)
+
+    # ------------------------------------------------------------------ camera
+    def detect_cameras(self, on_result: Callable[[list[str]], None],
+                       on_finished: Optional[Callable[[], None]] = None) -> TaskHandle:
+        def work() -> list[str]:
+            return [f"{model} @ {port}" for model, port in detect_cameras()] + [VIRTUAL_CAMERA]
+        return self.device_call(work, "Detect cameras", on_result=on_result, on_finished=on_finished)
+
+    def connect_camera(self, choice: str, on_done: Optional[Callable[[bool], None]] = None) -> TaskHandle:
+        def work() -> Camera:
+            if choice == VIRTUAL_CAMERA:
+                return self._ensure_virtual_lab().camera
+            from drivers.camera.gphoto import GPhotoCamera
+            model, _, port = choice.partition(" @ ")
+            if not port:
+                raise CameraError(NO_CAMERA_ADVICE, -105)
+            cam = GPhotoCamera(model=model or None, port=port or None)
+            cam.open()
+            return cam
+
+        def done(cam: Camera) -> None:
+            self._set_camera(cam, choice)
+            if on_done:
+                on_done(True)
+        return self.device_call(work, "Connect the camera", on_result=done,
+                                on_error=lambda exc: on_done(False) if on_done else None)
+
+    def _set_camera(self, camera: Optional[Camera], name: str) -> None:
+        self.camera = camera
+        self.camera_name = name if camera is not None else ""
+        self.cameraChanged.emit()
+        if camera is not None:
+            self.message.emit(f"camera connected: {name}")
+
+    def disconnect_camera(self) -> Optional[TaskHandle]:
+        cam, name = self.camera, self.camera_name
+        if cam is None:
+            return None
+        self._set_camera(None, "")
+        if name == VIRTUAL_CAMERA:
+            return None                          # the virtual lab owns it
+        return self.device_call(cam.close, "Disconnect the camera",
+                                on_finished=lambda: self.message.emit("camera disconnected"))
+
+    # ------------------------------------------------------------------ session
+    def set_session(self, session: Any) -> None:
+        self.session = session
+        self.sessionChanged.emit()
+        if session is not None:
+            self.message.emit(f"session folder {session.path}")
+
+    # ------------------------------------------------------------------ shutdown
+    def stop_polling(self) -> None:
+        self._status_timer.stop()
+
+    def shutdown(self) -> None:
+        """Window closing: LEDs off, ports closed, the virtual lab stopped (on the devices thread)."""
+        sphere, lab, cam = self.sphere, self.virtual_lab, self.camera
+        self.sphere = self.camera = None
+        self.virtual_lab = None
+        if sphere is not None:
+            try:
+                sphere.shutdown()
+            except SphereError as exc:
+                log.error("switching the sphere off at exit: %s", exc)
+            if lab is None or sphere is not lab.sphere:
+                sphere.close()
+        if cam is not None and (lab is None or cam is not lab.camera):
+            try:
+                cam.close()
+            except CameraError as exc:
+                log.warning("closing the camera: %s", exc)
+        if lab is not None:
+            lab.stop()
+
+
+def current_levels(status: dict) -> LightSource:
+    return light_from_levels(status.get("levels", [0.0] * 10))

@@ -1,0 +1,199 @@
+"""The copy-stand window: a tab per panel, the log at the bottom, a status bar, shortcuts, saved layout."""
+from __future__ import annotations
+
+import importlib
+import logging
+from typing import Callable, Optional
+
+from PySide6.QtCore import QByteArray, QSettings, Qt, QTimer
+from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
+from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QTabWidget, QWidget
+
+from app.gui.context import AppContext, Bus, default_settings
+from app.gui.lab import Lab
+from app.gui.panels.placeholder import NotAvailablePanel
+from app.gui.widgets import ErrorReporter, LogView
+from app.gui.workers import TaskRunner
+
+log = logging.getLogger(__name__)
+
+# (attribute, module, class, what is missing when the module cannot be imported)
+PANELS = (
+    ("devices", "app.gui.panels.devices", "DevicesPanel", "device drivers"),
+    ("light", "app.gui.panels.light", "LightPanel", "LED sphere driver"),
+    ("camera", "app.gui.panels.camera", "CameraPanel", "camera drivers"),
+    ("capture", "app.gui.panels.capture", "CapturePanel", "capture sequences (app.sequences)"),
+    ("target", "app.gui.panels.target", "TargetPanel", "patch grid (app.processing.patches)"),
+    ("results", "app.gui.panels.results", "ResultsPanel", "characterisation report (app.processing)"),
+    ("simulate", "app.gui.panels.simulate", "SimulatePanel", "simulation runner"),
+    ("characterise", "app.gui.panels.characterise", "CharacterisePanel", "CRF sweep sequence"),
+)
+PANEL_TITLES = {"devices": "Devices", "light": "Light source", "camera": "Camera", "capture": "Calibrate && capture",
+                "target": "Target", "results": "Results", "simulate": "Simulate && optimise",
+                "characterise": "Characterise"}
+
+
+class MainWindow(QMainWindow):
+    def __init__(self, settings: Optional[QSettings] = None, *, frame_size: tuple[int, int] = (600, 400),
+                 show_dialogs: bool = True):
+        super().__init__()
+        self.setWindowTitle("dualrgb — dual-RGB copy stand")
+        self.runner = TaskRunner(self)
+        self.errors = ErrorReporter(self)
+        self.errors.show_dialogs = show_dialogs
+        self.lab = Lab(self.runner, self, frame_size=frame_size)
+        self.ctx = AppContext(self.runner, self.lab, settings or default_settings(), self.errors, Bus(self))
+        self.lab.failed.connect(lambda title, exc: self.errors.report(title, exc))
+        self._closing = False
+
+        # ---- log dock ----
+        self.log_view = LogView()
+        self.log_view.install()
+        dock = QDockWidget("Log", self)
+        dock.setObjectName("log_dock")
+        dock.setWidget(self.log_view)
+        self.addDockWidget(Qt.BottomDockWidgetArea, dock)
+        self.resizeDocks([dock], [140], Qt.Vertical)
+        self.log_dock = dock
+
+        # ---- panels ----
+        self.tabs = QTabWidget()
+        self.tabs.setObjectName("panels")
+        self.panels: dict[str, QWidget] = {}
+        for attr, module, cls, missing in PANELS:
+            panel = self._make_panel(attr, module, cls, missing)
+            self.panels[attr] = panel
+            setattr(self, attr, panel)
+            self.tabs.addTab(panel, PANEL_TITLES[attr])
+            if isinstance(panel, NotAvailablePanel):
+                self.tabs.setTabToolTip(self.tabs.count() - 1, panel.message)
+        self.setCentralWidget(self.tabs)
+
+        # ---- status bar ----
+        self.sphere_state = QLabel("sphere: —")
+        self.camera_state = QLabel("camera: —")
+        self.task_state = QLabel("")
+        for w in (self.task_state, self.sphere_state, self.camera_state):
+            self.statusBar().addPermanentWidget(w)
+        self.lab.message.connect(lambda m: self.statusBar().showMessage(m, 8000))
+        self.lab.sphereChanged.connect(self._devices_changed)
+        self.lab.cameraChanged.connect(self._devices_changed)
+        self.lab.sphereStatus.connect(self._sphere_status)
+        self.runner.busyChanged.connect(self._busy_changed)
+        self.errors.shown.connect(lambda title, msg: self.statusBar().showMessage(f"{title}: {msg}", 15000))
+        self._devices_changed()
+
+        # ---- shortcuts ----
+        self.capture_action = QAction("Capture", self)
+        self.capture_action.setShortcuts([QKeySequence("Ctrl+Return"), QKeySequence("F5")])
+        self.capture_action.setToolTip("Take a picture (Camera) or start the chosen sequence (Calibrate & capture).")
+        self.capture_action.triggered.connect(self.capture_shortcut)
+        self.cancel_action = QAction("Cancel", self)
+        self.cancel_action.setShortcuts([QKeySequence(Qt.Key_Escape), QKeySequence("Ctrl+.")])
+        self.cancel_action.setToolTip("Stop the running sequence or simulation (the lights go off).")
+        self.cancel_action.triggered.connect(self.cancel_running)
+        menu = self.menuBar().addMenu("&Capture")
+        menu.addAction(self.capture_action)
+        menu.addAction(self.cancel_action)
+        for a in (self.capture_action, self.cancel_action):
+            a.setShortcutContext(Qt.ApplicationShortcut)
+            self.addAction(a)
+
+        # ---- layout persistence ----
+        self._save_timer = QTimer(self)
+        self._save_timer.setSingleShot(True)
+        self._save_timer.setInterval(500)
+        self._save_timer.timeout.connect(self.save_layout)
+        self.restore_layout()
+        self.tabs.currentChanged.connect(lambda i: self.ctx.set("window/tab", i))
+        dock.dockLocationChanged.connect(lambda *_: self._save_timer.start())
+        dock.visibilityChanged.connect(lambda *_: self._save_timer.start())
+
+    def _make_panel(self, attr: str, module: str, cls: str, missing: str) -> QWidget:
+        try:
+            panel_cls = getattr(importlib.import_module(module), cls)
+        except ImportError as exc:
+            log.info("panel %s not available: %s", attr, exc)
+            return NotAvailablePanel(PANEL_TITLES[attr], missing)
+        return panel_cls(self.ctx)
+
+    # ------------------------------------------------------------------ state display
+    def _devices_changed(self) -> None:
+        s = self.lab.sphere
+        self.sphere_state.setText(f"sphere: {s.port}" if s is not None else "sphere: not connected")
+        self.camera_state.setText(f"camera: {self.lab.camera_name}" if self.lab.camera else "camera: not connected")
+
+    def _sphere_status(self, status: dict) -> None:
+        on = "ON" if status.get("light_on") else "off"
+        self.sphere_state.setText(f"sphere: light {on}, {status.get('temperature_c', 0):.1f} °C")
+
+    def _busy_changed(self, pool: str, busy: bool) -> None:
+        running = [h.name for h in self.runner.running() if h.pool != "devices"]
+        self.task_state.setText(("running: " + ", ".join(running)) if running else "")
+
+    # ------------------------------------------------------------------ shortcuts
+    def capture_shortcut(self) -> None:
+        panel = self.tabs.currentWidget()
+        action: Optional[Callable[[], None]] = getattr(panel, "capture_shortcut", None)
+        if action is None:
+            panel = self.panels.get("camera")
+            action = getattr(panel, "capture_shortcut", None)
+        if action is not None:
+            action()
+
+    def cancel_running(self) -> None:
+        for panel in self.panels.values():
+            cancel = getattr(panel, "cancel_running", None)
+            if cancel is not None:
+                cancel()
+
+    # ------------------------------------------------------------------ settings
+    def restore_layout(self) -> None:
+        geometry = self.ctx.settings.value("window/geometry")
+        if isinstance(geometry, QByteArray):
+            self.restoreGeometry(geometry)
+        else:
+            self.resize(1280, 860)
+        state = self.ctx.settings.value("window/state")
+        if isinstance(state, QByteArray):
+            self.restoreState(state)
+        tab = self.ctx.get("window/tab", 0, int)
+        if 0 <= tab < self.tabs.count():
+            self.tabs.setCurrentIndex(tab)
+
+    def save_layout(self) -> None:
+        self.ctx.settings.setValue("window/geometry", self.saveGeometry())
+        self.ctx.settings.setValue("window/state", self.saveState())
+        self.ctx.settings.sync()
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt name)
+        super().resizeEvent(event)
+        if hasattr(self, "_save_timer"):
+            self._save_timer.start()
+
+    def moveEvent(self, event) -> None:  # noqa: N802
+        super().moveEvent(event)
+        if hasattr(self, "_save_timer"):
+            self._save_timer.start()
+
+    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802
+        if not self._closing:
+            self._closing = True
+            self.save_layout()
+            self.shutdown()
+        super().closeEvent(event)
+
+    def shutdown(self) -> None:
+        """Cancel what runs, switch the LEDs off, close the devices, stop the virtual lab."""
+        for panel in self.panels.values():
+            stop = getattr(panel, "shutdown", None)
+            if stop is not None:
+                stop()
+        self.lab.stop_polling()
+        self.runner.cancel_all()
+        self.runner.submit(self.lab.shutdown, pool="devices", name="switch off and close devices",
+                           on_error=lambda exc: log.error("closing the devices: %s", exc))
+        if not self.runner.wait(20000):
+            log.error("some work did not stop within 20 s")
+        self.errors.close_all()
+        self.log_view.uninstall()

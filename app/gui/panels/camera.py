@@ -1,0 +1,318 @@
+"""Camera: ISO / shutter / aperture / RAW, single capture with a DN histogram, live view."""
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt, QTimer
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QGroupBox, QHBoxLayout, QLabel, QPushButton,
+                               QSplitter, QVBoxLayout, QWidget)
+
+from app.gui.context import AppContext
+from app.gui.viewmodel import LINEAR_LIMIT_DN, RawView, raw_view
+from app.gui.widgets import plot_widget
+from app.session import atomic_write
+from drivers.camera.base import CameraSettings
+from drivers.camera.gphoto import format_shutter
+
+log = logging.getLogger(__name__)
+
+COMMON_ISO = (50, 64, 80, 100, 125, 160, 200, 250, 320, 400, 500, 640, 800, 1000, 1250, 1600, 3200, 6400)
+COMMON_APERTURES = (2.8, 4.0, 5.6, 8.0, 11.0, 16.0, 22.0)
+RAW_QUALITY = "NEF (Raw)"
+CHANNEL_PENS = {"R": "#d32f2f", "G1": "#388e3c", "G2": "#81c784", "G": "#388e3c", "B": "#1976d2"}
+
+
+def image_widget(tooltip: str) -> tuple[pg.GraphicsLayoutWidget, pg.ImageItem, pg.ViewBox]:
+    """A picture view (row-major image, y down, aspect locked)."""
+    w = pg.GraphicsLayoutWidget()
+    w.setBackground("#202020")
+    vb = w.addViewBox(lockAspect=True, invertY=True)
+    item = pg.ImageItem(axisOrder="row-major")
+    vb.addItem(item)
+    w.setToolTip(tooltip)
+    return w, item, vb
+
+
+class CameraPanel(QWidget):
+    title = "Camera"
+
+    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+        super().__init__(parent)
+        self.ctx = ctx
+        self.lab = ctx.lab
+        self.last_view: Optional[RawView] = None
+        self._preview_pending = False
+        self._capturing = False
+
+        # ---- settings ----
+        sbox = QGroupBox("Settings")
+        sg = QGridLayout(sbox)
+        self.iso = QComboBox()
+        self.iso.setEditable(True)
+        self.iso.setToolTip("Sensor sensitivity. Keep it at the base ISO (50 or 100) for the least noise.")
+        self.shutter = QComboBox()
+        self.shutter.setToolTip("Exposure time. Above 30 s the camera uses bulb (timed by this program).")
+        self.aperture = QComboBox()
+        self.aperture.setEditable(True)
+        self.aperture.setToolTip("Lens f-number. f/8 is sharp and keeps the whole object in focus.")
+        self.raw = QCheckBox("RAW (NEF)")
+        self.raw.setChecked(True)
+        self.raw.setToolTip("Record raw files (needed for measurement; JPEG is for looking only).")
+        self.read_button = QPushButton("Read from camera")
+        self.read_button.setToolTip("Show what the camera is set to now.")
+        self.read_button.clicked.connect(self.read_settings)
+        self.apply_button = QPushButton("Apply to camera")
+        self.apply_button.setToolTip("Send ISO, shutter, aperture and RAW to the camera (it picks the nearest "
+                                     "values it offers).")
+        self.apply_button.clicked.connect(self.apply_settings)
+        for r, (label, w) in enumerate((("ISO", self.iso), ("Shutter", self.shutter), ("Aperture f/", self.aperture))):
+            sg.addWidget(QLabel(label), r, 0)
+            sg.addWidget(w, r, 1)
+        sg.addWidget(self.raw, 3, 0, 1, 2)
+        sg.addWidget(self.read_button, 4, 0)
+        sg.addWidget(self.apply_button, 4, 1)
+        self.settings_label = QLabel("camera not connected")
+        self.settings_label.setWordWrap(True)
+        sg.addWidget(self.settings_label, 5, 0, 1, 2)
+        for c in COMMON_ISO:
+            self.iso.addItem(str(c))
+        for a in COMMON_APERTURES:
+            self.aperture.addItem(f"{a:g}")
+
+        # ---- capture ----
+        cbox = QGroupBox("Capture")
+        cl = QVBoxLayout(cbox)
+        self.capture_button = QPushButton("Take a picture  (Ctrl+Enter)")
+        self.capture_button.setToolTip("One raw exposure with these settings, saved in the test-shots folder; "
+                                       "its histogram shows clipping and the linear limit.")
+        self.capture_button.clicked.connect(self.capture)
+        self.live_button = QPushButton("Live view")
+        self.live_button.setCheckable(True)
+        self.live_button.setToolTip("Show the camera's live picture (a few frames a second).")
+        self.live_button.toggled.connect(self.set_live_view)
+        self.capture_label = QLabel("")
+        self.capture_label.setWordWrap(True)
+        cl.addWidget(self.capture_button)
+        cl.addWidget(self.live_button)
+        cl.addWidget(self.capture_label)
+
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.addWidget(sbox)
+        ll.addWidget(cbox)
+        ll.addStretch(1)
+
+        # ---- picture + histogram ----
+        self.view_widget, self.image, self.viewbox = image_widget(
+            "Live view, or the last picture taken (raw, shown brightened for the screen).")
+        self.view_title = QLabel("no picture yet")
+        self.hist = plot_widget("", "raw value (DN)", "pixels (log)")
+        self.hist.setLogMode(y=True)
+        self.hist.setToolTip("How many pixels have each raw value. Keep everything left of the orange line "
+                             "(the sensor stops being linear there); at the red line pixels are clipped.")
+        self.linear_line = pg.InfiniteLine(LINEAR_LIMIT_DN, angle=90, pen=pg.mkPen("#ef6c00", width=2),
+                                           label="linear limit", labelOpts={"position": 0.9, "color": "#ef6c00"})
+        self.white_line = pg.InfiniteLine(15520, angle=90, pen=pg.mkPen("#c62828", width=2),
+                                          label="clipping", labelOpts={"position": 0.75, "color": "#c62828"})
+        self.hist.addItem(self.linear_line)
+        self.hist.addItem(self.white_line)
+        self.hist_curves: dict[str, pg.PlotDataItem] = {}
+        self.hist_label = QLabel("")
+        self.hist_label.setWordWrap(True)
+        right = QSplitter(Qt.Vertical)
+        top = QWidget()
+        tl = QVBoxLayout(top)
+        tl.setContentsMargins(0, 0, 0, 0)
+        tl.addWidget(self.view_title)
+        tl.addWidget(self.view_widget, 1)
+        bottom = QWidget()
+        bl = QVBoxLayout(bottom)
+        bl.setContentsMargins(0, 0, 0, 0)
+        bl.addWidget(self.hist, 1)
+        bl.addWidget(self.hist_label)
+        right.addWidget(top)
+        right.addWidget(bottom)
+        right.setStretchFactor(0, 3)
+        right.setStretchFactor(1, 2)
+        split = QSplitter(Qt.Horizontal)
+        split.addWidget(left)
+        split.addWidget(right)
+        split.setStretchFactor(1, 1)
+        QVBoxLayout(self).addWidget(split)
+
+        self._live_timer = QTimer(self)
+        self._live_timer.setInterval(250)
+        self._live_timer.timeout.connect(self._request_preview)
+        self.lab.cameraChanged.connect(self._camera_changed)
+        ctx.bus.sequenceStarted.connect(lambda _name: self._set_sequence_running(True))
+        ctx.bus.sequenceFinished.connect(lambda _name, _how: self._set_sequence_running(False))
+        self._sequence_running = False
+        self._camera_changed()
+
+    # ------------------------------------------------------------------ state
+    def _enable(self) -> None:
+        ok = self.lab.camera is not None and not self._sequence_running
+        for w in (self.read_button, self.apply_button, self.live_button, self.iso, self.shutter, self.aperture,
+                  self.raw):
+            w.setEnabled(ok)
+        self.capture_button.setEnabled(ok and not self._capturing)
+
+    def _set_sequence_running(self, running: bool) -> None:
+        self._sequence_running = running
+        if running:
+            self.live_button.setChecked(False)     # the sequence owns the camera now
+        self._enable()
+
+    def _camera_changed(self) -> None:
+        if self.lab.camera is None:
+            self.live_button.setChecked(False)
+            self.settings_label.setText("camera not connected: connect it in Devices")
+        else:
+            self.read_settings()
+        self._enable()
+
+    # ------------------------------------------------------------------ settings
+    def read_settings(self) -> None:
+        cam = self.lab.camera
+        if cam is None:
+            return
+
+        def work() -> tuple[CameraSettings, list[float], list[int]]:
+            iso_values = getattr(cam, "iso_values", None)
+            return cam.settings(), cam.shutter_speeds(), list(iso_values()) if iso_values else []
+
+        self.lab.device_call(work, "Read the camera settings", on_result=self._show_settings)
+
+    def _show_settings(self, result) -> None:
+        s, speeds, isos = result
+        self.shutter.blockSignals(True)
+        self.shutter.clear()
+        for t in speeds:
+            self.shutter.addItem(format_shutter(t), t)
+        if s.shutter_s is not None:
+            idx = int(np.argmin([abs(np.log(t / s.shutter_s)) for t in speeds])) if speeds else -1
+            if idx >= 0:
+                self.shutter.setCurrentIndex(idx)
+        self.shutter.blockSignals(False)
+        if isos:
+            self.iso.clear()
+            self.iso.addItems([str(i) for i in isos])
+        if s.iso is not None:
+            self.iso.setCurrentText(str(s.iso))
+        if s.aperture is not None:
+            self.aperture.setCurrentText(f"{s.aperture:g}")
+        if s.image_quality:
+            self.raw.setChecked("raw" in s.image_quality.lower() or "nef" in s.image_quality.lower())
+        self.settings_label.setText(
+            f"camera: ISO {s.iso}, {format_shutter(s.shutter_s)}, f/{s.aperture:g}, {s.image_quality or '?'}, "
+            f"to {s.capture_target or '?'}" if s.aperture else f"camera: {s}")
+
+    def wanted_settings(self) -> CameraSettings:
+        def num(text: str) -> Optional[float]:
+            try:
+                return float(text.strip().replace(",", "."))
+            except ValueError:
+                return None
+        iso = num(self.iso.currentText())
+        return CameraSettings(iso=int(iso) if iso else None, shutter_s=self.shutter.currentData(),
+                              aperture=num(self.aperture.currentText()),
+                              image_quality=RAW_QUALITY if self.raw.isChecked() else None)
+
+    def apply_settings(self) -> None:
+        cam = self.lab.camera
+        if cam is None:
+            return
+        wanted = self.wanted_settings()
+        self.lab.device_call(lambda: (cam.apply(wanted), cam.shutter_speeds(), []), "Apply the camera settings",
+                             on_result=self._show_settings)
+
+    # ------------------------------------------------------------------ capture
+    def capture_shortcut(self) -> None:
+        if self.capture_button.isEnabled():
+            self.capture()
+
+    def capture(self) -> None:
+        cam = self.lab.camera
+        if cam is None:
+            self.ctx.errors.report("Take a picture", "the camera is not connected: connect it in Devices first")
+            return
+        wanted = self.wanted_settings()
+        folder = self.ctx.captures_dir / "test-shots"
+        self._capturing = True
+        self._enable()
+        self.capture_label.setText("capturing …")
+
+        def work() -> RawView:
+            cam.apply(wanted)
+            raw = cam.capture(wanted.shutter_s)
+            folder.mkdir(parents=True, exist_ok=True)
+            stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+            path = folder / f"{stamp}_{raw.filename}"
+            atomic_write(path, raw.data)
+            log.info("test shot saved: %s (%.1f MB)", path, len(raw.data) / 1e6)
+            return raw_view(path)
+
+        def finished() -> None:
+            self._capturing = False
+            self._enable()
+
+        self.lab.device_call(work, "Take a picture", on_result=self.show_raw, on_finished=finished,
+                             on_error=lambda exc: self.capture_label.setText(f"failed: {exc}"))
+
+    def show_raw(self, view: RawView) -> None:
+        self.last_view = view
+        self.image.setImage(view.image, autoLevels=False, levels=(0, 255))
+        self.viewbox.autoRange()
+        exp = format_shutter(view.exposure_s) if view.exposure_s else "?"
+        self.view_title.setText(f"{Path(view.path).name}: {view.camera}, {exp}, ISO {view.iso or '?'}")
+        self.capture_label.setText(f"saved {view.path}")
+        h = view.histogram
+        centres = 0.5 * (h.edges[1:] + h.edges[:-1])
+        for name, counts in h.counts.items():
+            y = np.maximum(counts, 0.5)       # log axis: empty bins drawn at 0.5
+            if name not in self.hist_curves:
+                self.hist_curves[name] = self.hist.plot(centres, y, pen=pg.mkPen(CHANNEL_PENS.get(name, "k")),
+                                                        name=name)
+            else:
+                self.hist_curves[name].setData(centres, y)
+        self.white_line.setValue(h.white_level)
+        self.linear_line.setValue(h.linear_limit)
+        self.hist_label.setText(h.summary())
+        self.hist_label.setStyleSheet("color:#c62828" if h.fraction_clipped > 0 else
+                                      "color:#b26a00" if h.fraction_nonlinear > 0 else "")
+
+    # ------------------------------------------------------------------ live view
+    def set_live_view(self, on: bool) -> None:
+        if on and self.lab.camera is not None:
+            self._live_timer.start()
+            self._request_preview()
+        else:
+            self._live_timer.stop()
+            if self.live_button.isChecked():
+                self.live_button.setChecked(False)
+
+    def _request_preview(self) -> None:
+        cam = self.lab.camera
+        if cam is None or self._preview_pending:
+            return
+        self._preview_pending = True
+
+        def failed(exc: BaseException) -> None:
+            self.live_button.setChecked(False)
+
+        self.lab.device_call(cam.preview, "Live view", on_result=self._show_preview, on_error=failed,
+                             on_finished=lambda: setattr(self, "_preview_pending", False))
+
+    def _show_preview(self, frame: np.ndarray) -> None:
+        if not self.live_button.isChecked():
+            return
+        self.image.setImage(frame, autoLevels=False, levels=(0, 255))
+        self.view_title.setText(f"live view {frame.shape[1]}x{frame.shape[0]}")
+
+    def shutdown(self) -> None:
+        self._live_timer.stop()

@@ -1,0 +1,352 @@
+"""Simulate & optimise: choose the sphere's two lights in simulation (exhaustive / PSO / GA), watch the search
+converge, look at the chosen lights and the six channel sensitivities, save the result as a preset."""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QImage, QPixmap
+from PySide6.QtWidgets import (QComboBox, QFormLayout, QGroupBox, QHBoxLayout, QInputDialog, QLabel,
+                               QProgressBar, QPushButton, QScrollArea, QSpinBox, QSplitter, QTableWidget,
+                               QTableWidgetItem, QTabWidget, QVBoxLayout, QWidget)
+
+from app.gui.context import AppContext
+from app.gui.viewmodel import ConvergenceTap
+from app.gui.widgets import plot_widget
+from app.gui.workers import TaskHandle
+from simulation.camera_model import channel_names, effective_sensitivities
+from simulation.datasets import MODES, default_setup
+from simulation.ga import GaSettings
+from simulation.presets import save_preset
+from simulation.pso import PsoSettings
+from simulation.runner import METHODS, RunResult, run
+
+log = logging.getLogger(__name__)
+
+FIGURES_DIR = Path(__file__).resolve().parents[3] / "docs" / "figures"
+LIGHT_PENS = ("#6a1b9a", "#00838f")
+CHANNEL_COLOURS = {"R": "#d32f2f", "G": "#388e3c", "B": "#1976d2"}
+
+
+class SimulatePanel(QWidget):
+    title = "Simulate & optimise"
+
+    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+        super().__init__(parent)
+        self.ctx = ctx
+        self.result: Optional[RunResult] = None
+        self.handle: Optional[TaskHandle] = None
+        self.live: list[tuple[int, float]] = []
+
+        # ---- controls ----
+        box = QGroupBox("Search")
+        form = QFormLayout(box)
+        self.mode = QComboBox()
+        self.mode.addItems(MODES)
+        self.mode.setToolTip("Reflective: prints, paintings. Transmissive: film on the light box.")
+        self.method = QComboBox()
+        self.method.addItems(METHODS)
+        self.method.setToolTip("exhaustive: every binned pair at full power (fast). pso / ga: also tune each "
+                               "LED's level (slower, better). three-channel: the ordinary camera under D65.")
+        self.seed = QSpinBox()
+        self.seed.setRange(0, 2**31 - 1)
+        self.seed.setToolTip("Random seed: the same seed gives the same result.")
+        self.iterations = QSpinBox()
+        self.iterations.setRange(1, 1000)
+        self.iterations.setToolTip("PSO iterations / GA generations (thesis: 10).")
+        self.population = QSpinBox()
+        self.population.setRange(2, 5000)
+        self.population.setToolTip("PSO particles / GA offspring per light pair (thesis: 200).")
+        self.top = QSpinBox()
+        self.top.setRange(1, 50)
+        self.top.setToolTip("How many of the best light pairs to list.")
+        form.addRow("Mode", self.mode)
+        form.addRow("Method", self.method)
+        form.addRow("Seed", self.seed)
+        form.addRow("Iterations", self.iterations)
+        form.addRow("Particles / offspring", self.population)
+        form.addRow("Show best", self.top)
+        self._load_settings()
+        for w in (self.mode, self.method):
+            w.currentTextChanged.connect(self._save_settings)
+        for w in (self.seed, self.iterations, self.population, self.top):
+            w.valueChanged.connect(self._save_settings)
+        self.method.currentTextChanged.connect(self._method_changed)
+
+        buttons = QHBoxLayout()
+        self.run_button = QPushButton("Run search")
+        self.run_button.setToolTip("Start the search in the background; the window stays usable.")
+        self.run_button.clicked.connect(self.start)
+        self.cancel_button = QPushButton("Cancel")
+        self.cancel_button.setToolTip("Stop the search (Esc).")
+        self.cancel_button.clicked.connect(self.cancel_running)
+        self.cancel_button.setEnabled(False)
+        self.save_button = QPushButton("Save as preset…")
+        self.save_button.setToolTip("Save the best light pair as a preset; it appears in Light source.")
+        self.save_button.clicked.connect(self._ask_save)
+        self.save_button.setEnabled(False)
+        for w in (self.run_button, self.cancel_button, self.save_button):
+            buttons.addWidget(w)
+        self.progress = QProgressBar()
+        self.progress.setRange(0, 1000)
+        self.status = QLabel("")
+        self.status.setWordWrap(True)
+        self.table = QTableWidget(0, 4)
+        self.table.setHorizontalHeaderLabels(["light 1", "light 2", "train ΔE00", "test ΔE00"])
+        self.table.setToolTip("Best light pairs: mean CIEDE2000 on the training and test targets (simulated).")
+        self.table.currentCellChanged.connect(lambda row, *_: self.show_candidate(row))
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.addWidget(box)
+        ll.addLayout(buttons)
+        ll.addWidget(self.progress)
+        ll.addWidget(self.status)
+        ll.addWidget(self.table, 1)
+
+        # ---- plots ----
+        self.conv = plot_widget("convergence (live)", "evaluations", "best mean ΔE00 so far (train)",
+                                "Best training error found so far while the search runs.")
+        self.live_curve = self.conv.plot([], [], pen=pg.mkPen("#1565c0", width=2), symbol=None)
+        self.iter_plot = plot_widget("best per iteration", "iteration", "mean ΔE00 (train)",
+                                     "After the search: the best training error over all light pairs after each "
+                                     "iteration (PSO) or generation (GA).")
+        self.iter_curve = self.iter_plot.plot([], [], pen=pg.mkPen("#2e7d32", width=2, style=Qt.DashLine),
+                                              symbol="o", symbolSize=5)
+        self.lights_plot = plot_widget("chosen lights", "wavelength (nm)", "relative radiance",
+                                       "The two lights of the selected pair (LED spectra times their levels).")
+        self.lights_plot.addLegend(offset=(-10, 10))
+        self.sens_plot = plot_widget("six channel sensitivities", "wavelength (nm)",
+                                     "relative sensitivity (each light's max = 1)",
+                                     "Camera R, G, B under light 1 (solid) and light 2 (dashed): the six channels "
+                                     "the characterisation turns into XYZ (eq 5.15).")
+        self.sens_plot.addLegend(offset=(-10, 10))
+        plots = QWidget()
+        grid = QVBoxLayout(plots)
+        top_row = QSplitter(Qt.Horizontal)
+        top_row.addWidget(self.conv)
+        top_row.addWidget(self.iter_plot)
+        bottom_row = QSplitter(Qt.Horizontal)
+        bottom_row.addWidget(self.lights_plot)
+        bottom_row.addWidget(self.sens_plot)
+        grid.addWidget(top_row)
+        grid.addWidget(bottom_row)
+
+        # ---- study charts ----
+        studies = QWidget()
+        sl = QVBoxLayout(studies)
+        self.figure_combo = QComboBox()
+        self.figure_combo.setToolTip("Charts made by 'dualrgb study' (docs/figures).")
+        self.figure_combo.currentIndexChanged.connect(self._show_figure)
+        self.figure_label = QLabel("")
+        self.figure_label.setAlignment(Qt.AlignCenter)
+        scroll = QScrollArea()
+        scroll.setWidget(self.figure_label)
+        scroll.setWidgetResizable(True)
+        self.figures_info = QLabel("")
+        sl.addWidget(self.figure_combo)
+        sl.addWidget(self.figures_info)
+        sl.addWidget(scroll, 1)
+
+        self.right_tabs = QTabWidget()
+        self.right_tabs.addTab(plots, "Search")
+        self.right_tabs.addTab(studies, "Study charts")
+        self.right_tabs.currentChanged.connect(lambda i: self.load_figures() if i == 1 else None)
+        split = QSplitter(Qt.Horizontal)
+        split.addWidget(left)
+        split.addWidget(self.right_tabs)
+        split.setStretchFactor(1, 1)
+        QVBoxLayout(self).addWidget(split)
+        self._method_changed(self.method.currentText())
+
+    # ------------------------------------------------------------------ settings
+    def _load_settings(self) -> None:
+        g = self.ctx.get
+        self.mode.setCurrentText(g("simulate/mode", "reflective", str))
+        self.method.setCurrentText(g("simulate/method", "pso", str))
+        self.seed.setValue(g("simulate/seed", 0, int))
+        self.iterations.setValue(g("simulate/iterations", PsoSettings().iterations, int))
+        self.population.setValue(g("simulate/population", PsoSettings().particles, int))
+        self.top.setValue(g("simulate/top", 5, int))
+
+    def _save_settings(self, *_args) -> None:
+        s = self.ctx.set
+        s("simulate/mode", self.mode.currentText())
+        s("simulate/method", self.method.currentText())
+        s("simulate/seed", self.seed.value())
+        s("simulate/iterations", self.iterations.value())
+        s("simulate/population", self.population.value())
+        s("simulate/top", self.top.value())
+
+    def _method_changed(self, method: str) -> None:
+        tuned = method in ("pso", "ga")
+        self.iterations.setEnabled(tuned)
+        self.population.setEnabled(tuned)
+        self.seed.setEnabled(tuned)
+
+    # ------------------------------------------------------------------ run
+    def start(self) -> None:
+        if self.handle is not None and self.handle.running:
+            return
+        mode, method, seed, top = (self.mode.currentText(), self.method.currentText(), self.seed.value(),
+                                   self.top.value())
+        pso_settings = PsoSettings(iterations=self.iterations.value(), particles=self.population.value())
+        ga_settings = GaSettings(generations=self.iterations.value(), lam=self.population.value())
+        self.live = []
+        self.live_curve.setData([], [])
+        self.iter_curve.setData([], [])
+        self.progress.setValue(0)
+        self.status.setText(f"running {method} ({mode}) …")
+        self.run_button.setEnabled(False)
+        self.cancel_button.setEnabled(True)
+        self.save_button.setEnabled(False)
+
+        def work(progress, cancel, emit) -> RunResult:
+            setup = default_setup(mode)
+            tap = ConvergenceTap.make(setup, lambda n, best: emit((n, best)))
+            evaluator = tap if method in ("pso", "ga", "exhaustive") else None
+            return run(setup, method, seed=seed, top=top, pso_settings=pso_settings, ga_settings=ga_settings,
+                       progress=progress, cancel=cancel, evaluator=evaluator)
+
+        self.handle = self.ctx.runner.submit(work, pool="compute", name=f"simulate {method}", pass_progress=True,
+                                             pass_cancel=True, pass_emit=True, on_progress=self._progress,
+                                             on_event=self._live_point, on_result=self.show_result,
+                                             on_error=self._failed, on_finished=self._finished)
+
+    def _live_point(self, point: tuple[int, float]) -> None:
+        self.live.append(point)
+        xs, ys = zip(*self.live)
+        self.live_curve.setData(np.array(xs, dtype=float), np.array(ys))
+
+    def _progress(self, fraction: float, message: str) -> None:
+        self.progress.setValue(int(round(fraction * 1000)))
+        self.status.setText(message)
+
+    def _failed(self, exc: BaseException) -> None:
+        from simulation.progress import Cancelled
+        if isinstance(exc, Cancelled):
+            self.status.setText("search cancelled")
+            log.info("simulation cancelled")
+            return
+        self.status.setText(f"failed: {exc}")
+        self.ctx.errors.report("Simulation", exc)
+
+    def _finished(self) -> None:
+        self.run_button.setEnabled(True)
+        self.cancel_button.setEnabled(False)
+
+    def cancel_running(self) -> None:
+        if self.handle is not None and self.handle.running:
+            self.handle.cancel()
+            self.status.setText("cancelling …")
+
+    def shutdown(self) -> None:
+        self.cancel_running()
+
+    # ------------------------------------------------------------------ result
+    def show_result(self, result: RunResult) -> None:
+        self.result = result
+        self.progress.setValue(1000)
+        base = result.three_channel
+        text = (f"{result.method} ({result.mode}): {result.evaluations} evaluations in {result.elapsed_s:.1f} s; "
+                f"3-channel D65 baseline: train {base['train']:.2f}, test {base['test']:.2f} ΔE00")
+        self.status.setText(text)
+        self.table.setRowCount(0)
+        if result.outcome is None:
+            self.save_button.setEnabled(False)
+            return
+        cands = result.outcome.candidates[:result.top]
+        self.table.setRowCount(len(cands))
+        for r, c in enumerate(cands):
+            s1, s2 = c.sources[:2]
+            values = (s1.label(), s2.label(), f"{(c.train.mean if c.train else c.train_cost):.3f}",
+                      f"{c.test.mean:.3f}" if c.test else "—")
+            for col, v in enumerate(values):
+                item = QTableWidgetItem(v)
+                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                self.table.setItem(r, col, item)
+        self.table.resizeColumnsToContents()
+        hist = result.outcome.history
+        if hist:
+            self.iter_curve.setData(np.arange(len(hist), dtype=float), np.array(hist))
+        if self.live:
+            xs, ys = zip(*self.live)
+            self.live_curve.setData(np.array(xs, dtype=float), np.array(ys))
+        self.save_button.setEnabled(True)
+        self.table.selectRow(0)
+        self.show_candidate(0)
+
+    def show_candidate(self, row: int) -> None:
+        res = self.result
+        if res is None or res.outcome is None or not 0 <= row < min(res.top, len(res.outcome.candidates)):
+            return
+        cand = res.outcome.candidates[row]
+        setup = res.setup
+        wl = setup.grid.wavelengths
+        lights = np.stack([s.spectrum(setup.leds) for s in cand.sources])
+        self.lights_plot.clear()
+        for i, spd in enumerate(lights):
+            self.lights_plot.plot(wl, spd, pen=pg.mkPen(LIGHT_PENS[i % 2], width=2),
+                                  name=f"light {i + 1} {cand.sources[i].label()}")
+        sens = effective_sensitivities(lights, setup.camera)
+        for i in range(len(lights)):                      # each light's three channels scaled together
+            block = sens[:, 3 * i:3 * i + 3]
+            block /= block.max() or 1.0
+        self.sens_plot.clear()
+        for j, name in enumerate(channel_names(len(lights))):
+            style = Qt.SolidLine if name.endswith("1") else Qt.DashLine
+            self.sens_plot.plot(wl, sens[:, j], pen=pg.mkPen(CHANNEL_COLOURS[name[0]], width=2, style=style),
+                                name=name)
+
+    # ------------------------------------------------------------------ presets
+    def _ask_save(self) -> None:
+        if self.result is None or self.result.outcome is None:
+            return
+        row = max(self.table.currentRow(), 0)
+        default = self.result.preset(row).name
+        name, ok = QInputDialog.getText(self, "Save preset", "Preset name:", text=default)
+        if ok and name.strip():
+            self.save_preset(name.strip(), row)
+
+    def save_preset(self, name: str, rank: int = 0) -> Optional[Path]:
+        if self.result is None or self.result.outcome is None:
+            self.ctx.errors.report("Save the preset", "run a PSO, GA or exhaustive search first")
+            return None
+        preset = self.result.preset(rank, name=name)
+        slug = "".join(c if c.isalnum() or c in "-_" else "_" for c in name).strip("_") or "preset"
+        path = self.ctx.presets_dir / f"{slug}.json"
+        self.ctx.runner.submit(lambda: save_preset(preset, path), pool="compute", name="save preset",
+                               on_result=lambda p: (self.status.setText(f"preset saved: {p}"),
+                                                    self.ctx.bus.presetsChanged.emit()),
+                               on_error=lambda exc: self.ctx.errors.report("Save the preset", exc))
+        return path
+
+    # ------------------------------------------------------------------ study charts
+    def load_figures(self) -> None:
+        def work() -> list[tuple[str, QImage]]:
+            if not FIGURES_DIR.is_dir():
+                return []
+            return [(p.name, QImage(str(p))) for p in sorted(FIGURES_DIR.glob("*.png"))]
+
+        def done(images: list[tuple[str, QImage]]) -> None:
+            self._figures = images
+            self.figure_combo.blockSignals(True)
+            self.figure_combo.clear()
+            self.figure_combo.addItems([n for n, _ in images])
+            self.figure_combo.blockSignals(False)
+            if images:
+                self.figures_info.setText(f"{len(images)} chart(s) in {FIGURES_DIR}")
+                self._show_figure(0)
+            else:
+                self.figures_info.setText(f"no study charts yet: run 'dualrgb study' to make them in {FIGURES_DIR}")
+                self.figure_label.clear()
+        self.ctx.runner.submit(work, pool="compute", name="load study charts", on_result=done,
+                               on_error=lambda exc: self.ctx.errors.report("Study charts", exc))
+
+    def _show_figure(self, index: int) -> None:
+        images = getattr(self, "_figures", [])
+        if 0 <= index < len(images):
+            self.figure_label.setPixmap(QPixmap.fromImage(images[index][1]))

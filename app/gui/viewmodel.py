@@ -1,0 +1,152 @@
+"""Qt-free helpers that turn driver / simulation results into what the panels draw (tested without Qt).
+
+Nothing here decides anything about the capture: it mixes spectra for display, bins raw values for the
+histogram, adds up the light dose shown next to the on/off switch and formats times.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from app.light_dose import LightDose
+from simulation.lightsource import LightSource
+
+LINEAR_LIMIT_DN = 11000.0          # thesis 4.1: the D610's raw response stops being linear above ~11 000 DN
+
+
+def light_from_levels(levels: Sequence[float], name: str = "") -> LightSource:
+    """Ten slider levels -> a LightSource (LEDs at 0 are left out; an all-zero light lists LED 1 at 0)."""
+    leds = tuple(i + 1 for i, v in enumerate(levels) if v > 0)
+    if not leds:
+        return LightSource((1,), (0.0,), name)
+    return LightSource(leds, tuple(float(levels[i - 1]) for i in leds), name)
+
+
+def mixed_spectrum(levels: Sequence[float], led_spectra: np.ndarray) -> np.ndarray:
+    """The sphere's output for ``levels`` by superposition (thesis 3.1.2): (n_wl,)."""
+    return light_from_levels(levels).spectrum(led_spectra)
+
+
+@dataclass
+class RawHistogram:
+    edges: np.ndarray                 # (bins + 1,) DN
+    counts: dict[str, np.ndarray]     # channel letter -> (bins,)
+    white_level: float
+    linear_limit: float
+    fraction_clipped: float           # pixels at or above the white level
+    fraction_nonlinear: float         # pixels above the linear limit (clipped included)
+    max_dn: float
+
+    def summary(self) -> str:
+        return (f"max {self.max_dn:.0f} DN; {100 * self.fraction_nonlinear:.2f} % above the linear limit "
+                f"({self.linear_limit:.0f} DN); {100 * self.fraction_clipped:.2f} % clipped "
+                f"(white level {self.white_level:.0f} DN)")
+
+
+def raw_histogram(planes: dict[str, np.ndarray], white_level: float, linear_limit: float = LINEAR_LIMIT_DN,
+                  bins: int = 128) -> RawHistogram:
+    """Histogram of raw DN per channel (black not subtracted, as the thresholds are in raw DN)."""
+    top = max(float(white_level) * 1.05, 1.0)
+    edges = np.linspace(0.0, top, bins + 1)
+    counts, n, clipped, nonlinear, mx = {}, 0, 0, 0, 0.0
+    for name, plane in planes.items():
+        v = np.asarray(plane, dtype=np.float64).ravel()
+        counts[name] = np.histogram(v, edges)[0]
+        n += v.size
+        clipped += int(np.count_nonzero(v >= white_level))
+        nonlinear += int(np.count_nonzero(v > linear_limit))
+        mx = max(mx, float(v.max()) if v.size else 0.0)
+    return RawHistogram(edges, counts, float(white_level), float(linear_limit),
+                        clipped / n if n else 0.0, nonlinear / n if n else 0.0, mx)
+
+
+class DoseFeed:
+    """Feeds app.light_dose.LightDose from the panel's status polls (levels and light switch as the sphere
+    reports them): the light shown between two polls is counted for the time between them."""
+
+    def __init__(self) -> None:
+        self.dose = LightDose()
+        self._last_t: Optional[float] = None
+        self._last_light: Optional[LightSource] = None
+
+    def update(self, t: float, light_on: bool, levels: Sequence[float]) -> LightDose:
+        if self._last_t is not None and self._last_light is not None:
+            self.dose.add(self._last_light, max(0.0, t - self._last_t))
+        self._last_t = t
+        self._last_light = light_from_levels(levels) if light_on else None
+        return self.dose
+
+    def reset(self) -> None:
+        self.dose = LightDose()
+        self._last_t = None
+        self._last_light = None
+
+
+def format_duration(seconds: Optional[float]) -> str:
+    """'—' for unknown, '42 s', '3 min 05 s', '1 h 02 min'."""
+    if seconds is None or not math.isfinite(seconds):
+        return "—"
+    s = int(round(max(seconds, 0.0)))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {(s % 3600) // 60:02d} min"
+
+
+
+def display_rgb(linear: np.ndarray, full_scale: Optional[float] = None, gamma: float = 2.2) -> np.ndarray:
+    """Linear camera RGB (H, W, 3) -> uint8 for the screen: scaled to ``full_scale`` (default: 99.5th
+    percentile), gamma-encoded. For looking at frames only; nothing measured comes from it."""
+    img = np.nan_to_num(np.asarray(linear, dtype=np.float32), nan=0.0)
+    scale = float(full_scale) if full_scale else float(np.percentile(img, 99.5)) or 1.0
+    img = np.clip(img / max(scale, 1e-12), 0.0, 1.0) ** (1.0 / gamma)
+    return (img * 255.0 + 0.5).astype(np.uint8)
+
+
+@dataclass
+class RawView:
+    """One raw frame as the camera panel shows it: picture, DN histogram, what the camera recorded."""
+
+    image: np.ndarray                  # (H/2, W/2, 3) uint8
+    histogram: RawHistogram
+    path: str
+    exposure_s: Optional[float]
+    iso: Optional[float]
+    camera: str
+
+
+def raw_view(path) -> RawView:
+    """Load a raw file (drivers.raw) and make its picture and DN histogram (run in a worker)."""
+    from drivers.raw import load_raw, superpixel
+
+    frame = load_raw(path)
+    planes = {name: frame.plane(name) for name, _, _ in frame.channels()}
+    hist = raw_histogram(planes, frame.white_level)
+    black = float(np.mean(frame.black_levels))
+    image = display_rgb(superpixel(frame), full_scale=frame.white_level - black)
+    return RawView(image, hist, str(path), frame.exposure_s, frame.iso, frame.camera)
+
+
+class ConvergenceTap:
+    """Wraps simulation.objective.Evaluator for the live convergence plot: after every cost batch it calls
+    ``on_batch(evaluations, best_cost_so_far)`` (from the worker thread). Costs are unchanged."""
+
+    @staticmethod
+    def make(setup, on_batch):
+        from simulation.objective import Evaluator
+
+        class _Tapped(Evaluator):
+            best = math.inf
+
+            def cost_indexed(self, idx, w):
+                costs = super().cost_indexed(idx, w)
+                if len(costs):
+                    self.best = min(self.best, float(np.min(costs)))
+                    on_batch(self.evaluations, self.best)
+                return costs
+
+        return _Tapped(setup)

@@ -1,0 +1,46 @@
+"""GUI tests: offscreen Qt, settings and data in a temp dir, dialogs recorded instead of shown."""
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+import pytest  # noqa: E402
+
+pytest.importorskip("PySide6")
+pytest.importorskip("pytestqt")
+
+
+@pytest.fixture
+def settings(tmp_path):
+    from PySide6.QtCore import QSettings
+
+    s = QSettings(str(tmp_path / "config" / "dualrgb.ini"), QSettings.IniFormat)
+    s.setValue("paths/captures", str(tmp_path / "captures"))
+    s.sync()
+    return s
+
+
+@pytest.fixture
+def make_window(qtbot, settings):
+    """Factory: a MainWindow on the temp settings (small virtual-lab frames); closed after the test."""
+    from app.gui.main_window import MainWindow
+
+    made = []
+
+    def make(**kw):
+        w = MainWindow(kw.pop("settings", settings), frame_size=kw.pop("frame_size", (120, 80)),
+                       show_dialogs=False, **kw)
+        qtbot.addWidget(w)
+        w.show()
+        made.append(w)
+        return w
+
+    yield make
+    for w in made:
+        w.close()
+
+
+def wait_idle(qtbot, window, timeout=60000):
+    """Until no task runs in any pool (device calls, computations, sequences)."""
+    qtbot.waitUntil(lambda: not window.runner.busy(), timeout=timeout)

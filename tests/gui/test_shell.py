@@ -1,0 +1,157 @@
+"""The window shell: panels, no-display message, settings persistence, light source, simulate."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.gui.conftest import wait_idle
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_no_display_prints_one_line_and_exits_1(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM")}
+    env["HOME"] = str(tmp_path)
+    proc = subprocess.run([sys.executable, "-m", "app.cli", "gui"], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 1
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert lines == ["dualrgb: error: no display found; set QT_QPA_PLATFORM=offscreen for headless use or run "
+                     "on a desktop"]
+
+
+def test_display_problem_rules():
+    from app.gui.app import display_problem
+
+    assert display_problem({}) is not None
+    assert display_problem({"QT_QPA_PLATFORM": "offscreen"}) is None
+    assert display_problem({"QT_QPA_PLATFORM": "minimal"}) is None
+    assert display_problem({"DISPLAY": ":0"}) is None
+    assert display_problem({"WAYLAND_DISPLAY": "wayland-0"}) is None
+    assert display_problem({"QT_QPA_PLATFORM": "xcb"}) is not None
+    assert display_problem({"QT_QPA_PLATFORM": ""}) is not None       # what `make run` clears it to
+
+
+def test_pyside_has_no_none_refcount_bug(qapp):
+    from app.gui.app import pyside_drops_none_references
+
+    assert not pyside_drops_none_references()
+
+
+def test_every_panel_is_there(make_window):
+    w = make_window()
+    titles = [w.tabs.tabText(i).replace("&&", "&") for i in range(w.tabs.count())]
+    assert titles == ["Devices", "Light source", "Camera", "Calibrate & capture", "Target", "Results",
+                      "Simulate & optimise", "Characterise"]
+    for name in ("devices", "light", "camera", "simulate"):
+        assert w.panels[name].isEnabled()
+
+
+def test_settings_persist_between_windows(qtbot, make_window, settings):
+    w = make_window()
+    w.resize(760, 590)
+    w.tabs.setCurrentIndex(6)
+    w.light.set_levels([0.5] + [0.0] * 8 + [0.25])
+    w.simulate.seed.setValue(42)
+    w.simulate.method.setCurrentText("ga")
+    w.close()
+    assert settings.value("window/tab") in (6, "6")
+    w2 = make_window()
+    assert w2.tabs.currentIndex() == 6
+    assert (w2.size().width(), w2.size().height()) == (w.size().width(), w.size().height())
+    assert np.allclose(w2.light.levels(), [0.5] + [0.0] * 8 + [0.25])
+    assert w2.simulate.seed.value() == 42
+    assert w2.simulate.method.currentText() == "ga"
+
+
+def test_light_spectrum_follows_sliders(make_window):
+    from simulation.lightsource import LightSource
+
+    w = make_window()
+    panel = w.light
+    panel.sliders[0].setValue(1000)
+    panel.sliders[5].setValue(500)
+    x, y = panel.mix_curve.getData()
+    expected = LightSource((1, 6), (1.0, 0.5)).spectrum(panel.led_spectra)
+    assert np.allclose(y, expected)
+    assert panel.spins[5].value() == pytest.approx(0.5)
+
+
+def test_presets_listed_and_applied_to_the_emulated_sphere(qtbot, make_window):
+    w = make_window()
+    w.lab.start_virtual_lab()
+    wait_idle(qtbot, w)
+    assert w.lab.sphere is not None
+    items = w.light.preset_items()
+    assert items, "packaged presets should be listed"
+    item = next(i for i in items if len(i.preset.sources) == 2)
+    w.light.presets.setCurrentItem(item)
+    qtbot.mouseClick(w.light.apply2, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.LeftButton)
+    wait_idle(qtbot, w)
+    want = item.preset.sources[1].weights(10)
+    got = w.lab.virtual_lab.emulator.commanded_levels()
+    assert np.allclose(got, want, atol=1e-4)
+    qtbot.mouseClick(w.light.on_button, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.LeftButton)
+    wait_idle(qtbot, w)
+    qtbot.waitUntil(lambda: w.lab.last_status.get("light_on") is True, timeout=5000)
+    qtbot.mouseClick(w.light.off_button, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.LeftButton)
+    wait_idle(qtbot, w)
+    assert not w.lab.virtual_lab.emulator.snapshot().light_on
+    assert w.errors.history == []
+
+
+def test_rename_packaged_preset_saves_a_copy(qtbot, make_window, tmp_path):
+    w = make_window()
+    wait_idle(qtbot, w)
+    item = w.light.preset_items()[0]
+    item.setText("my renamed preset")
+    wait_idle(qtbot, w)
+    saved = w.ctx.presets_dir / "my_renamed_preset.json"
+    assert saved.is_file()
+    qtbot.waitUntil(lambda: any(i.preset.name == "my renamed preset" and not i.packaged
+                                for i in w.light.preset_items()), timeout=5000)
+
+
+def test_simulate_tiny_pso_and_save_preset(qtbot, make_window):
+    from simulation.presets import load_preset
+
+    w = make_window()
+    sim = w.simulate
+    sim.mode.setCurrentText("reflective")
+    sim.method.setCurrentText("pso")
+    sim.iterations.setValue(2)
+    sim.population.setValue(6)
+    sim.start()
+    qtbot.waitUntil(lambda: sim.result is not None, timeout=120000)
+    wait_idle(qtbot, w)
+    assert len(sim.live) > 10                              # live convergence points arrived during the run
+    bests = [b for _, b in sim.live]
+    assert all(b2 <= b1 for b1, b2 in zip(bests, bests[1:]))
+    _, hist = sim.iter_curve.getData()
+    assert len(hist) == 3 and hist[-1] <= hist[0]
+    assert sim.sens_plot.listDataItems() and len(sim.sens_plot.listDataItems()) == 6
+    path = sim.save_preset("gui tiny pso")
+    wait_idle(qtbot, w)
+    preset = load_preset(path)
+    assert preset.method == "pso" and len(preset.sources) == 2
+    qtbot.waitUntil(lambda: any(i.preset.name == "gui tiny pso" for i in w.light.preset_items()), timeout=5000)
+
+
+def test_simulation_cancel(qtbot, make_window):
+    w = make_window()
+    sim = w.simulate
+    sim.method.setCurrentText("pso")
+    sim.iterations.setValue(10)
+    sim.population.setValue(200)
+    sim.start()
+    qtbot.waitUntil(lambda: len(sim.live) > 0, timeout=60000)
+    w.cancel_action.trigger()
+    wait_idle(qtbot, w)
+    assert sim.result is None
+    assert "cancel" in sim.status.text()
+    assert sim.run_button.isEnabled()
