@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
@@ -27,6 +27,8 @@ class Bus(QObject):
     targetImageReady = Signal(object)      # dict: image (H, W, C) float, meta
     resultsReady = Signal(object)          # dict: processing report
     crfReady = Signal(object)              # CrfSweep result
+    sessionUpdated = Signal()              # frames were added to the session
+    gridChanged = Signal(object)           # app.processing.patches.PatchGrid placed in Target (superpixel coords)
 
 
 def default_settings() -> QSettings:
@@ -40,6 +42,7 @@ class AppContext:
     settings: QSettings
     errors: ErrorReporter
     bus: Bus
+    shared: dict = field(default_factory=dict)     # latest grid, capture lights, ... for panels that need them
 
     # ---- typed settings, saved as soon as they change ----
     def get(self, key: str, default: Any = None, type_: Optional[type] = None) -> Any:
