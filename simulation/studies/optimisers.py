@@ -1,0 +1,378 @@
+"""More optimisers for the LED levels of each light set, beside the core's PSO (thesis Algorithm 1) and GA
+(Algorithm 2), so the studies can compare them on the same cost:
+
+* ``pyswarms``: pyswarms' ``GlobalBestPSO`` on each light set's (L*m)-D problem in [0, 1], looping over the
+  light sets (one swarm per set, thesis coefficients);
+* ``de``: scipy's ``differential_evolution`` per light set (vectorised: one cost batch per generation);
+* ``lbfgs``: a random screen of every light set (fast kernel), then multi-start L-BFGS-B (scipy) on the best
+  sets with the float64 cost and a forward-difference gradient evaluated as one batch of L*m + 1 points (the
+  cost is smooth in the levels);
+* ``halving``: successive halving over light sets: every set gets a short PSO, the better half survives and
+  gets a PSO with twice the iterations, and so on; a set keeps its best result over the rungs.
+
+Every function takes the evaluator first (plain or :class:`~simulation.studies.common.TracedEvaluator`),
+the light sets and a settings dataclass, and returns a :class:`~simulation.search.SearchOutcome` whose
+candidates are sorted best first and whose levels are normalised like PSO's (eqs 6.2-6.4). Note that the
+cost is invariant to scaling one light's levels (the least-squares fit absorbs it), so normalising never
+changes a cost.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from typing import Callable, Iterator, Optional, Sequence
+
+import numpy as np
+
+from simulation.characterisation import RIDGE
+from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.ga import GaSettings, ga
+from simulation.progress import CancelToken, ProgressCallback, check, report
+from simulation.pso import PsoSettings, enforce_constraints, pso
+from simulation.search import Group, SearchOutcome, candidates_from, exhaustive, group_arrays
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PyswarmsSettings:
+    """pyswarms GlobalBestPSO per light set; defaults = the thesis coefficients and budget."""
+
+    particles: int = 200
+    iterations: int = 10
+    c0: float = 0.95            # pyswarms 'w'
+    c1: float = 2.0
+    c2: float = 2.0
+
+
+@dataclass(frozen=True)
+class DeSettings:
+    """scipy differential_evolution per light set; population = popsize * (L*m)."""
+
+    popsize: int = 15
+    maxiter: int = 20
+    mutation: tuple[float, float] = (0.5, 1.0)
+    recombination: float = 0.7
+    tol: float = 0.0            # 0: run every generation (a fixed budget, comparable to PSO)
+
+
+@dataclass(frozen=True)
+class LbfgsSettings:
+    """Multi-start L-BFGS-B on the float64 cost (forward-difference gradient), after a random screen.
+
+    Every light set is screened with ``screen`` random level vectors (fast kernel); the ``top_sets`` best sets
+    get ``starts`` L-BFGS-B runs each (the best screened point, then random points).
+    """
+
+    screen: int = 64
+    top_sets: int = 48
+    starts: int = 3
+    maxiter: int = 30
+    step: float = 1e-6
+    lower: float = 1e-3         # levels stay above this so no light can switch itself off
+
+
+@dataclass(frozen=True)
+class HalvingSettings:
+    """Successive halving: rung r runs PSO with ``iterations * eta**r`` iterations on 1/eta of the sets."""
+
+    particles: int = 50
+    iterations: int = 2
+    eta: int = 2
+    min_sets: int = 4
+    c0: float = 0.95
+    c1: float = 2.0
+    c2: float = 2.0
+
+
+# ---------------------------------------------------------------------------------------------------------
+class Float64Cost:
+    """Mean training dE00 of one light set's levels in float64 (the numpy reference path), batched.
+
+    ``__call__(X)`` takes X (B, D) with D = the light set's LED count in light order and returns (B,).
+    Same fit as the fast kernel (equilibrated, ridge, rank-safe), same ground truth; no float32.
+    """
+
+    def __init__(self, evaluator, group: Group) -> None:
+        ev = getattr(evaluator, "base", evaluator)
+        self.group = group
+        leds = [k - 1 for light in group for k in light]
+        self.slices = []
+        lo = 0
+        for light in group:
+            self.slices.append(slice(lo, lo + len(light)))
+            lo += len(light)
+        self.R = ev.train.R[leds]                          # (D, n, 3)
+        self.xyz = ev.train.xyz
+        self.lab = ev.train.lab
+        self.white = ev.train.white
+        self.dim = lo
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        C = np.concatenate([np.einsum("bd,dnc->bnc", X[:, s], self.R[s]) for s in self.slices], axis=2)
+        CT = C.transpose(0, 2, 1)
+        A = _solve_small(CT @ C, CT @ self.xyz)
+        lab = xyz_to_lab(C @ A, self.white)
+        return delta_e_2000(self.lab, lab).mean(axis=1)
+
+
+def _solve_small(CtC: np.ndarray, CtB: np.ndarray) -> np.ndarray:
+    """:func:`simulation.characterisation.solve_normal_equations` (equilibration, same ridge, zero channels ->
+    zero rows) with LAPACK instead of its numba-parallel Cholesky: for a handful of systems per call the
+    parallel region's start-up dominates, and its spinning threads slow scipy's L-BFGS-B loop down."""
+    d = np.einsum("pii->pi", CtC)
+    s = np.where(d > 0, 1.0 / np.sqrt(np.where(d > 0, d, 1.0)), 0.0)
+    M = CtC * s[:, :, None] * s[:, None, :]
+    n = M.shape[1]
+    M[:, np.arange(n), np.arange(n)] += RIDGE + (d <= 0)
+    return np.linalg.solve(M, CtB * s[:, :, None]) * s[:, :, None]
+
+
+def _fast_pair_cost(evaluator, idx_row: np.ndarray, mask_row: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """Cost of one light set's levels given as X (S, D) in [0, 1] (D = L*m, padding masked out)."""
+    L, m = idx_row.shape
+
+    def cost(X: np.ndarray) -> np.ndarray:
+        X = np.atleast_2d(X).reshape(-1, L, m) * mask_row
+        idx = np.broadcast_to(idx_row, (X.shape[0], L, m))
+        return evaluator.cost_indexed(idx, X)
+
+    return cost
+
+
+def _normalised(levels: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    return enforce_constraints(np.array(levels, dtype=float), mask.astype(float))
+
+
+def _outcome(method: str, groups: Sequence[Group], levels: np.ndarray, costs: np.ndarray, seed: Optional[int],
+             t0: float, n0: int, evaluator, settings: dict, history: Optional[list[float]] = None) -> SearchOutcome:
+    return SearchOutcome(method, seed, time.perf_counter() - t0, evaluator.evaluations - n0,
+                         candidates_from(list(groups), levels, costs), history=history or [],
+                         settings={**settings, "light_sets": len(groups)})
+
+
+# ---------------------------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _pyswarms_logging() -> Iterator[None]:
+    """pyswarms' Reporter calls ``logging.config.dictConfig`` whenever one is built (at import and for every
+    optimiser): a root handler and a ``report.log`` file in the working directory, unless LOG_CFG names a
+    config file. Give it an incremental, empty config so it changes nothing."""
+    previous = os.environ.get("LOG_CFG")
+    with tempfile.TemporaryDirectory() as tmp:
+        cfg = os.path.join(tmp, "pyswarms-logging.yaml")
+        with open(cfg, "w", encoding="utf-8") as fh:
+            fh.write("version: 1\nincremental: true\n")
+        os.environ["LOG_CFG"] = cfg
+        try:
+            yield
+        finally:
+            if previous is None:
+                os.environ.pop("LOG_CFG", None)
+            else:
+                os.environ["LOG_CFG"] = previous
+
+
+def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettings = PyswarmsSettings(),
+                    seed: int = 0, *, progress: Optional[ProgressCallback] = None,
+                    cancel: Optional[CancelToken] = None) -> SearchOutcome:
+    """pyswarms GlobalBestPSO on every light set in turn (pyswarms draws from numpy's global generator:
+    it is seeded per light set with (seed, set number) and restored afterwards). One optimiser is built and
+    ``reset()`` for every set (building one costs ~10 ms of logging set-up)."""
+    groups = list(groups)
+    idx_all, mask_all = group_arrays(groups)
+    G, L, m = idx_all.shape
+    D = L * m
+    t0, n0 = time.perf_counter(), evaluator.evaluations
+    best_x = np.zeros((G, L, m))
+    best_c = np.empty(G)
+    state = np.random.get_state()
+    options = {"c1": settings.c1, "c2": settings.c2, "w": settings.c0}
+    bounds = (np.zeros(D), np.ones(D))
+    try:
+        with _pyswarms_logging():
+            from pyswarms.single import GlobalBestPSO      # its import configures logging too
+
+            opt = GlobalBestPSO(settings.particles, D, options, bounds=bounds, bh_strategy="nearest")
+            for gi in range(G):
+                check(cancel)
+                np.random.seed(np.random.SeedSequence([seed, gi]).generate_state(1)[0])
+                opt.reset()
+                cost, pos = opt.optimize(_fast_pair_cost(evaluator, idx_all[gi], mask_all[gi]),
+                                         iters=settings.iterations, verbose=False)
+                best_c[gi] = cost
+                best_x[gi] = _normalised(np.asarray(pos).reshape(L, m), mask_all[gi])
+                if gi % 32 == 31 or gi == G - 1:
+                    report(progress, (gi + 1) / G, f"pyswarms: {gi + 1}/{G} light sets")
+    finally:
+        np.random.set_state(state)
+    return _outcome("pyswarms", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
+
+
+def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSettings(), seed: int = 0, *,
+              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+    """scipy differential_evolution on every light set in turn, vectorised per generation, no polishing."""
+    from scipy.optimize import differential_evolution
+
+    groups = list(groups)
+    idx_all, mask_all = group_arrays(groups)
+    G, L, m = idx_all.shape
+    D = L * m
+    t0, n0 = time.perf_counter(), evaluator.evaluations
+    best_x = np.zeros((G, L, m))
+    best_c = np.empty(G)
+    for gi in range(G):
+        check(cancel)
+        fast = _fast_pair_cost(evaluator, idx_all[gi], mask_all[gi])
+        res = differential_evolution(lambda X: fast(X.T), [(0.0, 1.0)] * D, maxiter=settings.maxiter,
+                                     popsize=settings.popsize, mutation=settings.mutation,
+                                     recombination=settings.recombination, tol=settings.tol, polish=False,
+                                     vectorized=True, updating="deferred",
+                                     rng=np.random.default_rng([seed, gi]))
+        best_c[gi] = res.fun
+        best_x[gi] = _normalised(res.x.reshape(L, m), mask_all[gi])
+        if gi % 32 == 31 or gi == G - 1:
+            report(progress, (gi + 1) / G, f"differential evolution: {gi + 1}/{G} light sets")
+    return _outcome("de", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
+
+
+def lbfgs_search(evaluator, groups: Sequence[Group], settings: LbfgsSettings = LbfgsSettings(), seed: int = 0,
+                 *, progress: Optional[ProgressCallback] = None,
+                 cancel: Optional[CancelToken] = None) -> SearchOutcome:
+    """Random screen of every light set, then multi-start L-BFGS-B on :class:`Float64Cost` for the best sets.
+
+    Why a screen: one float64 cost + gradient batch costs ~0.5-1 ms in numpy, so L-BFGS-B on all 630 sets
+    would take minutes; the screen (fast kernel) costs ``screen`` evaluations per set. Sets that are not
+    refined keep their best screened point.
+    """
+    from scipy.optimize import minimize
+
+    groups = list(groups)
+    idx_all, mask_all = group_arrays(groups)
+    G, L, m = idx_all.shape
+    t0, n0 = time.perf_counter(), evaluator.evaluations
+    rng = np.random.default_rng([seed, 0x5C])
+    S = settings.screen
+    x = rng.uniform(settings.lower, 1.0, (G, S, L, m)) * mask_all[:, None]
+    c = np.empty((G, S))
+    for lo in range(0, G, 64):
+        check(cancel)
+        hi = min(G, lo + 64)
+        idx = np.broadcast_to(idx_all[lo:hi, None], (hi - lo, S, L, m)).reshape(-1, L, m)
+        c[lo:hi] = evaluator.cost_indexed(idx, x[lo:hi].reshape(-1, L, m)).reshape(hi - lo, S)
+    arg = c.argmin(axis=1)
+    best_c = c[np.arange(G), arg]
+    best_x = np.stack([_normalised(x[g, arg[g]], mask_all[g]) for g in range(G)])
+    record = getattr(evaluator, "record_external", None)
+    top = np.argsort(best_c, kind="stable")[:settings.top_sets]
+    for n_done, gi in enumerate(top, start=1):
+        check(cancel)
+        group = groups[gi]
+        f64 = Float64Cost(evaluator, group)
+        D = f64.dim
+        eye = np.eye(D) * settings.step
+
+        def fun_grad(v: np.ndarray) -> tuple[float, np.ndarray]:
+            cc = f64(np.vstack([v, v + eye]))
+            if record is not None:
+                record(cc)
+            else:
+                evaluator.evaluations += len(cc)
+            return float(cc[0]), (cc[1:] - cc[0]) / settings.step
+
+        prng = np.random.default_rng([seed, int(gi)])
+        first = np.concatenate([x[gi, arg[gi], li, :len(light)] for li, light in enumerate(group)])
+        for start in range(settings.starts):
+            x0 = first if start == 0 else prng.uniform(settings.lower, 1.0, D)
+            res = minimize(fun_grad, x0, jac=True, method="L-BFGS-B", bounds=[(settings.lower, 1.0)] * D,
+                           options={"maxiter": settings.maxiter})
+            if res.fun < best_c[gi]:
+                best_c[gi] = res.fun
+                flat = np.zeros((L, m))
+                for li, s in enumerate(f64.slices):
+                    flat[li, :s.stop - s.start] = res.x[s]
+                best_x[gi] = _normalised(flat, mask_all[gi])
+        if n_done % 8 == 0 or n_done == len(top):
+            report(progress, n_done / len(top), f"L-BFGS-B: {n_done}/{len(top)} light sets refined")
+    return _outcome("lbfgs", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
+
+
+def halving_search(evaluator, groups: Sequence[Group], settings: HalvingSettings = HalvingSettings(),
+                   seed: int = 0, *, progress: Optional[ProgressCallback] = None,
+                   cancel: Optional[CancelToken] = None) -> SearchOutcome:
+    """Successive halving with the core PSO as the inner optimiser (each rung restarts PSO, seeded by rung)."""
+    groups = list(groups)
+    _, mask_all = group_arrays(groups)
+    G, L, m = mask_all.shape
+    t0, n0 = time.perf_counter(), evaluator.evaluations
+    best_x = np.zeros((G, L, m))
+    best_c = np.full(G, np.inf)
+    alive = np.arange(G)
+    iterations = settings.iterations
+    rung = 0
+    rungs = []
+    while True:
+        check(cancel)
+        ps = PsoSettings(settings.c0, settings.c1, settings.c2, iterations, settings.particles)
+        out = pso(evaluator, [groups[i] for i in alive], ps, seed=seed * 1000 + rung, cancel=cancel)
+        by_leds = {tuple(s.leds for s in c.sources): c for c in out.candidates}
+        for i in alive:
+            cand = by_leds[groups[i]]
+            if cand.train_cost < best_c[i]:
+                best_c[i] = cand.train_cost
+                best_x[i] = 0.0
+                for li, s in enumerate(cand.sources):
+                    best_x[i, li, :len(s.levels)] = s.levels
+        rungs.append({"rung": rung, "light_sets": int(len(alive)), "iterations": iterations,
+                      "best": float(best_c[alive].min())})
+        report(progress, min(1.0, (rung + 1) / 8), f"halving: rung {rung}, {len(alive)} light sets")
+        if len(alive) <= settings.min_sets:
+            break
+        keep = max(settings.min_sets, len(alive) // settings.eta)
+        alive = alive[np.argsort(best_c[alive], kind="stable")[:keep]]
+        iterations *= settings.eta
+        rung += 1
+    return _outcome("halving", groups, best_x, best_c, seed, t0, n0, evaluator,
+                    {**asdict(settings), "rungs": rungs})
+
+
+# ---------------------------------------------------------------------------------------------------------
+def exhaustive_search(evaluator, groups: Sequence[Group], settings: None = None, seed: int = 0, *,
+                      progress: Optional[ProgressCallback] = None,
+                      cancel: Optional[CancelToken] = None) -> SearchOutcome:
+    return exhaustive(evaluator, groups, progress=progress, cancel=cancel)
+
+
+def pso_search(evaluator, groups: Sequence[Group], settings: PsoSettings = PsoSettings(), seed: int = 0, *,
+               progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+    return pso(evaluator, groups, settings, seed, progress=progress, cancel=cancel)
+
+
+def ga_search(evaluator, groups: Sequence[Group], settings: GaSettings = GaSettings(), seed: int = 0, *,
+              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+    return ga(evaluator, groups, settings, seed, progress=progress, cancel=cancel)
+
+
+OPTIMISERS: dict[str, Callable[..., SearchOutcome]] = {
+    "exhaustive": exhaustive_search,
+    "pso": pso_search,
+    "ga": ga_search,
+    "pyswarms": pyswarms_search,
+    "de": de_search,
+    "lbfgs": lbfgs_search,
+    "halving": halving_search,
+}
+
+LABELS = {
+    "exhaustive": "exhaustive (full intensity)",
+    "pso": "PSO (thesis Alg. 1)",
+    "ga": "(mu+lambda) GA (Alg. 2)",
+    "pyswarms": "pyswarms GlobalBestPSO",
+    "de": "scipy differential evolution",
+    "lbfgs": "multi-start L-BFGS-B",
+    "halving": "successive halving (PSO)",
+}
