@@ -1,0 +1,280 @@
+"""Target: the captured colour target with a draggable 4-corner patch grid (rows x cols), the sampled part of
+every patch outlined; automatic ColorChecker detection when app.processing.patches can do it."""
+from __future__ import annotations
+
+import logging
+from typing import Optional
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QPointF, Qt
+from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
+                               QPushButton, QSpinBox, QSplitter, QVBoxLayout, QWidget)
+
+from app.gui.context import AppContext
+from app.gui.panels.camera import image_widget
+from app.gui.viewmodel import display_rgb
+from app.processing.patches import PatchGrid, detect_cc24
+from app.processing.report import layout_for
+
+log = logging.getLogger(__name__)
+
+TARGET_ROLES = ("target", "hdr", "object")
+
+
+def session_subjects(session) -> dict[str, dict[str, list]]:
+    """subject key ('target:train', 'hdr:test', ...) -> light name -> entries (as app.processing groups them)."""
+    out: dict[str, dict[str, list]] = {}
+    for e in session.entries():
+        if e.role not in TARGET_ROLES:
+            continue
+        tag = e.meta.get("target") or e.meta.get("subject")
+        key = f"{e.role}:{tag}" if tag else e.role
+        out.setdefault(key, {}).setdefault(e.light_name or "light", []).append(e)
+    return out
+
+
+class TargetPanel(QWidget):
+    title = "Target"
+
+    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+        super().__init__(parent)
+        self.ctx = ctx
+        self.lab = ctx.lab
+        self.subjects: dict[str, dict[str, list]] = {}
+        self.image: Optional[np.ndarray] = None          # linear superpixel RGB of the shown frame
+        self.grid: Optional[PatchGrid] = None
+        self.roi: Optional[pg.PolyLineROI] = None
+        ctx.shared.setdefault("grids", {})
+
+        box = QGroupBox("Frame")
+        form = QFormLayout(box)
+        self.subject = QComboBox()
+        self.subject.setToolTip("Which captured target to place the grid on.")
+        self.subject.currentIndexChanged.connect(self._subject_chosen)
+        self.light = QComboBox()
+        self.light.setToolTip("Which light's frame to show (the grid is the same for all).")
+        self.light.currentIndexChanged.connect(lambda _i: self.load_frame())
+        self.reload_button = QPushButton("Reload from session")
+        self.reload_button.setToolTip("List the targets captured in the session again.")
+        self.reload_button.clicked.connect(self.reload)
+        form.addRow("Target", self.subject)
+        form.addRow("Light", self.light)
+        form.addRow(self.reload_button)
+
+        gbox = QGroupBox("Patch grid")
+        gf = QFormLayout(gbox)
+        self.rows = QSpinBox()
+        self.rows.setRange(1, 50)
+        self.rows.setToolTip("Patch rows of the target.")
+        self.cols = QSpinBox()
+        self.cols.setRange(1, 50)
+        self.cols.setToolTip("Patch columns of the target.")
+        self.fraction = QDoubleSpinBox()
+        self.fraction.setRange(0.1, 1.0)
+        self.fraction.setSingleStep(0.05)
+        self.fraction.setValue(0.5)
+        self.fraction.setToolTip("Part of each patch that is measured (the middle), away from edges and gaps.")
+        for w in (self.rows, self.cols):
+            w.valueChanged.connect(lambda _v: self.update_grid())
+        self.fraction.valueChanged.connect(lambda _v: self.update_grid())
+        self.reset_button = QPushButton("Reset corners")
+        self.reset_button.setToolTip("Put the four corners back to their starting place.")
+        self.reset_button.clicked.connect(lambda: self.set_corners(self.default_corners()))
+        self.detect_button = QPushButton("Detect ColorChecker")
+        self.detect_button.setToolTip("Find a 24-patch ColorChecker automatically (needs the optional "
+                                      "colour-checker-detection package).")
+        self.detect_button.clicked.connect(self.detect)
+        gf.addRow("Rows", self.rows)
+        gf.addRow("Columns", self.cols)
+        gf.addRow("Sampled part", self.fraction)
+        row = QHBoxLayout()
+        row.addWidget(self.reset_button)
+        row.addWidget(self.detect_button)
+        gf.addRow(row)
+        self.info = QLabel("Drag the four corner handles onto the outer corners of the corner patches "
+                           "(top-left patch first, clockwise).")
+        self.info.setWordWrap(True)
+
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.addWidget(box)
+        ll.addWidget(gbox)
+        ll.addWidget(self.info)
+        ll.addStretch(1)
+
+        self.view, self.image_item, self.viewbox = image_widget(
+            "The target as captured (raw, one light, brightened). Yellow: the grid; green: what is measured.")
+        self.cells = pg.PlotDataItem(pen=pg.mkPen("#00e676", width=1), connect="finite")
+        self.outline = pg.PlotDataItem(pen=pg.mkPen("#ffd600", width=1, style=Qt.DashLine), connect="finite")
+        self.labels: list[pg.TextItem] = []
+        self.viewbox.addItem(self.outline)
+        self.viewbox.addItem(self.cells)
+        split = QSplitter(Qt.Horizontal)
+        split.addWidget(left)
+        split.addWidget(self.view)
+        split.setStretchFactor(1, 1)
+        QVBoxLayout(self).addWidget(split)
+
+        self.lab.sessionChanged.connect(self.reload)
+        ctx.bus.sessionUpdated.connect(self.reload)
+        self.reload()
+
+    # ------------------------------------------------------------------ subjects
+    def reload(self) -> None:
+        session = self.lab.session
+        if session is None:
+            self.subject.clear()
+            self.info.setText("No session yet: capture a target in Calibrate & capture.")
+            return
+        self.ctx.runner.submit(lambda: session_subjects(session), pool="compute", name="list targets",
+                               on_result=self._fill_subjects,
+                               on_error=lambda exc: self.ctx.errors.report("List the targets", exc))
+
+    def _fill_subjects(self, subjects: dict[str, dict[str, list]]) -> None:
+        current = self.subject.currentText()
+        self.subjects = subjects
+        self.subject.blockSignals(True)
+        self.subject.clear()
+        self.subject.addItems(sorted(subjects))
+        if current in subjects:
+            self.subject.setCurrentText(current)
+        self.subject.blockSignals(False)
+        if subjects:
+            self._subject_chosen()
+        else:
+            self.info.setText("No target captured in this session yet (Calibrate & capture → Dual-RGB capture).")
+
+    def _subject_chosen(self, *_args) -> None:
+        key = self.subject.currentText()
+        lights = self.subjects.get(key, {})
+        self.light.blockSignals(True)
+        self.light.clear()
+        self.light.addItems(list(lights))
+        self.light.blockSignals(False)
+        self.load_frame()
+
+    def tag(self) -> str:
+        return self.subject.currentText().partition(":")[2] or "test"
+
+    def reference_layout(self, n_default: int = 24) -> tuple[int, int]:
+        vl = self.lab.virtual_lab
+        if vl is not None and self.tag() in ("train", "test"):
+            return vl.scene_for(self.tag()).layout
+        from simulation.datasets import default_setup
+        if self.tag() in ("train", "test"):
+            target = getattr(default_setup(self.lab.mode), self.tag())
+            return layout_for(len(target), target.layout)
+        return layout_for(n_default)
+
+    # ------------------------------------------------------------------ frame
+    def load_frame(self) -> None:
+        key, light = self.subject.currentText(), self.light.currentText()
+        entries = self.subjects.get(key, {}).get(light, [])
+        if not entries:
+            return
+        entry = sorted(entries, key=lambda e: e.exposure_s or 0.0)[0]
+        path = self.lab.session.file_path(entry)
+
+        def work() -> np.ndarray:
+            from drivers.raw import load_raw, superpixel
+            return superpixel(load_raw(path))
+
+        self.ctx.runner.submit(work, pool="compute", name="load target frame", on_result=self.show_image,
+                               on_error=lambda exc: self.ctx.errors.report("Load the target frame", exc))
+
+    def show_image(self, linear: np.ndarray) -> None:
+        self.image = linear
+        self.image_item.setImage(display_rgb(linear), autoLevels=False, levels=(0, 255))
+        self.viewbox.autoRange()
+        key = self.subject.currentText()
+        saved = self.ctx.shared["grids"].get(key)
+        rows, cols = (saved.rows, saved.cols) if saved is not None else self.reference_layout()
+        for w, v in ((self.rows, rows), (self.cols, cols)):
+            w.blockSignals(True)
+            w.setValue(v)
+            w.blockSignals(False)
+        if saved is not None:
+            self.set_corners(saved.corners)
+        else:
+            self.set_corners(self.default_corners())
+
+    def default_corners(self) -> np.ndarray:
+        """Where the handles start: the virtual lab's target corners, else 10 % inside the frame."""
+        vl = self.lab.virtual_lab
+        if vl is not None and self.tag() in ("train", "test"):
+            rc = np.asarray(vl.scene_for(self.tag()).corners(), dtype=float)
+            return (rc[:, ::-1] + 0.5) * 0.5 - 0.5                  # full mosaic (row, col) -> superpixel (x, y)
+        h, w = self.image.shape[:2] if self.image is not None else (100, 150)
+        return np.array([[0.1 * w, 0.1 * h], [0.9 * w, 0.1 * h], [0.9 * w, 0.9 * h], [0.1 * w, 0.9 * h]])
+
+    # ------------------------------------------------------------------ grid
+    def set_corners(self, corners) -> None:
+        corners = np.asarray(corners, dtype=float).reshape(4, 2)
+        if self.roi is not None:
+            self.viewbox.removeItem(self.roi)
+        self.roi = pg.PolyLineROI([QPointF(float(x), float(y)) for x, y in corners], closed=True,
+                                  pen=pg.mkPen("#ffd600", width=2), movable=True)
+        self.roi.setToolTip("Drag a corner handle onto the outer corner of a corner patch; drag an edge to move "
+                            "the whole grid.")
+        self.roi.sigRegionChanged.connect(lambda _r: self.update_grid())
+        self.viewbox.addItem(self.roi)
+        self.update_grid()
+
+    def corners(self) -> np.ndarray:
+        if self.roi is None:
+            return self.default_corners()
+        pts = [self.roi.mapToParent(h.pos()) for h in self.roi.getHandles()]
+        return np.array([[p.x(), p.y()] for p in pts[:4]])
+
+    def move_handle(self, index: int, x: float, y: float) -> None:
+        """What dragging handle ``index`` to image point (x, y) does (used by tests and the screenshot run)."""
+        handle = self.roi.getHandles()[index]
+        self.roi.movePoint(handle, self.roi.mapFromParent(QPointF(x, y)))
+
+    def update_grid(self) -> None:
+        try:
+            grid = PatchGrid(self.corners(), self.rows.value(), self.cols.value(), self.fraction.value())
+        except ValueError as exc:
+            self.info.setText(f"Grid not usable: {exc}")
+            self.cells.setData([], [])
+            return
+        self.grid = grid
+        polys = grid.sample_polygons()                                    # (n, 4, 2)
+        closed = np.concatenate([polys, polys[:, :1], np.full((len(polys), 1, 2), np.nan)], axis=1)
+        xy = closed.reshape(-1, 2)
+        self.cells.setData(xy[:, 0], xy[:, 1])
+        lines = []
+        for r in range(grid.rows + 1):
+            lines += [grid.to_image(np.array([[0, r / grid.rows], [1, r / grid.rows]])), np.full((1, 2), np.nan)]
+        for c in range(grid.cols + 1):
+            lines += [grid.to_image(np.array([[c / grid.cols, 0], [c / grid.cols, 1]])), np.full((1, 2), np.nan)]
+        ln = np.concatenate(lines)
+        self.outline.setData(ln[:, 0], ln[:, 1])
+        key = self.subject.currentText()
+        if key:
+            self.ctx.shared["grids"][key] = grid
+            self.ctx.shared["grid"] = grid
+            self.ctx.bus.gridChanged.emit(grid)
+        self.info.setText(f"{grid.rows} x {grid.cols} = {grid.n_patches} patches on {key or 'the frame'}; "
+                          f"measuring the middle {100 * grid.fraction:.0f} % of each.")
+
+    def detect(self) -> None:
+        if self.image is None:
+            self.ctx.errors.report("Detect the ColorChecker", "load a captured target first")
+            return
+        image = self.image
+
+        def done(det) -> None:
+            if det is None:
+                self.ctx.errors.report("Detect the ColorChecker",
+                                       "no ColorChecker found (or the optional detector is not installed: "
+                                       "pip install 'dualrgb[detect]'); drag the four corners by hand",
+                                       level=logging.WARNING)
+                return
+            self.rows.setValue(det.grid.rows)
+            self.cols.setValue(det.grid.cols)
+            self.set_corners(det.grid.corners)
+
+        self.ctx.runner.submit(lambda: detect_cc24(image), pool="compute", name="detect ColorChecker",
+                               on_result=done, on_error=lambda exc: self.ctx.errors.report("Detect", exc))
