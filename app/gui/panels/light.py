@@ -184,6 +184,7 @@ class LightPanel(QWidget):
         lay = QVBoxLayout(self)
         lay.addWidget(split)
 
+        ctx.shared["light_panel"] = self
         self.lab.sphereChanged.connect(self._sphere_changed)
         self.lab.sphereStatus.connect(self.show_status)
         ctx.bus.presetsChanged.connect(self.reload_presets)
