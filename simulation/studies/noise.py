@@ -1,0 +1,326 @@
+"""Camera noise at the exposure each light needs, and the noise-aware objective.
+
+Capture model (thesis 7 and 8; constants as the virtual lab's D610, drivers/virtual/camera.py):
+
+* each light gets its own exposure, set so the brightest channel of the open gate reaches
+  ``target_fraction`` (80 %) of the 11 000 DN linear limit (raw, black level 600 included);
+* a patch's signal in that channel is then S = headroom * c / o_max (c: its response, o_max: the open gate's
+  brightest channel response, headroom = 0.8 * 11 000 - 600 DN), the open gate's (flat) signal F likewise;
+* per pixel: shot noise (S / gain DN^2 at ``electrons_per_dn`` e-/DN), read noise 2.5 DN, dark current shot
+  noise (grows with the exposure time), the master dark (mean of ``dark_frames`` frames) subtracted,
+  quantisation (1/12 DN^2); the value is flat-fielded (eq 7.1: (raw - dark) / (white - dark)) and averaged
+  over ``pixels_per_patch`` pixels of the patch.
+
+So the flat-fielded value of patch j, channel c is v = S / F with standard deviation
+sqrt(var_S + v^2 var_F) / F / sqrt(pixels). Exposure *times* only matter through dark current; they come
+from a radiometric scale calibrated like the virtual camera: the open gate under the full-intensity light
+(1, 6, 8) reaches 10 500 DN at 1/60 s (thesis Table 7.1).
+
+The noise-aware objective is the expected training dE00 of a capture: Monte-Carlo over ``draws`` fixed
+standard-normal draws (common random numbers: every candidate sees the same draws, so the objective is a
+smooth, deterministic function the optimisers can compare), the characterisation fitted on the *noisy*
+training values and applied to them (as the thesis reports captured training errors). It is vectorised over
+candidates and draws. :meth:`NoiseModel.simulate_capture` is the independent check: a pixel-level capture
+(Poisson electrons, Gaussian read noise, rounding to integer DN, clipping at the linear limit, a simulated
+master dark and white frame) with held-out seeds.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Optional
+
+import numpy as np
+
+from simulation.camera_model import led_responses
+from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
+from simulation.datasets import SimulationSetup, Target
+from simulation.fast_de import mean_de2000_xyz
+from simulation.studies.optimisers import _solve_small
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CameraNoise:
+    """Sensor constants (D610-like at ISO 50, as the virtual camera) and the capture protocol."""
+
+    black_level: float = 600.0
+    linear_limit: float = 11000.0          # raw DN
+    max_code: int = 2**14 - 1              # 14-bit
+    target_fraction: float = 0.8           # open gate's brightest channel at 80 % of the linear limit
+    read_noise: float = 2.5                # DN rms per pixel
+    electrons_per_dn: float = 8.0          # conversion gain at ISO 50 (4 e-/DN at ISO 100)
+    dark_current: float = 0.3              # e-/s per pixel
+    dark_frames: int = 10                  # frames averaged into the master dark (thesis 7)
+    pixels_per_patch: int = 64             # pixels of one colour averaged per patch (small virtual-lab frames)
+    min_flat_dn: float = 5.0               # a channel whose open gate is darker than this is not used
+    reference_leds: tuple[int, ...] = (1, 6, 8)
+    reference_dn: float = 10500.0          # raw DN of the open gate under the reference light ...
+    reference_exposure_s: float = 1 / 60   # ... at this exposure (Table 7.1)
+
+    @property
+    def headroom(self) -> float:
+        """DN above black that the open gate's brightest channel gets."""
+        return self.target_fraction * self.linear_limit - self.black_level
+
+    def to_dict(self) -> dict:
+        from dataclasses import asdict
+
+        return asdict(self)
+
+
+@dataclass
+class _PatchData:
+    R: np.ndarray           # (K, n, 3) per-LED responses (raw units)
+    xyz: np.ndarray
+    lab: np.ndarray
+    lab32: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+class NoiseModel:
+    """Flat-fielded patch values of a light set with their noise, expected errors and simulated captures."""
+
+    def __init__(self, setup: SimulationSetup, camera: CameraNoise = CameraNoise(),
+                 train: Optional[Target] = None, test: Optional[Target] = None) -> None:
+        self.setup = setup
+        self.camera = camera
+        self.white = white_point(setup.illuminant, setup.cmfs)
+        self.open = led_responses(setup.leds, np.ones((1, len(setup.grid))), setup.camera)[:, 0, :]   # (K, 3)
+        self.n_leds = setup.leds.shape[0]
+        self.data = {"train": self._patches(train or setup.train), "test": self._patches(test or setup.test)}
+        ref = np.zeros(self.n_leds)
+        ref[np.asarray(camera.reference_leds) - 1] = 1.0
+        self.dn_per_unit_s = ((camera.reference_dn - camera.black_level)
+                              / (camera.reference_exposure_s * float((ref @ self.open).max())))
+        self._draws: dict = {}
+
+    def _patches(self, target: Target) -> _PatchData:
+        xyz = tristimulus(target.spectra, self.setup.illuminant, self.setup.cmfs)
+        lab = xyz_to_lab(xyz, self.white)
+        lab32 = tuple(np.ascontiguousarray(lab[:, i], dtype=np.float32) for i in range(3))
+        return _PatchData(led_responses(self.setup.leds, target.spectra, self.setup.camera), xyz, lab, lab32)
+
+    # ---- the capture of a light set -------------------------------------------------------------------
+    def exposures(self, W: np.ndarray) -> np.ndarray:
+        """Exposure time (s) each light needs: W (..., L, K) -> (..., L); inf for a dark light."""
+        o_max = (np.asarray(W, dtype=float) @ self.open).max(axis=-1)
+        with np.errstate(divide="ignore"):
+            return self.camera.headroom / (self.dn_per_unit_s * o_max)
+
+    def signals(self, W: np.ndarray, which: str = "train") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """DN above black of patches S (B, n, L, 3) and open gate F (B, L, 3), and exposures t (B, L)."""
+        W = np.asarray(W, dtype=float)
+        O = W @ self.open                                                     # (B, L, 3)
+        o_max = O.max(axis=-1)                                                # (B, L)
+        scale = np.divide(self.camera.headroom, o_max, out=np.zeros_like(o_max), where=o_max > 0)
+        C = np.einsum("blk,knc->bnlc", W, self.data[which].R)
+        S = C * scale[:, None, :, None]
+        F = O * scale[:, :, None]
+        t = np.divide(self.camera.headroom, self.dn_per_unit_s * o_max, out=np.full_like(o_max, np.inf),
+                      where=o_max > 0)
+        return S, F, t
+
+    def values(self, W: np.ndarray, which: str = "train") -> tuple[np.ndarray, np.ndarray]:
+        """Flat-fielded values v and their standard deviation over the patch mean, both (B, n, 3L)."""
+        cam = self.camera
+        S, F, t = self.signals(W, which)
+        dark_e = np.where(np.isfinite(t), t, 0.0) * cam.dark_current          # dark electrons per frame (B, L)
+        dark = cam.read_noise**2 + dark_e / cam.electrons_per_dn**2          # DN^2 per frame
+        base = dark * (1.0 + 1.0 / cam.dark_frames) + 1.0 / 12.0
+        usable = F >= cam.min_flat_dn                                        # (B, L, 3)
+        Fs = np.where(usable, F, 1.0)[:, None]
+        v = np.where(usable[:, None], S / Fs, 0.0)
+        var_s = S / cam.electrons_per_dn + base[:, None, :, None]
+        var_f = F[:, None] / cam.electrons_per_dn + base[:, None, :, None]
+        std = np.where(usable[:, None], np.sqrt(var_s + v * v * var_f) / Fs, 0.0) / np.sqrt(cam.pixels_per_patch)
+        B, n = v.shape[:2]
+        return v.reshape(B, n, -1), std.reshape(B, n, -1)
+
+    # ---- expected errors -------------------------------------------------------------------------------
+    def draws(self, count: int, seed: int, n: int, channels: int, which: str) -> np.ndarray:
+        key = (count, seed, n, channels, which)
+        if key not in self._draws:
+            self._draws[key] = np.random.default_rng([seed, n, channels, which == "test"]).standard_normal(
+                (count, n, channels))
+        return self._draws[key]
+
+    def expected_errors(self, W: np.ndarray, draws: int = 16, seed: int = 0, *, test: bool = True,
+                        exact: bool = False, chunk: int = 64) -> dict:
+        """Expected mean dE00 of captures of each light set W (B, L, K): fit on the noisy training capture,
+        errors of the training capture and (``test``) of an independent test capture. ``draws`` = 0 gives the
+        noise-free errors through the same code. ``exact`` uses the float64 CIEDE2000 (else the fast kernel).
+        Returns {"train": (B,), "test": (B,)} (means over draws) and per-draw arrays."""
+        W = np.asarray(W, dtype=float)
+        B = W.shape[0]
+        out_tr = np.empty((B, max(draws, 1)))
+        out_te = np.empty((B, max(draws, 1))) if test else None
+        for lo in range(0, B, chunk):
+            hi = min(B, lo + chunk)
+            tr, te = self._expected_chunk(W[lo:hi], draws, seed, test, exact)
+            out_tr[lo:hi] = tr
+            if test:
+                out_te[lo:hi] = te
+        res = {"train": out_tr.mean(axis=1), "train_draws": out_tr}
+        if test:
+            res.update({"test": out_te.mean(axis=1), "test_draws": out_te})
+        return res
+
+    def _noisy(self, W: np.ndarray, which: str, draws: int, seed: int) -> np.ndarray:
+        v, std = self.values(W, which)                                        # (b, n, ch)
+        if draws == 0:
+            return v[:, None]
+        Z = self.draws(draws, seed, v.shape[1], v.shape[2], which)
+        return v[:, None] + std[:, None] * Z[None]                            # (b, D, n, ch)
+
+    def _mean_de(self, xyz_pred: np.ndarray, which: str, exact: bool) -> np.ndarray:
+        """xyz_pred (P, n, 3) -> mean dE00 per row."""
+        d = self.data[which]
+        if exact:
+            return delta_e_2000(d.lab, xyz_to_lab(xyz_pred, self.white)).mean(axis=-1)
+        out = np.empty(xyz_pred.shape[0], dtype=np.float32)
+        X, Y, Z = (np.ascontiguousarray(xyz_pred[..., i]) for i in range(3))
+        mean_de2000_xyz(X, Y, Z, self.white, *d.lab32, out)
+        return out.astype(float)
+
+    def _expected_chunk(self, W: np.ndarray, draws: int, seed: int, test: bool, exact: bool):
+        b = W.shape[0]
+        Vtr = self._noisy(W, "train", draws, seed)                            # (b, D, n, ch)
+        D, n, ch = Vtr.shape[1:]
+        V = Vtr.reshape(b * D, n, ch)
+        VT = V.transpose(0, 2, 1)
+        A = _solve_small(VT @ V, VT @ self.data["train"].xyz)                # (bD, ch, 3)
+        tr = self._mean_de(V @ A, "train", exact).reshape(b, D)
+        te = None
+        if test:
+            Vte = self._noisy(W, "test", draws, seed).reshape(b * D, -1, ch)
+            te = self._mean_de(Vte @ A, "test", exact).reshape(b, D)
+        return tr, te
+
+    # ---- a pixel-level capture (held-out check) ----------------------------------------------------------
+    def simulate_capture(self, W: np.ndarray, rng: np.random.Generator, which: str = "train", *,
+                         factors: tuple[float, ...] = (1.0,),
+                         transmittance: Optional[np.ndarray] = None) -> np.ndarray:
+        """Flat-fielded patch means (n, 3L) of one simulated capture of light set W (L, K), pixel by pixel.
+
+        ``factors``: exposures relative to the open-gate exposure (several = an HDR bracket, merged as thesis
+        8.2: master dark per exposure, each frame divided by its exposure, weighted by eq 8.9's hat on the
+        linear range, clipped pixels weight 0); the white (open gate) frame is bracketed the same way.
+        ``transmittance`` (n,): an ND filter over some patches (thesis 8.3).
+        """
+        cam = self.camera
+        S, F, t = self.signals(np.asarray(W, dtype=float)[None], which)
+        S, F, t = S[0], F[0], t[0]                                            # (n, L, 3), (L, 3), (L,)
+        if transmittance is not None:
+            S = S * np.asarray(transmittance, dtype=float)[:, None, None]
+        n, L = S.shape[:2]
+        shape = (n, L, 3, cam.pixels_per_patch)
+        g = cam.electrons_per_dn
+        lin = cam.linear_limit - cam.black_level
+        dark_e = (np.where(np.isfinite(t), t, 0.0) * cam.dark_current)[None, :, None, None]   # electrons
+
+        def frame(signal_dn: np.ndarray, f: float) -> np.ndarray:
+            """One exposure: Poisson electrons (signal + dark current), read noise, 14-bit integers, clipped."""
+            e = rng.poisson(np.broadcast_to(signal_dn * f * g + dark_e * f, shape))
+            raw = np.round(cam.black_level + e / g + rng.normal(0.0, cam.read_noise, shape))
+            return np.clip(raw, 0, min(cam.max_code, cam.linear_limit))
+
+        def merged(signal_dn: np.ndarray) -> np.ndarray:
+            num = np.zeros(shape)
+            den = np.zeros(shape)
+            fallback = None
+            for f in sorted(factors):
+                raw = frame(signal_dn, f)
+                x = raw - np.mean([frame(np.zeros((1, L, 3, 1)), f) for _ in range(cam.dark_frames)], axis=0)
+                w = np.where(raw >= cam.linear_limit, 0.0, np.clip(np.minimum(x, lin - x), 0.0, None))
+                num += w * x / f
+                den += w
+                if fallback is None:
+                    fallback = x / f
+            return np.where(den > 0, num / np.where(den > 0, den, 1.0), fallback)
+
+        raw = merged(S[..., None])
+        white = merged(F[None, :, :, None])
+        usable = (F >= cam.min_flat_dn)[None, :, :, None]
+        ratio = np.where(usable & (white > 0), raw / np.where(white > 0, white, 1.0), 0.0)
+        return ratio.mean(axis=-1).reshape(n, L * 3)
+
+    def captured_errors(self, W: np.ndarray, repeats: int = 10, seed: int = 12345, *,
+                        factors: tuple[float, ...] = (1.0,), nd: Optional[dict[str, np.ndarray]] = None,
+                        models: tuple[str, ...] = ()) -> dict:
+        """Mean dE00 (float64) of ``repeats`` simulated captures of W (L, K): fit on the captured training
+        target, errors of the captured training and test targets; seeds disjoint from the objective's.
+        ``nd``: per target ('train', 'test') transmittance of an ND filter; ``models``: also fit these
+        characterisation models (simulation.studies.models) and report their errors under 'models'."""
+        from simulation.studies.models import fit_model, model_errors
+
+        tr, te = [], []
+        per_model: dict[str, dict[str, list[float]]] = {m: {"train": [], "test": []} for m in models}
+        for r in range(repeats):
+            rng = np.random.default_rng([seed, r])
+            Vtr = self.simulate_capture(W, rng, "train", factors=factors, transmittance=(nd or {}).get("train"))
+            Vte = self.simulate_capture(W, rng, "test", factors=factors, transmittance=(nd or {}).get("test"))
+            xyz_tr, xyz_te = self.data["train"].xyz, self.data["test"].xyz
+            if nd:
+                xyz_tr = xyz_tr * nd["train"][:, None]
+                xyz_te = xyz_te * nd["test"][:, None]
+            A = _solve_small((Vtr.T @ Vtr)[None], (Vtr.T @ xyz_tr)[None])[0]
+            tr.append(float(delta_e_2000(xyz_to_lab(xyz_tr, self.white), xyz_to_lab(Vtr @ A, self.white)).mean()))
+            te.append(float(delta_e_2000(xyz_to_lab(xyz_te, self.white), xyz_to_lab(Vte @ A, self.white)).mean()))
+            for m in models:
+                fm = fit_model(m, Vtr, xyz_tr, self.white)
+                per_model[m]["train"].append(float(model_errors(fm, Vtr, xyz_tr, self.white).mean()))
+                per_model[m]["test"].append(float(model_errors(fm, Vte, xyz_te, self.white).mean()))
+        out = {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
+               "test_sd": float(np.std(te)), "repeats": repeats}
+        if models:
+            out["models"] = {m: {k: float(np.mean(v)) for k, v in d.items()} for m, d in per_model.items()}
+        return out
+
+
+def dense(idx: np.ndarray, w: np.ndarray, n_leds: int) -> np.ndarray:
+    """Indexed light sets (P, L, m) -> dense weights (P, L, K) (padding has weight 0)."""
+    P, L, m = w.shape
+    W = np.zeros((P, L, n_leds))
+    np.add.at(W, (np.arange(P)[:, None, None], np.arange(L)[None, :, None], idx), w)
+    return W
+
+
+class NoiseAwareEvaluator:
+    """The expected training dE00 under noise with the optimisers' interface (``cost_indexed``,
+    ``evaluations``), so the core PSO runs on it unchanged."""
+
+    def __init__(self, model: NoiseModel, draws: int = 16, seed: int = 0) -> None:
+        self.model = model
+        self.draws = draws
+        self.seed = seed
+        self.evaluations = 0
+        self.n_leds = model.n_leds
+
+    def cost_indexed(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
+        W = dense(np.asarray(idx), np.asarray(w, dtype=float), self.n_leds)
+        self.evaluations += W.shape[0]
+        return self.model.expected_errors(W, self.draws, self.seed, test=False)["train"]
+
+    def cost(self, W: np.ndarray) -> np.ndarray:
+        W = np.asarray(W, dtype=float)
+        self.evaluations += W.shape[0]
+        return self.model.expected_errors(W, self.draws, self.seed, test=False)["train"]
+
+
+@lru_cache(maxsize=4)
+def thesis_exposures_check(mode: str = "transmissive") -> list[dict]:
+    """Exposures the model gives the four lights of thesis Table 7.1, beside the thesis's values."""
+    from simulation.datasets import default_setup
+
+    model = NoiseModel(default_setup(mode))
+    rows = [((1, 6, 8), (1.0, 1.0, 1.0), 1 / 60), ((3, 5, 9), (1.0, 1.0, 1.0), 1 / 500),
+            ((1, 6, 7), (0.07, 0.58, 1.0), 1 / 2), ((2, 4, 9), (0.12, 0.56, 1.0), 1 / 40)]
+    out = []
+    for leds, levels, thesis in rows:
+        W = np.zeros((1, model.n_leds))
+        W[0, np.asarray(leds) - 1] = levels
+        out.append({"leds": list(leds), "levels": list(levels), "model_s": float(model.exposures(W)[0]),
+                    "thesis_s": thesis})
+    return out
