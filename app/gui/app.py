@@ -85,7 +85,7 @@ def run(virtual_lab: bool = False, screenshot_dir: Optional[Path] = None,
 
         tmp = Path(tempfile.mkdtemp(prefix="dualrgb-screens-"))
         settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.IniFormat)
-        window = MainWindow(settings, frame_size=(240, 160), show_dialogs=False)
+        window = MainWindow(settings, frame_size=(300, 200), show_dialogs=False)
         window.resize(1400, 900)
         window.show()
         run_ = ScreenshotRun(window, Path(screenshot_dir), tmp)

@@ -255,7 +255,10 @@ class CameraPanel(QWidget):
             path = folder / f"{stamp}_{raw.filename}"
             atomic_write(path, raw.data)
             log.info("test shot saved: %s (%.1f MB)", path, len(raw.data) / 1e6)
-            return raw_view(path)
+            view = raw_view(path)
+            if view.iso is None:
+                view.iso = raw.iso
+            return view
 
         def finished() -> None:
             self._capturing = False

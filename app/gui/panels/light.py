@@ -110,8 +110,10 @@ class LightPanel(QWidget):
                                 "level, added up (thin lines: each LED's share).")
         self.led_curves = []
         for i in range(N_SPHERE_LEDS):
+            colour = _wavelength_colour(self.peaks[i])
             self.led_curves.append(self.plot.plot(self.wavelengths, np.zeros_like(self.wavelengths),
-                                                  pen=pg.mkPen(_wavelength_colour(self.peaks[i]), width=1)))
+                                                  pen=pg.mkPen(colour, width=1), fillLevel=0.0,
+                                                  brush=pg.mkBrush(*colour, 70)))
         self.mix_curve = self.plot.plot(self.wavelengths, np.zeros_like(self.wavelengths),
                                         pen=pg.mkPen("k", width=2), name="mixed")
 
