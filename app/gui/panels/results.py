@@ -393,7 +393,7 @@ class ResultsPanel(QWidget):
         src = self.out_dir
         if src is None:
             return
-        dest = folder / src.parent.name
+        dest = folder / f"{src.parent.name}-results"
 
         def work() -> Path:
             shutil.copytree(src, dest, dirs_exist_ok=True)

@@ -1,0 +1,206 @@
+"""A whole copy-stand session clicked through on the virtual lab, with an event-loop watchdog."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from PySide6.QtCore import QObject, Qt, QTimer
+
+from tests.gui.conftest import wait_idle
+
+LONG = 120000
+
+
+class Watchdog(QObject):
+    """Ticks every 10 ms on the GUI thread; records the longest gap between ticks while ``active``."""
+
+    def __init__(self):
+        super().__init__()
+        self.timer = QTimer(self)
+        self.timer.setInterval(10)
+        self.timer.timeout.connect(self._tick)
+        self.last = None
+        self.active = False
+        self.max_gap = 0.0
+        self.ticks = 0
+        self.timer.start()
+
+    def _tick(self):
+        now = time.perf_counter()
+        if self.active and self.last is not None:
+            self.max_gap = max(self.max_gap, now - self.last)
+            self.ticks += 1
+        self.last = now
+
+    def watch(self, bus):
+        bus.sequenceStarted.connect(lambda *_: self._on(True))
+        bus.sequenceFinished.connect(lambda *_: self._on(False))
+
+    def _on(self, active):
+        self.last = time.perf_counter()
+        self.active = active
+
+
+def click(qtbot, button):
+    assert button.isEnabled(), f"{button.text()!r} is disabled"
+    qtbot.mouseClick(button, Qt.LeftButton)
+
+
+def run_sequence(qtbot, w, kind, *, frames=None, target=None):
+    cap = w.capture
+    cap.kind.setCurrentText(kind)
+    if frames:
+        cap.frames.setValue(frames)
+    if target is not None:
+        cap.target.setCurrentIndex(target)
+    assert cap.view.table.rowCount() > 0, cap.view.summary.text()
+    assert "frames, about" in cap.view.summary.text()
+    click(qtbot, cap.view.start_button)
+    qtbot.waitUntil(lambda: cap.view.outcome != "", timeout=LONG)
+    wait_idle(qtbot, w)
+    assert cap.view.outcome == "done", (cap.view.message.text(), w.errors.history)
+
+
+@pytest.mark.timeout(600)
+def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
+    w = make_window(frame_size=(160, 108))
+    dog = Watchdog()
+    dog.watch(w.ctx.bus)
+    dev = w.devices
+
+    # ---- connect both devices from the Devices panel ----
+    wait_idle(qtbot, w)
+    dev.port_combo.setCurrentText("virtual sphere (emulator)")
+    click(qtbot, dev.sphere_button)
+    qtbot.waitUntil(lambda: w.lab.sphere is not None, timeout=LONG)
+    dev.camera_combo.setCurrentText("virtual camera (virtual lab)")
+    click(qtbot, dev.camera_button)
+    qtbot.waitUntil(lambda: w.lab.camera is not None, timeout=LONG)
+    wait_idle(qtbot, w)
+    assert dev.sphere_light.state in ("ok", "on") and dev.camera_light.state == "ok"
+    assert w.ctx.settings.value("devices/sphere_port") == "virtual sphere (emulator)"
+
+    # ---- apply a preset in one click ----
+    light = w.light
+    item = next(i for i in light.preset_items() if i.preset.name == "dual-RGB reflective")
+    light.presets.setCurrentItem(item)
+    click(qtbot, light.apply1)
+    wait_idle(qtbot, w)
+    emu = w.lab.virtual_lab.emulator
+    assert np.allclose(emu.commanded_levels(), item.preset.sources[0].weights(10), atol=1e-4)
+
+    # ---- a single picture with its histogram ----
+    click(qtbot, w.camera.capture_button)
+    qtbot.waitUntil(lambda: w.camera.last_view is not None, timeout=LONG)
+    assert "linear limit" in w.camera.hist_label.text()
+
+    # ---- session, lights, exposures ----
+    cap = w.capture
+    click(qtbot, cap.new_button)
+    qtbot.waitUntil(lambda: w.lab.session is not None, timeout=LONG)
+    qtbot.waitUntil(lambda: len(cap.presets) > 0, timeout=LONG)
+    cap.choose_preset("dual-RGB reflective")
+    click(qtbot, cap.auto_button)
+    wait_idle(qtbot, w)
+    exposures = cap.exposures()
+    assert len(exposures) == 2 and all(0 < t[0] < 1 for t in exposures.values())
+
+    # ---- darks, flats, the two targets ----
+    run_sequence(qtbot, w, "Dark series", frames=4)
+    run_sequence(qtbot, w, "Open-gate flats", frames=2)
+    run_sequence(qtbot, w, "Dual-RGB capture", target=0)
+    run_sequence(qtbot, w, "Dual-RGB capture", target=1)
+    roles = [e.role for e in w.lab.session.entries()]
+    assert roles.count("dark") == 4 * len({t[0] for t in exposures.values()})
+    assert roles.count("flat") == 4 and roles.count("target") == 4
+    assert not emu.snapshot().light_on
+
+    # ---- grid placement: drag a corner away and back ----
+    tgt = w.target
+    qtbot.waitUntil(lambda: tgt.subject.count() >= 2, timeout=LONG)
+    for key in ("target:train", "target:test"):
+        tgt.subject.setCurrentText(key)
+        qtbot.waitUntil(lambda: tgt.grid is not None and key in w.ctx.shared["grids"], timeout=LONG)
+        wait_idle(qtbot, w)
+    assert (tgt.grid.rows, tgt.grid.cols) == (4, 6)
+    start = tgt.corners().copy()
+    tgt.move_handle(2, start[2, 0] - 5, start[2, 1] - 4)
+    assert np.allclose(tgt.corners()[2], start[2] - [5, 4], atol=0.01)
+    moved_cells = tgt.cells.getData()[0].copy()
+    tgt.move_handle(2, *start[2])
+    assert np.allclose(tgt.corners(), start, atol=0.01)
+    assert not np.allclose(moved_cells, tgt.cells.getData()[0], equal_nan=True)
+    assert np.allclose(w.ctx.shared["grids"]["target:test"].corners, start, atol=0.01)
+
+    # ---- results ----
+    res = w.results
+    res.optimise.setChecked(False)
+    qtbot.waitUntil(lambda: res.train_subject.count() > 0, timeout=LONG)
+    res.train_subject.setCurrentText("target:train")
+    res.test_subject.setCurrentText("target:test")
+    click(qtbot, res.process_button)
+    qtbot.waitUntil(lambda: res.result is not None or "failed" in res.status.text(), timeout=LONG)
+    wait_idle(qtbot, w)
+    assert res.result is not None, (res.status.text(), w.errors.history)
+    rep = res.result.report
+    assert rep["test"]["mean"] < 2.0                       # dual-RGB on the virtual lab: well under 2 dE00
+    assert set(res.badge_labels) == {"FADGI 2023", "ISO 19264-1:2021", "Metamorfoze 2.0"}
+    assert len(res.views["test"].errors) == 24
+    image = res.heat_item.image
+    assert image.shape == (4, 6)
+    res.export_to(tmp_path / "export")
+    wait_idle(qtbot, w)
+    assert len(list((tmp_path / "export").glob("session-*-results/report.json"))) == 1
+
+    # ---- the event loop was never blocked during the sequences ----
+    print(f"watchdog: {dog.ticks} ticks during sequences, longest gap {dog.max_gap * 1000:.1f} ms")
+    assert dog.ticks > 50
+    assert dog.max_gap < 0.1, f"event loop blocked for {dog.max_gap * 1000:.0f} ms during a sequence"
+    assert w.errors.history == []
+
+
+@pytest.mark.timeout(300)
+def test_cancel_and_pause_a_running_sequence(qtbot, make_window):
+    w = make_window(frame_size=(120, 80))
+    w.lab.start_virtual_lab()
+    wait_idle(qtbot, w)
+    cap = w.capture
+    cap.new_session()
+    qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)
+    cap.choose_preset("dual-RGB reflective")
+    emu = w.lab.virtual_lab.emulator
+
+    # pause / resume flats
+    cap.kind.setCurrentText("Open-gate flats")
+    cap.frames.setValue(6)
+    cap.settle.setValue(0.1)
+    click(qtbot, cap.view.start_button)
+    qtbot.waitUntil(lambda: any(e.kind == "frame" for e in cap.view.events), timeout=LONG)
+    click(qtbot, cap.view.pause_button)
+    assert cap.view.seq.paused
+    qtbot.wait(200)                                         # the frame in progress may still finish
+    n = len(cap.view.events)
+    qtbot.wait(500)
+    assert len(cap.view.events) == n                        # nothing moves while paused
+    click(qtbot, cap.view.pause_button)                     # resume
+    qtbot.waitUntil(lambda: cap.view.outcome != "", timeout=LONG)
+    assert cap.view.outcome == "done"
+    wait_idle(qtbot, w)
+
+    # cancel a long dark series with the keyboard shortcut's action
+    cap.kind.setCurrentText("Dark series")
+    cap.frames.setValue(40)
+    planned = cap.view.table.rowCount()
+    click(qtbot, cap.view.start_button)
+    qtbot.waitUntil(lambda: sum(e.kind == "frame" for e in cap.view.events) >= 2, timeout=LONG)
+    w.cancel_action.trigger()
+    qtbot.waitUntil(lambda: cap.view.outcome != "", timeout=LONG)
+    wait_idle(qtbot, w)
+    assert cap.view.outcome == "cancelled"
+    darks = [e for e in w.lab.session.entries() if e.role == "dark"]
+    assert 2 <= len(darks) < planned
+    assert not emu.snapshot().light_on
+    assert np.allclose(emu.snapshot().levels, 0)
+    assert cap.view.start_button.isEnabled()
+    assert w.errors.history == []
