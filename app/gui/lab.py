@@ -28,19 +28,18 @@ NO_CAMERA_ADVICE = ("no camera found: connect the camera by USB, switch it on (m
 
 
 def serial_ports() -> list[str]:
-    """Serial ports the sphere may be on (pyserial's list), the emulator entry first."""
-    from serial.tools import list_ports
-    return [VIRTUAL_SPHERE] + sorted(p.device for p in list_ports.comports())
+    """Serial ports the sphere may be on (drivers.usb_discovery; USB adapters first), the emulator entry first."""
+    from drivers.usb_discovery import serial_ports as found
+    ports = sorted(found(), key=lambda p: (not p.is_usb, p.device))
+    return [VIRTUAL_SPHERE] + [p.device for p in ports]
 
 
-def detect_cameras() -> list[tuple[str, str]]:
-    """(model, port) of cameras libgphoto2 sees; a missing gphoto2 install is reported as no camera."""
-    from drivers.camera.gphoto import GPhotoCamera
-    try:
-        return GPhotoCamera.detect()
-    except ImportError as exc:
-        log.warning("gphoto2 is not available (%s): only the virtual camera can be used", exc)
-        return []
+def discover_cameras() -> tuple[list[str], list[str]]:
+    """(camera choices 'model @ port' plus the virtual camera, hints such as 'claimed by gvfs: do this')."""
+    from drivers.usb_discovery import discover
+    report = discover(probe=False)
+    names = [f"{c.model} @ {c.port}" for c in report.gphoto_cameras]
+    return names + [VIRTUAL_CAMERA], list(report.hints)
 
 
 class Lab(QObject):
@@ -230,11 +229,9 @@ class Lab(QObject):
                                 on_finished=self.poll_status)
 
     # ------------------------------------------------------------------ camera
-    def detect_cameras(self, on_result: Callable[[list[str]], None],
+    def detect_cameras(self, on_result: Callable[[tuple[list[str], list[str]]], None],
                        on_finished: Optional[Callable[[], None]] = None) -> TaskHandle:
-        def work() -> list[str]:
-            return [f"{model} @ {port}" for model, port in detect_cameras()] + [VIRTUAL_CAMERA]
-        return self.device_call(work, "Detect cameras", on_result=on_result, on_finished=on_finished)
+        return self.device_call(discover_cameras, "Detect cameras", on_result=on_result, on_finished=on_finished)
 
     def connect_camera(self, choice: str, on_done: Optional[Callable[[bool], None]] = None) -> TaskHandle:
         def work() -> Camera:

@@ -165,14 +165,18 @@ class DevicesPanel(QWidget):
         self.detect_button.setEnabled(False)
         self.camera_message.setText("looking for cameras …")
 
-        def done(names: list[str]) -> None:
+        def done(found: tuple[list[str], list[str]]) -> None:
+            names, hints = found
             current = self.camera_combo.currentText()
             self.camera_combo.clear()
             self.camera_combo.addItems(names)
             if current in names:
                 self.camera_combo.setCurrentText(current)
             real = [n for n in names if n != VIRTUAL_CAMERA]
-            self.camera_message.setText(f"found {len(real)} camera(s) on USB" if real else NO_CAMERA_ADVICE)
+            lines = [f"found {len(real)} camera(s) on USB" if real else NO_CAMERA_ADVICE] + hints
+            self.camera_message.setText("\n".join(lines))
+            if hints:
+                self.camera_light.set_state("error", "a camera is on USB but cannot be used (see below)")
         self.lab.detect_cameras(done, on_finished=lambda: self.detect_button.setEnabled(True))
 
     def _toggle_camera(self) -> None:
