@@ -1,0 +1,557 @@
+"""How stable and how robust are the optima? (``dualrgb study stability``)
+
+1. Seed spread: every optimiser with several seeds; which light set each seed picks, the spread of the
+   levels among the seeds that agree on the most common set, and of the errors.
+2. LED clipping: each LED removed in turn (its spectrum set to 0; also LEDs 6+7 together): the full-intensity
+   ranking (where the original best set falls), the PSO optimum with that LED at 0 (not re-optimised) and a
+   re-optimised PSO: how far the best error moves.
+3. Dim LEDs 6 and 7 (relative peaks 0.014 and 0.003): the exposure each optimum light needs and the share of
+   its open-gate signal from LEDs 6 and 7; thesis Table 7.1's exposures beside the model's.
+4. Sensitivity of each optimum (fit re-done on the perturbed capture, as the lab would) to camera noise at
+   those exposures (:mod:`.noise`), to LED peak drift (1 nm spectra shifted, setup rebuilt) and to target
+   measurement error (camera sees perturbed reflectances, ground truth from the measured ones).
+5. The noise-aware objective: PSO on the expected captured training dE00, compared with the noise-free
+   optimum on an independent pixel-level capture simulation (and, where available, the virtual lab).
+
+Outputs: ``stability.json``, ``stability.png`` (four panels), ``noise_aware.png`` and ``SUMMARY.md``.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from typing import Callable, Optional
+
+import numpy as np
+
+import resources
+from simulation.camera_model import led_responses
+from simulation.characterisation import fit_matrix
+from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
+from simulation.datasets import SimulationSetup, Target
+from simulation.ga import GaSettings
+from simulation.lightsource import LightSource
+from simulation.objective import Evaluator
+from simulation.progress import CancelToken, ProgressCallback, check, report
+from simulation.pso import PsoSettings, pso
+from simulation.search import Candidate, exhaustive, light_pairs, refine_top
+from simulation.spectral_io import read_spectral_csv
+from simulation.studies.distributed import Runner, SerialRunner
+from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread, new_figure
+from simulation.studies.noise import CameraNoise, NoiseAwareEvaluator, NoiseModel, thesis_exposures_check
+from simulation.studies.optimisers import LABELS, DeSettings, HalvingSettings, LbfgsSettings, PyswarmsSettings
+from simulation.studies.speed_accuracy import Config, RunTask, run_task
+
+log = logging.getLogger(__name__)
+
+Capture = Callable[[SimulationSetup, np.ndarray, np.ndarray], dict]
+
+
+@dataclass(frozen=True)
+class StabilityConfig:
+    seeds: int = 3
+    light_sets: Optional[int] = None                    # None: all 630
+    methods: tuple[Config, ...] = (
+        Config("pso", "pso 200x10 (thesis)", PsoSettings()),
+        Config("ga", "ga (thesis budget)", GaSettings()),
+        Config("halving", "halving", HalvingSettings()),
+        Config("pyswarms", "pyswarms 50x10", PyswarmsSettings(particles=50, iterations=10)),
+        Config("de", "de pop5x6", DeSettings(popsize=5, maxiter=6)),
+        Config("lbfgs", "lbfgs top12x2", LbfgsSettings(top_sets=12, starts=2)),
+    )
+    clip_pso: PsoSettings = PsoSettings(particles=100, iterations=10)
+    camera: CameraNoise = CameraNoise()
+    draws: int = 8                                      # Monte-Carlo draws of the noise-aware objective
+    check_draws: int = 32                               # fresh draws to report expected errors
+    noise_pso: PsoSettings = PsoSettings(particles=40, iterations=8)
+    noise_top_sets: int = 16
+    capture_repeats: int = 12
+    compare_top: int = 12                               # candidates in the predicted-vs-captured comparison
+    drift_nm: tuple[float, ...] = (-5.0, -2.0, 2.0, 5.0)
+    drift_random: int = 6
+    drift_sigma_nm: float = 2.0
+    target_draws: int = 6
+    target_gain_sigma: float = 0.01
+    target_spectral_sigma: float = 0.01
+    pixel_sweep: tuple[int, ...] = (16, 64, 256, 4096)
+    lab_repeats: int = 2                                # virtual-lab captures per candidate (when available)
+
+    @classmethod
+    def tiny(cls) -> "StabilityConfig":
+        return cls(seeds=2, light_sets=10,
+                   methods=(Config("pso", "pso 10x2", PsoSettings(particles=10, iterations=2)),
+                            Config("ga", "ga tiny", GaSettings(mu=6, lam=20, generations=2)),
+                            Config("halving", "halving tiny", HalvingSettings(particles=8, iterations=1,
+                                                                               min_sets=2))),
+                   clip_pso=PsoSettings(particles=8, iterations=2), draws=2, check_draws=2,
+                   noise_pso=PsoSettings(particles=6, iterations=2), noise_top_sets=2, capture_repeats=2,
+                   compare_top=3, drift_nm=(2.0,), drift_random=1, target_draws=1, pixel_sweep=(64,),
+                   lab_repeats=1)
+
+
+# ---------------------------------------------------------------------------------------------------------
+def _weights(best: dict, n_leds: int = 10) -> np.ndarray:
+    """Dense (L, K) levels from a Candidate.to_dict() (full precision is kept in 'levels_exact')."""
+    W = np.zeros((2, n_leds))
+    for li in range(2):
+        leds = best[f"source{li + 1}"]
+        levels = best.get("levels_exact", {}).get(str(li + 1)) or best[f"intensities{li + 1}"]
+        W[li, np.asarray(leds) - 1] = levels
+    return W
+
+
+def _cand_dict(c: Candidate) -> dict:
+    d = c.to_dict()
+    d["levels_exact"] = {str(i + 1): list(s.levels) for i, s in enumerate(c.sources)}
+    return d
+
+
+def _pair_key(best: dict) -> str:
+    return f"{tuple(best['source1'])}+{tuple(best['source2'])}"
+
+
+def seed_spread(spec: SetupSpec, cfg: StabilityConfig, runner: Optional[Runner] = None, progress=None,
+                cancel=None) -> dict:
+    tasks = [RunTask(spec, c, s, cfg.light_sets) for c in cfg.methods for s in range(cfg.seeds)]
+    if runner is None or isinstance(runner, SerialRunner):
+        results = []
+        for i, t in enumerate(tasks):
+            check(cancel)
+            results.append(run_task(t))
+            report(progress, 0.4 * (i + 1) / len(tasks), f"stability: {t.config.label}, seed {t.seed}")
+    else:
+        results = runner.map(run_task, tasks)
+    out = {}
+    for c in cfg.methods:
+        runs = [r for r in results if r["label"] == c.label]
+        pairs = Counter(_pair_key(r["best"]) for r in runs)
+        top_pair, top_n = pairs.most_common(1)[0]
+        same = [r for r in runs if _pair_key(r["best"]) == top_pair]
+        lv = np.array([r["best"]["intensities1"] + r["best"]["intensities2"] for r in same])
+        out[c.label] = {
+            "method": c.method, "seeds": [r["seed"] for r in runs],
+            "pairs": [_pair_key(r["best"]) for r in runs],
+            "levels": [r["best"]["intensities1"] + r["best"]["intensities2"] for r in runs],
+            "train": [r["train"] for r in runs], "test": [r["test"] for r in runs],
+            "seconds": [r["seconds"] for r in runs],
+            "distinct_pairs": len(pairs), "most_common_pair": top_pair, "most_common_count": top_n,
+            "level_sd_within_common_pair": lv.std(axis=0).round(4).tolist() if len(lv) > 1 else None,
+            "train_spread": median_spread([r["train"] for r in runs]),
+            "best_seed": min(runs, key=lambda r: r["train"])["best"],
+        }
+    return out
+
+
+def _without(setup: SimulationSetup, leds: tuple[int, ...]) -> SimulationSetup:
+    L = setup.leds.copy()
+    L[np.asarray(leds) - 1] = 0.0
+    return replace(setup, leds=L)
+
+
+def led_clipping(spec: SetupSpec, cfg: StabilityConfig, optimum: np.ndarray, cancel=None) -> dict:
+    """Remove each LED in turn (and 6+7 together): ranks and errors before and after re-optimisation."""
+    base_setup = spec.build()
+    base = Evaluator(base_setup)
+    groups = light_pairs()[:cfg.light_sets] if cfg.light_sets else light_pairs()
+    ex0 = refine_top(base, exhaustive(base, groups), 1)
+    best_pair = tuple(s.leds for s in ex0.best.sources)
+    opt_train = float(base.stats(optimum)[0].mean)
+    rows = []
+    for leds in [(k,) for k in range(1, base.n_leds + 1)] + [(6, 7)]:
+        check(cancel)
+        ev = Evaluator(_without(base_setup, leds))
+        ex = exhaustive(ev, groups)
+        ranks = [i for i, c in enumerate(ex.candidates) if tuple(s.leds for s in c.sources) == best_pair]
+        W = optimum.copy()
+        W[:, np.asarray(leds) - 1] = 0.0
+        clipped = float(ev.stats(W)[0].mean)
+        re = refine_top(ev, pso(ev, groups, cfg.clip_pso, seed=0), 1)
+        # the clipped optimum is itself a candidate without the LED: the re-optimised best is the better one
+        reopt = min(re.best.train.mean, clipped)
+        re_pair = [list(s.leds) for s in re.best.sources] if re.best.train.mean <= clipped else \
+            [list(np.nonzero(w)[0] + 1) for w in W]
+        rows.append({"removed": list(leds), "full_intensity_best": ex.best.train_cost,
+                     "full_intensity_best_pair": [list(s.leds) for s in ex.best.sources],
+                     "rank_of_original_best_pair": (ranks[0] + 1) if ranks else None,
+                     "optimum_clipped_train": clipped, "optimum_clipped_delta": clipped - opt_train,
+                     "reoptimised_train": reopt, "reoptimised_pair": re_pair,
+                     "reoptimised_delta": reopt - opt_train})
+    return {"original_full_intensity_best": ex0.best.to_dict(), "original_optimum_train": opt_train,
+            "rows": rows}
+
+
+def dim_leds(model: NoiseModel, optima: dict[str, np.ndarray]) -> dict:
+    """Exposures each optimum light needs and the share of LEDs 6 and 7 in its open-gate brightest channel."""
+    rows = []
+    for name, W in optima.items():
+        t = model.exposures(W)
+        for li in range(W.shape[0]):
+            O = W[li] @ model.open
+            c = int(np.argmax(O))
+            share = float((W[li, 5:7] * model.open[5:7, c]).sum() / O[c]) if O[c] > 0 else None
+            rows.append({"optimum": name, "light": li + 1, "leds": (np.nonzero(W[li])[0] + 1).tolist(),
+                         "levels": W[li][W[li] > 0].round(4).tolist(), "exposure_s": float(t[li]),
+                         "brightest_channel": "RGB"[c], "share_led6_7": share})
+    return {"lights": rows, "thesis_table_7_1": thesis_exposures_check(model.setup.mode),
+            "relative_peaks": model.setup.leds.max(axis=1).round(4).tolist()}
+
+
+def shifted_setup(setup: SimulationSetup, shifts_nm: np.ndarray, leds_csv: Optional[str] = None) -> SimulationSetup:
+    """LED spectra (1 nm source data) moved by ``shifts_nm`` (per LED; + = towards longer wavelengths)."""
+    table = read_spectral_csv(leds_csv or resources.path("leds", "sphere10_relative.csv"))
+    wl = setup.grid.wavelengths
+    leds = np.stack([np.interp(wl - shifts_nm[k], table.wavelengths, table.values[:, k], left=0.0, right=0.0)
+                     for k in range(table.values.shape[1])])
+    return replace(setup, leds=leds)
+
+
+def perturbed_targets(setup: SimulationSetup, rng: np.random.Generator, gain_sigma: float,
+                      spectral_sigma: float) -> tuple[Target, Target]:
+    """What the camera sees if the measured spectra are off: per patch a gain error and a smooth spectral one."""
+    out = []
+    wl = setup.grid.wavelengths
+    for t in (setup.train, setup.test):
+        n = len(t)
+        gain = 1.0 + gain_sigma * rng.standard_normal((n, 1))
+        knots = np.linspace(wl[0], wl[-1], 6)
+        smooth = np.stack([np.interp(wl, knots, rng.standard_normal(6)) for _ in range(n)]) * spectral_sigma
+        out.append(replace(t, spectra=np.clip(t.spectra * gain * (1.0 + smooth), 0.0, None)))
+    return out[0], out[1]
+
+
+def _mismatch_errors(setup_cam: SimulationSetup, train_true: Target, test_true: Target,
+                     ref: SimulationSetup, W: np.ndarray) -> tuple[float, float]:
+    """Fit on what the camera records (setup_cam's LEDs/camera, the true spectra) against the reference XYZ
+    (measured spectra under ``ref``); mean dE00 train and test (float64)."""
+    white = white_point(ref.illuminant, ref.cmfs)
+    res = []
+    A = None
+    for true, meas in ((train_true, ref.train), (test_true, ref.test)):
+        R = led_responses(setup_cam.leds, true.spectra, setup_cam.camera)        # (K, n, 3)
+        C = np.einsum("lk,knc->nlc", W, R).reshape(R.shape[1], -1)
+        xyz = tristimulus(meas.spectra, ref.illuminant, ref.cmfs)
+        if A is None:
+            A = fit_matrix(C, xyz)
+        res.append(float(delta_e_2000(xyz_to_lab(xyz, white), xyz_to_lab(A.apply(C), white)).mean()))
+    return res[0], res[1]
+
+
+def sensitivity(spec: SetupSpec, cfg: StabilityConfig, optima: dict[str, np.ndarray], model: NoiseModel,
+                cancel=None) -> dict:
+    setup = spec.build()
+    rng = np.random.default_rng(2024)
+    drift_setups = [(f"all {d:+g} nm", shifted_setup(setup, np.full(10, d), spec.leds_csv)) for d in cfg.drift_nm]
+    drift_random = [shifted_setup(setup, rng.normal(0, cfg.drift_sigma_nm, 10), spec.leds_csv)
+                    for _ in range(cfg.drift_random)]
+    targets = [perturbed_targets(setup, rng, cfg.target_gain_sigma, cfg.target_spectral_sigma)
+               for _ in range(cfg.target_draws)]
+    nominal_shift = shifted_setup(setup, np.zeros(10), spec.leds_csv)
+    out = {}
+    for name, W in optima.items():
+        check(cancel)
+        tr0, te0 = _mismatch_errors(setup, setup.train, setup.test, setup, W)
+        row = {"nominal": {"train": tr0, "test": te0}}
+        ntr, nte = _mismatch_errors(nominal_shift, setup.train, setup.test, setup, W)
+        row["drift"] = {}
+        for label, s in drift_setups:
+            tr, te = _mismatch_errors(s, setup.train, setup.test, setup, W)
+            row["drift"][label] = {"train": tr, "test": te, "delta_train": tr - ntr}
+        rd = [_mismatch_errors(s, setup.train, setup.test, setup, W) for s in drift_random]
+        row["drift"][f"random sd {cfg.drift_sigma_nm:g} nm"] = {
+            "train": float(np.mean([r[0] for r in rd])), "test": float(np.mean([r[1] for r in rd])),
+            "delta_train": float(np.mean([r[0] for r in rd]) - ntr), "draws": len(rd)}
+        te_ = [_mismatch_errors(setup, a, b, setup, W) for a, b in targets]
+        row["target_error"] = {"train": float(np.mean([r[0] for r in te_])),
+                               "test": float(np.mean([r[1] for r in te_])),
+                               "delta_train": float(np.mean([r[0] for r in te_]) - tr0), "draws": len(te_),
+                               "gain_sd": cfg.target_gain_sigma, "spectral_sd": cfg.target_spectral_sigma}
+        e = model.expected_errors(W[None], cfg.check_draws, seed=99, exact=True)
+        row["noise"] = {"train": float(e["train"][0]), "test": float(e["test"][0]),
+                        "delta_train": float(e["train"][0]) - tr0, "exposures_s": model.exposures(W).tolist()}
+        out[name] = row
+    return out
+
+
+def noise_aware(spec: SetupSpec, cfg: StabilityConfig, model: NoiseModel, progress=None, cancel=None,
+                capture: Optional[Capture] = None) -> dict:
+    """Noise-free PSO over the light sets, a noise-aware screen of its per-set optima, noise-aware PSO on the
+    best ``noise_top_sets`` sets; both optima (and the top candidates) checked on simulated captures."""
+    ev = evaluator_for(spec)
+    groups = light_pairs()[:cfg.light_sets] if cfg.light_sets else light_pairs()
+    t0 = time.perf_counter()
+    nf = pso(ev, groups, PsoSettings(), seed=0, cancel=cancel)
+    t_nf = time.perf_counter() - t0
+    W_all = np.stack([c.weights(ev.n_leds) for c in nf.candidates])
+    na_eval = NoiseAwareEvaluator(model, cfg.draws, seed=0)
+    screen = na_eval.cost(W_all)
+    order = np.argsort(screen, kind="stable")[:cfg.noise_top_sets]
+    top_groups = [tuple(s.leds for s in nf.candidates[i].sources) for i in order]
+    report(progress, 0.75, "stability: noise-aware PSO")
+    t1 = time.perf_counter()
+    na = pso(na_eval, top_groups, cfg.noise_pso, seed=0, cancel=cancel)
+    t_na = time.perf_counter() - t1
+    # candidates to compare: the best noise-free per-set optima, and the noise-aware optimum
+    cands = {f"nf#{i + 1}": nf.candidates[i].weights(ev.n_leds) for i in range(min(cfg.compare_top, len(groups)))}
+    cands["noise-aware"] = na.best.weights(ev.n_leds)
+    rows = []
+    for name, W in cands.items():
+        check(cancel)
+        tr_nf, te_nf = (s.mean for s in ev.stats(W))
+        obj = model.expected_errors(W[None], cfg.draws, seed=0, exact=False)
+        fresh = model.expected_errors(W[None], cfg.check_draws, seed=99, exact=True)
+        cap = model.captured_errors(W, cfg.capture_repeats)
+        lab = capture(model.setup, W, model.exposures(W)) if capture is not None else None
+        rows.append({"name": name, "pair": [list(np.nonzero(w)[0] + 1) for w in W],
+                     "levels": [w[w > 0].round(4).tolist() for w in W],
+                     "noise_free_train": tr_nf, "noise_free_test": te_nf,
+                     "objective_train": float(obj["train"][0]),
+                     "expected_train": float(fresh["train"][0]), "expected_test": float(fresh["test"][0]),
+                     "captured_train": cap["train"], "captured_test": cap["test"],
+                     "captured_train_sd": cap["train_sd"], "captured_test_sd": cap["test_sd"],
+                     "exposures_s": model.exposures(W).tolist(),
+                     **({"lab_train": lab["train"], "lab_test": lab["test"], "lab_train_sd": lab["train_sd"]}
+                        if lab else {})})
+    cap_tr = np.array([r["captured_train"] for r in rows])
+    pred = {k: np.array([r[k] for r in rows]) for k in ("noise_free_train", "expected_train")}
+
+    def _spearman(a: np.ndarray, b: np.ndarray) -> Optional[float]:
+        if len(a) < 3:
+            return None
+        ra, rb = np.argsort(np.argsort(a)), np.argsort(np.argsort(b))
+        return float(np.corrcoef(ra, rb)[0, 1])
+
+    nf_row, na_row = rows[0], rows[-1]
+    sweep = []
+    for npx in cfg.pixel_sweep:
+        m = NoiseModel(model.setup, replace(model.camera, pixels_per_patch=npx))
+        e = m.expected_errors(np.stack([cands["nf#1"], cands["noise-aware"]]), cfg.check_draws, seed=99)
+        sweep.append({"pixels_per_patch": npx, "noise_free_optimum": float(e["train"][0]),
+                      "noise_aware_optimum": float(e["train"][1])})
+    return {
+        "camera": model.camera.to_dict(), "draws": cfg.draws, "pso_noise_free_s": t_nf, "pso_noise_aware_s": t_na,
+        "noise_aware_pso": {"settings": cfg.noise_pso.__dict__, "light_sets": len(top_groups),
+                            "evaluations": na.evaluations, "history": na.history},
+        "candidates": rows,
+        "prediction_error": {k: float(np.mean(np.abs(v - cap_tr))) for k, v in pred.items()},
+        "rank_correlation_with_captured": {k: _spearman(v, cap_tr) for k, v in pred.items()},
+        **(_lab_metrics(rows, pred, _spearman) if capture is not None else {}),
+        "noise_free_optimum": nf_row, "noise_aware_optimum": na_row,
+        "captured_gain_train": nf_row["captured_train"] - na_row["captured_train"],
+        "captured_gain_test": nf_row["captured_test"] - na_row["captured_test"],
+        "pixels_sweep": sweep,
+        "comparison": "patch-level simulation of the same noise model (pixel-level Poisson, read noise, "
+                      "14-bit rounding, clipping, master dark and white frame), held-out seeds"
+                      + ("; and the virtual lab (drivers.virtual camera + app.processing, small frames)"
+                         if capture is not None else ""),
+    }
+
+
+def _lab_metrics(rows: list[dict], pred: dict, spearman) -> dict:
+    lab = np.array([r["lab_train"] for r in rows])
+    return {"lab_prediction_error": {k: float(np.mean(np.abs(v - lab))) for k, v in pred.items()},
+            "lab_rank_correlation": {k: spearman(v, lab) for k, v in pred.items()},
+            "lab_gain_train": rows[0]["lab_train"] - rows[-1]["lab_train"],
+            "lab_gain_test": rows[0]["lab_test"] - rows[-1]["lab_test"]}
+
+
+@dataclass
+class StabilityResult:
+    spec: SetupSpec
+    config: StabilityConfig
+    seeds: dict
+    clipping: dict
+    dim: dict
+    sensitivity: dict
+    noise: dict
+    elapsed_s: float
+
+    def to_json(self) -> dict:
+        return {"setup": self.spec.to_dict(), "elapsed_s": round(self.elapsed_s, 2), "seeds": self.seeds,
+                "led_clipping": self.clipping, "dim_leds": self.dim, "sensitivity": self.sensitivity,
+                "noise_aware": self.noise}
+
+
+def stability(spec: SetupSpec = SetupSpec(), cfg: StabilityConfig = StabilityConfig(), *,
+              runner: Optional[Runner] = None, progress: Optional[ProgressCallback] = None,
+              cancel: Optional[CancelToken] = None, capture: Optional[Capture] = None) -> StabilityResult:
+    """All five parts; only the seed runs (part 1) go through ``runner`` (the rest is quick and serial).
+    ``capture(setup, W, exposures) -> {"train", "test", "train_sd", ...}``: a real capture chain to check the
+    objectives against (the CLI passes the virtual lab's, app.virtual_lab_check.captured_errors)."""
+    t0 = time.perf_counter()
+    seeds = seed_spread(spec, cfg, runner, progress, cancel)
+    optima = {label: _weights(v["best_seed"]) for label, v in seeds.items()}
+    ev = evaluator_for(spec)
+    groups = light_pairs()[:cfg.light_sets] if cfg.light_sets else light_pairs()
+    ex = exhaustive(ev, groups)
+    optima = {"exhaustive (full intensity)": ex.best.weights(ev.n_leds), **optima}
+    first_pso = next(label for label in seeds if seeds[label]["method"] == "pso")
+    report(progress, 0.45, "stability: LED clipping")
+    clipping = led_clipping(spec, cfg, optima[first_pso], cancel)
+    model = NoiseModel(spec.build(), cfg.camera)
+    dim = dim_leds(model, optima)
+    report(progress, 0.6, "stability: sensitivity")
+    sens = sensitivity(spec, cfg, optima, model, cancel)
+    noise = noise_aware(spec, cfg, model, progress, cancel, capture)
+    report(progress, 1.0, "stability: done")
+    return StabilityResult(spec, cfg, seeds, clipping, dim, sens, noise, time.perf_counter() - t0)
+
+
+# ---------------------------------------------------------------------------------------------------------
+def stability_chart(result: StabilityResult):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12, 8.5), layout="constrained")
+    FigureCanvasAgg(fig)
+    (a1, a2), (a3, a4) = fig.subplots(2, 2)
+    # (a) seed spread
+    labels = list(result.seeds)
+    for i, label in enumerate(labels):
+        v = result.seeds[label]
+        a1.plot(np.full(len(v["train"]), i) + np.linspace(-0.15, 0.15, len(v["train"])), v["train"], "o", ms=5)
+        a1.annotate(f"{v['distinct_pairs']} pair(s)", (i, max(v["train"])), textcoords="offset points",
+                    xytext=(0, 5), ha="center", fontsize=7)
+    a1.set_xticks(range(len(labels)), [lbl.replace(" ", "\n", 1) for lbl in labels], fontsize=7)
+    a1.set_ylabel("best training mean dE00 per seed")
+    a1.set_title("(a) seed-to-seed spread (annotation: distinct best pairs)")
+    a1.grid(True, alpha=0.3)
+    # (b) LED clipping
+    rows = result.clipping["rows"]
+    x = np.arange(len(rows))
+    names = ["+".join(map(str, r["removed"])) for r in rows]
+    a2.bar(x - 0.2, [r["optimum_clipped_delta"] for r in rows], 0.4, label="PSO optimum, LED set to 0")
+    a2.bar(x + 0.2, [r["reoptimised_delta"] for r in rows], 0.4, label="re-optimised without the LED")
+    a2.set_yscale("symlog", linthresh=0.05)
+    a2.set_xticks(x, names)
+    a2.set_xlabel("LED removed")
+    a2.set_ylabel("change of best training dE00")
+    a2.set_title("(b) LED clipped to zero")
+    a2.legend(fontsize=7)
+    a2.grid(True, alpha=0.3)
+    # (c) sensitivity
+    sens = result.sensitivity
+    opt_names = list(sens)
+    kinds = [("noise", lambda r: r["noise"]["delta_train"])]
+    drift_keys = list(next(iter(sens.values()))["drift"]) if sens else []
+    kinds += [(f"drift {k}", (lambda key: lambda r: r["drift"][key]["delta_train"])(k)) for k in drift_keys]
+    kinds += [("target error", lambda r: r["target_error"]["delta_train"])]
+    w = 0.8 / max(1, len(opt_names))
+    for j, name in enumerate(opt_names):
+        a3.bar(np.arange(len(kinds)) + (j - (len(opt_names) - 1) / 2) * w, [f(sens[name]) for _, f in kinds], w,
+               label=name)
+    a3.set_xticks(range(len(kinds)), [k for k, _ in kinds], fontsize=7, rotation=20)
+    a3.set_ylabel("change of training dE00 (fit redone)")
+    a3.set_title("(c) sensitivity of each optimum")
+    a3.legend(fontsize=6)
+    a3.grid(True, alpha=0.3)
+    # (d) predicted vs captured
+    _predicted_vs_captured(a4, result.noise)
+    return fig
+
+
+def _predicted_vs_captured(ax, noise: dict) -> None:
+    rows = noise["candidates"]
+    lab = "lab_train" in rows[0]
+    key = "lab_train" if lab else "captured_train"
+    cap = [r[key] for r in rows]
+    ax.plot([r["noise_free_train"] for r in rows], cap, "o", mfc="none", label="noise-free prediction")
+    ax.plot([r["expected_train"] for r in rows], cap, "o", label="noise-aware prediction")
+    nf, na = noise["noise_free_optimum"], noise["noise_aware_optimum"]
+    ax.plot(nf["noise_free_train"], nf[key], "*", ms=14, color="tab:blue", label="noise-free optimum")
+    ax.plot(na["expected_train"], na[key], "*", ms=14, color="tab:red", label="noise-aware optimum")
+    lo = min(min(cap), min(r["noise_free_train"] for r in rows)) * 0.95
+    hi = max(max(cap), max(r["expected_train"] for r in rows)) * 1.05
+    ax.plot([lo, hi], [lo, hi], "k--", lw=0.8)
+    ax.set_xlabel("predicted training mean dE00")
+    ax.set_ylabel(("virtual-lab" if lab else "simulated-capture") + " training mean dE00")
+    ax.set_title(f"(d) predicted vs captured ({noise['camera']['pixels_per_patch']} px/patch model)")
+    ax.legend(fontsize=7)
+    ax.grid(True, alpha=0.3)
+
+
+def noise_chart(result: StabilityResult):
+    fig, (a1, a2) = new_figure(11.0, 4.5, ncols=2)
+    _predicted_vs_captured(a1, result.noise)
+    sw = result.noise["pixels_sweep"]
+    px = [s["pixels_per_patch"] for s in sw]
+    a2.plot(px, [s["noise_free_optimum"] for s in sw], "o-", label="noise-free optimum")
+    a2.plot(px, [s["noise_aware_optimum"] for s in sw], "s-", label="noise-aware optimum")
+    a2.axhline(result.noise["noise_free_optimum"]["noise_free_train"], color="grey", ls=":",
+               label="noise-free optimum, no noise")
+    a2.set_xscale("log")
+    a2.set_xlabel("pixels averaged per patch and channel")
+    a2.set_ylabel("expected training mean dE00")
+    a2.set_title("expected error vs patch size")
+    a2.legend(fontsize=7)
+    a2.grid(True, alpha=0.3)
+    return fig
+
+
+def _fmt(v: Optional[float]) -> str:
+    return "-" if v is None else f"{v:.2f}"
+
+
+def write_outputs(result: StabilityResult, out: StudyOutput) -> None:
+    out.write_json("stability.json", result.to_json())
+    out.save_figure(stability_chart(result), "stability.png")
+    out.save_figure(noise_chart(result), "noise_aware.png")
+    lines = [f"Setup: {result.spec.label()}; {result.config.seeds} seeds; total {result.elapsed_s:.0f} s.", "",
+             "## Seed spread", "", "| optimiser | best train (median [min-max]) | distinct pairs | most common pair |",
+             "|---|---|---:|---|"]
+    for label, v in result.seeds.items():
+        s = v["train_spread"]
+        lines.append(f"| {label} | {s['median']:.4f} [{s['min']:.4f}-{s['max']:.4f}] | {v['distinct_pairs']} | "
+                     f"{v['most_common_pair']} ({v['most_common_count']}/{len(v['seeds'])}) |")
+    lines += ["", "## LED clipped to zero", "",
+              f"PSO optimum training error {result.clipping['original_optimum_train']:.4f}.", "",
+              "| removed | full-intensity best | rank of original best pair | optimum with LED at 0 | "
+              "re-optimised |", "|---|---:|---:|---:|---:|"]
+    for r in result.clipping["rows"]:
+        lines.append(f"| {'+'.join(map(str, r['removed']))} | {r['full_intensity_best']:.4f} | "
+                     f"{r['rank_of_original_best_pair']} | {r['optimum_clipped_train']:.4f} | "
+                     f"{r['reoptimised_train']:.4f} |")
+    lines += ["", "## Dim LEDs 6 and 7: exposures", "", "| optimum | light | LEDs @ levels | exposure s | "
+              "share of LEDs 6+7 |", "|---|---:|---|---:|---:|"]
+    for r in result.dim["lights"]:
+        share = f"{r['share_led6_7']:.2f}" if r["share_led6_7"] is not None else "-"
+        lines.append(f"| {r['optimum']} | {r['light']} | {r['leds']} @ {r['levels']} | {r['exposure_s']:.4f} | "
+                     f"{share} |")
+    lines += ["", "Thesis Table 7.1 vs model: " + "; ".join(
+        f"{r['leds']}@{r['levels']}: {r['model_s']:.4f} s (thesis {r['thesis_s']:.4f} s)"
+        for r in result.dim["thesis_table_7_1"]) + "."]
+    lines += ["", "## Sensitivity (training dE00 change, fit redone on the perturbed capture)", "",
+              "| optimum | nominal | noise | " + " | ".join(next(iter(result.sensitivity.values()))["drift"])
+              + " | target error |", "|---|" + "---:|" * (3 + len(next(iter(result.sensitivity.values()))["drift"]))]
+    for name, r in result.sensitivity.items():
+        lines.append(f"| {name} | {r['nominal']['train']:.4f} | {r['noise']['delta_train']:+.4f} | "
+                     + " | ".join(f"{v['delta_train']:+.4f}" for v in r["drift"].values())
+                     + f" | {r['target_error']['delta_train']:+.4f} |")
+    n = result.noise
+    nf, na = n["noise_free_optimum"], n["noise_aware_optimum"]
+    lines += ["", "## Noise-aware objective", "",
+              f"Camera: {n['camera']['pixels_per_patch']} px per patch and channel, read noise "
+              f"{n['camera']['read_noise']} DN, {n['camera']['electrons_per_dn']} e-/DN, {n['draws']} fixed draws. "
+              f"Comparison: {n['comparison']}.", "",
+              "| optimum | pair @ levels | noise-free train | expected train (noise-aware) | captured train | "
+              "captured test |", "|---|---|---:|---:|---:|---:|",
+              f"| noise-free | {nf['pair']} @ {nf['levels']} | {nf['noise_free_train']:.4f} | "
+              f"{nf['expected_train']:.4f} | {nf['captured_train']:.4f} ± {nf['captured_train_sd']:.4f} | "
+              f"{nf['captured_test']:.4f} |",
+              f"| noise-aware | {na['pair']} @ {na['levels']} | {na['noise_free_train']:.4f} | "
+              f"{na['expected_train']:.4f} | {na['captured_train']:.4f} ± {na['captured_train_sd']:.4f} | "
+              f"{na['captured_test']:.4f} |", "",
+              f"Mean |predicted - captured| over {len(n['candidates'])} candidates: noise-free "
+              f"{n['prediction_error']['noise_free_train']:.4f}, noise-aware {n['prediction_error']['expected_train']:.4f}; "
+              f"rank correlation with the captured error: noise-free "
+              f"{_fmt(n['rank_correlation_with_captured']['noise_free_train'])}, noise-aware "
+              f"{_fmt(n['rank_correlation_with_captured']['expected_train'])}."]
+    if "lab_prediction_error" in n:
+        lines += ["", "Virtual lab (drivers.virtual camera + app.processing, 600x400 frames, "
+                      f"{result.config.lab_repeats} captures per light set): noise-free optimum {nf['lab_train']:.4f} train / "
+                      f"{nf['lab_test']:.4f} test, noise-aware optimum {na['lab_train']:.4f} / {na['lab_test']:.4f}. "
+                      f"Mean |predicted - virtual lab|: noise-free {n['lab_prediction_error']['noise_free_train']:.4f}, "
+                      f"noise-aware {n['lab_prediction_error']['expected_train']:.4f}; rank correlation: noise-free "
+                      f"{_fmt(n['lab_rank_correlation']['noise_free_train'])}, noise-aware "
+                      f"{_fmt(n['lab_rank_correlation']['expected_train'])}."]
+    out.write_summary("Stability and robustness", lines)
