@@ -1,0 +1,114 @@
+"""Capture a light set's training and test targets in the virtual lab and measure the captured accuracy.
+
+The chain is the real one, with small frames: drivers.virtual.camera.VirtualCamera renders raw mosaics of the
+lens cap (master darks), the open gate (white) and each target under each light at the exposure that light
+needs (simulation.studies.noise: open gate's brightest channel at 80 % of the linear limit, snapped to the
+camera's shutter speeds); app.processing.pipeline.CaptureProcessor subtracts the darks, flat-fields (eq 7.1)
+and stacks the lights' superpixel RGBs; app.processing.patches.PatchGrid takes trimmed patch means at the
+scene's patch positions; a least-squares characterisation is fitted on the captured training target and
+evaluated (float64 CIEDE2000) on the captured training and test targets.
+
+Used by ``dualrgb study stability`` to check which objective predicts the captured error (it lives in app/
+because it drives drivers/ and app.processing, which simulation/ must not import).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from app.processing.patches import PatchGrid
+from app.processing.pipeline import CaptureProcessor, ExposureRef
+from drivers.virtual.camera import VirtualCamera
+from drivers.virtual.scene import Scene
+from simulation.characterisation import fit_matrix
+from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
+from simulation.datasets import SimulationSetup
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class _Light:
+    """The sphere state the virtual camera asks for (levels 0..1 per LED, no drift)."""
+
+    levels: np.ndarray
+    peak_shift_nm: np.ndarray = field(default_factory=lambda: np.zeros(10))
+    light_on: bool = True
+
+
+def capture_patch_values(setup: SimulationSetup, W: np.ndarray, exposures_s: np.ndarray, *, width: int = 600,
+                         height: int = 400, dark_frames: int = 4, seed: int = 0) -> dict[str, np.ndarray]:
+    """Flat-fielded patch means (n, 3L) of the training and test targets under light set W (L, K)."""
+    state = _Light(np.zeros(W.shape[1]))
+    cam = VirtualCamera(lambda: state, Scene.lens_cap(width, height), mode=setup.mode, seed=seed)
+    cam.open()
+    lights = [f"light {i + 1}" for i in range(W.shape[0])]
+    frames: dict[str, dict[str, list[ExposureRef]]] = {"train": {}, "test": {}}
+    darks: list[ExposureRef] = []
+    whites: dict[str, list[ExposureRef]] = {}
+    scenes = {k: Scene.with_target(t, width, height) for k, t in (("train", setup.train), ("test", setup.test))}
+    try:
+        for li, name in enumerate(lights):
+            state.levels = np.asarray(W[li], dtype=float)
+            t = float(exposures_s[li])
+            cam.scene = Scene.lens_cap(width, height)
+            darks += [ExposureRef(cam.render_mosaic(t), t, f"dark {name}") for _ in range(dark_frames)]
+            cam.scene = Scene.open_gate(width, height)
+            whites[name] = [ExposureRef(cam.render_mosaic(t), t, f"white {name}")]
+            for key, scene in scenes.items():
+                cam.scene = scene
+                frames[key][name] = [ExposureRef(cam.render_mosaic(t), t, f"{key} {name}")]
+    finally:
+        cam.close()
+    sensor = cam.sensor
+    hdr_log = logging.getLogger("app.processing.hdr")
+    level = hdr_log.level
+    hdr_log.setLevel(logging.ERROR)       # hot pixels in long exposures trigger its "exceed the linear limit"
+    try:
+        return _process(setup, lights, darks, whites, frames, scenes, sensor)
+    finally:
+        hdr_log.setLevel(level)
+
+
+def _process(setup, lights, darks, whites, frames, scenes, sensor) -> dict[str, np.ndarray]:
+    proc = CaptureProcessor(dark_frames=darks, white_level=sensor.white_level, black_level=sensor.black_level,
+                            cfa="RGGB")
+    for name in lights:
+        proc.set_white(name, whites[name])
+    out = {}
+    for key, scene in scenes.items():
+        stack = proc.stack(frames[key])
+        rows, cols = scene.layout
+        # scene corners are (row, col) on the sensor; the stack is superpixels (2x2), centres at (2y+0.5)
+        corners = np.array([[c / 2.0 - 0.5, r / 2.0 - 0.5] for r, c in scene.corners()])
+        grid = PatchGrid(corners, rows, cols, 0.6)
+        out[key] = grid.sample(stack.data).mean[:scene.n_patches]
+    return out
+
+
+def captured_errors(setup: SimulationSetup, W: np.ndarray, exposures_s: np.ndarray, *, repeats: int = 2,
+                    width: int = 600, height: int = 400, dark_frames: int = 4, seed: int = 0) -> dict:
+    """Mean dE00 of ``repeats`` virtual-lab captures (fit on the captured training target)."""
+    white = white_point(setup.illuminant, setup.cmfs)
+    xyz = {k: tristimulus(t.spectra, setup.illuminant, setup.cmfs) for k, t in (("train", setup.train),
+                                                                               ("test", setup.test))}
+    tr, te = [], []
+    for r in range(repeats):
+        v = capture_patch_values(setup, W, exposures_s, width=width, height=height, dark_frames=dark_frames,
+                                 seed=seed * 1000 + r)
+        A = fit_matrix(v["train"], xyz["train"])
+        for key, acc in (("train", tr), ("test", te)):
+            acc.append(float(delta_e_2000(xyz_to_lab(xyz[key], white), xyz_to_lab(A.apply(v[key]), white)).mean()))
+    return {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
+            "test_sd": float(np.std(te)), "repeats": repeats, "frame": [width, height],
+            "dark_frames": dark_frames}
+
+
+def compare_optima(setup: SimulationSetup, candidates: dict[str, np.ndarray], exposures: dict[str, np.ndarray], *,
+                   repeats: int = 2, width: int = 600, height: int = 400) -> dict:
+    """Virtual-lab captured errors of named light sets (e.g. the noise-free and noise-aware optima)."""
+    return {name: captured_errors(setup, W, exposures[name], repeats=repeats, width=width, height=height)
+            for name, W in candidates.items()}
