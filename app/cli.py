@@ -20,6 +20,7 @@ COMMAND_MODULES = (
     "app.commands.devices",
     "app.commands.gui",
     "app.commands.demo",
+    "app.commands.study",
 )
 
 

@@ -1,0 +1,198 @@
+"""``dualrgb study ...``: studies around the light-source search, each writing JSON, PNG charts and a Markdown
+summary into an output folder (logic in simulation.studies; this module only parses arguments and prints).
+
+  dualrgb study speed-accuracy [--out DIR] [--seeds N] [--budget tiny|small|default]
+  dualrgb study stability      [--out DIR] [--seeds N] [--budget tiny|default] [--pixels N]
+  dualrgb study parsimony      [--out DIR] [--budget tiny|default] [--tolerance DE] [--write-defaults [PATH]]
+  dualrgb study unbinned       [--out DIR] [--scheduler local|serial|ADDRESS] [--tasks N] [--top N]
+
+``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
+(``--workers``, 2 by default), an address (``tcp://host:8786``) uses a running scheduler, ``serial`` (the
+default except for ``unbinned``) runs them here. Results are the same either way; timings are not comparable.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from simulation.datasets import MODES
+
+log = logging.getLogger(__name__)
+
+
+def _positive(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected at least 1")
+    return v
+
+
+def _common(p: argparse.ArgumentParser, name: str, scheduler_default: str = "serial") -> None:
+    p.add_argument("--out", type=Path, default=Path("study-out") / name, help=f"output folder (study-out/{name})")
+    p.add_argument("--mode", choices=MODES, default="reflective")
+    p.add_argument("--step", type=float, default=10.0, help="spectral step in nm (default 10)")
+    p.add_argument("--camera-csv", help="measured camera sensitivities (wavelength_nm,R,G,B)")
+    p.add_argument("--leds-csv", help="measured LED spectra (wavelength_nm,LED1..LED10)")
+    p.add_argument("--train-csv", help="measured training target spectra")
+    p.add_argument("--test-csv", help="measured test target spectra")
+    p.add_argument("--scheduler", default=scheduler_default,
+                   help=f"'serial', 'local' (Dask LocalCluster) or a Dask scheduler address (default {scheduler_default})")
+    p.add_argument("--workers", type=_positive, default=2, help="LocalCluster worker processes (default 2)")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("study", help="studies: speed vs accuracy, stability, parsimony, unbinned search",
+                       description="Studies around the light-source search; each writes JSON, PNG charts and "
+                                   "SUMMARY.md into --out.")
+    ss = p.add_subparsers(dest="study", metavar="STUDY")
+    ss.required = True
+
+    q = ss.add_parser("speed-accuracy", help="best error against time and evaluations for every optimiser")
+    _common(q, "speed-accuracy")
+    q.add_argument("--seeds", type=_positive, default=3, help="seeds per configuration (default 3)")
+    q.add_argument("--budget", choices=("tiny", "small", "default"), default="default")
+    q.add_argument("--light-sets", type=_positive, help="only the first N binned light sets (default all 630)")
+    q.set_defaults(func=speed_accuracy_main)
+
+    q = ss.add_parser("stability", help="seed spread, LED clipping, dim LEDs, sensitivity, noise-aware objective")
+    _common(q, "stability")
+    q.add_argument("--seeds", type=_positive, default=3, help="seeds per optimiser (default 3)")
+    q.add_argument("--budget", choices=("tiny", "default"), default="default")
+    q.add_argument("--pixels", type=_positive, help="pixels averaged per patch and channel (default 64)")
+    q.add_argument("--no-virtual-lab", action="store_true",
+                   help="skip the captures through the virtual camera and the processing pipeline")
+    q.set_defaults(func=stability_main)
+
+    q = ss.add_parser("parsimony", help="coarsest spectral step, simplest model, fewest HDR exposures")
+    _common(q, "parsimony")
+    q.add_argument("--budget", choices=("tiny", "default"), default="default")
+    q.add_argument("--tolerance", type=float, default=0.05, help="allowed loss in mean dE00 (default 0.05)")
+    q.add_argument("--write-defaults", nargs="?", const="resources", metavar="PATH",
+                   help="also write the chosen defaults here (no PATH: the packaged resources/parsimony.json)")
+    q.set_defaults(func=parsimony_main)
+
+    q = ss.add_parser("unbinned", help="full-intensity search over all ~523 k unbinned light-source pairs")
+    _common(q, "unbinned", scheduler_default="local")
+    q.add_argument("--tasks", type=_positive, default=16, help="index ranges the search is split into (16)")
+    q.add_argument("--top", type=_positive, default=10, help="best pairs to report (10)")
+    q.add_argument("--limit", type=_positive, help="only the first N pairs (for a quick check)")
+    q.set_defaults(func=unbinned_main)
+
+
+def _spec(args: argparse.Namespace):
+    from simulation.studies.common import SetupSpec
+
+    if args.step <= 0:
+        raise ValueError(f"--step {args.step}: expected a positive number of nm")
+    for name in ("camera_csv", "leds_csv", "train_csv", "test_csv"):
+        path = getattr(args, name)
+        if path and not Path(path).is_file():
+            raise FileNotFoundError(f"--{name.replace('_', '-')} {path}: no such file")
+    return SetupSpec(args.mode, args.step, camera_csv=args.camera_csv, leds_csv=args.leds_csv,
+                     train_csv=args.train_csv, test_csv=args.test_csv)
+
+
+def _progress(fraction: float, message: str) -> None:
+    log.info("%3.0f%% %s", 100 * fraction, message)
+
+
+def _done(out, headline: list[str]) -> int:
+    for line in headline:
+        print(line)
+    print(f"wrote {len(out.files)} files to {out.folder} (see {out.folder / 'SUMMARY.md'})", file=sys.stderr)
+    return 0
+
+
+def speed_accuracy_main(args: argparse.Namespace) -> int:
+    from simulation.studies.common import StudyOutput
+    from simulation.studies.distributed import open_runner
+    from simulation.studies.speed_accuracy import speed_accuracy, write_outputs
+
+    spec = _spec(args)
+    out = StudyOutput(args.out)
+    with open_runner(args.scheduler, workers=args.workers) as runner:
+        result = speed_accuracy(spec, seeds=args.seeds, budget=args.budget, light_sets=args.light_sets,
+                                runner=runner, progress=_progress)
+    write_outputs(result, out)
+    best = min(result.summary, key=lambda r: r["train"]["median"])
+    return _done(out, [f"{r['label']:<28} {r['seconds']['median']:8.2f} s  train {r['train']['median']:.4f}  "
+                       f"test {r['test']['median']:.4f}" for r in result.summary]
+                 + [f"best median training error: {best['label']} ({best['train']['median']:.4f})"])
+
+
+def stability_main(args: argparse.Namespace) -> int:
+    from simulation.studies.common import StudyOutput
+    from simulation.studies.distributed import open_runner
+    from simulation.studies.stability import StabilityConfig, stability, write_outputs
+
+    spec = _spec(args)
+    cfg = StabilityConfig.tiny() if args.budget == "tiny" else StabilityConfig()
+    cfg = replace(cfg, seeds=args.seeds if args.budget != "tiny" else cfg.seeds)
+    if args.pixels:
+        cfg = replace(cfg, camera=replace(cfg.camera, pixels_per_patch=args.pixels))
+    capture = None
+    if not args.no_virtual_lab:
+        from app.virtual_lab_check import captured_errors
+
+        def capture(setup, W, exposures):
+            return captured_errors(setup, W, exposures, repeats=cfg.lab_repeats)
+
+    out = StudyOutput(args.out)
+    with open_runner(args.scheduler, workers=args.workers) as runner:
+        result = stability(spec, cfg, runner=runner, progress=_progress, capture=capture)
+    write_outputs(result, out)
+    n = result.noise
+    lines = []
+    for label, row, pred in (("noise-free", n["noise_free_optimum"], "noise_free_train"),
+                             ("noise-aware", n["noise_aware_optimum"], "expected_train")):
+        lab = f", virtual lab {row['lab_train']:.4f}" if "lab_train" in row else ""
+        lines.append(f"{label} optimum: predicted train {row[pred]:.4f}, simulated capture "
+                     f"{row['captured_train']:.4f}{lab}")
+    return _done(out, lines)
+
+
+def parsimony_main(args: argparse.Namespace) -> int:
+    import resources
+    from simulation.studies.common import StudyOutput
+    from simulation.studies.parsimony import ParsimonyConfig, parsimony, write_outputs
+
+    spec = _spec(args)
+    cfg = ParsimonyConfig.tiny() if args.budget == "tiny" else ParsimonyConfig()
+    cfg = replace(cfg, tolerance=args.tolerance)
+    out = StudyOutput(args.out)
+    result = parsimony(spec, cfg, progress=_progress)
+    target = None
+    if args.write_defaults:
+        target = str(resources.path("parsimony.json")) if args.write_defaults == "resources" else args.write_defaults
+    write_outputs(result, out, target)
+    d = result.defaults()
+    return _done(out, [f"spectral step {d['spectral_step_nm']:g} nm (10 nm justified: {d['default_10nm_justified']}), "
+                       f"model {d['characterisation_model']}, {d['hdr_exposures']} HDR exposure(s)"]
+                 + ([f"defaults written to {target}"] if target else []))
+
+
+def unbinned_main(args: argparse.Namespace) -> int:
+    from simulation.studies.common import StudyOutput
+    from simulation.studies.distributed import open_runner
+    from simulation.studies.unbinned import compare_binned, unbinned_search, write_outputs
+
+    spec = _spec(args)
+    out = StudyOutput(args.out)
+    with open_runner(args.scheduler, workers=args.workers) as runner:
+        result = unbinned_search(spec, runner, tasks=args.tasks, top=max(args.top, 10), limit=args.limit,
+                                 refine=args.top)
+    result.binned_best = compare_binned(spec)
+    write_outputs(result, out)
+    lines = [f"{result.pairs} pairs in {result.seconds:.2f} s ({result.runner.get('runner')})"]
+    for n, c in zip(result.numbers, result.candidates):
+        s1, s2 = (s.label() for s in c.sources)
+        lines.append(f"#{n:<7} {s1:<24} {s2:<34} train {c.train.mean:.4f} test {c.test.mean:.4f}")
+    lines.append(f"binned best: {result.binned_best['source1']} + {result.binned_best['source2']} "
+                 f"train {result.binned_best['train_de00_mean']:.4f}")
+    return _done(out, lines)

@@ -1,0 +1,277 @@
+"""The studies (simulation.studies, ``dualrgb study``) at tiny budgets: outputs, invariants, Dask == serial."""
+import json
+import logging
+import os
+
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+import numpy as np
+import pytest
+
+from simulation.datasets import default_setup
+from simulation.objective import Evaluator
+from simulation.pso import PsoSettings, pso
+from simulation.search import group_arrays, light_pairs, unbinned_pairs
+from simulation.studies import optimisers as opt
+from simulation.studies.common import SetupSpec, StudyOutput, TracedEvaluator, evaluator_for, pareto_front
+from simulation.studies.distributed import SerialRunner, open_runner
+from simulation.studies.models import MODELS, fit_model, model_errors, root_polynomial_terms
+from simulation.studies.noise import CameraNoise, NoiseAwareEvaluator, NoiseModel
+from simulation.studies.unbinned import pair_count, pair_group, unbinned_group_arrays, unbinned_search
+
+SPEC = SetupSpec()
+
+
+@pytest.fixture(scope="module")
+def ev():
+    return evaluator_for(SPEC)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return NoiseModel(default_setup("reflective"))
+
+
+@pytest.fixture(scope="module")
+def dask_runner():
+    """One LocalCluster (2 worker processes) for the Dask tests of this module (starting one takes seconds)."""
+    with open_runner("local", workers=2) as runner:
+        yield runner
+
+
+def _W(l1, v1, l2, v2):
+    W = np.zeros((2, 10))
+    W[0, np.asarray(l1) - 1] = v1
+    W[1, np.asarray(l2) - 1] = v2
+    return W
+
+
+# ---- unbinned space ------------------------------------------------------------------------------------
+def test_vectorised_unbinned_arrays_match_core():
+    for n in (3, 4, 5):
+        a, b = group_arrays(unbinned_pairs(n)), unbinned_group_arrays(n)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    pairs = unbinned_pairs(10)
+    assert len(pairs) == pair_count(10) == 522753
+    a, b = group_arrays(pairs[400000:401000]), unbinned_group_arrays(10, 400000, 401000)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    assert pair_group(10, 123456) == pairs[123456]
+
+
+def test_unbinned_search_chunking_free_and_dask_equals_serial(dask_runner):
+    one = unbinned_search(SPEC, SerialRunner(), tasks=1, limit=3000, top=8, refine=2)
+    many = unbinned_search(SPEC, SerialRunner(), tasks=5, limit=3000, top=8, refine=2)
+    assert one.numbers == many.numbers and one.costs == many.costs and one.histogram == many.histogram
+    assert sum(one.histogram) == 3000 and list(one.costs) == sorted(one.costs)
+    dask = unbinned_search(SPEC, dask_runner, tasks=4, limit=3000, top=8, refine=2)
+    assert dask.runner["runner"] == "dask"
+    assert dask.numbers == one.numbers and dask.costs == one.costs and dask.histogram == one.histogram
+    assert dask.candidates[0].train.mean == pytest.approx(one.candidates[0].train.mean)
+
+
+# ---- optimisers ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name,settings", [
+    ("pyswarms", opt.PyswarmsSettings(particles=8, iterations=3)),
+    ("de", opt.DeSettings(popsize=3, maxiter=3)),
+    ("lbfgs", opt.LbfgsSettings(screen=6, top_sets=2, starts=1, maxiter=4)),
+    ("halving", opt.HalvingSettings(particles=6, iterations=1, min_sets=2)),
+])
+def test_study_optimisers_return_normalised_consistent_candidates(ev, name, settings):
+    groups = light_pairs()[:5]
+    traced = TracedEvaluator(ev)
+    out = opt.OPTIMISERS[name](traced, groups, settings, seed=3)
+    assert len(out.candidates) == 5 and out.evaluations > 0
+    costs = [c.train_cost for c in out.candidates]
+    assert costs == sorted(costs)
+    best = out.best
+    for s in best.sources:
+        assert max(s.levels) == pytest.approx(1.0) and min(s.levels) >= 0
+    # the reported cost is the cost of the reported (normalised) levels: scaling a light changes nothing
+    assert ev.cost(best.weights(10)[None])[0] == pytest.approx(best.train_cost, abs=2e-4)
+    tr = traced.trace
+    assert tr.best == sorted(tr.best, reverse=True) and tr.evaluations[-1] == out.evaluations
+    assert tr.best[-1] == pytest.approx(best.train_cost, abs=2e-4)
+
+
+def test_pyswarms_leaves_logging_and_cwd_alone(ev, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    root = logging.getLogger()
+    handlers, level = list(root.handlers), root.level
+    state = np.random.get_state()[1].copy()
+    opt.pyswarms_search(ev, light_pairs()[:2], opt.PyswarmsSettings(particles=5, iterations=2))
+    assert root.handlers == handlers and root.level == level
+    assert not (tmp_path / "report.log").exists() and "LOG_CFG" not in os.environ
+    assert np.array_equal(np.random.get_state()[1], state)
+
+
+def test_pareto_front_is_monotone():
+    pts = [(1.0, 0.5), (0.5, 0.9), (2.0, 0.4), (3.0, 0.45), (0.1, 1.0), (2.5, 0.4)]
+    front = pareto_front(pts)
+    assert front == [4, 1, 0, 2]
+    xs, ys = zip(*(pts[i] for i in front))
+    assert list(xs) == sorted(xs) and all(b < a for a, b in zip(ys, ys[1:]))
+
+
+# ---- speed vs accuracy -----------------------------------------------------------------------------------
+def test_speed_accuracy_tiny_writes_outputs(tmp_path):
+    from simulation.studies.speed_accuracy import configs, speed_accuracy, write_outputs
+
+    res = speed_accuracy(SPEC, seeds=2, budget="tiny", light_sets=6)
+    out = StudyOutput(tmp_path / "sa")
+    write_outputs(res, out)
+    for f in ("speed_accuracy.json", "pareto.png", "convergence.png", "SUMMARY.md"):
+        assert (tmp_path / "sa" / f).stat().st_size > 0
+    data = json.loads((tmp_path / "sa" / "speed_accuracy.json").read_text())
+    assert {"setup", "budget", "seeds", "configurations", "pareto_train", "pareto_test", "runs"} <= set(data)
+    labels = [c.label for c in configs("tiny")]
+    assert [c["label"] for c in data["configurations"]] == labels
+    assert len(data["runs"]) == 2 * len(labels)
+    methods = {c["method"] for c in data["configurations"]}
+    assert methods == {"exhaustive", "pso", "ga", "halving", "pyswarms", "de", "lbfgs"}
+    rows = {c["label"]: c for c in data["configurations"]}
+    for key in ("pareto_train", "pareto_test"):
+        pts = [(rows[l]["seconds"]["median"], rows[l][key.split("_")[1]]["median"]) for l in data[key]]
+        assert all(a[0] <= b[0] and b[1] < a[1] for a, b in zip(pts, pts[1:]))
+    for r in data["runs"]:
+        assert r["evaluations"] > 0 and r["train"] > 0 and r["test"] > 0
+        assert r["trace"]["best"] == sorted(r["trace"]["best"], reverse=True)
+    with pytest.raises(ValueError):
+        configs("huge")
+
+
+def test_speed_accuracy_dask_equals_serial(dask_runner):
+    from simulation.studies.speed_accuracy import speed_accuracy
+
+    serial = speed_accuracy(SPEC, seeds=1, budget="tiny", light_sets=4)
+    dask = speed_accuracy(SPEC, seeds=1, budget="tiny", light_sets=4, runner=dask_runner)
+    assert dask.runner["runner"] == "dask" and len(dask.runs) == len(serial.runs)
+    for a, b in zip(serial.runs, dask.runs):
+        assert (a["label"], a["seed"], a["evaluations"]) == (b["label"], b["seed"], b["evaluations"])
+        assert a["train"] == pytest.approx(b["train"], abs=1e-9) and a["test"] == pytest.approx(b["test"], abs=1e-9)
+        assert a["best"]["levels_exact"] == b["best"]["levels_exact"]
+
+
+# ---- noise model and noise-aware objective ---------------------------------------------------------------
+def test_noise_free_path_matches_the_evaluator(ev, model):
+    W = _W((1, 6, 8), (0.3, 1.0, 0.7), (3, 5, 9), 1.0)
+    clean = model.expected_errors(W[None], draws=0, exact=True)
+    tr, te = ev.stats(W)
+    assert clean["train"][0] == pytest.approx(tr.mean, abs=1e-6)
+    assert clean["test"][0] == pytest.approx(te.mean, abs=1e-6)
+
+
+def test_noise_aware_objective_is_at_least_the_noise_free_cost(ev, model):
+    rng = np.random.default_rng(1)
+    W = np.zeros((6, 2, 10))
+    W[:, 0, [0, 5, 6]] = rng.random((6, 3))
+    W[:, 1, [2, 4, 8]] = rng.random((6, 3))
+    noisy = model.expected_errors(W, draws=8, test=False)["train"]
+    clean = ev.cost(W)
+    assert np.all(noisy >= clean - 1e-3)
+    assert np.mean(noisy - clean) > 0.005
+    # more pixels per patch -> less noise -> closer to the noise-free cost
+    big = NoiseModel(model.setup, CameraNoise(pixels_per_patch=10**6))
+    assert np.allclose(big.expected_errors(W, draws=8, test=False)["train"], clean, atol=3e-3)
+    # common random numbers: the objective is deterministic
+    assert np.array_equal(noisy, model.expected_errors(W, draws=8, test=False)["train"])
+
+
+def test_exposures_follow_the_calibration(model):
+    cam = model.camera
+    ref = _W((1, 6, 8), 1.0, (3, 5, 9), 1.0)
+    t = model.exposures(ref)
+    assert t[0] == pytest.approx(cam.reference_exposure_s * cam.headroom / (cam.reference_dn - cam.black_level))
+    dim = _W((6, 7), 1.0, (2,), 1.0)                     # LEDs 6 and 7 alone need far longer exposures
+    assert model.exposures(dim)[0] > 10 * t[0]
+    assert np.isinf(model.exposures(np.zeros((1, 10))))[0]
+
+
+def test_noise_aware_pso_and_simulated_capture(ev, model):
+    na = NoiseAwareEvaluator(model, draws=2)
+    out = pso(na, light_pairs()[:2], PsoSettings(particles=5, iterations=2), seed=0)
+    assert na.evaluations == 2 * 5 * 3 and np.isfinite(out.best.train_cost)
+    W = _W((1, 6, 8), 1.0, (3, 5, 9), 1.0)
+    cap = model.captured_errors(W, repeats=2)
+    expected = model.expected_errors(W[None], draws=16)
+    assert cap["train"] == pytest.approx(expected["train"][0], abs=0.05)
+    assert cap["train"] >= ev.cost(W[None])[0] - 0.01
+    values = model.simulate_capture(W, np.random.default_rng(0))
+    v, _ = model.values(W[None])
+    assert values.shape == v[0].shape and np.allclose(values, v[0], atol=0.05)
+
+
+# ---- characterisation models -------------------------------------------------------------------------
+def test_characterisation_models(ev):
+    W = _W((1, 6, 8), 1.0, (3, 5, 9), 1.0)
+    tr = ev.train.camera_values(W)
+    terms = root_polynomial_terms(tr)
+    assert terms.shape == (len(tr), 21)
+    assert np.allclose(root_polynomial_terms(3.0 * tr), 3.0 * terms)        # exposure-invariant
+    errs = {m: model_errors(fit_model(m, tr, ev.train.xyz, ev.train.white), tr, ev.train.xyz,
+                            ev.train.white).mean() for m in MODELS}
+    assert errs["de-optimised"] <= errs["linear"] + 1e-9
+    assert errs["linear"] == pytest.approx(ev.stats(W)[0].mean, abs=1e-6)
+    with pytest.raises(ValueError):
+        fit_model("cubic", tr, ev.train.xyz, ev.train.white)
+
+
+# ---- stability and parsimony at tiny budgets ---------------------------------------------------------
+def test_stability_tiny_writes_outputs(tmp_path):
+    from simulation.studies.stability import StabilityConfig, stability, write_outputs
+
+    res = stability(SPEC, StabilityConfig.tiny())
+    write_outputs(res, StudyOutput(tmp_path))
+    for f in ("stability.json", "stability.png", "noise_aware.png", "SUMMARY.md"):
+        assert (tmp_path / f).stat().st_size > 0
+    data = json.loads((tmp_path / "stability.json").read_text())
+    assert {"seeds", "led_clipping", "dim_leds", "sensitivity", "noise_aware"} <= set(data)
+    assert len(data["led_clipping"]["rows"]) == 11
+    for r in data["led_clipping"]["rows"]:
+        assert r["reoptimised_train"] <= r["optimum_clipped_train"] + 1e-9
+    n = data["noise_aware"]
+    assert n["noise_aware_optimum"]["objective_train"] >= n["noise_aware_optimum"]["noise_free_train"] - 1e-3
+    assert {"noise", "drift", "target_error"} <= set(next(iter(data["sensitivity"].values())))
+
+
+def test_parsimony_tiny_picks_valid_options(tmp_path):
+    from simulation.studies.parsimony import FORMAT, ParsimonyConfig, load_defaults, parsimony, write_outputs
+
+    cfg = ParsimonyConfig.tiny()
+    res = parsimony(SPEC, cfg)
+    defaults_file = tmp_path / "defaults.json"
+    write_outputs(res, StudyOutput(tmp_path / "p"), str(defaults_file))
+    for f in ("parsimony_study.json", "parsimony.json", "parsimony.png", "SUMMARY.md"):
+        assert (tmp_path / "p" / f).stat().st_size > 0
+    d = json.loads(defaults_file.read_text())
+    assert d["format"] == FORMAT
+    assert d["spectral_step_nm"] in cfg.steps
+    assert d["characterisation_model"] in MODELS
+    assert d["hdr_exposures"] in cfg.exposures
+    # the choice is within the tolerance of the best option
+    m = res.models
+    assert m["scores"][m["chosen"]] <= m["best"] + cfg.tolerance
+    e = res.exposures
+    assert e["scores"][[r["exposures"] for r in e["rows"]].index(e["chosen"])] <= e["best"] + cfg.tolerance
+    assert load_defaults(str(defaults_file))["hdr_exposures"] == d["hdr_exposures"]
+    assert load_defaults(str(tmp_path / "missing.json"))["spectral_step_nm"] == 10.0
+
+
+def test_packaged_parsimony_defaults_load():
+    from simulation.studies.parsimony import load_defaults
+
+    d = load_defaults()
+    assert d["spectral_step_nm"] in (1.0, 5.0, 10.0, 20.0) and d["characterisation_model"] in MODELS
+
+
+# ---- CLI ---------------------------------------------------------------------------------------------
+def test_cli_unbinned_serial_and_errors(tmp_path, capsys):
+    from app.cli import main
+
+    out = tmp_path / "u"
+    assert main(["study", "unbinned", "--scheduler", "serial", "--limit", "500", "--tasks", "2", "--top", "3",
+                 "--out", str(out)]) == 0
+    data = json.loads((out / "unbinned.json").read_text())
+    assert data["pairs"] == 500 and len(data["top"]) == 3 and data["binned_best"]["source1"] == [1, 6, 8]
+    assert (out / "unbinned.png").exists() and (out / "SUMMARY.md").exists()
+    assert main(["study", "unbinned", "--scheduler", "serial", "--camera-csv", str(tmp_path / "nope.csv"),
+                 "--out", str(out)]) == 1
+    assert "nope.csv" in capsys.readouterr().err
