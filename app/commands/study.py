@@ -5,6 +5,8 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study stability      [--out DIR] [--seeds N] [--budget tiny|default] [--pixels N]
   dualrgb study parsimony      [--out DIR] [--budget tiny|default] [--tolerance DE] [--write-defaults [PATH]]
   dualrgb study unbinned       [--out DIR] [--scheduler local|serial|ADDRESS] [--tasks N] [--top N]
+  dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
+                               [--seeds N] [--scheduler local|ADDRESS]
 
 ``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
 (``--workers``, 2 by default), an address (``tcp://host:8786``) uses a running scheduler, ``serial`` (the
@@ -83,6 +85,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--top", type=_positive, default=10, help="best pairs to report (10)")
     q.add_argument("--limit", type=_positive, help="only the first N pairs (for a quick check)")
     q.set_defaults(func=unbinned_main)
+
+    q = ss.add_parser("sweep", help="targets x cameras x optimisers x seeds, one task each (Dask-ready)")
+    q.add_argument("--out", type=Path, default=Path("study-out") / "sweep", help="output folder (study-out/sweep)")
+    q.add_argument("--modes", default="reflective,transmissive", help="target sets (reflective,transmissive)")
+    q.add_argument("--camera-csv", action="append", default=[], metavar="CSV",
+                   help="a camera sensitivity CSV to include (repeat; the packaged camera is always included)")
+    q.add_argument("--methods", default="exhaustive,pso,halving",
+                   help="optimisers (exhaustive,pso,ga,halving,pyswarms,de,lbfgs)")
+    q.add_argument("--budget", choices=("tiny", "small", "default"), default="small")
+    q.add_argument("--seeds", type=_positive, default=2)
+    q.add_argument("--light-sets", type=_positive, help="only the first N binned light sets")
+    q.add_argument("--scheduler", default="local", help="'serial', 'local' or a Dask scheduler address (local)")
+    q.add_argument("--workers", type=_positive, default=2, help="LocalCluster worker processes (default 2)")
+    q.set_defaults(func=sweep_main)
 
 
 def _spec(args: argparse.Namespace):
@@ -196,3 +212,31 @@ def unbinned_main(args: argparse.Namespace) -> int:
     lines.append(f"binned best: {result.binned_best['source1']} + {result.binned_best['source2']} "
                  f"train {result.binned_best['train_de00_mean']:.4f}")
     return _done(out, lines)
+
+
+def sweep_main(args: argparse.Namespace) -> int:
+    from simulation.studies.common import SetupSpec, StudyOutput
+    from simulation.studies.distributed import open_runner
+    from simulation.studies.optimisers import OPTIMISERS
+    from simulation.studies.sweep import sweep, write_outputs
+
+    modes = [m.strip() for m in args.modes.split(",") if m.strip()]
+    bad = [m for m in modes if m not in MODES]
+    if bad or not modes:
+        raise ValueError(f"--modes {args.modes!r}: expected some of {', '.join(MODES)}")
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    bad = [m for m in methods if m not in OPTIMISERS]
+    if bad or not methods:
+        raise ValueError(f"--methods {args.methods!r}: unknown {', '.join(bad) or '(none)'}; expected some of "
+                         f"{', '.join(OPTIMISERS)}")
+    for path in args.camera_csv:
+        if not Path(path).is_file():
+            raise FileNotFoundError(f"--camera-csv {path}: no such file")
+    specs = [SetupSpec(mode, camera_csv=cam) for mode in modes for cam in [None, *args.camera_csv]]
+    out = StudyOutput(args.out)
+    with open_runner(args.scheduler, workers=args.workers) as runner:
+        result = sweep(specs, methods, budget=args.budget, seeds=args.seeds, light_sets=args.light_sets,
+                       runner=runner)
+    write_outputs(result, out)
+    return _done(out, [f"{r['setup']:<40} {r['label']:<28} train {r['train']['median']:.4f} "
+                       f"test {r['test']['median']:.4f}" for r in result.table])

@@ -307,7 +307,8 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     lines += [f"- {k} ({m['terms'][k]} terms): {m['scores'][k]:.4f}" for k in MODELS]
     lines += ["", f"Chosen: **{m['chosen']}**.", "", "## HDR exposures (ND 2.0 over half the patches)", ""]
     e = result.exposures
-    lines += [f"- {r['exposures']} exposure(s) {r['factors']}: {sc:.4f}" for r, sc in zip(e["rows"], e["scores"])]
+    lines += [f"- {r['exposures']} exposure(s) x{', '.join(f'{f:.3g}' for f in r['factors'])}: {sc:.4f}"
+              for r, sc in zip(e["rows"], e["scores"])]
     lines += ["", f"Chosen: **{e['chosen']}** exposure(s) per light.", "",
               "Defaults written to parsimony.json (copy to resources/parsimony.json for the app)."]
     out.write_summary("Parsimony", lines)

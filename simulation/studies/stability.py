@@ -446,11 +446,11 @@ def stability_chart(result: StabilityResult):
     a3.legend(fontsize=6)
     a3.grid(True, alpha=0.3)
     # (d) predicted vs captured
-    _predicted_vs_captured(a4, result.noise)
+    _predicted_vs_captured(a4, result.noise, "(d) ")
     return fig
 
 
-def _predicted_vs_captured(ax, noise: dict) -> None:
+def _predicted_vs_captured(ax, noise: dict, prefix: str = "") -> None:
     rows = noise["candidates"]
     lab = "lab_train" in rows[0]
     key = "lab_train" if lab else "captured_train"
@@ -465,7 +465,7 @@ def _predicted_vs_captured(ax, noise: dict) -> None:
     ax.plot([lo, hi], [lo, hi], "k--", lw=0.8)
     ax.set_xlabel("predicted training mean dE00")
     ax.set_ylabel(("virtual-lab" if lab else "simulated-capture") + " training mean dE00")
-    ax.set_title(f"(d) predicted vs captured ({noise['camera']['pixels_per_patch']} px/patch model)")
+    ax.set_title(f"{prefix}predicted vs captured ({noise['camera']['pixels_per_patch']} px/patch model)")
     ax.legend(fontsize=7)
     ax.grid(True, alpha=0.3)
 

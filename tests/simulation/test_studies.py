@@ -150,6 +150,20 @@ def test_speed_accuracy_dask_equals_serial(dask_runner):
         assert a["best"]["levels_exact"] == b["best"]["levels_exact"]
 
 
+def test_sweep_over_setups_through_dask(dask_runner, tmp_path):
+    from simulation.studies.sweep import sweep, write_outputs
+
+    specs = [SetupSpec("reflective"), SetupSpec("transmissive")]
+    res = sweep(specs, ("exhaustive", "pso"), budget="tiny", seeds=2, light_sets=4, runner=dask_runner)
+    serial = sweep(specs, ("exhaustive", "pso"), budget="tiny", seeds=2, light_sets=4)
+    assert len(res.runs) == 2 * 2 * 2 and len(res.table) == 4
+    assert [r["train"] for r in res.runs] == pytest.approx([r["train"] for r in serial.runs], abs=1e-9)
+    write_outputs(res, StudyOutput(tmp_path))
+    assert (tmp_path / "sweep.png").exists() and json.loads((tmp_path / "sweep.json").read_text())["table"]
+    with pytest.raises(ValueError):
+        sweep(specs, ("nelder-mead",), budget="tiny")
+
+
 # ---- noise model and noise-aware objective ---------------------------------------------------------------
 def test_noise_free_path_matches_the_evaluator(ev, model):
     W = _W((1, 6, 8), (0.3, 1.0, 0.7), (3, 5, 9), 1.0)
