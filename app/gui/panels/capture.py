@@ -284,13 +284,15 @@ class CapturePanel(QWidget):
             return DarkSeries(sh, times, frames=self.frames.value())
         if kind == "Open-gate flats":
             return FlatSeries(sh, self.lights, self.all_exposures(), frames=self.frames.value())
+        nd = self.nd.isChecked()
+        suffix = "-nd" if nd else ""          # a separate subject: frames with and without the ND filter never mix
         if kind == "Dual-RGB capture":
-            return TargetCapture(sh, self.lights, self.exposures(), self.target_key(), nd=self.nd.isChecked(),
-                                 condition="dual_rgb")
-        if self.hdr_key != (self.target_key(), self.nd.isChecked()) or not self.hdr_plans:
+            return TargetCapture(sh, self.lights, self.exposures(), self.target_key(), nd=nd,
+                                 condition="dual_rgb", role="target" + suffix)
+        if self.hdr_key != (self.target_key(), nd) or not self.hdr_plans:
             raise ValueError("press 'Meter and plan HDR' for this target first")
         return TargetCapture(sh, self.lights, {n: p.exposures for n, p in self.hdr_plans.items()},
-                             self.target_key(), nd=self.nd.isChecked(), condition="hdr", role="hdr")
+                             self.target_key(), nd=nd, condition="hdr", role="hdr" + suffix)
 
     def update_plan(self) -> None:
         self.view.settle_s = self.settle.value()

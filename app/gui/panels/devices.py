@@ -4,7 +4,7 @@ from __future__ import annotations
 import logging
 from typing import Optional
 
-from PySide6.QtWidgets import (QComboBox, QGridLayout, QGroupBox, QHBoxLayout, QLabel, QPushButton,
+from PySide6.QtWidgets import (QComboBox, QFileDialog, QGridLayout, QGroupBox, QLabel, QPushButton,
                                QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
@@ -89,10 +89,31 @@ class DevicesPanel(QWidget):
         vg.addWidget(self.place_button, 0, 2)
         vg.addWidget(self.virtual_label, 1, 0, 1, 3)
 
+        # ---- folders ----
+        fbox = QGroupBox("Folders")
+        fg = QGridLayout(fbox)
+        self.folder_labels: dict[str, QLabel] = {}
+        for r, (key, title, tip) in enumerate((
+                ("paths/captures", "Captures", "Where sessions and test shots are saved."),
+                ("paths/presets", "Your presets", "Where your own light presets are saved (the packaged ones "
+                                                  "are always listed too)."))):
+            label = QLabel()
+            label.setToolTip(tip)
+            button = QPushButton("Change…")
+            button.setToolTip(tip)
+            button.clicked.connect(lambda _=False, k=key, t=title: self._choose_folder(k, t))
+            fg.addWidget(QLabel(title), r, 0)
+            fg.addWidget(label, r, 1)
+            fg.addWidget(button, r, 2)
+            self.folder_labels[key] = label
+        fg.setColumnStretch(1, 1)
+        self._show_folders()
+
         lay = QVBoxLayout(self)
         lay.addWidget(sbox)
         lay.addWidget(cbox)
         lay.addWidget(vbox)
+        lay.addWidget(fbox)
         lay.addStretch(1)
 
         self.lab.sphereChanged.connect(self._sphere_changed)
@@ -206,6 +227,23 @@ class DevicesPanel(QWidget):
                 self.camera_light.set_state("off", "not connected")
             self.camera_button.setText("Connect")
         self.camera_button.setEnabled(True)
+
+    # ------------------------------------------------------------------ folders
+    def _show_folders(self) -> None:
+        self.folder_labels["paths/captures"].setText(str(self.ctx.captures_dir))
+        self.folder_labels["paths/presets"].setText(str(self.ctx.presets_dir))
+
+    def _choose_folder(self, key: str, title: str) -> None:
+        current = self.ctx.captures_dir if key == "paths/captures" else self.ctx.presets_dir
+        folder = QFileDialog.getExistingDirectory(self, f"{title} folder", str(current))
+        if folder:
+            self.set_folder(key, folder)
+
+    def set_folder(self, key: str, folder: str) -> None:
+        self.ctx.set(key, str(folder))
+        self._show_folders()
+        if key == "paths/presets":
+            self.ctx.bus.presetsChanged.emit()
 
     # ------------------------------------------------------------------ virtual lab / errors
     def _place(self) -> None:

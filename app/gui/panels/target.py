@@ -19,7 +19,7 @@ from app.processing.report import layout_for
 
 log = logging.getLogger(__name__)
 
-TARGET_ROLES = ("target", "hdr", "object")
+TARGET_ROLES = ("target", "target-nd", "hdr", "hdr-nd", "object")
 
 
 def session_subjects(session) -> dict[str, dict[str, list]]:
