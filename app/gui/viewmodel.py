@@ -150,3 +150,13 @@ class ConvergenceTap:
                 return costs
 
         return _Tapped(setup)
+
+
+def preview_histogram(frame: np.ndarray, black_level: float, white_level: float, gamma: float = 2.2,
+                      linear_limit: float = LINEAR_LIMIT_DN) -> RawHistogram:
+    """Live-view histogram in raw DN for a preview that is encoded like the raw data (the virtual camera's:
+    (DN - black) / (white - black), gamma 1/2.2). An estimate: 8-bit steps, no per-pixel noise."""
+    f = np.asarray(frame, dtype=np.float64) / 255.0
+    dn = black_level + f ** gamma * (white_level - black_level)
+    planes = {"R": dn[..., 0], "G": dn[..., 1], "B": dn[..., 2]}
+    return raw_histogram(planes, white_level, linear_limit)

@@ -71,3 +71,18 @@ def test_virtual_lab_start_and_keyboard_capture(qtbot, make_window):
     w.capture_action.trigger()                              # Ctrl+Enter / F5
     qtbot.waitUntil(lambda: w.camera.last_view is not None, timeout=60000)
     assert list((w.ctx.captures_dir / "test-shots").glob("*.DNG"))
+
+
+def test_live_view_updates_picture_and_histogram(qtbot, make_window):
+    w = make_window()
+    w.lab.start_virtual_lab()
+    wait_idle(qtbot, w)
+    w.lab.place("open-gate")
+    cam = w.camera
+    qtbot.mouseClick(cam.live_button, Qt.LeftButton)
+    qtbot.waitUntil(lambda: cam.view_title.text().startswith("live view"), timeout=30000)
+    qtbot.waitUntil(lambda: cam.hist_label.text().startswith("live view"), timeout=30000)
+    assert set(cam.hist_curves) == {"R", "G", "B"}
+    qtbot.mouseClick(cam.live_button, Qt.LeftButton)
+    assert not cam._live_timer.isActive()
+    wait_idle(qtbot, w)

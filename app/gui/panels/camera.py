@@ -13,7 +13,7 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QGroupBox, QHB
                                QSplitter, QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
-from app.gui.viewmodel import LINEAR_LIMIT_DN, RawView, raw_view
+from app.gui.viewmodel import LINEAR_LIMIT_DN, RawView, preview_histogram, raw_view
 from app.gui.widgets import plot_widget
 from app.session import atomic_write
 from drivers.camera.base import CameraSettings
@@ -93,7 +93,8 @@ class CameraPanel(QWidget):
         self.capture_button.clicked.connect(self.capture)
         self.live_button = QPushButton("Live view")
         self.live_button.setCheckable(True)
-        self.live_button.setToolTip("Show the camera's live picture (a few frames a second).")
+        self.live_button.setToolTip("Show the camera's live picture (a few frames a second); with the virtual camera "
+                                    "the histogram follows it (estimated from the preview).")
         self.live_button.toggled.connect(self.set_live_view)
         self.capture_label = QLabel("")
         self.capture_label.setWordWrap(True)
@@ -274,8 +275,12 @@ class CameraPanel(QWidget):
         exp = format_shutter(view.exposure_s) if view.exposure_s else "?"
         self.view_title.setText(f"{Path(view.path).name}: {view.camera}, {exp}, ISO {view.iso or '?'}")
         self.capture_label.setText(f"saved {view.path}")
-        h = view.histogram
+        self.show_histogram(view.histogram, f"{Path(view.path).name} (raw)")
+
+    def show_histogram(self, h, source: str) -> None:
         centres = 0.5 * (h.edges[1:] + h.edges[:-1])
+        for name in set(self.hist_curves) - set(h.counts):
+            self.hist.removeItem(self.hist_curves.pop(name))
         for name, counts in h.counts.items():
             y = np.maximum(counts, 0.5)       # log axis: empty bins drawn at 0.5
             if name not in self.hist_curves:
@@ -285,7 +290,7 @@ class CameraPanel(QWidget):
                 self.hist_curves[name].setData(centres, y)
         self.white_line.setValue(h.white_level)
         self.linear_line.setValue(h.linear_limit)
-        self.hist_label.setText(h.summary())
+        self.hist_label.setText(f"{source}: {h.summary()}")
         self.hist_label.setStyleSheet("color:#c62828" if h.fraction_clipped > 0 else
                                       "color:#b26a00" if h.fraction_nonlinear > 0 else "")
 
@@ -308,14 +313,24 @@ class CameraPanel(QWidget):
         def failed(exc: BaseException) -> None:
             self.live_button.setChecked(False)
 
-        self.lab.device_call(cam.preview, "Live view", on_result=self._show_preview, on_error=failed,
+        def work():
+            frame = cam.preview()
+            sensor = getattr(cam, "sensor", None)        # the virtual camera: preview encoded like its raw data
+            hist = preview_histogram(frame, sensor.black_level, sensor.white_level) \
+                if sensor is not None and frame.ndim == 3 else None
+            return frame, hist
+
+        self.lab.device_call(work, "Live view", on_result=self._show_preview, on_error=failed,
                              on_finished=lambda: setattr(self, "_preview_pending", False))
 
-    def _show_preview(self, frame: np.ndarray) -> None:
+    def _show_preview(self, result) -> None:
+        frame, hist = result
         if not self.live_button.isChecked():
             return
         self.image.setImage(frame, autoLevels=False, levels=(0, 255))
         self.view_title.setText(f"live view {frame.shape[1]}x{frame.shape[0]}")
+        if hist is not None:
+            self.show_histogram(hist, "live view (estimated from the preview)")
 
     def shutdown(self) -> None:
         self._live_timer.stop()
