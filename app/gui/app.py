@@ -91,6 +91,8 @@ def run(virtual_lab: bool = False, screenshot_dir: Optional[Path] = None,
         run_ = ScreenshotRun(window, Path(screenshot_dir), tmp)
         run_.start()
         app.exec()
+        import shutil
+        shutil.rmtree(tmp, ignore_errors=True)          # the session made for the pictures
         return run_.exit_code
 
     window = MainWindow(frame_size=frame_size)

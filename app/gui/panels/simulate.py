@@ -159,6 +159,7 @@ class SimulatePanel(QWidget):
         split.addWidget(left)
         split.addWidget(self.right_tabs)
         split.setStretchFactor(1, 1)
+        split.setSizes([430, 1000])
         QVBoxLayout(self).addWidget(split)
         self._method_changed(self.method.currentText())
 
