@@ -37,7 +37,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from app.processing.mosaic import DEFAULT_BAND_ROWS, FrameLike, mosaic_of, row_bands
+from app.processing.mosaic import DEFAULT_BAND_ROWS, FrameLike, mosaic_of
 from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
@@ -81,21 +81,27 @@ class HdrResult:
 
 
 class HdrMerge:
-    """Accumulates exposures of one light (and one subject) into an HDR mosaic, band by band.
+    """Accumulates exposures of one light (and one subject) into an HDR mosaic (fused kernels, kernels.py).
 
-    >>> m = HdrMerge(white_level=15520)
+    >>> m = HdrMerge(white_level=15520, black_level=600)
     >>> m.add(raw_short, 1/250, dark_short); m.add(raw_long, 1/15, dark_long)
     >>> result = m.result()        # HdrResult, radiance in DN/s
+
+    ``work`` is an optional dict of scratch buffers reused between merges of the same frame size; unless
+    ``own_result``, the radiance of ``result()`` lives in one of them (valid until the next merge).
     """
 
     def __init__(self, white_level: float, linear_limit: Optional[float] = LINEAR_LIMIT_DN, *,
-                 black_level: float = 0.0, band_rows: int = DEFAULT_BAND_ROWS):
+                 black_level: float = 0.0, band_rows: int = DEFAULT_BAND_ROWS, work: Optional[dict] = None,
+                 own_result: bool = False):
         if white_level <= black_level:
             raise ValueError(f"white level {white_level} must be above the black level {black_level}")
         self.white_level = float(white_level)
         self.black_level = float(black_level)
         self.linear_limit = linear_limit
         self.band_rows = band_rows
+        self._work = work
+        self._own_result = own_result or work is None
         self._num: Optional[np.ndarray] = None
         self._den: Optional[np.ndarray] = None
         self._fallback: Optional[np.ndarray] = None
@@ -106,56 +112,70 @@ class HdrMerge:
             cancel: Optional[CancelToken] = None) -> None:
         """Add one exposure: raw mosaic (uint16 DN), its exposure time (s) and its master dark (None: the black
         level is subtracted instead)."""
+        from app.processing.calibration import _buffer
+        from app.processing.kernels import hdr_accumulate
+
+        check(cancel)
         if not exposure_s or exposure_s <= 0:
             raise ValueError(f"exposure time must be positive, got {exposure_s}")
         raw = mosaic_of(frame)
-        if self._num is None:
-            self._num = np.zeros(raw.shape, dtype=np.float32)
-            self._den = np.zeros(raw.shape, dtype=np.float32)
-            self._fallback = np.zeros(raw.shape, dtype=np.float32)
+        first = self._num is None
+        if first:
+            self._num = (np.empty(raw.shape, np.float32) if self._own_result
+                         else _buffer(self._work, "hdr_num", raw.shape, np.float32))
+            self._den = _buffer(self._work, "hdr_den", raw.shape, np.float32)
+            self._fallback = _buffer(self._work, "hdr_fallback", raw.shape, np.float32)
         elif raw.shape != self._num.shape:
             raise ValueError(f"exposure {exposure_s:.6g} s has shape {raw.shape}, earlier ones {self._num.shape}")
         if isinstance(dark, np.ndarray) and dark.shape != raw.shape:
             raise ValueError(f"dark {dark.shape} and raw {raw.shape} differ in shape")
-        inv_t = np.float32(1.0 / exposure_s)
+        if raw.dtype.kind not in "ui":
+            raise ValueError(f"raw mosaic must hold integer DN, got {raw.dtype}")
         shortest = exposure_s < self._fallback_t
-        for rows in row_bands(raw.shape[0], self.band_rows):
-            check(cancel)
-            x = raw[rows]
-            v = x.astype(np.float32)
-            if dark is None:
-                v -= np.float32(self.black_level)
-            else:
-                v -= dark[rows] if isinstance(dark, np.ndarray) else np.float32(dark)
-            w = exposure_weight(x, v, self.white_level, self.black_level, self.linear_limit)
-            v *= inv_t
-            if shortest:
-                self._fallback[rows] = v
-            v *= w
-            self._num[rows] += v
-            self._den[rows] += w
+        use_array = isinstance(dark, np.ndarray)
+        dark_arr = np.ascontiguousarray(dark, dtype=np.float32) if use_array else np.zeros((1, 1), np.float32)
+        dark_value = np.float32(0.0 if use_array else (self.black_level if dark is None else float(dark)))
+        limit = self.white_level if self.linear_limit is None else min(float(self.linear_limit), self.white_level)
+        hdr_accumulate(np.ascontiguousarray(raw), dark_arr, dark_value, use_array, np.float32(1.0 / exposure_s),
+                       np.float32(1.0 / (self.white_level - self.black_level)), limit, self.white_level,
+                       self._num, self._den, self._fallback, shortest, first)
         if shortest:
             self._fallback_t = exposure_s
         self.exposures.append(float(exposure_s))
 
-    def result(self) -> HdrResult:
+    def _require(self) -> None:
         if self._num is None:
             raise ValueError("no exposures added")
-        num, den = self._num, self._den
-        ok = den > 0
-        out = num  # reuse the buffer: the accumulator is finished
-        np.divide(num, den, out=out, where=ok)
-        bad = ~ok
-        clipped = int(np.count_nonzero(bad))
+
+    def _warn_clipped(self, clipped: int, size: int) -> None:
         if clipped:
-            out[bad] = self._fallback[bad]
             log.warning("HDR: %d pixels (%.3f %%) exceed the linear limit in every exposure (shortest %.6g s "
-                        "used); add a shorter exposure", clipped, 100.0 * clipped / out.size, self._fallback_t)
-        self._fallback = None
-        self._num = None
-        res = HdrResult(out, den, clipped, list(self.exposures))
-        self._den = None
+                        "used); add a shorter exposure", clipped, 100.0 * clipped / size, self._fallback_t)
+
+    def result(self) -> HdrResult:
+        from app.processing.kernels import hdr_finish
+
+        self._require()
+        clipped = int(hdr_finish(self._num, self._den, self._fallback))
+        self._warn_clipped(clipped, self._num.size)
+        res = HdrResult(self._num, self._den, clipped, list(self.exposures))
+        self._num = self._den = self._fallback = None
         return res
+
+    def flat_superpixel(self, white: np.ndarray, threshold: float, cfa: str, out: np.ndarray) -> int:
+        """Finish the merge, flat-field it by ``white`` (eq 7.1, NaN where white <= threshold) and write the
+        half-size R, mean(G1, G2), B into ``out`` (H/2, W/2, 3) in one pass. Returns the clipped-pixel count."""
+        from app.processing.kernels import hdr_flat_superpixel
+        from app.processing.mosaic import cfa_channel_index
+
+        self._require()
+        if white.shape != self._num.shape:
+            raise ValueError(f"image {self._num.shape} and white {white.shape} differ in size")
+        clipped = int(hdr_flat_superpixel(self._num, self._den, self._fallback, white, np.float32(threshold),
+                                          cfa_channel_index(cfa), out))
+        self._warn_clipped(clipped, out.shape[0] * out.shape[1] * 4)
+        self._num = self._den = self._fallback = None
+        return clipped
 
     @classmethod
     def merge(cls, frames: Sequence[FrameLike], exposures: Sequence[float],
@@ -168,7 +188,6 @@ class HdrMerge:
         darks = list(darks) if darks is not None else [None] * len(frames)
         m = cls(white_level, linear_limit, black_level=black_level)
         for i, (f, t, d) in enumerate(zip(frames, exposures, darks)):
-            check(cancel)
             m.add(f, t, d, cancel=cancel)
             report(progress, (i + 1) / len(frames), f"merged exposure {t:.6g} s")
         return m.result()

@@ -35,7 +35,7 @@ import numpy as np
 
 from app.processing.calibration import FlatField, MasterDark
 from app.processing.hdr import LINEAR_LIMIT_DN, HdrMerge, HdrResult
-from app.processing.mosaic import FrameLike, cfa_of, load_frame, mosaic_of, row_bands, superpixel, white_level_of
+from app.processing.mosaic import FrameLike, cfa_of, iter_open_raw, mosaic_of, white_level_of
 from simulation.camera_model import CHANNELS
 from simulation.progress import CancelToken, ProgressCallback, check, report
 
@@ -90,6 +90,7 @@ class CaptureProcessor:
         self.band_rows = band_rows
         self.reject = (reject_high, reject_low)
         self._whites: "OrderedDict[str, FlatField]" = OrderedDict()
+        self._work: dict = {}          # scratch buffers reused across darks and merges (see calibration._buffer)
 
     def _dark_key(self, t: float) -> float:
         for k in self._dark_frames:
@@ -107,7 +108,7 @@ class CaptureProcessor:
         if not refs:
             return None
         self.darks.add(exposure_s, [r.source for r in refs], reject_high=self.reject[0],
-                       reject_low=self.reject[1], progress=progress, cancel=cancel)
+                       reject_low=self.reject[1], progress=progress, cancel=cancel, work=self._work)
         return self.darks.get(exposure_s)
 
     def _dark_for(self, frame, exposure_s: float, cancel) -> np.ndarray | float:
@@ -121,15 +122,13 @@ class CaptureProcessor:
         return level
 
     # ---- HDR ----
-    def hdr(self, refs: Sequence[ExposureRef], *, progress: Optional[ProgressCallback] = None,
-            cancel: Optional[CancelToken] = None) -> HdrResult:
-        """Dark-subtracted, eq 8.9-weighted HDR mosaic (DN/s) of the exposures of one light and subject."""
+    def _merge(self, refs: Sequence[ExposureRef], progress, cancel, own_result: bool) -> HdrMerge:
         if not refs:
             raise ValueError("no exposures to merge")
         merge: Optional[HdrMerge] = None
-        for i, ref in enumerate(sorted(refs, key=lambda r: r.exposure_s)):
+        refs = sorted(refs, key=lambda r: r.exposure_s)
+        for i, (ref, frame) in enumerate(zip(refs, iter_open_raw([r.source for r in refs]))):
             check(cancel)
-            frame = load_frame(ref.source)
             if self.white_level is None:
                 self.white_level = white_level_of(frame)
             if self.cfa is None:
@@ -139,12 +138,17 @@ class CaptureProcessor:
                 self.black_level = float(np.mean(black)) if black else 0.0
             if merge is None:
                 merge = HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level,
-                                 band_rows=self.band_rows)
+                                 band_rows=self.band_rows, work=self._work, own_result=own_result)
             dark = self._dark_for(frame, ref.exposure_s, cancel)
             merge.add(mosaic_of(frame), ref.exposure_s, dark, cancel=cancel)
-            del frame
             report(progress, (i + 1) / len(refs), f"exposure {ref.exposure_s:.6g} s {ref.label}".strip())
-        return merge.result()
+        return merge
+
+    def hdr(self, refs: Sequence[ExposureRef], *, progress: Optional[ProgressCallback] = None,
+            cancel: Optional[CancelToken] = None) -> HdrResult:
+        """Dark-subtracted, eq 8.9-weighted HDR mosaic (DN/s) of the exposures of one light and subject
+        (in new arrays: the result is the caller's to keep)."""
+        return self._merge(refs, progress, cancel, True).result()
 
     def set_white(self, light: str, refs: Sequence[ExposureRef], *, min_fraction: float = 0.01,
                   progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> FlatField:
@@ -168,22 +172,16 @@ class CaptureProcessor:
         out: Optional[np.ndarray] = None
         clipped = {}
         for li, name in enumerate(lights):
-            res = self.hdr(scenes[name], progress=_sub(progress, li / len(lights), (li + 0.8) / len(lights)),
-                           cancel=cancel)
-            clipped[name] = res.clipped_fraction
-            img = res.radiance
+            merge = self._merge(scenes[name], _sub(progress, li / len(lights), (li + 0.9) / len(lights)), cancel,
+                                False)
             ff = self._whites[name]
-            if img.shape != ff.white.shape:
-                raise ValueError(f"{name}: image {img.shape} and white {ff.white.shape} differ in size")
-            for rows in row_bands(img.shape[0], self.band_rows):   # eq 7.1 in place, band by band
-                check(cancel)
-                ff.apply(img[rows], rows=rows, out=img[rows])
-            sp = superpixel(img, self.cfa or "RGGB")
-            del img, res
+            h, w = ff.white.shape
             if out is None:
-                out = np.empty(sp.shape[:2] + (3 * len(lights),), dtype=np.float32)
-            out[..., 3 * li: 3 * li + 3] = sp
-            del sp
+                out = np.empty((h // 2, w // 2, 3 * len(lights)), dtype=np.float32)
+            check(cancel)
+            n_clipped = merge.flat_superpixel(ff.white, ff.threshold, self.cfa or "RGGB",
+                                              out[..., 3 * li: 3 * li + 3])
+            clipped[name] = n_clipped / (4 * out.shape[0] * out.shape[1])
             report(progress, (li + 1) / len(lights), f"{name} flat-fielded")
         channels = [f"{c}{i + 1}" for i in range(len(lights)) for c in CHANNELS]
         return ChannelStack(out, channels, lights, clipped)
