@@ -7,7 +7,8 @@ per 2x2 cell (R, mean(G1, G2), B), which needs no interpolation and is what patc
 (dual-RGB) stack use.
 
 Inputs may be a ``drivers.raw.RawFrame`` (as ``drivers.raw.load_raw`` returns), a path to a raw file, or a
-bare 2-D numpy mosaic (tests, virtual camera). Large frames are processed in horizontal bands of an even
+bare 2-D numpy mosaic (tests, virtual camera). Paths are opened with ``open_raw`` / ``iter_open_raw`` (no
+copy, next file decoded in the background). numpy steps on large frames go in horizontal bands of an even
 number of rows (``row_bands``) so temporaries stay small and the CFA phase is the same in every band.
 """
 from __future__ import annotations
