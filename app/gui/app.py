@@ -99,4 +99,25 @@ def run(virtual_lab: bool = False, screenshot_dir: Optional[Path] = None,
     window.show()
     if virtual_lab:
         window.lab.start_virtual_lab()
+    _close_on_signals(window)
     return app.exec()
+
+
+def _close_on_signals(window) -> None:
+    """Ctrl-C / SIGTERM in the terminal close the window the normal way (LEDs off, ports closed). Python runs
+    signal handlers only when it gets control, so a timer hands it control a few times a second."""
+    import signal
+    from PySide6.QtCore import QTimer
+
+    def close(signum, _frame) -> None:
+        log.info("signal %d: closing the window", signum)
+        window.close()
+        from PySide6.QtWidgets import QApplication
+        QApplication.instance().quit()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, close)
+    timer = QTimer(window)
+    timer.setInterval(250)
+    timer.timeout.connect(lambda: None)
+    timer.start()
