@@ -240,3 +240,25 @@ def test_hdr_capture_of_the_nd_target(qtbot, make_window):
              range(cap.view.table.rowCount())}
     assert len(times) >= 3
     assert w.errors.history == []
+
+
+@pytest.mark.timeout(300)
+def test_manual_controls_wait_while_a_sequence_runs(qtbot, make_window):
+    w = make_window(frame_size=(120, 80))
+    w.lab.start_virtual_lab()
+    wait_idle(qtbot, w)
+    cap = w.capture
+    cap.new_session()
+    qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)
+    cap.kind.setCurrentText("Dark series")
+    cap.frames.setValue(30)
+    click(qtbot, cap.view.start_button)
+    qtbot.waitUntil(lambda: cap.view.running, timeout=LONG)
+    assert not w.light.apply_button.isEnabled() and not w.light.on_button.isEnabled()
+    assert not w.devices.sphere_button.isEnabled() and not w.devices.camera_button.isEnabled()
+    assert not w.camera.capture_button.isEnabled()
+    w.cancel_action.trigger()
+    qtbot.waitUntil(lambda: cap.view.outcome != "", timeout=LONG)
+    wait_idle(qtbot, w)
+    assert w.light.apply_button.isEnabled() and w.devices.sphere_button.isEnabled()
+    assert w.camera.capture_button.isEnabled()

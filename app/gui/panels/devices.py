@@ -121,6 +121,8 @@ class DevicesPanel(QWidget):
         self.lab.virtualLabChanged.connect(self._virtual_changed)
         self.lab.sphereStatus.connect(self._sphere_status)
         self.lab.failed.connect(self._failed)
+        ctx.bus.sequenceStarted.connect(lambda _n: self._set_sequence_running(True))
+        ctx.bus.sequenceFinished.connect(lambda _n, _how: self._set_sequence_running(False))
         self.list_ports()
         self.camera_combo.addItem(VIRTUAL_CAMERA)
         last = ctx.get("devices/camera", "", str)
@@ -227,6 +229,15 @@ class DevicesPanel(QWidget):
                 self.camera_light.set_state("off", "not connected")
             self.camera_button.setText("Connect")
         self.camera_button.setEnabled(True)
+
+    def _set_sequence_running(self, running: bool) -> None:
+        """No connecting, disconnecting or placing while a sequence uses the devices."""
+        for w in (self.sphere_button, self.camera_button, self.place_button, self.virtual_button):
+            w.setEnabled(not running)
+        if not running:
+            self._sphere_changed()
+            self._camera_changed()
+            self._virtual_changed()
 
     # ------------------------------------------------------------------ folders
     def _show_folders(self) -> None:

@@ -190,6 +190,9 @@ class LightPanel(QWidget):
         self.lab.sphereChanged.connect(self._sphere_changed)
         self.lab.sphereStatus.connect(self.show_status)
         ctx.bus.presetsChanged.connect(self.reload_presets)
+        self._sequence_running = False
+        ctx.bus.sequenceStarted.connect(lambda _n: self._set_sequence_running(True))
+        ctx.bus.sequenceFinished.connect(lambda _n, _how: self._set_sequence_running(False))
         saved = ctx.get("light/levels", "", str)
         try:
             initial = [float(x) for x in saved.split(",")] if saved else [0.0] * N_SPHERE_LEDS
@@ -246,11 +249,16 @@ class LightPanel(QWidget):
         self.lab.apply_light(self.current_light())
 
     # ------------------------------------------------------------------ status
+    def _set_sequence_running(self, running: bool) -> None:
+        """A sequence owns the sphere while it runs: the manual controls wait."""
+        self._sequence_running = running
+        self._sphere_changed()
+
     def _sphere_changed(self) -> None:
-        connected = self.lab.sphere is not None
+        connected = self.lab.sphere is not None and not getattr(self, "_sequence_running", False)
         for w in (self.apply_button, self.on_button, self.off_button, self.apply1, self.apply2):
             w.setEnabled(connected)
-        if not connected:
+        if self.lab.sphere is None:
             self.state_label.setText("sphere not connected: connect it in Devices")
             self.on_time_label.setText("on-time: —")
             self.temp_label.setText("temperature: —")
