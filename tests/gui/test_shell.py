@@ -155,3 +155,21 @@ def test_simulation_cancel(qtbot, make_window):
     assert sim.result is None
     assert "cancel" in sim.status.text()
     assert sim.run_button.isEnabled()
+
+
+@pytest.mark.parametrize("method", ["ga", "three-channel"])
+def test_simulate_other_methods(qtbot, make_window, method):
+    w = make_window()
+    sim = w.simulate
+    sim.method.setCurrentText(method)
+    sim.iterations.setValue(2)
+    sim.population.setValue(10)
+    sim.start()
+    qtbot.waitUntil(lambda: sim.result is not None, timeout=120000)
+    wait_idle(qtbot, w)
+    assert sim.result.method == method
+    assert "baseline" in sim.status.text()
+    if method == "ga":
+        assert sim.live and sim.table.rowCount() > 0 and sim.save_button.isEnabled()
+    else:
+        assert sim.table.rowCount() == 0 and not sim.save_button.isEnabled()
