@@ -262,3 +262,29 @@ def test_manual_controls_wait_while_a_sequence_runs(qtbot, make_window):
     wait_idle(qtbot, w)
     assert w.light.apply_button.isEnabled() and w.devices.sphere_button.isEnabled()
     assert w.camera.capture_button.isEnabled()
+
+
+@pytest.mark.timeout(300)
+def test_crf_sweep_flags_plotted(qtbot, make_window):
+    w = make_window(frame_size=(120, 80))
+    w.lab.start_virtual_lab()
+    wait_idle(qtbot, w)
+    w.capture.new_session()
+    qtbot.waitUntil(lambda: w.lab.session is not None, timeout=LONG)
+    ch = w.characterise
+    ch.levels.setText("1")
+    ch.levels.editingFinished.emit()
+    ch.min_t.setValue(1 / 1000)
+    ch.max_t.setValue(0.2)
+    w.ctx.set("capture/settle_s", 0.05)
+    ch.update_plan()
+    assert ch.view.table.rowCount() > 5
+    click(qtbot, ch.view.start_button)
+    qtbot.waitUntil(lambda: ch.view.outcome != "", timeout=LONG)
+    wait_idle(qtbot, w)
+    assert ch.view.outcome == "done", w.errors.history
+    summary = ch.sweep.summary()
+    assert summary["linear_limit_dn"] and 9000 < summary["linear_limit_dn"] < 15520
+    assert "linear limit" in ch.result_label.text()
+    assert ch.res_plot.listDataItems()
+    assert not w.lab.virtual_lab.emulator.snapshot().light_on

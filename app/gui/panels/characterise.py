@@ -80,7 +80,8 @@ class CharacterisePanel(QWidget):
         self.crf_plot.addLegend(offset=(10, 10))
         self.res_plot = plot_widget("linearity", "exposure time (s)", "deviation from the line (%)",
                                     "How far each point lies from the straight line through the origin; shutter "
-                                    "'bumps' stand out (appendix A).")
+                                    "'bumps' stand out (appendix A). Red rings: flagged exposure times; dotted "
+                                    "lines: changepoints found in the residuals.")
         self.res_plot.setLogMode(x=True, y=False)
         self.res_plot.addLegend(offset=(10, 10))
         plots = QSplitter(Qt.Vertical)
@@ -198,6 +199,9 @@ class CharacterisePanel(QWidget):
             inside = np.asarray(res.signal_dn) <= res.linear_limit_dn
             self.res_plot.plot(t[inside], rel[inside], pen=pg.mkPen(pen, width=1), symbol="o", symbolSize=5,
                                symbolBrush=pen, name=f"level {lv:g}")
+            for cp in res.changepoints:                         # where the residuals change level (PELT)
+                self.res_plot.addItem(pg.InfiniteLine(np.log10(cp), angle=90,
+                                                      pen=pg.mkPen(pen, width=1, style=Qt.DotLine)))
             flagged = np.isin(t, res.flagged)
             if flagged.any():
                 self.res_plot.plot(t[flagged], rel[flagged], pen=None, symbol="o", symbolSize=12,
