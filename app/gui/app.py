@@ -79,7 +79,6 @@ def run(virtual_lab: bool = False, screenshot_dir: Optional[Path] = None,
 
     if screenshot_dir is not None:
         from app.gui.screenshots import ScreenshotRun
-        from app.gui.context import default_settings
         from PySide6.QtCore import QSettings
         import tempfile
 

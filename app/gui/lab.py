@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import logging
 import time
-from pathlib import Path
 from typing import Any, Callable, Optional
 
 from PySide6.QtCore import QObject, QTimer, Signal

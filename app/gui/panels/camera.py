@@ -9,8 +9,8 @@ from typing import Optional
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QGroupBox, QHBoxLayout, QLabel, QPushButton,
-                               QSplitter, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QGroupBox, QLabel, QPushButton, QSplitter,
+                               QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
 from app.gui.viewmodel import LINEAR_LIMIT_DN, RawView, preview_histogram, raw_view

@@ -14,7 +14,7 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFileDialog
 
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
-from app.sequences.base import PlannedFrame, Sequence
+from app.sequences.base import Sequence
 from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure, exposure_key
 from app.sequences.capture import TargetCapture
 from app.sequences.hdr import HdrPlan, plan_hdr
@@ -469,5 +469,3 @@ class _PlanOnlyShooter:
     def check_light_time(self, exposure_s: float) -> None:
         Shooter.check_light_time(self, exposure_s)  # type: ignore[arg-type]
 
-
-__all__ = ["CapturePanel", "PlannedFrame"]
