@@ -5,7 +5,7 @@ presets from the optimiser (exhaustive = dual-RGB, PSO = dual-RGB-PSO, NNLS D65 
 the ND-covered target) -> dark series at every exposure -> open-gate flats -> train and test captures ->
 master darks, eq 7.1 flat field / eq 8.9 HDR merge -> per-light superpixel images stacked to N channels ->
 patch means (PatchGrid on the target's corners) -> characterisation (least squares and dE00-optimised) ->
-report.json (+ figures and TIFF outputs where app.processing provides them).
+report.json, and per condition a folder with its report.json, PNG figures and the test target's TIFFs.
 """
 from __future__ import annotations
 
@@ -18,17 +18,18 @@ from typing import Optional
 
 import numpy as np
 
-from app.processing.calibration import FlatField, MasterDark
 from app.processing.characterise import characterise
-from app.processing.hdr import HdrMerge
-from app.processing.mosaic import superpixel
+from app.processing.outputs import write_image_outputs
 from app.processing.patches import PatchGrid
+from app.processing.pipeline import CaptureProcessor, ExposureRef
+from app.processing.report import TargetData, build_report
 from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure, exposure_key
 from app.sequences.capture import TargetCapture
 from app.sequences.hdr import HdrPlan, plan_hdr
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession
 from app.virtual_lab import VirtualLab
+from simulation.camera_model import channel_responses
 from simulation.colorimetry import tristimulus, white_point
 from simulation.lightsource import LightSource
 from simulation.objective import ErrorStats, Evaluator
@@ -183,60 +184,19 @@ class DemoRun:
         report(self.progress, 1.0, f"report written: {s.out / 'report.json'}")
         return report_data
 
-    # ---- processing ----
+    # ---- processing (the shared pipeline: app.processing) ----
     def process(self, conds: list[Condition]) -> dict:
-        session, shooter = self.session, self.shooter
-        darks = MasterDark()
-        by_t: dict[str, list] = {}
-        for e in session.entries("dark"):
-            by_t.setdefault(exposure_key(e.exposure_s), []).append(e)
-        for key, entries in by_t.items():
-            darks.add(entries[0].exposure_s, [shooter.frame(e) for e in entries])
-        shooter.forget()
-        white_level = float(shooter.frame(session.entries("dark")[0]).white_level)
-
-        def mean_mosaic(entries) -> np.ndarray:
-            acc = None
-            for e in entries:
-                m = shooter.frame(e).mosaic.astype(np.float32)
-                acc = m if acc is None else acc + m
-            shooter.forget()
-            return acc / len(entries)
-
-        whites: dict[tuple[str, str], np.ndarray] = {}          # (light, exposure key) -> mean raw white
+        session = self.session
+        refs = lambda entries: [ExposureRef(session.file_path(e), float(e.exposure_s), e.file) for e in entries]
+        proc = CaptureProcessor(dark_frames=refs(session.entries("dark")))
+        flats: dict[str, list] = {}
         for e in session.entries("flat"):
-            key = (e.meta.get("light_name"), exposure_key(e.exposure_s))
-            whites.setdefault(key, [])
-            whites[key].append(e)
-        white_raw = {k: mean_mosaic(v) for k, v in whites.items()}
-
-        def radiance(frames_t: list[tuple[np.ndarray, float]]) -> np.ndarray:
-            merge = HdrMerge(white_level)
-            for mosaic, t in frames_t:
-                merge.add(mosaic, t, darks.get(t))
-            return merge.result().radiance
-
-        def white_for(light: str, ts: list[float]) -> FlatField:
-            return FlatField(radiance([(white_raw[(light, exposure_key(t))], t) for t in ts]))
-
-        def target_values(condition: str, target: str, nd: bool, lights: list[NamedLight],
-                          ts: dict[str, list[float]]) -> tuple[np.ndarray, np.ndarray]:
-            scene = self.lab.scene_for(target, nd=nd)
-            grid = _grid(scene, scene.layout).scaled(0.5)
-            chans = []
-            for nl in lights:
-                frames = []
-                for t in ts[nl.name]:
-                    e = session.entry(f"target/{condition}/{target}/{'nd' if nd else 'plain'}/{nl.name}/{exposure_key(t)}")
-                    frames.append((shooter.frame(e).mosaic, t))
-                img = white_for(nl.name, ts[nl.name]).apply(radiance(frames))
-                shooter.forget()
-                chans.append(superpixel(img, "RGGB"))
-            stack = np.concatenate(chans, axis=2)
-            vals = grid.sample(stack).mean[:scene.n_patches]
-            return vals, scene.nd_patches()
-
+            flats.setdefault(e.meta.get("light_name"), []).append(e)
+        for light, entries in flats.items():
+            check(self.cancel)
+            proc.set_white(light, refs(entries))
         setup = self.lab.setup
+        white = white_point(setup.illuminant, setup.cmfs)
         out: dict = {}
         for c in conds:
             check(self.cancel)
@@ -247,32 +207,51 @@ class DemoRun:
                 variants += [("hdr_" + c.name, "hdr_" + c.name, True, full),
                              ("single_" + c.name, "hdr_" + c.name, True, base)]
             for label, cond_key, nd, ts in variants:
-                tr_vals, tr_nd = target_values(cond_key, "train", nd, c.lights, ts)
-                te_vals, te_nd = target_values(cond_key, "test", nd, c.lights, ts)
-                scale = {"train": np.where(tr_nd, 0.01, 1.0), "test": np.where(te_nd, 0.01, 1.0)}
-                xyz = {t: tristimulus(self.lab.target(t).spectra * scale[t][:, None], setup.illuminant, setup.cmfs)
-                       for t in ("train", "test")}
-                white = white_point(setup.illuminant, setup.cmfs)
-                ch = characterise(tr_vals, xyz["train"], white, te_vals, xyz["test"],
-                                  channels=[f"{b}{i}" for i in range(1, len(c.lights) + 1) for b in "RGB"],
-                                  optimise=self.s.optimise_matrix)
+                data, stacks = {}, {}
+                for target in ("train", "test"):
+                    scene = self.lab.scene_for(target, nd=nd)
+                    frames = {nl.name: [session.entry(f"target/{cond_key}/{target}/{'nd' if nd else 'plain'}/"
+                                                      f"{nl.name}/{exposure_key(t)}") for t in ts[nl.name]]
+                              for nl in c.lights}
+                    stack = proc.stack({n: refs(v) for n, v in frames.items()}, cancel=self.cancel)
+                    grid = _grid(scene, scene.layout).scaled(0.5)
+                    values = grid.sample(stack.data).mean[:scene.n_patches]
+                    nd_mask = scene.nd_patches()
+                    scale = np.where(nd_mask, scene.nd_transmittance, 1.0)   # ground truth includes the filter
+                    xyz = tristimulus(self.lab.target(target).spectra * scale[:, None], setup.illuminant, setup.cmfs)
+                    data[target] = (TargetData(list(self.lab.target(target).patch_names), xyz, values,
+                                               self.lab.target(target).layout, f"{target} ({label})"), nd_mask)
+                    stacks[target] = stack
+                ch = characterise(data["train"][0].values, data["train"][0].xyz, white, data["test"][0].values,
+                                  data["test"][0].xyz, channels=stacks["train"].channels,
+                                  optimise=self.s.optimise_matrix, cancel=self.cancel)
+                folder = self.s.out / label
+                rep = build_report(folder, ch, data["train"][0], data["test"][0],
+                                   simulated_train=self._simulated_values(c, data["train"][1]),
+                                   title=f"{label} ({self.s.mode}, virtual lab)")
+                write_image_outputs(folder, stacks["test"].data, stacks["test"].channels, ch.matrix, white,
+                                    prefix="test_target", cancel=self.cancel)
                 best = ch.results[ch.best]
                 entry = {"train": best.train.to_dict(), "test": best.test.to_dict(), "simulated": c.simulated,
                          "matrix_method": ch.best,
                          "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
-                         "lights": [{"name": nl.name, **nl.light.to_dict(),
-                                     "exposures_s": ts[nl.name]} for nl in c.lights]}
+                         "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]}
+                                    for nl in c.lights],
+                         "report": str(folder / "report.json"), "figures": rep.get("figures", [])}
                 if nd:
                     entry["nd_patches"] = {
-                        "train": ErrorStats.of(best.train_errors[tr_nd]).to_dict(),
-                        "test": ErrorStats.of(best.test_errors[te_nd]).to_dict()}
+                        "train": ErrorStats.of(best.train_errors[data["train"][1]]).to_dict(),
+                        "test": ErrorStats.of(best.test_errors[data["test"][1]]).to_dict()}
                     entry["hdr_plan"] = {n: p.to_dict() for n, p in c.hdr_plan.items()}
                 out[label] = entry
-                np.savez_compressed(self.s.out / f"patches_{label}.npz", train=tr_vals, test=te_vals,
-                                    train_xyz=xyz["train"], test_xyz=xyz["test"],
-                                    train_errors=best.train_errors, test_errors=best.test_errors,
-                                    matrix=best.matrix.matrix)
-        return {"conditions": out, **{k: v for k, v in out.items()}}
+        return {"conditions": out, **out}
+
+    def _simulated_values(self, c: Condition, nd_mask: np.ndarray) -> np.ndarray:
+        """Simulated camera values of the training patches under the condition's lights (thesis Fig 7.4)."""
+        setup = self.lab.setup
+        lights = np.stack([nl.light.spectrum(setup.leds) for nl in c.lights])
+        spectra = setup.train.spectra * np.where(nd_mask, 0.01, 1.0)[:, None]
+        return channel_responses(lights, spectra, setup.camera)
 
 
 def _json(obj):
