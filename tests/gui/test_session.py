@@ -239,6 +239,24 @@ def test_hdr_capture_of_the_nd_target(qtbot, make_window):
     times = {float(cap.view.table.item(r, 1).text().split()[0].replace("1/", "")) for r in
              range(cap.view.table.rowCount())}
     assert len(times) >= 3
+    # calibrate at every exposure and process the HDR capture (ND patches' reference scaled by the filter)
+    run_sequence(qtbot, w, "Dark series", frames=2)
+    run_sequence(qtbot, w, "Open-gate flats", frames=1)
+    tgt = w.target
+    qtbot.waitUntil(lambda: "hdr-nd:test" in tgt.subjects, timeout=LONG)
+    tgt.subject.setCurrentText("hdr-nd:test")
+    qtbot.waitUntil(lambda: "hdr-nd:test" in w.ctx.shared["grids"], timeout=LONG)
+    wait_idle(qtbot, w)
+    res = w.results
+    res.optimise.setChecked(False)
+    qtbot.waitUntil(lambda: res.train_subject.findText("hdr-nd:test") >= 0, timeout=LONG)
+    res.train_subject.setCurrentText("hdr-nd:test")
+    res.test_subject.setCurrentText("")
+    click(qtbot, res.process_button)
+    qtbot.waitUntil(lambda: res.result is not None or "failed" in res.status.text(), timeout=LONG)
+    wait_idle(qtbot, w)
+    assert res.result is not None, (res.status.text(), w.errors.history)
+    assert res.result.report["train"]["mean"] < 2.0
     assert w.errors.history == []
 
 

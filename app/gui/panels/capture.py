@@ -40,6 +40,7 @@ class CapturePanel(QWidget):
         self.lights: list[NamedLight] = []
         self.hdr_plans: dict[str, HdrPlan] = {}
         self.hdr_key: tuple[str, bool] = ("", False)
+        self.hdr_brackets: dict[str, set[float]] = {}     # every HDR exposure planned in this session, per light
 
         # ---- session ----
         sbox = QGroupBox("Session (every frame is saved here before the next one)")
@@ -166,6 +167,9 @@ class CapturePanel(QWidget):
 
     def _session_changed(self) -> None:
         s = self.lab.session
+        if s is not getattr(self, "_last_session", None):
+            self._last_session = s
+            self.hdr_brackets = {}
         self.session_label.setText(f"{s.path}  ({len(s.entries())} frames)" if s is not None else
                                    "no session: press New session")
         if s is not None:
@@ -256,11 +260,18 @@ class CapturePanel(QWidget):
         return out
 
     def all_exposures(self) -> dict[str, list[float]]:
-        """Per light: the single exposure plus any HDR bracket (darks and flats need all of them)."""
-        out = self.exposures()
-        for name, plan in self.hdr_plans.items():
-            out[name] = sorted(set(out.get(name, [])) | set(plan.exposures))
-        return out
+        """Per light: every exposure the captures use - the single exposure, the HDR brackets planned here and
+        whatever the session already holds for that light (darks and flats need all of them)."""
+        out = {name: set(ts) for name, ts in self.exposures().items()}
+        for name, ts in self.hdr_brackets.items():
+            out.setdefault(name, set()).update(ts)
+        session = self.lab.session
+        if session is not None:
+            for e in session.entries():
+                name = e.meta.get("light_name")
+                if e.role.startswith(("target", "hdr")) and e.role != "hdr-meter" and name in out and e.exposure_s:
+                    out[name].add(float(e.exposure_s))
+        return {name: sorted(ts) for name, ts in out.items()}
 
     # ------------------------------------------------------------------ building sequences
     def shooter(self) -> Shooter:
@@ -444,6 +455,8 @@ class CapturePanel(QWidget):
         def done(plans: dict[str, HdrPlan]) -> None:
             self.hdr_plans = plans
             self.hdr_key = (target, nd)
+            for name, plan in plans.items():
+                self.hdr_brackets.setdefault(name, set()).update(plan.exposures)
             self.hdr_label.setText("; ".join(
                 f"{n}: {', '.join(format_shutter(t) for t in p.exposures)} (range {p.dynamic_range:.0f}:1"
                 + (", limited by the light-on time" if p.limited_by_light_time else "") + ")"
