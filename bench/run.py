@@ -16,6 +16,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 BENCHES = {
     "simulation": ("bench.simulation_bench", "bench_simulation", {}),
     "virtual_camera": ("bench.virtual_camera", "bench_render", {}),
+    "processing": ("bench.processing_bench", "bench_processing", {}),
 }
 
 
