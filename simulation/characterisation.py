@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from simulation.fast_linalg import solve_spd
 
 log = logging.getLogger(__name__)
 
@@ -55,16 +54,18 @@ def _check_patches(n_patches: int, n_channels: int) -> None:
 
 
 def solve_normal_equations(CtC: np.ndarray, CtB: np.ndarray) -> np.ndarray:
-    """Rank-safe batched least squares from normal equations: CtC (P, n, n), CtB (P, n, 3) -> A (P, n, 3)."""
+    """Rank-safe batched least squares from normal equations: CtC (P, n, n), CtB (P, n, 3) -> A (P, n, 3).
+
+    Columns are equilibrated (unit diagonal) and RIDGE added; an all-zero channel gets a zero row. The same
+    rules as the optimisers' numba kernel (simulation.fast_linalg.fit_light_sets), with LAPACK, for callers
+    that solve a handful of systems at a time.
+    """
     d = np.einsum("pii->pi", CtC)
     s = np.where(d > 0, 1.0 / np.sqrt(np.where(d > 0, d, 1.0)), 0.0)
     M = CtC * s[:, :, None] * s[:, None, :]
     n = M.shape[1]
     M[:, np.arange(n), np.arange(n)] += RIDGE + (d <= 0)
-    rhs = CtB * s[:, :, None]
-    out = np.empty_like(rhs)
-    solve_spd(np.ascontiguousarray(M), np.ascontiguousarray(rhs), out)
-    return out * s[:, :, None]
+    return np.linalg.solve(M, CtB * s[:, :, None]) * s[:, :, None]
 
 
 def fit_matrix(values: np.ndarray, xyz: np.ndarray, channels: list[str] | None = None) -> CharacterisationMatrix:

@@ -1,8 +1,9 @@
-"""Batched solve of many small symmetric positive-definite systems (numba).
+"""Batched characterisation of many light sets at once (numba): normal equations from Gram matrices,
+equilibration + ridge, Cholesky, and the map back onto per-LED responses, fused per item.
 
 Why hand-written: the optimisers fit one 6x6 characterisation per particle, ~1.4e6 per thesis-scale PSO
-sweep; ``numpy.linalg.solve`` on a (P, 6, 6) stack costs ~0.9 us per system in LAPACK call overhead, this
-Cholesky costs ~0.05 us. Inputs are ridge-regularised and equilibrated by the caller, so they are SPD.
+sweep; ``numpy.linalg.solve`` on a (P, 6, 6) stack costs ~0.9 us per system in LAPACK call overhead alone,
+this kernel ~0.6 us for the whole fit. The systems are ridge-regularised and equilibrated, so they are SPD.
 """
 from __future__ import annotations
 
@@ -10,36 +11,6 @@ import math
 
 import numpy as np
 from numba import njit, prange
-
-
-@njit(error_model="numpy", parallel=True, cache=True)
-def solve_spd(M, B, out):
-    """out[p] = inv(M[p]) @ B[p] for SPD M (P, n, n) and B (P, n, m), by Cholesky."""
-    P, n, _ = M.shape
-    m = B.shape[2]
-    for p in prange(P):
-        L = np.zeros((n, n))
-        for i in range(n):
-            for j in range(i + 1):
-                s = M[p, i, j]
-                for k in range(j):
-                    s -= L[i, k] * L[j, k]
-                if i == j:
-                    L[i, i] = math.sqrt(s) if s > 0.0 else 1e-300
-                else:
-                    L[i, j] = s / L[j, j]
-        for c in range(m):
-            y = np.empty(n)
-            for i in range(n):
-                s = B[p, i, c]
-                for k in range(i):
-                    s -= L[i, k] * y[k]
-                y[i] = s / L[i, i]
-            for i in range(n - 1, -1, -1):
-                s = y[i]
-                for k in range(i + 1, n):
-                    s -= L[k, i] * out[p, k, c]
-                out[p, i, c] = s / L[i, i]
 
 
 @njit(error_model="numpy", parallel=True, cache=True)

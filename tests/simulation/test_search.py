@@ -127,3 +127,21 @@ def test_light_source_validation():
     s = LightSource((1, 6, 8), (0.1, 0.5, 1.0))
     assert s.weights()[[0, 5, 7]].tolist() == [0.1, 0.5, 1.0]
     assert LightSource.from_dict(s.to_dict()) == s
+
+
+def test_batched_normal_equations_agree_with_the_kernel_and_lstsq(reflective):
+    from simulation.characterisation import solve_normal_equations
+    rng = np.random.default_rng(5)
+    W = np.zeros((4, 2, 10))
+    W[:, 0, [0, 5, 7]] = rng.random((4, 3)) + 0.2
+    W[:, 1, [2, 4, 8]] = rng.random((4, 3)) + 0.2
+    W[3, 1] = 0.0                                            # one light off: zero channels
+    C = reflective.train.camera_values(W)                    # (4, n, 6)
+    A = solve_normal_equations(C.transpose(0, 2, 1) @ C, C.transpose(0, 2, 1) @ reflective.train.xyz)
+    idx = np.broadcast_to(np.arange(10), (4, 2, 10))
+    _, A_kernel = reflective.fit_indexed(idx, W)
+    for p in range(3):
+        ref = np.linalg.lstsq(C[p], reflective.train.xyz, rcond=None)[0]
+        assert np.allclose(A[p], ref, rtol=1e-5, atol=1e-6 * np.abs(ref).max())
+    assert np.allclose(A, A_kernel, rtol=1e-6, atol=1e-9)
+    assert np.allclose(A[3, 3:], 0.0) and np.isfinite(A).all()
