@@ -84,7 +84,8 @@ def run(virtual_lab: bool = False, screenshot_dir: Optional[Path] = None,
 
         tmp = Path(tempfile.mkdtemp(prefix="dualrgb-screens-"))
         settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.IniFormat)
-        window = MainWindow(settings, frame_size=(300, 200), show_dialogs=False)
+        # the virtual D610's shutter bumps on, so the Characterise picture shows what the sweep flags
+        window = MainWindow(settings, frame_size=(300, 200), show_dialogs=False, shutter_bumps=True)
         window.resize(1400, 900)
         window.show()
         run_ = ScreenshotRun(window, Path(screenshot_dir), tmp)

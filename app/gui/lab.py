@@ -52,12 +52,14 @@ class Lab(QObject):
     message = Signal(str)                  # one line for the status bar
 
     def __init__(self, runner: TaskRunner, parent: Optional[QObject] = None,
-                 frame_size: tuple[int, int] = (600, 400), mode: str = "reflective", seed: int = 0):
+                 frame_size: tuple[int, int] = (600, 400), mode: str = "reflective", seed: int = 0,
+                 shutter_bumps: bool = False):
         super().__init__(parent)
         self.runner = runner
         self.frame_size = frame_size
         self.mode = mode
         self.seed = seed
+        self.shutter_bumps = shutter_bumps         # virtual lab: the D610's exposure-time bumps (appendix A)
         self.virtual_lab: Any = None
         self.sphere: Optional[LedSphere] = None
         self.sphere_port: str = ""
@@ -91,7 +93,7 @@ class Lab(QObject):
     def _ensure_virtual_lab(self) -> Any:      # devices thread
         if self.virtual_lab is None:
             from app.virtual_lab import VirtualLab
-            lab = VirtualLab(mode=self.mode, frame_size=self.frame_size, seed=self.seed)
+            lab = VirtualLab(mode=self.mode, frame_size=self.frame_size, seed=self.seed, bumps=self.shutter_bumps)
             lab.start()
             self.virtual_lab = lab
             log.info("virtual lab started: sphere emulator on %s, %dx%d frames", lab.port, *self.frame_size)

@@ -35,13 +35,13 @@ PANEL_TITLES = {"devices": "Devices", "light": "Light source", "camera": "Camera
 
 class MainWindow(QMainWindow):
     def __init__(self, settings: Optional[QSettings] = None, *, frame_size: tuple[int, int] = (600, 400),
-                 show_dialogs: bool = True):
+                 show_dialogs: bool = True, shutter_bumps: bool = False):
         super().__init__()
         self.setWindowTitle("dualrgb — dual-RGB copy stand")
         self.runner = TaskRunner(self)
         self.errors = ErrorReporter(self)
         self.errors.show_dialogs = show_dialogs
-        self.lab = Lab(self.runner, self, frame_size=frame_size)
+        self.lab = Lab(self.runner, self, frame_size=frame_size, shutter_bumps=shutter_bumps)
         self.ctx = AppContext(self.runner, self.lab, settings or default_settings(), self.errors, Bus(self))
         self.lab.failed.connect(lambda title, exc: self.errors.report(title, exc))
         self._closing = False
@@ -80,6 +80,7 @@ class MainWindow(QMainWindow):
         self.lab.cameraChanged.connect(self._devices_changed)
         self.lab.sphereStatus.connect(self._sphere_status)
         self.runner.busyChanged.connect(self._busy_changed)
+        self.ctx.bus.sequenceFinished.connect(lambda *_: self.lab.poll_status())   # show the lights off at once
         self.errors.shown.connect(lambda title, msg: self.statusBar().showMessage(f"{title}: {msg}", 15000))
         self._devices_changed()
 
