@@ -306,3 +306,39 @@ def test_crf_sweep_flags_plotted(qtbot, make_window):
     assert "linear limit" in ch.result_label.text()
     assert ch.res_plot.listDataItems()
     assert not w.lab.virtual_lab.emulator.snapshot().light_on
+
+
+@pytest.mark.timeout(300)
+def test_transmissive_virtual_lab(qtbot, make_window):
+    w = make_window(frame_size=(160, 108))
+    w.devices.mode_combo.setCurrentText("transmissive")
+    assert w.ctx.settings.value("virtual/mode") == "transmissive"
+    w.lab.start_virtual_lab()
+    wait_idle(qtbot, w)
+    assert w.lab.virtual_lab.mode == "transmissive" and not w.devices.mode_combo.isEnabled()
+    cap = w.capture
+    cap.new_session()
+    qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)
+    cap.choose_preset("dual-RGB transmissive")
+    cap.settle.setValue(0.05)
+    click(qtbot, cap.auto_button)
+    wait_idle(qtbot, w)
+    run_sequence(qtbot, w, "Dark series", frames=2)
+    run_sequence(qtbot, w, "Open-gate flats", frames=1)
+    run_sequence(qtbot, w, "Dual-RGB capture", target=1)
+    tgt = w.target
+    qtbot.waitUntil(lambda: "target:test" in tgt.subjects, timeout=LONG)
+    tgt.subject.setCurrentText("target:test")
+    qtbot.waitUntil(lambda: "target:test" in w.ctx.shared["grids"], timeout=LONG)
+    wait_idle(qtbot, w)
+    res = w.results
+    res.optimise.setChecked(False)
+    qtbot.waitUntil(lambda: res.train_subject.findText("target:test") >= 0, timeout=LONG)
+    res.train_subject.setCurrentText("target:test")
+    res.test_subject.setCurrentText("")
+    click(qtbot, res.process_button)
+    qtbot.waitUntil(lambda: res.result is not None or "failed" in res.status.text(), timeout=LONG)
+    wait_idle(qtbot, w)
+    assert res.result is not None, (res.status.text(), w.errors.history)
+    assert "film" in res.views["train"].label.lower() or "cc24" in res.views["train"].label.lower()
+    assert res.result.report["train"]["mean"] < 3.0

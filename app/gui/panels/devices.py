@@ -84,10 +84,18 @@ class DevicesPanel(QWidget):
         self.place_button.setToolTip("Put the chosen object on the virtual copy stand.")
         self.place_button.clicked.connect(self._place)
         self.virtual_label = QLabel("not started")
+        self.mode_combo = QComboBox()
+        self.mode_combo.addItems(["reflective", "transmissive"])
+        self.mode_combo.setToolTip("Reflective: prints and paintings on the stand; transmissive: film on the light "
+                                   "box (chooses the virtual lab's targets and the reference data).")
+        self.mode_combo.setCurrentText(ctx.get("virtual/mode", "reflective", str))
+        self.lab.mode = self.mode_combo.currentText()
+        self.mode_combo.currentTextChanged.connect(self._mode_changed)
+        vg.addWidget(self.mode_combo, 0, 3)
         vg.addWidget(self.virtual_button, 0, 0)
         vg.addWidget(self.place_combo, 0, 1)
         vg.addWidget(self.place_button, 0, 2)
-        vg.addWidget(self.virtual_label, 1, 0, 1, 3)
+        vg.addWidget(self.virtual_label, 1, 0, 1, 4)
 
         # ---- folders ----
         fbox = QGroupBox("Folders")
@@ -261,11 +269,16 @@ class DevicesPanel(QWidget):
         _label, what, nd = PLACES[self.place_combo.currentIndex()]
         self.lab.place(what, nd, on_done=self._virtual_changed)
 
+    def _mode_changed(self, mode: str) -> None:
+        self.ctx.set("virtual/mode", mode)
+        self.lab.mode = mode
+
     def _virtual_changed(self) -> None:
         vl = self.lab.virtual_lab
         running = vl is not None
         self.place_button.setEnabled(running)
         self.virtual_button.setEnabled(not running)
+        self.mode_combo.setEnabled(not running)         # the lab's targets are chosen when it starts
         if running:
             self.virtual_label.setText(f"running: sphere emulator on {vl.port}, {vl.width}x{vl.height} frames, "
                                        f"on the stand: {vl.placed or 'nothing'}")

@@ -69,7 +69,8 @@ def reference_xyz(lab, subject: str, entries_meta: list[dict]) -> tuple[np.ndarr
     tag = subject.partition(":")[2]
     if tag not in ("train", "test"):
         raise ValueError(f"{subject}: no reference data for it (only the training and test targets have them)")
-    setup = default_setup(lab.mode)
+    mode = lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode
+    setup = default_setup(mode)
     target = getattr(setup, tag)
     spectra = target.spectra
     if any(m.get("nd") for m in entries_meta) and lab.virtual_lab is not None:

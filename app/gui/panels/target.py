@@ -163,7 +163,7 @@ class TargetPanel(QWidget):
             return vl.scene_for(self.tag()).layout
         from simulation.datasets import default_setup
         if self.tag() in ("train", "test"):
-            target = getattr(default_setup(self.lab.mode), self.tag())
+            target = getattr(default_setup(self.lab.mode), self.tag())    # no virtual lab: the chosen mode
             return layout_for(len(target), target.layout)
         return layout_for(n_default)
 
