@@ -173,3 +173,18 @@ def test_simulate_other_methods(qtbot, make_window, method):
         assert sim.live and sim.table.rowCount() > 0 and sim.save_button.isEnabled()
     else:
         assert sim.table.rowCount() == 0 and not sim.save_button.isEnabled()
+
+
+def test_study_charts_listed(qtbot, make_window):
+    from app.gui.panels.simulate import FIGURES_DIR
+
+    w = make_window()
+    sim = w.simulate
+    sim.right_tabs.setCurrentIndex(1)
+    wait_idle(qtbot, w)
+    pngs = sorted(FIGURES_DIR.glob("*.png")) if FIGURES_DIR.is_dir() else []
+    assert sim.figure_combo.count() == len(pngs)
+    if pngs:
+        assert sim.figure_label.pixmap() is not None and not sim.figure_label.pixmap().isNull()
+    else:
+        assert "dualrgb study" in sim.figures_info.text()
