@@ -54,7 +54,9 @@ def analyse_crf(exposures: Sequence[float], signal: Sequence[float], *, min_sign
     within = (np.abs(rel) <= tolerance) & (s > min_signal)
     above = np.nonzero(~within & (s > fit_below))[0]
     limit = float(s[above[0] - 1]) if len(above) and above[0] > 0 else float(s[within].max())
-    region = (s > min_signal) & (s <= limit)
+    # bumps are looked for where the sensor is clearly linear: between the knee onset and the limit the
+    # compressive response would be flagged as a shutter fault
+    region = (s > min_signal) & (s <= min(limit, fit_below))
     flagged: set[float] = set()
     cps: list[float] = []
     r = rel[region]

@@ -272,9 +272,11 @@ def _sample_target(proc: CaptureProcessor, spec: TargetSpec, subjects, progress,
         if det is None:
             raise ValueError(f"{spec.subject}: no patch grid given and no chart detected; place the grid by hand")
         grid = det.grid
-    if grid.n_patches != len(spec.names):
-        raise ValueError(f"{spec.subject}: the grid has {grid.n_patches} cells but the target {len(spec.names)} patches")
-    values = grid.sample(stack.data).mean
+    # patches fill the grid row by row; a partly filled last row is fine (190 patches on 12 x 17 cells)
+    if not len(spec.names) <= grid.n_patches < len(spec.names) + grid.cols:
+        raise ValueError(f"{spec.subject}: the grid has {grid.n_patches} cells ({grid.rows} x {grid.cols}) but the "
+                         f"target {len(spec.names)} patches")
+    values = grid.sample(stack.data).mean[:len(spec.names)]
     return values, stack.channels
 
 

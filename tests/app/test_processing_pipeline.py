@@ -136,3 +136,24 @@ def test_cancel_stops_processing(session_dir, tmp_path):
         process_session(CaptureSession.open(path), tmp_path / "out", spec(setup, "train", layouts, ev),
                         progress=progress, cancel=tok)
     assert not (tmp_path / "out" / "report.json").exists()
+
+
+def test_partly_filled_last_grid_row_is_accepted_and_a_wrong_grid_is_not():
+    from app.processing.patches import PatchGrid
+    from app.processing.pipeline import ChannelStack, TargetSpec, _sample_target
+
+    class FakeProcessor:
+        def stack(self, scenes, progress=None, cancel=None):
+            data = np.zeros((40, 50, 3), np.float32)
+            data[..., 0] = np.arange(50)[None, :]                      # column index as the value
+            return ChannelStack(data, ["R1", "G1", "B1"], ["LS1"])
+
+    subjects = {"target:t": {"LS1": []}}
+    grid = PatchGrid(np.array([[0, 0], [49, 0], [49, 39], [0, 39]], float), 4, 5)
+    spec = TargetSpec("target:t", np.ones((18, 3)), [f"p{i}" for i in range(18)], grid=grid)
+    values, _ = _sample_target(FakeProcessor(), spec, subjects, None, None)
+    assert values.shape == (18, 3)                                      # 18 patches on 4 x 5 cells
+    assert values[0, 0] < values[4, 0]                                  # row-major: patch 4 is the last column
+    bad = TargetSpec("target:t", np.ones((12, 3)), [f"p{i}" for i in range(12)], grid=grid)
+    with pytest.raises(ValueError, match="20 cells"):
+        _sample_target(FakeProcessor(), bad, subjects, None, None)

@@ -141,3 +141,12 @@ def test_session_reopens_after_the_lab_is_gone(shooter, lab, tmp_path):
     list(DarkSeries(shooter, [1 / 100], frames=2).run())
     reopened = CaptureSession.open(shooter.session.path)
     assert len(reopened.entries("dark")) == 2 and reopened.verify().valid
+
+
+def test_crf_without_bumps_flags_nothing(lab, tmp_path):
+    lab.camera.bumps_enabled = False
+    session = CaptureSession.create(tmp_path / "nb", {})
+    shooter = Shooter(lab.camera, lab.sphere, session, stand=lab.place, safety=SafetySettings(settle_s=0.0))
+    seq = CrfSweep(shooter, LightSource((2, 5, 9)), levels=(1.0, 0.25))
+    summary = list(seq.run())[-1].data["result"]
+    assert summary["flagged_exposures"] == []                  # the knee onset is not a shutter bump
