@@ -44,7 +44,8 @@ def _common(p: argparse.ArgumentParser, name: str, scheduler_default: str = "ser
     p.add_argument("--train-csv", help="measured training target spectra")
     p.add_argument("--test-csv", help="measured test target spectra")
     p.add_argument("--scheduler", default=scheduler_default,
-                   help=f"'serial', 'local' (Dask LocalCluster) or a Dask scheduler address (default {scheduler_default})")
+                   help=f"'serial', 'local' (Dask LocalCluster) or a Dask scheduler address "
+                        f"(default {scheduler_default})")
     p.add_argument("--workers", type=_positive, default=2, help="LocalCluster worker processes (default 2)")
 
 

@@ -22,7 +22,7 @@ import datetime as _dt
 import json
 import logging
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from typing import Optional
 
 import numpy as np
@@ -149,7 +149,7 @@ def models_and_exposures(spec: SetupSpec, cfg: ParsimonyConfig, cancel=None, pro
               "criterion": "captured test mean dE00 (worst over the light sets)", "scores": worst,
               "best": best, "chosen": MODELS[idx]}
     # --- exposures: ND 2.0 over half the patches, brackets of 1..4 exposures
-    nd = {"train": _nd(len(ev.setup.train), cfg.nd_transmittance), "test": _nd(len(ev.setup.test), cfg.nd_transmittance)}
+    nd = {key: _nd(len(t), cfg.nd_transmittance) for key, t in (("train", ev.setup.train), ("test", ev.setup.test))}
     erows = []
     for k, n_exp in enumerate(cfg.exposures):
         check(cancel)
@@ -295,10 +295,12 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     lines = [f"Setup: {result.spec.label()}; tolerance {result.config.tolerance} mean dE00; total "
              f"{result.elapsed_s:.0f} s.", "", "## Spectral step", "",
              "| step nm | exhaustive pair | on 1 nm (train) | own estimate | PSO on 1 nm | own estimate | "
-             "full-intensity max diff vs 1 nm | deviation | acceptable |", "|---:|---|---:|---:|---:|---:|---:|---:|---|"]
+             "full-intensity max diff vs 1 nm | deviation | acceptable |",
+             "|---:|---|---:|---:|---:|---:|---:|---:|---|"]
     for r in s["rows"]:
         lines.append(f"| {r['step_nm']:g} | {r['exhaustive']['pair']} | {r['exhaustive']['ref_train']:.4f} | "
-                     f"{r['exhaustive']['own_train']:.4f} | {r['pso']['ref_train']:.4f} | {r['pso']['own_train']:.4f} | "
+                     f"{r['exhaustive']['own_train']:.4f} | {r['pso']['ref_train']:.4f} | "
+                     f"{r['pso']['own_train']:.4f} | "
                      f"{r['full_intensity_vs_ref']['max_abs_diff']:.4f} | {r['deviation']:.4f} | {r['acceptable']} |")
     lines += ["", f"Chosen step: **{s['chosen_nm']:g} nm**; the 10 nm default is "
               f"{'justified' if s['default_10nm_justified'] else 'NOT justified'} at this tolerance.", "",

@@ -13,10 +13,9 @@ Pareto front), ``convergence.png`` (best-so-far error vs evaluations, median and
 from __future__ import annotations
 
 import logging
-import math
 import time
 import warnings
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import Any, Optional
 
 import numpy as np

@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
 import numpy as np
@@ -31,16 +31,15 @@ from simulation.characterisation import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
 from simulation.ga import GaSettings
-from simulation.lightsource import LightSource
 from simulation.objective import Evaluator
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
 from simulation.search import Candidate, exhaustive, light_pairs, refine_top
 from simulation.spectral_io import read_spectral_csv
-from simulation.studies.distributed import Runner, SerialRunner
 from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread, new_figure
+from simulation.studies.distributed import Runner, SerialRunner
 from simulation.studies.noise import CameraNoise, NoiseAwareEvaluator, NoiseModel, thesis_exposures_check
-from simulation.studies.optimisers import LABELS, DeSettings, HalvingSettings, LbfgsSettings, PyswarmsSettings
+from simulation.studies.optimisers import DeSettings, HalvingSettings, LbfgsSettings, PyswarmsSettings
 from simulation.studies.speed_accuracy import Config, RunTask, run_task
 
 log = logging.getLogger(__name__)
@@ -542,15 +541,18 @@ def write_outputs(result: StabilityResult, out: StudyOutput) -> None:
               f"{na['expected_train']:.4f} | {na['captured_train']:.4f} ± {na['captured_train_sd']:.4f} | "
               f"{na['captured_test']:.4f} |", "",
               f"Mean |predicted - captured| over {len(n['candidates'])} candidates: noise-free "
-              f"{n['prediction_error']['noise_free_train']:.4f}, noise-aware {n['prediction_error']['expected_train']:.4f}; "
+              f"{n['prediction_error']['noise_free_train']:.4f}, "
+              f"noise-aware {n['prediction_error']['expected_train']:.4f}; "
               f"rank correlation with the captured error: noise-free "
               f"{_fmt(n['rank_correlation_with_captured']['noise_free_train'])}, noise-aware "
               f"{_fmt(n['rank_correlation_with_captured']['expected_train'])}."]
     if "lab_prediction_error" in n:
         lines += ["", "Virtual lab (drivers.virtual camera + app.processing, 600x400 frames, "
-                      f"{result.config.lab_repeats} captures per light set): noise-free optimum {nf['lab_train']:.4f} train / "
+                      f"{result.config.lab_repeats} captures per light set): noise-free optimum "
+                      f"{nf['lab_train']:.4f} train / "
                       f"{nf['lab_test']:.4f} test, noise-aware optimum {na['lab_train']:.4f} / {na['lab_test']:.4f}. "
-                      f"Mean |predicted - virtual lab|: noise-free {n['lab_prediction_error']['noise_free_train']:.4f}, "
+                      "Mean |predicted - virtual lab|: noise-free "
+                      f"{n['lab_prediction_error']['noise_free_train']:.4f}, "
                       f"noise-aware {n['lab_prediction_error']['expected_train']:.4f}; rank correlation: noise-free "
                       f"{_fmt(n['lab_rank_correlation']['noise_free_train'])}, noise-aware "
                       f"{_fmt(n['lab_rank_correlation']['expected_train'])}."]

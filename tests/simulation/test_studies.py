@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from simulation.datasets import default_setup
-from simulation.objective import Evaluator
 from simulation.pso import PsoSettings, pso
 from simulation.search import group_arrays, light_pairs, unbinned_pairs
 from simulation.studies import optimisers as opt
