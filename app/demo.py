@@ -25,7 +25,7 @@ from app.processing.pipeline import CaptureProcessor, ExposureRef
 from app.processing.report import TargetData, build_report
 from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure, exposure_key
 from app.sequences.capture import TargetCapture
-from app.sequences.hdr import HdrPlan, plan_hdr
+from app.sequences.hdr import HdrPlan, meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession
 from app.virtual_lab import VirtualLab
@@ -139,15 +139,8 @@ class DemoRun:
                 for c in conds:
                     if c.name == "three_channel":
                         continue
-                    scene = lab.scene_for("train", nd=True)
-                    for nl in c.lights:
-                        t0 = c.exposure[nl.name]
-                        shooter.place("train", True)
-                        entry = shooter.shoot("hdr-meter", nl.light, t0, f"hdrmeter/{nl.name}/{exposure_key(t0)}",
-                                              light_name=nl.name)
-                        c.hdr_plan[nl.name] = plan_hdr(shooter.frame(entry), t0, scene.patch_boxes(),
-                                                       lab.camera.shutter_speeds(),
-                                                       max_exposure_s=shooter.safety.max_on_s - shooter.safety.settle_s)
+                    c.hdr_plan = meter_and_plan(shooter, c.lights, c.exposure, "train", True,
+                                                lab.scene_for("train", nd=True).patch_boxes(), cancel=self.cancel)
             exposures = {nl.name: sorted({c.exposure[nl.name], *(c.hdr_plan[nl.name].exposures
                                                                   if nl.name in c.hdr_plan else [])})
                          for c in conds for nl in c.lights}

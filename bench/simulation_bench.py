@@ -8,7 +8,6 @@ import colour
 import numpy as np
 
 from simulation.camera_model import channel_responses
-from simulation.colorimetry import xyz_to_lab
 from simulation.datasets import default_setup
 from simulation.objective import Evaluator
 from simulation.pso import PsoSettings, pso

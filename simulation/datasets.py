@@ -109,7 +109,7 @@ def _check_covers(table: SpectralTable, grid: SpectralGrid, max_gap_nm: float = 
 
 @lru_cache(maxsize=16)
 def _colorimetry(grid: SpectralGrid) -> tuple[np.ndarray, np.ndarray]:
-    shape = colour.SpectralShape(grid.start, grid.end, grid.step)
+    shape = colour.SpectralShape(grid.start, float(grid.wavelengths[-1]), grid.step)   # exactly the grid's samples
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape)
     d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(shape)
     return np.asarray(cmfs.values), np.asarray(d65.values)

@@ -20,7 +20,8 @@ class SpectralGrid:
 
     @property
     def wavelengths(self) -> np.ndarray:
-        n = int(round((self.end - self.start) / self.step)) + 1
+        """start, start + step, ... up to ``end`` (the last sample is the last one not beyond ``end``)."""
+        n = int(np.floor((self.end - self.start) / self.step + 1e-9)) + 1
         return self.start + self.step * np.arange(n, dtype=float)
 
     def __len__(self) -> int:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from typing import Iterator, Optional, Sequence
+from typing import Iterator, Sequence
 
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
 from app.sequences.shooter import Shooter, channel_levels

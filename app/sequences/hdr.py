@@ -80,3 +80,30 @@ def plan_hdr(first: RawFrame, first_exposure_s: float, boxes: Sequence[tuple[int
         plan.notes.append("the scene fits the linear range: one exposure")
     log.info("HDR plan: %s (range %.0f:1)", plan.exposures, plan.dynamic_range)
     return plan
+
+
+def meter_and_plan(shooter, lights, base_exposures: dict[str, float], target: str, nd: bool,
+                   boxes: Sequence[tuple[int, int, int, int]], progress=None, cancel=None) -> dict[str, HdrPlan]:
+    """One metering frame per light at its open-gate exposure (kept in the session as 'hdr-meter'), then
+    ``plan_hdr`` for each; the lights end off. Darks and flats can then be taken at the planned exposures
+    before the bracket itself is shot with app.sequences.capture.TargetCapture."""
+    from app.sequences.calibration import exposure_key
+
+    plans: dict[str, HdrPlan] = {}
+    try:
+        shooter.place(target, nd)
+        limit = shooter.safety.max_on_s - shooter.safety.settle_s
+        for i, nl in enumerate(lights):
+            if cancel is not None:
+                cancel.check()
+            t0 = base_exposures[nl.name]
+            if progress is not None:
+                progress(i / len(lights), f"HDR metering frame under {nl.name} at {t0:g} s")
+            entry = shooter.shoot("hdr-meter", nl.light, t0,
+                                  f"hdrmeter/{target}/{'nd' if nd else 'plain'}/{nl.name}/{exposure_key(t0)}",
+                                  light_name=nl.name)
+            plans[nl.name] = plan_hdr(shooter.frame(entry), t0, boxes, shooter.camera.shutter_speeds(),
+                                      max_exposure_s=limit)
+    finally:
+        shooter.lights_off()
+    return plans

@@ -69,10 +69,8 @@ def _choose(options: list, errors: list[float], tolerance: float) -> tuple[int, 
 
 
 def _at_step(spec: SetupSpec, step: float) -> SetupSpec:
-    """The spec on a ``step`` grid; the end is pulled in to a whole number of steps (410-780 nm at 20 nm ends
-    at 770 nm) because colour-science aligns partial grids to one more sample than SpectralGrid has."""
-    n = int(np.floor((spec.end - spec.start) / step + 1e-9))
-    return replace(spec, step=step, end=spec.start + n * step)
+    """The spec on a ``step`` grid (SpectralGrid stops at the last whole step: 410-780 nm at 20 nm ends at 770)."""
+    return replace(spec, step=step)
 
 
 def spectral_steps(spec: SetupSpec, cfg: ParsimonyConfig, cancel=None, progress=None) -> dict:

@@ -75,3 +75,11 @@ def test_packaged_resources_have_provenance_headers():
         for f in resources.path(sub).glob("*.csv"):
             t = read_spectral_csv(f, allow_negative=False)
             assert {"units", "source", "generated_by"} <= set(t.meta), f
+
+
+@pytest.mark.parametrize("step,n", [(1, 371), (5, 75), (10, 38), (20, 19)])
+def test_every_grid_step_builds_a_consistent_setup(step, n):
+    from simulation.grid import SpectralGrid
+    s = default_setup("reflective", SpectralGrid(410, 780, step))
+    assert len(s.grid) == n and s.cmfs.shape == (n, 3) and s.illuminant.shape == (n,)
+    assert s.leds.shape == (10, n) and s.camera.shape == (n, 3) and s.train.spectra.shape[1] == n

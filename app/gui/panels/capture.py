@@ -15,9 +15,9 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFileDialog
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
 from app.sequences.base import Sequence
-from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure, exposure_key
+from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure
 from app.sequences.capture import TargetCapture
-from app.sequences.hdr import HdrPlan, plan_hdr
+from app.sequences.hdr import HdrPlan, meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession
 from drivers.camera.gphoto import format_shutter
@@ -435,22 +435,8 @@ class CapturePanel(QWidget):
         lights = list(self.lights)
 
         def work(progress, cancel) -> dict[str, HdrPlan]:
-            plans = {}
-            try:
-                shooter.place(target, nd)
-                limit = shooter.safety.max_on_s - shooter.safety.settle_s
-                for i, nl in enumerate(lights):
-                    cancel.check()
-                    t0 = base[nl.name][0]
-                    progress(i / len(lights), f"HDR metering frame under {nl.name} at {t0:g} s")
-                    entry = shooter.shoot("hdr-meter", nl.light, t0,
-                                          f"hdrmeter/{target}/{'nd' if nd else 'plain'}/{nl.name}/{exposure_key(t0)}",
-                                          light_name=nl.name)
-                    plans[nl.name] = plan_hdr(shooter.frame(entry), t0, boxes, shooter.camera.shutter_speeds(),
-                                              max_exposure_s=limit)
-            finally:
-                shooter.lights_off()
-            return plans
+            return meter_and_plan(shooter, lights, {n: ts[0] for n, ts in base.items()}, target, nd, boxes,
+                                  progress=progress, cancel=cancel)
 
         def done(plans: dict[str, HdrPlan]) -> None:
             self.hdr_plans = plans
