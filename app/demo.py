@@ -52,7 +52,7 @@ class DemoSettings:
     dark_frames: int = 10
     flat_frames: int = 3
     settle_s: float = 0.05
-    optimise_matrix: bool = True          # also fit the dE00-optimised matrix (Beyond RGB)
+    optimise_matrix: Optional[bool] = None   # also fit the dE00-optimised matrix; None: the parsimony study's choice
     conditions: tuple[str, ...] = CONDITIONS
 
 
@@ -118,6 +118,9 @@ class DemoRun:
 
     def run(self) -> dict:
         s = self.s
+        if s.optimise_matrix is None:
+            from simulation.studies.parsimony import load_defaults
+            s.optimise_matrix = load_defaults()["characterisation_model"] != "linear"
         s.out.mkdir(parents=True, exist_ok=True)
         conds, presets = make_conditions(s, self.progress)
         report(self.progress, 0.1, "starting the virtual lab")

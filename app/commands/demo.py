@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--frame-size", type=_size, default=(600, 400), help="virtual frame WxH (default 600x400)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--dark-frames", type=int, default=10)
-    p.add_argument("--no-de-fit", action="store_true", help="skip the dE00-optimised characterisation")
+    p.add_argument("--no-de-fit", action="store_true", help="fit least squares only (default: as the parsimony study chose, resources/parsimony.json)")
     p.set_defaults(func=main)
 
 
@@ -37,7 +37,8 @@ def main(args: argparse.Namespace) -> int:
     from app.demo import DemoSettings, run_demo   # heavy imports only when the demo runs
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
-                            seed=args.seed, dark_frames=args.dark_frames, optimise_matrix=not args.no_de_fit)
+                            seed=args.seed, dark_frames=args.dark_frames,
+                            optimise_matrix=False if args.no_de_fit else None)
     last = [-1]
 
     def progress(f: float, msg: str) -> None:

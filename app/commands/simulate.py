@@ -34,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", type=Path, help="write the result as JSON here")
     p.add_argument("--preset-out", type=Path, help="save the best light pair as a preset JSON here")
     p.add_argument("--bins", type=_bins, default=(3, 3, 4), help="LED bins, shortest wavelengths first (3,3,4)")
-    p.add_argument("--step", type=float, default=10.0, help="spectral step in nm (default 10)")
+    p.add_argument("--step", type=float, default=None,
+                   help="spectral step in nm (default: the parsimony study's choice, resources/parsimony.json: 10)")
     p.add_argument("--camera-csv", help="measured camera sensitivities (wavelength_nm,R,G,B)")
     p.add_argument("--leds-csv", help="measured LED spectra (wavelength_nm,LED1..LED10)")
     p.add_argument("--train-csv", help="measured training target spectra")
@@ -48,8 +49,10 @@ def main(args: argparse.Namespace) -> int:
     from simulation.grid import SpectralGrid
     from simulation.presets import save_preset
     from simulation.runner import format_table, run
+    from simulation.studies.parsimony import load_defaults
 
-    setup = default_setup(args.mode, SpectralGrid(410.0, 780.0, args.step), camera_csv=args.camera_csv,
+    step = args.step if args.step is not None else float(load_defaults()["spectral_step_nm"])
+    setup = default_setup(args.mode, SpectralGrid(410.0, 780.0, step), camera_csv=args.camera_csv,
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv)
     if args.top < 1:
         raise ValueError(f"--top {args.top}: expected at least 1")

@@ -59,3 +59,15 @@ def test_cli_modes_and_methods_match_the_simulation():
     from simulation.datasets import MODES
     from simulation.runner import METHODS
     assert simulate.MODES == MODES and simulate.METHODS == METHODS
+
+
+def test_simulate_takes_its_default_step_from_the_parsimony_study(tmp_path, monkeypatch):
+    import simulation.studies.parsimony as parsimony
+    monkeypatch.setattr(parsimony, "load_defaults", lambda path=None: {"spectral_step_nm": 20.0,
+                                                                         "characterisation_model": "linear",
+                                                                         "hdr_exposures": 1})
+    out = tmp_path / "r.json"
+    assert main(["simulate", "--method", "three-channel", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["setup"]["grid"] == "410-780 nm / 20 nm"
+    assert main(["simulate", "--method", "three-channel", "--step", "5", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["setup"]["grid"] == "410-780 nm / 5 nm"
