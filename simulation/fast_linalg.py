@@ -13,6 +13,9 @@ import numpy as np
 from numba import njit, prange
 
 
+_SEGMENT = 128
+
+
 @njit(error_model="numpy", parallel=True, cache=True)
 def fit_light_sets(idx, w, G, H, ridge, M_out, A_out):
     """Characterise a batch of light sets from precomputed Gram matrices, in one pass per item.
@@ -25,15 +28,30 @@ def fit_light_sets(idx, w, G, H, ridge, M_out, A_out):
     """
     P, L, m = w.shape
     n = 3 * L
-    nblocks = (P + 63) // 64
-    for blk in prange(nblocks):
-        # scratch allocated once per block of 64 items, not per item
+    # runs of items sharing one LED index array (a light set's particles) are fitted vectorised across items
+    # (split every _SEGMENT items so the (n, n, items) scratch stays in cache and both cores get work)
+    bounds = [0]
+    for p in range(1, P):
+        same = p - bounds[-1] < _SEGMENT
+        for l in range(L):
+            for i in range(m):
+                if idx[p, l, i] != idx[p - 1, l, i]:
+                    same = False
+        if not same:
+            bounds.append(p)
+    bounds.append(P)
+    edges = np.array(bounds)
+    for seg in prange(len(edges) - 1):
+        lo, hi = edges[seg], edges[seg + 1]
+        if hi - lo >= 8:
+            _fit_segment(idx[lo], w, G, H, ridge, M_out, A_out, lo, hi)
+            continue
         CtC = np.empty((n, n))
         CtB = np.empty((n, 3))
         s = np.empty(n)
         Lc = np.zeros((n, n))
         y = np.empty(n)
-        for p in range(blk * 64, min(P, blk * 64 + 64)):
+        for p in range(lo, hi):
             _fit_one(idx[p], w[p], G, H, ridge, CtC, CtB, s, Lc, y, M_out, A_out, p)
 
 
@@ -103,3 +121,105 @@ def _fit_one(idx, w, G, H, ridge, CtC, CtB, s, Lc, y, M_out, A_out, p):
             for c1 in range(3):
                 for o in range(3):
                     M_out[o, 3 * k1 + c1, p] += w1 * A_out[p, 3 * l1 + c1, o]
+
+
+@njit(error_model="numpy", inline="always")
+def _fit_segment(idx, w, G, H, ridge, M_out, A_out, lo, hi):
+    """fit_light_sets for items lo..hi-1 that share one LED index array ``idx`` (L, m) — every particle of one
+    light set in PSO/GA — vectorised across the items: each step is a loop over the items, which LLVM turns into
+    SIMD code, instead of one scalar 6x6 fit per item (~15x faster per item)."""
+    L, m = idx.shape
+    n = 3 * L
+    B = hi - lo
+    q = L * m * 3
+    wq = np.empty((L * m, B))
+    for p in range(B):
+        for l in range(L):
+            for i in range(m):
+                wq[l * m + i, p] = w[lo + p, l, i]
+    CtC = np.zeros((n, n, B))
+    CtB = np.zeros((n, 3, B))
+    for a in range(q):
+        l1 = a // (m * 3)
+        i1 = (a // 3) % m
+        c1 = a % 3
+        ja = l1 * m + i1
+        k1 = idx[l1, i1]
+        r1 = 3 * l1 + c1
+        for o in range(3):
+            h = H[k1, c1, o]
+            for p in range(B):
+                CtB[r1, o, p] += wq[ja, p] * h
+        for b in range(q):
+            l2 = b // (m * 3)
+            i2 = (b // 3) % m
+            c2 = b % 3
+            r2 = 3 * l2 + c2
+            if r2 > r1:
+                continue                          # lower triangle only; mirrored below
+            g = G[k1, c1, idx[l2, i2], c2]
+            jb = l2 * m + i2
+            for p in range(B):
+                CtC[r1, r2, p] += wq[ja, p] * wq[jb, p] * g
+    s = np.empty((n, B))
+    for i in range(n):
+        for p in range(B):
+            d = CtC[i, i, p]
+            s[i, p] = 1.0 / math.sqrt(d) if d > 0.0 else 0.0
+    for i in range(n):
+        for j in range(i + 1):
+            for p in range(B):
+                CtC[i, j, p] *= s[i, p] * s[j, p]
+        for p in range(B):
+            CtC[i, i, p] += ridge if s[i, p] > 0.0 else 1.0
+        for o in range(3):
+            for p in range(B):
+                CtB[i, o, p] *= s[i, p]
+    Lc = np.zeros((n, n, B))
+    acc = np.empty(B)
+    for i in range(n):
+        for j in range(i + 1):
+            for p in range(B):
+                acc[p] = CtC[i, j, p]
+            for k in range(j):
+                for p in range(B):
+                    acc[p] -= Lc[i, k, p] * Lc[j, k, p]
+            if i == j:
+                for p in range(B):
+                    Lc[i, i, p] = math.sqrt(acc[p]) if acc[p] > 0.0 else 1e-300
+            else:
+                for p in range(B):
+                    Lc[i, j, p] = acc[p] / Lc[j, j, p]
+    y = np.empty((n, B))
+    x = np.empty((n, B))
+    for o in range(3):
+        for i in range(n):
+            for p in range(B):
+                acc[p] = CtB[i, o, p]
+            for k in range(i):
+                for p in range(B):
+                    acc[p] -= Lc[i, k, p] * y[k, p]
+            for p in range(B):
+                y[i, p] = acc[p] / Lc[i, i, p]
+        for i in range(n - 1, -1, -1):
+            for p in range(B):
+                acc[p] = y[i, p]
+            for k in range(i + 1, n):
+                for p in range(B):
+                    acc[p] -= Lc[k, i, p] * x[k, p]
+            for p in range(B):
+                x[i, p] = acc[p] / Lc[i, i, p]
+        for i in range(n):
+            for p in range(B):
+                A_out[lo + p, i, o] = x[i, p] * s[i, p]
+    for r in range(M_out.shape[1]):
+        for o in range(3):
+            for p in range(B):
+                M_out[o, r, lo + p] = 0.0
+    for l in range(L):
+        for i in range(m):
+            k = idx[l, i]
+            for c in range(3):
+                for o in range(3):
+                    for p in range(B):
+                        M_out[o, 3 * k + c, lo + p] += wq[l * m + i, p] * A_out[lo + p, 3 * l + c, o]

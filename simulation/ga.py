@@ -36,7 +36,7 @@ class GaSettings:
 
 
 def ga(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings: GaSettings = GaSettings(),
-       seed: int = 0, *, chunk: int = 16, progress: Optional[ProgressCallback] = None,
+       seed: int = 0, *, chunk: int = 32, progress: Optional[ProgressCallback] = None,
        cancel: Optional[CancelToken] = None) -> SearchOutcome:
     groups = list(groups) if groups is not None else light_pairs()
     idx_all, mask_all = group_arrays(groups)

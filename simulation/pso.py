@@ -53,7 +53,7 @@ def _rngs(seed: int, first: int, count: int) -> list[np.random.Generator]:
 
 
 def pso(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings: PsoSettings = PsoSettings(),
-        seed: int = 0, *, chunk: int = 16, progress: Optional[ProgressCallback] = None,
+        seed: int = 0, *, chunk: int = 32, progress: Optional[ProgressCallback] = None,
         cancel: Optional[CancelToken] = None) -> SearchOutcome:
     """Run PSO on every light set in ``groups`` (default: the 630 binned pairs); best first."""
     groups = list(groups) if groups is not None else light_pairs()
