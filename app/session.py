@@ -169,15 +169,19 @@ def _light_dict(light: Any) -> Optional[dict]:
     raise TypeError(f"light must be a LightSource or a dict, got {type(light).__name__}")
 
 
-def atomic_write(path: Path, data: bytes) -> None:
+def atomic_write(path: Path, data: bytes, *, exclusive: bool = False) -> None:
     """Write ``data`` to ``path`` so that a reader sees the old file or the new one, never a part.
 
-    Temp file in the same folder, fsync, rename, fsync the folder. On error the temp file is removed and the
-    error re-raised as :class:`SessionError` for ENOSPC/EDQUOT.
+    Temp file in the same folder (``exclusive``: it must not exist yet), fsync, rename, fsync the folder. On error
+    the temp file is removed and the error re-raised as a one-line :class:`SessionError` naming the file (disk
+    full says so).
     """
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}{TMP_SUFFIX}")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | (os.O_EXCL if exclusive else os.O_TRUNC), 0o644)
+    except OSError as exc:
+        raise _session_error(exc, tmp) from exc
     try:
         try:
             _write_all(fd, data)
@@ -185,10 +189,10 @@ def atomic_write(path: Path, data: bytes) -> None:
         finally:
             os.close(fd)
         os.replace(tmp, path)
+        _fsync_dir(path.parent)
     except OSError as exc:
         _remove_quietly(tmp)
         raise _session_error(exc, path) from exc
-    _fsync_dir(path.parent)
 
 
 def _remove_quietly(path: Path) -> None:
@@ -351,22 +355,7 @@ class CaptureSession:
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{name}: session metadata is not JSON-serialisable: {exc}") from exc
         # 1. the raw file, durable under its final name
-        tmp = final.with_name(f".{name}.{os.getpid()}{TMP_SUFFIX}")
-        try:
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        except OSError as exc:
-            raise _session_error(exc, tmp) from exc
-        try:
-            try:
-                _write_all(fd, data)
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-            os.replace(tmp, final)
-            _fsync_dir(self.path)
-        except OSError as exc:
-            _remove_quietly(tmp)
-            raise _session_error(exc, final) from exc
+        atomic_write(final, data, exclusive=True)
         # 2. the manifest line, durable
         entry.recorded_at = _now()
         line = json.dumps(entry.to_dict(), default=_json_default, separators=(",", ":")) + "\n"

@@ -14,13 +14,12 @@ because it drives drivers/ and app.processing, which simulation/ must not import
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from app.processing.patches import PatchGrid
 from app.processing.pipeline import CaptureProcessor, ExposureRef
-from drivers.virtual.camera import VirtualCamera
+from drivers.virtual.camera import StaticLight, VirtualCamera
 from drivers.virtual.scene import Scene
 from simulation.characterisation import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
@@ -29,19 +28,10 @@ from simulation.datasets import SimulationSetup
 log = logging.getLogger(__name__)
 
 
-@dataclass
-class _Light:
-    """The sphere state the virtual camera asks for (levels 0..1 per LED, no drift)."""
-
-    levels: np.ndarray
-    peak_shift_nm: np.ndarray = field(default_factory=lambda: np.zeros(10))
-    light_on: bool = True
-
-
 def capture_patch_values(setup: SimulationSetup, W: np.ndarray, exposures_s: np.ndarray, *, width: int = 600,
                          height: int = 400, dark_frames: int = 4, seed: int = 0) -> dict[str, np.ndarray]:
     """Flat-fielded patch means (n, 3L) of the training and test targets under light set W (L, K)."""
-    state = _Light(np.zeros(W.shape[1]))
+    state = StaticLight(np.zeros(W.shape[1]))
     cam = VirtualCamera(lambda: state, Scene.lens_cap(width, height), mode=setup.mode, seed=seed)
     cam.open()
     lights = [f"light {i + 1}" for i in range(W.shape[0])]

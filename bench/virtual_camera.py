@@ -9,22 +9,14 @@ import json
 import logging
 import time
 import tracemalloc
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from drivers.virtual.camera import VirtualCamera, mosaic_to_dng
+from drivers.virtual.camera import StaticLight, VirtualCamera, mosaic_to_dng
 from drivers.virtual.scene import Scene
 from simulation.datasets import default_setup
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class _Snapshot:
-    levels: np.ndarray
-    peak_shift_nm: np.ndarray = field(default_factory=lambda: np.zeros(10))
-    light_on: bool = True
 
 
 def bench_render(width: int = 6080, height: int = 4028, mode: str = "transmissive") -> dict[str, float | int | str]:
@@ -36,7 +28,7 @@ def bench_render(width: int = 6080, height: int = 4028, mode: str = "transmissiv
     """
     levels = np.zeros(10)
     levels[[0, 5, 7]] = 1.0
-    snap = _Snapshot(levels)
+    snap = StaticLight(levels)
     target = default_setup(mode).train
     cam = VirtualCamera(lambda: snap, Scene.with_target(target, width, height, nd_filter=True), mode=mode, seed=1)
     cam.open()

@@ -80,6 +80,16 @@ def _nearest(values: tuple[float, ...], x: float) -> float:
 
 
 @dataclass
+class StaticLight:
+    """A fixed sphere state for the ``light`` callable when no emulator runs (benchmarks, patch checks):
+    ``VirtualCamera(lambda: state, ...)``; change ``levels`` between captures."""
+
+    levels: np.ndarray
+    peak_shift_nm: np.ndarray = field(default_factory=lambda: np.zeros(10))
+    light_on: bool = True
+
+
+@dataclass
 class SensorModel:
     """Sensor and readout constants (D610-like; see FACTS.md and thesis 4.1)."""
 

@@ -37,7 +37,7 @@ from simulation.camera_model import led_responses
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
 from simulation.fast_de import mean_de2000_xyz
-from simulation.studies.optimisers import _solve_small
+from simulation.characterisation import solve_normal_equations
 
 log = logging.getLogger(__name__)
 
@@ -190,7 +190,7 @@ class NoiseModel:
         D, n, ch = Vtr.shape[1:]
         V = Vtr.reshape(b * D, n, ch)
         VT = V.transpose(0, 2, 1)
-        A = _solve_small(VT @ V, VT @ self.data["train"].xyz)                # (bD, ch, 3)
+        A = solve_normal_equations(VT @ V, VT @ self.data["train"].xyz)                # (bD, ch, 3)
         tr = self._mean_de(V @ A, "train", exact).reshape(b, D)
         te = None
         if test:
@@ -265,7 +265,7 @@ class NoiseModel:
             if nd:
                 xyz_tr = xyz_tr * nd["train"][:, None]
                 xyz_te = xyz_te * nd["test"][:, None]
-            A = _solve_small((Vtr.T @ Vtr)[None], (Vtr.T @ xyz_tr)[None])[0]
+            A = solve_normal_equations((Vtr.T @ Vtr)[None], (Vtr.T @ xyz_tr)[None])[0]
             tr.append(float(delta_e_2000(xyz_to_lab(xyz_tr, self.white), xyz_to_lab(Vtr @ A, self.white)).mean()))
             te.append(float(delta_e_2000(xyz_to_lab(xyz_te, self.white), xyz_to_lab(Vte @ A, self.white)).mean()))
             for m in models:

@@ -28,7 +28,7 @@ from typing import Callable, Iterator, Optional, Sequence
 
 import numpy as np
 
-from simulation.characterisation import RIDGE
+from simulation.characterisation import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.ga import GaSettings, ga
 from simulation.progress import CancelToken, ProgressCallback, check, report
@@ -116,21 +116,9 @@ class Float64Cost:
         X = np.atleast_2d(np.asarray(X, dtype=float))
         C = np.concatenate([np.einsum("bd,dnc->bnc", X[:, s], self.R[s]) for s in self.slices], axis=2)
         CT = C.transpose(0, 2, 1)
-        A = _solve_small(CT @ C, CT @ self.xyz)
+        A = solve_normal_equations(CT @ C, CT @ self.xyz)   # LAPACK: a handful of systems per call
         lab = xyz_to_lab(C @ A, self.white)
         return delta_e_2000(self.lab, lab).mean(axis=1)
-
-
-def _solve_small(CtC: np.ndarray, CtB: np.ndarray) -> np.ndarray:
-    """:func:`simulation.characterisation.solve_normal_equations` (equilibration, same ridge, zero channels ->
-    zero rows) with LAPACK instead of its numba-parallel Cholesky: for a handful of systems per call the
-    parallel region's start-up dominates, and its spinning threads slow scipy's L-BFGS-B loop down."""
-    d = np.einsum("pii->pi", CtC)
-    s = np.where(d > 0, 1.0 / np.sqrt(np.where(d > 0, d, 1.0)), 0.0)
-    M = CtC * s[:, :, None] * s[:, None, :]
-    n = M.shape[1]
-    M[:, np.arange(n), np.arange(n)] += RIDGE + (d <= 0)
-    return np.linalg.solve(M, CtB * s[:, :, None]) * s[:, :, None]
 
 
 def _fast_pair_cost(evaluator, idx_row: np.ndarray, mask_row: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
