@@ -22,28 +22,10 @@ from app.gui.panels.camera import image_widget
 from app.gui.panels.target import session_subjects
 from app.gui.widgets import plot_widget
 from app.gui.workers import TaskHandle
-from app.processing.patches import PatchGrid, PatchValues
 
 log = logging.getLogger(__name__)
 
 BADGE_COLOURS = {True: "#2e7d32", False: "#c62828"}
-
-
-@dataclass
-class FirstPatches(PatchGrid):
-    """A patch grid whose last row is only partly filled: the target's patches are its first ``count`` cells
-    (row by row), e.g. 190 patches on 12 x 17. Sampling is PatchGrid's, truncated."""
-
-    count: int = 0
-
-    @property
-    def n_patches(self) -> int:
-        return self.count or self.rows * self.cols
-
-    def sample(self, image: np.ndarray, **kw) -> PatchValues:
-        full = PatchGrid(self.corners, self.rows, self.cols, self.fraction, list(self.names)).sample(image, **kw)
-        n = self.n_patches
-        return PatchValues(full.mean[:n], full.std[:n], full.count[:n], list(full.names[:n]))
 
 
 @dataclass
@@ -101,8 +83,6 @@ def process(lab, session, grids: dict, train_subject: str, test_subject: Optiona
         if grid is not None and grid.n_patches < len(names):
             raise ValueError(f"{subject}: the grid has {grid.n_patches} cells but the target {len(names)} patches; "
                              "set rows and columns in Target")
-        if grid is not None and grid.n_patches > len(names):       # a partly filled last row
-            grid = FirstPatches(grid.corners, grid.rows, grid.cols, grid.fraction, list(grid.names), len(names))
         specs[label] = TargetSpec(subject, xyz, names, grid, (grid.rows, grid.cols) if grid else None,
                                   label=f"{label} ({name})")
     out_dir = Path(session.path) / "results"
