@@ -62,6 +62,29 @@ def run_sequence(qtbot, w, kind, *, frames=None, target=None):
     assert cap.view.outcome == "done", (cap.view.message.text(), w.errors.history)
 
 
+def place_grid(qtbot, w, subject):
+    """Select ``subject`` in Target and wait until its grid is placed."""
+    tgt = w.target
+    qtbot.waitUntil(lambda: subject in tgt.subjects, timeout=LONG)
+    tgt.subject.setCurrentText(subject)
+    qtbot.waitUntil(lambda: subject in w.ctx.shared["grids"], timeout=LONG)
+    wait_idle(qtbot, w)
+
+
+def process(qtbot, w, train, test=""):
+    """Process the session in Results (least squares) and return the panel once a result is there."""
+    res = w.results
+    res.optimise.setChecked(False)
+    qtbot.waitUntil(lambda: res.train_subject.findText(train) >= 0, timeout=LONG)
+    res.train_subject.setCurrentText(train)
+    res.test_subject.setCurrentText(test)
+    click(qtbot, res.process_button)
+    qtbot.waitUntil(lambda: res.result is not None or "failed" in res.status.text(), timeout=LONG)
+    wait_idle(qtbot, w)
+    assert res.result is not None, (res.status.text(), w.errors.history)
+    return res
+
+
 @pytest.mark.timeout(600)
 def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     w = make_window(frame_size=(160, 108))
@@ -134,15 +157,7 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert np.allclose(w.ctx.shared["grids"]["target:test"].corners, start, atol=0.01)
 
     # ---- results ----
-    res = w.results
-    res.optimise.setChecked(False)
-    qtbot.waitUntil(lambda: res.train_subject.count() > 0, timeout=LONG)
-    res.train_subject.setCurrentText("target:train")
-    res.test_subject.setCurrentText("target:test")
-    click(qtbot, res.process_button)
-    qtbot.waitUntil(lambda: res.result is not None or "failed" in res.status.text(), timeout=LONG)
-    wait_idle(qtbot, w)
-    assert res.result is not None, (res.status.text(), w.errors.history)
+    res = process(qtbot, w, "target:train", "target:test")
     rep = res.result.report
     assert rep["test"]["mean"] < 2.0                       # dual-RGB on the virtual lab: well under 2 dE00
     assert set(res.badge_labels) == {"FADGI 2023", "ISO 19264-1:2021", "Metamorfoze 2.0"}
@@ -242,20 +257,8 @@ def test_hdr_capture_of_the_nd_target(qtbot, make_window):
     # calibrate at every exposure and process the HDR capture (ND patches' reference scaled by the filter)
     run_sequence(qtbot, w, "Dark series", frames=2)
     run_sequence(qtbot, w, "Open-gate flats", frames=1)
-    tgt = w.target
-    qtbot.waitUntil(lambda: "hdr-nd:test" in tgt.subjects, timeout=LONG)
-    tgt.subject.setCurrentText("hdr-nd:test")
-    qtbot.waitUntil(lambda: "hdr-nd:test" in w.ctx.shared["grids"], timeout=LONG)
-    wait_idle(qtbot, w)
-    res = w.results
-    res.optimise.setChecked(False)
-    qtbot.waitUntil(lambda: res.train_subject.findText("hdr-nd:test") >= 0, timeout=LONG)
-    res.train_subject.setCurrentText("hdr-nd:test")
-    res.test_subject.setCurrentText("")
-    click(qtbot, res.process_button)
-    qtbot.waitUntil(lambda: res.result is not None or "failed" in res.status.text(), timeout=LONG)
-    wait_idle(qtbot, w)
-    assert res.result is not None, (res.status.text(), w.errors.history)
+    place_grid(qtbot, w, "hdr-nd:test")
+    res = process(qtbot, w, "hdr-nd:test")
     assert res.result.report["train"]["mean"] < 2.0
     assert w.errors.history == []
 
@@ -326,19 +329,7 @@ def test_transmissive_virtual_lab(qtbot, make_window):
     run_sequence(qtbot, w, "Dark series", frames=2)
     run_sequence(qtbot, w, "Open-gate flats", frames=1)
     run_sequence(qtbot, w, "Dual-RGB capture", target=1)
-    tgt = w.target
-    qtbot.waitUntil(lambda: "target:test" in tgt.subjects, timeout=LONG)
-    tgt.subject.setCurrentText("target:test")
-    qtbot.waitUntil(lambda: "target:test" in w.ctx.shared["grids"], timeout=LONG)
-    wait_idle(qtbot, w)
-    res = w.results
-    res.optimise.setChecked(False)
-    qtbot.waitUntil(lambda: res.train_subject.findText("target:test") >= 0, timeout=LONG)
-    res.train_subject.setCurrentText("target:test")
-    res.test_subject.setCurrentText("")
-    click(qtbot, res.process_button)
-    qtbot.waitUntil(lambda: res.result is not None or "failed" in res.status.text(), timeout=LONG)
-    wait_idle(qtbot, w)
-    assert res.result is not None, (res.status.text(), w.errors.history)
+    place_grid(qtbot, w, "target:test")
+    res = process(qtbot, w, "target:test")
     assert "film" in res.views["train"].label.lower() or "cc24" in res.views["train"].label.lower()
     assert res.result.report["train"]["mean"] < 3.0
