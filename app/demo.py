@@ -166,6 +166,7 @@ class DemoRun:
         frames = len(session.entries())
         report_data = {
             "mode": s.mode, "frame_size": list(s.frame_size), "hdr": s.hdr,
+            "conditions": list(result),          # the names; each condition's figures are top-level keys
             **result,
             "presets": presets,
             "exposures": {k: v for k, v in exposures.items()},
@@ -240,7 +241,7 @@ class DemoRun:
                         "test": ErrorStats.of(best.test_errors[data["test"][1]]).to_dict()}
                     entry["hdr_plan"] = {n: p.to_dict() for n, p in c.hdr_plan.items()}
                 out[label] = entry
-        return {"conditions": out, **out}
+        return out
 
     def _simulated_values(self, c: Condition, nd_mask: np.ndarray) -> np.ndarray:
         """Simulated camera values of the training patches under the condition's lights (thesis Fig 7.4)."""

@@ -49,7 +49,8 @@ def main(args: argparse.Namespace) -> int:
 
     data = run_demo(settings, progress)
     print(f"{'condition':<22} {'train mean':>10} {'test mean':>10} {'sim train':>10} {'sim test':>10}")
-    for name, c in data["conditions"].items():
+    for name in data["conditions"]:
+        c = data[name]
         print(f"{name:<22} {c['train']['mean']:>10.3f} {c['test']['mean']:>10.3f} "
               f"{c['simulated']['train']:>10.3f} {c['simulated']['test']:>10.3f}")
     print(f"frames {data['frames']}, lost {data['lost_frames']}, light dose {data['light_dose']['lux_s']:.0f} lux.s, "

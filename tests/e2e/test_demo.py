@@ -26,6 +26,9 @@ def test_demo_report_schema_and_dual_rgb_beats_three_channel(hdr_report):
         assert set(c["train"]) == {"mean", "median", "p90", "max"} and set(c["test"]) >= {"mean"}
         assert set(c["simulated"]) == {"train", "test"}
     assert {"frames", "lost_frames", "light_dose", "elapsed_s"} <= set(on_disk)
+    assert on_disk["conditions"] == ["three_channel", "dual_rgb", "hdr_dual_rgb", "single_dual_rgb", "dual_rgb_pso",
+                                     "hdr_dual_rgb_pso", "single_dual_rgb_pso"]
+    assert (out / "dual_rgb" / "report.json").exists() and (out / "dual_rgb" / "dn_validation.png").exists()
     assert on_disk["lost_frames"] == 0 and on_disk["frames"] > 50
     for split in ("train", "test"):
         assert data["dual_rgb"][split]["mean"] < data["three_channel"][split]["mean"]
