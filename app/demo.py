@@ -217,14 +217,14 @@ class DemoRun:
                     scale = np.where(nd_mask, scene.nd_transmittance, 1.0)   # ground truth includes the filter
                     xyz = tristimulus(self.lab.target(target).spectra * scale[:, None], setup.illuminant, setup.cmfs)
                     data[target] = (TargetData(list(self.lab.target(target).patch_names), xyz, values,
-                                               self.lab.target(target).layout, f"{target} ({label})"), nd_mask)
+                                               self.lab.target(target).layout, f"{target} ({label})"), nd_mask, scale)
                     stacks[target] = stack
                 ch = characterise(data["train"][0].values, data["train"][0].xyz, white, data["test"][0].values,
                                   data["test"][0].xyz, channels=stacks["train"].channels,
                                   optimise=self.s.optimise_matrix, cancel=self.cancel)
                 folder = self.s.out / label
                 rep = build_report(folder, ch, data["train"][0], data["test"][0],
-                                   simulated_train=self._simulated_values(c, data["train"][1]),
+                                   simulated_train=self._simulated_values(c, data["train"][2]),
                                    title=f"{label} ({self.s.mode}, virtual lab)")
                 write_image_outputs(folder, stacks["test"].data, stacks["test"].channels, ch.matrix, white,
                                     prefix="test_target", cancel=self.cancel)
@@ -243,11 +243,11 @@ class DemoRun:
                 out[label] = entry
         return out
 
-    def _simulated_values(self, c: Condition, nd_mask: np.ndarray) -> np.ndarray:
+    def _simulated_values(self, c: Condition, transmittance: np.ndarray) -> np.ndarray:
         """Simulated camera values of the training patches under the condition's lights (thesis Fig 7.4)."""
         setup = self.lab.setup
         lights = np.stack([nl.light.spectrum(setup.leds) for nl in c.lights])
-        spectra = setup.train.spectra * np.where(nd_mask, 0.01, 1.0)[:, None]
+        spectra = setup.train.spectra * transmittance[:, None]     # the scene's ND filter, per patch
         return channel_responses(lights, spectra, setup.camera)
 
 
