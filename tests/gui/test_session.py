@@ -62,6 +62,16 @@ def run_sequence(qtbot, w, kind, *, frames=None, target=None):
     assert cap.view.outcome == "done", (cap.view.message.text(), w.errors.history)
 
 
+def new_session(qtbot, w, preset=None):
+    """A new capture session on the started virtual lab (optionally with a preset's lights); the Capture panel."""
+    cap = w.capture
+    cap.new_session()
+    qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)
+    if preset:
+        cap.choose_preset(preset)
+    return cap
+
+
 def place_grid(qtbot, w, subject):
     """Select ``subject`` in Target and wait until its grid is placed."""
     tgt = w.target
@@ -180,10 +190,7 @@ def test_cancel_and_pause_a_running_sequence(qtbot, make_window):
     w = make_window(frame_size=(120, 80))
     w.lab.start_virtual_lab()
     wait_idle(qtbot, w)
-    cap = w.capture
-    cap.new_session()
-    qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)
-    cap.choose_preset("dual-RGB reflective")
+    cap = new_session(qtbot, w, "dual-RGB reflective")
     emu = w.lab.virtual_lab.emulator
 
     # pause / resume flats
@@ -227,10 +234,7 @@ def test_hdr_capture_of_the_nd_target(qtbot, make_window):
     w = make_window(frame_size=(160, 108))
     w.lab.start_virtual_lab()
     wait_idle(qtbot, w)
-    cap = w.capture
-    cap.new_session()
-    qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)
-    cap.choose_preset("dual-RGB reflective")
+    cap = new_session(qtbot, w, "dual-RGB reflective")
     click(qtbot, cap.auto_button)
     wait_idle(qtbot, w)
     cap.kind.setCurrentText("HDR capture")
@@ -268,9 +272,7 @@ def test_manual_controls_wait_while_a_sequence_runs(qtbot, make_window):
     w = make_window(frame_size=(120, 80))
     w.lab.start_virtual_lab()
     wait_idle(qtbot, w)
-    cap = w.capture
-    cap.new_session()
-    qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)
+    cap = new_session(qtbot, w)
     cap.kind.setCurrentText("Dark series")
     cap.frames.setValue(30)
     click(qtbot, cap.view.start_button)
@@ -319,10 +321,7 @@ def test_transmissive_virtual_lab(qtbot, make_window):
     w.lab.start_virtual_lab()
     wait_idle(qtbot, w)
     assert w.lab.virtual_lab.mode == "transmissive" and not w.devices.mode_combo.isEnabled()
-    cap = w.capture
-    cap.new_session()
-    qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)
-    cap.choose_preset("dual-RGB transmissive")
+    cap = new_session(qtbot, w, "dual-RGB transmissive")
     cap.settle.setValue(0.05)
     click(qtbot, cap.auto_button)
     wait_idle(qtbot, w)
