@@ -28,7 +28,7 @@ from app.sequences.capture import TargetCapture
 from app.sequences.hdr import HdrPlan, meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession
-from app.virtual_lab import VirtualLab
+from drivers.virtual.lab import VirtualLab
 from simulation.camera_model import channel_responses
 from simulation.colorimetry import tristimulus, white_point
 from simulation.lightsource import LightSource

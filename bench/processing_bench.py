@@ -117,7 +117,7 @@ def _cpu() -> float:
 def _child_process(folder: str, outputs: bool) -> dict:
     sys.path.insert(0, str(ROOT))
     from app.processing.pipeline import CaptureProcessor, ExposureRef
-    from simulation.characterisation import CharacterisationMatrix
+    from simulation.matrix_fit import CharacterisationMatrix
 
     from app.processing.kernels import warm_up
 

@@ -155,7 +155,7 @@ def stability_main(args: argparse.Namespace) -> int:
         cfg = replace(cfg, camera=replace(cfg.camera, pixels_per_patch=args.pixels))
     capture = None
     if not args.no_virtual_lab:
-        from app.virtual_lab_check import captured_errors
+        from app.captured_accuracy import captured_errors
 
         def capture(setup, W, exposures):
             return captured_errors(setup, W, exposures, repeats=cfg.lab_repeats)

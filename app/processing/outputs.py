@@ -27,7 +27,7 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from app.processing.mosaic import row_bands
-from simulation.characterisation import CharacterisationMatrix
+from simulation.matrix_fit import CharacterisationMatrix
 from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)

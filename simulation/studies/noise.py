@@ -37,7 +37,7 @@ from simulation.camera_model import led_responses
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
 from simulation.fast_de import mean_de2000_xyz
-from simulation.characterisation import solve_normal_equations
+from simulation.matrix_fit import solve_normal_equations
 
 log = logging.getLogger(__name__)
 

@@ -27,7 +27,7 @@ import numpy as np
 
 import resources
 from simulation.camera_model import led_responses
-from simulation.characterisation import fit_matrix
+from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
 from simulation.ga import GaSettings
@@ -376,7 +376,7 @@ def stability(spec: SetupSpec = SetupSpec(), cfg: StabilityConfig = StabilityCon
               cancel: Optional[CancelToken] = None, capture: Optional[Capture] = None) -> StabilityResult:
     """All five parts; only the seed runs (part 1) go through ``runner`` (the rest is quick and serial).
     ``capture(setup, W, exposures) -> {"train", "test", "train_sd", ...}``: a real capture chain to check the
-    objectives against (the CLI passes the virtual lab's, app.virtual_lab_check.captured_errors)."""
+    objectives against (the CLI passes the virtual lab's, app.captured_accuracy.captured_errors)."""
     t0 = time.perf_counter()
     seeds = seed_spread(spec, cfg, runner, progress, cancel)
     optima = {label: _weights(v["best_seed"]) for label, v in seeds.items()}

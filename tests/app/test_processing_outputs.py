@@ -11,7 +11,7 @@ import tifffile
 
 from app.processing.outputs import (apply_matrix, encode_rgb16, icc_profile, matrix_trc_icc, write_image_outputs,
                                     write_matrices_csv, write_patch_csv)
-from simulation.characterisation import CharacterisationMatrix
+from simulation.matrix_fit import CharacterisationMatrix
 
 D65_WHITE = np.array([95.047, 100.0, 108.883])
 

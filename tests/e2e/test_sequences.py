@@ -7,9 +7,9 @@ import pytest
 from app.session import CaptureSession, SessionError
 from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure
 from app.sequences.capture import TargetCapture
-from app.sequences.crf import CrfSweep
+from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import LightSafetyError, SafetySettings, Shooter, channel_levels
-from app.virtual_lab import VirtualLab
+from drivers.virtual.lab import VirtualLab
 from drivers.camera.base import CameraError
 from drivers.led_sphere import SphereError
 from simulation.lightsource import LightSource
