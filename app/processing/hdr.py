@@ -143,6 +143,12 @@ class HdrMerge:
             self._fallback_t = exposure_s
         self.exposures.append(float(exposure_s))
 
+    @property
+    def weight_sum(self) -> np.ndarray:
+        """Per pixel, the sum of the eq 8.9 weights added so far (before ``result``)."""
+        self._require()
+        return self._den
+
     def _require(self) -> None:
         if self._num is None:
             raise ValueError("no exposures added")

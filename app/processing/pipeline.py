@@ -39,6 +39,8 @@ from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 
+MIN_SIGNAL_DN = 100.0     # below this in its best exposure a pixel counts as under-exposed (the HDR plan's floor)
+
 
 @dataclass
 class ExposureRef:
@@ -58,7 +60,8 @@ class ChannelStack:
     data: np.ndarray
     channels: list[str]
     lights: list[str]
-    clipped_fraction: dict[str, float] = field(default_factory=dict)
+    clipped_fraction: dict[str, float] = field(default_factory=dict)        # per light: no usable exposure
+    underexposed_fraction: float = 0.0      # superpixels whose every channel under every light stays < min signal
 
     def rgb(self, light_index: int = 0) -> np.ndarray:
         return self.data[..., 3 * light_index: 3 * light_index + 3]
@@ -127,13 +130,7 @@ class CaptureProcessor:
         refs = sorted(refs, key=lambda r: r.exposure_s)
         for i, (ref, frame) in enumerate(zip(refs, iter_open_raw([r.source for r in refs]))):
             check(cancel)
-            if self.white_level is None:
-                self.white_level = white_level_of(frame)
-            if self.cfa is None:
-                self.cfa = cfa_of(frame)
-            if self.black_level is None:
-                black = getattr(frame, "black_levels", None)
-                self.black_level = float(np.mean(black)) if black else 0.0
+            self._prepare(frame)
             if merge is None:
                 merge = HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level,
                                  band_rows=self.band_rows, work=self._work, own_result=own_result)
@@ -160,26 +157,101 @@ class CaptureProcessor:
     def has_white(self, light: str) -> bool:
         return light in self._whites
 
-    def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: Optional[ProgressCallback] = None,
-              cancel: Optional[CancelToken] = None) -> ChannelStack:
-        """Flat-fielded HDR superpixel RGB of each light (in mapping order), stacked into one image."""
-        lights = list(scenes)
+    def put_white(self, light: str, white: FlatField) -> None:
+        """Use a white made earlier (a calibration profile's) for ``light``."""
+        self._whites[light] = white
+
+    def begin_stack(self, lights: Sequence[str], *, min_signal_dn: float = MIN_SIGNAL_DN) -> "StackBuilder":
+        """A stack filled exposure by exposure as frames arrive (see :class:`StackBuilder`)."""
         missing = [n for n in lights if n not in self._whites]
         if missing:
             raise ValueError(f"no white (flat) frames for {', '.join(missing)}: call set_white first")
-        out: Optional[np.ndarray] = None
-        clipped = {}
-        for li, name in enumerate(lights):
-            merge = self._merge(scenes[name], sub_progress(progress, li / len(lights), (li + 0.9) / len(lights)), cancel,
-                                False)
-            ff = self._whites[name]
-            h, w = ff.white.shape
-            if out is None:
-                out = np.empty((h // 2, w // 2, 3 * len(lights)), dtype=np.float32)
+        return StackBuilder(self, list(lights), min_signal_dn)
+
+    def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: Optional[ProgressCallback] = None,
+              cancel: Optional[CancelToken] = None) -> ChannelStack:
+        """Flat-fielded HDR superpixel RGB of each light (in mapping order), stacked into one image."""
+        builder = self.begin_stack(list(scenes))
+        for li, name in enumerate(scenes):
+            merge = self._merge(scenes[name], sub_progress(progress, li / len(scenes), (li + 0.9) / len(scenes)),
+                                cancel, False)
             check(cancel)
-            n_clipped = merge.flat_superpixel(ff.white, ff.threshold, self.cfa or "RGGB",
-                                              out[..., 3 * li: 3 * li + 3])
-            clipped[name] = n_clipped / (4 * out.shape[0] * out.shape[1])
-            report(progress, (li + 1) / len(lights), f"{name} flat-fielded")
-        channels = [f"{c}{i + 1}" for i in range(len(lights)) for c in CHANNELS]
-        return ChannelStack(out, channels, lights, clipped)
+            builder.finish_light(name, merge)
+            report(progress, (li + 1) / len(scenes), f"{name} flat-fielded")
+        return builder.result()
+
+    def _prepare(self, frame) -> None:
+        """Take white level, CFA and black level from the first frame when not given."""
+        if self.white_level is None:
+            self.white_level = white_level_of(frame)
+        if self.cfa is None:
+            self.cfa = cfa_of(frame)
+        if self.black_level is None:
+            black = getattr(frame, "black_levels", None)
+            self.black_level = float(np.mean(black)) if black else 0.0
+
+    def new_merge(self) -> HdrMerge:
+        return HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level, band_rows=self.band_rows,
+                        work=self._work, own_result=False)
+
+
+def _weak_cells(weight_sum: np.ndarray, floor: float, so_far: Optional[np.ndarray]) -> np.ndarray:
+    """Superpixels none of whose four pixels reached ``floor`` (eq 8.9 weight of ``MIN_SIGNAL_DN``) in any
+    exposure, AND-ed with the lights before (a cell is under-exposed only if it is under every light)."""
+    h2, w2 = weight_sum.shape[0] // 2, weight_sum.shape[1] // 2
+    cells = weight_sum[:2 * h2, :2 * w2].reshape(h2, 2, w2, 2).max(axis=(1, 3)) < floor
+    return cells if so_far is None else (cells & so_far)
+
+
+class StackBuilder:
+    """Builds a ChannelStack light by light while frames arrive: ``add(light, ref)`` merges one exposure as soon
+    as it lands (decode + eq 8.9 accumulate), ``finish_light`` flat-fields that light's merge into its three
+    channels; after the last frame only that frame and the last light's flat field remain to be done.
+    """
+
+    def __init__(self, proc: CaptureProcessor, lights: list[str], min_signal_dn: float):
+        self.proc = proc
+        self.lights = lights
+        self.min_signal_dn = min_signal_dn
+        self.out: Optional[np.ndarray] = None
+        self.clipped: dict[str, float] = {}
+        self._weak: Optional[np.ndarray] = None     # superpixels under-exposed under every light so far
+        self._merges: dict[str, HdrMerge] = {}
+
+    def add(self, light: str, ref: ExposureRef, cancel: Optional[CancelToken] = None) -> None:
+        from app.processing.mosaic import open_raw
+
+        if light not in self.lights:
+            raise ValueError(f"{light!r} is not one of this stack's lights ({', '.join(self.lights)})")
+        if light in self.clipped:
+            raise ValueError(f"{light} is already flat-fielded: add every exposure of a light before the next light")
+        for other in [n for n in self._merges if n != light]:     # merges share scratch buffers: one at a time
+            self.finish_light(other)
+        with open_raw(ref.source) as frame:
+            self.proc._prepare(frame)
+            merge = self._merges.get(light) or self._merges.setdefault(light, self.proc.new_merge())
+            dark = self.proc._dark_for(frame, ref.exposure_s, cancel)
+            merge.add(mosaic_of(frame), ref.exposure_s, dark, cancel=cancel)
+
+    def finish_light(self, light: str, merge: Optional[HdrMerge] = None) -> None:
+        merge = merge or self._merges.pop(light)
+        ff = self.proc._whites[light]
+        h, w = ff.white.shape
+        if self.out is None:
+            self.out = np.empty((h // 2, w // 2, 3 * len(self.lights)), dtype=np.float32)
+        li = self.lights.index(light)
+        self._weak = _weak_cells(merge.weight_sum, self.min_signal_dn / (self.proc.white_level - self.proc.black_level),
+                                 self._weak)
+        n_clipped = merge.flat_superpixel(ff.white, ff.threshold, self.proc.cfa or "RGGB",
+                                          self.out[..., 3 * li: 3 * li + 3])
+        self.clipped[light] = n_clipped / (h * w)
+
+    def result(self) -> ChannelStack:
+        for light in list(self._merges):
+            self.finish_light(light)
+        missing = [n for n in self.lights if n not in self.clipped]
+        if missing:
+            raise ValueError(f"no exposures of {', '.join(missing)} were added")
+        channels = [f"{c}{i + 1}" for i in range(len(self.lights)) for c in CHANNELS]
+        under = float(self._weak.mean()) if self._weak is not None else 0.0
+        return ChannelStack(self.out, channels, self.lights, self.clipped, under)
