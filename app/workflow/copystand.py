@@ -274,7 +274,7 @@ class CopyStand:
             self.run_sequence(seq, 0.1, 0.8)
         finally:
             self.on_event = outer
-        dose = LightDoseRecord(self.shooter.dose.lux_s - dose0, self.shooter.dose.on_s - on0)
+        dose = self._total_dose(original, LightDoseRecord(self.shooter.dose.lux_s - dose0, self.shooter.dose.on_s - on0))
         delivery = deliver(builder.result(), profile, original, Path(out_dir or self.session.path / "deliverables"),
                            camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
                            exposures=exposures, warnings=checked.warnings + warnings,
@@ -283,11 +283,14 @@ class CopyStand:
         report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
         return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)
 
-    def _remember(self, original: Original, dose: LightDoseRecord, delivery: Delivery, take: int) -> None:
-        """The original's metadata and dose in session.json (``dualrgb process`` re-delivers from it)."""
+    def _total_dose(self, original: Original, now: LightDoseRecord) -> LightDoseRecord:
+        """This capture's dose plus what the session recorded for the original before (re-shoots add up)."""
+        before = self.session.settings.get("originals", {}).get(original.identifier, {}).get("light_dose", {})
+        return LightDoseRecord(now.lux_s + float(before.get("lux_s", 0.0)), now.on_s + float(before.get("on_s", 0.0)))
+
+    def _remember(self, original: Original, total: LightDoseRecord, delivery: Delivery, take: int) -> None:
+        """The original's metadata and total dose in session.json (``dualrgb process`` re-delivers from it)."""
         originals = dict(self.session.settings.get("originals", {}))
-        before = originals.get(original.identifier, {}).get("light_dose", {})
-        total = LightDoseRecord(dose.lux_s + float(before.get("lux_s", 0.0)), dose.on_s + float(before.get("on_s", 0.0)))
         originals[original.identifier] = {**original.to_dict(), "take": take, "light_dose": total.to_dict(),
                                           "sidecar": str(delivery.sidecar)}
         self.session.update_settings(originals=originals)

@@ -302,8 +302,8 @@ def describe(prof: CalibrationProfile, check: Optional[ReuseCheck] = None) -> li
     for nl in prof.lights:
         ts = ", ".join(exposure_key(t) for t in prof.exposures.get(nl.name, []))
         lines.append(f"  {nl.name}: {nl.light.label()}, exposures {ts} s")
-    lines.append(f"matrix: {prof.matrix.method} ({len(prof.matrix.channels)} channels), chosen on "
-                 f"{prof.statistics.get('chosen_on', 'training data')}; train mean dE00 "
+    lines.append(f"matrix: {prof.matrix.method} ({len(prof.matrix.channels)} channels, of "
+                 f"{', '.join(prof.statistics.get('methods', {}))}); train mean dE00 "
                  f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, test mean {prof.test_mean or float('nan'):.3f}")
     lines.append(f"darks {len(prof.darks.exposures) if prof.darks else '?'} exposures, whites "
                  f"{len(prof.whites) or '?'} lights, {len(prof.sources)} source frames, "
