@@ -19,7 +19,7 @@ from app.gui.context import AppContext
 from app.gui.viewmodel import format_duration
 from app.gui.workers import TaskHandle
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence
-from drivers.camera.gphoto import format_shutter
+from app.workflow.vocabulary import format_exposure as format_shutter
 
 log = logging.getLogger(__name__)
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from app.processing.crf_analysis import CrfResult, analyse_crf
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
-from app.sequences.calibration import exposure_key
+from app.workflow.vocabulary import exposure_key
 from app.sequences.shooter import Shooter
 from simulation.lightsource import LightSource
 

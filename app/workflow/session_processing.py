@@ -63,6 +63,25 @@ def session_frames(session) -> SessionFrames:
     return out
 
 
+def subject_entries(session) -> dict[str, dict[str, list]]:
+    """Subject key -> light name -> manifest entries (latest takes): what the GUI lists."""
+    out: dict[str, dict[str, list]] = {}
+    for e in latest_takes(session.entries()):
+        subject = subject_of(e)
+        if subject is not None:
+            out.setdefault(subject.key, {}).setdefault(light_of(e), []).append(e)
+    return out
+
+
+def light_sets(light_names: Sequence[str]) -> dict[str, list[str]]:
+    """Group light names by preset ('<preset> light <n>'): a session may hold several presets' captures."""
+    out: dict[str, list[str]] = {}
+    for name in light_names:
+        preset, sep, _n = name.rpartition(" light ")
+        out.setdefault(preset if sep else name, []).append(name)
+    return out
+
+
 def select_lights(frames: LightFrames, lights: Optional[Sequence[str]] = None,
                   exposures: Optional[dict[str, Sequence[float]]] = None) -> LightFrames:
     """The exposures of ``lights`` (default: every light, in recording order), only ``exposures`` when given."""

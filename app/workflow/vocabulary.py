@@ -167,6 +167,13 @@ def read_light_name(text: str) -> str:
     return text or "light"
 
 
+def format_exposure(seconds: Optional[float]) -> str:
+    """An exposure time as photographers read it ('1/60 s', '2 s'): the camera driver's own notation."""
+    from drivers.camera.gphoto import format_shutter
+
+    return format_shutter(seconds)
+
+
 # ---------------------------------------------------------------- steps
 def exposure_key(t: float) -> str:
     """An exposure time as it appears in step ids (6 significant digits)."""
@@ -261,6 +268,6 @@ def latest_takes(entries: Sequence[Any]) -> list[Any]:
     return [e for e in entries if e.seq in keep]
 
 
-__all__ = ["EventKind", "NamedLight", "Role", "SequenceKind", "Subject", "SubjectKind", "exposure_key",
+__all__ = ["EventKind", "format_exposure", "NamedLight", "Role", "SequenceKind", "Subject", "SubjectKind", "exposure_key",
            "latest_takes", "light_name", "light_of", "lights_of", "read_light_name", "read_role", "role_of",
            "split_take", "step_id", "subject_of"]

@@ -16,7 +16,7 @@ from app.gui.sequence_view import SequenceView
 from app.gui.widgets import plot_widget
 from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import SafetySettings, Shooter
-from drivers.camera.gphoto import format_shutter
+from app.workflow.vocabulary import format_exposure as format_shutter
 from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
