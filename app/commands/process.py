@@ -25,10 +25,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=main)
 
 
-def newest_calibration(session_dir: Path) -> Path:
-    found = sorted((session_dir / "calibration").glob("cal-*.json"))
+def newest_calibration(session) -> Path:
+    """The session's own newest calibration, else the one its latest original was captured with."""
+    found = sorted((session.path / "calibration").glob("cal-*.json"))
+    used = [Path(o["calibration"]) for o in session.settings.get("originals", {}).values() if o.get("calibration")]
+    found += [p for p in used if p.exists()]
     if not found:
-        raise ValueError(f"{session_dir}: no calibration in {session_dir / 'calibration'}; pass --calibration FILE")
+        raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
     return found[-1]
 
 
@@ -42,7 +45,7 @@ def main(args: argparse.Namespace) -> int:
     if not report.valid:
         raise ValueError(f"{args.session}: {report.summary()} (missing: {', '.join(report.missing[:3])}"
                          f"{' corrupted: ' + ', '.join(report.corrupted[:3]) if report.corrupted else ''})")
-    profile = load_profile(args.calibration or newest_calibration(args.session))
+    profile = load_profile(args.calibration or newest_calibration(session))
     deliveries = redeliver(session, profile, args.out or args.session / "deliverables", ppi=args.ppi,
                            progress=progress_printer())
     if not deliveries:

@@ -95,7 +95,8 @@ def open_devices(args: argparse.Namespace, mode: str = "reflective", original: O
                  ) -> Iterator[Devices]:
     """The virtual lab or the real sphere + camera; LEDs off and ports closed on the way out, whatever happens.
 
-    In the virtual lab an original is placed as its virtual stand-in ``original`` (``--virtual-original``)."""
+    In the virtual lab an original is placed as its virtual stand-in ``original`` (``--virtual-original``: a
+    virtual original's name, or a chart: 'test', 'test+nd' with the ND 2.0 filter over half)."""
     if args.virtual_lab:
         from drivers.virtual.lab import VirtualLab
 
@@ -103,9 +104,12 @@ def open_devices(args: argparse.Namespace, mode: str = "reflective", original: O
             _apply_settings(lab.camera, args)
 
             def stand(what: str, nd: bool = False) -> Any:
-                if what.startswith("original:"):             # the virtual stand-in; a chart ('test') works too
+                if what.startswith("original:"):     # the virtual stand-in; a chart works too ('test', 'test+nd')
                     name = original or VIRTUAL_ORIGINALS[mode]
-                    what = name if name in ("train", "test") else f"original:{name}"
+                    chart, plus, _ = name.partition("+nd")
+                    if chart in ("train", "test"):
+                        return lab.place(chart, bool(plus) or nd)
+                    what = f"original:{name}"
                 return lab.place(what, nd)
             yield Devices(lab.camera, lab.sphere, stand, lab)
         return

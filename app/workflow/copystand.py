@@ -279,7 +279,7 @@ class CopyStand:
                            camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
                            exposures=exposures, warnings=checked.warnings + warnings,
                            extra={"session": str(self.session.path), "take": take, "frames": seq.steps()})
-        self._remember(original, dose, delivery, take)
+        self._remember(original, dose, delivery, take, profile)
         report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
         return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)
 
@@ -288,11 +288,12 @@ class CopyStand:
         before = self.session.settings.get("originals", {}).get(original.identifier, {}).get("light_dose", {})
         return LightDoseRecord(now.lux_s + float(before.get("lux_s", 0.0)), now.on_s + float(before.get("on_s", 0.0)))
 
-    def _remember(self, original: Original, total: LightDoseRecord, delivery: Delivery, take: int) -> None:
+    def _remember(self, original: Original, total: LightDoseRecord, delivery: Delivery, take: int,
+                  profile: CalibrationProfile) -> None:
         """The original's metadata and total dose in session.json (``dualrgb process`` re-delivers from it)."""
         originals = dict(self.session.settings.get("originals", {}))
         originals[original.identifier] = {**original.to_dict(), "take": take, "light_dose": total.to_dict(),
-                                          "sidecar": str(delivery.sidecar)}
+                                          "sidecar": str(delivery.sidecar), "calibration": str(profile.path or "")}
         self.session.update_settings(originals=originals)
 
 
