@@ -42,6 +42,7 @@ columns right, as the sensor (and the DNG, orientation "horizontal") stores them
 from __future__ import annotations
 
 import logging
+import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import TYPE_CHECKING, Callable, Optional, Sequence
@@ -157,6 +158,7 @@ class Original:
     grid: SpectralGrid = DEFAULT_GRID
     sources: str = ""
     _maps: dict = field(default_factory=dict, repr=False, compare=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False, compare=False)
 
     @property
     def n_classes(self) -> int:
@@ -164,16 +166,20 @@ class Original:
 
     def class_map(self, height: int, width: int) -> np.ndarray:
         """(height // 2, width // 2) uint16 class of every superpixel (2x2 Bayer cell); cached, read-only."""
+        if height < 8 or width < 8 or height % 2 or width % 2:
+            raise ValueError(f"original {self.name!r} at {width}x{height}: expected an even number of pixels >= 8 "
+                             "each way (Bayer 2x2 cells)")
         key = (height // 2, width // 2)
-        if key not in self._maps:
-            cmap = np.zeros(key, dtype=np.uint16)
-            for stroke in self.strokes:
-                stroke.paint(cmap)
-            cmap.flags.writeable = False
-            if len(self._maps) >= 2:                       # a 24 MP map is 12 MB: keep the last two sizes
-                self._maps.pop(next(iter(self._maps)))
-            self._maps[key] = cmap
-        return self._maps[key]
+        with self._lock:                                   # the GUI's preview and a capture may ask at once
+            if key not in self._maps:
+                cmap = np.zeros(key, dtype=np.uint16)
+                for stroke in self.strokes:
+                    stroke.paint(cmap)
+                cmap.flags.writeable = False
+                if len(self._maps) >= 2:                   # a 24 MP map is 12 MB: keep the last two sizes
+                    self._maps.pop(next(iter(self._maps)))
+                self._maps[key] = cmap
+            return self._maps[key]
 
     def labels(self, row_idx: np.ndarray, col_idx: np.ndarray, height: int, width: int) -> np.ndarray:
         """Class of sensor pixels (row_idx x col_idx, an outer product) of a ``height`` x ``width`` frame.
@@ -202,7 +208,7 @@ class Original:
     def ground_truth_xyz(self, height: int, width: int, illuminant: np.ndarray, cmfs: np.ndarray) -> np.ndarray:
         """(height, width, 3) float32 XYZ of every sensor pixel (each 2x2 Bayer cell is one class)."""
         cells = self.palette_xyz(illuminant, cmfs).astype(np.float32)[self.class_map(height, width)]
-        out = np.empty((cells.shape[0], 2, cells.shape[1], 2, 3), dtype=np.float32)
+        out = np.empty((cells.shape[0], 2, cells.shape[1], 2, 3), dtype=np.float32)     # (even sizes checked)
         out[...] = cells[:, None, :, None, :]                    # each 2x2 Bayer cell is one class
         return out.reshape(2 * cells.shape[0], 2 * cells.shape[1], 3)
 

@@ -158,6 +158,8 @@ def test_names_and_refusals():
         original_scene("original:painting", 600, 400, nd_filter=True)
     with pytest.raises(ValueError, match="needs an original"):
         Scene(kind="original")
+    with pytest.raises(ValueError, match="at 601x400: expected an even number"):
+        ground_truth_xyz("painting", 400, 601)
 
 
 def test_virtual_lab_places_originals_and_gives_their_truth():
