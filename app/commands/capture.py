@@ -31,6 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--reshoot", action="store_true", help="shoot an original already in the session again")
     p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables)")
     p.add_argument("--ppi", type=float, help="sampling of the deliverables (default: the calibration's)")
+    p.add_argument("--frames", type=int, default=1,
+                   help="frames averaged per exposure (noise / sqrt(N), light dose x N; default 1)")
     p.add_argument("--virtual-original", default=None,
                    help="virtual lab: which virtual original stands in (default painting / film by mode)")
     add_reuse_options(p)
@@ -45,7 +47,8 @@ def main(args: argparse.Namespace) -> int:
 
     profile = load_profile(args.calibration)
     original = Original(args.identifier, args.title, args.operator, args.notes, args.mode or profile.mode)
-    settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi)
+    settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
+                             original_frames=args.frames)
     with open_devices(args, original.mode, args.virtual_original) as dev:
         session = open_session(args.session, {"purpose": "originals"})
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,

@@ -3,7 +3,7 @@ light (thesis 1.4, 7, 8)."""
 from __future__ import annotations
 
 import logging
-from typing import Iterator, Sequence
+from typing import Iterator, Optional, Sequence
 
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
 from app.sequences.shooter import Shooter
@@ -22,7 +22,7 @@ class SubjectCapture(BaseSequence):
     name = "subject capture"
 
     def __init__(self, shooter: Shooter, lights: Sequence[NamedLight], exposures: dict[str, Sequence[float]],
-                 subject: Subject, take: int = 1, meta: dict | None = None):
+                 subject: Subject, take: int = 1, meta: dict | None = None, frames: int = 1):
         super().__init__()
         self.shooter = shooter
         self.lights = list(lights)
@@ -30,6 +30,9 @@ class SubjectCapture(BaseSequence):
         self.subject = subject
         self.take = take
         self.meta = dict(meta or {})
+        if frames < 1:
+            raise ValueError(f"frames per exposure {frames}: expected at least 1")
+        self.frames = frames          # > 1: frames averaged per exposure (noise / sqrt(frames), dose x frames)
         self.new = self.kept = 0
         missing = [nl.name for nl in self.lights if not self.exposures.get(nl.name)]
         if missing:
@@ -41,30 +44,34 @@ class SubjectCapture(BaseSequence):
 
     def plan(self) -> list[PlannedFrame]:
         return [PlannedFrame(self.subject.role.value, t, nl.light.label(), self.subject.label)
-                for nl in self.lights for t in self.exposures[nl.name]]
+                for nl, t, _i in self._shots()]
+
+    def _shots(self) -> list[tuple[NamedLight, float, Optional[int]]]:
+        """(light, exposure, frame index or None for a single frame) in shooting order."""
+        index = (lambda i: i) if self.frames > 1 else (lambda i: None)
+        return [(nl, t, index(i)) for nl in self.lights for t in self.exposures[nl.name] for i in range(self.frames)]
+
+    def _step(self, nl: NamedLight, t: float, i: Optional[int]) -> str:
+        return step_id(self.subject.role, subject=self.subject, light=nl.name, exposure_s=t, frame=i, take=self.take)
 
     def steps(self) -> list[str]:
         """The step ids this capture records (the take included)."""
-        return [step_id(self.subject.role, subject=self.subject, light=nl.name, exposure_s=t, take=self.take)
-                for nl in self.lights for t in self.exposures[nl.name]]
+        return [self._step(nl, t, i) for nl, t, i in self._shots()]
 
     def _steps(self) -> Iterator[ProgressEvent]:
         total = len(self.plan())
         if not self.shooter.place(self.subject.place, self.subject.nd):
             yield ProgressEvent(0, total, f"Place the {self.subject.label}, then continue",
                                 kind=EventKind.PROMPT.value, data={"place": self.subject.place, "nd": self.subject.nd})
-        step = 0
-        for nl in self.lights:
-            for t in self.exposures[nl.name]:
-                sid = step_id(self.subject.role, subject=self.subject, light=nl.name, exposure_s=t, take=self.take)
-                kind = EventKind.KEPT if self.shooter.session.has_step(sid) else EventKind.FRAME
-                entry = self.shooter.shoot(self.subject.role.value, nl.light, t, sid, light_name=nl.name,
-                                           subject=self.subject.key, take=self.take, **self.meta)
-                self.kept += kind is EventKind.KEPT
-                self.new += kind is EventKind.FRAME
-                step += 1
-                yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {t:g} s", kind=kind.value,
-                                    data={"entry": entry.seq, "exposure_s": t, "light": nl.name})
+        for step, (nl, t, i) in enumerate(self._shots(), start=1):
+            sid = self._step(nl, t, i)
+            kind = EventKind.KEPT if self.shooter.session.has_step(sid) else EventKind.FRAME
+            entry = self.shooter.shoot(self.subject.role.value, nl.light, t, sid, light_name=nl.name,
+                                       subject=self.subject.key, take=self.take, **self.meta)
+            self.kept += kind is EventKind.KEPT
+            self.new += kind is EventKind.FRAME
+            yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {t:g} s", kind=kind.value,
+                                data={"entry": entry.seq, "exposure_s": t, "light": nl.name})
 
     def _cleanup(self) -> None:
         self.shooter.lights_off()

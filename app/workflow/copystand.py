@@ -63,6 +63,7 @@ class StandSettings:
     ppi: Optional[float] = None               # sampling set by the user (else from the target's size)
     target_width_mm: Optional[float] = None   # test target's width (corner patches' outer corners) -> ppi
     meter_tiles: int = 12                     # metering regions across the frame (HDR decision for originals)
+    original_frames: int = 1                  # frames averaged per exposure of an original (noise / sqrt(n))
 
 
 @dataclass
@@ -262,7 +263,8 @@ class CopyStand:
             warnings.append(f"calibrated {profile.mode}, original {original.mode}: colour not characterised for it")
         builder = profile_processor(profile).begin_stack([nl.name for nl in profile.lights])
         seq = SubjectCapture(self.shooter, profile.lights, exposures, original.subject, take,
-                             meta={"title": original.title, "operator": original.operator, "mode": original.mode})
+                             meta={"title": original.title, "operator": original.operator, "mode": original.mode},
+                             frames=self.settings.original_frames)
 
         def landed(ev: ProgressEvent) -> None:            # merge each frame as soon as it is on disk
             if ev.kind in (EventKind.FRAME.value, EventKind.KEPT.value):
