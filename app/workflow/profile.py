@@ -231,12 +231,12 @@ def _from_dict(doc: dict) -> CalibrationProfile:
 def _load_arrays(prof: CalibrationProfile, folder: Path, index: dict) -> None:
     npz = folder / index["file"]
     try:
-        data = npz.read_bytes()
+        digest = _sha256(npz)
     except OSError as exc:
         raise ProfileError(f"{npz}: the calibration's arrays are missing ({exc.strerror or exc})") from None
-    if hashlib.sha256(data).hexdigest() != index["sha256"]:
+    if digest != index["sha256"]:
         raise ProfileError(f"{npz}: damaged (sha256 differs from the one {prof.id}.json names)")
-    arrays = np.load(io.BytesIO(data))
+    arrays = np.load(npz)                    # each array read when first used, the file never whole in memory
     prof.darks = MasterDark()
     for d in index["darks"]:
         noise = d.get("noise_dn")
@@ -247,6 +247,14 @@ def _load_arrays(prof: CalibrationProfile, folder: Path, index: dict) -> None:
         ff = FlatField.__new__(FlatField)          # the threshold was decided when it was made: keep it
         ff.white, ff.threshold, ff.n_invalid = arrays[w["array"]], float(w["threshold"]), 0
         prof.whites[w["light"]] = ff
+
+
+def _sha256(path: Path, chunk: int = 1 << 22) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(chunk), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def check_reuse(prof: CalibrationProfile, camera: CameraIdentity, sphere: Optional[SphereIdentity] = None,
