@@ -51,8 +51,10 @@ def process(lab, session, grids: dict, train_subject: str, test_subject: Optiona
     from simulation.colorimetry import xyz_to_lab
 
     mode = lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode
-    specs = {label: target_spec(mode, Subject.parse(key), grids.get(key), lab=lab.virtual_lab, label=f"{label} ({key})")
+    specs = {label: target_spec(mode, Subject.parse(key), grids.get(key), lab=lab.virtual_lab)
              for label, key in (("train", train_subject), ("test", test_subject)) if key}
+    for label, spec in specs.items():
+        spec.label = f"{label}: {spec.label}"                 # e.g. "train: test (CC24 on film)"
     out_dir = Path(session.path) / "results"
     result = process_session(session, out_dir, specs["train"], specs.get("test"), lights=lights, optimise=optimise,
                              white_xyz=reference_white(mode), title=f"dual-RGB capture, {Path(session.path).name}",
