@@ -98,6 +98,20 @@ def _encode(stack, A, M, luts, scale_xyz, xyz16, rgb16, ch16):  # pragma: no cov
     return bad.sum(), over.sum()
 
 
+@njit(parallel=True, cache=True, nogil=True)
+def weak_cells(weight_sum, floor, so_far, first):  # pragma: no cover - compiled
+    """Per 2x2 Bayer cell: True when none of its pixels reached ``floor`` (the eq 8.9 weight of the minimum
+    signal) in any exposure, AND-ed into ``so_far`` (a cell is under-exposed only if it is under every light;
+    ``first``: initialise instead). One pass, no copy of the mosaic (numpy's strided maximum took 0.08 s / 24 MP)."""
+    H2, W2 = so_far.shape
+    for i in prange(H2):
+        for j in range(W2):
+            a = max(weight_sum[2 * i, 2 * j], weight_sum[2 * i, 2 * j + 1])
+            b = max(weight_sum[2 * i + 1, 2 * j], weight_sum[2 * i + 1, 2 * j + 1])
+            weak = max(a, b) < floor
+            so_far[i, j] = weak if first else (so_far[i, j] and weak)
+
+
 def encode_deliverables(stack: np.ndarray, matrix: np.ndarray, white_xyz: Sequence[float],
                         spaces: Sequence[str] = RGB_SPACES) -> EncodedImages:
     """All 16-bit deliverable arrays of a (H, W, N) float32 stack with the (N, 3) characterisation matrix."""
@@ -122,3 +136,4 @@ def encode_deliverables(stack: np.ndarray, matrix: np.ndarray, white_xyz: Sequen
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) the kernel on a tiny image."""
     encode_deliverables(np.zeros((2, 2, 6), np.float32), np.zeros((6, 3)), [95.047, 100.0, 108.883])
+    weak_cells(np.zeros((4, 4), np.float32), np.float32(0.01), np.zeros((2, 2), np.bool_), True)

@@ -198,13 +198,13 @@ class CaptureProcessor:
 def _weak_cells(weight_sum: np.ndarray, floor: float, so_far: Optional[np.ndarray]) -> np.ndarray:
     """Superpixels none of whose four pixels reached ``floor`` (eq 8.9 weight of ``MIN_SIGNAL_DN``) in any
     exposure, AND-ed with the lights before (a cell is under-exposed only if it is under every light)."""
-    h2, w2 = weight_sum.shape[0] // 2, weight_sum.shape[1] // 2
-    a = weight_sum[:2 * h2, :2 * w2]
-    best = np.maximum(a[0::2, 0::2], a[0::2, 1::2])          # strided views: no copy of the mosaic
-    np.maximum(best, a[1::2, 0::2], out=best)
-    np.maximum(best, a[1::2, 1::2], out=best)
-    cells = best < np.float32(floor)
-    return cells if so_far is None else np.logical_and(cells, so_far, out=so_far)
+    from app.processing.encode import weak_cells
+
+    first = so_far is None
+    if first:
+        so_far = np.empty((weight_sum.shape[0] // 2, weight_sum.shape[1] // 2), dtype=np.bool_)
+    weak_cells(weight_sum, np.float32(floor), so_far, first)
+    return so_far
 
 
 class StackBuilder:
