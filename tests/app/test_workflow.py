@@ -174,3 +174,35 @@ def test_coverage_counts_darks_and_flats():
     cov = coverage(session, {"L light 1": [0.01, 0.5], "L light 2": [0.5]})
     assert cov.summary() == "darks 1/2 exposures, flats 2/3 light exposures"
     assert not cov.complete and "darks at 0.5 s" in cov.missing() and "flats of L light 1 at 0.5 s" in cov.missing()
+
+
+def test_streamed_stack_equals_the_batch_stack():
+    """StackBuilder (frames merged as they land, as CopyStand.capture does) gives the stack of CaptureProcessor.stack."""
+    from app.processing.pipeline import CaptureProcessor, ExposureRef
+
+    rng = np.random.default_rng(5)
+    h, w = 16, 20
+    scene = rng.uniform(0.05, 1.0, (h, w)).astype(np.float32)
+
+    def frame(t, gain):
+        return np.clip(600 + gain * scene * t + rng.normal(0, 2, (h, w)), 0, 15520).astype(np.uint16)
+
+    darks = [ExposureRef(np.full((h, w), 600, np.uint16), t) for t in (0.01, 0.1) for _ in range(3)]
+    refs = {"a": [ExposureRef(frame(t, 8e4), t) for t in (0.01, 0.1)],
+            "b": [ExposureRef(frame(t, 5e4), t) for t in (0.01, 0.1)]}
+
+    def processor():
+        p = CaptureProcessor(dark_frames=darks, white_level=15520, black_level=600, cfa="RGGB")
+        for name in refs:
+            p.set_white(name, [ExposureRef(np.full((h, w), 9000, np.uint16), 0.01)])
+        return p
+    batch = processor().stack(refs)
+    builder = processor().begin_stack(list(refs))
+    for name, rs in refs.items():
+        for r in rs:
+            builder.add(name, r)
+    streamed = builder.result()
+    assert np.allclose(streamed.data, batch.data, equal_nan=True) and streamed.channels == batch.channels
+    assert 0.0 <= streamed.underexposed_fraction <= 1.0
+    with pytest.raises(ValueError, match="already flat-fielded"):
+        builder.add("a", refs["a"][0])
