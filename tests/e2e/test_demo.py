@@ -70,5 +70,5 @@ def test_demo_resumes_after_kill_without_reshooting(tmp_path):
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["lost_frames"] == 0 and report["session_valid"]
     lines = [json.loads(l) for l in manifest.read_text().splitlines() if l.strip()]
-    steps = [l["step_id"] for l in lines if l.get("step_id")]
+    steps = [l["step_id"] for l in lines if l.get("step_id") and l.get("kind", "frame") == "frame"]
     assert len(steps) == len(set(steps))           # nothing shot twice
