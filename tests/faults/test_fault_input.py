@@ -52,30 +52,46 @@ def test_led_csv_with_another_led_count_is_one_line_before_any_kernel(tmp_path, 
                    f"{leds}:1: expected 10 data columns after the wavelength, found {columns}")
 
 
-def test_evaluator_refuses_a_setup_and_batches_its_kernels_were_not_written_for():
-    from dataclasses import replace
+KERNEL_GUARDS = """
+import sys
+from dataclasses import replace
+import numpy as np
+from simulation.datasets import default_setup
+from simulation.objective import Evaluator
+from simulation.fast_de import mean_de2000_xyz
+setup = default_setup("reflective")
+ev = Evaluator(setup)
+idx = np.zeros((2, 2, 3), dtype=np.int64)
+calls = {
+    "4 LEDs": lambda: Evaluator(replace(setup, leds=setup.leds[:4])),
+    "short camera": lambda: Evaluator(replace(setup, camera=setup.camera[:-3])),
+    "LED 11": lambda: ev.cost_indexed(np.where(np.arange(12).reshape(2, 2, 3) == 11, 10, 0), np.ones((2, 2, 3))),
+    "LED 0": lambda: ev.cost_indexed(np.full((2, 2, 3), -1), np.ones((2, 2, 3))),
+    "LED 1e9": lambda: ev.cost_indexed(np.full((2, 2, 3), 10**9), np.ones((2, 2, 3))),
+    "shapes": lambda: ev.cost_indexed(idx, np.ones((2, 2, 2))),
+    "de2000 shapes": lambda: mean_de2000_xyz(np.ones((2, 5)), np.ones((2, 5)), np.ones((2, 5)), np.ones(3),
+                                             *(np.ones(4, np.float32),) * 3, np.empty(2, np.float32)),
+}
+for name, call in calls.items():
+    try:
+        call()
+    except ValueError as exc:          # SpectralDataError is a ValueError
+        print(name, "REFUSED", str(exc).replace(chr(10), " "), flush=True)
+    else:
+        print(name, "RAN", flush=True)
+"""
 
-    from simulation.datasets import default_setup
-    from simulation.objective import Evaluator
-    from simulation.spectral_io import SpectralDataError
 
-    setup = default_setup("reflective")
-    with pytest.raises(SpectralDataError, match="4 LEDs, the sphere has 10"):
-        Evaluator(replace(setup, leds=setup.leds[:4]))
-    with pytest.raises(SpectralDataError, match="does not fit"):
-        Evaluator(replace(setup, camera=setup.camera[:-3]))
-    ev = Evaluator(setup)
-    idx = np.zeros((2, 2, 3), dtype=np.int64)
-    for bad in (10, -1, 10**9):
-        idx[1, 1, 2] = bad
-        with pytest.raises(ValueError, match="light-set batch uses LED"):
-            ev.cost_indexed(idx, np.ones((2, 2, 3)))
-    with pytest.raises(ValueError, match=r"must both be \(P, L, m\)"):
-        ev.cost_indexed(np.zeros((2, 2, 3), np.int64), np.ones((2, 2, 2)))
-    from simulation.fast_de import mean_de2000_xyz
-    with pytest.raises(ValueError, match="expected"):
-        mean_de2000_xyz(np.ones((2, 5)), np.ones((2, 5)), np.ones((2, 5)), np.ones(3),
-                        *(np.ones(4, np.float32),) * 3, np.empty(2, np.float32))
+def test_kernels_are_never_handed_data_they_were_not_written_for():
+    """In a subprocess: without the guards these inputs abort the interpreter inside numba (that would end
+    the test session, not fail a test)."""
+    r = subprocess.run([sys.executable, "-c", KERNEL_GUARDS], capture_output=True, text=True, cwd=ROOT,
+                       timeout=300)
+    results = dict(line.split(" ", 1) if " " in line else (line, "") for line in r.stdout.splitlines())
+    assert r.returncode == 0, f"crashed ({r.returncode}) after {list(results)}: {r.stderr[-1500:]}"
+    names = ["4 LEDs", "short camera", "LED 11", "LED 0", "LED 1e9", "shapes", "de2000 shapes"]
+    assert all(results.get(n, "").split(" ", 1)[0] == "REFUSED" for n in names), results
+    assert "4 LEDs, the sphere has 10" in results["4 LEDs"] and "uses LED 11" in results["LED 11"]
 
 
 # ---- 12. presets: a strict schema ------------------------------------------------------------------------
@@ -286,25 +302,37 @@ def test_every_numeric_option_uses_a_shared_validator():
 
 
 # ---- 15. the GUI on a stale or incomplete display: one line, exit 1 -------------------------------------
-def test_missing_xcb_library_gives_the_install_command(monkeypatch, capsys):
-    from app.cli import main
+HIDDEN_LIBRARY = """
+import sys
+from app.gui import platform_check
+real = platform_check._dlopen
+platform_check._dlopen = lambda so: so != "libxcb-cursor.so.0" and real(so)
+from app.cli import main
+sys.exit(main(["gui"]))
+"""
+
+
+def test_missing_xcb_library_gives_the_install_command():
+    """`dualrgb gui` with libxcb-cursor.so.0 hidden from the probe (a subprocess: if the probe let Qt start,
+    Qt's abort ends that process, not the test session)."""
+    base = {k: v for k, v in os.environ.items() if k not in ("WAYLAND_DISPLAY",)}
+    r = subprocess.run([sys.executable, "-c", HIDDEN_LIBRARY], capture_output=True, text=True, cwd=ROOT,
+                       env={**base, "QT_QPA_PLATFORM": "", "DISPLAY": ":0"}, timeout=120)
+    line = one_line_error(r, "libxcb-cursor.so.0")
+    assert "sudo apt-get install libxcb-cursor0 libxcb-icccm4" in line or "sudo dnf install xcb-util-cursor" in line
+
+
+def test_install_command_names_every_package():
     from app.gui import platform_check
 
-    real = platform_check._dlopen
-    monkeypatch.setattr(platform_check, "_dlopen", lambda so: so != "libxcb-cursor.so.0" and real(so))
-    monkeypatch.setenv("QT_QPA_PLATFORM", "")
-    monkeypatch.setenv("DISPLAY", ":0")
-    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    assert main(["gui"]) == 1
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1 and "libxcb-cursor.so.0" in lines[0]
-    assert ("sudo apt-get install libxcb-cursor0 libxcb-icccm4" in lines[0]
-            or "sudo dnf install xcb-util-cursor" in lines[0])
     both = platform_check.xcb_libraries_problem(lambda so: so != "libxcb-icccm.so.4", os_release={})
     assert "apt-get install" in both and "dnf install" in both and "xcb-util-wm" in both
-    for package in ("libxcb-keysyms1", "libxcb-render-util0", "libxcb-shape0", "libxcb-xinerama0", "libxcb-xkb1",
-                    "libxkbcommon-x11-0", "libegl1", "libgl1", "libfontconfig1", "libdbus-1-3"):
+    for package in ("libxcb-cursor0", "libxcb-icccm4", "libxcb-image0", "libxcb-keysyms1", "libxcb-randr0",
+                    "libxcb-render-util0", "libxcb-shape0", "libxcb-xinerama0", "libxcb-xkb1", "libxkbcommon-x11-0",
+                    "libegl1", "libgl1", "libfontconfig1", "libdbus-1-3"):
         assert package in platform_check.install_command({"ID": "ubuntu"})
+    assert platform_check.install_command({"ID": "fedora"}).startswith("sudo dnf install xcb-util-cursor")
+    assert platform_check.xcb_libraries_problem(lambda so: True) is None
 
 
 @pytest.mark.parametrize("env", [{"DISPLAY": ":99"}, {"DISPLAY": "localhost:77"},
