@@ -125,6 +125,9 @@ class DemoRun:
 
     def run(self) -> dict:
         s = self.s
+        if s.dark_frames < 1 or s.flat_frames < 1 or min(s.frame_size) < 64 or s.seed < 0:   # before any shot
+            raise ValueError(f"demo settings: dark frames {s.dark_frames}, flat frames {s.flat_frames}, frame size "
+                             f"{s.frame_size}, seed {s.seed}: expected >= 1, >= 1, >= 64 px, >= 0")
         if s.optimise_matrix is None:
             from simulation.studies.parsimony import load_defaults
             s.optimise_matrix = load_defaults()["characterisation_model"] != "linear"

@@ -64,14 +64,14 @@ import logging
 import os
 import re
 import weakref
-from dataclasses import asdict, dataclass, field
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Optional, Union
 
 from app import session_lock
-from app.session_manifest import (DoseRecord, SessionEntry, SetAside, camera_definition, definition_differences,
-                                  light_definition, parse_line)
+from app.session_manifest import (DamagedFramesError, DefinitionMismatch, DoseRecord, SessionEntry, SessionError,
+                                  SessionLockedError, SetAside, VerifyReport, camera_definition,
+                                  definition_differences, json_default, light_definition, normalise, now,
+                                  read_manifest)
 from drivers.camera.base import RawCapture
 from simulation import atomic_io
 from simulation.atomic_io import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
@@ -87,86 +87,11 @@ FORMAT_VERSION = 1
 PathLike = Union[str, "os.PathLike[str]"]
 
 
-class SessionError(OSError):
-    """A session problem with a one-line message (disk full, not a session folder, file missing...)."""
-
-    def __init__(self, code: Optional[int], message: str):
-        super().__init__(code or errno.EIO, message)
-        self.message = message
-
-    def __str__(self) -> str:
-        return self.message
-
-
-class SessionLockedError(SessionError):
-    """Another process writes this session; ``holder`` is its {pid, host, since, program}."""
-
-    def __init__(self, message: str, holder: dict):
-        super().__init__(errno.EBUSY, message)
-        self.holder = holder
-
-
-class DefinitionMismatch(SessionError):
-    """A resume asked for frames defined differently from the session's; ``differences`` lists them all."""
-
-    def __init__(self, message: str, differences: list[str]):
-        super().__init__(errno.EINVAL, message)
-        self.differences = differences
-
-
-class DamagedFramesError(SessionError):
-    """Recorded frames are missing or do not match their sha256; ``files`` names them."""
-
-    def __init__(self, message: str, files: list[str]):
-        super().__init__(errno.EIO, message)
-        self.files = files
-
-
-@dataclass
-class VerifyReport:
-    ok: list[str] = field(default_factory=list)
-    missing: list[str] = field(default_factory=list)
-    corrupted: list[str] = field(default_factory=list)      # sha256 or size mismatch
-    orphans: list[str] = field(default_factory=list)        # complete files that no manifest line names
-    skipped_lines: list[int] = field(default_factory=list)  # 1-based manifest lines that could not be parsed
-    set_aside: list[str] = field(default_factory=list)      # frames moved to damaged/ (their steps re-shot)
-
-    @property
-    def valid(self) -> bool:
-        return not self.missing and not self.corrupted
-
-    def summary(self) -> str:
-        return (f"{len(self.ok)} ok, {len(self.missing)} missing, {len(self.corrupted)} corrupted, "
-                f"{len(self.orphans)} orphan files, {len(self.skipped_lines)} unreadable manifest lines, "
-                f"{len(self.set_aside)} set aside")
-
-
-def _now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
-
-
 _SAFE = re.compile(r"[^A-Za-z0-9._-]+")
 
 
 def _safe(text: str) -> str:
     return _SAFE.sub("_", text).strip("._") or "raw"
-
-
-def _json_default(obj: Any) -> Any:
-    if hasattr(obj, "to_dict"):
-        return obj.to_dict()
-    if hasattr(obj, "__dataclass_fields__"):
-        return asdict(obj)
-    if hasattr(obj, "tolist"):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"cannot store {type(obj).__name__} in the session manifest")
-
-
-def _normalise(value: Any) -> Any:
-    """``value`` as it reads back from JSON (tuples to lists, dataclasses to dicts)."""
-    return json.loads(json.dumps(value, default=_json_default))
 
 
 def _light_dict(light: Any) -> Optional[dict]:
@@ -194,7 +119,7 @@ def _session_error(exc: OSError, path: Path) -> SessionError:
 
 
 def _settings_bytes(settings: dict) -> bytes:
-    return (json.dumps(settings, indent=2, default=_json_default) + "\n").encode()
+    return (json.dumps(settings, indent=2, default=json_default) + "\n").encode()
 
 
 def _allowed_leftover(p: Path) -> bool:
@@ -246,9 +171,9 @@ class CaptureSession:
                 raise SessionError(errno.EEXIST, f"{p}: folder is not empty; open it to resume or choose a new one")
             for tmp in p.glob(f".*{TMP_SUFFIX}"):
                 remove_quietly(tmp)
-            settings = {"format": FORMAT, "version": FORMAT_VERSION, "created_at": _now(), **(meta or {})}
+            settings = {"format": FORMAT, "version": FORMAT_VERSION, "created_at": now(), **(meta or {})}
             if definition is not None:
-                settings["definition"] = _normalise(definition)
+                settings["definition"] = normalise(definition)
             atomic_write(p / SETTINGS, _settings_bytes(settings))
             cls._create_manifest(p)
         except BaseException:
@@ -286,7 +211,7 @@ class CaptureSession:
             if not (p / MANIFEST).exists() and not readonly:
                 log.warning("%s: no manifest (creation was interrupted); starting an empty one", p)
                 cls._create_manifest(p)
-            lines, skipped = cls._read_manifest(p / MANIFEST)
+            lines, skipped = read_manifest(p / MANIFEST)
             session = cls(p, settings, lines, skipped, lock_key=key)
         except BaseException:
             if key:
@@ -341,29 +266,6 @@ class CaptureSession:
             raise SessionError(errno.EIO, f"{path}: unreadable session settings (not a JSON object)")
         return settings
 
-    @staticmethod
-    def _read_manifest(path: Path) -> tuple[list, list[int]]:
-        lines_out: list = []
-        skipped: list[int] = []
-        try:
-            raw = path.read_bytes()
-        except FileNotFoundError:
-            raise SessionError(errno.ENOENT, f"{path}: manifest missing") from None
-        except OSError as exc:
-            raise SessionError(exc.errno, f"{path}: cannot read the manifest ({exc.strerror or exc})") from exc
-        lines = raw.split(b"\n")
-        last_index = len(lines) - 1
-        for i, line in enumerate(lines):
-            if not line.strip():
-                continue
-            try:
-                lines_out.append(parse_line(json.loads(line)))
-            except (ValueError, TypeError, UnicodeDecodeError, RecursionError) as exc:
-                skipped.append(i + 1)
-                where = "last line (truncated by an interrupted write)" if i == last_index else f"line {i + 1}"
-                log.warning("%s: skipping unreadable %s: %s", path, where, exc)
-        return lines_out, skipped
-
     def close(self) -> None:
         """Give the writer lock back (the session object can still be read)."""
         if self._finalizer is not None:
@@ -384,7 +286,7 @@ class CaptureSession:
     def check_definition(self, wanted: dict, *, hint: str = "") -> None:
         """Refuse (:class:`DefinitionMismatch`) a run whose ``wanted`` definition differs from the session's;
         top-level keys the session does not have yet are added (see :meth:`extend_definition`)."""
-        wanted = _normalise(wanted)
+        wanted = normalise(wanted)
         stored = self.definition
         common = {k: stored[k] for k in wanted if k in stored}
         diffs = definition_differences(common, {k: wanted[k] for k in common})
@@ -443,7 +345,10 @@ class CaptureSession:
 
         total = LightDose()
         for d in self._doses:
-            total.add(light_from_record(d.light), d.on_s)
+            try:
+                total.add(light_from_record(d.light), d.on_s)
+            except ValueError as exc:           # an LED or level out of range: reported, never fatal
+                log.warning("%s: dose line for step %s not counted: %s", self.path / MANIFEST, d.step_id, exc)
         return total
 
     def __len__(self) -> int:
@@ -485,16 +390,16 @@ class CaptureSession:
             seq=seq, file=name, role=role, sha256=hashlib.sha256(data).hexdigest(), size=len(data),
             step_id=step_id, exposure_s=raw.exposure_s, iso=raw.iso, aperture=raw.aperture, camera=raw.camera,
             camera_filename=raw.filename, light=_light_dict(light), sphere_temperature_c=sphere_temperature_c,
-            settings=dict(settings or {}), captured_at=captured_at or str(raw.extra.get("captured_at", "")) or _now(),
+            settings=dict(settings or {}), captured_at=captured_at or str(raw.extra.get("captured_at", "")) or now(),
             recorded_at="", meta={**{k: v for k, v in raw.extra.items() if k != "captured_at"}, **meta})
         try:                                     # fail on unstorable meta before anything is written
-            json.dumps(entry.to_dict(), default=_json_default)
+            json.dumps(entry.to_dict(), default=json_default)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{name}: session metadata is not JSON-serialisable: {exc}") from exc
         # 1. the raw file, durable under its final name
         atomic_write(final, data, exclusive=True)
         # 2. the manifest line, durable
-        entry.recorded_at = _now()
+        entry.recorded_at = now()
         try:
             self._append_manifest(self._line(entry.to_dict()))
         except OSError as exc:
@@ -522,7 +427,7 @@ class CaptureSession:
         on = float(on_s)
         if not on >= 0 or on == float("inf"):
             raise ValueError(f"light-on time {on_s!r} s: expected a finite number >= 0")
-        record = DoseRecord(light_d, on, step_id, _now(), _normalise(meta))
+        record = DoseRecord(light_d, on, step_id, now(), normalise(meta))
         self._doses.append(record)
         try:
             self._append_manifest(self._line(record.to_dict()))
@@ -534,7 +439,7 @@ class CaptureSession:
 
     @staticmethod
     def _line(obj: dict) -> bytes:
-        return (json.dumps(obj, default=_json_default, separators=(",", ":")) + "\n").encode()
+        return (json.dumps(obj, default=json_default, separators=(",", ":")) + "\n").encode()
 
     def _append_manifest(self, line: bytes) -> None:
         path = self.path / MANIFEST
@@ -639,7 +544,7 @@ class CaptureSession:
                 fsync_dir(dest_dir)
                 fsync_dir(self.path)
                 moved = f"{DAMAGED_DIR}/{dest.name}"
-            record = SetAside(e.seq, e.file, problem, moved, e.step_id, _now())
+            record = SetAside(e.seq, e.file, problem, moved, e.step_id, now())
             self._append_manifest(self._line(record.to_dict()))
             self._set_aside.append(record)
             self._aside_seqs.add(e.seq)

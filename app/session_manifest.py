@@ -13,10 +13,17 @@ wrong type, is skipped and reported like a torn line (:func:`parse_line` raises 
 """
 from __future__ import annotations
 
+import errno
+import json
+import logging
 import math
 import re
 from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
 from typing import Any, Optional, Union
+
+log = logging.getLogger(__name__)
 
 KIND_FRAME, KIND_DOSE, KIND_SET_ASIDE = "frame", "dose", "set_aside"
 _SHA256 = re.compile(r"^[0-9a-f]{64}$")
@@ -180,6 +187,108 @@ def parse_line(data: Any) -> ManifestLine:
 def json_preview(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 30 else text[:27] + "..."
+
+
+# ---- errors, checks, JSON ------------------------------------------------------------------------------
+
+class SessionError(OSError):
+    """A session problem with a one-line message (disk full, not a session folder, file missing...)."""
+
+    def __init__(self, code: Optional[int], message: str):
+        super().__init__(code or errno.EIO, message)
+        self.message = message
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class SessionLockedError(SessionError):
+    """Another process writes this session; ``holder`` is its {pid, host, since, program}."""
+
+    def __init__(self, message: str, holder: dict):
+        super().__init__(errno.EBUSY, message)
+        self.holder = holder
+
+
+class DefinitionMismatch(SessionError):
+    """A resume asked for frames defined differently from the session's; ``differences`` lists them all."""
+
+    def __init__(self, message: str, differences: list[str]):
+        super().__init__(errno.EINVAL, message)
+        self.differences = differences
+
+
+class DamagedFramesError(SessionError):
+    """Recorded frames are missing or do not match their sha256; ``files`` names them."""
+
+    def __init__(self, message: str, files: list[str]):
+        super().__init__(errno.EIO, message)
+        self.files = files
+
+
+@dataclass
+class VerifyReport:
+    ok: list[str] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)
+    corrupted: list[str] = field(default_factory=list)      # sha256 or size mismatch
+    orphans: list[str] = field(default_factory=list)        # complete files that no manifest line names
+    skipped_lines: list[int] = field(default_factory=list)  # 1-based manifest lines that could not be parsed
+    set_aside: list[str] = field(default_factory=list)      # frames moved to damaged/ (their steps re-shot)
+
+    @property
+    def valid(self) -> bool:
+        return not self.missing and not self.corrupted
+
+    def summary(self) -> str:
+        return (f"{len(self.ok)} ok, {len(self.missing)} missing, {len(self.corrupted)} corrupted, "
+                f"{len(self.orphans)} orphan files, {len(self.skipped_lines)} unreadable manifest lines, "
+                f"{len(self.set_aside)} set aside")
+
+
+def now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
+
+
+def json_default(obj: Any) -> Any:
+    if hasattr(obj, "to_dict"):
+        return obj.to_dict()
+    if hasattr(obj, "__dataclass_fields__"):
+        return asdict(obj)
+    if hasattr(obj, "tolist"):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"cannot store {type(obj).__name__} in the session manifest")
+
+
+def normalise(value: Any) -> Any:
+    """``value`` as it reads back from JSON (tuples to lists, dataclasses to dicts)."""
+    return json.loads(json.dumps(value, default=json_default))
+
+
+def read_manifest(path: Path) -> tuple[list, list[int]]:
+    """The records of a manifest file and the 1-based numbers of the lines skipped as unreadable (a torn last
+    line, a valid JSON value that is not a record, a field of the wrong type); never fails on a line."""
+    lines_out: list = []
+    skipped: list[int] = []
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise SessionError(errno.ENOENT, f"{path}: manifest missing") from None
+    except OSError as exc:
+        raise SessionError(exc.errno, f"{path}: cannot read the manifest ({exc.strerror or exc})") from exc
+    lines = raw.split(b"\n")
+    last_index = len(lines) - 1
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            lines_out.append(parse_line(json.loads(line)))
+        except (ValueError, TypeError, UnicodeDecodeError, RecursionError) as exc:
+            skipped.append(i + 1)
+            where = "last line (truncated by an interrupted write)" if i == last_index else f"line {i + 1}"
+            log.warning("%s: skipping unreadable %s: %s", path, where, exc)
+    return lines_out, skipped
 
 
 # ---- what defines a session's frames -------------------------------------------------------------------

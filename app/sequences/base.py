@@ -6,8 +6,10 @@
         show(event.fraction, event.message, event.time_left_s)
     seq.cancel() / seq.pause() / seq.resume() from any thread
 
-Guarantees: the cancel flag is checked between steps (never in the middle of a download), the LEDs are off
-after cancel, error or completion, and every frame is saved to the session before the next step starts.
+Guarantees: before the first step the free space of the session's disk is checked against the plan (frames x
+the camera's bytes per raw file) and a shortfall is refused up front; the cancel flag is checked between steps
+(never in the middle of a download), the LEDs are off after cancel, error or completion, and every frame is
+saved to the session before the next step starts.
 """
 from __future__ import annotations
 
