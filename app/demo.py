@@ -24,7 +24,7 @@ import numpy as np
 from app.sequences.calibration import DarkSeries, FlatSeries
 from app.sequences.capture import SubjectCapture
 from app.sequences.hdr import HdrPlan, meter_and_plan
-from app.session import MANIFEST, CaptureSession, atomic_write
+from app.session import CaptureSession, atomic_write, camera_definition, light_definition
 from app.workflow.copystand import CopyStand, StandSettings, parsimony_defaults
 from app.workflow.session_processing import process_session
 from app.workflow.targets import nd_transmittance, reference_white, virtual_target_spec
@@ -54,6 +54,13 @@ class DemoSettings:
     settle_s: float = 0.05
     optimise_matrix: Optional[bool] = None   # also fit the dE00-optimised matrix; None: the parsimony study's choice
     conditions: tuple[str, ...] = CONDITIONS
+    new_session: bool = False                # a session made with other settings: use a new one, not refuse
+
+    def definition(self) -> dict:
+        """What defines this run's frames (app.session: a resume with anything else is refused)."""
+        return {"workflow": "demo", "mode": self.mode, "frame_size": list(self.frame_size), "seed": self.seed,
+                "hdr": self.hdr, "dark_frames": self.dark_frames, "flat_frames": self.flat_frames,
+                "settle_s": self.settle_s, "conditions": list(self.conditions)}
 
 
 @dataclass
@@ -102,15 +109,28 @@ class DemoRun:
 
     def run(self) -> dict:
         s = self.s
+        if s.dark_frames < 1 or s.flat_frames < 1 or min(s.frame_size) < 64 or s.seed < 0:   # before any shot
+            raise ValueError(f"demo settings: dark frames {s.dark_frames}, flat frames {s.flat_frames}, frame size "
+                             f"{s.frame_size}, seed {s.seed}: expected >= 1, >= 1, >= 64 px, >= 0")
         if s.optimise_matrix is None:
             s.optimise_matrix = parsimony_defaults()["characterisation_model"] != "linear"
         s.out.mkdir(parents=True, exist_ok=True)
+        session = CaptureSession.resume(s.out / "session", s.definition(), {"mode": s.mode, "demo": True},
+                                        new_if_different=s.new_session,
+                                        hint="resume with the same options, or pass --new-session or another --out")
+        try:
+            return self._run(session)
+        finally:
+            session.close()
+
+    def _run(self, session: CaptureSession) -> dict:
+        s = self.s
         conds, presets = make_conditions(s, self.progress)
         report(self.progress, 0.1, "starting the virtual lab")
         with VirtualLab(mode=s.mode, frame_size=s.frame_size, seed=s.seed) as lab:
-            session_dir = s.out / "session"
-            session = (CaptureSession.open(session_dir) if (session_dir / MANIFEST).exists()
-                       else CaptureSession.create(session_dir, {"mode": s.mode, "demo": True}))
+            session.extend_definition(camera=camera_definition(lab.camera),
+                                      lights={c.name: [light_definition(nl.light, nl.name) for nl in c.lights]
+                                              for c in conds})
             stand = CopyStand(lab.camera, lab.sphere, session, stand=lab.place, lab=lab, cancel=self.cancel,
                               settings=StandSettings(settle_s=s.settle_s, dark_frames=s.dark_frames,
                                                      flat_frames=s.flat_frames, optimise_matrix=s.optimise_matrix),
@@ -118,8 +138,9 @@ class DemoRun:
             self.lab, self.session = lab, session
             exposures = self.capture(stand, conds)
             report(self.progress, 0.6, "captures done; processing")
+            session.require_intact()             # a damaged frame is named, never processed
             result = self.process(conds)
-        return self.write_report(session, stand, conds, presets, exposures, result)
+        return self.write_report(session, conds, presets, exposures, result)
 
     def capture(self, stand: CopyStand, conds: list[Condition]) -> dict[str, list[float]]:
         """Auto-exposure, HDR plans on the ND-covered training target, darks, flats, train and test targets."""
@@ -131,6 +152,7 @@ class DemoRun:
                                             lab.scene_for("train", nd=True).patch_boxes(), cancel=self.cancel)
         exposures = {nl.name: sorted({c.exposure[nl.name], *(c.hdr_plan[nl.name].exposures if c.hdr_plan else [])})
                      for c in conds for nl in c.lights}
+        self.session.extend_definition(exposures=exposures)
         all_lights = [nl for c in conds for nl in c.lights]
         stand.run_sequence(DarkSeries(stand.shooter, sorted({t for ts in exposures.values() for t in ts}),
                                       frames=s.dark_frames), 0.2, 0.4)
@@ -145,7 +167,7 @@ class DemoRun:
                                                       Subject.target(target, nd=True)), 0.8, 1.0)
         return exposures
 
-    def write_report(self, session, stand, conds, presets, exposures, result) -> dict:
+    def write_report(self, session, conds, presets, exposures, result) -> dict:
         s = self.s
         verify = session.verify()
         report_data = {
@@ -157,7 +179,7 @@ class DemoRun:
             "frames": len(session.entries()),
             "lost_frames": len(verify.missing) + len(verify.corrupted),
             "session_valid": verify.valid,
-            "light_dose": stand.shooter.dose.to_dict(),
+            "light_dose": session.light_dose().to_dict(),      # the manifest's: a resumed run's whole dose
             "elapsed_s": round(time.perf_counter() - self.t0, 2),
             "session": str(session.path),
         }

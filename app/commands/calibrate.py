@@ -63,8 +63,9 @@ def main(args: argparse.Namespace) -> int:
     settings = StandSettings(settle_s=args.settle, dark_frames=args.dark_frames, flat_frames=args.flat_frames,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
                              target_width_mm=args.target_width_mm)
-    with open_devices(args, mode) as dev:
-        session = open_session(args.session, {"mode": mode, "purpose": "calibration"})
+    definition = {"workflow": "calibrate", "mode": mode, "preset": preset.name, "hdr": args.hdr,
+                  "dark_frames": args.dark_frames, "flat_frames": args.flat_frames, "settle_s": args.settle}
+    with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person)
         profile = stand.calibrate(preset, hdr_auto=args.hdr == "auto", grids=grids)

@@ -49,8 +49,8 @@ def main(args: argparse.Namespace) -> int:
     original = Original(args.identifier, args.title, args.operator, args.notes, args.mode or profile.mode)
     settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
                              original_frames=args.frames)
-    with open_devices(args, original.mode, args.virtual_original) as dev:
-        session = open_session(args.session, {"purpose": "originals"})
+    with open_devices(args, original.mode, args.virtual_original) as dev, \
+            open_session(args.session, {"workflow": "originals"}, dev.camera) as session:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person, reshoot=lambda _o, _n: args.reshoot)
         result = stand.capture(original, profile, reshoot=args.reshoot, out_dir=args.out)

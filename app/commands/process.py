@@ -40,11 +40,7 @@ def main(args: argparse.Namespace) -> int:
     from app.workflow.copystand import redeliver
     from app.workflow.profile import load_profile
 
-    session = CaptureSession.open(args.session)
-    report = session.verify()
-    if not report.valid:
-        raise ValueError(f"{args.session}: {report.summary()} (missing: {', '.join(report.missing[:3])}"
-                         f"{' corrupted: ' + ', '.join(report.corrupted[:3]) if report.corrupted else ''})")
+    session = CaptureSession.open(args.session, readonly=True)      # frames checked before use (session_frames)
     profile = load_profile(args.calibration or newest_calibration(session))
     deliveries = redeliver(session, profile, args.out or args.session / "deliverables", ppi=args.ppi,
                            progress=progress_printer())

@@ -143,13 +143,19 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
             sphere.close()
 
 
-def open_session(folder: Path, meta: Optional[dict] = None) -> Any:
-    from app.session import MANIFEST, CaptureSession
+def open_session(folder: Path, definition: dict, camera: Any, meta: Optional[dict] = None) -> Any:
+    """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
+    (anything else is refused in one line naming the difference; app.session). One writer at a time."""
+    from app.session import CaptureSession, camera_definition
 
-    folder = Path(folder)
-    if (folder / MANIFEST).exists():
-        return CaptureSession.open(folder)
-    return CaptureSession.create(folder, meta or {})
+    session = CaptureSession.resume(Path(folder), definition, meta or {},
+                                    hint="use the same options and camera, or another --session")
+    try:
+        session.extend_definition(camera=camera_definition(camera))
+    except BaseException:
+        session.close()
+        raise
+    return session
 
 
 def reuse_limits(args: argparse.Namespace) -> Any:

@@ -1,6 +1,6 @@
 """Output files: 16-bit TIFFs with real TIFF metadata (resolution, Make/Model, DateTime, Software,
 ImageDescription), embedded ICC profiles and XMP; CSVs of patch values and matrices. Every file is written
-through ``app.session.atomic_write`` (temp file, fsync, rename): a reader sees the old file or the new one.
+through ``simulation.atomic_io.atomic_output`` (temp file, fsync, rename): a reader sees the old file or the new.
 
 ICC profiles
     * sRGB: Pillow's ImageCms (LittleCMS' built-in sRGB, ``ImageCms.createProfile("sRGB")``).
@@ -22,7 +22,6 @@ white, so a perfect white becomes RGB (1, 1, 1) (app.processing.encode computes 
 from __future__ import annotations
 
 import csv
-import io
 import logging
 import struct
 from dataclasses import dataclass
@@ -33,7 +32,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from app.session import atomic_write
+from simulation.atomic_io import atomic_output
 from simulation.matrix_fit import CharacterisationMatrix
 
 log = logging.getLogger(__name__)
@@ -208,33 +207,27 @@ def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str
     return text.encode("utf-8")
 
 
-def tiff_bytes(image: np.ndarray, meta: TiffMetadata, *, photometric: str, icc: Optional[bytes] = None) -> memoryview:
-    """The TIFF file of ``image`` (uncompressed, contiguous samples) with ``meta`` in its tags, in memory."""
+def write_tiff(path: Path, image: np.ndarray, meta: TiffMetadata, *, photometric: str = "minisblack",
+               icc: Optional[bytes] = None) -> Path:
+    """One uncompressed TIFF (contiguous samples) with ``meta`` in its tags, written atomically: tifffile writes
+    straight into simulation.atomic_io.atomic_output's temp file (fsync, rename), no copy in memory."""
     import tifffile
 
-    buf = io.BytesIO()
+    path = Path(path)
     kwargs = {}
     if meta.ppi:
         kwargs.update(resolution=(float(meta.ppi), float(meta.ppi)), resolutionunit=RESOLUTION_UNIT_INCH)
-    tifffile.imwrite(buf, image, photometric=photometric, planarconfig="contig", iccprofile=icc,
-                     description=meta.description or None, software=meta.software,
-                     datetime=meta.datetime or tiff_datetime(), extratags=meta.tags(), metadata=None, **kwargs)
-    return buf.getbuffer()
-
-
-def write_tiff(path: Path, image: np.ndarray, meta: TiffMetadata, *, photometric: str = "minisblack",
-               icc: Optional[bytes] = None) -> Path:
-    """Write one TIFF atomically (see :func:`tiff_bytes`)."""
-    path = Path(path)
-    atomic_write(path, tiff_bytes(image, meta, photometric=photometric, icc=icc))
+    with atomic_output(path, "wb") as fh:
+        tifffile.imwrite(fh, image, photometric=photometric, planarconfig="contig", iccprofile=icc,
+                         description=meta.description or None, software=meta.software,
+                         datetime=meta.datetime or tiff_datetime(), extratags=meta.tags(), metadata=None, **kwargs)
     return path
 
 
 # ---------------------------------------------------------------- CSVs
 def _write_csv(path: Path, rows: Sequence[Sequence[object]]) -> Path:
-    buf = io.StringIO(newline="")
-    csv.writer(buf).writerows(rows)
-    atomic_write(Path(path), buf.getvalue().encode("utf-8"))
+    with atomic_output(Path(path), "w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
     return Path(path)
 
 

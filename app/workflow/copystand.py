@@ -257,7 +257,6 @@ class CopyStand:
         are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
         checked = self.check(profile)
         take, existing = self._take(original, reshoot)
-        dose0, on0 = self.shooter.dose.lux_s, self.shooter.dose.on_s
         exposures, warnings = self.meter(original, profile, take)
         if profile.mode != original.mode:
             warnings.append(f"calibrated {profile.mode}, original {original.mode}: colour not characterised for it")
@@ -276,7 +275,7 @@ class CopyStand:
             self.run_sequence(seq, 0.1, 0.8)
         finally:
             self.on_event = outer
-        dose = self._total_dose(original, LightDoseRecord(self.shooter.dose.lux_s - dose0, self.shooter.dose.on_s - on0))
+        dose = original_dose(self.session, original.subject)
         delivery = deliver(builder.result(), profile, original, Path(out_dir or self.session.path / "deliverables"),
                            camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
                            exposures=exposures, warnings=checked.warnings + warnings,
@@ -285,11 +284,6 @@ class CopyStand:
         report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
         return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)
 
-    def _total_dose(self, original: Original, now: LightDoseRecord) -> LightDoseRecord:
-        """This capture's dose plus what the session recorded for the original before (re-shoots add up)."""
-        before = self.session.settings.get("originals", {}).get(original.identifier, {}).get("light_dose", {})
-        return LightDoseRecord(now.lux_s + float(before.get("lux_s", 0.0)), now.on_s + float(before.get("on_s", 0.0)))
-
     def _remember(self, original: Original, total: LightDoseRecord, delivery: Delivery, take: int,
                   profile: CalibrationProfile) -> None:
         """The original's metadata and total dose in session.json (``dualrgb process`` re-delivers from it)."""
@@ -297,6 +291,18 @@ class CopyStand:
         originals[original.identifier] = {**original.to_dict(), "take": take, "light_dose": total.to_dict(),
                                           "sidecar": str(delivery.sidecar), "calibration": str(profile.path or "")}
         self.session.update_settings(originals=originals)
+
+
+def original_dose(session: Any, subject: Subject) -> LightDoseRecord:
+    """Every lit period of an original (metering, every take) from the session manifest's dose lines."""
+    from app.light_dose import LightDose, light_from_record
+
+    total = LightDose()
+    marker = f"/{subject.key}/"
+    for d in session.doses():
+        if d.step_id and marker in d.step_id:
+            total.add(light_from_record(d.light), d.on_s)
+    return LightDoseRecord(total.lux_s, total.on_s)
 
 
 def _chain(*callbacks: Optional[EventCallback]) -> EventCallback:
@@ -334,9 +340,8 @@ def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: 
         original = Original(**{**meta, "identifier": subject.name})
         light_frames = select_lights(frames.subject(subject), names)
         stack = profile_processor(profile).stack(light_frames, cancel=cancel)
-        dose = known.get(subject.name, {}).get("light_dose", {})
         out.append(deliver(stack, profile, original, out_dir, camera=profile.camera, ppi=ppi,
-                           dose=LightDoseRecord(float(dose.get("lux_s", 0.0)), float(dose.get("on_s", 0.0))),
+                           dose=original_dose(session, subject),
                            exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
                            extra={"session": str(session.path), "reprocessed": True}))
         report(progress, (i + 1) / len(originals), f"{original.identifier} delivered")

@@ -49,7 +49,10 @@ def _ref(session, e) -> ExposureRef:
 
 
 def session_frames(session) -> SessionFrames:
-    """Group the session's latest takes: darks, flats by light, subjects by light (recording order kept)."""
+    """Group the session's latest takes: darks, flats by light, subjects by light (recording order kept).
+
+    A missing or damaged frame is named (app.session.DamagedFramesError), never processed."""
+    session.require_intact()
     out = SessionFrames()
     for e in latest_takes(session.entries()):
         role = role_of(e)

@@ -94,8 +94,8 @@ def test_painting_xyz_against_ground_truth(day):
 
 def test_wrong_iso_or_serial_refused_in_one_line(day, tmp_path):
     root, cal, _ = day
-    args = ["capture", "--session", str(tmp_path / "s"), "--id", "X-1", "--virtual-lab", *FRAME]
-    r = dualrgb(*args, "--calibration", cal["calibration"], "--iso", "100", ok=False)
+    args = ["capture", "--id", "X-1", "--virtual-lab", *FRAME]
+    r = dualrgb(*args, "--session", str(tmp_path / "s1"), "--calibration", cal["calibration"], "--iso", "100", ok=False)
     assert r.returncode == 1
     line = r.stderr.strip().splitlines()[-1]
     assert "ISO 100 differs from the calibration's 50" in line and line.startswith("dualrgb: error:")
@@ -104,9 +104,9 @@ def test_wrong_iso_or_serial_refused_in_one_line(day, tmp_path):
     other = tmp_path / "other.json"
     other.write_text(json.dumps(doc))
     (tmp_path / doc["arrays"]["file"]).symlink_to(Path(cal["calibration"]).with_suffix(".npz"))
-    r = dualrgb(*args, "--calibration", str(other), ok=False)
+    r = dualrgb(*args, "--session", str(tmp_path / "s2"), "--calibration", str(other), ok=False)
     assert r.returncode == 1 and "camera serial" in r.stderr.strip().splitlines()[-1]
-    assert "3021999" in r.stderr and not (tmp_path / "s" / "deliverables").exists()
+    assert "3021999" in r.stderr and not (tmp_path / "s2" / "deliverables").exists()
 
 
 def test_reshoot_needs_asking_and_process_redelivers(day):
