@@ -9,6 +9,7 @@ import argparse
 import logging
 from pathlib import Path
 
+from app.commands.options import count, input_file, number
 from app.commands.stand_options import (add_device_options, add_reuse_options, ask_person, open_devices, open_session,
                                         progress_printer, reuse_limits, write_json)
 
@@ -21,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "sphere temperature, age), meters the original, captures it (an HDR bracket "
                                    "only when metering asks) and writes its deliverables.")
     p.add_argument("--session", type=Path, required=True, help="session folder (created, or resumed)")
-    p.add_argument("--calibration", type=Path, required=True, help="calibration profile (.json)")
+    p.add_argument("--calibration", type=input_file, required=True, help="calibration profile (.json)")
     p.add_argument("--id", dest="identifier", required=True, help="identifier / accession number (names the files)")
     p.add_argument("--title", default="")
     p.add_argument("--operator", default="")
@@ -30,8 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="default: the calibration's")
     p.add_argument("--reshoot", action="store_true", help="shoot an original already in the session again")
     p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables)")
-    p.add_argument("--ppi", type=float, help="sampling of the deliverables (default: the calibration's)")
-    p.add_argument("--frames", type=int, default=1,
+    p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (default: the calibration's)")
+    p.add_argument("--frames", type=count(1, 100), default=1,
                    help="frames averaged per exposure (noise / sqrt(N), light dose x N; default 1)")
     p.add_argument("--virtual-original", default=None,
                    help="virtual lab: which virtual original stands in (default painting / film by mode)")

@@ -12,19 +12,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterator, Optional
 
+from app.commands.options import count, frame_size, number, seconds, seed
+
 log = logging.getLogger(__name__)
 
 VIRTUAL_ORIGINALS = {"reflective": "painting", "transmissive": "film"}
-
-
-def frame_size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(x) for x in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"frame size {text!r}: expected WIDTHxHEIGHT like 600x400") from None
-    if w < 64 or h < 64 or w % 2 or h % 2:
-        raise argparse.ArgumentTypeError(f"frame size {text!r}: expected even numbers, at least 64x64")
-    return w, h
 
 
 def add_device_options(p: argparse.ArgumentParser) -> None:
@@ -33,17 +25,17 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--port", help="the LED sphere's serial port (e.g. /dev/ttyACM0)")
     g.add_argument("--camera", help="the camera as 'MODEL @ PORT' (from `dualrgb devices`), or 'auto' (the first)")
     g.add_argument("--frame-size", type=frame_size, default=(600, 400), help="virtual lab frames WxH (600x400)")
-    g.add_argument("--seed", type=int, default=0, help="virtual lab noise seed")
-    g.add_argument("--iso", type=int, help="set the camera's ISO first")
-    g.add_argument("--aperture", type=float, help="set the camera's f-number first")
-    g.add_argument("--settle", type=float, default=0.2, help="seconds between light on and shutter (0.2)")
+    g.add_argument("--seed", type=seed, default=0, help="virtual lab noise seed")
+    g.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
+    g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
+    g.add_argument("--settle", type=seconds(0.0, 5.0), default=0.2, help="seconds between light on and shutter (0.2)")
     p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
 
 
 def add_reuse_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="use a calibration that does not match, with a warning")
-    p.add_argument("--max-age-h", type=float, default=8.0, help="warn when the calibration is older (8 h)")
-    p.add_argument("--max-temperature-drift", type=float, default=5.0,
+    p.add_argument("--max-age-h", type=number(0.0, 8760), default=8.0, help="warn when the calibration is older (8 h)")
+    p.add_argument("--max-temperature-drift", type=number(0.0, 100), default=5.0,
                    help="refuse when the sphere is this many C from the calibration's temperature (5)")
 
 
