@@ -8,6 +8,7 @@ import argparse
 import logging
 from pathlib import Path
 
+from app.commands.options import number
 from app.commands.stand_options import progress_printer, write_json
 
 log = logging.getLogger(__name__)
@@ -20,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("session", type=Path)
     p.add_argument("--calibration", type=Path, help="calibration profile (.json); default: the session's newest")
     p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables)")
-    p.add_argument("--ppi", type=float)
+    p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
     p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
     p.set_defaults(func=main)
 

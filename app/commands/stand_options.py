@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterator, Optional
 
-from app.commands.options import count, frame_size, number, seconds, seed
+from app.commands.options import count, frame_size, number, seed
 
 log = logging.getLogger(__name__)
 
@@ -28,7 +28,7 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--seed", type=seed, default=0, help="virtual lab noise seed")
     g.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
     g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
-    g.add_argument("--settle", type=seconds(0.0, 5.0), default=0.2, help="seconds between light on and shutter (0.2)")
+    g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=0.2, help="seconds between light on and shutter (0.2)")
     p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
 
 
