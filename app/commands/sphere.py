@@ -4,19 +4,21 @@
     dualrgb sphere --port /dev/ttyACM0 status
     dualrgb sphere --port /dev/ttyACM0 set 4 0.5
     dualrgb sphere --port /dev/ttyACM0 apply preset.json [--source 2]
-    dualrgb sphere --port /dev/ttyACM0 on
+    dualrgb sphere --port /dev/ttyACM0 on [--max-on 10]
     dualrgb sphere --port /dev/ttyACM0 off
     dualrgb sphere-emulator [--watchdog 30]      # prints the pty path to use as --port
 
 Each call opens the port, does its exchange(s), prints the result and closes the port (levels and the light
-switch stay as set: the sphere's watchdog switches everything off after its timeout without requests). When a
-call fails after the port is open, it switches every LED and the light off before reporting one line and exit 1.
+switch stay as set; a light switched on goes off by itself after ``--max-on`` seconds, default 10). Every argument
+is checked first; when one is wrong, or a call fails, the port (if one is given) is opened and every LED and the
+light are switched off, and one line says what went wrong and, truthfully, what state the light is in (exit 1).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import logging
+import math
 import os
 import signal
 import sys
@@ -24,14 +26,18 @@ import threading
 import time
 from pathlib import Path
 
+from dataclasses import dataclass
+from typing import Optional
+
 from app.cli import UserError
 from drivers.led_sphere import LedSphere, SphereError
-from drivers.led_sphere.driver import DEFAULT_TIMEOUT_S
-from simulation.lightsource import LightSource
+from drivers.led_sphere.driver import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
+from simulation.lightsource import N_SPHERE_LEDS, LightSource
 
 log = logging.getLogger(__name__)
 
 PORT_ENV = "DUALRGB_SPHERE_PORT"
+TIMEOUT_RANGE_S = (0.05, 60.0)      # the firmware answers within 50 ms (docs/led-sphere-protocol.md)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -39,19 +45,23 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Talk to the 10-LED sphere over its serial port (docs/led-sphere-protocol.md).")
     p.add_argument("--port", default=os.environ.get(PORT_ENV),
                    help=f"serial port or pyserial URL, e.g. /dev/ttyACM0, a pty path (default ${PORT_ENV})")
-    p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S,
-                   help=f"seconds to wait for each reply (default {DEFAULT_TIMEOUT_S:g}; one retry)")
+    p.add_argument("--timeout", default=str(DEFAULT_TIMEOUT_S),
+                   help=f"seconds to wait for each reply, {TIMEOUT_RANGE_S[0]:g}..{TIMEOUT_RANGE_S[1]:g} "
+                        f"(default {DEFAULT_TIMEOUT_S:g}; one retry)")
     actions = p.add_subparsers(dest="action", metavar="ACTION")
     actions.required = True
     actions.add_parser("identify", help="model, firmware, serial number")
     actions.add_parser("status", help="light, levels, temperature, on-time, watchdog, faults")
     s = actions.add_parser("set", help="one LED's level (0..1)")
-    s.add_argument("led", type=int, help="LED number 1..10")
-    s.add_argument("level", type=float, help="level 0..1")
+    s.add_argument("led", help="LED number 1..10")
+    s.add_argument("level", help="level 0..1")
     a = actions.add_parser("apply", help="a preset's light source (LEDs not in it to 0)")
     a.add_argument("preset", type=Path, help="preset JSON (dualrgb simulate --preset-out)")
     a.add_argument("--source", type=int, default=1, help="which light source of the preset: 1 (default) or 2")
-    actions.add_parser("on", help="light on (master switch)")
+    o = actions.add_parser("on", help="light on (master switch) for at most --max-on seconds")
+    o.add_argument("--max-on", default=str(DEFAULT_MAX_ON_S),
+                   help=f"seconds until the sphere switches the light off by itself (default {DEFAULT_MAX_ON_S:g}, "
+                        f"{MAX_ON_RANGE_S[0]:g}..{MAX_ON_RANGE_S[1]:g})")
     actions.add_parser("off", help="every LED to 0 and the light off")
     p.set_defaults(func=main)
 
@@ -81,30 +91,68 @@ def load_light_source(path: Path, index: int) -> LightSource:
     return sources[index - 1]
 
 
+@dataclass
+class Request:
+    """The command line's values, checked before anything is sent (``problem``: the first one that is wrong)."""
+
+    timeout_s: float = DEFAULT_TIMEOUT_S
+    max_on_s: float = DEFAULT_MAX_ON_S
+    led: int = 0
+    level: float = 0.0
+    light: Optional[LightSource] = None
+    problem: Optional[str] = None
+
+
+def _number(text: str, what: str, lo: float, hi: float, integer: bool = False) -> float:
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value) or not lo <= value <= hi or (integer and not value.is_integer()):
+        kind = "an integer" if integer else "a number"
+        raise UserError(f"{what} {text}: expected {kind} in {lo:g}..{hi:g}")
+    return value
+
+
+def check_request(args: argparse.Namespace) -> Request:
+    """Every argument checked (numbers, LED, level, preset); the first problem is kept, nothing raised."""
+    req = Request()
+    try:
+        req.timeout_s = _number(args.timeout, "--timeout", *TIMEOUT_RANGE_S)
+        if args.action == "on":
+            req.max_on_s = _number(args.max_on, "--max-on", *MAX_ON_RANGE_S)
+        elif args.action == "set":
+            req.led = int(_number(args.led, "LED", 1, N_SPHERE_LEDS, integer=True))
+            req.level = _number(args.level, f"LED {req.led} level", 0.0, 1.0)
+        elif args.action == "apply":
+            req.light = load_light_source(args.preset, args.source)
+    except (UserError, ValueError, OSError) as exc:
+        req.problem = str(exc)
+    return req
+
+
 def main(args: argparse.Namespace) -> int:
     if not args.port:
         raise UserError(f"no sphere port: give --port (e.g. /dev/ttyACM0) or set {PORT_ENV}")
-    light = load_light_source(args.preset, args.source) if args.action == "apply" else None
+    req = check_request(args)
     try:
-        sphere = LedSphere(args.port, timeout=args.timeout).open()
+        sphere = LedSphere(args.port, timeout=req.timeout_s).open()
     except SphereError as exc:
-        raise UserError(str(exc)) from None
+        raise UserError(f"{req.problem}; {exc}" if req.problem else str(exc)) from None
     try:
-        _run(sphere, args, light)
+        if req.problem is not None:             # wrong arguments: nothing is set, the light is switched off
+            raise UserError(f"{req.problem}; {sphere.ensure_off().message}")
+        _run(sphere, args, req)
     except SphereError as exc:
-        try:
-            sphere.shutdown()
-        except SphereError as off_exc:
-            log.info("switching the sphere off after the error failed: %s", off_exc)
-            raise UserError(f"{exc}; switching the LEDs off failed too (the sphere's watchdog switches them off "
-                            "after its timeout)") from None
-        raise UserError(f"{exc} (all LEDs and the light were switched off)") from None
+        if exc.light is not None:               # the driver switched off and its message says how that went
+            raise UserError(str(exc)) from None
+        raise UserError(f"{exc}; {sphere.ensure_off().message}") from None
     finally:
-        sphere.close(leave_on=True)         # levels and light stay as set; on failure shutdown() was just tried
+        sphere.close(leave_on=True)         # levels and light stay as set; on failure ensure_off() was just tried
     return 0
 
 
-def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None) -> None:
+def _run(sphere: LedSphere, args: argparse.Namespace, req: Request) -> None:
     if args.action == "identify":
         info = sphere.identify()
         print(f"model {info['model']}, firmware {info['firmware']}, serial {info['serial']}")
@@ -118,15 +166,20 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
                 value = " ".join(f"{v:.4f}" for v in value)
             print(f"{key}: {value}")
     elif args.action == "set":
-        taken = sphere.set_level(args.led, args.level)
-        print(f"LED {args.led} level {taken:.4f}")
+        taken = sphere.set_level(req.led, req.level)
+        print(f"LED {req.led} level {taken:.4f}")
     elif args.action == "apply":
+        light = req.light
         taken = sphere.apply(light)
         levels = " ".join(f"{v:.4f}" for v in taken)
         print(f"applied {light.name or 'light source'} {light.label()}: levels {levels}")
     elif args.action == "on":
-        sphere.on()
-        print("light on")
+        period = sphere.on(max_on_s=req.max_on_s)
+        if period.device_limit:
+            print(f"light on for at most {req.max_on_s:g} s (the sphere switches it off by itself)")
+        else:
+            print(f"light on; this firmware has no on-time limit: its watchdog, set to {req.max_on_s:g} s, switches "
+                  "it off that long after the last request")
     elif args.action == "off":
         sphere.shutdown()
         print("all LEDs off, light off")

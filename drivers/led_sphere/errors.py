@@ -1,7 +1,7 @@
 """The one error type the LED sphere driver raises."""
 from __future__ import annotations
 
-from typing import Optional
+from typing import Any, Optional
 
 #: What went wrong, as ``SphereError.kind``.
 KINDS = (
@@ -19,13 +19,18 @@ class SphereError(RuntimeError):
     """An LED sphere problem, with a one-line message: what happened and what to do about it.
 
     ``kind`` is one of :data:`KINDS`; ``code`` is the device's error code for ``kind == "device"``
-    (see docs/led-sphere-protocol.md) and ``None`` otherwise.
+    (see docs/led-sphere-protocol.md) and ``None`` otherwise. ``light`` is ``"off"`` or ``"unknown"`` when the
+    message already says what state the light was left in (the driver tried to switch it off), else ``None``.
+    ``period`` is the lit period (drivers.led_sphere.supervisor.LitPeriod) a failed ``on()`` started, if any.
     """
 
-    def __init__(self, message: str, kind: str = "device", code: Optional[int] = None):
+    def __init__(self, message: str, kind: str = "device", code: Optional[int] = None,
+                 light: Optional[str] = None, period: Any = None):
         if kind not in KINDS:
             raise ValueError(f"unknown SphereError kind {kind!r}")
         # One line, always: messages may quote device bytes.
         super().__init__(" ".join(str(message).split()))
         self.kind = kind
         self.code = code
+        self.light = light
+        self.period = period

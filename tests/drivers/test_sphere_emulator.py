@@ -82,7 +82,7 @@ def test_error_codes(line, code):
 def test_lenient_request_forms():
     emu, _ = _emu()
     assert _ok(emu, b"level  4   100") == b"OK LEVEL 4 100\n"
-    assert _ok(emu, b"idn?") == b"OK IDN DRGB-SPHERE10-EMU 1.0.0 EMU-0001\n"
+    assert _ok(emu, b"idn?") == b"OK IDN DRGB-SPHERE10-EMU 1.1.0 EMU-0001\n"
 
 
 def test_every_command_round_trips_through_the_emulator():
