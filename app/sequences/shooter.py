@@ -110,13 +110,16 @@ class Shooter:
     def check_light_time(self, exposure_s: float) -> None:
         self.safety.check(exposure_s)
 
-    def lights_off(self) -> None:
-        """Every LED and the light off; raises a SphereError saying what is known when that is not confirmed."""
-        if self.sphere is not None:
-            report = self.sphere.ensure_off()
-            if not report.off:
-                raise SphereError(report.message, kind=report.error.kind if report.error else "port",
-                                  light="unknown")
+    def lights_off(self) -> Optional[LightReport]:
+        """Every LED and the light off (a sequence's start and cleanup); never raises (it runs in ``finally``
+        blocks, where it must not hide the error being handled): what it could not confirm is logged and returned.
+        Each shot has confirmed its own switch-off already."""
+        if self.sphere is None:
+            return None
+        report = self.sphere.ensure_off()
+        if not report.off:
+            log.error("LED sphere: %s", report.message)
+        return report
 
     def shoot(self, role: str, light: Optional[LightSource], exposure_s: float, step_id: str,
               **meta) -> SessionEntry:

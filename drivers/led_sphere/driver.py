@@ -217,6 +217,7 @@ class LedSphere:
     def _switch_off(self) -> LightReport:
         first: Optional[SphereError] = None
         light_off = False
+        asked = time.monotonic()
         for name, args in (("all_off", {}), ("set_light", {"state": 0})):
             if first is not None and self._answered is False:
                 self._send_blind((name, args))
@@ -227,19 +228,24 @@ class LedSphere:
             except SphereError as exc:
                 first = first or exc
         if light_off:
-            self._confirmed_off()
+            self._confirmed_off(asked)
         if first is None:
             log.info("LED sphere %s: all LEDs off, light off", self._url)
             return LightReport(True, "all LEDs and the light were switched off")
         if light_off:
             return LightReport(True, f"the light was switched off (LIGHT 0 answered) but the LED levels were not "
                                      f"zeroed: {first}", first)
+        if self._answered is False:
+            return LightReport(False, f"{first}; the port never answered like an LED sphere, so the light's state is "
+                                      f"unknown (LIGHT 0 was sent without waiting for a reply); {self._guarantee()}",
+                               first)
         return LightReport(False, f"{first}; switching off was not confirmed, so the light's state is unknown: "
                                   f"{self._guarantee()}", first)
 
-    def _confirmed_off(self) -> None:
+    def _confirmed_off(self, asked_at: float) -> None:
+        """The sphere answered that the light is off to a request sent at ``asked_at`` (monotonic)."""
         self._light_on_since = None
-        self._supervisor.confirm_off()
+        self._supervisor.confirm_off(asked_at)
 
     def _switch_off_at_limit(self) -> None:
         """The supervisor's switch-off (its own thread): raises unless the sphere confirmed the light off."""
@@ -254,11 +260,14 @@ class LedSphere:
                    "it hears"
         if period is None:
             return f"if it is lit, {watchdog}"
-        left = max(0.0, period.deadline - time.monotonic())
+        left = period.deadline - time.monotonic()
+        when = f"at most {period.max_on_s:.3g} s after it came on" + (f" (in {left:.1f} s)" if left > 0 else "")
         if self._device_limit:
-            return f"the sphere switches it off by itself within {left:.1f} s (the {period.max_on_s:g} s on-time " \
-                   f"limit sent with ON), and {watchdog}"
-        return f"this program keeps trying to switch it off for another {left:.1f} s, and {watchdog}"
+            return f"the sphere switches it off by itself {when}, the limit sent with ON; and {watchdog}"
+        if self._device_limit is None:
+            return f"if the sphere received ON, it switches it off by itself {when}; this program keeps trying to " \
+                   f"switch it off, and {watchdog}"
+        return f"this program keeps trying to switch it off ({when}), and {watchdog} (firmware without ON)"
 
     def _send_blind(self, *requests: tuple[str, dict]) -> bool:
         """Write requests without waiting for replies (a port that never answered); False if even that failed."""
@@ -453,7 +462,10 @@ class LedSphere:
         limit = self._check_limit(self._max_on_s if max_on_s is None else max_on_s)
         period = self._supervisor.arm(limit)      # before sending: the sphere may obey a request whose reply is lost
         try:
-            self._switch_on(limit, period)
+            try:
+                self._switch_on(limit, period)
+            finally:
+                period.switched_at = time.monotonic()
             if self._light_on_since is None:
                 self._light_on_since = self._clock()
             self._check_faults()
@@ -498,13 +510,15 @@ class LedSphere:
 
     def off(self) -> None:
         """Light off (master enable; levels are kept)."""
+        asked = time.monotonic()
         self.exchange("set_light", state=0)
-        self._confirmed_off()
+        self._confirmed_off(asked)
 
     def light_on(self) -> bool:
+        asked = time.monotonic()
         lit = bool(self.exchange("get_light"))
         if not lit:
-            self._confirmed_off()
+            self._confirmed_off(asked)
         return lit
 
     def _check_faults(self) -> None:
@@ -560,16 +574,16 @@ class LedSphere:
     def status(self) -> dict[str, Any]:
         """Light, levels, temperature, on-times (host: None when this object did not switch the light on; device),
         watchdog, trip flag, faulty LEDs (2 exchanges)."""
+        asked = time.monotonic()
         s = self.exchange("status")
         levels = self.levels()
         self._watchdog_ms = s["wdog"]
         if not s["light"]:
-            self._confirmed_off()
-        elif self._supervisor.current() is None:
+            self._confirmed_off(asked)
+        elif self._supervisor.adopt(s["ontime"], self._max_on_s, asked) is not None:
             # lit, but not by this host (another program, a restart): the limit applies to it too
             log.warning("LED sphere %s is lit (%.1f s) and this program did not switch it on: it goes off at the "
                         "%g s limit", self._url, s["ontime"], self._max_on_s)
-            self._supervisor.arm(self._max_on_s, already_on_s=s["ontime"])
         period = self._supervisor.current()
         return {
             "port": self.port,

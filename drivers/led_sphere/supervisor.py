@@ -33,14 +33,16 @@ RETRIES = 6             # ... this many times (the firmware's own limit is the b
 class LitPeriod:
     """One lit period on the host's monotonic clock.
 
-    ``t_on``: just before the switch-on request was sent; ``max_on_s``: its limit. The owner marks
-    ``exposure_done_at`` when the camera reports the shutter closed; the supervisor marks ``capped_at`` when it
-    switched the light off at the limit; ``off_at`` is set when a switch-off was confirmed by the sphere.
+    ``t_on``: just before the switch-on request was sent; ``max_on_s``: its limit; ``switched_at``: when the
+    switch-on exchange ended (answered or not: only a switch-off asked after that can end this period). The owner
+    marks ``exposure_done_at`` when the camera reports the shutter closed; the supervisor marks ``capped_at`` when
+    it switched the light off at the limit; ``off_at`` is set when a switch-off was confirmed by the sphere.
     ``device_limit``: the sphere acknowledged ``ON <ms>`` and switches off by itself at the same limit."""
 
     t_on: float
     max_on_s: float
     device_limit: bool = False
+    switched_at: Optional[float] = None
     exposure_done_at: Optional[float] = None
     capped_at: Optional[float] = None
     off_at: Optional[float] = None
@@ -86,6 +88,7 @@ class OnTimeSupervisor:
         self._retries = retries
         self._cond = threading.Condition()
         self._period: Optional[LitPeriod] = None
+        self._changed_at = float("-inf")       # when a period was last armed or ended
         self._attempts = 0
         self._next_try: Optional[float] = None
         self._thread: Optional[threading.Thread] = None
@@ -103,6 +106,7 @@ class OnTimeSupervisor:
             if current is not None:
                 period.capped_at = current.capped_at
             self._period = period
+            self._changed_at = now
             self._attempts, self._next_try = 0, None
             self._start_locked()
             self._cond.notify_all()
@@ -122,13 +126,26 @@ class OnTimeSupervisor:
             period.exposure_done_at = time.monotonic()
             return not period.cut_short
 
-    def confirm_off(self) -> None:
-        """The sphere confirmed the light off: the current period ends here."""
+    def confirm_off(self, asked_at: float) -> None:
+        """The sphere said the light is off, to a request sent at ``asked_at`` (host monotonic clock): the current
+        period ends here if its switch-on had ended by then (a status poll racing a switch-on proves nothing)."""
         with self._cond:
-            if self._period is not None:
-                self._period.off_at = time.monotonic()
+            period = self._period
+            if period is not None and period.switched_at is not None and period.switched_at <= asked_at:
+                period.off_at = time.monotonic()
                 self._period = None
+                self._changed_at = period.off_at
                 self._cond.notify_all()
+
+    def adopt(self, on_for_s: float, max_on_s: float, asked_at: float) -> Optional[LitPeriod]:
+        """The sphere said it is lit (for ``on_for_s``), to a request sent at ``asked_at``, and no period is armed:
+        someone else switched it on; the limit applies to it too (unless a period began or ended meanwhile)."""
+        with self._cond:
+            if self._period is not None or self._changed_at >= asked_at:
+                return None
+        period = self.arm(max_on_s, already_on_s=on_for_s)
+        period.switched_at = asked_at
+        return period
 
     def stop(self) -> None:
         """Stop the thread (the port is closing); a period still armed is left to the firmware's limit."""
@@ -185,5 +202,5 @@ class OnTimeSupervisor:
                 continue
             with self._cond:
                 if self._period is period:
-                    period.off_at = time.monotonic()
+                    period.off_at = self._changed_at = time.monotonic()
                     self._period = None

@@ -318,7 +318,8 @@ def test_off_unconfirmed_says_unknown_and_what_the_sphere_guarantees():
     report = sphere.ensure_off()
     assert not report.off and report.error.kind == "timeout"
     assert "the light's state is unknown" in report.message
-    assert re.search(r"switches it off by itself within (9\.\d|10\.0) s \(the 10 s on-time limit", report.message)
+    assert re.search(r"the sphere switches it off by itself at most 10 s after it came on \(in (9\.\d|10\.0) s\), "
+                     r"the limit sent with ON", report.message)
     sphere.close(leave_on=True)
 
 
