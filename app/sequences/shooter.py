@@ -161,7 +161,7 @@ class Shooter:
             self._sleep(self.safety.settle_s)
             exposure = self._expose(exposure_s)
             complete = self.sphere.exposure_done(period)
-        except Exception as exc:  # any failure: the light goes off first, then it is raised, restated
+        except BaseException as exc:  # any failure, Ctrl-C too: the light goes off first, then it is raised
             failure = exc
         off = self._switch_off()
         self._add_dose(light, period.lit_s(), step_id)

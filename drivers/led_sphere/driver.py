@@ -215,26 +215,31 @@ class LedSphere:
         return self._switch_off()
 
     def _switch_off(self) -> LightReport:
-        first: Optional[SphereError] = None
-        light_off = False
+        """ALLOFF then LIGHT 0 (both tried); either answered means nothing emits (a level is emitted only while
+        the light is on, and ALLOFF zeroes every level)."""
+        failed: dict[str, SphereError] = {}
         asked = time.monotonic()
         for name, args in (("all_off", {}), ("set_light", {"state": 0})):
-            if first is not None and self._answered is False:
+            if failed and self._answered is False:
                 self._send_blind((name, args))
+                failed[name] = next(iter(failed.values()))
                 continue
             try:
                 self.exchange(name, **args)
-                light_off = light_off or name == "set_light"
             except SphereError as exc:
-                first = first or exc
-        if light_off:
+                failed[name] = exc
+        first = next(iter(failed.values()), None)
+        if len(failed) < 2:
             self._confirmed_off(asked)
         if first is None:
             log.info("LED sphere %s: all LEDs off, light off", self._url)
             return LightReport(True, "all LEDs and the light were switched off")
-        if light_off:
+        if "set_light" not in failed:
             return LightReport(True, f"the light was switched off (LIGHT 0 answered) but the LED levels were not "
                                      f"zeroed: {first}", first)
+        if "all_off" not in failed:
+            return LightReport(True, f"every LED was set to 0 (ALLOFF answered), so nothing is lit, but the light "
+                                     f"switch did not answer: {first}", first)
         if self._answered is False:
             return LightReport(False, f"{first}; the port never answered like an LED sphere, so the light's state is "
                                       f"unknown (LIGHT 0 was sent without waiting for a reply); {self._guarantee()}",

@@ -300,11 +300,12 @@ class VirtualCamera(Camera):
             raise CameraError(self._faults["error"].get("message", "capture: the virtual camera failed (injected)"),
                               self._faults["error"].get("code"))
         t_open = self._clock()
-        snap = self._light()
+        levels, drift = self._levels(self._light())
+        snap = StaticLight(levels.copy(), np.array(drift))       # what the sensor saw, frozen
         if self.realtime:
             time.sleep(t)
         ended = self._clock()
-        lit = bool(getattr(snap, "light_on", True)) and bool(np.any(np.asarray(snap.levels) > 0))
+        lit = bool(np.any(levels > 0))
         self.exposure_log.append(ExposureRecord(t_open, ended, t, lit))
         return Exposure(exposure_s=t, started=started, ended=ended, bulb=t > BULB_ABOVE_S,
                         handle=(snap, s, self._scene))
