@@ -57,9 +57,12 @@ class LitPeriod:
 
     @property
     def cut_short(self) -> bool:
-        """The supervisor switched the light off at the limit before the exposure was reported done."""
-        return self.capped_at is not None and (self.exposure_done_at is None
-                                               or self.capped_at < self.exposure_done_at)
+        """The light may have gone off before the exposure was reported done: the supervisor switched it off at
+        the limit before, or the exposure ended after the deadline (where the sphere's own limit cuts it)."""
+        done = self.exposure_done_at
+        if self.capped_at is not None and (done is None or self.capped_at < done):
+            return True
+        return done is not None and done > self.deadline
 
     def lit_s(self, now: Optional[float] = None) -> float:
         """Seconds the object may have been lit: up to the confirmed switch-off; while that is unconfirmed, up to

@@ -106,3 +106,13 @@ def test_a_second_thread_waits_for_the_port_a_bounded_time():
     holder.join(5)
     assert sphere.temperature_c() == 25.0
     sphere.close(leave_on=True)
+
+
+def test_an_exposure_that_ends_after_the_deadline_counts_as_cut_short():
+    sup = OnTimeSupervisor(Switch())
+    period = sup.arm(5.0)
+    period.exposure_done_at = period.deadline + 0.01     # the sphere's own limit may have cut it
+    assert period.cut_short
+    period.exposure_done_at = period.deadline - 0.01
+    assert not period.cut_short
+    sup.stop()
