@@ -25,8 +25,7 @@ import numpy as np
 from app.light_dose import LightDose
 from app.session import CaptureSession, SessionEntry
 from drivers.camera.base import Camera, CameraError, Exposure, RawCapture, call_with_deadline
-from drivers.led_sphere import SphereError
-from drivers.led_sphere.driver import LightReport
+from drivers.led_sphere import LightReport, SphereError
 from drivers.raw import RawFrame, load_raw
 from simulation.lightsource import LightSource
 

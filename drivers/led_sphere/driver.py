@@ -21,13 +21,12 @@ import logging
 import math
 import threading
 import time
-from dataclasses import dataclass
 from typing import Any, Optional, Sequence
 
 import serial
 
 from drivers.led_sphere import protocol as P
-from drivers.led_sphere.errors import SphereError
+from drivers.led_sphere.errors import LightReport, SphereError
 from drivers.led_sphere.supervisor import LitPeriod, OnTimeSupervisor
 from simulation.lightsource import N_SPHERE_LEDS, LightSource
 
@@ -44,17 +43,6 @@ DEFAULT_MAX_ON_S = 10.0        # per lit period (thesis 4.3.2: no LED drift in t
 MAX_ON_RANGE_S = (P.ON_LIMIT_MIN_MS / 1000, P.ON_LIMIT_MAX_MS / 1000)
 _IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 _MAX_LINES_PER_ATTEMPT = 8     # stale replies skipped per attempt before giving up (a chattering line)
-
-
-@dataclass(frozen=True)
-class LightReport:
-    """What is known after trying to switch the sphere off: ``off`` is True only when the sphere confirmed the
-    light off (``LIGHT 0`` answered); ``message`` says so in words (one clause, for error messages); ``error`` is
-    the first failure on the way, if any."""
-
-    off: bool
-    message: str
-    error: Optional[SphereError] = None
 
 
 class LedSphere:

@@ -1,6 +1,7 @@
-"""The one error type the LED sphere driver raises."""
+"""The one error type the LED sphere driver raises, and what is known after switching the sphere off."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Optional
 
 #: What went wrong, as ``SphereError.kind``.
@@ -34,3 +35,14 @@ class SphereError(RuntimeError):
         self.code = code
         self.light = light
         self.period = period
+
+
+@dataclass(frozen=True)
+class LightReport:
+    """What is known after trying to switch the sphere off: ``off`` is True only when the sphere confirmed that
+    nothing is lit (``LIGHT 0`` or ``ALLOFF`` answered); ``message`` says so in words (one clause, for error
+    messages); ``error`` is the first failure on the way, if any."""
+
+    off: bool
+    message: str
+    error: Optional[SphereError] = None
