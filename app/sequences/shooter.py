@@ -146,7 +146,10 @@ class Shooter:
                       step_id: str) -> tuple[Exposure, LightReport, bool]:
         """Light on, settle, expose, light off: (the exposure, what is known about the light, whether the light
         stayed on all through the exposure). A failure is raised after the light was switched off, saying so."""
-        self.sphere.apply(light)
+        try:
+            self.sphere.apply(light)
+        except SphereError as exc:          # nothing was switched on by this shot; say what the light is now
+            raise (exc if exc.light is not None else restate(exc, self.sphere.ensure_off())) from None
         try:
             period = self.sphere.on(max_on_s=self.safety.light_limit_s(exposure_s))
         except SphereError as exc:          # it says what state the light is in; its lit period (if any) counts

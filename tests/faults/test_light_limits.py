@@ -188,3 +188,12 @@ def test_old_firmware_hanging_camera_with_polls_host_supervisor_switches_off(tmp
         assert lab.sphere.lit_period is None
         assert_dark_within(lab.emulator, t0, LIMIT_S, "hanging camera, firmware 1.0, status polls")
         assert b"ON 267" in lab.emulator.requests and b"WDOG 267" in lab.emulator.requests
+
+
+@pytest.mark.fault("light safety")
+def test_levels_refused_before_switching_on_says_the_light_is_off(lab, shooter):
+    lab.emulator.inject("led_fail", led=6, mode="error")      # LEVELS with LED 6 > 0 gets ERR 6
+    t0 = lab.emulator.clock()
+    with pytest.raises(SphereError, match=r"refused 'LEVELS .*error 6.*; all LEDs and the light were switched off$"):
+        shooter.shoot("target", LS1.light, EXPOSURE_S, "target/led-fault")
+    assert lit_spans(lab.emulator, t0) == [] and shooter.dose.on_s == 0
