@@ -222,8 +222,10 @@ class Shooter:
                                    settings=settings, placed=list(self.placed) if self.placed else None, **meta)
 
     def _add_dose(self, light: LightSource, on_s: float, step_id: str) -> None:
-        """The light dose of one lit period (every path: success, camera error, unconfirmed switch-off)."""
+        """The light dose of one lit period (every path: success, camera error, unconfirmed switch-off), also in
+        the session's manifest as it happens."""
         self.dose.add(light, on_s)
+        self.session.record_dose(light, on_s, step_id=step_id)
 
     def frame(self, entry: SessionEntry) -> RawFrame:
         """The raw frame of a session entry, read back from the session folder (cached)."""

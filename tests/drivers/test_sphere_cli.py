@@ -43,7 +43,8 @@ def assert_one_line_error(rc, err):
 def write_preset(path: Path) -> Path:
     path.write_text(json.dumps({"format": "dualrgb-preset/1", "name": "test",
                                 "sources": [{"leds": [1, 6, 8], "levels": [1.0, 0.5, 0.25]},
-                                            {"leds": [3, 5, 9]}]}), encoding="utf-8")
+                                            {"leds": [3, 5, 9], "levels": [1.0, 1.0, 1.0]}]}),
+                    encoding="utf-8")
     return path
 
 
@@ -78,11 +79,14 @@ def test_apply_preset_sources(emu, capsys, tmp_path):
 
 
 @pytest.mark.parametrize("args", [["set", "11", "0.5"], ["set", "3", "1.5"], ["set", "3", "nan"]])
-def test_bad_values_one_line_error_and_leds_off(emu, capsys, args):
+def test_bad_values_refused_while_parsing_and_leds_off(emu, capsys, args):
     assert run(emu, "set", "2", "1.0", capsys=capsys)[0] == 0
     assert run(emu, "on", capsys=capsys)[0] == 0
-    rc, _, err = run(emu, *args, capsys=capsys)
-    assert_one_line_error(rc, err)
+    with pytest.raises(SystemExit) as info:
+        run(emu, *args, capsys=capsys)
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert info.value.code == 2 and "Traceback" not in last
+    assert "error: argument " in last and last.endswith("; all LEDs and the light were switched off")
     assert not emu.snapshot().light_on and emu.commanded_levels().sum() == 0
 
 
@@ -145,8 +149,9 @@ def test_subprocess_emulator_and_cli():
         assert ok.returncode == 0 and ok.stdout.startswith("model DRGB-SPHERE10-EMU"), ok
         bad = subprocess.run(cmd + ["sphere", "--port", port, "--timeout", "1", "set", "12", "1"], cwd=ROOT,
                              env=env, capture_output=True, text=True, timeout=60)
-        assert bad.returncode == 1 and bad.stdout == ""
-        assert len(bad.stderr.strip().splitlines()) == 1 and bad.stderr.startswith("dualrgb: error: LED 12")
+        assert bad.returncode == 2 and bad.stdout == ""
+        last = bad.stderr.strip().splitlines()[-1]
+        assert "argument led: '12'" in last and last.endswith("all LEDs and the light were switched off")
     finally:
         server.send_signal(signal.SIGINT)
         try:

@@ -1,16 +1,19 @@
-"""Fault-injection tests (issue 9's reliability table): the virtual lab with small frames and short light limits."""
+"""Fixtures of the fault-injection suite (the marker and the reliability table: tests/faults/plugin.py): counting
+rigs, and the virtual lab with small frames and short light limits for the light-safety cases."""
 from __future__ import annotations
 
-import os
+import pytest
 
-os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+from app.sequences.shooter import Shooter
+from app.session import CaptureSession
+from app.virtual_lab import VirtualLab
+from fault_rigs import CountingCamera, CountingSphere
+from light_record import FAST
 
-import pytest  # noqa: E402
 
-from app.sequences.shooter import Shooter  # noqa: E402
-from app.session import CaptureSession  # noqa: E402
-from app.virtual_lab import VirtualLab  # noqa: E402
-from light_record import FAST  # noqa: E402
+@pytest.fixture()
+def rig():
+    return CountingCamera(), CountingSphere()
 
 
 @pytest.fixture()

@@ -27,35 +27,40 @@ def lit_emulator():
 
 
 def _preset(path: Path, leds) -> Path:
-    path.write_text(json.dumps({"format": "dualrgb-preset/1", "name": "t", "sources": [{"leds": leds}]}))
+    path.write_text(json.dumps({"format": "dualrgb-preset/1", "name": "t",
+                                "sources": [{"leds": leds, "levels": [1.0] * len(leds)}]}))
     return path
 
 
-BEFORE_THE_PORT = {                    # args after --port (and --timeout 1 unless given), expected start of the error
-    "LED 11": (["set", "11", "0.5"], "LED 11: expected an integer in 1..10"),
-    "LED 0": (["set", "0", "0.5"], "LED 0: expected an integer in 1..10"),
-    "LED 1.5": (["set", "1.5", "0.5"], "LED 1.5: expected an integer"),
-    "LED x": (["set", "x", "0.5"], "LED x: expected an integer"),
-    "level 1.5": (["set", "3", "1.5"], "LED 3 level 1.5: expected a number in 0..1"),
-    "level -0.1": (["set", "3", "-0.1"], "LED 3 level -0.1: expected a number in 0..1"),
-    "level nan": (["set", "3", "nan"], "LED 3 level nan"),
-    "level inf": (["set", "3", "inf"], "LED 3 level inf"),
-    "missing preset": (["apply", "{tmp}/missing.json"], "{tmp}/missing.json"),
-    "preset LED 12": (["apply", "{tmp}/bad.json"], "{tmp}/bad.json"),
-    "preset source 3": (["apply", "{tmp}/good.json", "--source", "3"], "--source 3"),
-    "--timeout 0": (["--timeout", "0", "identify"], "--timeout 0: expected a number in 0.05..60"),
-    "--timeout -1": (["--timeout", "-1", "status"], "--timeout -1: expected"),
-    "--timeout nan": (["--timeout", "nan", "off"], "--timeout nan: expected"),
-    "--timeout 1e-9": (["--timeout", "1e-9", "identify"], "--timeout 1e-9: expected a number in 0.05..60"),
-    "--max-on 0": (["on", "--max-on", "0"], "--max-on 0: expected a number in 0.1..3600"),
-    "--max-on 1e9": (["on", "--max-on", "1e9"], "--max-on 1e9: expected"),
+# args after --port (and --timeout 1 unless given) -> (exit code, what the error line starts with / contains);
+# exit 2: refused while parsing (argparse's last line), 1: a preset problem found when the command runs
+BEFORE_THE_PORT = {
+    "LED 11": (["set", "11", "0.5"], 2, "argument led: '11': expected a whole number from 1 to 10"),
+    "LED 0": (["set", "0", "0.5"], 2, "argument led: '0': expected a whole number from 1 to 10"),
+    "LED 1.5": (["set", "1.5", "0.5"], 2, "argument led: '1.5': expected a whole number"),
+    "LED x": (["set", "x", "0.5"], 2, "argument led: 'x': expected a whole number"),
+    "level 1.5": (["set", "3", "1.5"], 2, "argument level: '1.5': expected from 0 to 1"),
+    "level -0.1": (["set", "3", "-0.1"], 2, "argument level: '-0.1': expected from 0 to 1"),
+    "level nan": (["set", "3", "nan"], 2, "argument level: 'nan': expected a finite number"),
+    "level inf": (["set", "3", "inf"], 2, "argument level: 'inf': expected a finite number"),
+    "missing preset": (["apply", "{tmp}/missing.json"], 1, "{tmp}/missing.json"),
+    "preset LED 12": (["apply", "{tmp}/bad.json"], 1, "{tmp}/bad.json"),
+    "preset source 3": (["apply", "{tmp}/good.json", "--source", "3"], 1, "--source 3"),
+    "preset source 0": (["apply", "{tmp}/good.json", "--source", "0"], 2, "argument --source: '0'"),
+    "--timeout 0": (["--timeout", "0", "identify"], 2, "argument --timeout: '0': expected more than 0 s"),
+    "--timeout -1": (["--timeout", "-1", "status"], 2, "argument --timeout: '-1'"),
+    "--timeout nan": (["--timeout", "nan", "off"], 2, "argument --timeout: 'nan'"),
+    "--timeout 1e-9": (["--timeout", "1e-9", "identify"], 2, "argument --timeout: '1e-9': expected from 0.01 to 60 s"),
+    "--max-on 0": (["on", "--max-on", "0"], 2, "argument --max-on: '0'"),
+    "--max-on 1e9": (["on", "--max-on", "1e9"], 2, "argument --max-on: '1e9': expected from 0.1 to 3600 s"),
+    "no action": ([], 2, "the following arguments are required: ACTION"),
 }
 
 
 @pytest.mark.fault("light safety")
 @pytest.mark.parametrize("case", list(BEFORE_THE_PORT))
 def test_argument_errors_end_with_the_light_off_and_say_so(lit_emulator, capsys, tmp_path, case):
-    args, start = BEFORE_THE_PORT[case]
+    args, code, says = BEFORE_THE_PORT[case]
     _preset(tmp_path / "bad.json", [1, 12])
     _preset(tmp_path / "good.json", [1, 6, 8])
     args = [a.replace("{tmp}", str(tmp_path)) for a in args]
@@ -63,13 +68,17 @@ def test_argument_errors_end_with_the_light_off_and_say_so(lit_emulator, capsys,
     for line in (b"LEVELS 65535 0 0 0 0 65535 0 65535 0 0", b"LIGHT 1"):
         assert lit_emulator.handle(line).startswith(b"OK")
     assert lit_emulator.snapshot().light_on
-    rc = main(["sphere", "--port", lit_emulator.port, *timeout, *args])
+    try:
+        rc = main(["sphere", "--port", lit_emulator.port, *timeout, *args])
+    except SystemExit as exc:
+        rc = exc.code
     out, err = capsys.readouterr()
-    lines = err.strip().splitlines()
-    assert rc == 1 and out == "" and len(lines) == 1, err
-    assert lines[0].startswith("dualrgb: error: " + start.replace("{tmp}", str(tmp_path))), lines[0]
-    assert lines[0].endswith("; all LEDs and the light were switched off"), lines[0]
-    assert "failed" not in lines[0]
+    last = err.strip().splitlines()[-1]
+    assert rc == code and out == "" and "Traceback" not in err, err
+    assert says.replace("{tmp}", str(tmp_path)) in last, last
+    assert last.startswith("dualrgb: error: " if code == 1 else "dualrgb sphere"), last
+    assert last.endswith("; all LEDs and the light were switched off"), last
+    assert "failed" not in last
     snap = lit_emulator.snapshot()
     assert not snap.light_on and not snap.levels.any()
 
