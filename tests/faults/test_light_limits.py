@@ -197,3 +197,15 @@ def test_levels_refused_before_switching_on_says_the_light_is_off(lab, shooter):
     with pytest.raises(SphereError, match=r"refused 'LEVELS .*error 6.*; all LEDs and the light were switched off$"):
         shooter.shoot("target", LS1.light, EXPOSURE_S, "target/led-fault")
     assert lit_spans(lab.emulator, t0) == [] and shooter.dose.on_s == 0
+
+
+@pytest.mark.fault("light safety")
+def test_a_slow_download_happens_with_the_light_off(lab, shooter):
+    lab.camera.inject("slow_fetch", delay_s=1.0)       # a 30 MB NEF over a slow USB link
+    t0 = lab.emulator.clock()
+    entry = shooter.shoot("target", LS1.light, EXPOSURE_S, "target/slow-download")
+    took = lab.emulator.clock() - t0
+    (span,) = lit_spans(lab.emulator, t0)
+    assert took >= 1.0 and span.duration(0) <= EXPOSURE_S + FAST.settle_s + 0.2 and span.ended_by == "LIGHT 0"
+    assert shooter.session.has_step("target/slow-download") and entry.seq == 1
+    print(f"[light safety] slow download: lit {span.duration(0):.3f} s of a {took:.2f} s shot")
