@@ -122,7 +122,7 @@ class CopyStand:
         from app.sequences.hdr import LINEAR_LIMIT_DN
 
         n = self.hdr_exposures() if hdr_auto else 1
-        limit = self.shooter.safety.max_on_s - self.shooter.safety.settle_s
+        limit = self.shooter.safety.max_exposure_s
         usable = [s for s in self.camera.shutter_speeds() if s <= limit]
         step = 0.8 * LINEAR_LIMIT_DN / 100.0                 # app.sequences.hdr.plan_hdr's overlap factor
         plan = {}
