@@ -47,6 +47,7 @@ from pathlib import Path
 from typing import Any, Optional, Union
 
 from drivers.camera.base import RawCapture
+from simulation.versions import software_versions
 
 log = logging.getLogger(__name__)
 
@@ -236,8 +237,8 @@ class CaptureSession:
             p.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise _session_error(exc, p) from exc
-        settings = {"format": "dualrgb-session", "version": FORMAT_VERSION, "created_at": _now(),
-                    **(meta or {})}
+        settings = {"format": "dualrgb-session", "version": FORMAT_VERSION,
+                    "software": software_versions(), "created_at": _now(), **(meta or {})}
         atomic_write(p / SETTINGS, (json.dumps(settings, indent=2, default=_json_default) + "\n").encode())
         try:
             fd = os.open(p / MANIFEST, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)

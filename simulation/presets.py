@@ -2,7 +2,7 @@
 
 A preset file:
 {
-  "format": "dualrgb-preset/1", "name": "...", "method": "pso", "seed": 0, "mode": "reflective",
+  "format": "dualrgb-preset/1", "software": {"dualrgb": ..., "numpy": ...}, "name": "...", "method": "pso", "seed": 0, "mode": "reflective",
   "sources": [{"leds": [1, 6, 7], "levels": [0.0, 0.42, 1.0], "name": "source 1"}, ...],
   "errors": {"train": {"mean":..,"median":..,"p90":..,"max":..}, "test": {...}},
   "dataset": {"train": "...", "test": "..."}, "model": {"grid": "...", "camera": "...", ...}, "created": ISO time
@@ -22,6 +22,7 @@ from scipy.optimize import nnls
 
 import resources
 from simulation.lightsource import LightSource
+from simulation.versions import output_header
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +46,7 @@ class Preset:
     created: str = ""
 
     def to_dict(self) -> dict:
-        return {"format": FORMAT, "name": self.name, "method": self.method, "seed": self.seed, "mode": self.mode,
+        return {**output_header(FORMAT), "name": self.name, "method": self.method, "seed": self.seed, "mode": self.mode,
                 "sources": [s.to_dict() for s in self.sources], "errors": self.errors, "dataset": self.dataset,
                 "model": self.model,
                 "created": self.created or _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}

@@ -13,8 +13,9 @@ Three questions, each answered automatically with a tolerance (default 0.05 mean
    half the patches as thesis 8.3): test error of simulated captures. The fewest exposures within the
    tolerance of the most accurate bracket are chosen.
 
-The choices go to ``parsimony.json`` (format ``dualrgb-parsimony/1``); the packaged copy
-``resources/parsimony.json`` is what :func:`load_defaults` returns for the app.
+The choices go to ``parsimony.json`` (format ``dualrgb-parsimony/1``). :func:`load_defaults` returns the
+user's copy (``--write-defaults`` puts it in the per-user data folder, ``resources.user_path``) when there is
+one, else the packaged ``resources/parsimony.json`` from the reference run.
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ from typing import Optional
 import numpy as np
 
 import resources
+from simulation.versions import output_header
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
 from simulation.search import exhaustive, light_pairs, refine_top
@@ -192,7 +194,7 @@ class ParsimonyResult:
     elapsed_s: float
 
     def defaults(self) -> dict:
-        return {"format": FORMAT, "spectral_step_nm": self.steps["chosen_nm"],
+        return {**output_header(FORMAT), "spectral_step_nm": self.steps["chosen_nm"],
                 "characterisation_model": self.models["chosen"], "hdr_exposures": self.exposures["chosen"],
                 "tolerance_de00": self.config.tolerance,
                 "default_10nm_justified": self.steps["default_10nm_justified"],
@@ -222,9 +224,10 @@ def parsimony(spec: SetupSpec = SetupSpec(), cfg: ParsimonyConfig = ParsimonyCon
 
 
 def load_defaults(path: Optional[str] = None) -> dict:
-    """The app's defaults chosen by the parsimony study (resources/parsimony.json), or the thesis defaults."""
+    """The app's defaults chosen by the parsimony study: ``path``, else the user's parsimony.json (per-user data
+    folder), else the packaged resources/parsimony.json; the thesis defaults when none is readable."""
     try:
-        p = path or resources.path("parsimony.json")
+        p = path or resources.user_or_packaged("parsimony.json")
         data = json.loads(open(p, encoding="utf-8").read())
     except (OSError, ValueError) as exc:
         log.info("no parsimony defaults (%s); using %s", exc, FALLBACK_DEFAULTS)
@@ -287,6 +290,7 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     if defaults_path:
         from pathlib import Path
 
+        Path(defaults_path).parent.mkdir(parents=True, exist_ok=True)
         Path(defaults_path).write_text(json.dumps(result.defaults(), indent=2) + "\n", encoding="utf-8")
     out.save_figure(parsimony_chart(result), "parsimony.png")
     s = result.steps
@@ -310,5 +314,6 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     lines += [f"- {r['exposures']} exposure(s) x{', '.join(f'{f:.3g}' for f in r['factors'])}: {sc:.4f}"
               for r, sc in zip(e["rows"], e["scores"])]
     lines += ["", f"Chosen: **{e['chosen']}** exposure(s) per light.", "",
-              "Defaults written to parsimony.json (copy to resources/parsimony.json for the app)."]
+              "Defaults written to parsimony.json (`dualrgb study parsimony --write-defaults` makes them the "
+              "app's defaults)."]
     out.write_summary("Parsimony", lines)
