@@ -1,7 +1,7 @@
 """``dualrgb sphere``: talk to the LED sphere over serial; ``dualrgb sphere-emulator``: serve a virtual one on a pty.
 
     dualrgb sphere --port /dev/ttyACM0 identify
-    dualrgb sphere --port /dev/ttyACM0 status
+    dualrgb sphere --port /dev/ttyACM0 status [--json PATH]
     dualrgb sphere --port /dev/ttyACM0 set 4 0.5
     dualrgb sphere --port /dev/ttyACM0 apply preset.json [--source 2]
     dualrgb sphere --port /dev/ttyACM0 on
@@ -15,7 +15,6 @@ call fails after the port is open, it switches every LED and the light off befor
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
 import signal
@@ -23,15 +22,19 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Optional
 
 from app.cli import UserError
-from drivers.led_sphere import LedSphere, SphereError
-from drivers.led_sphere.driver import DEFAULT_TIMEOUT_S
-from simulation.lightsource import LightSource
+from app.json_output import add_json_option, write_json
+
+if TYPE_CHECKING:       # the driver imports pyserial and numpy: only when a command talks to the sphere
+    from drivers.led_sphere import LedSphere
+    from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
 PORT_ENV = "DUALRGB_SPHERE_PORT"
+STATUS_FORMAT = "dualrgb-sphere-status/1"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -39,12 +42,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Talk to the 10-LED sphere over its serial port (docs/led-sphere-protocol.md).")
     p.add_argument("--port", default=os.environ.get(PORT_ENV),
                    help=f"serial port or pyserial URL, e.g. /dev/ttyACM0, a pty path (default ${PORT_ENV})")
-    p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S,
-                   help=f"seconds to wait for each reply (default {DEFAULT_TIMEOUT_S:g}; one retry)")
+    p.add_argument("--timeout", type=float, default=None,
+                   help="seconds to wait for each reply (default: the driver's, 1 s; one retry)")
     actions = p.add_subparsers(dest="action", metavar="ACTION")
     actions.required = True
     actions.add_parser("identify", help="model, firmware, serial number")
-    actions.add_parser("status", help="light, levels, temperature, on-time, watchdog, faults")
+    st = actions.add_parser("status", help="light, levels, temperature, on-time, watchdog, faults")
+    add_json_option(st)
     s = actions.add_parser("set", help="one LED's level (0..1)")
     s.add_argument("led", type=int, help="LED number 1..10")
     s.add_argument("level", type=float, help="level 0..1")
@@ -61,21 +65,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.set_defaults(func=serve_emulator)
 
 
-def load_light_source(path: Path, index: int) -> LightSource:
+def load_light_source(path: Path, index: int) -> "LightSource":
     """Light source number ``index`` (1-based) of a preset file."""
-    try:
-        from simulation.presets import load_preset
-    except ImportError:  # pragma: no cover - presets module not there yet
-        load_preset = None
-    if load_preset is not None:
-        sources = load_preset(path).sources           # PresetError is a ValueError: one line naming the file
-    else:  # pragma: no cover
-        try:
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
-            sources = tuple(LightSource.from_dict(s) for s in data["sources"])
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise UserError(f"{path}: expected a preset JSON with 'sources' = [{{leds, levels}}, ...] ({exc})") \
-                from None
+    from simulation.presets import load_preset
+
+    sources = load_preset(path).sources           # PresetError is a ValueError: one line naming the file
     if not 1 <= index <= len(sources):
         raise UserError(f"--source {index}: {path} has light sources 1..{len(sources)}")
     return sources[index - 1]
@@ -84,9 +78,13 @@ def load_light_source(path: Path, index: int) -> LightSource:
 def main(args: argparse.Namespace) -> int:
     if not args.port:
         raise UserError(f"no sphere port: give --port (e.g. /dev/ttyACM0) or set {PORT_ENV}")
+    from drivers.led_sphere import LedSphere, SphereError
+    from drivers.led_sphere.driver import DEFAULT_TIMEOUT_S
+
     light = load_light_source(args.preset, args.source) if args.action == "apply" else None
+    timeout = DEFAULT_TIMEOUT_S if args.timeout is None else args.timeout
     try:
-        sphere = LedSphere(args.port, timeout=args.timeout).open()
+        sphere = LedSphere(args.port, timeout=timeout).open()
     except SphereError as exc:
         raise UserError(str(exc)) from None
     try:
@@ -104,12 +102,17 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None) -> None:
+def _run(sphere: "LedSphere", args: argparse.Namespace, light: Optional["LightSource"]) -> None:
     if args.action == "identify":
         info = sphere.identify()
         print(f"model {info['model']}, firmware {info['firmware']}, serial {info['serial']}")
     elif args.action == "status":
-        for key, value in sphere.status().items():
+        status = sphere.status()
+        if args.json:
+            write_json(args.json, STATUS_FORMAT, status)
+            if args.json == "-":
+                return
+        for key, value in status.items():
             if value is None:
                 value = "-"
             elif isinstance(value, float):
