@@ -2,7 +2,8 @@
 
 A preset file:
 {
-  "format": "dualrgb-preset/1", "software": {"dualrgb": ..., "numpy": ...}, "name": "...", "method": "pso", "seed": 0, "mode": "reflective",
+  "format": "dualrgb-preset/1", "software": {"dualrgb": ..., "numpy": ..., ...},   (simulation.versions)
+  "name": "...", "method": "pso", "seed": 0, "mode": "reflective",
   "sources": [{"leds": [1, 6, 7], "levels": [0.0, 0.42, 1.0], "name": "source 1"}, ...],
   "errors": {"train": {"mean":..,"median":..,"p90":..,"max":..}, "test": {...}},
   "dataset": {"train": "...", "test": "..."}, "model": {"grid": "...", "camera": "...", ...}, "created": ISO time

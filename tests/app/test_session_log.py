@@ -41,6 +41,7 @@ def test_records_while_open_go_to_the_session_log(tmp_path, quiet_console):
 
 def test_records_before_the_session_exists_wait_for_it(tmp_path, quiet_console):
     folder = tmp_path / "new"
+    folder.mkdir()                                              # an empty folder chosen for the new session
     with SessionLog(folder):
         log.info("optimiser done")                              # before CaptureSession.create: held
         CaptureSession.create(folder)                            # the folder must still be empty here
