@@ -64,17 +64,29 @@ class _SlowEvaluator:
         return np.zeros(len(idx))
 
 
-def test_warm_up_reports_a_slow_compile_and_leaves_the_count(monkeypatch):
+def test_warm_up_reports_a_compile_and_leaves_the_count(monkeypatch):
     from simulation import objective, warmup
 
     monkeypatch.setattr(objective.Evaluator, "cost_indexed", _SlowEvaluator.cost_indexed)
-    seen = []
     ev = _SlowEvaluator()
-    seconds = warmup.warm_up(ev, lambda f, m: seen.append((f, m)), notice_after_s=0.05)
-    assert seen == [(0.0, COMPILING)] and seconds >= 0.3 and ev.evaluations == 7
-    seen.clear()
-    warmup.warm_up(ev, lambda f, m: seen.append((f, m)), notice_after_s=5.0)
-    assert seen == []                                                        # a quick load says nothing
+    for cached, notice_after_s, expected in ((False, 5.0, [(0.0, COMPILING)]),   # no cache index: at once
+                                             (True, 0.05, []),                   # a cache load: quiet, even slow
+                                             (None, 0.05, [(0.0, COMPILING)]),   # can't tell: after a while
+                                             (None, 5.0, [])):
+        monkeypatch.setattr(warmup, "kernels_cached", lambda cached=cached: cached)
+        seen = []
+        seconds = warmup.warm_up(ev, lambda f, m: seen.append((f, m)), notice_after_s=notice_after_s)
+        assert seen == expected and seconds >= 0.3 and ev.evaluations == 7, (cached, notice_after_s)
+
+
+def test_kernels_cache_index_is_readable_on_this_numba():
+    """numba's cache internals that warm_up reads exist in the installed numba (None would mean they moved)."""
+    from simulation import warmup
+    from simulation.datasets import default_setup
+    from simulation.objective import Evaluator
+
+    warmup.warm_up(Evaluator(default_setup("reflective")))               # compiled or loaded: now on disk
+    assert warmup.kernels_cached() is True
 
 
 def test_run_time_excludes_the_warm_up(monkeypatch):
