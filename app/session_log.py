@@ -16,6 +16,7 @@ The file is written only once the folder is a session (``session.json`` exists),
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 import time
 from pathlib import Path
@@ -85,9 +86,15 @@ class _SessionLogHandler(logging.Handler):
             super().close()
 
 
+def _is_console(handler: logging.Handler) -> bool:
+    """A handler printing to the terminal (basicConfig's, or tqdm's stand-in while a progress bar shows)."""
+    return (isinstance(handler, logging.StreamHandler) and not isinstance(handler, logging.FileHandler)
+            and getattr(handler, "stream", None) in (sys.stderr, sys.stdout))
+
+
 class _RootLevel:
     """Lowers the root logger to the session logs' level while any is open, without making the console
-    chattier: a plain console StreamHandler (logging.basicConfig's) gets the old level while it is lowered."""
+    chattier: a console handler with no level of its own gets the old level while it is lowered."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -100,7 +107,7 @@ class _RootLevel:
             root = logging.getLogger()
             old = root.getEffectiveLevel()
             if self._users == 1 and old > level:
-                console = [h for h in root.handlers if type(h) is logging.StreamHandler and h.level == logging.NOTSET]
+                console = [h for h in root.handlers if _is_console(h) and h.level == logging.NOTSET]
                 for h in console:
                     h.setLevel(old)
                 self._saved = (root.level, console)

@@ -43,9 +43,15 @@ class TerminalProgress:
         self._last_pct = -1
         self._said: set[str] = set()
         self._bar: Any = None
+        self._redirect: Any = None
         self._lock = threading.Lock()
 
     def __enter__(self) -> "TerminalProgress":
+        if self.terminal:                       # log lines print above the bar instead of through it
+            from tqdm.contrib.logging import logging_redirect_tqdm
+
+            self._redirect = logging_redirect_tqdm()
+            self._redirect.__enter__()
         return self
 
     def __exit__(self, exc_type: Optional[type[BaseException]], exc: Optional[BaseException],
@@ -89,3 +95,6 @@ class TerminalProgress:
             if self._bar is not None:
                 self._bar.close()
                 self._bar = None
+            if self._redirect is not None:
+                self._redirect.__exit__(None, None, None)
+                self._redirect = None

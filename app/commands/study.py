@@ -89,7 +89,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     _common(q, "parsimony")
     q.add_argument("--budget", choices=("tiny", "default"), default="default")
     q.add_argument("--tolerance", type=float, default=0.05, help="allowed loss in mean dE00 (default 0.05)")
-    q.add_argument("--write-defaults", nargs="?", const="user", metavar="PATH",
+    q.add_argument("--write-defaults", nargs="?", const=True, metavar="PATH",
                    help="also write the chosen defaults to PATH (no PATH: parsimony.json in the per-user data "
                         "folder, which the app then reads instead of its packaged defaults)")
     q.set_defaults(func=parsimony_main)
@@ -202,7 +202,7 @@ def parsimony_main(args: argparse.Namespace) -> int:
     if args.write_defaults:
         import resources
 
-        target = str(resources.user_path("parsimony.json")) if args.write_defaults == "user" else args.write_defaults
+        target = str(resources.user_path("parsimony.json")) if args.write_defaults is True else args.write_defaults
     write_outputs(result, out, target)
     d = result.defaults()
     return _done(out, [f"spectral step {d['spectral_step_nm']:g} nm (10 nm justified: {d['default_10nm_justified']}), "

@@ -76,3 +76,19 @@ def test_gui_lab_switches_the_log_with_the_session(tmp_path, qapp):
     assert "while a" in (a.path / LOG_NAME).read_text() and "while b" not in (a.path / LOG_NAME).read_text()
     assert "while b" in (b.path / LOG_NAME).read_text() and "no session" not in (b.path / LOG_NAME).read_text()
     lab.stop_polling()
+
+
+def test_progress_bar_and_session_log_keep_the_console_quiet(tmp_path, quiet_console, capsys):
+    import io
+
+    from app.terminal_progress import TerminalProgress
+
+    session = CaptureSession.create(tmp_path / "s")
+    with TerminalProgress("demo", stream=io.StringIO(), terminal=True) as bar, SessionLog(session.path):
+        bar(0.5, "captures")
+        log.info("info for the file only")
+        log.warning("warning for both")
+    err = capsys.readouterr().err
+    assert "warning for both" in err and "info for the file only" not in err
+    assert "info for the file only" in (session.path / LOG_NAME).read_text()
+    assert logging.getLogger().handlers.count(quiet_console) == 1           # tqdm gave the console back
