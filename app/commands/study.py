@@ -8,7 +8,8 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
                                [--seeds N] [--scheduler local|ADDRESS]
 
-``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
+``--out`` defaults to ``studies/<study>`` in the per-user data folder (resources.user_path), where the GUI lists
+the charts. ``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
 (``--workers``, 2 by default), an address (``tcp://host:8786``) uses a running scheduler, ``serial`` (the
 default except for ``unbinned``) runs them here. Results are the same either way; timings are not comparable.
 """
