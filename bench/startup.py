@@ -24,13 +24,19 @@ def _cli() -> list[str]:
     return [str(script)] if script.exists() else [sys.executable, "-m", "app.cli"]
 
 
-def _median_s(argv: list[str], repeats: int) -> float:
-    times = []
+def _seconds(argv: list[str]) -> float:
+    t0 = time.perf_counter()
+    subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
+    return time.perf_counter() - t0
+
+
+def _medians(runs: dict[str, list[str]], repeats: int) -> dict[str, float]:
+    """Median seconds of each command, run in interleaved rounds so a load change hits all of them alike."""
+    times: dict[str, list[float]] = {label: [] for label in runs}
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        for label, argv in runs.items():
+            times[label].append(_seconds(argv))
+    return {label: statistics.median(t) for label, t in times.items()}
 
 
 def import_profile(args: list[str], top: int = 12) -> list[str]:
@@ -60,10 +66,12 @@ def bench_startup(repeats: int = REPEATS, commands: Optional[dict[str, list[str]
         dng = _sample_dng(Path(tmp))
         commands = commands or {"--help": ["--help"], "--version": ["--version"], "sphere --help": ["sphere", "--help"],
                                 "devices --help": ["devices", "--help"], "raw-info FILE": ["raw-info", str(dng)]}
-        bare = _median_s([sys.executable, "-c", "pass"], repeats)
+        medians = _medians({"bare": [sys.executable, "-c", "pass"],
+                            **{label: _cli() + args for label, args in commands.items()}}, repeats)
+        bare = medians["bare"]
         out: dict = {"target_s": TARGET_S, "repeats": repeats, "bare_python_s": round(bare, 4), "commands": {}}
         for label, args in commands.items():
-            seconds = _median_s(_cli() + args, repeats)
+            seconds = medians[label]
             row = {"seconds": round(seconds, 4), "ratio_to_bare_python": round(seconds / bare, 1),
                    "within_target": seconds <= TARGET_S}
             print(f"   {label:<16} {seconds:6.3f} s  {seconds / bare:5.1f}x bare python  "
