@@ -19,12 +19,14 @@ builder="$repo/.venv/bin/python"
 [[ -x "$builder" ]] || builder="$py"
 checkout_id="$(printf '%s' "$repo" | cksum | cut -d' ' -f1)"       # one folder per checkout: runs side by side
 work="${SMOKE_DIR:-${XDG_CACHE_HOME:-$HOME/.cache}/dualrgb/wheel-smoke/$checkout_id}"
-rm -rf "$work/src" "$work/dist" "$work/venv" "$work/run"
-mkdir -p "$work/src" "$work/numba-cache"
-export NUMBA_CACHE_DIR="$work/numba-cache"
 start=$SECONDS
 step() { printf 'wheel-smoke [%3ds] %s\n' "$((SECONDS - start))" "$*"; }
 fail() { echo "wheel-smoke: FAILED: $*" >&2; exit 1; }
+
+step "clearing the last run in $work"
+rm -rf "$work/src" "$work/dist" "$work/venv" "$work/run"
+mkdir -p "$work/src" "$work/numba-cache"
+export NUMBA_CACHE_DIR="$work/numba-cache"
 
 step "building the wheel"
 # from a copy of what a clone holds (tracked and untracked-but-not-ignored files): pip builds in the source tree,
