@@ -28,7 +28,8 @@ def add_json_option(parser: argparse.ArgumentParser, help: str = HELP) -> None:
 def write_json(dest: str | os.PathLike[str], fmt: str, data: dict,
                default: Optional[Callable[[Any], Any]] = None) -> Optional[Path]:
     """Write ``data`` with its header to ``dest`` ('-': stdout). A file is written whole or not at all
-    (temp file + rename) and its parent folders are created; returns the file's path (None for stdout)."""
+    (simulation.atomic_io) and its parent folders are created; returns the file's path (None for stdout)."""
+    from simulation.atomic_io import atomic_write
     from simulation.versions import stamped
 
     text = json.dumps(stamped(fmt, data), indent=2, default=default) + "\n"
@@ -38,8 +39,6 @@ def write_json(dest: str | os.PathLike[str], fmt: str, data: dict,
         return None
     path = Path(dest)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    atomic_write(path, text)
     log.info("wrote %s", path)
     return path

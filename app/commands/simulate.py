@@ -6,6 +6,7 @@ import logging
 import sys
 from pathlib import Path
 
+from app.commands.options import count, input_file, number, seed
 from app.json_output import add_json_option, write_json
 from app.terminal_progress import TerminalProgress
 from simulation.choices import METHODS, MODES
@@ -31,17 +32,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Simulate dual-RGB capture and search the sphere's light-source pairs.")
     p.add_argument("--mode", choices=MODES, default="reflective")
     p.add_argument("--method", choices=METHODS, default="exhaustive")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--top", type=int, default=5, help="how many light sets to print and write (default 5)")
+    p.add_argument("--seed", type=seed, default=0)
+    p.add_argument("--top", type=count(1, 630), default=5, help="how many light sets to print and write (default 5)")
     add_json_option(p)
     p.add_argument("--preset-out", type=Path, help="save the best light pair as a preset JSON here")
     p.add_argument("--bins", type=_bins, default=(3, 3, 4), help="LED bins, shortest wavelengths first (3,3,4)")
-    p.add_argument("--step", type=float, default=None,
+    p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=None,
                    help="spectral step in nm (default: the parsimony study's choice, resources/parsimony.json: 10)")
-    p.add_argument("--camera-csv", help="measured camera sensitivities (wavelength_nm,R,G,B)")
-    p.add_argument("--leds-csv", help="measured LED spectra (wavelength_nm,LED1..LED10)")
-    p.add_argument("--train-csv", help="measured training target spectra")
-    p.add_argument("--test-csv", help="measured test target spectra")
+    p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
+    p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
+    p.add_argument("--train-csv", type=input_file, help="measured training target spectra")
+    p.add_argument("--test-csv", type=input_file, help="measured test target spectra")
     p.set_defaults(func=main)
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Optional
 
 from app.cli import UserError
+from app.commands.options import positive, seconds
 from app.json_output import add_json_option, write_json
 
 if TYPE_CHECKING:       # the driver imports pyserial and numpy: only when a command talks to the sphere
@@ -42,8 +43,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Talk to the 10-LED sphere over its serial port (docs/led-sphere-protocol.md).")
     p.add_argument("--port", default=os.environ.get(PORT_ENV),
                    help=f"serial port or pyserial URL, e.g. /dev/ttyACM0, a pty path (default ${PORT_ENV})")
-    p.add_argument("--timeout", type=float, default=None,
-                   help="seconds to wait for each reply (default: the driver's, 1 s; one retry)")
+    p.add_argument("--timeout", type=seconds(0.01, 60), default=None,
+                   help="seconds to wait for each reply, 0.01..60 (default: the driver's, 1 s; one retry)")
     actions = p.add_subparsers(dest="action", metavar="ACTION")
     actions.required = True
     actions.add_parser("identify", help="model, firmware, serial number")
@@ -54,14 +55,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("level", type=float, help="level 0..1")
     a = actions.add_parser("apply", help="a preset's light source (LEDs not in it to 0)")
     a.add_argument("preset", type=Path, help="preset JSON (dualrgb simulate --preset-out)")
-    a.add_argument("--source", type=int, default=1, help="which light source of the preset: 1 (default) or 2")
+    a.add_argument("--source", type=positive, default=1, help="which light source of the preset: 1 (default) or 2")
     actions.add_parser("on", help="light on (master switch)")
     actions.add_parser("off", help="every LED to 0 and the light off")
     p.set_defaults(func=main)
 
     e = sub.add_parser("sphere-emulator", help="serve a virtual LED sphere on a pseudo-terminal until Ctrl-C",
                        description="Start the LED sphere emulator on a pty and print its path (use it as --port).")
-    e.add_argument("--watchdog", type=float, default=30.0, help="watchdog seconds (default 30)")
+    e.add_argument("--watchdog", type=seconds(0.1, 3600), default=30.0, help="watchdog seconds, 0.1..3600 (default 30)")
     e.set_defaults(func=serve_emulator)
 
 

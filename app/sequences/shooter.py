@@ -88,7 +88,9 @@ class Shooter:
         finally:
             if lit:
                 self.sphere.off()
-                self.dose.add(light, self._clock() - t_on)
+                on_s = self._clock() - t_on
+                self.dose.add(light, on_s)
+                self.session.record_dose(light, on_s, step_id=step_id)   # in the manifest as it happens
         temperature = None
         if self.sphere is not None:
             try:

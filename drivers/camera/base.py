@@ -86,6 +86,11 @@ class Camera(abc.ABC):
     def preview(self) -> np.ndarray:
         """A live-view frame as an (H, W, 3) uint8 RGB array."""
 
+    def frame_bytes(self) -> int:
+        """Estimated size of one raw file (for the free-space check before a sequence): a D610 14-bit NEF is
+        about 30 MB; implementations that know better say so."""
+        return 32 * 2**20
+
     def config_summary(self) -> dict[str, object]:
         """Named configuration values for display (implementations add what they know)."""
         s = self.settings()

@@ -263,6 +263,10 @@ class VirtualCamera(Camera):
         return RawCapture(data=data, filename=name, exposure_s=t, iso=int(s.iso), aperture=float(s.aperture),
                           camera=CAMERA_NAME, extra=info)
 
+    def frame_bytes(self) -> int:
+        """An uncompressed 16-bit DNG of the current scene's size plus its tags."""
+        return 2 * self._scene.width * self._scene.height + 64 * 1024
+
     def preview(self, max_width: int = 640) -> np.ndarray:
         """Live view: the scene under the current light at the current settings, small, sRGB-ish uint8.
 

@@ -24,18 +24,19 @@ import json
 import logging
 import time
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 from typing import Optional
 
 import numpy as np
 
 import resources
-from simulation.versions import output_header
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
 from simulation.search import exhaustive, light_pairs, refine_top
 from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, new_figure
 from simulation.studies.models import MODEL_TERMS, MODELS
 from simulation.studies.noise import CameraNoise, NoiseModel
+from simulation.versions import output_header
 
 log = logging.getLogger(__name__)
 
@@ -288,10 +289,10 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     out.write_json("parsimony_study.json", result.to_json())
     out.write_json("parsimony.json", result.defaults())
     if defaults_path:
-        from pathlib import Path
+        from simulation.atomic_io import atomic_write
 
         Path(defaults_path).parent.mkdir(parents=True, exist_ok=True)
-        Path(defaults_path).write_text(json.dumps(result.defaults(), indent=2) + "\n", encoding="utf-8")
+        atomic_write(defaults_path, json.dumps(result.defaults(), indent=2) + "\n")
     out.save_figure(parsimony_chart(result), "parsimony.png")
     s = result.steps
     lines = [f"Setup: {result.spec.label()}; tolerance {result.config.tolerance} mean dE00; total "

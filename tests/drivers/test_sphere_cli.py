@@ -42,7 +42,8 @@ def assert_one_line_error(rc, err):
 def write_preset(path: Path) -> Path:
     path.write_text(json.dumps({"format": "dualrgb-preset/1", "name": "test",
                                 "sources": [{"leds": [1, 6, 8], "levels": [1.0, 0.5, 0.25]},
-                                            {"leds": [3, 5, 9]}]}), encoding="utf-8")
+                                            {"leds": [3, 5, 9], "levels": [1.0, 1.0, 1.0]}]}),
+                    encoding="utf-8")
     return path
 
 
