@@ -5,8 +5,8 @@ Per original, named from its identifier (``<id>`` below, made file-safe), in ``<
 * ``<id>_prophoto_16bit.tif`` and ``<id>_srgb_16bit.tif``: display-encoded RGB with the ICC profile embedded;
 * ``<id>_XYZ_16bit.tif``: linear CIE XYZ, 32768 = the reference white's Y (2x headroom);
 * ``<id>_<N>ch_16bit.tif``: the flat-fielded N-channel stack, 32768 = the white (open gate);
-* ``<id>.json``: the sidecar (format tag, the original, the calibration, exposures, light dose, QA, versions of
-  dualrgb, numpy, colour-science, tifffile, rawpy and LibRaw, the files).
+* ``<id>.json``: the sidecar (format tag and software versions - dualrgb, numpy, numba, colour-science, rawpy,
+  LibRaw - from simulation.versions, the original, the calibration, exposures, light dose, QA, the files).
 
 Every TIFF carries resolution (ppi), Make/Model, DateTime, Software with the dualrgb version, an
 ImageDescription and XMP (identifier, title, operator, calibration id, light dose); see app.processing.outputs.
@@ -28,8 +28,9 @@ from app.processing.encode import LINEAR_ONE, encode_deliverables
 from app.processing.outputs import TiffMetadata, icc_profile, tiff_datetime, write_tiff, xmp_packet
 from app.processing.pipeline import ChannelStack
 from app.session import atomic_write
-from app.workflow.profile import CalibrationProfile, CameraIdentity, dualrgb_version
+from app.workflow.profile import CalibrationProfile, CameraIdentity
 from app.workflow.vocabulary import Subject
+from simulation.versions import dualrgb_version, output_header
 
 log = logging.getLogger(__name__)
 
@@ -119,16 +120,6 @@ class Delivery:
     qa: QaLine
 
 
-def versions() -> dict[str, str]:
-    import colour
-    import rawpy
-    import tifffile
-
-    return {"dualrgb": dualrgb_version(), "numpy": np.__version__, "colour-science": colour.__version__,
-            "tifffile": tifffile.__version__, "rawpy": rawpy.__version__,
-            "LibRaw": ".".join(str(v) for v in rawpy.libraw_version)}
-
-
 def _qa(stack: ChannelStack, invalid: float, profile: CalibrationProfile, original: Original,
         dose: LightDoseRecord, hdr: bool, warnings: list[str]) -> QaLine:
     best = profile.statistics.get("methods", {}).get(profile.statistics.get("best", ""), {})
@@ -188,13 +179,13 @@ def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original
     del enc
     qa = _qa(stack, invalid, profile, original, dose, any(len(v) > 1 for v in (exposures or {}).values()), warnings)
     sidecar = folder / f"{stem}.json"
-    doc = {"format": SIDECAR_FORMAT, "created_at": now.isoformat(timespec="seconds"), "original": original.to_dict(),
+    doc = {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"), "original": original.to_dict(),
            "calibration": {"id": profile.id, "file": str(profile.path or ""), "created_at": profile.created_at,
                            "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean},
            "camera": asdict(camera), "ppi": ppi, "exposures": exposures or {}, "light_dose": dose.to_dict(),
            "qa": qa.to_dict(), "encoding": {"rgb": "display-encoded, white = 65535",
                                             "linear_one": LINEAR_ONE, "channels": stack.channels},
-           "files": {k: p.name for k, p in files.items()}, "versions": versions(), **(extra or {})}
+           "files": {k: p.name for k, p in files.items()}, **(extra or {})}
     atomic_write(sidecar, (json.dumps(doc, indent=2, default=str) + "\n").encode())
     log.info("delivered %s: %s", original.identifier, qa.text())
     return Delivery(original, files, sidecar, qa)

@@ -30,20 +30,12 @@ from app.session import atomic_write
 from app.workflow.vocabulary import NamedLight, exposure_key
 from simulation.lightsource import LightSource
 from simulation.matrix_fit import CharacterisationMatrix
+from simulation.versions import dualrgb_version, software_versions
 
 log = logging.getLogger(__name__)
 
 FORMAT = "dualrgb-calibration/1"
 LEVEL_TOLERANCE = 1e-4          # the sphere quantises levels to 16-bit PWM
-
-
-def dualrgb_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("dualrgb")
-    except PackageNotFoundError:  # running from a source tree that was never installed
-        return "0+unknown"
 
 
 class ProfileError(ValueError):
@@ -158,7 +150,8 @@ class CalibrationProfile:
         raise KeyError(f"calibration {self.id} has no light {name!r}")
 
     def to_dict(self) -> dict:
-        return {"format": FORMAT, "version": self.version, "id": self.id, "created_at": self.created_at,
+        return {"format": FORMAT, "version": self.version, "software": software_versions(), "id": self.id,
+                "created_at": self.created_at,
                 "mode": self.mode, "camera": asdict(self.camera), "sphere": asdict(self.sphere),
                 "preset": self.preset, "lights": [{"name": nl.name, **nl.light.to_dict()} for nl in self.lights],
                 "exposures": self.exposures, "base_exposures": self.base_exposures,

@@ -61,7 +61,7 @@ def test_originals_delivered_with_metadata(day):
                 xmp = bytes(page.tags[700].value).decode()
                 assert f"<dc:identifier>{ident}</dc:identifier>" in xmp and cal["id"] in xmp and "E2E" in xmp
         side = json.loads(Path(c["sidecar"]).read_text())
-        assert side["versions"]["LibRaw"] and side["qa"]["light_dose"]["lux_s"] > 0
+        assert side["software"]["libraw"] and side["qa"]["light_dose"]["lux_s"] > 0
     assert all(len(ts) == 1 for ts in captures["PAINT-1"]["exposures"].values())       # fits: no HDR
     assert captures["PAINT-1"]["new"] == 2 * int(PAINT_FRAMES) and captures["FILM-1"]["new"] == 2
     assert all(len(ts) == 2 for ts in captures["SHADOW-1"]["exposures"].values())      # deep shadow: HDR bracket
