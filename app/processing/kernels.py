@@ -5,7 +5,8 @@ a separate pass over memory with its own temporaries (the eq 8.9 weight alone is
 ~15), which made processing a 24 MP dual-RGB HDR set take ~2.5x the time of merely decoding its raw files
 (bench/processing_bench.py). One fused pass per frame reads each input once and writes each accumulator once.
 Semantics are identical to the numpy formulation documented in calibration.py and hdr.py (float32 arithmetic);
-the tests check the results against known truth. The kernels release the GIL (nogil), so the next raw file
+the tests check the results against known truth and the numpy references (simulation.hdr_estimators for the
+HDR merge). The kernels release the GIL (nogil), so the next raw file
 can be decoded in a background thread meanwhile (mosaic.iter_open_raw).
 """
 from __future__ import annotations
@@ -111,56 +112,90 @@ def dark_finish(total, hi, lo, k_hi, k_lo, n_used, out):
 
 
 @njit(parallel=True, cache=True, nogil=True)
-def hdr_accumulate(raw, dark, dark_value, use_dark_array, inv_t, inv_span, limit, white, num, den, fallback,
-                   write_fallback, first):  # pragma: no cover - compiled
-    """One exposure into the HDR accumulators (eq 8.9 weight on the dark-subtracted signal, zero above the
-    linear limit or at clipping); ``fallback`` takes the per-second value when ``write_fallback``; ``first``
-    initialises num and den instead of adding (no zero-fill pass)."""
+def hdr_store(raw, dark, dark_value, use_dark_array, limit, white, k, xs, usable, first):  # pragma: no cover
+    """Exposure ``k`` of a merge: xs[k] = raw - dark (float32 DN); bit k of ``usable`` (uint8) set where the raw
+    value is at most the linear ``limit`` and below the ``white`` level (``first``: initialise the bits)."""
     H, W = raw.shape
-    one = np.float32(1.0)
-    zero = np.float32(0.0)
+    bit = np.uint8(1 << k)
+    none = np.uint8(0)
     for i in prange(H):
         for j in range(W):
             x = raw[i, j]
             d = dark[i, j] if use_dark_array else dark_value
-            v = np.float32(x) - np.float32(d)
-            u = v * inv_span
-            w = min(u, one - u)
-            if w < zero or x > limit or x >= white:
-                w = zero
-            r = v * inv_t
-            if write_fallback:
-                fallback[i, j] = r
+            xs[k, i, j] = np.float32(x) - np.float32(d)
+            b = bit if (x <= limit and x < white) else none
             if first:
-                num[i, j] = w * r
-                den[i, j] = w
+                usable[i, j] = b
             else:
-                num[i, j] += w * r
-                den[i, j] += w
+                usable[i, j] |= b
+
+
+@njit(inline="always")
+def _merge_pixel(xs, usable, i, j, order, ts, inv_ts, method, inv_span, inv_gain, var_read):  # pragma: no cover
+    """One pixel of the merge (simulation.hdr_estimators: same methods and rules). ``order`` lists the
+    exposures shortest first, ``ts`` / ``inv_ts`` their times in that order. Returns (DN/s, clipped)."""
+    b = usable[i, j]
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    num = zero
+    den = zero
+    longest = zero
+    if method == 0:                                      # eq 8.9: triangle of the measured signal
+        for q in range(order.shape[0]):
+            k = order[q]
+            if b & (1 << k):
+                x = xs[k, i, j]
+                u = x * inv_span
+                w = max(min(u, one - u), zero)
+                r = x * inv_ts[q]
+                num += w * r
+                den += w
+                longest = r
+    else:                                                # variance-optimal (Granados et al. 2010)
+        sx = zero
+        st = zero
+        for q in range(order.shape[0]):
+            k = order[q]
+            if b & (1 << k):
+                sx += xs[k, i, j]
+                st += ts[q]
+        e0 = max(sx / st, zero) if st > zero else zero
+        for q in range(order.shape[0]):
+            k = order[q]
+            if b & (1 << k):
+                t = ts[q]
+                v = e0 * t * inv_gain + var_read
+                num += t * xs[k, i, j] / v
+                den += t * t / v
+    if den > zero:
+        return num / den, False
+    if b != 0:
+        return longest, False                            # dark: the longest usable exposure, not clipped
+    return xs[order[0], i, j] * inv_ts[0], True          # no usable exposure: the shortest, clipped
 
 
 @njit(parallel=True, cache=True, nogil=True)
-def hdr_finish(num, den, fallback):  # pragma: no cover - compiled
-    """num <- num / den where den > 0, else the fallback value; returns the number of fallback pixels."""
-    H, W = num.shape
+def hdr_merge(xs, usable, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out):  # pragma: no cover
+    """out = the merged radiance (DN/s) of the stored exposures; returns the number of clipped pixels."""
+    H, W = out.shape
     counts = np.zeros(H, dtype=np.int64)
     for i in prange(H):
         c = 0
         for j in range(W):
-            if den[i, j] > 0:
-                num[i, j] = num[i, j] / den[i, j]
-            else:
-                num[i, j] = fallback[i, j]
+            v, clipped = _merge_pixel(xs, usable, i, j, order, ts, inv_ts, method, inv_span, inv_gain, var_read)
+            out[i, j] = v
+            if clipped:
                 c += 1
         counts[i] = c
     return counts.sum()
 
 
 @njit(parallel=True, cache=True, nogil=True)
-def hdr_flat_superpixel(num, den, fallback, white, threshold, cfa, out):  # pragma: no cover - compiled
-    """Finish the merge, flat-field by ``white`` (eq 7.1; NaN where white <= threshold) and reduce each 2x2
-    cell to R, mean(G1, G2), B in ``out`` (H/2, W/2, 3). ``cfa`` (2, 2): 0 = R, 1 = G, 2 = B. Returns the
-    number of fallback (clipped in every exposure) pixels."""
+def hdr_merge_flat_superpixel(xs, usable, order, ts, inv_ts, method, inv_span, inv_gain, var_read, white,
+                              threshold, cfa, out):  # pragma: no cover - compiled
+    """Merge, flat-field by ``white`` (eq 7.1; NaN where white <= threshold) and reduce each 2x2 cell to R,
+    mean(G1, G2), B in ``out`` (H/2, W/2, 3). ``cfa`` (2, 2): 0 = R, 1 = G, 2 = B. Returns the number of
+    clipped pixels (no usable exposure)."""
     H2, W2 = out.shape[0], out.shape[1]
     counts = np.zeros(H2, dtype=np.int64)
     nan = np.float32(np.nan)
@@ -173,10 +208,9 @@ def hdr_flat_superpixel(num, den, fallback, white, threshold, cfa, out):  # prag
                 for dj in range(2):
                     i = 2 * ci + di
                     j = 2 * cj + dj
-                    if den[i, j] > 0:
-                        v = num[i, j] / den[i, j]
-                    else:
-                        v = fallback[i, j]
+                    v, clipped = _merge_pixel(xs, usable, i, j, order, ts, inv_ts, method, inv_span, inv_gain,
+                                              var_read)
+                    if clipped:
                         c += 1
                     wv = white[i, j]
                     f = v / wv if wv > threshold else nan
@@ -202,11 +236,17 @@ def warm_up() -> None:
     dark_accumulate(x, total, hi, lo, False)
     out = np.empty((4, 4), np.float32)
     dark_finish(total, hi, lo, 1, 1, 1.0, out)
-    num = np.zeros((4, 4), np.float32)
-    den = np.zeros((4, 4), np.float32)
-    fb = np.zeros((4, 4), np.float32)
-    hdr_accumulate(x, out, np.float32(0), True, np.float32(1), np.float32(1e-4), 11000.0, 15520.0, num, den, fb, True,
-                   True)
+    xs = np.empty((2, 4, 4), np.float32)
+    usable = np.empty((4, 4), np.uint8)
+    for k in range(2):
+        hdr_store(x, out, np.float32(0), True, 11000.0, 15520.0, k, xs, usable, k == 0)
+    order = np.array([0, 1], np.int64)
+    ts = np.array([0.1, 1.0], np.float32)
+    merged = np.empty((4, 4), np.float32)
     sp = np.empty((2, 2, 6), np.float32)
-    hdr_flat_superpixel(num, den, fb, out, np.float32(0.01), np.array([[0, 1], [1, 2]], np.int8), sp[..., :3])
-    hdr_finish(num, den, fb)
+    for method in (0, 1):
+        hdr_merge(xs, usable, order, ts, np.float32(1) / ts, method, np.float32(1e-4), np.float32(0.125),
+                  np.float32(6.3), merged)
+        hdr_merge_flat_superpixel(xs, usable, order, ts, np.float32(1) / ts, method, np.float32(1e-4),
+                                  np.float32(0.125), np.float32(6.3), merged, np.float32(0.01),
+                                  np.array([[0, 1], [1, 2]], np.int8), sp[..., :3])

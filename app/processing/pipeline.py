@@ -78,7 +78,8 @@ class CaptureProcessor:
     def __init__(self, *, darks: Optional[MasterDark] = None, dark_frames: Sequence[ExposureRef] = (),
                  white_level: Optional[float] = None, black_level: Optional[float] = None,
                  linear_limit: Optional[float] = LINEAR_LIMIT_DN, cfa: Optional[str] = None, band_rows: int = 256,
-                 reject_high: int = 1, reject_low: int = 1):
+                 reject_high: int = 1, reject_low: int = 1, hdr_method: Optional[str] = None):
+        """``hdr_method``: the HDR merge estimator (app.processing.hdr; None: the parsimony study's default)."""
         self.darks = darks or MasterDark()
         self._dark_frames: dict[float, list[ExposureRef]] = defaultdict(list)
         for ref in dark_frames:
@@ -89,6 +90,7 @@ class CaptureProcessor:
         self.cfa = cfa
         self.band_rows = band_rows
         self.reject = (reject_high, reject_low)
+        self.hdr_method = hdr_method
         self._whites: "OrderedDict[str, FlatField]" = OrderedDict()
         self._work: dict = {}          # scratch buffers reused across darks and merges (see calibration._buffer)
 
@@ -138,7 +140,8 @@ class CaptureProcessor:
                 self.black_level = float(np.mean(black)) if black else 0.0
             if merge is None:
                 merge = HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level,
-                                 band_rows=self.band_rows, work=self._work, own_result=own_result)
+                                 method=self.hdr_method, band_rows=self.band_rows, work=self._work,
+                                 own_result=own_result)
             dark = self._dark_for(frame, ref.exposure_s, cancel)
             merge.add(mosaic_of(frame), ref.exposure_s, dark, cancel=cancel)
             report(progress, (i + 1) / len(refs), f"exposure {ref.exposure_s:.6g} s {ref.label}".strip())

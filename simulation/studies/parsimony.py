@@ -38,7 +38,8 @@ from simulation.studies.noise import CameraNoise, NoiseModel
 log = logging.getLogger(__name__)
 
 FORMAT = "dualrgb-parsimony/1"
-FALLBACK_DEFAULTS = {"spectral_step_nm": 10.0, "characterisation_model": "linear", "hdr_exposures": 1}
+FALLBACK_DEFAULTS = {"spectral_step_nm": 10.0, "characterisation_model": "linear", "hdr_exposures": 1,
+                     "hdr_merge": "thesis"}
 
 
 @dataclass(frozen=True)
