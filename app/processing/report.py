@@ -2,7 +2,8 @@
 
 Contents (thesis Table 7.2, Figs 7.4-7.11):
   * mean / median / p90 / max CIEDE2000 on the training and test targets for every fitted matrix
-    (``simulation.objective.ErrorStats``) and which one validated better on the test target;
+    (``simulation.objective.ErrorStats``), which one is delivered (chosen by cross-validation on the training
+    target, never by the test target) and the delivered one's test error;
   * per-patch dE00 heatmap in the target's layout; a*b* and L*C* scatter coloured by error; ground truth vs
     prediction patch mosaic (sRGB, left half ground truth, right half prediction);
   * simulated vs captured digital numbers per channel (Fig 7.4): a least-squares line per channel, R^2 with
@@ -333,7 +334,8 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
         "channels": c.channels,
         "white_xyz": [float(v) for v in white],
         "best_method": best,
-        "best_reason": "lowest mean dE00 on the test target" if test is not None else "lowest mean dE00 (train)",
+        "best_reason": c.selection.reason if c.selection else "the only matrix fitted",
+        "model_selection": c.selection.to_dict() if c.selection else None,
         "train": c.results[best].train.to_dict(),
         "test": c.results[best].test.to_dict() if test is not None else None,
         "methods": {m: r.to_dict() for m, r in c.results.items()},
