@@ -34,8 +34,8 @@ from typing import Optional
 import numpy as np
 
 from simulation.camera_model import led_responses
-from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import SimulationSetup, Target
+from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.datasets import SimulationSetup, Target, target_xyz
 from simulation.fast_de import mean_de2000_xyz
 from simulation.hdr_estimators import HdrNoise, default_method, merge_exposures
 from simulation.characterisation import solve_normal_equations
@@ -87,7 +87,7 @@ class NoiseModel:
                  train: Optional[Target] = None, test: Optional[Target] = None) -> None:
         self.setup = setup
         self.camera = camera
-        self.white = white_point(setup.illuminant, setup.cmfs)
+        self.white = target_xyz(setup, train or setup.train)[1]
         self.open = led_responses(setup.leds, np.ones((1, len(setup.grid))), setup.camera)[:, 0, :]   # (K, 3)
         self.n_leds = setup.leds.shape[0]
         self.data = {"train": self._patches(train or setup.train), "test": self._patches(test or setup.test)}
@@ -98,7 +98,7 @@ class NoiseModel:
         self._draws: dict = {}
 
     def _patches(self, target: Target) -> _PatchData:
-        xyz = tristimulus(target.spectra, self.setup.illuminant, self.setup.cmfs)
+        xyz = target_xyz(self.setup, target)[0]
         lab = xyz_to_lab(xyz, self.white)
         lab32 = tuple(np.ascontiguousarray(lab[:, i], dtype=np.float32) for i in range(3))
         return _PatchData(led_responses(self.setup.leds, target.spectra, self.setup.camera), xyz, lab, lab32)
