@@ -131,62 +131,70 @@ def hdr_store(raw, dark, dark_value, use_dark_array, limit, white, k, xs, usable
 
 
 @njit(inline="always")
-def _merge_pixel(xs, usable, i, j, order, ts, inv_ts, method, inv_span, inv_gain, var_read):  # pragma: no cover
-    """One pixel of the merge (simulation.hdr_estimators: same methods and rules). ``order`` lists the
-    exposures shortest first, ``ts`` / ``inv_ts`` their times in that order. Returns (DN/s, clipped)."""
-    b = usable[i, j]
+def _merge_row(xs, usable, i, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out):  # pragma: no cover
+    """Row ``i`` of the merge into ``out`` (W,) (simulation.hdr_estimators: same methods and rules); ``order``
+    lists the exposures shortest first, ``ts`` / ``inv_ts`` their times in that order. Exposure by exposure
+    over the whole row with branch-free selects, so every loop over j vectorises. Returns the clipped count."""
+    W = out.shape[0]
     zero = np.float32(0.0)
     one = np.float32(1.0)
-    num = zero
-    den = zero
-    longest = zero
-    if method == 0:                                      # eq 8.9: triangle of the measured signal
+    num = np.zeros(W, np.float32)
+    den = np.zeros(W, np.float32)
+    seen = np.zeros(W, np.float32)                   # 1 where some exposure was usable
+    longest = np.empty(W, np.float32)                # value of the longest usable exposure (else the shortest)
+    k0 = order[0]
+    for j in range(W):
+        longest[j] = xs[k0, i, j] * inv_ts[0]
+    if method == 0:                                  # eq 8.9: triangle of the measured signal
         for q in range(order.shape[0]):
             k = order[q]
-            if b & (1 << k):
+            it = inv_ts[q]
+            for j in range(W):
+                m = np.float32((usable[i, j] >> k) & 1)
                 x = xs[k, i, j]
                 u = x * inv_span
-                w = max(min(u, one - u), zero)
-                r = x * inv_ts[q]
-                num += w * r
-                den += w
-                longest = r
-    else:                                                # variance-optimal (Granados et al. 2010)
-        sx = zero
-        st = zero
+                w = max(min(u, one - u), zero) * m
+                r = x * it
+                num[j] += w * r
+                den[j] += w
+                longest[j] = r if m > zero else longest[j]
+                seen[j] = max(seen[j], m)
+    else:                                            # variance-optimal (Granados et al. 2010)
+        sx = np.zeros(W, np.float32)
+        st = np.zeros(W, np.float32)
         for q in range(order.shape[0]):
             k = order[q]
-            if b & (1 << k):
-                sx += xs[k, i, j]
-                st += ts[q]
-        e0 = max(sx / st, zero) if st > zero else zero
+            t = ts[q]
+            for j in range(W):
+                m = np.float32((usable[i, j] >> k) & 1)
+                sx[j] += m * xs[k, i, j]
+                st[j] += m * t
+        for j in range(W):
+            sx[j] = max(sx[j] / st[j], zero) if st[j] > zero else zero      # the pooled estimate E0
+            seen[j] = one if st[j] > zero else zero
         for q in range(order.shape[0]):
             k = order[q]
-            if b & (1 << k):
-                t = ts[q]
-                v = e0 * t * inv_gain + var_read
-                num += t * xs[k, i, j] / v
-                den += t * t / v
-    if den > zero:
-        return num / den, False
-    if b != 0:
-        return longest, False                            # dark: the longest usable exposure, not clipped
-    return xs[order[0], i, j] * inv_ts[0], True          # no usable exposure: the shortest, clipped
+            t = ts[q]
+            for j in range(W):
+                m = np.float32((usable[i, j] >> k) & 1)
+                w = m / (sx[j] * t * inv_gain + var_read)
+                num[j] += w * t * xs[k, i, j]
+                den[j] += w * t * t
+    c = 0
+    for j in range(W):
+        out[j] = num[j] / den[j] if den[j] > zero else longest[j]
+        c += 1 if seen[j] == zero else 0
+    return c
 
 
 @njit(parallel=True, cache=True, nogil=True)
 def hdr_merge(xs, usable, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out):  # pragma: no cover
-    """out = the merged radiance (DN/s) of the stored exposures; returns the number of clipped pixels."""
-    H, W = out.shape
+    """out = the merged radiance (DN/s) of the stored exposures; returns the number of clipped pixels (no usable
+    exposure: the shortest exposure's value); dark pixels take the longest usable exposure's value."""
+    H = out.shape[0]
     counts = np.zeros(H, dtype=np.int64)
     for i in prange(H):
-        c = 0
-        for j in range(W):
-            v, clipped = _merge_pixel(xs, usable, i, j, order, ts, inv_ts, method, inv_span, inv_gain, var_read)
-            out[i, j] = v
-            if clipped:
-                c += 1
-        counts[i] = c
+        counts[i] = _merge_row(xs, usable, i, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out[i])
     return counts.sum()
 
 
@@ -197,23 +205,24 @@ def hdr_merge_flat_superpixel(xs, usable, order, ts, inv_ts, method, inv_span, i
     mean(G1, G2), B in ``out`` (H/2, W/2, 3). ``cfa`` (2, 2): 0 = R, 1 = G, 2 = B. Returns the number of
     clipped pixels (no usable exposure)."""
     H2, W2 = out.shape[0], out.shape[1]
+    W = xs.shape[2]
     counts = np.zeros(H2, dtype=np.int64)
     nan = np.float32(np.nan)
     half = np.float32(0.5)
     for ci in prange(H2):
+        rows = np.empty((2, W), np.float32)
         c = 0
+        for di in range(2):
+            i = 2 * ci + di
+            c += _merge_row(xs, usable, i, order, ts, inv_ts, method, inv_span, inv_gain, var_read, rows[di])
+            for j in range(W):
+                wv = white[i, j]
+                rows[di, j] = rows[di, j] / wv if wv > threshold else nan
         for cj in range(W2):
             g = np.float32(0.0)
             for di in range(2):
                 for dj in range(2):
-                    i = 2 * ci + di
-                    j = 2 * cj + dj
-                    v, clipped = _merge_pixel(xs, usable, i, j, order, ts, inv_ts, method, inv_span, inv_gain,
-                                              var_read)
-                    if clipped:
-                        c += 1
-                    wv = white[i, j]
-                    f = v / wv if wv > threshold else nan
+                    f = rows[di, 2 * cj + dj]
                     ch = cfa[di, dj]
                     if ch == 1:
                         g += f

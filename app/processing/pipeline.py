@@ -165,6 +165,10 @@ class CaptureProcessor:
     def has_white(self, light: str) -> bool:
         return light in self._whites
 
+    def white(self, light: str) -> FlatField:
+        """The HDR white of ``light`` set by set_white (the quality report measures its uniformity)."""
+        return self._whites[light]
+
     def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: Optional[ProgressCallback] = None,
               cancel: Optional[CancelToken] = None) -> ChannelStack:
         """Flat-fielded HDR superpixel RGB of each light (in mapping order), stacked into one image."""
@@ -294,6 +298,7 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[Ta
     ``white_xyz`` is the Lab reference white on the scale of the targets' XYZ (default: D65, Y = 100)."""
     from app.processing.characterise import characterise
     from app.processing.outputs import write_image_outputs, write_matrices_csv, write_patch_csv
+    from app.processing.quality import CalibrationFrames
     from app.processing.report import TargetData, build_report
     from simulation.colorimetry import white_point
     from simulation.datasets import default_setup
@@ -332,10 +337,13 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[Ta
                                         cancel=cancel).items():
             files[f"{name}_{k}"] = p
         del stack
+    calibration = CalibrationFrames(proc, [ExposureRef(session.file_path(e), float(e.exposure_s), e.file)
+                                           for e in session.entries("dark") if e.exposure_s],
+                                    _group_refs(session, session.entries("flat")))
     rep = build_report(out_dir, c, TargetData(train.names, train.xyz, vt, train.layout, train.label or "train"),
                        TargetData(test.names, test.xyz, vs, test.layout, test.label or "test") if test else None,
                        simulated_train=train.simulated, title=title,
-                       extra={"session": str(session.path), "darks": proc.darks.exposures})
+                       extra={"session": str(session.path), "darks": proc.darks.exposures}, calibration=calibration)
     files["report"] = out_dir / "report.json"
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})})
