@@ -8,16 +8,16 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from app.processing.report import _figure, _save          # the report's Agg figure and save helpers
+
 log = logging.getLogger(__name__)
 
 
-def _figure(w: float, h: float):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(w, h), dpi=110)
-    FigureCanvasAgg(fig)
-    return fig
+def _finish_bars(ax, x, labels, title: str, rotation: int) -> None:
+    ax.set_xticks(x, labels, rotation=rotation, fontsize=6)
+    ax.set_title(title)
+    ax.legend(fontsize=7)
+    ax.grid(True, axis="y", alpha=0.3)
 
 
 def lab_components_figure(path: Path, names: Sequence[str], comp: dict, title: str) -> Path:
@@ -29,14 +29,9 @@ def lab_components_figure(path: Path, names: Sequence[str], comp: dict, title: s
     for j, (key, label) in enumerate((("dL", "ΔL*"), ("dC", "ΔC*ab"), ("dH", "ΔH*ab"))):
         ax.bar(x + (j - 1) * 0.27, comp[key], 0.26, label=label)
     ax.axhline(0, color="0.3", lw=0.6)
-    ax.set_xticks(x, names, rotation=90, fontsize=6)
     ax.set_ylabel("captured − reference")
-    ax.set_title(f"{title}: CIELAB differences per patch")
-    ax.legend(fontsize=7)
-    ax.grid(True, axis="y", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path)
-    return path
+    _finish_bars(ax, x, names, f"{title}: CIELAB differences per patch", 90)
+    return _save(fig, path)
 
 
 def tone_figure(path: Path, tone: dict, limit: Optional[float], title: str) -> Path:
@@ -56,13 +51,8 @@ def tone_figure(path: Path, tone: dict, limit: Optional[float], title: str) -> P
     if limit is not None:
         for s in (1, -1):
             a2.axhline(s * limit, color="tab:red", ls="--", lw=0.8)
-    a2.set_xticks(x, tone.get("names", [str(i) for i in x]), rotation=60, fontsize=6)
-    a2.set_title(f"{title}: per neutral patch")
-    a2.legend(fontsize=7)
-    a2.grid(True, axis="y", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path)
-    return path
+    _finish_bars(a2, x, tone.get("names", [str(i) for i in x]), f"{title}: per neutral patch", 60)
+    return _save(fig, path)
 
 
 def uniformity_figure(path: Path, uniformity: dict) -> Path:
@@ -85,6 +75,4 @@ def uniformity_figure(path: Path, uniformity: dict) -> Path:
             what = "light field" if key == "light_field" else "flat-fielded white"
             ax.set_title(f"{light}: {what}\nrange {g['range_pct']:.2f} %", fontsize=8)
             fig.colorbar(im, ax=ax, label="% from mean", fraction=0.046)
-    fig.tight_layout()
-    fig.savefig(path)
-    return path
+    return _save(fig, path)
