@@ -2,7 +2,7 @@
 
 Steps (thesis 7 and 8.2):
   1. master dark per exposure time (8.2.1), built lazily from the dark frames when an exposure first needs it;
-  2. per light, the HDR white (8.2.2): dark-subtracted, per-second, eq 8.9-weighted mean of the white exposures;
+  2. per light, the HDR white (8.2.2): dark-subtracted, per-second, weighted mean of the white exposures (hdr.py);
   3. per light and subject, the HDR image (8.2.3) of the subject's exposures, flat-fielded by that white
      (eq 7.1), reduced to the half-size superpixel RGB (no demosaic);
   4. the lights' RGBs side by side: an (H/2, W/2, 3 x n_lights) float32 stack, channels R1 G1 B1 R2 G2 B2 ...
@@ -149,7 +149,7 @@ class CaptureProcessor:
 
     def hdr(self, refs: Sequence[ExposureRef], *, progress: Optional[ProgressCallback] = None,
             cancel: Optional[CancelToken] = None) -> HdrResult:
-        """Dark-subtracted, eq 8.9-weighted HDR mosaic (DN/s) of the exposures of one light and subject
+        """Dark-subtracted HDR mosaic (DN/s, the configured estimator) of the exposures of one light and subject
         (in new arrays: the result is the caller's to keep)."""
         return self._merge(refs, progress, cancel, True).result()
 
