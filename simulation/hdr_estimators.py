@@ -15,7 +15,9 @@ and whether the raw value was usable (at most the sensor's linear limit and belo
     noise dominates the weights are ~t (E = E0); in read-noise-limited shadows ~t^2, so the long exposure
     dominates and the short one adds little of its read noise.
 
-Shared rules, both methods: a pixel no usable exposure reaches (above the linear limit or clipped in every
+Shared rules, both methods: frames of one exposure time are averaged first (over their usable frames), as the
+thesis merges one image per exposure time (for the variance weights this is exact, for eq 8.9 it weights the mean
+frame by the number of frames); a pixel no usable exposure reaches (above the linear limit or clipped in every
 exposure) takes the shortest exposure's value and is counted as clipped; a pixel whose usable exposures all
 have zero weight (eq 8.9 at signal <= 0: dark pixels) takes the longest usable exposure's value and is *not*
 clipped. One exposure gives exactly x / t.
@@ -71,17 +73,19 @@ def triangle_weight(signal: np.ndarray, full_scale: float, out: np.ndarray | Non
     return out
 
 
-def _thesis_weights(x: np.ndarray, usable: np.ndarray, t: np.ndarray, span: float, noise: HdrNoise) -> np.ndarray:
-    return np.where(usable, triangle_weight(x, span), 0.0)
+def _thesis_weights(xbar: np.ndarray, n: np.ndarray, t: np.ndarray, span: float, noise: HdrNoise) -> np.ndarray:
+    """Eq 8.9 on each exposure time's mean frame, with the weight of its n usable frames."""
+    return n * triangle_weight(xbar, span)
 
 
-def _variance_weights(x: np.ndarray, usable: np.ndarray, t: np.ndarray, span: float, noise: HdrNoise
+def _variance_weights(xbar: np.ndarray, n: np.ndarray, t: np.ndarray, span: float, noise: HdrNoise
                       ) -> np.ndarray:
-    tt = t.reshape((-1,) + (1,) * (x.ndim - 1))
-    st = np.sum(np.where(usable, tt, 0.0), axis=0)
-    e0 = np.sum(np.where(usable, x, 0.0), axis=0) / np.where(st > 0, st, 1.0)
+    """n t^2 / var at the pooled estimate E0 = sum of usable signal / sum of usable exposure time."""
+    tt = t.reshape((-1,) + (1,) * (xbar.ndim - 1))
+    st = np.sum(n * tt, axis=0)
+    e0 = np.sum(n * xbar, axis=0) / np.where(st > 0, st, 1.0)
     var = np.maximum(e0, 0.0)[None] * tt / noise.electrons_per_dn + noise.read_variance
-    return np.where(usable, tt * tt / var, 0.0)
+    return n * tt * tt / var
 
 
 HDR_MERGE_METHODS: dict[str, Callable[..., np.ndarray]] = {
@@ -96,11 +100,29 @@ def check_method(method: str) -> str:
     return method
 
 
+def _by_exposure_time(x: np.ndarray, usable: np.ndarray, t: np.ndarray):
+    """Frames grouped by exposure time (equal within 0.1 %), shortest first: per group the mean of the usable
+    frames, their number, and the mean of all frames (the fallback where none is usable)."""
+    order = np.argsort(t, kind="stable")
+    groups: list[list[int]] = []
+    for k in order:
+        if groups and t[k] <= t[groups[-1][0]] * (1 + 1e-3):
+            groups[-1].append(int(k))
+        else:
+            groups.append([int(k)])
+    n = np.stack([usable[g].sum(axis=0) for g in groups]).astype(float)
+    s = np.stack([(x[g] * usable[g]).sum(axis=0) for g in groups])
+    xbar = s / np.maximum(n, 1.0)
+    every = np.stack([x[g].mean(axis=0) for g in groups])
+    return xbar, n, every, np.array([t[g[0]] for g in groups])
+
+
 def merge_exposures(x: np.ndarray, usable: np.ndarray, exposures, method: str = HDR_THESIS, *, span: float,
                     noise: HdrNoise = HdrNoise()) -> tuple[np.ndarray, np.ndarray]:
-    """Merge K exposures: ``x`` (K, ...) dark-subtracted DN, ``usable`` (K, ...) bool, ``exposures`` (K,) s;
+    """Merge K frames: ``x`` (K, ...) dark-subtracted DN, ``usable`` (K, ...) bool, ``exposures`` (K,) s;
     ``span`` the usable raw range (white - black level, eq 8.9's full scale). Returns (radiance in DN/s, clipped
-    mask). Float64; the shared rules of the module docstring apply."""
+    mask). Frames of one exposure time are averaged first (their usable frames), as the thesis merges one image
+    per exposure time. Float64; the shared rules of the module docstring apply."""
     x = np.asarray(x, dtype=float)
     usable = np.asarray(usable, dtype=bool)
     t = np.asarray(exposures, dtype=float)
@@ -108,17 +130,17 @@ def merge_exposures(x: np.ndarray, usable: np.ndarray, exposures, method: str = 
         raise ValueError(f"{len(t)} exposure times, signals {x.shape} and usable masks {usable.shape} disagree")
     if np.any(t <= 0):
         raise ValueError(f"exposure times must be positive, got {t.tolist()}")
-    order = np.argsort(t, kind="stable")
-    x, usable, t = x[order], usable[order], t[order]
-    w = HDR_MERGE_METHODS[check_method(method)](x, usable, t, span, noise)
-    tt = t.reshape((-1,) + (1,) * (x.ndim - 1))
-    per_s = x / tt
+    xbar, n, every, tg = _by_exposure_time(x, usable, t)
+    w = HDR_MERGE_METHODS[check_method(method)](xbar, n, tg, span, noise)
+    tt = tg.reshape((-1,) + (1,) * (x.ndim - 1))
+    per_s = xbar / tt
     den = w.sum(axis=0)
     num = (w * per_s).sum(axis=0)
-    any_usable = usable.any(axis=0)
-    last = (usable.shape[0] - 1) - np.argmax(usable[::-1], axis=0)          # longest usable exposure
+    any_usable = n.sum(axis=0) > 0
+    has = n > 0
+    last = (has.shape[0] - 1) - np.argmax(has[::-1], axis=0)               # longest exposure time with usable frames
     longest = np.take_along_axis(per_s, last[None], axis=0)[0]
-    fallback = np.where(any_usable, longest, per_s[0])
+    fallback = np.where(any_usable, longest, every[0] / tg[0])
     radiance = np.where(den > 0, num / np.where(den > 0, den, 1.0), fallback)
     return radiance, ~any_usable
 

@@ -34,8 +34,9 @@ value and are counted as ``clipped`` (a warning names how many). Dark pixels (eq
 exposure zero weight because the signal is <= 0) take the longest usable exposure's value and are not clipped.
 A single exposure gives exactly ``(x - d) / t``: HDR with one frame is plain dark subtraction.
 
-Each exposure is stored dark-subtracted (float32) with a usable bit, and the merge runs once all are in (the
-variance weights need the pooled estimate first): at most ``MAX_EXPOSURES`` per merge.
+Frames of one exposure time share a slot (float32 sum of the usable frames' dark-subtracted signal + a uint8
+count, 5 bytes per pixel): the merge sees their mean, as the thesis merges one image per exposure time. The merge
+runs once all frames are in (the variance weights need the pooled estimate first).
 
 The flat-fielded HDR image (8.2.3) is ``FlatField(hdr_white).apply(hdr_scene)``: dividing each exposure by
 the white and then averaging with the same weights equals dividing the weighted mean once.
@@ -56,7 +57,8 @@ from simulation.progress import CancelToken, ProgressCallback, check, report
 log = logging.getLogger(__name__)
 
 LINEAR_LIMIT_DN = 11000.0   # thesis 4.1.2 / Fig 4.2: the D610 is linear up to ~11 000 DN
-MAX_EXPOSURES = 8           # per merge (one bit each in the usable mask)
+MAX_EXPOSURE_TIMES = 16     # distinct exposure times per merge (one slot of float32 + uint8 per pixel each)
+MAX_FRAMES_PER_TIME = 15    # frames of one exposure time (a 4-bit count per pixel)
 __all__ = ["HDR_MERGE_METHODS", "HdrMerge", "HdrNoise", "HdrResult", "LINEAR_LIMIT_DN", "exposure_weight",
            "triangle_weight"]
 
@@ -111,53 +113,71 @@ class HdrMerge:
         self.band_rows = band_rows
         self._work = work if work is not None else {}
         self._own_result = own_result or work is None
-        self._xs: Optional[np.ndarray] = None
-        self._usable: Optional[np.ndarray] = None
+        self._sums: Optional[np.ndarray] = None        # (slots, H, W) float32, one slot per exposure time
+        self._counts: Optional[np.ndarray] = None      # (slots, H, W) uint8: usable | all frames << 4
+        self._slot_times: list[float] = []
+        self._slot_frames: list[int] = []
         self.exposures: list[float] = []
+
+    def _slot(self, exposure_s: float, shape: tuple[int, int]) -> tuple[int, bool]:
+        """The slot of this exposure time (frames of one exposure time share one: their mean is merged) and
+        whether it is new; grows the slot buffers as exposure times arrive."""
+        from app.processing.calibration import _buffer
+
+        for k, t in enumerate(self._slot_times):
+            if abs(t - exposure_s) <= 1e-3 * max(t, exposure_s):
+                if self._slot_frames[k] == MAX_FRAMES_PER_TIME:
+                    raise ValueError(f"exposure {exposure_s:.6g} s: at most {MAX_FRAMES_PER_TIME} frames per "
+                                     f"exposure time in one HDR merge")
+                return k, False
+        k = len(self._slot_times)
+        if k == MAX_EXPOSURE_TIMES:
+            raise ValueError(f"exposure {exposure_s:.6g} s: at most {MAX_EXPOSURE_TIMES} exposure times per HDR merge")
+        if self._sums is None or k == self._sums.shape[0]:
+            cap = 2 if self._sums is None else min(2 * self._sums.shape[0], MAX_EXPOSURE_TIMES)
+            sums = _buffer(self._work, "hdr_sums", (cap,) + shape, np.float32)
+            counts = _buffer(self._work, "hdr_counts", (cap,) + shape, np.uint8)
+            if self._sums is not None:              # grow: keep the slots filled so far
+                sums[:k], counts[:k] = self._sums[:k], self._counts[:k]
+            self._sums, self._counts = sums, counts
+        self._slot_times.append(float(exposure_s))
+        self._slot_frames.append(0)
+        return k, True
 
     def add(self, frame: FrameLike, exposure_s: float, dark: np.ndarray | float | None = None,
             cancel: Optional[CancelToken] = None) -> None:
         """Add one exposure: raw mosaic (uint16 DN), its exposure time (s) and its master dark (None: the black
         level is subtracted instead)."""
-        from app.processing.calibration import _buffer
         from app.processing.kernels import hdr_store
 
         check(cancel)
         if not exposure_s or exposure_s <= 0:
             raise ValueError(f"exposure time must be positive, got {exposure_s}")
         raw = mosaic_of(frame)
-        k = len(self.exposures)
-        if k == MAX_EXPOSURES:
-            raise ValueError(f"exposure {exposure_s:.6g} s: at most {MAX_EXPOSURES} exposures per HDR merge")
-        if self._xs is None:
-            self._xs = _buffer(self._work, "hdr_xs", (4,) + raw.shape, np.float32)
-            self._usable = _buffer(self._work, "hdr_usable", raw.shape, np.uint8)
-        elif raw.shape != self._xs.shape[1:]:
-            raise ValueError(f"exposure {exposure_s:.6g} s has shape {raw.shape}, earlier ones {self._xs.shape[1:]}")
-        if k == self._xs.shape[0]:                      # more than 4 exposures: grow once to MAX_EXPOSURES
-            grown = np.empty((MAX_EXPOSURES,) + raw.shape, np.float32)
-            grown[:k] = self._xs[:k]
-            self._xs = self._work["hdr_xs"] = grown
+        if self._sums is not None and raw.shape != self._sums.shape[1:]:
+            raise ValueError(f"exposure {exposure_s:.6g} s has shape {raw.shape}, earlier ones {self._sums.shape[1:]}")
         if isinstance(dark, np.ndarray) and dark.shape != raw.shape:
             raise ValueError(f"dark {dark.shape} and raw {raw.shape} differ in shape")
         if raw.dtype.kind not in "ui":
             raise ValueError(f"raw mosaic must hold integer DN, got {raw.dtype}")
+        k, new = self._slot(float(exposure_s), raw.shape)
         use_array = isinstance(dark, np.ndarray)
         dark_arr = np.ascontiguousarray(dark, dtype=np.float32) if use_array else np.zeros((1, 1), np.float32)
         dark_value = np.float32(0.0 if use_array else (self.black_level if dark is None else float(dark)))
         limit = self.white_level if self.linear_limit is None else min(float(self.linear_limit), self.white_level)
-        hdr_store(np.ascontiguousarray(raw), dark_arr, dark_value, use_array, limit, self.white_level, k, self._xs,
-                  self._usable, k == 0)
+        hdr_store(np.ascontiguousarray(raw), dark_arr, dark_value, use_array, limit, self.white_level, k, self._sums,
+                  self._counts, new)
+        self._slot_frames[k] += 1
         self.exposures.append(float(exposure_s))
 
     def _require(self) -> None:
-        if self._xs is None:
+        if self._sums is None:
             raise ValueError("no exposures added")
 
     def _kernel_args(self) -> tuple:
-        order = np.argsort(np.asarray(self.exposures), kind="stable").astype(np.int64)
-        ts = np.asarray(self.exposures, dtype=np.float32)[order]
-        return (self._xs, self._usable, order, ts, (np.float32(1.0) / ts).astype(np.float32),
+        order = np.argsort(np.asarray(self._slot_times), kind="stable").astype(np.int64)
+        ts = np.asarray(self._slot_times, dtype=np.float32)[order]
+        return (self._sums, self._counts, order, ts, (np.float32(1.0) / ts).astype(np.float32),
                 HDR_METHOD_CODES[self.method], np.float32(1.0 / (self.white_level - self.black_level)),
                 np.float32(1.0 / self.noise.electrons_per_dn), np.float32(self.noise.read_variance))
 
@@ -167,14 +187,15 @@ class HdrMerge:
                         "used); add a shorter exposure", clipped, 100.0 * clipped / size, min(self.exposures))
 
     def _done(self) -> None:
-        self._xs = self._usable = None
+        self._sums = self._counts = None
+        self._slot_times, self._slot_frames = [], []
 
     def result(self) -> HdrResult:
         from app.processing.calibration import _buffer
         from app.processing.kernels import hdr_merge
 
         self._require()
-        shape = self._usable.shape
+        shape = self._sums.shape[1:]
         out = np.empty(shape, np.float32) if self._own_result else _buffer(self._work, "hdr_out", shape, np.float32)
         clipped = int(hdr_merge(*self._kernel_args(), out))
         self._warn_clipped(clipped, out.size)
@@ -188,8 +209,8 @@ class HdrMerge:
         from app.processing.mosaic import cfa_channel_index
 
         self._require()
-        if white.shape != self._usable.shape:
-            raise ValueError(f"image {self._usable.shape} and white {white.shape} differ in size")
+        if white.shape != self._sums.shape[1:]:
+            raise ValueError(f"image {self._sums.shape[1:]} and white {white.shape} differ in size")
         clipped = int(hdr_merge_flat_superpixel(*self._kernel_args(), white, np.float32(threshold),
                                                 cfa_channel_index(cfa), out))
         self._warn_clipped(clipped, out.shape[0] * out.shape[1] * 4)

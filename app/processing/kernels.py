@@ -112,53 +112,64 @@ def dark_finish(total, hi, lo, k_hi, k_lo, n_used, out):
 
 
 @njit(parallel=True, cache=True, nogil=True)
-def hdr_store(raw, dark, dark_value, use_dark_array, limit, white, k, xs, usable, first):  # pragma: no cover
-    """Exposure ``k`` of a merge: xs[k] = raw - dark (float32 DN); bit k of ``usable`` (uint8) set where the raw
-    value is at most the linear ``limit`` and below the ``white`` level (``first``: initialise the bits)."""
+def hdr_store(raw, dark, dark_value, use_dark_array, limit, white, k, sums, counts, first):  # pragma: no cover
+    """One frame into exposure-time slot ``k``: sums[k] (float32) accumulates the dark-subtracted signal of the
+    slot's usable frames (raw value at most the linear ``limit`` and below the ``white`` level), or of all its
+    frames while none was usable; counts[k] (uint8) holds usable frames in its low nibble and all frames in its
+    high nibble (at most 15 frames per slot). ``first``: initialise the slot."""
     H, W = raw.shape
-    bit = np.uint8(1 << k)
-    none = np.uint8(0)
+    low = np.uint8(15)
     for i in prange(H):
         for j in range(W):
             x = raw[i, j]
             d = dark[i, j] if use_dark_array else dark_value
-            xs[k, i, j] = np.float32(x) - np.float32(d)
-            b = bit if (x <= limit and x < white) else none
+            v = np.float32(x) - np.float32(d)
+            u = np.uint8(1) if (x <= limit and x < white) else np.uint8(0)
             if first:
-                usable[i, j] = b
+                sums[k, i, j] = v
+                counts[k, i, j] = np.uint8(16) | u
             else:
-                usable[i, j] |= b
+                c = counts[k, i, j]
+                nu = c & low
+                sm = sums[k, i, j]
+                if u:
+                    sums[k, i, j] = sm + v if nu > 0 else v
+                elif nu == 0:
+                    sums[k, i, j] = sm + v
+                counts[k, i, j] = c + np.uint8(16) + u
 
 
 @njit(inline="always")
-def _merge_row(xs, usable, i, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out):  # pragma: no cover
+def _merge_row(sums, counts, i, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out):  # pragma: no cover
     """Row ``i`` of the merge into ``out`` (W,) (simulation.hdr_estimators: same methods and rules); ``order``
-    lists the exposures shortest first, ``ts`` / ``inv_ts`` their times in that order. Exposure by exposure
+    lists the exposure-time slots shortest first, ``ts`` / ``inv_ts`` their times in that order. Slot by slot
     over the whole row with branch-free selects, so every loop over j vectorises. Returns the clipped count."""
     W = out.shape[0]
     zero = np.float32(0.0)
     one = np.float32(1.0)
     num = np.zeros(W, np.float32)
     den = np.zeros(W, np.float32)
-    seen = np.zeros(W, np.float32)                   # 1 where some exposure was usable
-    longest = np.empty(W, np.float32)                # value of the longest usable exposure (else the shortest)
+    seen = np.zeros(W, np.float32)                   # 1 where some frame was usable
+    longest = np.empty(W, np.float32)                # mean of the longest usable slot (else all of the shortest)
     k0 = order[0]
     for j in range(W):
-        longest[j] = xs[k0, i, j] * inv_ts[0]
-    if method == 0:                                  # eq 8.9: triangle of the measured signal
+        c = counts[k0, i, j]
+        n = np.float32(c & 15) if (c & 15) > 0 else np.float32(c >> 4)
+        longest[j] = sums[k0, i, j] / n * inv_ts[0]
+    if method == 0:                                  # eq 8.9 on each exposure time's mean frame, n frames' weight
         for q in range(order.shape[0]):
             k = order[q]
             it = inv_ts[q]
             for j in range(W):
-                m = np.float32((usable[i, j] >> k) & 1)
-                x = xs[k, i, j]
+                n = np.float32(counts[k, i, j] & 15)
+                x = sums[k, i, j] / max(n, one)
                 u = x * inv_span
-                w = max(min(u, one - u), zero) * m
+                w = max(min(u, one - u), zero) * n
                 r = x * it
                 num[j] += w * r
                 den[j] += w
-                longest[j] = r if m > zero else longest[j]
-                seen[j] = max(seen[j], m)
+                longest[j] = r if n > zero else longest[j]
+                seen[j] = max(seen[j], min(n, one))
     else:                                            # variance-optimal (Granados et al. 2010)
         sx = np.zeros(W, np.float32)
         st = np.zeros(W, np.float32)
@@ -166,9 +177,9 @@ def _merge_row(xs, usable, i, order, ts, inv_ts, method, inv_span, inv_gain, var
             k = order[q]
             t = ts[q]
             for j in range(W):
-                m = np.float32((usable[i, j] >> k) & 1)
-                sx[j] += m * xs[k, i, j]
-                st[j] += m * t
+                n = np.float32(counts[k, i, j] & 15)
+                sx[j] += sums[k, i, j] if n > zero else zero
+                st[j] += n * t
         for j in range(W):
             sx[j] = max(sx[j] / st[j], zero) if st[j] > zero else zero      # the pooled estimate E0
             seen[j] = one if st[j] > zero else zero
@@ -176,10 +187,10 @@ def _merge_row(xs, usable, i, order, ts, inv_ts, method, inv_span, inv_gain, var
             k = order[q]
             t = ts[q]
             for j in range(W):
-                m = np.float32((usable[i, j] >> k) & 1)
-                w = m / (sx[j] * t * inv_gain + var_read)
-                num[j] += w * t * xs[k, i, j]
-                den[j] += w * t * t
+                n = np.float32(counts[k, i, j] & 15)
+                w = one / (sx[j] * t * inv_gain + var_read)
+                num[j] += (w * t * sums[k, i, j]) if n > zero else zero
+                den[j] += w * n * t * t
     c = 0
     for j in range(W):
         out[j] = num[j] / den[j] if den[j] > zero else longest[j]
@@ -188,25 +199,25 @@ def _merge_row(xs, usable, i, order, ts, inv_ts, method, inv_span, inv_gain, var
 
 
 @njit(parallel=True, cache=True, nogil=True)
-def hdr_merge(xs, usable, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out):  # pragma: no cover
+def hdr_merge(sums, counts, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out):  # pragma: no cover
     """out = the merged radiance (DN/s) of the stored exposures; returns the number of clipped pixels (no usable
     exposure: the shortest exposure's value); dark pixels take the longest usable exposure's value."""
     H = out.shape[0]
-    counts = np.zeros(H, dtype=np.int64)
+    clipped = np.zeros(H, dtype=np.int64)
     for i in prange(H):
-        counts[i] = _merge_row(xs, usable, i, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out[i])
-    return counts.sum()
+        clipped[i] = _merge_row(sums, counts, i, order, ts, inv_ts, method, inv_span, inv_gain, var_read, out[i])
+    return clipped.sum()
 
 
 @njit(parallel=True, cache=True, nogil=True)
-def hdr_merge_flat_superpixel(xs, usable, order, ts, inv_ts, method, inv_span, inv_gain, var_read, white,
+def hdr_merge_flat_superpixel(sums, counts, order, ts, inv_ts, method, inv_span, inv_gain, var_read, white,
                               threshold, cfa, out):  # pragma: no cover - compiled
     """Merge, flat-field by ``white`` (eq 7.1; NaN where white <= threshold) and reduce each 2x2 cell to R,
     mean(G1, G2), B in ``out`` (H/2, W/2, 3). ``cfa`` (2, 2): 0 = R, 1 = G, 2 = B. Returns the number of
     clipped pixels (no usable exposure)."""
     H2, W2 = out.shape[0], out.shape[1]
-    W = xs.shape[2]
-    counts = np.zeros(H2, dtype=np.int64)
+    W = sums.shape[2]
+    clipped = np.zeros(H2, dtype=np.int64)
     nan = np.float32(np.nan)
     half = np.float32(0.5)
     for ci in prange(H2):
@@ -214,7 +225,7 @@ def hdr_merge_flat_superpixel(xs, usable, order, ts, inv_ts, method, inv_span, i
         c = 0
         for di in range(2):
             i = 2 * ci + di
-            c += _merge_row(xs, usable, i, order, ts, inv_ts, method, inv_span, inv_gain, var_read, rows[di])
+            c += _merge_row(sums, counts, i, order, ts, inv_ts, method, inv_span, inv_gain, var_read, rows[di])
             for j in range(W):
                 wv = white[i, j]
                 rows[di, j] = rows[di, j] / wv if wv > threshold else nan
@@ -229,8 +240,8 @@ def hdr_merge_flat_superpixel(xs, usable, order, ts, inv_ts, method, inv_span, i
                     else:
                         out[ci, cj, ch] = f
             out[ci, cj, 1] = g * half
-        counts[ci] = c
-    return counts.sum()
+        clipped[ci] = c
+    return clipped.sum()
 
 
 def warm_up() -> None:
@@ -246,9 +257,10 @@ def warm_up() -> None:
     out = np.empty((4, 4), np.float32)
     dark_finish(total, hi, lo, 1, 1, 1.0, out)
     xs = np.empty((2, 4, 4), np.float32)
-    usable = np.empty((4, 4), np.uint8)
+    usable = np.empty((2, 4, 4), np.uint8)
     for k in range(2):
-        hdr_store(x, out, np.float32(0), True, 11000.0, 15520.0, k, xs, usable, k == 0)
+        hdr_store(x, out, np.float32(0), True, 11000.0, 15520.0, k, xs, usable, True)
+        hdr_store(x, out, np.float32(0), True, 11000.0, 15520.0, k, xs, usable, False)
     order = np.array([0, 1], np.int64)
     ts = np.array([0.1, 1.0], np.float32)
     merged = np.empty((4, 4), np.float32)

@@ -72,3 +72,39 @@ def test_open_raw_is_a_view_and_bad_files_raise_raw_file_errors(tmp_path):
     with pytest.raises(RawFileError):
         for _ in iter_open_raw([p, tmp_path / "junk.dng", p]):
             pass
+
+
+@pytest.mark.parametrize("method", list(HDR_MERGE_METHODS))
+def test_hdr_kernels_average_frames_of_one_exposure_time_like_the_reference(method):
+    """Flats: several frames per exposure time (12 frames, 3 times), some usable in only part of the frames; the
+    slots hold 5 bytes per pixel per exposure time, however many frames."""
+    rng = np.random.default_rng(5)
+    shape = (20, 30)
+    times = [0.5, 0.01, 0.1] * 4
+    raws = [np.clip(600 + rng.normal(0, 3, shape) + rng.uniform(0, 1.5e5, shape) * t, 0, WHITE).astype(np.uint16)
+            for t in times]
+    raws[5][:2] = 15520                                                     # one frame clipped in two rows
+    darks = [np.full(shape, 600.0, np.float32)] * len(times)
+    m = HdrMerge(WHITE, black_level=BLACK, method=method, work={})
+    for r, t, d in zip(raws, times, darks):
+        m.add(r, t, d)
+    assert m._sums.shape[0] == 4 and sorted(m._slot_frames) == [4, 4, 4]      # 3 slots (capacity 4), not 12
+    res = m.result()
+    x = np.stack([r.astype(np.float32) - d for r, d in zip(raws, darks)])
+    usable = np.stack([(r <= 11000) & (r < WHITE) for r in raws])
+    ref, clipped = merge_exposures(x, usable, times, method, span=WHITE - BLACK, noise=HdrNoise())
+    assert np.allclose(res.radiance, ref, rtol=2e-5, atol=1e-3) and res.clipped == int(clipped.sum())
+
+
+def test_hdr_merge_limits_are_one_line_errors():
+    m = HdrMerge(WHITE, method="thesis")
+    frame = np.full((4, 4), 700, np.uint16)
+    for _ in range(15):
+        m.add(frame, 0.1)
+    with pytest.raises(ValueError, match="at most 15 frames per exposure time"):
+        m.add(frame, 0.1)
+    m = HdrMerge(WHITE, method="thesis")
+    for i in range(16):
+        m.add(frame, 0.001 * 2 ** i)
+    with pytest.raises(ValueError, match="at most 16 exposure times"):
+        m.add(frame, 100.0)
