@@ -47,7 +47,7 @@ class VirtualLab:
         log.info("virtual sphere emulator on %s", port)
         self.sphere = LedSphere(port, timeout=self._timeout).open()
         self.camera = VirtualCamera(self.emulator.snapshot, mode=self.mode, seed=self.seed,
-                                    bumps_enabled=self._bumps)
+                                    bumps_enabled=self._bumps, clock=self.emulator.clock)
         self.camera.open()
         self.place("open-gate")
         return self

@@ -7,6 +7,8 @@ import logging
 import sys
 from pathlib import Path
 
+from app.commands.options import count, input_file, number, seed
+
 log = logging.getLogger(__name__)
 
 
@@ -29,17 +31,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Simulate dual-RGB capture and search the sphere's light-source pairs.")
     p.add_argument("--mode", choices=MODES, default="reflective")
     p.add_argument("--method", choices=METHODS, default="exhaustive")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--top", type=int, default=5, help="how many light sets to print and write (default 5)")
+    p.add_argument("--seed", type=seed, default=0)
+    p.add_argument("--top", type=count(1, 630), default=5, help="how many light sets to print and write (default 5)")
     p.add_argument("--json", type=Path, help="write the result as JSON here")
     p.add_argument("--preset-out", type=Path, help="save the best light pair as a preset JSON here")
     p.add_argument("--bins", type=_bins, default=(3, 3, 4), help="LED bins, shortest wavelengths first (3,3,4)")
-    p.add_argument("--step", type=float, default=None,
+    p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=None,
                    help="spectral step in nm (default: the parsimony study's choice, resources/parsimony.json: 10)")
-    p.add_argument("--camera-csv", help="measured camera sensitivities (wavelength_nm,R,G,B)")
-    p.add_argument("--leds-csv", help="measured LED spectra (wavelength_nm,LED1..LED10)")
-    p.add_argument("--train-csv", help="measured training target spectra (spectral CSV or CGATS / X-Rite file)")
-    p.add_argument("--test-csv", help="measured test target spectra (spectral CSV or CGATS / X-Rite file)")
+    p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
+    p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
+    p.add_argument("--train-csv", type=input_file,
+                   help="measured training target spectra (spectral CSV or CGATS / X-Rite file)")
+    p.add_argument("--test-csv", type=input_file, help="measured test target spectra (spectral CSV or CGATS / X-Rite file)")
     p.add_argument("--reference-xyz", choices=("eq-4.2", "astm-e308"), default="eq-4.2",
                    help="targets' reference XYZ: the thesis' eq 4.2 sum over 410-780 nm (default) or ASTM E308 "
                         "(colour-science) over the measured spectra")
@@ -48,6 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     # imported here so that other subcommands start without loading colour-science and numba
+    from simulation.atomic_io import atomic_write
     from simulation.datasets import default_setup
     from simulation.grid import SpectralGrid
     from simulation.presets import save_preset
@@ -65,7 +69,7 @@ def main(args: argparse.Namespace) -> int:
     print(format_table(result))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result.to_json(), indent=2) + "\n", encoding="utf-8")
+        atomic_write(args.json, json.dumps(result.to_json(), indent=2) + "\n")
         print(f"wrote {args.json}", file=sys.stderr)
     if args.preset_out:
         save_preset(result.preset(), args.preset_out)

@@ -30,6 +30,7 @@ from typing import Optional
 import numpy as np
 
 import resources
+from simulation.atomic_io import atomic_write
 from simulation.hdr_estimators import default_method
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
@@ -252,7 +253,7 @@ def save_defaults(path: str, update: dict) -> Path:
         data = {}
     evidence = {**data.get("evidence", {}), **update.get("evidence", {})}
     data.update({**update, "format": FORMAT, "evidence": evidence})
-    p.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    atomic_write(p, json.dumps(data, indent=2) + "\n")
     return p
 
 
