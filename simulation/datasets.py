@@ -1,6 +1,6 @@
 """The packaged data the simulation runs on, and loading of users' own measured CSVs.
 
-Defaults reproduce the thesis (../shared/FACTS.md): 410-780 nm at 10 nm, CIE 1931 2-degree CMFs, D65,
+Defaults reproduce the thesis (chapters 4-5): 410-780 nm at 10 nm, CIE 1931 2-degree CMFs, D65,
 the 10-LED sphere of Table 4.2, 'Nikon 5100 (NPL)' as the camera, rawtoaces-190 / CC24 (reflective)
 and the IT8.7/1-like / CC24-on-film targets (transmissive).
 """
@@ -16,13 +16,13 @@ import colour
 import numpy as np
 
 import resources
+from simulation.choices import MODES
 from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
 from simulation.lightsource import N_SPHERE_LEDS
 from simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv
 
 log = logging.getLogger(__name__)
 
-MODES = ("reflective", "transmissive")
 REFERENCE_EQ_4_2 = "eq-4.2"              # target reference XYZ: the thesis' grid sum (target_xyz)
 REFERENCE_ASTM_E308 = "astm-e308"        # ... or colour-science's ASTM E308 integration of the measured spectra
 REFERENCE_XYZ_METHODS = (REFERENCE_EQ_4_2, REFERENCE_ASTM_E308)

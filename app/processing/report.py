@@ -44,11 +44,14 @@ from app.processing.characterise import Characterisation
 from simulation.atomic_io import atomic_output, atomic_write
 from simulation.colorimetry import xyz_to_lab
 from simulation.objective import ErrorStats
+from simulation.versions import output_header
 
 if TYPE_CHECKING:                                   # pragma: no cover
     from app.processing.quality import CalibrationFrames
 
 log = logging.getLogger(__name__)
+
+REPORT_FORMAT = "dualrgb-report/1"
 
 
 # ---------------------------------------------------------------- standards
@@ -374,6 +377,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
                                      calibration)
     figures += qfigs
     report = {
+        **output_header(REPORT_FORMAT),
         "title": title,
         "created_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "channels": c.channels,

@@ -14,8 +14,9 @@ Three questions, each answered automatically with a tolerance (default 0.05 mean
    ``dualrgb study hdr`` chose (key ``hdr_merge``, kept). The fewest exposures within the tolerance of the most
    accurate bracket are chosen.
 
-The choices go to ``parsimony.json`` (format ``dualrgb-parsimony/1``); the packaged copy
-``resources/parsimony.json`` is what :func:`load_defaults` returns for the app.
+The choices go to ``parsimony.json`` (format ``dualrgb-parsimony/1``). :func:`load_defaults` returns the
+user's copy (``--write-defaults`` puts it in the per-user data folder, ``resources.user_path``) when there is
+one, else the packaged ``resources/parsimony.json`` from the reference run.
 """
 from __future__ import annotations
 
@@ -38,6 +39,7 @@ from simulation.search import exhaustive, light_pairs, refine_top
 from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, new_figure
 from simulation.studies.models import MODEL_TERMS, MODELS
 from simulation.studies.noise import CameraNoise, NoiseModel
+from simulation.versions import output_header
 
 log = logging.getLogger(__name__)
 
@@ -198,7 +200,7 @@ class ParsimonyResult:
     elapsed_s: float
 
     def defaults(self) -> dict:
-        return {"format": FORMAT, "spectral_step_nm": self.steps["chosen_nm"],
+        return {**output_header(FORMAT), "spectral_step_nm": self.steps["chosen_nm"],
                 "characterisation_model": self.models["chosen"], "hdr_exposures": self.exposures["chosen"],
                 "hdr_merge": self.exposures["hdr_merge"], "tolerance_de00": self.config.tolerance,
                 "default_10nm_justified": self.steps["default_10nm_justified"],
@@ -228,9 +230,10 @@ def parsimony(spec: SetupSpec = SetupSpec(), cfg: ParsimonyConfig = ParsimonyCon
 
 
 def load_defaults(path: Optional[str] = None) -> dict:
-    """The app's defaults chosen by the parsimony study (resources/parsimony.json), or the thesis defaults."""
+    """The app's defaults chosen by the parsimony study: ``path``, else the user's parsimony.json (per-user data
+    folder), else the packaged resources/parsimony.json; the thesis defaults when none is readable."""
     try:
-        p = path or resources.path("parsimony.json")
+        p = path or resources.user_or_packaged("parsimony.json")
         data = json.loads(open(p, encoding="utf-8").read())
     except (OSError, ValueError) as exc:
         log.info("no parsimony defaults (%s); using %s", exc, FALLBACK_DEFAULTS)
@@ -253,6 +256,7 @@ def save_defaults(path: str, update: dict) -> Path:
         data = {}
     evidence = {**data.get("evidence", {}), **update.get("evidence", {})}
     data.update({**update, "format": FORMAT, "evidence": evidence})
+    p.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(p, json.dumps(data, indent=2) + "\n")
     return p
 
@@ -330,5 +334,6 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     lines += [f"- {r['exposures']} exposure(s) x{', '.join(f'{f:.3g}' for f in r['factors'])}: {sc:.4f}"
               for r, sc in zip(e["rows"], e["scores"])]
     lines += ["", f"Chosen: **{e['chosen']}** exposure(s) per light.", "",
-              "Defaults written to parsimony.json (copy to resources/parsimony.json for the app)."]
+              "Defaults written to parsimony.json (`dualrgb study parsimony --write-defaults` makes them the "
+              "app's defaults)."]
     out.write_summary("Parsimony", lines)
