@@ -52,10 +52,12 @@ class SafetySettings:
     camera_latency: Optional[Callable[[float], float]] = field(default=None, repr=False, compare=False)
 
     def for_camera(self, camera: Optional[Camera]) -> "SafetySettings":
-        """These settings with the camera's own latency allowance (unless one was given)."""
-        if self.latency_s is not None or camera is None:
+        """These settings with the camera's own latency allowance (unless one was given, or the camera - a
+        stand-in - reports none)."""
+        latency_for = getattr(camera, "latency_for", None)
+        if self.latency_s is not None or latency_for is None:
             return self
-        return replace(self, camera_latency=camera.latency_for)
+        return replace(self, camera_latency=latency_for)
 
     def latency_for(self, exposure_s: float) -> float:
         if self.latency_s is not None:

@@ -16,8 +16,8 @@ Nikon D610 (read from libgphoto2 2.5's camlibs/ptp2 config.c and library.c, not 
   file possibly many event reads later.
 
 Time: the driver runs on a :class:`FakeClock`; the stand-in moves it on as the camera would (an exposure, a
-wait_for_event that times out), except the bulb release's wait, which blocks for real (``release_wait_s``) so
-that tests can see expose() return before it ends.
+wait_for_event that times out), except the bulb release's wait, which blocks on ``release_gate`` so that tests
+can see expose() return, and the light go off, before it ends.
 """
 from __future__ import annotations
 
@@ -50,6 +50,16 @@ NIKON_SUMMARY = ("Manufacturer: Nikon Corporation\nModel: D610\nVendor Extension
                  "\nDevice Capabilities:\n\tFile Download, File Deletion, File Upload\n"
                  "\tGeneric Image Capture, No Open Capture, Nikon Capture 1, Nikon Capture 2, Nikon Capture 3\n")
 GENERIC_SUMMARY = "Vendor Extension ID: 0xa (1.0)\n\tGeneric Image Capture, No Open Capture, No vendor specific capture\n"
+
+
+def _small_jpeg() -> bytes:
+    from io import BytesIO
+
+    from PIL import Image
+
+    buf = BytesIO()
+    Image.new("RGB", (16, 12), (90, 90, 90)).save(buf, format="JPEG")
+    return buf.getvalue()
 
 
 class GPhoto2Error(Exception):
@@ -129,11 +139,12 @@ class ScriptedD610:
         self.shutter_lag_s = 0.1
         self.pair_late_reads = 0                # the pair's JPEG is announced this many event reads after the NEF
         self.jpeg_first = False
-        self.release_wait_s = 0.0               # real seconds libgphoto2's wait after TerminateCapture lasts
+        self.release_gate: Optional[threading.Event] = None   # libgphoto2's wait after TerminateCapture lasts
+        self.gate_opened: Optional[bool] = None                # until this is set (True) or 10 s passed (False)
         self.release_error: Optional[int] = None
         self.terminate_fails = False
         self.processing_reads = 2               # event reads after a bulb release before its file is announced
-        self.preview_data = b""
+        self.preview_data = _small_jpeg()
         self.writes: list[tuple[str, object]] = []
         self.calls: list[str] = []
         self.releases: list[float] = []
@@ -241,7 +252,8 @@ class ScriptedD610:
                         "'ptp_nikon_terminatecapture (params, 0, 0)' failed: PTP I/O Error (0x02ff)")
             raise GPhoto2Error(-7)
         self.shutter_open = False
-        time.sleep(self.release_wait_s)
+        if self.release_gate is not None:
+            self.gate_opened = self.release_gate.wait(10)
         self._announce(processing=self.processing_reads)
         if self.release_error is not None:
             what = "Bulb Release Busy (0xa200)" if self.release_error == -1 else "Device Busy (0x2019)"
