@@ -2,7 +2,7 @@
 
 All gphoto2 calls of the project live in this module and its helpers (``gphoto_errors``: error messages with
 libgphoto2's own logged reason; ``gphoto_labels``: what labels mean, in any language; ``gphoto_settings``: the
-configuration tree and the copy stand's settings). ``gphoto2`` is imported lazily (first detect/open), so
+configuration tree and the copy stand's settings; ``gphoto_files``: events, the raw file of a capture, downloads). ``gphoto2`` is imported lazily (first detect/open), so
 ``import drivers.camera`` works without it, and tests can set ``VCAMERADIR`` (libgphoto2's virtual camera) first.
 
 The light is on only while a frame is exposed, so :meth:`GPhotoCamera.expose` returns as close to the shutter
@@ -18,7 +18,8 @@ and ``camera_trigger_capture``):
   waits up to 5 s for the camera; :meth:`expose` returns ``bulb_release_grace_s`` after the release was sent and
   leaves that wait running (the next call waits for it). -110 or -1 (Nikon 0xA200 'Bulb Release Busy') after the
   release means "closed, still processing"; only a failed TerminateCapture means the shutter may be open. Live
-  view is switched off before, and the timed speed restored after (the camera refuses live view on Bulb).
+  view is switched off before, and the timed speed restored before live view starts again (the camera refuses
+  live view on Bulb) or the camera is closed.
 
 :meth:`fetch` (light off by then) waits for the raw file (.nef among the files announced, NEF+JPEG pairs drained),
 downloads it into memory and records the exact exposure (``shutterspeed2``), auto ISO and long-exposure noise
@@ -35,23 +36,22 @@ import logging
 import os
 import threading
 import time
-from dataclasses import dataclass, field
 from io import BytesIO
 from typing import Any, Callable, Optional, TypeVar
 
 import numpy as np
 
 from drivers.camera.base import Camera, CameraError, CameraTimeout, Exposure, RawCapture, call_with_deadline
-from drivers.camera.gphoto_errors import (ERROR_ADVICE, GP_ERROR, GP_ERROR_CAMERA_BUSY,  # noqa: F401 (re-exported)
-                                          GP_ERROR_CANCEL, GP_ERROR_IO_USB_CLAIM, GP_ERROR_IO_USB_FIND,
-                                          GP_ERROR_NOT_SUPPORTED, GP_ERROR_TIMEOUT, GVFS_ADVICE, LibraryLog,
-                                          camera_error, gphoto_error_code, retry_busy)
-from drivers.camera.gphoto_labels import (capture_target_choice, force_untranslated,  # noqa: F401 (re-exported)
-                                          format_shutter, is_bulb_label, nearest_by_value, parse_aperture,
-                                          parse_iso, parse_shutter)
-from drivers.camera.gphoto_files import CapturedFiles, GPhotoFiles, is_raw_name  # noqa: F401
-from drivers.camera.gphoto_settings import (BULB_LIMIT_S, RAW_QUALITY, RAM_TARGET, ConfigEntry,  # noqa: F401
-                                            GPhotoSettings, TARGET_NAMES)
+from drivers.camera.gphoto_errors import (GP_ERROR, GP_ERROR_CAMERA_BUSY, GP_ERROR_CANCEL, GP_ERROR_IO_USB_FIND,
+                                          GP_ERROR_NOT_SUPPORTED, GP_ERROR_TIMEOUT, LibraryLog, camera_error,
+                                          gphoto_error_code)
+from drivers.camera.gphoto_files import CapturedFiles, GPhotoFiles
+from drivers.camera.gphoto_labels import capture_target_choice, force_untranslated, format_shutter, is_bulb_label
+from drivers.camera.gphoto_settings import BULB_LIMIT_S, RAM_TARGET, TARGET_NAMES, GPhotoSettings
+# the driver's public names, re-exported from the modules it is split into
+from drivers.camera.gphoto_errors import GP_ERROR_IO_USB_CLAIM, retry_busy  # noqa: F401,E402
+from drivers.camera.gphoto_labels import nearest_by_value, parse_aperture, parse_iso, parse_shutter  # noqa: F401
+from drivers.camera.gphoto_settings import RAW_QUALITY, ConfigEntry  # noqa: F401
 
 log = logging.getLogger(__name__)
 
@@ -496,9 +496,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
                     self._call(f"delete {name} from the camera", cam.file_delete, folder, name)
                 except CameraError as exc:
                     log.warning("%s", exc)
-            if exposure.bulb:
-                self._restore_timed_shutter()
-            s = self.settings()
+            s = self.settings()             # on Bulb still: the bulb exposure (restored before live view)
             _, label, setting = self._shutter_now()
         log.info("captured %s (%d bytes, %s)", name, len(data), format_shutter(exposure.exposure_s))
         return RawCapture(data=data, filename=name, exposure_s=exposure.exposure_s, iso=s.iso,
@@ -511,19 +509,19 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
 
     def preview(self) -> np.ndarray:
         """A live-view frame. The camera refuses live view while the shutter is on Bulb ('Bulb warning'): the
-        timed speed set before dualrgb's own bulb exposure is restored and live view tried once more."""
+        timed speed set before dualrgb's own bulb exposure is restored first; Bulb left by something else is
+        reported in one line."""
         cam = self._require_open()
-        try:
-            cfile = self._call("live view", cam.capture_preview)
-        except CameraError as exc:
-            if "bulb" not in str(exc).lower() or self._timed_shutter is None:
+        with self._lock:
+            self._restore_timed_shutter()
+            try:
+                cfile = self._call("live view", cam.capture_preview)
+            except CameraError as exc:
                 if "bulb" in str(exc).lower():
                     raise CameraError(f"{exc}; the shutter is on Bulb: set a timed shutter speed on the camera "
                                       "(or take one timed exposure) and start live view again", exc.code) from exc
                 raise
-            self._restore_timed_shutter()
-            cfile = self._call("live view", cam.capture_preview)
-        self._live_view = True
+            self._live_view = True
         data = bytes(memoryview(cfile.get_data_and_size()))
         from PIL import Image, UnidentifiedImageError
         try:

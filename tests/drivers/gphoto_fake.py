@@ -320,6 +320,7 @@ class ScriptedD610:
         self.files.pop(name, None)
 
     def capture_preview(self):
+        self.calls.append("preview")
         if self.exposure is BULB:
             self.gp.log("gp_context_error", "Liveview cannot start: Bulb warning")
             raise GPhoto2Error(-1)

@@ -98,10 +98,12 @@ def test_after_bulb_the_timed_speed_is_back_and_live_view_works():
     cam.apply(CameraSettings(shutter_s=1 / 30 * 2))                  # 1/15 -> nearest offered 1/8
     before = d610.widgets()["shutterspeed2"].value
     cam.preview()                                                    # live view on
-    cam.capture(45.0)
+    raw = cam.capture(45.0)
     assert d610.writes.index(("viewfinder", 0)) < d610.writes.index(("bulb", 1))   # live view off before bulb
-    assert d610.widgets()["shutterspeed2"].value == before           # timed speed restored after the download
-    cam.preview()                                                    # no "Bulb warning"
+    assert raw.exposure_s == cam.settings().shutter_s == 45.0        # the frame's record says bulb, 45 s
+    d610.calls.clear()
+    cam.preview()                                                    # no "Bulb warning": restored first
+    assert d610.widgets()["shutterspeed2"].value == before and d610.calls == ["preview"]
 
 
 @pytest.mark.fault("camera")
