@@ -63,12 +63,27 @@ NR_MIN_EXPOSURE_S = 1.0            # the D610's long-exposure NR works on exposu
 _NR_CLEAR = ("off", "switched off", "not offered", "")
 
 
+# gphoto2 (python-gphoto2, which bundles libgphoto2) has no Windows wheels and is not installed there
+# (pyproject marker): everything but tethering a real camera works without it.
+TETHERING_UNAVAILABLE = ("camera tethering needs libgphoto2 (Linux/macOS: pip install gphoto2, which bundles it); "
+                         "it is not installed here, so only the virtual camera is available")
+
+
 def _import_gphoto():
     try:
         import gphoto2
     except ImportError as exc:
-        raise CameraError("python-gphoto2 is not installed: pip install gphoto2 (it bundles libgphoto2)") from exc
+        raise CameraError(TETHERING_UNAVAILABLE) from exc
     return gphoto2
+
+
+def gphoto_available() -> bool:
+    """True when python-gphoto2 (libgphoto2) can be imported, i.e. a real camera can be tethered."""
+    try:
+        _import_gphoto()
+    except CameraError:
+        return False
+    return True
 
 
 def latency_from_env() -> Optional[float]:
