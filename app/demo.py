@@ -24,6 +24,7 @@ import numpy as np
 from app.sequences.calibration import DarkSeries, FlatSeries
 from app.sequences.capture import SubjectCapture
 from app.sequences.hdr import HdrPlan, meter_and_plan
+from app.processing.quality import quality_summary
 from app.session import CaptureSession, atomic_write, camera_definition, light_definition
 from app.session_log import SessionLog
 from app.workflow.copystand import CopyStand, StandSettings, parsimony_defaults
@@ -230,7 +231,8 @@ class DemoRun:
                  "matrix_method": ch.best,
                  "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
                  "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]} for nl in c.lights],
-                 "report": str(res.files["report"]), "figures": res.report.get("figures", [])}
+                 "report": str(res.files["report"]), "figures": res.report.get("figures", []),
+                 "quality": quality_summary(res.report["quality"])}
         if nd:
             entry["nd_patches"] = {
                 "train": ErrorStats.of(best.train_errors[specs["train"].nd_mask]).to_dict(),

@@ -129,8 +129,8 @@ class SessionResult:
 
 
 def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None
-                  ) -> tuple[np.ndarray, ChannelStack]:
-    """Patch values (n, C) of a captured target and its stack."""
+                  ) -> tuple[np.ndarray, np.ndarray, ChannelStack]:
+    """Patch values (n, C), their standard deviations (n, C) and the stack of a captured target."""
     from app.processing.patches import detect_cc24
 
     stack = proc.stack(frames, progress=progress, cancel=cancel)
@@ -144,7 +144,8 @@ def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames,
     if not len(spec.names) <= grid.n_patches < len(spec.names) + grid.cols:
         raise ValueError(f"{spec.subject.label}: the grid has {grid.n_patches} cells ({grid.rows} x {grid.cols}) "
                          f"but the target {len(spec.names)} patches")
-    return grid.sample(stack.data).mean[:len(spec.names)], stack
+    sampled = grid.sample(stack.data)
+    return sampled.mean[:len(spec.names)], sampled.std[:len(spec.names)], stack
 
 
 def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[TargetSpec] = None, *,
@@ -160,6 +161,7 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[Ta
     ``white_xyz`` is the Lab reference white on the targets' XYZ scale (default: D65, Y = 100).
     """
     from app.processing.outputs import write_matrices_csv, write_patch_csv
+    from app.processing.quality import CalibrationFrames
     from app.processing.report import TargetData, build_report
 
     out_dir = Path(out_dir)
@@ -169,12 +171,12 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[Ta
     names = list(train_frames)
     proc = build_processor(frames, names, white_level=white_level, linear_limit=linear_limit,
                            progress=sub_progress(progress, 0.0, 0.15), cancel=cancel)
-    vt, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel)
+    vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel)
     channels = stack.channels
-    vs = None
+    vs = ss = None
     if test is not None:
         test_frames = select_lights(frames.subject(test.subject), names, exposures)
-        vs, _ = sample_target(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel)
+        vs, ss, _ = sample_target(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel)
     white = reference_white() if white_xyz is None else np.asarray(white_xyz, dtype=float)
     c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
                      optimise=optimise, progress=sub_progress(progress, 0.55, 0.8), cancel=cancel)
@@ -186,11 +188,12 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[Ta
             errs = {k: (r.train_errors if label == "train" else r.test_errors) for k, r in c.results.items()}
             files[f"patches_{label}"] = write_patch_csv(out_dir / f"patches_{label}.csv", spec.names, values,
                                                         channels, spec.xyz, preds, errs, target=label)
-    data = [TargetData(s.names, s.xyz, v, s.layout, s.label or lbl)
-            for s, v, lbl in ((train, vt, "train"), (test, vs, "test")) if s is not None]
+    data = [TargetData(s.names, s.xyz, v, s.layout, s.label or lbl, std=sd)
+            for s, v, sd, lbl in ((train, vt, st, "train"), (test, vs, ss, "test")) if s is not None]
+    calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
     rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=train.simulated,
                        title=title, extra={"session": str(session.path), "darks": proc.darks.exposures,
-                                           "lights": names})
+                                           "lights": names}, calibration=calibration)
     files["report"] = out_dir / "report.json"
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names)

@@ -156,6 +156,9 @@ class VirtualCamera(Camera):
     """A virtual D610 on the copy stand. ``scene`` is settable (place a target, open the gate, cap the lens)."""
 
     name = "Virtual D610"
+    # its latency allowance: expose() returns as the exposure ends (no shutter lag, no USB), so this is only the
+    # margin for a host whose threads are scheduled late under load
+    latency_s = 1.0
 
     def __init__(
         self,

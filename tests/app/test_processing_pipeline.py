@@ -151,7 +151,7 @@ def test_partly_filled_last_grid_row_is_accepted_and_a_wrong_grid_is_not():
     frames = {"LS1": []}
     grid = PatchGrid(np.array([[0, 0], [49, 0], [49, 39], [0, 39]], float), 4, 5)
     spec = TargetSpec(Subject.target("test"), np.ones((18, 3)), [f"p{i}" for i in range(18)], grid=grid)
-    values, _ = sample_target(FakeProcessor(), spec, frames, None, None)
+    values, _std, _ = sample_target(FakeProcessor(), spec, frames, None, None)
     assert values.shape == (18, 3)                                      # 18 patches on 4 x 5 cells
     assert values[0, 0] < values[4, 0]                                  # row-major: patch 4 is the last column
     bad = TargetSpec(Subject.target("test"), np.ones((12, 3)), [f"p{i}" for i in range(12)], grid=grid)
