@@ -171,10 +171,11 @@ class HdrMerge:
         self.exposures.append(float(exposure_s))
 
     @property
-    def weight_sum(self) -> np.ndarray:
-        """Per pixel, the sum of the eq 8.9 weights added so far (before ``result``)."""
+    def slots(self) -> tuple[np.ndarray, np.ndarray]:
+        """(sums, counts) of the exposure-time slots added so far (kernels.hdr_store), before the merge ends."""
         self._require()
-        return self._den
+        n = len(self._slot_times)
+        return self._sums[:n], self._counts[:n]
 
     def _require(self) -> None:
         if self._sums is None:

@@ -202,15 +202,16 @@ class CaptureProcessor:
                         band_rows=self.band_rows, work=self._work, own_result=False)
 
 
-def _weak_cells(weight_sum: np.ndarray, floor: float, so_far: Optional[np.ndarray]) -> np.ndarray:
-    """Superpixels none of whose four pixels reached ``floor`` (eq 8.9 weight of ``MIN_SIGNAL_DN``) in any
-    exposure, AND-ed with the lights before (a cell is under-exposed only if it is under every light)."""
+def _weak_cells(slots: tuple[np.ndarray, np.ndarray], floor_dn: float, so_far: Optional[np.ndarray]) -> np.ndarray:
+    """Superpixels none of whose four pixels reached ``floor_dn`` in any usable exposure, AND-ed with the lights
+    before (a cell is under-exposed only if it is under every light); ``slots`` = HdrMerge.slots."""
     from app.processing.encode import weak_cells
 
+    sums, counts = slots
     first = so_far is None
     if first:
-        so_far = np.empty((weight_sum.shape[0] // 2, weight_sum.shape[1] // 2), dtype=np.bool_)
-    weak_cells(weight_sum, np.float32(floor), so_far, first)
+        so_far = np.empty((sums.shape[1] // 2, sums.shape[2] // 2), dtype=np.bool_)
+    weak_cells(sums, counts, np.float32(floor_dn), so_far, first)
     return so_far
 
 
@@ -251,8 +252,7 @@ class StackBuilder:
         if self.out is None:
             self.out = np.empty((h // 2, w // 2, 3 * len(self.lights)), dtype=np.float32)
         li = self.lights.index(light)
-        self._weak = _weak_cells(merge.weight_sum, self.min_signal_dn / (self.proc.white_level - self.proc.black_level),
-                                 self._weak)
+        self._weak = _weak_cells(merge.slots, self.min_signal_dn, self._weak)
         n_clipped = merge.flat_superpixel(ff.white, ff.threshold, self.proc.cfa or "RGGB",
                                           self.out[..., 3 * li: 3 * li + 3])
         self.clipped[light] = n_clipped / (h * w)
