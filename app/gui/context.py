@@ -1,4 +1,5 @@
-"""What every panel gets: the task runner, the devices (Lab), settings, error reporting and a signal bus."""
+"""What every panel gets: the task runner, the devices (Lab), the shared workspace, settings, error reporting,
+questions to the technician, and a signal bus for events."""
 from __future__ import annotations
 
 import logging
@@ -6,11 +7,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
-from PySide6.QtCore import QObject, QSettings, QStandardPaths, Signal
+from PySide6.QtCore import QObject, QSettings, QStandardPaths, QUrl, Signal
+from PySide6.QtGui import QDesktopServices
 
 from app.gui.device_hub import Lab
-from app.gui.widgets import ErrorReporter
+from app.gui.widgets import Asker, ErrorReporter
 from app.gui.workers import TaskRunner
+from app.gui.workspace import Workspace
 
 log = logging.getLogger(__name__)
 
@@ -19,16 +22,17 @@ APPLICATION = "dualrgb"
 
 
 class Bus(QObject):
-    """Signals between panels (results flow from capture to target to results; presets from simulate)."""
+    """Events between panels (what is shared as state lives in the Workspace)."""
 
     presetsChanged = Signal()
     sequenceStarted = Signal(str)          # sequence name
     sequenceFinished = Signal(str, str)    # name, 'done' | 'cancelled' | 'failed'
-    targetImageReady = Signal(object)      # dict: image (H, W, C) float, meta
     resultsReady = Signal(object)          # dict: processing report
-    crfReady = Signal(object)              # CrfSweep result
-    sessionUpdated = Signal()              # frames were added to the session
-    gridChanged = Signal(object)           # app.processing.patches.PatchGrid placed in Target (superpixel coords)
+    crfReady = Signal(object)              # CrfSweep summary
+    sessionUpdated = Signal()              # a sequence finished: frames were added to the session
+    frameSaved = Signal()                  # one frame saved (or kept) while a sequence runs
+    cameraSettingsChanged = Signal()       # ISO / aperture applied: the calibration is checked again
+    showPanel = Signal(str)                # ask the window to bring a panel forward ('capture', 'originals', ...)
 
 
 def default_settings() -> QSettings:
@@ -42,7 +46,10 @@ class AppContext:
     settings: QSettings
     errors: ErrorReporter
     bus: Bus
-    shared: dict = field(default_factory=dict)     # latest grid, capture lights, ... for panels that need them
+    workspace: Workspace
+    asker: Asker
+    opened: list[Path] = field(default_factory=list)     # files and folders opened for the user (tests read it)
+    open_externally: bool = True
 
     # ---- typed settings, saved as soon as they change ----
     def get(self, key: str, default: Any = None, type_: Optional[type] = None) -> Any:
@@ -73,6 +80,14 @@ class AppContext:
     def path_setting(self, key: str, default: Path) -> Path:
         text = self.get(key, "", str)
         return Path(text) if text else default
+
+    def open_path(self, path: Path) -> None:
+        """Show a file or folder in the desktop's viewer (a TIFF in the image viewer, a folder in the file
+        manager)."""
+        self.opened.append(Path(path))
+        log.info("opening %s", path)
+        if self.open_externally:
+            QDesktopServices.openUrl(QUrl.fromLocalFile(str(path)))
 
     @property
     def presets_dir(self) -> Path:

@@ -24,6 +24,7 @@ log = logging.getLogger(__name__)
 
 VIRTUAL_SPHERE = "virtual sphere (emulator)"
 VIRTUAL_CAMERA = "virtual camera (virtual lab)"
+VIRTUAL_ORIGINALS = {"reflective": "painting", "transmissive": "film"}   # the stand-in when none is chosen
 NO_CAMERA_ADVICE = ("no camera found: connect the camera by USB, switch it on (mode dial to M) and press "
                     "'Detect' again; on a desktop, close photo programs that grab it (gvfs)")
 
@@ -51,6 +52,7 @@ class Lab(QObject):
     lightApplied = Signal(object)          # LightSource now on the sphere
     virtualLabChanged = Signal()
     failed = Signal(str, object)           # title, exception: shown by the window as an actionable dialog
+    succeeded = Signal(str)                # title of a device call that worked (its earlier error is stale)
     message = Signal(str)                  # one line for the status bar
 
     def __init__(self, runner: TaskRunner, parent: Optional[QObject] = None,
@@ -87,7 +89,12 @@ class Lab(QObject):
             if on_error is not None:
                 on_error(exc)
             self.failed.emit(title, exc)
-        return self.runner.submit(fn, pool="devices", name=title, on_result=on_result, on_error=failed,
+
+        def worked(value: Any) -> None:
+            self.succeeded.emit(title)
+            if on_result is not None:
+                on_result(value)
+        return self.runner.submit(fn, pool="devices", name=title, on_result=worked, on_error=failed,
                                   on_finished=on_finished)
 
     @staticmethod
@@ -162,6 +169,8 @@ class Lab(QObject):
 
         def done(sphere: LedSphere) -> None:
             self._set_sphere(sphere, port)
+            if port == VIRTUAL_SPHERE:
+                self.virtualLabChanged.emit()
             if on_done:
                 on_done(True)
         return self.device_call(work, "Connect the LED sphere", on_result=done,
@@ -268,6 +277,8 @@ class Lab(QObject):
 
         def done(cam: Camera) -> None:
             self._set_camera(cam, choice)
+            if choice == VIRTUAL_CAMERA:
+                self.virtualLabChanged.emit()
             if on_done:
                 on_done(True)
         return self.device_call(work, "Connect the camera", on_result=done,
@@ -290,7 +301,53 @@ class Lab(QObject):
         return self.device_call(cam.close, "Disconnect the camera",
                                 on_finished=lambda: self.message.emit("camera disconnected"))
 
+    # ------------------------------------------------------------------ copy stand
+    def stand(self, stand_in: str = "") -> Optional[Callable[[str, bool], Any]]:
+        """What places things on the stand: the virtual lab (an original is shown as its virtual stand-in, e.g.
+        'shadow'), or None on a real stand (the sequences then ask the technician)."""
+        vl = self.virtual_lab
+        if vl is None:
+            return None
+        default = VIRTUAL_ORIGINALS.get(vl.mode, "painting")
+
+        def place(what: str, nd: bool = False) -> Any:
+            if what.startswith("original:"):
+                what = f"original:{stand_in or default}"
+            return vl.place(what, nd)
+        return place
+
+    def copy_stand(self, settings: Any, hooks: Any = None, stand_in: str = "") -> Any:
+        """An app.workflow.copystand.CopyStand on these devices and the current session (``hooks``: a StandRun's
+        callbacks: progress, cancel, prompts, events)."""
+        from app.workflow.copystand import CopyStand
+
+        if self.camera is None or self.sphere is None:
+            raise ValueError("connect the LED sphere and the camera in Devices first")
+        if self.session is None:
+            raise ValueError("start a session first (Calibrate & capture: New session)")
+        return CopyStand(self.camera, self.sphere, self.session, stand=self.stand(stand_in), lab=self.virtual_lab,
+                         settings=settings, **(hooks.stand_kwargs() if hooks is not None else {}))
+
+    @staticmethod
+    def virtual_originals() -> list[str]:
+        from drivers.virtual.originals import ORIGINALS
+
+        return list(ORIGINALS)
+
     # ------------------------------------------------------------------ session
+    def session_definition(self) -> dict:
+        """What defines the frames of a session made here (app.session: reopening with anything else is
+        refused, naming the difference): the mode, the camera, and the virtual lab's frame size."""
+        from app.session import camera_definition
+
+        vl = self.virtual_lab
+        out: dict[str, Any] = {"mode": vl.mode if vl is not None else self.mode}
+        if vl is not None:
+            out["frame_size"] = [vl.width, vl.height]
+        if self.camera is not None:
+            out["camera"] = camera_definition(self.camera)
+        return out
+
     def set_session(self, session: Any) -> None:
         if self.session_log is not None:
             self.session_log.stop()

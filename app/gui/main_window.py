@@ -1,4 +1,5 @@
-"""The copy-stand window: a tab per panel, the log at the bottom, a status bar, shortcuts, saved layout."""
+"""The copy-stand window: the workflow guide on the left (always visible), a tab per panel, the log at the bottom,
+a status bar (devices, what runs, the last error until the action succeeds), shortcuts, saved layout."""
 from __future__ import annotations
 
 import importlib
@@ -7,13 +8,15 @@ from typing import Callable, Optional
 
 from PySide6.QtCore import QByteArray, QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
-from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QTabWidget, QWidget
+from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QScrollArea, QTabWidget, QWidget
 
 from app.gui.context import AppContext, Bus, default_settings
 from app.gui.device_hub import Lab
+from app.gui.guide import WorkflowGuide
 from app.gui.panels.placeholder import NotAvailablePanel
-from app.gui.widgets import ErrorReporter, LogView
+from app.gui.widgets import Asker, ErrorReporter, LogView
 from app.gui.workers import TaskRunner
+from app.gui.workspace import Workspace
 
 log = logging.getLogger(__name__)
 
@@ -23,14 +26,15 @@ PANELS = (
     ("light", "app.gui.panels.light", "LightPanel", "LED sphere driver"),
     ("camera", "app.gui.panels.camera", "CameraPanel", "camera drivers"),
     ("capture", "app.gui.panels.capture", "CapturePanel", "capture sequences (app.sequences)"),
+    ("originals", "app.gui.panels.originals", "OriginalsPanel", "the copy-stand workflow (app.workflow)"),
     ("target", "app.gui.panels.target", "TargetPanel", "patch grid (app.processing.patches)"),
     ("results", "app.gui.panels.results", "ResultsPanel", "characterisation report (app.processing)"),
     ("simulate", "app.gui.panels.simulate", "SimulatePanel", "simulation runner"),
     ("characterise", "app.gui.panels.characterise", "CharacterisePanel", "CRF sweep sequence"),
 )
 PANEL_TITLES = {"devices": "Devices", "light": "Light source", "camera": "Camera", "capture": "Calibrate && capture",
-                "target": "Target", "results": "Results", "simulate": "Simulate && optimise",
-                "characterise": "Characterise"}
+                "originals": "Originals", "target": "Target", "results": "Results",
+                "simulate": "Simulate && optimise", "characterise": "Characterise"}
 
 
 class MainWindow(QMainWindow):
@@ -41,12 +45,22 @@ class MainWindow(QMainWindow):
         self.runner = TaskRunner(self)
         self.errors = ErrorReporter(self)
         self.errors.show_dialogs = show_dialogs
+        self.asker = Asker(self)
+        self.asker.show_dialogs = show_dialogs
         self.lab = Lab(self.runner, self, frame_size=frame_size, shutter_bumps=shutter_bumps)
-        self.ctx = AppContext(self.runner, self.lab, settings or default_settings(), self.errors, Bus(self))
+        self.ctx = AppContext(self.runner, self.lab, settings or default_settings(), self.errors, Bus(self),
+                              Workspace(self), self.asker, open_externally=show_dialogs)
         self.lab.failed.connect(lambda title, exc: self.errors.report(title, exc))
+        self.lab.succeeded.connect(self.errors.clear)
         self._closing = False
+        self._build_log_dock()
+        self._build_panels()
+        self._build_guide_dock()
+        self._build_status_bar()
+        self._build_actions()
+        self._build_persistence()
 
-        # ---- log dock ----
+    def _build_log_dock(self) -> None:
         self.log_view = LogView()
         self.log_view.install()
         dock = QDockWidget("Log", self)
@@ -56,7 +70,7 @@ class MainWindow(QMainWindow):
         self.resizeDocks([dock], [140], Qt.Vertical)
         self.log_dock = dock
 
-        # ---- panels ----
+    def _build_panels(self) -> None:
         self.tabs = QTabWidget()
         self.tabs.setObjectName("panels")
         self.panels: dict[str, QWidget] = {}
@@ -68,12 +82,30 @@ class MainWindow(QMainWindow):
             if isinstance(panel, NotAvailablePanel):
                 self.tabs.setTabToolTip(self.tabs.count() - 1, panel.message)
         self.setCentralWidget(self.tabs)
+        self.ctx.bus.showPanel.connect(self.show_panel)
 
-        # ---- status bar ----
+    def _build_guide_dock(self) -> None:
+        """The workflow guide: docked on the left, always visible (it can move, not close)."""
+        self.guide = WorkflowGuide(self.ctx)
+        scroll = QScrollArea()
+        scroll.setWidget(self.guide)
+        scroll.setWidgetResizable(True)
+        dock = QDockWidget("Workflow", self)
+        dock.setObjectName("guide_dock")
+        dock.setWidget(scroll)
+        dock.setFeatures(QDockWidget.DockWidgetMovable)
+        dock.setMinimumWidth(250)
+        self.addDockWidget(Qt.LeftDockWidgetArea, dock)
+        self.guide_dock = dock
+
+    def _build_status_bar(self) -> None:
         self.sphere_state = QLabel("sphere: —")
         self.camera_state = QLabel("camera: —")
         self.task_state = QLabel("")
-        for w in (self.task_state, self.sphere_state, self.camera_state):
+        self.error_state = QLabel("")
+        self.error_state.setStyleSheet("color:#c62828")
+        self.error_state.setToolTip("The last error; it goes away when the same action succeeds.")
+        for w in (self.error_state, self.task_state, self.sphere_state, self.camera_state):
             self.statusBar().addPermanentWidget(w)
         self.lab.message.connect(lambda m: self.statusBar().showMessage(m, 8000))
         self.lab.sphereChanged.connect(self._devices_changed)
@@ -81,13 +113,20 @@ class MainWindow(QMainWindow):
         self.lab.sphereStatus.connect(self._sphere_status)
         self.runner.busyChanged.connect(self._busy_changed)
         self.ctx.bus.sequenceFinished.connect(lambda *_: self.lab.poll_status())   # show the lights off at once
-        self.errors.shown.connect(lambda title, msg: self.statusBar().showMessage(f"{title}: {msg}", 15000))
+        self.errors.shown.connect(self._error_shown)
+        self.errors.cleared.connect(lambda: self.error_state.setText(""))
         self._devices_changed()
 
-        # ---- shortcuts ----
+    def _error_shown(self, title: str, message: str) -> None:
+        short = message if len(message) <= 90 else message[:87] + "…"
+        self.error_state.setText(f"{title}: {short}")
+        self.error_state.setToolTip(f"{title}: {message}")
+
+    def _build_actions(self) -> None:
         self.capture_action = QAction("Capture", self)
         self.capture_action.setShortcuts([QKeySequence("Ctrl+Return"), QKeySequence("F5")])
-        self.capture_action.setToolTip("Take a picture (Camera) or start the chosen sequence (Calibrate & capture).")
+        self.capture_action.setToolTip("Take a picture (Camera), start the chosen sequence (Calibrate & capture) "
+                                       "or capture the selected originals (Originals).")
         self.capture_action.triggered.connect(self.capture_shortcut)
         self.cancel_action = QAction("Cancel", self)
         self.cancel_action.setShortcuts([QKeySequence(Qt.Key_Escape), QKeySequence("Ctrl+.")])
@@ -100,15 +139,21 @@ class MainWindow(QMainWindow):
             a.setShortcutContext(Qt.ApplicationShortcut)
             self.addAction(a)
 
-        # ---- layout persistence ----
+    def _build_persistence(self) -> None:
         self._save_timer = QTimer(self)
         self._save_timer.setSingleShot(True)
         self._save_timer.setInterval(500)
         self._save_timer.timeout.connect(self.save_layout)
         self.restore_layout()
         self.tabs.currentChanged.connect(lambda i: self.ctx.set("window/tab", i))
-        dock.dockLocationChanged.connect(lambda *_: self._save_timer.start())
-        dock.visibilityChanged.connect(lambda *_: self._save_timer.start())
+        for dock in (self.log_dock, self.guide_dock):
+            dock.dockLocationChanged.connect(lambda *_: self._save_timer.start())
+            dock.visibilityChanged.connect(lambda *_: self._save_timer.start())
+
+    def show_panel(self, name: str) -> None:
+        panel = self.panels.get(name)
+        if panel is not None:
+            self.tabs.setCurrentWidget(panel)
 
     def _make_panel(self, attr: str, module: str, cls: str, missing: str) -> QWidget:
         try:
@@ -197,4 +242,6 @@ class MainWindow(QMainWindow):
         if not self.runner.wait(20000):
             log.error("some work did not stop within 20 s")
         self.errors.close_all()
+        for box in list(self.asker.boxes):
+            box.close()
         self.log_view.uninstall()

@@ -1,29 +1,36 @@
-"""Running one capture sequence (app.sequences contract) from the GUI: its plan (frames and estimated time),
-a progress bar with time left, pause / resume, cancel, and 'continue' for steps that need a person.
+"""Running one capture sequence (app.sequences contract) or a whole CopyStand call (app.workflow.runs.StandRun) from
+the GUI: its plan (frames and estimated time; frames already in the session ticked), a progress bar with time
+left, pause / resume, cancel, 'continue' for steps that need a person, and the last frame saved.
 
-The sequence's ``run()`` generator is iterated in the runner's ``sequences`` thread; every ProgressEvent comes
-back as a queued signal. A 'prompt' event pauses the sequence in the worker before it is shown, so the next
-step waits for the technician's Continue.
+The run is iterated in the runner's ``sequences`` thread; every ProgressEvent comes back as a queued signal. A
+'prompt' event pauses the run in the worker before it is shown, so the next step waits for Continue.
 """
 from __future__ import annotations
 
 import logging
 import time
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Optional, Sequence as Seq, Union
 
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import (QHBoxLayout, QLabel, QProgressBar, QPushButton, QTableWidget, QTableWidgetItem,
-                               QVBoxLayout, QWidget)
+from PySide6.QtGui import QColor
+from PySide6.QtWidgets import (QHBoxLayout, QLabel, QProgressBar, QPushButton, QSplitter, QTableWidget,
+                               QTableWidgetItem, QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
+from app.gui.frame_preview import FramePreview
+from app.gui.units import shutter, time_left_s
 from app.gui.viewmodel import format_duration
 from app.gui.workers import TaskHandle
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence
-from app.workflow.vocabulary import EventKind, format_exposure as format_shutter
+from app.workflow.runs import RUN_PROGRESS, StandRun
+from app.workflow.vocabulary import EventKind
 
 log = logging.getLogger(__name__)
 
 DEFAULT_OVERHEAD_S = 1.5          # per frame beyond the exposure (download, write) until one has been measured
+Run = Union[Sequence, StandRun]
+DONE_MARK = "✓"
+DONE_COLOUR = QColor("#e8f5e9")
 
 
 def estimate_s(plan: list[PlannedFrame], settle_s: float, overhead_s: float) -> float:
@@ -31,39 +38,54 @@ def estimate_s(plan: list[PlannedFrame], settle_s: float, overhead_s: float) -> 
     return sum(f.exposure_s + (settle_s if f.light else 0.0) + overhead_s for f in plan)
 
 
-def drive(seq: Sequence, emit: Callable[[ProgressEvent], None]) -> None:
-    """Worker side: iterate the sequence; pause it on a prompt before telling the GUI."""
-    for event in seq.run():
-        if event.kind == "prompt":
-            seq.pause()
+def drive(run: Run, emit: Callable[[ProgressEvent], None]) -> None:
+    """Worker side: iterate a sequence (pausing it on a prompt before telling the GUI) or execute a StandRun."""
+    if isinstance(run, StandRun):
+        run.execute(emit)
+        return
+    for event in run.run():
+        if event.kind == EventKind.PROMPT.value:
+            run.pause()
         emit(event)
 
 
 class SequenceView(QWidget):
-    """Plan table + summary + progress + controls for one sequence at a time."""
+    """Plan table + summary + progress + controls + last frame, for one run at a time."""
 
-    started = Signal(object)           # the Sequence
-    finished = Signal(object, str)     # the Sequence, 'done' | 'cancelled' | 'failed'
+    started = Signal(object)           # the run
+    finished = Signal(object, str)     # the run, 'done' | 'cancelled' | 'failed'
     event = Signal(object)             # every ProgressEvent
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None, *, preview: bool = True):
         super().__init__(parent)
         self.ctx = ctx
-        self.seq: Optional[Sequence] = None
+        self.seq: Optional[Run] = None
         self.handle: Optional[TaskHandle] = None
         self.events: list[ProgressEvent] = []
         self.outcome = ""
         self.overhead_s = DEFAULT_OVERHEAD_S
         self.settle_s = 0.2
+        self.planned: list[PlannedFrame] = []
         self._t_start = 0.0
+        self._ticked = 0
+        self._build_table()
+        self._build_controls()
+        self.preview = FramePreview(ctx) if preview else None
+        self._layout()
+        self._set_running(False)
 
-        self.table = QTableWidget(0, 4)
-        self.table.setHorizontalHeaderLabels(["frame", "exposure", "light", "note"])
-        self.table.setToolTip("Every frame the sequence will take, in order, before anything moves.")
+    # ------------------------------------------------------------------ builders
+    def _build_table(self) -> None:
+        self.table = QTableWidget(0, 5)
+        self.table.setHorizontalHeaderLabels(["", "frame", "exposure", "light", "note"])
+        self.table.setToolTip("Every frame the run will take, in order, before anything moves; ✓: in the session "
+                              "(saved now, or already there and kept).")
         self.table.verticalHeader().setDefaultSectionSize(20)
         self.table.horizontalHeader().setStretchLastSection(True)
         self.summary = QLabel("")
         self.summary.setWordWrap(True)
+
+    def _build_controls(self) -> None:
         self.progress = QProgressBar()
         self.progress.setRange(0, 1000)
         self.progress.setToolTip("Frames done of frames planned.")
@@ -75,7 +97,8 @@ class SequenceView(QWidget):
                                      "on cancel and on any error.")
         self.pause_button = QPushButton("Pause")
         self.pause_button.setCheckable(True)
-        self.pause_button.setToolTip("Stop after the current frame; press again to go on.")
+        self.pause_button.setToolTip("Stop after the current frame (the light is already off then); press again "
+                                     "to go on.")
         self.pause_button.toggled.connect(self._pause_toggled)
         self.cancel_button = QPushButton("Cancel")
         self.cancel_button.setToolTip("Stop after the current frame and switch the lights off (Esc). Frames taken "
@@ -85,59 +108,105 @@ class SequenceView(QWidget):
         self.continue_button.setToolTip("Press when you have done what the message asks.")
         self.continue_button.clicked.connect(self._continue)
         self.continue_button.hide()
+
+    def _layout(self) -> None:
         buttons = QHBoxLayout()
         for w in (self.start_button, self.pause_button, self.cancel_button, self.continue_button):
             buttons.addWidget(w)
-        lay = QVBoxLayout(self)
-        lay.setContentsMargins(0, 0, 0, 0)
-        lay.addWidget(self.table, 1)
-        lay.addWidget(self.summary)
-        lay.addLayout(buttons)
-        lay.addWidget(self.progress)
+        top = QWidget()
+        tl = QVBoxLayout(top)
+        tl.setContentsMargins(0, 0, 0, 0)
+        tl.addWidget(self.table, 1)
+        tl.addWidget(self.summary)
+        tl.addLayout(buttons)
+        tl.addWidget(self.progress)
         row = QHBoxLayout()
         row.addWidget(self.message, 1)
         row.addWidget(self.time_left)
-        lay.addLayout(row)
-        self._set_running(False)
+        tl.addLayout(row)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(0, 0, 0, 0)
+        if self.preview is None:
+            lay.addWidget(top)
+            return
+        split = QSplitter(Qt.Vertical)
+        split.addWidget(top)
+        split.addWidget(self.preview)
+        split.setStretchFactor(0, 3)
+        split.setStretchFactor(1, 2)
+        lay.addWidget(split)
 
     # ------------------------------------------------------------------ plan
-    def show_plan(self, plan: list[PlannedFrame], title: str = "") -> None:
+    def show_plan(self, plan: list[PlannedFrame], title: str = "", done: Seq[bool] = ()) -> None:
+        """The planned frames; ``done[i]`` ticks row i (already in the session)."""
         self.table.setRowCount(len(plan))
         for r, f in enumerate(plan):
-            for c, text in enumerate((f.role, format_shutter(f.exposure_s), f.light or "off", f.note)):
+            texts = ("", f.role, shutter(f.exposure_s), self.ctx.workspace.light_text(f.light) or "off", f.note)
+            for c, text in enumerate(texts):
                 item = QTableWidgetItem(text)
                 item.setFlags(item.flags() & ~Qt.ItemIsEditable)
                 self.table.setItem(r, c, item)
+            if r < len(done) and done[r]:
+                self.tick(r, "in the session")
         self.table.resizeColumnsToContents()
         total = estimate_s(plan, self.settle_s, self.overhead_s)
         lit = sum(f.exposure_s + self.settle_s for f in plan if f.light)
-        self.summary.setText(f"{title + ': ' if title else ''}{len(plan)} frames, about {format_duration(total)} "
-                             f"(light on about {format_duration(lit)} in all)")
+        n_done = sum(bool(d) for d in done)
+        already = f"; {n_done} already in the session" if n_done else ""
+        self.summary.setText(f"{title + ': ' if title else ''}{len(plan)} frames{already}, about "
+                             f"{format_duration(total)} (light on about {format_duration(lit)} in all)")
         self.planned = plan
+
+    def replan(self, plan: list[PlannedFrame]) -> None:
+        """The plan changed while running (an HDR bracket metered): rows already done stay ticked."""
+        done = self._ticked
+        self.show_plan(plan, self.seq.name if self.seq else "")
+        for r in range(done):
+            self.tick(r, "saved now")
 
     def clear_plan(self, why: str = "") -> None:
         self.table.setRowCount(0)
         self.summary.setText(why)
+        self.planned = []
+
+    def tick(self, row: int, how: str) -> None:
+        if not 0 <= row < self.table.rowCount():
+            return
+        mark = self.table.item(row, 0)
+        if mark is None:
+            return
+        mark.setText(DONE_MARK)
+        mark.setToolTip(how)
+        for c in range(self.table.columnCount()):
+            item = self.table.item(row, c)
+            if item is not None:
+                item.setBackground(DONE_COLOUR)
+
+    def ticked_rows(self) -> list[int]:
+        return [r for r in range(self.table.rowCount())
+                if self.table.item(r, 0) is not None and self.table.item(r, 0).text() == DONE_MARK]
 
     # ------------------------------------------------------------------ run
     @property
     def running(self) -> bool:
         return self.handle is not None and self.handle.running
 
-    def start(self, seq: Sequence) -> None:
+    def start(self, seq: Run, done: Seq[bool] = ()) -> None:
         if self.running:
             self.ctx.errors.report("Start a sequence", "a sequence is already running: wait for it or cancel it")
             return
         self.seq = seq
         self.events = []
         self.outcome = ""
-        self.show_plan(seq.plan(), seq.name)
+        self._ticked = 0
+        self.show_plan(seq.plan(), seq.name, done)
         self.progress.setValue(0)
         self.time_left.setText("")
         self.message.setText(f"{seq.name}: starting …")
         self._t_start = time.monotonic()
         self._set_running(True)
         self.started.emit(seq)
+        self.ctx.workspace.set_running(seq.name)
         self.ctx.bus.sequenceStarted.emit(seq.name)
         self.handle = self.ctx.runner.submit(lambda emit: drive(seq, emit), pool="sequences", name=seq.name,
                                              pass_emit=True, on_event=self._on_event, on_error=self._on_error,
@@ -145,20 +214,44 @@ class SequenceView(QWidget):
 
     def _on_event(self, ev: ProgressEvent) -> None:
         self.events.append(ev)
-        if ev.kind == "cancelled":
+        if ev.kind == EventKind.CANCELLED.value:
             self.outcome = "cancelled"
             self.message.setText(ev.message)
-        elif ev.kind == "prompt":
+        elif ev.kind == EventKind.PROMPT.value:
             self.message.setText(f"<b>{ev.message}</b>")
             self.continue_button.show()
             self.pause_button.setEnabled(False)
         else:
-            if ev.total:
-                self.progress.setValue(int(round(1000 * ev.fraction)))
-            self.message.setText(ev.message)
-            self.time_left.setText(f"time left {format_duration(ev.time_left_s)}"
-                                   if ev.time_left_s is not None else "")
+            self._show_progress(ev)
+        if "plan" in ev.data:
+            self.show_plan(ev.data["plan"], self.seq.name if self.seq else "")
+            self._ticked = 0
+        if ev.kind in (EventKind.FRAME.value, EventKind.KEPT.value) or ev.data.get("role") == "metering":
+            self.tick(self._ticked, "already in the session" if ev.kind == EventKind.KEPT.value else "saved now")
+            self._ticked += 1
+            self.ctx.bus.frameSaved.emit()
+        self._preview(ev)
         self.event.emit(ev)
+
+    def _show_progress(self, ev: ProgressEvent) -> None:
+        stand = getattr(self.seq, "progress_events", False)
+        if stand and not ev.data.get(RUN_PROGRESS):
+            return                                  # a StandRun's inner events count their own sequence
+        if ev.total:
+            self.progress.setValue(int(round(1000 * ev.fraction)))
+        self.message.setText(ev.message)
+        left = ev.time_left_s if ev.time_left_s is not None else \
+            time_left_s(time.monotonic() - self._t_start, ev.fraction)
+        self.time_left.setText(f"time left {format_duration(left)}" if left is not None else "")
+
+    def _preview(self, ev: ProgressEvent) -> None:
+        entry = ev.data.get("entry")
+        session = self.ctx.lab.session
+        if self.preview is None or entry is None or session is None:
+            return
+        found = next((e for e in reversed(session.entries()) if e.seq == entry), None)
+        if found is not None:
+            self.preview.show_file(session.file_path(found), found.role)
 
     def _on_error(self, exc: BaseException) -> None:
         self.outcome = "failed"
@@ -170,22 +263,27 @@ class SequenceView(QWidget):
         seq = self.seq
         if not self.outcome:
             self.outcome = "done"
-            self.progress.setValue(1000)
-            self.time_left.setText("")
-            frames = [e for e in self.events if e.kind == "frame"]
-            if frames and seq is not None:
-                spent = time.monotonic() - self._t_start
-                exposure = sum(float(e.data.get("exposure_s") or 0.0) for e in frames)
-                self.overhead_s = max(0.05, (spent - exposure) / len(frames) - self.settle_s)
-            kept = sum(e.kind == EventKind.KEPT.value for e in self.events)
-            self.message.setText(f"{seq.name if seq else 'sequence'} done: {len(frames)} new, {kept} kept "
-                                 "(already in the session)" if kept else
-                                 f"{seq.name if seq else 'sequence'} done: {len(frames)} frames saved")
+            self._done_message(seq)
         self._set_running(False)
         self.continue_button.hide()
         self.pause_button.setChecked(False)
+        self.ctx.workspace.set_running("")
         self.finished.emit(seq, self.outcome)
         self.ctx.bus.sequenceFinished.emit(seq.name if seq else "", self.outcome)
+
+    def _done_message(self, seq: Any) -> None:
+        self.progress.setValue(1000)
+        self.time_left.setText("")
+        frames = [e for e in self.events if e.kind == EventKind.FRAME.value]
+        kept = sum(e.kind == EventKind.KEPT.value for e in self.events)
+        if frames and seq is not None and not isinstance(seq, StandRun):
+            spent = time.monotonic() - self._t_start
+            exposure = sum(float(e.data.get("exposure_s") or 0.0) for e in frames)
+            self.overhead_s = max(0.05, (spent - exposure) / len(frames) - self.settle_s)
+        name = seq.name if seq else "sequence"
+        extra = seq.summary() if hasattr(seq, "summary") else ""
+        self.message.setText(f"{name} done: {len(frames)} new, {kept} kept" + (f"; {extra}" if extra else ""))
+        self.ctx.errors.clear(f"{name[:1].upper()}{name[1:]} stopped")
 
     # ------------------------------------------------------------------ controls
     def cancel(self) -> None:

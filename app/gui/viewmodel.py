@@ -1,20 +1,21 @@
 """Qt-free helpers that turn driver / simulation results into what the panels draw (tested without Qt).
 
 Nothing here decides anything about the capture: it mixes spectra for display, bins raw values for the
-histogram, adds up the light dose shown next to the on/off switch and formats times.
+histogram, adds up the light dose shown next to the on/off switch, formats times and calibrations, and keeps the
+best light set a search has found so far.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import numpy as np
 
+from app.gui.units import light_pct, shutters
 from app.light_dose import LightDose
+from app.processing.hdr import LINEAR_LIMIT_DN          # the one linear limit (thesis 4.1), used everywhere
 from simulation.lightsource import LightSource
-
-LINEAR_LIMIT_DN = 11000.0          # thesis 4.1: the D610's raw response stops being linear above ~11 000 DN
 
 
 def light_from_levels(levels: Sequence[float], name: str = "") -> LightSource:
@@ -109,7 +110,8 @@ def display_rgb(linear: np.ndarray, full_scale: Optional[float] = None, gamma: f
 
 @dataclass
 class RawView:
-    """One raw frame as the camera panel shows it: picture, DN histogram, what the camera recorded."""
+    """One raw frame as the panels show it: picture, DN histogram, what the camera recorded, and its check (dark,
+    clipped: app.workflow.frame_checks)."""
 
     image: np.ndarray                  # (H/2, W/2, 3) uint8
     histogram: RawHistogram
@@ -117,10 +119,12 @@ class RawView:
     exposure_s: Optional[float]
     iso: Optional[float]
     camera: str
+    check: Any = None                  # app.workflow.frame_checks.FrameCheck
 
 
 def raw_view(path) -> RawView:
     """Load a raw file (drivers.raw) and make its picture and DN histogram (run in a worker)."""
+    from app.workflow.frame_checks import check_frame
     from drivers.raw import load_raw, superpixel
 
     frame = load_raw(path)
@@ -128,28 +132,64 @@ def raw_view(path) -> RawView:
     hist = raw_histogram(planes, frame.white_level)
     black = float(np.mean(frame.black_levels))
     image = display_rgb(superpixel(frame), full_scale=frame.white_level - black)
-    return RawView(image, hist, str(path), frame.exposure_s, frame.iso, frame.camera)
+    return RawView(image, hist, str(path), frame.exposure_s, frame.iso, frame.camera, check_frame(frame))
 
 
 class ConvergenceTap:
     """Wraps simulation.objective.Evaluator for the live convergence plot: after every cost batch it calls
-    ``on_batch(evaluations, best_cost_so_far)`` (from the worker thread). Costs are unchanged."""
+    ``on_batch(evaluations, best_cost_so_far)`` (from the worker thread) and keeps the best light set seen, so a
+    cancelled search still has its best so far (:meth:`partial`). Costs are unchanged; everything else is the
+    wrapped evaluator's."""
+
+    def __init__(self, inner, on_batch) -> None:
+        self._inner = inner
+        self._on_batch = on_batch
+        self.best = math.inf
+        self.best_idx: Optional[np.ndarray] = None       # (L, m) 0-based LED indices of the best set so far
+        self.best_w: Optional[np.ndarray] = None         # (L, m) its levels
 
     @staticmethod
-    def make(setup, on_batch):
+    def make(setup, on_batch) -> "ConvergenceTap":
         from simulation.objective import Evaluator
 
-        class _Tapped(Evaluator):
-            best = math.inf
+        return ConvergenceTap(Evaluator(setup), on_batch)
 
-            def cost_indexed(self, idx, w):
-                costs = super().cost_indexed(idx, w)
-                if len(costs):
-                    self.best = min(self.best, float(np.min(costs)))
-                    on_batch(self.evaluations, self.best)
-                return costs
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
 
-        return _Tapped(setup)
+    @property
+    def evaluations(self) -> int:                 # read and written through (simulation.warmup restores it)
+        return self._inner.evaluations
+
+    @evaluations.setter
+    def evaluations(self, value: int) -> None:
+        self._inner.evaluations = value
+
+    def cost_indexed(self, idx, w):
+        costs = self._inner.cost_indexed(idx, w)
+        if len(costs):
+            k = int(np.nanargmin(costs)) if np.isfinite(costs).any() else -1
+            if k >= 0 and float(costs[k]) < self.best:
+                self.best = float(costs[k])
+                self.best_idx, self.best_w = np.array(idx[k]), np.array(w[k], dtype=float)
+            self._on_batch(self._inner.evaluations, self.best)
+        return costs
+
+    def partial(self):
+        """The best light set seen so far as a simulation.search.Candidate with float64 train / test errors, or
+        None when no cost was computed yet."""
+        from simulation.search import Candidate
+
+        if self.best_idx is None:
+            return None
+        sources = []
+        for leds, levels in zip(self.best_idx, self.best_w):
+            on = levels > 0
+            sources.append(LightSource(tuple(int(i) + 1 for i in leds[on]), tuple(float(v) for v in levels[on]))
+                           if on.any() else LightSource((int(leds[0]) + 1,), (0.0,)))
+        cand = Candidate(tuple(sources), self.best)
+        cand.train, cand.test = self._inner.stats(cand.weights(self._inner.n_leds))
+        return cand
 
 
 def preview_histogram(frame: np.ndarray, black_level: float, white_level: float, gamma: float = 2.2,
@@ -160,3 +200,28 @@ def preview_histogram(frame: np.ndarray, black_level: float, white_level: float,
     dn = black_level + f ** gamma * (white_level - black_level)
     planes = {"R": dn[..., 0], "G": dn[..., 1], "B": dn[..., 2]}
     return raw_histogram(planes, white_level, linear_limit)
+
+
+def calibration_lines(profile, check=None) -> list[str]:
+    """What the window says about a calibration profile: id and age, camera, lights (levels in %), exposures,
+    target errors, and the last check against the stand."""
+    stats = profile.statistics.get("methods", {}).get(profile.statistics.get("best", ""), {})
+    train = (stats.get("train") or {}).get("mean")
+    cam = profile.camera
+    lines = [f"{profile.id} ({profile.preset}, {profile.mode}), made {profile.age_h():.1f} h ago",
+             f"camera {cam.model or '?'}" + (f" serial {cam.serial}" if cam.serial else "")
+             + f", ISO {cam.iso}, f/{cam.aperture:g}" if cam.aperture else f"camera {cam.model or '?'}, ISO {cam.iso}"]
+    for nl in profile.lights:
+        lines.append(f"{nl.name}: {light_pct(nl.light)}; {shutters(profile.exposures.get(nl.name, []))}")
+    if train is not None or profile.test_mean is not None:
+        lines.append(f"target ΔE00 train {_num(train)} / test {_num(profile.test_mean)} "
+                     f"({profile.matrix.method} matrix)")
+    if check is not None:
+        lines += [f"does not match the stand: {r}" for r in check.refusals] + list(check.warnings)
+        if check.ok:
+            lines.append("matches the stand (camera, ISO, aperture, sphere)")
+    return lines
+
+
+def _num(v: Optional[float]) -> str:
+    return "n/a" if v is None else f"{v:.2f}"

@@ -3,11 +3,14 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from typing import Optional
+from typing import Callable, Optional, Sequence
 
-from PySide6.QtCore import QObject, Qt, Signal, Slot
-from PySide6.QtGui import QColor, QFont
-from PySide6.QtWidgets import (QHBoxLayout, QLabel, QMessageBox, QPlainTextEdit, QVBoxLayout, QWidget)
+from PySide6.QtCore import QObject, Qt, QTimer, Signal, Slot
+from PySide6.QtGui import QFont
+from PySide6.QtWidgets import (QHBoxLayout, QLabel, QMessageBox, QPlainTextEdit, QSizePolicy, QVBoxLayout,
+                               QWidget)
+
+from app.gui.de_scale import DeBand, de_bands
 
 log = logging.getLogger(__name__)
 
@@ -110,9 +113,11 @@ def _html(text: str) -> str:
 
 
 class ErrorReporter(QObject):
-    """Shows errors as non-modal dialogs (the window keeps running); remembers them for tests."""
+    """Shows errors as non-modal dialogs (the window keeps running); remembers them for tests. The last error
+    stays in the status bar until the same action succeeds (``clear``) or another error replaces it."""
 
     shown = Signal(str, str)
+    cleared = Signal()
 
     def __init__(self, parent_widget: QWidget):
         super().__init__(parent_widget)
@@ -120,11 +125,13 @@ class ErrorReporter(QObject):
         self.history: list[tuple[str, str]] = []
         self.dialogs: list[QMessageBox] = []
         self.show_dialogs = True
+        self.current: Optional[tuple[str, str]] = None
 
     def report(self, title: str, error: object, level: int = logging.ERROR) -> None:
         message = str(error) or type(error).__name__
         log.log(level, "%s: %s", title, message)
         self.history.append((title, message))
+        self.current = (title, message)
         self.shown.emit(title, message)
         if not self.show_dialogs:
             return
@@ -136,10 +143,104 @@ class ErrorReporter(QObject):
         self.dialogs.append(box)
         box.show()
 
+    def clear(self, title: Optional[str] = None) -> None:
+        """The action ``title`` succeeded (None: any): its error is no longer current."""
+        if self.current is not None and (title is None or self.current[0] == title):
+            self.current = None
+            self.cleared.emit()
+
     def close_all(self) -> None:
         for box in list(self.dialogs):
             box.close()
         self.dialogs.clear()
+
+
+class Asker(QObject):
+    """Questions to the technician (re-shoot or keep, use a calibration that does not match) as non-modal message
+    boxes: ``ask`` returns at once and ``on_answer(choice)`` is called when a button is pressed (closing the box
+    answers ``default``). Tests script the answers (``scripted``); without dialogs the default is taken."""
+
+    asked = Signal(str, str)
+
+    def __init__(self, parent_widget: QWidget):
+        super().__init__(parent_widget)
+        self._parent = parent_widget
+        self.history: list[tuple[str, str]] = []
+        self.scripted: list[str] = []
+        self.show_dialogs = True
+        self.boxes: list[QMessageBox] = []
+
+    def ask(self, title: str, text: str, choices: Sequence[str], on_answer: Callable[[str], None],
+            default: str) -> None:
+        if default not in choices:
+            raise ValueError(f"default answer {default!r} is not one of {list(choices)}")
+        self.history.append((title, text))
+        self.asked.emit(title, text)
+        log.info("asked: %s: %s", title, text)
+        if self.scripted or not self.show_dialogs:
+            answer = self.scripted.pop(0) if self.scripted else default
+            QTimer.singleShot(0, lambda: on_answer(answer))
+            return
+        box = QMessageBox(QMessageBox.Question, title, text, QMessageBox.NoButton, self._parent)
+        buttons = {box.addButton(c, QMessageBox.AcceptRole): c for c in choices}
+        box.setWindowModality(Qt.NonModal)
+        box.setAttribute(Qt.WA_DeleteOnClose)
+
+        def finished(_result: int = 0) -> None:
+            if box in self.boxes:
+                self.boxes.remove(box)
+            on_answer(buttons.get(box.clickedButton(), default))
+        box.finished.connect(finished)
+        self.boxes.append(box)
+        box.show()
+
+
+class PathLabel(QLabel):
+    """A file path on one line, shortened in the middle when the panel is narrow (never wrapped mid-name); the
+    whole path is the tooltip."""
+
+    def __init__(self, text: str = "", parent: Optional[QWidget] = None):
+        super().__init__(parent)
+        self._full = ""
+        self.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Preferred)
+        self.setTextInteractionFlags(Qt.TextSelectableByMouse)
+        self.set_path(text)
+
+    def set_path(self, text: str) -> None:
+        self._full = str(text)
+        self.setToolTip(self._full)
+        self._elide()
+
+    def full_text(self) -> str:
+        return self._full
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt name)
+        super().resizeEvent(event)
+        self._elide()
+
+    def _elide(self) -> None:
+        width = max(self.width(), 80)
+        super().setText(self.fontMetrics().elidedText(self._full, Qt.ElideMiddle, width))
+
+
+class DeLegend(QWidget):
+    """The fixed ΔE00 colour bands (viewmodel.de_bands: traffic lights at the grading thresholds) as a legend."""
+
+    def __init__(self, parent: Optional[QWidget] = None):
+        super().__init__(parent)
+        lay = QHBoxLayout(self)
+        lay.setContentsMargins(0, 0, 0, 0)
+        lay.addWidget(QLabel("ΔE00:"))
+        for band in de_bands():
+            lay.addWidget(_band_chip(band))
+        lay.addStretch(1)
+
+
+def _band_chip(band: DeBand) -> QLabel:
+    chip = QLabel(band.label)
+    chip.setStyleSheet(f"background:{band.colour}; color:{band.text_colour}; border-radius:4px; padding:1px 6px")
+    chip.setToolTip(band.meaning)
+    return chip
 
 
 def plot_widget(title: str = "", bottom: str = "", left: str = "", tooltip: str = ""):
@@ -155,15 +256,6 @@ def plot_widget(title: str = "", bottom: str = "", left: str = "", tooltip: str 
     if tooltip:
         w.setToolTip(tooltip)
     return w
-
-
-def colour_for_de(value: float) -> QColor:
-    """Green below 1, amber to 3, red above (display only; the thresholds come from the results panel)."""
-    if value < 1.0:
-        return QColor("#2e7d32")
-    if value < 3.0:
-        return QColor("#f9a825")
-    return QColor("#c62828")
 
 
 def image_widget(tooltip: str):

@@ -24,11 +24,11 @@ import numpy as np
 
 from app.processing.pipeline import CaptureProcessor, ExposureRef
 from app.sequences.base import ProgressEvent, Sequence as BaseSequence
-from app.sequences.calibration import DarkSeries, FlatSeries, auto_exposure, snap_down
+from app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from app.sequences.capture import SubjectCapture
-from app.sequences.hdr import meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
 from app.workflow.coverage import coverage
+from app.workflow.metering import AutoExposure, HdrMetering
 from app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from app.workflow.profile import (CalibrationProfile, CameraIdentity, ProfileError, ReuseCheck, ReuseLimits,
                                   SphereIdentity, check_reuse, new_profile_id)
@@ -54,6 +54,8 @@ def parsimony_defaults() -> dict:
 @dataclass
 class StandSettings:
     settle_s: float = SafetySettings().settle_s
+    latency_s: Optional[float] = None         # the camera's latency allowance; None: what the camera reports
+    max_on_s: float = SafetySettings().max_on_s   # light on per capture at most (thesis 4.3.2: 10 s)
     dark_frames: int = 10                     # thesis 8.2.1
     flat_frames: int = 3
     hdr_exposures: Optional[int] = None       # most exposures per light; None: resources/parsimony.json
@@ -90,7 +92,9 @@ class CopyStand:
         self.camera, self.sphere, self.session, self.lab = camera, sphere, session, lab
         self.settings = settings or StandSettings()
         self.progress, self.cancel, self.prompt, self.reshoot, self.on_event = progress, cancel, prompt, reshoot, on_event
-        self.shooter = Shooter(camera, sphere, session, stand=stand, safety=SafetySettings(settle_s=self.settings.settle_s))
+        s = self.settings
+        self.shooter = Shooter(camera, sphere, session, stand=stand,
+                               safety=SafetySettings(settle_s=s.settle_s, latency_s=s.latency_s, max_on_s=s.max_on_s))
 
     # ------------------------------------------------------------------ running sequences
     def run_sequence(self, seq: BaseSequence, lo: float = 0.0, hi: float = 1.0) -> list[ProgressEvent]:
@@ -140,29 +144,39 @@ class CopyStand:
         return int(self.settings.hdr_exposures or parsimony_defaults()["hdr_exposures"])
 
     def auto_expose(self, lights: Sequence[NamedLight]) -> dict[str, float]:
-        base = {}
-        try:
-            for i, nl in enumerate(lights):
-                self._check_cancel()
-                report(self.progress, 0.1 * i / len(lights), f"auto-exposure: metering {nl.name} on the open gate")
-                base[nl.name], _ = auto_exposure(self.shooter, nl)
-        finally:
-            self.shooter.lights_off()
-        return base
+        """Per light, the open-gate exposure (app.workflow.metering.AutoExposure: cancellable between lights)."""
+        seq = AutoExposure(self.shooter, lights)
+        self.run_sequence(seq, 0.0, 0.1)
+        return dict(seq.exposures)
+
+    def calibration_sequences(self, lights: Sequence[NamedLight], plan: dict[str, list[float]],
+                              base: dict[str, float]) -> list[tuple[BaseSequence, float, float]]:
+        """The frames of a calibration, in order, with the share of the progress each fills: darks at every
+        planned exposure (thesis 8.2.1), flats per light at its planned exposures (8.2.2), the training and test
+        targets at the base exposures."""
+        shooter, s = self.shooter, self.settings
+        out: list[tuple[BaseSequence, float, float]] = [
+            (DarkSeries(shooter, sorted({t for ts in plan.values() for t in ts}), s.dark_frames), .1, .35),
+            (FlatSeries(shooter, lights, plan, s.flat_frames), .35, .5)]
+        for i, name in enumerate(("train", "test")):
+            out.append((SubjectCapture(shooter, lights, {n: [t] for n, t in base.items()}, Subject.target(name)),
+                        .5 + .05 * i, .55 + .05 * i))
+        return out
 
     def calibrate(self, preset: Any, *, hdr_auto: bool = False, grids: Optional[dict[str, Any]] = None,
                   report_dir: Optional[Path] = None) -> CalibrationProfile:
         """Auto-exposure, darks and flats at every planned exposure, training and test targets, characterisation:
         the calibration profile, saved in ``<session>/calibration/``."""
+        base = self.auto_expose(lights_of(preset))
+        return self.calibrate_at(preset, base, hdr_auto=hdr_auto, grids=grids, report_dir=report_dir)
+
+    def calibrate_at(self, preset: Any, base: dict[str, float], *, hdr_auto: bool = False,
+                     grids: Optional[dict[str, Any]] = None, report_dir: Optional[Path] = None) -> CalibrationProfile:
+        """:meth:`calibrate` from known open-gate exposures ``base`` (light name -> seconds)."""
         lights = lights_of(preset)
-        base = self.auto_expose(lights)
         plan = self.exposure_plan(base, hdr_auto)
-        shooter, s = self.shooter, self.settings
-        self.run_sequence(DarkSeries(shooter, sorted({t for ts in plan.values() for t in ts}), s.dark_frames), .1, .35)
-        self.run_sequence(FlatSeries(shooter, lights, plan, s.flat_frames), .35, .5)
-        for i, name in enumerate(("train", "test")):
-            self.run_sequence(SubjectCapture(shooter, lights, {n: [t] for n, t in base.items()},
-                                             Subject.target(name)), .5 + .05 * i, .55 + .05 * i)
+        for seq, lo, hi in self.calibration_sequences(lights, plan, base):
+            self.run_sequence(seq, lo, hi)
         specs = {name: target_spec(preset.mode, Subject.target(name), (grids or {}).get(name), lab=self.lab)
                  for name in ("train", "test")}
         optimise = self.settings.optimise_matrix
@@ -224,9 +238,7 @@ class CopyStand:
 
     def _take(self, original: Original, reshoot: Optional[bool]) -> tuple[int, int]:
         """(take to record, frames already in the session for this original)."""
-        subject = original.subject
-        takes = [split_take(e.step_id or "")[1] for e in self.session.entries(include_superseded=True)
-                 if e.role == Role.ORIGINAL.value and subject_of(e) == subject]
+        takes = original_takes(self.session, original)
         if not takes:
             return 1, 0
         again = reshoot if reshoot is not None else (self.reshoot(original, len(takes)) if self.reshoot else False)
@@ -238,9 +250,10 @@ class CopyStand:
         n = self.settings.meter_tiles
         rows, cols = np.linspace(0, h, n + 1).astype(int), np.linspace(0, w, n + 1).astype(int)
         tiles = [(rows[i], rows[i + 1], cols[j], cols[j + 1]) for i in range(n) for j in range(n)]
-        plans = meter_and_plan(self.shooter, profile.lights, profile.base_exposures, original.subject, tiles,
-                               progress=lambda f, m: report(self.progress, 0.1 * f, m), cancel=self.cancel, take=take,
-                               max_frames=self.hdr_exposures())
+        seq = HdrMetering(self.shooter, profile.lights, profile.base_exposures, original.subject, tiles, take=take,
+                          max_frames=self.hdr_exposures())
+        self.run_sequence(seq, 0.0, 0.1)
+        plans = seq.plans
         exposures, warnings = {}, []
         for nl in profile.lights:
             wanted = len(plans[nl.name].exposures)
@@ -291,6 +304,14 @@ class CopyStand:
         originals[original.identifier] = {**original.to_dict(), "take": take, "light_dose": total.to_dict(),
                                           "sidecar": str(delivery.sidecar), "calibration": str(profile.path or "")}
         self.session.update_settings(originals=originals)
+
+
+def original_takes(session: Any, original: Original) -> list[int]:
+    """The take of every frame of ``original`` already in ``session`` (empty: never shot). A front end asks
+    "already in the session: re-shoot / keep" when it is not empty."""
+    subject = original.subject
+    return [split_take(e.step_id or "")[1] for e in session.entries(include_superseded=True)
+            if e.role == Role.ORIGINAL.value and subject_of(e) == subject]
 
 
 def original_dose(session: Any, subject: Subject) -> LightDoseRecord:

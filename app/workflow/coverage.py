@@ -66,3 +66,16 @@ def coverage(session, plan: Mapping[str, Sequence[float]], *, dark_frames: int =
         if not _has(have, t):
             out.flats_missing.append((name, t))
     return out
+
+
+def plan_coverage(have: Mapping[str, Sequence[float]], needed: Mapping[str, Sequence[float]]) -> Coverage:
+    """Coverage of ``needed`` (light -> exposures) by a calibration made for ``have``: a calibration profile holds
+    master darks at every exposure of its plan and a flat-field white per light for that light's exposures, so
+    an HDR plan asking for longer exposures than it was made for leaves it incomplete."""
+    dark_have = sorted({float(t) for ts in have.values() for t in ts})
+    out = Coverage()
+    out.dark_times = sorted({float(t) for ts in needed.values() for t in ts})
+    out.darks_missing = [t for t in out.dark_times if not _has(dark_have, t)]
+    out.flats_needed = [(n, float(t)) for n, ts in needed.items() for t in sorted(ts)]
+    out.flats_missing = [(n, t) for n, t in out.flats_needed if not _has([float(x) for x in have.get(n, [])], t)]
+    return out

@@ -12,7 +12,8 @@ from typing import Any, Mapping, Optional, Sequence
 from app.sequences.base import Sequence as BaseSequence
 from app.sequences.calibration import DarkSeries, FlatSeries
 from app.sequences.capture import SubjectCapture
-from app.workflow.vocabulary import NamedLight, Role, SequenceKind, Subject, latest_takes, light_of, role_of
+from app.workflow.vocabulary import (NamedLight, Role, SequenceKind, Subject, latest_takes, light_of, role_of,
+                                     split_take, step_id)
 
 log = logging.getLogger(__name__)
 
@@ -45,3 +46,29 @@ def build_sequence(kind: SequenceKind, shooter: Any, lights: Sequence[NamedLight
     if subject is None:
         raise ValueError(f"a {kind.value} sequence needs a subject (a target or an original)")
     return SubjectCapture(shooter, lights, {k: list(v) for k, v in exposures.items()}, subject, take=take)
+
+
+def planned_steps(seq: BaseSequence) -> list[str]:
+    """The manifest step id of every planned frame of a dark series, flat series or subject capture, in plan
+    order (what resume and re-shoot key on); an empty list for other sequences."""
+    if isinstance(seq, SubjectCapture):
+        return seq.steps()
+    if isinstance(seq, DarkSeries):
+        return [step_id(Role.DARK, exposure_s=t, frame=i) for t in seq.exposures for i in range(seq.frames)]
+    if isinstance(seq, FlatSeries):
+        return [step_id(Role.FLAT, light=nl.name, exposure_s=t, frame=i) for nl in seq.lights
+                for t in seq.exposures.get(nl.name, []) for i in range(seq.frames)]
+    return []
+
+
+def steps_done(session: Any, steps: Sequence[str]) -> list[bool]:
+    """Per step: is it already in the session (kept, not shot again, unless re-shot as a new take)?"""
+    return [session.has_step(s) for s in steps]
+
+
+def next_take(session: Any, steps: Sequence[str]) -> int:
+    """The take a re-shoot of ``steps`` records: one more than the highest take any of them has."""
+    bases = {split_take(s)[0] for s in steps}
+    takes = [split_take(e.step_id or "")[1] for e in session.entries(include_superseded=True)
+             if split_take(e.step_id or "")[0] in bases]
+    return max(takes, default=0) + 1

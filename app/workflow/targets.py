@@ -17,7 +17,7 @@ import numpy as np
 from app.processing.patches import PatchGrid
 from app.processing.report import layout_for
 from app.workflow.vocabulary import Subject, SubjectKind
-from simulation.colorimetry import tristimulus, white_point
+from simulation.colorimetry import white_point
 
 log = logging.getLogger(__name__)
 
@@ -57,23 +57,29 @@ def nd_transmittance(nd_mask: Optional[np.ndarray], transmittance: float, n: int
     return np.where(np.asarray(nd_mask, bool), float(transmittance), 1.0)
 
 
-def reference_xyz(mode: str, name: str, nd_scale: Optional[np.ndarray] = None) -> tuple[np.ndarray, list[str]]:
+def reference_xyz(mode: str, name: str, nd_scale: Optional[np.ndarray] = None,
+                  method: Optional[str] = None) -> tuple[np.ndarray, list[str]]:
     """Reference XYZ (D65, CIE 1931 2 deg, Y of a perfect white = 100) of a packaged target and its patch names;
-    ``nd_scale`` (per patch) multiplies the spectra (the ND filter's transmittance where it covers a patch)."""
-    from simulation.datasets import default_setup
+    ``nd_scale`` (per patch) multiplies the spectra (the ND filter's transmittance where it covers a patch).
+    ``method``: simulation.datasets.target_xyz's integration ('eq-4.2', the default, or 'astm-e308')."""
+    from simulation.datasets import default_setup, target_xyz
 
     setup = default_setup(mode)
     target = getattr(setup, name)
-    spectra = target.spectra if nd_scale is None else target.spectra * np.asarray(nd_scale)[:, None]
-    return tristimulus(spectra, setup.illuminant, setup.cmfs), list(target.patch_names)
+    xyz, _white = target_xyz(setup, target, method)
+    if nd_scale is not None:                         # XYZ is linear in the spectrum
+        xyz = xyz * np.asarray(nd_scale, dtype=float)[:, None]
+    return xyz, list(target.patch_names)
 
 
-def reference_white(mode: str = "reflective") -> np.ndarray:
-    """The Lab reference white on the targets' scale: D65, Y = 100."""
-    from simulation.datasets import default_setup
+def reference_white(mode: str = "reflective", method: Optional[str] = None) -> np.ndarray:
+    """The Lab reference white on the targets' scale: D65, Y = 100 (integrated like ``method``)."""
+    from simulation.datasets import default_setup, target_xyz
 
     setup = default_setup(mode)
-    return white_point(setup.illuminant, setup.cmfs)
+    if method is None:
+        return white_point(setup.illuminant, setup.cmfs)
+    return np.asarray(target_xyz(setup, setup.test, method)[1], dtype=float)
 
 
 def scene_grid(scene: Any, fraction: float = 0.5) -> PatchGrid:
@@ -84,29 +90,30 @@ def scene_grid(scene: Any, fraction: float = 0.5) -> PatchGrid:
 
 
 def virtual_target_spec(lab: Any, subject: Subject, *, simulated: Optional[np.ndarray] = None,
-                        grid: Optional[PatchGrid] = None, label: str = "") -> TargetSpec:
+                        grid: Optional[PatchGrid] = None, label: str = "", method: Optional[str] = None) -> TargetSpec:
     """A TargetSpec for a target captured in the virtual lab: its scene gives the grid and the ND patches."""
     if subject.kind is not SubjectKind.TARGET:
         raise ValueError(f"{subject.label}: not a colour target")
     scene = lab.scene_for(subject.name, nd=subject.nd)
     nd_mask = scene.nd_patches()
     xyz, names = reference_xyz(lab.mode, subject.name, nd_transmittance(nd_mask, scene.nd_transmittance,
-                                                                        scene.n_patches))
+                                                                        scene.n_patches), method)
     target = packaged_target(lab.mode, subject.name)
     return TargetSpec(subject, xyz, names, grid or scene_grid(scene), tuple(scene.layout), simulated,
                       label or f"{subject.name} ({target.name})", nd_mask)
 
 
 def target_spec(mode: str, subject: Subject, grid: Optional[PatchGrid], *, lab: Any = None,
-                label: str = "") -> TargetSpec:
+                label: str = "", method: Optional[str] = None) -> TargetSpec:
     """The TargetSpec the GUI and the CLI use: the virtual lab's scene when there is one (ND included), else the
-    packaged target of ``mode`` with the grid placed by hand (None: CC24 auto-detection)."""
+    packaged target of ``mode`` with the grid placed by hand (None: CC24 auto-detection). ``method``: how the
+    reference XYZ is integrated (simulation.datasets.target_xyz: 'eq-4.2' or 'astm-e308')."""
     if lab is not None:
-        return virtual_target_spec(lab, subject, grid=grid, label=label)
+        return virtual_target_spec(lab, subject, grid=grid, label=label, method=method)
     if subject.nd:
         raise ValueError(f"{subject.label}: the ND filter's coverage is known only in the virtual lab")
     target = packaged_target(mode, subject.name)
-    xyz, names = reference_xyz(mode, subject.name)
+    xyz, names = reference_xyz(mode, subject.name, method=method)
     if grid is None and len(names) != 24:
         raise ValueError(f"{subject.label}: place the patch grid on it first ({len(names)} patches)")
     if grid is not None and grid.n_patches < len(names):

@@ -22,12 +22,12 @@ def test_demo_and_gui_report_the_same_numbers(qtbot, make_window, tmp_path):
     qtbot.waitUntil(lambda: w.lab.session is not None, timeout=LONG)
     res = w.results
     for cond, preset in (("dual_rgb", "dual-RGB reflective"), ("dual_rgb_pso", "dual-RGB-PSO reflective")):
-        qtbot.waitUntil(lambda: res.lights.findText(preset) >= 0 and res.train_subject.findText("target:train") >= 0,
+        qtbot.waitUntil(lambda: res.lights.findText(preset) >= 0 and res.train_subject.findData("target:train") >= 0,
                         timeout=LONG)
         res.optimise.setChecked(False)
         res.lights.setCurrentText(preset)
-        res.train_subject.setCurrentText("target:train")
-        res.test_subject.setCurrentText("target:test")
+        res.select(res.train_subject, "target:train")
+        res.select(res.test_subject, "target:test")
         res.result = None
         qtbot.mouseClick(res.process_button, Qt.LeftButton)
         qtbot.waitUntil(lambda: res.result is not None or "failed" in res.status.text(), timeout=LONG)

@@ -7,14 +7,14 @@ from pathlib import Path
 from typing import Optional
 
 import numpy as np
-import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QGroupBox, QLabel, QPushButton, QSplitter,
                                QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
-from app.gui.viewmodel import LINEAR_LIMIT_DN, RawView, preview_histogram, raw_view
-from app.gui.widgets import image_widget, plot_widget
+from app.gui.frame_preview import WARNING_STYLE, HistogramPlot
+from app.gui.viewmodel import RawView, preview_histogram, raw_view
+from app.gui.widgets import PathLabel, image_widget
 from app.session import atomic_write
 from drivers.camera.base import CameraSettings
 from app.workflow.vocabulary import format_exposure as format_shutter
@@ -24,7 +24,8 @@ log = logging.getLogger(__name__)
 COMMON_ISO = (50, 64, 80, 100, 125, 160, 200, 250, 320, 400, 500, 640, 800, 1000, 1250, 1600, 3200, 6400)
 COMMON_APERTURES = (2.8, 4.0, 5.6, 8.0, 11.0, 16.0, 22.0)
 RAW_QUALITY = "NEF (Raw)"
-CHANNEL_PENS = {"R": "#d32f2f", "G1": "#388e3c", "G2": "#81c784", "G": "#388e3c", "B": "#1976d2"}
+ISO_NOTE = ("ISO 50 is the thesis' choice; on a D610 it is the extended 'Lo 1' setting, which gives up highlight "
+            "headroom. Base ISO 100 keeps the full raw range. Calibrate and capture at the same ISO.")
 
 
 class CameraPanel(QWidget):
@@ -37,13 +38,34 @@ class CameraPanel(QWidget):
         self.last_view: Optional[RawView] = None
         self._preview_pending = False
         self._capturing = False
+        self._sequence_running = False
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.addWidget(self._settings_box())
+        ll.addWidget(self._capture_box())
+        ll.addStretch(1)
+        split = QSplitter(Qt.Horizontal)
+        split.addWidget(left)
+        split.addWidget(self._picture())
+        split.setStretchFactor(1, 1)
+        QVBoxLayout(self).addWidget(split)
+        self._live_timer = QTimer(self)
+        self._live_timer.setInterval(250)
+        self._live_timer.timeout.connect(self._request_preview)
+        self.lab.cameraChanged.connect(self._camera_changed)
+        ctx.workspace.runningChanged.connect(lambda name: self._set_sequence_running(bool(name)))
+        self._camera_changed()
 
-        # ---- settings ----
-        sbox = QGroupBox("Settings")
-        sg = QGridLayout(sbox)
+    # ------------------------------------------------------------------ builders
+    def _settings_box(self) -> QGroupBox:
+        box = QGroupBox("Settings")
+        sg = QGridLayout(box)
         self.iso = QComboBox()
         self.iso.setEditable(True)
-        self.iso.setToolTip("Sensor sensitivity. Keep it at the base ISO (50 or 100) for the least noise.")
+        self.iso.setToolTip(ISO_NOTE)
+        self.iso_note = QLabel(ISO_NOTE)
+        self.iso_note.setWordWrap(True)
+        self.iso_note.setStyleSheet("color:#555")
         self.shutter = QComboBox()
         self.shutter.setToolTip("Exposure time. Above 30 s the camera uses bulb (timed by this program).")
         self.aperture = QComboBox()
@@ -57,61 +79,53 @@ class CameraPanel(QWidget):
         self.read_button.clicked.connect(self.read_settings)
         self.apply_button = QPushButton("Apply to camera")
         self.apply_button.setToolTip("Send ISO, shutter, aperture and RAW to the camera (it picks the nearest "
-                                     "values it offers).")
+                                     "values it offers); the calibration is checked against them again.")
         self.apply_button.clicked.connect(self.apply_settings)
-        for r, (label, w) in enumerate((("ISO", self.iso), ("Shutter", self.shutter), ("Aperture f/", self.aperture))):
+        sg.addWidget(QLabel("ISO"), 0, 0)
+        sg.addWidget(self.iso, 0, 1)
+        sg.addWidget(self.iso_note, 1, 0, 1, 2)
+        for r, (label, w) in enumerate((("Shutter", self.shutter), ("Aperture f/", self.aperture)), start=2):
             sg.addWidget(QLabel(label), r, 0)
             sg.addWidget(w, r, 1)
-        sg.addWidget(self.raw, 3, 0, 1, 2)
-        sg.addWidget(self.read_button, 4, 0)
-        sg.addWidget(self.apply_button, 4, 1)
+        sg.addWidget(self.raw, 4, 0, 1, 2)
+        sg.addWidget(self.read_button, 5, 0)
+        sg.addWidget(self.apply_button, 5, 1)
         self.settings_label = QLabel("camera not connected")
         self.settings_label.setWordWrap(True)
-        sg.addWidget(self.settings_label, 5, 0, 1, 2)
+        sg.addWidget(self.settings_label, 6, 0, 1, 2)
         for c in COMMON_ISO:
             self.iso.addItem(str(c))
         for a in COMMON_APERTURES:
             self.aperture.addItem(f"{a:g}")
+        return box
 
-        # ---- capture ----
-        cbox = QGroupBox("Capture")
-        cl = QVBoxLayout(cbox)
+    def _capture_box(self) -> QGroupBox:
+        box = QGroupBox("Capture")
+        cl = QVBoxLayout(box)
         self.capture_button = QPushButton("Take a picture  (Ctrl+Enter)")
         self.capture_button.setToolTip("One raw exposure with these settings, saved in the test-shots folder; "
-                                       "its histogram shows clipping and the linear limit.")
+                                       "its histogram shows clipping and the linear limit. A dark frame says so.")
         self.capture_button.clicked.connect(self.capture)
         self.live_button = QPushButton("Live view")
         self.live_button.setCheckable(True)
         self.live_button.setToolTip("Show the camera's live picture (a few frames a second); with the virtual camera "
                                     "the histogram follows it (estimated from the preview).")
         self.live_button.toggled.connect(self.set_live_view)
-        self.capture_label = QLabel("")
-        self.capture_label.setWordWrap(True)
-        cl.addWidget(self.capture_button)
-        cl.addWidget(self.live_button)
-        cl.addWidget(self.capture_label)
+        self.capture_label = PathLabel("")
+        self.warning_label = QLabel("")
+        self.warning_label.setWordWrap(True)
+        self.warning_label.setStyleSheet(WARNING_STYLE)
+        for w in (self.capture_button, self.live_button, self.capture_label, self.warning_label):
+            cl.addWidget(w)
+        return box
 
-        left = QWidget()
-        ll = QVBoxLayout(left)
-        ll.addWidget(sbox)
-        ll.addWidget(cbox)
-        ll.addStretch(1)
-
-        # ---- picture + histogram ----
+    def _picture(self) -> QSplitter:
         self.view_widget, self.image, self.viewbox = image_widget(
             "Live view, or the last picture taken (raw, shown brightened for the screen).")
         self.view_title = QLabel("no picture yet")
-        self.hist = plot_widget("", "raw value (DN)", "pixels (log)")
-        self.hist.setLogMode(y=True)
-        self.hist.setToolTip("How many pixels have each raw value. Keep everything left of the orange line "
-                             "(the sensor stops being linear there); at the red line pixels are clipped.")
-        self.linear_line = pg.InfiniteLine(LINEAR_LIMIT_DN, angle=90, pen=pg.mkPen("#ef6c00", width=2),
-                                           label="linear limit", labelOpts={"position": 0.9, "color": "#ef6c00"})
-        self.white_line = pg.InfiniteLine(15520, angle=90, pen=pg.mkPen("#c62828", width=2),
-                                          label="clipping", labelOpts={"position": 0.75, "color": "#c62828"})
-        self.hist.addItem(self.linear_line)
-        self.hist.addItem(self.white_line)
-        self.hist_curves: dict[str, pg.PlotDataItem] = {}
+        self.histogram = HistogramPlot()
+        self.hist = self.histogram.widget
+        self.hist_curves = self.histogram.curves
         self.hist_label = QLabel("")
         self.hist_label.setWordWrap(True)
         right = QSplitter(Qt.Vertical)
@@ -129,20 +143,7 @@ class CameraPanel(QWidget):
         right.addWidget(bottom)
         right.setStretchFactor(0, 3)
         right.setStretchFactor(1, 2)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(right)
-        split.setStretchFactor(1, 1)
-        QVBoxLayout(self).addWidget(split)
-
-        self._live_timer = QTimer(self)
-        self._live_timer.setInterval(250)
-        self._live_timer.timeout.connect(self._request_preview)
-        self.lab.cameraChanged.connect(self._camera_changed)
-        ctx.bus.sequenceStarted.connect(lambda _name: self._set_sequence_running(True))
-        ctx.bus.sequenceFinished.connect(lambda _name, _how: self._set_sequence_running(False))
-        self._sequence_running = False
-        self._camera_changed()
+        return right
 
     # ------------------------------------------------------------------ state
     def _enable(self) -> None:
@@ -218,8 +219,9 @@ class CameraPanel(QWidget):
         if cam is None:
             return
         wanted = self.wanted_settings()
-        self.lab.device_call(lambda: (cam.apply(wanted), cam.shutter_speeds(), []), "Apply the camera settings",
-                             on_result=self._show_settings)
+        self.lab.device_call(lambda: (cam.apply(wanted), cam.settings(), cam.shutter_speeds(), [])[1:],
+                             "Apply the camera settings",
+                             on_result=lambda r: (self._show_settings(r), self.ctx.bus.cameraSettingsChanged.emit()))
 
     # ------------------------------------------------------------------ capture
     def capture_shortcut(self) -> None:
@@ -235,7 +237,8 @@ class CameraPanel(QWidget):
         folder = self.ctx.captures_dir / "test-shots"
         self._capturing = True
         self._enable()
-        self.capture_label.setText("capturing …")
+        self.capture_label.set_path("capturing …")
+        self.warning_label.setText("")
 
         def work() -> RawView:
             cam.apply(wanted)
@@ -255,7 +258,7 @@ class CameraPanel(QWidget):
             self._enable()
 
         self.lab.device_call(work, "Take a picture", on_result=self.show_raw, on_finished=finished,
-                             on_error=lambda exc: self.capture_label.setText(f"failed: {exc}"))
+                             on_error=lambda exc: self.capture_label.set_path(f"failed: {exc}"))
 
     def show_raw(self, view: RawView) -> None:
         self.last_view = view
@@ -263,22 +266,13 @@ class CameraPanel(QWidget):
         self.viewbox.autoRange()
         exp = format_shutter(view.exposure_s) if view.exposure_s else "?"
         self.view_title.setText(f"{Path(view.path).name}: {view.camera}, {exp}, ISO {view.iso or '?'}")
-        self.capture_label.setText(f"saved {view.path}")
+        self.capture_label.set_path(f"saved {view.path}")
         self.show_histogram(view.histogram, f"{Path(view.path).name} (raw)")
+        light_on = self.lab.last_status.get("light_on") if self.lab.last_status else None
+        self.warning_label.setText(view.check.warning(light_on) if view.check is not None else "")
 
     def show_histogram(self, h, source: str) -> None:
-        centres = 0.5 * (h.edges[1:] + h.edges[:-1])
-        for name in set(self.hist_curves) - set(h.counts):
-            self.hist.removeItem(self.hist_curves.pop(name))
-        for name, counts in h.counts.items():
-            y = np.maximum(counts, 0.5)       # log axis: empty bins drawn at 0.5
-            if name not in self.hist_curves:
-                self.hist_curves[name] = self.hist.plot(centres, y, pen=pg.mkPen(CHANNEL_PENS.get(name, "k")),
-                                                        name=name)
-            else:
-                self.hist_curves[name].setData(centres, y)
-        self.white_line.setValue(h.white_level)
-        self.linear_line.setValue(h.linear_limit)
+        self.histogram.show(h)
         self.hist_label.setText(f"{source}: {h.summary()}")
         self.hist_label.setStyleSheet("color:#c62828" if h.fraction_clipped > 0 else
                                       "color:#b26a00" if h.fraction_nonlinear > 0 else "")

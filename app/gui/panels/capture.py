@@ -1,5 +1,7 @@
-"""Calibrate & capture: the session folder, the lights (a preset) and their exposures, then the sequences:
-dark series, open-gate flats, dual-RGB capture of a target, HDR capture (metering frame -> bracket plan)."""
+"""Calibrate & capture: the session folder, the lights (a preset) and their exposures, the calibration (made in one
+run, saved, loaded, checked), and the single sequences for experts: auto-exposure, dark series, open-gate flats,
+dual-RGB capture of a target, HDR metering and capture - every one planned, paused between frames, cancelled with
+the LEDs off, its frames ticked in the plan. While anything runs, what it depends on is locked."""
 from __future__ import annotations
 
 import datetime as _dt
@@ -9,18 +11,23 @@ from typing import Optional
 
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFileDialog, QFormLayout, QGroupBox,
-                               QHBoxLayout, QLabel, QPushButton, QSpinBox, QSplitter, QTableWidget,
-                               QTableWidgetItem, QVBoxLayout, QWidget)
+                               QHBoxLayout, QLabel, QPushButton, QScrollArea, QSpinBox, QSplitter, QTableWidget,
+                               QTableWidgetItem, QTabWidget, QVBoxLayout, QWidget)
 
+from app.gui.calibration_box import CalibrationBox
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
+from app.gui.uniformity_view import UniformityView
+from app.gui.units import light_pct, parse_exposure, shutter
+from app.gui.widgets import PathLabel
 from app.sequences.base import Sequence
-from app.sequences.calibration import auto_exposure
-from app.sequences.hdr import HdrPlan, meter_and_plan
+from app.sequences.capture import SubjectCapture
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession
-from app.workflow.plans import build_sequence, calibration_exposures
-from app.workflow.vocabulary import NamedLight, SequenceKind, Subject, format_exposure as format_shutter, lights_of
+from app.workflow.copystand import StandSettings
+from app.workflow.metering import AutoExposure, HdrMetering
+from app.workflow.plans import build_sequence, next_take, planned_steps, steps_done
+from app.workflow.vocabulary import NamedLight, SequenceKind, Subject, lights_of
 from simulation.presets import Preset, PresetError, load_preset, packaged_presets
 
 log = logging.getLogger(__name__)
@@ -29,6 +36,7 @@ SEQUENCE_KINDS = {"Dark series": SequenceKind.DARKS, "Open-gate flats": Sequence
                   "Dual-RGB capture": SequenceKind.TARGET, "HDR capture": SequenceKind.HDR_TARGET}
 KINDS = tuple(SEQUENCE_KINDS)
 TARGETS = (("training target", "train"), ("test target (CC24)", "test"))
+RESHOOT, KEEP = "Re-shoot", "Keep"
 
 
 class CapturePanel(QWidget):
@@ -36,64 +44,98 @@ class CapturePanel(QWidget):
 
     def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
         super().__init__(parent)
-        self.ctx = ctx
-        self.lab = ctx.lab
+        self.ctx, self.lab, self.ws = ctx, ctx.lab, ctx.workspace
         self.presets: list[tuple[Path, Preset]] = []
         self.lights: list[NamedLight] = []
-        self.hdr_plans: dict[str, HdrPlan] = {}
+        self.hdr_plans: dict = {}
         self.hdr_key: tuple[str, bool] = ("", False)
-        self.hdr_brackets: dict[str, set[float]] = {}     # every HDR exposure planned in this session, per light
+        self._last_session = None
+        self.view = SequenceView(ctx)
+        self.view.start_button.clicked.connect(self.start)
+        self.view.finished.connect(self._finished)
+        self.calibration = CalibrationBox(ctx, self.view, self.stand_settings, self.plan_shooter)
+        boxes = (self._session_box(), self._lights_box(), self.calibration, self._sequence_box())
+        self._layout(boxes)
+        self._connect()
+        self._kind_changed()
+        self.load_presets()
+        self._session_changed()
+        self._update_enabled()
 
-        # ---- session ----
-        sbox = QGroupBox("Session (every frame is saved here before the next one)")
-        sl = QHBoxLayout(sbox)
-        self.session_label = QLabel("no session")
-        self.session_label.setWordWrap(True)
+    # ------------------------------------------------------------------ builders
+    def _session_box(self) -> QGroupBox:
+        box = QGroupBox("Session (every frame is saved here before the next one)")
+        lay = QHBoxLayout(box)
+        self.session_label = PathLabel("no session")
         self.new_button = QPushButton("New session")
         self.new_button.setToolTip("Make a new session folder in the captures folder.")
         self.new_button.clicked.connect(lambda: self.new_session())
         self.open_button = QPushButton("Open…")
-        self.open_button.setToolTip("Continue an earlier session: frames already taken are not taken again.")
+        self.open_button.setToolTip("Continue an earlier session: frames already taken are not taken again; "
+                                    "missing or damaged frames are set aside (damaged/) and shot again.")
         self.open_button.clicked.connect(self._ask_open)
-        sl.addWidget(self.session_label, 1)
-        sl.addWidget(self.new_button)
-        sl.addWidget(self.open_button)
+        lay.addWidget(self.session_label, 1)
+        lay.addWidget(self.new_button)
+        lay.addWidget(self.open_button)
+        return box
 
-        # ---- lights ----
-        lbox = QGroupBox("Lights")
-        ll = QVBoxLayout(lbox)
+    def _lights_box(self) -> QGroupBox:
+        box = QGroupBox("Lights")
+        lay = QVBoxLayout(box)
         self.preset_combo = QComboBox()
         self.preset_combo.setToolTip("The preset whose lights this session uses (one preset per session).")
         self.preset_combo.currentIndexChanged.connect(self._preset_chosen)
         self.light_table = QTableWidget(0, 3)
-        self.light_table.setHorizontalHeaderLabels(["light", "LEDs @ levels", "exposure (s)"])
-        self.light_table.setToolTip("Exposure per light: set by auto-exposure on the open gate, or type one.")
+        self.light_table.setHorizontalHeaderLabels(["light", "LED levels", "exposure"])
+        self.light_table.setToolTip("Exposure per light (e.g. 1/80 or 0.5): set by auto-exposure on the open gate, "
+                                    "or type one.")
         self.light_table.verticalHeader().hide()
         self.light_table.horizontalHeader().setStretchLastSection(True)
-        self.light_table.setMaximumHeight(120)
+        self.light_table.setMaximumHeight(110)
+        self.light_table.setWordWrap(True)
+        self.light_table.itemChanged.connect(lambda _item: self._exposures_edited())
         self.auto_button = QPushButton("Auto-exposure")
         self.auto_button.setToolTip("Meter the open gate under each light and set the exposure that puts the "
-                                    "brightest channel at 80 % of the linear limit.")
+                                    "brightest channel at 80 % of the linear limit (a sequence: pause, cancel).")
         self.auto_button.clicked.connect(self.auto_expose)
+        lay.addWidget(self.preset_combo)
+        lay.addWidget(self.light_table)
+        lay.addWidget(self.auto_button)
+        lay.addLayout(self._safety_form())
+        return box
+
+    def _safety_form(self) -> QFormLayout:
+        form = QFormLayout()
         self.settle = QDoubleSpinBox()
         self.settle.setRange(0.0, 5.0)
         self.settle.setDecimals(2)
         self.settle.setSingleStep(0.05)
         self.settle.setSuffix(" s")
-        self.settle.setValue(ctx.get("capture/settle_s", SafetySettings().settle_s, float))
+        self.settle.setValue(self.ctx.get("capture/settle_s", SafetySettings().settle_s, float))
         self.settle.setToolTip("Wait after switching the light on before the shutter opens.")
-        self.settle.valueChanged.connect(lambda v: (ctx.set("capture/settle_s", v), self.update_plan()))
-        row = QHBoxLayout()
-        row.addWidget(self.auto_button)
-        row.addWidget(QLabel("settle"))
-        row.addWidget(self.settle)
-        ll.addWidget(self.preset_combo)
-        ll.addWidget(self.light_table)
-        ll.addLayout(row)
+        self.settle.valueChanged.connect(lambda v: (self.ctx.set("capture/settle_s", v), self.update_plan()))
+        self.latency = QDoubleSpinBox()
+        self.latency.setRange(0.0, 5.0)
+        self.latency.setDecimals(2)
+        self.latency.setSingleStep(0.05)
+        self.latency.setSuffix(" s")
+        self.latency.setSpecialValueText("the camera's")
+        self.latency.setValue(self.ctx.get("capture/latency_s", 0.0, float))
+        self.latency.setToolTip("Time the camera needs beyond the exposure (trigger, shutter lag, reporting the "
+                                "shutter closed), kept lit. 'the camera's': what the camera reports (measure a "
+                                "real body: python -m drivers.camera.gphoto_latency).")
+        self.latency.valueChanged.connect(lambda v: (self.ctx.set("capture/latency_s", v), self.update_plan()))
+        self.limit_label = QLabel(f"the light is on at most {SafetySettings().max_on_s:g}\u00a0s per frame "
+                                  "(settle + exposure + camera latency; LEDs drift after 10\u00a0s, thesis 4.3.2)")
+        self.limit_label.setWordWrap(True)
+        form.addRow("Settle", self.settle)
+        form.addRow("Camera latency allowance", self.latency)
+        form.addRow(self.limit_label)
+        return form
 
-        # ---- sequence choice ----
-        qbox = QGroupBox("Sequence")
-        qf = QFormLayout(qbox)
+    def _sequence_box(self) -> QGroupBox:
+        box = QGroupBox("Single steps (the Calibrate run does them all)")
+        form = QFormLayout(box)
         self.kind = QComboBox()
         self.kind.addItems(KINDS)
         self.kind.setToolTip("Darks (lens cap) and flats (open gate) at every exposure the captures use, then "
@@ -109,57 +151,81 @@ class CapturePanel(QWidget):
         self.nd.setToolTip("Virtual lab: a neutral-density filter darkens half the patches 100x (an HDR test).")
         self.hdr_button = QPushButton("Meter and plan HDR")
         self.hdr_button.setToolTip("Take one frame per light and plan the fewest exposures that bring every "
-                                   "patch into the linear range.")
+                                   "patch into the linear range (a sequence: pause, cancel).")
         self.hdr_button.clicked.connect(self.plan_hdr)
         self.hdr_label = QLabel("")
         self.hdr_label.setWordWrap(True)
-        qf.addRow("Run", self.kind)
-        qf.addRow("Frames per exposure", self.frames)
-        qf.addRow("Target", self.target)
-        qf.addRow("", self.nd)
-        qf.addRow(self.hdr_button, self.hdr_label)
+        form.addRow("Run", self.kind)
+        form.addRow("Frames per exposure", self.frames)
+        form.addRow("Target", self.target)
+        form.addRow("", self.nd)
+        form.addRow(self.hdr_button, self.hdr_label)
         for w in (self.kind, self.target):
             w.currentIndexChanged.connect(self._kind_changed)
         self.nd.toggled.connect(self._kind_changed)
         self.frames.valueChanged.connect(self._frames_changed)
-        self.light_table.itemChanged.connect(lambda _item: self.update_plan())
+        return box
 
-        self.view = SequenceView(ctx)
-        self.view.settle_s = self.settle.value()
-        self.view.start_button.clicked.connect(self.start)
-        self.view.finished.connect(self._finished)
-
+    def _layout(self, boxes) -> None:
         left = QWidget()
         lv = QVBoxLayout(left)
-        lv.addWidget(sbox)
-        lv.addWidget(lbox)
-        lv.addWidget(qbox)
+        for b in boxes:
+            lv.addWidget(b)
+        lv.addStretch(1)
+        scroll = QScrollArea()
+        scroll.setWidget(left)
+        scroll.setWidgetResizable(True)
+        scroll.setMinimumWidth(380)
+        self.uniformity = UniformityView(self.ctx)
+        self.right = QTabWidget()
+        self.right.addTab(self.view, "Run")
+        self.right.addTab(self.uniformity, "Flat-field uniformity")
         split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(self.view)
+        split.addWidget(scroll)
+        split.addWidget(self.right)
         split.setStretchFactor(1, 1)
+        split.setSizes([470, 800])
         QVBoxLayout(self).addWidget(split)
 
+    def _connect(self) -> None:
         self.lab.sessionChanged.connect(self._session_changed)
-        self.lab.sphereChanged.connect(self._devices_changed)
-        self.lab.cameraChanged.connect(self._devices_changed)
-        ctx.bus.presetsChanged.connect(self.load_presets)
-        self._kind_changed()
-        self.load_presets()
-        self._session_changed()
-        self._devices_changed()
+        self.lab.sphereChanged.connect(self._update_enabled)
+        self.lab.cameraChanged.connect(self._update_enabled)
+        self.ws.runningChanged.connect(lambda _name: self._update_enabled())
+        self.ctx.bus.presetsChanged.connect(self.load_presets)
+        self.ctx.bus.frameSaved.connect(self._show_frames)
 
     # ------------------------------------------------------------------ session
     def new_session(self, folder: Optional[Path] = None, meta: Optional[dict] = None) -> None:
         folder = folder or self.ctx.captures_dir / _dt.datetime.now().strftime("session-%Y%m%d-%H%M%S")
-        info = {"operator": "", "virtual_lab": self.lab.is_virtual, **(meta or {})}
-        self.ctx.runner.submit(lambda: CaptureSession.create(folder, info), pool="compute", name="new session",
-                               on_result=self.lab.set_session,
+        info = {"operator": self.ctx.get("originals/operator", "", str), "virtual_lab": self.lab.is_virtual,
+                **(meta or {})}
+        lab = self.lab
+
+        def work() -> CaptureSession:
+            return CaptureSession.create(folder, info, definition=lab.session_definition())
+        self.ctx.runner.submit(work, pool="devices", name="new session", on_result=self.lab.set_session,
                                on_error=lambda exc: self.ctx.errors.report("New session", exc))
 
     def open_session(self, folder: Path) -> None:
-        self.ctx.runner.submit(lambda: CaptureSession.open(folder), pool="compute", name="open session",
-                               on_result=self.lab.set_session,
+        """Resume a session: its definition (mode, camera, frame size) must match the stand's; missing or damaged
+        frames are set aside so their steps are shot again (app.session)."""
+        lab = self.lab
+
+        def work() -> tuple[CaptureSession, int]:
+            session = CaptureSession.open(folder, definition=lab.session_definition(),
+                                          hint="connect the same camera and mode, or start a new session")
+            return session, len(session.set_aside_damaged())
+
+        def done(result: tuple[CaptureSession, int]) -> None:
+            session, aside = result
+            self.lab.set_session(session)
+            self.ctx.errors.clear("Open the session")
+            if aside:
+                self.ctx.errors.report("Open the session", f"{aside} missing or damaged frame(s) set aside in "
+                                       f"{session.path / 'damaged'}; their steps will be shot again",
+                                       level=logging.WARNING)
+        self.ctx.runner.submit(work, pool="devices", name="open session", on_result=done,
                                on_error=lambda exc: self.ctx.errors.report("Open the session", exc))
 
     def _ask_open(self) -> None:
@@ -169,14 +235,20 @@ class CapturePanel(QWidget):
 
     def _session_changed(self) -> None:
         s = self.lab.session
-        if s is not getattr(self, "_last_session", None):
+        if s is not self._last_session:
             self._last_session = s
-            self.hdr_brackets = {}
-        self.session_label.setText(f"{s.path}  ({len(s.entries())} frames)" if s is not None else
-                                   "no session: press New session")
+            self.ws.reset_session_plan()
+            self.hdr_plans = {}
+        self._show_frames()
         if s is not None:
             self.ctx.set("capture/last_session", str(s.path))
-        self._devices_changed()
+        self._update_enabled()
+        self.update_plan()
+
+    def _show_frames(self) -> None:
+        s = self.lab.session
+        self.session_label.set_path(f"{s.path}  ({len(s.entries())} frames)" if s is not None else
+                                    "no session: press New session")
 
     # ------------------------------------------------------------------ lights
     def load_presets(self) -> None:
@@ -220,75 +292,102 @@ class CapturePanel(QWidget):
             return
         path, preset = self.presets[index]
         self.ctx.set("capture/preset", str(path))
-        old = {nl.name: self.exposure_of(nl.name) for nl in self.lights}
+        old = dict(self.ws.base_exposures)
         self.lights = lights_of(preset)
         self.hdr_plans = {}
         self.light_table.blockSignals(True)
         self.light_table.setRowCount(len(self.lights))
         for r, nl in enumerate(self.lights):
-            for c, text in enumerate((nl.name, nl.light.label())):
+            for c, text in enumerate((nl.name, light_pct(nl.light))):
                 item = QTableWidgetItem(text)
                 item.setFlags(item.flags() & ~Qt.ItemIsEditable)
                 self.light_table.setItem(r, c, item)
-            self.light_table.setItem(r, 2, QTableWidgetItem(f"{old.get(nl.name) or 1 / 60:.6g}"))
+            self.light_table.setItem(r, 2, QTableWidgetItem(shutter(old.get(nl.name) or 1 / 60)))
         self.light_table.resizeColumnsToContents()
+        self.light_table.resizeRowsToContents()
         self.light_table.blockSignals(False)
+        self.ws.set_lights(preset, self.lights, self._table_exposures())
+        self.update_plan()
+
+    def _table_exposures(self) -> dict[str, float]:
+        out = {}
+        for r, nl in enumerate(self.lights):
+            item = self.light_table.item(r, 2)
+            try:
+                out[nl.name] = parse_exposure(item.text() if item else "")
+            except ValueError:
+                continue
+        return out
+
+    def _exposures_edited(self) -> None:
+        self.ws.set_base_exposures(self._table_exposures())
+        self.hdr_plans = {}
         self.update_plan()
 
     def exposure_of(self, name: str) -> Optional[float]:
-        for r in range(self.light_table.rowCount()):
-            if self.light_table.item(r, 0) and self.light_table.item(r, 0).text() == name:
-                try:
-                    t = float(self.light_table.item(r, 2).text().replace(",", "."))
-                except (AttributeError, ValueError):
-                    return None
-                return t if t > 0 else None
-        return None
+        return self._table_exposures().get(name)
 
     def set_exposure(self, name: str, t: float) -> None:
-        for r in range(self.light_table.rowCount()):
-            if self.light_table.item(r, 0).text() == name:
-                self.light_table.item(r, 2).setText(f"{t:.6g}")
+        for r, nl in enumerate(self.lights):
+            if nl.name == name:
+                self.light_table.item(r, 2).setText(shutter(t))
 
     def exposures(self) -> dict[str, list[float]]:
-        out = {}
-        for nl in self.lights:
-            t = self.exposure_of(nl.name)
-            if t is None:
-                raise ValueError(f"light {nl.name}: the exposure must be a positive number of seconds")
-            out[nl.name] = [t]
-        return out
+        have = self._table_exposures()
+        missing = [nl.name for nl in self.lights if nl.name not in have]
+        if missing:
+            raise ValueError(f"light {missing[0]}: the exposure must be a time such as 1/80 or 0.5 (seconds)")
+        return {n: [t] for n, t in have.items()}
 
     def all_exposures(self) -> dict[str, list[float]]:
         """Per light: every exposure the captures use (app.workflow.plans.calibration_exposures)."""
-        return calibration_exposures(self.lab.session, self.exposures(), self.hdr_brackets)
+        self.exposures()
+        return self.ws.planned_exposures(self.lab.session)
 
     # ------------------------------------------------------------------ building sequences
+    def safety(self) -> SafetySettings:
+        latency = self.latency.value()
+        return SafetySettings(settle_s=self.settle.value(), latency_s=latency if latency > 0 else None)
+
+    def stand_settings(self) -> StandSettings:
+        s = self.safety()
+        return StandSettings(settle_s=s.settle_s, latency_s=s.latency_s, max_on_s=s.max_on_s)
+
+    def plan_shooter(self) -> Shooter:
+        """A Shooter for plans only (nothing is touched): the camera's latency allowance, as the real one."""
+        return Shooter(self.lab.camera, None, None, safety=self.safety())
+
     def shooter(self) -> Shooter:
         if self.lab.camera is None or self.lab.sphere is None:
             raise ValueError("connect the LED sphere and the camera in Devices first")
         if self.lab.session is None:
             raise ValueError("start a session first (New session)")
-        stand = self.lab.virtual_lab.place if self.lab.virtual_lab is not None else None
-        return Shooter(self.lab.camera, self.lab.sphere, self.lab.session, stand=stand,
-                       safety=SafetySettings(settle_s=self.settle.value()))
+        return Shooter(self.lab.camera, self.lab.sphere, self.lab.session, stand=self.lab.stand(),
+                       safety=self.safety())
 
     def target_key(self) -> str:
         return TARGETS[self.target.currentIndex()][1]
 
-    def build(self, shooter: Optional[Shooter]) -> Sequence:
+    def subject(self) -> Subject:
+        return Subject.target(self.target_key(), self.nd.isChecked())
+
+    def build(self, shooter: Optional[Shooter], take: int = 1) -> Sequence:
         """The selected sequence (with ``shooter=None`` only for its plan), built by app.workflow.plans."""
         kind = SEQUENCE_KINDS[self.kind.currentText()]
-        sh = shooter or _PlanOnlyShooter(self.settle.value())
+        sh = shooter or self.plan_shooter()
         if kind in (SequenceKind.DARKS, SequenceKind.FLATS):
             return build_sequence(kind, sh, self.lights, exposures=self.all_exposures(), frames=self.frames.value())
-        subject = Subject.target(self.target_key(), self.nd.isChecked())
         if kind is SequenceKind.TARGET:
-            return build_sequence(kind, sh, self.lights, exposures=self.exposures(), subject=subject)
+            return build_sequence(kind, sh, self.lights, exposures=self.exposures(), subject=self.subject(),
+                                  take=take)
         if self.hdr_key != (self.target_key(), self.nd.isChecked()) or not self.hdr_plans:
             raise ValueError("press 'Meter and plan HDR' for this target first")
         return build_sequence(kind, sh, self.lights, exposures={n: p.exposures for n, p in self.hdr_plans.items()},
-                              subject=subject)
+                              subject=self.subject(), take=take)
+
+    def _done(self, seq: Sequence) -> list[bool]:
+        session = self.lab.session
+        return steps_done(session, planned_steps(seq)) if session is not None else []
 
     def update_plan(self) -> None:
         self.view.settle_s = self.settle.value()
@@ -299,18 +398,14 @@ class CapturePanel(QWidget):
         except (ValueError, KeyError) as exc:
             self.view.clear_plan(str(exc))
             return
-        self.view.show_plan(seq.plan(), self.kind.currentText())
+        self.view.show_plan(seq.plan(), self.kind.currentText(), self._done(seq))
 
     def _kind_changed(self, *_args) -> None:
         kind = self.kind.currentText()
-        calib = kind in ("Dark series", "Open-gate flats")
-        self.frames.setEnabled(calib)
-        self.target.setEnabled(not calib)
-        self.nd.setEnabled(not calib)
-        self.hdr_button.setEnabled(kind == "HDR capture" and self._ready())
         self.frames.blockSignals(True)
         self.frames.setValue(self.ctx.get(f"capture/frames/{kind}", 10 if kind == "Dark series" else 3, int))
         self.frames.blockSignals(False)
+        self._update_enabled()
         self.update_plan()
 
     def _frames_changed(self, value: int) -> None:
@@ -320,12 +415,25 @@ class CapturePanel(QWidget):
     def _ready(self) -> bool:
         return self.lab.camera is not None and self.lab.sphere is not None and self.lab.session is not None
 
-    def _devices_changed(self) -> None:
-        ready = self._ready() and not self.view.running
+    def _update_enabled(self) -> None:
+        """Lock what a running sequence depends on (session, lights, exposures, settings); devices and a session
+        are needed to start anything."""
+        running = bool(self.ws.running) or self.view.running
+        ready = self._ready() and not running
+        kind = self.kind.currentText()
+        calib = kind in ("Dark series", "Open-gate flats")
+        for w in (self.new_button, self.open_button, self.preset_combo, self.light_table, self.settle, self.latency,
+                  self.kind):
+            w.setEnabled(not running)
+        self.frames.setEnabled(calib and not running)
+        self.target.setEnabled(not calib and not running)
+        self.nd.setEnabled(not calib and not running)
         self.view.start_button.setEnabled(ready)
         self.auto_button.setEnabled(ready)
-        self.hdr_button.setEnabled(ready and self.kind.currentText() == "HDR capture")
-        if not self._ready():
+        self.hdr_button.setEnabled(ready and kind == "HDR capture")
+        self.calibration.set_locked(running)
+        self.calibration.calibrate_button.setEnabled(ready)
+        if not self._ready() and not running:
             missing = [w for w, ok in (("the sphere", self.lab.sphere), ("the camera", self.lab.camera),
                                        ("a session", self.lab.session)) if ok is None]
             self.view.message.setText("needs " + ", ".join(missing) + " before it can start")
@@ -341,63 +449,56 @@ class CapturePanel(QWidget):
         except ValueError as exc:
             self.ctx.errors.report(f"Start {self.kind.currentText().lower()}", exc)
             return
-        self.view.start(seq)
-        self._devices_changed()
+        done = self._done(seq)
+        if isinstance(seq, SubjectCapture) and any(done):
+            self._ask_reshoot(seq, done)
+            return
+        self.view.start(seq, done)
+
+    def _ask_reshoot(self, seq: SubjectCapture, done: list[bool]) -> None:
+        text = (f"The {seq.subject.label} is already in the session ({sum(done)} of {len(done)} frames). "
+                "Re-shoot it (a new take; the old frames stay in the session) or keep the frames it has?")
+
+        def answer(choice: str) -> None:
+            if choice == RESHOOT:
+                take = next_take(self.lab.session, planned_steps(seq))
+                self.view.start(self.build(self.shooter(), take=take))
+            else:
+                self.view.start(seq, done)
+        self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP), answer, default=KEEP)
 
     def cancel_running(self) -> None:
         self.view.cancel()
 
     def _finished(self, seq, outcome: str) -> None:
+        if isinstance(seq, AutoExposure) and seq.exposures:
+            for name, t in seq.exposures.items():
+                self.set_exposure(name, t)
+            self.hdr_plans = {}
+        if isinstance(seq, HdrMetering) and outcome == "done":
+            self.hdr_plans = dict(seq.plans)
+            self.hdr_key = (seq.subject.name, seq.subject.nd)
+            self.ws.add_hdr_brackets({n: p.exposures for n, p in seq.plans.items()})
+            self.hdr_label.setText(seq.summary())
         self._session_changed()
         self.ctx.bus.sessionUpdated.emit()
-        self.update_plan()
+        if outcome == "done" and getattr(seq, "name", "") == "open-gate flats":
+            self.uniformity.refresh()
 
     def auto_expose(self) -> None:
         try:
-            shooter = self.shooter()
+            seq = AutoExposure(self.shooter(), self.lights)
         except ValueError as exc:
             self.ctx.errors.report("Auto-exposure", exc)
             return
-        lights = list(self.lights)
-
-        def work(progress, cancel) -> dict[str, float]:
-            out = {}
-            try:
-                for i, nl in enumerate(lights):
-                    cancel.check()
-                    progress(i / len(lights), f"metering {nl.name} on the open gate")
-                    out[nl.name], _ = auto_exposure(shooter, nl)
-            finally:
-                shooter.lights_off()
-            return out
-
-        def done(result: dict[str, float]) -> None:
-            for name, t in result.items():
-                self.set_exposure(name, t)
-            self.view.message.setText("auto-exposure: " + ", ".join(f"{n} {format_shutter(t)}"
-                                                                   for n, t in result.items()))
-            self.hdr_plans = {}
-            self.update_plan()
-
-        self.view.message.setText("auto-exposure: metering the open gate …")
-        self.auto_button.setEnabled(False)
-        self.ctx.bus.sequenceStarted.emit("auto-exposure")
-        self.ctx.runner.submit(work, pool="sequences", name="auto-exposure", pass_progress=True, pass_cancel=True,
-                               on_progress=lambda f, m: self.view.message.setText(m), on_result=done,
-                               on_error=lambda exc: self.ctx.errors.report("Auto-exposure", exc),
-                               on_finished=self._metering_finished)
-
-    def _metering_finished(self) -> None:
-        self.ctx.bus.sequenceFinished.emit("metering", "done")
-        self._session_changed()
-        self._devices_changed()
+        self.view.start(seq)
 
     def patch_boxes(self, target: str, nd: bool) -> list[tuple[int, int, int, int]]:
         """Patch boxes (full-frame rows/cols) for HDR metering: the virtual lab's scene, or the grid placed in
         Target (superpixel coordinates, doubled)."""
         if self.lab.virtual_lab is not None:
             return self.lab.virtual_lab.scene_for(target, nd=nd).patch_boxes()
-        grid = self.ctx.shared.get("grid")
+        grid = self.ws.grids.get(Subject.target(target, nd).key) or self.ws.last_grid
         if grid is None:
             raise ValueError("place the patch grid on a frame of this target in Target first (HDR metering "
                              "measures every patch)")
@@ -410,46 +511,14 @@ class CapturePanel(QWidget):
 
     def plan_hdr(self) -> None:
         try:
-            shooter = self.shooter()
-            base = self.exposures()
-            target, nd = self.target_key(), self.nd.isChecked()
-            boxes = self.patch_boxes(target, nd)
+            base = {n: ts[0] for n, ts in self.exposures().items()}
+            subject = self.subject()
+            seq = HdrMetering(self.shooter(), self.lights, base, subject, self.patch_boxes(subject.name, subject.nd))
         except ValueError as exc:
             self.ctx.errors.report("Plan HDR", exc)
             return
-        lights = list(self.lights)
-
-        def work(progress, cancel) -> dict[str, HdrPlan]:
-            return meter_and_plan(shooter, lights, {n: ts[0] for n, ts in base.items()}, Subject.target(target, nd),
-                                  boxes, progress=progress, cancel=cancel)
-
-        def done(plans: dict[str, HdrPlan]) -> None:
-            self.hdr_plans = plans
-            self.hdr_key = (target, nd)
-            for name, plan in plans.items():
-                self.hdr_brackets.setdefault(name, set()).update(plan.exposures)
-            self.hdr_label.setText("; ".join(
-                f"{n}: {', '.join(format_shutter(t) for t in p.exposures)} (range {p.dynamic_range:.0f}:1"
-                + (", limited by the light-on time" if p.limited_by_light_time else "") + ")"
-                for n, p in plans.items()))
-            self.update_plan()
-
-        self.ctx.bus.sequenceStarted.emit("HDR metering")
-        self.ctx.runner.submit(work, pool="sequences", name="HDR metering", pass_progress=True, pass_cancel=True,
-                               on_progress=lambda f, m: self.view.message.setText(m), on_result=done,
-                               on_error=lambda exc: self.ctx.errors.report("Plan HDR", exc),
-                               on_finished=self._metering_finished)
+        self.view.start(seq)
 
     def shutdown(self) -> None:
         self.view.cancel()
-
-
-class _PlanOnlyShooter:
-    """Stands in for a Shooter while only ``plan()`` is asked for (nothing is touched)."""
-
-    def __init__(self, settle_s: float):
-        self.safety = SafetySettings(settle_s=settle_s)
-
-    def check_light_time(self, exposure_s: float) -> None:
-        Shooter.check_light_time(self, exposure_s)  # type: ignore[arg-type]
 

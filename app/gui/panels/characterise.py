@@ -1,27 +1,43 @@
 """Characterise: the camera response function and exposure-time linearity (app.sequences.crf_sweep.CrfSweep on the
-open gate; app.processing.crf_analysis finds the linear limit and flags exposure times that depart from the line)."""
+open gate; app.processing.crf_analysis flags exposure times that depart from the line). The plots are on log
+axes labelled as people read them (shutter times as 1/250 s, DN in thousands); the one linear limit the
+processing uses is drawn, and the knee measured here is reported beside it."""
 from __future__ import annotations
 
 import logging
+import math
 from typing import Optional
 
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QLabel, QLineEdit,
-                               QSplitter, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QLabel, QLineEdit, QSplitter,
+                               QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
+from app.gui.units import light_pct, shutter, shutters, with_unit
+from app.gui.viewmodel import LINEAR_LIMIT_DN, light_from_levels
 from app.gui.widgets import plot_widget
 from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import SafetySettings, Shooter
-from app.workflow.vocabulary import format_exposure as format_shutter
 from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
 LEVEL_PENS = ("#1565c0", "#2e7d32", "#ef6c00", "#6a1b9a", "#00838f")
+CRF_LIGHT = LightSource((1, 6, 8), name="CRF light")            # Table 7.1's first light, every LED full
+TIME_TICKS = (1 / 4000, 1 / 1000, 1 / 250, 1 / 60, 1 / 15, 1 / 4, 1.0, 4.0)   # two stops apart: never overlap
+DN_TICKS = (1, 10, 100, 1000, 10000)
+
+
+def time_ticks() -> list[list[tuple[float, str]]]:
+    """Major ticks of a log10 exposure-time axis, labelled '1/250 s' (pyqtgraph log mode works in log10)."""
+    return [[(math.log10(t), shutter(t)) for t in TIME_TICKS]]
+
+
+def dn_ticks() -> list[list[tuple[float, str]]]:
+    return [[(math.log10(v), f"{v:,}".replace(",", "\u2009")) for v in DN_TICKS]]
 
 
 class CharacterisePanel(QWidget):
@@ -29,96 +45,111 @@ class CharacterisePanel(QWidget):
 
     def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
         super().__init__(parent)
-        self.ctx = ctx
-        self.lab = ctx.lab
+        self.ctx, self.lab = ctx, ctx.lab
         self.sweep: Optional[CrfSweep] = None
-
-        box = QGroupBox("CRF and exposure-time linearity")
-        form = QFormLayout(box)
-        self.light = QComboBox()
-        self.light.addItems(["(1, 6, 8) full", "current Light source levels"])
-        self.light.setToolTip("The light of the open-gate sweep (Table 7.1's first light, or the sliders).")
-        self.levels = QLineEdit(ctx.get("crf/levels", "1, 0.25, 0.0625", str))
-        self.levels.setToolTip("Light levels: each repeats the sweep dimmer so every exposure time gets a point "
-                               "inside the linear range (appendix A.2.1).")
-        self.min_t = QDoubleSpinBox()
-        self.min_t.setDecimals(5)
-        self.min_t.setRange(1 / 8000, 10.0)
-        self.min_t.setValue(ctx.get("crf/min_exposure_s", 1 / 4000, float))
-        self.min_t.setToolTip("Shortest exposure of the sweep (s).")
-        self.max_t = QDoubleSpinBox()
-        self.max_t.setDecimals(4)
-        self.max_t.setRange(1 / 8000, 10.0)
-        self.max_t.setValue(ctx.get("crf/max_exposure_s", 1.0, float))
-        self.max_t.setToolTip("Longest exposure of the sweep (s); the light-on limit of 10 s caps it anyway.")
-        form.addRow("Light", self.light)
-        form.addRow("Levels", self.levels)
-        form.addRow("Shortest exposure (s)", self.min_t)
-        form.addRow("Longest exposure (s)", self.max_t)
-        self.levels.editingFinished.connect(lambda: (ctx.set("crf/levels", self.levels.text()), self.update_plan()))
-        self.min_t.valueChanged.connect(lambda v: (ctx.set("crf/min_exposure_s", v), self.update_plan()))
-        self.max_t.valueChanged.connect(lambda v: (ctx.set("crf/max_exposure_s", v), self.update_plan()))
-        self.result_label = QLabel("")
-        self.result_label.setWordWrap(True)
-        self.result_label.setTextFormat(Qt.RichText)
-
+        self._live: dict[float, list[tuple[float, float]]] = {}
+        self._live_curves: dict[float, pg.PlotDataItem] = {}
         self.view = SequenceView(ctx)
         self.view.start_button.clicked.connect(self.start)
         self.view.finished.connect(self._finished)
         self.view.event.connect(self._event)
-
+        self.result_label = QLabel("")
+        self.result_label.setWordWrap(True)
+        self.result_label.setTextFormat(Qt.RichText)
         left = QWidget()
         ll = QVBoxLayout(left)
-        ll.addWidget(box)
+        ll.addWidget(self._settings_box())
         ll.addWidget(self.view, 1)
         ll.addWidget(self.result_label)
+        split = QSplitter(Qt.Horizontal)
+        split.addWidget(left)
+        split.addWidget(self._plots())
+        split.setStretchFactor(1, 1)
+        QVBoxLayout(self).addWidget(split)
+        for sig in (self.lab.cameraChanged, self.lab.sphereChanged, self.lab.sessionChanged):
+            sig.connect(self.update_plan)
+        ctx.workspace.runningChanged.connect(lambda _n: self.update_plan())
+        self.update_plan()
 
-        self.crf_plot = plot_widget("camera response", "exposure time (s)", "mean green above black (DN)",
-                                    "Signal against exposure time per light level; red: exposure times flagged as "
-                                    "departing from linearity; dashed: the linear limit.")
+    # ------------------------------------------------------------------ builders
+    def _settings_box(self) -> QGroupBox:
+        box = QGroupBox("CRF and exposure-time linearity")
+        form = QFormLayout(box)
+        self.light = QComboBox()
+        self.light.addItems([light_pct(CRF_LIGHT), "the Light source sliders"])
+        self.light.setToolTip("The light of the open-gate sweep (Table 7.1's first light, or the sliders).")
+        self.levels = QLineEdit(self.ctx.get("crf/levels_pct", "100, 25, 6.25", str))
+        self.levels.setToolTip("Light levels in %: each repeats the sweep dimmer so every exposure time gets a point "
+                               "inside the linear range (appendix A.2.1).")
+        self.min_t = self._time_spin("crf/min_exposure_s", 1 / 4000, "Shortest exposure of the sweep.")
+        self.max_t = self._time_spin("crf/max_exposure_s", 1.0, "Longest exposure of the sweep; the light-on limit "
+                                                                "of 10 s caps it anyway.")
+        form.addRow("Light", self.light)
+        form.addRow("Levels (%)", self.levels)
+        form.addRow("Shortest exposure", self.min_t)
+        form.addRow("Longest exposure", self.max_t)
+        self.levels.editingFinished.connect(lambda: (self.ctx.set("crf/levels_pct", self.levels.text()),
+                                                     self.update_plan()))
+        self.light.currentIndexChanged.connect(lambda _i: self.update_plan())
+        return box
+
+    def _time_spin(self, key: str, default: float, tip: str) -> QDoubleSpinBox:
+        spin = QDoubleSpinBox()
+        spin.setDecimals(5)
+        spin.setRange(1 / 8000, 10.0)
+        spin.setSuffix("\u00a0s")
+        spin.setValue(self.ctx.get(key, default, float))
+        spin.setToolTip(tip)
+        spin.valueChanged.connect(lambda v: (self.ctx.set(key, v), self.update_plan()))
+        return spin
+
+    def _plots(self) -> QSplitter:
+        self.crf_plot = plot_widget("camera response", "exposure time", "mean green above black (DN)",
+                                    "Signal against exposure time per light level; red rings: exposure times "
+                                    "flagged as departing from linearity; dashed: the linear limit the processing "
+                                    "uses.")
         self.crf_plot.setLogMode(x=True, y=True)
         self.crf_plot.addLegend(offset=(10, 10))
-        self.res_plot = plot_widget("linearity", "exposure time (s)", "deviation from the line (%)",
+        self.res_plot = plot_widget("linearity", "exposure time", "deviation from the line (%)",
                                     "How far each point lies from the straight line through the origin; shutter "
                                     "'bumps' stand out (appendix A). Red rings: flagged exposure times; dotted "
                                     "lines: changepoints found in the residuals.")
         self.res_plot.setLogMode(x=True, y=False)
         self.res_plot.addLegend(offset=(10, 10))
+        for p in (self.crf_plot, self.res_plot):
+            p.getAxis("bottom").setTicks(time_ticks())
+        self.crf_plot.getAxis("left").setTicks(dn_ticks())
         plots = QSplitter(Qt.Vertical)
         plots.addWidget(self.crf_plot)
         plots.addWidget(self.res_plot)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(plots)
-        split.setStretchFactor(1, 1)
-        QVBoxLayout(self).addWidget(split)
-        self._live: dict[float, list[tuple[float, float]]] = {}
-        self._live_curves: dict[float, pg.PlotDataItem] = {}
-        for sig in (self.lab.cameraChanged, self.lab.sphereChanged, self.lab.sessionChanged):
-            sig.connect(self.update_plan)
-        self.update_plan()
+        return plots
 
     # ------------------------------------------------------------------ building
     def level_values(self) -> list[float]:
+        """The light levels as fractions (the field is in %)."""
+        text = self.levels.text()
         try:
-            values = [float(x) for x in self.levels.text().replace(";", ",").split(",") if x.strip()]
+            values = [float(x.strip().rstrip("%")) / 100 for x in text.replace(";", ",").split(",") if x.strip()]
         except ValueError:
-            raise ValueError(f"levels {self.levels.text()!r}: expected numbers between 0 and 1, like 1, 0.25")
+            values = []
         if not values or any(not 0 < v <= 1 for v in values):
-            raise ValueError(f"levels {self.levels.text()!r}: expected numbers between 0 and 1, like 1, 0.25")
+            raise ValueError(f"levels {text!r}: expected percentages above 0 and up to 100, like 100, 25")
         return values
 
     def chosen_light(self) -> LightSource:
         if self.light.currentIndex() == 1:
-            panel = self.ctx.shared.get("light_panel")
-            if panel is not None:
-                light = panel.current_light("CRF light")
-                if not light.is_dark:
-                    return light
-            raise ValueError("the Light source sliders are all at 0: set a light there first")
-        return LightSource((1, 6, 8), name="CRF light")
+            light = light_from_levels(self.ctx.workspace.manual_levels, "CRF light")
+            if light.is_dark:
+                raise ValueError("the Light source sliders are all at 0: set a light there first")
+            return light
+        return CRF_LIGHT
 
-    def build(self, shooter) -> CrfSweep:
+    def safety(self) -> SafetySettings:
+        latency = self.ctx.get("capture/latency_s", 0.0, float)
+        return SafetySettings(settle_s=self.ctx.get("capture/settle_s", 0.2, float),
+                              latency_s=latency if latency > 0 else None)
+
+    def build(self, shooter: Shooter) -> CrfSweep:
         cam = self.lab.camera
         speeds = cam.shutter_speeds() if cam is not None else None
         exposures = [t for t in (speeds or _NIKON_THIRDS) if self.min_t.value() * 0.999 <= t <= self.max_t.value()]
@@ -128,16 +159,17 @@ class CharacterisePanel(QWidget):
     def update_plan(self) -> None:
         if self.view.running:
             return
-        try:
-            seq = self.build(_PlanShooter(self.ctx.get("capture/settle_s", 0.2, float)))
+        try:                       # a Shooter for the plan only: the camera's latency allowance, as the real one
+            seq = self.build(Shooter(self.lab.camera, None, None, safety=self.safety()))
         except ValueError as exc:
             self.view.clear_plan(str(exc))
             return
         self.view.settle_s = self.ctx.get("capture/settle_s", 0.2, float)
         self.view.show_plan(seq.plan(), "CRF sweep (stops early once a level clips)")
-        ready = self.lab.camera is not None and self.lab.sphere is not None and self.lab.session is not None
+        ready = (self.lab.camera is not None and self.lab.sphere is not None and self.lab.session is not None
+                 and not self.ctx.workspace.running)
         self.view.start_button.setEnabled(ready)
-        if not ready:
+        if not ready and not self.ctx.workspace.running:
             self.view.message.setText("needs the sphere, the camera and a session (Calibrate & capture)")
 
     # ------------------------------------------------------------------ running
@@ -146,16 +178,12 @@ class CharacterisePanel(QWidget):
         try:
             if lab.camera is None or lab.sphere is None or lab.session is None:
                 raise ValueError("connect the sphere and the camera and start a session first")
-            stand = lab.virtual_lab.place if lab.virtual_lab is not None else None
-            shooter = Shooter(lab.camera, lab.sphere, lab.session, stand=stand,
-                              safety=SafetySettings(settle_s=self.ctx.get("capture/settle_s", 0.2, float)))
-            self.sweep = self.build(shooter)
+            self.sweep = self.build(Shooter(lab.camera, lab.sphere, lab.session, stand=lab.stand(),
+                                            safety=self.safety()))
         except ValueError as exc:
             self.ctx.errors.report("CRF sweep", exc)
             return
         self._live = {}
-        for item in list(self._live_curves.values()):
-            self.crf_plot.removeItem(item)
         self._live_curves = {}
         self.crf_plot.clear()
         self.res_plot.clear()
@@ -177,7 +205,7 @@ class CharacterisePanel(QWidget):
         if lv not in self._live_curves:
             pen = LEVEL_PENS[len(self._live_curves) % len(LEVEL_PENS)]
             self._live_curves[lv] = self.crf_plot.plot(t, s, pen=pg.mkPen(pen, width=2), symbol="o", symbolSize=4,
-                                                       symbolBrush=pen, name=f"level {lv:g}")
+                                                       symbolBrush=pen, name=f"level {100 * lv:g} %")
         else:
             self._live_curves[lv].setData(t, s)
 
@@ -193,39 +221,37 @@ class CharacterisePanel(QWidget):
         summary = seq.summary()
         self.res_plot.clear()
         for i, (lv, res) in enumerate(seq.results.items()):
-            pen = LEVEL_PENS[i % len(LEVEL_PENS)]
-            t = np.asarray(res.exposures)
-            rel = 100 * np.asarray(res.residuals)
-            inside = np.asarray(res.signal_dn) <= res.linear_limit_dn
-            self.res_plot.plot(t[inside], rel[inside], pen=pg.mkPen(pen, width=1), symbol="o", symbolSize=5,
-                               symbolBrush=pen, name=f"level {lv:g}")
-            for cp in res.changepoints:                         # where the residuals change level (PELT)
-                self.res_plot.addItem(pg.InfiniteLine(np.log10(cp), angle=90,
-                                                      pen=pg.mkPen(pen, width=1, style=Qt.DotLine)))
-            flagged = np.isin(t, res.flagged)
-            if flagged.any():
-                self.res_plot.plot(t[flagged], rel[flagged], pen=None, symbol="o", symbolSize=12,
-                                   symbolBrush=None, symbolPen=pg.mkPen("#c62828", width=2))
-                s = np.asarray(res.signal_dn)
-                self.crf_plot.plot(t[flagged], np.maximum(s[flagged], 0.1), pen=None, symbol="o", symbolSize=12,
-                                   symbolBrush=None, symbolPen=pg.mkPen("#c62828", width=2))
-        limit = summary.get("linear_limit_dn")
-        if limit:
-            self.crf_plot.addItem(pg.InfiniteLine(np.log10(limit), angle=0,
-                                                  pen=pg.mkPen("#ef6c00", width=2, style=Qt.DashLine)))
+            self._residuals(res, lv, LEVEL_PENS[i % len(LEVEL_PENS)])
+        self.crf_plot.addItem(pg.InfiniteLine(math.log10(LINEAR_LIMIT_DN), angle=0,
+                                              pen=pg.mkPen("#ef6c00", width=2, style=Qt.DashLine),
+                                              label="linear limit", labelOpts={"position": 0.1, "color": "#ef6c00"}))
+        knee = summary.get("linear_limit_dn")
         flagged = summary.get("flagged_exposures") or []
-        self.result_label.setText(
-            f"linear limit <b>{limit:.0f} DN</b> (median over the levels); " if limit else "linear limit: not found; ")
-        self.result_label.setText(self.result_label.text() + (
-            "exposure times departing from linearity: <b>" + ", ".join(format_shutter(t) for t in flagged) + "</b>"
-            if flagged else "no exposure time departs from linearity"))
+        used = with_unit(f"{LINEAR_LIMIT_DN:,.0f}".replace(",", "\u2009"), "DN")
+        text = (f"linear limit used by the processing: <b>{used}</b> (thesis 4.1)" +
+                (f"; knee measured on this camera: {with_unit(f'{knee:,.0f}'.replace(',', chr(0x2009)), 'DN')} "
+                 "(median over the levels)" if knee else "; no knee found in this sweep"))
+        text += ("<br>exposure times departing from linearity: <b>" + shutters(flagged) + "</b>"
+                 if flagged else "<br>no exposure time departs from linearity")
+        self.result_label.setText(text)
+
+    def _residuals(self, res, lv: float, pen: str) -> None:
+        t = np.asarray(res.exposures)
+        rel = 100 * np.asarray(res.residuals)
+        inside = np.asarray(res.signal_dn) <= res.linear_limit_dn
+        self.res_plot.plot(t[inside], rel[inside], pen=pg.mkPen(pen, width=1), symbol="o", symbolSize=5,
+                           symbolBrush=pen, name=f"level {100 * lv:g} %")
+        for cp in res.changepoints:                         # where the residuals change level (PELT)
+            self.res_plot.addItem(pg.InfiniteLine(np.log10(cp), angle=90, pen=pg.mkPen(pen, width=1,
+                                                                                       style=Qt.DotLine)))
+        flagged = np.isin(t, res.flagged)
+        if flagged.any():
+            ring = {"pen": None, "symbol": "o", "symbolSize": 12, "symbolBrush": None,
+                    "symbolPen": pg.mkPen("#c62828", width=2)}
+            self.res_plot.plot(t[flagged], rel[flagged], **ring)
+            s = np.asarray(res.signal_dn)
+            self.crf_plot.plot(t[flagged], np.maximum(s[flagged], 0.1), **ring)
 
 
 _NIKON_THIRDS = [1 / 4000, 1 / 2000, 1 / 1000, 1 / 500, 1 / 250, 1 / 125, 1 / 60, 1 / 30, 1 / 15, 1 / 8, 1 / 4,
                  1 / 2, 1.0]
-
-
-class _PlanShooter:
-    def __init__(self, settle_s: float):
-        self.safety = SafetySettings(settle_s=settle_s)
-        self.camera = None

@@ -9,7 +9,7 @@ from PySide6.QtWidgets import (QComboBox, QFileDialog, QGridLayout, QGroupBox, Q
 
 from app.gui.context import AppContext
 from app.gui.device_hub import NO_CAMERA_ADVICE, VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
-from app.gui.widgets import StatusLight
+from app.gui.widgets import PathLabel, StatusLight
 
 log = logging.getLogger(__name__)
 
@@ -100,12 +100,12 @@ class DevicesPanel(QWidget):
         # ---- folders ----
         fbox = QGroupBox("Folders")
         fg = QGridLayout(fbox)
-        self.folder_labels: dict[str, QLabel] = {}
+        self.folder_labels: dict[str, PathLabel] = {}
         for r, (key, title, tip) in enumerate((
                 ("paths/captures", "Captures", "Where sessions and test shots are saved."),
                 ("paths/presets", "Your presets", "Where your own light presets are saved (the packaged ones "
                                                   "are always listed too)."))):
-            label = QLabel()
+            label = PathLabel()
             label.setToolTip(tip)
             button = QPushButton("Change…")
             button.setToolTip(tip)
@@ -129,8 +129,7 @@ class DevicesPanel(QWidget):
         self.lab.virtualLabChanged.connect(self._virtual_changed)
         self.lab.sphereStatus.connect(self._sphere_status)
         self.lab.failed.connect(self._failed)
-        ctx.bus.sequenceStarted.connect(lambda _n: self._set_sequence_running(True))
-        ctx.bus.sequenceFinished.connect(lambda _n, _how: self._set_sequence_running(False))
+        ctx.workspace.runningChanged.connect(lambda name: self._set_sequence_running(bool(name)))
         self.list_ports()
         self.camera_combo.addItem(VIRTUAL_CAMERA)
         last = ctx.get("devices/camera", "", str)
@@ -249,8 +248,8 @@ class DevicesPanel(QWidget):
 
     # ------------------------------------------------------------------ folders
     def _show_folders(self) -> None:
-        self.folder_labels["paths/captures"].setText(str(self.ctx.captures_dir))
-        self.folder_labels["paths/presets"].setText(str(self.ctx.presets_dir))
+        self.folder_labels["paths/captures"].set_path(str(self.ctx.captures_dir))
+        self.folder_labels["paths/presets"].set_path(str(self.ctx.presets_dir))
 
     def _choose_folder(self, key: str, title: str) -> None:
         current = self.ctx.captures_dir if key == "paths/captures" else self.ctx.presets_dir
@@ -282,6 +281,8 @@ class DevicesPanel(QWidget):
         if running:
             self.virtual_label.setText(f"running: sphere emulator on {vl.port}, {vl.width}x{vl.height} frames, "
                                        f"on the stand: {vl.placed or 'nothing'}")
+        else:
+            self.virtual_label.setText("not started: Start virtual lab, or connect the virtual sphere or camera")
 
     def _failed(self, title: str, exc: object) -> None:
         text = str(exc)

@@ -13,8 +13,10 @@ from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QGroupBox
                                QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
+from app.gui.units import dose, light_pct
 from app.gui.viewmodel import format_duration, light_from_levels, mixed_spectrum
-from app.gui.widgets import plot_widget
+from app.gui.widgets import PathLabel, plot_widget
+from drivers.led_sphere.limits import DEFAULT_MAX_ON_S
 from simulation.datasets import led_spectra
 from simulation.grid import SpectralGrid
 from simulation.lightsource import N_SPHERE_LEDS, LightSource
@@ -43,7 +45,7 @@ class PresetItem(QListWidgetItem):
         self.path, self.preset, self.packaged = path, preset, packaged
         self.setFlags(self.flags() | Qt.ItemIsEditable)
         errs = preset.errors.get("test") or preset.errors.get("train") or {}
-        sources = "  +  ".join(s.label() for s in preset.sources)
+        sources = "  +  ".join(light_pct(s) for s in preset.sources)
         where = "packaged (renaming saves a copy in your presets folder)" if packaged else str(path)
         self.setToolTip(f"{sources}\n{preset.method}, {preset.mode}"
                         + (f", test mean dE00 {errs['mean']:.3f}" if "mean" in errs else "") + f"\n{where}"
@@ -62,22 +64,46 @@ class LightPanel(QWidget):
         self.wavelengths = PLOT_GRID.wavelengths
         self.peaks = self.wavelengths[np.argmax(self.led_spectra, axis=1)]
         self._updating = False
+        self._sequence_running = False
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.addWidget(self._levels_box())
+        ll.addWidget(self._switch_box())
+        right = QSplitter(Qt.Vertical)
+        right.addWidget(self._spectrum_plot())
+        right.addWidget(self._presets_box())
+        split = QSplitter(Qt.Horizontal)
+        split.addWidget(left)
+        split.addWidget(right)
+        split.setStretchFactor(1, 1)
+        QVBoxLayout(self).addWidget(split)
+        self._connect()
+        saved = ctx.get("light/levels", "", str)
+        try:
+            initial = [float(x) for x in saved.split(",")] if saved else [0.0] * N_SPHERE_LEDS
+        except ValueError:
+            initial = [0.0] * N_SPHERE_LEDS
+        self.set_levels(np.clip(np.resize(initial, N_SPHERE_LEDS), 0, 1))
+        self._sphere_changed()
+        self.reload_presets()
 
-        # ---- LED levels ----
-        levels_box = QGroupBox("LED levels (0 = off, 1 = full)")
-        grid = QGridLayout(levels_box)
+    # ------------------------------------------------------------------ builders
+    def _levels_box(self) -> QGroupBox:
+        box = QGroupBox("LED levels (0 % = off, 100 % = full power)")
+        grid = QGridLayout(box)
         self.sliders: list[QSlider] = []
         self.spins: list[QDoubleSpinBox] = []
         for i in range(N_SPHERE_LEDS):
             r, g, b = _wavelength_colour(self.peaks[i])
-            name = QLabel(f"LED {i + 1}  <span style='color:rgb({r},{g},{b})'>■</span> {self.peaks[i]:.0f} nm")
+            name = QLabel(f"LED {i + 1}  <span style='color:rgb({r},{g},{b})'>■</span> {self.peaks[i]:.0f}\u00a0nm")
             slider = QSlider(Qt.Horizontal)
             slider.setRange(0, SLIDER_STEPS)
-            slider.setToolTip(f"Level of LED {i + 1} (peak near {self.peaks[i]:.0f} nm), 0 = off, 1 = full power")
+            slider.setToolTip(f"Level of LED {i + 1} (peak near {self.peaks[i]:.0f} nm), 0 % = off, 100 % = full")
             spin = QDoubleSpinBox()
-            spin.setRange(0.0, 1.0)
-            spin.setDecimals(5)                       # the sphere's 16-bit PWM step is 1.5e-5
-            spin.setSingleStep(0.01)
+            spin.setRange(0.0, 100.0)
+            spin.setDecimals(4)                       # the sphere's 16-bit PWM step is 0.0015 %
+            spin.setSingleStep(1.0)
+            spin.setSuffix("\u00a0%")
             spin.setToolTip(slider.toolTip())
             slider.valueChanged.connect(lambda v, k=i: self._slider_moved(k, v))
             spin.valueChanged.connect(lambda v, k=i: self._spin_changed(k, v))
@@ -95,8 +121,8 @@ class LightPanel(QWidget):
         self.zero_button.clicked.connect(lambda: self.set_levels(np.zeros(N_SPHERE_LEDS)))
         self.live_apply = QCheckBox("Apply while dragging")
         self.live_apply.setToolTip("Send the levels to the sphere as you move a slider (a short moment after).")
-        self.live_apply.setChecked(ctx.get("light/live_apply", False, bool))
-        self.live_apply.toggled.connect(lambda on: ctx.set("light/live_apply", on))
+        self.live_apply.setChecked(self.ctx.get("light/live_apply", False, bool))
+        self.live_apply.toggled.connect(lambda on: self.ctx.set("light/live_apply", on))
         for w in (self.apply_button, self.zero_button, self.live_apply):
             buttons.addWidget(w)
         grid.addLayout(buttons, N_SPHERE_LEDS, 0, 1, 3)
@@ -104,8 +130,9 @@ class LightPanel(QWidget):
         self._debounce.setSingleShot(True)
         self._debounce.setInterval(150)
         self._debounce.timeout.connect(self.apply_levels)
+        return box
 
-        # ---- spectrum ----
+    def _spectrum_plot(self):
         self.plot = plot_widget("spectrum of these levels", "wavelength (nm)", "relative radiance",
                                 "The light the sphere makes with these levels: each LED's spectrum times its "
                                 "level, added up (thin lines: each LED's share).")
@@ -117,36 +144,56 @@ class LightPanel(QWidget):
                                                   brush=pg.mkBrush(*colour, 70)))
         self.mix_curve = self.plot.plot(self.wavelengths, np.zeros_like(self.wavelengths),
                                         pen=pg.mkPen("k", width=2), name="mixed")
+        return self.plot
 
-        # ---- switch, on-time, dose ----
-        switch_box = QGroupBox("Light")
-        sl = QGridLayout(switch_box)
+    def _switch_box(self) -> QGroupBox:
+        box = QGroupBox("Light")
+        sl = QGridLayout(box)
         self.on_button = QPushButton("Light ON")
-        self.on_button.setToolTip(f"Switch the sphere's light on with the levels last applied, for at most "
-                                  f"{self.lab.manual_max_on_s:g} s: it then goes off by itself (light on the "
-                                  "object is damage; captures switch it on only for their exposures).")
         self.on_button.clicked.connect(lambda: self.lab.set_light_on(True))
         self.off_button = QPushButton("Light OFF")
         self.off_button.setToolTip("Every LED to 0 and the light off (protects the object).")
         self.off_button.clicked.connect(lambda: self.lab.set_light_on(False))
+        self.max_on = QDoubleSpinBox()
+        self.max_on.setRange(0.5, DEFAULT_MAX_ON_S)
+        self.max_on.setDecimals(1)
+        self.max_on.setSuffix("\u00a0s")
+        self.max_on.setValue(min(self.ctx.get("light/manual_max_on_s", DEFAULT_MAX_ON_S, float), DEFAULT_MAX_ON_S))
+        self.max_on.setToolTip(f"'Light ON' lights the sphere for at most this long, then it goes off by itself "
+                               f"(the driver's supervisor and the sphere's firmware). At most {DEFAULT_MAX_ON_S:g} s: "
+                               "LED peaks drift after that (thesis 4.3.2), and light on the object is damage.")
+        self.max_on.valueChanged.connect(self._max_on_changed)
+        self._max_on_changed(self.max_on.value())
         self.state_label = QLabel("sphere not connected")
+        self.state_label.setWordWrap(True)
         self.on_time_label = QLabel("on-time: —")
         self.on_time_label.setToolTip("How long the light has been on now. LED peaks drift after about 10 s "
                                       "(thesis 4.3.2): capture soon after switching on.")
         self.temp_label = QLabel("temperature: —")
-        self.dose_label = QLabel("light dose: 0 level·s, 0 lx·s")
-        self.dose_label.setToolTip("Light the object received since the sphere was connected: LED level × seconds, "
-                                   "and an estimate in lux·seconds for conservation records.")
+        self.dose_label = QLabel(f"light dose: {dose(0.0)}")
+        self.dose_label.setWordWrap(True)
+        self.dose_label.setToolTip("Light the object received since the sphere was connected, in lux hours as "
+                                   "conservators budget it (an estimate from the levels and the time on).")
         sl.addWidget(self.on_button, 0, 0)
         sl.addWidget(self.off_button, 0, 1)
-        sl.addWidget(self.state_label, 1, 0, 1, 2)
-        sl.addWidget(self.on_time_label, 2, 0)
-        sl.addWidget(self.temp_label, 2, 1)
-        sl.addWidget(self.dose_label, 3, 0, 1, 2)
+        sl.addWidget(QLabel("Light ON for at most"), 1, 0)
+        sl.addWidget(self.max_on, 1, 1)
+        sl.addWidget(self.state_label, 2, 0, 1, 2)
+        sl.addWidget(self.on_time_label, 3, 0)
+        sl.addWidget(self.temp_label, 3, 1)
+        sl.addWidget(self.dose_label, 4, 0, 1, 2)
+        return box
 
-        # ---- presets ----
-        presets_box = QGroupBox("Presets")
-        pl = QVBoxLayout(presets_box)
+    def _max_on_changed(self, seconds: float) -> None:
+        self.lab.manual_max_on_s = float(seconds)
+        self.ctx.set("light/manual_max_on_s", float(seconds))
+        self.on_button.setToolTip(f"Switch the sphere's light on with the levels last applied, for at most "
+                                  f"{seconds:g} s: it then goes off by itself (light on the object is damage; "
+                                  "captures switch it on only for their exposures).")
+
+    def _presets_box(self) -> QGroupBox:
+        box = QGroupBox("Presets")
+        pl = QVBoxLayout(box)
         self.presets = QListWidget()
         self.presets.setToolTip("Light-source pairs from the optimiser. Click one, then apply light 1 or 2; "
                                 "double-click applies light 1. Double-click the name slowly (or F2) to rename.")
@@ -171,49 +218,26 @@ class LightPanel(QWidget):
         pl.addWidget(self.presets, 1)
         pl.addWidget(self.preset_info)
         pl.addLayout(pb)
-        self.folder_label = QLabel()
-        self.folder_label.setWordWrap(True)
+        self.folder_label = PathLabel()
         pl.addWidget(self.folder_label)
+        return box
 
-        left = QWidget()
-        ll = QVBoxLayout(left)
-        ll.addWidget(levels_box)
-        ll.addWidget(switch_box)
-        right = QSplitter(Qt.Vertical)
-        right.addWidget(self.plot)
-        right.addWidget(presets_box)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(right)
-        split.setStretchFactor(1, 1)
-        lay = QVBoxLayout(self)
-        lay.addWidget(split)
-
-        ctx.shared["light_panel"] = self
+    def _connect(self) -> None:
         self.lab.sphereChanged.connect(self._sphere_changed)
         self.lab.sphereStatus.connect(self.show_status)
-        ctx.bus.presetsChanged.connect(self.reload_presets)
-        self._sequence_running = False
-        ctx.bus.sequenceStarted.connect(lambda _n: self._set_sequence_running(True))
-        ctx.bus.sequenceFinished.connect(lambda _n, _how: self._set_sequence_running(False))
-        saved = ctx.get("light/levels", "", str)
-        try:
-            initial = [float(x) for x in saved.split(",")] if saved else [0.0] * N_SPHERE_LEDS
-        except ValueError:
-            initial = [0.0] * N_SPHERE_LEDS
-        self.set_levels(np.clip(np.resize(initial, N_SPHERE_LEDS), 0, 1))
-        self._sphere_changed()
-        self.reload_presets()
+        self.ctx.bus.presetsChanged.connect(self.reload_presets)
+        self.ctx.workspace.runningChanged.connect(lambda name: self._set_sequence_running(bool(name)))
 
     # ------------------------------------------------------------------ levels
     def levels(self) -> np.ndarray:
-        return np.array([s.value() for s in self.spins])
+        """The ten levels as fractions 0..1 (the spin boxes show them in %)."""
+        return np.array([s.value() / 100.0 for s in self.spins])
 
     def set_levels(self, levels) -> None:
         self._updating = True
         try:
             for i, v in enumerate(levels):
-                self.spins[i].setValue(float(v))
+                self.spins[i].setValue(100.0 * float(v))
                 self.sliders[i].setValue(int(round(float(v) * SLIDER_STEPS)))
         finally:
             self._updating = False
@@ -223,7 +247,7 @@ class LightPanel(QWidget):
         if self._updating:
             return
         self._updating = True
-        self.spins[k].setValue(value / SLIDER_STEPS)
+        self.spins[k].setValue(100.0 * value / SLIDER_STEPS)
         self._updating = False
         self._levels_changed(user=True)
 
@@ -231,7 +255,7 @@ class LightPanel(QWidget):
         if self._updating:
             return
         self._updating = True
-        self.sliders[k].setValue(int(round(value * SLIDER_STEPS)))
+        self.sliders[k].setValue(int(round(value / 100.0 * SLIDER_STEPS)))
         self._updating = False
         self._levels_changed(user=True)
 
@@ -241,6 +265,7 @@ class LightPanel(QWidget):
             curve.setData(self.wavelengths, lv[i] * self.led_spectra[i])
         self.mix_curve.setData(self.wavelengths, mixed_spectrum(lv, self.led_spectra))
         self.ctx.set("light/levels", ",".join(repr(float(v)) for v in lv))
+        self.ctx.workspace.set_manual_levels(lv)
         self.levelsChanged.emit(lv)
         if user and self.live_apply.isChecked() and self.lab.sphere is not None:
             self._debounce.start()
@@ -281,15 +306,14 @@ class LightPanel(QWidget):
         self.on_time_label.setText(f"on-time: {format_duration(status.get('on_time_s')) if on else '—'}")
         t = status.get("temperature_c")
         self.temp_label.setText(f"temperature: {t:.1f} °C" if t is not None else "temperature: —")
-        dose = status.get("dose")
-        if dose is not None:
-            self.dose_label.setText(f"light dose: {float(dose.level_s.sum()):.1f} level·s, "
-                                    f"{dose.lux_s:.0f} lx·s, on {format_duration(dose.on_s)}")
+        given = status.get("dose")
+        if given is not None:
+            self.dose_label.setText(f"light dose: {dose(given.lux_s)}, on {format_duration(given.on_s)}")
 
     # ------------------------------------------------------------------ presets
     def reload_presets(self) -> None:
         folder = self.ctx.presets_dir
-        self.folder_label.setText(f"your presets: {folder}")
+        self.folder_label.set_path(f"your presets: {folder}")
 
         def work() -> list[tuple[Path, Optional[Preset], bool, str]]:
             out = []
@@ -329,7 +353,7 @@ class LightPanel(QWidget):
             self.preset_info.setText("")
             return
         p = item.preset
-        lines = [f"light {i}: {s.label()}" for i, s in enumerate(p.sources, start=1)]
+        lines = [f"light {i}: {light_pct(s)}" for i, s in enumerate(p.sources, start=1)]
         errs = p.errors.get("test") or {}
         if "mean" in errs:
             lines.append(f"simulated test mean ΔE00 {errs['mean']:.3f}")

@@ -3,20 +3,22 @@ converge, look at the chosen lights and the six channel sensitivities, save the 
 from __future__ import annotations
 
 import logging
+import time
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QImage, QPixmap
-from PySide6.QtWidgets import (QComboBox, QFormLayout, QGroupBox, QHBoxLayout, QInputDialog, QLabel,
+from PySide6.QtWidgets import (QComboBox, QFormLayout, QGroupBox, QHBoxLayout, QHeaderView, QInputDialog, QLabel,
                                QProgressBar, QPushButton, QScrollArea, QSpinBox, QSplitter, QTableWidget,
                                QTableWidgetItem, QTabWidget, QVBoxLayout, QWidget)
 
 import resources
 from app.gui.context import AppContext
-from app.gui.viewmodel import ConvergenceTap
+from app.gui.units import light_pct, time_left_s
+from app.gui.viewmodel import ConvergenceTap, format_duration
 from app.gui.widgets import plot_widget
 from app.gui.workers import TaskHandle
 from simulation.camera_model import channel_names, effective_sensitivities
@@ -24,13 +26,26 @@ from simulation.datasets import MODES, default_setup
 from simulation.ga import GaSettings
 from simulation.presets import save_preset
 from simulation.pso import PsoSettings
+from simulation.progress import COMPILING, Cancelled
 from simulation.runner import METHODS, RunResult, run
+from simulation.search import SearchOutcome
 from simulation.studies.common import study_charts
 
 log = logging.getLogger(__name__)
 
 LIGHT_PENS = ("#6a1b9a", "#00838f")
 CHANNEL_COLOURS = {"R": "#d32f2f", "G": "#388e3c", "B": "#1976d2"}
+
+
+def partial_result(setup, tap: ConvergenceTap, method: str, seed: int, top: int, elapsed_s: float
+                   ) -> Optional[RunResult]:
+    """A cancelled search's best light pair so far (kept, labelled partial), or None before any cost."""
+    cand = tap.partial()
+    if cand is None:
+        return None
+    outcome = SearchOutcome(method, seed, elapsed_s, tap.evaluations, [cand], settings={"partial": True})
+    return RunResult(mode=setup.mode, method=method, seed=seed, elapsed_s=elapsed_s, evaluations=tap.evaluations,
+                     three_channel={}, outcome=outcome, setup=setup, top=top, extra={"partial": True})
 
 
 class SimulatePanel(QWidget):
@@ -42,8 +57,33 @@ class SimulatePanel(QWidget):
         self.result: Optional[RunResult] = None
         self.handle: Optional[TaskHandle] = None
         self.live: list[tuple[int, float]] = []
+        self._live_dirty = False
+        self._t_search: Optional[float] = None
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.addWidget(self._search_box())
+        ll.addLayout(self._run_buttons())
+        ll.addWidget(self.progress)
+        ll.addWidget(self.time_left)
+        ll.addWidget(self.status)
+        ll.addWidget(self._results_table(), 1)
+        self.right_tabs = QTabWidget()
+        self.right_tabs.addTab(self._search_plots(), "Search")
+        self.right_tabs.addTab(self._study_charts(), "Study charts")
+        self.right_tabs.currentChanged.connect(lambda i: self.load_figures() if i == 1 else None)
+        split = QSplitter(Qt.Horizontal)
+        split.addWidget(left)
+        split.addWidget(self.right_tabs)
+        split.setStretchFactor(1, 1)
+        split.setSizes([480, 950])
+        QVBoxLayout(self).addWidget(split)
+        self._live_timer = QTimer(self)             # the live curve is redrawn at most 10 times a second
+        self._live_timer.setInterval(100)
+        self._live_timer.timeout.connect(self._draw_live)
+        self._method_changed(self.method.currentText())
 
-        # ---- controls ----
+    # ------------------------------------------------------------------ builders
+    def _search_box(self) -> QGroupBox:
         box = QGroupBox("Search")
         form = QFormLayout(box)
         self.mode = QComboBox()
@@ -77,38 +117,45 @@ class SimulatePanel(QWidget):
         for w in (self.seed, self.iterations, self.population, self.top):
             w.valueChanged.connect(self._save_settings)
         self.method.currentTextChanged.connect(self._method_changed)
+        return box
 
+    def _run_buttons(self) -> QHBoxLayout:
         buttons = QHBoxLayout()
         self.run_button = QPushButton("Run search")
         self.run_button.setToolTip("Start the search in the background; the window stays usable.")
         self.run_button.clicked.connect(self.start)
         self.cancel_button = QPushButton("Cancel")
-        self.cancel_button.setToolTip("Stop the search (Esc).")
+        self.cancel_button.setToolTip("Stop the search (Esc); the best light pair found so far is kept (partial).")
         self.cancel_button.clicked.connect(self.cancel_running)
         self.cancel_button.setEnabled(False)
         self.save_button = QPushButton("Save as preset…")
-        self.save_button.setToolTip("Save the best light pair as a preset; it appears in Light source.")
+        self.save_button.setToolTip("Save the selected light pair as a preset; it appears in Light source.")
         self.save_button.clicked.connect(self._ask_save)
         self.save_button.setEnabled(False)
         for w in (self.run_button, self.cancel_button, self.save_button):
             buttons.addWidget(w)
         self.progress = QProgressBar()
         self.progress.setRange(0, 1000)
+        self.time_left = QLabel("")
         self.status = QLabel("")
         self.status.setWordWrap(True)
+        return buttons
+
+    def _results_table(self) -> QTableWidget:
         self.table = QTableWidget(0, 4)
         self.table.setHorizontalHeaderLabels(["light 1", "light 2", "train ΔE00", "test ΔE00"])
-        self.table.setToolTip("Best light pairs: mean CIEDE2000 on the training and test targets (simulated).")
+        self.table.setToolTip("Best light pairs: mean CIEDE2000 on the training and test targets (simulated); "
+                              "LED levels in %.")
+        self.table.setWordWrap(True)
+        header = self.table.horizontalHeader()
+        for col in (0, 1):                          # the lights wrap; the numbers always show whole
+            header.setSectionResizeMode(col, QHeaderView.Stretch)
+        for col in (2, 3):
+            header.setSectionResizeMode(col, QHeaderView.ResizeToContents)
         self.table.currentCellChanged.connect(lambda row, *_: self.show_candidate(row))
-        left = QWidget()
-        ll = QVBoxLayout(left)
-        ll.addWidget(box)
-        ll.addLayout(buttons)
-        ll.addWidget(self.progress)
-        ll.addWidget(self.status)
-        ll.addWidget(self.table, 1)
+        return self.table
 
-        # ---- plots ----
+    def _search_plots(self) -> QWidget:
         self.conv = plot_widget("convergence (live)", "evaluations", "best mean ΔE00 so far (train)",
                                 "Best training error found so far while the search runs.")
         self.live_curve = self.conv.plot([], [], pen=pg.mkPen("#1565c0", width=2), symbol=None)
@@ -135,8 +182,9 @@ class SimulatePanel(QWidget):
         bottom_row.addWidget(self.sens_plot)
         grid.addWidget(top_row)
         grid.addWidget(bottom_row)
+        return plots
 
-        # ---- study charts ----
+    def _study_charts(self) -> QWidget:
         studies = QWidget()
         sl = QVBoxLayout(studies)
         self.figure_combo = QComboBox()
@@ -148,21 +196,11 @@ class SimulatePanel(QWidget):
         scroll.setWidget(self.figure_label)
         scroll.setWidgetResizable(True)
         self.figures_info = QLabel("")
+        self.figures_info.setWordWrap(True)
         sl.addWidget(self.figure_combo)
         sl.addWidget(self.figures_info)
         sl.addWidget(scroll, 1)
-
-        self.right_tabs = QTabWidget()
-        self.right_tabs.addTab(plots, "Search")
-        self.right_tabs.addTab(studies, "Study charts")
-        self.right_tabs.currentChanged.connect(lambda i: self.load_figures() if i == 1 else None)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(self.right_tabs)
-        split.setStretchFactor(1, 1)
-        split.setSizes([430, 1000])
-        QVBoxLayout(self).addWidget(split)
-        self._method_changed(self.method.currentText())
+        return studies
 
     # ------------------------------------------------------------------ settings
     def _load_settings(self) -> None:
@@ -200,7 +238,11 @@ class SimulatePanel(QWidget):
         self.live = []
         self.live_curve.setData([], [])
         self.iter_curve.setData([], [])
+        self.iter_plot.setTitle("best per iteration")
         self.progress.setValue(0)
+        self.time_left.setText("")
+        self._t_search = None
+        self._live_timer.start()
         self.status.setText(f"running {method} ({mode}) …")
         self.run_button.setEnabled(False)
         self.cancel_button.setEnabled(True)
@@ -209,9 +251,13 @@ class SimulatePanel(QWidget):
         def work(progress, cancel, emit) -> RunResult:
             setup = default_setup(mode)
             tap = ConvergenceTap.make(setup, lambda n, best: emit((n, best)))
-            evaluator = tap if method in ("pso", "ga", "exhaustive") else None
-            return run(setup, method, seed=seed, top=top, pso_settings=pso_settings, ga_settings=ga_settings,
-                       progress=progress, cancel=cancel, evaluator=evaluator)
+            evaluator = tap if method != "three-channel" else None
+            t0 = time.perf_counter()
+            try:
+                return run(setup, method, seed=seed, top=top, pso_settings=pso_settings, ga_settings=ga_settings,
+                           progress=progress, cancel=cancel, evaluator=evaluator)
+            except Cancelled:
+                return partial_result(setup, tap, method, seed, top, time.perf_counter() - t0)
 
         self.handle = self.ctx.runner.submit(work, pool="compute", name=f"simulate {method}", pass_progress=True,
                                              pass_cancel=True, pass_emit=True, on_progress=self._progress,
@@ -220,15 +266,28 @@ class SimulatePanel(QWidget):
 
     def _live_point(self, point: tuple[int, float]) -> None:
         self.live.append(point)
-        xs, ys = zip(*self.live)
-        self.live_curve.setData(np.array(xs, dtype=float), np.array(ys))
+        self._live_dirty = True
+
+    def _draw_live(self) -> None:
+        if self._live_dirty and self.live:
+            xs, ys = zip(*self.live)
+            self.live_curve.setData(np.array(xs, dtype=float), np.array(ys))
+        self._live_dirty = False
 
     def _progress(self, fraction: float, message: str) -> None:
         self.progress.setValue(int(round(fraction * 1000)))
         self.status.setText(message)
+        now = time.monotonic()
+        if message == COMPILING or fraction <= 0:          # the one-off compile is not the search
+            return
+        if self._t_search is None:
+            self._t_search = (now, fraction)
+            return
+        t0, f0 = self._t_search
+        left = time_left_s(now - t0, (fraction - f0) / max(1.0 - f0, 1e-9))
+        self.time_left.setText(f"time left about {format_duration(left)}" if left is not None else "")
 
     def _failed(self, exc: BaseException) -> None:
-        from simulation.progress import Cancelled
         if isinstance(exc, Cancelled):
             self.status.setText("search cancelled")
             log.info("simulation cancelled")
@@ -239,6 +298,9 @@ class SimulatePanel(QWidget):
     def _finished(self) -> None:
         self.run_button.setEnabled(True)
         self.cancel_button.setEnabled(False)
+        self._live_timer.stop()
+        self._draw_live()
+        self.time_left.setText("")
 
     def cancel_running(self) -> None:
         if self.handle is not None and self.handle.running:
@@ -249,37 +311,58 @@ class SimulatePanel(QWidget):
         self.cancel_running()
 
     # ------------------------------------------------------------------ result
-    def show_result(self, result: RunResult) -> None:
+    def show_result(self, result: Optional[RunResult]) -> None:
+        if result is None:
+            self.status.setText("search cancelled before any light pair was evaluated")
+            return
         self.result = result
-        self.progress.setValue(1000)
+        partial = bool(result.extra.get("partial"))
+        self.progress.setValue(self.progress.value() if partial else 1000)
         base = result.three_channel
-        text = (f"{result.method} ({result.mode}): {result.evaluations} evaluations in {result.elapsed_s:.1f} s; "
-                f"3-channel D65 baseline: train {base['train']:.2f}, test {base['test']:.2f} ΔE00")
+        text = f"{result.method} ({result.mode}): {result.evaluations} evaluations in {result.elapsed_s:.1f} s"
+        if partial:
+            text = "PARTIAL (cancelled): the best light pair found so far; " + text
+        if base:
+            text += f"; 3-channel D65 baseline: train {base['train']:.2f}, test {base['test']:.2f} ΔE00"
         self.status.setText(text)
         self.table.setRowCount(0)
         if result.outcome is None:
             self.save_button.setEnabled(False)
             return
-        cands = result.outcome.candidates[:result.top]
-        self.table.setRowCount(len(cands))
-        for r, c in enumerate(cands):
-            s1, s2 = c.sources[:2]
-            values = (s1.label(), s2.label(), f"{(c.train.mean if c.train else c.train_cost):.3f}",
-                      f"{c.test.mean:.3f}" if c.test else "—")
-            for col, v in enumerate(values):
-                item = QTableWidgetItem(v)
-                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
-                self.table.setItem(r, col, item)
-        self.table.resizeColumnsToContents()
-        hist = result.outcome.history
-        if hist:
-            self.iter_curve.setData(np.arange(len(hist), dtype=float), np.array(hist))
-        if self.live:
-            xs, ys = zip(*self.live)
-            self.live_curve.setData(np.array(xs, dtype=float), np.array(ys))
+        self._fill_table(result.outcome.candidates[:result.top], partial)
+        self._show_history(result)
+        self._draw_live()
         self.save_button.setEnabled(True)
         self.table.selectRow(0)
         self.show_candidate(0)
+
+    def _fill_table(self, cands, partial: bool) -> None:
+        self.table.setRowCount(len(cands))
+        for r, c in enumerate(cands):
+            s1, s2 = c.sources[:2]
+            values = (light_pct(s1), light_pct(s2), f"{(c.train.mean if c.train else c.train_cost):.3f}",
+                      f"{c.test.mean:.3f}" if c.test else "—")
+            for col, v in enumerate(values):
+                item = QTableWidgetItem(v + (" (partial)" if partial and col == 2 else ""))
+                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                item.setToolTip(f"{c.sources[col].label()} (levels 0..1)" if col < 2 else v)
+                self.table.setItem(r, col, item)
+        self.table.resizeRowsToContents()
+
+    def _show_history(self, result: RunResult) -> None:
+        """Best per iteration: only finite values (an iteration with no finite cost is left out); a method
+        without iterations says so instead of an empty axis."""
+        hist = np.asarray(result.outcome.history or [], dtype=float)
+        keep = np.isfinite(hist)
+        if not keep.any():
+            self.iter_curve.setData([], [])
+            why = "a single pass, no iterations" if result.method == "exhaustive" else "no iterations recorded"
+            self.iter_plot.setTitle(f"best per iteration: none ({result.method}: {why})")
+            self.iter_plot.getPlotItem().setRange(xRange=(0, 1), yRange=(0, 1))
+            return
+        self.iter_plot.setTitle("best per iteration")
+        self.iter_curve.setData(np.flatnonzero(keep).astype(float), hist[keep])
+        self.iter_plot.getPlotItem().enableAutoRange()
 
     def show_candidate(self, row: int) -> None:
         res = self.result

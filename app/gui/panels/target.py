@@ -32,12 +32,12 @@ class TargetPanel(QWidget):
         self.image: Optional[np.ndarray] = None          # linear superpixel RGB of the shown frame
         self.grid: Optional[PatchGrid] = None
         self.roi: Optional[pg.PolyLineROI] = None
-        ctx.shared.setdefault("grids", {})
+        self.ws = ctx.workspace
 
         box = QGroupBox("Frame")
         form = QFormLayout(box)
         self.subject = QComboBox()
-        self.subject.setToolTip("Which captured target to place the grid on.")
+        self.subject.setToolTip("Which captured target (or original) to show and place the grid on.")
         self.subject.currentIndexChanged.connect(self._subject_chosen)
         self.light = QComboBox()
         self.light.setToolTip("Which light's frame to show (the grid is the same for all).")
@@ -119,21 +119,32 @@ class TargetPanel(QWidget):
                                on_error=lambda exc: self.ctx.errors.report("List the targets", exc))
 
     def _fill_subjects(self, subjects: dict[str, dict[str, list]]) -> None:
-        current = self.subject.currentText()
+        current = self.key()
         self.subjects = subjects
         self.subject.blockSignals(True)
         self.subject.clear()
-        self.subject.addItems(sorted(subjects))
+        for key in sorted(subjects):
+            self.subject.addItem(Subject.parse(key).label, key)      # people read labels, the data is the key
         if current in subjects:
-            self.subject.setCurrentText(current)
+            self.select_subject(current)
         self.subject.blockSignals(False)
         if subjects:
             self._subject_chosen()
         else:
             self.info.setText("No target captured in this session yet (Calibrate & capture → Dual-RGB capture).")
 
+    def key(self) -> str:
+        """The chosen subject's key ('target:test'); '' when none."""
+        return self.subject.currentData() or ""
+
+    def select_subject(self, key: str) -> None:
+        i = self.subject.findData(key)
+        if i < 0:
+            raise ValueError(f"{key!r} is not captured in this session")
+        self.subject.setCurrentIndex(i)
+
     def _subject_chosen(self, *_args) -> None:
-        key = self.subject.currentText()
+        key = self.key()
         lights = self.subjects.get(key, {})
         self.light.blockSignals(True)
         self.light.clear()
@@ -143,7 +154,7 @@ class TargetPanel(QWidget):
 
     def tag(self) -> str:
         """'train' / 'test' for a colour target, else '' (an original)."""
-        key = self.subject.currentText()
+        key = self.key()
         if not key:
             return "test"
         subject = Subject.parse(key)
@@ -161,7 +172,7 @@ class TargetPanel(QWidget):
 
     # ------------------------------------------------------------------ frame
     def load_frame(self) -> None:
-        key, light = self.subject.currentText(), self.light.currentText()
+        key, light = self.key(), self.light.currentText()
         entries = self.subjects.get(key, {}).get(light, [])
         if not entries:
             return
@@ -179,8 +190,8 @@ class TargetPanel(QWidget):
         self.image = linear
         self.image_item.setImage(display_rgb(linear), autoLevels=False, levels=(0, 255))
         self.viewbox.autoRange()
-        key = self.subject.currentText()
-        saved = self.ctx.shared["grids"].get(key)
+        key = self.key()
+        saved = self.ws.grids.get(key)
         rows, cols = (saved.rows, saved.cols) if saved is not None else self.reference_layout()
         for w, v in ((self.rows, rows), (self.cols, cols)):
             w.blockSignals(True)
@@ -243,13 +254,12 @@ class TargetPanel(QWidget):
             lines += [grid.to_image(np.array([[c / grid.cols, 0], [c / grid.cols, 1]])), np.full((1, 2), np.nan)]
         ln = np.concatenate(lines)
         self.outline.setData(ln[:, 0], ln[:, 1])
-        key = self.subject.currentText()
+        key = self.key()
         if key:
-            self.ctx.shared["grids"][key] = grid
-            self.ctx.shared["grid"] = grid
-            self.ctx.bus.gridChanged.emit(grid)
-        self.info.setText(f"{grid.rows} x {grid.cols} = {grid.n_patches} patches on {key or 'the frame'}; "
-                          f"measuring the middle {100 * grid.fraction:.0f} % of each.")
+            self.ws.set_grid(key, grid)
+        where = Subject.parse(key).label if key else "the frame"
+        self.info.setText(f"{grid.rows} x {grid.cols} = {grid.n_patches} patches on the {where}; "
+                          f"measuring the middle {100 * grid.fraction:.0f}\u00a0% of each.")
 
     def detect(self) -> None:
         if self.image is None:

@@ -1,0 +1,220 @@
+"""The current calibration in Calibrate & capture: make it in one run (auto-exposure, darks and flats at every
+planned exposure, the training and test targets, the matrix: app.workflow.copystand.CopyStand.calibrate), show it
+(age, camera, ISO, lights, target errors), save it elsewhere, load one, and check it against the stand now - a
+mismatch is shown here, in the guide and in Originals before anything is captured.
+"""
+from __future__ import annotations
+
+import html
+import logging
+from pathlib import Path
+from typing import Callable, Optional
+
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (QCheckBox, QFileDialog, QFormLayout, QGroupBox, QHBoxLayout, QLabel, QPushButton,
+                               QSpinBox, QWidget)
+
+from app.gui.context import AppContext
+from app.gui.sequence_view import SequenceView
+from app.gui.viewmodel import calibration_lines
+from app.gui.widgets import PathLabel
+from app.sequences.base import ProgressEvent
+from app.sequences.shooter import Shooter
+from app.workflow.copystand import StandSettings, parsimony_defaults
+from app.workflow.metering import AutoExposure
+from app.workflow.profile import CalibrationProfile, CameraIdentity, ReuseLimits, SphereIdentity, check_reuse, \
+    load_profile
+from app.workflow.runs import RunHooks, StandRun
+from app.workflow.vocabulary import Subject
+
+log = logging.getLogger(__name__)
+
+CALIBRATION_RUN = "calibration"
+
+
+class CalibrationBox(QGroupBox):
+    def __init__(self, ctx: AppContext, view: SequenceView, stand_settings: Callable[[], StandSettings],
+                 plan_shooter: Callable[[], Shooter], parent: Optional[QWidget] = None):
+        super().__init__("Calibration (once a day, or when something changes)", parent)
+        self.ctx = ctx
+        self.ws = ctx.workspace
+        self.view = view
+        self.stand_settings = stand_settings
+        self.plan_shooter = plan_shooter
+        self.run: Optional[StandRun] = None
+        self._build()
+        self.ws.calibrationChanged.connect(self.show_calibration)
+        view.event.connect(self._run_event)
+        view.finished.connect(self._run_finished)
+        for sig in (ctx.lab.cameraChanged, ctx.lab.sphereChanged, ctx.bus.cameraSettingsChanged):
+            sig.connect(self.check)
+        self.show_calibration()
+
+    # ------------------------------------------------------------------ builders
+    def _build(self) -> None:
+        form = QFormLayout(self)
+        self.hdr_auto = QCheckBox("also the longer exposures HDR originals may need")
+        self.hdr_auto.setChecked(self.ctx.get("calibration/hdr_auto", True, bool))
+        self.hdr_auto.setToolTip("Darks and flats also at the longer exposures of an HDR bracket (as many as the "
+                                 "parsimony study found worth it), so dark originals can be captured with this "
+                                 "calibration.")
+        self.hdr_auto.toggled.connect(lambda on: self.ctx.set("calibration/hdr_auto", on))
+        self.dark_frames, self.flat_frames = self._count(10, "darks"), self._count(3, "flats")
+        self.de_fit = QCheckBox("also fit the ΔE00-optimised matrix (slower)")
+        self.de_fit.setChecked(parsimony_defaults().get("characterisation_model", "linear") != "linear")
+        self.de_fit.setToolTip("Besides least squares; the delivered one is chosen by cross-validation on the "
+                               "training target.")
+        self.calibrate_button = QPushButton("Calibrate")
+        self.calibrate_button.setToolTip("Auto-exposure, darks, flats, the training and test targets and the matrix "
+                                         "in one run; the calibration is saved in the session.")
+        self.calibrate_button.clicked.connect(self.calibrate)
+        self.summary = QLabel("no calibration yet")
+        self.summary.setWordWrap(True)
+        self.summary.setTextFormat(Qt.RichText)
+        self.save_button = QPushButton("Save as…")
+        self.save_button.setToolTip("Write the calibration (JSON + arrays) into a folder you choose, to reuse it "
+                                    "on another day or in another session.")
+        self.save_button.clicked.connect(self._ask_save)
+        self.load_button = QPushButton("Load…")
+        self.load_button.setToolTip("Use a saved calibration (its darks, flats and matrix); it is checked against "
+                                    "the stand at once.")
+        self.load_button.clicked.connect(self._ask_load)
+        self.check_button = QPushButton("Check")
+        self.check_button.setToolTip("Compare the calibration with the stand now: camera serial and model, ISO, "
+                                     "aperture, sphere serial and temperature, age.")
+        self.check_button.clicked.connect(self.check)
+        row = QHBoxLayout()
+        for w in (self.calibrate_button, self.save_button, self.load_button, self.check_button):
+            row.addWidget(w)
+        form.addRow(self.hdr_auto)
+        form.addRow("Darks per exposure", self.dark_frames)
+        form.addRow("Flats per exposure", self.flat_frames)
+        form.addRow(self.de_fit)
+        form.addRow(row)
+        form.addRow(self.summary)
+        self.path_label = PathLabel("")
+        form.addRow(self.path_label)
+
+    def _count(self, default: int, what: str) -> QSpinBox:
+        spin = QSpinBox()
+        spin.setRange(1, 100)
+        spin.setValue(self.ctx.get(f"calibration/{what}", default, int))
+        spin.setToolTip(f"Frames per exposure time ({'thesis 8.2.1: 10' if what == 'darks' else 'open gate: 3'}).")
+        spin.valueChanged.connect(lambda v: self.ctx.set(f"calibration/{what}", v))
+        return spin
+
+    # ------------------------------------------------------------------ calibrate
+    def calibrate(self) -> None:
+        ws, lab = self.ws, self.ctx.lab
+        if ws.preset is None or not ws.lights:
+            self.ctx.errors.report("Calibrate", "choose the preset whose lights the day uses first")
+            return
+        settings = self.stand_settings()
+        settings.dark_frames, settings.flat_frames = self.dark_frames.value(), self.flat_frames.value()
+        settings.optimise_matrix = self.de_fit.isChecked()
+        preset, lights, hdr = ws.preset, list(ws.lights), self.hdr_auto.isChecked()
+        grids = {n: ws.grids[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in ws.grids}
+
+        def work(hooks: RunHooks) -> CalibrationProfile:
+            stand = lab.copy_stand(settings, hooks)
+            base = stand.auto_expose(lights)
+            plan = stand.exposure_plan(base, hdr)
+            frames = [f for seq, _lo, _hi in stand.calibration_sequences(lights, plan, base) for f in seq.plan()]
+            hooks.on_event(ProgressEvent(0, 0, "auto-exposure done: darks, flats and the targets next",
+                                         data={"plan": frames, "base": base, "exposures": plan}))
+            return stand.calibrate_at(preset, base, hdr_auto=hdr, grids=grids)
+        try:
+            plan = AutoExposure(self.plan_shooter(), lights).plan()
+            lab.copy_stand(settings)                                # refuses early: devices, session
+        except ValueError as exc:
+            self.ctx.errors.report("Calibrate", exc)
+            return
+        self.run = StandRun(CALIBRATION_RUN, plan, work)
+        self.view.start(self.run)
+
+    def _run_event(self, ev: ProgressEvent) -> None:
+        if self.run is None or self.view.seq is not self.run:
+            return
+        if "base" in ev.data:
+            self.ws.set_base_exposures(ev.data["base"])
+        if "exposures" in ev.data:
+            self.ws.set_run_plan(ev.data["exposures"])
+
+    def _run_finished(self, run, outcome: str) -> None:
+        if run is not self.run or run is None:
+            return
+        self.ws.set_run_plan({})
+        if outcome == "done" and run.result is not None:
+            self.ws.set_calibration(run.result)
+            self.ctx.set("calibration/last", str(run.result.path or ""))
+            self.check()
+
+    # ------------------------------------------------------------------ save, load, check
+    def _ask_save(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Save the calibration into", str(self.ctx.data_dir()))
+        if folder:
+            self.save_to(Path(folder))
+
+    def save_to(self, folder: Path) -> None:
+        profile = self.ws.calibration
+        if profile is None:
+            self.ctx.errors.report("Save the calibration", "no calibration yet: calibrate or load one")
+            return
+        self.ctx.runner.submit(lambda: profile.save(folder), pool="compute", name="save calibration",
+                               on_result=self._saved,
+                               on_error=lambda exc: self.ctx.errors.report("Save the calibration", exc))
+
+    def _saved(self, path: Path) -> None:
+        self.ctx.set("calibration/last", str(path))
+        self.ctx.lab.message.emit(f"calibration saved: {path}")
+        self.show_calibration()
+
+    def _ask_load(self) -> None:
+        start = self.ctx.get("calibration/last", "", str) or str(self.ctx.captures_dir)
+        path, _ = QFileDialog.getOpenFileName(self, "Load a calibration", start, "Calibrations (*.json)")
+        if path:
+            self.load(Path(path))
+
+    def load(self, path: Path) -> None:
+        def loaded(profile: CalibrationProfile) -> None:
+            self.ws.set_calibration(profile)
+            self.ctx.set("calibration/last", str(path))
+            self.ctx.errors.clear("Load the calibration")
+            self.check()
+        self.ctx.runner.submit(lambda: load_profile(path), pool="compute", name="load calibration",
+                               on_result=loaded,
+                               on_error=lambda exc: self.ctx.errors.report("Load the calibration", exc))
+
+    def check(self) -> None:
+        """Compare the calibration with the stand now (a device call; skipped while a sequence owns them)."""
+        profile, lab = self.ws.calibration, self.ctx.lab
+        if profile is None or lab.camera is None or lab.sphere is None or self.ws.running:
+            return
+        cam, sphere = lab.camera, lab.sphere
+        lab.device_call(lambda: check_reuse(profile, CameraIdentity.of(cam), SphereIdentity.of(sphere),
+                                            limits=ReuseLimits()),
+                        "Check the calibration",
+                        on_result=lambda c: self.ws.set_calibration_check(c) if self.ws.calibration is profile
+                        else None)
+
+    def show_calibration(self) -> None:
+        profile, check = self.ws.calibration, self.ws.calibration_check
+        self.save_button.setEnabled(profile is not None)
+        self.check_button.setEnabled(profile is not None)
+        self.path_label.set_path(str(profile.path) if profile is not None and profile.path else "")
+        if profile is None:
+            self.summary.setText("no calibration yet: press Calibrate, or Load a saved one")
+            return
+        lines = []
+        for line in calibration_lines(profile, check):
+            text = html.escape(line)
+            bad = line.startswith("does not match") or "old (over" in line
+            lines.append(f"<span style='color:#c62828; font-weight:bold'>{text}</span>" if bad else text)
+        self.summary.setText("<br>".join(lines))
+
+    def set_locked(self, locked: bool) -> None:
+        for w in (self.calibrate_button, self.load_button, self.check_button, self.hdr_auto, self.dark_frames,
+                  self.flat_frames, self.de_fit):
+            w.setEnabled(not locked)
+        if not locked:
+            self.show_calibration()

@@ -1,0 +1,394 @@
+"""Originals: the day's queue of artworks, prints and films, each captured with the current calibration and
+delivered at once (app.workflow.copystand.CopyStand.capture: metering, an HDR bracket only when metering asks,
+the archival TIFFs, sidecar and QA line).
+
+Each row shows its state (waiting / capturing / captured / delivered / failed) and QA line; the delivered TIFF
+and its folder open from here. An original already in the session asks "re-shoot / keep" and reports
+"0 new, 2 kept". The calibration's check against the stand is shown above the Capture button, before anything is
+shot.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Optional
+
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QColor
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QFormLayout, QGroupBox, QHBoxLayout, QLabel, QLineEdit,
+                               QPushButton, QSpinBox, QSplitter, QTableWidget, QTableWidgetItem, QVBoxLayout,
+                               QWidget)
+
+from app.gui.context import AppContext
+from app.gui.sequence_view import SequenceView
+from app.sequences.base import PlannedFrame, ProgressEvent
+from app.workflow.copystand import CaptureReport, StandSettings, original_takes
+from app.workflow.day import OriginalsQueue, OriginalState, QueueRow
+from app.workflow.delivery import MODES, Original
+from app.workflow.runs import RunHooks, StandRun
+from app.workflow.vocabulary import EventKind, Role
+
+log = logging.getLogger(__name__)
+
+COLUMNS = ("identifier", "title", "mode", "stand-in", "state", "QA")
+STATE_COLOURS = {OriginalState.WAITING: "#fafafa", OriginalState.CAPTURING: "#e3f2fd",
+                 OriginalState.CAPTURED: "#fff8e1", OriginalState.DELIVERED: "#e8f5e9",
+                 OriginalState.FAILED: "#ffebee"}
+RESHOOT, KEEP = "Re-shoot", "Keep"
+
+
+class OriginalsPanel(QWidget):
+    title = "Originals"
+
+    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+        super().__init__(parent)
+        self.ctx, self.lab, self.ws = ctx, ctx.lab, ctx.workspace
+        self.current: Optional[QueueRow] = None
+        self.batch: list[str] = []                  # identifiers still to capture in this batch
+        self.run: Optional[StandRun] = None
+        self._brackets: dict[str, list[float]] = {}
+        self.view = SequenceView(ctx)
+        self.view.start_button.hide()
+        self.view.event.connect(self._run_event)
+        self.view.finished.connect(self._run_finished)
+        left = QWidget()
+        lv = QVBoxLayout(left)
+        lv.addWidget(self._form_box())
+        lv.addWidget(self._calibration_box())
+        lv.addWidget(self._queue_box(), 1)
+        split = QSplitter(Qt.Horizontal)
+        split.addWidget(left)
+        split.addWidget(self.view)
+        split.setStretchFactor(0, 3)
+        split.setStretchFactor(1, 2)
+        QVBoxLayout(self).addWidget(split)
+        self._connect()
+        self._virtual_changed()
+        self.show_calibration()
+        self.fill_table()
+
+    # ------------------------------------------------------------------ builders
+    def _form_box(self) -> QGroupBox:
+        box = QGroupBox("Add an original")
+        form = QFormLayout(box)
+        self.identifier = QLineEdit()
+        self.identifier.setPlaceholderText("required: accession number, e.g. ACC-123 (names every file)")
+        self.identifier.textChanged.connect(lambda _t: self._update_enabled())
+        self.identifier.returnPressed.connect(self.add_original)
+        self.title_edit = QLineEdit()
+        self.operator = QLineEdit(self.ctx.get("originals/operator", "", str))
+        self.operator.setToolTip("Remembered for the next originals and the next session.")
+        self.operator.textChanged.connect(lambda t: self.ctx.set("originals/operator", t))
+        self.notes = QLineEdit()
+        self.mode = QComboBox()
+        self.mode.addItems(MODES)
+        self.mode.setToolTip("Reflective: paintings, prints on the stand. Transmissive: film on the light box.")
+        self.stand_in = QComboBox()
+        self.stand_in.addItems(self.lab.virtual_originals())
+        self.stand_in.setToolTip("Virtual lab: which virtual original lies on the stand for this one (the shadow "
+                                 "needs an HDR bracket).")
+        self.frames = QSpinBox()
+        self.frames.setRange(1, 32)
+        self.frames.setToolTip("Frames averaged per exposure: noise / sqrt(N), light dose x N.")
+        self.add_button = QPushButton("Add to the queue")
+        self.add_button.clicked.connect(self.add_original)
+        form.addRow("Identifier *", self.identifier)
+        form.addRow("Title", self.title_edit)
+        form.addRow("Operator", self.operator)
+        form.addRow("Notes", self.notes)
+        form.addRow("Mode", self.mode)
+        self.stand_in_label = QLabel("Virtual stand-in")
+        form.addRow(self.stand_in_label, self.stand_in)
+        form.addRow("Frames per exposure", self.frames)
+        form.addRow(self.add_button)
+        return box
+
+    def _calibration_box(self) -> QGroupBox:
+        box = QGroupBox("Calibration used")
+        lay = QVBoxLayout(box)
+        self.calibration_label = QLabel("")
+        self.calibration_label.setWordWrap(True)
+        self.calibration_label.setTextFormat(Qt.RichText)
+        self.force = QCheckBox("use it although it does not match the stand (the deliverables say so)")
+        self.force.setToolTip("A calibration made with another camera, ISO, aperture or a sphere at another "
+                              "temperature gives wrong colours; this records a warning in every deliverable.")
+        self.force.toggled.connect(lambda _on: self._update_enabled())
+        lay.addWidget(self.calibration_label)
+        lay.addWidget(self.force)
+        return box
+
+    def _queue_box(self) -> QGroupBox:
+        box = QGroupBox("Queue")
+        lay = QVBoxLayout(box)
+        self.table = QTableWidget(0, len(COLUMNS))
+        self.table.setHorizontalHeaderLabels(list(COLUMNS))
+        self.table.setSelectionBehavior(QTableWidget.SelectRows)
+        self.table.setEditTriggers(QTableWidget.NoEditTriggers)
+        self.table.horizontalHeader().setStretchLastSection(True)
+        self.table.setWordWrap(True)
+        self.table.itemSelectionChanged.connect(self._update_enabled)
+        buttons = QHBoxLayout()
+        self.capture_button = QPushButton("Capture selected")
+        self.capture_button.setToolTip("Meter, capture (an HDR bracket when metering asks) and deliver the selected "
+                                       "originals with the calibration (Ctrl+Enter).")
+        self.capture_button.clicked.connect(lambda: self.capture(self.selected()))
+        self.capture_all_button = QPushButton("Capture all waiting")
+        self.capture_all_button.clicked.connect(lambda: self.capture([r.identifier for r in self.ws.queue.waiting()]))
+        self.remove_button = QPushButton("Remove")
+        self.remove_button.setToolTip("Take the selected originals off the queue (their frames stay in the "
+                                      "session).")
+        self.remove_button.clicked.connect(self.remove_selected)
+        self.open_tiff_button = QPushButton("Open TIFF")
+        self.open_tiff_button.setToolTip("Open the delivered sRGB TIFF in the image viewer.")
+        self.open_tiff_button.clicked.connect(lambda: self._open("file"))
+        self.open_folder_button = QPushButton("Open folder")
+        self.open_folder_button.setToolTip("Show the original's deliverables folder.")
+        self.open_folder_button.clicked.connect(lambda: self._open("folder"))
+        for w in (self.capture_button, self.capture_all_button, self.remove_button, self.open_tiff_button,
+                  self.open_folder_button):
+            buttons.addWidget(w)
+        lay.addWidget(self.table, 1)
+        lay.addLayout(buttons)
+        return box
+
+    def _connect(self) -> None:
+        self.ws.calibrationChanged.connect(self.show_calibration)
+        self.ws.queueChanged.connect(self.fill_table)
+        self.ws.runningChanged.connect(lambda _n: self._update_enabled())
+        self.lab.virtualLabChanged.connect(self._virtual_changed)
+        self.lab.sessionChanged.connect(self._session_changed)
+        for sig in (self.lab.sphereChanged, self.lab.cameraChanged):
+            sig.connect(self._update_enabled)
+
+    # ------------------------------------------------------------------ queue
+    def add_original(self) -> Optional[QueueRow]:
+        try:
+            original = Original(self.identifier.text(), self.title_edit.text().strip(), self.operator.text().strip(),
+                                self.notes.text().strip(), self.mode.currentText())
+            row = self.ws.queue.add(original, self.stand_in.currentText() if self.lab.is_virtual else "",
+                                    self.frames.value())
+        except ValueError as exc:
+            self.ctx.errors.report("Add an original", exc)
+            return None
+        self.ctx.errors.clear("Add an original")
+        for w in (self.identifier, self.title_edit, self.notes):
+            w.clear()
+        self.ws.queue_changed()
+        return row
+
+    def selected(self) -> list[str]:
+        rows = sorted({i.row() for i in self.table.selectedIndexes()})
+        return [self.ws.queue.rows[r].identifier for r in rows if r < len(self.ws.queue.rows)]
+
+    def select(self, identifier: str) -> None:
+        for r, row in enumerate(self.ws.queue.rows):
+            if row.identifier == identifier:
+                self.table.selectRow(r)
+
+    def remove_selected(self) -> None:
+        for ident in self.selected():
+            if self.current is None or self.current.identifier != ident:
+                self.ws.queue.remove(ident)
+        self.ws.queue_changed()
+
+    def fill_table(self) -> None:
+        rows = self.ws.queue.rows
+        self.table.setRowCount(len(rows))
+        for r, row in enumerate(rows):
+            o = row.original
+            texts = (o.identifier, o.title, o.mode, row.stand_in or "—", row.state.value, row.qa)
+            for c, text in enumerate(texts):
+                item = QTableWidgetItem(text)
+                item.setToolTip(text if c != 5 else "\n".join([text] + row.warnings))
+                item.setBackground(QColor(STATE_COLOURS[row.state]))
+                self.table.setItem(r, c, item)
+        self.table.resizeColumnsToContents()
+        self.table.resizeRowsToContents()
+        self._update_enabled()
+
+    def _session_changed(self) -> None:
+        session = self.lab.session
+        if session is None:
+            return
+        keep = [r for r in self.ws.queue.rows if r.state is OriginalState.WAITING]
+
+        def done(queue: OriginalsQueue) -> None:
+            for row in keep:                     # waiting originals stay queued in the new session
+                if all(r.identifier != row.identifier for r in queue.rows):
+                    queue.rows.append(row)
+            self.ws.queue = queue
+            self.ws.queue_changed()
+        self.ctx.runner.submit(lambda: OriginalsQueue.from_session(session), pool="compute", name="list originals",
+                               on_result=done, on_error=lambda exc: self.ctx.errors.report("Originals", exc))
+
+    # ------------------------------------------------------------------ calibration and state
+    def show_calibration(self) -> None:
+        prof, check = self.ws.calibration, self.ws.calibration_check
+        if prof is None:
+            text = "<b>no calibration</b>: calibrate in Calibrate & capture, or load a saved one there"
+        else:
+            test = f", test ΔE00 {prof.test_mean:.2f}" if prof.test_mean is not None else ""
+            text = f"{prof.id}: {prof.age_h():.1f}\u00a0h old, ISO {prof.camera.iso}{test}"
+            if check is None:
+                text += "<br>not checked against the stand yet"
+            elif check.ok:
+                text += "<br><span style='color:#2e7d32'>matches the stand</span>"
+            else:
+                text += f"<br><span style='color:#c62828; font-weight:bold'>does not match the stand: " \
+                        f"{check.message()}</span>"
+            text += "".join(f"<br><span style='color:#b26a00'>{w}</span>" for w in (check.warnings if check else []))
+        self.calibration_label.setText(text)
+        self.force.setVisible(self.ws.calibration_refused)
+        self._update_enabled()
+
+    def _virtual_changed(self) -> None:
+        virtual = self.lab.is_virtual
+        self.stand_in.setVisible(virtual)
+        self.stand_in_label.setVisible(virtual)
+        if virtual:
+            self.mode.setCurrentText(self.lab.virtual_lab.mode)
+
+    def _update_enabled(self) -> None:
+        running = bool(self.ws.running)
+        ok = (self.ws.calibration is not None and self.lab.camera is not None and self.lab.sphere is not None
+              and self.lab.session is not None and not running
+              and (not self.ws.calibration_refused or self.force.isChecked()))
+        sel = [self.ws.queue.row(i) for i in self.selected()]
+        self.capture_button.setEnabled(ok and bool(sel))
+        self.capture_all_button.setEnabled(ok and bool(self.ws.queue.waiting()))
+        self.remove_button.setEnabled(bool(sel) and not running)
+        self.add_button.setEnabled(bool(self.identifier.text().strip()))
+        delivered = [r for r in sel if r.state is OriginalState.DELIVERED]
+        self.open_tiff_button.setEnabled(len(delivered) == 1)
+        self.open_folder_button.setEnabled(len(delivered) == 1)
+        self.force.setEnabled(not running)
+        why = self._why_not(running)
+        self.capture_button.setToolTip(why or "Meter, capture (an HDR bracket when metering asks) and deliver the "
+                                              "selected originals with the calibration (Ctrl+Enter).")
+
+    def _why_not(self, running: bool) -> str:
+        if running:
+            return f"{self.ws.running} is running"
+        if self.ws.calibration is None:
+            return "calibrate first (Calibrate & capture), or load a saved calibration"
+        if self.ws.calibration_refused and not self.force.isChecked():
+            return "the calibration does not match the stand (see above)"
+        if self.lab.camera is None or self.lab.sphere is None or self.lab.session is None:
+            return "connect the devices and start a session"
+        return ""
+
+    # ------------------------------------------------------------------ capture
+    def capture_shortcut(self) -> None:
+        if self.capture_button.isEnabled():
+            self.capture(self.selected())
+
+    def capture(self, identifiers: list[str]) -> None:
+        why = self._why_not(bool(self.ws.running))
+        if why:
+            self.ctx.errors.report("Capture originals", why)
+            return
+        self.batch = list(identifiers)
+        self._next()
+
+    def _next(self) -> None:
+        while self.batch:
+            ident = self.batch.pop(0)
+            try:
+                row = self.ws.queue.row(ident)
+            except KeyError:
+                continue
+            takes = original_takes(self.lab.session, row.original)
+            if takes:
+                self._ask_reshoot(row, takes)
+            else:
+                self._start(row, None)
+            return
+
+    def _ask_reshoot(self, row: QueueRow, takes: list[int]) -> None:
+        text = (f"{row.identifier} is already in the session ({len(takes)} frames, take {max(takes)}). Re-shoot it "
+                "(a new take; the old frames stay in the session) or keep its frames and deliver them again?")
+        self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP),
+                           lambda choice: self._start(row, choice == RESHOOT), default=KEEP)
+
+    def _start(self, row: QueueRow, reshoot: Optional[bool]) -> None:
+        profile, lab = self.ws.calibration, self.lab
+        settings = StandSettings(**self._stand_settings(), force=self.force.isChecked(), original_frames=row.frames)
+
+        def work(hooks: RunHooks) -> CaptureReport:
+            stand = lab.copy_stand(settings, hooks, stand_in=row.stand_in)
+            return stand.capture(row.original, profile, reshoot=reshoot)
+        self.current = row
+        self._brackets = {}
+        row.state, row.qa = OriginalState.CAPTURING, ""
+        self.ws.queue_changed()
+        self.run = StandRun(row.identifier, self._plan(row, {}), work)
+        self.view.start(self.run)
+
+    def _plan(self, row: QueueRow, brackets: dict[str, list[float]]) -> list[PlannedFrame]:
+        """Metering, then the original under each light: its base exposure until metering has planned how many
+        exposures it needs (the calibration's own exposures, as many as metering asks and it covers: CopyStand)."""
+        profile = self.ws.calibration
+        plan = [PlannedFrame(Role.METERING.value, profile.base_exposures[nl.name], nl.light.label(),
+                             f"metering {row.identifier}") for nl in profile.lights]
+        for nl in profile.lights:
+            have = profile.exposures.get(nl.name, [])
+            times = have[:len(brackets[nl.name])] if nl.name in brackets else [profile.base_exposures[nl.name]]
+            note = row.identifier + ("" if brackets else " (more exposures when metering asks for HDR)")
+            plan += [PlannedFrame(Role.ORIGINAL.value, t, nl.light.label(), note)
+                     for t in times for _ in range(row.frames)]
+        return plan
+
+    def _stand_settings(self) -> dict:
+        g = self.ctx.get
+        latency = g("capture/latency_s", 0.0, float)
+        return {"settle_s": g("capture/settle_s", 0.2, float), "latency_s": latency if latency > 0 else None}
+
+    def _run_event(self, ev: ProgressEvent) -> None:
+        row = self.current
+        if row is None or self.view.seq is not self.run:
+            return
+        if "exposures" in ev.data and "light" in ev.data:        # metering planned this light's exposures
+            self._brackets[ev.data["light"]] = list(ev.data["exposures"])
+            if len(self._brackets) == len(self.ws.calibration.lights):
+                self.view.replan(self._plan(row, self._brackets))
+        if ev.kind in (EventKind.FRAME.value, EventKind.KEPT.value) and ev.total and ev.step >= ev.total:
+            row.state = OriginalState.CAPTURED              # every frame is in the session; delivering
+            self.ws.queue_changed()
+
+    def _run_finished(self, run, outcome: str) -> None:
+        row = self.current
+        if run is not self.run or row is None:
+            return
+        self.current = None
+        if outcome == "done" and run.result is not None:
+            report: CaptureReport = run.result
+            d = report.delivery
+            row.state, row.qa = OriginalState.DELIVERED, report.summary()
+            row.files, row.sidecar = dict(d.files), d.sidecar
+            row.warnings = list(report.check.warnings) + list(report.warnings)
+            self.view.message.setText(report.summary())
+        elif outcome == "cancelled":
+            row.state, row.qa = OriginalState.WAITING, "cancelled: its frames so far stay in the session"
+            self.batch = []
+        else:
+            row.state = OriginalState.FAILED
+            row.qa = self.ctx.errors.current[1] if self.ctx.errors.current else "failed"
+        self.ws.queue_changed()
+        self.ctx.bus.sessionUpdated.emit()
+        if outcome == "done":
+            self._next()
+
+    def _open(self, what: str) -> None:
+        sel = [self.ws.queue.row(i) for i in self.selected()]
+        row = next((r for r in sel if r.state is OriginalState.DELIVERED), None)
+        if row is None:
+            return
+        path = row.main_file if what == "file" else row.folder
+        if path is not None:
+            self.ctx.open_path(path)
+
+    def cancel_running(self) -> None:
+        self.batch = []
+        self.view.cancel()
+
+    def shutdown(self) -> None:
+        self.cancel_running()

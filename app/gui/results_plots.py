@@ -1,0 +1,125 @@
+"""The Results panel's plots of one target: ΔE00 per patch on a fixed traffic-light scale with the patch names,
+reference -> prediction vectors on a*b* and L*C*, and the reference | prediction mosaic with its legend."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtWidgets import QGridLayout, QLabel, QWidget
+
+from app.gui.de_scale import SCALE_MAX, de_band, lookup_table
+from app.gui.widgets import DeLegend, image_widget, plot_widget
+
+log = logging.getLogger(__name__)
+
+MAX_LABELLED = 60            # patch names on the heat map up to this many patches (a 24-patch chart, not an IT8)
+CELL = 16                    # mosaic cell size (pixels)
+
+
+@dataclass
+class TargetView:
+    """What the plots need for one target (computed in the worker from the processing results)."""
+
+    label: str
+    names: list[str]
+    errors: np.ndarray
+    lab_ref: np.ndarray
+    lab_pred: np.ndarray
+    srgb_ref: np.ndarray
+    srgb_pred: np.ndarray
+    layout: tuple[int, int]
+
+
+def vector_pairs(ref: np.ndarray, pred: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x, y for a PlotDataItem(connect='pairs'): one segment from each reference point to its prediction."""
+    xy = np.empty((2 * len(ref), 2))
+    xy[0::2], xy[1::2] = ref, pred
+    return xy[:, 0], xy[:, 1]
+
+
+class TargetPlots(QWidget):
+    def __init__(self, parent: Optional[QWidget] = None):
+        super().__init__(parent)
+        self.heat_widget, self.heat_item, self.heat_box = image_widget(
+            "ΔE00 of every patch, laid out like the target; the colours are fixed bands (legend above).")
+        self.heat_widget.setBackground("w")
+        self.heat_texts: list[pg.TextItem] = []
+        self.ab_plot = plot_widget("a* b*: reference → capture", "a*", "b*",
+                                   "Each patch's reference colour (dot, coloured by its ΔE00 band) and a line to "
+                                   "where the capture puts it (cross).")
+        self.lc_plot = plot_widget("L* C*: reference → capture", "C*", "L*", "Lightness against chroma, the same "
+                                   "way.")
+        for p in (self.ab_plot, self.lc_plot):
+            p.addLegend(offset=(-10, 10))
+        self.mosaic_widget, self.mosaic_item, self.mosaic_box = image_widget(
+            "Each patch: left half the reference colour, right half the colour the capture predicts (sRGB).")
+        self.mosaic_widget.setBackground("w")
+        self.mosaic_legend = QLabel("each patch: <b>left half</b> reference colour | <b>right half</b> colour from "
+                                    "the capture (sRGB)")
+        self.mosaic_legend.setWordWrap(True)
+        self.title = QLabel("")
+        grid = QGridLayout(self)
+        grid.addWidget(DeLegend(), 0, 0)
+        grid.addWidget(self.mosaic_legend, 0, 1)
+        grid.addWidget(self.heat_widget, 1, 0)
+        grid.addWidget(self.mosaic_widget, 1, 1)
+        grid.addWidget(self.ab_plot, 2, 0)
+        grid.addWidget(self.lc_plot, 2, 1)
+        grid.addWidget(self.title, 3, 0, 1, 2)
+        self._lut = lookup_table()
+
+    def show_view(self, view: TargetView) -> None:
+        self._heat(view)
+        self._scatter(view)
+        self._mosaic(view)
+        worst = int(np.argmax(view.errors))
+        self.title.setText(f"{view.label}: {len(view.names)} patches; worst {view.names[worst]} "
+                           f"{view.errors[worst]:.2f} ΔE00")
+
+    def _heat(self, view: TargetView) -> None:
+        rows, cols = view.layout
+        n = len(view.errors)
+        grid = np.full(rows * cols, np.nan)
+        grid[:n] = view.errors
+        self.heat_item.setImage(grid.reshape(rows, cols), levels=(0.0, SCALE_MAX), lut=self._lut, autoLevels=False)
+        for t in self.heat_texts:
+            self.heat_box.removeItem(t)
+        self.heat_texts = []
+        if n <= MAX_LABELLED:
+            for k, (name, e) in enumerate(zip(view.names, view.errors)):
+                r, c = divmod(k, cols)
+                t = pg.TextItem(f"{name}\n{e:.2f}", color=de_band(float(e)).text_colour, anchor=(0.5, 0.5))
+                t.setPos(c + 0.5, r + 0.5)
+                self.heat_box.addItem(t)
+                self.heat_texts.append(t)
+        self.heat_box.autoRange()
+
+    def _scatter(self, view: TargetView) -> None:
+        brushes = [pg.mkBrush(de_band(float(e)).colour) for e in view.errors]
+        chroma = (np.hypot(view.lab_ref[:, 1], view.lab_ref[:, 2]), np.hypot(view.lab_pred[:, 1], view.lab_pred[:, 2]))
+        for plot, ref, pred in ((self.ab_plot, view.lab_ref[:, 1:3], view.lab_pred[:, 1:3]),
+                                (self.lc_plot, np.column_stack([chroma[0], view.lab_ref[:, 0]]),
+                                 np.column_stack([chroma[1], view.lab_pred[:, 0]]))):
+            plot.clear()
+            x, y = vector_pairs(ref, pred)
+            plot.addItem(pg.PlotDataItem(x, y, connect="pairs", pen=pg.mkPen("#616161", width=1),
+                                         name="reference → capture"))
+            plot.addItem(pg.ScatterPlotItem(ref[:, 0], ref[:, 1], brush=brushes, size=9, pen=pg.mkPen("#444"),
+                                            name="reference (ΔE00 band)"))
+            plot.addItem(pg.ScatterPlotItem(pred[:, 0], pred[:, 1], size=6, symbol="x", pen=pg.mkPen("#212121"),
+                                            brush=pg.mkBrush("#212121"), name="capture"))
+        self.ab_plot.getPlotItem().setAspectLocked(True)
+
+    def _mosaic(self, view: TargetView) -> None:
+        rows, cols = view.layout
+        img = np.ones((rows * CELL, cols * CELL, 3))
+        for k in range(len(view.errors)):
+            r, c = divmod(k, cols)
+            y, x = r * CELL, c * CELL
+            img[y + 1:y + CELL - 1, x + 1:x + CELL // 2] = view.srgb_ref[k]
+            img[y + 1:y + CELL - 1, x + CELL // 2:x + CELL - 1] = view.srgb_pred[k]
+        self.mosaic_item.setImage((img * 255).astype(np.uint8), autoLevels=False, levels=(0, 255))
+        self.mosaic_box.autoRange()

@@ -1,0 +1,254 @@
+"""The copy-stand day as a checklist, and the queue of originals (Qt-free; the GUI's guide and Originals step).
+
+    queue = OriginalsQueue.from_session(session)          # originals delivered earlier in the session come back
+    queue.add(Original("ACC-1", title="Portrait"))
+    steps = day_checklist(DayState(sphere="...", camera="...", session=session, plan=..., profile=profile,
+                                   queue=queue))
+    for step in steps: print(step.title, step.state.value, *step.lines)
+
+The checklist is the order the technician follows: Connect -> Calibrate (darks, flats, targets; coverage such as
+"darks 2/4 exposures"; a warning when a new HDR plan needs exposures the calibration lacks) -> Originals ->
+Deliver. Each step says what is done and what is next; the first step not done is the active one.
+"""
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+from typing import Any, Mapping, Optional, Sequence
+
+from app.workflow.coverage import Coverage, coverage, plan_coverage
+from app.workflow.delivery import Original
+from app.workflow.profile import CalibrationProfile, ReuseCheck
+from app.workflow.vocabulary import Role, latest_takes, role_of, subject_of
+
+log = logging.getLogger(__name__)
+
+
+class OriginalState(str, Enum):
+    WAITING = "waiting"
+    CAPTURING = "capturing"
+    CAPTURED = "captured"         # every frame is in the session; the deliverables are being written
+    DELIVERED = "delivered"
+    FAILED = "failed"
+
+
+@dataclass
+class QueueRow:
+    """One original in the day's queue: what it is, what lies on a virtual stand for it, and how far it got."""
+
+    original: Original
+    stand_in: str = ""                      # the virtual lab's stand-in ('painting', 'film', 'shadow'); '' = real
+    frames: int = 1                         # frames averaged per exposure
+    state: OriginalState = OriginalState.WAITING
+    qa: str = ""                            # the delivery's QA line, or why it failed
+    files: dict[str, Path] = field(default_factory=dict)
+    sidecar: Optional[Path] = None
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def identifier(self) -> str:
+        return self.original.identifier
+
+    @property
+    def main_file(self) -> Optional[Path]:
+        """The file to open first: the sRGB TIFF (any deliverable when it is missing)."""
+        return self.files.get("srgb") or next(iter(self.files.values()), None)
+
+    @property
+    def folder(self) -> Optional[Path]:
+        return self.sidecar.parent if self.sidecar is not None else None
+
+
+class OriginalsQueue:
+    """The originals of the day in the order they were added; identifiers are unique."""
+
+    def __init__(self) -> None:
+        self.rows: list[QueueRow] = []
+
+    def add(self, original: Original, stand_in: str = "", frames: int = 1) -> QueueRow:
+        if any(r.identifier == original.identifier for r in self.rows):
+            raise ValueError(f"{original.identifier} is already in the queue")
+        if frames < 1:
+            raise ValueError(f"frames per exposure {frames}: expected at least 1")
+        row = QueueRow(original, stand_in, frames)
+        self.rows.append(row)
+        return row
+
+    def row(self, identifier: str) -> QueueRow:
+        for r in self.rows:
+            if r.identifier == identifier:
+                return r
+        raise KeyError(f"{identifier} is not in the queue")
+
+    def remove(self, identifier: str) -> None:
+        self.rows.remove(self.row(identifier))
+
+    def waiting(self) -> list[QueueRow]:
+        return [r for r in self.rows if r.state is OriginalState.WAITING]
+
+    def counts(self) -> dict[OriginalState, int]:
+        return {s: sum(r.state is s for r in self.rows) for s in OriginalState}
+
+    @classmethod
+    def from_session(cls, session: Any) -> "OriginalsQueue":
+        """The originals already delivered in ``session`` (session.json 'originals', their sidecars)."""
+        queue = cls()
+        for ident, meta in (session.settings.get("originals") or {}).items():
+            fields = {k: v for k, v in meta.items() if k in Original.__dataclass_fields__}
+            try:
+                row = queue.add(Original(**{**fields, "identifier": ident}))
+            except (TypeError, ValueError) as exc:
+                log.warning("session original %r skipped: %s", ident, exc)
+                continue
+            _read_delivery(row, Path(meta.get("sidecar") or ""))
+        return queue
+
+
+def _read_delivery(row: QueueRow, sidecar: Path) -> None:
+    try:
+        doc = json.loads(sidecar.read_text())
+    except (OSError, ValueError) as exc:
+        row.state, row.qa = OriginalState.CAPTURED, f"in the session; deliverables not readable ({exc})"
+        return
+    row.sidecar = sidecar
+    row.files = {k: sidecar.parent / name for k, name in (doc.get("files") or {}).items()}
+    row.qa = str((doc.get("qa") or {}).get("text", ""))
+    row.warnings = list((doc.get("qa") or {}).get("warnings", []))
+    row.state = OriginalState.DELIVERED
+
+
+# ---------------------------------------------------------------- the checklist
+class DayStep(str, Enum):
+    CONNECT = "connect"
+    CALIBRATE = "calibrate"
+    ORIGINALS = "originals"
+    DELIVER = "deliver"
+
+
+class StepState(str, Enum):
+    TODO = "todo"
+    ACTIVE = "active"             # the next thing to do
+    DONE = "done"
+    WARNING = "warning"           # done once, but something now needs attention
+
+
+STEP_TITLES = {DayStep.CONNECT: "Connect", DayStep.CALIBRATE: "Calibrate", DayStep.ORIGINALS: "Originals",
+               DayStep.DELIVER: "Deliver"}
+
+
+@dataclass
+class GuideStep:
+    step: DayStep
+    state: StepState
+    lines: list[str] = field(default_factory=list)
+
+    @property
+    def title(self) -> str:
+        return STEP_TITLES[self.step]
+
+
+@dataclass
+class DayState:
+    """What the checklist looks at. ``plan``: the exposures the captures use now (light -> seconds: the base
+    exposures and every HDR bracket planned), ``profile``/``check``: the current calibration and its last check
+    against the stand."""
+
+    sphere: str = ""
+    camera: str = ""
+    session: Any = None
+    plan: Mapping[str, Sequence[float]] = field(default_factory=dict)
+    profile: Optional[CalibrationProfile] = None
+    check: Optional[ReuseCheck] = None
+    queue: OriginalsQueue = field(default_factory=OriginalsQueue)
+    deliverables: Optional[Path] = None
+
+
+def day_checklist(state: DayState) -> list[GuideStep]:
+    steps = [_connect(state), _calibrate(state), _originals(state), _deliver(state)]
+    for s in steps:                         # the first step not done is the one to do now
+        if s.state is StepState.TODO:
+            s.state = StepState.ACTIVE
+            break
+        if s.state in (StepState.ACTIVE, StepState.WARNING):
+            break
+    return steps
+
+
+def _connect(st: DayState) -> GuideStep:
+    lines = [f"sphere: {st.sphere or 'not connected'}", f"camera: {st.camera or 'not connected'}",
+             f"session: {Path(st.session.path).name} ({len(st.session.entries())} frames)" if st.session is not None
+             else "session: none (New session)"]
+    done = bool(st.sphere and st.camera and st.session is not None)
+    return GuideStep(DayStep.CONNECT, StepState.DONE if done else StepState.TODO, lines)
+
+
+def targets_captured(session: Any) -> set[str]:
+    """'train' / 'test' when the session holds that target (without the ND filter)."""
+    out = set()
+    for e in latest_takes(session.entries()):
+        if role_of(e) is Role.TARGET:
+            subject = subject_of(e)
+            if subject is not None and not subject.nd:
+                out.add(subject.name)
+    return out
+
+
+def _calibrate(st: DayState) -> GuideStep:
+    prof = st.profile
+    if prof is None:
+        lines = ["no calibration yet: Calibrate (or load one)"]
+        if st.session is not None and st.plan:
+            lines.append(coverage(st.session, st.plan).summary())
+            have = targets_captured(st.session)
+            lines.append("targets: " + ", ".join(f"{n} {'done' if n in have else 'to do'}" for n in ("train", "test")))
+        return GuideStep(DayStep.CALIBRATE, StepState.TODO, lines)
+    test = f", test ΔE00 {prof.test_mean:.2f}" if prof.test_mean is not None else ""
+    lines = [f"{prof.id}: {prof.age_h():.1f} h old{test}"]
+    needed = {n: sorted(set(prof.exposures.get(n, [])) | {float(t) for t in st.plan.get(n, [])})
+              for n in prof.exposures}
+    cov = plan_coverage(prof.exposures, needed)
+    lines.append(cov.summary())
+    state = StepState.DONE
+    if not cov.complete:
+        state = StepState.WARNING
+        lines.append(f"incomplete for the new HDR plan: missing {cov.missing()}; recalibrate with HDR")
+    for row in st.queue.rows:
+        for w in row.warnings:
+            if "recalibrate" in w:
+                state = StepState.WARNING
+                lines.append(f"{row.identifier}: {w}")
+    if st.check is not None:
+        if not st.check.ok:
+            state = StepState.WARNING
+            lines.append(f"does not match the stand: {st.check.message()}")
+        lines += st.check.warnings
+    return GuideStep(DayStep.CALIBRATE, state, lines)
+
+
+def _originals(st: DayState) -> GuideStep:
+    counts = st.queue.counts()
+    n = len(st.queue.rows)
+    if not n:
+        return GuideStep(DayStep.ORIGINALS, StepState.TODO, ["none in the queue: add one with its identifier"])
+    parts = ", ".join(f"{k} {s.value}" for s, k in counts.items() if k)
+    lines = [f"{n} in the queue: {parts}"]
+    failed = [r.identifier for r in st.queue.rows if r.state is OriginalState.FAILED]
+    if failed:
+        return GuideStep(DayStep.ORIGINALS, StepState.WARNING, lines + [f"failed: {', '.join(failed)}"])
+    done = counts[OriginalState.DELIVERED] == n
+    return GuideStep(DayStep.ORIGINALS, StepState.DONE if done else StepState.TODO, lines)
+
+
+def _deliver(st: DayState) -> GuideStep:
+    delivered = [r for r in st.queue.rows if r.state is OriginalState.DELIVERED]
+    n = len(st.queue.rows)
+    lines = [f"{len(delivered)} of {n} delivered" + (f" to {st.deliverables}" if st.deliverables else "")]
+    done = bool(n) and len(delivered) == n
+    return GuideStep(DayStep.DELIVER, StepState.DONE if done else StepState.TODO, lines)
+
+
+__all__ = ["Coverage", "DayState", "DayStep", "GuideStep", "OriginalState", "OriginalsQueue", "QueueRow",
+           "StepState", "day_checklist", "targets_captured"]

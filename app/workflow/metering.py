@@ -1,0 +1,116 @@
+"""Auto-exposure and HDR metering as sequences: planned, paused between lights, cancelled with the LEDs off.
+
+Both used to be plain functions (app.sequences.calibration.auto_exposure, app.sequences.hdr.meter_and_plan) that a
+front end could neither pause nor cancel. Wrapped as :class:`app.sequences.base.Sequence` they run like every
+other sequence: the GUI's sequence view shows their plan, progress and time left, Esc cancels between lights, and
+the LEDs are off after completion, cancel or error (``_cleanup``). :class:`app.workflow.copystand.CopyStand` runs
+them too, so the CLI, the demo and the GUI meter the same way.
+
+    seq = AutoExposure(shooter, lights)
+    for event in seq.run(): ...
+    seq.exposures            # light name -> open-gate exposure (80 % of the linear limit, thesis 4.1)
+"""
+from __future__ import annotations
+
+import logging
+from typing import Iterator, Sequence
+
+from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
+from app.sequences.calibration import auto_exposure
+from app.sequences.hdr import HdrPlan, meter_and_plan
+from app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, format_exposure, step_id
+
+log = logging.getLogger(__name__)
+
+AUTO_EXPOSURE_START_S = 1 / 60        # app.sequences.calibration.auto_exposure's first metering exposure
+Box = tuple[int, int, int, int]
+
+
+class AutoExposure(BaseSequence):
+    """Per light, the exposure that puts the open gate's brightest channel at 80 % of the linear limit.
+
+    Each light takes up to five metering frames (kept in the session, role 'metering'); cancel and pause act
+    between lights. ``exposures`` holds the result of every light done so far."""
+
+    name = "auto-exposure"
+
+    def __init__(self, shooter, lights: Sequence[NamedLight]):
+        super().__init__()
+        self.shooter = shooter
+        self.lights = list(lights)
+        self.exposures: dict[str, float] = {}
+
+    def plan(self) -> list[PlannedFrame]:
+        return [PlannedFrame(Role.METERING.value, AUTO_EXPOSURE_START_S, nl.light.label(),
+                             "open gate; metering, up to 5 frames") for nl in self.lights]
+
+    def _steps(self) -> Iterator[ProgressEvent]:
+        total = len(self.lights)
+        if not self.shooter.place("open-gate"):
+            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind=EventKind.PROMPT.value,
+                                data={"place": "open-gate"})
+            self.shooter.placed = ("open-gate", False)        # the person did it: not asked again
+        for i, nl in enumerate(self.lights, start=1):
+            self.checkpoint()
+            t, seqs = auto_exposure(self.shooter, nl)
+            self.exposures[nl.name] = t
+            yield ProgressEvent(i, total, f"auto-exposure: {nl.name} {format_exposure(t)}",
+                                data={"entry": seqs[-1], "light": nl.name, "exposure_s": t, "role": "metering"})
+
+    def _cleanup(self) -> None:
+        self.shooter.lights_off()
+
+    def summary(self) -> str:
+        return "auto-exposure: " + ", ".join(f"{n} {format_exposure(t)}" for n, t in self.exposures.items())
+
+
+class HdrMetering(BaseSequence):
+    """One metering frame per light at its base exposure, then the fewest exposures that bring every region into
+    the linear range (app.sequences.hdr.plan_hdr, thesis 8). ``plans`` holds each light's bracket."""
+
+    name = "HDR metering"
+
+    def __init__(self, shooter, lights: Sequence[NamedLight], base_exposures: dict[str, float], subject: Subject,
+                 boxes: Sequence[Box], *, take: int = 1, max_frames: int = 5):
+        super().__init__()
+        missing = [nl.name for nl in lights if nl.name not in base_exposures]
+        if missing:
+            raise ValueError(f"no base exposure for {', '.join(missing)}: run auto-exposure first")
+        self.shooter = shooter
+        self.lights = list(lights)
+        self.base = {k: float(v) for k, v in base_exposures.items()}
+        self.subject = subject
+        self.boxes = list(boxes)
+        self.take = take
+        self.max_frames = max_frames
+        self.plans: dict[str, HdrPlan] = {}
+
+    def plan(self) -> list[PlannedFrame]:
+        return [PlannedFrame(Role.METERING.value, self.base[nl.name], nl.light.label(),
+                             f"metering {self.subject.label}") for nl in self.lights]
+
+    def _steps(self) -> Iterator[ProgressEvent]:
+        total = len(self.lights)
+        if not self.shooter.place(self.subject.place, self.subject.nd):
+            yield ProgressEvent(0, total, f"Place the {self.subject.label}, then continue",
+                                kind=EventKind.PROMPT.value, data={"place": self.subject.place})
+            self.shooter.placed = (self.subject.place, self.subject.nd)
+        for i, nl in enumerate(self.lights, start=1):
+            self.checkpoint()
+            plan = meter_and_plan(self.shooter, [nl], {nl.name: self.base[nl.name]}, self.subject, self.boxes,
+                                  take=self.take, max_frames=self.max_frames)[nl.name]
+            self.plans[nl.name] = plan
+            sid = step_id(Role.METERING, subject=self.subject, light=nl.name, exposure_s=self.base[nl.name],
+                          take=self.take)
+            entry = self.shooter.session.entry(sid)
+            yield ProgressEvent(i, total, f"HDR metering {nl.name}: {len(plan.exposures)} exposure(s)",
+                                data={"entry": entry.seq, "light": nl.name, "exposures": list(plan.exposures),
+                                      "role": "metering"})
+
+    def _cleanup(self) -> None:
+        self.shooter.lights_off()
+
+    def summary(self) -> str:
+        return "; ".join(f"{n}: {', '.join(format_exposure(t) for t in p.exposures)} (range {p.dynamic_range:.0f}:1"
+                         + (", limited by the light-on time" if p.limited_by_light_time else "") + ")"
+                         for n, p in self.plans.items())
