@@ -4,8 +4,8 @@ from __future__ import annotations
 import logging
 import os
 import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Callable, Mapping, Optional
 
 log = logging.getLogger(__name__)
 
@@ -13,7 +13,7 @@ HEADLESS_PLATFORMS = ("offscreen", "minimal", "vnc", "eglfs", "linuxfb", "vkkhrd
 NO_DISPLAY = ("no display found; set QT_QPA_PLATFORM=offscreen for headless use or run on a desktop")
 
 
-def display_problem(env: Optional[Mapping[str, str]] = None) -> Optional[str]:
+def display_problem(env: Mapping[str, str] | None = None) -> str | None:
     """A one-line reason the GUI cannot open a window here, or None. Checked before Qt is touched (Qt would
     abort the whole process with a core dump)."""
     env = os.environ if env is None else env
@@ -33,8 +33,8 @@ def display_problem(env: Optional[Mapping[str, str]] = None) -> Optional[str]:
     return NO_DISPLAY
 
 
-def live_display_problem(env: Optional[Mapping[str, str]] = None,
-                         loader: Optional[Callable[[str], bool]] = None) -> Optional[str]:
+def live_display_problem(env: Mapping[str, str] | None = None,
+                         loader: Callable[[str], bool] | None = None) -> str | None:
     """After :func:`display_problem`'s rules: does the display really answer, and can Qt's platform plugin load
     here? One line (missing system libraries with the install command, a stale DISPLAY or WAYLAND_DISPLAY) or
     None. A stale Wayland socket beside a live X display makes Qt use xcb (QT_QPA_PLATFORM is set)."""
@@ -65,10 +65,10 @@ def pyside_drops_none_references() -> bool:
     return before - sys.getrefcount(None) >= 150
 
 
-def application(argv: Optional[list[str]] = None):
+def application(argv: list[str] | None = None):
     """The QApplication (created once), with pyqtgraph's defaults for white plots."""
-    from PySide6.QtWidgets import QApplication
     import pyqtgraph as pg
+    from PySide6.QtWidgets import QApplication
 
     app = QApplication.instance()
     if app is None:
@@ -79,7 +79,7 @@ def application(argv: Optional[list[str]] = None):
     return app
 
 
-def run(virtual_lab: bool = False, screenshot_dir: Optional[Path] = None,
+def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
         frame_size: tuple[int, int] = (600, 400)) -> int:
     if screenshot_dir is not None and (display_problem() or live_display_problem()) is not None:
         os.environ["QT_QPA_PLATFORM"] = "offscreen"      # screenshots need no screen
@@ -88,17 +88,20 @@ def run(virtual_lab: bool = False, screenshot_dir: Optional[Path] = None,
         from app.cli import UserError
         raise UserError(problem)
     if pyside_drops_none_references():
-        from app.cli import UserError
         import PySide6
+
+        from app.cli import UserError
         raise UserError(f"PySide6 {PySide6.__version__} has a reference-count bug that crashes the window on this "
                         "Python; install another version: pip install 'PySide6-Essentials!=6.12.0'")
     app = application()
     from app.gui.main_window import MainWindow
 
     if screenshot_dir is not None:
-        from app.gui.screenshots import ScreenshotRun
-        from PySide6.QtCore import QSettings
         import tempfile
+
+        from PySide6.QtCore import QSettings
+
+        from app.gui.screenshots import ScreenshotRun
 
         tmp = Path(tempfile.mkdtemp(prefix="dualrgb-screens-"))
         settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.IniFormat)
@@ -125,6 +128,7 @@ def _close_on_signals(window) -> None:
     """Ctrl-C / SIGTERM in the terminal close the window the normal way (LEDs off, ports closed). Python runs
     signal handlers only when it gets control, so a timer hands it control a few times a second."""
     import signal
+
     from PySide6.QtCore import QTimer
 
     def close(signum, _frame) -> None:

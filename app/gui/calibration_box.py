@@ -7,12 +7,21 @@ from __future__ import annotations
 
 import html
 import logging
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import (QCheckBox, QFileDialog, QFormLayout, QGroupBox, QHBoxLayout, QLabel, QPushButton,
-                               QSpinBox, QWidget)
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QFileDialog,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QSpinBox,
+    QWidget,
+)
 
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
@@ -22,8 +31,14 @@ from app.sequences.base import ProgressEvent
 from app.sequences.shooter import Shooter
 from app.workflow.copystand import StandSettings, parsimony_defaults
 from app.workflow.metering import AutoExposure
-from app.workflow.profile import CalibrationProfile, CameraIdentity, ReuseLimits, SphereIdentity, check_reuse, \
-    load_profile
+from app.workflow.profile import (
+    CalibrationProfile,
+    CameraIdentity,
+    ReuseLimits,
+    SphereIdentity,
+    check_reuse,
+    load_profile,
+)
 from app.workflow.runs import RunHooks, StandRun
 from app.workflow.vocabulary import Subject
 
@@ -34,14 +49,14 @@ CALIBRATION_RUN = "calibration"
 
 class CalibrationBox(QGroupBox):
     def __init__(self, ctx: AppContext, view: SequenceView, stand_settings: Callable[[], StandSettings],
-                 plan_shooter: Callable[[], Shooter], parent: Optional[QWidget] = None):
+                 plan_shooter: Callable[[], Shooter], parent: QWidget | None = None):
         super().__init__("Calibration (once a day, or when something changes)", parent)
         self.ctx = ctx
         self.ws = ctx.workspace
         self.view = view
         self.stand_settings = stand_settings
         self.plan_shooter = plan_shooter
-        self.run: Optional[StandRun] = None
+        self.run: StandRun | None = None
         self._build()
         self.ws.calibrationChanged.connect(self.show_calibration)
         view.event.connect(self._run_event)

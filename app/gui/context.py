@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 from PySide6.QtCore import QObject, QSettings, QStandardPaths, QUrl, Signal
 from PySide6.QtGui import QDesktopServices
@@ -52,7 +52,7 @@ class AppContext:
     open_externally: bool = True
 
     # ---- typed settings, saved as soon as they change ----
-    def get(self, key: str, default: Any = None, type_: Optional[type] = None) -> Any:
+    def get(self, key: str, default: Any = None, type_: type | None = None) -> Any:
         if type_ is None and default is not None:
             type_ = type(default)
         value = self.settings.value(key, default)

@@ -38,13 +38,14 @@ def de_bands() -> list[DeBand]:
     edges = [fadgi["colour_mean_de00"].value, fadgi["colour_p90_de00"].value, meta["colour_max_de00"].value,
              iso["colour_max_de00"].value]
     colours = [("#2e7d32", "white", f"below FADGI 4-star's mean limit ({edges[0]:g})"),
-               ("#f9a825", "black", f"up to FADGI 4-star's 90th percentile / ISO 19264-1 A's mean limit ({edges[1]:g})"),
+               ("#f9a825", "black",
+                f"up to FADGI 4-star's 90th percentile / ISO 19264-1 A's mean limit ({edges[1]:g})"),
                ("#ef6c00", "black", f"up to Metamorfoze 2.0 Full's maximum ({edges[2]:g})"),
                ("#c62828", "white", f"up to ISO 19264-1 A's maximum ({edges[3]:g})"),
                ("#6d0f0f", "white", "above every standard's maximum")]
     lows = [0.0] + edges
     highs = edges + [float("inf")]
-    return [DeBand(lo, hi, c, t, m) for lo, hi, (c, t, m) in zip(lows, highs, colours)]
+    return [DeBand(lo, hi, c, t, m) for lo, hi, (c, t, m) in zip(lows, highs, colours, strict=True)]
 
 
 def de_band(value: float) -> DeBand:

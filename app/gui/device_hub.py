@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Any, Callable, Optional
+from collections.abc import Callable
+from typing import Any
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
@@ -55,7 +56,7 @@ class Lab(QObject):
     succeeded = Signal(str)                # title of a device call that worked (its earlier error is stale)
     message = Signal(str)                  # one line for the status bar
 
-    def __init__(self, runner: TaskRunner, parent: Optional[QObject] = None,
+    def __init__(self, runner: TaskRunner, parent: QObject | None = None,
                  frame_size: tuple[int, int] = (600, 400), mode: str = "reflective", seed: int = 0,
                  shutter_bumps: bool = False):
         super().__init__(parent)
@@ -65,12 +66,12 @@ class Lab(QObject):
         self.seed = seed
         self.shutter_bumps = shutter_bumps         # virtual lab: the D610's exposure-time bumps (appendix A)
         self.virtual_lab: Any = None
-        self.sphere: Optional[LedSphere] = None
+        self.sphere: LedSphere | None = None
         self.sphere_port: str = ""
-        self.camera: Optional[Camera] = None
+        self.camera: Camera | None = None
         self.camera_name: str = ""
         self.session: Any = None                  # app.session.CaptureSession
-        self.session_log: Optional[SessionLog] = None   # its session.log while it is the current session
+        self.session_log: SessionLog | None = None   # its session.log while it is the current session
         self.last_status: dict = {}
         self.dose = DoseFeed()
         self.manual_max_on_s = DEFAULT_MAX_ON_S   # 'Light ON' lights the sphere for at most this long
@@ -81,9 +82,9 @@ class Lab(QObject):
         self._status_timer.start()
 
     # ------------------------------------------------------------------ helpers
-    def device_call(self, fn: Callable[[], Any], title: str, *, on_result: Optional[Callable[[Any], None]] = None,
-                    on_finished: Optional[Callable[[], None]] = None,
-                    on_error: Optional[Callable[[BaseException], None]] = None) -> TaskHandle:
+    def device_call(self, fn: Callable[[], Any], title: str, *, on_result: Callable[[Any], None] | None = None,
+                    on_finished: Callable[[], None] | None = None,
+                    on_error: Callable[[BaseException], None] | None = None) -> TaskHandle:
         """Run ``fn`` on the devices thread; errors become a dialog titled ``title``."""
         def failed(exc: BaseException) -> None:
             if on_error is not None:
@@ -126,7 +127,7 @@ class Lab(QObject):
         return self.virtual_lab
 
     # ------------------------------------------------------------------ virtual lab
-    def start_virtual_lab(self, on_done: Optional[Callable[[], None]] = None) -> TaskHandle:
+    def start_virtual_lab(self, on_done: Callable[[], None] | None = None) -> TaskHandle:
         """Start the virtual lab and connect both its devices."""
         def work() -> tuple[str, Any, Any]:
             lab = self._ensure_virtual_lab()
@@ -142,7 +143,7 @@ class Lab(QObject):
                 on_done()
         return self.device_call(work, "Start the virtual lab", on_result=done)
 
-    def place(self, what: str, nd: bool = False, on_done: Optional[Callable[[], None]] = None) -> TaskHandle:
+    def place(self, what: str, nd: bool = False, on_done: Callable[[], None] | None = None) -> TaskHandle:
         """Virtual lab only: put a target / the open gate / the lens cap on the copy stand."""
         def work() -> str:
             lab = self._ensure_virtual_lab()
@@ -153,7 +154,7 @@ class Lab(QObject):
                                                           on_done() if on_done else None))
 
     # ------------------------------------------------------------------ sphere
-    def connect_sphere(self, port: str, on_done: Optional[Callable[[bool], None]] = None) -> TaskHandle:
+    def connect_sphere(self, port: str, on_done: Callable[[bool], None] | None = None) -> TaskHandle:
         def work() -> LedSphere:
             if port == VIRTUAL_SPHERE:
                 return self._ensure_virtual_lab().sphere
@@ -176,7 +177,7 @@ class Lab(QObject):
         return self.device_call(work, "Connect the LED sphere", on_result=done,
                                 on_error=lambda exc: on_done(False) if on_done else None)
 
-    def _set_sphere(self, sphere: Optional[LedSphere], port: str) -> None:
+    def _set_sphere(self, sphere: LedSphere | None, port: str) -> None:
         self.sphere = sphere
         self.sphere_port = port if sphere is not None else ""
         self.dose.reset()
@@ -186,7 +187,7 @@ class Lab(QObject):
             self.message.emit(f"LED sphere connected on {sphere.port}")
             self.poll_status()
 
-    def disconnect_sphere(self) -> Optional[TaskHandle]:
+    def disconnect_sphere(self) -> TaskHandle | None:
         sphere, port = self.sphere, self.sphere_port
         if sphere is None:
             return None
@@ -226,8 +227,8 @@ class Lab(QObject):
         self.runner.submit(work, pool="devices", name="sphere status", on_result=done, on_error=failed,
                            on_finished=lambda: setattr(self, "_poll_pending", False))
 
-    def apply_light(self, light: LightSource, switch_on: Optional[bool] = None,
-                    on_done: Optional[Callable[[], None]] = None) -> Optional[TaskHandle]:
+    def apply_light(self, light: LightSource, switch_on: bool | None = None,
+                    on_done: Callable[[], None] | None = None) -> TaskHandle | None:
         sphere = self.sphere
         if sphere is None:
             self.failed.emit("Apply the light", SphereError(
@@ -249,7 +250,7 @@ class Lab(QObject):
                 on_done()
         return self.device_call(self.light_call(sphere, work), "Apply the light", on_result=done)
 
-    def set_light_on(self, on: bool) -> Optional[TaskHandle]:
+    def set_light_on(self, on: bool) -> TaskHandle | None:
         sphere = self.sphere
         if sphere is None:
             self.failed.emit("Switch the light", SphereError(
@@ -260,10 +261,10 @@ class Lab(QObject):
 
     # ------------------------------------------------------------------ camera
     def detect_cameras(self, on_result: Callable[[tuple[list[str], list[str]]], None],
-                       on_finished: Optional[Callable[[], None]] = None) -> TaskHandle:
+                       on_finished: Callable[[], None] | None = None) -> TaskHandle:
         return self.device_call(discover_cameras, "Detect cameras", on_result=on_result, on_finished=on_finished)
 
-    def connect_camera(self, choice: str, on_done: Optional[Callable[[bool], None]] = None) -> TaskHandle:
+    def connect_camera(self, choice: str, on_done: Callable[[bool], None] | None = None) -> TaskHandle:
         def work() -> Camera:
             if choice == VIRTUAL_CAMERA:
                 return self._ensure_virtual_lab().camera
@@ -284,14 +285,14 @@ class Lab(QObject):
         return self.device_call(work, "Connect the camera", on_result=done,
                                 on_error=lambda exc: on_done(False) if on_done else None)
 
-    def _set_camera(self, camera: Optional[Camera], name: str) -> None:
+    def _set_camera(self, camera: Camera | None, name: str) -> None:
         self.camera = camera
         self.camera_name = name if camera is not None else ""
         self.cameraChanged.emit()
         if camera is not None:
             self.message.emit(f"camera connected: {name}")
 
-    def disconnect_camera(self) -> Optional[TaskHandle]:
+    def disconnect_camera(self) -> TaskHandle | None:
         cam, name = self.camera, self.camera_name
         if cam is None:
             return None
@@ -302,7 +303,7 @@ class Lab(QObject):
                                 on_finished=lambda: self.message.emit("camera disconnected"))
 
     # ------------------------------------------------------------------ copy stand
-    def stand(self, stand_in: str = "") -> Optional[Callable[[str, bool], Any]]:
+    def stand(self, stand_in: str = "") -> Callable[[str, bool], Any] | None:
         """What places things on the stand: the virtual lab (an original is shown as its virtual stand-in, e.g.
         'shadow'), or None on a real stand (the sequences then ask the technician)."""
         vl = self.virtual_lab

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 import pyqtgraph as pg
@@ -58,13 +57,13 @@ class HistogramPlot:
 class FramePreview(QWidget):
     """Thumbnail + histogram + one line (clipping %, level, warning) of the latest frame."""
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
-        self.view: Optional[RawView] = None
+        self.view: RawView | None = None
         self.warning = ""
         self._pending = False
-        self._queued: Optional[tuple[Path, str]] = None
+        self._queued: tuple[Path, str] | None = None
         self.thumb_widget, self.thumb, self.thumb_box = image_widget("The last frame saved (raw, brightened).")
         self.thumb_widget.setMinimumSize(160, 110)
         self.hist = HistogramPlot()

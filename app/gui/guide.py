@@ -9,7 +9,6 @@ whenever the devices, the session, the workspace or a running sequence change.
 from __future__ import annotations
 
 import logging
-from typing import Optional
 
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QFrame, QLabel, QPushButton, QVBoxLayout, QWidget
@@ -34,7 +33,7 @@ STEP_TIPS = {DayStep.CONNECT: "Connect the LED sphere and the camera (Devices) a
 
 
 class StepCard(QFrame):
-    def __init__(self, step: DayStep, on_click, parent: Optional[QWidget] = None):
+    def __init__(self, step: DayStep, on_click, parent: QWidget | None = None):
         super().__init__(parent)
         self.step = step
         self.setFrameShape(QFrame.StyledPanel)
@@ -58,13 +57,13 @@ class StepCard(QFrame):
         self.detail.setText("\n".join(step.lines))
         self.setStyleSheet(f"StepCard {{ background:{background}; border:1px solid {colour}; border-radius:6px }}")
 
-    def mousePressEvent(self, event) -> None:  # noqa: N802 (Qt name)
+    def mousePressEvent(self, event) -> None:
         self._on_click(self.step)
         super().mousePressEvent(event)
 
 
 class WorkflowGuide(QWidget):
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
         self.steps: list[GuideStep] = []

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import importlib
 import logging
-from typing import Callable, Optional
+from collections.abc import Callable
 
 from PySide6.QtCore import QByteArray, QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
@@ -38,7 +38,7 @@ PANEL_TITLES = {"devices": "Devices", "light": "Light source", "camera": "Camera
 
 
 class MainWindow(QMainWindow):
-    def __init__(self, settings: Optional[QSettings] = None, *, frame_size: tuple[int, int] = (600, 400),
+    def __init__(self, settings: QSettings | None = None, *, frame_size: tuple[int, int] = (600, 400),
                  show_dialogs: bool = True, shutter_bumps: bool = False):
         super().__init__()
         self.setWindowTitle("dualrgb — dual-RGB copy stand")
@@ -180,7 +180,7 @@ class MainWindow(QMainWindow):
     # ------------------------------------------------------------------ shortcuts
     def capture_shortcut(self) -> None:
         panel = self.tabs.currentWidget()
-        action: Optional[Callable[[], None]] = getattr(panel, "capture_shortcut", None)
+        action: Callable[[], None] | None = getattr(panel, "capture_shortcut", None)
         if action is None:
             panel = self.panels.get("camera")
             action = getattr(panel, "capture_shortcut", None)
@@ -212,17 +212,17 @@ class MainWindow(QMainWindow):
         self.ctx.settings.setValue("window/state", self.saveState())
         self.ctx.settings.sync()
 
-    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt name)
+    def resizeEvent(self, event) -> None:
         super().resizeEvent(event)
         if hasattr(self, "_save_timer"):
             self._save_timer.start()
 
-    def moveEvent(self, event) -> None:  # noqa: N802
+    def moveEvent(self, event) -> None:
         super().moveEvent(event)
         if hasattr(self, "_save_timer"):
             self._save_timer.start()
 
-    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802
+    def closeEvent(self, event: QCloseEvent) -> None:
         if not self._closing:
             self._closing = True
             self.save_layout()

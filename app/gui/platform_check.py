@@ -18,9 +18,9 @@ import os
 import re
 import socket
 import stat
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping, Optional
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +57,7 @@ def _packages(field: str) -> str:
     return " ".join(dict.fromkeys(getattr(lib, field) for lib in XCB_LIBRARIES if lib.soname != "libxcb.so.1"))
 
 
-def install_command(os_release: Optional[Mapping[str, str]] = None) -> str:
+def install_command(os_release: Mapping[str, str] | None = None) -> str:
     """The command that installs the GUI's system libraries on this distribution (both when unknown)."""
     info = _os_release() if os_release is None else os_release
     family = f"{info.get('ID', '')} {info.get('ID_LIKE', '')}".lower()
@@ -91,14 +91,14 @@ def _dlopen(soname: str) -> bool:
     return True
 
 
-def missing_xcb_libraries(loader: Optional[Callable[[str], bool]] = None) -> list[str]:
+def missing_xcb_libraries(loader: Callable[[str], bool] | None = None) -> list[str]:
     """The sonames of the xcb plugin's libraries that cannot be loaded here (``loader``: dlopen by default)."""
     load = loader or _dlopen
     return [lib.soname for lib in XCB_LIBRARIES if lib.checked and not load(lib.soname)]
 
 
-def xcb_libraries_problem(loader: Optional[Callable[[str], bool]] = None,
-                          os_release: Optional[Mapping[str, str]] = None) -> Optional[str]:
+def xcb_libraries_problem(loader: Callable[[str], bool] | None = None,
+                          os_release: Mapping[str, str] | None = None) -> str | None:
     missing = missing_xcb_libraries(loader)
     if not missing:
         return None
@@ -113,7 +113,7 @@ def _parse_display(display: str) -> tuple[str, int]:
     return m.group(2), int(m.group(3))
 
 
-def x_display_problem(display: str, timeout_s: float = 2.0) -> Optional[str]:
+def x_display_problem(display: str, timeout_s: float = 2.0) -> str | None:
     """None when the X server of ``display`` accepts a connection (libxcb, as Qt does), else one line."""
     try:
         host, number = _parse_display(display)
@@ -142,7 +142,7 @@ def x_display_problem(display: str, timeout_s: float = 2.0) -> Optional[str]:
     return stale if failed else None
 
 
-def wayland_problem(env: Mapping[str, str], timeout_s: float = 2.0) -> Optional[str]:
+def wayland_problem(env: Mapping[str, str], timeout_s: float = 2.0) -> str | None:
     """None when the Wayland compositor named by WAYLAND_DISPLAY accepts a connection, else one line."""
     name = env.get("WAYLAND_DISPLAY", "")
     path = Path(name) if name.startswith("/") else Path(env.get("XDG_RUNTIME_DIR", "")) / name
@@ -160,7 +160,7 @@ def wayland_problem(env: Mapping[str, str], timeout_s: float = 2.0) -> Optional[
 
 
 def platform_problem(platform: str, env: Mapping[str, str],
-                     loader: Optional[Callable[[str], bool]] = None) -> tuple[Optional[str], Optional[str]]:
+                     loader: Callable[[str], bool] | None = None) -> tuple[str | None, str | None]:
     """(problem, platform to use) for a Linux desktop: ``platform`` is QT_QPA_PLATFORM's name ('' = Qt's
     choice). With no platform named and a stale Wayland socket beside a live X display, 'xcb' is chosen."""
     wayland_set, x_set = bool(env.get("WAYLAND_DISPLAY")), bool(env.get("DISPLAY"))

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 import pyqtgraph as pg
@@ -41,7 +40,7 @@ def vector_pairs(ref: np.ndarray, pred: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 class TargetPlots(QWidget):
-    def __init__(self, parent: Optional[QWidget] = None):
+    def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
         self.heat_widget, self.heat_item, self.heat_box = image_widget(
             "ΔE00 of every patch, laid out like the target; the colours are fixed bands (legend above).")
@@ -89,7 +88,7 @@ class TargetPlots(QWidget):
             self.heat_box.removeItem(t)
         self.heat_texts = []
         if n <= MAX_LABELLED:
-            for k, (name, e) in enumerate(zip(view.names, view.errors)):
+            for k, (name, e) in enumerate(zip(view.names, view.errors, strict=True)):
                 r, c = divmod(k, cols)
                 t = pg.TextItem(f"{name}\n{e:.2f}", color=de_band(float(e)).text_colour, anchor=(0.5, 0.5))
                 t.setPos(c + 0.5, r + 0.5)

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 from PySide6.QtCore import QBuffer, QIODevice, QObject, QTimer
 from PySide6.QtWidgets import QApplication
@@ -31,9 +31,9 @@ class ScreenshotRun(QObject):
         self.saved: list[Path] = []
         self._steps = self._plan()
         self._i = -1
-        self._wait_for: Optional[Callable[[], bool]] = None
+        self._wait_for: Callable[[], bool] | None = None
         self._t_step = 0.0
-        self._idle_since: Optional[float] = None
+        self._idle_since: float | None = None
         self._timer = QTimer(self)
         self._timer.setInterval(100)
         self._timer.timeout.connect(self._tick)
@@ -45,7 +45,7 @@ class ScreenshotRun(QObject):
         self._timer.start()
 
     # ------------------------------------------------------------------ the session
-    def _plan(self) -> list[tuple[str, Callable[[], Optional[Callable[[], bool]]]]]:
+    def _plan(self) -> list[tuple[str, Callable[[], Callable[[], bool] | None]]]:
         w = self.w
         cap, light, cam, tgt, res, sim, crf = (w.capture, w.light, w.camera, w.target, w.results, w.simulate,
                                                w.characterise)
@@ -169,7 +169,7 @@ class ScreenshotRun(QObject):
             self._wait_for = step() if callable(step) else None
             if not callable(self._wait_for):
                 self._wait_for = None
-        except Exception as exc:  # a broken step ends the run with a message, never a hang
+        except Exception as exc:  # noqa: BLE001 - a broken step ends the run with its message, never a hang
             self._fail(f"step {name!r}: {exc}")
 
     def shoot(self, panel: str) -> Callable[[], bool]:

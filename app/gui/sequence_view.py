@@ -9,12 +9,23 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Any, Callable, Optional, Sequence as Seq, Union
+from collections.abc import Callable
+from collections.abc import Sequence as Seq
+from typing import Any
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QColor
-from PySide6.QtWidgets import (QHBoxLayout, QLabel, QProgressBar, QPushButton, QSplitter, QTableWidget,
-                               QTableWidgetItem, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QHBoxLayout,
+    QLabel,
+    QProgressBar,
+    QPushButton,
+    QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.context import AppContext
 from app.gui.frame_preview import FramePreview
@@ -28,7 +39,7 @@ from app.workflow.vocabulary import EventKind
 log = logging.getLogger(__name__)
 
 DEFAULT_OVERHEAD_S = 1.5          # per frame beyond the exposure (download, write) until one has been measured
-Run = Union[Sequence, StandRun]
+Run = Sequence | StandRun
 DONE_MARK = "✓"
 DONE_COLOUR = QColor("#e8f5e9")
 
@@ -56,11 +67,11 @@ class SequenceView(QWidget):
     finished = Signal(object, str)     # the run, 'done' | 'cancelled' | 'failed'
     event = Signal(object)             # every ProgressEvent
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None, *, preview: bool = True):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None, *, preview: bool = True):
         super().__init__(parent)
         self.ctx = ctx
-        self.seq: Optional[Run] = None
-        self.handle: Optional[TaskHandle] = None
+        self.seq: Run | None = None
+        self.handle: TaskHandle | None = None
         self.events: list[ProgressEvent] = []
         self.outcome = ""
         self.overhead_s = DEFAULT_OVERHEAD_S

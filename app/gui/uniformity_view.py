@@ -4,7 +4,6 @@ what the flat field divides out, so a hot spot or a vignetted corner is seen bef
 from __future__ import annotations
 
 import logging
-from typing import Optional
 
 import numpy as np
 import pyqtgraph as pg
@@ -21,10 +20,10 @@ SPAN_PCT = 10.0        # the colour scale: 100 +- this many percent
 
 
 class UniformityView(QWidget):
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
-        self.map: Optional[UniformityMap] = None
+        self.map: UniformityMap | None = None
         self.light = QComboBox()
         self.light.setToolTip("Whose flats to show.")
         self.refresh_button = QPushButton("Show")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Optional, Sequence
+from collections.abc import Sequence
 
 from app.workflow.vocabulary import format_exposure
 from simulation.lightsource import LightSource, format_level
@@ -29,7 +29,7 @@ def light_pct(light: LightSource) -> str:
     return f"LED{'s' if len(light.leds) > 1 else ''} {leds} at " + ", ".join(level_pct(v) for v in light.levels)
 
 
-def shutter(seconds: Optional[float]) -> str:
+def shutter(seconds: float | None) -> str:
     """'1/80 s', '2 s' (the camera driver's notation) with a non-breaking space."""
     return format_exposure(seconds).replace(" ", NBSP)
 
@@ -65,7 +65,7 @@ def percent(fraction: float, digits: int = 2) -> str:
     return with_unit(f"{100.0 * fraction:.{digits}f}", "%")
 
 
-def time_left_s(elapsed_s: float, fraction: float) -> Optional[float]:
+def time_left_s(elapsed_s: float, fraction: float) -> float | None:
     """Seconds left at ``fraction`` done after ``elapsed_s`` (None before anything is done)."""
     if fraction <= 0.0 or elapsed_s <= 0.0:
         return None

@@ -7,14 +7,15 @@ best light set a search has found so far.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Optional, Sequence
+from typing import Any
 
 import numpy as np
 
 from app.gui.units import light_pct, shutters
 from app.light_dose import LightDose
-from app.processing.hdr import LINEAR_LIMIT_DN          # the one linear limit (thesis 4.1), used everywhere
+from app.processing.hdr import LINEAR_LIMIT_DN  # the one linear limit (thesis 4.1), used everywhere
 from simulation.lightsource import LightSource
 
 
@@ -70,8 +71,8 @@ class DoseFeed:
 
     def __init__(self) -> None:
         self.dose = LightDose()
-        self._last_t: Optional[float] = None
-        self._last_light: Optional[LightSource] = None
+        self._last_t: float | None = None
+        self._last_light: LightSource | None = None
 
     def update(self, t: float, light_on: bool, levels: Sequence[float]) -> LightDose:
         if self._last_t is not None and self._last_light is not None:
@@ -86,7 +87,7 @@ class DoseFeed:
         self._last_light = None
 
 
-def format_duration(seconds: Optional[float]) -> str:
+def format_duration(seconds: float | None) -> str:
     """'—' for unknown, '42 s', '3 min 05 s', '1 h 02 min'."""
     if seconds is None or not math.isfinite(seconds):
         return "—"
@@ -99,7 +100,7 @@ def format_duration(seconds: Optional[float]) -> str:
 
 
 
-def display_rgb(linear: np.ndarray, full_scale: Optional[float] = None, gamma: float = 2.2) -> np.ndarray:
+def display_rgb(linear: np.ndarray, full_scale: float | None = None, gamma: float = 2.2) -> np.ndarray:
     """Linear camera RGB (H, W, 3) -> uint8 for the screen: scaled to ``full_scale`` (default: 99.5th
     percentile), gamma-encoded. For looking at frames only; nothing measured comes from it."""
     img = np.nan_to_num(np.asarray(linear, dtype=np.float32), nan=0.0)
@@ -116,8 +117,8 @@ class RawView:
     image: np.ndarray                  # (H/2, W/2, 3) uint8
     histogram: RawHistogram
     path: str
-    exposure_s: Optional[float]
-    iso: Optional[float]
+    exposure_s: float | None
+    iso: float | None
     camera: str
     check: Any = None                  # app.workflow.frame_checks.FrameCheck
 
@@ -145,11 +146,11 @@ class ConvergenceTap:
         self._inner = inner
         self._on_batch = on_batch
         self.best = math.inf
-        self.best_idx: Optional[np.ndarray] = None       # (L, m) 0-based LED indices of the best set so far
-        self.best_w: Optional[np.ndarray] = None         # (L, m) its levels
+        self.best_idx: np.ndarray | None = None       # (L, m) 0-based LED indices of the best set so far
+        self.best_w: np.ndarray | None = None         # (L, m) its levels
 
     @staticmethod
-    def make(setup, on_batch) -> "ConvergenceTap":
+    def make(setup, on_batch) -> ConvergenceTap:
         from simulation.objective import Evaluator
 
         return ConvergenceTap(Evaluator(setup), on_batch)
@@ -183,7 +184,7 @@ class ConvergenceTap:
         if self.best_idx is None:
             return None
         sources = []
-        for leds, levels in zip(self.best_idx, self.best_w):
+        for leds, levels in zip(self.best_idx, self.best_w, strict=True):
             on = levels > 0
             sources.append(LightSource(tuple(int(i) + 1 for i in leds[on]), tuple(float(v) for v in levels[on]))
                            if on.any() else LightSource((int(leds[0]) + 1,), (0.0,)))
@@ -223,5 +224,5 @@ def calibration_lines(profile, check=None) -> list[str]:
     return lines
 
 
-def _num(v: Optional[float]) -> str:
+def _num(v: float | None) -> str:
     return "n/a" if v is None else f"{v:.2f}"

@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from typing import Callable, Optional, Sequence
+from collections.abc import Callable, Sequence
 
 from PySide6.QtCore import QObject, Qt, QTimer, Signal, Slot
 from PySide6.QtGui import QFont
-from PySide6.QtWidgets import (QHBoxLayout, QLabel, QMessageBox, QPlainTextEdit, QSizePolicy, QVBoxLayout,
-                               QWidget)
+from PySide6.QtWidgets import QHBoxLayout, QLabel, QMessageBox, QPlainTextEdit, QSizePolicy, QVBoxLayout, QWidget
 
 from app.gui.de_scale import DeBand, de_bands
 
@@ -20,7 +19,7 @@ LIGHT_COLOURS = {"off": "#9e9e9e", "ok": "#2e7d32", "busy": "#f9a825", "error": 
 class StatusLight(QWidget):
     """A coloured dot and a short text: grey = not connected, green = ready, amber = busy, red = problem."""
 
-    def __init__(self, text: str = "", parent: Optional[QWidget] = None):
+    def __init__(self, text: str = "", parent: QWidget | None = None):
         super().__init__(parent)
         self.dot = QLabel()
         self.dot.setFixedSize(14, 14)
@@ -32,7 +31,7 @@ class StatusLight(QWidget):
         self.state = "off"
         self.set_state("off", text)
 
-    def set_state(self, state: str, text: Optional[str] = None) -> None:
+    def set_state(self, state: str, text: str | None = None) -> None:
         self.state = state
         colour = LIGHT_COLOURS.get(state, LIGHT_COLOURS["off"])
         self.dot.setStyleSheet(f"background:{colour}; border-radius:7px; border:1px solid #555;")
@@ -64,7 +63,7 @@ class LogView(QWidget):
 
     MAX_LINES = 5000
 
-    def __init__(self, parent: Optional[QWidget] = None):
+    def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
         self.text = QPlainTextEdit()
         self.text.setReadOnly(True)
@@ -89,7 +88,7 @@ class LogView(QWidget):
             line = _html(line)
         self.text.appendHtml(line)
 
-    def install(self, logger: Optional[logging.Logger] = None) -> None:
+    def install(self, logger: logging.Logger | None = None) -> None:
         """Attach to ``logger`` (root) and let INFO through to this view; handlers already there (the
         console) keep the level they showed before."""
         logger = logger or logging.getLogger()
@@ -101,7 +100,7 @@ class LogView(QWidget):
             logger.setLevel(logging.INFO)
         logger.addHandler(self.handler)
 
-    def uninstall(self, logger: Optional[logging.Logger] = None) -> None:
+    def uninstall(self, logger: logging.Logger | None = None) -> None:
         logger = logger or logging.getLogger()
         logger.removeHandler(self.handler)
         if getattr(self, "_previous_level", None) is not None:
@@ -125,7 +124,7 @@ class ErrorReporter(QObject):
         self.history: list[tuple[str, str]] = []
         self.dialogs: list[QMessageBox] = []
         self.show_dialogs = True
-        self.current: Optional[tuple[str, str]] = None
+        self.current: tuple[str, str] | None = None
 
     def report(self, title: str, error: object, level: int = logging.ERROR) -> None:
         message = str(error) or type(error).__name__
@@ -143,7 +142,7 @@ class ErrorReporter(QObject):
         self.dialogs.append(box)
         box.show()
 
-    def clear(self, title: Optional[str] = None) -> None:
+    def clear(self, title: str | None = None) -> None:
         """The action ``title`` succeeded (None: any): its error is no longer current."""
         if self.current is not None and (title is None or self.current[0] == title):
             self.current = None
@@ -199,7 +198,7 @@ class PathLabel(QLabel):
     """A file path on one line, shortened in the middle when the panel is narrow (never wrapped mid-name); the
     whole path is the tooltip."""
 
-    def __init__(self, text: str = "", parent: Optional[QWidget] = None):
+    def __init__(self, text: str = "", parent: QWidget | None = None):
         super().__init__(parent)
         self._full = ""
         self.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Preferred)
@@ -214,7 +213,7 @@ class PathLabel(QLabel):
     def full_text(self) -> str:
         return self._full
 
-    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt name)
+    def resizeEvent(self, event) -> None:
         super().resizeEvent(event)
         self._elide()
 
@@ -226,7 +225,7 @@ class PathLabel(QLabel):
 class DeLegend(QWidget):
     """The fixed ΔE00 colour bands (viewmodel.de_bands: traffic lights at the grading thresholds) as a legend."""
 
-    def __init__(self, parent: Optional[QWidget] = None):
+    def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
         lay = QHBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)

@@ -16,10 +16,11 @@ import itertools
 import logging
 import threading
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any
 
-from PySide6.QtCore import QObject, QRunnable, QThreadPool, Qt, Signal, Slot
+from PySide6.QtCore import QObject, QRunnable, Qt, QThreadPool, Signal, Slot
 
 from simulation.progress import CancelToken
 
@@ -46,7 +47,7 @@ class TaskHandle:
     name: str
     pool: str
     cancel_token: CancelToken = field(default_factory=CancelToken)
-    on_cancel: Optional[Callable[[], None]] = None
+    on_cancel: Callable[[], None] | None = None
     done: bool = False
 
     def cancel(self) -> None:
@@ -61,11 +62,11 @@ class TaskHandle:
 
 @dataclass
 class _Callbacks:
-    on_result: Optional[Callable[[Any], None]]
-    on_error: Optional[Callable[[BaseException], None]]
-    on_progress: Optional[Callable[[float, str], None]]
-    on_event: Optional[Callable[[Any], None]]
-    on_finished: Optional[Callable[[], None]]
+    on_result: Callable[[Any], None] | None
+    on_error: Callable[[BaseException], None] | None
+    on_progress: Callable[[float, str], None] | None
+    on_event: Callable[[Any], None] | None
+    on_finished: Callable[[], None] | None
 
 
 class _Job(QRunnable):
@@ -97,7 +98,7 @@ class _Job(QRunnable):
                     self._bridge.event.emit(self._id, item)
                 out = None
             self._bridge.result.emit(self._id, out)
-        except Exception as exc:  # delivered to the GUI as an actionable dialog, never swallowed
+        except Exception as exc:  # noqa: BLE001 - delivered to the GUI as an actionable dialog, never swallowed
             self._bridge.error.emit(self._id, exc, traceback.format_exc())
         finally:
             self._bridge.finished.emit(self._id)
@@ -108,7 +109,7 @@ class TaskRunner(QObject):
 
     busyChanged = Signal(str, bool)          # pool name, busy
 
-    def __init__(self, parent: Optional[QObject] = None):
+    def __init__(self, parent: QObject | None = None):
         super().__init__(parent)
         self._pools: dict[str, QThreadPool] = {}
         for name in POOLS:
@@ -128,13 +129,13 @@ class TaskRunner(QObject):
         self._lock = threading.Lock()
 
     def submit(self, fn: Callable[..., Any], *, pool: str = "compute", name: str = "",
-               on_result: Optional[Callable[[Any], None]] = None,
-               on_error: Optional[Callable[[BaseException], None]] = None,
-               on_progress: Optional[Callable[[float, str], None]] = None,
-               on_event: Optional[Callable[[Any], None]] = None,
-               on_finished: Optional[Callable[[], None]] = None,
+               on_result: Callable[[Any], None] | None = None,
+               on_error: Callable[[BaseException], None] | None = None,
+               on_progress: Callable[[float, str], None] | None = None,
+               on_event: Callable[[Any], None] | None = None,
+               on_finished: Callable[[], None] | None = None,
                pass_progress: bool = False, pass_cancel: bool = False, iterate: bool = False,
-               pass_emit: bool = False, on_cancel: Optional[Callable[[], None]] = None) -> TaskHandle:
+               pass_emit: bool = False, on_cancel: Callable[[], None] | None = None) -> TaskHandle:
         """Run ``fn()`` on ``pool``. With ``pass_progress``/``pass_cancel`` it gets ``progress=`` (a
         ``(fraction, message)`` callable) and ``cancel=`` (a CancelToken); with ``pass_emit`` an ``emit=``
         callable whose items go to ``on_event``. With ``iterate`` its return value is iterated in the worker and
@@ -153,10 +154,10 @@ class TaskRunner(QObject):
         log.debug("submitted %s to %s", handle.name, pool)
         return handle
 
-    def busy(self, pool: Optional[str] = None) -> bool:
+    def busy(self, pool: str | None = None) -> bool:
         return any(not h.done and (pool is None or h.pool == pool) for h in self._handles.values())
 
-    def running(self, pool: Optional[str] = None) -> list[TaskHandle]:
+    def running(self, pool: str | None = None) -> list[TaskHandle]:
         return [h for h in self._handles.values() if not h.done and (pool is None or h.pool == pool)]
 
     def cancel_all(self) -> None:

@@ -6,7 +6,7 @@ for every change. Panels read it and listen to it; none imports another panel.
 from __future__ import annotations
 
 import logging
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 from PySide6.QtCore import QObject, Signal
@@ -31,17 +31,17 @@ class Workspace(QObject):
     runningChanged = Signal(str)           # the name of the sequence that owns the devices, '' when none
     manualLevelsChanged = Signal(object)   # the Light source sliders (np.ndarray (10,), 0..1)
 
-    def __init__(self, parent: Optional[QObject] = None):
+    def __init__(self, parent: QObject | None = None):
         super().__init__(parent)
         self.grids: dict[str, PatchGrid] = {}
-        self.last_grid: Optional[PatchGrid] = None
+        self.last_grid: PatchGrid | None = None
         self.preset: Any = None                           # simulation.presets.Preset
         self.lights: list[NamedLight] = []
         self.base_exposures: dict[str, float] = {}
         self.hdr_brackets: dict[str, set[float]] = {}     # every HDR exposure planned in this session, per light
         self.run_plan: dict[str, list[float]] = {}        # a running calibration's plan
-        self.calibration: Optional[CalibrationProfile] = None
-        self.calibration_check: Optional[ReuseCheck] = None
+        self.calibration: CalibrationProfile | None = None
+        self.calibration_check: ReuseCheck | None = None
         self.queue = OriginalsQueue()
         self.running = ""
         self.manual_levels = np.zeros(N_SPHERE_LEDS)
@@ -87,12 +87,12 @@ class Workspace(QObject):
         return calibration_exposures(session, base, {k: sorted(v) for k, v in self.hdr_brackets.items()})
 
     # ---- calibration ----
-    def set_calibration(self, profile: Optional[CalibrationProfile]) -> None:
+    def set_calibration(self, profile: CalibrationProfile | None) -> None:
         self.calibration = profile
         self.calibration_check = None
         self.calibrationChanged.emit()
 
-    def set_calibration_check(self, check: Optional[ReuseCheck]) -> None:
+    def set_calibration_check(self, check: ReuseCheck | None) -> None:
         self.calibration_check = check
         self.calibrationChanged.emit()
 

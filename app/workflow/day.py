@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
-from typing import Any, Mapping, Optional, Sequence
+from typing import Any
 
 from app.workflow.coverage import Coverage, coverage, plan_coverage
 from app.workflow.delivery import Original
@@ -45,7 +46,7 @@ class QueueRow:
     state: OriginalState = OriginalState.WAITING
     qa: str = ""                            # the delivery's QA line, or why it failed
     files: dict[str, Path] = field(default_factory=dict)
-    sidecar: Optional[Path] = None
+    sidecar: Path | None = None
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -53,12 +54,12 @@ class QueueRow:
         return self.original.identifier
 
     @property
-    def main_file(self) -> Optional[Path]:
+    def main_file(self) -> Path | None:
         """The file to open first: the sRGB TIFF (any deliverable when it is missing)."""
         return self.files.get("srgb") or next(iter(self.files.values()), None)
 
     @property
-    def folder(self) -> Optional[Path]:
+    def folder(self) -> Path | None:
         return self.sidecar.parent if self.sidecar is not None else None
 
 
@@ -93,7 +94,7 @@ class OriginalsQueue:
         return {s: sum(r.state is s for r in self.rows) for s in OriginalState}
 
     @classmethod
-    def from_session(cls, session: Any) -> "OriginalsQueue":
+    def from_session(cls, session: Any) -> OriginalsQueue:
         """The originals already delivered in ``session`` (session.json 'originals', their sidecars)."""
         queue = cls()
         for ident, meta in (session.settings.get("originals") or {}).items():
@@ -160,10 +161,10 @@ class DayState:
     camera: str = ""
     session: Any = None
     plan: Mapping[str, Sequence[float]] = field(default_factory=dict)
-    profile: Optional[CalibrationProfile] = None
-    check: Optional[ReuseCheck] = None
+    profile: CalibrationProfile | None = None
+    check: ReuseCheck | None = None
     queue: OriginalsQueue = field(default_factory=OriginalsQueue)
-    deliverables: Optional[Path] = None
+    deliverables: Path | None = None
 
 
 def day_checklist(state: DayState) -> list[GuideStep]:

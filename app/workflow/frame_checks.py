@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 
@@ -36,7 +36,7 @@ class FrameCheck:
     def level_pct(self) -> float:
         return 100.0 * self.level_dn / self.range_dn if self.range_dn > 0 else 0.0
 
-    def warning(self, light_on: Optional[bool] = None) -> str:
+    def warning(self, light_on: bool | None = None) -> str:
         """'' for a usable frame, else one line saying what is wrong and what to check."""
         if self.dark:
             why = ("the light was off: switch it on (Light source) or use a sequence, which switches it itself"

@@ -13,9 +13,10 @@ them too, so the CLI, the demo and the GUI meter the same way.
 from __future__ import annotations
 
 import logging
-from typing import Iterator, Sequence
+from collections.abc import Iterator, Sequence
 
-from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
+from app.sequences.base import PlannedFrame, ProgressEvent
+from app.sequences.base import Sequence as BaseSequence
 from app.sequences.calibration import auto_exposure
 from app.sequences.hdr import HdrPlan, meter_and_plan
 from app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, format_exposure, step_id

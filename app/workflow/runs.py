@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, Generic, Optional, TypeVar
+from typing import Any, Generic, TypeVar
 
 from app.sequences.base import PlannedFrame, ProgressEvent
 from app.workflow.vocabulary import EventKind
-from simulation.progress import CancelToken, Cancelled
+from simulation.progress import Cancelled, CancelToken
 
 log = logging.getLogger(__name__)
 
@@ -59,7 +60,7 @@ class StandRun(Generic[T]):
         self._token = CancelToken()
         self._running = threading.Event()
         self._running.set()
-        self.result: Optional[T] = None
+        self.result: T | None = None
 
     # ---- control (thread-safe) ----
     def plan(self) -> list[PlannedFrame]:
@@ -88,7 +89,7 @@ class StandRun(Generic[T]):
         """Between frames: wait while paused (a cancel wakes it; CopyStand stops at its next check)."""
         self._running.wait()
 
-    def execute(self, emit: Emit) -> Optional[T]:
+    def execute(self, emit: Emit) -> T | None:
         """Run ``work``; a cancel ends with a 'cancelled' event (never an error), anything else propagates."""
         def progress(fraction: float, message: str) -> None:
             emit(ProgressEvent(int(round(1000 * fraction)), 1000, message, data={RUN_PROGRESS: True}))

@@ -22,8 +22,8 @@ def test_demo_and_gui_report_the_same_numbers(qtbot, make_window, tmp_path):
     qtbot.waitUntil(lambda: w.lab.session is not None, timeout=LONG)
     res = w.results
     for cond, preset in (("dual_rgb", "dual-RGB reflective"), ("dual_rgb_pso", "dual-RGB-PSO reflective")):
-        qtbot.waitUntil(lambda: res.lights.findText(preset) >= 0 and res.train_subject.findData("target:train") >= 0,
-                        timeout=LONG)
+        qtbot.waitUntil(lambda p=preset: res.lights.findText(p) >= 0
+                        and res.train_subject.findData("target:train") >= 0, timeout=LONG)
         res.optimise.setChecked(False)
         res.lights.setCurrentText(preset)
         res.select(res.train_subject, "target:train")
@@ -37,4 +37,4 @@ def test_demo_and_gui_report_the_same_numbers(qtbot, make_window, tmp_path):
         for split in ("train", "test"):
             for stat in ("mean", "median", "p90", "max"):
                 assert rep[split][stat] == data[cond][split][stat], (cond, split, stat)
-        assert rep["lights"] == [l["name"] for l in data[cond]["lights"]]
+        assert rep["lights"] == [light["name"] for light in data[cond]["lights"]]

@@ -63,7 +63,7 @@ def assert_locked(w):
               cap.calibration.calibrate_button, cap.calibration.load_button, cap.view.start_button,
               org.capture_button, org.capture_all_button, w.devices.sphere_button, w.devices.camera_button,
               w.light.on_button, w.camera.capture_button, w.characterise.view.start_button)
-    enabled = [getattr(x, "text", lambda: type(x).__name__)() for x in locked if x.isEnabled()]
+    enabled = [x.text() if hasattr(x, "text") else type(x).__name__ for x in locked if x.isEnabled()]
     assert not enabled, f"enabled while a sequence runs: {enabled}"
 
 

@@ -126,7 +126,7 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert labels == ["test target", "training target"]             # no internal keys shown (issue 11 item 10)
     for key in ("target:train", "target:test"):
         tgt.select_subject(key)
-        qtbot.waitUntil(lambda: tgt.grid is not None and key in w.ctx.workspace.grids, timeout=LONG)
+        qtbot.waitUntil(lambda k=key: tgt.grid is not None and k in w.ctx.workspace.grids, timeout=LONG)
         wait_idle(qtbot, w)
     assert (tgt.grid.rows, tgt.grid.cols) == (4, 6)
     start = tgt.corners().copy()

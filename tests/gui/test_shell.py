@@ -132,7 +132,7 @@ def test_simulate_tiny_pso_and_save_preset(qtbot, make_window):
     wait_idle(qtbot, w)
     assert len(sim.live) > 10                              # live convergence points arrived during the run
     bests = [b for _, b in sim.live]
-    assert all(b2 <= b1 for b1, b2 in zip(bests, bests[1:]))
+    assert all(b2 <= b1 for b1, b2 in zip(bests, bests[1:], strict=False))
     _, hist = sim.iter_curve.getData()
     assert len(hist) == 3 and hist[-1] <= hist[0]
     assert sim.sens_plot.listDataItems() and len(sim.sens_plot.listDataItems()) == 6

@@ -4,8 +4,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.gui.viewmodel import (DoseFeed, format_duration, light_from_levels, mixed_spectrum, preview_histogram,
-                               raw_histogram)
+from app.gui.viewmodel import (
+    DoseFeed,
+    format_duration,
+    light_from_levels,
+    mixed_spectrum,
+    preview_histogram,
+    raw_histogram,
+)
 
 
 def test_light_from_levels_and_mix():

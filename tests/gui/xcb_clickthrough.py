@@ -10,8 +10,8 @@ import json
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 STEP_TIMEOUT_S = 240.0
 
@@ -20,7 +20,7 @@ class Steps:
     """Each step acts (a click) and returns a condition; the next step starts when the condition holds and no
     task runs."""
 
-    def __init__(self, window, steps: list[tuple[str, Callable[[], Optional[Callable[[], bool]]]]], report: dict):
+    def __init__(self, window, steps: list[tuple[str, Callable[[], Callable[[], bool] | None]]], report: dict):
         from PySide6.QtCore import QTimer
 
         self.w, self.steps, self.report = window, steps, report
@@ -47,7 +47,7 @@ class Steps:
         self.t0 = time.monotonic()
         try:
             self.until = act()
-        except Exception as exc:  # a failing step ends the run with its message
+        except Exception as exc:  # noqa: BLE001 - a failing step ends the run with its message
             self.report["failed"] = f"step {name!r}: {type(exc).__name__}: {exc}"
             self.stop(QApplication.instance())
 

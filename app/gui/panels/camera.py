@@ -4,20 +4,28 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 from PySide6.QtCore import Qt, QTimer
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QGroupBox, QLabel, QPushButton, QSplitter,
-                               QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QGridLayout,
+    QGroupBox,
+    QLabel,
+    QPushButton,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.context import AppContext
 from app.gui.frame_preview import WARNING_STYLE, HistogramPlot
 from app.gui.viewmodel import RawView, preview_histogram, raw_view
 from app.gui.widgets import PathLabel, image_widget
 from app.session import atomic_write
-from drivers.camera.base import CameraSettings
 from app.workflow.vocabulary import format_exposure as format_shutter
+from drivers.camera.base import CameraSettings
 
 log = logging.getLogger(__name__)
 
@@ -31,11 +39,11 @@ ISO_NOTE = ("ISO 50 is the thesis' choice; on a D610 it is the extended 'Lo 1' s
 class CameraPanel(QWidget):
     title = "Camera"
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
         self.lab = ctx.lab
-        self.last_view: Optional[RawView] = None
+        self.last_view: RawView | None = None
         self._preview_pending = False
         self._capturing = False
         self._sequence_running = False
@@ -204,7 +212,7 @@ class CameraPanel(QWidget):
             f"to {s.capture_target or '?'}" if s.aperture else f"camera: {s}")
 
     def wanted_settings(self) -> CameraSettings:
-        def num(text: str) -> Optional[float]:
+        def num(text: str) -> float | None:
             try:
                 return float(text.strip().replace(",", "."))
             except ValueError:

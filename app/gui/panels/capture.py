@@ -7,12 +7,27 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 from pathlib import Path
-from typing import Optional
 
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFileDialog, QFormLayout, QGroupBox,
-                               QHBoxLayout, QLabel, QPushButton, QScrollArea, QSpinBox, QSplitter, QTableWidget,
-                               QTableWidgetItem, QTabWidget, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QDoubleSpinBox,
+    QFileDialog,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QScrollArea,
+    QSpinBox,
+    QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.calibration_box import CalibrationBox
 from app.gui.context import AppContext
@@ -42,7 +57,7 @@ RESHOOT, KEEP = "Re-shoot", "Keep"
 class CapturePanel(QWidget):
     title = "Calibrate & capture"
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx, self.lab, self.ws = ctx, ctx.lab, ctx.workspace
         self.presets: list[tuple[Path, Preset]] = []
@@ -196,7 +211,7 @@ class CapturePanel(QWidget):
         self.ctx.bus.frameSaved.connect(self._show_frames)
 
     # ------------------------------------------------------------------ session
-    def new_session(self, folder: Optional[Path] = None, meta: Optional[dict] = None) -> None:
+    def new_session(self, folder: Path | None = None, meta: dict | None = None) -> None:
         folder = folder or self.ctx.captures_dir / _dt.datetime.now().strftime("session-%Y%m%d-%H%M%S")
         info = {"operator": self.ctx.get("originals/operator", "", str), "virtual_lab": self.lab.is_virtual,
                 **(meta or {})}
@@ -273,7 +288,7 @@ class CapturePanel(QWidget):
         self.presets = presets
         self.preset_combo.blockSignals(True)
         self.preset_combo.clear()
-        for path, p in presets:
+        for _path, p in presets:
             self.preset_combo.addItem(f"{p.name}  ({len(p.sources)} light{'s' if len(p.sources) > 1 else ''})")
         paths = [str(p) for p, _ in presets]
         self.preset_combo.setCurrentIndex(paths.index(current) if current in paths else 0)
@@ -324,7 +339,7 @@ class CapturePanel(QWidget):
         self.hdr_plans = {}
         self.update_plan()
 
-    def exposure_of(self, name: str) -> Optional[float]:
+    def exposure_of(self, name: str) -> float | None:
         return self._table_exposures().get(name)
 
     def set_exposure(self, name: str, t: float) -> None:
@@ -371,7 +386,7 @@ class CapturePanel(QWidget):
     def subject(self) -> Subject:
         return Subject.target(self.target_key(), self.nd.isChecked())
 
-    def build(self, shooter: Optional[Shooter], take: int = 1) -> Sequence:
+    def build(self, shooter: Shooter | None, take: int = 1) -> Sequence:
         """The selected sequence (with ``shooter=None`` only for its plan), built by app.workflow.plans."""
         kind = SEQUENCE_KINDS[self.kind.currentText()]
         sh = shooter or self.plan_shooter()

@@ -6,13 +6,21 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Optional
 
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QLabel, QLineEdit, QSplitter,
-                               QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QComboBox,
+    QDoubleSpinBox,
+    QFormLayout,
+    QGroupBox,
+    QLabel,
+    QLineEdit,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
@@ -43,10 +51,10 @@ def dn_ticks() -> list[list[tuple[float, str]]]:
 class CharacterisePanel(QWidget):
     title = "Characterise"
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx, self.lab = ctx, ctx.lab
-        self.sweep: Optional[CrfSweep] = None
+        self.sweep: CrfSweep | None = None
         self._live: dict[float, list[tuple[float, float]]] = {}
         self._live_curves: dict[float, pg.PlotDataItem] = {}
         self.view = SequenceView(ctx)
@@ -201,7 +209,7 @@ class CharacterisePanel(QWidget):
             return
         lv = float(ev.data["level"])
         self._live.setdefault(lv, []).append((float(ev.data["exposure_s"]), max(float(ev.data["signal_dn"]), 0.1)))
-        t, s = zip(*self._live[lv])
+        t, s = zip(*self._live[lv], strict=True)
         if lv not in self._live_curves:
             pen = LEVEL_PENS[len(self._live_curves) % len(LEVEL_PENS)]
             self._live_curves[lv] = self.crf_plot.plot(t, s, pen=pg.mkPen(pen, width=2), symbol="o", symbolSize=4,

@@ -2,10 +2,8 @@
 from __future__ import annotations
 
 import logging
-from typing import Optional
 
-from PySide6.QtWidgets import (QComboBox, QFileDialog, QGridLayout, QGroupBox, QLabel, QPushButton,
-                               QVBoxLayout, QWidget)
+from PySide6.QtWidgets import QComboBox, QFileDialog, QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout, QWidget
 
 from app.gui.context import AppContext
 from app.gui.device_hub import NO_CAMERA_ADVICE, VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
@@ -21,7 +19,7 @@ PLACES = (("test target (CC24)", "test", False), ("training target", "train", Fa
 class DevicesPanel(QWidget):
     title = "Devices"
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
         self.lab = ctx.lab

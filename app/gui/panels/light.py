@@ -3,14 +3,26 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QGridLayout, QGroupBox, QHBoxLayout, QInputDialog,
-                               QLabel, QListWidget, QListWidgetItem, QPushButton, QSlider, QSplitter,
-                               QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QDoubleSpinBox,
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QInputDialog,
+    QLabel,
+    QListWidget,
+    QListWidgetItem,
+    QPushButton,
+    QSlider,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.context import AppContext
 from app.gui.units import dose, light_pct
@@ -32,10 +44,10 @@ def _wavelength_colour(nm: float) -> tuple[int, int, int]:
     """Rough display colour of a wavelength (for the LED labels and curves only)."""
     stops = [(400, (130, 0, 200)), (440, (0, 0, 255)), (490, (0, 200, 255)), (510, (0, 220, 0)),
              (580, (230, 230, 0)), (645, (255, 0, 0)), (780, (160, 0, 0))]
-    for (w0, c0), (w1, c1) in zip(stops, stops[1:]):
+    for (w0, c0), (w1, c1) in zip(stops, stops[1:], strict=False):
         if nm <= w1:
             t = max(0.0, min(1.0, (nm - w0) / (w1 - w0)))
-            return tuple(int(a + t * (b - a)) for a, b in zip(c0, c1))  # type: ignore[return-value]
+            return tuple(int(a + t * (b - a)) for a, b in zip(c0, c1, strict=True))  # type: ignore[return-value]
     return stops[-1][1]
 
 
@@ -56,7 +68,7 @@ class LightPanel(QWidget):
     title = "Light source"
     levelsChanged = Signal(object)      # np.ndarray (10,)
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
         self.lab = ctx.lab
@@ -315,7 +327,7 @@ class LightPanel(QWidget):
         folder = self.ctx.presets_dir
         self.folder_label.set_path(f"your presets: {folder}")
 
-        def work() -> list[tuple[Path, Optional[Preset], bool, str]]:
+        def work() -> list[tuple[Path, Preset | None, bool, str]]:
             out = []
             user = sorted(folder.glob("*.json")) if folder.is_dir() else []
             for path, packaged in [(p, True) for p in packaged_presets()] + [(p, False) for p in user]:

@@ -10,13 +10,25 @@ shot.
 from __future__ import annotations
 
 import logging
-from typing import Optional
 
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QColor
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QFormLayout, QGroupBox, QHBoxLayout, QLabel, QLineEdit,
-                               QPushButton, QSpinBox, QSplitter, QTableWidget, QTableWidgetItem, QVBoxLayout,
-                               QWidget)
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QSpinBox,
+    QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
@@ -39,12 +51,12 @@ RESHOOT, KEEP = "Re-shoot", "Keep"
 class OriginalsPanel(QWidget):
     title = "Originals"
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx, self.lab, self.ws = ctx, ctx.lab, ctx.workspace
-        self.current: Optional[QueueRow] = None
+        self.current: QueueRow | None = None
         self.batch: list[str] = []                  # identifiers still to capture in this batch
-        self.run: Optional[StandRun] = None
+        self.run: StandRun | None = None
         self._brackets: dict[str, list[float]] = {}
         self.view = SequenceView(ctx)
         self.view.start_button.hide()
@@ -160,7 +172,7 @@ class OriginalsPanel(QWidget):
             sig.connect(self._update_enabled)
 
     # ------------------------------------------------------------------ queue
-    def add_original(self) -> Optional[QueueRow]:
+    def add_original(self) -> QueueRow | None:
         try:
             original = Original(self.identifier.text(), self.title_edit.text().strip(), self.operator.text().strip(),
                                 self.notes.text().strip(), self.mode.currentText())
@@ -309,7 +321,7 @@ class OriginalsPanel(QWidget):
         self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP),
                            lambda choice: self._start(row, choice == RESHOOT), default=KEEP)
 
-    def _start(self, row: QueueRow, reshoot: Optional[bool]) -> None:
+    def _start(self, row: QueueRow, reshoot: bool | None) -> None:
         profile, lab = self.ws.calibration, self.lab
         settings = StandSettings(**self._stand_settings(), force=self.force.isChecked(), original_frames=row.frames)
 

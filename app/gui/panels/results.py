@@ -9,12 +9,25 @@ import html
 import logging
 import shutil
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QFormLayout, QGridLayout, QGroupBox, QHBoxLayout,
-                               QLabel, QProgressBar, QPushButton, QScrollArea, QSplitter, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFileDialog,
+    QFormLayout,
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QProgressBar,
+    QPushButton,
+    QScrollArea,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.context import AppContext
 from app.gui.results_plots import TargetPlots, TargetView
@@ -34,8 +47,8 @@ METRIC_NAMES = {"colour_mean_de00": "colour mean", "colour_p90_de00": "colour p9
                 "noise_max_lstar": "noise (L*)", "illuminance_nonuniformity_pct": "uniformity after flat field"}
 
 
-def process(lab, session, grids: dict, train_subject: str, test_subject: Optional[str], optimise: bool,
-            progress, cancel, lights: Optional[list[str]] = None, method: Optional[str] = None
+def process(lab, session, grids: dict, train_subject: str, test_subject: str | None, optimise: bool,
+            progress, cancel, lights: list[str] | None = None, method: str | None = None
             ) -> tuple[object, dict[str, TargetView], Path]:
     """Worker: the TargetSpecs (app.workflow.targets: reference XYZ integrated by ``method``), the one processing
     path, the plot data."""
@@ -51,8 +64,8 @@ def process(lab, session, grids: dict, train_subject: str, test_subject: Optiona
         spec.label = f"{label}: {spec.label}"                 # e.g. "train: test (CC24 on film)"
     out_dir = Path(session.path) / "results"
     result = process_session(session, out_dir, specs["train"], specs.get("test"), lights=lights, optimise=optimise,
-                             white_xyz=reference_white(mode, method), title=f"dual-RGB capture, {Path(session.path).name}",
-                             progress=progress, cancel=cancel)
+                             white_xyz=reference_white(mode, method),
+                             title=f"dual-RGB capture, {Path(session.path).name}", progress=progress, cancel=cancel)
     c = result.characterisation
     best = c.results[c.best]
     views = {}
@@ -82,13 +95,13 @@ def quality_lines(report: dict) -> list[str]:
 class ResultsPanel(QWidget):
     title = "Results"
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx, self.lab = ctx, ctx.lab
         self.result = None
         self.views: dict[str, TargetView] = {}
-        self.out_dir: Optional[Path] = None
-        self.handle: Optional[TaskHandle] = None
+        self.out_dir: Path | None = None
+        self.handle: TaskHandle | None = None
         self.light_sets: dict[str, list[str]] = {}
         left = QWidget()
         ll = QVBoxLayout(left)
@@ -280,7 +293,7 @@ class ResultsPanel(QWidget):
         self.status.setText("done")
         self.ctx.errors.clear("Process the session")
 
-        def stats(d: Optional[dict]) -> str:
+        def stats(d: dict | None) -> str:
             if not d:
                 return "—"
             return (f"mean <b>{d['mean']:.2f}</b>, median {d['median']:.2f}, {with_unit('90', '%')} "

@@ -5,15 +5,30 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QImage, QPixmap
-from PySide6.QtWidgets import (QComboBox, QFormLayout, QGroupBox, QHBoxLayout, QHeaderView, QInputDialog, QLabel,
-                               QProgressBar, QPushButton, QScrollArea, QSpinBox, QSplitter, QTableWidget,
-                               QTableWidgetItem, QTabWidget, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QComboBox,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QHeaderView,
+    QInputDialog,
+    QLabel,
+    QProgressBar,
+    QPushButton,
+    QScrollArea,
+    QSpinBox,
+    QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
 
 import resources
 from app.gui.context import AppContext
@@ -25,8 +40,8 @@ from simulation.camera_model import channel_names, effective_sensitivities
 from simulation.datasets import MODES, default_setup
 from simulation.ga import GaSettings
 from simulation.presets import save_preset
-from simulation.pso import PsoSettings
 from simulation.progress import COMPILING, Cancelled
+from simulation.pso import PsoSettings
 from simulation.runner import METHODS, RunResult, run
 from simulation.search import SearchOutcome
 from simulation.studies.common import study_charts
@@ -38,7 +53,7 @@ CHANNEL_COLOURS = {"R": "#d32f2f", "G": "#388e3c", "B": "#1976d2"}
 
 
 def partial_result(setup, tap: ConvergenceTap, method: str, seed: int, top: int, elapsed_s: float
-                   ) -> Optional[RunResult]:
+                   ) -> RunResult | None:
     """A cancelled search's best light pair so far (kept, labelled partial), or None before any cost."""
     cand = tap.partial()
     if cand is None:
@@ -51,14 +66,14 @@ def partial_result(setup, tap: ConvergenceTap, method: str, seed: int, top: int,
 class SimulatePanel(QWidget):
     title = "Simulate & optimise"
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
-        self.result: Optional[RunResult] = None
-        self.handle: Optional[TaskHandle] = None
+        self.result: RunResult | None = None
+        self.handle: TaskHandle | None = None
         self.live: list[tuple[int, float]] = []
         self._live_dirty = False
-        self._t_search: Optional[float] = None
+        self._t_search: float | None = None
         left = QWidget()
         ll = QVBoxLayout(left)
         ll.addWidget(self._search_box())
@@ -270,7 +285,7 @@ class SimulatePanel(QWidget):
 
     def _draw_live(self) -> None:
         if self._live_dirty and self.live:
-            xs, ys = zip(*self.live)
+            xs, ys = zip(*self.live, strict=True)
             self.live_curve.setData(np.array(xs, dtype=float), np.array(ys))
         self._live_dirty = False
 
@@ -311,7 +326,7 @@ class SimulatePanel(QWidget):
         self.cancel_running()
 
     # ------------------------------------------------------------------ result
-    def show_result(self, result: Optional[RunResult]) -> None:
+    def show_result(self, result: RunResult | None) -> None:
         if result is None:
             self.status.setText("search cancelled before any light pair was evaluated")
             return
@@ -396,7 +411,7 @@ class SimulatePanel(QWidget):
         if ok and name.strip():
             self.save_preset(name.strip(), row)
 
-    def save_preset(self, name: str, rank: int = 0) -> Optional[Path]:
+    def save_preset(self, name: str, rank: int = 0) -> Path | None:
         if self.result is None or self.result.outcome is None:
             self.ctx.errors.report("Save the preset", "run a PSO, GA or exhaustive search first")
             return None

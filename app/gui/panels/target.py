@@ -3,13 +3,23 @@ every patch outlined; automatic ColorChecker detection when app.processing.patch
 from __future__ import annotations
 
 import logging
-from typing import Optional
 
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, Qt
-from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
-                               QPushButton, QSpinBox, QSplitter, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QComboBox,
+    QDoubleSpinBox,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QSpinBox,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.context import AppContext
 from app.gui.viewmodel import display_rgb
@@ -24,14 +34,14 @@ log = logging.getLogger(__name__)
 class TargetPanel(QWidget):
     title = "Target"
 
-    def __init__(self, ctx: AppContext, parent: Optional[QWidget] = None):
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
         self.lab = ctx.lab
         self.subjects: dict[str, dict[str, list]] = {}
-        self.image: Optional[np.ndarray] = None          # linear superpixel RGB of the shown frame
-        self.grid: Optional[PatchGrid] = None
-        self.roi: Optional[pg.PolyLineROI] = None
+        self.image: np.ndarray | None = None          # linear superpixel RGB of the shown frame
+        self.grid: PatchGrid | None = None
+        self.roi: pg.PolyLineROI | None = None
         self.ws = ctx.workspace
 
         box = QGroupBox("Frame")
