@@ -78,20 +78,21 @@ class FramePreview(QWidget):
         lay.addLayout(row, 1)
         lay.addWidget(self.info)
 
-    def show_file(self, path: Path, role: str = "") -> None:
-        """Load ``path`` in the background and show it (a newer request replaces a queued one)."""
-        self._queued = (Path(path), role)
+    def show_file(self, path: Path, role: str = "", bracket_long: bool = False) -> None:
+        """Load ``path`` in the background and show it (a newer request replaces a queued one). ``bracket_long``:
+        a longer exposure of an HDR bracket, whose highlights the shorter one covers (clipping is expected)."""
+        self._queued = (Path(path), role, bracket_long)
         if not self._pending:
             self._load_next()
 
     def _load_next(self) -> None:
         if self._queued is None:
             return
-        path, role = self._queued
+        path, role, long_ = self._queued
         self._queued = None
         self._pending = True
         self.ctx.runner.submit(lambda: raw_view(path), pool="compute", name="frame preview",
-                               on_result=lambda v: self.show_view(v, role),
+                               on_result=lambda v: self.show_view(v, role, long_),
                                on_error=lambda exc: self.info.setText(f"preview of {path.name}: {exc}"),
                                on_finished=self._loaded)
 
@@ -99,7 +100,7 @@ class FramePreview(QWidget):
         self._pending = False
         self._load_next()
 
-    def show_view(self, view: RawView, role: str = "") -> None:
+    def show_view(self, view: RawView, role: str = "", bracket_long: bool = False) -> None:
         self.view = view
         self.thumb.setImage(view.image, autoLevels=False, levels=(0, 255))
         self.thumb_box.autoRange()
@@ -108,8 +109,11 @@ class FramePreview(QWidget):
         light_on = self.ctx.lab.last_status.get("light_on") if self.ctx.lab.last_status else None
         expected_dark = role in ("dark", "lens-cap")
         self.warning = "" if check is None or (expected_dark and check.dark) else check.warning(light_on)
+        if bracket_long and check is not None and not check.dark:
+            self.warning = ""                           # the bracket's shorter exposure covers the highlights
         level = f"brightest channel {percent(check.level_pct / 100, 1)} of the linear range, " if check else ""
-        clipped = percent(view.histogram.fraction_clipped)
+        clipped = percent(view.histogram.fraction_clipped) + (" (a longer exposure of an HDR bracket: expected)"
+                                                              if bracket_long else "")
         self.info.setText(f"{Path(view.path).name}: {level}{clipped} clipped"
                           + (f"<br><span style='{WARNING_STYLE}'>{self.warning}</span>" if self.warning else ""))
         self.info.setToolTip(view.histogram.summary())

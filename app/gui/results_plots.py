@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pyqtgraph as pg
+from PySide6.QtGui import QFont
 from PySide6.QtWidgets import QGridLayout, QLabel, QWidget
 
 from app.gui.de_scale import SCALE_MAX, de_band, lookup_table
@@ -30,6 +31,19 @@ class TargetView:
     srgb_ref: np.ndarray
     srgb_pred: np.ndarray
     layout: tuple[int, int]
+
+
+def cell_name(name: str, width: int = 9) -> str:
+    """A patch name on at most two short lines (words kept whole; a long last line shortened with '…')."""
+    lines: list[str] = []
+    for word in name.split():
+        if lines and len(lines[-1]) + 1 + len(word) <= width:
+            lines[-1] += " " + word
+        else:
+            lines.append(word)
+    if len(lines) > 2:
+        lines = [lines[0], " ".join(lines[1:])]
+    return "\n".join(line if len(line) <= width + 1 else line[:width] + "…" for line in lines)
 
 
 def vector_pairs(ref: np.ndarray, pred: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -69,6 +83,8 @@ class TargetPlots(QWidget):
         grid.addWidget(self.lc_plot, 2, 1)
         grid.addWidget(self.title, 3, 0, 1, 2)
         self._lut = lookup_table()
+        self._cell_font = QFont()
+        self._cell_font.setPointSize(7)
 
     def show_view(self, view: TargetView) -> None:
         self._heat(view)
@@ -90,7 +106,8 @@ class TargetPlots(QWidget):
         if n <= MAX_LABELLED:
             for k, (name, e) in enumerate(zip(view.names, view.errors, strict=True)):
                 r, c = divmod(k, cols)
-                t = pg.TextItem(f"{name}\n{e:.2f}", color=de_band(float(e)).text_colour, anchor=(0.5, 0.5))
+                t = pg.TextItem(f"{cell_name(name)}\n{e:.2f}", color=de_band(float(e)).text_colour, anchor=(0.5, 0.5))
+                t.setFont(self._cell_font)
                 t.setPos(c + 0.5, r + 0.5)
                 self.heat_box.addItem(t)
                 self.heat_texts.append(t)

@@ -1,4 +1,6 @@
-"""``dualrgb gui --screenshot DIR``: a small real session on the virtual lab, one PNG per panel, then exit.
+"""``dualrgb gui --screenshot DIR``: a small real session on the virtual lab - connect, calibrate, two originals
+(one needing HDR) captured and delivered, results, a search, a CRF sweep - one PNG per panel plus the workflow
+guide and the flat-field uniformity map, then exit.
 
 The run is a list of steps driven by a QTimer: each step starts something (a device call, a sequence, the
 processing, a simulation) through the panels' own code, and the next one starts when every worker is idle.
@@ -18,7 +20,7 @@ from simulation.atomic_io import atomic_write
 
 log = logging.getLogger(__name__)
 
-STEP_TIMEOUT_S = 600.0
+STEP_TIMEOUT_S = float(__import__('os').environ.get('DUALRGB_SHOT_TIMEOUT', 600))
 
 
 class ScreenshotRun(QObject):
@@ -47,15 +49,13 @@ class ScreenshotRun(QObject):
     # ------------------------------------------------------------------ the session
     def _plan(self) -> list[tuple[str, Callable[[], Callable[[], bool] | None]]]:
         w = self.w
-        cap, light, cam, tgt, res, sim, crf = (w.capture, w.light, w.camera, w.target, w.results, w.simulate,
-                                               w.characterise)
-
-        def preset_item(name: str):
-            return next(i for i in light.preset_items() if i.preset.name == name)
+        cap, light, cam, tgt, res, sim, crf, org = (w.capture, w.light, w.camera, w.target, w.results, w.simulate,
+                                                    w.characterise, w.originals)
 
         def light_on():
-            light.presets.setCurrentItem(preset_item("dual-RGB reflective"))
-            light.apply_preset(light.presets.currentItem(), 0)
+            item = next(i for i in light.preset_items() if i.preset.name == "dual-RGB reflective")
+            light.presets.setCurrentItem(item)
+            light.apply_preset(item, 0)
             w.lab.set_light_on(True)
             return lambda: w.lab.last_status.get("light_on") is True and w.lab.last_status.get("on_time_s", 0) > 2
 
@@ -64,33 +64,55 @@ class ScreenshotRun(QObject):
             cam.capture()
             return lambda: cam.last_view is not None
 
-        def sequence(kind: str, frames: int = 0, target: int = 0):
-            def run():
-                cap.kind.setCurrentText(kind)
-                if frames:
-                    cap.frames.setValue(frames)
-                cap.target.setCurrentIndex(target)
-                cap.start()
-                return lambda: not cap.view.running
-            return run
+        def calibrate():
+            cap.choose_preset("dual-RGB reflective")
+            box = cap.calibration
+            box.dark_frames.setValue(2)
+            box.flat_frames.setValue(2)
+            box.de_fit.setChecked(False)
+            box.hdr_auto.setChecked(True)
+            box.calibrate()
+            return lambda: cap.view.outcome != "" and (cap.view.outcome != "done"
+                                                       or w.ctx.workspace.calibration_check is not None)
 
-        def show_target():
-            tgt.reload()
-            return lambda: tgt.subject.count() > 0
+        def uniformity():
+            cap.right.setCurrentWidget(cap.uniformity)
+            cap.uniformity.refresh()
+            return lambda: cap.uniformity.map is not None
 
-        def pick_test():
-            tgt.subject.setCurrentText("target:train")
-            return lambda: tgt.grid is not None
+        def originals():
+            w.show_panel("originals")
+            for ident, title, stand_in in (("ACC-1887-12", "Landscape with a figure", "painting"),
+                                           ("ACC-1902-03", "Still life in shadow", "shadow")):
+                org.identifier.setText(ident)
+                org.title_edit.setText(title)
+                org.operator.setText("J. Doe")
+                org.stand_in.setCurrentText(stand_in)
+                org.add_original()
+            org.capture([r.identifier for r in w.ctx.workspace.queue.waiting()])
+            return lambda: all(r.state.value in ("delivered", "failed") for r in w.ctx.workspace.queue.rows)
 
-        def pick_test2():
-            tgt.subject.setCurrentText("target:test")
-            return lambda: tgt.grid is not None and tgt.grid.rows == 4
-
-        def process():
-            res.reload()
+        def select_row():
+            org.select("ACC-1902-03")
             return None
 
-        def process2():
+        def grid(key: str):
+            def step():
+                tgt.reload()
+                return lambda: tgt.subject.findData(key) >= 0
+            return step
+
+        def place(key: str):
+            def step():
+                tgt.select_subject(key)
+                return lambda: key in w.ctx.workspace.grids
+            return step
+
+        def process():
+            w.show_panel("results")
+            res.optimise.setChecked(False)
+            res.select(res.train_subject, "target:train")
+            res.select(res.test_subject, "target:test")
             res.start()
             return lambda: res.result is not None or "failed" in res.status.text()
 
@@ -102,12 +124,8 @@ class ScreenshotRun(QObject):
             sim.start()
             return lambda: sim.result is not None
 
-        def save_sim_preset():
-            sim.save_preset("screenshot PSO")
-            return None
-
         def crf_sweep():
-            crf.levels.setText("1, 0.25")
+            crf.levels.setText("100, 25")
             crf.levels.editingFinished.emit()
             crf.max_t.setValue(0.5)
             crf.start()
@@ -120,23 +138,23 @@ class ScreenshotRun(QObject):
             ("screenshot light", lambda: self.shoot("light")),
             ("take a picture", camera_shot),
             ("screenshot camera", lambda: self.shoot("camera")),
-            ("new session", lambda: cap.new_session() or (lambda: w.lab.session is not None)),
-            ("choose the preset", lambda: cap.choose_preset("dual-RGB reflective")),
-            ("auto-exposure", lambda: cap.auto_expose()),
-            ("dark series", sequence("Dark series", frames=4)),
-            ("flats", sequence("Open-gate flats", frames=2)),
-            ("train target", sequence("Dual-RGB capture", target=0)),
-            ("test target", sequence("Dual-RGB capture", target=1)),
+            ("new session", lambda: cap.new_session() or (lambda: w.lab.session is not None and bool(cap.presets))),
+            ("calibrate", calibrate),
             ("screenshot capture", lambda: self.shoot("capture")),
-            ("list targets", show_target),
-            ("grid on the training target", pick_test),
-            ("grid on the test target", pick_test2),
+            ("flat-field uniformity", uniformity),
+            ("screenshot uniformity", lambda: self.shoot("capture", "uniformity")),
+            ("originals", originals),
+            ("select an original", select_row),
+            ("screenshot originals", lambda: self.shoot("originals")),
+            ("screenshot guide", lambda: self.shoot_widget(w.guide_dock, "guide")),
+            ("list targets", grid("target:test")),
+            ("grid on the training target", place("target:train")),
+            ("grid on the test target", place("target:test")),
             ("screenshot target", lambda: self.shoot("target")),
-            ("results: list", process),
-            ("results: process", process2),
+            ("results: process", process),
             ("screenshot results", lambda: self.shoot("results")),
             ("simulate", simulate),
-            ("save preset", save_sim_preset),
+            ("save preset", lambda: sim.save_preset("screenshot PSO") and None),
             ("screenshot simulate", lambda: self.shoot("simulate")),
             ("CRF sweep", crf_sweep),
             ("screenshot characterise", lambda: self.shoot("characterise")),
@@ -172,17 +190,21 @@ class ScreenshotRun(QObject):
         except Exception as exc:  # noqa: BLE001 - a broken step ends the run with its message, never a hang
             self._fail(f"step {name!r}: {exc}")
 
-    def shoot(self, panel: str) -> Callable[[], bool]:
+    def shoot(self, panel: str, name: str = "") -> Callable[[], bool]:
+        """The whole window (the guide beside the panel) with ``panel`` in front, as ``<name or panel>.png``."""
         self.w.tabs.setCurrentWidget(self.w.panels[panel])
-        path = self.out_dir / f"{panel}.png"
-        QTimer.singleShot(300, lambda: self._grab(panel))
+        return self.shoot_widget(self.w, name or panel)
+
+    def shoot_widget(self, widget, name: str) -> Callable[[], bool]:
+        path = self.out_dir / f"{name}.png"
+        QTimer.singleShot(300, lambda: self._grab(widget, name))
         return lambda: path in self.saved
 
-    def _grab(self, panel: str) -> None:
-        path = self.out_dir / f"{panel}.png"
+    def _grab(self, widget, name: str) -> None:
+        path = self.out_dir / f"{name}.png"
         buffer = QBuffer()
         buffer.open(QIODevice.WriteOnly)
-        self.w.grab().save(buffer, "PNG")
+        widget.grab().save(buffer, "PNG")
         atomic_write(path, bytes(buffer.data()))
         self.saved.append(path)
         log.info("saved %s", path)

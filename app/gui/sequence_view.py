@@ -35,6 +35,7 @@ from app.gui.workers import TaskHandle
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence
 from app.workflow.runs import RUN_PROGRESS, StandRun
 from app.workflow.vocabulary import EventKind
+from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
@@ -49,8 +50,14 @@ def estimate_s(plan: list[PlannedFrame], settle_s: float, overhead_s: float) -> 
     return sum(f.exposure_s + (settle_s if f.light else 0.0) + overhead_s for f in plan)
 
 
-def drive(run: Run, emit: Callable[[ProgressEvent], None]) -> None:
-    """Worker side: iterate a sequence (pausing it on a prompt before telling the GUI) or execute a StandRun."""
+def drive(run: Run, emit: Callable[[ProgressEvent], None], sphere: Any = None) -> None:
+    """Worker side: iterate a sequence (pausing it on a prompt before telling the GUI) or execute a StandRun.
+    A run starts from dark: a light left on by hand ('Light ON') is switched off first, so the run's own lit
+    periods are the only ones (the sphere never extends a lit period)."""
+    if sphere is not None:
+        report = sphere.ensure_off()
+        if not report.off:
+            raise RuntimeError(f"{run.name} not started: {report.message}")
     if isinstance(run, StandRun):
         run.execute(emit)
         return
@@ -219,7 +226,8 @@ class SequenceView(QWidget):
         self.started.emit(seq)
         self.ctx.workspace.set_running(seq.name)
         self.ctx.bus.sequenceStarted.emit(seq.name)
-        self.handle = self.ctx.runner.submit(lambda emit: drive(seq, emit), pool="sequences", name=seq.name,
+        sphere = self.ctx.lab.sphere
+        self.handle = self.ctx.runner.submit(lambda emit: drive(seq, emit, sphere), pool="sequences", name=seq.name,
                                              pass_emit=True, on_event=self._on_event, on_error=self._on_error,
                                              on_finished=self._on_finished, on_cancel=seq.cancel)
 
@@ -262,7 +270,10 @@ class SequenceView(QWidget):
             return
         found = next((e for e in reversed(session.entries()) if e.seq == entry), None)
         if found is not None:
-            self.preview.show_file(session.file_path(found), found.role)
+            t = found.exposure_s or 0.0
+            label = LightSource.from_dict(found.light).label() if found.light else ""
+            longer = any(f.role == found.role and f.light == label and f.exposure_s < 0.99 * t for f in self.planned)
+            self.preview.show_file(session.file_path(found), found.role, bracket_long=longer)
 
     def _on_error(self, exc: BaseException) -> None:
         self.outcome = "failed"
@@ -292,7 +303,9 @@ class SequenceView(QWidget):
             exposure = sum(float(e.data.get("exposure_s") or 0.0) for e in frames)
             self.overhead_s = max(0.05, (spent - exposure) / len(frames) - self.settle_s)
         name = seq.name if seq else "sequence"
-        extra = seq.summary() if hasattr(seq, "summary") else ""
+        summary = getattr(seq, "summary", None)
+        extra = summary() if callable(summary) else ""
+        extra = extra if isinstance(extra, str) else ""             # a sequence's own one-line summary only
         self.message.setText(f"{name} done: {len(frames)} new, {kept} kept" + (f"; {extra}" if extra else ""))
         self.ctx.errors.clear(f"{name[:1].upper()}{name[1:]} stopped")
 

@@ -61,6 +61,11 @@ def dose(lux_s: float) -> str:
     return f"{with_unit(f'{lux_s / 3600.0:.3g}', 'lux·h')} ({with_unit(f'{lux_s:.3g}', 'lux·s')})"
 
 
+def dn(value: float) -> str:
+    """Raw digital numbers with a thin space per thousand: '11 000 DN'."""
+    return with_unit(f"{value:,.0f}".replace(",", "\u2009"), "DN")
+
+
 def percent(fraction: float, digits: int = 2) -> str:
     return with_unit(f"{100.0 * fraction:.{digits}f}", "%")
 

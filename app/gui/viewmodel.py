@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from app.gui.units import light_pct, shutters
+from app.gui.units import dn, light_pct, percent, shutters
 from app.light_dose import LightDose
 from app.processing.hdr import LINEAR_LIMIT_DN  # the one linear limit (thesis 4.1), used everywhere
 from simulation.lightsource import LightSource
@@ -43,9 +43,9 @@ class RawHistogram:
     max_dn: float
 
     def summary(self) -> str:
-        return (f"max {self.max_dn:.0f} DN; {100 * self.fraction_nonlinear:.2f} % above the linear limit "
-                f"({self.linear_limit:.0f} DN); {100 * self.fraction_clipped:.2f} % clipped "
-                f"(white level {self.white_level:.0f} DN)")
+        return (f"max {dn(self.max_dn)}; {percent(self.fraction_nonlinear)} above the linear limit "
+                f"({dn(self.linear_limit)}); {percent(self.fraction_clipped)} clipped (white level "
+                f"{dn(self.white_level)})")
 
 
 def raw_histogram(planes: dict[str, np.ndarray], white_level: float, linear_limit: float = LINEAR_LIMIT_DN,

@@ -80,10 +80,14 @@ class Workspace(QObject):
 
     def planned_exposures(self, session: Any) -> dict[str, list[float]]:
         """Per light: every exposure the captures use (the base exposures, HDR brackets, a running calibration's
-        plan, what the session holds): what darks and flats must cover (app.workflow.plans)."""
+        plan, the current calibration's exposures for these lights, what the session holds): what darks and flats
+        must cover (app.workflow.plans)."""
         base = {n: [t] for n, t in self.base_exposures.items()}
-        for n, ts in self.run_plan.items():
-            base.setdefault(n, []).extend(ts)
+        made = self.calibration.exposures if self.calibration is not None else {}
+        for plan in (self.run_plan, made):
+            for n, ts in plan.items():
+                if n in base or plan is self.run_plan:
+                    base.setdefault(n, []).extend(ts)
         return calibration_exposures(session, base, {k: sorted(v) for k, v in self.hdr_brackets.items()})
 
     # ---- calibration ----

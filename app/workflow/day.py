@@ -246,7 +246,8 @@ def _originals(st: DayState) -> GuideStep:
 def _deliver(st: DayState) -> GuideStep:
     delivered = [r for r in st.queue.rows if r.state is OriginalState.DELIVERED]
     n = len(st.queue.rows)
-    lines = [f"{len(delivered)} of {n} delivered" + (f" to {st.deliverables}" if st.deliverables else "")]
+    where = f" to {Path(st.deliverables).parent.name}/{Path(st.deliverables).name}" if st.deliverables else ""
+    lines = [f"{len(delivered)} of {n} delivered{where}"]
     done = bool(n) and len(delivered) == n
     return GuideStep(DayStep.DELIVER, StepState.DONE if done else StepState.TODO, lines)
 

@@ -39,6 +39,7 @@ class Role(str, Enum):
     ORIGINAL = "original"      # the artwork or film being digitised
     CRF = "crf"                # camera response / exposure-time linearity series
     METERING = "metering"      # auto-exposure and HDR metering frames (kept, never processed)
+    REJECTED = "rejected"      # lit for less than its exposure (app.sequences.shooter): kept aside, never processed
 
 
 class SubjectKind(str, Enum):

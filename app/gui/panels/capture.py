@@ -17,6 +17,7 @@ from PySide6.QtWidgets import (
     QFormLayout,
     QGroupBox,
     QHBoxLayout,
+    QHeaderView,
     QLabel,
     QPushButton,
     QScrollArea,
@@ -42,6 +43,7 @@ from app.session import CaptureSession
 from app.workflow.copystand import StandSettings
 from app.workflow.metering import AutoExposure, HdrMetering
 from app.workflow.plans import build_sequence, next_take, planned_steps, steps_done
+from app.workflow.runs import StandRun
 from app.workflow.vocabulary import NamedLight, SequenceKind, Subject, lights_of
 from simulation.presets import Preset, PresetError, load_preset, packaged_presets
 
@@ -105,8 +107,11 @@ class CapturePanel(QWidget):
         self.light_table.setToolTip("Exposure per light (e.g. 1/80 or 0.5): set by auto-exposure on the open gate, "
                                     "or type one.")
         self.light_table.verticalHeader().hide()
-        self.light_table.horizontalHeader().setStretchLastSection(True)
-        self.light_table.setMaximumHeight(110)
+        header = self.light_table.horizontalHeader()
+        header.setSectionResizeMode(0, QHeaderView.ResizeToContents)
+        header.setSectionResizeMode(1, QHeaderView.Stretch)          # the levels wrap; the exposure shows whole
+        header.setSectionResizeMode(2, QHeaderView.ResizeToContents)
+        self.light_table.setMaximumHeight(130)
         self.light_table.setWordWrap(True)
         self.light_table.itemChanged.connect(lambda _item: self._exposures_edited())
         self.auto_button = QPushButton("Auto-exposure")
@@ -313,12 +318,11 @@ class CapturePanel(QWidget):
         self.light_table.blockSignals(True)
         self.light_table.setRowCount(len(self.lights))
         for r, nl in enumerate(self.lights):
-            for c, text in enumerate((nl.name, light_pct(nl.light))):
+            for c, text in enumerate((f"light {r + 1}", light_pct(nl.light))):
                 item = QTableWidgetItem(text)
                 item.setFlags(item.flags() & ~Qt.ItemIsEditable)
                 self.light_table.setItem(r, c, item)
             self.light_table.setItem(r, 2, QTableWidgetItem(shutter(old.get(nl.name) or 1 / 60)))
-        self.light_table.resizeColumnsToContents()
         self.light_table.resizeRowsToContents()
         self.light_table.blockSignals(False)
         self.ws.set_lights(preset, self.lights, self._table_exposures())
@@ -495,7 +499,10 @@ class CapturePanel(QWidget):
             self.hdr_key = (seq.subject.name, seq.subject.nd)
             self.ws.add_hdr_brackets({n: p.exposures for n, p in seq.plans.items()})
             self.hdr_label.setText(seq.summary())
-        self._session_changed()
+        self._show_frames()
+        self._update_enabled()
+        if not isinstance(seq, StandRun):       # a calibration run's ticked plan stays in view
+            self.update_plan()
         self.ctx.bus.sessionUpdated.emit()
         if outcome == "done" and getattr(seq, "name", "") == "open-gate flats":
             self.uniformity.refresh()

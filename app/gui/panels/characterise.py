@@ -24,7 +24,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
-from app.gui.units import light_pct, shutter, shutters, with_unit
+from app.gui.units import dn, light_pct, shutter, shutters
 from app.gui.viewmodel import LINEAR_LIMIT_DN, light_from_levels
 from app.gui.widgets import plot_widget
 from app.sequences.crf_sweep import CrfSweep
@@ -57,7 +57,7 @@ class CharacterisePanel(QWidget):
         self.sweep: CrfSweep | None = None
         self._live: dict[float, list[tuple[float, float]]] = {}
         self._live_curves: dict[float, pg.PlotDataItem] = {}
-        self.view = SequenceView(ctx)
+        self.view = SequenceView(ctx, preview=False)            # the response plot is the live view
         self.view.start_button.clicked.connect(self.start)
         self.view.finished.connect(self._finished)
         self.view.event.connect(self._event)
@@ -73,6 +73,7 @@ class CharacterisePanel(QWidget):
         split.addWidget(left)
         split.addWidget(self._plots())
         split.setStretchFactor(1, 1)
+        split.setSizes([520, 760])
         QVBoxLayout(self).addWidget(split)
         for sig in (self.lab.cameraChanged, self.lab.sphereChanged, self.lab.sessionChanged):
             sig.connect(self.update_plan)
@@ -235,9 +236,9 @@ class CharacterisePanel(QWidget):
                                               label="linear limit", labelOpts={"position": 0.1, "color": "#ef6c00"}))
         knee = summary.get("linear_limit_dn")
         flagged = summary.get("flagged_exposures") or []
-        used = with_unit(f"{LINEAR_LIMIT_DN:,.0f}".replace(",", "\u2009"), "DN")
+        used = dn(LINEAR_LIMIT_DN)
         text = (f"linear limit used by the processing: <b>{used}</b> (thesis 4.1)" +
-                (f"; knee measured on this camera: {with_unit(f'{knee:,.0f}'.replace(',', chr(0x2009)), 'DN')} "
+                (f"; knee measured on this camera: {dn(knee)} "
                  "(median over the levels)" if knee else "; no knee found in this sweep"))
         text += ("<br>exposure times departing from linearity: <b>" + shutters(flagged) + "</b>"
                  if flagged else "<br>no exposure time departs from linearity")

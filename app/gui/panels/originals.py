@@ -158,7 +158,11 @@ class OriginalsPanel(QWidget):
         for w in (self.capture_button, self.capture_all_button, self.remove_button, self.open_tiff_button,
                   self.open_folder_button):
             buttons.addWidget(w)
+        self.qa_label = QLabel("")
+        self.qa_label.setWordWrap(True)
+        self.qa_label.setToolTip("The QA line of the selected original (its sidecar has it too).")
         lay.addWidget(self.table, 1)
+        lay.addWidget(self.qa_label)
         lay.addLayout(buttons)
         return box
 
@@ -265,6 +269,8 @@ class OriginalsPanel(QWidget):
               and self.lab.session is not None and not running
               and (not self.ws.calibration_refused or self.force.isChecked()))
         sel = [self.ws.queue.row(i) for i in self.selected()]
+        self.qa_label.setText("\n".join([f"{r.identifier} ({r.state.value}): {r.qa or '—'}"] + r.warnings)
+                              if (r := sel[0] if len(sel) == 1 else None) else "")
         self.capture_button.setEnabled(ok and bool(sel))
         self.capture_all_button.setEnabled(ok and bool(self.ws.queue.waiting()))
         self.remove_button.setEnabled(bool(sel) and not running)

@@ -111,6 +111,8 @@ class ResultsPanel(QWidget):
         scroll = QScrollArea()
         scroll.setWidget(left)
         scroll.setWidgetResizable(True)
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarAlwaysOff)       # labels wrap instead
+        left.setMinimumWidth(360)
         self.which = QComboBox()
         self.which.addItems(["test", "train"])
         self.which.setToolTip("Show the test or the training target.")
@@ -322,6 +324,7 @@ class ResultsPanel(QWidget):
         for r, (std, res) in enumerate(standards["results"].items()):
             level = res["level"]
             badge = QLabel(f"{std}, colour accuracy only: {level if level else 'not met'}")
+            badge.setWordWrap(True)
             badge.setStyleSheet(f"background:{BADGE_COLOURS[level is not None]}; color:white; border-radius:6px; "
                                 "padding:3px 8px; font-weight:bold")
             lines = [f"{name}: {'pass' if v['pass'] else 'fail'} (" + ", ".join(

@@ -390,7 +390,7 @@ class SimulatePanel(QWidget):
         self.lights_plot.clear()
         for i, spd in enumerate(lights):
             self.lights_plot.plot(wl, spd, pen=pg.mkPen(LIGHT_PENS[i % 2], width=2),
-                                  name=f"light {i + 1} {cand.sources[i].label()}")
+                                  name=f"light {i + 1}: {light_pct(cand.sources[i])}")
         sens = effective_sensitivities(lights, setup.camera)
         for i in range(len(lights)):                      # each light's three channels scaled together
             block = sens[:, 3 * i:3 * i + 3]
