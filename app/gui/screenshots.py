@@ -49,116 +49,113 @@ class ScreenshotRun(QObject):
     # ------------------------------------------------------------------ the session
     def _plan(self) -> list[tuple[str, Callable[[], Callable[[], bool] | None]]]:
         w = self.w
-        cap, light, cam, tgt, res, sim, crf, org = (w.capture, w.light, w.camera, w.target, w.results, w.simulate,
-                                                    w.characterise, w.originals)
-
-        def light_on():
-            item = next(i for i in light.preset_items() if i.preset.name == "dual-RGB reflective")
-            light.presets.setCurrentItem(item)
-            light.apply_preset(item, 0)
-            w.lab.set_light_on(True)
-            return lambda: w.lab.last_status.get("light_on") is True and w.lab.last_status.get("on_time_s", 0) > 2
-
-        def camera_shot():
-            w.lab.place("test")
-            cam.capture()
-            return lambda: cam.last_view is not None
-
-        def calibrate():
-            cap.choose_preset("dual-RGB reflective")
-            box = cap.calibration
-            box.dark_frames.setValue(2)
-            box.flat_frames.setValue(2)
-            box.de_fit.setChecked(False)
-            box.hdr_auto.setChecked(True)
-            box.calibrate()
-            return lambda: cap.view.outcome != "" and (cap.view.outcome != "done"
-                                                       or w.ctx.workspace.calibration_check is not None)
-
-        def uniformity():
-            cap.right.setCurrentWidget(cap.uniformity)
-            cap.uniformity.refresh()
-            return lambda: cap.uniformity.map is not None
-
-        def originals():
-            w.show_panel("originals")
-            for ident, title, stand_in in (("ACC-1887-12", "Landscape with a figure", "painting"),
-                                           ("ACC-1902-03", "Still life in shadow", "shadow")):
-                org.identifier.setText(ident)
-                org.title_edit.setText(title)
-                org.operator.setText("J. Doe")
-                org.stand_in.setCurrentText(stand_in)
-                org.add_original()
-            org.capture([r.identifier for r in w.ctx.workspace.queue.waiting()])
-            return lambda: all(r.state.value in ("delivered", "failed") for r in w.ctx.workspace.queue.rows)
-
-        def select_row():
-            org.select("ACC-1902-03")
-            return None
-
-        def grid(key: str):
-            def step():
-                tgt.reload()
-                return lambda: tgt.subject.findData(key) >= 0
-            return step
-
-        def place(key: str):
-            def step():
-                tgt.select_subject(key)
-                return lambda: key in w.ctx.workspace.grids
-            return step
-
-        def process():
-            w.show_panel("results")
-            res.optimise.setChecked(False)
-            res.select(res.train_subject, "target:train")
-            res.select(res.test_subject, "target:test")
-            res.start()
-            return lambda: res.result is not None or "failed" in res.status.text()
-
-        def simulate():
-            sim.mode.setCurrentText("reflective")
-            sim.method.setCurrentText("pso")
-            sim.iterations.setValue(5)
-            sim.population.setValue(30)
-            sim.start()
-            return lambda: sim.result is not None
-
-        def crf_sweep():
-            crf.levels.setText("100, 25")
-            crf.levels.editingFinished.emit()
-            crf.max_t.setValue(0.5)
-            crf.start()
-            return lambda: not crf.view.running
-
+        cap, sim = w.capture, w.simulate
         return [
             ("start the virtual lab", lambda: w.lab.start_virtual_lab()),
             ("screenshot devices", lambda: self.shoot("devices")),
-            ("light on", light_on),
+            ("light on", self._light_on),
             ("screenshot light", lambda: self.shoot("light")),
-            ("take a picture", camera_shot),
+            ("take a picture", self._camera_shot),
             ("screenshot camera", lambda: self.shoot("camera")),
             ("new session", lambda: cap.new_session() or (lambda: w.lab.session is not None and bool(cap.presets))),
-            ("calibrate", calibrate),
+            ("calibrate", self._calibrate),
             ("screenshot capture", lambda: self.shoot("capture")),
-            ("flat-field uniformity", uniformity),
+            ("flat-field uniformity", self._uniformity),
             ("screenshot uniformity", lambda: self.shoot("capture", "uniformity")),
-            ("originals", originals),
-            ("select an original", select_row),
+            ("originals", self._originals),
+            ("select an original", lambda: w.originals.select("ACC-1902-03")),
             ("screenshot originals", lambda: self.shoot("originals")),
             ("screenshot guide", lambda: self.shoot_widget(w.guide_dock, "guide")),
-            ("list targets", grid("target:test")),
-            ("grid on the training target", place("target:train")),
-            ("grid on the test target", place("target:test")),
+            ("list targets", self._list_targets),
+            ("grid on the training target", lambda: self._place_grid("target:train")),
+            ("grid on the test target", lambda: self._place_grid("target:test")),
             ("screenshot target", lambda: self.shoot("target")),
-            ("results: process", process),
+            ("results: process", self._process),
             ("screenshot results", lambda: self.shoot("results")),
-            ("simulate", simulate),
+            ("simulate", self._simulate),
             ("save preset", lambda: sim.save_preset("screenshot PSO") and None),
             ("screenshot simulate", lambda: self.shoot("simulate")),
-            ("CRF sweep", crf_sweep),
+            ("CRF sweep", self._crf_sweep),
             ("screenshot characterise", lambda: self.shoot("characterise")),
         ]
+
+    def _light_on(self):
+        w, light = self.w, self.w.light
+        item = next(i for i in light.preset_items() if i.preset.name == "dual-RGB reflective")
+        light.presets.setCurrentItem(item)
+        light.apply_preset(item, 0)
+        w.lab.set_light_on(True)
+        return lambda: w.lab.last_status.get("light_on") is True and w.lab.last_status.get("on_time_s", 0) > 2
+
+    def _camera_shot(self):
+        self.w.lab.place("test")
+        self.w.camera.capture()
+        return lambda: self.w.camera.last_view is not None
+
+    def _calibrate(self):
+        cap, ws = self.w.capture, self.w.ctx.workspace
+        cap.choose_preset("dual-RGB reflective")
+        box = cap.calibration
+        box.dark_frames.setValue(2)
+        box.flat_frames.setValue(2)
+        box.de_fit.setChecked(False)
+        box.hdr_auto.setChecked(True)
+        box.calibrate()
+        return lambda: cap.view.outcome != "" and (cap.view.outcome != "done" or ws.calibration_check is not None)
+
+    def _uniformity(self):
+        cap = self.w.capture
+        cap.right.setCurrentWidget(cap.uniformity)
+        cap.uniformity.refresh()
+        return lambda: cap.uniformity.map is not None
+
+    def _originals(self):
+        w, org = self.w, self.w.originals
+        w.show_panel("originals")
+        for ident, title, stand_in in (("ACC-1887-12", "Landscape with a figure", "painting"),
+                                       ("ACC-1902-03", "Still life in shadow", "shadow")):
+            org.identifier.setText(ident)
+            org.title_edit.setText(title)
+            org.operator.setText("J. Doe")
+            org.stand_in.setCurrentText(stand_in)
+            org.add_original()
+        org.capture([r.identifier for r in w.ctx.workspace.queue.waiting()])
+        return lambda: all(r.state.value in ("delivered", "failed") for r in w.ctx.workspace.queue.rows)
+
+    def _list_targets(self):
+        tgt = self.w.target
+        tgt.reload()
+        return lambda: tgt.subject.findData("target:test") >= 0
+
+    def _place_grid(self, key: str):
+        self.w.target.select_subject(key)
+        return lambda: key in self.w.ctx.workspace.grids
+
+    def _process(self):
+        res = self.w.results
+        self.w.show_panel("results")
+        res.optimise.setChecked(False)
+        res.select(res.train_subject, "target:train")
+        res.select(res.test_subject, "target:test")
+        res.start()
+        return lambda: res.result is not None or "failed" in res.status.text()
+
+    def _simulate(self):
+        sim = self.w.simulate
+        sim.mode.setCurrentText("reflective")
+        sim.method.setCurrentText("pso")
+        sim.iterations.setValue(5)
+        sim.population.setValue(30)
+        sim.start()
+        return lambda: sim.result is not None
+
+    def _crf_sweep(self):
+        crf = self.w.characterise
+        crf.levels.setText("100, 25")
+        crf.levels.editingFinished.emit()
+        crf.max_t.setValue(0.5)
+        crf.start()
+        return lambda: not crf.view.running
 
     # ------------------------------------------------------------------ driver
     def _tick(self) -> None:

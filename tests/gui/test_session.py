@@ -145,8 +145,17 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert set(res.badge_labels) == {"FADGI 2023", "ISO 19264-1:2021", "Metamorfoze 2.0"}
     assert all("colour accuracy only" in b.text() for b in res.badge_labels.values())   # issue 11 item 6
     assert len(res.views["test"].errors) == 24
-    image = res.plots.heat_item.image
+    plots = res.plots
+    image = plots.heat_item.image
     assert image.shape == (4, 6)
+    from app.gui.de_scale import SCALE_MAX
+    assert tuple(plots.heat_item.levels) == (0.0, SCALE_MAX)                  # a fixed scale, not its own maximum
+    names = res.views["test"].names
+    assert len(plots.heat_texts) == 24 and plots.heat_texts[0].toPlainText().startswith(names[0].split()[0])
+    vectors = [i for i in plots.ab_plot.listDataItems() if i.opts.get("connect") == "pairs"]
+    assert len(vectors) == 1 and len(vectors[0].getData()[0]) == 2 * 24        # reference -> prediction per patch
+    assert "left half" in plots.mosaic_legend.text() and "right half" in plots.mosaic_legend.text()
+    assert "not assessed: SFR / MTF" in res.quality.text()                      # issue 11 item 6
     res.export_to(tmp_path / "export")
     wait_idle(qtbot, w)
     assert len(list((tmp_path / "export").glob("session-*-results/report.json"))) == 1

@@ -163,7 +163,7 @@ def test_simulation_cancel(qtbot, make_window):
     assert sim.run_button.isEnabled()
 
 
-@pytest.mark.parametrize("method", ["ga", "three-channel"])
+@pytest.mark.parametrize("method", ["ga", "three-channel", "exhaustive"])
 def test_simulate_other_methods(qtbot, make_window, method):
     w = make_window()
     sim = w.simulate
@@ -177,8 +177,16 @@ def test_simulate_other_methods(qtbot, make_window, method):
     assert "baseline" in sim.status.text()
     if method == "ga":
         assert sim.live and sim.table.rowCount() > 0 and sim.save_button.isEnabled()
+    elif method == "exhaustive":                     # no iterations: said so, not an empty +-500 000 axis
+        assert "none (exhaustive" in sim.iter_plot.getPlotItem().titleLabel.text
+        (x0, x1), (y0, y1) = sim.iter_plot.getPlotItem().viewRange()
+        assert x1 - x0 < 10 and y1 - y0 < 10
     else:
         assert sim.table.rowCount() == 0 and not sim.save_button.isEnabled()
+    from PySide6.QtWidgets import QHeaderView
+    header = sim.table.horizontalHeader()                   # the light columns wrap, the numbers show whole
+    modes = [header.sectionResizeMode(c) for c in range(4)]
+    assert modes == [QHeaderView.Stretch] * 2 + [QHeaderView.ResizeToContents] * 2
 
 
 def test_study_charts_listed(qtbot, make_window, user_data_dir):

@@ -233,7 +233,7 @@ class CharacterisePanel(QWidget):
             self._residuals(res, lv, LEVEL_PENS[i % len(LEVEL_PENS)])
         self.crf_plot.addItem(pg.InfiniteLine(math.log10(LINEAR_LIMIT_DN), angle=0,
                                               pen=pg.mkPen("#ef6c00", width=2, style=Qt.DashLine),
-                                              label="linear limit", labelOpts={"position": 0.1, "color": "#ef6c00"}))
+                                              label="linear limit", labelOpts={"position": 0.95, "color": "#ef6c00"}))
         knee = summary.get("linear_limit_dn")
         flagged = summary.get("flagged_exposures") or []
         used = dn(LINEAR_LIMIT_DN)

@@ -23,105 +23,10 @@ class DevicesPanel(QWidget):
         super().__init__(parent)
         self.ctx = ctx
         self.lab = ctx.lab
-
-        # ---- sphere ----
-        sbox = QGroupBox("LED sphere")
-        sg = QGridLayout(sbox)
-        self.port_combo = QComboBox()
-        self.port_combo.setEditable(True)
-        self.port_combo.setToolTip("The sphere's serial port (/dev/ttyACM0 on Linux), or the built-in emulator "
-                                   "to try everything without hardware.")
-        self.refresh_ports = QPushButton("Refresh")
-        self.refresh_ports.setToolTip("List the serial ports again (after plugging the sphere in).")
-        self.refresh_ports.clicked.connect(self.list_ports)
-        self.sphere_button = QPushButton("Connect")
-        self.sphere_button.setToolTip("Open the port, check the sphere answers, and switch every LED off.")
-        self.sphere_button.clicked.connect(self._toggle_sphere)
-        self.sphere_light = StatusLight("not connected")
-        self.sphere_message = QLabel("")
-        self.sphere_message.setWordWrap(True)
-        sg.addWidget(QLabel("Port"), 0, 0)
-        sg.addWidget(self.port_combo, 0, 1)
-        sg.addWidget(self.refresh_ports, 0, 2)
-        sg.addWidget(self.sphere_button, 0, 3)
-        sg.addWidget(self.sphere_light, 1, 0, 1, 4)
-        sg.addWidget(self.sphere_message, 2, 0, 1, 4)
-
-        # ---- camera ----
-        cbox = QGroupBox("Camera")
-        cg = QGridLayout(cbox)
-        self.camera_combo = QComboBox()
-        self.camera_combo.setToolTip("Cameras found on USB (gphoto2), and the virtual camera of the virtual lab.")
-        self.detect_button = QPushButton("Detect")
-        self.detect_button.setToolTip("Look for cameras on USB again.")
-        self.detect_button.clicked.connect(self.detect)
-        self.camera_button = QPushButton("Connect")
-        self.camera_button.setToolTip("Open the camera and read its settings.")
-        self.camera_button.clicked.connect(self._toggle_camera)
-        self.camera_light = StatusLight("not connected")
-        self.camera_message = QLabel("")
-        self.camera_message.setWordWrap(True)
-        cg.addWidget(QLabel("Camera"), 0, 0)
-        cg.addWidget(self.camera_combo, 0, 1)
-        cg.addWidget(self.detect_button, 0, 2)
-        cg.addWidget(self.camera_button, 0, 3)
-        cg.addWidget(self.camera_light, 1, 0, 1, 4)
-        cg.addWidget(self.camera_message, 2, 0, 1, 4)
-
-        # ---- virtual lab ----
-        vbox = QGroupBox("Virtual lab (no hardware needed)")
-        vg = QGridLayout(vbox)
-        self.virtual_button = QPushButton("Start virtual lab")
-        self.virtual_button.setToolTip("Start the sphere emulator and the virtual camera and connect both.")
-        self.virtual_button.clicked.connect(lambda: self.lab.start_virtual_lab())
-        self.place_combo = QComboBox()
-        for label, _what, _nd in PLACES:
-            self.place_combo.addItem(label)
-        self.place_combo.setToolTip("What lies on the virtual copy stand (the sequences place what they need).")
-        self.place_button = QPushButton("Place")
-        self.place_button.setToolTip("Put the chosen object on the virtual copy stand.")
-        self.place_button.clicked.connect(self._place)
-        self.virtual_label = QLabel("not started")
-        self.mode_combo = QComboBox()
-        self.mode_combo.addItems(["reflective", "transmissive"])
-        self.mode_combo.setToolTip("Reflective: prints and paintings on the stand; transmissive: film on the light "
-                                   "box (chooses the virtual lab's targets and the reference data).")
-        self.mode_combo.setCurrentText(ctx.get("virtual/mode", "reflective", str))
-        self.lab.mode = self.mode_combo.currentText()
-        self.mode_combo.currentTextChanged.connect(self._mode_changed)
-        vg.addWidget(self.mode_combo, 0, 3)
-        vg.addWidget(self.virtual_button, 0, 0)
-        vg.addWidget(self.place_combo, 0, 1)
-        vg.addWidget(self.place_button, 0, 2)
-        vg.addWidget(self.virtual_label, 1, 0, 1, 4)
-
-        # ---- folders ----
-        fbox = QGroupBox("Folders")
-        fg = QGridLayout(fbox)
-        self.folder_labels: dict[str, PathLabel] = {}
-        for r, (key, title, tip) in enumerate((
-                ("paths/captures", "Captures", "Where sessions and test shots are saved."),
-                ("paths/presets", "Your presets", "Where your own light presets are saved (the packaged ones "
-                                                  "are always listed too)."))):
-            label = PathLabel()
-            label.setToolTip(tip)
-            button = QPushButton("Change…")
-            button.setToolTip(tip)
-            button.clicked.connect(lambda _=False, k=key, t=title: self._choose_folder(k, t))
-            fg.addWidget(QLabel(title), r, 0)
-            fg.addWidget(label, r, 1)
-            fg.addWidget(button, r, 2)
-            self.folder_labels[key] = label
-        fg.setColumnStretch(1, 1)
-        self._show_folders()
-
         lay = QVBoxLayout(self)
-        lay.addWidget(sbox)
-        lay.addWidget(cbox)
-        lay.addWidget(vbox)
-        lay.addWidget(fbox)
+        for box in (self._sphere_box(), self._camera_box(), self._virtual_box(), self._folders_box()):
+            lay.addWidget(box)
         lay.addStretch(1)
-
         self.lab.sphereChanged.connect(self._sphere_changed)
         self.lab.cameraChanged.connect(self._camera_changed)
         self.lab.virtualLabChanged.connect(self._virtual_changed)
@@ -138,6 +43,91 @@ class DevicesPanel(QWidget):
         self._sphere_changed()
         self._camera_changed()
         self._virtual_changed()
+
+    # ------------------------------------------------------------------ builders
+    def _sphere_box(self) -> QGroupBox:
+        box = QGroupBox("LED sphere")
+        self.port_combo = QComboBox()
+        self.port_combo.setEditable(True)
+        self.port_combo.setToolTip("The sphere's serial port (/dev/ttyACM0 on Linux), or the built-in emulator "
+                                   "to try everything without hardware.")
+        self.refresh_ports = QPushButton("Refresh")
+        self.refresh_ports.setToolTip("List the serial ports again (after plugging the sphere in).")
+        self.refresh_ports.clicked.connect(self.list_ports)
+        self.sphere_button = QPushButton("Connect")
+        self.sphere_button.setToolTip("Open the port, check the sphere answers, and switch every LED off.")
+        self.sphere_button.clicked.connect(self._toggle_sphere)
+        self.sphere_light = StatusLight("not connected")
+        self.sphere_message = QLabel("")
+        self.sphere_message.setWordWrap(True)
+        _device_grid(box, "Port", self.port_combo, self.refresh_ports, self.sphere_button, self.sphere_light,
+                     self.sphere_message)
+        return box
+
+    def _camera_box(self) -> QGroupBox:
+        box = QGroupBox("Camera")
+        self.camera_combo = QComboBox()
+        self.camera_combo.setToolTip("Cameras found on USB (gphoto2), and the virtual camera of the virtual lab.")
+        self.detect_button = QPushButton("Detect")
+        self.detect_button.setToolTip("Look for cameras on USB again.")
+        self.detect_button.clicked.connect(self.detect)
+        self.camera_button = QPushButton("Connect")
+        self.camera_button.setToolTip("Open the camera and read its settings.")
+        self.camera_button.clicked.connect(self._toggle_camera)
+        self.camera_light = StatusLight("not connected")
+        self.camera_message = QLabel("")
+        self.camera_message.setWordWrap(True)
+        _device_grid(box, "Camera", self.camera_combo, self.detect_button, self.camera_button, self.camera_light,
+                     self.camera_message)
+        return box
+
+    def _virtual_box(self) -> QGroupBox:
+        box = QGroupBox("Virtual lab (no hardware needed)")
+        vg = QGridLayout(box)
+        self.virtual_button = QPushButton("Start virtual lab")
+        self.virtual_button.setToolTip("Start the sphere emulator and the virtual camera and connect both.")
+        self.virtual_button.clicked.connect(lambda: self.lab.start_virtual_lab())
+        self.place_combo = QComboBox()
+        for label, _what, _nd in PLACES:
+            self.place_combo.addItem(label)
+        self.place_combo.setToolTip("What lies on the virtual copy stand (the sequences place what they need).")
+        self.place_button = QPushButton("Place")
+        self.place_button.setToolTip("Put the chosen object on the virtual copy stand.")
+        self.place_button.clicked.connect(self._place)
+        self.virtual_label = QLabel("not started")
+        self.virtual_label.setWordWrap(True)
+        self.mode_combo = QComboBox()
+        self.mode_combo.addItems(["reflective", "transmissive"])
+        self.mode_combo.setToolTip("Reflective: prints and paintings on the stand; transmissive: film on the light "
+                                   "box (chooses the virtual lab's targets and the reference data).")
+        self.mode_combo.setCurrentText(self.ctx.get("virtual/mode", "reflective", str))
+        self.lab.mode = self.mode_combo.currentText()
+        self.mode_combo.currentTextChanged.connect(self._mode_changed)
+        for col, w in enumerate((self.virtual_button, self.place_combo, self.place_button, self.mode_combo)):
+            vg.addWidget(w, 0, col)
+        vg.addWidget(self.virtual_label, 1, 0, 1, 4)
+        return box
+
+    def _folders_box(self) -> QGroupBox:
+        box = QGroupBox("Folders")
+        fg = QGridLayout(box)
+        self.folder_labels: dict[str, PathLabel] = {}
+        for r, (key, title, tip) in enumerate((
+                ("paths/captures", "Captures", "Where sessions and test shots are saved."),
+                ("paths/presets", "Your presets", "Where your own light presets are saved (the packaged ones "
+                                                  "are always listed too)."))):
+            label = PathLabel()
+            label.setToolTip(tip)
+            button = QPushButton("Change…")
+            button.setToolTip(tip)
+            button.clicked.connect(lambda _=False, k=key, t=title: self._choose_folder(k, t))
+            fg.addWidget(QLabel(title), r, 0)
+            fg.addWidget(label, r, 1)
+            fg.addWidget(button, r, 2)
+            self.folder_labels[key] = label
+        fg.setColumnStretch(1, 1)
+        self._show_folders()
+        return box
 
     # ------------------------------------------------------------------ sphere
     def list_ports(self) -> None:
@@ -292,3 +282,13 @@ class DevicesPanel(QWidget):
             self.camera_light.set_state("error", "problem (see below)")
             self.camera_message.setText(text)
             self._camera_changed()
+
+
+def _device_grid(box: QGroupBox, label: str, combo: QComboBox, find: QPushButton, connect: QPushButton,
+                 light: StatusLight, message: QLabel) -> None:
+    """One device's row: its choice, the find and connect buttons, then its status light and message."""
+    grid = QGridLayout(box)
+    for col, w in enumerate((QLabel(label), combo, find, connect)):
+        grid.addWidget(w, 0, col)
+    grid.addWidget(light, 1, 0, 1, 4)
+    grid.addWidget(message, 2, 0, 1, 4)

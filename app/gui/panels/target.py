@@ -38,12 +38,31 @@ class TargetPanel(QWidget):
         super().__init__(parent)
         self.ctx = ctx
         self.lab = ctx.lab
+        self.ws = ctx.workspace
         self.subjects: dict[str, dict[str, list]] = {}
         self.image: np.ndarray | None = None          # linear superpixel RGB of the shown frame
         self.grid: PatchGrid | None = None
         self.roi: pg.PolyLineROI | None = None
-        self.ws = ctx.workspace
+        self.info = QLabel("Drag the four corner handles onto the outer corners of the corner patches "
+                           "(top-left patch first, clockwise).")
+        self.info.setWordWrap(True)
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.addWidget(self._frame_box())
+        ll.addWidget(self._grid_box())
+        ll.addWidget(self.info)
+        ll.addStretch(1)
+        split = QSplitter(Qt.Horizontal)
+        split.addWidget(left)
+        split.addWidget(self._picture())
+        split.setStretchFactor(1, 1)
+        QVBoxLayout(self).addWidget(split)
+        self.lab.sessionChanged.connect(self.reload)
+        ctx.bus.sessionUpdated.connect(self.reload)
+        self.reload()
 
+    # ------------------------------------------------------------------ builders
+    def _frame_box(self) -> QGroupBox:
         box = QGroupBox("Frame")
         form = QFormLayout(box)
         self.subject = QComboBox()
@@ -58,9 +77,11 @@ class TargetPanel(QWidget):
         form.addRow("Target", self.subject)
         form.addRow("Light", self.light)
         form.addRow(self.reload_button)
+        return box
 
-        gbox = QGroupBox("Patch grid")
-        gf = QFormLayout(gbox)
+    def _grid_box(self) -> QGroupBox:
+        box = QGroupBox("Patch grid")
+        gf = QFormLayout(box)
         self.rows = QSpinBox()
         self.rows.setRange(1, 50)
         self.rows.setToolTip("Patch rows of the target.")
@@ -89,17 +110,9 @@ class TargetPanel(QWidget):
         row.addWidget(self.reset_button)
         row.addWidget(self.detect_button)
         gf.addRow(row)
-        self.info = QLabel("Drag the four corner handles onto the outer corners of the corner patches "
-                           "(top-left patch first, clockwise).")
-        self.info.setWordWrap(True)
+        return box
 
-        left = QWidget()
-        ll = QVBoxLayout(left)
-        ll.addWidget(box)
-        ll.addWidget(gbox)
-        ll.addWidget(self.info)
-        ll.addStretch(1)
-
+    def _picture(self) -> QWidget:
         self.view, self.image_item, self.viewbox = image_widget(
             "The target as captured (raw, one light, brightened). Yellow: the grid; green: what is measured.")
         self.cells = pg.PlotDataItem(pen=pg.mkPen("#00e676", width=1), connect="finite")
@@ -107,15 +120,7 @@ class TargetPanel(QWidget):
         self.labels: list[pg.TextItem] = []
         self.viewbox.addItem(self.outline)
         self.viewbox.addItem(self.cells)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(self.view)
-        split.setStretchFactor(1, 1)
-        QVBoxLayout(self).addWidget(split)
-
-        self.lab.sessionChanged.connect(self.reload)
-        ctx.bus.sessionUpdated.connect(self.reload)
-        self.reload()
+        return self.view
 
     # ------------------------------------------------------------------ subjects
     def reload(self) -> None:
