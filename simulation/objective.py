@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -68,6 +69,7 @@ class Evaluator:
         self.train = PatchSet(setup, setup.train)
         self.test = PatchSet(setup, setup.test)
         scale = float(np.abs(self.train.R).max()) or 1.0
+        self.scale = scale                       # per-LED responses are stored divided by this
         self.train.R = self.train.R / scale      # the fit is scale-free; keep numbers near 1
         self.test.R = self.test.R / scale
         K, n, _ = self.train.R.shape
@@ -80,15 +82,19 @@ class Evaluator:
         self.evaluations = 0
 
     # ---- batched path (optimisers) ----
-    def fit_indexed(self, idx: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Batch characterisation: idx (P, L, m) 0-based LED indices, w (P, L, m) levels -> (M, A)."""
+    def fit_indexed(self, idx: np.ndarray, w: np.ndarray,
+                    extra: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+        """Batch characterisation: idx (P, L, m) 0-based LED indices, w (P, L, m) levels -> (M, A).
+
+        ``extra`` (P, 3L): added to the normal equations' diagonal (None: plain least squares)."""
         idx = np.ascontiguousarray(idx, dtype=np.int64)
         w = np.ascontiguousarray(w, dtype=np.float64)
         P, L, m = w.shape
         _check_patches(len(self.train), 3 * L)
         M = np.empty((3, self.n_leds * 3, P))
         A = np.empty((P, 3 * L, 3))
-        fit_light_sets(idx, w, self._G, self._H, RIDGE, M, A)
+        extra = np.zeros((P, 3 * L)) if extra is None else np.ascontiguousarray(extra, dtype=np.float64)
+        fit_light_sets(idx, w, self._G, self._H, RIDGE, M, A, extra)
         return M, A
 
     def cost_indexed(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
