@@ -18,7 +18,7 @@ from typing import Optional
 
 import numpy as np
 
-from app.processing.characterise import characterise
+from app.processing.characterise import LEAST_SQUARES, characterise
 from app.processing.outputs import write_image_outputs
 from app.processing.patches import PatchGrid
 from app.processing.pipeline import CaptureProcessor, ExposureRef
@@ -69,28 +69,75 @@ def _lights(preset: Preset, prefix: str) -> list[NamedLight]:
     return [NamedLight(f"{prefix}-LS{i}", s) for i, s in enumerate(preset.sources, start=1)]
 
 
-def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback] = None) -> tuple[list[Condition], dict]:
-    """Presets from the optimiser (#2) and their simulated errors."""
+def demo_capture_model(settings: DemoSettings):
+    """The capture this demo makes, for the expected-captured objective: its frames' patch sizes (superpixels
+    the demo's patch grid averages, median over patches), its dark and flat frame counts, the virtual lab's
+    sensor, exact references (the virtual lab renders the spectra the reference XYZ come from)."""
+    from dataclasses import replace
+
+    from drivers.virtual.scene import Scene
+    from simulation.capture_model import CaptureModel
     from simulation.datasets import default_setup
+
     setup = default_setup(settings.mode)
-    ev = Evaluator(setup)
+    width, height = (int(v) // 2 * 2 for v in settings.frame_size)
+    pixels = []
+    for target in (setup.train, setup.test):
+        scene = Scene.with_target(target, width=width, height=height)
+        grid = _grid(scene, scene.layout).scaled(0.5)
+        counts = grid.sample(np.zeros((height // 2, width // 2, 1))).count[:scene.n_patches]
+        pixels.append(max(1, int(np.median(counts))))
+    cap = CaptureModel.virtual_lab(settings.mode)
+    return replace(cap, camera=replace(cap.camera, pixels_per_patch=pixels[0], dark_frames=settings.dark_frames,
+                                       flat_frames=settings.flat_frames), test_pixels_per_patch=pixels[1])
+
+
+def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback] = None) -> tuple[list[Condition], dict]:
+    """Presets from the optimiser (#2) on the expected captured error of this demo's capture (#14), and their
+    simulated errors: expected captured ("train", "test") with the noise-free ones beside them."""
+    from simulation.datasets import default_setup
+    from simulation.expected_error import ExpectedErrorEvaluator
+    from simulation.runner import DEFAULT_METHOD
+    from simulation.sphere import realisable_d65_mix
+    setup = default_setup(settings.mode)
+    ev = ExpectedErrorEvaluator(setup, demo_capture_model(settings))
     presets = {}
-    report(progress, 0.0, "optimiser: exhaustive search")
-    presets["dual_rgb"] = run_simulation(setup, "exhaustive", top=1).preset(name=f"dual-RGB {settings.mode}")
-    report(progress, 0.02, "optimiser: PSO (thesis settings)")
-    presets["dual_rgb_pso"] = run_simulation(setup, "pso", seed=settings.seed, top=1).preset(
+    report(progress, 0.0, "optimiser: exhaustive search (expected captured error)")
+    presets["dual_rgb"] = run_simulation(setup, "exhaustive", top=1, evaluator=ev).preset(name=f"dual-RGB {settings.mode}")
+    report(progress, 0.02, f"optimiser: {DEFAULT_METHOD} PSO (expected captured error)")
+    presets["dual_rgb_pso"] = run_simulation(setup, DEFAULT_METHOD, seed=settings.seed, top=1, evaluator=ev).preset(
         name=f"dual-RGB-PSO {settings.mode}")
-    mix, duv = d65_mix(setup.leds, setup.illuminant, setup.cmfs)
+    mix, duv = realisable_d65_mix(setup.leds, setup.illuminant, setup.cmfs, ev.capture.sphere)
     presets["three_channel"] = Preset("3-channel D65 mix", (mix,), method="nnls-d65", mode=settings.mode,
                                       model={"duv_to_d65": duv})
     out = []
     for name in settings.conditions:
         p = presets[name]
         W = np.stack([s.weights(ev.n_leds) for s in p.sources])
-        tr, te = ev.stats(W)
-        out.append(Condition(name, _lights(p, name), {"train": round(tr.mean, 4), "test": round(te.mean, 4)}))
+        out.append(Condition(name, _lights(p, name), _predictions(ev, W, settings.optimise_matrix)))
         save_preset(p, settings.out / "presets" / f"{name}.json")
     return out, {k: v.to_dict() for k, v in presets.items()}
+
+
+def _predictions(ev, W: np.ndarray, de_matrix: Optional[bool]) -> dict:
+    """What the optimiser predicts for a light set, per characterisation the processing may deliver: the
+    expected captured error of the least-squares matrix (the objective) and, with the dE00-optimised matrix,
+    that minus the matrix's noise-free gain (fitted on the noise-free simulated training values); and the
+    noise-free figures beside them."""
+    from app.processing.characterise import DE2000, LEAST_SQUARES, fit_de2000
+    from simulation.colorimetry import delta_e_2000, xyz_to_lab
+
+    tr, te = ev.stats(W)
+    etr, ete = ev.expected_stats(W)
+    out = {LEAST_SQUARES: {"train": round(etr.mean, 4), "test": round(ete.mean, 4)},
+           "noise_free": {"train": round(tr.mean, 4), "test": round(te.mean, 4)}}
+    if de_matrix is not False:
+        values = {k: ps.camera_values(W) for k, ps in (("train", ev.train), ("test", ev.test))}
+        A = fit_de2000(values["train"], ev.train.xyz, ev.train.white).matrix
+        gain = {k: float(e.mean) - float(delta_e_2000(ps.lab, xyz_to_lab(values[k] @ A, ps.white)).mean())
+                for k, e, ps in (("train", tr, ev.train), ("test", te, ev.test))}
+        out[DE2000] = {"train": round(etr.mean - gain["train"], 4), "test": round(ete.mean - gain["test"], 4)}
+    return out
 
 
 def _grid(scene, rows_cols) -> PatchGrid:
@@ -229,7 +276,10 @@ class DemoRun:
                 write_image_outputs(folder, stacks["test"].data, stacks["test"].channels, ch.matrix, white,
                                     prefix="test_target", cancel=self.cancel)
                 best = ch.results[ch.best]
-                entry = {"train": best.train.to_dict(), "test": best.test.to_dict(), "simulated": c.simulated,
+                sim = c.simulated.get(ch.best, c.simulated[LEAST_SQUARES])
+                entry = {"train": best.train.to_dict(), "test": best.test.to_dict(),
+                         "simulated": {**sim, "matrix": ch.best, "noise_free_train": c.simulated["noise_free"]["train"],
+                                       "noise_free_test": c.simulated["noise_free"]["test"], "per_matrix": c.simulated},
                          "matrix_method": ch.best,
                          "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
                          "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]}

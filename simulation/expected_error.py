@@ -42,7 +42,7 @@ from simulation.capture_model import CaptureModel
 from simulation.characterisation import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
-from simulation.fast_expected import mean_expected_de2000
+from simulation.fast_expected import mean_expected_de2000, prepare_expected
 from simulation.objective import ErrorStats, Evaluator
 
 log = logging.getLogger(__name__)
@@ -115,8 +115,10 @@ class Expected:
 class ExpectedErrorModel:
     """The expected captured error of light sets W (B, L, K) under ``capture`` (float64 reference path)."""
 
-    def __init__(self, setup: SimulationSetup, capture: Optional[CaptureModel] = None) -> None:
+    def __init__(self, setup: SimulationSetup, capture: Optional[CaptureModel] = None,
+                 reference: Optional[SimulationSetup] = None) -> None:
         self.setup = setup
+        self.reference = reference or setup         # whose target spectra give the reference XYZ
         self.capture = capture or CaptureModel()
         cam = self.capture.camera
         self.white = white_point(setup.illuminant, setup.cmfs)
@@ -128,11 +130,12 @@ class ExpectedErrorModel:
                               / (cam.reference_exposure_s * float((ref @ self.open).max())))
         # d S(lambda - shift) / d shift = -S'(lambda): the LED spectra's wavelength derivative
         self.dleds = -np.gradient(setup.leds, setup.grid.wavelengths, axis=1)
-        self.terms = {"train": self._terms(setup.train, "train"), "test": self._terms(setup.test, "test")}
+        self.terms = {"train": self._terms(setup.train, self.reference.train, "train"),
+                      "test": self._terms(setup.test, self.reference.test, "test")}
 
-    def _terms(self, target: Target, which: str) -> TargetTerms:
+    def _terms(self, target: Target, reference: Target, which: str) -> TargetTerms:
         s, c = self.setup, self.capture
-        xyz = tristimulus(target.spectra, s.illuminant, s.cmfs)
+        xyz = tristimulus(reference.spectra, s.illuminant, s.cmfs)
         lab = xyz_to_lab(xyz, self.white)
         J = lab_jacobian(xyz, self.white)
         Q = np.einsum("nab,nbc,ncd->nad", J.transpose(0, 2, 1), de2000_metric(lab), J)
@@ -300,9 +303,10 @@ class ExpectedErrorEvaluator(Evaluator):
 
     objective = "expected-captured"
 
-    def __init__(self, setup: SimulationSetup, capture: Optional[CaptureModel] = None) -> None:
-        super().__init__(setup)
-        self.model = ExpectedErrorModel(setup, capture)
+    def __init__(self, setup: SimulationSetup, capture: Optional[CaptureModel] = None,
+                 reference: Optional[SimulationSetup] = None) -> None:
+        super().__init__(setup, reference)
+        self.model = ExpectedErrorModel(setup, capture, reference)
         self.capture = self.model.capture
         tr = self.model.terms["train"]
         self._open = self.model.open / self.scale                            # same units as the responses
@@ -311,6 +315,7 @@ class ExpectedErrorEvaluator(Evaluator):
         self._xyz32 = np.ascontiguousarray(tr.xyz.T, dtype=np.float32)
         self._q6 = _sym6(tr.Q)
         self._r6 = _sym6(tr.ref_cov)
+        self._px = tr.pixels * np.array([1.0, self.capture.green_pixels, 1.0])
 
     def realise(self, w: np.ndarray) -> np.ndarray:
         return self.capture.sphere.realise(w)
@@ -326,28 +331,18 @@ class ExpectedErrorEvaluator(Evaluator):
 
     def _fast(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
         P, L, m = w.shape
-        O = np.einsum("plm,plmc->plc", w, self._open[idx])
-        o_max = O.max(axis=-1)
-        F = np.divide(self.capture.camera.headroom * O, o_max[..., None], out=np.zeros_like(O),
-                      where=o_max[..., None] > 0)
-        with np.errstate(divide="ignore"):
-            t = self.capture.camera.headroom / (self.model.dn_per_unit_s * o_max * self.scale)
-        a = self.model.coefficients(F, t, "train")                             # (3, P, L, 3) in v units
-        coef = np.stack([a[0] * O * O, a[1] * O, a[2]]).reshape(3, P, 3 * L)  # in response units
-        s1 = np.einsum("plm,plmc->plc", w, self._rsum[idx])
-        s2 = np.einsum("pli,plj,plijc->plc", w, w, self._gdiag[idx[:, :, :, None], idx[:, :, None, :]])
-        D = len(self.train) * coef[0] + coef[1] * s1.reshape(P, -1) + coef[2] * s2.reshape(P, -1)
-        M, A = self.fit_indexed(idx, w, extra=D)
+        cam = self.capture.camera
+        D = np.empty((P, 3 * L))
+        coef = np.empty((3, 3 * L, P))
         Cm = np.zeros((3 * L, 3 * self.n_leds, P))
-        cols = np.arange(P)
-        for li in range(L):
-            for i in range(m):
-                for c in range(3):
-                    Cm[3 * li + c, 3 * idx[:, li, i] + c, cols] += w[:, li, i]
+        noise = np.array([cam.read_noise, cam.electrons_per_dn, cam.dark_current, cam.dark_frames, cam.flat_frames],
+                         dtype=float)
+        prepare_expected(idx, w, self._open, self._rsum, self._gdiag, float(len(self.train)), cam.headroom,
+                         self.model.dn_per_unit_s * self.scale, noise, self._px, D, coef, Cm)
+        M, A = self.fit_indexed(idx, w, extra=D)
         out = np.empty(P, dtype=np.float32)
         L1, a1, b1 = self.train._lab32
-        mean_expected_de2000(M, Cm, np.ascontiguousarray(A.transpose(1, 2, 0)),
-                             np.ascontiguousarray(coef.transpose(0, 2, 1)), self._RT, self.train.white,
+        mean_expected_de2000(M, Cm, np.ascontiguousarray(A.transpose(1, 2, 0)), coef, self._RT, self.train.white,
                              L1, a1, b1, self._xyz32, self._q6, self._r6, out)
         return out.astype(np.float64)
 

@@ -42,11 +42,12 @@ class ErrorStats:
 
 
 class PatchSet:
-    """One target's patch-level data under one setup."""
+    """One target's patch-level data under one setup; ``reference``: the target whose spectra give the reference
+    XYZ when they differ from what the camera sees (a robust world's measurement error), default ``target``."""
 
-    def __init__(self, setup: SimulationSetup, target: Target):
+    def __init__(self, setup: SimulationSetup, target: Target, reference: Optional[Target] = None):
         self.target = target
-        self.xyz = tristimulus(target.spectra, setup.illuminant, setup.cmfs)
+        self.xyz = tristimulus((reference or target).spectra, setup.illuminant, setup.cmfs)
         self.white = white_point(setup.illuminant, setup.cmfs)
         self.lab = xyz_to_lab(self.xyz, self.white)
         self.R = led_responses(setup.leds, target.spectra, setup.camera)     # (K, n, 3)
@@ -62,12 +63,17 @@ class PatchSet:
 
 
 class Evaluator:
-    """Fits on the training target and evaluates on training and test targets."""
+    """Fits on the training target and evaluates on training and test targets (noise-free: the thesis' cost).
 
-    def __init__(self, setup: SimulationSetup):
+    ``reference``: a setup whose targets give the reference XYZ (default ``setup``'s own)."""
+
+    objective = "noise-free"
+
+    def __init__(self, setup: SimulationSetup, reference: Optional[SimulationSetup] = None):
         self.setup = setup
-        self.train = PatchSet(setup, setup.train)
-        self.test = PatchSet(setup, setup.test)
+        ref = reference or setup
+        self.train = PatchSet(setup, setup.train, ref.train)
+        self.test = PatchSet(setup, setup.test, ref.test)
         scale = float(np.abs(self.train.R).max()) or 1.0
         self.scale = scale                       # per-LED responses are stored divided by this
         self.train.R = self.train.R / scale      # the fit is scale-free; keep numbers near 1

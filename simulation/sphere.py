@@ -66,3 +66,54 @@ class SphereProperties:
     def to_dict(self) -> dict:
         return {"pwm_max": self.pwm_max, "level_resolution": self.level_resolution,
                 "min_stable_level": self.min_stable_level}
+
+
+def realisable_mix(leds: np.ndarray, target: np.ndarray, sphere: SphereProperties = SphereProperties()) -> np.ndarray:
+    """Levels (K,) of the sphere mix closest to the spectrum ``target`` that the sphere can hold.
+
+    Non-negative least squares of the LED spectra to ``target`` (thesis 1.4), largest level 1, realised on the
+    sphere's grid. Rounding the tiny levels of a plain NNLS fit to 0 can ruin the mix (the D65 mix puts the
+    dim LED 7 at 1 and the bright blue LEDs at 0.3-0.4 %), so LEDs are dropped greedily, one at a time, while
+    that lowers the realised mix's spectral residual (after the best common scale).
+    """
+    from scipy.optimize import nnls
+
+    leds = np.asarray(leds, dtype=float)
+    target = np.asarray(target, dtype=float)
+
+    def solve(active: list[int]) -> tuple[float, np.ndarray]:
+        x = np.zeros(leds.shape[0])
+        x[active] = nnls(leds[active].T, target)[0]
+        if x.max() <= 0:
+            return np.inf, x
+        x = sphere.realise(x / x.max())
+        spd = x @ leds
+        scale = float(spd @ target) / float(spd @ spd)
+        return float(np.linalg.norm(scale * spd - target)), x
+
+    active = list(range(leds.shape[0]))
+    best, levels = solve(active)
+    while len(active) > 1:
+        trials = [(solve([a for a in active if a != k]), k) for k in active]
+        (res, x), k = min(trials, key=lambda t: t[0][0])
+        if res >= best:
+            break
+        best, levels = res, x
+        active.remove(k)
+    return levels
+
+
+def realisable_d65_mix(leds: np.ndarray, illuminant: np.ndarray, cmfs: np.ndarray,
+                       sphere: SphereProperties = SphereProperties()) -> tuple["LightSource", float]:
+    """The 3-channel baseline's D65-like sphere mix (thesis 1.4) realisable on ``sphere``, and its CIE 1976
+    u'v' distance to D65."""
+    import colour
+
+    from simulation.lightsource import LightSource
+
+    levels = realisable_mix(leds, illuminant, sphere)
+    used = np.nonzero(levels)[0]
+    uv = [colour.xy_to_Luv_uv(colour.XYZ_to_xy(spd @ cmfs))
+          for spd in (levels @ leds, np.asarray(illuminant, dtype=float))]
+    return (LightSource(tuple(int(i) + 1 for i in used), tuple(float(levels[i]) for i in used), "D65 mix"),
+            float(np.linalg.norm(uv[0] - uv[1])))

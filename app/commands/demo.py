@@ -48,11 +48,15 @@ def main(args: argparse.Namespace) -> int:
             print(f"[{pct:3d}%] {msg}", file=sys.stderr, flush=True)
 
     data = run_demo(settings, progress)
-    print(f"{'condition':<22} {'train mean':>10} {'test mean':>10} {'sim train':>10} {'sim test':>10}")
+    print(f"{'condition':<22} {'train mean':>10} {'test mean':>10} {'sim train':>10} {'sim test':>10} "
+          f"{'nf train':>9} {'nf test':>8}")
     for name in data["conditions"]:
         c = data[name]
+        sim = c["simulated"]
+        nf = (f" {sim['noise_free_train']:>9.3f} {sim['noise_free_test']:>8.3f}" if "noise_free_train" in sim else "")
         print(f"{name:<22} {c['train']['mean']:>10.3f} {c['test']['mean']:>10.3f} "
-              f"{c['simulated']['train']:>10.3f} {c['simulated']['test']:>10.3f}")
+              f"{sim.get('train', float('nan')):>10.3f} {sim.get('test', float('nan')):>10.3f}{nf}")
+    print("sim: the expected captured error the optimiser predicted; nf: the noise-free simulation")
     print(f"frames {data['frames']}, lost {data['lost_frames']}, light dose {data['light_dose']['lux_s']:.0f} lux.s, "
           f"{data['elapsed_s']:.1f} s -> {args.out / 'report.json'}")
     return 0

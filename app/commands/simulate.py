@@ -20,15 +20,47 @@ def _bins(text: str) -> tuple[int, ...]:
     return bins
 
 
-MODES = ("reflective", "transmissive")                       # simulation.datasets.MODES
-METHODS = ("three-channel", "exhaustive", "pso", "ga")      # simulation.runner.METHODS
+MODES = ("reflective", "transmissive")                                # simulation.datasets.MODES
+METHODS = ("halving", "exhaustive", "pso", "ga", "three-channel")    # simulation.runner.METHODS
+OBJECTIVES = ("expected-captured", "noise-free", "robust")           # simulation.runner.OBJECTIVES
+
+
+def _fraction(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a number like 0.01") from None
+    if not 0.0 <= v < 1.0:
+        raise argparse.ArgumentTypeError(f"{text}: expected a fraction in [0, 1)")
+    return v
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("simulate", help="search light-source pairs (three-channel, exhaustive, PSO, GA)",
-                       description="Simulate dual-RGB capture and search the sphere's light-source pairs.")
+    p = sub.add_parser("simulate", help="search light-source pairs (halving PSO, exhaustive, PSO, GA, 3-channel)",
+                       description="Simulate dual-RGB capture and search the sphere's light-source pairs. Default: "
+                                   "successive halving over the thesis PSO with an L-BFGS-B polish, minimising "
+                                   "the expected captured error (camera noise, reference uncertainty, LED drift, "
+                                   "the sphere's level grid). --method pso --objective noise-free is the thesis' "
+                                   "Algorithm 1 exactly.")
     p.add_argument("--mode", choices=MODES, default="reflective")
-    p.add_argument("--method", choices=METHODS, default="exhaustive")
+    p.add_argument("--method", choices=METHODS, default="halving",
+                   help="halving (default: successive halving over PSO + L-BFGS-B polish), exhaustive (full "
+                        "intensity), pso (thesis Algorithm 1), ga (Algorithm 2), three-channel (camera under D65)")
+    p.add_argument("--objective", choices=OBJECTIVES, default="expected-captured",
+                   help="expected-captured (default), noise-free (the thesis' cost) or robust (mean over plausible "
+                        "worlds: LEDs, camera and reference off by a few nm / %%)")
+    p.add_argument("--reference-sd", type=_fraction, default=0.0,
+                   help="relative uncertainty (gain) of the target's reference XYZ (default 0: the packaged "
+                        "targets are exact; ~0.01 for a chart measured with a spectrophotometer)")
+    p.add_argument("--drift-nm", type=float, default=0.0,
+                   help="sd of each LED's peak between captures in nm (default 0: no shift in the first 10 s on, "
+                        "thesis 4.3.2; > 0 uses the float64 objective, ~20x slower)")
+    p.add_argument("--min-level", type=_fraction, default=None,
+                   help="the sphere's minimum stable level (a level is 0 or at least this; default: "
+                        "simulation.sphere.SphereProperties, 0.01)")
+    p.add_argument("--pixels", type=int, default=None,
+                   help="pixels (superpixels) averaged per training patch (default: the virtual lab's 600x400 "
+                        "frames)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--top", type=int, default=5, help="how many light sets to print and write (default 5)")
     p.add_argument("--json", type=Path, help="write the result as JSON here")
@@ -56,8 +88,10 @@ def main(args: argparse.Namespace) -> int:
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv)
     if args.top < 1:
         raise ValueError(f"--top {args.top}: expected at least 1")
-    result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins,
-                 progress=lambda f, m: log.info("%3.0f%% %s", 100 * f, m))
+    if args.drift_nm < 0:
+        raise ValueError(f"--drift-nm {args.drift_nm}: expected a non-negative number of nm")
+    result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, objective=args.objective,
+                 capture=_capture(args), progress=lambda f, m: log.info("%3.0f%% %s", 100 * f, m))
     print(format_table(result))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
@@ -67,3 +101,20 @@ def main(args: argparse.Namespace) -> int:
         save_preset(result.preset(), args.preset_out)
         print(f"wrote preset {args.preset_out}", file=sys.stderr)
     return 0
+
+
+def _capture(args: argparse.Namespace):
+    """The capture model from the options (the virtual lab's for the mode, with the user's changes)."""
+    from dataclasses import replace
+
+    from simulation.capture_model import CaptureModel
+    from simulation.sphere import SphereProperties
+
+    cap = CaptureModel.virtual_lab(args.mode, reference_gain_sd=args.reference_sd, drift_sd_nm=args.drift_nm)
+    if args.min_level is not None:
+        cap = replace(cap, sphere=SphereProperties(min_stable_level=args.min_level))
+    if args.pixels is not None:
+        if args.pixels < 1:
+            raise ValueError(f"--pixels {args.pixels}: expected at least 1 pixel per patch")
+        cap = replace(cap, camera=replace(cap.camera, pixels_per_patch=args.pixels))
+    return cap

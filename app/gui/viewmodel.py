@@ -132,24 +132,31 @@ def raw_view(path) -> RawView:
 
 
 class ConvergenceTap:
-    """Wraps simulation.objective.Evaluator for the live convergence plot: after every cost batch it calls
-    ``on_batch(evaluations, best_cost_so_far)`` (from the worker thread). Costs are unchanged."""
+    """Wraps the objective's evaluator (simulation.runner.make_evaluator) for the live convergence plot: after
+    every cost batch it calls ``on_batch(evaluations, best_cost_so_far)`` (from the worker thread). Costs are
+    unchanged; everything else is the wrapped evaluator's."""
 
     @staticmethod
-    def make(setup, on_batch):
-        from simulation.objective import Evaluator
+    def make(setup, on_batch, objective: str = "expected-captured"):
+        from simulation.runner import make_evaluator
 
-        class _Tapped(Evaluator):
+        class _Tapped:
             best = math.inf
 
+            def __init__(self, inner) -> None:
+                self._inner = inner
+
+            def __getattr__(self, name):
+                return getattr(self._inner, name)
+
             def cost_indexed(self, idx, w):
-                costs = super().cost_indexed(idx, w)
+                costs = self._inner.cost_indexed(idx, w)
                 if len(costs):
                     self.best = min(self.best, float(np.min(costs)))
-                    on_batch(self.evaluations, self.best)
+                    on_batch(self._inner.evaluations, self.best)
                 return costs
 
-        return _Tapped(setup)
+        return _Tapped(make_evaluator(setup, objective))
 
 
 def preview_histogram(frame: np.ndarray, black_level: float, white_level: float, gamma: float = 2.2,
