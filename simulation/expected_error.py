@@ -43,7 +43,7 @@ from simulation.characterisation import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
 from simulation.fast_expected import mean_expected_de2000, prepare_expected
-from simulation.objective import ErrorStats, Evaluator
+from simulation.objective import ErrorStats, Evaluator, kernel_threads
 
 log = logging.getLogger(__name__)
 
@@ -327,7 +327,8 @@ class ExpectedErrorEvaluator(Evaluator):
         if self.capture.drift_sd_nm > 0:
             W = dense_weights(idx, w, self.n_leds)
             return np.concatenate([self.model.train_errors(W[lo:lo + 64]).mean for lo in range(0, len(W), 64)])
-        return self._fast(idx, w)
+        with kernel_threads(len(w)):
+            return self._fast(idx, w)
 
     def _fast(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
         P, L, m = w.shape

@@ -23,7 +23,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from simulation.progress import CancelToken, ProgressCallback, check, report
-from simulation.pso import PsoSettings, enforce_constraints, pso
+from simulation.pso import PsoSettings, enforce_constraints, swarm_bests
 from simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
 
 log = logging.getLogger(__name__)
@@ -42,7 +42,7 @@ class HalvingSettings:
     c1: float = 2.0
     c2: float = 2.0
     polish_sets: int = 2
-    polish_iterations: int = 40
+    polish_iterations: int = 30
     polish_step: float = 1e-3       # central differences: well above float32 noise and the PWM step
 
 
@@ -64,15 +64,13 @@ def successive_halving(evaluator, groups: Optional[Sequence[Group]] = None,
     while True:
         check(cancel)
         ps = PsoSettings(settings.c0, settings.c1, settings.c2, iterations, settings.particles)
-        out = pso(evaluator, [groups[i] for i in alive], ps, seed=seed * 1000 + len(rungs), cancel=cancel)
-        by_leds = {tuple(s.leds for s in c.sources): c for c in out.candidates}
-        for i in alive:
-            cand = by_leds[groups[i]]
-            if cand.train_cost < best_c[i]:
-                best_c[i] = cand.train_cost
-                best_x[i] = 0.0
-                for li, s in enumerate(cand.sources):
-                    best_x[i, li, :len(s.levels)] = s.levels
+        # one chunk per rung: a rung is one batch per iteration (big batches use both cores; results do not depend
+        # on chunking)
+        x, c, _ = swarm_bests(evaluator, [groups[i] for i in alive], ps, seed=seed * 1000 + len(rungs),
+                              chunk=len(alive), cancel=cancel)
+        better = c < best_c[alive]
+        best_c[alive[better]] = c[better]
+        best_x[alive[better]] = x[better]
         rungs.append({"rung": len(rungs), "light_sets": int(len(alive)), "iterations": iterations,
                       "best": float(best_c[alive].min())})
         report(progress, min(0.9, 0.3 * len(rungs)), f"halving: rung {len(rungs) - 1}, {len(alive)} light sets")
@@ -124,7 +122,7 @@ def polish(evaluator, groups: Sequence[Group], best_x: np.ndarray, best_c: np.nd
             return float(c[0]), (c[1:D + 1] - c[D + 1:]) / (2 * h)
 
         res = minimize(fun_grad, best_x[gi].reshape(-1)[live], jac=True, method="L-BFGS-B",
-                       bounds=[(0.0, 1.0)] * D, options={"maxiter": settings.polish_iterations})
+                       bounds=[(0.0, 1.0)] * D, options={"maxiter": settings.polish_iterations, "ftol": 1e-7})
         x = np.zeros(live.size)
         x[live] = res.x
         x = enforce_constraints(x.reshape(mask.shape), mask)
