@@ -87,7 +87,7 @@ def successive_halving(evaluator, groups: Optional[Sequence[Group]] = None,
                          settings={**asdict(settings), "rungs": rungs, "polished": polished, "light_sets": G})
 
 
-def _set_cost(evaluator, idx_row: np.ndarray, mask_row: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+def set_cost(evaluator, idx_row: np.ndarray, mask_row: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """Objective of one light set's levels X (B, L*m) (padding masked out), one batch per call."""
     L, m = idx_row.shape
 
@@ -111,7 +111,7 @@ def polish(evaluator, groups: Sequence[Group], best_x: np.ndarray, best_c: np.nd
         check(cancel)
         mask = mask_all[gi].astype(float)
         live = mask.reshape(-1) > 0
-        cost = _set_cost(evaluator, idx_all[gi], mask)
+        cost = set_cost(evaluator, idx_all[gi], mask)
         D = int(live.sum())
         steps = np.vstack([np.zeros(D), np.eye(D) * h, -np.eye(D) * h])
 
