@@ -4,9 +4,10 @@ study's predicted-vs-captured part).
 For each mode, each objective (:data:`simulation.runner.OBJECTIVES`) and each method (exhaustive at full
 intensity, the default successive halving over PSO, and the thesis PSO except on the 8x dearer robust
 objective), the optimum's wall time and its figures under every objective: noise-free, expected captured
-(float64) and robust (mean over the plausible worlds). Then each distinct optimum is *captured* (the virtual lab
-through app.processing when a ``capture`` is given, else the pixel-level capture simulation of
-simulation.studies.noise) and the captured training error is set against both predictions.
+(float64) and robust (mean over the plausible worlds). Then each distinct optimum is *captured* at the levels the
+sphere holds (simulation.sphere: a noise-free optimum's trace level below the minimum stable level is 0 there)
+through the virtual lab and app.processing when a ``capture`` is given, else the pixel-level capture simulation
+of simulation.studies.noise, and the captured training error is set against both predictions.
 
 The worked example is the transmissive full-intensity pair (2, 5, 9) + (2, 6, 9): the best noise-free choice
 (0.45 dE00) shares LEDs 2 and 9 between its lights, so its six channels are nearly collinear, the fitted matrix
@@ -96,10 +97,11 @@ def optima(setup: SimulationSetup, cfg: ObjectivesConfig, capture_model: Capture
                 out = pso(ev, groups, cfg.pso, cfg.seed, cancel=cancel)
             seconds = time.perf_counter() - t0
             best = refine_top(ev, out, 1, judge).best
-            W = judge.realise(best.weights(judge.n_leds))
+            W = judge.realise(best.weights(judge.n_leds))        # what the sphere holds: captured and judged
             rows.append({"mode": setup.mode, "objective": objective, "method": method, "seconds": seconds,
                          "evaluations": out.evaluations, "pair": [list(s.leds) for s in best.sources],
-                         "levels": [list(s.levels) for s in best.sources],
+                         "levels": [[float(W[li, k - 1]) for k in s.leds] for li, s in enumerate(best.sources)],
+                         "requested_levels": [list(s.levels) for s in best.sources],
                          "noise_free_train": best.train.mean, "noise_free_test": best.test.mean,
                          "expected_train": best.expected_train.mean, "expected_test": best.expected_test.mean,
                          "robust_train": float(judge.world_costs(W).mean())})
