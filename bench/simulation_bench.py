@@ -5,6 +5,7 @@ the L-BFGS-B cost per evaluation (float64 against the float32 kernel) for issue 
 from __future__ import annotations
 
 import time
+from typing import Optional
 
 import colour
 import numpy as np
@@ -43,9 +44,9 @@ def bench_simulation(mode: str = "reflective", seed: int = 0, naive_samples: int
     t_ex = time.perf_counter() - t
 
     settings = PsoSettings()
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     out = pso(ev, groups, settings, seed=seed)
-    t_pso = time.perf_counter() - t
+    t_pso, cpu_pso = time.perf_counter() - t, time.process_time() - c
     evals = out.evaluations
 
     # naive reference on a sample of pairs x random levels, and agreement with the fast path
@@ -69,6 +70,7 @@ def bench_simulation(mode: str = "reflective", seed: int = 0, naive_samples: int
         "pso": {"pairs": len(groups), "particles": settings.particles, "iterations": settings.iterations,
                 "training_patches": len(ev.train), "evaluations": evals, "elapsed_s": round(t_pso, 3),
                 "evaluations_per_s": round(evals / t_pso), "best_train_de00": round(out.best.train_cost, 4),
+                "cpu_s": round(cpu_pso, 3),
                 "target_s": 5.0, "meets_target": t_pso <= 5.0},
         "exhaustive": {"pairs": len(groups), "elapsed_s": round(t_ex, 4),
                        "evaluations_per_s": round(len(groups) / t_ex),
@@ -79,14 +81,15 @@ def bench_simulation(mode: str = "reflective", seed: int = 0, naive_samples: int
                             "median_abs_difference_vs_fast_de00": float(np.median(np.abs(naive - fast)))},
         "speed_ratio_vs_naive": round(t_naive / per_eval_fast, 1),
         "ratio_target": 100.0,
-        "default_optimiser": bench_default_optimiser(setup, ev, out, t_pso, seed),
+        "default_optimiser": bench_default_optimiser(setup, ev, out, t_pso, cpu_pso, seed),
         "lbfgs_cost_per_evaluation": bench_cost_per_evaluation(ev, seed),
     }
 
 
-def _row(outcome, seconds: float, objective: str) -> dict:
+def _row(outcome, seconds: float, objective: str, cpu_s: Optional[float] = None) -> dict:
     b = outcome.best
     row = {"objective": objective, "elapsed_s": round(seconds, 3), "evaluations": outcome.evaluations,
+           **({"cpu_s": round(cpu_s, 3)} if cpu_s is not None else {}),
            "leds": [list(s.leds) for s in b.sources], "levels": [list(s.levels) for s in b.sources],
            "train_de00": round(b.train.mean, 4), "test_de00": round(b.test.mean, 4)}
     if b.expected_train is not None:
@@ -94,20 +97,20 @@ def _row(outcome, seconds: float, objective: str) -> dict:
     return row
 
 
-def bench_default_optimiser(setup, ev: Evaluator, thesis, t_thesis: float, seed: int) -> dict:
+def bench_default_optimiser(setup, ev: Evaluator, thesis, t_thesis: float, cpu_thesis: float, seed: int) -> dict:
     """The default optimiser beside the thesis PSO (whose sweep ran just before, same evaluator): noise-free
     (comparable with the thesis) and on the default expected-captured objective."""
     groups = light_pairs()
     expected = ExpectedErrorEvaluator(setup)
     thesis = refine_top(ev, thesis, 1, expected)
-    rows = {"thesis_pso_noise_free": _row(thesis, t_thesis, "noise-free")}
+    rows = {"thesis_pso_noise_free": _row(thesis, t_thesis, "noise-free", cpu_thesis)}
     successive_halving(ev, groups[:3], HalvingSettings(particles=4, min_sets=2, polish_sets=1), seed=seed)
     successive_halving(expected, groups[:3], HalvingSettings(particles=4, min_sets=2, polish_sets=1), seed=seed)
     for name, evaluator in (("default_noise_free", ev), ("default_expected_captured", expected)):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         out = successive_halving(evaluator, groups, HalvingSettings(), seed=seed)
-        seconds = time.perf_counter() - t
-        rows[name] = _row(refine_top(evaluator, out, 1, expected), seconds, evaluator.objective)
+        seconds, cpu = time.perf_counter() - t, time.process_time() - c
+        rows[name] = _row(refine_top(evaluator, out, 1, expected), seconds, evaluator.objective, cpu)
     t = time.perf_counter()
     out = pso(expected, groups, PsoSettings(), seed=seed)
     rows["thesis_pso_expected_captured"] = _row(refine_top(expected, out, 1), time.perf_counter() - t,
