@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export QT_QPA_PLATFORM ?= offscreen
 
-.PHONY: run test bench demo venv resources clean
+.PHONY: run test bench demo venv resources clean reliability
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -20,6 +20,10 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# the fault-injection suite; writes README's reliability table (tests/faults/plugin.py)
+reliability: $(STAMP)
+	$(BIN)/python -m pytest -q -p no:cacheprovider -m fault --reliability-table README.md
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.run

@@ -27,7 +27,7 @@ from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_e
 from app.sequences.capture import TargetCapture
 from app.sequences.hdr import HdrPlan, meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
-from app.session import CaptureSession
+from app.session import CaptureSession, atomic_write, camera_definition, light_definition
 from app.virtual_lab import VirtualLab
 from simulation.camera_model import channel_responses
 from simulation.colorimetry import tristimulus, white_point
@@ -54,6 +54,13 @@ class DemoSettings:
     settle_s: float = 0.05
     optimise_matrix: Optional[bool] = None   # also fit the dE00-optimised matrix; None: the parsimony study's choice
     conditions: tuple[str, ...] = CONDITIONS
+    new_session: bool = False                # a session made with other settings: use a new one, not refuse
+
+    def definition(self) -> dict:
+        """What defines this run's frames (app.session: a resume with anything else is refused)."""
+        return {"workflow": "demo", "mode": self.mode, "frame_size": list(self.frame_size), "seed": self.seed,
+                "hdr": self.hdr, "dark_frames": self.dark_frames, "flat_frames": self.flat_frames,
+                "settle_s": self.settle_s, "conditions": list(self.conditions)}
 
 
 @dataclass
@@ -165,16 +172,29 @@ class DemoRun:
 
     def run(self) -> dict:
         s = self.s
+        if s.dark_frames < 1 or s.flat_frames < 1 or min(s.frame_size) < 64 or s.seed < 0:   # before any shot
+            raise ValueError(f"demo settings: dark frames {s.dark_frames}, flat frames {s.flat_frames}, frame size "
+                             f"{s.frame_size}, seed {s.seed}: expected >= 1, >= 1, >= 64 px, >= 0")
         if s.optimise_matrix is None:
             from simulation.studies.parsimony import load_defaults
             s.optimise_matrix = load_defaults()["characterisation_model"] != "linear"
         s.out.mkdir(parents=True, exist_ok=True)
+        session = CaptureSession.resume(s.out / "session", s.definition(), {"mode": s.mode, "demo": True},
+                                        new_if_different=s.new_session,
+                                        hint="resume with the same options, or pass --new-session or another --out")
+        try:
+            return self._run(session)
+        finally:
+            session.close()
+
+    def _run(self, session: CaptureSession) -> dict:
+        s = self.s
         conds, presets = make_conditions(s, self.progress)
         report(self.progress, 0.1, "starting the virtual lab")
         with VirtualLab(mode=s.mode, frame_size=s.frame_size, seed=s.seed) as lab:
-            session_dir = s.out / "session"
-            session = (CaptureSession.open(session_dir) if (session_dir / "manifest.jsonl").exists()
-                       else CaptureSession.create(session_dir, {"mode": s.mode, "demo": True}))
+            session.extend_definition(camera=camera_definition(lab.camera),
+                                      lights={c.name: [light_definition(nl.light, nl.name) for nl in c.lights]
+                                              for c in conds})
             shooter = Shooter(lab.camera, lab.sphere, session, stand=lab.place,
                               safety=SafetySettings(settle_s=s.settle_s))
             self.lab, self.session, self.shooter = lab, session, shooter
@@ -195,6 +215,7 @@ class DemoRun:
                                                                   if nl.name in c.hdr_plan else [])})
                          for c in conds for nl in c.lights}
             # 3. darks and flats at every exposure used
+            session.extend_definition(exposures=exposures)
             all_t = sorted({t for ts in exposures.values() for t in ts})
             self._drive(DarkSeries(shooter, all_t, frames=s.dark_frames), 0.22, 0.35)
             all_lights = [nl for c in conds for nl in c.lights]
@@ -208,6 +229,7 @@ class DemoRun:
                         self._drive(TargetCapture(shooter, c.lights, {n: p.exposures for n, p in c.hdr_plan.items()},
                                                   target, nd=True, condition="hdr_" + c.name), 0.55, 0.6)
             report(self.progress, 0.6, "captures done; processing")
+            session.require_intact()             # a damaged frame is named, never processed
             result = self.process(conds)
         verify = session.verify()
         frames = len(session.entries())
@@ -220,11 +242,11 @@ class DemoRun:
             "frames": frames,
             "lost_frames": len(verify.missing) + len(verify.corrupted),
             "session_valid": verify.valid,
-            "light_dose": shooter.dose.to_dict(),
+            "light_dose": session.light_dose().to_dict(),      # the manifest's: a resumed run's whole dose
             "elapsed_s": round(time.perf_counter() - self.t0, 2),
             "session": str(session.path),
         }
-        (s.out / "report.json").write_text(json.dumps(report_data, indent=2, default=_json) + "\n")
+        atomic_write(s.out / "report.json", (json.dumps(report_data, indent=2, default=_json) + "\n").encode())
         report(self.progress, 1.0, f"report written: {s.out / 'report.json'}")
         return report_data
 

@@ -1,6 +1,10 @@
 """The light dose an object receives: on-time x level per LED, and lux.seconds estimated from the LEDs'
 absolute spectral radiance (thesis Table 4.2 peaks; resources/leds/sphere10_absolute.csv).
 
+A capture session logs every lit period in its manifest as it ends (``CaptureSession.record_dose``) and sums
+them with ``CaptureSession.light_dose()`` into a :class:`LightDose`, so a killed and resumed run still reports
+the whole dose the object received.
+
 Illuminance from a uniform diffuse source of radiance L: E = pi * L (lambertian hemisphere), and
 lux = 683 lm/W * sum(E_e(lambda) * ybar(lambda) * dlambda). This is an estimate for conservation records,
 not a measurement: the sphere's geometry and the stand distance scale it.
@@ -51,3 +55,8 @@ class LightDose:
     def to_dict(self) -> dict:
         return {"on_s": round(self.on_s, 3), "lux_s": round(self.lux_s, 3),
                 "level_s_per_led": {f"LED{i + 1}": round(float(v), 4) for i, v in enumerate(self.level_s)}}
+
+
+def light_from_record(light: dict) -> LightSource:
+    """The LightSource of a manifest dose line's ``light`` ({"name", "leds", "levels"}, levels exact)."""
+    return LightSource(tuple(light["leds"]), tuple(light.get("levels") or ()), str(light.get("name", "")))

@@ -5,6 +5,7 @@ the copy stand under the emulator's current light.
     with VirtualLab(mode="reflective", frame_size=(600, 400)) as lab:
         lab.place("open-gate")
         lab.sphere.apply(light); lab.sphere.on(); raw = lab.camera.capture(1 / 60); lab.sphere.off()
+        lab.place("original:painting"); truth = lab.ground_truth_xyz("painting", lab.height, lab.width)
 """
 from __future__ import annotations
 
@@ -12,8 +13,11 @@ import dataclasses
 import logging
 from typing import Optional
 
+import numpy as np
+
 from drivers.led_sphere import LedSphere
 from drivers.virtual.camera import VirtualCamera
+from drivers.virtual.originals import ORIGINAL_PREFIX, ORIGINALS, ground_truth_xyz, original_name, original_scene
 from drivers.virtual.scene import Scene
 from drivers.virtual.sphere_emulator import SphereEmulator
 from simulation.datasets import Target, default_setup
@@ -43,7 +47,7 @@ class VirtualLab:
         log.info("virtual sphere emulator on %s", port)
         self.sphere = LedSphere(port, timeout=self._timeout).open()
         self.camera = VirtualCamera(self.emulator.snapshot, mode=self.mode, seed=self.seed,
-                                    bumps_enabled=self._bumps)
+                                    bumps_enabled=self._bumps, clock=self.emulator.clock)
         self.camera.open()
         self.place("open-gate")
         return self
@@ -73,11 +77,15 @@ class VirtualLab:
         return {"train": self.setup.train, "test": self.setup.test}[which]
 
     def place(self, what: str, nd: bool = False) -> Scene:
-        """Put the training or test target, the open gate or the lens cap on the stand (ND 2.0 over half)."""
-        if what not in PLACES:
-            raise ValueError(f"cannot place {what!r}: expected one of {', '.join(PLACES)}")
+        """Put the training or test target, the open gate, the lens cap (ND 2.0 over half a target) or an
+        original ('original:painting', 'original:film', 'original:shadow'; drivers/virtual/originals.py)."""
+        if what not in PLACES and not what.startswith(ORIGINAL_PREFIX):
+            raise ValueError(f"cannot place {what!r}: expected one of {', '.join(PLACES)} or "
+                             f"{', '.join(ORIGINAL_PREFIX + n for n in ORIGINALS)}")
         size = {"width": self.width, "height": self.height}
-        if what == "open-gate":
+        if what.startswith(ORIGINAL_PREFIX):
+            scene = original_scene(what, **size, mode=self.mode, nd_filter=nd)
+        elif what == "open-gate":
             scene = Scene.open_gate(**size)
         elif what == "lens-cap":
             scene = Scene.lens_cap(**size)
@@ -91,4 +99,15 @@ class VirtualLab:
         """The scene ``place(what, nd)`` would put on the stand (for patch geometry) without placing it."""
         if what in ("train", "test"):
             return Scene.with_target(self.target(what), width=self.width, height=self.height, nd_filter=nd)
+        if what.startswith(ORIGINAL_PREFIX):
+            return original_scene(what, self.width, self.height, nd_filter=nd)
         return dataclasses.replace(self.camera.scene)
+
+    def ground_truth_xyz(self, name: str, height: Optional[int] = None, width: Optional[int] = None) -> np.ndarray:
+        """(height, width, 3) float32 per-pixel XYZ of original ``name`` ('painting' or 'original:painting') at
+        sensor resolution (default: this lab's frame): eq 4.2, D65, CIE 1931 2 degree, Y of a perfect white
+        (clear film) = 100; rows down, columns right as the raw mosaic. Each 2x2 Bayer cell is one material, so
+        ``app.processing.ground_truth.bin_to_superpixels`` gives the superpixel grid the processing delivers."""
+        return ground_truth_xyz(original_name(name), self.height if height is None else height,
+                                self.width if width is None else width, self.setup.grid,
+                                self.setup.illuminant, self.setup.cmfs)

@@ -1,6 +1,7 @@
 """Benchmark of the virtual lab camera at full D610 size: render, DNG write, cached re-render, preview.
 
-``bench_render()`` returns a dict of timings (s) and peak memory (MiB); not wired into bench/run.py here.
+``bench_render()`` returns a dict of timings (s) and peak memory (MiB), with ``bench_original()`` (the
+virtual painting at 24 MP and 600x400, and its ground truth) under "painting".
 Run alone: ``python -m bench.virtual_camera``.
 """
 from __future__ import annotations
@@ -13,6 +14,7 @@ import tracemalloc
 import numpy as np
 
 from drivers.virtual.camera import StaticLight, VirtualCamera, mosaic_to_dng
+from drivers.virtual.originals import ground_truth_xyz, original_scene
 from drivers.virtual.scene import Scene
 from simulation.datasets import default_setup
 
@@ -63,6 +65,31 @@ def bench_render(width: int = 6080, height: int = 4028, mode: str = "transmissiv
     for k, v in out.items():
         if k.endswith("_s"):
             out[k] = round(float(v), 3)
+    out["painting"] = bench_original("painting")
+    return out
+
+
+def bench_original(name: str = "painting", sizes: tuple[tuple[int, int], ...] = ((6080, 4028), (600, 400))
+                   ) -> dict[str, dict[str, float]]:
+    """An original (drivers/virtual/originals.py) per frame size: first render (class map painted), second
+    render, a whole capture (render + DNG) and the per-pixel ground truth (float32 XYZ at sensor size)."""
+    levels = np.zeros(10)
+    levels[[0, 5, 7]] = 1.0
+    snap = StaticLight(levels)
+    out: dict[str, dict[str, float]] = {}
+    for width, height in sizes:
+        cam = VirtualCamera(lambda: snap, original_scene(name, width, height), seed=1)
+        cam.open()
+        r: dict[str, float] = {"megapixels": round(width * height / 1e6, 2)}
+        for key, fn in (("render_cold_s", lambda: cam.render_mosaic(1 / 60)),
+                        ("render_warm_s", lambda: cam.render_mosaic(1 / 60)),
+                        ("capture_total_s", lambda: cam.capture(1 / 60)),
+                        ("ground_truth_s", lambda: ground_truth_xyz(name, height, width))):
+            t0 = time.perf_counter()
+            fn()
+            r[key] = round(time.perf_counter() - t0, 4)
+        cam.close()
+        out[f"{width}x{height}"] = r
     return out
 
 

@@ -11,8 +11,12 @@ A file that is missing, empty, truncated, corrupt, not a raw file or not a 2x2 B
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import stat
+import struct
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Union
@@ -26,6 +30,9 @@ PathLike = Union[str, "os.PathLike[str]"]
 # First bytes of TIFF-based raws (NEF, DNG, CR2, ARW, ...): a LibRaw I/O error on such a file means the data
 # ends early (truncated download/copy), on anything else that it is not a raw file at all.
 _TIFF_MAGICS = (b"II*\x00", b"MM\x00*")
+# what tifffile raises on damaged headers (struct.error on a 4-7 byte file, TypeError on a mangled tag type ...)
+_TIFF_ERRORS = (ValueError, OSError, IndexError, KeyError, TypeError, struct.error, EOFError, OverflowError,
+                MemoryError, RecursionError, AttributeError)
 
 
 class RawFileError(ValueError):
@@ -128,7 +135,7 @@ def _detect_format(path: Path, head: bytes) -> str:
             with tifffile.TiffFile(path) as tif:
                 if 50706 in tif.pages[0].tags:  # DNGVersion
                     return "DNG"
-        except (tifffile.TiffFileError, ValueError, OSError, IndexError, KeyError) as exc:
+        except _TIFF_ERRORS as exc:          # TiffFileError is a ValueError
             log.debug("tifffile could not read %s: %s", path, exc)
     return path.suffix.lstrip(".").upper() or "raw"
 
@@ -150,7 +157,7 @@ def _tiff_make_model(path: Path, head: bytes) -> tuple[str, str]:
             if not model_s and unique is not None:
                 model_s = str(unique.value).strip("\x00 ")
             return make_s, model_s
-    except (tifffile.TiffFileError, ValueError, OSError, IndexError, KeyError) as exc:
+    except _TIFF_ERRORS as exc:
         log.debug("no make/model from %s: %s", path, exc)
         return "", ""
 
@@ -177,16 +184,56 @@ def _tiff_data_end(path: Path, head: bytes) -> Optional[int]:
                 if getattr(page, "subifds", None):
                     stack.extend(page.pages)
         return end
-    except (tifffile.TiffFileError, ValueError, OSError, IndexError, KeyError, TypeError) as exc:
+    except _TIFF_ERRORS as exc:
         log.debug("tifffile could not walk %s: %s", path, exc)
         return None
 
 
+@contextlib.contextmanager
+def _quiet_tiff_log():
+    """tifffile logs a warning per damaged tag; a damaged raw is reported once, by RawFileError."""
+    logger = logging.getLogger("tifffile")
+    previous = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logger.setLevel(previous)
+
+
+@contextlib.contextmanager
+def _libraw_stderr(path: Path):
+    """LibRaw prints some problems ('Unexpected end of file') to the C stderr: keep them for the debug log,
+    so that a damaged file gives exactly the one line of its RawFileError."""
+    try:
+        saved = os.dup(2)
+    except OSError:  # pragma: no cover - no stderr to protect
+        yield
+        return
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            text = sink.read().decode(errors="replace").strip()
+            if text:
+                log.debug("LibRaw on %s: %s", path, text)
+
+
 def _read_head(path: Path) -> bytes:
-    if not path.exists():
-        raise RawFileError(path, "no such file")
-    if path.is_dir():
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise RawFileError(path, "no such file") from None
+    except OSError as exc:
+        raise RawFileError(path, f"cannot open: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(mode):
         raise RawFileError(path, "is a folder, expected a raw file (NEF/DNG)")
+    if not stat.S_ISREG(mode):                 # a FIFO or a device would block the reader for ever
+        raise RawFileError(path, "not a regular file (a pipe, socket or device), expected a raw file (NEF/DNG)")
     try:
         with open(path, "rb") as fh:
             head = fh.read(16)
@@ -222,23 +269,35 @@ def load_raw(path: PathLike) -> RawFrame:
 
     p = Path(path)
     head = _read_head(p)
-    data_end = _tiff_data_end(p, head)
-    size = p.stat().st_size
-    if data_end is not None and data_end > size:
-        raise RawFileError(p, f"truncated: {size} bytes, but its image data runs to byte {data_end}")
+    with _quiet_tiff_log():
+        data_end = _tiff_data_end(p, head)
+        size = p.stat().st_size
+        if data_end is not None and data_end > size:
+            raise RawFileError(p, f"truncated or damaged: {size} bytes, but its image data runs to byte {data_end}")
+        return _load(p, head, rawpy)
+
+
+def _cfa_problem(pattern) -> str:
+    """Why a file's CFA is not a 2x2 Bayer pattern; X-Trans is named only for X-Trans' own 6x6 layout."""
+    shape = "none" if pattern is None else "x".join(map(str, np.asarray(pattern).shape))
+    if pattern is not None and np.asarray(pattern).shape == (6, 6):
+        return "an X-Trans sensor (6x6 CFA), not a 2x2 Bayer mosaic"
+    return f"no 2x2 Bayer CFA pattern (found {shape}): a damaged file or a non-Bayer sensor"
+
+
+def _load(p: Path, head: bytes, rawpy) -> RawFrame:
     try:
-        with rawpy.imread(os.fspath(p)) as raw:
+        with _libraw_stderr(p), rawpy.imread(os.fspath(p)) as raw:
             if raw.raw_type != rawpy.RawType.Flat:
                 raise RawFileError(p, "not a Bayer mosaic (the file holds demosaiced/linear RGB data)")
             pattern = raw.raw_pattern
             color_desc = raw.color_desc.decode("ascii", errors="replace")
             if pattern is None or np.asarray(pattern).shape != (2, 2):
-                shape = "none" if pattern is None else "x".join(map(str, np.asarray(pattern).shape))
-                raise RawFileError(p, f"not a 2x2 Bayer sensor (CFA pattern {shape}, e.g. X-Trans)")
+                raise RawFileError(p, _cfa_problem(pattern))
             pattern = np.array(pattern, dtype=np.uint8)
             letters = sorted(_letter(color_desc, int(i)) for i in pattern.ravel())
             if letters != ["B", "G", "G", "R"]:
-                raise RawFileError(p, f"not an RGB Bayer sensor (CFA colours {''.join(letters)})")
+                raise RawFileError(p, f"not an RGB Bayer sensor (CFA colours {''.join(letters)}), or a damaged file")
             mosaic = np.array(raw.raw_image_visible, dtype=np.uint16, copy=True)
             black = tuple(int(b) for b in raw.black_level_per_channel)
             white = int(raw.white_level)
@@ -252,6 +311,8 @@ def load_raw(path: PathLike) -> RawFrame:
         raise RawFileError(p, _libraw_problem(exc, head)) from exc
     except OSError as exc:
         raise RawFileError(p, f"cannot read: {exc.strerror or exc}") from exc
+    except (ValueError, TypeError, MemoryError, OverflowError) as exc:    # rawpy on nonsense sizes/values
+        raise RawFileError(p, f"damaged raw data ({type(exc).__name__}: {exc})") from exc
     if mosaic.ndim != 2 or mosaic.size == 0:
         raise RawFileError(p, f"raw image has shape {mosaic.shape}, expected a 2-D mosaic")
     if white <= max(black):
@@ -303,7 +364,7 @@ def linear_demosaic(frame: RawFrame, *, half_size: bool = False,
             raise ValueError(f"demosaic algorithm {algorithm!r} unknown; expected one of {names}") from None
     head = _read_head(frame.path)
     try:
-        with rawpy.imread(os.fspath(frame.path)) as raw:
+        with _libraw_stderr(frame.path), rawpy.imread(os.fspath(frame.path)) as raw:
             return raw.postprocess(**args)
     except rawpy.LibRawError as exc:
         raise RawFileError(frame.path, _libraw_problem(exc, head)) from exc

@@ -16,6 +16,7 @@ import numpy as np
 
 import resources
 from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
+from simulation.lightsource import N_SPHERE_LEDS
 from simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv
 
 log = logging.getLogger(__name__)
@@ -143,12 +144,56 @@ def default_setup(mode: str = "reflective", grid: SpectralGrid = DEFAULT_GRID, *
     if not any((camera_csv, leds_csv, train_csv, test_csv)):
         return base
     cmfs, d65 = _colorimetry(grid)
-    return SimulationSetup(
+    setup = SimulationSetup(
         mode=mode, grid=grid,
-        leds=load_leds(leds_csv, grid) if leds_csv else base.leds,
+        leds=load_leds(leds_csv, grid, expected=N_SPHERE_LEDS) if leds_csv else base.leds,
         camera=load_camera(camera_csv, grid) if camera_csv else base.camera,
         illuminant=d65, cmfs=cmfs,
         train=load_target(train_csv, grid) if train_csv else base.train,
         test=load_target(test_csv, grid) if test_csv else base.test,
         camera_name=Path(camera_csv).stem if camera_csv else base.camera_name,
     )
+    check_setup(setup)
+    warn_setup(setup)
+    return setup
+
+
+def check_setup(setup: SimulationSetup) -> None:
+    """The shapes every fast path relies on (SpectralDataError, one line): spectra on the grid, 3 camera
+    channels, the sphere's 10 LEDs, finite values."""
+    n_wl = len(setup.grid)
+    shapes = {"LED spectra": (setup.leds, 2, 1), "camera sensitivities": (setup.camera, 2, 0),
+              "training target": (setup.train.spectra, 2, 1), "test target": (setup.test.spectra, 2, 1)}
+    for what, (arr, ndim, axis) in shapes.items():
+        arr = np.asarray(arr)
+        if arr.ndim != ndim or arr.shape[axis] != n_wl or not np.isfinite(arr).all():
+            raise SpectralDataError(f"{what}: shape {arr.shape} does not fit the {n_wl}-sample grid "
+                                    f"{setup.grid.label()} (or holds NaN)")
+    if np.asarray(setup.camera).shape[1] != 3:
+        raise SpectralDataError(f"camera sensitivities: {np.asarray(setup.camera).shape[1]} channels, expected 3")
+    if len(setup.leds) != N_SPHERE_LEDS:
+        raise SpectralDataError(f"LED spectra: {len(setup.leds)} LEDs, the sphere has {N_SPHERE_LEDS}")
+
+
+def warn_setup(setup: SimulationSetup) -> None:
+    """Warnings for a user's data that runs but cannot mean what was meant: an all-zero camera channel or
+    LED, identical training spectra."""
+    for i, name in enumerate("RGB"):
+        if not np.any(setup.camera[:, i]):
+            log.warning("camera sensitivities (%s): channel %s is zero at every wavelength of the grid",
+                        setup.camera_name, name)
+    for k in np.flatnonzero(~np.any(np.asarray(setup.leds), axis=1)):
+        log.warning("LED spectra: LED %d is zero at every wavelength of the grid (lights using it are dark)", k + 1)
+    _warn_identical(setup.train, "training")
+
+
+def _warn_identical(target: Target, role: str) -> None:
+    spectra = np.asarray(target.spectra)
+    _, first, counts = np.unique(spectra, axis=0, return_index=True, return_counts=True)
+    if len(first) == 1 and len(spectra) > 1:
+        log.warning("%s target %s: all %d patches have identical spectra; the characterisation cannot be fitted "
+                    "meaningfully", role, target.name, len(spectra))
+    elif (counts > 1).any():
+        dup = int((counts > 1).sum())
+        log.warning("%s target %s: %d spectra occur more than once (e.g. patch %s); duplicates add no information",
+                    role, target.name, dup, target.patch_names[int(first[np.argmax(counts > 1)])])

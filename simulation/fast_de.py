@@ -187,6 +187,10 @@ def mean_de2000_xyz(X, Y, Z, white, L1, a1, b1, out):
 
     X, Y, Z: (P, n) float64 predictions; white: (3,) float64; L1, a1, b1: (n,) float32 ground truth Lab.
     """
+    if not (X.ndim == 2 and X.shape == Y.shape == Z.shape and L1.shape == a1.shape == b1.shape == (X.shape[1],)
+            and out.shape == (X.shape[0],) and np.shape(white) == (3,)):   # the kernels index without checks
+        raise ValueError(f"mean_de2000_xyz: predictions {X.shape}, ground truth {L1.shape}, out {out.shape}: "
+                         "expected (P, n), (n,), (P,)")
     L = np.empty(X.shape, np.float32)
     A = np.empty(X.shape, np.float32)
     B = np.empty(X.shape, np.float32)

@@ -21,7 +21,7 @@ from simulation.camera_model import channel_names, channel_responses, led_respon
 from simulation.characterisation import RIDGE, CharacterisationMatrix, _check_patches, fit_matrix
 from simulation.fast_linalg import fit_light_sets
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import SimulationSetup, Target
+from simulation.datasets import SimulationSetup, Target, check_setup
 from simulation.fast_de import mean_de2000_mapped
 
 log = logging.getLogger(__name__)
@@ -62,6 +62,18 @@ class ErrorStats:
         return {"mean": self.mean, "median": self.median, "p90": self.p90, "max": self.max}
 
 
+def check_kernel_batch(idx: np.ndarray, w: np.ndarray, n_leds: int) -> None:
+    """The numba fit kernel reads G[idx] without bounds checks: refuse, with one line, any batch it was not
+    written for (wrong rank or shapes, LED indices outside 0..n_leds-1, non-finite levels)."""
+    if idx.ndim != 3 or idx.shape != w.shape or idx.shape[1] < 1 or idx.shape[2] < 1:
+        raise ValueError(f"light-set batch: indices {idx.shape} and levels {w.shape} must both be (P, L, m)")
+    if idx.size and (idx.min() < 0 or idx.max() >= n_leds):
+        bad = int(idx.max() if idx.max() >= n_leds else idx.min()) + 1
+        raise ValueError(f"light-set batch uses LED {bad}, but the LED spectra have {n_leds} LEDs (1..{n_leds})")
+    if not np.isfinite(w).all():
+        raise ValueError("light-set batch: levels must be finite numbers")
+
+
 class PatchSet:
     """One target's patch-level data under one setup; ``reference``: the target whose spectra give the reference
     XYZ when they differ from what the camera sees (a robust world's measurement error), default ``target``."""
@@ -91,6 +103,7 @@ class Evaluator:
     objective = "noise-free"
 
     def __init__(self, setup: SimulationSetup, reference: Optional[SimulationSetup] = None):
+        check_setup(setup)                       # shapes the kernels rely on, before anything is precomputed
         self.setup = setup
         ref = reference or setup
         self.train = PatchSet(setup, setup.train, ref.train)
@@ -116,6 +129,7 @@ class Evaluator:
         ``extra`` (P, 3L): added to the normal equations' diagonal (None: plain least squares)."""
         idx = np.ascontiguousarray(idx, dtype=np.int64)
         w = np.ascontiguousarray(w, dtype=np.float64)
+        check_kernel_batch(idx, w, self.n_leds)
         P, L, m = w.shape
         _check_patches(len(self.train), 3 * L)
         M = np.empty((3, self.n_leds * 3, P))
@@ -132,6 +146,9 @@ class Evaluator:
             M, _ = self.fit_indexed(idx, w)
             out = np.empty(M.shape[2], dtype=np.float32)
             L1, a1, b1 = self.train._lab32
+            if M.shape[:2] != (3, self._RT.shape[0]) or len(L1) != self._RT.shape[1]:   # the kernel indexes blindly
+                raise ValueError(f"internal: maps {M.shape} do not fit responses {self._RT.shape} / {len(L1)} "
+                                 "patches")
             mean_de2000_mapped(M, self._RT, self.train.white, L1, a1, b1, out)
         self.evaluations += M.shape[2]
         return out.astype(np.float64)

@@ -9,12 +9,18 @@ from __future__ import annotations
 import csv
 import logging
 import math
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from simulation.atomic_io import atomic_output
+
 log = logging.getLogger(__name__)
+
+MAX_CSV_BYTES = 64 * 2**20         # a 1 nm table of hundreds of patches is a few MB
 
 
 class SpectralDataError(ValueError):
@@ -49,16 +55,33 @@ def read_spectral_csv(
     """Read and validate a spectral CSV. ``max_value`` bounds the data (1.0 for reflectance/transmittance)."""
     path = Path(path)
     name = str(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise SpectralDataError(f"{name}: cannot read file ({exc.strerror or exc})") from None
-    except UnicodeDecodeError:
-        raise SpectralDataError(f"{name}: not a UTF-8 text CSV file") from None
+    text = read_text_file(path, "CSV", SpectralDataError, MAX_CSV_BYTES)
     return parse_spectral_csv(
         text, name, expected_columns=expected_columns, allow_negative=allow_negative,
         max_value=max_value, wavelength_range=wavelength_range,
     )
+
+
+def read_text_file(path: Path, what: str, error: type, max_bytes: int) -> str:
+    """The UTF-8 text of a user's file, or ``error`` with one line naming it: only regular files (a FIFO or
+    a device would block), at most ``max_bytes``, no binary or UTF-16 content."""
+    try:
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode):
+            kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+            raise error(f"{path}: {kind}; expected a UTF-8 text {what} file")
+        if st.st_size > max_bytes:
+            raise error(f"{path}: {st.st_size / 2**20:.1f} MiB is too large for a {what} file "
+                        f"(limit {max_bytes / 2**20:.0f} MiB)")
+        data = path.read_bytes()
+    except OSError as exc:
+        raise error(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    try:
+        if b"\x00" in data:
+            raise UnicodeDecodeError("utf-8", data[:1], 0, 1, "NUL byte")
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise error(f"{path}: binary or not UTF-8 (UTF-16?); expected a UTF-8 text {what} file") from None
 
 
 def parse_spectral_csv(
@@ -83,7 +106,10 @@ def parse_spectral_csv(
             if sep:
                 meta[key.strip().lower()] = value.strip()
             continue
-        cells = [c.strip() for c in next(csv.reader([line]))]
+        try:
+            cells = [c.strip() for c in next(csv.reader([line]))]
+        except csv.Error as exc:
+            raise SpectralDataError(f"{name}:{lineno}: not a CSV row ({exc})") from None
         if header is None:
             if len(cells) < 2:
                 raise SpectralDataError(f"{name}:{lineno}: header needs a wavelength column and at least one data column")
@@ -142,11 +168,10 @@ def write_spectral_csv(
 ) -> None:
     """Write a spectral CSV with ``# key: value`` header lines (units, source, generated-by...)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     values = np.asarray(values, dtype=float).reshape(len(wavelengths), -1)
     if values.shape[1] != len(columns):
         raise ValueError(f"{path}: {values.shape[1]} value columns but {len(columns)} names")
-    with path.open("w", encoding="utf-8", newline="") as fh:
+    with atomic_output(path, "w", newline="") as fh:
         for key, value in meta.items():
             fh.write(f"# {key}: {value}\n")
         writer = csv.writer(fh, lineterminator="\n")

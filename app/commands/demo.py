@@ -6,17 +6,9 @@ import logging
 import sys
 from pathlib import Path
 
+from app.commands.options import count, frame_size, seed
+
 log = logging.getLogger(__name__)
-
-
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(x) for x in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"frame size {text!r}: expected WIDTHxHEIGHT like 600x400") from None
-    if w < 64 or h < 64:
-        raise argparse.ArgumentTypeError(f"frame size {text!r}: expected at least 64x64")
-    return w, h
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,9 +18,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="output folder (session, presets, report.json)")
     p.add_argument("--mode", choices=("reflective", "transmissive"), default="reflective")
     p.add_argument("--hdr", action="store_true", help="add the ND 2.0-filtered scene with HDR brackets")
-    p.add_argument("--frame-size", type=_size, default=(600, 400), help="virtual frame WxH (default 600x400)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--dark-frames", type=int, default=10)
+    p.add_argument("--frame-size", type=frame_size, default=(600, 400),
+                   help="virtual frame WxH, 64..8192 per side (default 600x400)")
+    p.add_argument("--seed", type=seed, default=0)
+    p.add_argument("--dark-frames", type=count(1, 200), default=10, help="dark frames per exposure (default 10)")
+    p.add_argument("--new-session", action="store_true",
+                   help="when --out holds a session made with other options, start a new one beside it "
+                        "(default: refuse, naming the difference)")
     p.add_argument("--no-de-fit", action="store_true", help="fit least squares only (default: as the parsimony study chose, resources/parsimony.json)")
     p.set_defaults(func=main)
 
@@ -37,7 +33,7 @@ def main(args: argparse.Namespace) -> int:
     from app.demo import DemoSettings, run_demo   # heavy imports only when the demo runs
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
-                            seed=args.seed, dark_frames=args.dark_frames,
+                            seed=args.seed, dark_frames=args.dark_frames, new_session=args.new_session,
                             optimise_matrix=False if args.no_de_fit else None)
     last = [-1]
 

@@ -7,6 +7,7 @@ import json
 import logging
 
 from app.cli import UserError
+from app.commands.options import seconds
 from drivers.usb_discovery import DeviceReport, discover
 
 log = logging.getLogger(__name__)
@@ -23,7 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-probe", action="store_true",
                    help="do not open each camera to check it can be claimed (faster)")
     p.add_argument("--all", action="store_true", help="also list built-in (non-USB) serial ports")
-    p.add_argument("--timeout", type=float, default=3.0, help="seconds allowed per probe (default 3)")
+    p.add_argument("--timeout", type=seconds(0.1, 120), default=3.0,
+                   help="seconds allowed per probe, 0.1..120 (default 3)")
     p.set_defaults(func=run)
 
 

@@ -18,7 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("raw-info", help="show what a raw file (NEF/DNG) holds",
                        description="Format, camera, CFA pattern, black/white levels, mosaic size and per-channel "
                                    "statistics of a Bayer raw file.")
-    p.add_argument("file", help="raw file (NEF, DNG, ...)")
+    p.add_argument("file", help="raw file (NEF, DNG, ...)")     # drivers.raw checks it is a regular file
     p.add_argument("--json", action="store_true", help="print as JSON")
     p.set_defaults(func=run)
 

@@ -7,6 +7,8 @@ import logging
 import sys
 from pathlib import Path
 
+from app.commands.options import count, input_file, number, seed
+
 log = logging.getLogger(__name__)
 
 
@@ -25,16 +27,6 @@ METHODS = ("halving", "exhaustive", "pso", "ga", "three-channel")    # simulatio
 OBJECTIVES = ("expected-captured", "noise-free", "robust")           # simulation.runner.OBJECTIVES
 
 
-def _fraction(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a number like 0.01") from None
-    if not 0.0 <= v < 1.0:
-        raise argparse.ArgumentTypeError(f"{text}: expected a fraction in [0, 1)")
-    return v
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("simulate", help="search light-source pairs (halving PSO, exhaustive, PSO, GA, 3-channel)",
                        description="Simulate dual-RGB capture and search the sphere's light-source pairs. Default: "
@@ -49,34 +41,35 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--objective", choices=OBJECTIVES, default="expected-captured",
                    help="expected-captured (default), noise-free (the thesis' cost) or robust (mean over plausible "
                         "worlds: LEDs, camera and reference off by a few nm / %%)")
-    p.add_argument("--reference-sd", type=_fraction, default=0.0,
+    p.add_argument("--reference-sd", type=number(0.0, 0.5), default=0.0,
                    help="relative uncertainty (gain) of the target's reference XYZ (default 0: the packaged "
                         "targets are exact; ~0.01 for a chart measured with a spectrophotometer)")
-    p.add_argument("--drift-nm", type=float, default=0.0,
+    p.add_argument("--drift-nm", type=number(0.0, 20.0, unit=" nm"), default=0.0,
                    help="sd of each LED's peak between captures in nm (default 0: no shift in the first 10 s on, "
                         "thesis 4.3.2; > 0 uses the float64 objective, ~20x slower)")
-    p.add_argument("--min-level", type=_fraction, default=None,
+    p.add_argument("--min-level", type=number(0.0, 0.5), default=None,
                    help="the sphere's minimum stable level (a level is 0 or at least this; default: "
                         "simulation.sphere.SphereProperties, 0.01)")
-    p.add_argument("--pixels", type=int, default=None,
+    p.add_argument("--pixels", type=count(1), default=None,
                    help="pixels (superpixels) averaged per training patch (default: the virtual lab's 600x400 "
                         "frames)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--top", type=int, default=5, help="how many light sets to print and write (default 5)")
+    p.add_argument("--seed", type=seed, default=0)
+    p.add_argument("--top", type=count(1, 630), default=5, help="how many light sets to print and write (default 5)")
     p.add_argument("--json", type=Path, help="write the result as JSON here")
     p.add_argument("--preset-out", type=Path, help="save the best light pair as a preset JSON here")
     p.add_argument("--bins", type=_bins, default=(3, 3, 4), help="LED bins, shortest wavelengths first (3,3,4)")
-    p.add_argument("--step", type=float, default=None,
+    p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=None,
                    help="spectral step in nm (default: the parsimony study's choice, resources/parsimony.json: 10)")
-    p.add_argument("--camera-csv", help="measured camera sensitivities (wavelength_nm,R,G,B)")
-    p.add_argument("--leds-csv", help="measured LED spectra (wavelength_nm,LED1..LED10)")
-    p.add_argument("--train-csv", help="measured training target spectra")
-    p.add_argument("--test-csv", help="measured test target spectra")
+    p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
+    p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
+    p.add_argument("--train-csv", type=input_file, help="measured training target spectra")
+    p.add_argument("--test-csv", type=input_file, help="measured test target spectra")
     p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
     # imported here so that other subcommands start without loading colour-science and numba
+    from simulation.atomic_io import atomic_write
     from simulation.datasets import default_setup
     from simulation.grid import SpectralGrid
     from simulation.presets import save_preset
@@ -88,14 +81,12 @@ def main(args: argparse.Namespace) -> int:
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv)
     if args.top < 1:
         raise ValueError(f"--top {args.top}: expected at least 1")
-    if args.drift_nm < 0:
-        raise ValueError(f"--drift-nm {args.drift_nm}: expected a non-negative number of nm")
     result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, objective=args.objective,
                  capture=_capture(args), progress=lambda f, m: log.info("%3.0f%% %s", 100 * f, m))
     print(format_table(result))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result.to_json(), indent=2) + "\n", encoding="utf-8")
+        atomic_write(args.json, json.dumps(result.to_json(), indent=2) + "\n")
         print(f"wrote {args.json}", file=sys.stderr)
     if args.preset_out:
         save_preset(result.preset(), args.preset_out)
@@ -114,7 +105,5 @@ def _capture(args: argparse.Namespace):
     if args.min_level is not None:
         cap = replace(cap, sphere=SphereProperties(min_stable_level=args.min_level))
     if args.pixels is not None:
-        if args.pixels < 1:
-            raise ValueError(f"--pixels {args.pixels}: expected at least 1 pixel per patch")
         cap = replace(cap, camera=replace(cap.camera, pixels_per_patch=args.pixels))
     return cap

@@ -4,13 +4,15 @@
     dualrgb sphere --port /dev/ttyACM0 status
     dualrgb sphere --port /dev/ttyACM0 set 4 0.5
     dualrgb sphere --port /dev/ttyACM0 apply preset.json [--source 2]
-    dualrgb sphere --port /dev/ttyACM0 on
+    dualrgb sphere --port /dev/ttyACM0 on [--max-on 10]
     dualrgb sphere --port /dev/ttyACM0 off
     dualrgb sphere-emulator [--watchdog 30]      # prints the pty path to use as --port
 
 Each call opens the port, does its exchange(s), prints the result and closes the port (levels and the light
-switch stay as set: the sphere's watchdog switches everything off after its timeout without requests). When a
-call fails after the port is open, it switches every LED and the light off before reporting one line and exit 1.
+switch stay as set; a light switched on goes off by itself after ``--max-on`` seconds, default 10). Every option
+is checked while the command line is parsed (app.commands.options); when one is wrong, or a call fails, the port
+(if one is given) is opened and every LED and the light are switched off, and the error line says what went wrong
+and, truthfully, what state the light is in (exit 2 for a wrong option, 1 otherwise).
 """
 from __future__ import annotations
 
@@ -23,41 +25,92 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Optional
 
 from app.cli import UserError
+from app.commands.options import count, number, positive, seconds
 from drivers.led_sphere import LedSphere, SphereError
-from drivers.led_sphere.driver import DEFAULT_TIMEOUT_S
-from simulation.lightsource import LightSource
+from drivers.led_sphere.driver import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
+from simulation.lightsource import N_SPHERE_LEDS, LightSource
 
 log = logging.getLogger(__name__)
 
 PORT_ENV = "DUALRGB_SPHERE_PORT"
 
 
+class _SphereParser(argparse.ArgumentParser):
+    """The ``sphere`` command's parsers: a wrong option still ends with the light off when a port is given.
+
+    argparse refuses a wrong option (a bad LED number, level, --timeout ...) before the command runs; the sphere
+    may be lit from an earlier call, so the refusal first opens the port (default timeout), switches every LED
+    and the light off and adds what happened to argparse's one error line (exit 2)."""
+
+    root: Optional["_SphereParser"] = None     # the 'sphere' parser, which saw --port
+    port: Optional[str] = None
+
+    def parse_known_args(self, args=None, namespace=None):
+        if self.root is None and args is not None:
+            self.port = _port_in(list(args)) or os.environ.get(PORT_ENV)
+        return super().parse_known_args(args, namespace)
+
+    def error(self, message: str):
+        port = (self.root or self).port
+        if port:
+            message = f"{message}; {switch_off_after_refusal(port)}"
+        super().error(message)
+
+
+def _port_in(args: list[str]) -> Optional[str]:
+    for i, arg in enumerate(args):
+        if arg == "--port" and i + 1 < len(args):
+            return args[i + 1]
+        if arg.startswith("--port="):
+            return arg.split("=", 1)[1]
+    return None
+
+
+def switch_off_after_refusal(port: str) -> str:
+    """Open ``port``, switch every LED and the light off, close it; what happened, in words."""
+    try:
+        sphere = LedSphere(port, timeout=DEFAULT_TIMEOUT_S).open()
+    except SphereError as exc:
+        return f"the light could not be switched off: {exc}"
+    try:
+        return sphere.ensure_off().message
+    finally:
+        sphere.close(leave_on=True)
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sphere", help="LED sphere: identify, status, set a level, apply a preset, on, off",
                        description="Talk to the 10-LED sphere over its serial port (docs/led-sphere-protocol.md).")
+    p.__class__ = _SphereParser          # its errors switch the light off (the sub-commands' parsers inherit it)
     p.add_argument("--port", default=os.environ.get(PORT_ENV),
                    help=f"serial port or pyserial URL, e.g. /dev/ttyACM0, a pty path (default ${PORT_ENV})")
-    p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S,
-                   help=f"seconds to wait for each reply (default {DEFAULT_TIMEOUT_S:g}; one retry)")
+    p.add_argument("--timeout", type=seconds(0.01, 60), default=DEFAULT_TIMEOUT_S,
+                   help=f"seconds to wait for each reply, 0.01..60 (default {DEFAULT_TIMEOUT_S:g}; one retry)")
     actions = p.add_subparsers(dest="action", metavar="ACTION")
     actions.required = True
     actions.add_parser("identify", help="model, firmware, serial number")
     actions.add_parser("status", help="light, levels, temperature, on-time, watchdog, faults")
     s = actions.add_parser("set", help="one LED's level (0..1)")
-    s.add_argument("led", type=int, help="LED number 1..10")
-    s.add_argument("level", type=float, help="level 0..1")
+    s.add_argument("led", type=count(1, N_SPHERE_LEDS), help=f"LED number 1..{N_SPHERE_LEDS}")
+    s.add_argument("level", type=number(0.0, 1.0), help="level 0..1")
     a = actions.add_parser("apply", help="a preset's light source (LEDs not in it to 0)")
     a.add_argument("preset", type=Path, help="preset JSON (dualrgb simulate --preset-out)")
-    a.add_argument("--source", type=int, default=1, help="which light source of the preset: 1 (default) or 2")
-    actions.add_parser("on", help="light on (master switch)")
+    a.add_argument("--source", type=positive, default=1, help="which light source of the preset: 1 (default) or 2")
+    o = actions.add_parser("on", help="light on (master switch) for at most --max-on seconds")
+    o.add_argument("--max-on", type=seconds(*MAX_ON_RANGE_S), default=DEFAULT_MAX_ON_S,
+                   help=f"seconds until the sphere switches the light off by itself (default {DEFAULT_MAX_ON_S:g}, "
+                        f"{MAX_ON_RANGE_S[0]:g}..{MAX_ON_RANGE_S[1]:g})")
     actions.add_parser("off", help="every LED to 0 and the light off")
+    for child in actions.choices.values():
+        child.root = p
     p.set_defaults(func=main)
 
     e = sub.add_parser("sphere-emulator", help="serve a virtual LED sphere on a pseudo-terminal until Ctrl-C",
                        description="Start the LED sphere emulator on a pty and print its path (use it as --port).")
-    e.add_argument("--watchdog", type=float, default=30.0, help="watchdog seconds (default 30)")
+    e.add_argument("--watchdog", type=seconds(0.1, 3600), default=30.0, help="watchdog seconds, 0.1..3600 (default 30)")
     e.set_defaults(func=serve_emulator)
 
 
@@ -84,27 +137,30 @@ def load_light_source(path: Path, index: int) -> LightSource:
 def main(args: argparse.Namespace) -> int:
     if not args.port:
         raise UserError(f"no sphere port: give --port (e.g. /dev/ttyACM0) or set {PORT_ENV}")
-    light = load_light_source(args.preset, args.source) if args.action == "apply" else None
+    light, problem = None, None
+    if args.action == "apply":
+        try:
+            light = load_light_source(args.preset, args.source)
+        except (UserError, ValueError, OSError) as exc:
+            problem = str(exc)
     try:
         sphere = LedSphere(args.port, timeout=args.timeout).open()
     except SphereError as exc:
-        raise UserError(str(exc)) from None
+        raise UserError(f"{problem}; {exc}" if problem else str(exc)) from None
     try:
+        if problem is not None:                 # a wrong preset: nothing is set, the light is switched off
+            raise UserError(f"{problem}; {sphere.ensure_off().message}")
         _run(sphere, args, light)
     except SphereError as exc:
-        try:
-            sphere.shutdown()
-        except SphereError as off_exc:
-            log.info("switching the sphere off after the error failed: %s", off_exc)
-            raise UserError(f"{exc}; switching the LEDs off failed too (the sphere's watchdog switches them off "
-                            "after its timeout)") from None
-        raise UserError(f"{exc} (all LEDs and the light were switched off)") from None
+        if exc.light is not None:               # the driver switched off and its message says how that went
+            raise UserError(str(exc)) from None
+        raise UserError(f"{exc}; {sphere.ensure_off().message}") from None
     finally:
-        sphere.close(leave_on=True)         # levels and light stay as set; on failure shutdown() was just tried
+        sphere.close(leave_on=True)         # levels and light stay as set; on failure ensure_off() was just tried
     return 0
 
 
-def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None) -> None:
+def _run(sphere: LedSphere, args: argparse.Namespace, light: Optional[LightSource]) -> None:
     if args.action == "identify":
         info = sphere.identify()
         print(f"model {info['model']}, firmware {info['firmware']}, serial {info['serial']}")
@@ -125,8 +181,12 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
         levels = " ".join(f"{v:.4f}" for v in taken)
         print(f"applied {light.name or 'light source'} {light.label()}: levels {levels}")
     elif args.action == "on":
-        sphere.on()
-        print("light on")
+        period = sphere.on(max_on_s=args.max_on)
+        if period.device_limit:
+            print(f"light on for at most {args.max_on:g} s (the sphere switches it off by itself)")
+        else:
+            print(f"light on; this firmware has no on-time limit: its watchdog, set to {args.max_on:g} s, switches "
+                  "it off that long after the last request")
     elif args.action == "off":
         sphere.shutdown()
         print("all LEDs off, light off")

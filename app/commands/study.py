@@ -21,33 +21,27 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from app.commands.options import count, input_file, number, positive
 from simulation.datasets import MODES
 
 log = logging.getLogger(__name__)
 
 
-def _positive(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected at least 1")
-    return v
+_workers = count(1, 64)
 
 
 def _common(p: argparse.ArgumentParser, name: str, scheduler_default: str = "serial") -> None:
     p.add_argument("--out", type=Path, default=Path("study-out") / name, help=f"output folder (study-out/{name})")
     p.add_argument("--mode", choices=MODES, default="reflective")
-    p.add_argument("--step", type=float, default=10.0, help="spectral step in nm (default 10)")
-    p.add_argument("--camera-csv", help="measured camera sensitivities (wavelength_nm,R,G,B)")
-    p.add_argument("--leds-csv", help="measured LED spectra (wavelength_nm,LED1..LED10)")
-    p.add_argument("--train-csv", help="measured training target spectra")
-    p.add_argument("--test-csv", help="measured test target spectra")
+    p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=10.0, help="spectral step in nm (default 10)")
+    p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
+    p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
+    p.add_argument("--train-csv", type=input_file, help="measured training target spectra")
+    p.add_argument("--test-csv", type=input_file, help="measured test target spectra")
     p.add_argument("--scheduler", default=scheduler_default,
                    help=f"'serial', 'local' (Dask LocalCluster) or a Dask scheduler address "
                         f"(default {scheduler_default})")
-    p.add_argument("--workers", type=_positive, default=2, help="LocalCluster worker processes (default 2)")
+    p.add_argument("--workers", type=_workers, default=2, help="LocalCluster worker processes (default 2)")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -59,16 +53,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     q = ss.add_parser("speed-accuracy", help="best error against time and evaluations for every optimiser")
     _common(q, "speed-accuracy")
-    q.add_argument("--seeds", type=_positive, default=3, help="seeds per configuration (default 3)")
+    q.add_argument("--seeds", type=positive, default=3, help="seeds per configuration (default 3)")
     q.add_argument("--budget", choices=("tiny", "small", "default"), default="default")
-    q.add_argument("--light-sets", type=_positive, help="only the first N binned light sets (default all 630)")
+    q.add_argument("--light-sets", type=positive, help="only the first N binned light sets (default all 630)")
     q.set_defaults(func=speed_accuracy_main)
 
     q = ss.add_parser("stability", help="seed spread, LED clipping, dim LEDs, sensitivity, predicted vs captured")
     _common(q, "stability")
-    q.add_argument("--seeds", type=_positive, default=3, help="seeds per optimiser (default 3)")
+    q.add_argument("--seeds", type=positive, default=3, help="seeds per optimiser (default 3)")
     q.add_argument("--budget", choices=("tiny", "default"), default="default")
-    q.add_argument("--pixels", type=_positive, help="pixels averaged per patch and channel (default 64)")
+    q.add_argument("--pixels", type=positive, help="pixels averaged per patch and channel (default 64)")
     q.add_argument("--no-virtual-lab", action="store_true",
                    help="skip the captures through the virtual camera and the processing pipeline")
     q.set_defaults(func=stability_main)
@@ -84,30 +78,30 @@ def register(sub: argparse._SubParsersAction) -> None:
     q = ss.add_parser("parsimony", help="coarsest spectral step, simplest model, fewest HDR exposures")
     _common(q, "parsimony")
     q.add_argument("--budget", choices=("tiny", "default"), default="default")
-    q.add_argument("--tolerance", type=float, default=0.05, help="allowed loss in mean dE00 (default 0.05)")
+    q.add_argument("--tolerance", type=number(0.0, 10.0), default=0.05, help="allowed loss in mean dE00 (default 0.05)")
     q.add_argument("--write-defaults", nargs="?", const="resources", metavar="PATH",
                    help="also write the chosen defaults here (no PATH: the packaged resources/parsimony.json)")
     q.set_defaults(func=parsimony_main)
 
     q = ss.add_parser("unbinned", help="full-intensity search over all ~523 k unbinned light-source pairs")
     _common(q, "unbinned", scheduler_default="local")
-    q.add_argument("--tasks", type=_positive, default=16, help="index ranges the search is split into (16)")
-    q.add_argument("--top", type=_positive, default=10, help="best pairs to report (10)")
-    q.add_argument("--limit", type=_positive, help="only the first N pairs (for a quick check)")
+    q.add_argument("--tasks", type=positive, default=16, help="index ranges the search is split into (16)")
+    q.add_argument("--top", type=positive, default=10, help="best pairs to report (10)")
+    q.add_argument("--limit", type=positive, help="only the first N pairs (for a quick check)")
     q.set_defaults(func=unbinned_main)
 
     q = ss.add_parser("sweep", help="targets x cameras x optimisers x seeds, one task each (Dask-ready)")
     q.add_argument("--out", type=Path, default=Path("study-out") / "sweep", help="output folder (study-out/sweep)")
     q.add_argument("--modes", default="reflective,transmissive", help="target sets (reflective,transmissive)")
-    q.add_argument("--camera-csv", action="append", default=[], metavar="CSV",
+    q.add_argument("--camera-csv", action="append", default=[], metavar="CSV", type=input_file,
                    help="a camera sensitivity CSV to include (repeat; the packaged camera is always included)")
     q.add_argument("--methods", default="exhaustive,pso,halving",
                    help="optimisers (exhaustive,pso,ga,halving,pyswarms,de,lbfgs)")
     q.add_argument("--budget", choices=("tiny", "small", "default"), default="small")
-    q.add_argument("--seeds", type=_positive, default=2)
-    q.add_argument("--light-sets", type=_positive, help="only the first N binned light sets")
+    q.add_argument("--seeds", type=positive, default=2)
+    q.add_argument("--light-sets", type=positive, help="only the first N binned light sets")
     q.add_argument("--scheduler", default="local", help="'serial', 'local' or a Dask scheduler address (local)")
-    q.add_argument("--workers", type=_positive, default=2, help="LocalCluster worker processes (default 2)")
+    q.add_argument("--workers", type=_workers, default=2, help="LocalCluster worker processes (default 2)")
     q.set_defaults(func=sweep_main)
 
 

@@ -5,7 +5,7 @@ import logging
 import os
 import sys
 from pathlib import Path
-from typing import Mapping, Optional
+from typing import Callable, Mapping, Optional
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +31,24 @@ def display_problem(env: Optional[Mapping[str, str]] = None) -> Optional[str]:
     if platform in ("xcb",) or platform.startswith("wayland"):
         return f"QT_QPA_PLATFORM={platform} but no matching display is set; " + NO_DISPLAY
     return NO_DISPLAY
+
+
+def live_display_problem(env: Optional[Mapping[str, str]] = None,
+                         loader: Optional[Callable[[str], bool]] = None) -> Optional[str]:
+    """After :func:`display_problem`'s rules: does the display really answer, and can Qt's platform plugin load
+    here? One line (missing system libraries with the install command, a stale DISPLAY or WAYLAND_DISPLAY) or
+    None. A stale Wayland socket beside a live X display makes Qt use xcb (QT_QPA_PLATFORM is set)."""
+    from app.gui import platform_check
+
+    env = os.environ if env is None else env
+    platform = (env.get("QT_QPA_PLATFORM") or "").split(":")[0].strip().lower()
+    if platform in HEADLESS_PLATFORMS or sys.platform in ("win32", "darwin"):
+        return None
+    problem, use = platform_check.platform_problem(platform, env, loader)
+    if problem is None and use and use != platform and env is os.environ:
+        log.info("using the Qt platform %s (WAYLAND_DISPLAY does not answer)", use)
+        os.environ["QT_QPA_PLATFORM"] = use
+    return problem
 
 
 def pyside_drops_none_references() -> bool:
@@ -63,9 +81,9 @@ def application(argv: Optional[list[str]] = None):
 
 def run(virtual_lab: bool = False, screenshot_dir: Optional[Path] = None,
         frame_size: tuple[int, int] = (600, 400)) -> int:
-    if screenshot_dir is not None and display_problem() is not None:
+    if screenshot_dir is not None and (display_problem() or live_display_problem()) is not None:
         os.environ["QT_QPA_PLATFORM"] = "offscreen"      # screenshots need no screen
-    problem = display_problem()
+    problem = display_problem() or live_display_problem()
     if problem is not None:
         from app.cli import UserError
         raise UserError(problem)

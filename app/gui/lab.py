@@ -16,6 +16,7 @@ from app.gui.viewmodel import DoseFeed, light_from_levels
 from app.gui.workers import TaskHandle, TaskRunner
 from drivers.camera.base import Camera, CameraError
 from drivers.led_sphere import LedSphere, SphereError
+from drivers.led_sphere.driver import DEFAULT_MAX_ON_S
 from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
@@ -68,6 +69,7 @@ class Lab(QObject):
         self.session: Any = None                  # app.session.CaptureSession
         self.last_status: dict = {}
         self.dose = DoseFeed()
+        self.manual_max_on_s = DEFAULT_MAX_ON_S   # 'Light ON' lights the sphere for at most this long
         self._poll_pending = False
         self._status_timer = QTimer(self)
         self._status_timer.setInterval(1000)
@@ -85,6 +87,21 @@ class Lab(QObject):
             self.failed.emit(title, exc)
         return self.runner.submit(fn, pool="devices", name=title, on_result=on_result, on_error=failed,
                                   on_finished=on_finished)
+
+    @staticmethod
+    def light_call(sphere: LedSphere, fn: Callable[[], Any]) -> Callable[[], Any]:
+        """``fn`` (on the devices thread) such that a failure ends with the light switched off and the error says
+        truthfully in what state the light is (the driver's own errors after a switch-on already do)."""
+        def run() -> Any:
+            try:
+                return fn()
+            except SphereError as exc:
+                if exc.light is not None:
+                    raise
+                report = sphere.ensure_off()
+                raise SphereError(f"{exc}; {report.message}", kind=exc.kind, code=exc.code,
+                                  light="off" if report.off else "unknown") from None
+        return run
 
     @property
     def is_virtual(self) -> bool:
@@ -165,16 +182,17 @@ class Lab(QObject):
         self._set_sphere(None, "")
 
         def work() -> None:
-            try:
-                sphere.shutdown()
-            finally:
-                if port != VIRTUAL_SPHERE:      # the virtual lab keeps its own port open for the camera
-                    sphere.close()
+            report = sphere.ensure_off()
+            if port != VIRTUAL_SPHERE:          # the virtual lab keeps its own port open for the camera
+                sphere.close(leave_on=True)
+            if not report.off:
+                raise SphereError(f"disconnected; {report.message}", kind="port", light="unknown")
         return self.device_call(work, "Disconnect the LED sphere",
                                 on_finished=lambda: self.message.emit("LED sphere off and disconnected"))
 
     def poll_status(self) -> None:
-        """Ask the sphere for its status (light, levels, temperature, on-time); also keeps its watchdog fed."""
+        """Ask the sphere for its status (light, levels, temperature, on-time). It restarts the watchdog but never
+        keeps the light on: every lit period ends at its limit (the driver's supervisor and the firmware)."""
         sphere = self.sphere
         if sphere is None or self._poll_pending:
             return
@@ -208,7 +226,7 @@ class Lab(QObject):
         def work() -> list[float]:
             taken = sphere.apply(light)
             if switch_on is True:
-                sphere.on()
+                sphere.on(max_on_s=self.manual_max_on_s)
             elif switch_on is False:
                 sphere.off()
             return taken
@@ -218,7 +236,7 @@ class Lab(QObject):
             self.poll_status()
             if on_done:
                 on_done()
-        return self.device_call(work, "Apply the light", on_result=done)
+        return self.device_call(self.light_call(sphere, work), "Apply the light", on_result=done)
 
     def set_light_on(self, on: bool) -> Optional[TaskHandle]:
         sphere = self.sphere
@@ -226,8 +244,8 @@ class Lab(QObject):
             self.failed.emit("Switch the light", SphereError(
                 "the LED sphere is not connected: connect it in Devices first", kind="port"))
             return None
-        return self.device_call(sphere.on if on else sphere.shutdown, "Switch the light",
-                                on_finished=self.poll_status)
+        work = (lambda: sphere.on(max_on_s=self.manual_max_on_s)) if on else sphere.shutdown
+        return self.device_call(self.light_call(sphere, work), "Switch the light", on_finished=self.poll_status)
 
     # ------------------------------------------------------------------ camera
     def detect_cameras(self, on_result: Callable[[tuple[list[str], list[str]]], None],
@@ -287,12 +305,11 @@ class Lab(QObject):
         self.sphere = self.camera = None
         self.virtual_lab = None
         if sphere is not None:
-            try:
-                sphere.shutdown()
-            except SphereError as exc:
-                log.error("switching the sphere off at exit: %s", exc)
+            report = sphere.ensure_off()
+            if not report.off:
+                log.error("switching the sphere off at exit: %s", report.message)
             if lab is None or sphere is not lab.sphere:
-                sphere.close()
+                sphere.close(leave_on=True)
         if cam is not None and (lab is None or cam is not lab.camera):
             try:
                 cam.close()

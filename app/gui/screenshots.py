@@ -11,8 +11,10 @@ import time
 from pathlib import Path
 from typing import Callable, Optional
 
-from PySide6.QtCore import QObject, QTimer
+from PySide6.QtCore import QBuffer, QIODevice, QObject, QTimer
 from PySide6.QtWidgets import QApplication
+
+from simulation.atomic_io import atomic_write
 
 log = logging.getLogger(__name__)
 
@@ -178,7 +180,10 @@ class ScreenshotRun(QObject):
 
     def _grab(self, panel: str) -> None:
         path = self.out_dir / f"{panel}.png"
-        self.w.grab().save(str(path))
+        buffer = QBuffer()
+        buffer.open(QIODevice.WriteOnly)
+        self.w.grab().save(buffer, "PNG")
+        atomic_write(path, bytes(buffer.data()))
         self.saved.append(path)
         log.info("saved %s", path)
 

@@ -36,6 +36,7 @@ from typing import Iterable, Optional
 import numpy as np
 
 from app.processing.mosaic import FrameLike, mosaic_of, row_bands
+from simulation.atomic_io import atomic_output, atomic_write
 from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
@@ -203,10 +204,11 @@ class MasterDark:
         for i, t in enumerate(self.exposures):
             f = self._frames[t]
             name = f"master_dark_{i:02d}.npy"
-            np.save(folder / name, f.mean)
+            with atomic_output(folder / name, "wb") as fh:
+                np.save(fh, f.mean)
             index.append({"file": name, "exposure_s": t, "n_frames": f.n_frames, "rejected_high": f.rejected_high,
                           "rejected_low": f.rejected_low, "noise_dn": f.noise_dn, "spikes": f.spikes})
-        (folder / "master_darks.json").write_text(json.dumps(index, indent=2))
+        atomic_write(folder / "master_darks.json", json.dumps(index, indent=2))
 
     @classmethod
     def load(cls, folder: Path) -> "MasterDark":

@@ -27,6 +27,7 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from app.processing.mosaic import row_bands
+from simulation.atomic_io import atomic_output
 from simulation.characterisation import CharacterisationMatrix
 from simulation.progress import CancelToken, ProgressCallback, check, report
 
@@ -181,8 +182,9 @@ def write_rgb_tiff(path: Path, rgb16: np.ndarray, space: str, *, description: st
     import tifffile
 
     path = Path(path)
-    tifffile.imwrite(path, rgb16, photometric="rgb", iccprofile=icc_profile(space),
-                     description=description or f"dualrgb {space}", metadata=None)
+    with atomic_output(path, "wb") as fh:
+        tifffile.imwrite(fh, rgb16, photometric="rgb", iccprofile=icc_profile(space),
+                         description=description or f"dualrgb {space}", metadata=None)
     return path
 
 
@@ -193,8 +195,9 @@ def write_float_tiff(path: Path, data: np.ndarray, channels: Sequence[str], *, d
 
     path = Path(path)
     desc = json.dumps({"channels": list(channels), **(description or {})})
-    tifffile.imwrite(path, np.ascontiguousarray(data, dtype=np.float32), photometric="minisblack",
-                     planarconfig="contig", description=desc, metadata=None)
+    with atomic_output(path, "wb") as fh:
+        tifffile.imwrite(fh, np.ascontiguousarray(data, dtype=np.float32), photometric="minisblack",
+                         planarconfig="contig", description=desc, metadata=None)
     return path
 
 
@@ -203,7 +206,7 @@ def write_patch_csv(path: Path, names: Sequence[str], values: np.ndarray, channe
                     *, target: str = "") -> Path:
     """One row per patch: camera values, reference XYZ, predicted XYZ and dE00 per method."""
     path = Path(path)
-    with open(path, "w", newline="") as fh:
+    with atomic_output(path, "w", newline="") as fh:
         w = csv.writer(fh)
         head = ["target", "patch"] + list(channels) + ["X_ref", "Y_ref", "Z_ref"]
         for m in predictions:
@@ -220,7 +223,7 @@ def write_patch_csv(path: Path, names: Sequence[str], values: np.ndarray, channe
 def write_matrices_csv(path: Path, matrices: Mapping[str, CharacterisationMatrix]) -> Path:
     """Rows ``method, channel, X, Y, Z``: XYZ = sum over channels of value * row."""
     path = Path(path)
-    with open(path, "w", newline="") as fh:
+    with atomic_output(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["method", "channel", "X", "Y", "Z"])
         for name, m in matrices.items():

@@ -206,6 +206,7 @@ def processor_from_session(session, *, white_level: Optional[float] = None,
     Subjects are keyed ``"<role>"`` or ``"<role>:<meta target/subject>"`` (e.g. ``"target:train"``,
     ``"object:folio 3"``); each maps light name -> exposures. Whites are merged here (progress 0..1).
     """
+    session.require_intact()     # a missing or damaged frame is named (DamagedFramesError), never processed
     darks = [ExposureRef(session.file_path(e), float(e.exposure_s), e.file) for e in session.entries("dark")
              if e.exposure_s]
     proc = CaptureProcessor(dark_frames=darks, white_level=white_level, linear_limit=linear_limit)

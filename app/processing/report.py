@@ -36,6 +36,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from app.processing.characterise import Characterisation
+from simulation.atomic_io import atomic_output, atomic_write
 from simulation.colorimetry import xyz_to_lab
 from simulation.objective import ErrorStats
 
@@ -176,7 +177,14 @@ def _figure(w: float, h: float):
 
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
-    fig.savefig(path)
+    return save_figure(fig, path)
+
+
+def save_figure(fig, path: Path, **kwargs) -> Path:
+    """``fig.savefig`` through the atomic write (a full disk leaves no half PNG; the error names the file)."""
+    path = Path(path)
+    with atomic_output(path, "wb") as fh:
+        fig.savefig(fh, format=path.suffix.lstrip(".") or "png", **kwargs)
     return path
 
 
@@ -231,8 +239,7 @@ def lab_scatter_figure(path: Path, xyz_ref: np.ndarray, errors: np.ndarray, whit
     ax2.set_ylabel("L*")
     ax2.set_title(f"{title}: L* vs C*")
     fig.colorbar(sc, ax=[ax1, ax2], label="ΔE00")
-    fig.savefig(path)
-    return path
+    return save_figure(fig, path)
 
 
 def patch_mosaic_figure(path: Path, xyz_ref: np.ndarray, xyz_pred: np.ndarray, white: np.ndarray,
@@ -344,7 +351,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
         "figures": figures,
         **(extra or {}),
     }
-    (out_dir / "report.json").write_text(json.dumps(report, indent=2))
+    atomic_write(out_dir / "report.json", json.dumps(report, indent=2))
     log.info("report written to %s (%d figures); best %s: test mean dE00 %s", out_dir, len(figures), best,
              f"{report['test']['mean']:.3f}" if report["test"] else "n/a")
     return report

@@ -6,8 +6,10 @@
         show(event.fraction, event.message, event.time_left_s)
     seq.cancel() / seq.pause() / seq.resume() from any thread
 
-Guarantees: the cancel flag is checked between steps (never in the middle of a download), the LEDs are off
-after cancel, error or completion, and every frame is saved to the session before the next step starts.
+Guarantees: before the first step the free space of the session's disk is checked against the plan (frames x
+the camera's bytes per raw file) and a shortfall is refused up front; the cancel flag is checked between steps
+(never in the middle of a download), the LEDs are off after cancel, error or completion, and every frame is
+saved to the session before the next step starts.
 """
 from __future__ import annotations
 
@@ -16,6 +18,8 @@ import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any, Iterator, Optional
+
+from simulation.atomic_io import require_free_space
 
 log = logging.getLogger(__name__)
 
@@ -102,7 +106,22 @@ class Sequence:
             return None
         return (time.monotonic() - self._t0) / step * max(total - step, 0)
 
+    def estimated_bytes(self) -> int:
+        """Disk space the planned frames need: frames x the camera's bytes per raw file (0 without a camera)."""
+        camera = getattr(getattr(self, "shooter", None), "camera", None)
+        frame_bytes = getattr(camera, "frame_bytes", None)
+        return len(self.plan()) * int(frame_bytes()) if callable(frame_bytes) else 0
+
+    def check_free_space(self) -> None:
+        """Refuse up front (InsufficientSpaceError, one line) a sequence whose frames cannot fit on the disk
+        of its session folder; nothing has been switched on or shot when it is raised."""
+        session = getattr(getattr(self, "shooter", None), "session", None)
+        needed = self.estimated_bytes()
+        if session is not None and needed:
+            require_free_space(session.path, needed, f"the {self.name} ({len(self.plan())} frames)")
+
     def run(self) -> Iterator[ProgressEvent]:
+        self.check_free_space()
         self._t0 = time.monotonic()
         try:
             for event in self._steps():

@@ -116,7 +116,7 @@ def auto_exposure(shooter: Shooter, nl: NamedLight, *, start_s: float = 1 / 60, 
     The metering frames are kept in the session (role 'metering'); returns (exposure_s, their entry seqs).
     """
     shutters = shooter.camera.shutter_speeds()
-    usable = [s for s in shutters if s + shooter.safety.settle_s <= shooter.safety.max_on_s]
+    usable = [s for s in shutters if s <= shooter.safety.max_exposure_s]
     if not usable:
         raise ValueError(f"no shutter speed fits the {shooter.safety.max_on_s:g} s light-on limit")
     shooter.place("open-gate")

@@ -41,7 +41,7 @@ class CrfSweep(BaseSequence):
         self.shooter = shooter
         self.light = light
         self.levels = list(levels)
-        limit = shooter.safety.max_on_s - shooter.safety.settle_s
+        limit = shooter.safety.max_exposure_s
         offered = exposures or shooter.camera.shutter_speeds()
         self.exposures = [t for t in sorted(offered) if min_exposure_s <= t <= limit]
         self.samples: dict[float, list[tuple[float, float]]] = {}

@@ -92,7 +92,7 @@ def meter_and_plan(shooter, lights, base_exposures: dict[str, float], target: st
     plans: dict[str, HdrPlan] = {}
     try:
         shooter.place(target, nd)
-        limit = shooter.safety.max_on_s - shooter.safety.settle_s
+        limit = shooter.safety.max_exposure_s
         for i, nl in enumerate(lights):
             if cancel is not None:
                 cancel.check()

@@ -1,9 +1,17 @@
 """Shooter: one exposure done safely, the building block of every sequence.
 
-For each frame: skip it if the session already has its step (resume), switch on only the light it needs,
-let it settle, capture, switch the light off whatever happens, write the raw file to the session first,
-then log the light dose. A capture whose light would stay on longer than ``max_on_s`` (default 10 s: the
-thesis found no LED drift in the first 10 s, 4.3.2) is refused before anything is switched on.
+For each frame: skip it if the session already has its step (resume); switch on only the light it needs, for at
+most settle + exposure + the camera's latency allowance (refused before anything is switched on when that
+exceeds ``max_on_s``, default 10 s: the thesis found no LED drift in the first 10 s, 4.3.2); let it settle;
+expose; switch the light off as soon as the camera reports the shutter closed, *before* the download; then fetch
+the frame and write it to the session first thing; the light dose of the lit period is logged on every path.
+
+The limit does not depend on this thread: the sphere driver's supervisor thread and the sphere's firmware switch
+the light off at it (drivers.led_sphere), so a camera that hangs never holds the light on. Camera calls run with
+host-side deadlines (drivers.camera.base.call_with_deadline): a hung one is a one-line CameraError. A frame
+whose light was cut at the limit before the shutter closed is kept as 'rejected' (never used, shot again on
+resume). Every error says truthfully what state the light was left in, and an unconfirmed switch-off is reported
+together with the camera's error.
 """
 from __future__ import annotations
 
@@ -16,23 +24,61 @@ import numpy as np
 
 from app.light_dose import LightDose
 from app.session import CaptureSession, SessionEntry
-from drivers.camera.base import Camera
+from drivers.camera.base import Camera, CameraError, Exposure, RawCapture, call_with_deadline
+from drivers.led_sphere import LightReport, SphereError
 from drivers.raw import RawFrame, load_raw
 from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
 Stand = Callable[[str, bool], object]     # (what, nd) -> places 'train'/'test'/'open-gate'/'lens-cap'
+REJECTED_ROLE = "rejected"                # frames kept aside, never used (e.g. lit for less than the exposure)
 
 
 class LightSafetyError(RuntimeError):
-    """A capture would keep the light on longer than allowed; nothing was switched on."""
+    """A capture the light-on limit does not allow (refused before anything was switched on), or a frame whose
+    light was cut at its limit before the shutter closed (kept aside as 'rejected')."""
 
 
 @dataclass
 class SafetySettings:
-    max_on_s: float = 10.0          # per capture, light on (settle + exposure)
+    max_on_s: float = 10.0          # per capture, light on at most (settle + exposure + latency)
     settle_s: float = 0.2           # after switching on, before the shutter opens
+    latency_s: float = 1.0          # the camera's allowance beyond the exposure: trigger, shutter lag, storing
+    expose_timeout_s: float = 30.0  # host-side deadline of an exposure beyond its exposure time
+    fetch_timeout_s: float = 120.0  # host-side deadline of a download
+
+    @property
+    def max_exposure_s(self) -> float:
+        """The longest exposure the light-on limit allows."""
+        return self.max_on_s - self.settle_s - self.latency_s
+
+    def light_limit_s(self, exposure_s: float) -> float:
+        """How long the light may stay on for one exposure."""
+        return self.settle_s + float(exposure_s) + self.latency_s
+
+    def check(self, exposure_s: float) -> None:
+        on = self.light_limit_s(exposure_s)
+        if on > self.max_on_s:
+            raise LightSafetyError(
+                f"exposure {exposure_s:g} s would keep the light on up to {on:.1f} s (settle {self.settle_s:g} s, "
+                f"camera latency {self.latency_s:g} s), over the {self.max_on_s:g} s limit (LEDs drift after "
+                "10 s); use a brighter light, a higher ISO or raise the limit")
+
+
+def restate(error: BaseException, light: LightReport) -> BaseException:
+    """``error`` with what is known about the light appended to its one-line message (same type where possible:
+    SphereError, CameraError, LightSafetyError), so the camera's error and an unconfirmed switch-off are both
+    reported."""
+    text = f"{error}; {light.message}"
+    if isinstance(error, SphereError):
+        return SphereError(text, kind=error.kind, code=error.code, light="off" if light.off else "unknown")
+    if isinstance(error, CameraError):
+        return CameraError(text, error.code)
+    if isinstance(error, LightSafetyError):
+        return LightSafetyError(text)
+    error.add_note(light.message)
+    return error
 
 
 class Shooter:
@@ -61,15 +107,18 @@ class Shooter:
         return True
 
     def check_light_time(self, exposure_s: float) -> None:
-        on = exposure_s + self.safety.settle_s
-        if on > self.safety.max_on_s:
-            raise LightSafetyError(
-                f"exposure {exposure_s:g} s would keep the light on {on:.1f} s, over the {self.safety.max_on_s:g} s "
-                "limit (LEDs drift after 10 s); use a brighter light, a higher ISO or raise the limit")
+        self.safety.check(exposure_s)
 
-    def lights_off(self) -> None:
-        if self.sphere is not None:
-            self.sphere.off()
+    def lights_off(self) -> Optional[LightReport]:
+        """Every LED and the light off (a sequence's start and cleanup); never raises (it runs in ``finally``
+        blocks, where it must not hide the error being handled): what it could not confirm is logged and returned.
+        Each shot has confirmed its own switch-off already."""
+        if self.sphere is None:
+            return None
+        report = self.sphere.ensure_off()
+        if not report.off:
+            log.error("LED sphere: %s", report.message)
+        return report
 
     def shoot(self, role: str, light: Optional[LightSource], exposure_s: float, step_id: str,
               **meta) -> SessionEntry:
@@ -77,18 +126,91 @@ class Shooter:
             log.info("step %s already in the session: not shot again", step_id)
             return self.session.entry(step_id)
         lit = light is not None and not light.is_dark
+        off: Optional[LightReport] = None
         if lit:
             self.check_light_time(exposure_s)
-            self.sphere.apply(light)
-            self.sphere.on()
-            t_on = self._clock()
-            self._sleep(self.safety.settle_s)
+            exposure, off, complete = self._lit_exposure(light, exposure_s, step_id)
+            if not complete:
+                self._reject(exposure, light, step_id, off)
+        else:
+            exposure = self._expose(exposure_s)
+        raw = self._fetch(exposure, off)
+        entry = self._record(raw, role, step_id, light if lit else None, meta)
+        if off is not None and not off.off:
+            raise SphereError(f"{step_id}: the frame was saved (#{entry.seq}); {off.message}",
+                              kind=off.error.kind if off.error else "port", light="unknown")
+        return entry
+
+    # ------------------------------------------------------------------------------------------ phases
+    def _lit_exposure(self, light: LightSource, exposure_s: float,
+                      step_id: str) -> tuple[Exposure, LightReport, bool]:
+        """Light on, settle, expose, light off: (the exposure, what is known about the light, whether the light
+        stayed on all through the exposure). A failure is raised after the light was switched off, saying so."""
         try:
-            raw = self.camera.capture(exposure_s)
-        finally:
-            if lit:
-                self.sphere.off()
-                self.dose.add(light, self._clock() - t_on)
+            self.sphere.apply(light)
+        except SphereError as exc:          # nothing was switched on by this shot; say what the light is now
+            raise (exc if exc.light is not None else restate(exc, self.sphere.ensure_off())) from None
+        try:
+            period = self.sphere.on(max_on_s=self.safety.light_limit_s(exposure_s))
+        except SphereError as exc:          # it says what state the light is in; its lit period (if any) counts
+            if exc.period is not None:
+                self._add_dose(light, exc.period.lit_s(), step_id)
+            raise
+        exposure: Optional[Exposure] = None
+        failure: Optional[BaseException] = None
+        complete = False
+        try:
+            self._sleep(self.safety.settle_s)
+            exposure = self._expose(exposure_s)
+            complete = self.sphere.exposure_done(period)
+        except BaseException as exc:  # any failure, Ctrl-C too: the light goes off first, then it is raised
+            failure = exc
+        off = self._switch_off()
+        self._add_dose(light, period.lit_s(), step_id)
+        if failure is not None:
+            raise restate(failure, off) from failure
+        return exposure, off, complete
+
+    def _switch_off(self) -> LightReport:
+        """The light off right after the exposure (one LIGHT 0); when that is not confirmed, ALLOFF + LIGHT 0 again,
+        and what is known then."""
+        try:
+            self.sphere.off()
+        except SphereError as exc:
+            log.warning("switching the light off after the exposure: %s", exc)
+            return self.sphere.ensure_off()
+        return LightReport(True, "the light was switched off")
+
+    def _expose(self, exposure_s: float) -> Exposure:
+        return call_with_deadline(lambda: self.camera.expose(exposure_s),
+                                  float(exposure_s) + self.safety.expose_timeout_s, "capture: the exposure")
+
+    def _fetch(self, exposure: Exposure, off: Optional[LightReport]) -> RawCapture:
+        try:
+            return call_with_deadline(lambda: self.camera.fetch(exposure), self.safety.fetch_timeout_s,
+                                      "capture: the download")
+        except CameraError as exc:
+            raise (restate(exc, off) if off is not None else exc) from exc
+
+    def _reject(self, exposure: Exposure, light: LightSource, step_id: str, off: LightReport) -> None:
+        """The light was cut at its limit before the shutter closed: keep the frame aside, then refuse."""
+        limit = self.safety.light_limit_s(exposure.exposure_s)
+        kept = "not downloaded"
+        try:
+            raw = self._fetch(exposure, off)
+            entry = self.session.record(raw, REJECTED_ROLE, light=light, rejected_step=step_id,
+                                        reason="light cut at its limit before the shutter closed")
+            kept = f"kept aside as {REJECTED_ROLE} #{entry.seq}"
+        except (CameraError, OSError) as exc:
+            log.error("%s: the rejected frame could not be kept: %s", step_id, exc)
+        raise LightSafetyError(
+            f"{step_id}: the light reached its {limit:.2f} s limit and was switched off before the camera reported "
+            f"the end of the {exposure.exposure_s:g} s exposure ({exposure.ended - exposure.started:.2f} s after it "
+            f"was triggered), so the frame was not lit all through ({kept}; the step is shot again); {off.message}; "
+            f"check the camera, or allow it more latency than {self.safety.latency_s:g} s")
+
+    def _record(self, raw: RawCapture, role: str, step_id: str, light: Optional[LightSource],
+                meta: dict) -> SessionEntry:
         temperature = None
         if self.sphere is not None:
             try:
@@ -96,9 +218,14 @@ class Shooter:
             except Exception as exc:  # a temperature read failure must not lose the downloaded frame
                 log.warning("could not read the sphere temperature: %s", exc)
         settings = {k: v for k, v in self.camera.settings().__dict__.items() if v is not None}
-        return self.session.record(raw, role, step_id=step_id, light=light if lit else None,
-                                   sphere_temperature_c=temperature, settings=settings,
-                                   placed=list(self.placed) if self.placed else None, **meta)
+        return self.session.record(raw, role, step_id=step_id, light=light, sphere_temperature_c=temperature,
+                                   settings=settings, placed=list(self.placed) if self.placed else None, **meta)
+
+    def _add_dose(self, light: LightSource, on_s: float, step_id: str) -> None:
+        """The light dose of one lit period (every path: success, camera error, unconfirmed switch-off), also in
+        the session's manifest as it happens."""
+        self.dose.add(light, on_s)
+        self.session.record_dose(light, on_s, step_id=step_id)
 
     def frame(self, entry: SessionEntry) -> RawFrame:
         """The raw frame of a session entry, read back from the session folder (cached)."""

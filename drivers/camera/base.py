@@ -1,18 +1,28 @@
 """The camera interface every implementation follows (gphoto2 for a real Nikon, the virtual lab camera).
 
-A capture returns the raw file's bytes and name; the caller (app.session) writes them to disk first thing,
-so nothing downloaded is ever held only in memory for long.
+A capture has two phases, so that the light can go off as soon as the shutter has closed, before the slow
+download: :meth:`Camera.expose` returns once the exposure is over (an :class:`Exposure`), :meth:`Camera.fetch`
+then downloads that frame (a :class:`RawCapture`: the raw file's bytes and name; the caller, app.session, writes
+them to disk first thing, so nothing downloaded is held only in memory for long). ``capture()`` does both.
+
+Camera calls can hang (USB, a camera busy in its menus): :func:`call_with_deadline` runs one on a helper thread
+and raises a one-line :class:`CameraTimeout` when it has not returned in time, so the caller (and the light) are
+never held by a hung call.
 """
 from __future__ import annotations
 
 import abc
 import logging
+import threading
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Any, Callable, Optional, TypeVar
 
 import numpy as np
 
 log = logging.getLogger(__name__)
+
+T = TypeVar("T")
+GP_ERROR_TIMEOUT = -10          # libgphoto2's timeout code, also used for host-side deadlines
 
 
 class CameraError(RuntimeError):
@@ -24,6 +34,56 @@ class CameraError(RuntimeError):
     def __init__(self, message: str, code: Optional[int] = None):
         super().__init__(message)
         self.code = code
+
+
+class CameraTimeout(CameraError):
+    """A camera call did not return within its host-side deadline. ``worker`` is the thread still inside it
+    (the camera may finish later; until then it must not be called again)."""
+
+    def __init__(self, message: str, worker: Optional[threading.Thread] = None):
+        super().__init__(message, GP_ERROR_TIMEOUT)
+        self.worker = worker
+
+
+def call_with_deadline(fn: Callable[[], T], deadline_s: float, action: str) -> T:
+    """``fn()`` on a helper thread; its result or exception, or :class:`CameraTimeout` after ``deadline_s``.
+
+    The helper thread of a call that timed out is left to finish on its own (a blocked C call cannot be
+    interrupted; python-gphoto2 releases the GIL in its slow calls, so the rest of the program runs on)."""
+    box: dict[str, Any] = {}
+    done = threading.Event()
+
+    def run() -> None:
+        try:
+            box["value"] = fn()
+        except BaseException as exc:  # delivered to the caller's thread as it is
+            box["error"] = exc
+        finally:
+            done.set()
+
+    worker = threading.Thread(target=run, name=f"camera: {action}", daemon=True)
+    worker.start()
+    if not done.wait(deadline_s):
+        raise CameraTimeout(f"{action}: the camera did not answer within {deadline_s:.3g} s; check the camera (USB "
+                            "cable, battery, its display, menus closed), then reconnect it", worker)
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+@dataclass
+class Exposure:
+    """An exposure that is over (the shutter has closed) and not downloaded yet: what :meth:`Camera.fetch` needs.
+
+    ``started``/``ended`` are on the camera's clock (``time.monotonic`` unless the camera was given another);
+    ``handle`` is the implementation's own (gphoto2: the file's folder and name, or None while the camera is
+    still storing it; the virtual camera: the light it saw)."""
+
+    exposure_s: float
+    started: float
+    ended: float
+    bulb: bool = False
+    handle: Any = None
 
 
 @dataclass
@@ -49,7 +109,7 @@ class RawCapture:
 
 
 class Camera(abc.ABC):
-    """Open/close (or use as a context manager), read/set settings, capture, preview."""
+    """Open/close (or use as a context manager), read/set settings, expose + fetch (= capture), preview."""
 
     name: str = "camera"
 
@@ -79,12 +139,26 @@ class Camera(abc.ABC):
         """The exposure times (s) the camera offers, ascending (bulb excluded)."""
 
     @abc.abstractmethod
+    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
+        """Take one raw exposure (setting the shutter first if given; bulb above 30 s); returns as soon as the
+        shutter has closed, before any download."""
+
+    @abc.abstractmethod
+    def fetch(self, exposure: Exposure) -> RawCapture:
+        """Download the frame of an exposure (the light can be off by now)."""
+
     def capture(self, exposure_s: Optional[float] = None) -> RawCapture:
-        """Take one raw exposure (setting the shutter first if given; bulb above 30 s) and download it."""
+        """``expose()`` then ``fetch()``: one raw exposure, downloaded."""
+        return self.fetch(self.expose(exposure_s))
 
     @abc.abstractmethod
     def preview(self) -> np.ndarray:
         """A live-view frame as an (H, W, 3) uint8 RGB array."""
+
+    def frame_bytes(self) -> int:
+        """Estimated size of one raw file (for the free-space check before a sequence): a D610 14-bit NEF is
+        about 30 MB; implementations that know better say so."""
+        return 32 * 2**20
 
     def config_summary(self) -> dict[str, object]:
         """Named configuration values for display (implementations add what they know)."""

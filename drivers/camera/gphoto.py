@@ -8,9 +8,16 @@ virtual camera) before the first import.
   ``imagequality``, ``capturetarget``) and numeric settings are matched by *parsed value*, never by the
   (localised) label: "30,0000s", "1/4000", "0.5", '0"3' all parse to seconds and the nearest offered value
   is picked (in stops).
-* ``capture(exposure_s)`` downloads the raw file into memory. Exposures longer than the longest timed speed
-  (30 s on the D610) use bulb: shutter 'Bulb', ``bulb``=1, wait, ``bulb``=0, then wait for FILE_ADDED.
-  The bulb is always released again, even when the wait is interrupted.
+* ``expose(exposure_s)`` returns when the shutter has closed (libgphoto2's capture, which returns once the
+  camera has stored the frame; for bulb, as soon as ``bulb`` is 0 again) and ``fetch()`` then waits for the file
+  if need be and downloads it into memory, so the light can be off during the download; ``capture()`` does both.
+  Exposures longer than the longest timed speed (30 s on the D610) use bulb: shutter 'Bulb', ``bulb``=1, wait,
+  ``bulb``=0; FILE_ADDED is waited for in ``fetch()``. The bulb is always released again, even when the wait is
+  interrupted.
+* Every libgphoto2 call has a host-side deadline (:func:`drivers.camera.base.call_with_deadline`): a call that
+  hangs becomes a one-line CameraError after ``call_timeout_s`` (capture: the exposure plus
+  ``capture_timeout_s``; download: ``download_timeout_s``), and the camera refuses further calls until the hung
+  one has returned (it is never entered twice).
 * libgphoto2 errors become :class:`CameraError` with a one-line, actionable message and the libgphoto2 code;
   'camera busy' (-110) is retried a bounded number of times with backoff.
 """
@@ -27,7 +34,8 @@ from typing import Any, Callable, Iterable, Optional, Sequence, TypeVar
 
 import numpy as np
 
-from drivers.camera.base import Camera, CameraError, CameraSettings, RawCapture
+from drivers.camera.base import (Camera, CameraError, CameraSettings, CameraTimeout, Exposure, RawCapture,
+                                 call_with_deadline)
 
 log = logging.getLogger(__name__)
 
@@ -251,6 +259,7 @@ class GPhotoCamera(Camera):
     noise reduction takes as long again as the exposure, which is added on top).
     ``delete_from_card``: delete each file from the camera after download (only matters when capturing
     to the memory card; Internal RAM files are gone after download anyway).
+    ``call_timeout_s``, ``capture_timeout_s`` (beyond the exposure), ``download_timeout_s``: host-side deadlines.
     ``gp_module``, ``sleep``, ``clock``: stand-ins for gphoto2, time.sleep and time.monotonic (tests).
     """
 
@@ -259,6 +268,7 @@ class GPhotoCamera(Camera):
     def __init__(self, model: Optional[str] = None, port: Optional[str] = None, *,
                  bulb_limit_s: float = BULB_LIMIT_S, file_timeout_s: float = 60.0,
                  busy_tries: int = 3, busy_delay_s: float = 0.5, delete_from_card: bool = False,
+                 call_timeout_s: float = 20.0, capture_timeout_s: float = 30.0, download_timeout_s: float = 120.0,
                  gp_module: Any = None, sleep: Optional[Callable[[float], None]] = None,
                  clock: Callable[[], float] = time.monotonic):
         self.model = model                  # after open(): the model libgphoto2 reports
@@ -269,6 +279,10 @@ class GPhotoCamera(Camera):
         self.busy_tries = busy_tries
         self.busy_delay_s = busy_delay_s
         self.delete_from_card = delete_from_card
+        self.call_timeout_s = call_timeout_s
+        self.capture_timeout_s = capture_timeout_s
+        self.download_timeout_s = download_timeout_s
+        self._stuck: Optional[tuple[str, threading.Thread, float]] = None    # a call that passed its deadline
         self._gp = gp_module
         self._abort_event = threading.Event()
         self._sleep = sleep if sleep is not None else self._abort_event.wait  # abort() ends a bulb wait early
@@ -299,11 +313,31 @@ class GPhotoCamera(Camera):
             self._gp = _import_gphoto()
         return self._gp
 
-    def _call(self, action: str, fn: Callable[..., T], *args: Any) -> T:
+    def _call(self, action: str, fn: Callable[..., T], *args: Any, deadline_s: Optional[float] = None) -> T:
+        """One libgphoto2 call: busy retries, error mapping, and a host-side deadline (default call_timeout_s)."""
         gp = self._gp_module()
+        deadline = self.call_timeout_s if deadline_s is None else deadline_s
+
+        def attempt() -> T:
+            self._check_not_stuck()
+            try:
+                return call_with_deadline(lambda: fn(*args), deadline, action)
+            except CameraTimeout as exc:
+                self._stuck = (action, exc.worker, self._clock())
+                raise
         with self._lock:
-            return retry_busy(lambda: fn(*args), action, error_type=gp.GPhoto2Error, tries=self.busy_tries,
+            return retry_busy(attempt, action, error_type=gp.GPhoto2Error, tries=self.busy_tries,
                               delay_s=self.busy_delay_s, sleep=self._sleep)
+
+    def _check_not_stuck(self) -> None:
+        """libgphoto2 is not re-entrant: while a call that passed its deadline is still inside, refuse."""
+        if self._stuck is None:
+            return
+        action, worker, since = self._stuck
+        if worker is not None and worker.is_alive():
+            raise CameraError(f"the camera has not finished '{action}' ({self._clock() - since:.0f} s ago): switch "
+                              "it off and on, then reconnect it", GP_ERROR_TIMEOUT)
+        self._stuck = None
 
     def _require_open(self):
         if self._cam is None:
@@ -359,9 +393,10 @@ class GPhotoCamera(Camera):
                     log.debug("could not end live view: %s", exc)
             self._live_view = False
             try:
-                cam.exit()
-            except gp.GPhoto2Error as exc:
-                log.debug("camera exit: %s", exc)
+                self._check_not_stuck()
+                call_with_deadline(cam.exit, self.call_timeout_s, "close camera")
+            except (gp.GPhoto2Error, CameraError) as exc:
+                log.warning("camera exit: %s", exc)
         log.info("closed %s", self.model)
 
     release = close  # 'release the camera' = give the USB device back to the system
@@ -612,11 +647,11 @@ class GPhotoCamera(Camera):
                 raise CameraError(f"capture: no file arrived within {timeout_s:.0f} s after the exposure ended "
                                   "(check the card/Internal RAM and the camera display)", GP_ERROR_TIMEOUT)
             kind, data = self._call("wait for the captured file", cam.wait_for_event,
-                                    int(min(left, 1.0) * 1000) or 1)
+                                    int(min(left, 1.0) * 1000) or 1, deadline_s=min(left, 1.0) + self.call_timeout_s)
             if kind == gp.GP_EVENT_FILE_ADDED:
                 return data.folder, data.name
 
-    def _bulb_exposure(self, exposure_s: float) -> tuple[str, str]:
+    def _bulb_exposure(self, exposure_s: float) -> None:
         cam = self._require_open()
         gp = self._gp_module()
         self._drain_events()
@@ -641,9 +676,9 @@ class GPhotoCamera(Camera):
             self._abort_event.clear()
             raise CameraError(f"capture: bulb exposure aborted after {self._clock() - started:.0f} s of "
                               f"{exposure_s:g} s (the camera may still store the short frame)", GP_ERROR_CANCEL)
-        return self._wait_for_file(self.file_timeout_s + exposure_s)
 
-    def capture(self, exposure_s: Optional[float] = None) -> RawCapture:
+    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
+        """The exposure, returning once the shutter has closed; the file is fetched by :meth:`fetch`."""
         cam = self._require_open()
         gp = self._gp_module()
         with self._lock:
@@ -656,11 +691,26 @@ class GPhotoCamera(Camera):
                 if bulb and self._bulb_exposure_s is None:
                     raise CameraError("capture: the shutter is on Bulb but no exposure time was given")
                 actual = self._bulb_exposure_s if bulb else current
+            started = self._clock()
             if bulb:
-                folder, name = self._bulb_exposure(float(actual))
+                self._bulb_exposure(float(actual))
+                handle = None                   # the file is announced (FILE_ADDED) after the shutter closed
             else:
-                path = self._call("capture", cam.capture, gp.GP_CAPTURE_IMAGE)
-                folder, name = path.folder, path.name
+                path = self._call("capture", cam.capture, gp.GP_CAPTURE_IMAGE,
+                                  deadline_s=float(actual or 0.0) + self.capture_timeout_s)
+                handle = (path.folder, path.name)
+            return Exposure(exposure_s=float(actual) if actual else 0.0, started=started, ended=self._clock(),
+                            bulb=bulb, handle=handle)
+
+    def fetch(self, exposure: Exposure) -> RawCapture:
+        """Wait for the exposure's file if the camera has not announced it yet (bulb), then download it."""
+        cam = self._require_open()
+        actual, bulb = exposure.exposure_s, exposure.bulb
+        with self._lock:
+            if exposure.handle is None:
+                folder, name = self._wait_for_file(self.file_timeout_s + actual)
+            else:
+                folder, name = exposure.handle
             extra_files = self._drain_events()
             extra_files = [f for f in extra_files if f != (folder, name)]
             if extra_files:
@@ -683,7 +733,8 @@ class GPhotoCamera(Camera):
         """One file from the camera into memory: (bytes, MIME type)."""
         cam = self._require_open()
         gp = self._gp_module()
-        cfile = self._call(f"download {folder}/{name}", cam.file_get, folder, name, gp.GP_FILE_TYPE_NORMAL)
+        cfile = self._call(f"download {folder}/{name}", cam.file_get, folder, name, gp.GP_FILE_TYPE_NORMAL,
+                           deadline_s=self.download_timeout_s)
         data = bytes(memoryview(cfile.get_data_and_size()))
         return data, cfile.get_mime_type()
 

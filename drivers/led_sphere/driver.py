@@ -6,10 +6,14 @@ values), then :class:`SphereError` is raised. Replies to an earlier request that
 their keyword/echo and skipped. Anything else that goes wrong is a :class:`SphereError` too, with a one-line
 message saying what happened and what to do.
 
-Safety (artworks under the light): used as a context manager the sphere is left with every LED at 0 and the light
-off on exit, also when an exception leaves the block (``close()`` switches off too); if even that fails, the
-sphere's own watchdog switches the LEDs off after ``watchdog_s`` without requests (call
-:meth:`LedSphere.keepalive` more often than that while the light must stay on).
+Safety (artworks under the light): every lit period has a limit (``max_on_s``, default 10 s). ``on()`` sends it
+with the switch-on (``ON <ms>``: the firmware switches off by itself at the limit, even if this host dies) and
+arms an :class:`~drivers.led_sphere.supervisor.OnTimeSupervisor` that switches the light off at the limit from its
+own thread, whatever the caller is doing. One lock serialises the port between threads, and every wait for it
+is bounded. Used as a context manager the sphere is left with every LED at 0 and the light off on exit, also
+when an exception leaves the block (``close()`` switches off too). :meth:`LedSphere.ensure_off` switches off and
+says truthfully what is known afterwards (off, or unknown and what the firmware guarantees); it never raises.
+Firmware 1.0 answers ``ON`` with ``ERR 1``: the driver then sets the watchdog to the limit before ``LIGHT 1``.
 """
 from __future__ import annotations
 
@@ -22,7 +26,8 @@ from typing import Any, Optional, Sequence
 import serial
 
 from drivers.led_sphere import protocol as P
-from drivers.led_sphere.errors import SphereError
+from drivers.led_sphere.errors import LightReport, SphereError
+from drivers.led_sphere.supervisor import LitPeriod, OnTimeSupervisor
 from simulation.lightsource import N_SPHERE_LEDS, LightSource
 
 log = logging.getLogger(__name__)
@@ -34,6 +39,8 @@ except ImportError:                     # pragma: no cover - Windows
         pass
 
 DEFAULT_TIMEOUT_S = 1.0
+DEFAULT_MAX_ON_S = 10.0        # per lit period (thesis 4.3.2: no LED drift in the first 10 s)
+MAX_ON_RANGE_S = (P.ON_LIMIT_MIN_MS / 1000, P.ON_LIMIT_MAX_MS / 1000)
 _IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 _MAX_LINES_PER_ATTEMPT = 8     # stale replies skipped per attempt before giving up (a chattering line)
 
@@ -62,6 +69,11 @@ class LedSphere:
         self._ser: Any = None if isinstance(port, str) else port
         self._light_on_since: Optional[float] = None
         self._last_exchange: Optional[float] = None
+        self._max_on_s = DEFAULT_MAX_ON_S
+        self._answered: Optional[bool] = None   # did the port answer like a sphere? (None: not asked yet)
+        self._device_limit: Optional[bool] = None   # ON <ms> works (True), firmware 1.0 (False), not tried (None)
+        self._watchdog_ms = P.DEFAULT_WATCHDOG_MS   # as far as this host knows
+        self._supervisor = OnTimeSupervisor(self._switch_off_at_limit, name=f"LED sphere {self._url} on-time limit")
         if self._ser is not None:
             self._configure(self._ser)
 
@@ -79,6 +91,27 @@ class LedSphere:
         self._timeout = float(seconds)
         if self._ser is not None:
             self._configure(self._ser)
+
+    @property
+    def max_on_s(self) -> float:
+        """The default limit of a lit period (``on()`` without ``max_on_s``), 0.1..3600 s."""
+        return self._max_on_s
+
+    @max_on_s.setter
+    def max_on_s(self, seconds: float) -> None:
+        self._max_on_s = self._check_limit(seconds)
+
+    @staticmethod
+    def _check_limit(seconds: Any) -> float:
+        lo, hi = MAX_ON_RANGE_S
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not math.isfinite(seconds) \
+                or not lo <= seconds <= hi:
+            raise SphereError(f"light-on limit {seconds!r} s is outside {lo:g}..{hi:g} s", kind="argument")
+        return float(seconds)
+
+    def _lock_wait_s(self) -> float:
+        """How long a request waits for the port while another thread's exchange finishes (two attempts)."""
+        return 2.5 * self.timeout + 0.5
 
     @property
     def port(self) -> str:
@@ -112,14 +145,15 @@ class LedSphere:
                     log.debug("could not set %s on %r", name, ser)
 
     def close(self, leave_on: bool = False) -> None:
-        """Switch every LED and the light off (best effort: a failure is logged, the watchdog is the backstop),
-        then close the port (only if this object opened it). ``leave_on=True`` closes without switching off
-        (the command line's ``set``/``on``, whose effect must outlast the process)."""
+        """Switch every LED and the light off (best effort: :meth:`ensure_off`, what it could not confirm is
+        logged), then close the port (only if this object opened it). ``leave_on=True`` closes without switching
+        off (the command line's ``set``/``on``, whose effect must outlast the process; a lit sphere still goes
+        off at its on-time limit)."""
         if self._ser is not None and not leave_on:
-            try:
-                self.shutdown()
-            except SphereError as exc:
-                log.warning("closing LED sphere %s: %s", self._url, exc)
+            report = self.ensure_off()
+            if not report.off or report.error is not None:
+                log.warning("closing LED sphere %s: %s", self._url, report.message)
+        self._supervisor.stop()
         ser, self._ser = self._ser, None
         if ser is not None and self._owns_port:
             try:
@@ -132,30 +166,118 @@ class LedSphere:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         try:
-            self.shutdown()
-        except SphereError as off_error:
-            if exc is None:
-                raise
-            log.error("could not switch the LED sphere off after an error: %s", off_error)
-            exc.add_note(f"and the LED sphere could not be switched off: {off_error}")
+            report = self.ensure_off()
+            if report.error is not None:
+                if exc is None:
+                    raise SphereError(report.message, kind=report.error.kind, code=report.error.code,
+                                      light="off" if report.off else "unknown")
+                log.error("after an error, the LED sphere: %s", report.message)
+                exc.add_note(f"and the LED sphere could not be switched off completely: {report.message}")
         finally:
-            self.close(leave_on=True)           # shutdown() was just tried
+            self.close(leave_on=True)           # ensure_off() was just tried
 
+    # ------------------------------------------------------------------------------------------- switching off
     def shutdown(self) -> None:
-        """Every LED to 0, then the light off. Tries both even if the first fails; raises the first error."""
-        first: Optional[SphereError] = None
+        """Every LED to 0, then the light off. Tries both even if the first fails; raises the first error, its
+        message saying truthfully what state the light is in."""
+        report = self._switch_off()
+        if report.error is not None:
+            raise SphereError(report.message, kind=report.error.kind, code=report.error.code,
+                              light="off" if report.off else "unknown")
+
+    def ensure_off(self) -> LightReport:
+        """Switch every LED and the light off and say what is known afterwards; never raises.
+
+        On a port that has never answered like a sphere (silent, or speaking garbage), ALLOFF and LIGHT 0 are
+        written without waiting for replies that would not come (so a wrong port is reported within one request's
+        two timeouts)."""
+        if self._ser is None:
+            return LightReport(False, f"the LED sphere port {self._url} is closed, so the light's state is unknown; "
+                                      f"{self._guarantee()}")
+        if self._answered is False:
+            sent = self._send_blind(("all_off", {}), ("set_light", {"state": 0}))
+            what = "ALLOFF and LIGHT 0 were sent without waiting for replies" if sent else \
+                "ALLOFF and LIGHT 0 could not even be sent"
+            return LightReport(False, f"the port never answered like an LED sphere, so the light's state is "
+                                      f"unknown ({what}); {self._guarantee()}")
+        return self._switch_off()
+
+    def _switch_off(self) -> LightReport:
+        """ALLOFF then LIGHT 0 (both tried); either answered means nothing emits (a level is emitted only while
+        the light is on, and ALLOFF zeroes every level)."""
+        failed: dict[str, SphereError] = {}
+        asked = time.monotonic()
         for name, args in (("all_off", {}), ("set_light", {"state": 0})):
+            if failed and self._answered is False:
+                self._send_blind((name, args))
+                failed[name] = next(iter(failed.values()))
+                continue
             try:
                 self.exchange(name, **args)
             except SphereError as exc:
-                first = first or exc
+                failed[name] = exc
+        first = next(iter(failed.values()), None)
+        if len(failed) < 2:
+            self._confirmed_off(asked)
         if first is None:
-            self._light_on_since = None
             log.info("LED sphere %s: all LEDs off, light off", self._url)
-        else:
-            note = "" if "watchdog" in str(first) else \
-                " (the sphere's watchdog switches the LEDs off once it hears nothing)"
-            raise SphereError(f"{first}{note}", kind=first.kind, code=first.code)
+            return LightReport(True, "all LEDs and the light were switched off")
+        if "set_light" not in failed:
+            return LightReport(True, f"the light was switched off (LIGHT 0 answered) but the LED levels were not "
+                                     f"zeroed: {first}", first)
+        if "all_off" not in failed:
+            return LightReport(True, f"every LED was set to 0 (ALLOFF answered), so nothing is lit, but the light "
+                                     f"switch did not answer: {first}", first)
+        if self._answered is False:
+            return LightReport(False, f"{first}; the port never answered like an LED sphere, so the light's state is "
+                                      f"unknown (LIGHT 0 was sent without waiting for a reply); {self._guarantee()}",
+                               first)
+        return LightReport(False, f"{first}; switching off was not confirmed, so the light's state is unknown: "
+                                  f"{self._guarantee()}", first)
+
+    def _confirmed_off(self, asked_at: float) -> None:
+        """The sphere answered that the light is off to a request sent at ``asked_at`` (monotonic)."""
+        self._light_on_since = None
+        self._supervisor.confirm_off(asked_at)
+
+    def _switch_off_at_limit(self) -> None:
+        """The supervisor's switch-off (its own thread): raises unless the sphere confirmed the light off."""
+        report = self.ensure_off()
+        if not report.off:
+            raise SphereError(report.message, kind=report.error.kind if report.error else "port", light="unknown")
+
+    def _guarantee(self) -> str:
+        """What switches a lit sphere off without this host (for messages where the light's state is unknown)."""
+        period = self._supervisor.current()
+        watchdog = f"its watchdog switches every LED off {self._watchdog_ms / 1000:g} s after the last request " \
+                   "it hears"
+        if period is None:
+            return f"if it is lit, {watchdog}"
+        left = period.deadline - time.monotonic()
+        when = f"at most {period.max_on_s:.3g} s after it came on" + (f" (in {left:.1f} s)" if left > 0 else "")
+        if self._device_limit:
+            return f"the sphere switches it off by itself {when}, the limit sent with ON; and {watchdog}"
+        if self._device_limit is None:
+            return f"if the sphere received ON, it switches it off by itself {when}; this program keeps trying to " \
+                   f"switch it off, and {watchdog}"
+        return f"this program keeps trying to switch it off ({when}), and {watchdog} (firmware without ON)"
+
+    def _send_blind(self, *requests: tuple[str, dict]) -> bool:
+        """Write requests without waiting for replies (a port that never answered); False if even that failed."""
+        if not self._lock.acquire(timeout=self._lock_wait_s()):
+            return False
+        try:
+            for name, args in requests:
+                self._ser.write(P.COMMANDS[name].encode(**args))
+            flush = getattr(self._ser, "flush", None)
+            if flush is not None:
+                flush()
+            return True
+        except (*_IO_ERRORS, AttributeError) as exc:
+            log.info("LED sphere %s: could not send the switch-off: %s", self._url, exc)
+            return False
+        finally:
+            self._lock.release()
 
     # ------------------------------------------------------------------------------------------- exchanges
     def exchange(self, name: str, **args: Any) -> Any:
@@ -165,26 +287,38 @@ class LedSphere:
             request = cmd.encode(**args)
         except (ValueError, TypeError) as exc:
             raise SphereError(f"invalid {name} request: {exc}", kind="argument") from None
-        with self._lock:
-            if self._ser is None:
-                raise SphereError(f"LED sphere port {self._url} is not open; use 'with LedSphere(port) as s:' "
-                                  "or call open()", kind="port")
-            shown = request.decode("ascii").strip()
-            skipped: list[str] = []
-            for attempt in (1, 2):
-                self._send(request, shown)
-                try:
-                    fields = self._receive(cmd, args, shown, skipped)
-                except TimeoutError:
-                    log.info("LED sphere %s: no reply to %r within %.2f s (attempt %d)",
-                                self._url, shown, self.timeout, attempt)
-                    continue
-                self._last_exchange = self._clock()
-                return cmd.value(fields)
-            extra = f"; skipped unrelated replies {', '.join(skipped[:2])}" if skipped else ""
-            raise SphereError(f"LED sphere {self._url}: no reply to {shown!r} within {self.timeout:.2f} s "
-                              f"(sent twice){extra}; check that the sphere is powered and connected and that "
-                              "the port is the sphere's", kind="timeout")
+        if not self._lock.acquire(timeout=self._lock_wait_s()):
+            raise SphereError(f"LED sphere {self._url}: the port stayed busy with another request for "
+                              f"{self._lock_wait_s():.1f} s; {cmd.keyword} was not sent", kind="timeout")
+        try:
+            return self._exchange_locked(cmd, args, request)
+        except SphereError as exc:
+            if exc.kind in ("timeout", "garbled") and self._answered is None:
+                self._answered = False          # asked, and nothing on this port answered like a sphere
+            raise
+        finally:
+            self._lock.release()
+
+    def _exchange_locked(self, cmd: P.Command, args: dict, request: bytes) -> Any:
+        if self._ser is None:
+            raise SphereError(f"LED sphere port {self._url} is not open; use 'with LedSphere(port) as s:' "
+                              "or call open()", kind="port")
+        shown = request.decode("ascii").strip()
+        skipped: list[str] = []
+        for attempt in (1, 2):
+            self._send(request, shown)
+            try:
+                fields = self._receive(cmd, args, shown, skipped)
+            except TimeoutError:
+                log.info("LED sphere %s: no reply to %r within %.2f s (attempt %d)",
+                     self._url, shown, self.timeout, attempt)
+                continue
+            self._last_exchange = self._clock()
+            return cmd.value(fields)
+        extra = f"; skipped unrelated replies {', '.join(skipped[:2])}" if skipped else ""
+        raise SphereError(f"LED sphere {self._url}: no reply to {shown!r} within {self.timeout:.2f} s "
+                          f"(sent twice){extra}; check that the sphere is powered and connected and that "
+                          "the port is the sphere's", kind="timeout")
 
     def _send(self, request: bytes, shown: str) -> None:
         ser = self._ser
@@ -226,12 +360,16 @@ class LedSphere:
                     skipped.append(P._show(line))      # a fragment: the rest never came in time
                 raise TimeoutError
             try:
-                return cmd.decode(line, args)
+                fields = cmd.decode(line, args)
+                self._answered = True
+                return fields
             except P.StaleReply as exc:
+                self._answered = True
                 log.info("LED sphere %s: skipping late reply (%s)", self._url, exc)
                 skipped.append(P._show(line))
                 continue
             except P.DeviceReply as exc:
+                self._answered = True
                 try:
                     advice = P.ERROR_ADVICE[P.ErrorCode(exc.code)]
                 except ValueError:
@@ -304,31 +442,87 @@ class LedSphere:
         """Every LED's level to 0 (the light switch is unchanged)."""
         self.exchange("all_off")
 
-    def on(self) -> None:
-        """Light on (master enable); then checks that no driven LED reports a fault."""
+    def on(self, max_on_s: Optional[float] = None) -> LitPeriod:
+        """Light on (master enable) for at most ``max_on_s`` seconds (default :attr:`max_on_s`); then checks that
+        no driven LED reports a fault.
+
+        The limit is enforced twice, independently of the caller: the firmware switches off by itself
+        (``ON <ms>``; firmware 1.0: the watchdog set to the limit, which requests restart) and this driver's
+        supervisor thread switches off at the deadline. Switching on again before the light was confirmed off
+        never extends the lit period. Returns the :class:`LitPeriod` (mark the exposure done with
+        :meth:`exposure_done`). On failure the light is switched off and the SphereError says in what state it
+        is (``.light``; ``.period`` is the lit period, for the light dose)."""
+        limit = self._check_limit(self._max_on_s if max_on_s is None else max_on_s)
+        period = self._supervisor.arm(limit)      # before sending: the sphere may obey a request whose reply is lost
+        try:
+            try:
+                self._switch_on(limit, period)
+            finally:
+                period.switched_at = time.monotonic()
+            if self._light_on_since is None:
+                self._light_on_since = self._clock()
+            self._check_faults()
+        except SphereError as exc:
+            raise self._failed_on(exc, period) from None
+        return period
+
+    def _switch_on(self, limit_s: float, period: LitPeriod) -> None:
+        ms = min(max(int(math.ceil(limit_s * 1000)), P.ON_LIMIT_MIN_MS), P.ON_LIMIT_MAX_MS)
+        if self._device_limit is not False:
+            try:
+                self.exchange("light_on_for", ms=ms)
+                self._device_limit = period.device_limit = True
+                return
+            except SphereError as exc:
+                if exc.kind != "device" or exc.code != P.ErrorCode.UNKNOWN_COMMAND:
+                    raise
+            self._device_limit = False
+            log.warning("LED sphere %s: the firmware does not know ON <ms> (before %s): the watchdog, set to the "
+                        "light-on limit, is the sphere's own backstop", self._url, P.COMMANDS["light_on_for"].since)
+        wd_ms = min(max(ms, P.WATCHDOG_MIN_MS), P.WATCHDOG_MAX_MS)
+        self._watchdog_ms = self.exchange("set_watchdog", ms=wd_ms)
         self.exchange("set_light", state=1)
-        self._light_on_since = self._clock()
-        self._check_faults()
+
+    def _failed_on(self, exc: SphereError, period: LitPeriod) -> SphereError:
+        if exc.light is None:
+            report = self.ensure_off()
+            exc = SphereError(f"{exc}; {report.message}", kind=exc.kind, code=exc.code,
+                              light="off" if report.off else "unknown")
+        exc.period = period
+        return exc
+
+    def exposure_done(self, period: LitPeriod) -> bool:
+        """Mark the exposure of a lit period finished; False when its limit had already switched the light off
+        (the frame was not lit all through)."""
+        return self._supervisor.exposure_done(period)
+
+    @property
+    def lit_period(self) -> Optional[LitPeriod]:
+        """The lit period not yet confirmed off, if any (its deadline: when the light goes off at the latest)."""
+        return self._supervisor.current()
 
     def off(self) -> None:
         """Light off (master enable; levels are kept)."""
+        asked = time.monotonic()
         self.exchange("set_light", state=0)
-        self._light_on_since = None
+        self._confirmed_off(asked)
 
     def light_on(self) -> bool:
-        return bool(self.exchange("get_light"))
+        asked = time.monotonic()
+        lit = bool(self.exchange("get_light"))
+        if not lit:
+            self._confirmed_off(asked)
+        return lit
 
     def _check_faults(self) -> None:
         mask = self.exchange("faults")
         if mask:
             leds = [i + 1 for i in range(P.MAX_CHANNELS) if mask >> i & 1]
-            try:
-                self.shutdown()
-            except SphereError as exc:
-                log.info("switching off after an LED fault: %s", exc)
+            report = self.ensure_off()
             raise SphereError(f"LED sphere {self._url}: LED {', '.join(map(str, leds))} reports a fault (open "
-                              "circuit / driver) and emits nothing; the sphere was switched off - check the LED's "
-                              "connector and driver, or use a preset without it", kind="fault")
+                              f"circuit / driver) and emits nothing; {report.message}; check the LED's "
+                              "connector and driver, or use a preset without it", kind="fault",
+                              light="off" if report.off else "unknown")
 
     def faulty_leds(self) -> list[int]:
         mask = self.exchange("faults")
@@ -359,10 +553,12 @@ class LedSphere:
                 or not P.WATCHDOG_MIN_MS <= seconds * 1000 <= P.WATCHDOG_MAX_MS:
             raise SphereError(f"watchdog {seconds!r} s is outside {P.WATCHDOG_MIN_MS / 1000:g}.."
                               f"{P.WATCHDOG_MAX_MS / 1000:g} s", kind="argument")
-        return self.exchange("set_watchdog", ms=int(round(seconds * 1000))) / 1000
+        self._watchdog_ms = self.exchange("set_watchdog", ms=int(round(seconds * 1000)))
+        return self._watchdog_ms / 1000
 
     def watchdog_s(self) -> float:
-        return self.exchange("get_watchdog") / 1000
+        self._watchdog_ms = self.exchange("get_watchdog")
+        return self._watchdog_ms / 1000
 
     @property
     def seconds_since_last_exchange(self) -> Optional[float]:
@@ -371,10 +567,17 @@ class LedSphere:
     def status(self) -> dict[str, Any]:
         """Light, levels, temperature, on-times (host: None when this object did not switch the light on; device),
         watchdog, trip flag, faulty LEDs (2 exchanges)."""
+        asked = time.monotonic()
         s = self.exchange("status")
         levels = self.levels()
+        self._watchdog_ms = s["wdog"]
         if not s["light"]:
-            self._light_on_since = None
+            self._confirmed_off(asked)
+        elif self._supervisor.adopt(s["ontime"], self._max_on_s, asked) is not None:
+            # lit, but not by this host (another program, a restart): the limit applies to it too
+            log.warning("LED sphere %s is lit (%.1f s) and this program did not switch it on: it goes off at the "
+                        "%g s limit", self._url, s["ontime"], self._max_on_s)
+        period = self._supervisor.current()
         return {
             "port": self.port,
             "light_on": bool(s["light"]),
@@ -386,5 +589,8 @@ class LedSphere:
             "watchdog_s": s["wdog"] / 1000,
             "watchdog_tripped": bool(s["trip"]),
             "faulty_leds": [i + 1 for i in range(P.MAX_CHANNELS) if s["fault"] >> i & 1],
+            # host-side limit of the lit period: seconds until it goes off at the latest (None while off)
+            "off_in_s": None if period is None else max(0.0, period.deadline - time.monotonic()),
+            "max_on_s": None if period is None else period.max_on_s,
         }
 

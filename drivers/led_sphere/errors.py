@@ -1,7 +1,8 @@
-"""The one error type the LED sphere driver raises."""
+"""The one error type the LED sphere driver raises, and what is known after switching the sphere off."""
 from __future__ import annotations
 
-from typing import Optional
+from dataclasses import dataclass
+from typing import Any, Optional
 
 #: What went wrong, as ``SphereError.kind``.
 KINDS = (
@@ -19,13 +20,29 @@ class SphereError(RuntimeError):
     """An LED sphere problem, with a one-line message: what happened and what to do about it.
 
     ``kind`` is one of :data:`KINDS`; ``code`` is the device's error code for ``kind == "device"``
-    (see docs/led-sphere-protocol.md) and ``None`` otherwise.
+    (see docs/led-sphere-protocol.md) and ``None`` otherwise. ``light`` is ``"off"`` or ``"unknown"`` when the
+    message already says what state the light was left in (the driver tried to switch it off), else ``None``.
+    ``period`` is the lit period (drivers.led_sphere.supervisor.LitPeriod) a failed ``on()`` started, if any.
     """
 
-    def __init__(self, message: str, kind: str = "device", code: Optional[int] = None):
+    def __init__(self, message: str, kind: str = "device", code: Optional[int] = None,
+                 light: Optional[str] = None, period: Any = None):
         if kind not in KINDS:
             raise ValueError(f"unknown SphereError kind {kind!r}")
         # One line, always: messages may quote device bytes.
         super().__init__(" ".join(str(message).split()))
         self.kind = kind
         self.code = code
+        self.light = light
+        self.period = period
+
+
+@dataclass(frozen=True)
+class LightReport:
+    """What is known after trying to switch the sphere off: ``off`` is True only when the sphere confirmed that
+    nothing is lit (``LIGHT 0`` or ``ALLOFF`` answered); ``message`` says so in words (one clause, for error
+    messages); ``error`` is the first failure on the way, if any."""
+
+    off: bool
+    message: str
+    error: Optional[SphereError] = None

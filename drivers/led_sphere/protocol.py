@@ -34,6 +34,9 @@ MAX_CHANNELS = 16           # the protocol allows up to 16 channels; the sphere 
 WATCHDOG_MIN_MS = 100
 WATCHDOG_MAX_MS = 3_600_000
 DEFAULT_WATCHDOG_MS = 30_000
+ON_LIMIT_MIN_MS = 100       # ON <ms>: the on-time limit the device enforces by itself
+ON_LIMIT_MAX_MS = 3_600_000
+FIRMWARE_VERSION = "1.1.0"  # the protocol version this table describes (ON <ms> came with 1.1.0)
 
 
 class ErrorCode(enum.IntEnum):
@@ -196,6 +199,7 @@ class Command:
     result: Callable[[dict[str, Any]], Any] = _single
     doc: str = ""
     example: tuple[dict[str, Any], dict[str, Any]] = ({}, {})   # (request args, reply fields) for docs and tests
+    since: str = "1.0.0"        # the firmware version that introduced the command (older firmware: ERR 1)
 
     @property
     def reply_keyword(self) -> str:
@@ -329,6 +333,19 @@ def _normalise(value: Any) -> Any:
     return value
 
 
+def version_tuple(version: str) -> tuple[int, ...]:
+    """'1.1.0' -> (1, 1, 0); a version that does not parse counts as (0,) (older than any)."""
+    try:
+        return tuple(int(part) for part in str(version).split("."))
+    except ValueError:
+        return (0,)
+
+
+def supports(cmd: "Command", firmware: str) -> bool:
+    """Whether firmware ``firmware`` knows ``cmd`` (by the version that introduced it)."""
+    return version_tuple(firmware) >= version_tuple(cmd.since)
+
+
 def level_to_pwm(level: float) -> int:
     """Level 0..1 -> 16-bit PWM (round to nearest)."""
     return int(round(float(level) * PWM_MAX))
@@ -354,7 +371,7 @@ TABLE: tuple[Command, ...] = (
     Command("identify", "IDN?",
             reply=(Field("model", "word"), Field("firmware", "word"), Field("serial", "word")), result=dict,
             doc="model, firmware version and serial number (no spaces in any of them)",
-            example=({}, {"model": "DRGB-SPHERE10", "firmware": "1.0.0", "serial": "SN0001"})),
+            example=({}, {"model": "DRGB-SPHERE10", "firmware": "1.1.0", "serial": "SN0001"})),
     Command("channels", "CHANNELS?", reply=(Field("count", "int", 1, MAX_CHANNELS),),
             doc="number of LED channels (10 on our sphere)", example=({}, {"count": 10})),
     Command("set_level", "LEVEL", args=(LED, PWM), reply=(LED, PWM), echo=("led", "pwm"),
@@ -372,6 +389,12 @@ TABLE: tuple[Command, ...] = (
     Command("set_light", "LIGHT", args=(STATE,), reply=(STATE,), echo=("state",),
             doc="master enable: 1 = LEDs emit at their levels, 0 = nothing emits (levels are kept)",
             example=({"state": 1}, {"state": 1})),
+    Command("light_on_for", "ON", args=(Field("ms", "int", ON_LIMIT_MIN_MS, ON_LIMIT_MAX_MS),),
+            reply=(Field("ms", "int", ON_LIMIT_MIN_MS, ON_LIMIT_MAX_MS),), echo=("ms",), since="1.1.0",
+            doc="light on (as LIGHT 1) for at most <ms> ms counted from the moment it came on; then the "
+                "firmware switches it off by itself (LIGHT 0, trip = 1). Sent again while on, it never "
+                "extends the lit period beyond <ms> from that moment",
+            example=({"ms": 10000}, {"ms": 10000})),
     Command("get_light", "LIGHT?", reply=(STATE,), doc="master enable state", example=({}, {"state": 0})),
     Command("temperature", "TEMP?", reply=(CELSIUS,), doc="sphere (LED heat sink) temperature in degrees C",
             example=({}, {"celsius": 27.31})),
@@ -396,8 +419,8 @@ TABLE: tuple[Command, ...] = (
                    Field("wdog", "int", WATCHDOG_MIN_MS, WATCHDOG_MAX_MS, key=True),
                    Field("trip", "int", 0, 1, key=True), Field("fault", "int", 0, 2 ** MAX_CHANNELS - 1, key=True)),
             result=dict,
-            doc="light state, on-time (s), temperature (C), watchdog (ms), trip = 1 if the watchdog switched the "
-                "LEDs off since the last LIGHT 1, fault mask",
+            doc="light state, on-time (s), temperature (C), watchdog (ms), trip = 1 if the sphere switched the "
+                "light off by itself (watchdog, on-time limit) since the last LIGHT 1 / ON, fault mask",
             example=({}, {"light": 1, "ontime": 12.5, "temp": 27.31, "wdog": 30000, "trip": 0, "fault": 0})),
 )
 

@@ -16,6 +16,14 @@ It renders what the real camera would record, with the same simulation the optim
 * file: an uncompressed 16-bit DNG (PiDNG; 14-bit data, see ../shared/FACTS.md) that rawpy reads back
   bit-exact.
 
+``expose()`` takes the light as it is at that moment (the exposure; with ``realtime=True`` it also lasts the
+exposure time) and ``fetch()`` renders and writes the DNG, so the light can be off during the "download" as on
+the real camera. Every exposure is logged in ``exposure_log`` on the camera's ``clock`` (the virtual lab gives it
+the sphere emulator's, so tests can set exposures against the emulator's record of lit periods). Faults for
+tests (:meth:`VirtualCamera.inject`): ``latency`` (the exposure starts ``delay_s`` late: shutter lag, a slow
+USB), ``hang`` (``expose()`` blocks until the faults are cleared), ``slow_fetch`` (``delay_s``), ``error``
+(``expose()`` raises a CameraError).
+
 The radiometric scale is calibrated so that the open gate under the full-intensity light (1, 6, 8) of
 Table 7.1 reaches ``SensorModel.open_gate_dn`` (~10 500 DN, just under the knee) in its brightest channel
 at 1/60 s, ISO 50, f/8, at the centre of the frame.
@@ -24,6 +32,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -33,7 +42,7 @@ from typing import Any, Callable, Optional
 import numpy as np
 
 import resources
-from drivers.camera.base import Camera, CameraError, CameraSettings, RawCapture
+from drivers.camera.base import Camera, CameraError, CameraSettings, Exposure, RawCapture
 from drivers.virtual.scene import Scene
 from simulation.camera_model import led_responses
 from simulation.datasets import default_setup, load_camera
@@ -60,6 +69,7 @@ CFA_RGGB = (0, 1, 1, 2)                     # channel index of Bayer positions (
 # Appendix A: the D610's mechanical shutter delivers a few % more / less light at some exposure times.
 DEFAULT_BUMPS: dict[float, float] = {1 / 60: +0.03, 1 / 8: -0.02}
 REFERENCE_LIGHT = (1, 6, 8)                 # Table 7.1 "full intensity light source 1"
+CAMERA_FAULTS = ("latency", "hang", "slow_fetch", "error")
 
 
 def parse_shutter(label: str) -> float:
@@ -119,6 +129,17 @@ class SensorModel:
         return signal
 
 
+@dataclass(frozen=True)
+class ExposureRecord:
+    """One exposure on the camera's clock: the shutter open from ``t_open`` to ``t_close``; ``lit``: the sphere
+    emitted light while it was open."""
+
+    t_open: float
+    t_close: float
+    exposure_s: float
+    lit: bool
+
+
 @dataclass
 class _Cache:
     scene: Optional[Scene] = None
@@ -150,8 +171,15 @@ class VirtualCamera(Camera):
         iso: int = 50,
         shutter_s: float = 1 / 60,
         aperture: float = 8.0,
+        clock: Callable[[], float] = time.monotonic,
+        realtime: bool = False,
     ) -> None:
         self._light = light
+        self._clock = clock
+        self.realtime = realtime
+        self.exposure_log: list[ExposureRecord] = []
+        self._faults: dict[str, dict[str, Any]] = {}
+        self._released = threading.Event()
         self.mode = mode
         self.grid = grid
         setup = default_setup(mode, grid)
@@ -244,24 +272,71 @@ class VirtualCamera(Camera):
             return t                                            # bulb: timed by the host, taken as given
         return _nearest(SHUTTER_SPEEDS, t)
 
-    def capture(self, exposure_s: Optional[float] = None) -> RawCapture:
+    def inject(self, fault: Optional[str], **params: Any) -> None:
+        """Start a fault (module docstring), or clear them all with None (which also ends a ``hang``)."""
+        if fault is None:
+            self._faults.clear()
+            self._released.set()
+            return
+        if fault not in CAMERA_FAULTS:
+            raise ValueError(f"unknown camera fault {fault!r}; expected one of {', '.join(CAMERA_FAULTS)} or None")
+        if fault == "hang":
+            self._released.clear()
+        self._faults[fault] = dict(params)
+        log.info("virtual camera: inject %s %s", fault, params)
+
+    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
         self._require_open()
         if exposure_s is not None:
             self._settings.shutter_s = self._snap_shutter(exposure_s)
-        s = self._settings
+        s = self.settings()
         t = float(s.shutter_s)
-        snap = self._light()
+        started = self._clock()
+        if "latency" in self._faults:
+            time.sleep(float(self._faults["latency"].get("delay_s", 1.0)))
+        if "hang" in self._faults:
+            self._released.wait()
+        if "error" in self._faults:
+            raise CameraError(self._faults["error"].get("message", "capture: the virtual camera failed (injected)"),
+                              self._faults["error"].get("code"))
+        t_open = self._clock()
+        levels, drift = self._levels(self._light())
+        snap = StaticLight(levels.copy(), np.array(drift))       # what the sensor saw, frozen
+        if self.realtime:
+            time.sleep(t)
+        ended = self._clock()
+        lit = bool(np.any(levels > 0))
+        self.exposure_log.append(ExposureRecord(t_open, ended, t, lit))
+        return Exposure(exposure_s=t, started=started, ended=ended, bulb=t > BULB_ABOVE_S,
+                        handle=(snap, s, self._scene))
+
+    def fetch(self, exposure: Exposure) -> RawCapture:
+        self._require_open()
+        if "slow_fetch" in self._faults:
+            time.sleep(float(self._faults["slow_fetch"].get("delay_s", 1.0)))
+        snap, s, scene = exposure.handle
+        t = exposure.exposure_s
         t0 = time.perf_counter()
-        mosaic, info = self._render(t, snap)
+        now_settings, now_scene = self._settings, self._scene
+        self._settings, self._scene = s, scene          # render what the exposure saw
+        try:
+            mosaic, info = self._render(t, snap)
+            neutral = self._neutral(snap)
+        finally:
+            self._settings, self._scene = now_settings, now_scene
         data = mosaic_to_dng(mosaic, exposure_s=t, iso=int(s.iso), aperture=float(s.aperture),
                              black_level=self.sensor.black_level, white_level=self.sensor.white_level,
-                             color_matrix=self._cm, as_shot_neutral=self._neutral(snap))
+                             color_matrix=self._cm, as_shot_neutral=neutral)
         self._counter += 1
         name = f"VIRT_{self._counter:04d}.DNG"
-        log.info("virtual capture %s: %s, %.6g s%s, ISO %d, f/%g, %.2f s", name, self._scene.kind, t,
+        log.info("virtual capture %s: %s, %.6g s%s, ISO %d, f/%g, %.2f s", name, scene.kind, t,
                  " (bulb)" if t > BULB_ABOVE_S else "", s.iso, s.aperture, time.perf_counter() - t0)
         return RawCapture(data=data, filename=name, exposure_s=t, iso=int(s.iso), aperture=float(s.aperture),
                           camera=CAMERA_NAME, extra=info)
+
+    def frame_bytes(self) -> int:
+        """An uncompressed 16-bit DNG of the current scene's size plus its tags."""
+        return 2 * self._scene.width * self._scene.height + 64 * 1024
 
     def preview(self, max_width: int = 640) -> np.ndarray:
         """Live view: the scene under the current light at the current settings, small, sRGB-ish uint8.

@@ -1,9 +1,11 @@
-"""What lies on the virtual copy stand: a target (patches on a grid), the open gate, or the lens cap.
+"""What lies on the virtual copy stand: a target (patches on a grid), an original (a painting, a film frame;
+drivers/virtual/originals.py), the open gate, or the lens cap.
 
 The scene is described at patch level: every pixel carries a *class* (a patch, the neutral surround, the
 dark gaps between patches, and the same again under the ND 2.0 filter of thesis 8.3), and each class has one
 spectrum (reflectance or transmittance). The virtual camera computes one response per class (eq 5.10) and
-looks it up per pixel, so no spectral work is ever done per pixel.
+looks it up per pixel, so no spectral work is ever done per pixel. An original brings its own classes (a
+palette of spectra) and class map; the camera renders it exactly like a chart.
 
 Geometry (pixel coordinates of the full sensor, rows then columns, half-open boxes):
 
@@ -22,15 +24,18 @@ import logging
 import math
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
 from simulation.datasets import Target
 
+if TYPE_CHECKING:
+    from drivers.virtual.originals import Original
+
 log = logging.getLogger(__name__)
 
-SCENE_KINDS = ("target", "open_gate", "lens_cap")
+SCENE_KINDS = ("target", "original", "open_gate", "lens_cap")
 ND_2_TRANSMITTANCE = 0.01          # optical density 2.0
 _OUTSIDE = -2                       # 1-D cell codes: outside the grid
 _GAP = -1                           # ... inside the grid, in a gap
@@ -43,7 +48,7 @@ class Scene:
     Frozen (derived geometry is cached on the instance) and compared by identity.
     """
 
-    kind: str = "target"                     # 'target' | 'open_gate' | 'lens_cap'
+    kind: str = "target"                     # 'target' | 'original' | 'open_gate' | 'lens_cap'
     target: Optional[Target] = None          # required for kind 'target' (reflective or transmissive)
     width: int = 600                         # sensor columns (even; the D610 is 6080 x 4028)
     height: int = 400                        # sensor rows (even)
@@ -56,12 +61,18 @@ class Scene:
     nd_transmittance: float = ND_2_TRANSMITTANCE
     vignetting: float = 0.04                 # relative falloff at the frame corners (0 = none)
     name: str = ""
+    original: Optional["Original"] = None    # required for kind 'original'
 
     def __post_init__(self) -> None:
         if self.kind not in SCENE_KINDS:
             raise ValueError(f"scene kind {self.kind!r}: expected one of {', '.join(SCENE_KINDS)}")
         if self.kind == "target" and (self.target is None or len(self.target) == 0):
             raise ValueError("a 'target' scene needs a target with at least one patch")
+        if self.kind == "original" and self.original is None:
+            raise ValueError("an 'original' scene needs an original (drivers.virtual.originals.original(name))")
+        if self.kind == "original" and self.nd_filter:
+            raise ValueError(f"ND filter over original {self.original.name!r}: the ND half is for charts (thesis 8.3); "
+                             "originals bring their own range (e.g. 'shadow')")
         for label, v in (("width", self.width), ("height", self.height)):
             if v < 8 or v % 2:
                 raise ValueError(f"scene {label} {v}: expected an even number of pixels >= 8 (Bayer 2x2 blocks)")
@@ -85,6 +96,12 @@ class Scene:
     @classmethod
     def with_target(cls, target: Target, width: int = 600, height: int = 400, **kw) -> "Scene":
         return cls(kind="target", target=target, width=width, height=height, name=kw.pop("name", target.name), **kw)
+
+    @classmethod
+    def with_original(cls, original: "Original", width: int = 600, height: int = 400, **kw) -> "Scene":
+        """An original on the stand (its class map follows the frame size)."""
+        return cls(kind="original", original=original, width=width, height=height,
+                   name=kw.pop("name", original.name), **kw)
 
     @classmethod
     def open_gate(cls, width: int = 600, height: int = 400, **kw) -> "Scene":
@@ -178,6 +195,8 @@ class Scene:
     @property
     def n_classes(self) -> int:
         """Distinct pixel classes: patches, surround, gap (and those again under the ND filter)."""
+        if self.kind == "original":
+            return self.original.n_classes
         if self.kind != "target":
             return 1
         return 2 * (self.n_patches + 2)
@@ -191,6 +210,8 @@ class Scene:
             return np.ones((1, n_wavelengths))
         if self.kind == "lens_cap":
             return np.zeros((1, n_wavelengths))
+        if self.kind == "original":
+            return self.original.class_spectra(n_wavelengths)
         spectra = np.asarray(self.target.spectra, dtype=float)
         if spectra.shape[1] != n_wavelengths:
             raise ValueError(
@@ -218,6 +239,8 @@ class Scene:
         """
         row_idx = np.asarray(row_idx)
         col_idx = np.asarray(col_idx)
+        if self.kind == "original":
+            return self.original.labels(row_idx, col_idx, self.height, self.width)
         if self.kind != "target":
             return np.zeros((len(row_idx), len(col_idx)), dtype=np.uint16)
         n = self.n_patches
@@ -255,4 +278,6 @@ class Scene:
         d: dict[str, object] = {"kind": self.kind, "name": self.name, "size": f"{self.width}x{self.height}"}
         if self.kind == "target":
             d.update(patches=self.n_patches, grid="%dx%d" % self.layout, nd_filter=self.nd_filter)
+        elif self.kind == "original":
+            d.update(self.original.describe())
         return d

@@ -13,20 +13,27 @@ physical state the virtual camera needs, readable at any time with the thread-sa
   others a few nm); LED 10 also fades after ~40 min on and does not recover (it "died" in the thesis run).
   Drift depends on continuous on-time only, not on the level (the thesis measured at full level), and starts
   over when the LED goes dark;
-* the watchdog: no request for ``watchdog_s`` -> every LED to 0 and the light off, ``trip`` set.
+* the watchdog: no request for ``watchdog_s`` -> every LED to 0 and the light off, ``trip`` set;
+* the on-time limit of ``ON <ms>`` (firmware 1.1): the light goes off by itself ``ms`` after it came on, whatever
+  the host sends meanwhile (``firmware="1.0.0"`` emulates the old firmware that answers ``ON`` with ERR 1);
+* a record of every lit period on the emulator's own clock (:meth:`light_record`: when light came on, when it
+  went off, the emitted levels and what ended it), for tests that bound how long an object was lit.
 
 Physics is evaluated lazily against the injectable ``clock`` (exact, piecewise-constant levels), so tests can
 move a fake clock by an hour instead of sleeping. Wire delays (fault "slow") use real time.
 
-Faults (:meth:`inject`): ``no_reply`` (reply lost; ``execute=False``: firmware hung), ``garbled`` (reply bytes
-corrupted), ``slow`` (reply after ``delay_s``), ``disconnect`` (pty closed, as if unplugged; the sphere keeps
-its own power, so its watchdog switches the LEDs off), ``led_fail`` (``led=N``, ``mode="dark"``: takes levels
-but emits nothing, FAULT? reports it while driven; ``mode="error"``: a non-zero level for it gets ERR 6).
+Faults (:meth:`inject`): ``no_reply`` (reply lost; ``execute=False``: firmware hung), ``ignore`` (requests
+neither executed nor answered), ``garbled`` (reply bytes corrupted), ``slow`` (reply after ``delay_s``); each of
+these four takes ``keywords=("ON", ...)`` to hit only those requests. ``disconnect`` (pty closed, as if unplugged;
+the sphere keeps its own power, so its watchdog and on-time limit switch the LEDs off), ``led_fail`` (``led=N``,
+``mode="dark"``: takes levels but emits nothing, FAULT? reports it while driven; ``mode="error"``: a non-zero
+level for it gets ERR 6).
 ``inject(None)`` clears every fault (except a disconnect: start() again for a new pty).
 """
 from __future__ import annotations
 
 import collections
+import dataclasses
 import logging
 import math
 import os
@@ -55,7 +62,8 @@ HEAT_C_PER_LED = 1.2          # steady-state rise per LED at full level
 THERMAL_TAU_S = 240.0
 OVER_TEMPERATURE_C = 45.0
 
-FAULTS = ("no_reply", "garbled", "slow", "disconnect", "led_fail")
+FAULTS = ("no_reply", "ignore", "garbled", "slow", "disconnect", "led_fail")
+_WIRE_FAULTS = ("no_reply", "ignore", "garbled", "slow")      # these take keywords=(...) to pick requests
 
 
 def peak_shift_nm(on_time_s: np.ndarray | float, max_shift_nm: np.ndarray | float = MAX_SHIFT_NM) -> np.ndarray:
@@ -69,6 +77,23 @@ def fade_factor(on_time_s: float) -> float:
     return 1.0 if on_time_s <= FADE_START_S else math.exp(-(on_time_s - FADE_START_S) / FADE_TAU_S)
 
 
+@dataclass
+class LightInterval:
+    """One lit period on the emulator's clock: something emitted from ``t_on`` to ``t_off`` (None: still lit)
+    at constant ``levels``; ``ended_by`` names what ended it (a request keyword, 'on-time limit', 'watchdog',
+    'over-temperature', 'power off', 'fault'). A level change while lit ends one interval and starts the next
+    at the same instant."""
+
+    t_on: float
+    t_off: Optional[float]
+    levels: tuple[float, ...]
+    ended_by: str = ""
+
+    @property
+    def duration_s(self) -> Optional[float]:
+        return None if self.t_off is None else self.t_off - self.t_on
+
+
 @dataclass(frozen=True)
 class SphereSnapshot:
     levels: np.ndarray          # (10,) float 0..1 actually emitted now (0 when master off, LED failed or off)
@@ -78,14 +103,23 @@ class SphereSnapshot:
     light_on: bool
 
 
+def _cause_of(line: bytes) -> str:
+    """How a request is named in the light record: its keyword ('LIGHT 0' with its state)."""
+    tokens = line.decode("ascii", "replace").upper().split()
+    return " ".join(tokens[:2] if tokens[:1] == ["LIGHT"] else tokens[:1])
+
+
 class SphereEmulator:
     """The sphere's firmware on a pty; see the module docstring."""
 
     model = "DRGB-SPHERE10-EMU"
-    firmware = "1.0.0"
     serial = "EMU-0001"
 
-    def __init__(self, n_leds: int = 10, watchdog_s: float = 30.0, clock: Callable[[], float] = time.monotonic):
+    def __init__(self, n_leds: int = 10, watchdog_s: float = 30.0, clock: Callable[[], float] = time.monotonic,
+                 firmware: str = P.FIRMWARE_VERSION):
+        if P.version_tuple(firmware) == (0,):
+            raise ValueError(f"firmware {firmware!r}: expected a version such as 1.1.0")
+        self.firmware = firmware
         if not 1 <= n_leds <= P.MAX_CHANNELS:
             raise ValueError(f"n_leds {n_leds} outside 1..{P.MAX_CHANNELS}")
         wd_ms = int(round(watchdog_s * 1000))
@@ -103,6 +137,9 @@ class SphereEmulator:
         self._pwm = np.zeros(n_leds, dtype=np.int64)
         self._light = False
         self._light_since: Optional[float] = None
+        self._off_at: Optional[float] = None            # ON <ms>: when the light goes off by itself
+        self._record: list[LightInterval] = []
+        self._cause = ""
         self._on_time = np.zeros(n_leds)
         self._dose = np.zeros(n_leds)
         self._health = np.ones(n_leds)
@@ -158,7 +195,7 @@ class SphereEmulator:
             self._advance(self._clock())
             self._pwm[:] = 0
             self._set_light(False)
-            self._settle()
+            self._settle("power off")
 
     def _close_pty(self) -> None:
         self._stop.set()
@@ -227,10 +264,17 @@ class SphereEmulator:
             with self._lock:
                 self._advance(self._clock())
 
-    def _on_line(self, line: bytes, too_long: bool = False) -> None:
+    def _active_faults(self, line: bytes) -> dict[str, dict[str, Any]]:
+        """The wire faults that apply to this request line (those with ``keywords`` only for their keywords)."""
         with self._lock:
             faults = dict(self._faults)
-        hung = "no_reply" in faults and not faults["no_reply"].get("execute", True)
+        keyword = line.split(b" ", 1)[0].strip().upper().decode("ascii", "replace")
+        return {name: params for name, params in faults.items()
+                if params.get("keywords") is None or keyword in params["keywords"]}
+
+    def _on_line(self, line: bytes, too_long: bool = False) -> None:
+        faults = self._active_faults(line)
+        hung = "ignore" in faults or ("no_reply" in faults and not faults["no_reply"].get("execute", True))
         if hung:
             log.debug("emulator hung: ignoring %r", line)
             return
@@ -279,9 +323,10 @@ class SphereEmulator:
         """Start a fault (see the module docstring), or clear them all with ``None``."""
         if fault is None:
             with self._lock:
+                self._advance(self._clock())
                 self._faults.clear()
                 self._failed.clear()
-                self._settle()
+                self._settle("fault cleared")
             log.info("sphere emulator: faults cleared")
             return
         if fault not in FAULTS:
@@ -298,12 +343,18 @@ class SphereEmulator:
             with self._lock:
                 self._advance(self._clock())
                 self._failed[led] = mode
-                self._settle()
+                self._settle("fault")
             return
         if fault == "slow" and float(params.get("delay_s", 1.0)) <= 0:
             raise ValueError("slow needs delay_s > 0")
+        params = dict(params)
+        if params.get("keywords") is not None:
+            params["keywords"] = frozenset(str(k).upper() for k in params["keywords"])
+            unknown = params["keywords"] - set(P.BY_KEYWORD)
+            if unknown:
+                raise ValueError(f"{fault}: unknown keywords {sorted(unknown)}")
         with self._lock:
-            self._faults[fault] = dict(params)
+            self._faults[fault] = params
 
     # ------------------------------------------------------------------------------------------ physics
     def _emitting(self) -> np.ndarray:
@@ -315,25 +366,52 @@ class SphereEmulator:
     def _emitted(self) -> np.ndarray:
         return np.where(self._emitting(), self._pwm / P.PWM_MAX * self._health, 0.0)
 
-    def _settle(self) -> None:
-        """After a state change: LEDs that stopped emitting have no continuous on-time any more."""
+    def _settle(self, cause: str = "") -> None:
+        """After a state change (at clock time ``self._t``): LEDs that stopped emitting have no continuous on-time
+        any more, and the light record follows what is emitted now."""
         self._on_time[~self._emitting()] = 0.0
+        self._record_light(cause or self._cause)
+
+    def _record_light(self, cause: str) -> None:
+        emitting = self._emitting()
+        levels = tuple(float(p) / P.PWM_MAX if on else 0.0 for p, on in zip(self._pwm, emitting))
+        current = self._record[-1] if self._record and self._record[-1].t_off is None else None
+        if current is not None and current.levels == levels:
+            return
+        if current is not None:
+            current.t_off = self._t
+            current.ended_by = "levels changed" if any(levels) else cause
+        if any(levels):
+            self._record.append(LightInterval(self._t, None, levels))
 
     def _advance(self, now: float) -> None:
-        """Bring the physical state to clock time ``now`` (watchdog trip at its exact moment)."""
+        """Bring the physical state to clock time ``now`` (watchdog trip and on-time limit at their exact moment)."""
         if now <= self._t:
             return
-        if self._light or self._pwm.any():
-            trip_at = self._last_rx + self._watchdog_ms / 1000
-            if trip_at < now:
-                if trip_at > self._t:
-                    self._integrate(trip_at)
-                self._trip_watchdog()
+        while True:
+            due = []
+            if self._light or self._pwm.any():
+                due.append((self._last_rx + self._watchdog_ms / 1000, self._trip_watchdog))
+            if self._light and self._off_at is not None:
+                due.append((self._off_at, self._limit_reached))
+            due = [d for d in due if d[0] < now]
+            if not due:
+                break
+            at, event = min(due, key=lambda d: d[0])
+            if at > self._t:
+                self._integrate(at)
+            event()
         self._integrate(now)
         if self._light and self._temp > self.over_temperature_c:
             log.warning("sphere emulator: over temperature (%.1f C): light off", self._temp)
             self._set_light(False)
-            self._settle()
+            self._settle("over-temperature")
+
+    def _limit_reached(self) -> None:
+        log.warning("sphere emulator: on-time limit reached: light off")
+        self._set_light(False)
+        self._trip = True
+        self._settle("on-time limit")
 
     def _integrate(self, t1: float) -> None:
         dt = t1 - self._t
@@ -353,13 +431,14 @@ class SphereEmulator:
         self._pwm[:] = 0
         self._set_light(False)
         self._trip = True
-        self._settle()
+        self._settle("watchdog")
 
     def _set_light(self, on: bool) -> None:
         if on and not self._light:
             self._light_since = self._t
         if not on:
             self._light_since = None
+            self._off_at = None
         self._light = on
 
     def _fault_mask(self) -> int:
@@ -395,6 +474,18 @@ class SphereEmulator:
             self._advance(self._clock())
             return self._pwm / P.PWM_MAX
 
+    def light_record(self) -> list[LightInterval]:
+        """Every lit period since the emulator was made, oldest first, on its own clock (copies; the last one
+        has ``t_off=None`` while the sphere is lit)."""
+        with self._lock:
+            self._advance(self._clock())
+            return [dataclasses.replace(i) for i in self._record]
+
+    @property
+    def clock(self) -> Callable[[], float]:
+        """The emulator's clock (light_record times; the virtual camera can share it)."""
+        return self._clock
+
     @property
     def watchdog_s(self) -> float:
         return self._watchdog_ms / 1000
@@ -415,11 +506,13 @@ class SphereEmulator:
             self.requests.append(line)
             try:
                 cmd, args = P.parse_request(line)
+                if not P.supports(cmd, self.firmware):
+                    raise P.RequestError(P.ErrorCode.UNKNOWN_COMMAND, f"unknown command {cmd.keyword}")
                 values = getattr(self, f"_cmd_{cmd.name}")(**args)
             except P.RequestError as exc:
                 log.debug("emulator: %r -> ERR %d %s", line, exc.code, exc.message)
                 return P.render_error(exc.code, exc.message)
-            self._settle()
+            self._settle(_cause_of(line))
             return cmd.render_reply(**(values or {}))
 
     def _led(self, led: int) -> int:
@@ -467,6 +560,11 @@ class SphereEmulator:
             self._trip = False
         self._set_light(bool(state))
         return {"state": state}
+
+    def _cmd_light_on_for(self, ms: int) -> dict:
+        self._cmd_set_light(1)
+        self._off_at = self._light_since + ms / 1000         # counted from when it came on: never extended
+        return {"ms": ms}
 
     def _cmd_get_light(self) -> dict:
         return {"state": int(self._light)}

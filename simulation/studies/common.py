@@ -19,6 +19,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from simulation.atomic_io import atomic_output, atomic_write
 from simulation.datasets import SimulationSetup, default_setup
 from simulation.grid import SpectralGrid
 from simulation.objective import Evaluator
@@ -150,7 +151,7 @@ class StudyOutput:
 
     def write_json(self, name: str, data: Any) -> Path:
         path = self.folder / name
-        path.write_text(json.dumps(to_jsonable(data), indent=2) + "\n", encoding="utf-8")
+        atomic_write(path, json.dumps(to_jsonable(data), indent=2) + "\n")
         self.files.append(path)
         return path
 
@@ -159,13 +160,14 @@ class StudyOutput:
 
         path = self.folder / name
         FigureCanvasAgg(fig)
-        fig.savefig(path, dpi=110)
+        with atomic_output(path, "wb") as fh:
+            fig.savefig(fh, format="png", dpi=110)
         self.files.append(path)
         return path
 
     def write_summary(self, title: str, lines: list[str]) -> Path:
         path = self.folder / "SUMMARY.md"
-        path.write_text(f"# {title}\n\n" + "\n".join(lines).rstrip() + "\n", encoding="utf-8")
+        atomic_write(path, f"# {title}\n\n" + "\n".join(lines).rstrip() + "\n")
         self.files.append(path)
         return path
 

@@ -285,9 +285,9 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     out.write_json("parsimony_study.json", result.to_json())
     out.write_json("parsimony.json", result.defaults())
     if defaults_path:
-        from pathlib import Path
+        from simulation.atomic_io import atomic_write
 
-        Path(defaults_path).write_text(json.dumps(result.defaults(), indent=2) + "\n", encoding="utf-8")
+        atomic_write(defaults_path, json.dumps(result.defaults(), indent=2) + "\n")
     out.save_figure(parsimony_chart(result), "parsimony.png")
     s = result.steps
     lines = [f"Setup: {result.spec.label()}; tolerance {result.config.tolerance} mean dE00; total "

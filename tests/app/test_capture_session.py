@@ -156,6 +156,7 @@ WRITER = textwrap.dedent("""
 
 def test_sigkill_mid_writes_loses_nothing_recorded(tmp_path):
     s = CaptureSession.create(tmp_path / "s")
+    s.close()                                      # the writer process takes the session's lock
     code = WRITER.format(root=str(ROOT), path=str(s.path))
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
     confirmed = []

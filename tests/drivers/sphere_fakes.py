@@ -65,7 +65,10 @@ def expected_protocol(pairs: Sequence[tuple[bytes, Optional[bytes]]], timeout: f
     """A LedSphere on a ScriptedSerial; on leaving the block every scripted exchange must have happened."""
     port = ScriptedSerial(pairs)
     sphere = LedSphere(port, timeout=timeout, **kwargs)
-    yield sphere
+    try:
+        yield sphere
+    finally:
+        sphere.close(leave_on=True)         # stops the on-time supervisor: no requests after the script
     assert port.done, f"only {port.index} of {len(port.pairs)} scripted exchanges happened: {port.written}"
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import random
+import re
 from pathlib import Path
 
 import pytest
@@ -17,8 +18,8 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "led-sphere-protocol.md"
 
 # (driver call, [(request bytes, reply bytes)], expected return value)
 EXCHANGES = [
-    (lambda s: s.identify(), [(b"IDN?\n", b"OK IDN DRGB-SPHERE10 1.0.0 SN0001\n")],
-     {"model": "DRGB-SPHERE10", "firmware": "1.0.0", "serial": "SN0001"}),
+    (lambda s: s.identify(), [(b"IDN?\n", b"OK IDN DRGB-SPHERE10 1.1.0 SN0001\n")],
+     {"model": "DRGB-SPHERE10", "firmware": "1.1.0", "serial": "SN0001"}),
     (lambda s: s.channel_count(), [(b"CHANNELS?\n", b"OK CHANNELS 10\n")], 10),
     (lambda s: s.set_level(4, 0.5), [(b"LEVEL 4 32768\n", b"OK LEVEL 4 32768\n")], 32768 / 65535),
     (lambda s: s.set_level(10, 1.0), [(b"LEVEL 10 65535\n", b"OK LEVEL 10 65535\n")], 1.0),
@@ -33,7 +34,16 @@ EXCHANGES = [
     (lambda s: s.levels(), [(b"LEVELS?\n", b"OK LEVELS 0 0 0 65535 0 0 0 0 0 1\n")],
      [0, 0, 0, 1, 0, 0, 0, 0, 0, 1 / 65535]),
     (lambda s: s.all_off(), [(b"ALLOFF\n", b"OK ALLOFF\n")], None),
-    (lambda s: s.on(), [(b"LIGHT 1\n", b"OK LIGHT 1\n"), (b"FAULT?\n", b"OK FAULT 0\n")], None),
+    (lambda s: s.on().max_on_s, [(b"ON 10000\n", b"OK ON 10000\n"), (b"FAULT?\n", b"OK FAULT 0\n")], 10.0),
+    (lambda s: s.on(max_on_s=0.2505).device_limit, [(b"ON 251\n", b"OK ON 251\n"), (b"FAULT?\n", b"OK FAULT 0\n")],
+     True),
+    # firmware 1.0 does not know ON: the watchdog set to the limit is its backstop, then LIGHT 1 (and only that
+    # from then on)
+    (lambda s: (s.on(max_on_s=2).device_limit, s.on(max_on_s=2).device_limit),
+     [(b"ON 2000\n", b"ERR 1 unknown command ON\n"), (b"WDOG 2000\n", b"OK WDOG 2000\n"),
+      (b"LIGHT 1\n", b"OK LIGHT 1\n"), (b"FAULT?\n", b"OK FAULT 0\n"),
+      (b"WDOG 2000\n", b"OK WDOG 2000\n"), (b"LIGHT 1\n", b"OK LIGHT 1\n"), (b"FAULT?\n", b"OK FAULT 0\n")],
+     (False, False)),
     (lambda s: s.off(), [(b"LIGHT 0\n", b"OK LIGHT 0\n")], None),
     (lambda s: s.light_on(), [(b"LIGHT?\n", b"OK LIGHT 1\n")], True),
     (lambda s: s.temperature_c(), [(b"TEMP?\n", b"OK TEMP 27.31\n")], 27.31),
@@ -49,8 +59,9 @@ EXCHANGES = [
      [(b"STATUS?\n", b"OK STATUS light=1 ontime=2.250 temp=25.10 wdog=30000 trip=0 fault=8\n"),
       (b"LEVELS?\n", b"OK LEVELS 0 0 0 65535 0 0 0 0 0 0\n")],
      {"light_on": True, "levels": [0, 0, 0, 1.0, 0, 0, 0, 0, 0, 0], "temperature_c": 25.1, "on_time_s": None,
-      "device_on_time_s": 2.25,
-      "watchdog_s": 30.0, "watchdog_tripped": False, "faulty_leds": [4]}),
+      "device_on_time_s": 2.25, "watchdog_s": 30.0, "watchdog_tripped": False, "faulty_leds": [4],
+      # lit by someone else 2.25 s ago: the host's 10 s limit applies to it too
+      "off_in_s": pytest.approx(7.75, abs=0.1), "max_on_s": 10.0}),
 ]
 
 
@@ -142,12 +153,24 @@ def test_overlong_reply_is_garbled():
 @pytest.mark.parametrize("code", list(P.ErrorCode))
 def test_device_error_codes_give_advice(code):
     reply = P.render_error(code, "something")
-    with expected_protocol([(b"LIGHT 1\n", reply)]) as sphere:
+    with expected_protocol([(b"LEVEL 1 32768\n", reply)]) as sphere:
         with pytest.raises(SphereError) as info:
-            sphere.on()
+            sphere.set_level(1, 0.5)
     err = info.value
     assert err.kind == "device" and err.code == code
     assert f"error {int(code)}" in str(err) and P.ERROR_ADVICE[code] in str(err)
+
+
+def test_a_refused_on_switches_off_and_says_so():
+    pairs = [(b"ON 10000\n", P.render_error(P.ErrorCode.OVER_TEMPERATURE, "temperature 46.2 C, light stays off")),
+             (b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")]
+    with expected_protocol(pairs) as sphere:
+        with pytest.raises(SphereError) as info:
+            sphere.on()
+    err = info.value
+    assert err.code == P.ErrorCode.OVER_TEMPERATURE and err.light == "off"
+    assert str(err).endswith("all LEDs and the light were switched off")
+    assert err.period is not None and err.period.confirmed_off
 
 
 def test_unknown_device_error_code():
@@ -158,16 +181,17 @@ def test_unknown_device_error_code():
 
 
 def test_fault_after_light_on_switches_off_and_raises():
-    pairs = [(b"LIGHT 1\n", b"OK LIGHT 1\n"), (b"FAULT?\n", b"OK FAULT 8\n"),
+    pairs = [(b"ON 10000\n", b"OK ON 10000\n"), (b"FAULT?\n", b"OK FAULT 8\n"),
              (b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")]
     with expected_protocol(pairs) as sphere:
         with pytest.raises(SphereError, match="LED 4 reports a fault") as info:
             sphere.on()
-    assert info.value.kind == "fault"
+    assert info.value.kind == "fault" and info.value.light == "off"
+    assert "all LEDs and the light were switched off" in str(info.value)
 
 
 def test_apply_while_on_checks_faults():
-    pairs = [(b"LIGHT 1\n", b"OK LIGHT 1\n"), (b"FAULT?\n", b"OK FAULT 0\n"),
+    pairs = [(b"ON 10000\n", b"OK ON 10000\n"), (b"FAULT?\n", b"OK FAULT 0\n"),
              (b"LEVELS 0 65535 0 0 0 0 0 0 0 0\n", b"OK LEVELS 0 65535 0 0 0 0 0 0 0 0\n"),
              (b"FAULT?\n", b"OK FAULT 0\n")]
     with expected_protocol(pairs) as sphere:
@@ -235,7 +259,7 @@ def test_invalid_arguments_elsewhere_send_nothing():
 
 # ---------------------------------------------------------------------------------------------- safety
 def test_context_manager_switches_off_on_exception():
-    port = ScriptedSerial([(b"LEVEL 3 65535\n", b"OK LEVEL 3 65535\n"), (b"LIGHT 1\n", b"OK LIGHT 1\n"),
+    port = ScriptedSerial([(b"LEVEL 3 65535\n", b"OK LEVEL 3 65535\n"), (b"ON 10000\n", b"OK ON 10000\n"),
                            (b"FAULT?\n", b"OK FAULT 0\n"),
                            (b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")])
     with pytest.raises(KeyError):
@@ -276,16 +300,42 @@ def test_off_failure_during_exception_is_noted_not_hidden():
     assert port.done        # LIGHT 0 was still tried after ALLOFF failed
 
 
-def test_off_failure_on_normal_exit_raises():
-    port = ScriptedSerial([(b"ALLOFF\n", None), (b"ALLOFF\n", None), (b"LIGHT 0\n", b"OK LIGHT 0\n")])
-    with pytest.raises(SphereError, match="watchdog"):
-        with LedSphere(port, timeout=0.05):
-            pass
+def test_off_failure_on_normal_exit_raises_and_says_the_light_is_off():
+    port = ScriptedSerial([(b"PING\n", b"OK PING\n"), (b"ALLOFF\n", None), (b"ALLOFF\n", None),
+                           (b"LIGHT 0\n", b"OK LIGHT 0\n")])
+    with pytest.raises(SphereError, match="the light was switched off .LIGHT 0 answered. but the LED levels were "
+                                          "not zeroed") as info:
+        with LedSphere(port, timeout=0.05) as sphere:
+            sphere.keepalive()
+    assert info.value.light == "off"
+
+
+def test_off_unconfirmed_says_unknown_and_what_the_sphere_guarantees():
+    port = ScriptedSerial([(b"ON 10000\n", b"OK ON 10000\n"), (b"FAULT?\n", b"OK FAULT 0\n"),
+                           (b"ALLOFF\n", None), (b"ALLOFF\n", None), (b"LIGHT 0\n", None), (b"LIGHT 0\n", None)])
+    sphere = LedSphere(port, timeout=0.05)
+    sphere.on()
+    report = sphere.ensure_off()
+    assert not report.off and report.error.kind == "timeout"
+    assert "the light's state is unknown" in report.message
+    assert re.search(r"the sphere switches it off by itself at most 10 s after it came on \(in (9\.\d|10\.0) s\), "
+                     r"the limit sent with ON", report.message)
+    sphere.close(leave_on=True)
+
+
+def test_a_port_that_never_answered_is_switched_off_without_waiting():
+    port = ScriptedSerial([(b"IDN?\n", None), (b"IDN?\n", None), (b"ALLOFF\n", None), (b"LIGHT 0\n", None)])
+    sphere = LedSphere(port, timeout=0.05)
+    with pytest.raises(SphereError):
+        sphere.identify()
+    report = sphere.ensure_off()
+    assert port.done and not report.off and report.error is None
+    assert "never answered like an LED sphere" in report.message and "sent without waiting" in report.message
 
 
 def test_host_on_time_uses_the_clock():
     clock = FakeClock()
-    pairs = [(b"LIGHT 1\n", b"OK LIGHT 1\n"), (b"FAULT?\n", b"OK FAULT 0\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")]
+    pairs = [(b"ON 10000\n", b"OK ON 10000\n"), (b"FAULT?\n", b"OK FAULT 0\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")]
     with expected_protocol(pairs, clock=clock) as sphere:
         assert sphere.on_time_s() == 0.0
         sphere.on()

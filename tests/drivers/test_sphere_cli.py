@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -42,18 +43,20 @@ def assert_one_line_error(rc, err):
 def write_preset(path: Path) -> Path:
     path.write_text(json.dumps({"format": "dualrgb-preset/1", "name": "test",
                                 "sources": [{"leds": [1, 6, 8], "levels": [1.0, 0.5, 0.25]},
-                                            {"leds": [3, 5, 9]}]}), encoding="utf-8")
+                                            {"leds": [3, 5, 9], "levels": [1.0, 1.0, 1.0]}]}),
+                    encoding="utf-8")
     return path
 
 
 def test_identify_status_set_on_off(emu, capsys):
     rc, out, _ = run(emu, "identify", capsys=capsys)
-    assert rc == 0 and out == "model DRGB-SPHERE10-EMU, firmware 1.0.0, serial EMU-0001\n"
+    assert rc == 0 and out == "model DRGB-SPHERE10-EMU, firmware 1.1.0, serial EMU-0001\n"
     rc, out, _ = run(emu, "set", "4", "0.5", capsys=capsys)
     assert rc == 0 and out == "LED 4 level 0.5000\n"
     assert emu.commanded_levels()[3] == pytest.approx(0.5, abs=1e-4)
     rc, out, _ = run(emu, "on", capsys=capsys)
-    assert rc == 0 and out == "light on\n" and emu.snapshot().levels[3] > 0.49
+    assert rc == 0 and out == "light on for at most 10 s (the sphere switches it off by itself)\n"
+    assert emu.snapshot().levels[3] > 0.49
     rc, out, _ = run(emu, "status", capsys=capsys)
     assert rc == 0 and "light_on: True" in out and "levels: 0.0000 0.0000 0.0000 0.5000" in out
     rc, out, _ = run(emu, "off", capsys=capsys)
@@ -76,11 +79,14 @@ def test_apply_preset_sources(emu, capsys, tmp_path):
 
 
 @pytest.mark.parametrize("args", [["set", "11", "0.5"], ["set", "3", "1.5"], ["set", "3", "nan"]])
-def test_bad_values_one_line_error_and_leds_off(emu, capsys, args):
+def test_bad_values_refused_while_parsing_and_leds_off(emu, capsys, args):
     assert run(emu, "set", "2", "1.0", capsys=capsys)[0] == 0
     assert run(emu, "on", capsys=capsys)[0] == 0
-    rc, _, err = run(emu, *args, capsys=capsys)
-    assert_one_line_error(rc, err)
+    with pytest.raises(SystemExit) as info:
+        run(emu, *args, capsys=capsys)
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert info.value.code == 2 and "Traceback" not in last
+    assert "error: argument " in last and last.endswith("; all LEDs and the light were switched off")
     assert not emu.snapshot().light_on and emu.commanded_levels().sum() == 0
 
 
@@ -90,7 +96,11 @@ def test_failure_mid_way_leaves_leds_off(emu, capsys, tmp_path):
     emu.inject("no_reply")              # replies lost; the sphere still obeys the off requests
     rc, _, err = run(emu, "apply", str(write_preset(tmp_path / "p.json")), capsys=capsys, timeout="0.2")
     assert_one_line_error(rc, err)
-    assert "no reply" in err
+    assert "no reply" in err and "the light's state is unknown" in err
+    # ALLOFF and LIGHT 0 were written without waiting (this port never answered): the sphere obeys them at once
+    deadline = time.monotonic() + 1.0
+    while emu.snapshot().light_on and time.monotonic() < deadline:
+        time.sleep(0.01)
     assert not emu.snapshot().light_on and emu.commanded_levels().sum() == 0
 
 
@@ -139,8 +149,9 @@ def test_subprocess_emulator_and_cli():
         assert ok.returncode == 0 and ok.stdout.startswith("model DRGB-SPHERE10-EMU"), ok
         bad = subprocess.run(cmd + ["sphere", "--port", port, "--timeout", "1", "set", "12", "1"], cwd=ROOT,
                              env=env, capture_output=True, text=True, timeout=60)
-        assert bad.returncode == 1 and bad.stdout == ""
-        assert len(bad.stderr.strip().splitlines()) == 1 and bad.stderr.startswith("dualrgb: error: LED 12")
+        assert bad.returncode == 2 and bad.stdout == ""
+        last = bad.stderr.strip().splitlines()[-1]
+        assert "argument led: '12'" in last and last.endswith("all LEDs and the light were switched off")
     finally:
         server.send_signal(signal.SIGINT)
         try:

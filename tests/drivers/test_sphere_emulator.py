@@ -82,7 +82,7 @@ def test_error_codes(line, code):
 def test_lenient_request_forms():
     emu, _ = _emu()
     assert _ok(emu, b"level  4   100") == b"OK LEVEL 4 100\n"
-    assert _ok(emu, b"idn?") == b"OK IDN DRGB-SPHERE10-EMU 1.0.0 EMU-0001\n"
+    assert _ok(emu, b"idn?") == b"OK IDN DRGB-SPHERE10-EMU 1.1.0 EMU-0001\n"
 
 
 def test_every_command_round_trips_through_the_emulator():
@@ -367,3 +367,84 @@ def test_a_faulty_led_outside_the_preset_does_not_block(lab):
         with pytest.raises(SphereError, match="LED 10 reports a fault"):
             sphere.set_levels([0] * 9 + [1])
         assert not emu.snapshot().light_on
+
+
+# ---------------------------------------------------------------------------------------------- on-time limit
+def test_on_limit_switches_off_at_the_exact_moment_whatever_arrives_meanwhile():
+    emu, clock = _emu(watchdog_s=3600)
+    _ok(emu, b"LEVEL 1 65535")
+    t_on = clock()
+    assert emu.handle(b"ON 2500") == b"OK ON 2500\n"
+    for _ in range(4):                               # polls, pings and a repeated ON never extend the period
+        clock.advance(0.5)
+        for line in (b"STATUS?", b"PING", b"ON 2500", b"LIGHT 1"):
+            _ok(emu, line)
+    assert emu.snapshot().light_on
+    clock.advance(1.0)
+    snap = emu.snapshot()
+    assert not snap.light_on and emu.watchdog_tripped and b"trip=1" in emu.handle(b"STATUS?")
+    assert emu.light_dose()[0] == pytest.approx(2.5)
+    (lit,) = emu.light_record()
+    assert (lit.t_on, lit.t_off, lit.ended_by) == (t_on, pytest.approx(t_on + 2.5), "on-time limit")
+    assert emu.commanded_levels()[0] == 1.0          # LIGHT 0 semantics: levels kept
+
+
+def test_light_0_ends_the_limit_and_a_new_on_starts_a_new_one():
+    emu, clock = _emu(watchdog_s=3600)
+    _ok(emu, b"LEVEL 2 65535")
+    _ok(emu, b"ON 1000")
+    clock.advance(0.5)
+    _ok(emu, b"LIGHT 0")
+    clock.advance(0.1)
+    _ok(emu, b"ON 1000")
+    clock.advance(0.9)
+    assert emu.snapshot().light_on                  # 0.9 s into the second period
+    clock.advance(0.2)
+    assert not emu.snapshot().light_on
+    assert [(i.duration_s, i.ended_by) for i in emu.light_record()] == [
+        (pytest.approx(0.5), "LIGHT 0"), (pytest.approx(1.0), "on-time limit")]
+
+
+def test_light_record_splits_on_level_changes_and_names_the_cause():
+    emu, clock = _emu(watchdog_s=30)
+    _ok(emu, b"LEVEL 1 65535")
+    _ok(emu, b"LIGHT 1")
+    clock.advance(1)
+    _ok(emu, b"LEVEL 2 32768")
+    clock.advance(1)
+    _ok(emu, b"ALLOFF")
+    _ok(emu, b"LEVEL 3 65535")
+    clock.advance(31)                                # the watchdog ends the third period
+    record = emu.light_record()
+    assert [i.ended_by for i in record] == ["levels changed", "ALLOFF", "watchdog"]
+    assert record[0].t_off == record[1].t_on and record[1].levels[1] == pytest.approx(0.5, abs=1e-4)
+    assert record[2].duration_s == pytest.approx(30.0)
+
+
+def test_old_firmware_does_not_know_on():
+    emu, _ = _emu(firmware="1.0.0")
+    assert emu.handle(b"ON 1000") == b"ERR 1 unknown command ON\n"
+    assert not emu.snapshot().light_on
+    assert emu.handle(b"IDN?") == b"OK IDN DRGB-SPHERE10-EMU 1.0.0 EMU-0001\n"
+    with pytest.raises(ValueError):
+        SphereEmulator(firmware="new")
+
+
+def test_wire_faults_for_some_keywords_only(lab):
+    emu, clock, port = lab
+    emu.inject("no_reply", keywords=["ON"])          # obeyed, not answered
+    emu.inject("ignore", keywords=["light"])         # LIGHT ... neither obeyed nor answered
+    sphere = LedSphere(port, timeout=0.2).open()
+    try:
+        sphere.set_level(1, 1.0)                     # LEVEL is answered
+        with pytest.raises(SphereError, match="no reply to 'ON 10000'") as info:
+            sphere.on()
+    finally:
+        sphere.close(leave_on=True)
+    assert info.value.light == "off" and "every LED was set to 0 (ALLOFF answered), so nothing is lit, but the " \
+        "light switch did not answer: LED sphere" in str(info.value) and "no reply to 'LIGHT 0'" in str(info.value)
+    snap = emu.snapshot()
+    assert snap.light_on and not snap.levels.any()   # master still on, but ALLOFF (answered) darkened it
+    assert [i.ended_by for i in emu.light_record()] == ["ALLOFF"]
+    with pytest.raises(ValueError, match="unknown keywords"):
+        emu.inject("garbled", keywords=["NOPE"])

@@ -67,10 +67,15 @@ def test_demo_resumes_after_kill_without_reshooting(tmp_path):
     assert manifest.exists()
     before = len(manifest.read_text().splitlines())
     assert before > 0
+    dosed_before = [json.loads(l)["on_s"] for l in manifest.read_text().splitlines()[:-1]
+                    if json.loads(l).get("kind") == "dose"]
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["lost_frames"] == 0 and report["session_valid"]
     lines = [json.loads(l) for l in manifest.read_text().splitlines() if l.strip()]
-    steps = [l["step_id"] for l in lines if l.get("step_id")]
+    steps = [l["step_id"] for l in lines if l.get("step_id") and l.get("kind", "frame") == "frame"]
     assert len(steps) == len(set(steps))           # nothing shot twice
+    doses = [l["on_s"] for l in lines if l.get("kind") == "dose"]
+    assert dosed_before and doses[:len(dosed_before)] == dosed_before     # the killed run's light is counted
+    assert report["light_dose"]["on_s"] == pytest.approx(sum(doses), abs=2e-3)

@@ -110,9 +110,9 @@ def test_sphere_fault_stops_cleanly_with_session_valid(shooter, lab, fault):
 def test_camera_gone_mid_sequence_turns_lights_off(shooter, lab, monkeypatch):
     def gone(*_a, **_k):
         raise CameraError("[-52] camera disappeared: reconnect it", code=-52)
-    monkeypatch.setattr(lab.camera, "capture", gone)
+    monkeypatch.setattr(lab.camera, "expose", gone)
     seq = TargetCapture(shooter, [LS1], {"LS1": [1 / 80]}, "test")
-    with pytest.raises(CameraError):
+    with pytest.raises(CameraError, match="camera disappeared.*; the light was switched off$"):
         list(seq.run())
     assert lights_off(lab) and shooter.session.verify().valid
 

@@ -45,7 +45,7 @@ def test_bad_csv_is_one_line_error_without_traceback(tmp_path):
 @pytest.mark.parametrize("text,fragment", [
     ("{", "not valid JSON"),
     ('{"sources": []}', "non-empty 'sources'"),
-    ('{"sources": [{"leds": [11], "levels": [1]}]}', "source 1: light source"),
+    ('{"sources": [{"leds": [11], "levels": [1]}]}', "source 1: LED 11 is outside"),
 ])
 def test_bad_presets(tmp_path, text, fragment):
     p = tmp_path / "p.json"

@@ -308,6 +308,7 @@ def test_cli_unbinned_serial_and_errors(tmp_path, capsys):
     data = json.loads((out / "unbinned.json").read_text())
     assert data["pairs"] == 500 and len(data["top"]) == 3 and data["binned_best"]["source1"] == [1, 6, 8]
     assert (out / "unbinned.png").exists() and (out / "SUMMARY.md").exists()
-    assert main(["study", "unbinned", "--scheduler", "serial", "--camera-csv", str(tmp_path / "nope.csv"),
-                 "--out", str(out)]) == 1
-    assert "nope.csv" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:       # refused while parsing (app.commands.options.input_file)
+        main(["study", "unbinned", "--scheduler", "serial", "--camera-csv", str(tmp_path / "nope.csv"),
+              "--out", str(out)])
+    assert info.value.code == 2 and "nope.csv': no such file" in capsys.readouterr().err

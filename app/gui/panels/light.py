@@ -121,7 +121,9 @@ class LightPanel(QWidget):
         switch_box = QGroupBox("Light")
         sl = QGridLayout(switch_box)
         self.on_button = QPushButton("Light ON")
-        self.on_button.setToolTip("Switch the sphere's light on with the levels last applied.")
+        self.on_button.setToolTip(f"Switch the sphere's light on with the levels last applied, for at most "
+                                  f"{self.lab.manual_max_on_s:g} s: it then goes off by itself (light on the "
+                                  "object is damage; captures switch it on only for their exposures).")
         self.on_button.clicked.connect(lambda: self.lab.set_light_on(True))
         self.off_button = QPushButton("Light OFF")
         self.off_button.setToolTip("Every LED to 0 and the light off (protects the object).")
@@ -269,8 +271,10 @@ class LightPanel(QWidget):
         text = f"light {'ON' if on else 'off'} on {status.get('port', '')}"
         if faulty:
             text += f"; LED {', '.join(map(str, faulty))} faulty"
+        if on and status.get("off_in_s") is not None:
+            text += f", goes off by itself in {status['off_in_s']:.0f} s"
         if status.get("watchdog_tripped"):
-            text += "; the watchdog switched it off (no requests for too long)"
+            text += "; the sphere switched it off by itself (on-time limit or watchdog)"
         self.state_label.setText(text)
         self.state_label.setStyleSheet("color:#b26a00; font-weight:bold" if on else "")
         self.on_time_label.setText(f"on-time: {format_duration(status.get('on_time_s')) if on else '—'}")

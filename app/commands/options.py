@@ -1,0 +1,103 @@
+"""The argparse ``type=`` validators every ``dualrgb`` command uses: each option is checked while the command
+line is parsed, before any device acts (a bad ``--dark-frames`` must not cost metering frames under the
+lights), and a bad value gives argparse's one-line ``argument --x: ...`` error naming the value and the range.
+
+    p.add_argument("--timeout", type=seconds(0.01, 120), default=3.0)
+    p.add_argument("--dark-frames", type=count(1, 200), default=10)
+    p.add_argument("--frame-size", type=frame_size, default=(600, 400))
+    p.add_argument("--leds-csv", type=input_file)
+
+Numbers are finite (``inf``/``nan`` refused), integers are whole (``2.5`` refused), bounds are inclusive.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import stat
+from typing import Callable, Optional
+
+# the virtual camera renders the whole frame in memory; the D610's own raw is 6080 x 4028
+MIN_FRAME_SIDE, MAX_FRAME_SIDE = 64, 8192
+MAX_SEED = 2**32 - 1                      # numpy's SeedSequence accepts any non-negative int; keep it portable
+
+
+def _fail(text: str, problem: str) -> argparse.ArgumentTypeError:
+    return argparse.ArgumentTypeError(f"{text!r}: {problem}")
+
+
+def _limits(lo: Optional[float], hi: Optional[float]) -> str:
+    if lo is not None and hi is not None:
+        return f"from {lo:g} to {hi:g}"
+    return f"at least {lo:g}" if lo is not None else f"at most {hi:g}"
+
+
+def number(lo: Optional[float] = None, hi: Optional[float] = None, *, above: Optional[float] = None,
+           unit: str = "") -> Callable[[str], float]:
+    """A finite float in [lo, hi]; ``above``: strictly greater than it (e.g. a positive time)."""
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise _fail(text, f"expected a number{unit}") from None
+        if not math.isfinite(v):
+            raise _fail(text, f"expected a finite number{unit}")
+        if above is not None and not v > above:
+            raise _fail(text, f"expected more than {above:g}{unit}")
+        if (lo is not None and v < lo) or (hi is not None and v > hi):
+            raise _fail(text, f"expected {_limits(lo, hi)}{unit}")
+        return v
+    parse.__name__ = "number"              # argparse names the type in 'invalid <name> value' messages
+    return parse
+
+
+def seconds(lo: float, hi: float) -> Callable[[str], float]:
+    """A time in seconds from ``lo`` (> 0) to ``hi``."""
+    return number(lo, hi, above=0.0, unit=" s")
+
+
+def count(lo: int = 1, hi: Optional[int] = None) -> Callable[[str], int]:
+    """A whole number in [lo, hi]."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text, 10)
+        except ValueError:
+            raise _fail(text, "expected a whole number") from None
+        if v < lo or (hi is not None and v > hi):
+            raise _fail(text, f"expected a whole number {_limits(lo, hi)}")
+        return v
+    parse.__name__ = "count"
+    return parse
+
+
+seed = count(0, MAX_SEED)
+positive = count(1)
+
+
+def frame_size(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` with each side from 64 to 8192 pixels."""
+    try:
+        w, h = (int(x, 10) for x in text.lower().split("x"))
+    except ValueError:
+        raise _fail(text, "expected WIDTHxHEIGHT like 600x400") from None
+    for side in (w, h):
+        if not MIN_FRAME_SIDE <= side <= MAX_FRAME_SIDE:
+            raise _fail(text, f"expected each side from {MIN_FRAME_SIDE} to {MAX_FRAME_SIDE} pixels")
+    return w, h
+
+
+def input_file(text: str) -> str:
+    """An existing regular file (a folder, a FIFO or a device would hang or fail later)."""
+    try:
+        st = os.stat(text)
+    except FileNotFoundError:
+        raise _fail(text, "no such file") from None
+    except OSError as exc:
+        raise _fail(text, f"cannot read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        raise _fail(text, f"{kind}; expected a file")
+    return text
+
+
+__all__ = ["MAX_FRAME_SIDE", "count", "frame_size", "input_file", "number", "positive", "seconds", "seed"]

@@ -1,0 +1,30 @@
+"""Fixtures of the fault-injection suite (the marker and the reliability table: tests/faults/plugin.py): counting
+rigs, and the virtual lab with small frames and short light limits for the light-safety cases."""
+from __future__ import annotations
+
+import pytest
+
+from app.sequences.shooter import Shooter
+from app.session import CaptureSession
+from app.virtual_lab import VirtualLab
+from fault_rigs import CountingCamera, CountingSphere
+from light_record import FAST
+
+
+@pytest.fixture()
+def rig():
+    return CountingCamera(), CountingSphere()
+
+
+@pytest.fixture()
+def lab():
+    with VirtualLab(frame_size=(96, 64), timeout_s=0.3) as lab:
+        yield lab
+        lab.camera.inject(None)             # release a camera left hanging
+        lab.emulator.inject(None)
+
+
+@pytest.fixture()
+def shooter(lab, tmp_path):
+    session = CaptureSession.create(tmp_path / "session", {"test": "light safety"})
+    return Shooter(lab.camera, lab.sphere, session, stand=lab.place, safety=FAST)

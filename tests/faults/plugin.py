@@ -1,0 +1,96 @@
+"""The fault-injection suite's pytest plugin (loaded by tests/conftest.py).
+
+* ``@pytest.mark.fault("<category>")`` marks one fault-injection case (parametrize for many cases):
+  "light safety", "session integrity", "input" (issue 9). The mark takes exactly one category string.
+* ``pytest -m fault --reliability-table README.md`` (``make reliability``) runs the cases and writes the table
+  category | cases tried | clean between ``<!-- reliability:start -->`` and ``<!-- reliability:end -->``:
+  a case is *tried* when it ran (setup and call; skips are not counted) and *clean* when it passed, i.e.
+  the fault was handled the way the issue requires. The table is produced by the suite, never typed.
+"""
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+START, END = "<!-- reliability:start -->", "<!-- reliability:end -->"
+CATEGORIES = ("light safety", "session integrity", "input")
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--reliability-table", metavar="README", default=None,
+                     help="write the fault-injection table (category, cases tried, clean) into this file "
+                          f"between {START} and {END}")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "fault(category): a fault-injection case counted in README's reliability "
+                                       f"table; category is one of {', '.join(CATEGORIES)}")
+    config._fault_tried = Counter()      # type: ignore[attr-defined]
+    config._fault_clean = Counter()      # type: ignore[attr-defined]
+
+
+def fault_category(item: pytest.Item) -> str | None:
+    marks = list(item.iter_markers("fault"))
+    if not marks:
+        return None
+    mark = marks[0]
+    if len(mark.args) != 1 or not isinstance(mark.args[0], str) or mark.kwargs or not mark.args[0].strip():
+        raise pytest.UsageError(f"{item.nodeid}: @pytest.mark.fault takes one category string, e.g. "
+                                f"@pytest.mark.fault(\"input\")")
+    return mark.args[0].strip()
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        fault_category(item)             # a malformed mark fails the run at collection
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    outcome = yield
+    report = outcome.get_result()
+    category = fault_category(item)
+    if category is None or report.skipped:
+        return
+    if report.when == "call" or (report.when == "setup" and report.failed):
+        item.config._fault_tried[category] += 1          # type: ignore[attr-defined]
+        if report.passed:
+            item.config._fault_clean[category] += 1      # type: ignore[attr-defined]
+
+
+def render_table(tried: Counter, clean: Counter) -> str:
+    order = [c for c in CATEGORIES if c in tried] + sorted(c for c in tried if c not in CATEGORIES)
+    lines = ["| Category | Cases tried | Clean |", "| --- | ---: | ---: |"]
+    lines += [f"| {c} | {tried[c]} | {clean[c]} |" for c in order]
+    lines.append(f"| **all** | **{sum(tried.values())}** | **{sum(clean.values())}** |")
+    return "\n".join(lines)
+
+
+def replace_between_markers(text: str, table: str, path: str = "README") -> str:
+    if text.count(START) != 1 or text.count(END) != 1 or text.index(START) > text.index(END):
+        raise pytest.UsageError(f"{path}: needs one {START} line before one {END} line")
+    head, rest = text.split(START)
+    _, tail = rest.split(END)
+    note = ("Produced by `make reliability` (`pytest -m fault --reliability-table README.md`): every "
+            "`@pytest.mark.fault` case in tests/; a case is clean when the injected fault was handled as issue 9 "
+            "requires.")
+    return f"{head}{START}\n{table}\n\n{note}\n{END}{tail}"
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    target = session.config.getoption("--reliability-table")
+    tried = session.config._fault_tried                # type: ignore[attr-defined]
+    if not target or not tried:
+        return
+    from simulation.atomic_io import atomic_write
+
+    path = Path(target)
+    text = replace_between_markers(path.read_text(encoding="utf-8"), render_table(tried, session.config._fault_clean),
+                                   str(path))
+    atomic_write(path, text)
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.write_line(f"reliability table written to {path}: {sum(tried.values())} cases, "
+                            f"{sum(session.config._fault_clean.values())} clean")
