@@ -43,7 +43,7 @@ from simulation.characterisation import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
 from simulation.fast_expected import mean_expected_de2000, prepare_expected
-from simulation.objective import ErrorStats, Evaluator, kernel_threads
+from simulation.objective import ErrorStats, Evaluator, check_kernel_batch, kernel_threads
 
 log = logging.getLogger(__name__)
 
@@ -323,6 +323,7 @@ class ExpectedErrorEvaluator(Evaluator):
     def cost_indexed(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
         idx = np.ascontiguousarray(idx, dtype=np.int64)
         w = self.realise(w)
+        check_kernel_batch(idx, w, self.n_leds)          # prepare_expected indexes the LED tables blindly
         self.evaluations += w.shape[0]
         if self.capture.drift_sd_nm > 0:
             W = dense_weights(idx, w, self.n_leds)

@@ -382,7 +382,7 @@ def _predicted_vs_captured(ax, noise: ObjectivesResult) -> None:
     ax.plot([0, hi], [0, hi], "k--", lw=0.8)
     ax.set_xlabel("predicted training mean dE00")
     ax.set_ylabel(f"captured ({noise.capture}) training mean dE00")
-    ax.set_title("(d) predicted vs captured (exhaustive and default optima, both objectives)")
+    ax.set_title("(d) predicted vs captured, both modes and objectives")
     ax.legend(fontsize=6)
     ax.grid(True, alpha=0.3)
 
