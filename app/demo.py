@@ -1,6 +1,7 @@
 """The whole workflow, headless, on the virtual lab (``dualrgb demo``; Qt-free so the GUI can run it too).
 
-presets from the optimiser (exhaustive = dual-RGB, PSO = dual-RGB-PSO, NNLS D65 mix = 3-channel baseline)
+presets from the optimiser on the expected captured error of this capture (exhaustive = dual-RGB, the default
+successive-halving PSO = dual-RGB-PSO, realisable NNLS D65 mix = 3-channel baseline)
 -> the sphere emulator on a real pty + the virtual camera -> auto-exposure on the open gate -> (HDR plan on
 the ND-covered target) -> dark series at every exposure -> open-gate flats -> train and test captures ->
 master darks, eq 7.1 flat field / eq 8.9 HDR merge -> per-light superpixel images stacked to N channels ->

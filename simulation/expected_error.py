@@ -17,9 +17,10 @@ fit, E[V^T V] = V0^T V0 + D with D = diag(sum_j sigma_j^2) (errors-in-variables 
 a near-collinear light pair from "fitting" its noise), so the expected fit is A = (V0^T V0 + D)^-1 V0^T Y and
 its noise-free prediction error b_j = V0_j A - Y_j gives m_j = dE00 (exact formula). Around it the training
 prediction error of patch j has covariance
-  S_j = (1 - h_jj) [sum_c sigma_jc^2 A_c A_c^T + Sigma_ref,j] + sigma_d^2 sum_d e_j^(d) e_j^(d)T,
-h_jj the leverage of the ridge fit and e^(d) = (I - H) dV^(d) A the part of a drift direction the fit cannot
-absorb. CIEDE2000 is locally a quadratic form: dE00^2 ~ dx^T Q_j dx with Q_j = J_j^T T_j J_j (J_j: XYZ -> Lab
+  S_j = sum_c sigma_jc^2 A_c A_c^T + Sigma_ref,j + sigma_d^2 sum_d e_j^(d) e_j^(d)T,
+with e^(d) = (I - H) dV^(d) A the part of a drift direction d (one LED of one light) the fit cannot absorb (H:
+the ridge fit's hat matrix). The fit's own absorption of the noise (a (1 - h_jj) factor, h_jj ~ 3L / n) is left
+out: against the Monte Carlo it over-corrects slightly. CIEDE2000 is locally a quadratic form: dE00^2 ~ dx^T Q_j dx with Q_j = J_j^T T_j J_j (J_j: XYZ -> Lab
 Jacobian, T_j: the dE00 metric at the reference colour, by polarisation of the float64 formula). For a
 Gaussian x with E|x|^2 = m^2 + tr(QS) = E2 and Var|x|^2 = 2 tr((QS)^2) + 4 b^T Q S Q b = V,
 E|x| ~ sqrt(E2) (1 - V / (8 E2^2)) (second order in the spread of |x|^2; exact to < 1 % for a 3-D isotropic

@@ -4,7 +4,7 @@ camera noise and reference uncertainty, and the expected |error| in the local dE
 
 Why hand-written: the optimisers evaluate ~1e6 particles per search; the float64 reference
 (:class:`simulation.expected_error.ExpectedErrorModel`) spends ~50 us per particle in numpy temporaries, this
-kernel ~2x the noise-free kernel. The layout follows ``simulation.fast_de.mean_de2000_mapped``: blocks of
+kernel 1.5-2x the noise-free kernel. The layout follows ``simulation.fast_de.mean_de2000_mapped``: blocks of
 particles, patches outer, particles inner, so every step is a loop over the block that LLVM vectorises.
 """
 from __future__ import annotations

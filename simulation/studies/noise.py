@@ -16,7 +16,8 @@ sqrt(var_S + v^2 var_F) / F / sqrt(pixels). Exposure *times* only matter through
 from a radiometric scale calibrated like the virtual camera: the open gate under the full-intensity light
 (1, 6, 8) reaches 10 500 DN at 1/60 s (thesis Table 7.1).
 
-The noise-aware objective is the expected training dE00 of a capture: Monte-Carlo over ``draws`` fixed
+(The app's objective is the analytic :mod:`simulation.expected_error`; this Monte-Carlo one is the study's
+check on it.) The noise-aware objective is the expected training dE00 of a capture: Monte-Carlo over ``draws`` fixed
 standard-normal draws (common random numbers: every candidate sees the same draws, so the objective is a
 smooth, deterministic function the optimisers can compare), the characterisation fitted on the *noisy*
 training values and applied to them (as the thesis reports captured training errors). It is vectorised over
