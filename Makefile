@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export QT_QPA_PLATFORM ?= offscreen
 
-.PHONY: run test bench demo venv resources clean reliability
+.PHONY: run test wheel-smoke bench demo venv resources clean reliability
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -20,6 +20,11 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+	$(MAKE) --no-print-directory wheel-smoke
+
+# the built wheel in a fresh venv, run from outside the checkout (.ci/wheel_smoke.sh says what it checks)
+wheel-smoke: $(STAMP)
+	PY=$(PY) .ci/wheel_smoke.sh
 
 # the fault-injection suite; writes README's reliability table (tests/faults/plugin.py)
 reliability: $(STAMP)

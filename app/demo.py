@@ -29,16 +29,20 @@ from app.sequences.capture import TargetCapture
 from app.sequences.hdr import HdrPlan, meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession, atomic_write, camera_definition, light_definition
+from app.session_log import SessionLog
 from app.virtual_lab import VirtualLab
 from simulation.camera_model import channel_responses
 from simulation.colorimetry import tristimulus, white_point
 from simulation.lightsource import LightSource
 from simulation.objective import ErrorStats, Evaluator
 from simulation.presets import Preset, d65_mix, save_preset
-from simulation.progress import CancelToken, ProgressCallback, check, report
+from simulation.progress import CancelToken, ProgressCallback, check, report, scaled
 from simulation.runner import run as run_simulation
+from simulation.versions import output_header
 
 log = logging.getLogger(__name__)
+
+REPORT_FORMAT = "dualrgb-demo-report/1"
 
 CONDITIONS = ("three_channel", "dual_rgb", "dual_rgb_pso")
 
@@ -111,9 +115,11 @@ def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback]
     ev = ExpectedErrorEvaluator(setup, demo_capture_model(settings))
     presets = {}
     report(progress, 0.0, "optimiser: exhaustive search (expected captured error)")
-    presets["dual_rgb"] = run_simulation(setup, "exhaustive", top=1, evaluator=ev).preset(name=f"dual-RGB {settings.mode}")
+    presets["dual_rgb"] = run_simulation(setup, "exhaustive", top=1, evaluator=ev,
+                                         progress=scaled(progress, 0.0, 0.02)).preset(name=f"dual-RGB {settings.mode}")
     report(progress, 0.02, f"optimiser: {DEFAULT_METHOD} PSO (expected captured error)")
-    presets["dual_rgb_pso"] = run_simulation(setup, DEFAULT_METHOD, seed=settings.seed, top=1, evaluator=ev).preset(
+    presets["dual_rgb_pso"] = run_simulation(setup, DEFAULT_METHOD, seed=settings.seed, top=1, evaluator=ev,
+                                             progress=scaled(progress, 0.02, 0.1)).preset(
         name=f"dual-RGB-PSO {settings.mode}")
     mix, duv = realisable_d65_mix(setup.leds, setup.illuminant, setup.cmfs, ev.capture.sphere)
     presets["three_channel"] = Preset("3-channel D65 mix", (mix,), method="nnls-d65", mode=settings.mode,
@@ -184,7 +190,8 @@ class DemoRun:
                                         new_if_different=s.new_session,
                                         hint="resume with the same options, or pass --new-session or another --out")
         try:
-            return self._run(session)
+            with SessionLog(session.path):           # the session folder's session.log
+                return self._run(session)
         finally:
             session.close()
 
@@ -235,6 +242,7 @@ class DemoRun:
         verify = session.verify()
         frames = len(session.entries())
         report_data = {
+            **output_header(REPORT_FORMAT),
             "mode": s.mode, "frame_size": list(s.frame_size), "hdr": s.hdr,
             "conditions": list(result),          # the names; each condition's figures are top-level keys
             **result,

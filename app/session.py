@@ -75,6 +75,7 @@ from app.session_manifest import (DamagedFramesError, DefinitionMismatch, DoseRe
 from drivers.camera.base import RawCapture
 from simulation import atomic_io
 from simulation.atomic_io import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
+from simulation.versions import software_versions
 
 log = logging.getLogger(__name__)
 
@@ -171,7 +172,8 @@ class CaptureSession:
                 raise SessionError(errno.EEXIST, f"{p}: folder is not empty; open it to resume or choose a new one")
             for tmp in p.glob(f".*{TMP_SUFFIX}"):
                 remove_quietly(tmp)
-            settings = {"format": FORMAT, "version": FORMAT_VERSION, "created_at": now(), **(meta or {})}
+            settings = {"format": FORMAT, "version": FORMAT_VERSION, "software": software_versions(),
+                        "created_at": now(), **(meta or {})}
             if definition is not None:
                 settings["definition"] = normalise(definition)
             atomic_write(p / SETTINGS, _settings_bytes(settings))

@@ -36,27 +36,9 @@ LIGHTS = {"light 1": (1 / 1250, 1 / 8), "light 2": (1 / 2500, 1 / 20)}     # the
 
 
 def _write_dng(path: Path, data: np.ndarray, exposure_s: float) -> None:
-    from pidng.core import RAW2DNG, DNGTags, Tag
-    from pidng.defs import CalibrationIlluminant, DNGVersion, Orientation, PhotometricInterpretation
+    from drivers.virtual.dng import DngInfo, save_dng
 
-    h, w = data.shape
-    t = DNGTags()
-    for tag, v in ((Tag.ImageWidth, w), (Tag.ImageLength, h), (Tag.TileWidth, w), (Tag.TileLength, h),
-                   (Tag.Orientation, Orientation.Horizontal), (Tag.BitsPerSample, 16),
-                   (Tag.PhotometricInterpretation, PhotometricInterpretation.Color_Filter_Array),
-                   (Tag.SamplesPerPixel, 1), (Tag.CFARepeatPatternDim, [2, 2]), (Tag.CFAPattern, [0, 1, 1, 2]),
-                   (Tag.BlackLevel, BLACK), (Tag.WhiteLevel, WHITE),
-                   (Tag.ColorMatrix1, [[1, 1], [0, 1], [0, 1], [0, 1], [1, 1], [0, 1], [0, 1], [0, 1], [1, 1]]),
-                   (Tag.CalibrationIlluminant1, CalibrationIlluminant.D65), (Tag.AsShotNeutral, [[1, 1]] * 3),
-                   (Tag.Make, "Nikon"), (Tag.Model, "Nikon D610"),
-                   (Tag.ExposureTime, [(1, int(round(1 / exposure_s)))] if exposure_s < 1 else [(int(exposure_s), 1)]),
-                   (Tag.DNGVersion, DNGVersion.V1_4), (Tag.DNGBackwardVersion, DNGVersion.V1_2)):
-        t.set(tag, v)
-    writer = RAW2DNG()
-    writer.options(t, path=str(path.parent), compress=False)
-    out = Path(writer.convert(np.ascontiguousarray(data, dtype=np.uint16), filename=path.stem))
-    if out != path:
-        out.rename(path)
+    save_dng(path, np.ascontiguousarray(data, dtype=np.uint16), DngInfo(BLACK, WHITE, exposure_s=exposure_s))
 
 
 def make_set(folder: Path, height: int, width: int, n_darks: int) -> dict:

@@ -14,6 +14,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 # name -> (module, function, kwargs); each returns a JSON-able dict
 BENCHES = {
+    "startup": ("bench.startup", "bench_startup", {}),
     "simulation": ("bench.simulation_bench", "bench_simulation", {}),
     "virtual_camera": ("bench.virtual_camera", "bench_render", {}),
     "processing": ("bench.processing_bench", "bench_processing", {}),

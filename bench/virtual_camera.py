@@ -13,7 +13,8 @@ import tracemalloc
 
 import numpy as np
 
-from drivers.virtual.camera import StaticLight, VirtualCamera, mosaic_to_dng
+from drivers.virtual.camera import StaticLight, VirtualCamera
+from drivers.virtual.dng import DngInfo, dng_bytes
 from drivers.virtual.originals import ground_truth_xyz, original_scene
 from drivers.virtual.scene import Scene
 from simulation.datasets import default_setup
@@ -48,7 +49,7 @@ def bench_render(width: int = 6080, height: int = 4028, mode: str = "transmissiv
     cam.render_mosaic(1 / 60)
     out["render_new_drift_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    data = mosaic_to_dng(mosaic, exposure_s=1 / 60, iso=50, aperture=8.0)
+    data = dng_bytes(mosaic, DngInfo(exposure_s=1 / 60, iso=50, aperture=8.0))
     out["dng_write_s"] = time.perf_counter() - t0
     out["dng_mib"] = round(len(data) / 2**20, 1)
     del data

@@ -328,8 +328,8 @@ def _load(p: Path, head: bytes, rawpy) -> RawFrame:
     return frame
 
 
-# LibRaw settings for linear output (FACTS.md): no gamma, no auto-brightening, unit white balance, camera
-# RGB, no rotation, and adjust_maximum_thr=0 so LibRaw does not move the white point from the file's value.
+# LibRaw settings for linear output: no gamma, no auto-brightening, unit white balance, camera RGB, no rotation,
+# and adjust_maximum_thr=0 so LibRaw does not move the white point from the file's value (without it, it does).
 LINEAR_POSTPROCESS = dict(gamma=(1, 1), no_auto_bright=True, output_bps=16, user_wb=[1.0, 1.0, 1.0, 1.0],
                           output_color=None, user_flip=0, adjust_maximum_thr=0.0)
 

@@ -304,6 +304,10 @@ def discover(*, probe: bool = False, timeout_s: float = 3.0) -> DeviceReport:
                                   "no answer when opening it (switch the camera off and on)",
                                   f"open {cam.model}", report.notes)
     report.hints = _bounded(lambda: claimed_camera_hints(report), timeout_s, [], "USB hints", report.notes)
+    from drivers.camera.gphoto import TETHERING_UNAVAILABLE, gphoto_available
+
+    if not gphoto_available():
+        report.hints.append(TETHERING_UNAVAILABLE)
     for note in report.notes:
         log.debug("discovery: %s", note)
     return report

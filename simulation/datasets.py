@@ -1,6 +1,6 @@
 """The packaged data the simulation runs on, and loading of users' own measured CSVs.
 
-Defaults reproduce the thesis (../shared/FACTS.md): 410-780 nm at 10 nm, CIE 1931 2-degree CMFs, D65,
+Defaults reproduce the thesis (chapters 4-5): 410-780 nm at 10 nm, CIE 1931 2-degree CMFs, D65,
 the 10-LED sphere of Table 4.2, 'Nikon 5100 (NPL)' as the camera, rawtoaces-190 / CC24 (reflective)
 and the IT8.7/1-like / CC24-on-film targets (transmissive).
 """
@@ -15,13 +15,13 @@ import colour
 import numpy as np
 
 import resources
+from simulation.choices import MODES
 from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
 from simulation.lightsource import N_SPHERE_LEDS
 from simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv
 
 log = logging.getLogger(__name__)
 
-MODES = ("reflective", "transmissive")
 TARGET_FILES = {
     "reflective": ("reflective_train_rawtoaces190.csv", "reflective_test_babelcolor_cc24.csv"),
     "transmissive": ("film_train_it87_288.csv", "film_test_cc24.csv"),

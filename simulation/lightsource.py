@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-N_SPHERE_LEDS = 10
+from simulation.choices import N_SPHERE_LEDS
 
 
 @dataclass(frozen=True)

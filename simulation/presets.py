@@ -2,7 +2,8 @@
 
 A preset file:
 {
-  "format": "dualrgb-preset/1", "name": "...", "method": "pso", "seed": 0, "mode": "reflective",
+  "format": "dualrgb-preset/1", "software": {"dualrgb": ..., "numpy": ..., ...},   (simulation.versions)
+  "name": "...", "method": "pso", "seed": 0, "mode": "reflective",
   "sources": [{"leds": [1, 6, 7], "levels": [0.0, 0.42, 1.0], "name": "source 1"}, ...],
   "errors": {"train": {"mean":..,"median":..,"p90":..,"max":..}, "test": {...}},
   "dataset": {"train": "...", "test": "..."}, "model": {"grid": "...", "camera": "...", ...}, "created": ISO time
@@ -25,6 +26,7 @@ import resources
 from simulation.atomic_io import atomic_write
 from simulation.lightsource import N_SPHERE_LEDS, LightSource
 from simulation.spectral_io import read_text_file
+from simulation.versions import output_header
 
 log = logging.getLogger(__name__)
 
@@ -49,7 +51,7 @@ class Preset:
     created: str = ""
 
     def to_dict(self) -> dict:
-        return {"format": FORMAT, "name": self.name, "method": self.method, "seed": self.seed, "mode": self.mode,
+        return {**output_header(FORMAT), "name": self.name, "method": self.method, "seed": self.seed, "mode": self.mode,
                 "sources": [s.to_dict() for s in self.sources], "errors": self.errors, "dataset": self.dataset,
                 "model": self.model,
                 "created": self.created or _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}

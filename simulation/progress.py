@@ -5,6 +5,8 @@ import threading
 from typing import Callable, Optional
 
 ProgressCallback = Callable[[float, str], None]
+# the message simulation.warmup reports while numba compiles the kernels (front ends show it even when quiet)
+COMPILING = "compiling kernels (first run only)"
 
 
 class Cancelled(Exception):
@@ -32,6 +34,13 @@ class CancelToken:
 def report(progress: Optional[ProgressCallback], fraction: float, message: str) -> None:
     if progress is not None:
         progress(min(max(fraction, 0.0), 1.0), message)
+
+
+def scaled(progress: Optional[ProgressCallback], start: float, end: float) -> Optional[ProgressCallback]:
+    """``progress`` for a sub-task that fills ``start``..``end`` of the whole (its 0..1 mapped there)."""
+    if progress is None:
+        return None
+    return lambda fraction, message: report(progress, start + (end - start) * fraction, message)
 
 
 def check(cancel: Optional[CancelToken]) -> None:

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import argparse
 import logging
-import sys
 from pathlib import Path
 
 from app.commands.options import count, frame_size, seed
+from app.terminal_progress import TerminalProgress
 
 log = logging.getLogger(__name__)
 
@@ -35,15 +35,8 @@ def main(args: argparse.Namespace) -> int:
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
                             seed=args.seed, dark_frames=args.dark_frames, new_session=args.new_session,
                             optimise_matrix=False if args.no_de_fit else None)
-    last = [-1]
-
-    def progress(f: float, msg: str) -> None:
-        pct = int(100 * f)
-        if pct != last[0]:
-            last[0] = pct
-            print(f"[{pct:3d}%] {msg}", file=sys.stderr, flush=True)
-
-    data = run_demo(settings, progress)
+    with TerminalProgress("demo", lines=True) as progress:
+        data = run_demo(settings, progress)
     print(f"{'condition':<22} {'train mean':>10} {'test mean':>10} {'sim train':>10} {'sim test':>10} "
           f"{'nf train':>9} {'nf test':>8}")
     for name in data["conditions"]:

@@ -3,12 +3,15 @@ on USB cannot be used (claimed by gvfs or another program)."""
 from __future__ import annotations
 
 import argparse
-import json
 import logging
+from typing import TYPE_CHECKING
 
 from app.cli import UserError
 from app.commands.options import seconds
-from drivers.usb_discovery import DeviceReport, discover
+from app.json_output import add_json_option, write_json
+
+if TYPE_CHECKING:
+    from drivers.usb_discovery import DeviceReport
 
 log = logging.getLogger(__name__)
 
@@ -20,13 +23,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("devices", help="list cameras, serial ports and USB problems",
                        description="List attached cameras (libgphoto2 and USB) and serial ports, and say why a "
                                    "camera on USB cannot be used. Exits 1 when nothing is attached.")
-    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    add_json_option(p)
     p.add_argument("--no-probe", action="store_true",
                    help="do not open each camera to check it can be claimed (faster)")
     p.add_argument("--all", action="store_true", help="also list built-in (non-USB) serial ports")
     p.add_argument("--timeout", type=seconds(0.1, 120), default=3.0,
                    help="seconds allowed per probe, 0.1..120 (default 3)")
     p.set_defaults(func=run)
+
+
+FORMAT = "dualrgb-devices/1"
 
 
 def format_report(report: DeviceReport, show_all: bool = False) -> str:
@@ -60,11 +66,14 @@ def format_report(report: DeviceReport, show_all: bool = False) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drivers.usb_discovery import discover
+
     report = discover(probe=not args.no_probe, timeout_s=args.timeout)
     if args.json:
-        print(json.dumps(report.to_dict(), indent=2))
-        return 1 if report.nothing_found else 0
+        write_json(args.json, FORMAT, report.to_dict())
+        if args.json == "-":
+            return 1 if report.nothing_found else 0
     if report.nothing_found:
-        raise UserError(NOTHING_FOUND)
+        raise UserError("; ".join([NOTHING_FOUND, *report.hints]))
     print(format_report(report, show_all=args.all))
     return 0

@@ -3,13 +3,13 @@ per-channel mean/max — or one line saying why it is not a usable Bayer raw (ex
 from __future__ import annotations
 
 import argparse
-import json
 import logging
+from typing import TYPE_CHECKING
 
-import numpy as np
+from app.json_output import add_json_option, write_json
 
-from drivers.camera.gphoto import format_shutter
-from drivers.raw import RawFrame, load_raw
+if TYPE_CHECKING:
+    from drivers.raw import RawFrame
 
 log = logging.getLogger(__name__)
 
@@ -19,11 +19,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Format, camera, CFA pattern, black/white levels, mosaic size and per-channel "
                                    "statistics of a Bayer raw file.")
     p.add_argument("file", help="raw file (NEF, DNG, ...)")     # drivers.raw checks it is a regular file
-    p.add_argument("--json", action="store_true", help="print as JSON")
+    add_json_option(p)
     p.set_defaults(func=run)
 
 
+FORMAT = "dualrgb-raw-info/1"
+
+
 def raw_info(frame: RawFrame) -> dict:
+    import numpy as np
+
     channels = {}
     for name, _, idx in frame.channels():
         plane = frame.plane(name)
@@ -42,6 +47,8 @@ def raw_info(frame: RawFrame) -> dict:
 
 
 def format_info(info: dict) -> str:
+    from drivers.camera.gphoto import format_shutter
+
     shot = []
     if info["exposure_s"]:
         shot.append(format_shutter(info["exposure_s"]))
@@ -67,6 +74,11 @@ def format_info(info: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from drivers.raw import load_raw
+
     info = raw_info(load_raw(args.file))   # RawFileError is a ValueError: one line, exit 1 (app.cli)
-    print(json.dumps(info, indent=2) if args.json else format_info(info))
+    if args.json:
+        write_json(args.json, FORMAT, info)
+    if args.json != "-":
+        print(format_info(info))
     return 0

@@ -2,12 +2,14 @@
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
 from pathlib import Path
 
 from app.commands.options import count, input_file, number, seed
+from app.json_output import add_json_option, write_json
+from app.terminal_progress import TerminalProgress
+from simulation.choices import METHODS, MODES, OBJECTIVES
 
 log = logging.getLogger(__name__)
 
@@ -22,9 +24,7 @@ def _bins(text: str) -> tuple[int, ...]:
     return bins
 
 
-MODES = ("reflective", "transmissive")                                # simulation.datasets.MODES
-METHODS = ("halving", "exhaustive", "pso", "ga", "three-channel")    # simulation.runner.METHODS
-OBJECTIVES = ("expected-captured", "noise-free", "robust")           # simulation.runner.OBJECTIVES
+FORMAT = "dualrgb-simulation/1"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -55,7 +55,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "frames)")
     p.add_argument("--seed", type=seed, default=0)
     p.add_argument("--top", type=count(1, 630), default=5, help="how many light sets to print and write (default 5)")
-    p.add_argument("--json", type=Path, help="write the result as JSON here")
+    add_json_option(p)
     p.add_argument("--preset-out", type=Path, help="save the best light pair as a preset JSON here")
     p.add_argument("--bins", type=_bins, default=(3, 3, 4), help="LED bins, shortest wavelengths first (3,3,4)")
     p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=None,
@@ -69,7 +69,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     # imported here so that other subcommands start without loading colour-science and numba
-    from simulation.atomic_io import atomic_write
     from simulation.datasets import default_setup
     from simulation.grid import SpectralGrid
     from simulation.presets import save_preset
@@ -81,13 +80,14 @@ def main(args: argparse.Namespace) -> int:
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv)
     if args.top < 1:
         raise ValueError(f"--top {args.top}: expected at least 1")
-    result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, objective=args.objective,
-                 capture=_capture(args), progress=lambda f, m: log.info("%3.0f%% %s", 100 * f, m))
-    print(format_table(result))
+    with TerminalProgress(f"simulate {args.method}") as progress:
+        result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, objective=args.objective,
+                     capture=_capture(args), progress=progress)
+    if args.json != "-":
+        print(format_table(result))
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write(args.json, json.dumps(result.to_json(), indent=2) + "\n")
-        print(f"wrote {args.json}", file=sys.stderr)
+        if write_json(args.json, FORMAT, result.to_json()):
+            print(f"wrote {args.json}", file=sys.stderr)
     if args.preset_out:
         save_preset(result.preset(), args.preset_out)
         print(f"wrote preset {args.preset_out}", file=sys.stderr)

@@ -1,7 +1,7 @@
 """``dualrgb sphere``: talk to the LED sphere over serial; ``dualrgb sphere-emulator``: serve a virtual one on a pty.
 
     dualrgb sphere --port /dev/ttyACM0 identify
-    dualrgb sphere --port /dev/ttyACM0 status
+    dualrgb sphere --port /dev/ttyACM0 status [--json PATH]
     dualrgb sphere --port /dev/ttyACM0 set 4 0.5
     dualrgb sphere --port /dev/ttyACM0 apply preset.json [--source 2]
     dualrgb sphere --port /dev/ttyACM0 on [--max-on 10]
@@ -17,7 +17,6 @@ and, truthfully, what state the light is in (exit 2 for a wrong option, 1 otherw
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
 import signal
@@ -25,17 +24,22 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 from app.cli import UserError
 from app.commands.options import count, number, positive, seconds
-from drivers.led_sphere import LedSphere, SphereError
-from drivers.led_sphere.driver import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
-from simulation.lightsource import N_SPHERE_LEDS, LightSource
+from app.json_output import add_json_option, write_json
+from drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
+from simulation.choices import N_SPHERE_LEDS
+
+if TYPE_CHECKING:       # the driver imports pyserial and numpy: only when a command talks to the sphere
+    from drivers.led_sphere import LedSphere
+    from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
 PORT_ENV = "DUALRGB_SPHERE_PORT"
+STATUS_FORMAT = "dualrgb-sphere-status/1"
 
 
 class _SphereParser(argparse.ArgumentParser):
@@ -71,6 +75,8 @@ def _port_in(args: list[str]) -> Optional[str]:
 
 def switch_off_after_refusal(port: str) -> str:
     """Open ``port``, switch every LED and the light off, close it; what happened, in words."""
+    from drivers.led_sphere import LedSphere, SphereError
+
     try:
         sphere = LedSphere(port, timeout=DEFAULT_TIMEOUT_S).open()
     except SphereError as exc:
@@ -92,7 +98,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     actions = p.add_subparsers(dest="action", metavar="ACTION")
     actions.required = True
     actions.add_parser("identify", help="model, firmware, serial number")
-    actions.add_parser("status", help="light, levels, temperature, on-time, watchdog, faults")
+    st = actions.add_parser("status", help="light, levels, temperature, on-time, watchdog, faults")
+    add_json_option(st)
     s = actions.add_parser("set", help="one LED's level (0..1)")
     s.add_argument("led", type=count(1, N_SPHERE_LEDS), help=f"LED number 1..{N_SPHERE_LEDS}")
     s.add_argument("level", type=number(0.0, 1.0), help="level 0..1")
@@ -114,21 +121,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.set_defaults(func=serve_emulator)
 
 
-def load_light_source(path: Path, index: int) -> LightSource:
+def load_light_source(path: Path, index: int) -> "LightSource":
     """Light source number ``index`` (1-based) of a preset file."""
-    try:
-        from simulation.presets import load_preset
-    except ImportError:  # pragma: no cover - presets module not there yet
-        load_preset = None
-    if load_preset is not None:
-        sources = load_preset(path).sources           # PresetError is a ValueError: one line naming the file
-    else:  # pragma: no cover
-        try:
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
-            sources = tuple(LightSource.from_dict(s) for s in data["sources"])
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise UserError(f"{path}: expected a preset JSON with 'sources' = [{{leds, levels}}, ...] ({exc})") \
-                from None
+    from simulation.presets import load_preset
+
+    sources = load_preset(path).sources           # PresetError is a ValueError: one line naming the file
     if not 1 <= index <= len(sources):
         raise UserError(f"--source {index}: {path} has light sources 1..{len(sources)}")
     return sources[index - 1]
@@ -137,6 +134,8 @@ def load_light_source(path: Path, index: int) -> LightSource:
 def main(args: argparse.Namespace) -> int:
     if not args.port:
         raise UserError(f"no sphere port: give --port (e.g. /dev/ttyACM0) or set {PORT_ENV}")
+    from drivers.led_sphere import LedSphere, SphereError
+
     light, problem = None, None
     if args.action == "apply":
         try:
@@ -160,12 +159,17 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run(sphere: LedSphere, args: argparse.Namespace, light: Optional[LightSource]) -> None:
+def _run(sphere: "LedSphere", args: argparse.Namespace, light: Optional["LightSource"]) -> None:
     if args.action == "identify":
         info = sphere.identify()
         print(f"model {info['model']}, firmware {info['firmware']}, serial {info['serial']}")
     elif args.action == "status":
-        for key, value in sphere.status().items():
+        status = sphere.status()
+        if args.json:
+            write_json(args.json, STATUS_FORMAT, status)
+            if args.json == "-":
+                return
+        for key, value in status.items():
             if value is None:
                 value = "-"
             elif isinstance(value, float):

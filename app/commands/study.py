@@ -9,7 +9,8 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
                                [--seeds N] [--scheduler local|ADDRESS]
 
-``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
+``--out`` defaults to ``studies/<study>`` in the per-user data folder (resources.user_path), where the GUI lists
+the charts. ``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
 (``--workers``, 2 by default), an address (``tcp://host:8786``) uses a running scheduler, ``serial`` (the
 default except for ``unbinned``) runs them here. Results are the same either way; timings are not comparable.
 """
@@ -22,7 +23,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from app.commands.options import count, input_file, number, positive
-from simulation.datasets import MODES
+from app.terminal_progress import TerminalProgress
+from simulation.choices import MODES
 
 log = logging.getLogger(__name__)
 
@@ -30,8 +32,20 @@ log = logging.getLogger(__name__)
 _workers = count(1, 64)
 
 
+def _out_option(p: argparse.ArgumentParser, name: str) -> None:
+    p.add_argument("--out", type=Path, default=None,
+                   help=f"output folder (default: studies/{name} in the per-user data folder, where the GUI "
+                        "finds the charts)")
+
+
+def _out(args: argparse.Namespace) -> Path:
+    import resources
+
+    return args.out if args.out is not None else resources.user_path("studies", args.study)
+
+
 def _common(p: argparse.ArgumentParser, name: str, scheduler_default: str = "serial") -> None:
-    p.add_argument("--out", type=Path, default=Path("study-out") / name, help=f"output folder (study-out/{name})")
+    _out_option(p, name)
     p.add_argument("--mode", choices=MODES, default="reflective")
     p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=10.0, help="spectral step in nm (default 10)")
     p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
@@ -79,8 +93,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     _common(q, "parsimony")
     q.add_argument("--budget", choices=("tiny", "default"), default="default")
     q.add_argument("--tolerance", type=number(0.0, 10.0), default=0.05, help="allowed loss in mean dE00 (default 0.05)")
-    q.add_argument("--write-defaults", nargs="?", const="resources", metavar="PATH",
-                   help="also write the chosen defaults here (no PATH: the packaged resources/parsimony.json)")
+    q.add_argument("--write-defaults", nargs="?", const=True, metavar="PATH",
+                   help="also write the chosen defaults to PATH (no PATH: parsimony.json in the per-user data "
+                        "folder, which the app then reads instead of its packaged defaults)")
     q.set_defaults(func=parsimony_main)
 
     q = ss.add_parser("unbinned", help="full-intensity search over all ~523 k unbinned light-source pairs")
@@ -91,7 +106,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.set_defaults(func=unbinned_main)
 
     q = ss.add_parser("sweep", help="targets x cameras x optimisers x seeds, one task each (Dask-ready)")
-    q.add_argument("--out", type=Path, default=Path("study-out") / "sweep", help="output folder (study-out/sweep)")
+    _out_option(q, "sweep")
     q.add_argument("--modes", default="reflective,transmissive", help="target sets (reflective,transmissive)")
     q.add_argument("--camera-csv", action="append", default=[], metavar="CSV", type=input_file,
                    help="a camera sensitivity CSV to include (repeat; the packaged camera is always included)")
@@ -118,8 +133,8 @@ def _spec(args: argparse.Namespace):
                      train_csv=args.train_csv, test_csv=args.test_csv)
 
 
-def _progress(fraction: float, message: str) -> None:
-    log.info("%3.0f%% %s", 100 * fraction, message)
+def _progress(args: argparse.Namespace) -> TerminalProgress:
+    return TerminalProgress(f"study {args.study}")
 
 
 def _done(out, headline: list[str]) -> int:
@@ -135,10 +150,10 @@ def speed_accuracy_main(args: argparse.Namespace) -> int:
     from simulation.studies.speed_accuracy import speed_accuracy, write_outputs
 
     spec = _spec(args)
-    out = StudyOutput(args.out)
-    with open_runner(args.scheduler, workers=args.workers) as runner:
+    out = StudyOutput(_out(args))
+    with open_runner(args.scheduler, workers=args.workers) as runner, _progress(args) as progress:
         result = speed_accuracy(spec, seeds=args.seeds, budget=args.budget, light_sets=args.light_sets,
-                                runner=runner, progress=_progress)
+                                runner=runner, progress=progress)
     write_outputs(result, out)
     best = min(result.summary, key=lambda r: r["train"]["median"])
     return _done(out, [f"{r['label']:<28} {r['seconds']['median']:8.2f} s  train {r['train']['median']:.4f}  "
@@ -157,9 +172,9 @@ def stability_main(args: argparse.Namespace) -> int:
     if args.pixels:
         cfg = replace(cfg, camera=replace(cfg.camera, pixels_per_patch=args.pixels))
     capture, capture_model = _lab_capture(args, cfg.lab_repeats)
-    out = StudyOutput(args.out)
-    with open_runner(args.scheduler, workers=args.workers) as runner:
-        result = stability(spec, cfg, runner=runner, progress=_progress, capture=capture,
+    out = StudyOutput(_out(args))
+    with open_runner(args.scheduler, workers=args.workers) as runner, _progress(args) as progress:
+        result = stability(spec, cfg, runner=runner, progress=progress, capture=capture,
                            **({"capture_model": capture_model} if capture_model else {}))
     write_outputs(result, out)
     return _done(out, _worked_example(result.noise))
@@ -189,26 +204,29 @@ def objectives_main(args: argparse.Namespace) -> int:
 
     cfg = ObjectivesConfig.tiny() if args.budget == "tiny" else ObjectivesConfig()
     capture, capture_model = _lab_capture(args, cfg.capture_repeats)
-    out = StudyOutput(args.out)
-    result = objectives_study(_spec(args), cfg, capture=capture, progress=_progress,
-                              **({"capture_model": capture_model} if capture_model else {}))
+    out = StudyOutput(_out(args))
+    with _progress(args) as progress:
+        result = objectives_study(_spec(args), cfg, capture=capture, progress=progress,
+                                  **({"capture_model": capture_model} if capture_model else {}))
     write_outputs(result, out)
     return _done(out, _worked_example(result))
 
 
 def parsimony_main(args: argparse.Namespace) -> int:
-    import resources
     from simulation.studies.common import StudyOutput
     from simulation.studies.parsimony import ParsimonyConfig, parsimony, write_outputs
 
     spec = _spec(args)
     cfg = ParsimonyConfig.tiny() if args.budget == "tiny" else ParsimonyConfig()
     cfg = replace(cfg, tolerance=args.tolerance)
-    out = StudyOutput(args.out)
-    result = parsimony(spec, cfg, progress=_progress)
+    out = StudyOutput(_out(args))
+    with _progress(args) as progress:
+        result = parsimony(spec, cfg, progress=progress)
     target = None
     if args.write_defaults:
-        target = str(resources.path("parsimony.json")) if args.write_defaults == "resources" else args.write_defaults
+        import resources
+
+        target = str(resources.user_path("parsimony.json")) if args.write_defaults is True else args.write_defaults
     write_outputs(result, out, target)
     d = result.defaults()
     return _done(out, [f"spectral step {d['spectral_step_nm']:g} nm (10 nm justified: {d['default_10nm_justified']}), "
@@ -222,7 +240,7 @@ def unbinned_main(args: argparse.Namespace) -> int:
     from simulation.studies.unbinned import compare_binned, unbinned_search, write_outputs
 
     spec = _spec(args)
-    out = StudyOutput(args.out)
+    out = StudyOutput(_out(args))
     with open_runner(args.scheduler, workers=args.workers) as runner:
         result = unbinned_search(spec, runner, tasks=args.tasks, top=max(args.top, 10), limit=args.limit,
                                  refine=args.top)
@@ -256,7 +274,7 @@ def sweep_main(args: argparse.Namespace) -> int:
         if not Path(path).is_file():
             raise FileNotFoundError(f"--camera-csv {path}: no such file")
     specs = [SetupSpec(mode, camera_csv=cam) for mode in modes for cam in [None, *args.camera_csv]]
-    out = StudyOutput(args.out)
+    out = StudyOutput(_out(args))
     with open_runner(args.scheduler, workers=args.workers) as runner:
         result = sweep(specs, methods, budget=args.budget, seeds=args.seeds, light_sets=args.light_sets,
                        runner=runner)

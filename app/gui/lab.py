@@ -14,6 +14,7 @@ from PySide6.QtCore import QObject, QTimer, Signal
 
 from app.gui.viewmodel import DoseFeed, light_from_levels
 from app.gui.workers import TaskHandle, TaskRunner
+from app.session_log import SessionLog
 from drivers.camera.base import Camera, CameraError
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.led_sphere.driver import DEFAULT_MAX_ON_S
@@ -67,6 +68,7 @@ class Lab(QObject):
         self.camera: Optional[Camera] = None
         self.camera_name: str = ""
         self.session: Any = None                  # app.session.CaptureSession
+        self.session_log: Optional[SessionLog] = None   # its session.log while it is the current session
         self.last_status: dict = {}
         self.dose = DoseFeed()
         self.manual_max_on_s = DEFAULT_MAX_ON_S   # 'Light ON' lights the sphere for at most this long
@@ -290,7 +292,10 @@ class Lab(QObject):
 
     # ------------------------------------------------------------------ session
     def set_session(self, session: Any) -> None:
+        if self.session_log is not None:
+            self.session_log.stop()
         self.session = session
+        self.session_log = SessionLog(session.path).start() if session is not None else None
         self.sessionChanged.emit()
         if session is not None:
             self.message.emit(f"session folder {session.path}")
@@ -317,6 +322,9 @@ class Lab(QObject):
                 log.warning("closing the camera: %s", exc)
         if lab is not None:
             lab.stop()
+        if self.session_log is not None:
+            self.session_log.stop()
+            self.session_log = None
 
 
 def current_levels(status: dict) -> LightSource:

@@ -149,6 +149,10 @@ class ConvergenceTap:
             def __getattr__(self, name):
                 return getattr(self._inner, name)
 
+            @property
+            def base(self):
+                return self._inner
+
             def cost_indexed(self, idx, w):
                 costs = self._inner.cost_indexed(idx, w)
                 if len(costs):

@@ -39,8 +39,11 @@ from app.processing.characterise import Characterisation
 from simulation.atomic_io import atomic_output, atomic_write
 from simulation.colorimetry import xyz_to_lab
 from simulation.objective import ErrorStats
+from simulation.versions import output_header
 
 log = logging.getLogger(__name__)
+
+REPORT_FORMAT = "dualrgb-report/1"
 
 
 # ---------------------------------------------------------------- standards
@@ -335,6 +338,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
     graded_set = "test" if test is not None else "train"
     graded = c.results[best].test if test is not None else c.results[best].train
     report = {
+        **output_header(REPORT_FORMAT),
         "title": title,
         "created_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "channels": c.channels,

@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Callable, Optional
 
 import numpy as np
 
 from app.light_dose import LightDose
 from app.session import CaptureSession, SessionEntry
-from drivers.camera.base import Camera, CameraError, Exposure, RawCapture, call_with_deadline
+from drivers.camera.base import DEFAULT_LATENCY_S, Camera, CameraError, Exposure, RawCapture, call_with_deadline
 from drivers.led_sphere import LightReport, SphereError
 from drivers.raw import RawFrame, load_raw
 from simulation.lightsource import LightSource
@@ -44,26 +44,57 @@ class LightSafetyError(RuntimeError):
 class SafetySettings:
     max_on_s: float = 10.0          # per capture, light on at most (settle + exposure + latency)
     settle_s: float = 0.2           # after switching on, before the shutter opens
-    latency_s: float = 1.0          # the camera's allowance beyond the exposure: trigger, shutter lag, storing
+    # the camera's allowance beyond the exposure (trigger, shutter lag, reporting the shutter closed); None: what
+    # the camera reports (Camera.latency_for, filled in by for_camera), DEFAULT_LATENCY_S without a camera
+    latency_s: Optional[float] = None
     expose_timeout_s: float = 30.0  # host-side deadline of an exposure beyond its exposure time
     fetch_timeout_s: float = 120.0  # host-side deadline of a download
+    camera_latency: Optional[Callable[[float], float]] = field(default=None, repr=False, compare=False)
+
+    def for_camera(self, camera: Optional[Camera]) -> "SafetySettings":
+        """These settings with the camera's own latency allowance (unless one was given, or the camera - a
+        stand-in - reports none)."""
+        latency_for = getattr(camera, "latency_for", None)
+        if self.latency_s is not None or latency_for is None:
+            return self
+        return replace(self, camera_latency=latency_for)
+
+    def latency_for(self, exposure_s: float) -> float:
+        if self.latency_s is not None:
+            return self.latency_s
+        return float(self.camera_latency(exposure_s)) if self.camera_latency else DEFAULT_LATENCY_S
 
     @property
     def max_exposure_s(self) -> float:
-        """The longest exposure the light-on limit allows."""
-        return self.max_on_s - self.settle_s - self.latency_s
+        """The longest exposure the light-on limit allows (the allowance may grow with the exposure)."""
+        budget = self.max_on_s - self.settle_s
+        if self.latency_s is not None or self.camera_latency is None:
+            return budget - self.latency_for(0.0)
+        lo, hi = 0.0, max(budget, 0.0)
+        if self.light_limit_s(hi) <= self.max_on_s:
+            return hi
+        for _ in range(50):             # bisection: the light limit grows with the exposure
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if self.light_limit_s(mid) <= self.max_on_s else (lo, mid)
+        return lo
 
     def light_limit_s(self, exposure_s: float) -> float:
         """How long the light may stay on for one exposure."""
-        return self.settle_s + float(exposure_s) + self.latency_s
+        return self.settle_s + float(exposure_s) + self.latency_for(float(exposure_s))
 
     def check(self, exposure_s: float) -> None:
+        idle = self.settle_s + self.latency_for(0.0)
+        if idle >= self.max_on_s:
+            raise LightSafetyError(
+                f"the camera's latency allowance ({self.latency_for(0.0):g} s) plus settle ({self.settle_s:g} s) "
+                f"leaves no exposure within the {self.max_on_s:g} s light limit: this camera cannot be used with "
+                "the light as set; measure its latency (docs/first-session-d610.md) or raise the limit")
         on = self.light_limit_s(exposure_s)
         if on > self.max_on_s:
             raise LightSafetyError(
                 f"exposure {exposure_s:g} s would keep the light on up to {on:.1f} s (settle {self.settle_s:g} s, "
-                f"camera latency {self.latency_s:g} s), over the {self.max_on_s:g} s limit (LEDs drift after "
-                "10 s); use a brighter light, a higher ISO or raise the limit")
+                f"camera latency {self.latency_for(exposure_s):g} s), over the {self.max_on_s:g} s limit (LEDs "
+                "drift after 10 s); use a brighter light, a higher ISO or raise the limit")
 
 
 def restate(error: BaseException, light: LightReport) -> BaseException:
@@ -89,7 +120,7 @@ class Shooter:
         self.sphere = sphere
         self.session = session
         self.stand = stand
-        self.safety = safety
+        self.safety = safety.for_camera(camera)
         self.dose = LightDose()
         self._sleep = sleep
         self._clock = clock
@@ -193,7 +224,8 @@ class Shooter:
             raise (restate(exc, off) if off is not None else exc) from exc
 
     def _reject(self, exposure: Exposure, light: LightSource, step_id: str, off: LightReport) -> None:
-        """The light was cut at its limit before the shutter closed: keep the frame aside, then refuse."""
+        """The light was cut at its limit before the shutter closed: keep the frame aside, then refuse, saying in
+        one line how late the camera was and, when it keeps missing, that it cannot meet the limit as set."""
         limit = self.safety.light_limit_s(exposure.exposure_s)
         kept = "not downloaded"
         try:
@@ -203,11 +235,18 @@ class Shooter:
             kept = f"kept aside as {REJECTED_ROLE} #{entry.seq}"
         except (CameraError, OSError) as exc:
             log.error("%s: the rejected frame could not be kept: %s", step_id, exc)
+        allowance = self.safety.latency_for(exposure.exposure_s)
+        late = exposure.ended - exposure.started - exposure.exposure_s
+        misses = sum(1 for e in self.session.entries(REJECTED_ROLE) if e.meta.get("rejected_step") == step_id)
+        advice = (f"the camera has missed its {allowance:g} s latency allowance {misses} times on this step, so it "
+                  "cannot meet the light limit as set: measure its latency (docs/first-session-d610.md) and set it, "
+                  "or check the camera" if misses >= 2 else
+                  f"check the camera, or allow it more latency than {allowance:g} s")
         raise LightSafetyError(
             f"{step_id}: the light reached its {limit:.2f} s limit and was switched off before the camera reported "
             f"the end of the {exposure.exposure_s:g} s exposure ({exposure.ended - exposure.started:.2f} s after it "
-            f"was triggered), so the frame was not lit all through ({kept}; the step is shot again); {off.message}; "
-            f"check the camera, or allow it more latency than {self.safety.latency_s:g} s")
+            f"was triggered, {late:.2f} s beyond it), so the frame was not lit all through ({kept}; the step is shot "
+            f"again); {off.message}; {advice}")
 
     def _record(self, raw: RawCapture, role: str, step_id: str, light: Optional[LightSource],
                 meta: dict) -> SessionEntry:

@@ -23,6 +23,7 @@ log = logging.getLogger(__name__)
 
 T = TypeVar("T")
 GP_ERROR_TIMEOUT = -10          # libgphoto2's timeout code, also used for host-side deadlines
+DEFAULT_LATENCY_S = 1.0         # a camera's latency allowance when it does not report its own
 
 
 class CameraError(RuntimeError):
@@ -112,6 +113,13 @@ class Camera(abc.ABC):
     """Open/close (or use as a context manager), read/set settings, expose + fetch (= capture), preview."""
 
     name: str = "camera"
+    latency_s: float = DEFAULT_LATENCY_S
+
+    def latency_for(self, exposure_s: float) -> float:
+        """How long after the end of an ``exposure_s`` exposure :meth:`expose` may take to return (trigger,
+        shutter lag, reporting the shutter closed): the light's allowance beyond settle + exposure. Each camera
+        reports its own (:attr:`latency_s`, where it does not depend on the exposure)."""
+        return float(self.latency_s)
 
     @abc.abstractmethod
     def open(self) -> None: ...

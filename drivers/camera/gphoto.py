@@ -1,262 +1,152 @@
 """The real camera (Nikon D610 at the copy stand) through python-gphoto2 / libgphoto2.
 
-All gphoto2 calls of the project live in this module. ``gphoto2`` is imported lazily (first detect/open), so
-``import drivers.camera`` works on a machine without it, and tests can set ``VCAMERADIR`` (libgphoto2's own
-virtual camera) before the first import.
+All gphoto2 calls of the project live in this module and its helpers (``gphoto_errors``: error messages with
+libgphoto2's own logged reason; ``gphoto_labels``: what labels mean, in any language; ``gphoto_settings``: the
+configuration tree and the copy stand's settings; ``gphoto_files``: events, the raw file of a capture, downloads). ``gphoto2`` is imported lazily (first detect/open), so
+``import drivers.camera`` works without it, and tests can set ``VCAMERADIR`` (libgphoto2's virtual camera) first.
 
-* Settings are found by config name (``iso``, ``shutterspeed``/``shutterspeed2``, ``f-number``/``aperture``,
-  ``imagequality``, ``capturetarget``) and numeric settings are matched by *parsed value*, never by the
-  (localised) label: "30,0000s", "1/4000", "0.5", '0"3' all parse to seconds and the nearest offered value
-  is picked (in stops).
-* ``expose(exposure_s)`` returns when the shutter has closed (libgphoto2's capture, which returns once the
-  camera has stored the frame; for bulb, as soon as ``bulb`` is 0 again) and ``fetch()`` then waits for the file
-  if need be and downloads it into memory, so the light can be off during the download; ``capture()`` does both.
-  Exposures longer than the longest timed speed (30 s on the D610) use bulb: shutter 'Bulb', ``bulb``=1, wait,
-  ``bulb``=0; FILE_ADDED is waited for in ``fetch()``. The bulb is always released again, even when the wait is
-  interrupted.
-* Every libgphoto2 call has a host-side deadline (:func:`drivers.camera.base.call_with_deadline`): a call that
-  hangs becomes a one-line CameraError after ``call_timeout_s`` (capture: the exposure plus
-  ``capture_timeout_s``; download: ``download_timeout_s``), and the camera refuses further calls until the hung
-  one has returned (it is never entered twice).
-* libgphoto2 errors become :class:`CameraError` with a one-line, actionable message and the libgphoto2 code;
-  'camera busy' (-110) is retried a bounded number of times with backoff.
+The light is on only while a frame is exposed, so :meth:`GPhotoCamera.expose` returns as close to the shutter
+closing as libgphoto2 allows (libgphoto2's ``capture()`` returns only after the camera has stored the file and,
+for Internal RAM, after the whole download; references: libgphoto2 camlibs/ptp2/library.c, ``camera_nikon_capture``
+and ``camera_trigger_capture``):
+
+* timed exposures: ``trigger_capture``; on a Nikon (libgphoto2's "Nikon Capture" path) it returns once the camera
+  no longer reports busy, i.e. after the exposure, and events are not read with the light on (reading the
+  Internal-RAM "file added" event downloads the file); other cameras report CAPTURE_COMPLETE or FILE_ADDED,
+  waited for, keeping any file path for :meth:`fetch`;
+* bulb (longer than 30 s): ``bulb``=1, wait, ``bulb``=0 once. libgphoto2's release sends TerminateCapture and then
+  waits up to 5 s for the camera; :meth:`expose` returns ``bulb_release_grace_s`` after the release was sent and
+  leaves that wait running (the next call waits for it). -110 or -1 (Nikon 0xA200 'Bulb Release Busy') after the
+  release means "closed, still processing"; only a failed TerminateCapture means the shutter may be open. Live
+  view is switched off before, and the timed speed restored before live view starts again (the camera refuses
+  live view on Bulb) or the camera is closed.
+
+:meth:`fetch` (light off by then) waits for the raw file (.nef among the files announced, NEF+JPEG pairs drained),
+downloads it into memory and records the exact exposure (``shutterspeed2``), auto ISO and long-exposure noise
+reduction state in the frame's metadata. :attr:`GPhotoCamera.latency_s` is the light's allowance beyond the
+exposure: ``DEFAULT_GPHOTO_LATENCY_S`` or ``$DUALRGB_GPHOTO_LATENCY_S``, measured with
+``python -m drivers.camera.gphoto_latency`` (docs/first-session-d610.md).
+
+Every libgphoto2 call has a host-side deadline (:func:`drivers.camera.base.call_with_deadline`) and the camera is
+never entered twice; 'camera busy' (-110) is retried a bounded number of times with backoff.
 """
 from __future__ import annotations
 
 import logging
-import math
-import re
+import os
 import threading
 import time
-from dataclasses import dataclass, field
 from io import BytesIO
-from typing import Any, Callable, Iterable, Optional, Sequence, TypeVar
+from typing import Any, Callable, Optional, TypeVar
 
 import numpy as np
 
-from drivers.camera.base import (Camera, CameraError, CameraSettings, CameraTimeout, Exposure, RawCapture,
-                                 call_with_deadline)
+from drivers.camera.base import Camera, CameraError, CameraTimeout, Exposure, RawCapture, call_with_deadline
+from drivers.camera.gphoto_errors import (GP_ERROR, GP_ERROR_CAMERA_BUSY, GP_ERROR_CANCEL, GP_ERROR_IO_USB_FIND,
+                                          GP_ERROR_NOT_SUPPORTED, GP_ERROR_TIMEOUT, LibraryLog, camera_error,
+                                          gphoto_error_code)
+from drivers.camera.gphoto_files import CapturedFiles, GPhotoFiles
+from drivers.camera.gphoto_labels import capture_target_choice, force_untranslated, format_shutter, is_bulb_label
+from drivers.camera.gphoto_settings import BULB_LIMIT_S, RAM_TARGET, TARGET_NAMES, GPhotoSettings
+# the driver's public names, re-exported from the modules it is split into
+from drivers.camera.gphoto_errors import GP_ERROR_IO_USB_CLAIM, retry_busy  # noqa: F401,E402
+from drivers.camera.gphoto_labels import nearest_by_value, parse_aperture, parse_iso, parse_shutter  # noqa: F401
+from drivers.camera.gphoto_settings import RAW_QUALITY, ConfigEntry  # noqa: F401
 
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
 
-# libgphoto2 result codes (gphoto2.GP_ERROR_*), spelled out so the mapper works without importing gphoto2
-GP_ERROR = -1
-GP_ERROR_BAD_PARAMETERS = -2
-GP_ERROR_NOT_SUPPORTED = -6
-GP_ERROR_IO = -7
-GP_ERROR_TIMEOUT = -10
-GP_ERROR_IO_USB_FIND = -52
-GP_ERROR_IO_USB_CLAIM = -53
-GP_ERROR_IO_LOCK = -60
-GP_ERROR_MODEL_NOT_FOUND = -105
-GP_ERROR_FILE_NOT_FOUND = -108
-GP_ERROR_CAMERA_BUSY = -110
-GP_ERROR_CANCEL = -112
-GP_ERROR_CAMERA_ERROR = -113
-GP_ERROR_NO_SPACE = -115
-
-GVFS_ADVICE = ("run `gio mount -s gphoto2` and `pkill -f gvfs-gphoto2-volume-monitor` "
-               "(and close other photo programs), then retry")
-
-ERROR_ADVICE: dict[int, str] = {
-    GP_ERROR_MODEL_NOT_FOUND: "no camera found: connect the camera by USB and switch it on",
-    GP_ERROR_IO_USB_CLAIM: ("the camera's USB interface is claimed by another program, usually the desktop's "
-                            "gvfs-gphoto2-volume-monitor: " + GVFS_ADVICE),
-    GP_ERROR_IO_LOCK: "another program holds the camera's USB device: " + GVFS_ADVICE,
-    GP_ERROR_CAMERA_BUSY: ("the camera is busy (I/O in progress): let it finish writing, leave its menus and "
-                           "playback, then retry"),
-    GP_ERROR_IO_USB_FIND: ("the camera is no longer on its USB port (unplugged, or re-enumerated after "
-                           "sleeping): reconnect it and reopen the camera"),
-    GP_ERROR_TIMEOUT: ("the camera did not answer in time: check the USB cable, wake the camera "
-                       "(half-press the shutter release) and retry"),
-    GP_ERROR_NOT_SUPPORTED: ("not supported by this camera in its current mode (set the mode dial to M and "
-                             "check the camera's USB/PTP setting)"),
-    GP_ERROR_IO: ("USB I/O error talking to the camera: check the cable (avoid hubs), then reconnect and "
-                  "reopen the camera"),
-    GP_ERROR_BAD_PARAMETERS: "the camera rejected the request (setting missing or value not allowed)",
-    GP_ERROR_FILE_NOT_FOUND: "the file is not on the camera (any more)",
-    GP_ERROR_NO_SPACE: "the camera's memory is full: free space on the card or capture to Internal RAM",
-    GP_ERROR_CAMERA_ERROR: "the camera reported an error: check its display (lens, card, battery, mode dial)",
-    GP_ERROR_CANCEL: "cancelled",
-}
-
-# Name -> libgphoto2 widget type (gphoto2.GP_WIDGET_*)
-WIDGET_KINDS = {0: "window", 1: "section", 2: "text", 3: "range", 4: "toggle", 5: "radio", 6: "menu",
-                7: "button", 8: "date"}
-_CHOICE_KINDS = ("radio", "menu")
-
-# Config names, most preferred first (Nikon PTP names; Canon/others where they differ)
-ISO_NAMES = ("iso", "isospeed")
-SHUTTER_NAMES = ("shutterspeed", "shutterspeed2", "exptime")
-APERTURE_NAMES = ("f-number", "aperture")
-QUALITY_NAMES = ("imagequality", "imageformat")
-TARGET_NAMES = ("capturetarget",)
-
-RAW_QUALITY = "NEF (Raw)"
-BULB_LIMIT_S = 30.0          # the D610's longest timed speed; longer exposures use bulb
-SNAP_WARN_STOPS = 1.0 / 6.0  # warn when the offered speed/aperture is further than this from the request
+DEFAULT_GPHOTO_LATENCY_S = 2.0     # see GPhotoCamera: an estimate until measured on the camera
+LATENCY_ENV = "DUALRGB_GPHOTO_LATENCY_S"
+NR_MIN_EXPOSURE_S = 1.0            # the D610's long-exposure NR works on exposures of 1 s and longer
+_NR_CLEAR = ("off", "switched off", "not offered", "")
 
 
-def gphoto_error_code(exc: BaseException) -> Optional[int]:
-    code = getattr(exc, "code", None)
-    return int(code) if isinstance(code, int) else None
-
-
-def camera_error(exc: BaseException, action: str) -> CameraError:
-    """A one-line :class:`CameraError` for a libgphoto2 error (anything with an int ``code``), keeping the code.
-
-    ``action`` says what was being done ("open camera", "set shutterspeed", ...).
-    """
-    code = gphoto_error_code(exc)
-    detail = getattr(exc, "string", None) or str(exc)
-    detail = " ".join(str(detail).split())
-    advice = ERROR_ADVICE.get(code) if code is not None else None
-    if advice is None:
-        advice = f"camera error: {detail}" if detail else "camera error"
-    msg = f"{action}: {advice} [gphoto2 {code}]" if code is not None else f"{action}: {advice}"
-    return CameraError(msg, code)
-
-
-def retry_busy(fn: Callable[[], T], action: str, *, error_type: type = Exception, tries: int = 3,
-               delay_s: float = 0.5, sleep: Callable[[float], None] = time.sleep) -> T:
-    """Call ``fn``; retry on 'camera busy' (-110) up to ``tries`` times with doubling delay, map errors.
-
-    Only exceptions of ``error_type`` that carry a libgphoto2 code are mapped to :class:`CameraError`.
-    """
-    for attempt in range(1, tries + 1):
-        try:
-            return fn()
-        except error_type as exc:
-            code = gphoto_error_code(exc)
-            if code is None:
-                raise
-            if code == GP_ERROR_CAMERA_BUSY and attempt < tries:
-                wait = delay_s * 2 ** (attempt - 1)
-                log.info("%s: camera busy, retry %d/%d in %.1f s", action, attempt, tries - 1, wait)
-                sleep(wait)
-                continue
-            raise camera_error(exc, action) from exc
-    raise AssertionError("unreachable")  # pragma: no cover
-
-
-# ---------------------------------------------------------------------------------------------- parsing
-_NUM = r"(\d+(?:[.,]\d*)?|[.,]\d+)"
-_UNIT = r"\s*(?:s|sec|secs|second|seconds)?\.?"
-
-
-def _num(s: str) -> float:
-    return float(s.replace(",", "."))
-
-
-def parse_shutter(text: object) -> Optional[float]:
-    """Exposure time in seconds from a shutter-speed label, or None for Bulb/Time/auto/flash-sync/unknown.
-
-    Handles libgphoto2's localised "30,0000s" / "0.0100s", Nikon shutterspeed2 "1/4000", "30", "10/13",
-    Canon '0"3' / '30"' and plain numbers.
-    """
-    if isinstance(text, (int, float)) and not isinstance(text, bool):
-        return float(text) if text > 0 else None
-    s = str(text).strip().lower()
-    if not s:
-        return None
-    m = re.fullmatch(_NUM + r"\s*/\s*" + _NUM + _UNIT, s)
-    if m:
-        den = _num(m.group(2))
-        value = _num(m.group(1)) / den if den > 0 else 0.0
-        return value if value > 0 else None
-    m = re.fullmatch(r'(\d+)"(\d+)?', s)  # Canon: 0"3 = 0.3 s, 30" = 30 s
-    if m:
-        value = float(f"{m.group(1)}.{m.group(2) or 0}")
-        return value if value > 0 else None
-    m = re.fullmatch(_NUM + _UNIT, s)
-    if m:
-        value = _num(m.group(1))
-        return value if value > 0 else None
-    return None
-
-
-def is_bulb_label(text: object) -> bool:
-    return str(text).strip().lower() in ("bulb", "b")
-
-
-def parse_aperture(text: object) -> Optional[float]:
-    """f-number from "f/5.6", "f5,6", "5.6"; None for anything else (e.g. a lens without aperture contact)."""
-    if isinstance(text, (int, float)) and not isinstance(text, bool):
-        return float(text) if text > 0 else None
-    m = re.fullmatch(r"(?:f\s*/?\s*)?" + _NUM, str(text).strip().lower())
-    if not m:
-        return None
-    value = _num(m.group(1))
-    return value if value > 0 else None
-
-
-def parse_iso(text: object) -> Optional[int]:
-    """ISO number from "100", "ISO 100"; None for 'Auto', 'Hi 1', 'Lo 1' and other labels."""
-    if isinstance(text, (int, float)) and not isinstance(text, bool):
-        return int(text) if text > 0 else None
-    m = re.fullmatch(r"(?:iso\s*)?(\d+)", str(text).strip().lower())
-    return int(m.group(1)) if m and int(m.group(1)) > 0 else None
-
-
-def nearest_by_value(target: float, options: Sequence[tuple[float, T]]) -> tuple[float, T]:
-    """The (value, label) nearest to ``target`` in log space (stops), ties to the first offered."""
-    if not options:
-        raise ValueError("no values to choose from")
-    return min(options, key=lambda o: abs(math.log(o[0] / target)))
-
-
-def format_shutter(seconds: Optional[float]) -> str:
-    if seconds is None:
-        return "bulb"
-    if seconds >= 1 or seconds <= 0:
-        return f"{seconds:g} s"
-    inv = 1.0 / seconds
-    return f"1/{inv:.0f} s" if abs(inv - round(inv)) < 0.05 * inv else f"{seconds:.4g} s"
-
-
-# ------------------------------------------------------------------------------------------ config view
-@dataclass
-class ConfigEntry:
-    """One leaf of the camera's configuration tree, for display and for setting values."""
-
-    name: str
-    label: str
-    kind: str                           # 'text', 'range', 'toggle', 'radio', 'menu', 'button', 'date'
-    value: Any
-    readonly: bool = False
-    choices: list[str] = field(default_factory=list)
-    range: Optional[tuple[float, float, float]] = None   # (min, max, step) for 'range'
+# gphoto2 (python-gphoto2, which bundles libgphoto2) has no Windows wheels and is not installed there
+# (pyproject marker): everything but tethering a real camera works without it.
+TETHERING_UNAVAILABLE = ("camera tethering needs libgphoto2 (Linux/macOS: pip install gphoto2, which bundles it); "
+                         "it is not installed here, so only the virtual camera is available")
 
 
 def _import_gphoto():
     try:
         import gphoto2
     except ImportError as exc:
-        raise CameraError("python-gphoto2 is not installed: pip install gphoto2 (it bundles libgphoto2)") from exc
+        raise CameraError(TETHERING_UNAVAILABLE) from exc
     return gphoto2
 
 
-_gp_log_callbacks: list = []
+def gphoto_available() -> bool:
+    """True when python-gphoto2 (libgphoto2) can be imported, i.e. a real camera can be tethered."""
+    try:
+        _import_gphoto()
+    except CameraError:
+        return False
+    return True
 
 
-def _route_gphoto_logging(gp) -> None:
-    """Send libgphoto2's own log to Python logging at DEBUG (only when debug logging is on; once)."""
-    if _gp_log_callbacks or not logging.getLogger("gphoto2").isEnabledFor(logging.DEBUG):
-        return
-    levels = {gp.GP_LOG_ERROR: logging.DEBUG, gp.GP_LOG_VERBOSE: logging.DEBUG,
-              gp.GP_LOG_DEBUG: logging.DEBUG, gp.GP_LOG_DATA: logging.DEBUG}
-    _gp_log_callbacks.append(gp.use_python_logging(mapping=levels))
+def latency_from_env() -> Optional[float]:
+    """``$DUALRGB_GPHOTO_LATENCY_S`` (the measured allowance), or None when unset; one line when malformed."""
+    text = os.environ.get(LATENCY_ENV, "").strip()
+    if not text:
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0 < value <= 60:
+        raise CameraError(f"{LATENCY_ENV}={text!r}: expected the camera's latency in seconds, 0 < s <= 60 "
+                          "(measure it: python -m drivers.camera.gphoto_latency)")
+    return value
 
 
-class GPhotoCamera(Camera):
+def trigger_waits_for_exposure(summary: str, to_ram: bool) -> bool:
+    """Whether libgphoto2's ``trigger_capture`` returns only after the exposure (its Nikon paths poll the camera
+    until it is no longer busy): 'Nikon Capture 3' (capture to any target), or 'Nikon Capture 1/2' to RAM."""
+    if "Nikon Capture 3" in summary:
+        return True
+    return to_ram and ("Nikon Capture 1" in summary or "Nikon Capture 2" in summary)
+
+
+class PendingCall:
+    """A libgphoto2 call left running on its own thread (the bulb release, whose wait for the camera goes on
+    after the shutter has closed); the camera is not entered again until it has returned."""
+
+    def __init__(self, action: str, fn: Callable[[], Any], mark: int, on_done: Callable[["PendingCall"], None],
+                 started: float):
+        self.action, self.mark, self.on_done, self.started = action, mark, on_done, started
+        self.error: Optional[BaseException] = None
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self._run, args=(fn,), name=f"camera: {action}", daemon=True)
+
+    def _run(self, fn: Callable[[], Any]) -> None:
+        try:
+            fn()
+        except BaseException as exc:  # delivered by on_done to the thread that calls the camera next
+            self.error = exc
+        finally:
+            self.done.set()
+
+    def start(self) -> "PendingCall":
+        self.thread.start()
+        return self
+
+
+class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
     """A camera driven through libgphoto2 (PTP over USB).
 
     ``model``/``port`` pick one of :meth:`detect`'s results (default: the first camera found).
     ``bulb_limit_s``: exposures longer than this (and than the longest timed speed) use bulb.
-    ``file_timeout_s``: extra time allowed after a bulb exposure for the file to appear (long-exposure
-    noise reduction takes as long again as the exposure, which is added on top).
+    ``file_timeout_s``: time allowed after an exposure for its file to appear (twice the exposure is added when
+    long-exposure noise reduction could not be switched off, and for bulb). ``pair_timeout_s``: how long to wait
+    for the second file of a NEF+JPEG pair (drained, never taken for the next capture's file).
+    ``latency_s``: the light's allowance beyond the exposure (trigger, shutter lag, reporting the shutter closed);
+    default ``$DUALRGB_GPHOTO_LATENCY_S`` or DEFAULT_GPHOTO_LATENCY_S (2 s: libgphoto2's Nikon trigger polls the
+    camera every 0.1 s before and after the exposure, plus shutter lag and USB; a margin, since an allowance costs
+    light only when the camera is really that slow). ``bulb_release_grace_s``: the light's time after the bulb
+    release was sent (TerminateCapture is the release call's first transaction). ``trigger_waits``: override the
+    detection of whether trigger_capture returns only after the exposure.
     ``delete_from_card``: delete each file from the camera after download (only matters when capturing
     to the memory card; Internal RAM files are gone after download anyway).
     ``call_timeout_s``, ``capture_timeout_s`` (beyond the exposure), ``download_timeout_s``: host-side deadlines.
@@ -266,7 +156,9 @@ class GPhotoCamera(Camera):
     name = "gphoto2"
 
     def __init__(self, model: Optional[str] = None, port: Optional[str] = None, *,
-                 bulb_limit_s: float = BULB_LIMIT_S, file_timeout_s: float = 60.0,
+                 bulb_limit_s: float = BULB_LIMIT_S, file_timeout_s: float = 60.0, pair_timeout_s: float = 5.0,
+                 latency_s: Optional[float] = None, bulb_release_grace_s: float = 0.25,
+                 trigger_waits: Optional[bool] = None,
                  busy_tries: int = 3, busy_delay_s: float = 0.5, delete_from_card: bool = False,
                  call_timeout_s: float = 20.0, capture_timeout_s: float = 30.0, download_timeout_s: float = 120.0,
                  gp_module: Any = None, sleep: Optional[Callable[[float], None]] = None,
@@ -276,6 +168,11 @@ class GPhotoCamera(Camera):
         self._requested_model = model       # what open() asks for (reopen() asks the same again)
         self.bulb_limit_s = bulb_limit_s
         self.file_timeout_s = file_timeout_s
+        self.pair_timeout_s = pair_timeout_s
+        self._latency_s = float(latency_s) if latency_s is not None else (latency_from_env()
+                                                                          or DEFAULT_GPHOTO_LATENCY_S)
+        self.bulb_release_grace_s = bulb_release_grace_s
+        self.trigger_waits = trigger_waits
         self.busy_tries = busy_tries
         self.busy_delay_s = busy_delay_s
         self.delete_from_card = delete_from_card
@@ -283,15 +180,23 @@ class GPhotoCamera(Camera):
         self.capture_timeout_s = capture_timeout_s
         self.download_timeout_s = download_timeout_s
         self._stuck: Optional[tuple[str, threading.Thread, float]] = None    # a call that passed its deadline
+        self._pending: Optional[PendingCall] = None
         self._gp = gp_module
+        self._log: Optional[LibraryLog] = None
         self._abort_event = threading.Event()
         self._sleep = sleep if sleep is not None else self._abort_event.wait  # abort() ends a bulb wait early
         self._clock = clock
         self._cam: Any = None
         self._names: dict[str, str] = {}        # config name -> widget kind
+        self._summary = ""
         self._lock = threading.RLock()
         self._bulb_exposure_s: Optional[float] = None
+        self._timed_shutter: Optional[tuple[str, str]] = None   # (setting, label) to restore after bulb
         self._live_view = False
+        self.image_quality = ""
+        self.auto_iso = ""                      # what the session record says: 'switched off', 'off', ...
+        self.long_exposure_nr = ""
+        self.last_latency_s: Optional[float] = None   # measured: expose() return minus trigger minus exposure
 
     # ------------------------------------------------------------------------------ discovery and life
     @staticmethod
@@ -308,13 +213,28 @@ class GPhotoCamera(Camera):
     def is_open(self) -> bool:
         return self._cam is not None
 
+    @property
+    def latency_s(self) -> float:
+        return self._latency_s
+
+    def latency_for(self, exposure_s: float) -> float:
+        """The allowance, plus the exposure again for timed exposures of 1 s or more while long-exposure noise
+        reduction may run (it could not be switched off): the camera is busy with its dark frame until then."""
+        nr = self.long_exposure_nr not in _NR_CLEAR and NR_MIN_EXPOSURE_S <= exposure_s <= self.bulb_limit_s
+        return self._latency_s + (float(exposure_s) if nr else 0.0)
+
     def _gp_module(self):
         if self._gp is None:
             self._gp = _import_gphoto()
+        if self._log is None:
+            force_untranslated(self._gp)
+            self._log = LibraryLog.attach(self._gp)
         return self._gp
 
-    def _call(self, action: str, fn: Callable[..., T], *args: Any, deadline_s: Optional[float] = None) -> T:
-        """One libgphoto2 call: busy retries, error mapping, and a host-side deadline (default call_timeout_s)."""
+    def _call(self, action: str, fn: Callable[..., T], *args: Any, deadline_s: Optional[float] = None,
+              retry: bool = True, opening_port: bool = False) -> T:
+        """One libgphoto2 call: busy retries, error mapping with libgphoto2's logged reason, and a host-side
+        deadline (default call_timeout_s)."""
         gp = self._gp_module()
         deadline = self.call_timeout_s if deadline_s is None else deadline_s
 
@@ -325,9 +245,14 @@ class GPhotoCamera(Camera):
             except CameraTimeout as exc:
                 self._stuck = (action, exc.worker, self._clock())
                 raise
+
         with self._lock:
-            return retry_busy(attempt, action, error_type=gp.GPhoto2Error, tries=self.busy_tries,
-                              delay_s=self.busy_delay_s, sleep=self._sleep)
+            self._finish_pending()
+            mark = self._log.mark()
+            return retry_busy(attempt, action, error_type=gp.GPhoto2Error, tries=self.busy_tries if retry else 1,
+                              delay_s=self.busy_delay_s, sleep=self._sleep,
+                              mapper=lambda exc, act: camera_error(exc, act, logged=self._log.reason(mark),
+                                                                   opening_port=opening_port))
 
     def _check_not_stuck(self) -> None:
         """libgphoto2 is not re-entrant: while a call that passed its deadline is still inside, refuse."""
@@ -339,6 +264,16 @@ class GPhotoCamera(Camera):
                               "it off and on, then reconnect it", GP_ERROR_TIMEOUT)
         self._stuck = None
 
+    def _finish_pending(self) -> None:
+        """Wait for a call left running (the bulb release) and deliver its outcome (it may raise)."""
+        pending, self._pending = self._pending, None
+        if pending is None:
+            return
+        if not pending.done.wait(self.call_timeout_s):
+            self._stuck = (pending.action, pending.thread, pending.started)
+            self._check_not_stuck()
+        pending.on_done(pending)
+
     def _require_open(self):
         if self._cam is None:
             raise CameraError("the camera is not open: call open() first (or use it as a context manager)")
@@ -348,7 +283,6 @@ class GPhotoCamera(Camera):
         if self._cam is not None:
             return
         gp = self._gp_module()
-        _route_gphoto_logging(gp)
         cam = gp.Camera()
         where = f" on {self.port}" if self.port else ""
         if self.port:
@@ -368,29 +302,33 @@ class GPhotoCamera(Camera):
                 cam.set_abilities(abilities[abilities.lookup_model(self._requested_model)])
             except gp.GPhoto2Error as exc:
                 raise camera_error(exc, f"open camera {self._requested_model}") from exc
-        self._call(f"open camera{where}", cam.init)
+        self._call(f"open camera{where}", cam.init, opening_port=bool(self.port))
         self._cam = cam
         try:
             self.model = cam.get_abilities().model or self.model
             self._names = {e.name: e.kind for e in self._walk_config(self._call("read configuration",
                                                                                cam.get_config))}
+            self._summary = str(self._call("read the camera summary", cam.get_summary))
+            self._prepare_for_copy_stand()
         except CameraError:
             self.close()
             raise
-        log.info("opened %s%s (%d config entries)", self.model, where, len(self._names))
+        log.info("opened %s%s (%d config entries; quality %s, auto ISO %s, long-exposure NR %s)", self.model,
+                 where, len(self._names), self.image_quality or "?", self.auto_iso, self.long_exposure_nr)
 
     def close(self) -> None:
-        """End live view and free the USB device (safe to call twice)."""
-        cam, self._cam = self._cam, None
-        if cam is None:
+        """Back from Bulb, end live view and free the USB device (safe to call twice)."""
+        if self._cam is None:
             return
         gp = self._gp_module()
         with self._lock:
-            if self._live_view and "viewfinder" in self._names:
-                try:
-                    self._set_on(cam, "viewfinder", 0)
-                except (gp.GPhoto2Error, CameraError) as exc:
-                    log.debug("could not end live view: %s", exc)
+            try:
+                self._finish_pending()
+                self._restore_timed_shutter()
+                self._end_live_view()
+            except (gp.GPhoto2Error, CameraError) as exc:
+                log.debug("closing: %s", exc)
+            cam, self._cam = self._cam, None
             self._live_view = False
             try:
                 self._check_not_stuck()
@@ -410,354 +348,197 @@ class GPhotoCamera(Camera):
         """End a running bulb exposure early (safe to call from another thread); capture() then raises."""
         self._abort_event.set()
 
-    # ---------------------------------------------------------------------------------- configuration
-    def _walk_config(self, widget: Any) -> list[ConfigEntry]:
-        gp = self._gp_module()
-        out: list[ConfigEntry] = []
-        stack = [widget]
-        while stack:
-            w = stack.pop(0)
-            kind = WIDGET_KINDS.get(w.get_type(), str(w.get_type()))
-            if kind in ("window", "section"):
-                stack[:0] = [w.get_child(i) for i in range(w.count_children())]
-                continue
-            try:
-                value = w.get_value()
-            except gp.GPhoto2Error:
-                value = None
-            entry = ConfigEntry(name=w.get_name(), label=w.get_label(), kind=kind, value=value,
-                                readonly=bool(w.get_readonly()))
-            if kind in _CHOICE_KINDS:
-                entry.choices = [w.get_choice(i) for i in range(w.count_choices())]
-            elif kind == "range":
-                entry.range = tuple(float(x) for x in w.get_range())
-            out.append(entry)
-        return out
-
-    def list_config(self) -> dict[str, ConfigEntry]:
-        """Every configuration leaf by name (value, choices, read-only flag) as the camera reports it now."""
-        cam = self._require_open()
-        entries = self._walk_config(self._call("read configuration", cam.get_config))
-        return {e.name: e for e in entries}
-
-    def _first_name(self, names: Iterable[str]) -> Optional[str]:
-        return next((n for n in names if n in self._names), None)
-
-    def _entry(self, name: str) -> ConfigEntry:
-        cam = self._require_open()
-        w = self._call(f"read {name}", cam.get_single_config, name)
-        return self._walk_config(w)[0]
-
-    def get_config_value(self, name: str) -> Any:
-        if name not in self._names:
-            raise CameraError(f"this camera has no '{name}' setting", GP_ERROR_NOT_SUPPORTED)
-        return self._entry(name).value
-
-    def set_config_value(self, name: str, value: Any) -> Any:
-        """Set one configuration leaf by name; a choice must be one offered (compared case-insensitively).
-
-        Returns the value read back from the camera.
-        """
-        cam = self._require_open()
-        if name not in self._names:
-            raise CameraError(f"this camera has no '{name}' setting", GP_ERROR_NOT_SUPPORTED)
-        gp = self._gp_module()
-        w = self._call(f"read {name}", cam.get_single_config, name)
-        entry = self._walk_config(w)[0]
-        if entry.readonly:
-            raise CameraError(f"set {name}: read-only on this camera now (set the mode dial to M, or change "
-                              "it on the camera body)", GP_ERROR_NOT_SUPPORTED)
-        if entry.kind in _CHOICE_KINDS:
-            wanted = str(value).strip().lower()
-            match = next((c for c in entry.choices if c.strip().lower() == wanted), None)
-            if match is None:
-                shown = ", ".join(entry.choices[:12]) + (" ..." if len(entry.choices) > 12 else "")
-                raise CameraError(f"set {name}: {value!r} is not offered; the camera offers {shown}",
-                                  GP_ERROR_BAD_PARAMETERS)
-            value = match
-        elif entry.kind == "toggle":
-            value = int(bool(value))
-        elif entry.kind == "range":
-            value = float(value)
-        elif entry.kind == "date":
-            value = int(value)
-        else:
-            value = str(value)
-        try:
-            w.set_value(value)
-        except gp.GPhoto2Error as exc:
-            raise camera_error(exc, f"set {name} to {value!r}") from exc
-        self._call(f"set {name} to {value!r}", cam.set_single_config, name, w)
-        log.debug("set %s = %r", name, value)
-        return self._entry(name).value
-
-    def _set_on(self, cam: Any, name: str, value: Any) -> None:
-        w = self._call(f"read {name}", cam.get_single_config, name)
-        w.set_value(value)
-        self._call(f"set {name} to {value!r}", cam.set_single_config, name, w)
-
-    # ------------------------------------------------------------------------------------- settings
-    def _shutter_entry(self) -> Optional[ConfigEntry]:
-        """The first shutter-speed setting that offers parsable speeds (Nikon: shutterspeed, shutterspeed2)."""
-        for name in SHUTTER_NAMES:
-            if name in self._names and self._names[name] in _CHOICE_KINDS:
-                entry = self._entry(name)
-                if any(parse_shutter(c) for c in entry.choices):
-                    return entry
-        return None
-
-    def _shutter_options(self, entry: ConfigEntry) -> list[tuple[float, str]]:
-        opts = [(parse_shutter(c), c) for c in entry.choices]
-        return sorted((v, c) for v, c in opts if v is not None)
-
-    def shutter_speeds(self) -> list[float]:
-        self._require_open()
-        entry = self._shutter_entry()
-        return [] if entry is None else [v for v, _ in self._shutter_options(entry)]
-
-    def settings(self) -> CameraSettings:
-        self._require_open()
-        s = CameraSettings()
-        name = self._first_name(ISO_NAMES)
-        if name:
-            s.iso = parse_iso(self._entry(name).value)
-        entry = self._shutter_entry()
-        if entry is not None:
-            if is_bulb_label(entry.value):
-                s.shutter_s = self._bulb_exposure_s
-            else:
-                s.shutter_s = parse_shutter(entry.value)
-        name = self._first_name(APERTURE_NAMES)
-        if name:
-            s.aperture = parse_aperture(self._entry(name).value)
-        name = self._first_name(QUALITY_NAMES)
-        if name:
-            s.image_quality = self._entry(name).value
-        name = self._first_name(TARGET_NAMES)
-        if name:
-            s.capture_target = self._entry(name).value
-        return s
-
-    def _needs_bulb(self, exposure_s: float, options: list[tuple[float, str]]) -> bool:
-        longest = options[-1][0] if options else 0.0
-        # beyond the longest timed speed by more than a third of a stop: a timed speed would be wrong
-        return exposure_s > self.bulb_limit_s and exposure_s > longest * 2 ** (1 / 3)
-
-    def _set_shutter(self, exposure_s: float) -> tuple[float, bool]:
-        """Set the shutter for ``exposure_s``; returns (exposure the camera will give, uses bulb)."""
-        if not exposure_s or exposure_s <= 0:
-            raise CameraError(f"exposure must be a positive number of seconds, got {exposure_s!r}")
-        entry = self._shutter_entry()
-        if entry is None:
-            raise CameraError("this camera offers no shutter-speed setting over USB (set the mode dial to M)",
-                              GP_ERROR_NOT_SUPPORTED)
-        options = self._shutter_options(entry)
-        if self._needs_bulb(exposure_s, options):
-            bulb = next((c for c in entry.choices if is_bulb_label(c)), None)
-            if bulb is None or "bulb" not in self._names:
-                raise CameraError(f"set shutter: {format_shutter(exposure_s)} is longer than the longest speed "
-                                  f"{format_shutter(options[-1][0])} and this camera offers no bulb over USB "
-                                  "(mode dial to M, shutter to Bulb)", GP_ERROR_NOT_SUPPORTED)
-            if entry.value != bulb:
-                self.set_config_value(entry.name, bulb)
-            self._bulb_exposure_s = exposure_s
-            return exposure_s, True
-        value, label = nearest_by_value(exposure_s, options)
-        stops = abs(math.log2(value / exposure_s))
-        if stops > SNAP_WARN_STOPS:
-            log.warning("shutter %s not offered; using %s (%.2f stops off)", format_shutter(exposure_s),
-                        label, stops)
-        if entry.value != label:
-            self.set_config_value(entry.name, label)
-        self._bulb_exposure_s = None
-        return value, False
-
-    def apply(self, settings: CameraSettings) -> CameraSettings:
-        self._require_open()
-        with self._lock:
-            if settings.image_quality is not None:
-                name = self._first_name(QUALITY_NAMES)
-                if name is None:
-                    raise CameraError("this camera has no image-quality setting over USB", GP_ERROR_NOT_SUPPORTED)
-                self.set_config_value(name, settings.image_quality)
-            if settings.capture_target is not None:
-                name = self._first_name(TARGET_NAMES)
-                if name is None:
-                    raise CameraError("this camera has no capture-target setting", GP_ERROR_NOT_SUPPORTED)
-                self.set_config_value(name, settings.capture_target)
-            if settings.iso is not None:
-                name = self._first_name(ISO_NAMES)
-                if name is None:
-                    raise CameraError("this camera has no ISO setting over USB", GP_ERROR_NOT_SUPPORTED)
-                entry = self._entry(name)
-                options = [(float(v), c) for v, c in ((parse_iso(c), c) for c in entry.choices) if v]
-                if not options:
-                    raise CameraError(f"set ISO: the camera offers no numeric ISO ({entry.choices[:6]})",
-                                      GP_ERROR_NOT_SUPPORTED)
-                value, label = nearest_by_value(float(settings.iso), options)
-                if value != settings.iso:
-                    log.warning("ISO %s not offered; using %s", settings.iso, label)
-                self.set_config_value(name, label)
-            if settings.aperture is not None:
-                name = self._first_name(APERTURE_NAMES)
-                if name is None:
-                    raise CameraError("this camera has no aperture setting over USB (manual lens?)",
-                                      GP_ERROR_NOT_SUPPORTED)
-                entry = self._entry(name)
-                options = [(v, c) for v, c in ((parse_aperture(c), c) for c in entry.choices) if v]
-                if not options:
-                    raise CameraError(f"set aperture: the camera offers no f-numbers ({entry.choices[:6]}); "
-                                      "a manual lens is set on the lens", GP_ERROR_NOT_SUPPORTED)
-                value, label = nearest_by_value(float(settings.aperture), options)
-                if abs(math.log2(value / settings.aperture)) > SNAP_WARN_STOPS:
-                    log.warning("aperture f/%g not offered; using %s", settings.aperture, label)
-                self.set_config_value(name, label)
-            if settings.shutter_s is not None:
-                self._set_shutter(float(settings.shutter_s))
-            return self.settings()
-
     def config_summary(self) -> dict[str, object]:
         out: dict[str, object] = {"camera": self.model or "", "port": self.port or ""}
         out.update(super().config_summary())
         if "batterylevel" in self._names:
             out["battery"] = self.get_config_value("batterylevel")
+        out.update({"auto ISO": self.auto_iso, "long-exposure NR": self.long_exposure_nr,
+                    "latency allowance": f"{self.latency_s:g} s"})
         return out
 
-    # -------------------------------------------------------------------------------------- capture
-    def _drain_events(self, max_events: int = 50) -> list[tuple[str, str]]:
-        """Read queued events without waiting; returns files that were added meanwhile."""
-        cam = self._require_open()
-        gp = self._gp_module()
-        added = []
-        for _ in range(max_events):
-            kind, data = self._call("read camera events", cam.wait_for_event, 10)
-            if kind == gp.GP_EVENT_TIMEOUT:
-                break
-            if kind == gp.GP_EVENT_FILE_ADDED:
-                added.append((data.folder, data.name))
-        return added
+    # ------------------------------------------------------------------------------------- capture
+    @property
+    def _trigger_waits(self) -> bool:
+        if self.trigger_waits is not None:
+            return self.trigger_waits
+        name = self._first_name(TARGET_NAMES)     # libgphoto2 keeps it on the host: no USB traffic
+        entry = self._entry(name) if name else None
+        to_ram = entry is None or entry.value == capture_target_choice(entry.choices, RAM_TARGET)
+        return trigger_waits_for_exposure(self._summary, to_ram)
 
-    def _wait_for_file(self, timeout_s: float) -> tuple[str, str]:
-        cam = self._require_open()
-        gp = self._gp_module()
-        deadline = self._clock() + timeout_s
-        while True:
-            left = deadline - self._clock()
-            if left <= 0:
-                raise CameraError(f"capture: no file arrived within {timeout_s:.0f} s after the exposure ended "
-                                  "(check the card/Internal RAM and the camera display)", GP_ERROR_TIMEOUT)
-            kind, data = self._call("wait for the captured file", cam.wait_for_event,
-                                    int(min(left, 1.0) * 1000) or 1, deadline_s=min(left, 1.0) + self.call_timeout_s)
-            if kind == gp.GP_EVENT_FILE_ADDED:
-                return data.folder, data.name
+    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
+        """The exposure, returning once the shutter has closed; the file is fetched by :meth:`fetch`."""
+        self._require_open()
+        with self._lock:
+            if exposure_s is not None:
+                actual, bulb = self._set_shutter(float(exposure_s))
+            else:
+                actual, label, _ = self._shutter_now()
+                bulb = is_bulb_label(label)
+                if bulb and actual is None:
+                    raise CameraError("capture: the shutter is on Bulb but no exposure time was given")
+                if actual is None:
+                    raise CameraError("capture: the camera's shutter speed is not a timed one; give an exposure")
+            if bulb:
+                return self._bulb_exposure(float(actual))
+            return self._timed_exposure(float(actual))
 
-    def _bulb_exposure(self, exposure_s: float) -> None:
+    def _timed_exposure(self, exposure_s: float) -> Exposure:
         cam = self._require_open()
         gp = self._gp_module()
-        self._drain_events()
+        self._check_raw_quality()
+        self._discard_queued_files()
+        started = self._clock()
+        deadline = exposure_s + self.capture_timeout_s
+        files: list[tuple[str, str]] = []
+        try:
+            self._call("capture", cam.trigger_capture, deadline_s=deadline)
+        except CameraError as exc:
+            if exc.code != GP_ERROR_NOT_SUPPORTED:
+                raise
+            log.info("trigger_capture is not supported: capturing with capture() (it returns after storing)")
+            path = self._call("capture", cam.capture, gp.GP_CAPTURE_IMAGE, deadline_s=deadline)
+            files.append((path.folder, path.name))
+        else:
+            if not self._trigger_waits:
+                self._wait_until(lambda kind, data: self._capture_end(kind, data, files), deadline,
+                                 "capture: wait for the end of the exposure",
+                                 "the camera did not report the end of the exposure within {s:.0f} s")
+        ended = self._clock()
+        self._note_latency(ended - started - exposure_s, exposure_s)
+        return Exposure(exposure_s=exposure_s, started=started, ended=ended, bulb=False, handle=CapturedFiles(files))
+
+    def _capture_end(self, kind: int, data: Any, files: list[tuple[str, str]]) -> bool:
+        gp = self._gp_module()
+        if kind == gp.GP_EVENT_FILE_ADDED:
+            files.append((data.folder, data.name))
+            return True
+        return kind == gp.GP_EVENT_CAPTURE_COMPLETE
+
+    def _note_latency(self, latency_s: float, exposure_s: float) -> None:
+        self.last_latency_s = max(0.0, latency_s)
+        allowed = self.latency_for(exposure_s)
+        if self.last_latency_s > allowed:
+            log.warning("the camera reported the shutter closed %.2f s after a %s exposure, beyond its %.2f s "
+                        "allowance (measure it: python -m drivers.camera.gphoto_latency; set %s)",
+                        self.last_latency_s, format_shutter(exposure_s), allowed, LATENCY_ENV)
+
+    def _check_raw_quality(self) -> None:
+        """Before each capture: the image quality is still raw only (someone may have turned the camera's dial)."""
+        if self.image_quality and not self.stores_pairs and self.expects_raw:
+            name = self._first_name(("imagequality", "imageformat"))
+            if name and self._entry(name).value == self.image_quality:
+                return
+        self.image_quality = self._force_raw_quality()
+
+    def _end_live_view(self) -> None:
+        if self._live_view and "viewfinder" in self._names:
+            self._set_toggle("viewfinder", 0)
+            log.info("live view switched off")
+        self._live_view = False
+
+    def _bulb_exposure(self, exposure_s: float) -> Exposure:
+        self._end_live_view()               # the camera cannot take a bulb exposure from live view
+        self._discard_queued_files()
         self._abort_event.clear()
         opened = False
         started = self._clock()
         try:
-            self._set_on(cam, "bulb", 1)
+            self._set_toggle("bulb", 1)
             opened = True
             log.info("bulb open for %s", format_shutter(exposure_s))
             self._sleep(exposure_s)
         finally:
             # always close the shutter again, also when opening failed half-way or the wait was interrupted
-            try:
-                self._set_on(cam, "bulb", 0)
-            except (CameraError, gp.GPhoto2Error) as exc:
-                if opened:
-                    raise CameraError("bulb could not be ended: the shutter may still be open; switch the "
-                                      f"camera off and on ({exc})", gphoto_error_code(exc)) from exc
-                log.debug("releasing bulb after a failed start: %s", exc)
+            self._release_bulb(opened)
+        ended = self._clock()
         if self._abort_event.is_set():
             self._abort_event.clear()
-            raise CameraError(f"capture: bulb exposure aborted after {self._clock() - started:.0f} s of "
+            raise CameraError(f"capture: bulb exposure aborted after {ended - started:.0f} s of "
                               f"{exposure_s:g} s (the camera may still store the short frame)", GP_ERROR_CANCEL)
+        return Exposure(exposure_s=exposure_s, started=started, ended=ended, bulb=True, handle=CapturedFiles())
 
-    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
-        """The exposure, returning once the shutter has closed; the file is fetched by :meth:`fetch`."""
+    def _release_bulb(self, opened: bool) -> None:
+        """``bulb``=0, sent once. Returns ``bulb_release_grace_s`` after it was sent (the shutter closes on
+        TerminateCapture, the call's first request), leaving libgphoto2's wait for the camera running."""
         cam = self._require_open()
-        gp = self._gp_module()
-        with self._lock:
-            if exposure_s is not None:
-                actual, bulb = self._set_shutter(float(exposure_s))
-            else:
-                current = self.settings().shutter_s
-                entry = self._shutter_entry()
-                bulb = entry is not None and is_bulb_label(entry.value)
-                if bulb and self._bulb_exposure_s is None:
-                    raise CameraError("capture: the shutter is on Bulb but no exposure time was given")
-                actual = self._bulb_exposure_s if bulb else current
-            started = self._clock()
-            if bulb:
-                self._bulb_exposure(float(actual))
-                handle = None                   # the file is announced (FILE_ADDED) after the shutter closed
-            else:
-                path = self._call("capture", cam.capture, gp.GP_CAPTURE_IMAGE,
-                                  deadline_s=float(actual or 0.0) + self.capture_timeout_s)
-                handle = (path.folder, path.name)
-            return Exposure(exposure_s=float(actual) if actual else 0.0, started=started, ended=self._clock(),
-                            bulb=bulb, handle=handle)
+        try:
+            w = self._call("read bulb", cam.get_single_config, "bulb")
+        except CameraError as exc:
+            if opened:
+                raise CameraError(f"bulb could not be ended: the shutter may still be open; switch the camera off "
+                                  f"and on ({exc})", exc.code) from exc
+            log.debug("releasing bulb after a failed start: %s", exc)
+            return
+        w.set_value(0)
+        pending = PendingCall("release the bulb", lambda: cam.set_single_config("bulb", w), self._log.mark(),
+                              lambda p: self._release_outcome(p, opened), self._clock()).start()
+        if pending.done.wait(self.bulb_release_grace_s if opened else self.call_timeout_s):
+            self._release_outcome(pending, opened)
+        else:
+            self._pending = pending
+
+    def _release_outcome(self, pending: PendingCall, opened: bool) -> None:
+        exc = pending.error
+        if exc is None:
+            return
+        if gphoto_error_code(exc) is None:
+            raise exc
+        reason = self._log.reason(pending.mark)
+        if gphoto_error_code(exc) in (GP_ERROR_CAMERA_BUSY, GP_ERROR) and "terminatecapture" not in reason.lower():
+            log.info("bulb released; the camera is still processing the frame (%s)", reason or exc)
+            return
+        if not opened:
+            log.debug("releasing bulb after a failed start: %s", exc)
+            return
+        raise CameraError("bulb could not be ended: the shutter may still be open; switch the camera off and on "
+                          f"({camera_error(exc, 'release the bulb', logged=reason)})", gphoto_error_code(exc))
 
     def fetch(self, exposure: Exposure) -> RawCapture:
-        """Wait for the exposure's file if the camera has not announced it yet (bulb), then download it."""
+        """Wait for the exposure's raw file if the camera has not announced it yet, then download it."""
         cam = self._require_open()
-        actual, bulb = exposure.exposure_s, exposure.bulb
         with self._lock:
-            if exposure.handle is None:
-                folder, name = self._wait_for_file(self.file_timeout_s + actual)
-            else:
-                folder, name = exposure.handle
-            extra_files = self._drain_events()
-            extra_files = [f for f in extra_files if f != (folder, name)]
-            if extra_files:
-                log.warning("the camera also stored %s (set image quality to %s only)",
-                            ", ".join(n for _, n in extra_files), RAW_QUALITY)
+            self._finish_pending()
+            seen = list(exposure.handle.files) if isinstance(exposure.handle, CapturedFiles) else []
+            nr = self.long_exposure_nr not in _NR_CLEAR
+            timeout = self.file_timeout_s + exposure.exposure_s * (2 if exposure.bulb or nr else 1)
+            folder, name = self._wait_for_raw(seen, timeout)
             data, mime = self.download(folder, name)
+            extra = self._rest_of_capture(seen, (folder, name))
             if self.delete_from_card:
                 try:
                     self._call(f"delete {name} from the camera", cam.file_delete, folder, name)
                 except CameraError as exc:
                     log.warning("%s", exc)
-            s = self.settings()
-        log.info("captured %s (%d bytes, %s)", name, len(data), format_shutter(actual))
-        return RawCapture(data=data, filename=name, exposure_s=float(actual) if actual else 0.0, iso=s.iso,
+            s = self.settings()             # on Bulb still: the bulb exposure (restored before live view)
+            _, label, setting = self._shutter_now()
+        log.info("captured %s (%d bytes, %s)", name, len(data), format_shutter(exposure.exposure_s))
+        return RawCapture(data=data, filename=name, exposure_s=exposure.exposure_s, iso=s.iso,
                           aperture=s.aperture, camera=self.model or "",
-                          extra={"folder": folder, "mime": mime, "bulb": bulb,
-                                 "extra_files": [f"{f}/{n}" for f, n in extra_files]})
-
-    def download(self, folder: str, name: str) -> tuple[bytes, str]:
-        """One file from the camera into memory: (bytes, MIME type)."""
-        cam = self._require_open()
-        gp = self._gp_module()
-        cfile = self._call(f"download {folder}/{name}", cam.file_get, folder, name, gp.GP_FILE_TYPE_NORMAL,
-                           deadline_s=self.download_timeout_s)
-        data = bytes(memoryview(cfile.get_data_and_size()))
-        return data, cfile.get_mime_type()
-
-    def list_files(self, folder: str = "/") -> list[str]:
-        """Paths of every file on the camera below ``folder``."""
-        cam = self._require_open()
-        out: list[str] = []
-        stack = [folder]
-        while stack:
-            f = stack.pop(0)
-            files = self._call(f"list {f}", cam.folder_list_files, f)
-            out += [f.rstrip("/") + "/" + files.get_name(i) for i in range(files.count())]
-            sub = self._call(f"list {f}", cam.folder_list_folders, f)
-            stack += [f.rstrip("/") + "/" + sub.get_name(i) for i in range(sub.count())]
-        return out
+                          extra={"folder": folder, "mime": mime, "bulb": exposure.bulb,
+                                 "extra_files": [f"{f}/{n}" for f, n in extra],
+                                 "shutter_setting": setting, "shutter_label": "Bulb" if exposure.bulb else label,
+                                 "auto_iso": self.auto_iso, "long_exposure_nr": self.long_exposure_nr,
+                                 "latency_s": self.last_latency_s if not exposure.bulb else None})
 
     def preview(self) -> np.ndarray:
+        """A live-view frame. The camera refuses live view while the shutter is on Bulb ('Bulb warning'): the
+        timed speed set before dualrgb's own bulb exposure is restored first; Bulb left by something else is
+        reported in one line."""
         cam = self._require_open()
-        from PIL import Image, UnidentifiedImageError
-
-        cfile = self._call("live view", cam.capture_preview)
-        self._live_view = True
+        with self._lock:
+            self._restore_timed_shutter()
+            try:
+                cfile = self._call("live view", cam.capture_preview)
+            except CameraError as exc:
+                if "bulb" in str(exc).lower():
+                    raise CameraError(f"{exc}; the shutter is on Bulb: set a timed shutter speed on the camera "
+                                      "(or take one timed exposure) and start live view again", exc.code) from exc
+                raise
+            self._live_view = True
         data = bytes(memoryview(cfile.get_data_and_size()))
+        from PIL import Image, UnidentifiedImageError
         try:
             with Image.open(BytesIO(data)) as img:
                 return np.asarray(img.convert("RGB"), dtype=np.uint8)

@@ -27,6 +27,7 @@ import serial
 
 from drivers.led_sphere import protocol as P
 from drivers.led_sphere.errors import LightReport, SphereError
+from drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S  # noqa: F401 (re-exported)
 from drivers.led_sphere.supervisor import LitPeriod, OnTimeSupervisor
 from simulation.lightsource import N_SPHERE_LEDS, LightSource
 
@@ -38,9 +39,6 @@ except ImportError:                     # pragma: no cover - Windows
     class _TermiosError(Exception):
         pass
 
-DEFAULT_TIMEOUT_S = 1.0
-DEFAULT_MAX_ON_S = 10.0        # per lit period (thesis 4.3.2: no LED drift in the first 10 s)
-MAX_ON_RANGE_S = (P.ON_LIMIT_MIN_MS / 1000, P.ON_LIMIT_MAX_MS / 1000)
 _IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
 _MAX_LINES_PER_ATTEMPT = 8     # stale replies skipped per attempt before giving up (a chattering line)
 

@@ -13,7 +13,7 @@ It renders what the real camera would record, with the same simulation the optim
 * sensor: Bayer RGGB, 14-bit, DN = black + gain * t * ISO/100 * response; shot noise on electrons, read noise,
   dark current, a few hot pixels; linear to ~11 000 DN then a soft knee up to the white level 15520 where
   it clips (thesis 4.1); optional exposure-time "bumps" of the mechanical shutter (appendix A);
-* file: an uncompressed 16-bit DNG (PiDNG; 14-bit data, see ../shared/FACTS.md) that rawpy reads back
+* file: an uncompressed 16-bit DNG (14-bit data; drivers.virtual.dng, tifffile) that rawpy reads back
   bit-exact.
 
 ``expose()`` takes the light as it is at that moment (the exposure; with ``realtime=True`` it also lasts the
@@ -35,7 +35,6 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
-from fractions import Fraction
 from pathlib import Path
 from typing import Any, Callable, Optional
 
@@ -43,6 +42,7 @@ import numpy as np
 
 import resources
 from drivers.camera.base import Camera, CameraError, CameraSettings, Exposure, RawCapture
+from drivers.virtual.dng import DngInfo, dng_bytes
 from drivers.virtual.scene import Scene
 from simulation.camera_model import led_responses
 from simulation.datasets import default_setup, load_camera
@@ -101,7 +101,7 @@ class StaticLight:
 
 @dataclass
 class SensorModel:
-    """Sensor and readout constants (D610-like; see FACTS.md and thesis 4.1)."""
+    """Sensor and readout constants (D610-like: black 600, white 15520, 14-bit; thesis 4.1)."""
 
     black_level: int = 600
     white_level: int = 15520
@@ -154,6 +154,9 @@ class VirtualCamera(Camera):
     """A virtual D610 on the copy stand. ``scene`` is settable (place a target, open the gate, cap the lens)."""
 
     name = "Virtual D610"
+    # its latency allowance: expose() returns as the exposure ends (no shutter lag, no USB), so this is only the
+    # margin for a host whose threads are scheduled late under load
+    latency_s = 1.0
 
     def __init__(
         self,
@@ -324,9 +327,9 @@ class VirtualCamera(Camera):
             neutral = self._neutral(snap)
         finally:
             self._settings, self._scene = now_settings, now_scene
-        data = mosaic_to_dng(mosaic, exposure_s=t, iso=int(s.iso), aperture=float(s.aperture),
-                             black_level=self.sensor.black_level, white_level=self.sensor.white_level,
-                             color_matrix=self._cm, as_shot_neutral=neutral)
+        data = dng_bytes(mosaic, DngInfo(exposure_s=t, iso=int(s.iso), aperture=float(s.aperture),
+                                         black_level=self.sensor.black_level, white_level=self.sensor.white_level,
+                                         color_matrix=self._cm, as_shot_neutral=neutral, model=CAMERA_NAME))
         self._counter += 1
         name = f"VIRT_{self._counter:04d}.DNG"
         log.info("virtual capture %s: %s, %.6g s%s, ISO %d, f/%g, %.2f s", name, scene.kind, t,
@@ -533,55 +536,3 @@ class VirtualCamera(Camera):
         white = levels @ led_responses(self.led_spectra(np.array(drift)), np.ones((1, len(self.grid))),
                                        self.camera_sensitivities)[:, 0]
         return white / white.max() if white.max() > 0 else np.ones(3)
-
-
-def _rational(x: float, max_den: int = 100000) -> list[int]:
-    f = Fraction(float(x)).limit_denominator(max_den)
-    return [f.numerator, f.denominator]
-
-
-def mosaic_to_dng(mosaic: np.ndarray, *, exposure_s: float, iso: int, aperture: float, black_level: int = 600,
-                  white_level: int = 15520, color_matrix: Optional[np.ndarray] = None,
-                  as_shot_neutral: Optional[np.ndarray] = None, model: str = CAMERA_NAME) -> bytes:
-    """An uncompressed DNG (BitsPerSample 16, 14-bit data, CFA RGGB) of ``mosaic`` (H, W) uint16.
-
-    PiDNG 4.0.9 round-trips bit-exact through rawpy only this way (../shared/FACTS.md). The exposure time,
-    ISO and f-number go into the EXIF tags PiDNG writes in IFD0.
-    """
-    from pidng.core import RAW2DNG                      # imported here: only captures need it
-    from pidng.defs import CFAPattern, Orientation, PhotometricInterpretation
-    from pidng.dng import DNGTags, Tag
-
-    if mosaic.dtype != np.uint16 or mosaic.ndim != 2:
-        raise ValueError(f"mosaic must be a 2-D uint16 array, got {mosaic.dtype} {mosaic.shape}")
-    height, width = mosaic.shape
-    cm = np.eye(3) if color_matrix is None else np.asarray(color_matrix, float)
-    neutral = np.ones(3) if as_shot_neutral is None else np.asarray(as_shot_neutral, float)
-    make, _, camera_model = model.partition(" ")
-    t = DNGTags()
-    t.set(Tag.ImageWidth, width)
-    t.set(Tag.ImageLength, height)
-    t.set(Tag.TileWidth, width)
-    t.set(Tag.TileLength, height)
-    t.set(Tag.Orientation, Orientation.Horizontal)
-    t.set(Tag.PhotometricInterpretation, PhotometricInterpretation.Color_Filter_Array)
-    t.set(Tag.SamplesPerPixel, 1)
-    t.set(Tag.BitsPerSample, 16)
-    t.set(Tag.CFARepeatPatternDim, [2, 2])
-    t.set(Tag.CFAPattern, CFAPattern.RGGB)
-    t.set(Tag.BlackLevel, [int(black_level)])
-    t.set(Tag.WhiteLevel, [int(white_level)])
-    t.set(Tag.ColorMatrix1, [_rational(v, 10000) for v in cm.reshape(-1)])
-    t.set(Tag.CalibrationIlluminant1, 21)              # D65
-    t.set(Tag.AsShotNeutral, [_rational(v, 10000) for v in neutral])
-    t.set(Tag.BaselineExposure, [[0, 1]])
-    t.set(Tag.Make, make or model)
-    t.set(Tag.Model, camera_model or model)
-    t.set(Tag.UniqueCameraModel, model)
-    t.set(Tag.ExposureTime, [_rational(exposure_s)])
-    t.set(Tag.FNumber, [_rational(aperture, 100)])
-    t.set(Tag.PhotographicSensitivity, [int(iso)])
-    t.set(Tag.DateTimeOriginal, time.strftime("%Y:%m:%d %H:%M:%S"))
-    writer = RAW2DNG()
-    writer.options(t, path="", compress=False)
-    return bytes(writer.convert(np.ascontiguousarray(mosaic)))

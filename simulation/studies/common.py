@@ -23,6 +23,7 @@ from simulation.atomic_io import atomic_output, atomic_write
 from simulation.datasets import SimulationSetup, default_setup
 from simulation.grid import SpectralGrid
 from simulation.objective import Evaluator
+from simulation.versions import stamped
 
 log = logging.getLogger(__name__)
 
@@ -150,7 +151,9 @@ class StudyOutput:
         self.files: list[Path] = []
 
     def write_json(self, name: str, data: Any) -> Path:
+        """``data`` (a dict) behind the format tag (its own 'format', else dualrgb-study-<name>/1) and versions."""
         path = self.folder / name
+        data = stamped(data.get("format") or f"dualrgb-study-{Path(name).stem.replace('_', '-')}/1", data)
         atomic_write(path, json.dumps(to_jsonable(data), indent=2) + "\n")
         self.files.append(path)
         return path
@@ -203,3 +206,16 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
             front.append(i)
             best = points[i][1]
     return front
+
+
+def study_charts() -> list[tuple[str, Path]]:
+    """(label, PNG) of the charts to show: the user's own ``dualrgb study`` runs (in the per-user data folder,
+    where the studies write by default) first, then the reference charts packaged with the app."""
+    import resources
+
+    mine = resources.user_path("studies")
+    charts = [(f"{p.parent.name}/{p.name}", p) for p in sorted(mine.glob("*/*.png"))] if mine.is_dir() else []
+    packaged = resources.path("figures")
+    if packaged.is_dir():
+        charts += [(f"{p.name} (reference run)", p) for p in sorted(packaged.glob("*.png"))]
+    return charts

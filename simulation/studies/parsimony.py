@@ -13,8 +13,9 @@ Three questions, each answered automatically with a tolerance (default 0.05 mean
    half the patches as thesis 8.3): test error of simulated captures. The fewest exposures within the
    tolerance of the most accurate bracket are chosen.
 
-The choices go to ``parsimony.json`` (format ``dualrgb-parsimony/1``); the packaged copy
-``resources/parsimony.json`` is what :func:`load_defaults` returns for the app.
+The choices go to ``parsimony.json`` (format ``dualrgb-parsimony/1``). :func:`load_defaults` returns the
+user's copy (``--write-defaults`` puts it in the per-user data folder, ``resources.user_path``) when there is
+one, else the packaged ``resources/parsimony.json`` from the reference run.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ import json
 import logging
 import time
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 from typing import Optional
 
 import numpy as np
@@ -34,6 +36,7 @@ from simulation.search import exhaustive, light_pairs, refine_top
 from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, new_figure
 from simulation.studies.models import MODEL_TERMS, MODELS
 from simulation.studies.noise import CameraNoise, NoiseModel
+from simulation.versions import output_header
 
 log = logging.getLogger(__name__)
 
@@ -192,7 +195,7 @@ class ParsimonyResult:
     elapsed_s: float
 
     def defaults(self) -> dict:
-        return {"format": FORMAT, "spectral_step_nm": self.steps["chosen_nm"],
+        return {**output_header(FORMAT), "spectral_step_nm": self.steps["chosen_nm"],
                 "characterisation_model": self.models["chosen"], "hdr_exposures": self.exposures["chosen"],
                 "tolerance_de00": self.config.tolerance,
                 "default_10nm_justified": self.steps["default_10nm_justified"],
@@ -222,9 +225,10 @@ def parsimony(spec: SetupSpec = SetupSpec(), cfg: ParsimonyConfig = ParsimonyCon
 
 
 def load_defaults(path: Optional[str] = None) -> dict:
-    """The app's defaults chosen by the parsimony study (resources/parsimony.json), or the thesis defaults."""
+    """The app's defaults chosen by the parsimony study: ``path``, else the user's parsimony.json (per-user data
+    folder), else the packaged resources/parsimony.json; the thesis defaults when none is readable."""
     try:
-        p = path or resources.path("parsimony.json")
+        p = path or resources.user_or_packaged("parsimony.json")
         data = json.loads(open(p, encoding="utf-8").read())
     except (OSError, ValueError) as exc:
         log.info("no parsimony defaults (%s); using %s", exc, FALLBACK_DEFAULTS)
@@ -287,6 +291,7 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     if defaults_path:
         from simulation.atomic_io import atomic_write
 
+        Path(defaults_path).parent.mkdir(parents=True, exist_ok=True)
         atomic_write(defaults_path, json.dumps(result.defaults(), indent=2) + "\n")
     out.save_figure(parsimony_chart(result), "parsimony.png")
     s = result.steps
@@ -310,5 +315,6 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     lines += [f"- {r['exposures']} exposure(s) x{', '.join(f'{f:.3g}' for f in r['factors'])}: {sc:.4f}"
               for r, sc in zip(e["rows"], e["scores"])]
     lines += ["", f"Chosen: **{e['chosen']}** exposure(s) per light.", "",
-              "Defaults written to parsimony.json (copy to resources/parsimony.json for the app)."]
+              "Defaults written to parsimony.json (`dualrgb study parsimony --write-defaults` makes them the "
+              "app's defaults)."]
     out.write_summary("Parsimony", lines)

@@ -29,6 +29,7 @@ from simulation.studies.common import (SetupSpec, StudyOutput, TracedEvaluator, 
 from simulation.studies.distributed import Runner, SerialRunner
 from simulation.studies.optimisers import (LABELS, OPTIMISERS, DeSettings, HalvingSettings, LbfgsSettings,
                                            PyswarmsSettings)
+from simulation.warmup import warm_up
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +99,7 @@ def run_task(task: RunTask) -> dict:
     groups = light_pairs()
     if task.light_sets:
         groups = groups[:task.light_sets]
-    _warm_up(ev)
+    warm_up(ev)
     traced = TracedEvaluator(ev)
     fn = OPTIMISERS[task.config.method]
     n0 = ev.evaluations
@@ -113,13 +114,6 @@ def run_task(task: RunTask) -> dict:
             "best": {**best.to_dict(), "levels_exact": {str(i + 1): list(src.levels)
                                                         for i, src in enumerate(best.sources)}},
             "trace": traced.trace.to_dict()}
-
-
-def _warm_up(ev) -> None:
-    """Load the numba kernels (compiled or from cache) before anything is timed."""
-    idx = np.zeros((4, 2, 3), dtype=np.int64)
-    idx[:, 1] = 1
-    ev.cost_indexed(idx, np.ones((4, 2, 3)))
 
 
 @dataclass

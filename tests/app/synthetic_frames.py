@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from app.processing.mosaic import mosaic_from_rgb
+from drivers.virtual.dng import DngInfo, save_dng
 
 WHITE = 15520
 BLACK = 600
@@ -83,37 +84,7 @@ def mosaic_scene(refl: np.ndarray, rows: int, cols: int, cell: int = 8, border: 
 
 def write_dng(path: Path, data: np.ndarray, *, black: int = BLACK, white: int = WHITE, cfa: str = "RGGB",
               exposure=(1, 125)) -> Path:
-    """Uncompressed 16-bit DNG (FACTS.md: what PiDNG writes and rawpy reads back bit-exact)."""
-    from pidng.core import RAW2DNG, DNGTags, Tag
-    from pidng.defs import CalibrationIlluminant, DNGVersion, Orientation, PhotometricInterpretation
-
-    path = Path(path)
-    h, w = data.shape
-    t = DNGTags()
-    t.set(Tag.ImageWidth, w)
-    t.set(Tag.ImageLength, h)
-    t.set(Tag.TileWidth, w)
-    t.set(Tag.TileLength, h)
-    t.set(Tag.Orientation, Orientation.Horizontal)
-    t.set(Tag.BitsPerSample, 16)
-    t.set(Tag.PhotometricInterpretation, PhotometricInterpretation.Color_Filter_Array)
-    t.set(Tag.SamplesPerPixel, 1)
-    t.set(Tag.CFARepeatPatternDim, [2, 2])
-    t.set(Tag.CFAPattern, [{"R": 0, "G": 1, "B": 2}[c] for c in cfa])
-    t.set(Tag.BlackLevel, black)
-    t.set(Tag.WhiteLevel, white)
-    t.set(Tag.ColorMatrix1, [[1, 1], [0, 1], [0, 1], [0, 1], [1, 1], [0, 1], [0, 1], [0, 1], [1, 1]])
-    t.set(Tag.CalibrationIlluminant1, CalibrationIlluminant.D65)
-    t.set(Tag.AsShotNeutral, [[1, 1], [1, 1], [1, 1]])
-    t.set(Tag.Make, "Nikon")
-    t.set(Tag.Model, "Nikon D610")
-    t.set(Tag.ExposureTime, [tuple(exposure)])
-    t.set(Tag.DNGVersion, DNGVersion.V1_4)
-    t.set(Tag.DNGBackwardVersion, DNGVersion.V1_2)
-    writer = RAW2DNG()
-    writer.options(t, path=str(path.parent), compress=False)
-    name = path.name[:-4] if path.name.lower().endswith(".dng") else path.name
-    out = Path(writer.convert(np.ascontiguousarray(data, dtype=np.uint16), filename=name))
-    if out != path:
-        out.rename(path)
-    return path
+    """Uncompressed 16-bit DNG through the app's one DNG writer (rawpy reads it back bit-exact)."""
+    num, den = exposure
+    return save_dng(path, np.ascontiguousarray(data, dtype=np.uint16),
+                    DngInfo(black, white, cfa=cfa, exposure_s=num / den))

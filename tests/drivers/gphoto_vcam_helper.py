@@ -5,7 +5,7 @@ test_gphoto_vcam.py with the environment already set (VCAMERADIR, XDG_CONFIG_HOM
 virtual camera appears as 'Nikon DSC D750' on usb:001,001; capture() copies a JPEG from the folder; DNG
 files in the folder download byte-identical.
 
-usage: python gphoto_vcam_helper.py detect|session|errors|nocamera
+usage: python gphoto_vcam_helper.py detect|session|errors|nocamera|locale
 """
 from __future__ import annotations
 
@@ -47,7 +47,9 @@ def session() -> dict:
         cap = cam.capture(0.1)
         out["capture"] = {"filename": cap.filename, "size": len(cap.data), "head": cap.data[:3].hex(),
                           "exposure_s": cap.exposure_s, "camera": cap.camera, "aperture": cap.aperture,
-                          "mime": cap.extra.get("mime"), "bulb": cap.extra.get("bulb")}
+                          "mime": cap.extra.get("mime"), "bulb": cap.extra.get("bulb"),
+                          "latency_s": cap.extra.get("latency_s")}
+        out["trigger_waits"] = cam._trigger_waits
         # files placed in VCAMERADIR are on the camera's store; DNG downloads byte-identical
         files = cam.list_files()
         out["files"] = files
@@ -100,6 +102,21 @@ def errors() -> dict:
     return out
 
 
+def locale_scenario() -> dict:
+    """Labels and error texts under a translated locale (LANGUAGE set by the test), before and after the driver."""
+    import locale
+
+    locale.setlocale(locale.LC_ALL, "")             # what Qt does at start-up
+    import gphoto2 as gp
+
+    out: dict = {"before": {"error": gp.GPhoto2Error(-105).string}}
+    with GPhotoCamera(model="Nikon DSC D750", port="usb:001,001") as cam:
+        out["after"] = {"error": gp.GPhoto2Error(-105).string,
+                        "capturetarget": cam.list_config()["capturetarget"].choices,
+                        "set_target": cam.set_config_value("capturetarget", "interner Speicher")}
+    return out
+
+
 def nocamera() -> dict:
     """Nothing attached (VCAMERADIR unset): the raw library error and ours."""
     import gphoto2 as gp
@@ -120,5 +137,6 @@ def nocamera() -> dict:
 
 if __name__ == "__main__":
     scenario = sys.argv[1]
-    result = {"detect": detect, "session": session, "errors": errors, "nocamera": nocamera}[scenario]()
+    result = {"detect": detect, "session": session, "errors": errors, "nocamera": nocamera,
+              "locale": locale_scenario}[scenario]()
     print(json.dumps(result, default=str))

@@ -1,7 +1,5 @@
-"""Small DNG files for the raw-loader and raw-info tests, written with PiDNG.
-
-FACTS.md: PiDNG 4.0.9 round-trips bit-exact through rawpy only when stored uncompressed with BitsPerSample 16
-(14-bit data, WhiteLevel 15520, as the D610 writes); BitsPerSample 14 and LJ92 are broken in that version.
+"""Small DNG files for the raw-loader and raw-info tests, written by drivers.virtual.dng (the virtual camera's
+writer): uncompressed, BitsPerSample 16, 14-bit data and WhiteLevel 15520 as the D610 writes them.
 """
 from __future__ import annotations
 
@@ -10,11 +8,10 @@ from typing import Sequence
 
 import numpy as np
 
+from drivers.virtual.dng import DngInfo, save_dng
+
 D610_WHITE = 15520
 D610_BLACK = 600
-
-# CFAPattern tag values: 0 = red, 1 = green, 2 = blue
-CFA_CODES = {"R": 0, "G": 1, "B": 2}
 
 
 def mosaic_14bit(height: int = 40, width: int = 60, seed: int = 0) -> np.ndarray:
@@ -27,43 +24,8 @@ def mosaic_14bit(height: int = 40, width: int = 60, seed: int = 0) -> np.ndarray
 
 def write_dng(path: Path, data: np.ndarray, *, cfa: str = "RGGB", black: int = D610_BLACK,
               white: int = D610_WHITE, make: str = "Nikon", model: str = "Nikon D610",
-              exposure: Sequence[int] = (1, 125), linear_rgb: bool = False) -> Path:
-    """Write ``data`` (uint16 (H, W) mosaic, or (H, W, 3) with linear_rgb) as an uncompressed 16-bit DNG."""
-    from pidng.core import RAW2DNG, DNGTags, Tag
-    from pidng.defs import CalibrationIlluminant, DNGVersion, Orientation, PhotometricInterpretation
-
-    path = Path(path)
-    h, w = data.shape[:2]
-    t = DNGTags()
-    t.set(Tag.ImageWidth, w)
-    t.set(Tag.ImageLength, h)
-    t.set(Tag.TileWidth, w)
-    t.set(Tag.TileLength, h)
-    t.set(Tag.Orientation, Orientation.Horizontal)
-    t.set(Tag.BitsPerSample, 16)
-    if linear_rgb:
-        t.set(Tag.PhotometricInterpretation, PhotometricInterpretation.Linear_Raw)
-        t.set(Tag.SamplesPerPixel, 3)
-    else:
-        t.set(Tag.PhotometricInterpretation, PhotometricInterpretation.Color_Filter_Array)
-        t.set(Tag.SamplesPerPixel, 1)
-        t.set(Tag.CFARepeatPatternDim, [2, 2])
-        t.set(Tag.CFAPattern, [CFA_CODES[c] for c in cfa])
-    t.set(Tag.BlackLevel, black)
-    t.set(Tag.WhiteLevel, white)
-    t.set(Tag.ColorMatrix1, [[1, 1], [0, 1], [0, 1], [0, 1], [1, 1], [0, 1], [0, 1], [0, 1], [1, 1]])
-    t.set(Tag.CalibrationIlluminant1, CalibrationIlluminant.D65)
-    t.set(Tag.AsShotNeutral, [[1, 1], [1, 1], [1, 1]])
-    t.set(Tag.Make, make)
-    t.set(Tag.Model, model)
-    t.set(Tag.UniqueCameraModel, model)
-    t.set(Tag.ExposureTime, [tuple(exposure)])
-    t.set(Tag.DNGVersion, DNGVersion.V1_4)
-    t.set(Tag.DNGBackwardVersion, DNGVersion.V1_2)
-    writer = RAW2DNG()
-    writer.options(t, path=str(path.parent), compress=False)
-    name = path.name[:-4] if path.name.lower().endswith(".dng") else path.name
-    out = Path(writer.convert(np.ascontiguousarray(data, dtype=np.uint16).reshape(h, -1), filename=name))
-    if out != path:
-        out.rename(path)
-    return path
+              exposure: Sequence[int] = (1, 125)) -> Path:
+    """Write ``data`` (uint16 (H, W) mosaic) as an uncompressed 16-bit DNG with the app's one DNG writer."""
+    num, den = exposure
+    return save_dng(path, np.ascontiguousarray(data, dtype=np.uint16),
+                    DngInfo(black, white, cfa=cfa, exposure_s=num / den, make=make, model=model))

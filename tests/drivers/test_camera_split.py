@@ -34,23 +34,23 @@ def test_gphoto_expose_does_not_download_and_fetch_does():
     real_get = d610.file_get
     d610.file_get = lambda *a: downloads.append(a[1]) or real_get(*a)
     exposure = cam.expose(0.5)
-    assert exposure.handle == ("/store_00010001/DCIM/100D610", "DSC_0001.NEF") and downloads == []
+    assert downloads == [] and d610.events                   # announced, not read with the light on
     raw = cam.fetch(exposure)
-    assert downloads == ["DSC_0001.NEF"] and raw.data == b"NEF-1" and raw.exposure_s == 0.5
+    assert downloads == ["capt0000.nef"] and raw.data == b"NEF-capt0000.nef" and raw.exposure_s == 0.5
 
 
 def test_gphoto_bulb_expose_returns_when_the_shutter_closed_and_fetch_waits_for_the_file():
     cam, d610, clock = open_fake()
     exposure = cam.expose(45.0)
-    assert exposure.bulb and exposure.handle is None and d610.writes[-1] == ("bulb", 0)
-    assert cam.fetch(exposure).filename == "DSC_0001.NEF"
+    assert exposure.bulb and exposure.handle.files == [] and d610.writes[-1] == ("bulb", 0)
+    assert cam.fetch(exposure).filename == "capt0000.nef"
 
 
 def test_a_hung_gphoto_call_is_a_camera_error_and_the_camera_is_not_entered_twice():
     cam, d610, _ = open_fake(capture_timeout_s=0.2)
     gate = threading.Event()
-    real_capture = d610.capture
-    d610.capture = lambda kind: gate.wait(10) and real_capture(kind)
+    real_trigger = d610.trigger_capture
+    d610.trigger_capture = lambda: gate.wait(10) and real_trigger()
     started = time.monotonic()
     with pytest.raises(CameraError, match=r"^capture: the camera did not answer within 0\.7 s") as info:
         cam.expose(0.5)
@@ -59,7 +59,7 @@ def test_a_hung_gphoto_call_is_a_camera_error_and_the_camera_is_not_entered_twic
         cam.settings()                               # libgphoto2 is still inside capture: refused, not entered
     gate.set()
     time.sleep(0.1)
-    assert cam.capture(0.5).filename.endswith(".NEF")   # once it returned, the camera works again
+    assert cam.capture(0.5).filename.endswith(".nef")   # once it returned, the camera works again
 
 
 def test_virtual_camera_renders_the_light_it_saw_at_expose_time(tmp_path):

@@ -50,8 +50,9 @@ def test_raw_info_text(dng, capsys):
 
 def test_raw_info_json_statistics(dng, capsys):
     path, data = dng
-    assert main(["raw-info", str(path), "--json"]) == 0
+    assert main(["raw-info", str(path), "--json", "-"]) == 0
     info = json.loads(capsys.readouterr().out)
+    assert info["format"] == "dualrgb-raw-info/1" and info["software"]["libraw"]
     assert info["cfa_pattern"] == "GRBG"
     assert (info["width"], info["height"]) == (48, 32)
     assert info["white_level"] == D610_WHITE
@@ -92,7 +93,7 @@ def test_raw_info_truncated_file_as_a_process(dng, tmp_path):
 
 # ---------------------------------------------------------------------------------------------- devices
 def test_devices_nothing_attached_in_process(monkeypatch, capsys):
-    monkeypatch.setattr(devices_cmd, "discover",
+    monkeypatch.setattr("drivers.usb_discovery.discover",
                         lambda probe, timeout_s: DeviceReport(serial_ports=[SerialPortInfo("/dev/ttyS0")]))
     assert main(["devices"]) == 1
     cap = capsys.readouterr()
@@ -114,7 +115,7 @@ def test_devices_lists_cameras_ports_and_hints(monkeypatch, capsys):
         seen.update(probe=probe, timeout_s=timeout_s)
         return report
 
-    monkeypatch.setattr(devices_cmd, "discover", fake)
+    monkeypatch.setattr("drivers.usb_discovery.discover", fake)
     assert main(["devices"]) == 0
     out = capsys.readouterr().out
     assert seen == {"probe": True, "timeout_s": 3.0}
@@ -125,8 +126,9 @@ def test_devices_lists_cameras_ports_and_hints(monkeypatch, capsys):
     assert "hint: Nikon DSC D610 on usb:001,007 cannot be opened" in out
     assert main(["devices", "--all", "--no-probe"]) == 0
     assert "/dev/ttyS0" in capsys.readouterr().out and seen["probe"] is False
-    assert main(["devices", "--json"]) == 0
+    assert main(["devices", "--json", "-"]) == 0
     d = json.loads(capsys.readouterr().out)
+    assert d["format"] == "dualrgb-devices/1"
     assert d["gphoto_cameras"][0]["usb_id"] == "04b0:0434" and d["nothing_found"] is False
 
 

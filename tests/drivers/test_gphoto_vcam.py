@@ -22,8 +22,9 @@ HELPER = Path(__file__).with_name("gphoto_vcam_helper.py")
 pytest.importorskip("gphoto2")
 
 
-def run_helper(scenario: str, tmp_path: Path, *, virtual: bool = True) -> dict:
+def run_helper(scenario: str, tmp_path: Path, *, virtual: bool = True, env_extra: dict | None = None) -> dict:
     env = {k: v for k, v in os.environ.items() if k != "VCAMERADIR"}
+    env.update(env_extra or {})
     env["XDG_CONFIG_HOME"] = str(tmp_path / "xdg")
     if virtual:
         env["VCAMERADIR"] = str(tmp_path / "vcamera")
@@ -136,7 +137,7 @@ def test_real_gphoto2_errors_map_to_advice(tmp_path, vcamera):
     assert "reconnect" in out["-52"]["message"]
     assert "did not answer in time" in out["-10"]["message"]
     assert "not supported" in out["-6"]["message"]
-    assert "Unspecified error" in out["-1"]["message"]
+    assert "the camera refused the request" in out["-1"]["message"]      # advice for -1 (issue 15, item 5)
     for code, err in out.items():
         assert err["code"] == int(code)
         assert err["message"].endswith(f"[gphoto2 {code}]")
@@ -149,4 +150,21 @@ def test_no_camera_attached(tmp_path):
     assert out["raw"]["code"] == -105                   # gp.Camera().init() itself
     assert out["ours"]["code"] == -105
     assert out["ours"]["message"] == ("open camera: no camera found: connect the camera by USB and switch it on "
-                                      "[gphoto2 -105]")
+                                      "(libgphoto2: Could not detect any camera) [gphoto2 -105]")
+
+
+def test_capture_uses_trigger_and_the_file_announced_at_the_end_of_the_exposure(session):
+    # the virtual camera is not a Nikon-capture camera: expose() waited for its FILE_ADDED / CAPTURE_COMPLETE
+    cap = session["capture"]
+    assert session["trigger_waits"] is False
+    assert cap["filename"].startswith("GPH_") and cap["latency_s"] is not None and cap["latency_s"] < 5
+
+
+def test_libgphoto2_answers_in_english_whatever_the_locale(tmp_path, vcamera):
+    # python-gphoto2 binds libgphoto2's catalogues on import; a German desktop gets German labels and errors
+    # until the driver re-binds them (issue 15, item 6)
+    out = run_helper("locale", tmp_path, env_extra={"LANGUAGE": "de", "LC_ALL": "C.UTF-8"})
+    assert out["before"]["error"] == "Unbekanntes Modell"          # the catalogue is really in use here
+    assert out["after"]["error"] == "Unknown model"
+    assert out["after"]["capturetarget"] == ["Internal RAM", "Memory card"]
+    assert out["after"]["set_target"] == "Internal RAM"

@@ -1,4 +1,5 @@
-"""drivers.raw: DNG round-trip through PiDNG -> rawpy is bit-exact; damaged files give one-line RawFileErrors."""
+"""drivers.raw: DNG round-trip through drivers.virtual.dng (tifffile) -> rawpy is bit-exact; damaged files give
+one-line RawFileErrors."""
 from __future__ import annotations
 
 import numpy as np

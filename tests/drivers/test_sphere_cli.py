@@ -160,3 +160,18 @@ def test_subprocess_emulator_and_cli():
             server.kill()
             raise
     assert rc == 0
+
+
+def test_status_json_to_stdout_and_to_a_file(emu, capsys, tmp_path):
+    """``status --json PATH``: '-' prints only the JSON (format tag, versions, the status); a PATH gets the file
+    and stdout the usual text."""
+    assert run(emu, "set", "4", "0.5", capsys=capsys)[0] == 0
+    rc, out, _ = run(emu, "status", "--json", "-", capsys=capsys)
+    status = json.loads(out)
+    assert rc == 0 and status["format"] == "dualrgb-sphere-status/1" and status["software"]["dualrgb"]
+    assert status["light_on"] is False and status["levels"][3] == pytest.approx(0.5, abs=1e-3)
+    assert status["port"] == emu.port
+    path = tmp_path / "status.json"
+    rc, out, _ = run(emu, "status", "--json", str(path), capsys=capsys)
+    assert rc == 0 and "light_on: False" in out
+    assert json.loads(path.read_text())["levels"] == status["levels"]

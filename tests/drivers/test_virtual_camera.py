@@ -10,8 +10,8 @@ import rawpy
 import tifffile
 
 from drivers.camera.base import CameraError, CameraSettings
-from drivers.virtual.camera import (CAMERA_NAME, SHUTTER_SPEEDS, SensorModel, VirtualCamera, mosaic_to_dng,
-                                    parse_shutter)
+from drivers.virtual.camera import CAMERA_NAME, SHUTTER_SPEEDS, SensorModel, VirtualCamera, parse_shutter
+from drivers.virtual.dng import DngInfo, dng_bytes
 from drivers.virtual.scene import Scene
 from simulation.camera_model import channel_responses
 from simulation.datasets import Target, default_setup
@@ -120,9 +120,9 @@ def test_dng_loads_with_the_projects_raw_loader(snap, tmp_path):
     assert frame.exposure_s == pytest.approx(1 / 60)
 
 
-def test_mosaic_to_dng_rejects_non_uint16():
+def test_dng_writer_rejects_non_uint16():
     with pytest.raises(ValueError, match="uint16"):
-        mosaic_to_dng(np.zeros((4, 4), np.float32), exposure_s=1, iso=100, aperture=8)
+        dng_bytes(np.zeros((4, 4), np.float32), DngInfo(exposure_s=1, iso=100, aperture=8))
 
 
 # --- sensor physics -------------------------------------------------------------------------------------------

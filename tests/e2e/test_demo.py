@@ -26,6 +26,10 @@ def test_demo_report_schema_and_dual_rgb_beats_three_channel(hdr_report):
         assert set(c["train"]) == {"mean", "median", "p90", "max"} and set(c["test"]) >= {"mean"}
         assert set(c["simulated"]) >= {"train", "test", "noise_free_train", "noise_free_test", "matrix"}
     assert {"frames", "lost_frames", "light_dose", "elapsed_s"} <= set(on_disk)
+    assert on_disk["format"] == "dualrgb-demo-report/1" and on_disk["software"]["numba"]
+    assert json.loads((out / "dual_rgb" / "report.json").read_text())["format"] == "dualrgb-report/1"
+    log_text = (out / "session" / "session.log").read_text()               # the session's own log
+    assert "session log" in log_text and "virtual capture" in log_text
     assert on_disk["conditions"] == ["three_channel", "dual_rgb", "hdr_dual_rgb", "single_dual_rgb", "dual_rgb_pso",
                                      "hdr_dual_rgb_pso", "single_dual_rgb_pso"]
     assert (out / "dual_rgb" / "report.json").exists() and (out / "dual_rgb" / "dn_validation.png").exists()

@@ -193,10 +193,11 @@ def run_with_deadline(fn, seconds: float = 20.0):
 # ---- 13. raw files: regular files only, one line each, fuzzed --------------------------------------------
 @pytest.fixture(scope="module")
 def dng_bytes() -> bytes:
-    from drivers.virtual.camera import mosaic_to_dng
+    from drivers.virtual.dng import DngInfo
+    from drivers.virtual.dng import dng_bytes as write_dng_bytes
 
     mosaic = np.random.default_rng(0).integers(600, 15000, size=(48, 64)).astype(np.uint16)
-    return mosaic_to_dng(mosaic, exposure_s=0.01, iso=100, aperture=8.0)
+    return write_dng_bytes(mosaic, DngInfo(exposure_s=0.01, iso=100, aperture=8.0))
 
 
 def _fuzz_cases() -> list[tuple[str, float, int]]:

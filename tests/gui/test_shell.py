@@ -183,16 +183,21 @@ def test_simulate_other_methods(qtbot, make_window, method):
         assert sim.table.rowCount() == 0 and not sim.save_button.isEnabled()
 
 
-def test_study_charts_listed(qtbot, make_window):
-    from app.gui.panels.simulate import FIGURES_DIR
+def test_study_charts_listed(qtbot, make_window, user_data_dir):
+    import shutil
 
+    import resources
+
+    packaged = sorted(resources.path("figures").glob("*.png"))
+    assert packaged, "the reference study charts are packaged (resources/figures)"
+    mine = user_data_dir / "studies" / "parsimony"            # where 'dualrgb study parsimony' writes
+    mine.mkdir(parents=True)
+    shutil.copy(packaged[0], mine / "parsimony.png")
     w = make_window()
     sim = w.simulate
     sim.right_tabs.setCurrentIndex(1)
     wait_idle(qtbot, w)
-    pngs = sorted(FIGURES_DIR.glob("*.png")) if FIGURES_DIR.is_dir() else []
-    assert sim.figure_combo.count() == len(pngs)
-    if pngs:
-        assert sim.figure_label.pixmap() is not None and not sim.figure_label.pixmap().isNull()
-    else:
-        assert "dualrgb study" in sim.figures_info.text()
+    labels = [sim.figure_combo.itemText(i) for i in range(sim.figure_combo.count())]
+    assert labels[0] == "parsimony/parsimony.png" and len(labels) == len(packaged) + 1
+    assert sim.figure_label.pixmap() is not None and not sim.figure_label.pixmap().isNull()
+    assert str(user_data_dir / "studies") in sim.figures_info.text()

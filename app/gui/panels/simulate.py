@@ -14,6 +14,7 @@ from PySide6.QtWidgets import (QComboBox, QFormLayout, QGroupBox, QHBoxLayout, Q
                                QProgressBar, QPushButton, QScrollArea, QSpinBox, QSplitter, QTableWidget,
                                QTableWidgetItem, QTabWidget, QVBoxLayout, QWidget)
 
+import resources
 from app.gui.context import AppContext
 from app.gui.viewmodel import ConvergenceTap
 from app.gui.widgets import plot_widget
@@ -24,10 +25,10 @@ from simulation.ga import GaSettings
 from simulation.presets import save_preset
 from simulation.pso import PsoSettings
 from simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, METHODS, OBJECTIVES, RunResult, run
+from simulation.studies.common import study_charts
 
 log = logging.getLogger(__name__)
 
-FIGURES_DIR = Path(__file__).resolve().parents[3] / "docs" / "figures"
 LIGHT_PENS = ("#6a1b9a", "#00838f")
 CHANNEL_COLOURS = {"R": "#d32f2f", "G": "#388e3c", "B": "#1976d2"}
 
@@ -150,7 +151,7 @@ class SimulatePanel(QWidget):
         studies = QWidget()
         sl = QVBoxLayout(studies)
         self.figure_combo = QComboBox()
-        self.figure_combo.setToolTip("Charts made by 'dualrgb study' (docs/figures).")
+        self.figure_combo.setToolTip("Charts of your 'dualrgb study' runs and the packaged reference runs.")
         self.figure_combo.currentIndexChanged.connect(self._show_figure)
         self.figure_label = QLabel("")
         self.figure_label.setAlignment(Qt.AlignCenter)
@@ -345,9 +346,7 @@ class SimulatePanel(QWidget):
     # ------------------------------------------------------------------ study charts
     def load_figures(self) -> None:
         def work() -> list[tuple[str, QImage]]:
-            if not FIGURES_DIR.is_dir():
-                return []
-            return [(p.name, QImage(str(p))) for p in sorted(FIGURES_DIR.glob("*.png"))]
+            return [(label, QImage(str(p))) for label, p in study_charts()]
 
         def done(images: list[tuple[str, QImage]]) -> None:
             self._figures = images
@@ -356,10 +355,12 @@ class SimulatePanel(QWidget):
             self.figure_combo.addItems([n for n, _ in images])
             self.figure_combo.blockSignals(False)
             if images:
-                self.figures_info.setText(f"{len(images)} chart(s) in {FIGURES_DIR}")
+                self.figures_info.setText(f"{len(images)} chart(s); 'dualrgb study' adds yours in "
+                                          f"{resources.user_path('studies')}")
                 self._show_figure(0)
             else:
-                self.figures_info.setText(f"no study charts yet: run 'dualrgb study' to make them in {FIGURES_DIR}")
+                self.figures_info.setText(f"no study charts yet: run 'dualrgb study' to make them in "
+                                          f"{resources.user_path('studies')}")
                 self.figure_label.clear()
         self.ctx.runner.submit(work, pool="compute", name="load study charts", on_result=done,
                                on_error=lambda exc: self.ctx.errors.report("Study charts", exc))

@@ -1,0 +1,9 @@
+"""The names and sizes a user chooses from (target modes, search methods, the sphere's LEDs), importable without
+numpy or colour-science so the CLI can offer them before anything heavy loads; simulation.datasets,
+simulation.runner and simulation.lightsource use these."""
+from __future__ import annotations
+
+MODES = ("reflective", "transmissive")                     # reflective targets or film (transmissive), thesis 5.2
+METHODS = ("halving", "exhaustive", "pso", "ga", "three-channel")   # simulation.runner.run; first = default
+OBJECTIVES = ("expected-captured", "noise-free", "robust")         # simulation.runner.make_evaluator; first = default
+N_SPHERE_LEDS = 10                                        # the sphere's LEDs, 1-based in LightSource (thesis Table 4.2)

@@ -1,0 +1,44 @@
+"""CLI start-up: building the parser (what --help, --version, sphere, devices and raw-info pay before they run)
+imports none of the heavy libraries; --version names the installed version. Timings are in `make bench`."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+HEAVY = ("numpy", "scipy", "colour", "matplotlib", "numba", "rawpy", "PySide6", "serial", "tqdm", "dask",
+         "importlib.metadata")
+
+PROBE = """
+import sys
+from app.cli import build_parser
+parser = build_parser()
+try:
+    parser.parse_args({argv!r})
+except SystemExit:
+    pass
+heavy = {heavy!r}
+print("HEAVY:" + " ".join(sorted(m for m in heavy if m in sys.modules)))
+"""
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["sphere", "--help"], ["devices", "--help"], ["raw-info", "--help"],
+                                  ["study", "parsimony", "--help"], ["simulate", "--help"]])
+def test_parser_imports_nothing_heavy(argv):
+    code = PROBE.format(argv=argv, heavy=HEAVY)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    loaded = r.stdout.rsplit("HEAVY:", 1)[1].strip()
+    assert loaded == "", f"{' '.join(argv)} imported {loaded}"
+
+
+def test_version_is_the_distributions(capsys):
+    from importlib import metadata
+
+    from app.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out == f"dualrgb {metadata.version('dualrgb')}\n"
