@@ -23,6 +23,7 @@ from app.processing.characterise import LEAST_SQUARES, characterise
 from app.processing.outputs import write_image_outputs
 from app.processing.patches import PatchGrid
 from app.processing.pipeline import CaptureProcessor, ExposureRef
+from app.processing.quality import CalibrationFrames, quality_summary
 from app.processing.report import TargetData, build_report
 from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure, exposure_key
 from app.sequences.capture import TargetCapture
@@ -290,20 +291,24 @@ class DemoRun:
                               for nl in c.lights}
                     stack = proc.stack({n: refs(v) for n, v in frames.items()}, cancel=self.cancel)
                     grid = _grid(scene, scene.layout).scaled(0.5)
-                    values = grid.sample(stack.data).mean[:scene.n_patches]
+                    sampled = grid.sample(stack.data)
+                    values = sampled.mean[:scene.n_patches]
                     nd_mask = scene.nd_patches()
                     scale = np.where(nd_mask, scene.nd_transmittance, 1.0)   # ground truth includes the filter
                     xyz = tristimulus(self.lab.target(target).spectra * scale[:, None], setup.illuminant, setup.cmfs)
                     data[target] = (TargetData(list(self.lab.target(target).patch_names), xyz, values,
-                                               self.lab.target(target).layout, f"{target} ({label})"), nd_mask, scale)
+                                               self.lab.target(target).layout, f"{target} ({label})",
+                                               std=sampled.std[:scene.n_patches]), nd_mask, scale)
                     stacks[target] = stack
                 ch = characterise(data["train"][0].values, data["train"][0].xyz, white, data["test"][0].values,
                                   data["test"][0].xyz, channels=stacks["train"].channels,
                                   optimise=self.s.optimise_matrix, cancel=self.cancel)
                 folder = self.s.out / label
+                calibration = CalibrationFrames(proc, refs(session.entries("dark")),
+                                                {nl.name: refs(flats[nl.name]) for nl in c.lights if nl.name in flats})
                 rep = build_report(folder, ch, data["train"][0], data["test"][0],
                                    simulated_train=self._simulated_values(c, data["train"][2]),
-                                   title=f"{label} ({self.s.mode}, virtual lab)")
+                                   title=f"{label} ({self.s.mode}, virtual lab)", calibration=calibration)
                 write_image_outputs(folder, stacks["test"].data, stacks["test"].channels, ch.matrix, white,
                                     prefix="test_target", cancel=self.cancel)
                 best = ch.results[ch.best]
@@ -315,7 +320,8 @@ class DemoRun:
                          "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
                          "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]}
                                     for nl in c.lights],
-                         "report": str(folder / "report.json"), "figures": rep.get("figures", [])}
+                         "report": str(folder / "report.json"), "figures": rep.get("figures", []),
+                         "quality": quality_summary(rep["quality"])}
                 if nd:
                     entry["nd_patches"] = {
                         "train": ErrorStats.of(best.train_errors[data["train"][1]]).to_dict(),

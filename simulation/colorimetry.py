@@ -5,8 +5,13 @@ PSO sweep: colour-science's ``delta_E`` (checked against in tests) allocates and
 call, which is ~100x too slow for that. Two algebraic shortcuts avoid trigonometry where the standard
 (Sharma 2005) formulation uses it, with identical results:
   * dH' = 2 sqrt(C1'C2') sin(dh'/2) = sign(a1'b2 - b1a2') * sqrt(C1'C2') * |u1 - u2| (u: unit hue vectors);
-  * the mean hue h' is the direction of u1 + u2 (unit hue vectors), i.e. of (a1'C2' + a2'C1', b1C2' + b2C1'),
-    which is exactly the thesis/CIE rule "average, +-180 when |h1 - h2| > 180".
+  * the mean hue h' is the direction of m = (u1 + u2) + s * rot(u2 - u1), rot turning by -90 degrees and s the
+    sign of dh'. Both terms point along h1' + dh'/2 with lengths 2 cos(dh'/2) and 2 |sin(dh'/2)|, so |m| >= 2
+    and the direction is well conditioned everywhere, including exactly opposite hues where u1 + u2 = 0 (the
+    earlier form, the direction of u1 + u2 alone, was undefined there). This is exactly the CIE rule "average,
+    +-180 when |h1 - h2| > 180" with |dh'| = 180 counted as "<= 180" (Sharma et al. 2005, pairs 10 and 14).
+  * at exactly opposite hues (cross product 0) the sign of dh' is the rule's: h2' - h1' = +180 when
+    h1' < 180, -180 otherwise (see ``opposite_hue_sign``).
 """
 from __future__ import annotations
 
@@ -89,23 +94,24 @@ def delta_e_2000_components(L1, a1, b1, L2, a2, b2) -> np.ndarray:
     # cancellation of large terms (so float32 stays accurate); the sign of dh' is the sign of the cross product
     prod = C1p * C2p
     zero = prod == 0
-    inv1 = 1.0 / (C1p + zero)
-    inv2 = 1.0 / (C2p + zero)
-    du = a1p * inv1 - a2p * inv2
-    dv = b1 * inv1 - b2 * inv2
-    dH = du * du
-    dH += dv * dv
+    inv1 = np.divide(1.0, C1p, out=np.zeros_like(C1p), where=C1p > 0)     # u = 0 for a zero chroma
+    inv2 = np.divide(1.0, C2p, out=np.zeros_like(C2p), where=C2p > 0)
+    u1x, u1y, u2x, u2y = a1p * inv1, b1 * inv1, a2p * inv2, b2 * inv2
+    dx = u2x - u1x
+    dy = u2y - u1y
+    sign = opposite_hue_sign(a1p * b2 - b1 * a2p, a1p, b1)
+    dH = dx * dx
+    dH += dy * dy
     dH *= prod
     np.sqrt(dH, out=dH)
-    np.copysign(dH, a1p * b2 - b1 * a2p, out=dH)
-    # mean hue direction; where one chroma is zero the CIE rule h' = h1' + h2' gives the other sample's hue
-    hx = a1p * C2p
-    hx += a2p * C1p
-    hy = b1 * C2p
-    hy += b2 * C1p
-    if zero.any():
-        hx += zero * (a1p + a2p)
-        hy += zero * (b1 + b2)
+    dH *= sign
+    # mean hue direction (module docstring); where one chroma is zero the CIE rule h' = h1' + h2' gives the other
+    # sample's hue: u of a zero chroma is 0, so u1 + u2 alone is that hue, and the rotated term must be dropped
+    sign *= ~zero
+    hx = u1x + u2x
+    hx += sign * dy
+    hy = u1y + u2y
+    hy -= sign * dx
     h = np.arctan2(hy, hx)                        # radians in (-pi, pi]
     h += dt.type(2 * np.pi) * (h < 0)
     Cpm = C1p + C2p
@@ -159,6 +165,17 @@ def delta_e_2000_components(L1, a1, b1, L2, a2, b2) -> np.ndarray:
     out += RT
     np.maximum(out, 0, out=out)
     return np.sqrt(out, out=out).reshape(shape)
+
+
+def opposite_hue_sign(cross, a1p, b1):
+    """Sign of dh' = h2' - h1' per the CIE rule, from the cross product a1'b2 - b1a2' (= C1'C2' sin dh').
+
+    Where the cross product is exactly 0 (equal or exactly opposite hues) the rule counts |h2' - h1'| = 180 as
+    "<= 180", so dh' = +180 when h1' is in [0, 180) (b1 > 0, or b1 = 0 and a1' > 0) and -180 otherwise.
+    """
+    upper = (b1 > 0) | ((b1 == 0) & (a1p > 0))
+    tie = np.where(upper, 1.0, -1.0).astype(np.result_type(cross), copy=False)
+    return np.where(cross > 0, 1.0, np.where(cross < 0, -1.0, tie)).astype(np.result_type(cross), copy=False)
 
 
 def grid_white(grid: SpectralGrid, illuminant: np.ndarray, cmfs: np.ndarray) -> np.ndarray:  # pragma: no cover

@@ -6,6 +6,7 @@ and the IT8.7/1-like / CC24-on-film targets (transmissive).
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -22,6 +23,9 @@ from simulation.spectral_io import SpectralDataError, SpectralTable, read_spectr
 
 log = logging.getLogger(__name__)
 
+REFERENCE_EQ_4_2 = "eq-4.2"              # target reference XYZ: the thesis' grid sum (target_xyz)
+REFERENCE_ASTM_E308 = "astm-e308"        # ... or colour-science's ASTM E308 integration of the measured spectra
+REFERENCE_XYZ_METHODS = (REFERENCE_EQ_4_2, REFERENCE_ASTM_E308)
 TARGET_FILES = {
     "reflective": ("reflective_train_rawtoaces190.csv", "reflective_test_babelcolor_cc24.csv"),
     "transmissive": ("film_train_it87_288.csv", "film_test_cc24.csv"),
@@ -37,6 +41,7 @@ class Target:
     patch_names: list[str]
     layout: tuple[int, int] | None = None
     source: str = ""
+    measured: SpectralTable | None = None     # the spectra as read (own wavelengths), for ASTM E308 references
 
     def __len__(self) -> int:
         return self.spectra.shape[0]
@@ -56,6 +61,7 @@ class SimulationSetup:
     test: Target
     camera_name: str = "Nikon 5100 (NPL)"
     led_names: list[str] = field(default_factory=lambda: [f"LED{i}" for i in range(1, 11)])
+    reference_xyz: str = REFERENCE_EQ_4_2   # how the targets' reference XYZ are computed (target_xyz)
 
     def describe(self) -> dict:
         return {"mode": self.mode, "grid": self.grid.label(), "camera": self.camera_name,
@@ -75,14 +81,20 @@ def _layout(meta: dict[str, str]) -> tuple[int, int] | None:
 
 
 def load_target(path: str | Path, grid: SpectralGrid = DEFAULT_GRID, name: str | None = None) -> Target:
-    """A target CSV (reflectance factor or transmittance, one column per patch), resampled to ``grid``.
+    """A target's measured spectra (reflectance factor or transmittance, one column per patch), resampled to
+    ``grid``: a spectral CSV, or a CGATS / X-Rite measurement file (simulation.cgats, recognised by its
+    BEGIN_DATA_FORMAT line).
 
     Values above 1 are accepted up to 2 (fluorescent samples have reflectance factors above 1).
     """
-    table = read_spectral_csv(path, max_value=2.0)
+    from simulation.cgats import is_cgats, read_cgats_spectra
+
+    table = read_cgats_spectra(path) if is_cgats(path) else read_spectral_csv(path, max_value=2.0)
+    if table.values.max() > 2.0 * (1 + 1e-9):
+        raise SpectralDataError(f"{table.source}: value {table.values.max():g} exceeds 2 (reflectance factor)")
     _check_covers(table, grid)
     return Target(name or table.meta.get("title", Path(path).stem), resample(table.wavelengths, table.values, grid).T,
-                  table.columns, _layout(table.meta), table.source)
+                  table.columns, _layout(table.meta), table.source, table)
 
 
 def load_camera(path: str | Path, grid: SpectralGrid = DEFAULT_GRID) -> np.ndarray:
@@ -138,9 +150,13 @@ def _default_setup(mode: str, grid: SpectralGrid) -> SimulationSetup:
 
 def default_setup(mode: str = "reflective", grid: SpectralGrid = DEFAULT_GRID, *, camera_csv: str | None = None,
                   leds_csv: str | None = None, train_csv: str | None = None,
-                  test_csv: str | None = None) -> SimulationSetup:
-    """The packaged data for ``mode``, optionally with a user's own measured CSVs replacing parts of it."""
+                  test_csv: str | None = None, reference_xyz: str = REFERENCE_EQ_4_2) -> SimulationSetup:
+    """The packaged data for ``mode``, optionally with a user's own measured CSVs replacing parts of it, and the
+    way the targets' reference XYZ are computed (``target_xyz``)."""
+    check_reference_method(reference_xyz)
     base = _default_setup(mode, grid)
+    if reference_xyz != base.reference_xyz:
+        base = dataclasses.replace(base, reference_xyz=reference_xyz)
     if not any((camera_csv, leds_csv, train_csv, test_csv)):
         return base
     cmfs, d65 = _colorimetry(grid)
@@ -151,7 +167,7 @@ def default_setup(mode: str = "reflective", grid: SpectralGrid = DEFAULT_GRID, *
         illuminant=d65, cmfs=cmfs,
         train=load_target(train_csv, grid) if train_csv else base.train,
         test=load_target(test_csv, grid) if test_csv else base.test,
-        camera_name=Path(camera_csv).stem if camera_csv else base.camera_name,
+        camera_name=Path(camera_csv).stem if camera_csv else base.camera_name, reference_xyz=reference_xyz,
     )
     check_setup(setup)
     warn_setup(setup)
@@ -197,3 +213,52 @@ def _warn_identical(target: Target, role: str) -> None:
         dup = int((counts > 1).sum())
         log.warning("%s target %s: %d spectra occur more than once (e.g. patch %s); duplicates add no information",
                     role, target.name, dup, target.patch_names[int(first[np.argmax(counts > 1)])])
+
+
+# ---- reference XYZ of the targets ----------------------------------------------------------------------
+def check_reference_method(method: str) -> str:
+    if method not in REFERENCE_XYZ_METHODS:
+        raise ValueError(f"reference XYZ method {method!r}: expected one of {', '.join(REFERENCE_XYZ_METHODS)}")
+    return method
+
+
+def target_xyz(setup: SimulationSetup, target: Target, method: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Reference XYZ (n, 3) of ``target``'s patches and the Lab reference white, Y of a perfect white = 100.
+
+    ``"eq-4.2"`` (default): the thesis' eq 4.2, a plain sum over the simulation grid (410-780 nm, 10 nm) with
+    the CMFs and D65 sampled there, the same sum that predicts the camera's view, so reference and prediction
+    integrate alike. ``"astm-e308"``: ``colour.msds_to_XYZ(method="ASTM E308")`` on the spectra as measured
+    (their own wavelengths and interval; CIE 1931 2 degree observer and D65 over 360-830 nm, ASTM E308 weighting
+    and extrapolation): the standard integration for measured spectra. The two differ by 0.078 mean / 0.256 max
+    dE00 on the packaged CC24 (tests/simulation/test_reference_xyz.py).
+    """
+    from simulation.colorimetry import tristimulus, white_point
+
+    method = check_reference_method(method or setup.reference_xyz)
+    if method == REFERENCE_EQ_4_2:
+        return tristimulus(target.spectra, setup.illuminant, setup.cmfs), white_point(setup.illuminant, setup.cmfs)
+    if target.measured is not None:
+        wl, values = target.measured.wavelengths, target.measured.values
+    else:
+        wl, values = setup.grid.wavelengths, target.spectra.T
+    return astm_e308_xyz(wl, values)
+
+
+def astm_e308_xyz(wavelengths: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """ASTM E308 XYZ of spectra ``values`` (n_wl, n) and of the perfect white on the same wavelengths (D65, CIE
+    1931 2 degree; colour-science). Irregular or unusual intervals are interpolated to 1 nm first."""
+    wl = np.asarray(wavelengths, dtype=float)
+    values = np.asarray(values, dtype=float).reshape(len(wl), -1)
+    steps = np.diff(wl)
+    if not (np.allclose(steps, steps[0]) and float(steps[0]) in (1.0, 5.0, 10.0, 20.0)):
+        fine = np.arange(np.ceil(wl[0]), np.floor(wl[-1]) + 1.0)
+        values = np.stack([np.interp(fine, wl, v) for v in values.T], axis=1)
+        wl = fine
+    shape = colour.SpectralShape(float(wl[0]), float(wl[-1]), float(wl[1] - wl[0]))
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    d65 = colour.SDS_ILLUMINANTS["D65"]
+    both = np.concatenate([values, np.ones((len(wl), 1))], axis=1)
+    msds = colour.MultiSpectralDistributions(both, wl, labels=[str(i) for i in range(both.shape[1])])
+    with colour.utilities.suppress_warnings(colour_runtime_warnings=True):    # "aligning ... shape" notices
+        xyz = np.asarray(colour.msds_to_XYZ(msds, cmfs, d65, method="ASTM E308", shape=shape))
+    return xyz[:-1], xyz[-1]

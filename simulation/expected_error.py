@@ -41,8 +41,8 @@ import numpy as np
 from simulation.camera_model import led_responses
 from simulation.capture_model import CaptureModel
 from simulation.characterisation import solve_normal_equations
-from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import SimulationSetup, Target
+from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.datasets import SimulationSetup, Target, target_xyz
 from simulation.fast_expected import mean_expected_de2000, prepare_expected
 from simulation.objective import ErrorStats, Evaluator, check_kernel_batch, kernel_threads
 
@@ -122,7 +122,7 @@ class ExpectedErrorModel:
         self.reference = reference or setup         # whose target spectra give the reference XYZ
         self.capture = capture or CaptureModel()
         cam = self.capture.camera
-        self.white = white_point(setup.illuminant, setup.cmfs)
+        self.white = target_xyz(setup, setup.train)[1]
         self.n_leds = setup.leds.shape[0]
         self.open = led_responses(setup.leds, np.ones((1, len(setup.grid))), setup.camera)[:, 0, :]   # (K, 3)
         ref = np.zeros(self.n_leds)
@@ -136,7 +136,7 @@ class ExpectedErrorModel:
 
     def _terms(self, target: Target, reference: Target, which: str) -> TargetTerms:
         s, c = self.setup, self.capture
-        xyz = tristimulus(reference.spectra, s.illuminant, s.cmfs)
+        xyz = target_xyz(s, reference)[0]                # eq 4.2 unless the setup asks for ASTM E308
         lab = xyz_to_lab(xyz, self.white)
         J = lab_jacobian(xyz, self.white)
         Q = np.einsum("nab,nbc,ncd->nad", J.transpose(0, 2, 1), de2000_metric(lab), J)

@@ -20,8 +20,8 @@ import numpy as np
 from simulation.camera_model import channel_names, channel_responses, led_responses
 from simulation.characterisation import RIDGE, CharacterisationMatrix, _check_patches, fit_matrix
 from simulation.fast_linalg import fit_light_sets
-from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import SimulationSetup, Target, check_setup
+from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.datasets import SimulationSetup, Target, check_setup, target_xyz
 from simulation.fast_de import mean_de2000_mapped
 
 log = logging.getLogger(__name__)
@@ -80,8 +80,7 @@ class PatchSet:
 
     def __init__(self, setup: SimulationSetup, target: Target, reference: Optional[Target] = None):
         self.target = target
-        self.xyz = tristimulus((reference or target).spectra, setup.illuminant, setup.cmfs)
-        self.white = white_point(setup.illuminant, setup.cmfs)
+        self.xyz, self.white = target_xyz(setup, reference or target)    # eq 4.2 unless the setup says E308
         self.lab = xyz_to_lab(self.xyz, self.white)
         self.R = led_responses(setup.leds, target.spectra, setup.camera)     # (K, n, 3)
         self._lab32 = [np.ascontiguousarray(self.lab[:, i], dtype=np.float32) for i in range(3)]

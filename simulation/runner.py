@@ -137,18 +137,23 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
 
 
 def format_table(result: RunResult) -> str:
+    """The CLI's table; light sources with their exact-enough levels (lightsource.format_level), the noise-free
+    and the expected captured errors."""
     lines = [f"{result.mode} / {result.method} / {result.objective}"
              + (f" / seed {result.seed}" if result.seed is not None else "")
              + f": {result.evaluations} evaluations in {result.elapsed_s:.2f} s",
              f"3-channel (D65) baseline: train {result.three_channel['train']:.3f}  "
              f"test {result.three_channel['test']:.3f} mean dE00 (noise-free)"]
     if result.outcome:
-        lines.append(f"{'#':>3}  {'light source 1':<34} {'light source 2':<34} {'train':>7} {'test':>7}"
+        rows = [([s.label() for s in c.sources[:2]], c) for c in result.outcome.candidates[:result.top]]
+        w1 = max([len("light source 1")] + [len(r[0][0]) for r in rows])
+        w2 = max([len("light source 2")] + [len(r[0][-1]) for r in rows])
+        lines.append(f"{'#':>3}  {'light source 1':<{w1}} {'light source 2':<{w2}} {'train':>7} {'test':>7}"
                      f" {'exp.tr':>7} {'exp.te':>7}")
-        for i, c in enumerate(result.outcome.candidates[:result.top], start=1):
-            s1, s2 = (s.label() for s in c.sources[:2])
+        for i, ((s1, *rest), c) in enumerate(rows, start=1):
+            s2 = rest[0] if rest else ""
             exp = (f" {c.expected_train.mean:>7.3f} {c.expected_test.mean:>7.3f}" if c.expected_train else "")
-            lines.append(f"{i:>3}  {s1:<34} {s2:<34} {c.train.mean:>7.3f} {c.test.mean:>7.3f}{exp}")
+            lines.append(f"{i:>3}  {s1:<{w1}} {s2:<{w2}} {c.train.mean:>7.3f} {c.test.mean:>7.3f}{exp}")
         lines.append("train/test: noise-free simulation; exp.tr/exp.te: expected captured ("
                      + (result.capture.label() if result.capture else "") + ")")
     return "\n".join(lines)

@@ -62,8 +62,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="spectral step in nm (default: the parsimony study's choice, resources/parsimony.json: 10)")
     p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
     p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
-    p.add_argument("--train-csv", type=input_file, help="measured training target spectra")
-    p.add_argument("--test-csv", type=input_file, help="measured test target spectra")
+    p.add_argument("--train-csv", type=input_file,
+                   help="measured training target spectra (spectral CSV or CGATS / X-Rite file)")
+    p.add_argument("--test-csv", type=input_file, help="measured test target spectra (spectral CSV or CGATS / X-Rite file)")
+    p.add_argument("--reference-xyz", choices=("eq-4.2", "astm-e308"), default="eq-4.2",
+                   help="targets' reference XYZ: the thesis' eq 4.2 sum over 410-780 nm (default) or ASTM E308 "
+                        "(colour-science) over the measured spectra")
     p.set_defaults(func=main)
 
 
@@ -77,7 +81,8 @@ def main(args: argparse.Namespace) -> int:
 
     step = args.step if args.step is not None else float(load_defaults()["spectral_step_nm"])
     setup = default_setup(args.mode, SpectralGrid(410.0, 780.0, step), camera_csv=args.camera_csv,
-                          leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv)
+                          leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv,
+                          reference_xyz=args.reference_xyz)
     if args.top < 1:
         raise ValueError(f"--top {args.top}: expected at least 1")
     with TerminalProgress(f"simulate {args.method}") as progress:

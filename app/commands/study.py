@@ -5,6 +5,7 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study stability      [--out DIR] [--seeds N] [--budget tiny|default] [--pixels N]
   dualrgb study objectives     [--out DIR] [--budget tiny|default] [--no-virtual-lab]
   dualrgb study parsimony      [--out DIR] [--budget tiny|default] [--tolerance DE] [--write-defaults [PATH]]
+  dualrgb study hdr            [--out DIR] [--budget tiny|default] [--write-defaults [PATH]]
   dualrgb study unbinned       [--out DIR] [--scheduler local|serial|ADDRESS] [--tasks N] [--top N]
   dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
                                [--seeds N] [--scheduler local|ADDRESS]
@@ -59,7 +60,7 @@ def _common(p: argparse.ArgumentParser, name: str, scheduler_default: str = "ser
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("study", help="studies: speed vs accuracy, stability, parsimony, unbinned search",
+    p = sub.add_parser("study", help="studies: speed vs accuracy, stability, parsimony, HDR merge, unbinned search",
                        description="Studies around the light-source search; each writes JSON, PNG charts and "
                                    "SUMMARY.md into --out.")
     ss = p.add_subparsers(dest="study", metavar="STUDY")
@@ -98,6 +99,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "folder, which the app then reads instead of its packaged defaults)")
     q.set_defaults(func=parsimony_main)
 
+    q = ss.add_parser("hdr", help="HDR merge estimators: bias against signal, dE00 on dark originals")
+    _common(q, "hdr")
+    q.add_argument("--budget", choices=("tiny", "default"), default="default")
+    q.add_argument("--write-defaults", nargs="?", const=True, metavar="PATH",
+                   help="also write the chosen estimator (hdr_merge) into the defaults at PATH (no PATH: "
+                        "parsimony.json in the per-user data folder); the other defaults there are kept")
+    q.set_defaults(func=hdr_main)
     q = ss.add_parser("unbinned", help="full-intensity search over all ~523 k unbinned light-source pairs")
     _common(q, "unbinned", scheduler_default="local")
     q.add_argument("--tasks", type=positive, default=16, help="index ranges the search is split into (16)")
@@ -231,6 +239,28 @@ def parsimony_main(args: argparse.Namespace) -> int:
     d = result.defaults()
     return _done(out, [f"spectral step {d['spectral_step_nm']:g} nm (10 nm justified: {d['default_10nm_justified']}), "
                        f"model {d['characterisation_model']}, {d['hdr_exposures']} HDR exposure(s)"]
+                 + ([f"defaults written to {target}"] if target else []))
+
+
+def hdr_main(args: argparse.Namespace) -> int:
+    import resources
+    from simulation.studies.common import StudyOutput
+    from simulation.studies.hdr import HdrStudyConfig, hdr_study, write_defaults, write_outputs
+
+    spec = _spec(args)
+    cfg = HdrStudyConfig.tiny() if args.budget == "tiny" else HdrStudyConfig()
+    out = StudyOutput(_out(args))
+    with _progress(args) as progress:
+        result = hdr_study(spec, cfg, progress=progress)
+    write_outputs(result, out)
+    target = None
+    if args.write_defaults:
+        target = str(resources.user_path("parsimony.json")) if args.write_defaults is True else args.write_defaults
+        write_defaults(result, target)
+    lines = [f"{m}: bias per decade " + ", ".join(f"{d} DN/s {100 * v:+.3f} %" for d, v in
+                                                  result.bias[m]["bias_per_decade"].items())
+             + f"; test dE00 score {result.originals['scores'][m]:.4f}" for m in result.originals["scores"]]
+    return _done(out, lines + [f"chosen HDR merge: {result.chosen}"]
                  + ([f"defaults written to {target}"] if target else []))
 
 

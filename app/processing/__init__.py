@@ -3,7 +3,7 @@
 Modules, in pipeline order (each has its own docstring with the thesis equations it implements):
   mosaic        Bayer helpers: superpixel RGB (no demosaic), row bands for tiled processing
   calibration   MasterDark (8.2.1, min/max-rejected mean per exposure time), FlatField / flat_field (eq 7.1)
-  hdr           HdrMerge, triangle_weight (8.2.2 / 8.2.3, eq 8.9)
+  hdr           HdrMerge, triangle_weight (8.2.2 / 8.2.3; eq 8.9 or variance-optimal weights)
   kernels       fused numba kernels (dark combine, HDR accumulate, flat field + superpixel), warm_up()
   pipeline      CaptureProcessor, ExposureRef, ChannelStack, processor_from_session, TargetSpec, process_session
   patches       PatchGrid (any quadrilateral, trimmed means), detect_cc24 (optional colour-checker-detection)

@@ -8,9 +8,13 @@
   with equilibrated channels so all are O(1)). The result is never worse than its start on the training set:
   if the optimiser does not improve, the least-squares matrix is kept (and the method is still reported).
 
-``characterise(...)`` fits both on the training target, evaluates both on training and test targets with the
-float64 reference ``simulation.colorimetry.delta_e_2000`` and names the one with the lower mean test error as
-``best`` (the one that generalises, not the one that fits the training set best).
+``characterise(...)`` fits both on the training target and chooses the delivered matrix (``best``) by k-fold
+cross-validation on the training target alone (``select_model``: each training patch predicted by the matrix
+fitted without its fold; the lower mean CIEDE2000 wins, least squares on a tie). The training set's own error
+cannot choose (the dE00-optimised matrix always fits it better), and the test target must not: choosing by the
+test error would bias the reported test error optimistically. The test target is only evaluated, after the
+choice; both methods' errors on training and test targets use the float64 reference
+``simulation.colorimetry.delta_e_2000``.
 """
 from __future__ import annotations
 
@@ -30,6 +34,7 @@ log = logging.getLogger(__name__)
 
 LEAST_SQUARES = "least-squares"
 DE2000 = "de2000"
+CV_FOLDS = 5
 
 
 def patch_errors(matrix: CharacterisationMatrix | np.ndarray, values: np.ndarray, xyz: np.ndarray,
@@ -129,26 +134,80 @@ class MethodResult:
 
 
 @dataclass
+class ModelSelection:
+    """Which matrix is delivered and why: mean cross-validated dE00 per method on the training target."""
+
+    chosen: str
+    cv_mean: dict[str, float]
+    folds: int
+
+    @property
+    def reason(self) -> str:
+        if len(self.cv_mean) < 2:
+            return f"only {self.chosen} was fitted"
+        return f"lowest mean dE00 in {self.folds}-fold cross-validation on the training target"
+
+    def to_dict(self) -> dict:
+        return {"chosen": self.chosen, "criterion": self.reason, "folds": self.folds,
+                "cv_mean_de00": {k: round(v, 4) for k, v in self.cv_mean.items()}}
+
+
+def _fitters(white: np.ndarray, channels: list[str], optimise: bool, cancel: Optional[CancelToken]) -> dict:
+    fits = {LEAST_SQUARES: lambda v, x: fit_least_squares(v, x, channels)}
+    if optimise:
+        fits[DE2000] = lambda v, x: fit_de2000(v, x, white, channels, cancel=cancel)
+    return fits
+
+
+def select_model(train_values: np.ndarray, train_xyz: np.ndarray, white: np.ndarray, channels: list[str], *,
+                 optimise: bool = True, folds: int = CV_FOLDS, seed: int = 0,
+                 progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+                 ) -> ModelSelection:
+    """Choose the matrix method by k-fold cross-validation on the training target (it never sees a test target:
+    none is passed). Folds are a seeded random partition; each patch's error comes from a fit without it."""
+    fitters = _fitters(white, channels, optimise, cancel)
+    if len(fitters) == 1:
+        return ModelSelection(LEAST_SQUARES, {}, 0)
+    values = np.asarray(train_values, dtype=float)
+    xyz = np.asarray(train_xyz, dtype=float)
+    n = len(values)
+    k = max(2, min(folds, n // 2))
+    parts = np.array_split(np.random.default_rng(seed).permutation(n), k)
+    errors = {m: np.empty(n) for m in fitters}
+    for i, held in enumerate(parts):
+        check(cancel)
+        keep = np.setdiff1d(np.arange(n), held)
+        for m, fit in fitters.items():
+            errors[m][held] = patch_errors(fit(values[keep], xyz[keep]), values[held], xyz[held], white)
+        report(progress, (i + 1) / k, f"cross-validation fold {i + 1} of {k}")
+    cv = {m: float(e.mean()) for m, e in errors.items()}
+    chosen = min(cv, key=lambda m: (cv[m], m != LEAST_SQUARES))
+    return ModelSelection(chosen, cv, k)
+
+
+@dataclass
 class Characterisation:
-    """Both fits with their per-patch errors; ``best`` = lower mean test dE00 (train if no test target)."""
+    """Both fits with their per-patch errors; ``best`` is the delivered one, chosen on the training target
+    (``selection``); test errors are reported, never used to choose."""
 
     results: dict[str, MethodResult]
     white: np.ndarray
     channels: list[str] = field(default_factory=list)
+    selection: Optional[ModelSelection] = None
 
     @property
     def best(self) -> str:
-        def key(name: str) -> float:
-            r = self.results[name]
-            return r.test.mean if r.test is not None else r.train.mean
-        return min(self.results, key=key)
+        if self.selection is not None:
+            return self.selection.chosen
+        return LEAST_SQUARES if LEAST_SQUARES in self.results else next(iter(self.results))
 
     @property
     def matrix(self) -> CharacterisationMatrix:
         return self.results[self.best].matrix
 
     def to_dict(self) -> dict:
-        return {"best": self.best, "white": self.white.tolist(), "channels": self.channels,
+        return {"best": self.best, "selection": self.selection.to_dict() if self.selection else None,
+                "white": self.white.tolist(), "channels": self.channels,
                 "methods": {k: v.to_dict() for k, v in self.results.items()}}
 
 
@@ -157,7 +216,8 @@ def characterise(train_values: np.ndarray, train_xyz: np.ndarray, white: np.ndar
                  channels: Optional[Sequence[str]] = None, *, optimise: bool = True,
                  progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
                  ) -> Characterisation:
-    """Fit least squares and (``optimise``) the dE00-optimised matrix; evaluate on train and test."""
+    """Fit least squares and (``optimise``) the dE00-optimised matrix, choose one by cross-validation on the
+    training target (``select_model``), then evaluate both on train and test."""
     train_values = np.asarray(train_values, dtype=float)
     white = np.asarray(white, dtype=float)
     channels = list(channels) if channels else [f"ch{i + 1}" for i in range(train_values.shape[1])]
@@ -169,18 +229,21 @@ def characterise(train_values: np.ndarray, train_xyz: np.ndarray, white: np.ndar
     fits = {LEAST_SQUARES: fit_least_squares(train_values, train_xyz, channels)}
     if optimise:
         check(cancel)
-        sub = None if progress is None else (lambda f, m: progress(0.05 + 0.9 * f, m))
+        sub = None if progress is None else (lambda f, m: progress(0.05 + 0.45 * f, m))
         fits[DE2000] = fit_de2000(train_values, train_xyz, white, channels, start=fits[LEAST_SQUARES],
                                   progress=sub, cancel=cancel)
+    cv = None if progress is None else (lambda f, m: progress(0.5 + 0.45 * f, m))
+    selection = select_model(train_values, train_xyz, white, channels, optimise=optimise, progress=cv, cancel=cancel)
     results = {}
-    for name, m in fits.items():
+    for name, m in fits.items():                   # evaluation only: the choice above is already made
         te = None
         if test_values is not None and test_xyz is not None:
             te = patch_errors(m, test_values, test_xyz, white)
         results[name] = MethodResult(m, patch_errors(m, train_values, train_xyz, white), te)
-    out = Characterisation(results, white, channels)
+    out = Characterisation(results, white, channels, selection)
     for name, r in results.items():
-        log.info("%s: train mean dE00 %.3f%s", name, r.train.mean,
+        log.info("%s: train mean dE00 %.3f%s%s", name, r.train.mean,
+                 f", cross-validated {selection.cv_mean[name]:.3f}" if name in selection.cv_mean else "",
                  f", test mean {r.test.mean:.3f}" if r.test else "")
-    report(progress, 1.0, f"characterised; best on test: {out.best}")
+    report(progress, 1.0, f"characterised; delivered {out.best} ({selection.reason})")
     return out

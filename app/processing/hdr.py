@@ -1,16 +1,23 @@
-"""HDR merging of raw exposures (thesis 8.2.2 white, 8.2.3 image, weight function eq 8.9).
+"""HDR merging of raw exposures (thesis 8.2.2 white, 8.2.3 image; eq 8.9 or variance-optimal weights).
 
 For each exposure e of one light: dark-subtract with the master dark of its exposure time, divide by the
 exposure time t_e (DN/s, a common irradiance scale), and combine with a per-pixel weighted mean::
 
-    E = sum_e w(x_e) (x_e - d_e) / t_e  /  sum_e w(x_e)
+    E = sum_e w_e (x_e - d_e) / t_e  /  sum_e w_e
 
-Weight (eq 8.9): the thesis' triangle f(x) = x below 8192 and 16383 - x above, x being the dark-corrected
-value of 14-bit data. Here, scaled to the sensor's usable range::
+``method`` picks the weights (``simulation.hdr_estimators``: the numpy reference, the methods' maths and
+references; the default is the parsimony study's choice, ``resources/parsimony.json`` key ``hdr_merge``):
 
-    u = (x_raw - dark) / (white_level - black_level),   w = u for u < 0.5,  1 - u for u >= 0.5  (>= 0)
-    w = 0 where x_raw > linear_limit (default 11 000 DN, end of the D610's linear range, thesis Fig 4.2)
-      or x_raw >= white_level (clipped)
+* ``"thesis"``, eq 8.9: the thesis' triangle f(x) = x below 8192 and 16383 - x above, x being the dark-corrected
+  value of 14-bit data. Here, scaled to the sensor's usable range::
+
+      u = (x_raw - dark) / (white_level - black_level),   w = u for u < 0.5,  1 - u for u >= 0.5  (>= 0)
+
+  It is biased upwards at low signal (it weights the measured signal, whose noise it then averages).
+* ``"variance"``: w_e = t_e^2 / var(x_e) at the pooled estimate (Granados et al. 2010): unbiased.
+
+In both, an exposure whose raw value is above the linear limit (default 11 000 DN, end of the D610's linear
+range, thesis Fig 4.2) or at the white level (clipped) is not used.
 
 Choices. The triangle is applied to the dark-subtracted signal, as in the thesis, and scaled to the usable
 range (white level - black level: 15 520 - 600 for 14-bit Nikon files, 16 383 in the thesis, 65 535 for 16-bit
@@ -22,9 +29,14 @@ The exclusions, on the other hand, use the raw value: clipping and non-linearity
 records, pedestal included. The linear limit stays in absolute raw DN because it is a measured property of
 the sensor (pass another for another camera, None for no limit below the white level).
 
-Pixels with zero weight in every exposure (above the linear limit even in the shortest) take the shortest
-exposure's value and are counted as ``clipped`` (a warning names how many). A single exposure whose pixels are
-all below the linear limit gives exactly ``(x - d) / t``: HDR with one frame is plain dark subtraction.
+Pixels with no usable exposure (above the linear limit even in the shortest) take the shortest exposure's
+value and are counted as ``clipped`` (a warning names how many). Dark pixels (eq 8.9 gives every usable
+exposure zero weight because the signal is <= 0) take the longest usable exposure's value and are not clipped.
+A single exposure gives exactly ``(x - d) / t``: HDR with one frame is plain dark subtraction.
+
+Frames of one exposure time share a slot (float32 sum of the usable frames' dark-subtracted signal + a uint8
+count, 5 bytes per pixel): the merge sees their mean, as the thesis merges one image per exposure time. The merge
+runs once all frames are in (the variance weights need the pooled estimate first).
 
 The flat-fielded HDR image (8.2.3) is ``FlatField(hdr_white).apply(hdr_scene)``: dividing each exposure by
 the white and then averaging with the same weights equals dividing the weighted mean once.
@@ -38,21 +50,17 @@ from typing import Optional, Sequence
 import numpy as np
 
 from app.processing.mosaic import DEFAULT_BAND_ROWS, FrameLike, mosaic_of
+from simulation.hdr_estimators import (HDR_METHOD_CODES, HDR_MERGE_METHODS, HdrNoise, check_method, default_method,
+                                       triangle_weight)
 from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 
 LINEAR_LIMIT_DN = 11000.0   # thesis 4.1.2 / Fig 4.2: the D610 is linear up to ~11 000 DN
-
-
-def triangle_weight(signal: np.ndarray, full_scale: float, out: Optional[np.ndarray] = None) -> np.ndarray:
-    """Eq 8.9 on a 0..1 scale: u = signal / full_scale, w = min(u, 1 - u) clipped at 0; float32."""
-    if out is None:
-        out = np.empty(np.shape(signal), dtype=np.float32)
-    np.multiply(signal, np.float32(1.0 / full_scale), out=out, casting="unsafe")
-    np.minimum(out, np.float32(1.0) - out, out=out)
-    np.maximum(out, np.float32(0.0), out=out)
-    return out
+MAX_EXPOSURE_TIMES = 16     # distinct exposure times per merge (one slot of float32 + uint8 per pixel each)
+MAX_FRAMES_PER_TIME = 15    # frames of one exposure time (a 4-bit count per pixel)
+__all__ = ["HDR_MERGE_METHODS", "HdrMerge", "HdrNoise", "HdrResult", "LINEAR_LIMIT_DN", "exposure_weight",
+           "triangle_weight"]
 
 
 def exposure_weight(raw: np.ndarray, signal: np.ndarray, white_level: float, black_level: float = 0.0,
@@ -71,9 +79,9 @@ class HdrResult:
     """A merged image in dark-subtracted DN per second, float32 (H, W)."""
 
     radiance: np.ndarray
-    weight_sum: np.ndarray
     clipped: int               # pixels with no usable exposure (shortest exposure's value used)
     exposures: list[float]
+    method: str = ""
 
     @property
     def clipped_fraction(self) -> float:
@@ -81,9 +89,10 @@ class HdrResult:
 
 
 class HdrMerge:
-    """Accumulates exposures of one light (and one subject) into an HDR mosaic (fused kernels, kernels.py).
+    """Collects exposures of one light (and one subject) and merges them into an HDR mosaic (fused kernels,
+    kernels.py).
 
-    >>> m = HdrMerge(white_level=15520, black_level=600)
+    >>> m = HdrMerge(white_level=15520, black_level=600)          # method: the parsimony study's default
     >>> m.add(raw_short, 1/250, dark_short); m.add(raw_long, 1/15, dark_long)
     >>> result = m.result()        # HdrResult, radiance in DN/s
 
@@ -92,101 +101,133 @@ class HdrMerge:
     """
 
     def __init__(self, white_level: float, linear_limit: Optional[float] = LINEAR_LIMIT_DN, *,
-                 black_level: float = 0.0, band_rows: int = DEFAULT_BAND_ROWS, work: Optional[dict] = None,
-                 own_result: bool = False):
+                 black_level: float = 0.0, method: Optional[str] = None, noise: HdrNoise = HdrNoise(),
+                 band_rows: int = DEFAULT_BAND_ROWS, work: Optional[dict] = None, own_result: bool = False):
         if white_level <= black_level:
             raise ValueError(f"white level {white_level} must be above the black level {black_level}")
         self.white_level = float(white_level)
         self.black_level = float(black_level)
         self.linear_limit = linear_limit
+        self.method = check_method(method) if method is not None else default_method()
+        self.noise = noise
         self.band_rows = band_rows
-        self._work = work
+        self._work = work if work is not None else {}
         self._own_result = own_result or work is None
-        self._num: Optional[np.ndarray] = None
-        self._den: Optional[np.ndarray] = None
-        self._fallback: Optional[np.ndarray] = None
-        self._fallback_t = np.inf
+        self._sums: Optional[np.ndarray] = None        # (slots, H, W) float32, one slot per exposure time
+        self._counts: Optional[np.ndarray] = None      # (slots, H, W) uint8: usable | all frames << 4
+        self._slot_times: list[float] = []
+        self._slot_frames: list[int] = []
         self.exposures: list[float] = []
+
+    def _slot(self, exposure_s: float, shape: tuple[int, int]) -> tuple[int, bool]:
+        """The slot of this exposure time (frames of one exposure time share one: their mean is merged) and
+        whether it is new; grows the slot buffers as exposure times arrive."""
+        from app.processing.calibration import _buffer
+
+        for k, t in enumerate(self._slot_times):
+            if abs(t - exposure_s) <= 1e-3 * max(t, exposure_s):
+                if self._slot_frames[k] == MAX_FRAMES_PER_TIME:
+                    raise ValueError(f"exposure {exposure_s:.6g} s: at most {MAX_FRAMES_PER_TIME} frames per "
+                                     f"exposure time in one HDR merge")
+                return k, False
+        k = len(self._slot_times)
+        if k == MAX_EXPOSURE_TIMES:
+            raise ValueError(f"exposure {exposure_s:.6g} s: at most {MAX_EXPOSURE_TIMES} exposure times per HDR merge")
+        if self._sums is None or k == self._sums.shape[0]:
+            cap = 2 if self._sums is None else min(2 * self._sums.shape[0], MAX_EXPOSURE_TIMES)
+            sums = _buffer(self._work, "hdr_sums", (cap,) + shape, np.float32)
+            counts = _buffer(self._work, "hdr_counts", (cap,) + shape, np.uint8)
+            if self._sums is not None:              # grow: keep the slots filled so far
+                sums[:k], counts[:k] = self._sums[:k], self._counts[:k]
+            self._sums, self._counts = sums, counts
+        self._slot_times.append(float(exposure_s))
+        self._slot_frames.append(0)
+        return k, True
 
     def add(self, frame: FrameLike, exposure_s: float, dark: np.ndarray | float | None = None,
             cancel: Optional[CancelToken] = None) -> None:
         """Add one exposure: raw mosaic (uint16 DN), its exposure time (s) and its master dark (None: the black
         level is subtracted instead)."""
-        from app.processing.calibration import _buffer
-        from app.processing.kernels import hdr_accumulate
+        from app.processing.kernels import hdr_store
 
         check(cancel)
         if not exposure_s or exposure_s <= 0:
             raise ValueError(f"exposure time must be positive, got {exposure_s}")
         raw = mosaic_of(frame)
-        first = self._num is None
-        if first:
-            self._num = (np.empty(raw.shape, np.float32) if self._own_result
-                         else _buffer(self._work, "hdr_num", raw.shape, np.float32))
-            self._den = _buffer(self._work, "hdr_den", raw.shape, np.float32)
-            self._fallback = _buffer(self._work, "hdr_fallback", raw.shape, np.float32)
-        elif raw.shape != self._num.shape:
-            raise ValueError(f"exposure {exposure_s:.6g} s has shape {raw.shape}, earlier ones {self._num.shape}")
+        if self._sums is not None and raw.shape != self._sums.shape[1:]:
+            raise ValueError(f"exposure {exposure_s:.6g} s has shape {raw.shape}, earlier ones {self._sums.shape[1:]}")
         if isinstance(dark, np.ndarray) and dark.shape != raw.shape:
             raise ValueError(f"dark {dark.shape} and raw {raw.shape} differ in shape")
         if raw.dtype.kind not in "ui":
             raise ValueError(f"raw mosaic must hold integer DN, got {raw.dtype}")
-        shortest = exposure_s < self._fallback_t
+        k, new = self._slot(float(exposure_s), raw.shape)
         use_array = isinstance(dark, np.ndarray)
         dark_arr = np.ascontiguousarray(dark, dtype=np.float32) if use_array else np.zeros((1, 1), np.float32)
         dark_value = np.float32(0.0 if use_array else (self.black_level if dark is None else float(dark)))
         limit = self.white_level if self.linear_limit is None else min(float(self.linear_limit), self.white_level)
-        hdr_accumulate(np.ascontiguousarray(raw), dark_arr, dark_value, use_array, np.float32(1.0 / exposure_s),
-                       np.float32(1.0 / (self.white_level - self.black_level)), limit, self.white_level,
-                       self._num, self._den, self._fallback, shortest, first)
-        if shortest:
-            self._fallback_t = exposure_s
+        hdr_store(np.ascontiguousarray(raw), dark_arr, dark_value, use_array, limit, self.white_level, k, self._sums,
+                  self._counts, new)
+        self._slot_frames[k] += 1
         self.exposures.append(float(exposure_s))
 
     def _require(self) -> None:
-        if self._num is None:
+        if self._sums is None:
             raise ValueError("no exposures added")
+
+    def _kernel_args(self) -> tuple:
+        order = np.argsort(np.asarray(self._slot_times), kind="stable").astype(np.int64)
+        ts = np.asarray(self._slot_times, dtype=np.float32)[order]
+        return (self._sums, self._counts, order, ts, (np.float32(1.0) / ts).astype(np.float32),
+                HDR_METHOD_CODES[self.method], np.float32(1.0 / (self.white_level - self.black_level)),
+                np.float32(1.0 / self.noise.electrons_per_dn), np.float32(self.noise.read_variance))
 
     def _warn_clipped(self, clipped: int, size: int) -> None:
         if clipped:
             log.warning("HDR: %d pixels (%.3f %%) exceed the linear limit in every exposure (shortest %.6g s "
-                        "used); add a shorter exposure", clipped, 100.0 * clipped / size, self._fallback_t)
+                        "used); add a shorter exposure", clipped, 100.0 * clipped / size, min(self.exposures))
+
+    def _done(self) -> None:
+        self._sums = self._counts = None
+        self._slot_times, self._slot_frames = [], []
 
     def result(self) -> HdrResult:
-        from app.processing.kernels import hdr_finish
+        from app.processing.calibration import _buffer
+        from app.processing.kernels import hdr_merge
 
         self._require()
-        clipped = int(hdr_finish(self._num, self._den, self._fallback))
-        self._warn_clipped(clipped, self._num.size)
-        res = HdrResult(self._num, self._den, clipped, list(self.exposures))
-        self._num = self._den = self._fallback = None
-        return res
+        shape = self._sums.shape[1:]
+        out = np.empty(shape, np.float32) if self._own_result else _buffer(self._work, "hdr_out", shape, np.float32)
+        clipped = int(hdr_merge(*self._kernel_args(), out))
+        self._warn_clipped(clipped, out.size)
+        self._done()
+        return HdrResult(out, clipped, list(self.exposures), self.method)
 
     def flat_superpixel(self, white: np.ndarray, threshold: float, cfa: str, out: np.ndarray) -> int:
-        """Finish the merge, flat-field it by ``white`` (eq 7.1, NaN where white <= threshold) and write the
-        half-size R, mean(G1, G2), B into ``out`` (H/2, W/2, 3) in one pass. Returns the clipped-pixel count."""
-        from app.processing.kernels import hdr_flat_superpixel
+        """Merge, flat-field by ``white`` (eq 7.1, NaN where white <= threshold) and write the half-size R,
+        mean(G1, G2), B into ``out`` (H/2, W/2, 3) in one pass. Returns the clipped-pixel count."""
+        from app.processing.kernels import hdr_merge_flat_superpixel
         from app.processing.mosaic import cfa_channel_index
 
         self._require()
-        if white.shape != self._num.shape:
-            raise ValueError(f"image {self._num.shape} and white {white.shape} differ in size")
-        clipped = int(hdr_flat_superpixel(self._num, self._den, self._fallback, white, np.float32(threshold),
-                                          cfa_channel_index(cfa), out))
+        if white.shape != self._sums.shape[1:]:
+            raise ValueError(f"image {self._sums.shape[1:]} and white {white.shape} differ in size")
+        clipped = int(hdr_merge_flat_superpixel(*self._kernel_args(), white, np.float32(threshold),
+                                                cfa_channel_index(cfa), out))
         self._warn_clipped(clipped, out.shape[0] * out.shape[1] * 4)
-        self._num = self._den = self._fallback = None
+        self._done()
         return clipped
 
     @classmethod
     def merge(cls, frames: Sequence[FrameLike], exposures: Sequence[float],
               darks: Sequence[np.ndarray | float | None] | None = None, *, white_level: float,
               linear_limit: Optional[float] = LINEAR_LIMIT_DN, black_level: float = 0.0,
+              method: Optional[str] = None, noise: HdrNoise = HdrNoise(),
               progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> HdrResult:
         """Merge a list of exposures in one call (frames may be paths: each is read once)."""
         if len(frames) != len(exposures):
             raise ValueError(f"{len(frames)} frames but {len(exposures)} exposure times")
         darks = list(darks) if darks is not None else [None] * len(frames)
-        m = cls(white_level, linear_limit, black_level=black_level)
+        m = cls(white_level, linear_limit, black_level=black_level, method=method, noise=noise)
         for i, (f, t, d) in enumerate(zip(frames, exposures, darks)):
             m.add(f, t, d, cancel=cancel)
             report(progress, (i + 1) / len(frames), f"merged exposure {t:.6g} s")

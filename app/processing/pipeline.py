@@ -2,7 +2,7 @@
 
 Steps (thesis 7 and 8.2):
   1. master dark per exposure time (8.2.1), built lazily from the dark frames when an exposure first needs it;
-  2. per light, the HDR white (8.2.2): dark-subtracted, per-second, eq 8.9-weighted mean of the white exposures;
+  2. per light, the HDR white (8.2.2): dark-subtracted, per-second, weighted mean of the white exposures (hdr.py);
   3. per light and subject, the HDR image (8.2.3) of the subject's exposures, flat-fielded by that white
      (eq 7.1), reduced to the half-size superpixel RGB (no demosaic);
   4. the lights' RGBs side by side: an (H/2, W/2, 3 x n_lights) float32 stack, channels R1 G1 B1 R2 G2 B2 ...
@@ -78,7 +78,8 @@ class CaptureProcessor:
     def __init__(self, *, darks: Optional[MasterDark] = None, dark_frames: Sequence[ExposureRef] = (),
                  white_level: Optional[float] = None, black_level: Optional[float] = None,
                  linear_limit: Optional[float] = LINEAR_LIMIT_DN, cfa: Optional[str] = None, band_rows: int = 256,
-                 reject_high: int = 1, reject_low: int = 1):
+                 reject_high: int = 1, reject_low: int = 1, hdr_method: Optional[str] = None):
+        """``hdr_method``: the HDR merge estimator (app.processing.hdr; None: the parsimony study's default)."""
         self.darks = darks or MasterDark()
         self._dark_frames: dict[float, list[ExposureRef]] = defaultdict(list)
         for ref in dark_frames:
@@ -89,6 +90,7 @@ class CaptureProcessor:
         self.cfa = cfa
         self.band_rows = band_rows
         self.reject = (reject_high, reject_low)
+        self.hdr_method = hdr_method
         self._whites: "OrderedDict[str, FlatField]" = OrderedDict()
         self._work: dict = {}          # scratch buffers reused across darks and merges (see calibration._buffer)
 
@@ -138,7 +140,8 @@ class CaptureProcessor:
                 self.black_level = float(np.mean(black)) if black else 0.0
             if merge is None:
                 merge = HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level,
-                                 band_rows=self.band_rows, work=self._work, own_result=own_result)
+                                 method=self.hdr_method, band_rows=self.band_rows, work=self._work,
+                                 own_result=own_result)
             dark = self._dark_for(frame, ref.exposure_s, cancel)
             merge.add(mosaic_of(frame), ref.exposure_s, dark, cancel=cancel)
             report(progress, (i + 1) / len(refs), f"exposure {ref.exposure_s:.6g} s {ref.label}".strip())
@@ -146,7 +149,7 @@ class CaptureProcessor:
 
     def hdr(self, refs: Sequence[ExposureRef], *, progress: Optional[ProgressCallback] = None,
             cancel: Optional[CancelToken] = None) -> HdrResult:
-        """Dark-subtracted, eq 8.9-weighted HDR mosaic (DN/s) of the exposures of one light and subject
+        """Dark-subtracted HDR mosaic (DN/s, the configured estimator) of the exposures of one light and subject
         (in new arrays: the result is the caller's to keep)."""
         return self._merge(refs, progress, cancel, True).result()
 
@@ -161,6 +164,10 @@ class CaptureProcessor:
 
     def has_white(self, light: str) -> bool:
         return light in self._whites
+
+    def white(self, light: str) -> FlatField:
+        """The HDR white of ``light`` set by set_white (the quality report measures its uniformity)."""
+        return self._whites[light]
 
     def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: Optional[ProgressCallback] = None,
               cancel: Optional[CancelToken] = None) -> ChannelStack:
@@ -292,6 +299,7 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[Ta
     ``white_xyz`` is the Lab reference white on the scale of the targets' XYZ (default: D65, Y = 100)."""
     from app.processing.characterise import characterise
     from app.processing.outputs import write_image_outputs, write_matrices_csv, write_patch_csv
+    from app.processing.quality import CalibrationFrames
     from app.processing.report import TargetData, build_report
     from simulation.colorimetry import white_point
     from simulation.datasets import default_setup
@@ -330,10 +338,13 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[Ta
                                         cancel=cancel).items():
             files[f"{name}_{k}"] = p
         del stack
+    calibration = CalibrationFrames(proc, [ExposureRef(session.file_path(e), float(e.exposure_s), e.file)
+                                           for e in session.entries("dark") if e.exposure_s],
+                                    _group_refs(session, session.entries("flat")))
     rep = build_report(out_dir, c, TargetData(train.names, train.xyz, vt, train.layout, train.label or "train"),
                        TargetData(test.names, test.xyz, vs, test.layout, test.label or "test") if test else None,
                        simulated_train=train.simulated, title=title,
-                       extra={"session": str(session.path), "darks": proc.darks.exposures})
+                       extra={"session": str(session.path), "darks": proc.darks.exposures}, calibration=calibration)
     files["report"] = out_dir / "report.json"
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})})

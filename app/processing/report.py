@@ -2,13 +2,18 @@
 
 Contents (thesis Table 7.2, Figs 7.4-7.11):
   * mean / median / p90 / max CIEDE2000 on the training and test targets for every fitted matrix
-    (``simulation.objective.ErrorStats``) and which one validated better on the test target;
+    (``simulation.objective.ErrorStats``), which one is delivered (chosen by cross-validation on the training
+    target, never by the test target) and the delivered one's test error;
   * per-patch dE00 heatmap in the target's layout; a*b* and L*C* scatter coloured by error; ground truth vs
     prediction patch mosaic (sRGB, left half ground truth, right half prediction);
   * simulated vs captured digital numbers per channel (Fig 7.4): a least-squares line per channel, R^2 with
     and without outliers (Fig 7.5); outliers are points whose standardized residual from the line fitted to
     the remaining points exceeds 4 (noise scale allowed to grow with the signal; see fit_line_with_outliers);
-  * pass/fail against published colour-accuracy levels of FADGI, ISO 19264-1 and Metamorfoze (test target).
+  * pass/fail against published colour-accuracy levels of FADGI, ISO 19264-1 and Metamorfoze (test target),
+    labelled "colour accuracy only";
+  * the quality metrics of app.processing.quality (dL*/dC*/dH*, tone response, white balance, noise,
+    illuminance non-uniformity, sensor noise) graded per metric against FADGI 4-star / ISO 19264-1 A /
+    Metamorfoze Full, "not assessed" where a criterion is not measured (SFR...), with their figures.
 
 Published limits used (colour accuracy, CIEDE2000 of a reference target):
   FADGI 2023 (Technical Guidelines for Digitizing Cultural Heritage Materials, 3rd ed.), per star level:
@@ -31,7 +36,7 @@ import math
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import TYPE_CHECKING, Optional, Sequence
 
 import numpy as np
 
@@ -40,6 +45,9 @@ from simulation.atomic_io import atomic_output, atomic_write
 from simulation.colorimetry import xyz_to_lab
 from simulation.objective import ErrorStats
 from simulation.versions import output_header
+
+if TYPE_CHECKING:                                   # pragma: no cover
+    from app.processing.quality import CalibrationFrames
 
 log = logging.getLogger(__name__)
 
@@ -297,12 +305,39 @@ class TargetData:
     values: np.ndarray
     layout: Optional[tuple[int, int]] = None
     label: str = ""
+    std: Optional[np.ndarray] = None          # (n, C) per-patch standard deviation of the camera values
+
+
+def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors: np.ndarray, label: str,
+                    calibration: Optional["CalibrationFrames"]) -> tuple[dict, list[str]]:
+    """The quality metrics of one target (app.processing.quality) and their figures."""
+    from app.processing.quality import STANDARD_LIMITS, assess
+    from app.processing.quality_figures import lab_components_figure, tone_figure, uniformity_figure
+
+    m = c.results[c.best].matrix
+    lab_ref = xyz_to_lab(data.xyz, c.white)
+    lab_cap = xyz_to_lab(m.apply(data.values), c.white)
+    q = assess(lab_ref, lab_cap, data.names, errors, values=data.values, std=data.std, matrix=m.matrix,
+               white=c.white, calibration=calibration)
+    name = data.label or label
+    comp = q["lab_differences"]["per_patch"]
+    figures = [lab_components_figure(out_dir / f"lab_components_{label}.png", data.names, comp, name).name]
+    if q["neutral_patches"]["patches"]:
+        limit = STANDARD_LIMITS["ISO 19264-1:2021 A"]["tone_max_abs_dl"].value
+        figures.append(tone_figure(out_dir / f"tone_{label}.png", q["neutral_patches"], limit, name).name)
+    if q.get("uniformity"):
+        figures.append(uniformity_figure(out_dir / "uniformity.png", q["uniformity"]).name)
+    q["target"] = label
+    return q, figures
 
 
 def build_report(out_dir: Path, characterisation: Characterisation, train: TargetData,
                  test: Optional[TargetData] = None, *, simulated_train: Optional[np.ndarray] = None,
-                 title: str = "dual-RGB capture", extra: Optional[dict] = None) -> dict:
-    """Write report.json and the PNG figures into ``out_dir``; returns the JSON dict."""
+                 title: str = "dual-RGB capture", extra: Optional[dict] = None,
+                 calibration: Optional["CalibrationFrames"] = None) -> dict:
+    """Write report.json and the PNG figures into ``out_dir``; returns the JSON dict. ``calibration`` (the
+    session's processor, darks and flats) adds sensor noise and illuminance non-uniformity to the quality
+    metrics (app.processing.quality)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     c = characterisation
@@ -337,6 +372,10 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
                       "min_r2": min(f.r2 for f in fits), "min_r2_without_outliers": min(f.r2_clean for f in fits)}
     graded_set = "test" if test is not None else "train"
     graded = c.results[best].test if test is not None else c.results[best].train
+    graded_errors = c.results[best].test_errors if test is not None else c.results[best].train_errors
+    quality, qfigs = quality_section(out_dir, c, test if test is not None else train, graded_errors, graded_set,
+                                     calibration)
+    figures += qfigs
     report = {
         **output_header(REPORT_FORMAT),
         "title": title,
@@ -344,12 +383,15 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
         "channels": c.channels,
         "white_xyz": [float(v) for v in white],
         "best_method": best,
-        "best_reason": "lowest mean dE00 on the test target" if test is not None else "lowest mean dE00 (train)",
+        "best_reason": c.selection.reason if c.selection else "the only matrix fitted",
+        "model_selection": c.selection.to_dict() if c.selection else None,
         "train": c.results[best].train.to_dict(),
         "test": c.results[best].test.to_dict() if test is not None else None,
         "methods": {m: r.to_dict() for m, r in c.results.items()},
         "standards": {"evaluated_on": graded_set, "method": best, "stats": graded.to_dict(),
+                      "scope": "colour accuracy only (dE00 of the target); the other criteria: see 'quality'",
                       "results": grade(graded)},
+        "quality": quality,
         "dn_validation": validation,
         "per_patch": per_patch,
         "figures": figures,

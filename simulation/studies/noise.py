@@ -36,9 +36,10 @@ import numpy as np
 
 from simulation.camera_model import led_responses
 from simulation.capture_model import CameraNoise
-from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import SimulationSetup, Target
+from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.datasets import SimulationSetup, Target, target_xyz
 from simulation.fast_de import mean_de2000_xyz
+from simulation.hdr_estimators import HdrNoise, default_method, merge_exposures
 from simulation.characterisation import solve_normal_equations
 
 log = logging.getLogger(__name__)
@@ -59,7 +60,7 @@ class NoiseModel:
                  train: Optional[Target] = None, test: Optional[Target] = None) -> None:
         self.setup = setup
         self.camera = camera
-        self.white = white_point(setup.illuminant, setup.cmfs)
+        self.white = target_xyz(setup, train or setup.train)[1]
         self.open = led_responses(setup.leds, np.ones((1, len(setup.grid))), setup.camera)[:, 0, :]   # (K, 3)
         self.n_leds = setup.leds.shape[0]
         self.data = {"train": self._patches(train or setup.train), "test": self._patches(test or setup.test)}
@@ -70,7 +71,7 @@ class NoiseModel:
         self._draws: dict = {}
 
     def _patches(self, target: Target) -> _PatchData:
-        xyz = tristimulus(target.spectra, self.setup.illuminant, self.setup.cmfs)
+        xyz = target_xyz(self.setup, target)[0]
         lab = xyz_to_lab(xyz, self.white)
         lab32 = tuple(np.ascontiguousarray(lab[:, i], dtype=np.float32) for i in range(3))
         return _PatchData(led_responses(self.setup.leds, target.spectra, self.setup.camera), xyz, lab, lab32)
@@ -173,14 +174,14 @@ class NoiseModel:
 
     # ---- a pixel-level capture (held-out check) ----------------------------------------------------------
     def simulate_capture(self, W: np.ndarray, rng: np.random.Generator, which: str = "train", *,
-                         factors: tuple[float, ...] = (1.0,),
-                         transmittance: Optional[np.ndarray] = None) -> np.ndarray:
+                         factors: tuple[float, ...] = (1.0,), transmittance: Optional[np.ndarray] = None,
+                         hdr_method: Optional[str] = None) -> np.ndarray:
         """Flat-fielded patch means (n, 3L) of one simulated capture of light set W (L, K), pixel by pixel.
 
         ``factors``: exposures relative to the open-gate exposure (several = an HDR bracket, merged as thesis
-        8.2: master dark per exposure, each frame divided by its exposure, weighted by eq 8.9's hat on the
-        linear range, clipped pixels weight 0); the white (open gate) frame is bracketed the same way.
-        ``transmittance`` (n,): an ND filter over some patches (thesis 8.3).
+        8.2: master dark per exposure, then ``simulation.hdr_estimators.merge_exposures`` with ``hdr_method``
+        (None: the parsimony study's default), frames at the linear limit unused); the white (open gate) frame
+        is bracketed the same way. ``transmittance`` (n,): an ND filter over some patches (thesis 8.3).
         """
         cam = self.camera
         S, F, t = self.signals(np.asarray(W, dtype=float)[None], which)
@@ -189,29 +190,13 @@ class NoiseModel:
             S = S * np.asarray(transmittance, dtype=float)[:, None, None]
         n, L = S.shape[:2]
         shape = (n, L, 3, cam.pixels_per_patch)
-        g = cam.electrons_per_dn
-        lin = cam.linear_limit - cam.black_level
         dark_e = (np.where(np.isfinite(t), t, 0.0) * cam.dark_current)[None, :, None, None]   # electrons
-
-        def frame(signal_dn: np.ndarray, f: float) -> np.ndarray:
-            """One exposure: Poisson electrons (signal + dark current), read noise, 14-bit integers, clipped."""
-            e = rng.poisson(np.broadcast_to(signal_dn * f * g + dark_e * f, shape))
-            raw = np.round(cam.black_level + e / g + rng.normal(0.0, cam.read_noise, shape))
-            return np.clip(raw, 0, min(cam.max_code, cam.linear_limit))
+        method = hdr_method or default_method()
+        noise = HdrNoise(cam.read_noise, cam.electrons_per_dn)
 
         def merged(signal_dn: np.ndarray) -> np.ndarray:
-            num = np.zeros(shape)
-            den = np.zeros(shape)
-            fallback = None
-            for f in sorted(factors):
-                raw = frame(signal_dn, f)
-                x = raw - np.mean([frame(np.zeros((1, L, 3, 1)), f) for _ in range(cam.dark_frames)], axis=0)
-                w = np.where(raw >= cam.linear_limit, 0.0, np.clip(np.minimum(x, lin - x), 0.0, None))
-                num += w * x / f
-                den += w
-                if fallback is None:
-                    fallback = x / f
-            return np.where(den > 0, num / np.where(den > 0, den, 1.0), fallback)
+            x, usable = capture_bracket(cam, signal_dn, factors, rng, shape, dark_e)
+            return merge_exposures(x, usable, factors, method, span=cam.max_code - cam.black_level, noise=noise)[0]
 
         raw = merged(S[..., None])
         white = np.mean([merged(F[None, :, :, None]) for _ in range(cam.flat_frames)], axis=0)
@@ -221,21 +206,27 @@ class NoiseModel:
 
     def captured_errors(self, W: np.ndarray, repeats: int = 10, seed: int = 12345, *,
                         factors: tuple[float, ...] = (1.0,), nd: Optional[dict[str, np.ndarray]] = None,
-                        models: tuple[str, ...] = ()) -> dict:
+                        models: tuple[str, ...] = (), hdr_method: Optional[str] = None,
+                        nd_in_truth: bool = True) -> dict:
         """Mean dE00 (float64) of ``repeats`` simulated captures of W (L, K): fit on the captured training
         target, errors of the captured training and test targets; seeds disjoint from the objective's.
         ``nd``: per target ('train', 'test') transmittance of an ND filter; ``models``: also fit these
-        characterisation models (simulation.studies.models) and report their errors under 'models'."""
+        characterisation models (simulation.studies.models) and report their errors under 'models';
+        ``hdr_method``: the HDR merge estimator (simulate_capture); ``nd_in_truth`` False: the ground truth is the
+        target without the filter (a uniformly dark original, judged after exposure normalisation: the fitted
+        matrix absorbs the scale)."""
         from simulation.studies.models import fit_model, model_errors
 
         tr, te = [], []
         per_model: dict[str, dict[str, list[float]]] = {m: {"train": [], "test": []} for m in models}
         for r in range(repeats):
             rng = np.random.default_rng([seed, r])
-            Vtr = self.simulate_capture(W, rng, "train", factors=factors, transmittance=(nd or {}).get("train"))
-            Vte = self.simulate_capture(W, rng, "test", factors=factors, transmittance=(nd or {}).get("test"))
+            Vtr = self.simulate_capture(W, rng, "train", factors=factors, transmittance=(nd or {}).get("train"),
+                                        hdr_method=hdr_method)
+            Vte = self.simulate_capture(W, rng, "test", factors=factors, transmittance=(nd or {}).get("test"),
+                                        hdr_method=hdr_method)
             xyz_tr, xyz_te = self.data["train"].xyz, self.data["test"].xyz
-            if nd:
+            if nd and nd_in_truth:
                 xyz_tr = xyz_tr * nd["train"][:, None]
                 xyz_te = xyz_te * nd["test"][:, None]
             A = solve_normal_equations((Vtr.T @ Vtr)[None], (Vtr.T @ xyz_tr)[None])[0]
@@ -250,6 +241,28 @@ class NoiseModel:
         if models:
             out["models"] = {m: {k: float(np.mean(v)) for k, v in d.items()} for m, d in per_model.items()}
         return out
+
+
+def capture_bracket(cam: CameraNoise, signal_dn: np.ndarray, factors, rng: np.random.Generator, shape: tuple,
+                    dark_e: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """One bracket of exposures, pixel by pixel: dark-subtracted signals x (K, *shape) and usable masks.
+
+    Exposure f of ``factors``: Poisson electrons (``signal_dn`` * f DN of signal plus ``dark_e`` * f electrons of
+    dark current), read noise, integer DN clipped at the linear limit (a value there is unusable); the master
+    dark is the mean of ``cam.dark_frames`` such frames without signal, as processing subtracts it."""
+    g = cam.electrons_per_dn
+
+    def frame(sig: np.ndarray, f: float) -> np.ndarray:
+        e = rng.poisson(np.broadcast_to(sig * f * g + np.asarray(dark_e) * f, shape))
+        raw = np.round(cam.black_level + e / g + rng.normal(0.0, cam.read_noise, shape))
+        return np.clip(raw, 0, min(cam.max_code, cam.linear_limit))
+
+    xs, usable = [], []
+    for f in factors:
+        raw = frame(signal_dn, f)
+        xs.append(raw - np.mean([frame(np.zeros(1), f) for _ in range(cam.dark_frames)], axis=0))
+        usable.append(raw < cam.linear_limit)
+    return np.stack(xs), np.stack(usable)
 
 
 def dense(idx: np.ndarray, w: np.ndarray, n_leds: int) -> np.ndarray:

@@ -10,8 +10,9 @@ Three questions, each answered automatically with a tolerance (default 0.05 mean
    simulated captures (noise model of :mod:`.noise`) of the training target for the optimum light sets, judged
    on the captured *test* target. The simplest model within the tolerance of the most accurate one is chosen.
 3. HDR exposures per light (1-4, geometric from the open-gate exposure to 100x, i.e. an ND 2.0 filter over
-   half the patches as thesis 8.3): test error of simulated captures. The fewest exposures within the
-   tolerance of the most accurate bracket are chosen.
+   half the patches as thesis 8.3): test error of simulated captures, merged with the HDR estimator that
+   ``dualrgb study hdr`` chose (key ``hdr_merge``, kept). The fewest exposures within the tolerance of the most
+   accurate bracket are chosen.
 
 The choices go to ``parsimony.json`` (format ``dualrgb-parsimony/1``). :func:`load_defaults` returns the
 user's copy (``--write-defaults`` puts it in the per-user data folder, ``resources.user_path``) when there is
@@ -30,6 +31,8 @@ from typing import Optional
 import numpy as np
 
 import resources
+from simulation.atomic_io import atomic_write
+from simulation.hdr_estimators import default_method
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
 from simulation.search import exhaustive, light_pairs, refine_top
@@ -41,7 +44,8 @@ from simulation.versions import output_header
 log = logging.getLogger(__name__)
 
 FORMAT = "dualrgb-parsimony/1"
-FALLBACK_DEFAULTS = {"spectral_step_nm": 10.0, "characterisation_model": "linear", "hdr_exposures": 1}
+FALLBACK_DEFAULTS = {"spectral_step_nm": 10.0, "characterisation_model": "linear", "hdr_exposures": 1,
+                     "hdr_merge": "thesis"}
 
 
 @dataclass(frozen=True)
@@ -167,6 +171,7 @@ def models_and_exposures(spec: SetupSpec, cfg: ParsimonyConfig, cancel=None, pro
     scores = [max(r[n]["nd_test"] for n in lights) for r in erows]
     idx, best = _choose(erows, scores, cfg.tolerance)
     exposures = {"rows": erows, "scores": scores, "best": best, "chosen": erows[idx]["exposures"],
+                 "hdr_merge": default_method(),      # the estimator the brackets were merged with (study hdr)
                  "criterion": "captured test mean dE00 with ND 2.0 over half the patches (worst over light sets)",
                  "nd_transmittance": cfg.nd_transmittance, "span": cfg.exposure_span}
     return models, exposures
@@ -197,7 +202,7 @@ class ParsimonyResult:
     def defaults(self) -> dict:
         return {**output_header(FORMAT), "spectral_step_nm": self.steps["chosen_nm"],
                 "characterisation_model": self.models["chosen"], "hdr_exposures": self.exposures["chosen"],
-                "tolerance_de00": self.config.tolerance,
+                "hdr_merge": self.exposures["hdr_merge"], "tolerance_de00": self.config.tolerance,
                 "default_10nm_justified": self.steps["default_10nm_justified"],
                 "evidence": {
                     "step_deviation": {f"{r['step_nm']:g}": round(r["deviation"], 4) for r in self.steps["rows"]},
@@ -237,6 +242,23 @@ def load_defaults(path: Optional[str] = None) -> dict:
         log.warning("%s: format %r, expected %r; using the thesis defaults", p, data.get("format"), FORMAT)
         return dict(FALLBACK_DEFAULTS)
     return {k: data.get(k, v) for k, v in FALLBACK_DEFAULTS.items()}
+
+
+def save_defaults(path: str, update: dict) -> Path:
+    """Write ``update`` into the defaults file, keeping keys (and evidence) another study wrote there: the
+    parsimony study owns the step, model and exposure count, ``dualrgb study hdr`` the HDR estimator."""
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+        if data.get("format") != FORMAT:
+            data = {}
+    except (OSError, ValueError):
+        data = {}
+    evidence = {**data.get("evidence", {}), **update.get("evidence", {})}
+    data.update({**update, "format": FORMAT, "evidence": evidence})
+    p.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(p, json.dumps(data, indent=2) + "\n")
+    return p
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -289,10 +311,7 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     out.write_json("parsimony_study.json", result.to_json())
     out.write_json("parsimony.json", result.defaults())
     if defaults_path:
-        from simulation.atomic_io import atomic_write
-
-        Path(defaults_path).parent.mkdir(parents=True, exist_ok=True)
-        atomic_write(defaults_path, json.dumps(result.defaults(), indent=2) + "\n")
+        save_defaults(defaults_path, result.defaults())
     out.save_figure(parsimony_chart(result), "parsimony.png")
     s = result.steps
     lines = [f"Setup: {result.spec.label()}; tolerance {result.config.tolerance} mean dE00; total "

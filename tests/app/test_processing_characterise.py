@@ -1,11 +1,13 @@
 """Least-squares vs mean-dE00-optimised characterisation on simulated dual-RGB patch values."""
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 import pytest
 
 from app.processing.characterise import (DE2000, LEAST_SQUARES, characterise, fit_de2000, fit_least_squares,
-                                         patch_errors)
+                                         patch_errors, select_model)
 from simulation.datasets import default_setup
 from simulation.lightsource import LightSource
 from simulation.objective import PatchSet
@@ -34,7 +36,7 @@ def test_de2000_matrix_is_not_worse_than_least_squares_on_train(data):
     assert opt.method == DE2000 and ls.method == LEAST_SQUARES
 
 
-def test_characterise_reports_both_and_picks_best_on_test(data):
+def test_characterise_reports_both_and_chooses_by_cross_validation_on_train(data):
     vt, xt, vs, xs, white = data
     seen = []
     c = characterise(vt, xt, white, vs, xs, ["R1", "G1", "B1", "R2", "G2", "B2"],
@@ -42,12 +44,33 @@ def test_characterise_reports_both_and_picks_best_on_test(data):
     assert set(c.results) == {LEAST_SQUARES, DE2000}
     r = c.results
     assert r[DE2000].train.mean <= r[LEAST_SQUARES].train.mean
-    best = min(r, key=lambda k: r[k].test.mean)
-    assert c.best == best and c.matrix is r[best].matrix
+    sel = select_model(vt, xt, white, ["R1", "G1", "B1", "R2", "G2", "B2"])
+    assert c.best == sel.chosen == min(sel.cv_mean, key=sel.cv_mean.get) and c.matrix is r[c.best].matrix
+    # cross-validated errors are held-out errors: above each method's own training error
+    assert all(sel.cv_mean[m] > r[m].train.mean for m in r)
     assert np.allclose(r[LEAST_SQUARES].test_errors, patch_errors(r[LEAST_SQUARES].matrix, vs, xs, white))
     assert 0 < r[LEAST_SQUARES].train.mean < 3 and seen and seen[-1] == 1.0
     d = c.to_dict()
-    assert d["best"] == best and d["methods"][DE2000]["test"]["p90"] > 0
+    assert d["best"] == c.best and d["selection"]["folds"] == 5 and d["methods"][DE2000]["test"]["p90"] > 0
+
+
+def test_model_selection_never_reads_the_test_target(data):
+    """The delivered matrix is the same whatever the test target says: a test target on which the chosen
+    method is far worse (and one on which it is far better) leaves the choice unchanged, and the reported test
+    error is the chosen matrix's, however bad."""
+    vt, xt, vs, xs, white = data
+    honest = characterise(vt, xt, white, vs, xs)
+    chosen = honest.best
+    other = next(m for m in honest.results if m != chosen)
+    # forge test 'measurements' that the other matrix reproduces exactly and the chosen one does not
+    forged_xyz = honest.results[other].matrix.apply(vs)
+    adversarial = characterise(vt, xt, white, vs, forged_xyz)
+    assert adversarial.best == chosen
+    assert adversarial.results[other].test.mean < 1e-6 < adversarial.results[chosen].test.mean
+    forged_xyz = honest.results[chosen].matrix.apply(vs)                   # and the reverse
+    assert characterise(vt, xt, white, vs, forged_xyz).best == chosen
+    assert characterise(vt, xt, white).best == chosen                       # and with no test target at all
+    assert "test" not in inspect.signature(select_model).parameters.keys().__str__()
 
 
 def test_characterise_rejects_nan_patches_and_can_be_cancelled(data):

@@ -171,6 +171,7 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     rep = res.result.report
     assert rep["test"]["mean"] < 2.0                       # dual-RGB on the virtual lab: well under 2 dE00
     assert set(res.badge_labels) == {"FADGI 2023", "ISO 19264-1:2021", "Metamorfoze 2.0"}
+    assert all("colour accuracy only" in b.text() for b in res.badge_labels.values())   # issue 11 item 6
     assert len(res.views["test"].errors) == 24
     image = res.heat_item.image
     assert image.shape == (4, 6)

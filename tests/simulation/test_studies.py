@@ -292,10 +292,34 @@ def test_parsimony_tiny_picks_valid_options(tmp_path):
 
 
 def test_packaged_parsimony_defaults_load():
+    from simulation.hdr_estimators import HDR_MERGE_METHODS
     from simulation.studies.parsimony import load_defaults
 
     d = load_defaults()
     assert d["spectral_step_nm"] in (1.0, 5.0, 10.0, 20.0) and d["characterisation_model"] in MODELS
+    assert d["hdr_merge"] in HDR_MERGE_METHODS
+
+
+def test_hdr_study_tiny_chooses_an_estimator_and_keeps_other_defaults(tmp_path):
+    from simulation.hdr_estimators import HDR_MERGE_METHODS
+    from simulation.studies.hdr import HdrStudyConfig, hdr_study, write_defaults, write_outputs
+    from simulation.studies.parsimony import FORMAT, load_defaults
+
+    cfg = HdrStudyConfig.tiny()
+    res = hdr_study(SPEC, cfg)
+    write_outputs(res, StudyOutput(tmp_path / "h"))
+    for f in ("hdr_study.json", "hdr.png", "SUMMARY.md"):
+        assert (tmp_path / "h" / f).stat().st_size > 0
+    assert res.chosen in HDR_MERGE_METHODS and set(res.originals["scores"]) == set(HDR_MERGE_METHODS)
+    b = res.bias
+    assert b["thesis"]["bias_per_decade"]["10-100"] > 0.2                # eq 8.9: far too bright in the shadows
+    assert abs(b["variance"]["bias_per_decade"]["100-1000"]) < 0.01
+    defaults = tmp_path / "defaults.json"
+    defaults.write_text(json.dumps({"format": FORMAT, "spectral_step_nm": 5.0, "evidence": {"x": 1}}))
+    write_defaults(res, str(defaults))
+    d = json.loads(defaults.read_text())
+    assert d["spectral_step_nm"] == 5.0 and d["evidence"]["x"] == 1 and d["hdr_merge"] == res.chosen
+    assert load_defaults(str(defaults))["hdr_merge"] == res.chosen
 
 
 # ---- CLI ---------------------------------------------------------------------------------------------

@@ -76,7 +76,8 @@ def test_parsimony_defaults_user_copy_wins_packaged_is_the_fallback(user_data_di
     mine.parent.mkdir(parents=True)
     mine.write_text(json.dumps({"format": FORMAT, "spectral_step_nm": 5.0, "characterisation_model": "linear",
                                 "hdr_exposures": 3}))
-    assert load_defaults() == {"spectral_step_nm": 5.0, "characterisation_model": "linear", "hdr_exposures": 3}
+    assert load_defaults() == {"spectral_step_nm": 5.0, "characterisation_model": "linear", "hdr_exposures": 3,
+                               "hdr_merge": "thesis"}      # a key the file lacks: the thesis default
 
 
 def test_study_parsimony_writes_defaults_and_charts_to_the_user_folder(user_data_dir, monkeypatch, capsys):

@@ -46,7 +46,8 @@ class PresetItem(QListWidgetItem):
         sources = "  +  ".join(s.label() for s in preset.sources)
         where = "packaged (renaming saves a copy in your presets folder)" if packaged else str(path)
         self.setToolTip(f"{sources}\n{preset.method}, {preset.mode}"
-                        + (f", test mean dE00 {errs['mean']:.2f}" if "mean" in errs else "") + f"\n{where}")
+                        + (f", test mean dE00 {errs['mean']:.3f}" if "mean" in errs else "") + f"\n{where}"
+                        + "\nlevels are exact in the preset file")
 
 
 class LightPanel(QWidget):
@@ -75,7 +76,7 @@ class LightPanel(QWidget):
             slider.setToolTip(f"Level of LED {i + 1} (peak near {self.peaks[i]:.0f} nm), 0 = off, 1 = full power")
             spin = QDoubleSpinBox()
             spin.setRange(0.0, 1.0)
-            spin.setDecimals(3)
+            spin.setDecimals(5)                       # the sphere's 16-bit PWM step is 1.5e-5
             spin.setSingleStep(0.01)
             spin.setToolTip(slider.toolTip())
             slider.valueChanged.connect(lambda v, k=i: self._slider_moved(k, v))
@@ -239,7 +240,7 @@ class LightPanel(QWidget):
         for i, curve in enumerate(self.led_curves):
             curve.setData(self.wavelengths, lv[i] * self.led_spectra[i])
         self.mix_curve.setData(self.wavelengths, mixed_spectrum(lv, self.led_spectra))
-        self.ctx.set("light/levels", ",".join(f"{v:.4f}" for v in lv))
+        self.ctx.set("light/levels", ",".join(repr(float(v)) for v in lv))
         self.levelsChanged.emit(lv)
         if user and self.live_apply.isChecked() and self.lab.sphere is not None:
             self._debounce.start()
@@ -331,8 +332,9 @@ class LightPanel(QWidget):
         lines = [f"light {i}: {s.label()}" for i, s in enumerate(p.sources, start=1)]
         errs = p.errors.get("test") or {}
         if "mean" in errs:
-            lines.append(f"simulated test mean ΔE00 {errs['mean']:.2f}")
-        self.preset_info.setText("; ".join(lines))
+            lines.append(f"simulated test mean ΔE00 {errs['mean']:.3f}")
+        self.preset_info.setText("; ".join(lines) + " (levels shown to 4 significant digits; the preset file and "
+                                 "the sphere get them exactly)")
         self.apply2.setEnabled(self.lab.sphere is not None and len(p.sources) > 1)
 
     def apply_preset(self, item, index: int) -> None:

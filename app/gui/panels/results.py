@@ -307,14 +307,16 @@ class ResultsPanel(QWidget):
         on = standards.get("evaluated_on", "test")
         for r, (std, res) in enumerate(standards["results"].items()):
             level = res["level"]
-            badge = QLabel(f"{std}: {level if level else 'not met'}")
+            badge = QLabel(f"{std}, colour accuracy only: {level if level else 'not met'}")
             badge.setStyleSheet(f"background:{BADGE_COLOURS[level is not None]}; color:white; border-radius:6px; "
                                 "padding:3px 8px; font-weight:bold")
             lines = [f"{name}: {'pass' if v['pass'] else 'fail'} (" + ", ".join(
                 f"{k} {v['comparison']} {lim:g}" for k, lim in v["limits"].items()) + ")"
                 for name, v in res["levels"].items()]
             badge.setToolTip(f"{std} colour accuracy on the {on} target (indicative: see the report):\n"
-                             + "\n".join(lines))
+                             + "\n".join(lines) + "\nNot a full grade: tone, white balance, noise and uniformity "
+                             "are graded per metric in the report's quality section; SFR / MTF, sampling, "
+                             "misregistration and gain modulation are not assessed.")
             self.badges.addWidget(badge, r, 0)
             self.badge_labels[std] = badge
 

@@ -1,0 +1,179 @@
+"""Reference target data from CGATS / X-Rite measurement files (ANSI CGATS.17, i1Profiler, ArgyllCMS .ti3,
+X-Rite ColorChecker data): the patches' measured spectra as a :class:`SpectralTable`.
+
+Why hand-written: colour-science's ``read_sds_from_xrite_file`` reads the X-Rite flavour only ("nm380" fields)
+and, by its own description, is "absolutely not bullet-proof": a truncated row or a stray token gives a wrong
+spectrum or a Python exception, not a message a user can act on. This reader accepts both field spellings
+(``nm380`` and ``SPECTRAL_NM380`` / ``SPECTRAL_NM_380``), quoted names with spaces, comments, and checks the
+declared NUMBER_OF_FIELDS / NUMBER_OF_SETS; every problem is one line naming file, line and what was expected
+(tests check it against colour's reader on colour's own X-Rite test file).
+
+Values: reflectance (or transmittance) factors; a file whose spectral values exceed 2 is taken to be in percent
+(ArgyllCMS writes 0-100) and divided by 100; values down to -0.005 (instrument noise at the ends of the
+spectrum) are set to 0, more negative ones are an error. Colorimetric fields (XYZ_*, LAB_*) are kept in
+``CgatsTable.rows`` but not used: they are for the instrument's illuminant and observer (often D50), while the
+reference XYZ here is computed from the spectra (eq 4.2 or ASTM E308, ``simulation.datasets.target_xyz``).
+"""
+from __future__ import annotations
+
+import logging
+import re
+import shlex
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from simulation.spectral_io import SpectralDataError, SpectralTable
+
+log = logging.getLogger(__name__)
+
+_SPECTRAL = re.compile(r"^(?:SPECTRAL_NM_?|SPECTRAL_|NM_?)(\d+(?:\.\d+)?)$", re.IGNORECASE)
+_NAME_FIELDS = ("SAMPLE_NAME", "SAMPLE_ID", "SAMPLEID", "SAMPLE_LOC")
+NEGATIVE_TOLERANCE = 0.005
+
+
+class CgatsError(SpectralDataError):
+    """A CGATS / X-Rite file that cannot be used (one line: file, line, problem)."""
+
+
+@dataclass
+class CgatsTable:
+    fields: list[str]
+    rows: list[list[str]]
+    keywords: dict[str, str] = field(default_factory=dict)
+    source: str = ""
+    row_lines: list[int] = field(default_factory=list)
+
+    def spectral_fields(self) -> list[tuple[int, float]]:
+        """(field index, wavelength nm) of the spectral fields, in file order."""
+        out = []
+        for i, f in enumerate(self.fields):
+            m = _SPECTRAL.match(f)
+            if m:
+                out.append((i, float(m.group(1))))
+        return out
+
+    def names(self) -> list[str]:
+        upper = [f.upper() for f in self.fields]
+        for key in _NAME_FIELDS:
+            if key in upper:
+                j = upper.index(key)
+                return [r[j] for r in self.rows]
+        return [str(i + 1) for i in range(len(self.rows))]
+
+    def spectral_table(self) -> SpectralTable:
+        """The measured spectra, wavelengths (n_wl,) x patches (n_wl, n_patches)."""
+        spec = self.spectral_fields()
+        if len(spec) < 2:
+            raise CgatsError(f"{self.source}: no spectral fields (expected nm380 ... or SPECTRAL_NM380 ...); "
+                             f"fields are {', '.join(self.fields[:12])}{' ...' if len(self.fields) > 12 else ''}")
+        wl = np.array([w for _, w in spec])
+        if np.any(np.diff(wl) <= 0):
+            k = int(np.argmax(np.diff(wl) <= 0))
+            raise CgatsError(f"{self.source}: spectral fields must increase in wavelength; {wl[k + 1]:g} nm "
+                             f"follows {wl[k]:g} nm")
+        values = np.empty((len(wl), len(self.rows)))
+        for r, (row, line) in enumerate(zip(self.rows, self.row_lines)):
+            for c, (i, w) in enumerate(spec):
+                try:
+                    values[c, r] = float(row[i])
+                except ValueError:
+                    raise CgatsError(f"{self.source}:{line}: field {self.fields[i]} {row[i]!r} is not a number") from None
+        if not np.isfinite(values).all():
+            c, r = np.argwhere(~np.isfinite(values))[0]
+            raise CgatsError(f"{self.source}:{self.row_lines[r]}: {wl[c]:g} nm is not a finite number")
+        if values.max() > 2.0:
+            if values.max() > 200.0:
+                raise CgatsError(f"{self.source}: spectral values up to {values.max():g}: neither factors (0-1) nor "
+                                 f"percent (0-100)")
+            log.info("%s: spectral values up to %.3g, read as percent", self.source, values.max())
+            values = values / 100.0
+        if values.min() < -NEGATIVE_TOLERANCE:
+            c, r = np.unravel_index(int(np.argmin(values)), values.shape)
+            raise CgatsError(f"{self.source}:{self.row_lines[r]}: negative value {values[c, r]:g} at {wl[c]:g} nm")
+        np.maximum(values, 0.0, out=values)
+        meta = {k.lower(): v for k, v in self.keywords.items()}
+        meta.setdefault("title", Path(self.source).stem)
+        return SpectralTable(wl, values, self.names(), meta, self.source)
+
+
+def is_cgats(path: str | Path) -> bool:
+    """Whether ``path`` looks like a CGATS / X-Rite file (has a BEGIN_DATA_FORMAT line)."""
+    try:
+        return any(line.strip() == "BEGIN_DATA_FORMAT" for line in _text(Path(path)).splitlines())
+    except SpectralDataError:
+        return False
+
+
+def _text(path: Path) -> str:
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise CgatsError(f"{path}: cannot read file ({exc.strerror or exc})") from None
+    for enc in ("utf-8-sig", "latin-1"):          # X-Rite writes Latin-1 degree signs
+        try:
+            return data.decode(enc)
+        except UnicodeDecodeError:
+            continue
+    raise CgatsError(f"{path}: not a text file")  # pragma: no cover - latin-1 decodes any bytes
+
+
+def _tokens(line: str, name: str, lineno: int) -> list[str]:
+    try:
+        return shlex.split(line, comments=True, posix=True)
+    except ValueError as exc:
+        raise CgatsError(f"{name}:{lineno}: {exc} (unbalanced quotes?)") from None
+
+
+def read_cgats(path: str | Path) -> CgatsTable:
+    """Parse a CGATS / X-Rite file: keywords, the data format's fields and the data rows (strings)."""
+    path = Path(path)
+    name = str(path)
+    table = CgatsTable([], [], {}, name)
+    state = "header"
+    n_fields = n_sets = None
+    end_line = 0
+    for lineno, raw in enumerate(_text(path).splitlines(), start=1):
+        line = raw.strip()
+        end_line = lineno
+        if not line or line.startswith("#"):
+            continue
+        if line in ("BEGIN_DATA_FORMAT", "END_DATA_FORMAT", "BEGIN_DATA", "END_DATA"):
+            state = {"BEGIN_DATA_FORMAT": "format", "BEGIN_DATA": "data"}.get(line, "header")
+            if line == "BEGIN_DATA" and not table.fields:
+                raise CgatsError(f"{name}:{lineno}: BEGIN_DATA before any BEGIN_DATA_FORMAT ... END_DATA_FORMAT")
+            continue
+        tokens = _tokens(line, name, lineno)
+        if state == "format":
+            table.fields += tokens
+        elif state == "data":
+            if len(tokens) != len(table.fields):
+                raise CgatsError(f"{name}:{lineno}: {len(tokens)} values, expected {len(table.fields)} "
+                                 f"(one per field of BEGIN_DATA_FORMAT)")
+            table.rows.append(tokens)
+            table.row_lines.append(lineno)
+        elif tokens:
+            key, value = tokens[0], " ".join(tokens[1:])
+            table.keywords.setdefault(key, value)
+            if key in ("NUMBER_OF_FIELDS", "NUMBER_OF_SETS"):
+                try:
+                    number = int(value)
+                except ValueError:
+                    raise CgatsError(f"{name}:{lineno}: {key} {value!r} is not a whole number") from None
+                n_fields, n_sets = (number, n_sets) if key == "NUMBER_OF_FIELDS" else (n_fields, number)
+    if not table.fields:
+        raise CgatsError(f"{name}:{end_line}: no BEGIN_DATA_FORMAT ... END_DATA_FORMAT section: not a CGATS file")
+    if not table.rows:
+        raise CgatsError(f"{name}:{end_line}: no data rows between BEGIN_DATA and END_DATA")
+    if n_fields is not None and n_fields != len(table.fields):
+        raise CgatsError(f"{name}: NUMBER_OF_FIELDS says {n_fields} but the data format lists {len(table.fields)}")
+    if n_sets is not None and n_sets != len(table.rows):
+        raise CgatsError(f"{name}: NUMBER_OF_SETS says {n_sets} but {len(table.rows)} data rows follow "
+                         f"(truncated file?)")
+    log.debug("read %s: %d fields x %d sets", name, len(table.fields), len(table.rows))
+    return table
+
+
+def read_cgats_spectra(path: str | Path) -> SpectralTable:
+    return read_cgats(path).spectral_table()
