@@ -27,6 +27,10 @@ COMMAND_MODULES = (
     "app.commands.devices",
     "app.commands.gui",
     "app.commands.demo",
+    "app.commands.calibrate",
+    "app.commands.capture",
+    "app.commands.process",
+    "app.commands.calibration",
     "app.commands.study",
 )
 

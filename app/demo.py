@@ -1,12 +1,15 @@
 """The whole workflow, headless, on the virtual lab (``dualrgb demo``; Qt-free so the GUI can run it too).
 
+It holds no processing of its own: captures run through app.workflow.copystand.CopyStand and the sequences,
+processing through app.workflow.session_processing.process_session, exactly as the GUI and the CLI do.
+
 presets from the optimiser on the expected captured error of this capture (exhaustive = dual-RGB, the default
 successive-halving PSO = dual-RGB-PSO, realisable NNLS D65 mix = 3-channel baseline)
 -> the sphere emulator on a real pty + the virtual camera -> auto-exposure on the open gate -> (HDR plan on
 the ND-covered target) -> dark series at every exposure -> open-gate flats -> train and test captures ->
 master darks, eq 7.1 flat field / eq 8.9 HDR merge -> per-light superpixel images stacked to N channels ->
 patch means (PatchGrid on the target's corners) -> characterisation (least squares and dE00-optimised) ->
-report.json, and per condition a folder with its report.json, PNG figures and the test target's TIFFs.
+report.json, and per condition a folder with its report.json, PNG figures and CSVs.
 """
 from __future__ import annotations
 
@@ -19,24 +22,22 @@ from typing import Optional
 
 import numpy as np
 
-from app.processing.characterise import LEAST_SQUARES, characterise
-from app.processing.outputs import write_image_outputs
-from app.processing.patches import PatchGrid
-from app.processing.pipeline import CaptureProcessor, ExposureRef
-from app.processing.quality import CalibrationFrames, quality_summary
-from app.processing.report import TargetData, build_report
-from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure, exposure_key
-from app.sequences.capture import TargetCapture
+from app.sequences.calibration import DarkSeries, FlatSeries
+from app.sequences.capture import SubjectCapture
 from app.sequences.hdr import HdrPlan, meter_and_plan
-from app.sequences.shooter import SafetySettings, Shooter
+from app.processing.characterise import LEAST_SQUARES
+from app.processing.quality import quality_summary
 from app.session import CaptureSession, atomic_write, camera_definition, light_definition
 from app.session_log import SessionLog
-from app.virtual_lab import VirtualLab
+from app.workflow.copystand import CopyStand, StandSettings, parsimony_defaults
+from app.workflow.session_processing import process_session
+from app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
+from app.workflow.vocabulary import NamedLight, Subject, lights_of
+from drivers.virtual.lab import VirtualLab
 from simulation.camera_model import channel_responses
-from simulation.colorimetry import tristimulus, white_point
 from simulation.lightsource import LightSource
-from simulation.objective import ErrorStats, Evaluator
-from simulation.presets import Preset, d65_mix, save_preset
+from simulation.objective import ErrorStats
+from simulation.presets import Preset, save_preset
 from simulation.progress import CancelToken, ProgressCallback, check, report, scaled
 from simulation.runner import run as run_simulation
 from simulation.versions import output_header
@@ -78,10 +79,6 @@ class Condition:
     hdr_plan: dict[str, HdrPlan] = field(default_factory=dict)
 
 
-def _lights(preset: Preset, prefix: str) -> list[NamedLight]:
-    return [NamedLight(f"{prefix}-LS{i}", s) for i, s in enumerate(preset.sources, start=1)]
-
-
 def demo_capture_model(settings: DemoSettings):
     """The capture this demo makes, for the expected-captured objective: its frames' patch sizes (superpixels
     the demo's patch grid averages, median over patches), its dark and flat frame counts, the virtual lab's
@@ -97,8 +94,7 @@ def demo_capture_model(settings: DemoSettings):
     pixels = []
     for target in (setup.train, setup.test):
         scene = Scene.with_target(target, width=width, height=height)
-        grid = _grid(scene, scene.layout).scaled(0.5)
-        counts = grid.sample(np.zeros((height // 2, width // 2, 1))).count[:scene.n_patches]
+        counts = scene_grid(scene).sample(np.zeros((height // 2, width // 2, 1))).count[:scene.n_patches]
         pixels.append(max(1, int(np.median(counts))))
     cap = CaptureModel.virtual_lab(settings.mode)
     return replace(cap, camera=replace(cap.camera, pixels_per_patch=pixels[0], dark_frames=settings.dark_frames,
@@ -106,8 +102,8 @@ def demo_capture_model(settings: DemoSettings):
 
 
 def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback] = None) -> tuple[list[Condition], dict]:
-    """Presets from the optimiser (#2) on the expected captured error of this demo's capture (#14), and their
-    simulated errors: expected captured ("train", "test") with the noise-free ones beside them."""
+    """Presets from the optimiser (#2) on the expected captured error of this demo's capture (#14), and what it
+    predicts for them: expected captured errors per characterisation, with the noise-free ones beside them."""
     from simulation.datasets import default_setup
     from simulation.expected_error import ExpectedErrorEvaluator
     from simulation.runner import DEFAULT_METHOD
@@ -117,7 +113,8 @@ def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback]
     presets = {}
     report(progress, 0.0, "optimiser: exhaustive search (expected captured error)")
     presets["dual_rgb"] = run_simulation(setup, "exhaustive", top=1, evaluator=ev,
-                                         progress=scaled(progress, 0.0, 0.02)).preset(name=f"dual-RGB {settings.mode}")
+                                         progress=scaled(progress, 0.0, 0.02)).preset(
+        name=f"dual-RGB {settings.mode}")
     report(progress, 0.02, f"optimiser: {DEFAULT_METHOD} PSO (expected captured error)")
     presets["dual_rgb_pso"] = run_simulation(setup, DEFAULT_METHOD, seed=settings.seed, top=1, evaluator=ev,
                                              progress=scaled(progress, 0.02, 0.1)).preset(
@@ -129,7 +126,7 @@ def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback]
     for name in settings.conditions:
         p = presets[name]
         W = np.stack([s.weights(ev.n_leds) for s in p.sources])
-        out.append(Condition(name, _lights(p, name), _predictions(ev, W, settings.optimise_matrix)))
+        out.append(Condition(name, lights_of(p), _predictions(ev, W, settings.optimise_matrix)))
         save_preset(p, settings.out / "presets" / f"{name}.json")
     return out, {k: v.to_dict() for k, v in presets.items()}
 
@@ -155,14 +152,9 @@ def _predictions(ev, W: np.ndarray, de_matrix: Optional[bool]) -> dict:
     return out
 
 
-def _grid(scene, rows_cols) -> PatchGrid:
-    corners_rc = np.asarray(scene.corners(), dtype=float)
-    rows, cols = rows_cols
-    return PatchGrid(corners_rc[:, ::-1], rows, cols, fraction=0.5)     # (row, col) -> (x, y)
-
-
 class DemoRun:
-    """State of one demo run; ``run()`` returns the report dict."""
+    """State of one demo run; ``run()`` returns the report dict. Capture and processing go through the copy-stand
+    workflow (app.workflow): the same sequences, subjects and ``process_session`` as the GUI and the CLI."""
 
     def __init__(self, settings: DemoSettings, progress: Optional[ProgressCallback] = None,
                  cancel: Optional[CancelToken] = None):
@@ -171,21 +163,13 @@ class DemoRun:
         self.cancel = cancel
         self.t0 = time.perf_counter()
 
-    def _drive(self, seq, frac0: float, frac1: float) -> None:
-        for ev in seq.run():
-            check(self.cancel)
-            report(self.progress, frac0 + (frac1 - frac0) * ev.fraction, ev.message)
-            if ev.kind == "cancelled":
-                raise RuntimeError(ev.message)
-
     def run(self) -> dict:
         s = self.s
         if s.dark_frames < 1 or s.flat_frames < 1 or min(s.frame_size) < 64 or s.seed < 0:   # before any shot
             raise ValueError(f"demo settings: dark frames {s.dark_frames}, flat frames {s.flat_frames}, frame size "
                              f"{s.frame_size}, seed {s.seed}: expected >= 1, >= 1, >= 64 px, >= 0")
         if s.optimise_matrix is None:
-            from simulation.studies.parsimony import load_defaults
-            s.optimise_matrix = load_defaults()["characterisation_model"] != "linear"
+            s.optimise_matrix = parsimony_defaults()["characterisation_model"] != "linear"
         s.out.mkdir(parents=True, exist_ok=True)
         session = CaptureSession.resume(s.out / "session", s.definition(), {"mode": s.mode, "demo": True},
                                         new_if_different=s.new_session,
@@ -204,52 +188,53 @@ class DemoRun:
             session.extend_definition(camera=camera_definition(lab.camera),
                                       lights={c.name: [light_definition(nl.light, nl.name) for nl in c.lights]
                                               for c in conds})
-            shooter = Shooter(lab.camera, lab.sphere, session, stand=lab.place,
-                              safety=SafetySettings(settle_s=s.settle_s))
-            self.lab, self.session, self.shooter = lab, session, shooter
-            # 1. exposures from the open gate
-            for c in conds:
-                for nl in c.lights:
-                    check(self.cancel)
-                    c.exposure[nl.name], _ = auto_exposure(shooter, nl)
-            report(self.progress, 0.2, "auto-exposure done")
-            # 2. HDR plans from a first frame of the ND-covered training target
-            if s.hdr:
-                for c in conds:
-                    if c.name == "three_channel":
-                        continue
-                    c.hdr_plan = meter_and_plan(shooter, c.lights, c.exposure, "train", True,
-                                                lab.scene_for("train", nd=True).patch_boxes(), cancel=self.cancel)
-            exposures = {nl.name: sorted({c.exposure[nl.name], *(c.hdr_plan[nl.name].exposures
-                                                                  if nl.name in c.hdr_plan else [])})
-                         for c in conds for nl in c.lights}
-            # 3. darks and flats at every exposure used
-            session.extend_definition(exposures=exposures)
-            all_t = sorted({t for ts in exposures.values() for t in ts})
-            self._drive(DarkSeries(shooter, all_t, frames=s.dark_frames), 0.22, 0.35)
-            all_lights = [nl for c in conds for nl in c.lights]
-            self._drive(FlatSeries(shooter, all_lights, exposures, frames=s.flat_frames), 0.35, 0.45)
-            # 4. targets
-            for i, c in enumerate(conds):
-                for target in ("train", "test"):
-                    self._drive(TargetCapture(shooter, c.lights, {nl.name: [c.exposure[nl.name]] for nl in c.lights},
-                                              target, condition=c.name), 0.45 + 0.03 * i, 0.45 + 0.03 * (i + 1))
-                    if c.hdr_plan:
-                        self._drive(TargetCapture(shooter, c.lights, {n: p.exposures for n, p in c.hdr_plan.items()},
-                                                  target, nd=True, condition="hdr_" + c.name), 0.55, 0.6)
+            stand = CopyStand(lab.camera, lab.sphere, session, stand=lab.place, lab=lab, cancel=self.cancel,
+                              settings=StandSettings(settle_s=s.settle_s, dark_frames=s.dark_frames,
+                                                     flat_frames=s.flat_frames, optimise_matrix=s.optimise_matrix),
+                              progress=lambda f, m: report(self.progress, 0.1 + 0.5 * f, m))
+            self.lab, self.session = lab, session
+            exposures = self.capture(stand, conds)
             report(self.progress, 0.6, "captures done; processing")
             session.require_intact()             # a damaged frame is named, never processed
             result = self.process(conds)
+        return self.write_report(session, conds, presets, exposures, result)
+
+    def capture(self, stand: CopyStand, conds: list[Condition]) -> dict[str, list[float]]:
+        """Auto-exposure, HDR plans on the ND-covered training target, darks, flats, train and test targets."""
+        lab, s = self.lab, self.s
+        for c in conds:
+            c.exposure = stand.auto_expose(c.lights)
+            if s.hdr and c.name != "three_channel":
+                c.hdr_plan = meter_and_plan(stand.shooter, c.lights, c.exposure, Subject.target("train", nd=True),
+                                            lab.scene_for("train", nd=True).patch_boxes(), cancel=self.cancel)
+        exposures = {nl.name: sorted({c.exposure[nl.name], *(c.hdr_plan[nl.name].exposures if c.hdr_plan else [])})
+                     for c in conds for nl in c.lights}
+        self.session.extend_definition(exposures=exposures)
+        all_lights = [nl for c in conds for nl in c.lights]
+        stand.run_sequence(DarkSeries(stand.shooter, sorted({t for ts in exposures.values() for t in ts}),
+                                      frames=s.dark_frames), 0.2, 0.4)
+        stand.run_sequence(FlatSeries(stand.shooter, all_lights, exposures, frames=s.flat_frames), 0.4, 0.6)
+        for c in conds:
+            for target in ("train", "test"):
+                stand.run_sequence(SubjectCapture(stand.shooter, c.lights, {n: [t] for n, t in c.exposure.items()},
+                                                  Subject.target(target)), 0.6, 0.8)
+                if c.hdr_plan:
+                    stand.run_sequence(SubjectCapture(stand.shooter, c.lights, {n: p.exposures for n, p in
+                                                                                c.hdr_plan.items()},
+                                                      Subject.target(target, nd=True)), 0.8, 1.0)
+        return exposures
+
+    def write_report(self, session, conds, presets, exposures, result) -> dict:
+        s = self.s
         verify = session.verify()
-        frames = len(session.entries())
         report_data = {
             **output_header(REPORT_FORMAT),
             "mode": s.mode, "frame_size": list(s.frame_size), "hdr": s.hdr,
             "conditions": list(result),          # the names; each condition's figures are top-level keys
             **result,
             "presets": presets,
-            "exposures": {k: v for k, v in exposures.items()},
-            "frames": frames,
+            "exposures": exposures,
+            "frames": len(session.entries()),
             "lost_frames": len(verify.missing) + len(verify.corrupted),
             "session_valid": verify.valid,
             "light_dose": session.light_dose().to_dict(),      # the manifest's: a resumed run's whole dose
@@ -260,75 +245,52 @@ class DemoRun:
         report(self.progress, 1.0, f"report written: {s.out / 'report.json'}")
         return report_data
 
-    # ---- processing (the shared pipeline: app.processing) ----
+    # ---- processing: app.workflow.session_processing.process_session, as the GUI and `dualrgb process` ----
+    def variants(self, c: Condition) -> list[tuple[str, bool, dict[str, list[float]]]]:
+        """(label, ND subject, exposures per light): the plain capture, and with HDR the bracket and its single
+        base exposure (the thesis 8.3 comparison)."""
+        base = {nl.name: [c.exposure[nl.name]] for nl in c.lights}
+        out = [(c.name, False, base)]
+        if c.hdr_plan:
+            out += [("hdr_" + c.name, True, {n: p.exposures for n, p in c.hdr_plan.items()}),
+                    ("single_" + c.name, True, base)]
+        return out
+
     def process(self, conds: list[Condition]) -> dict:
-        session = self.session
-        refs = lambda entries: [ExposureRef(session.file_path(e), float(e.exposure_s), e.file) for e in entries]
-        proc = CaptureProcessor(dark_frames=refs(session.entries("dark")))
-        flats: dict[str, list] = {}
-        for e in session.entries("flat"):
-            flats.setdefault(e.meta.get("light_name"), []).append(e)
-        for light, entries in flats.items():
-            check(self.cancel)
-            proc.set_white(light, refs(entries))
-        setup = self.lab.setup
-        white = white_point(setup.illuminant, setup.cmfs)
         out: dict = {}
         for c in conds:
-            check(self.cancel)
-            base = {nl.name: [c.exposure[nl.name]] for nl in c.lights}
-            variants = [(c.name, c.name, False, base)]
-            if c.hdr_plan:
-                full = {n: p.exposures for n, p in c.hdr_plan.items()}
-                variants += [("hdr_" + c.name, "hdr_" + c.name, True, full),
-                             ("single_" + c.name, "hdr_" + c.name, True, base)]
-            for label, cond_key, nd, ts in variants:
-                data, stacks = {}, {}
-                for target in ("train", "test"):
-                    scene = self.lab.scene_for(target, nd=nd)
-                    frames = {nl.name: [session.entry(f"target/{cond_key}/{target}/{'nd' if nd else 'plain'}/"
-                                                      f"{nl.name}/{exposure_key(t)}") for t in ts[nl.name]]
-                              for nl in c.lights}
-                    stack = proc.stack({n: refs(v) for n, v in frames.items()}, cancel=self.cancel)
-                    grid = _grid(scene, scene.layout).scaled(0.5)
-                    sampled = grid.sample(stack.data)
-                    values = sampled.mean[:scene.n_patches]
-                    nd_mask = scene.nd_patches()
-                    scale = np.where(nd_mask, scene.nd_transmittance, 1.0)   # ground truth includes the filter
-                    xyz = tristimulus(self.lab.target(target).spectra * scale[:, None], setup.illuminant, setup.cmfs)
-                    data[target] = (TargetData(list(self.lab.target(target).patch_names), xyz, values,
-                                               self.lab.target(target).layout, f"{target} ({label})",
-                                               std=sampled.std[:scene.n_patches]), nd_mask, scale)
-                    stacks[target] = stack
-                ch = characterise(data["train"][0].values, data["train"][0].xyz, white, data["test"][0].values,
-                                  data["test"][0].xyz, channels=stacks["train"].channels,
-                                  optimise=self.s.optimise_matrix, cancel=self.cancel)
-                folder = self.s.out / label
-                calibration = CalibrationFrames(proc, refs(session.entries("dark")),
-                                                {nl.name: refs(flats[nl.name]) for nl in c.lights if nl.name in flats})
-                rep = build_report(folder, ch, data["train"][0], data["test"][0],
-                                   simulated_train=self._simulated_values(c, data["train"][2]),
-                                   title=f"{label} ({self.s.mode}, virtual lab)", calibration=calibration)
-                write_image_outputs(folder, stacks["test"].data, stacks["test"].channels, ch.matrix, white,
-                                    prefix="test_target", cancel=self.cancel)
-                best = ch.results[ch.best]
-                sim = c.simulated.get(ch.best, c.simulated[LEAST_SQUARES])
-                entry = {"train": best.train.to_dict(), "test": best.test.to_dict(),
-                         "simulated": {**sim, "matrix": ch.best, "noise_free_train": c.simulated["noise_free"]["train"],
-                                       "noise_free_test": c.simulated["noise_free"]["test"], "per_matrix": c.simulated},
-                         "matrix_method": ch.best,
-                         "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
-                         "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]}
-                                    for nl in c.lights],
-                         "report": str(folder / "report.json"), "figures": rep.get("figures", []),
-                         "quality": quality_summary(rep["quality"])}
-                if nd:
-                    entry["nd_patches"] = {
-                        "train": ErrorStats.of(best.train_errors[data["train"][1]]).to_dict(),
-                        "test": ErrorStats.of(best.test_errors[data["test"][1]]).to_dict()}
-                    entry["hdr_plan"] = {n: p.to_dict() for n, p in c.hdr_plan.items()}
-                out[label] = entry
+            for label, nd, ts in self.variants(c):
+                check(self.cancel)
+                out[label] = self.process_variant(c, label, nd, ts)
         return out
+
+    def process_variant(self, c: Condition, label: str, nd: bool, ts: dict[str, list[float]]) -> dict:
+        specs = {t: virtual_target_spec(self.lab, Subject.target(t, nd), label=f"{t} ({label})")
+                 for t in ("train", "test")}
+        scene = self.lab.scene_for("train", nd=nd)
+        specs["train"].simulated = self._simulated_values(
+            c, nd_transmittance(specs["train"].nd_mask, scene.nd_transmittance, scene.n_patches))
+        res = process_session(self.session, self.s.out / label, specs["train"], specs["test"],
+                              lights=[nl.name for nl in c.lights], exposures=ts, optimise=self.s.optimise_matrix,
+                              white_xyz=reference_white(self.s.mode), title=f"{label} ({self.s.mode}, virtual lab)",
+                              cancel=self.cancel)
+        ch = res.characterisation
+        best = ch.results[ch.best]
+        sim = c.simulated.get(ch.best, c.simulated[LEAST_SQUARES])      # the prediction for the delivered matrix
+        entry = {"train": best.train.to_dict(), "test": best.test.to_dict(),
+                 "simulated": {**sim, "matrix": ch.best, "noise_free_train": c.simulated["noise_free"]["train"],
+                               "noise_free_test": c.simulated["noise_free"]["test"], "per_matrix": c.simulated},
+                 "matrix_method": ch.best,
+                 "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
+                 "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]} for nl in c.lights],
+                 "report": str(res.files["report"]), "figures": res.report.get("figures", []),
+                 "quality": quality_summary(res.report["quality"])}
+        if nd:
+            entry["nd_patches"] = {
+                "train": ErrorStats.of(best.train_errors[specs["train"].nd_mask]).to_dict(),
+                "test": ErrorStats.of(best.test_errors[specs["test"].nd_mask]).to_dict()}
+            entry["hdr_plan"] = {n: p.to_dict() for n, p in c.hdr_plan.items()}
+        return entry
 
     def _simulated_values(self, c: Condition, transmittance: np.ndarray) -> np.ndarray:
         """Simulated camera values of the training patches under the condition's lights (thesis Fig 7.4)."""

@@ -5,7 +5,7 @@ Per light: 2 white and 2 scene exposures; 10 darks per exposure time (4 times): 
 
   decode    rawpy.imread + a copy of raw_image_visible for every file: the floor any pipeline pays
   stack     CaptureProcessor: master darks, HDR whites, flat-fielded HDR superpixel 6-channel stack
-  outputs   the same plus XYZ, 6-channel float32, sRGB and ProPhoto 16-bit TIFFs
+(the deliverables - 16-bit TIFFs with ICC, XMP and tags - are timed by bench/digitise_bench.py)
 The numba kernels' one-off load from their on-disk cache (kernels.warm_up, ~1-3 s per process) is timed
 separately: it is paid once per process, not per set.
 
@@ -99,7 +99,7 @@ def _cpu() -> float:
 def _child_process(folder: str, outputs: bool) -> dict:
     sys.path.insert(0, str(ROOT))
     from app.processing.pipeline import CaptureProcessor, ExposureRef
-    from simulation.characterisation import CharacterisationMatrix
+    from simulation.matrix_fit import CharacterisationMatrix
 
     from app.processing.kernels import warm_up
 
@@ -117,14 +117,6 @@ def _child_process(folder: str, outputs: bool) -> dict:
     t_stack = time.perf_counter() - t0
     result = {"seconds_stack": t_stack, "cpu_stack": _cpu() - c0, "seconds_warm_up": t0 - tw, "stack_shape": list(stack.data.shape),
               "stack_mean": float(np.nanmean(stack.data[::50, ::50]))}
-    if outputs:
-        from app.processing.outputs import write_image_outputs
-
-        A = CharacterisationMatrix(np.vstack([np.eye(3) * 50, np.eye(3) * 50]), stack.channels)
-        with tempfile.TemporaryDirectory() as out:
-            write_image_outputs(Path(out), stack.data, stack.channels, A, [95.047, 100.0, 108.883])
-        result["seconds_total"] = time.perf_counter() - t0
-        result["cpu_total"] = _cpu() - c0
     return result
 
 
@@ -145,17 +137,15 @@ def bench_processing(height: int = 4028, width: int = 6080, n_darks: int = 10, c
     plan = make_set(folder, height, width, n_darks)
     gen = time.perf_counter() - t
     size_mb = sum((folder / f["file"]).stat().st_size for f in plan["files"]) / 1e6
-    runs = {"decode": [], "stack": [], "outputs": []}
+    runs = {"decode": [], "stack": []}
     for _ in range(repeats):                     # interleaved, so load from other processes hits all alike
         for kind in runs:
             runs[kind].append(_run_child(kind, folder))
     best = {k: min(v, key=lambda r: r.get("seconds", r.get("seconds_total", r.get("seconds_stack")))) for k, v in runs.items()}
     dec = best["decode"]["seconds"]
     st = best["stack"]["seconds_stack"]
-    tot = best["outputs"]["seconds_total"]
     cdec = min(r["cpu"] for r in runs["decode"])
     cst = min(r["cpu_stack"] for r in runs["stack"])
-    ctot = min(r["cpu_total"] for r in runs["outputs"])
     return {
         "frame": f"{width}x{height}", "files": len(plan["files"]), "set_mb": round(size_mb),
         "generate_s": round(gen, 1),
@@ -163,11 +153,8 @@ def bench_processing(height: int = 4028, width: int = 6080, n_darks: int = 10, c
         "kernel_warm_up_s": round(best["stack"]["seconds_warm_up"], 2),
         "stack_s": round(st, 2), "stack_peak_rss_mb": round(best["stack"]["peak_rss_mb"]),
         "stack_overhead_vs_decode": round(st / dec - 1, 3),
-        "with_outputs_s": round(tot, 2), "with_outputs_peak_rss_mb": round(best["outputs"]["peak_rss_mb"]),
-        "outputs_overhead_vs_decode": round(tot / dec - 1, 3),
-        "cpu_decode_s": round(cdec, 2), "cpu_stack_s": round(cst, 2), "cpu_with_outputs_s": round(ctot, 2),
+        "cpu_decode_s": round(cdec, 2), "cpu_stack_s": round(cst, 2),
         "cpu_stack_overhead_vs_decode": round(cst / cdec - 1, 3),
-        "cpu_outputs_overhead_vs_decode": round(ctot / cdec - 1, 3),
         "load_average_1min": round(os.getloadavg()[0], 2),
         "targets": {"peak_rss_mb": 2560, "overhead_vs_decode": 0.5},
         "cpus": os.cpu_count(), "repeats": repeats,

@@ -18,6 +18,7 @@ BENCHES = {
     "simulation": ("bench.simulation_bench", "bench_simulation", {}),
     "virtual_camera": ("bench.virtual_camera", "bench_render", {}),
     "processing": ("bench.processing_bench", "bench_processing", {}),
+    "digitise": ("bench.digitise_bench", "bench_digitise", {}),
     "unbinned": ("bench.studies", "bench_unbinned", {}),
 }
 

@@ -40,7 +40,7 @@ import numpy as np
 
 from simulation.camera_model import led_responses
 from simulation.capture_model import CaptureModel
-from simulation.characterisation import solve_normal_equations
+from simulation.matrix_fit import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target, target_xyz
 from simulation.fast_expected import mean_expected_de2000, prepare_expected

@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from simulation.camera_model import channel_names, channel_responses, led_responses
-from simulation.characterisation import RIDGE, CharacterisationMatrix, _check_patches, fit_matrix
+from simulation.matrix_fit import RIDGE, CharacterisationMatrix, _check_patches, fit_matrix
 from simulation.fast_linalg import fit_light_sets
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target, check_setup, target_xyz

@@ -192,7 +192,7 @@ def _lab_capture(args: argparse.Namespace, repeats: int):
     """The virtual lab's capture chain and its model for the expected-captured objective (None, None without)."""
     if args.no_virtual_lab:
         return None, None
-    from app.virtual_lab_check import capture_model, captured_errors
+    from app.captured_accuracy import capture_model, captured_errors
 
     def capture(setup, W, exposures):
         return captured_errors(setup, W, exposures, repeats=repeats)

@@ -8,7 +8,7 @@ from typing import Any, Optional
 
 from PySide6.QtCore import QObject, QSettings, QStandardPaths, Signal
 
-from app.gui.lab import Lab
+from app.gui.device_hub import Lab
 from app.gui.widgets import ErrorReporter
 from app.gui.workers import TaskRunner
 

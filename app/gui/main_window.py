@@ -10,7 +10,7 @@ from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
 from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QTabWidget, QWidget
 
 from app.gui.context import AppContext, Bus, default_settings
-from app.gui.lab import Lab
+from app.gui.device_hub import Lab
 from app.gui.panels.placeholder import NotAvailablePanel
 from app.gui.widgets import ErrorReporter, LogView
 from app.gui.workers import TaskRunner

@@ -19,7 +19,7 @@ from app.gui.context import AppContext
 from app.gui.viewmodel import format_duration
 from app.gui.workers import TaskHandle
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence
-from drivers.camera.gphoto import format_shutter
+from app.workflow.vocabulary import EventKind, format_exposure as format_shutter
 
 log = logging.getLogger(__name__)
 
@@ -177,7 +177,10 @@ class SequenceView(QWidget):
                 spent = time.monotonic() - self._t_start
                 exposure = sum(float(e.data.get("exposure_s") or 0.0) for e in frames)
                 self.overhead_s = max(0.05, (spent - exposure) / len(frames) - self.settle_s)
-            self.message.setText(f"{seq.name if seq else 'sequence'} done: {len(frames)} frames saved")
+            kept = sum(e.kind == EventKind.KEPT.value for e in self.events)
+            self.message.setText(f"{seq.name if seq else 'sequence'} done: {len(frames)} new, {kept} kept "
+                                 "(already in the session)" if kept else
+                                 f"{seq.name if seq else 'sequence'} done: {len(frames)} frames saved")
         self._set_running(False)
         self.continue_button.hide()
         self.pause_button.setChecked(False)

@@ -164,3 +164,16 @@ def colour_for_de(value: float) -> QColor:
     if value < 3.0:
         return QColor("#f9a825")
     return QColor("#c62828")
+
+
+def image_widget(tooltip: str):
+    """A picture view (row-major image, y down, aspect locked): (GraphicsLayoutWidget, ImageItem, ViewBox)."""
+    import pyqtgraph as pg
+
+    w = pg.GraphicsLayoutWidget()
+    w.setBackground("#202020")
+    vb = w.addViewBox(lockAspect=True, invertY=True)
+    item = pg.ImageItem(axisOrder="row-major")
+    vb.addItem(item)
+    w.setToolTip(tooltip)
+    return w, item, vb

@@ -27,16 +27,13 @@ FlatField (eq 7.1)
 """
 from __future__ import annotations
 
-import json
 import logging
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Iterable, Optional
 
 import numpy as np
 
 from app.processing.mosaic import FrameLike, mosaic_of, row_bands
-from simulation.atomic_io import atomic_output, atomic_write
 from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
@@ -132,8 +129,8 @@ class MasterDark:
     """Master dark frames keyed by exposure time (thesis 8.2.1).
 
     ``add(exposure_s, frames)`` builds one from N dark mosaics; ``get(exposure_s)`` returns the float32 mosaic
-    for an exposure time (matched within 2 %); ``subtract(mosaic, exposure_s)`` gives float32 dark-subtracted
-    DN. ``save(folder)`` / ``MasterDark.load(folder)`` keep them as .npy so darks are shot once per setting.
+    for an exposure time (matched within 2 %); ``put(frame)`` adds one made earlier (a calibration profile
+    keeps them, app.workflow.profile, so darks are shot once per setting).
     """
 
     def __init__(self) -> None:
@@ -184,43 +181,6 @@ class MasterDark:
     def get(self, exposure_s: float) -> np.ndarray:
         return self.frame(exposure_s).mean
 
-    def discard(self, exposure_s: float) -> None:
-        key = self._key(exposure_s)
-        if key is not None:
-            del self._frames[key]
-
-    def subtract(self, mosaic: np.ndarray, exposure_s: float) -> np.ndarray:
-        return mosaic.astype(np.float32) - self.get(exposure_s)
-
-    @staticmethod
-    def from_black_levels(shape: tuple[int, int], black: float, exposure_s: float) -> DarkFrame:
-        """A flat 'dark' at the file's black level, for when no dark frames were shot (logged by callers)."""
-        return DarkFrame(float(exposure_s), np.full(shape, black, dtype=np.float32), 0)
-
-    def save(self, folder: Path) -> None:
-        folder = Path(folder)
-        folder.mkdir(parents=True, exist_ok=True)
-        index = []
-        for i, t in enumerate(self.exposures):
-            f = self._frames[t]
-            name = f"master_dark_{i:02d}.npy"
-            with atomic_output(folder / name, "wb") as fh:
-                np.save(fh, f.mean)
-            index.append({"file": name, "exposure_s": t, "n_frames": f.n_frames, "rejected_high": f.rejected_high,
-                          "rejected_low": f.rejected_low, "noise_dn": f.noise_dn, "spikes": f.spikes})
-        atomic_write(folder / "master_darks.json", json.dumps(index, indent=2))
-
-    @classmethod
-    def load(cls, folder: Path) -> "MasterDark":
-        folder = Path(folder)
-        md = cls()
-        for item in json.loads((folder / "master_darks.json").read_text()):
-            md._frames[float(item["exposure_s"])] = DarkFrame(
-                float(item["exposure_s"]), np.load(folder / item["file"]), int(item["n_frames"]),
-                int(item.get("rejected_high", 0)), int(item.get("rejected_low", 0)),
-                float(item.get("noise_dn", float("nan"))), int(item.get("spikes", 0)))
-        return md
-
 
 def white_threshold(white: np.ndarray, min_fraction: float) -> float:
     """Smallest usable white value: ``min_fraction`` of the white's 99th percentile (subsampled)."""
@@ -232,21 +192,6 @@ def white_threshold(white: np.ndarray, min_fraction: float) -> float:
     if top <= 0:
         raise ValueError("the white (flat) image is not brighter than the dark: check the light and the darks")
     return max(min_fraction * top, np.finfo(np.float32).tiny)
-
-
-def flat_field(raw: np.ndarray, dark: np.ndarray | float, white: np.ndarray, white_dark: np.ndarray | float | None = None,
-               *, raw_exposure_s: float = 1.0, white_exposure_s: float = 1.0, min_fraction: float = 0.01,
-               out: Optional[np.ndarray] = None) -> np.ndarray:
-    """Eq 7.1: ``(raw - dark) / (white - white_dark)`` (each divided by its exposure time), float32.
-
-    ``white_dark`` defaults to ``dark`` (same exposure, as in the thesis). Pixels where the dark-subtracted
-    white is below ``min_fraction`` of its 99th percentile are NaN.
-    """
-    if white_dark is None:
-        white_dark = dark
-    num = (np.asarray(raw, dtype=np.float32) - np.asarray(dark, dtype=np.float32)) / np.float32(raw_exposure_s)
-    den = (np.asarray(white, dtype=np.float32) - np.asarray(white_dark, dtype=np.float32)) / np.float32(white_exposure_s)
-    return FlatField(den, min_fraction=min_fraction).apply(num, out=out)
 
 
 class FlatField:
@@ -262,12 +207,6 @@ class FlatField:
         if self.n_invalid:
             log.warning("flat field: %d pixels (%.3f %%) have no usable white (<= %.4g); they become NaN",
                         self.n_invalid, 100.0 * self.n_invalid / self.white.size, self.threshold)
-
-    @classmethod
-    def from_exposure(cls, white_raw: np.ndarray, white_dark: np.ndarray | float, exposure_s: float = 1.0,
-                      **kwargs) -> "FlatField":
-        w = (np.asarray(white_raw, dtype=np.float32) - np.asarray(white_dark, dtype=np.float32)) / np.float32(exposure_s)
-        return cls(w, **kwargs)
 
     def apply(self, image: np.ndarray, *, rows: slice | None = None, out: Optional[np.ndarray] = None) -> np.ndarray:
         """``image / white`` (float32); ``rows`` selects the band of the white that ``image`` covers."""

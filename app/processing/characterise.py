@@ -1,6 +1,6 @@
 """Characterisation of a capture: camera values of the training target -> XYZ matrix, two ways, validated.
 
-* ``least-squares``: the thesis' Moore-Penrose fit (eqs 5.2-5.6) via ``simulation.characterisation.fit_matrix``
+* ``least-squares``: the thesis' Moore-Penrose fit (eqs 5.2-5.6) via ``simulation.matrix_fit.fit_matrix``
   (rank-safe: an all-zero channel gets a zero row).
 * ``de2000``: the matrix that minimises the *mean CIEDE2000* on the training target (eq 5.7 used as the cost),
   as Beyond RGB does: start from the least-squares matrix and minimise with a quasi-Newton method
@@ -25,7 +25,7 @@ from typing import Optional, Sequence
 import numpy as np
 from scipy import optimize
 
-from simulation.characterisation import CharacterisationMatrix, fit_matrix
+from simulation.matrix_fit import CharacterisationMatrix, fit_matrix
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.objective import ErrorStats
 from simulation.progress import CancelToken, Cancelled, ProgressCallback, check, report

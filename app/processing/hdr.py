@@ -170,6 +170,13 @@ class HdrMerge:
         self._slot_frames[k] += 1
         self.exposures.append(float(exposure_s))
 
+    @property
+    def slots(self) -> tuple[np.ndarray, np.ndarray]:
+        """(sums, counts) of the exposure-time slots added so far (kernels.hdr_store), before the merge ends."""
+        self._require()
+        n = len(self._slot_times)
+        return self._sums[:n], self._counts[:n]
+
     def _require(self) -> None:
         if self._sums is None:
             raise ValueError("no exposures added")

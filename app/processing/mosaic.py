@@ -137,15 +137,6 @@ def iter_open_raw(sources: Sequence[FrameLike], *, prefetch: bool = True) -> Ite
         pool.shutdown(wait=True)
 
 
-def load_frame(frame: FrameLike) -> Any:
-    """A RawFrame for paths (read once), the object itself otherwise."""
-    if isinstance(frame, (str, Path, os.PathLike)):
-        from drivers.raw import load_raw
-
-        return load_raw(frame)
-    return frame
-
-
 def cfa_of(frame: Any, default: str = "RGGB") -> str:
     """The 2x2 CFA in raster order ('RGGB', 'BGGR', ...) of a RawFrame, else ``default``."""
     pattern = getattr(frame, "cfa_pattern", None)

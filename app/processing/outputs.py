@@ -1,5 +1,6 @@
-"""Output files: XYZ and 6-channel float32 TIFFs, 16-bit sRGB / ProPhoto RGB TIFFs with embedded ICC profiles,
-and CSVs of patch values and matrices.
+"""Output files: 16-bit TIFFs with real TIFF metadata (resolution, Make/Model, DateTime, Software,
+ImageDescription), embedded ICC profiles and XMP; CSVs of patch values and matrices. Every file is written
+through ``simulation.atomic_io.atomic_output`` (temp file, fsync, rename): a reader sees the old file or the new.
 
 ICC profiles
     * sRGB: Pillow's ImageCms (LittleCMS' built-in sRGB, ``ImageCms.createProfile("sRGB")``).
@@ -9,32 +10,37 @@ ICC profiles
       r/g/bTRC as a 4096-entry sampled curve of the space's decoding function (ROMM's linear toe + 1.8 gamma).
       The tests check it through LittleCMS against colour-science's own conversion.
 
+XMP
+    An XMP packet (tag 700) with Dublin Core ``dc:identifier`` / ``dc:title``, ``xmp:CreatorTool`` /
+    ``xmp:CreateDate`` and the ``dualrgb:`` namespace (operator, calibration id, light dose, mode, ...), as
+    exiftool and Adobe tools read it.
+
 XYZ scale: the characterisation predicts XYZ on the ground-truth scale (eq 4.2: a perfect white has Y = 100
 under D65). RGB encodings divide by the white's Y and adapt (Bradford) from that white to the RGB space's
-white, so a perfect white becomes RGB (1, 1, 1); values outside [0, 1] are clipped (16-bit, 0..65535).
-Conversion and quantisation run in bands of rows, so a 24 MP set stays small in memory.
+white, so a perfect white becomes RGB (1, 1, 1) (app.processing.encode computes the arrays).
 """
 from __future__ import annotations
 
 import csv
-import json
 import logging
 import struct
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping, Optional, Sequence
+from xml.sax.saxutils import escape
 
 import numpy as np
 
-from app.processing.mosaic import row_bands
 from simulation.atomic_io import atomic_output
-from simulation.characterisation import CharacterisationMatrix
-from simulation.progress import CancelToken, ProgressCallback, check, report
+from simulation.matrix_fit import CharacterisationMatrix
 
 log = logging.getLogger(__name__)
 
 ICC_D50 = np.array([0.9642, 1.0, 0.8249])
 SPACES = {"sRGB": "sRGB", "ProPhoto RGB": "ProPhoto RGB"}
+XMP_NAMESPACE = "http://ns.dualrgb.org/1.0/"
+RESOLUTION_UNIT_INCH = 2
 
 
 # ---------------------------------------------------------------- colour conversion
@@ -64,36 +70,6 @@ def xyz_to_rgb_matrix(space: str, white_xyz: Sequence[float]) -> np.ndarray:
     # the published matrices (e.g. IEC 61966-2-1's 4-digit sRGB one) map the white to 1 +- 1e-4: normalise so
     # a perfect white is exactly RGB (1, 1, 1)
     return M / (M @ white)[:, None]
-
-
-def encode_rgb16(xyz: np.ndarray, space: str, white_xyz: Sequence[float], *, band_rows: int = 512,
-                 cancel: Optional[CancelToken] = None) -> np.ndarray:
-    """(H, W, 3) XYZ (scale of ``white_xyz``) -> (H, W, 3) uint16 display-encoded RGB of ``space``."""
-    cs = _colourspace(space)
-    M = (xyz_to_rgb_matrix(space, white_xyz) / float(white_xyz[1])).astype(np.float32)
-    out = np.empty(xyz.shape[:2] + (3,), dtype=np.uint16)
-    for rows in row_bands(xyz.shape[0], band_rows):
-        check(cancel)
-        lin = np.nan_to_num(xyz[rows].astype(np.float32) @ M.T, nan=0.0)
-        np.clip(lin, 0.0, 1.0, out=lin)
-        enc = np.asarray(cs.cctf_encoding(lin), dtype=np.float32)
-        out[rows] = np.round(np.clip(enc, 0, 1) * 65535.0).astype(np.uint16)
-    return out
-
-
-def apply_matrix(stack: np.ndarray, matrix: CharacterisationMatrix | np.ndarray, *, band_rows: int = 512,
-                 progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> np.ndarray:
-    """(H, W, C) camera channels -> (H, W, 3) float32 XYZ, band by band (NaN stays NaN)."""
-    A = (matrix.matrix if isinstance(matrix, CharacterisationMatrix) else np.asarray(matrix)).astype(np.float32)
-    if stack.shape[-1] != A.shape[0]:
-        raise ValueError(f"image has {stack.shape[-1]} channels, the matrix expects {A.shape[0]}")
-    out = np.empty(stack.shape[:2] + (3,), dtype=np.float32)
-    H = stack.shape[0]
-    for rows in row_bands(H, band_rows):
-        check(cancel)
-        np.matmul(stack[rows], A, out=out[rows])
-        report(progress, rows.stop / H, "applying the characterisation matrix")
-    return out
 
 
 # ---------------------------------------------------------------- ICC profiles
@@ -177,85 +153,104 @@ def icc_profile(space: str) -> bytes:
     return srgb_icc() if space == "sRGB" else matrix_trc_icc(space)
 
 
-# ---------------------------------------------------------------- files
-def write_rgb_tiff(path: Path, rgb16: np.ndarray, space: str, *, description: str = "") -> Path:
+# ---------------------------------------------------------------- TIFF metadata
+@dataclass
+class TiffMetadata:
+    """What every delivered TIFF carries in its tags: resolution (ppi), Make/Model, DateTime, Software,
+    ImageDescription and an XMP packet."""
+
+    software: str
+    description: str = ""
+    make: str = ""
+    model: str = ""
+    ppi: Optional[float] = None
+    datetime: str = ""                         # "YYYY:MM:DD HH:MM:SS" (TIFF); default: now
+    xmp: bytes = b""
+
+    def tags(self) -> list[tuple]:
+        """tifffile ``extratags`` for Make (271), Model (272) and XMP (700)."""
+        out = []
+        for code, text in ((271, self.make), (272, self.model)):
+            if text:
+                out.append((code, "s", 0, text, True))
+        if self.xmp:
+            out.append((700, "B", len(self.xmp), self.xmp, True))
+        return out
+
+
+def tiff_datetime(when: Optional[datetime] = None) -> str:
+    return (when or datetime.now()).strftime("%Y:%m:%d %H:%M:%S")
+
+
+def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str = "", tool: str = "",
+               created: Optional[datetime] = None) -> bytes:
+    """An XMP packet: dc:identifier, dc:title, xmp:CreatorTool, xmp:CreateDate and ``dualrgb:<Key>`` fields."""
+    created = created or datetime.now(timezone.utc)
+    props = [f"<xmp:CreateDate>{created.isoformat(timespec='seconds')}</xmp:CreateDate>"]
+    if tool:
+        props.append(f"<xmp:CreatorTool>{escape(tool)}</xmp:CreatorTool>")
+    if identifier:
+        props.append(f"<dc:identifier>{escape(identifier)}</dc:identifier>")
+    if title:
+        props.append(f'<dc:title><rdf:Alt><rdf:li xml:lang="x-default">{escape(title)}</rdf:li></rdf:Alt></dc:title>')
+    for key, value in fields.items():
+        if value is not None and value != "":
+            props.append(f"<dualrgb:{key}>{escape(str(value))}</dualrgb:{key}>")
+    body = "\n    ".join(props)
+    text = ('<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>\n'
+            '<x:xmpmeta xmlns:x="adobe:ns:meta/">\n'
+            ' <rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">\n'
+            '  <rdf:Description rdf:about="" xmlns:dc="http://purl.org/dc/elements/1.1/"\n'
+            '    xmlns:xmp="http://ns.adobe.com/xap/1.0/"\n'
+            f'    xmlns:dualrgb="{XMP_NAMESPACE}">\n    {body}\n  </rdf:Description>\n </rdf:RDF>\n'
+            '</x:xmpmeta>\n<?xpacket end="w"?>')
+    return text.encode("utf-8")
+
+
+def write_tiff(path: Path, image: np.ndarray, meta: TiffMetadata, *, photometric: str = "minisblack",
+               icc: Optional[bytes] = None) -> Path:
+    """One uncompressed TIFF (contiguous samples) with ``meta`` in its tags, written atomically: tifffile writes
+    straight into simulation.atomic_io.atomic_output's temp file (fsync, rename), no copy in memory."""
     import tifffile
 
     path = Path(path)
+    kwargs = {}
+    if meta.ppi:
+        kwargs.update(resolution=(float(meta.ppi), float(meta.ppi)), resolutionunit=RESOLUTION_UNIT_INCH)
     with atomic_output(path, "wb") as fh:
-        tifffile.imwrite(fh, rgb16, photometric="rgb", iccprofile=icc_profile(space),
-                         description=description or f"dualrgb {space}", metadata=None)
+        tifffile.imwrite(fh, image, photometric=photometric, planarconfig="contig", iccprofile=icc,
+                         description=meta.description or None, software=meta.software,
+                         datetime=meta.datetime or tiff_datetime(), extratags=meta.tags(), metadata=None, **kwargs)
     return path
 
 
-def write_float_tiff(path: Path, data: np.ndarray, channels: Sequence[str], *, description: Optional[dict] = None
-                     ) -> Path:
-    """Float32 (H, W, C) TIFF, channels interleaved; ImageDescription holds a JSON with the channel names."""
-    import tifffile
-
-    path = Path(path)
-    desc = json.dumps({"channels": list(channels), **(description or {})})
-    with atomic_output(path, "wb") as fh:
-        tifffile.imwrite(fh, np.ascontiguousarray(data, dtype=np.float32), photometric="minisblack",
-                         planarconfig="contig", description=desc, metadata=None)
-    return path
+# ---------------------------------------------------------------- CSVs
+def _write_csv(path: Path, rows: Sequence[Sequence[object]]) -> Path:
+    with atomic_output(Path(path), "w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+    return Path(path)
 
 
 def write_patch_csv(path: Path, names: Sequence[str], values: np.ndarray, channels: Sequence[str],
                     xyz_ref: np.ndarray, predictions: Mapping[str, np.ndarray], errors: Mapping[str, np.ndarray],
                     *, target: str = "") -> Path:
     """One row per patch: camera values, reference XYZ, predicted XYZ and dE00 per method."""
-    path = Path(path)
-    with atomic_output(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        head = ["target", "patch"] + list(channels) + ["X_ref", "Y_ref", "Z_ref"]
+    head = ["target", "patch"] + list(channels) + ["X_ref", "Y_ref", "Z_ref"]
+    for m in predictions:
+        head += [f"X_{m}", f"Y_{m}", f"Z_{m}", f"dE00_{m}"]
+    rows = [head]
+    for i, name in enumerate(names):
+        row = [target, name] + [f"{v:.6g}" for v in values[i]] + [f"{v:.6g}" for v in xyz_ref[i]]
         for m in predictions:
-            head += [f"X_{m}", f"Y_{m}", f"Z_{m}", f"dE00_{m}"]
-        w.writerow(head)
-        for i, name in enumerate(names):
-            row = [target, name] + [f"{v:.6g}" for v in values[i]] + [f"{v:.6g}" for v in xyz_ref[i]]
-            for m in predictions:
-                row += [f"{v:.6g}" for v in predictions[m][i]] + [f"{errors[m][i]:.4f}"]
-            w.writerow(row)
-    return path
+            row += [f"{v:.6g}" for v in predictions[m][i]] + [f"{errors[m][i]:.4f}"]
+        rows.append(row)
+    return _write_csv(path, rows)
 
 
 def write_matrices_csv(path: Path, matrices: Mapping[str, CharacterisationMatrix]) -> Path:
     """Rows ``method, channel, X, Y, Z``: XYZ = sum over channels of value * row."""
-    path = Path(path)
-    with atomic_output(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["method", "channel", "X", "Y", "Z"])
-        for name, m in matrices.items():
-            chans = m.channels or [f"ch{i + 1}" for i in range(m.matrix.shape[0])]
-            for ch, row in zip(chans, m.matrix):
-                w.writerow([name, ch] + [f"{v:.10g}" for v in row])
-    return path
-
-
-def write_image_outputs(out_dir: Path, stack: np.ndarray, channels: Sequence[str],
-                        matrix: CharacterisationMatrix, white_xyz: Sequence[float], *, prefix: str = "image",
-                        progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
-                        ) -> dict[str, Path]:
-    """XYZ float32 TIFF, sRGB and ProPhoto 16-bit TIFFs with ICC, and the N-channel float32 TIFF."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    files: dict[str, Path] = {}
-    report(progress, 0.0, "writing the channel stack")
-    files["channels"] = write_float_tiff(out_dir / f"{prefix}_{len(channels)}ch_float32.tif", stack, channels,
-                                         description={"units": "flat-fielded relative signal"})
-    check(cancel)
-    xyz = apply_matrix(stack, matrix, cancel=cancel)
-    report(progress, 0.35, "writing XYZ")
-    files["xyz"] = write_float_tiff(out_dir / f"{prefix}_XYZ_float32.tif", xyz, ["X", "Y", "Z"],
-                                    description={"white_xyz": [float(v) for v in white_xyz],
-                                                 "matrix": matrix.method})
-    for i, space in enumerate(("sRGB", "ProPhoto RGB")):
-        check(cancel)
-        rgb = encode_rgb16(xyz, space, white_xyz, cancel=cancel)
-        key = "srgb" if space == "sRGB" else "prophoto"
-        files[key] = write_rgb_tiff(out_dir / f"{prefix}_{key}_16bit.tif", rgb, space)
-        del rgb
-        report(progress, 0.6 + 0.2 * (i + 1), f"wrote {space}")
-    del xyz
-    return files
+    rows: list[list[object]] = [["method", "channel", "X", "Y", "Z"]]
+    for name, m in matrices.items():
+        chans = m.channels or [f"ch{i + 1}" for i in range(m.matrix.shape[0])]
+        rows += [[name, ch] + [f"{v:.10g}" for v in row] for ch, row in zip(chans, m.matrix)]
+    return _write_csv(path, rows)

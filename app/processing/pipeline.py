@@ -19,9 +19,7 @@ API for the sequences and the demo::
     stack = proc.stack({"light 1": [ExposureRef(...), ...], "light 2": [...]})  # ChannelStack
     train = grid.sample(stack.data)                                          # PatchGrid -> PatchValues
 
-    # or everything from a CaptureSession (roles dark / flat / target / object, meta 'target' / 'subject'):
-    proc, subjects = processor_from_session(session)
-    stack = proc.stack(subjects["target:train"])
+A whole session (frames grouped by subject and light) is processed by app.workflow.session_processing.
 """
 from __future__ import annotations
 
@@ -40,6 +38,8 @@ from simulation.camera_model import CHANNELS
 from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
+
+MIN_SIGNAL_DN = 100.0     # below this in its best exposure a pixel counts as under-exposed (the HDR plan's floor)
 
 
 @dataclass
@@ -60,13 +60,14 @@ class ChannelStack:
     data: np.ndarray
     channels: list[str]
     lights: list[str]
-    clipped_fraction: dict[str, float] = field(default_factory=dict)
+    clipped_fraction: dict[str, float] = field(default_factory=dict)        # per light: no usable exposure
+    underexposed_fraction: float = 0.0      # superpixels whose every channel under every light stays < min signal
 
     def rgb(self, light_index: int = 0) -> np.ndarray:
         return self.data[..., 3 * light_index: 3 * light_index + 3]
 
 
-def _sub(progress: Optional[ProgressCallback], lo: float, hi: float) -> Optional[ProgressCallback]:
+def sub_progress(progress: Optional[ProgressCallback], lo: float, hi: float) -> Optional[ProgressCallback]:
     if progress is None:
         return None
     return lambda f, m: progress(lo + (hi - lo) * min(max(f, 0.0), 1.0), m)
@@ -131,13 +132,7 @@ class CaptureProcessor:
         refs = sorted(refs, key=lambda r: r.exposure_s)
         for i, (ref, frame) in enumerate(zip(refs, iter_open_raw([r.source for r in refs]))):
             check(cancel)
-            if self.white_level is None:
-                self.white_level = white_level_of(frame)
-            if self.cfa is None:
-                self.cfa = cfa_of(frame)
-            if self.black_level is None:
-                black = getattr(frame, "black_levels", None)
-                self.black_level = float(np.mean(black)) if black else 0.0
+            self._prepare(frame)
             if merge is None:
                 merge = HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level,
                                  method=self.hdr_method, band_rows=self.band_rows, work=self._work,
@@ -169,182 +164,105 @@ class CaptureProcessor:
         """The HDR white of ``light`` set by set_white (the quality report measures its uniformity)."""
         return self._whites[light]
 
-    def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: Optional[ProgressCallback] = None,
-              cancel: Optional[CancelToken] = None) -> ChannelStack:
-        """Flat-fielded HDR superpixel RGB of each light (in mapping order), stacked into one image."""
-        lights = list(scenes)
+    def put_white(self, light: str, white: FlatField) -> None:
+        """Use a white made earlier (a calibration profile's) for ``light``."""
+        self._whites[light] = white
+
+    def begin_stack(self, lights: Sequence[str], *, min_signal_dn: float = MIN_SIGNAL_DN) -> "StackBuilder":
+        """A stack filled exposure by exposure as frames arrive (see :class:`StackBuilder`)."""
         missing = [n for n in lights if n not in self._whites]
         if missing:
             raise ValueError(f"no white (flat) frames for {', '.join(missing)}: call set_white first")
-        out: Optional[np.ndarray] = None
-        clipped = {}
-        for li, name in enumerate(lights):
-            merge = self._merge(scenes[name], _sub(progress, li / len(lights), (li + 0.9) / len(lights)), cancel,
-                                False)
-            ff = self._whites[name]
-            h, w = ff.white.shape
-            if out is None:
-                out = np.empty((h // 2, w // 2, 3 * len(lights)), dtype=np.float32)
+        return StackBuilder(self, list(lights), min_signal_dn)
+
+    def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: Optional[ProgressCallback] = None,
+              cancel: Optional[CancelToken] = None) -> ChannelStack:
+        """Flat-fielded HDR superpixel RGB of each light (in mapping order), stacked into one image."""
+        builder = self.begin_stack(list(scenes))
+        for li, name in enumerate(scenes):
+            merge = self._merge(scenes[name], sub_progress(progress, li / len(scenes), (li + 0.9) / len(scenes)),
+                                cancel, False)
             check(cancel)
-            n_clipped = merge.flat_superpixel(ff.white, ff.threshold, self.cfa or "RGGB",
-                                              out[..., 3 * li: 3 * li + 3])
-            clipped[name] = n_clipped / (4 * out.shape[0] * out.shape[1])
-            report(progress, (li + 1) / len(lights), f"{name} flat-fielded")
-        channels = [f"{c}{i + 1}" for i in range(len(lights)) for c in CHANNELS]
-        return ChannelStack(out, channels, lights, clipped)
+            builder.finish_light(name, merge)
+            report(progress, (li + 1) / len(scenes), f"{name} flat-fielded")
+        return builder.result()
+
+    def _prepare(self, frame) -> None:
+        """Take white level, CFA and black level from the first frame when not given."""
+        if self.white_level is None:
+            self.white_level = white_level_of(frame)
+        if self.cfa is None:
+            self.cfa = cfa_of(frame)
+        if self.black_level is None:
+            black = getattr(frame, "black_levels", None)
+            self.black_level = float(np.mean(black)) if black else 0.0
+
+    def new_merge(self) -> HdrMerge:
+        return HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level, method=self.hdr_method,
+                        band_rows=self.band_rows, work=self._work, own_result=False)
 
 
-def _group_refs(session, entries) -> dict[str, list[ExposureRef]]:
-    by_light: "OrderedDict[str, list[ExposureRef]]" = OrderedDict()
-    for e in entries:
-        if e.exposure_s is None:
-            raise ValueError(f"{e.file}: no exposure time in the session manifest")
-        by_light.setdefault(e.light_name or "light", []).append(
-            ExposureRef(session.file_path(e), float(e.exposure_s), e.file))
-    return by_light
+def _weak_cells(slots: tuple[np.ndarray, np.ndarray], floor_dn: float, so_far: Optional[np.ndarray]) -> np.ndarray:
+    """Superpixels none of whose four pixels reached ``floor_dn`` in any usable exposure, AND-ed with the lights
+    before (a cell is under-exposed only if it is under every light); ``slots`` = HdrMerge.slots."""
+    from app.processing.encode import weak_cells
+
+    sums, counts = slots
+    first = so_far is None
+    if first:
+        so_far = np.empty((sums.shape[1] // 2, sums.shape[2] // 2), dtype=np.bool_)
+    weak_cells(sums, counts, np.float32(floor_dn), so_far, first)
+    return so_far
 
 
-def processor_from_session(session, *, white_level: Optional[float] = None,
-                           linear_limit: Optional[float] = LINEAR_LIMIT_DN, white_role: str = "flat",
-                           progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
-                           ) -> tuple[CaptureProcessor, dict[str, dict[str, list[ExposureRef]]]]:
-    """A processor with the session's darks and (HDR) whites, and the subjects to stack.
-
-    Subjects are keyed ``"<role>"`` or ``"<role>:<meta target/subject>"`` (e.g. ``"target:train"``,
-    ``"object:folio 3"``); each maps light name -> exposures. Whites are merged here (progress 0..1).
-    """
-    session.require_intact()     # a missing or damaged frame is named (DamagedFramesError), never processed
-    darks = [ExposureRef(session.file_path(e), float(e.exposure_s), e.file) for e in session.entries("dark")
-             if e.exposure_s]
-    proc = CaptureProcessor(dark_frames=darks, white_level=white_level, linear_limit=linear_limit)
-    whites = _group_refs(session, session.entries(white_role))
-    for i, (light, refs) in enumerate(whites.items()):
-        proc.set_white(light, refs, progress=_sub(progress, i / max(len(whites), 1), (i + 1) / max(len(whites), 1)),
-                       cancel=cancel)
-    subjects: dict[str, list] = defaultdict(list)
-    for e in session.entries():
-        if e.role in ("dark", white_role, "crf"):
-            continue
-        tag = e.meta.get("target") or e.meta.get("subject")
-        subjects[f"{e.role}:{tag}" if tag else e.role].append(e)
-    return proc, {k: _group_refs(session, v) for k, v in subjects.items()}
-
-
-def write_stack_outputs(out_dir: Path, stack: ChannelStack, characterisation, *, prefix: str = "image",
-                        progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
-                        ) -> dict[str, Path]:
-    """The output files for one stack with the best matrix of ``characterisation`` (outputs module)."""
-    from app.processing.outputs import write_image_outputs
-
-    return write_image_outputs(Path(out_dir), stack.data, stack.channels, characterisation.matrix,
-                               characterisation.white, prefix=prefix, progress=progress, cancel=cancel)
-
-
-# ---------------------------------------------------------------- whole session
-@dataclass
-class TargetSpec:
-    """A colour target captured in the session: where its patches are and what they should be.
-
-    ``grid`` is in the stack's (superpixel, half-size) pixel coordinates; use ``PatchGrid.scaled(0.5)`` for a
-    grid placed on the full mosaic. None tries ``detect_cc24`` on the first light's RGB (24-patch targets).
-    ``simulated`` (n, C) are the simulated camera values for the thesis Fig 7.4 check (optional).
+class StackBuilder:
+    """Builds a ChannelStack light by light while frames arrive: ``add(light, ref)`` merges one exposure as soon
+    as it lands (decode + eq 8.9 accumulate), ``finish_light`` flat-fields that light's merge into its three
+    channels; after the last frame only that frame and the last light's flat field remain to be done.
     """
 
-    subject: str                       # session subject key, e.g. "target:train"
-    xyz: np.ndarray                    # (n, 3) reference XYZ (eq 4.2 scale, Y of a perfect white = 100)
-    names: list[str]
-    grid: Optional["PatchGrid"] = None
-    layout: Optional[tuple[int, int]] = None
-    simulated: Optional[np.ndarray] = None
-    label: str = ""
+    def __init__(self, proc: CaptureProcessor, lights: list[str], min_signal_dn: float):
+        self.proc = proc
+        self.lights = lights
+        self.min_signal_dn = min_signal_dn
+        self.out: Optional[np.ndarray] = None
+        self.clipped: dict[str, float] = {}
+        self._weak: Optional[np.ndarray] = None     # superpixels under-exposed under every light so far
+        self._merges: dict[str, HdrMerge] = {}
 
+    def add(self, light: str, ref: ExposureRef, cancel: Optional[CancelToken] = None) -> None:
+        from app.processing.mosaic import open_raw
 
-@dataclass
-class SessionResult:
-    characterisation: "Characterisation"
-    report: dict
-    files: dict[str, Path]
-    patch_values: dict[str, np.ndarray]
+        if light not in self.lights:
+            raise ValueError(f"{light!r} is not one of this stack's lights ({', '.join(self.lights)})")
+        if light in self.clipped:
+            raise ValueError(f"{light} is already flat-fielded: add every exposure of a light before the next light")
+        for other in [n for n in self._merges if n != light]:     # merges share scratch buffers: one at a time
+            self.finish_light(other)
+        with open_raw(ref.source) as frame:
+            self.proc._prepare(frame)
+            merge = self._merges.get(light) or self._merges.setdefault(light, self.proc.new_merge())
+            dark = self.proc._dark_for(frame, ref.exposure_s, cancel)
+            merge.add(mosaic_of(frame), ref.exposure_s, dark, cancel=cancel)
 
+    def finish_light(self, light: str, merge: Optional[HdrMerge] = None) -> None:
+        merge = merge or self._merges.pop(light)
+        ff = self.proc._whites[light]
+        h, w = ff.white.shape
+        if self.out is None:
+            self.out = np.empty((h // 2, w // 2, 3 * len(self.lights)), dtype=np.float32)
+        li = self.lights.index(light)
+        self._weak = _weak_cells(merge.slots, self.min_signal_dn, self._weak)
+        n_clipped = merge.flat_superpixel(ff.white, ff.threshold, self.proc.cfa or "RGGB",
+                                          self.out[..., 3 * li: 3 * li + 3])
+        self.clipped[light] = n_clipped / (h * w)
 
-def _sample_target(proc: CaptureProcessor, spec: TargetSpec, subjects, progress, cancel) -> tuple[np.ndarray, list[str]]:
-    from app.processing.patches import PatchGrid, detect_cc24
-
-    if spec.subject not in subjects:
-        have = ", ".join(sorted(subjects)) or "none"
-        raise ValueError(f"the session has no captures of {spec.subject!r} (subjects: {have})")
-    stack = proc.stack(subjects[spec.subject], progress=progress, cancel=cancel)
-    grid = spec.grid
-    if grid is None:
-        det = detect_cc24(stack.rgb(0)) if len(spec.names) == 24 else None
-        if det is None:
-            raise ValueError(f"{spec.subject}: no patch grid given and no chart detected; place the grid by hand")
-        grid = det.grid
-    # patches fill the grid row by row; a partly filled last row is fine (190 patches on 12 x 17 cells)
-    if not len(spec.names) <= grid.n_patches < len(spec.names) + grid.cols:
-        raise ValueError(f"{spec.subject}: the grid has {grid.n_patches} cells ({grid.rows} x {grid.cols}) but the "
-                         f"target {len(spec.names)} patches")
-    values = grid.sample(stack.data).mean[:len(spec.names)]
-    return values, stack.channels
-
-
-def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[TargetSpec] = None, *,
-                    images: Sequence[str] = (), white_level: Optional[float] = None,
-                    linear_limit: Optional[float] = LINEAR_LIMIT_DN, optimise: bool = True,
-                    white_xyz: Optional[np.ndarray] = None, title: str = "dual-RGB capture", progress: Optional[ProgressCallback] = None,
-                    cancel: Optional[CancelToken] = None) -> SessionResult:
-    """Darks, HDR whites, target stacks -> patch values -> both matrices -> outputs for ``images`` (subject
-    keys, e.g. "object") and for the targets -> report.json + figures + CSVs in ``out_dir``.
-
-    ``white_xyz`` is the Lab reference white on the scale of the targets' XYZ (default: D65, Y = 100)."""
-    from app.processing.characterise import characterise
-    from app.processing.outputs import write_image_outputs, write_matrices_csv, write_patch_csv
-    from app.processing.quality import CalibrationFrames
-    from app.processing.report import TargetData, build_report
-    from simulation.colorimetry import white_point
-    from simulation.datasets import default_setup
-
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    proc, subjects = processor_from_session(session, white_level=white_level, linear_limit=linear_limit,
-                                            progress=_sub(progress, 0.0, 0.15), cancel=cancel)
-    vt, channels = _sample_target(proc, train, subjects, _sub(progress, 0.15, 0.4), cancel)
-    vs = None
-    if test is not None:
-        vs, _ = _sample_target(proc, test, subjects, _sub(progress, 0.4, 0.55), cancel)
-    if white_xyz is None:
-        setup = default_setup("reflective")
-        white = white_point(setup.illuminant, setup.cmfs)
-    else:
-        white = np.asarray(white_xyz, dtype=float)
-    c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
-                     optimise=optimise, progress=_sub(progress, 0.55, 0.7), cancel=cancel)
-    files: dict[str, Path] = {}
-    files["matrices"] = write_matrices_csv(out_dir / "matrices.csv", {k: r.matrix for k, r in c.results.items()})
-    for label, spec, values in (("train", train, vt), ("test", test, vs)):
-        if spec is None:
-            continue
-        preds = {k: r.matrix.apply(values) for k, r in c.results.items()}
-        errs = {k: (r.train_errors if label == "train" else r.test_errors) for k, r in c.results.items()}
-        files[f"patches_{label}"] = write_patch_csv(out_dir / f"patches_{label}.csv", spec.names, values, channels,
-                                                    spec.xyz, preds, errs, target=label)
-    for i, subject in enumerate(images):
-        check(cancel)
-        if subject not in subjects:
-            raise ValueError(f"the session has no captures of {subject!r}")
-        stack = proc.stack(subjects[subject], progress=_sub(progress, 0.7, 0.8), cancel=cancel)
-        name = subject.replace(":", "_").replace(" ", "_")
-        for k, p in write_image_outputs(out_dir, stack.data, stack.channels, c.matrix, white, prefix=name,
-                                        cancel=cancel).items():
-            files[f"{name}_{k}"] = p
-        del stack
-    calibration = CalibrationFrames(proc, [ExposureRef(session.file_path(e), float(e.exposure_s), e.file)
-                                           for e in session.entries("dark") if e.exposure_s],
-                                    _group_refs(session, session.entries("flat")))
-    rep = build_report(out_dir, c, TargetData(train.names, train.xyz, vt, train.layout, train.label or "train"),
-                       TargetData(test.names, test.xyz, vs, test.layout, test.label or "test") if test else None,
-                       simulated_train=train.simulated, title=title,
-                       extra={"session": str(session.path), "darks": proc.darks.exposures}, calibration=calibration)
-    files["report"] = out_dir / "report.json"
-    report(progress, 1.0, "processing done")
-    return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})})
+    def result(self) -> ChannelStack:
+        for light in list(self._merges):
+            self.finish_light(light)
+        missing = [n for n in self.lights if n not in self.clipped]
+        if missing:
+            raise ValueError(f"no exposures of {', '.join(missing)} were added")
+        channels = [f"{c}{i + 1}" for i in range(len(self.lights)) for c in CHANNELS]
+        under = float(self._weak.mean()) if self._weak is not None else 0.0
+        return ChannelStack(self.out, channels, self.lights, self.clipped, under)

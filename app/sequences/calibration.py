@@ -10,26 +10,15 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
 from typing import Iterator, Sequence
 
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
 from app.sequences.shooter import Shooter, channel_levels
-from simulation.lightsource import LightSource
+from app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
 
 log = logging.getLogger(__name__)
 
 LINEAR_LIMIT_DN = 11000.0
-
-
-def exposure_key(t: float) -> str:
-    return f"{t:.6g}"
-
-
-@dataclass
-class NamedLight:
-    name: str
-    light: LightSource
 
 
 class DarkSeries(BaseSequence):
@@ -44,20 +33,22 @@ class DarkSeries(BaseSequence):
         self.frames = frames
 
     def plan(self) -> list[PlannedFrame]:
-        return [PlannedFrame("dark", t, "", "lens cap on") for t in self.exposures for _ in range(self.frames)]
+        return [PlannedFrame(Role.DARK.value, t, "", "lens cap on") for t in self.exposures for _ in range(self.frames)]
 
     def _steps(self) -> Iterator[ProgressEvent]:
         total = len(self.exposures) * self.frames
         if not self.shooter.place("lens-cap"):
-            yield ProgressEvent(0, total, "Put the lens cap on, then continue", kind="prompt",
+            yield ProgressEvent(0, total, "Put the lens cap on, then continue", kind=EventKind.PROMPT.value,
                                 data={"place": "lens-cap"})
         self.shooter.lights_off()
         step = 0
         for t in self.exposures:
             for i in range(self.frames):
-                entry = self.shooter.shoot("dark", None, t, f"dark/{exposure_key(t)}/{i}", frame_index=i)
+                step_ = step_id(Role.DARK, exposure_s=t, frame=i)
+                kind = EventKind.KEPT if self.shooter.session.has_step(step_) else EventKind.FRAME
+                entry = self.shooter.shoot(Role.DARK.value, None, t, step_, frame_index=i)
                 step += 1
-                yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {t:g} s", kind="frame",
+                yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {t:g} s", kind=kind.value,
                                     data={"entry": entry.seq, "exposure_s": t})
 
     def _cleanup(self) -> None:
@@ -81,23 +72,24 @@ class FlatSeries(BaseSequence):
                 shooter.check_light_time(t)
 
     def plan(self) -> list[PlannedFrame]:
-        return [PlannedFrame("flat", t, nl.light.label(), "open gate") for nl in self.lights
+        return [PlannedFrame(Role.FLAT.value, t, nl.light.label(), "open gate") for nl in self.lights
                 for t in self.exposures.get(nl.name, []) for _ in range(self.frames)]
 
     def _steps(self) -> Iterator[ProgressEvent]:
         total = len(self.plan())
         if not self.shooter.place("open-gate"):
-            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind="prompt",
+            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind=EventKind.PROMPT.value,
                                 data={"place": "open-gate"})
         step = 0
         for nl in self.lights:
             for t in self.exposures.get(nl.name, []):
                 for i in range(self.frames):
-                    entry = self.shooter.shoot("flat", nl.light, t, f"flat/{nl.name}/{exposure_key(t)}/{i}",
-                                               light_name=nl.name, frame_index=i)
+                    step_ = step_id(Role.FLAT, light=nl.name, exposure_s=t, frame=i)
+                    kind = EventKind.KEPT if self.shooter.session.has_step(step_) else EventKind.FRAME
+                    entry = self.shooter.shoot(Role.FLAT.value, nl.light, t, step_, light_name=nl.name, frame_index=i)
                     step += 1
                     yield ProgressEvent(step, total, f"flat {nl.name} {i + 1}/{self.frames} at {t:g} s",
-                                        kind="frame", data={"entry": entry.seq, "exposure_s": t})
+                                        kind=kind.value, data={"entry": entry.seq, "exposure_s": t})
 
     def _cleanup(self) -> None:
         self.shooter.lights_off()
@@ -124,7 +116,8 @@ def auto_exposure(shooter: Shooter, nl: NamedLight, *, start_s: float = 1 / 60, 
     seqs = []
     goal = target_fraction * linear_limit
     for attempt in range(max_tries):
-        entry = shooter.shoot("metering", nl.light, t, f"meter/{nl.name}/{exposure_key(t)}", light_name=nl.name)
+        entry = shooter.shoot(Role.METERING.value, nl.light, t, step_id(Role.METERING, light=nl.name, exposure_s=t),
+                              light_name=nl.name)
         seqs.append(entry.seq)
         frame = shooter.frame(entry)
         level = float(channel_levels(frame).max())

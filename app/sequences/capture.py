@@ -1,58 +1,77 @@
-"""Target captures: dual-RGB / N-light with a preset's lights, and the 3-channel baseline (thesis 1.4, 7)."""
+"""Subject captures: a target or an original under each light of a preset, at one exposure or an HDR bracket per
+light (thesis 1.4, 7, 8)."""
 from __future__ import annotations
 
 import logging
-from typing import Iterator, Sequence
+from typing import Iterator, Optional, Sequence
 
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
-from app.sequences.calibration import NamedLight, exposure_key
 from app.sequences.shooter import Shooter
+from app.workflow.vocabulary import EventKind, NamedLight, Subject, step_id
 
 log = logging.getLogger(__name__)
 
 
-class TargetCapture(BaseSequence):
-    """One frame (or an exposure list for HDR) per light of the target on the stand.
+class SubjectCapture(BaseSequence):
+    """One frame per light and exposure of ``subject`` (an HDR bracket when a light has several exposures).
 
-    ``exposures`` maps each light name to its exposure times; ``place`` is 'train' / 'test' (or an artwork
-    label when a person places it), ``nd`` adds the ND 2.0 half-filter of thesis 8.3 in the virtual lab.
+    ``exposures`` maps each light name to its exposure times. Steps already in the session are kept (resume)
+    unless ``take`` > 1, a re-shoot, which records new frames under the next take of the same steps.
     """
 
-    name = "target capture"
+    name = "subject capture"
 
     def __init__(self, shooter: Shooter, lights: Sequence[NamedLight], exposures: dict[str, Sequence[float]],
-                 place: str, nd: bool = False, condition: str = "dual_rgb", role: str = "target"):
+                 subject: Subject, take: int = 1, meta: dict | None = None, frames: int = 1):
         super().__init__()
         self.shooter = shooter
         self.lights = list(lights)
         self.exposures = {k: sorted(set(float(t) for t in v)) for k, v in exposures.items()}
-        self.placed = place
-        self.nd = nd
-        self.condition = condition
-        self.role = role
+        self.subject = subject
+        self.take = take
+        self.meta = dict(meta or {})
+        if frames < 1:
+            raise ValueError(f"frames per exposure {frames}: expected at least 1")
+        self.frames = frames          # > 1: frames averaged per exposure (noise / sqrt(frames), dose x frames)
+        self.new = self.kept = 0
+        missing = [nl.name for nl in self.lights if not self.exposures.get(nl.name)]
+        if missing:
+            raise ValueError(f"no exposure time for {', '.join(missing)}")
         for nl in self.lights:
             for t in self.exposures[nl.name]:
                 shooter.check_light_time(t)
+        self.name = f"{subject.label} capture"
 
     def plan(self) -> list[PlannedFrame]:
-        return [PlannedFrame(self.role, t, nl.light.label(), self.placed + (" + ND" if self.nd else ""))
-                for nl in self.lights for t in self.exposures[nl.name]]
+        return [PlannedFrame(self.subject.role.value, t, nl.light.label(), self.subject.label)
+                for nl, t, _i in self._shots()]
+
+    def _shots(self) -> list[tuple[NamedLight, float, Optional[int]]]:
+        """(light, exposure, frame index or None for a single frame) in shooting order."""
+        index = (lambda i: i) if self.frames > 1 else (lambda i: None)
+        return [(nl, t, index(i)) for nl in self.lights for t in self.exposures[nl.name] for i in range(self.frames)]
+
+    def _step(self, nl: NamedLight, t: float, i: Optional[int]) -> str:
+        return step_id(self.subject.role, subject=self.subject, light=nl.name, exposure_s=t, frame=i, take=self.take)
+
+    def steps(self) -> list[str]:
+        """The step ids this capture records (the take included)."""
+        return [self._step(nl, t, i) for nl, t, i in self._shots()]
 
     def _steps(self) -> Iterator[ProgressEvent]:
         total = len(self.plan())
-        if not self.shooter.place(self.placed, self.nd):
-            yield ProgressEvent(0, total, f"Place the {self.placed} target, then continue", kind="prompt",
-                                data={"place": self.placed, "nd": self.nd})
-        step = 0
-        nd = "nd" if self.nd else "plain"
-        for nl in self.lights:
-            for t in self.exposures[nl.name]:
-                entry = self.shooter.shoot(
-                    self.role, nl.light, t, f"{self.role}/{self.condition}/{self.placed}/{nd}/{nl.name}/{exposure_key(t)}",
-                    light_name=nl.name, target=self.placed, nd=self.nd, condition=self.condition)
-                step += 1
-                yield ProgressEvent(step, total, f"{self.placed} under {nl.name} at {t:g} s", kind="frame",
-                                    data={"entry": entry.seq, "exposure_s": t, "light": nl.name})
+        if not self.shooter.place(self.subject.place, self.subject.nd):
+            yield ProgressEvent(0, total, f"Place the {self.subject.label}, then continue",
+                                kind=EventKind.PROMPT.value, data={"place": self.subject.place, "nd": self.subject.nd})
+        for step, (nl, t, i) in enumerate(self._shots(), start=1):
+            sid = self._step(nl, t, i)
+            kind = EventKind.KEPT if self.shooter.session.has_step(sid) else EventKind.FRAME
+            entry = self.shooter.shoot(self.subject.role.value, nl.light, t, sid, light_name=nl.name,
+                                       subject=self.subject.key, take=self.take, **self.meta)
+            self.kept += kind is EventKind.KEPT
+            self.new += kind is EventKind.FRAME
+            yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {t:g} s", kind=kind.value,
+                                data={"entry": entry.seq, "exposure_s": t, "light": nl.name})
 
     def _cleanup(self) -> None:
         self.shooter.lights_off()

@@ -16,6 +16,7 @@ from typing import Sequence
 import numpy as np
 
 from app.sequences.calibration import LINEAR_LIMIT_DN, snap_down
+from app.workflow.vocabulary import Role, Subject, step_id
 from drivers.raw import RawFrame
 
 log = logging.getLogger(__name__)
@@ -82,16 +83,15 @@ def plan_hdr(first: RawFrame, first_exposure_s: float, boxes: Sequence[tuple[int
     return plan
 
 
-def meter_and_plan(shooter, lights, base_exposures: dict[str, float], target: str, nd: bool,
-                   boxes: Sequence[tuple[int, int, int, int]], progress=None, cancel=None) -> dict[str, HdrPlan]:
-    """One metering frame per light at its open-gate exposure (kept in the session as 'hdr-meter'), then
+def meter_and_plan(shooter, lights, base_exposures: dict[str, float], subject: Subject,
+                   boxes: Sequence[tuple[int, int, int, int]], progress=None, cancel=None, *, take: int = 1,
+                   max_frames: int = 5) -> dict[str, HdrPlan]:
+    """One metering frame per light at its open-gate exposure (kept in the session, role 'metering'), then
     ``plan_hdr`` for each; the lights end off. Darks and flats can then be taken at the planned exposures
-    before the bracket itself is shot with app.sequences.capture.TargetCapture."""
-    from app.sequences.calibration import exposure_key
-
+    before the bracket itself is shot with app.sequences.capture.SubjectCapture."""
     plans: dict[str, HdrPlan] = {}
     try:
-        shooter.place(target, nd)
+        shooter.place(subject.place, subject.nd)
         limit = shooter.safety.max_exposure_s
         for i, nl in enumerate(lights):
             if cancel is not None:
@@ -99,11 +99,10 @@ def meter_and_plan(shooter, lights, base_exposures: dict[str, float], target: st
             t0 = base_exposures[nl.name]
             if progress is not None:
                 progress(i / len(lights), f"HDR metering frame under {nl.name} at {t0:g} s")
-            entry = shooter.shoot("hdr-meter", nl.light, t0,
-                                  f"hdrmeter/{target}/{'nd' if nd else 'plain'}/{nl.name}/{exposure_key(t0)}",
-                                  light_name=nl.name)
+            sid = step_id(Role.METERING, subject=subject, light=nl.name, exposure_s=t0, take=take)
+            entry = shooter.shoot(Role.METERING.value, nl.light, t0, sid, light_name=nl.name, subject=subject.key)
             plans[nl.name] = plan_hdr(shooter.frame(entry), t0, boxes, shooter.camera.shutter_speeds(),
-                                      max_exposure_s=limit)
+                                      max_exposure_s=limit, max_frames=max_frames)
     finally:
         shooter.lights_off()
     return plans

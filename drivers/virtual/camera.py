@@ -53,6 +53,8 @@ log = logging.getLogger(__name__)
 
 CAMERA_NAME = "dualrgb virtual D610"
 IMAGE_QUALITY = "NEF (Raw)"
+VIRTUAL_SERIAL = "VD610-000001"
+VIRTUAL_LENS = "virtual 60 mm f/2.8 macro"
 CAPTURE_TARGETS = ("Internal RAM", "Memory card")
 ISO_VALUES = (50, 64, 80, 100, 125, 160, 200, 250, 320, 400, 500, 640, 800, 1000, 1250, 1600, 2000, 2500,
               3200, 4000, 5000, 6400)
@@ -174,10 +176,12 @@ class VirtualCamera(Camera):
         iso: int = 50,
         shutter_s: float = 1 / 60,
         aperture: float = 8.0,
+        serial: str = VIRTUAL_SERIAL,
         clock: Callable[[], float] = time.monotonic,
         realtime: bool = False,
     ) -> None:
         self._light = light
+        self.serial = serial                                     # what a real body reports as serialnumber
         self._clock = clock
         self.realtime = realtime
         self.exposure_log: list[ExposureRecord] = []
@@ -364,7 +368,8 @@ class VirtualCamera(Camera):
         return (img * 255 + 0.5).astype(np.uint8)
 
     def config_summary(self) -> dict[str, object]:
-        d: dict[str, object] = {"camera": CAMERA_NAME, **super().config_summary()}
+        d: dict[str, object] = {"camera": CAMERA_NAME, "serial": self.serial, "lens": VIRTUAL_LENS,
+                                **super().config_summary()}
         d.update(scene=self._scene.describe(), mode=self.mode, grid=self.grid.label(),
                  bumps="on" if self.bumps_enabled else "off", seed=self.seed,
                  sensor=f"{self._scene.width}x{self._scene.height} RGGB 14-bit, black {self.sensor.black_level},"

@@ -1,6 +1,6 @@
 """Characterisation models compared by the parsimony study (N camera channels -> XYZ).
 
-* ``linear``: the thesis' least-squares matrix (N x 3), rank-safe (simulation.characterisation.fit_matrix);
+* ``linear``: the thesis' least-squares matrix (N x 3), rank-safe (simulation.matrix_fit.fit_matrix);
 * ``root-polynomial``: Finlayson, Mackiewicz & Hurlbert 2015, degree 2: the N channels and the square roots
   of all their pairwise products (6 + 15 = 21 terms for 6 channels), least squares. colour-science's
   ``polynomial_expansion_Finlayson2015`` only expands 3 channels, hence this expansion;
@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from simulation.characterisation import fit_matrix
+from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 
 log = logging.getLogger(__name__)

@@ -40,7 +40,7 @@ from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target, target_xyz
 from simulation.fast_de import mean_de2000_xyz
 from simulation.hdr_estimators import HdrNoise, default_method, merge_exposures
-from simulation.characterisation import solve_normal_equations
+from simulation.matrix_fit import solve_normal_equations
 
 log = logging.getLogger(__name__)
 

@@ -29,7 +29,7 @@ from typing import Callable, Iterator, Optional, Sequence
 
 import numpy as np
 
-from simulation.characterisation import solve_normal_equations
+from simulation.matrix_fit import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.ga import GaSettings, ga
 from simulation.halving import HalvingSettings, set_cost, successive_halving

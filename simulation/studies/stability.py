@@ -29,7 +29,7 @@ import numpy as np
 
 import resources
 from simulation.camera_model import led_responses
-from simulation.characterisation import fit_matrix
+from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
 from simulation.ga import GaSettings
@@ -296,8 +296,8 @@ def stability(spec: SetupSpec = SetupSpec(), cfg: StabilityConfig = StabilityCon
               capture_model: Callable[[SimulationSetup], CaptureModel] = study_capture_model) -> StabilityResult:
     """All five parts; only the seed runs (part 1) go through ``runner`` (the rest is quick and serial).
     ``capture(setup, W, exposures) -> {"train", "test", ...}``: a real capture chain to check the objectives
-    against (the CLI passes the virtual lab's, app.virtual_lab_check.captured_errors), ``capture_model(setup)``
-    its model for the expected-captured objective (app.virtual_lab_check.capture_model)."""
+    against (the CLI passes the virtual lab's, app.captured_accuracy.captured_errors), ``capture_model(setup)``
+    its model for the expected-captured objective (app.captured_accuracy.capture_model)."""
     t0 = time.perf_counter()
     seeds = seed_spread(spec, cfg, runner, progress, cancel)
     optima = {label: _weights(v["best_seed"]) for label, v in seeds.items()}

@@ -12,7 +12,6 @@ from PIL import Image
 
 from app.processing.ground_truth import (bin_to_superpixels, block_max, compare_to_ground_truth,
                                          write_de_map_png)
-from app.processing.outputs import apply_matrix
 from app.processing.patches import PatchGrid
 from app.processing.pipeline import CaptureProcessor, ExposureRef
 from app.sequences.hdr import plan_hdr
@@ -20,7 +19,7 @@ from drivers.raw import load_raw
 from drivers.virtual.camera import SHUTTER_SPEEDS, SensorModel, StaticLight, VirtualCamera
 from drivers.virtual.originals import ground_truth_xyz, original, original_scene
 from drivers.virtual.scene import Scene
-from simulation.characterisation import fit_matrix
+from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import default_setup
 from simulation.lightsource import LightSource
@@ -85,7 +84,7 @@ class Rig:
     def deliver(self, proc: CaptureProcessor, matrix, name: str, exposures: dict[int, list[float]]) -> np.ndarray:
         scene = original_scene(name, W, H)
         refs = {ln: self.shoot(scene, li, exposures[li]) for li, ln in enumerate(self.lights)}
-        return apply_matrix(proc.stack(refs).data, matrix)
+        return proc.stack(refs).data @ matrix.matrix.astype(np.float32)
 
 
 @pytest.fixture(scope="module")

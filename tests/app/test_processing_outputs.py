@@ -1,19 +1,13 @@
-"""Output TIFFs (dtype, shape, ICC), the hand-written ProPhoto ICC checked through LittleCMS, CSVs."""
+"""The hand-written ProPhoto ICC checked through LittleCMS, CSVs (the deliverable TIFFs: tests/app/test_workflow.py)."""
 from __future__ import annotations
 
 import csv
 import io
-import json
 
 import numpy as np
-import pytest
-import tifffile
 
-from app.processing.outputs import (apply_matrix, encode_rgb16, icc_profile, matrix_trc_icc, write_image_outputs,
-                                    write_matrices_csv, write_patch_csv)
-from simulation.characterisation import CharacterisationMatrix
-
-D65_WHITE = np.array([95.047, 100.0, 108.883])
+from app.processing.outputs import icc_profile, matrix_trc_icc, write_matrices_csv, write_patch_csv
+from simulation.matrix_fit import CharacterisationMatrix
 
 
 def test_icc_profiles_load_in_littlecms_and_prophoto_matches_colour_science():
@@ -35,54 +29,6 @@ def test_icc_profiles_load_in_littlecms_and_prophoto_matches_colour_science():
     inside = ((ref > 1) & (ref < 254)).all(-1)
     assert inside.sum() > 10
     assert np.abs(out - ref)[inside].max() < 1.5          # 8-bit transform: within rounding
-
-
-def test_encode_white_and_grey():
-    xyz = np.array([[[95.047, 100.0, 108.883], [95.047 * 0.18, 18.0, 108.883 * 0.18]]])
-    srgb = encode_rgb16(xyz, "sRGB", D65_WHITE)
-    pp = encode_rgb16(xyz, "ProPhoto RGB", D65_WHITE)
-    assert (srgb[0, 0] == 65535).all() and (pp[0, 0] == 65535).all()          # perfect white -> max in both
-    assert np.ptp(srgb[0, 1]) <= 1 and np.ptp(pp[0, 1]) <= 1                  # neutral stays neutral
-    assert abs(srgb[0, 1, 0] / 65535 - 0.4614) < 0.002                        # sRGB encoding of 18 %
-    with pytest.raises(ValueError, match="unknown RGB colour space"):
-        encode_rgb16(xyz, "Adobe 1999", D65_WHITE)
-
-
-def test_image_outputs_read_back(tmp_path):
-    rng = np.random.default_rng(0)
-    stack = rng.uniform(0, 1, (10, 14, 6)).astype(np.float32)
-    stack[0, 0] = np.nan
-    A = CharacterisationMatrix(rng.uniform(0, 40, (6, 3)), ["R1", "G1", "B1", "R2", "G2", "B2"], "least-squares")
-    files = write_image_outputs(tmp_path, stack, A.channels, A, D65_WHITE, prefix="folio")
-    with tifffile.TiffFile(files["channels"]) as t:
-        data = t.asarray()
-        assert data.dtype == np.float32 and data.shape == (10, 14, 6)
-        assert json.loads(t.pages[0].description)["channels"] == A.channels
-    assert np.array_equal(data, stack, equal_nan=True)
-    with tifffile.TiffFile(files["xyz"]) as t:
-        xyz = t.asarray()
-        assert xyz.dtype == np.float32 and xyz.shape == (10, 14, 3)
-    assert np.allclose(xyz[1:], (stack @ A.matrix.astype(np.float32))[1:], rtol=1e-5)
-    assert np.isnan(xyz[0, 0]).all()
-    for key, desc in (("srgb", "sRGB"), ("prophoto", "ProPhoto")):
-        with tifffile.TiffFile(files[key]) as t:
-            page = t.pages[0]
-            img = page.asarray()
-            assert img.dtype == np.uint16 and img.shape == (10, 14, 3)
-            icc = page.tags[34675].value                         # InterColorProfile
-            assert bytes(icc)[36:40] == b"acsp"
-        from PIL import ImageCms
-        assert desc in ImageCms.getProfileDescription(ImageCms.ImageCmsProfile(io.BytesIO(bytes(icc))))
-    assert (tifffile.imread(files["srgb"])[0, 0] == 0).all()     # NaN -> black
-
-
-def test_apply_matrix_bands_equal_whole():
-    rng = np.random.default_rng(2)
-    stack = rng.uniform(0, 1, (37, 5, 6)).astype(np.float32)
-    A = rng.uniform(-1, 1, (6, 3))
-    assert np.allclose(apply_matrix(stack, A, band_rows=4), stack @ A.astype(np.float32), rtol=1e-6)
-    with pytest.raises(ValueError, match="expects 6"):
-        apply_matrix(stack[..., :3], A)
 
 
 def test_csvs(tmp_path):

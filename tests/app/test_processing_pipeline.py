@@ -1,16 +1,18 @@
 """End to end: DNG files recorded in a CaptureSession -> darks, HDR whites, flat-fielded HDR stacks ->
-patch values -> both matrices -> TIFFs, CSVs, report; checked against the simulation of the same light set."""
+patch values -> both matrices -> CSVs, report; checked against the simulation of the same light set. The session
+is written with the old strings (meta 'target', light names in the light dict): the vocabulary's reader opens it."""
 from __future__ import annotations
 
 import json
 
 import numpy as np
 import pytest
-import tifffile
 
 from app.processing.mosaic import mosaic_from_rgb
 from app.processing.patches import PatchGrid
-from app.processing.pipeline import TargetSpec, process_session
+from app.workflow.session_processing import process_session
+from app.workflow.targets import TargetSpec
+from app.workflow.vocabulary import Subject
 from app.session import CaptureSession
 from drivers.camera.base import RawCapture
 from simulation.camera_model import channel_responses
@@ -90,7 +92,7 @@ def spec(setup, key, layouts, evaluator):
     if rows * cols != n:                      # 190 patches on a 10 x 19 grid: exactly 190 cells
         raise AssertionError
     W = np.stack([light.weights() for light in LIGHTS])
-    return TargetSpec(f"target:{key}", ps.xyz, target.patch_names, grid, target.layout,
+    return TargetSpec(Subject.target(key), ps.xyz, target.patch_names, grid, target.layout,
                       ps.camera_values(W) if key == "train" else None, key)
 
 
@@ -101,7 +103,8 @@ def test_session_to_report_matches_simulation(session_dir, tmp_path):
     assert s.verify().valid
     seen = []
     res = process_session(s, tmp_path / "out", spec(setup, "train", layouts, ev), spec(setup, "test", layouts, ev),
-                          images=["target:test"], progress=lambda f, m: seen.append(f))
+                          progress=lambda f, m: seen.append(f))
+    assert res.lights == ["light 1", "light 2"]
     W = np.stack([light.weights() for light in LIGHTS])
     sim_train, sim_test = ev.stats(W)
     ls = res.characterisation.results["least-squares"]
@@ -113,10 +116,6 @@ def test_session_to_report_matches_simulation(session_dir, tmp_path):
     assert rep["best_method"] in ("least-squares", "de2000")
     assert rep["dn_validation"]["min_r2"] > 0.999                # captured DN are linear in simulated ones
     assert rep["standards"]["results"]["FADGI 2023"]["level"] is not None
-    for k in ("test_channels", "test_xyz", "test_srgb", "test_prophoto"):
-        assert res.files[f"target_{k}"].exists()
-    img = tifffile.imread(res.files["target_test_srgb"])
-    assert img.dtype == np.uint16 and img.shape == (12 * CELL, 21 * CELL, 3)
     assert (tmp_path / "out" / "patches_train.csv").exists() and (tmp_path / "out" / "matrices.csv").exists()
     assert seen and seen[-1] == 1.0 and all(0 <= f <= 1 for f in seen)
 
@@ -140,7 +139,8 @@ def test_cancel_stops_processing(session_dir, tmp_path):
 
 def test_partly_filled_last_grid_row_is_accepted_and_a_wrong_grid_is_not():
     from app.processing.patches import PatchGrid
-    from app.processing.pipeline import ChannelStack, TargetSpec, _sample_target
+    from app.processing.pipeline import ChannelStack
+    from app.workflow.session_processing import sample_target
 
     class FakeProcessor:
         def stack(self, scenes, progress=None, cancel=None):
@@ -148,12 +148,12 @@ def test_partly_filled_last_grid_row_is_accepted_and_a_wrong_grid_is_not():
             data[..., 0] = np.arange(50)[None, :]                      # column index as the value
             return ChannelStack(data, ["R1", "G1", "B1"], ["LS1"])
 
-    subjects = {"target:t": {"LS1": []}}
+    frames = {"LS1": []}
     grid = PatchGrid(np.array([[0, 0], [49, 0], [49, 39], [0, 39]], float), 4, 5)
-    spec = TargetSpec("target:t", np.ones((18, 3)), [f"p{i}" for i in range(18)], grid=grid)
-    values, _ = _sample_target(FakeProcessor(), spec, subjects, None, None)
+    spec = TargetSpec(Subject.target("test"), np.ones((18, 3)), [f"p{i}" for i in range(18)], grid=grid)
+    values, _std, _ = sample_target(FakeProcessor(), spec, frames, None, None)
     assert values.shape == (18, 3)                                      # 18 patches on 4 x 5 cells
     assert values[0, 0] < values[4, 0]                                  # row-major: patch 4 is the last column
-    bad = TargetSpec("target:t", np.ones((12, 3)), [f"p{i}" for i in range(12)], grid=grid)
+    bad = TargetSpec(Subject.target("test"), np.ones((12, 3)), [f"p{i}" for i in range(12)], grid=grid)
     with pytest.raises(ValueError, match="20 cells"):
-        _sample_target(FakeProcessor(), bad, subjects, None, None)
+        sample_target(FakeProcessor(), bad, frames, None, None)

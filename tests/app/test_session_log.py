@@ -62,7 +62,7 @@ def test_error_ending_the_session_is_logged_and_resume_appends(tmp_path, quiet_c
 
 
 def test_gui_lab_switches_the_log_with_the_session(tmp_path, qapp):
-    from app.gui.lab import Lab
+    from app.gui.device_hub import Lab
     from app.gui.workers import TaskRunner
 
     lab = Lab(TaskRunner())

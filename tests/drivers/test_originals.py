@@ -163,7 +163,7 @@ def test_names_and_refusals():
 
 
 def test_virtual_lab_places_originals_and_gives_their_truth():
-    from app.virtual_lab import VirtualLab
+    from drivers.virtual.lab import VirtualLab
 
     with VirtualLab(frame_size=(240, 160), timeout_s=0.3) as lab:
         scene = lab.place("original:painting")

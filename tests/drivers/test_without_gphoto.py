@@ -36,7 +36,7 @@ def test_devices_report_carries_the_hint(no_gphoto, capsys, monkeypatch):
 
 
 def test_virtual_lab_captures_without_gphoto(no_gphoto, tmp_path):
-    from app.virtual_lab import VirtualLab
+    from drivers.virtual.lab import VirtualLab
     from drivers.raw import load_raw
 
     with VirtualLab(frame_size=(96, 64)) as lab:

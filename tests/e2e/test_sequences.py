@@ -6,10 +6,11 @@ import pytest
 
 from app.session import CaptureSession, SessionError
 from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure
-from app.sequences.capture import TargetCapture
-from app.sequences.crf import CrfSweep
+from app.sequences.capture import SubjectCapture
+from app.workflow.vocabulary import Subject
+from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import LightSafetyError, SafetySettings, Shooter, channel_levels
-from app.virtual_lab import VirtualLab
+from drivers.virtual.lab import VirtualLab
 from drivers.camera.base import CameraError
 from drivers.led_sphere import SphereError
 from simulation.lightsource import LightSource
@@ -62,7 +63,7 @@ def test_dark_series_and_flats_record_everything_with_lights_off(shooter, lab):
 
 
 def test_cancel_mid_sequence_leaves_lights_off_and_resume_finishes(shooter, lab):
-    seq = TargetCapture(shooter, [LS1, LS2], {"LS1": [1 / 80, 1 / 40], "LS2": [1 / 200]}, "train")
+    seq = SubjectCapture(shooter, [LS1, LS2], {"LS1": [1 / 80, 1 / 40], "LS2": [1 / 200]}, Subject.target("train"))
     it = seq.run()
     first = next(it)
     assert first.kind == "frame"
@@ -72,7 +73,7 @@ def test_cancel_mid_sequence_leaves_lights_off_and_resume_finishes(shooter, lab)
     assert lights_off(lab)
     done = len(shooter.session.entries("target"))
     assert done == 1
-    again = TargetCapture(shooter, [LS1, LS2], {"LS1": [1 / 80, 1 / 40], "LS2": [1 / 200]}, "train")
+    again = SubjectCapture(shooter, [LS1, LS2], {"LS1": [1 / 80, 1 / 40], "LS2": [1 / 200]}, Subject.target("train"))
     list(again.run())
     assert len(shooter.session.entries("target")) == 3        # the first frame was not shot again
 
@@ -96,7 +97,7 @@ def test_light_on_limit_refuses_long_exposures_before_switching_on(shooter, lab)
 
 @pytest.mark.parametrize("fault", ["no_reply", "disconnect", "garbled"])
 def test_sphere_fault_stops_cleanly_with_session_valid(shooter, lab, fault):
-    seq = TargetCapture(shooter, [LS1, LS2], {"LS1": [1 / 80], "LS2": [1 / 200]}, "train")
+    seq = SubjectCapture(shooter, [LS1, LS2], {"LS1": [1 / 80], "LS2": [1 / 200]}, Subject.target("train"))
     it = seq.run()
     next(it)
     lab.emulator.inject(fault)
@@ -111,7 +112,7 @@ def test_camera_gone_mid_sequence_turns_lights_off(shooter, lab, monkeypatch):
     def gone(*_a, **_k):
         raise CameraError("[-52] camera disappeared: reconnect it", code=-52)
     monkeypatch.setattr(lab.camera, "expose", gone)
-    seq = TargetCapture(shooter, [LS1], {"LS1": [1 / 80]}, "test")
+    seq = SubjectCapture(shooter, [LS1], {"LS1": [1 / 80]}, Subject.target("test"))
     with pytest.raises(CameraError, match="camera disappeared.*; the light was switched off$"):
         list(seq.run())
     assert lights_off(lab) and shooter.session.verify().valid
@@ -124,7 +125,7 @@ def test_disk_full_stops_cleanly(shooter, lab, monkeypatch):
         raise SessionError(errno.ENOSPC, "disk full while writing the raw file")
     monkeypatch.setattr(shooter.session, "record", full)
     with pytest.raises(SessionError, match="disk full"):
-        list(TargetCapture(shooter, [LS1], {"LS1": [1 / 80]}, "test").run())
+        list(SubjectCapture(shooter, [LS1], {"LS1": [1 / 80]}, Subject.target("test")).run())
     assert lights_off(lab)
 
 

@@ -6,7 +6,7 @@ import pytest
 
 from app.sequences.shooter import Shooter
 from app.session import CaptureSession
-from app.virtual_lab import VirtualLab
+from drivers.virtual.lab import VirtualLab
 from fault_rigs import CountingCamera, CountingSphere
 from light_record import FAST
 

@@ -197,9 +197,9 @@ def test_damaged_frame_refuses_processing_naming_the_file(tmp_path, rig, damage)
         victim.write_bytes(bytes(data[:500]))
     else:
         victim.unlink()
-    from app.processing.pipeline import processor_from_session
+    from app.workflow.session_processing import session_frames
     with pytest.raises(DamagedFramesError) as info:
-        processor_from_session(s)
+        session_frames(s)
     assert str(info.value).startswith(str(victim)) and "\n" not in str(info.value)
 
 
@@ -229,10 +229,11 @@ WRITERS = {
     "report.json": "from simulation.atomic_io import atomic_write; atomic_write(path, '{\"x\": 1}' * 400000)",
     "preset": ("from simulation.presets import Preset, save_preset; from simulation.lightsource import "
                "LightSource; save_preset(Preset('p' * 2000000, (LightSource((1,), (1.0,)),)), path)"),
-    "rgb tiff": ("import numpy as np; from app.processing.outputs import write_rgb_tiff; "
-                 "write_rgb_tiff(path, np.ones((400, 400, 3), np.uint16), 'sRGB')"),
-    "float tiff": ("import numpy as np; from app.processing.outputs import write_float_tiff; "
-                   "write_float_tiff(path, np.ones((300, 300, 6), np.float32), list('abcdef'))"),
+    "rgb tiff": ("import numpy as np; from app.processing.outputs import TiffMetadata, icc_profile, write_tiff; "
+                 "write_tiff(path, np.ones((400, 400, 3), np.uint16), TiffMetadata('dualrgb'), photometric='rgb', "
+                 "icc=icc_profile('sRGB'))"),
+    "channels tiff": ("import numpy as np; from app.processing.outputs import TiffMetadata, write_tiff; "
+                      "write_tiff(path, np.ones((300, 300, 6), np.uint16), TiffMetadata('dualrgb'))"),
     "patch csv": ("import numpy as np; from app.processing.outputs import write_patch_csv; n = 20000; "
                   "write_patch_csv(path, [str(i) for i in range(n)], np.ones((n, 6)), list('abcdef'), "
                   "np.ones((n, 3)), {}, {})"),
@@ -261,7 +262,7 @@ FULL_DISK = textwrap.dedent("""
             results[what] = "WROTE"
     print(json.dumps(results))
 """)
-TARGET_NAMES = {"session settings": "s/session.json", "rgb tiff": "out.tif", "float tiff": "out.tif",
+TARGET_NAMES = {"session settings": "s/session.json", "rgb tiff": "out.tif", "channels tiff": "out.tif",
                 "png figure": "out.png"}
 
 

@@ -15,7 +15,7 @@ import pytest
 
 from app.sequences.shooter import LightSafetyError, Shooter
 from app.session import CaptureSession
-from app.virtual_lab import VirtualLab
+from drivers.virtual.lab import VirtualLab
 from drivers.camera.base import CameraError
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.virtual.sphere_emulator import SphereEmulator

@@ -7,11 +7,12 @@ from __future__ import annotations
 import pytest
 
 from app.sequences.calibration import DarkSeries, FlatSeries, auto_exposure
-from app.sequences.capture import TargetCapture
-from app.sequences.crf import CrfSweep
+from app.sequences.capture import SubjectCapture
+from app.sequences.crf_sweep import CrfSweep
 from app.sequences.hdr import meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession
+from app.workflow.vocabulary import Subject
 from light_record import LS1, LS2, lit_spans
 
 SETTLE_S = 0.05
@@ -22,11 +23,11 @@ def run_every_sequence(lab, shooter: Shooter) -> None:
     list(DarkSeries(shooter, [1 / 60], frames=2).run())
     exposures = {nl.name: auto_exposure(shooter, nl)[0] for nl in (LS1, LS2)}
     list(FlatSeries(shooter, [LS1, LS2], {k: [t] for k, t in exposures.items()}, frames=1).run())
-    list(TargetCapture(shooter, [LS1, LS2], {k: [t] for k, t in exposures.items()}, "test").run())
+    list(SubjectCapture(shooter, [LS1, LS2], {k: [t] for k, t in exposures.items()}, Subject.target("test")).run())
     boxes = lab.scene_for("test", nd=True).patch_boxes()
-    plans = meter_and_plan(shooter, [LS1, LS2], exposures, "test", True, boxes)
-    list(TargetCapture(shooter, [LS1, LS2], {k: p.exposures for k, p in plans.items()}, "test", nd=True,
-                       condition="hdr").run())
+    plans = meter_and_plan(shooter, [LS1, LS2], exposures, Subject.target("test", nd=True), boxes)
+    list(SubjectCapture(shooter, [LS1, LS2], {k: p.exposures for k, p in plans.items()},
+                        Subject.target("test", nd=True)).run())
     list(CrfSweep(shooter, LS1.light, levels=(1.0,), exposures=[1 / 500, 1 / 125, 1 / 30]).run())
 
 
@@ -41,7 +42,7 @@ def test_light_only_while_a_frame_is_exposed_over_every_sequence(lab, tmp_path):
     exposures = lab.camera.exposure_log[first:]
     lit = [e for e in exposures if e.lit]
     roles = {e.role for e in session.entries()}
-    assert {"dark", "metering", "flat", "target", "hdr-meter", "crf"} <= roles, roles
+    assert {"dark", "metering", "flat", "target", "crf"} <= roles, roles
     assert len(lit) == len(exposures) - 2 and len(spans) == len(lit), (len(spans), len(lit), len(exposures))
     assert all(s.t_off is not None for s in spans), "the light is still on at the end"
     worst = 0.0

@@ -252,8 +252,8 @@ def test_hdr_capture_of_the_nd_target(qtbot, make_window):
     qtbot.waitUntil(lambda: cap.view.outcome != "", timeout=LONG)
     wait_idle(qtbot, w)
     assert cap.view.outcome == "done"
-    hdr = [e for e in w.lab.session.entries() if e.role == "hdr-nd"]
-    assert len(hdr) == planned and all(e.meta.get("nd") for e in hdr)
+    hdr = [e for e in w.lab.session.entries() if e.meta.get("subject") == "target:test+nd" and e.role == "target"]
+    assert len(hdr) == planned and all(e.role == "target" for e in hdr)
     # darks and flats now cover the bracket's exposures too
     cap.kind.setCurrentText("Dark series")
     times = {float(cap.view.table.item(r, 1).text().split()[0].replace("1/", "")) for r in
@@ -262,8 +262,8 @@ def test_hdr_capture_of_the_nd_target(qtbot, make_window):
     # calibrate at every exposure and process the HDR capture (ND patches' reference scaled by the filter)
     run_sequence(qtbot, w, "Dark series", frames=2)
     run_sequence(qtbot, w, "Open-gate flats", frames=1)
-    place_grid(qtbot, w, "hdr-nd:test")
-    res = process(qtbot, w, "hdr-nd:test")
+    place_grid(qtbot, w, "target:test+nd")
+    res = process(qtbot, w, "target:test+nd")
     assert res.result.report["train"]["mean"] < 2.0
     assert w.errors.history == []
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from simulation.characterisation import CharacterisationError, fit_matrix
+from simulation.matrix_fit import CharacterisationError, fit_matrix
 from simulation.datasets import default_setup
 from simulation.ga import ga
 from simulation.lightsource import LightSource
@@ -130,7 +130,7 @@ def test_light_source_validation():
 
 
 def test_batched_normal_equations_agree_with_the_kernel_and_lstsq(reflective):
-    from simulation.characterisation import solve_normal_equations
+    from simulation.matrix_fit import solve_normal_equations
     rng = np.random.default_rng(5)
     W = np.zeros((4, 2, 10))
     W[:, 0, [0, 5, 7]] = rng.random((4, 3)) + 0.2

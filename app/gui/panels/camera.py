@@ -14,10 +14,10 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QGroupBox, QLa
 
 from app.gui.context import AppContext
 from app.gui.viewmodel import LINEAR_LIMIT_DN, RawView, preview_histogram, raw_view
-from app.gui.widgets import plot_widget
+from app.gui.widgets import image_widget, plot_widget
 from app.session import atomic_write
 from drivers.camera.base import CameraSettings
-from drivers.camera.gphoto import format_shutter
+from app.workflow.vocabulary import format_exposure as format_shutter
 
 log = logging.getLogger(__name__)
 
@@ -25,17 +25,6 @@ COMMON_ISO = (50, 64, 80, 100, 125, 160, 200, 250, 320, 400, 500, 640, 800, 1000
 COMMON_APERTURES = (2.8, 4.0, 5.6, 8.0, 11.0, 16.0, 22.0)
 RAW_QUALITY = "NEF (Raw)"
 CHANNEL_PENS = {"R": "#d32f2f", "G1": "#388e3c", "G2": "#81c784", "G": "#388e3c", "B": "#1976d2"}
-
-
-def image_widget(tooltip: str) -> tuple[pg.GraphicsLayoutWidget, pg.ImageItem, pg.ViewBox]:
-    """A picture view (row-major image, y down, aspect locked)."""
-    w = pg.GraphicsLayoutWidget()
-    w.setBackground("#202020")
-    vb = w.addViewBox(lockAspect=True, invertY=True)
-    item = pg.ImageItem(axisOrder="row-major")
-    vb.addItem(item)
-    w.setToolTip(tooltip)
-    return w, item, vb
 
 
 class CameraPanel(QWidget):

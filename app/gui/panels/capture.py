@@ -15,17 +15,19 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QDoubleSpinBox, QFileDialog
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
 from app.sequences.base import Sequence
-from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure
-from app.sequences.capture import TargetCapture
+from app.sequences.calibration import auto_exposure
 from app.sequences.hdr import HdrPlan, meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession
-from drivers.camera.gphoto import format_shutter
+from app.workflow.plans import build_sequence, calibration_exposures
+from app.workflow.vocabulary import NamedLight, SequenceKind, Subject, format_exposure as format_shutter, lights_of
 from simulation.presets import Preset, PresetError, load_preset, packaged_presets
 
 log = logging.getLogger(__name__)
 
-KINDS = ("Dark series", "Open-gate flats", "Dual-RGB capture", "HDR capture")
+SEQUENCE_KINDS = {"Dark series": SequenceKind.DARKS, "Open-gate flats": SequenceKind.FLATS,
+                  "Dual-RGB capture": SequenceKind.TARGET, "HDR capture": SequenceKind.HDR_TARGET}
+KINDS = tuple(SEQUENCE_KINDS)
 TARGETS = (("training target", "train"), ("test target (CC24)", "test"))
 
 
@@ -218,9 +220,8 @@ class CapturePanel(QWidget):
             return
         path, preset = self.presets[index]
         self.ctx.set("capture/preset", str(path))
-        slug = "".join(c if c.isalnum() else "-" for c in preset.name).strip("-")[:24] or "preset"
         old = {nl.name: self.exposure_of(nl.name) for nl in self.lights}
-        self.lights = [NamedLight(f"{slug}-LS{i}", s) for i, s in enumerate(preset.sources, start=1)]
+        self.lights = lights_of(preset)
         self.hdr_plans = {}
         self.light_table.blockSignals(True)
         self.light_table.setRowCount(len(self.lights))
@@ -232,7 +233,6 @@ class CapturePanel(QWidget):
             self.light_table.setItem(r, 2, QTableWidgetItem(f"{old.get(nl.name) or 1 / 60:.6g}"))
         self.light_table.resizeColumnsToContents()
         self.light_table.blockSignals(False)
-        self.ctx.shared["capture_lights"] = self.lights
         self.update_plan()
 
     def exposure_of(self, name: str) -> Optional[float]:
@@ -260,18 +260,8 @@ class CapturePanel(QWidget):
         return out
 
     def all_exposures(self) -> dict[str, list[float]]:
-        """Per light: every exposure the captures use - the single exposure, the HDR brackets planned here and
-        whatever the session already holds for that light (darks and flats need all of them)."""
-        out = {name: set(ts) for name, ts in self.exposures().items()}
-        for name, ts in self.hdr_brackets.items():
-            out.setdefault(name, set()).update(ts)
-        session = self.lab.session
-        if session is not None:
-            for e in session.entries():
-                name = e.meta.get("light_name")
-                if e.role.startswith(("target", "hdr")) and e.role != "hdr-meter" and name in out and e.exposure_s:
-                    out[name].add(float(e.exposure_s))
-        return {name: sorted(ts) for name, ts in out.items()}
+        """Per light: every exposure the captures use (app.workflow.plans.calibration_exposures)."""
+        return calibration_exposures(self.lab.session, self.exposures(), self.hdr_brackets)
 
     # ------------------------------------------------------------------ building sequences
     def shooter(self) -> Shooter:
@@ -287,23 +277,18 @@ class CapturePanel(QWidget):
         return TARGETS[self.target.currentIndex()][1]
 
     def build(self, shooter: Optional[Shooter]) -> Sequence:
-        """The selected sequence (with ``shooter=None`` only for its plan)."""
-        kind = self.kind.currentText()
+        """The selected sequence (with ``shooter=None`` only for its plan), built by app.workflow.plans."""
+        kind = SEQUENCE_KINDS[self.kind.currentText()]
         sh = shooter or _PlanOnlyShooter(self.settle.value())
-        if kind == "Dark series":
-            times = sorted({t for ts in self.all_exposures().values() for t in ts})
-            return DarkSeries(sh, times, frames=self.frames.value())
-        if kind == "Open-gate flats":
-            return FlatSeries(sh, self.lights, self.all_exposures(), frames=self.frames.value())
-        nd = self.nd.isChecked()
-        suffix = "-nd" if nd else ""          # a separate subject: frames with and without the ND filter never mix
-        if kind == "Dual-RGB capture":
-            return TargetCapture(sh, self.lights, self.exposures(), self.target_key(), nd=nd,
-                                 condition="dual_rgb", role="target" + suffix)
-        if self.hdr_key != (self.target_key(), nd) or not self.hdr_plans:
+        if kind in (SequenceKind.DARKS, SequenceKind.FLATS):
+            return build_sequence(kind, sh, self.lights, exposures=self.all_exposures(), frames=self.frames.value())
+        subject = Subject.target(self.target_key(), self.nd.isChecked())
+        if kind is SequenceKind.TARGET:
+            return build_sequence(kind, sh, self.lights, exposures=self.exposures(), subject=subject)
+        if self.hdr_key != (self.target_key(), self.nd.isChecked()) or not self.hdr_plans:
             raise ValueError("press 'Meter and plan HDR' for this target first")
-        return TargetCapture(sh, self.lights, {n: p.exposures for n, p in self.hdr_plans.items()},
-                             self.target_key(), nd=nd, condition="hdr", role="hdr" + suffix)
+        return build_sequence(kind, sh, self.lights, exposures={n: p.exposures for n, p in self.hdr_plans.items()},
+                              subject=subject)
 
     def update_plan(self) -> None:
         self.view.settle_s = self.settle.value()
@@ -435,8 +420,8 @@ class CapturePanel(QWidget):
         lights = list(self.lights)
 
         def work(progress, cancel) -> dict[str, HdrPlan]:
-            return meter_and_plan(shooter, lights, {n: ts[0] for n, ts in base.items()}, target, nd, boxes,
-                                  progress=progress, cancel=cancel)
+            return meter_and_plan(shooter, lights, {n: ts[0] for n, ts in base.items()}, Subject.target(target, nd),
+                                  boxes, progress=progress, cancel=cancel)
 
         def done(plans: dict[str, HdrPlan]) -> None:
             self.hdr_plans = plans

@@ -1,5 +1,5 @@
-"""Characterise: the camera response function and exposure-time linearity (app.sequences.crf.CrfSweep on the
-open gate; app.crf finds the linear limit and flags exposure times that depart from the line)."""
+"""Characterise: the camera response function and exposure-time linearity (app.sequences.crf_sweep.CrfSweep on the
+open gate; app.processing.crf_analysis finds the linear limit and flags exposure times that depart from the line)."""
 from __future__ import annotations
 
 import logging
@@ -14,9 +14,9 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
 from app.gui.widgets import plot_widget
-from app.sequences.crf import CrfSweep
+from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import SafetySettings, Shooter
-from drivers.camera.gphoto import format_shutter
+from app.workflow.vocabulary import format_exposure as format_shutter
 from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)

@@ -8,7 +8,7 @@ from PySide6.QtWidgets import (QComboBox, QFileDialog, QGridLayout, QGroupBox, Q
                                QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
-from app.gui.lab import NO_CAMERA_ADVICE, VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
+from app.gui.device_hub import NO_CAMERA_ADVICE, VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
 from app.gui.widgets import StatusLight
 
 log = logging.getLogger(__name__)

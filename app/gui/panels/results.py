@@ -1,4 +1,4 @@
-"""Results: process the session (app.processing.pipeline.process_session: darks, HDR whites, flat field,
+"""Results: process the session (app.workflow.session_processing.process_session: darks, HDR whites, flat field,
 patch values, both matrices, outputs, report) and show the report: ΔE00 heatmap in the target layout, a*b* and
 L*C* plots, ground truth vs prediction mosaic, summary statistics with FADGI / ISO 19264 / Metamorfoze badges,
 export."""
@@ -18,10 +18,10 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QFormLayout, Q
                                QHBoxLayout, QLabel, QProgressBar, QPushButton, QSplitter, QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
-from app.gui.panels.camera import image_widget
-from app.gui.panels.target import session_subjects
-from app.gui.widgets import plot_widget
+from app.gui.widgets import image_widget, plot_widget
 from app.gui.workers import TaskHandle
+from app.workflow.session_processing import light_sets, subject_entries
+from app.workflow.vocabulary import Subject
 
 log = logging.getLogger(__name__)
 
@@ -42,52 +42,23 @@ class TargetView:
     layout: tuple[int, int]
 
 
-def reference_xyz(lab, subject: str, entries_meta: list[dict]) -> tuple[np.ndarray, list[str], str]:
-    """Reference XYZ of a captured target: the packaged target of the lab's mode (eq 4.2, D65); patches under
-    the virtual lab's ND 2.0 filter are scaled by its transmittance."""
-    from simulation.colorimetry import tristimulus
-    from simulation.datasets import default_setup
-
-    tag = subject.partition(":")[2]
-    if tag not in ("train", "test"):
-        raise ValueError(f"{subject}: no reference data for it (only the training and test targets have them)")
-    mode = lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode
-    setup = default_setup(mode)
-    target = getattr(setup, tag)
-    spectra = target.spectra
-    if any(m.get("nd") for m in entries_meta) and lab.virtual_lab is not None:
-        scene = lab.virtual_lab.scene_for(tag, nd=True)
-        spectra = spectra * np.where(scene.nd_patches(), scene.nd_transmittance, 1.0)[:, None]
-    return tristimulus(spectra, setup.illuminant, setup.cmfs), list(target.patch_names), target.name
-
-
 def process(lab, session, grids: dict, train_subject: str, test_subject: Optional[str], optimise: bool,
-            progress, cancel) -> tuple[object, dict[str, TargetView], Path]:
-    """Worker: build the TargetSpecs, run the processing package, prepare the plot data."""
-    from app.processing.pipeline import TargetSpec, process_session
+            progress, cancel, lights: Optional[list[str]] = None) -> tuple[object, dict[str, TargetView], Path]:
+    """Worker: the TargetSpecs (app.workflow.targets), the one processing path, the plot data."""
     from app.processing.report import xyz_to_srgb8
+    from app.workflow.session_processing import process_session
+    from app.workflow.targets import reference_white, target_spec
     from simulation.colorimetry import xyz_to_lab
 
-    subjects = session_subjects(session)
-    specs = {}
-    for label, subject in (("train", train_subject), ("test", test_subject)):
-        if not subject:
-            continue
-        if subject not in subjects:
-            raise ValueError(f"the session has no captures of {subject!r}")
-        meta = [e.meta for es in subjects[subject].values() for e in es]
-        xyz, names, name = reference_xyz(lab, subject, meta)
-        grid = grids.get(subject)
-        if grid is None and len(names) != 24:
-            raise ValueError(f"{subject}: place the patch grid on it in Target first")
-        if grid is not None and grid.n_patches < len(names):
-            raise ValueError(f"{subject}: the grid has {grid.n_patches} cells but the target {len(names)} patches; "
-                             "set rows and columns in Target")
-        specs[label] = TargetSpec(subject, xyz, names, grid, (grid.rows, grid.cols) if grid else None,
-                                  label=f"{label} ({name})")
+    mode = lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode
+    specs = {label: target_spec(mode, Subject.parse(key), grids.get(key), lab=lab.virtual_lab)
+             for label, key in (("train", train_subject), ("test", test_subject)) if key}
+    for label, spec in specs.items():
+        spec.label = f"{label}: {spec.label}"                 # e.g. "train: test (CC24 on film)"
     out_dir = Path(session.path) / "results"
-    result = process_session(session, out_dir, specs["train"], specs.get("test"), optimise=optimise,
-                             title=f"dual-RGB capture, {Path(session.path).name}", progress=progress, cancel=cancel)
+    result = process_session(session, out_dir, specs["train"], specs.get("test"), lights=lights, optimise=optimise,
+                             white_xyz=reference_white(mode), title=f"dual-RGB capture, {Path(session.path).name}",
+                             progress=progress, cancel=cancel)
     c = result.characterisation
     best = c.results[c.best]
     views = {}
@@ -119,6 +90,9 @@ class ResultsPanel(QWidget):
         self.train_subject.setToolTip("The target the matrix is fitted on.")
         self.test_subject = QComboBox()
         self.test_subject.setToolTip("The target that checks the matrix (the accuracy figures are on this one).")
+        self.lights = QComboBox()
+        self.lights.setToolTip("Which preset's lights to process (a session may hold captures under several).")
+        self.light_sets: dict[str, list[str]] = {}
         self.optimise = QCheckBox("also fit the ΔE00-optimised matrix")
         self.optimise.setChecked(ctx.get("results/optimise", True, bool))
         self.optimise.toggled.connect(lambda on: ctx.set("results/optimise", on))
@@ -137,6 +111,7 @@ class ResultsPanel(QWidget):
         self.status.setWordWrap(True)
         form.addRow("Fit on", self.train_subject)
         form.addRow("Check on", self.test_subject)
+        form.addRow("Lights", self.lights)
         form.addRow(self.optimise)
         row = QHBoxLayout()
         row.addWidget(self.process_button)
@@ -216,10 +191,18 @@ class ResultsPanel(QWidget):
         session = self.lab.session
         if session is None:
             return
-        self.ctx.runner.submit(lambda: sorted(session_subjects(session)), pool="compute", name="list targets",
+        self.ctx.runner.submit(lambda: subject_entries(session), pool="compute", name="list targets",
                                on_result=self._fill, on_error=lambda exc: self.ctx.errors.report("Results", exc))
 
-    def _fill(self, keys: list[str]) -> None:
+    def _fill(self, subjects: dict) -> None:
+        keys = sorted(subjects)
+        names = [n for key in keys if key.startswith("target:") for n in subjects[key]]
+        self.light_sets = light_sets(list(dict.fromkeys(names)))
+        current = self.lights.currentText()
+        self.lights.clear()
+        self.lights.addItems(list(self.light_sets))
+        if current in self.light_sets:
+            self.lights.setCurrentText(current)
         for combo, tag in ((self.train_subject, "train"), (self.test_subject, "test")):
             current = combo.currentText()
             combo.clear()
@@ -242,13 +225,14 @@ class ResultsPanel(QWidget):
             return
         grids = dict(self.ctx.shared.get("grids", {}))
         optimise = self.optimise.isChecked()
+        lights = self.light_sets.get(self.lights.currentText())
         lab = self.lab
         self.process_button.setEnabled(False)
         self.cancel_button.setEnabled(True)
         self.status.setText("processing …")
         self.progress.setValue(0)
         self.handle = self.ctx.runner.submit(
-            lambda progress, cancel: process(lab, session, grids, train, test, optimise, progress, cancel),
+            lambda progress, cancel: process(lab, session, grids, train, test, optimise, progress, cancel, lights),
             pool="compute", name="process session", pass_progress=True, pass_cancel=True,
             on_progress=lambda f, m: (self.progress.setValue(int(1000 * f)), self.status.setText(m)),
             on_result=self.show_result, on_error=self._failed, on_finished=self._finished)

@@ -12,27 +12,14 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFormLayout, QGroupBox
                                QPushButton, QSpinBox, QSplitter, QVBoxLayout, QWidget)
 
 from app.gui.context import AppContext
-from app.gui.panels.camera import image_widget
 from app.gui.viewmodel import display_rgb
+from app.gui.widgets import image_widget
 from app.processing.patches import PatchGrid, detect_cc24
 from app.processing.report import layout_for
+from app.workflow.session_processing import subject_entries
+from app.workflow.vocabulary import Subject, SubjectKind
 
 log = logging.getLogger(__name__)
-
-TARGET_ROLES = ("target", "target-nd", "hdr", "hdr-nd", "object")
-
-
-def session_subjects(session) -> dict[str, dict[str, list]]:
-    """subject key ('target:train', 'hdr:test', ...) -> light name -> entries (as app.processing groups them)."""
-    out: dict[str, dict[str, list]] = {}
-    for e in session.entries():
-        if e.role not in TARGET_ROLES:
-            continue
-        tag = e.meta.get("target") or e.meta.get("subject")
-        key = f"{e.role}:{tag}" if tag else e.role
-        out.setdefault(key, {}).setdefault(e.light_name or "light", []).append(e)
-    return out
-
 
 class TargetPanel(QWidget):
     title = "Target"
@@ -127,7 +114,7 @@ class TargetPanel(QWidget):
             self.subject.clear()
             self.info.setText("No session yet: capture a target in Calibrate & capture.")
             return
-        self.ctx.runner.submit(lambda: session_subjects(session), pool="compute", name="list targets",
+        self.ctx.runner.submit(lambda: subject_entries(session), pool="compute", name="list targets",
                                on_result=self._fill_subjects,
                                on_error=lambda exc: self.ctx.errors.report("List the targets", exc))
 
@@ -155,7 +142,12 @@ class TargetPanel(QWidget):
         self.load_frame()
 
     def tag(self) -> str:
-        return self.subject.currentText().partition(":")[2] or "test"
+        """'train' / 'test' for a colour target, else '' (an original)."""
+        key = self.subject.currentText()
+        if not key:
+            return "test"
+        subject = Subject.parse(key)
+        return subject.name if subject.kind is SubjectKind.TARGET else ""
 
     def reference_layout(self, n_default: int = 24) -> tuple[int, int]:
         vl = self.lab.virtual_lab

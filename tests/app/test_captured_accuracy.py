@@ -1,9 +1,9 @@
-"""app.virtual_lab_check: a light set captured through the virtual camera and app.processing (small frames)
+"""app.captured_accuracy: a light set captured through the virtual camera and app.processing (small frames)
 gives the patch values and the accuracy the simulation predicts."""
 import numpy as np
 import pytest
 
-from app.virtual_lab_check import capture_patch_values, captured_errors
+from app.captured_accuracy import capture_patch_values, captured_errors
 from simulation.datasets import default_setup
 from simulation.objective import Evaluator
 from simulation.studies.noise import NoiseModel

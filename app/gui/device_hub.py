@@ -1,7 +1,7 @@
 """The devices and the capture session the window works with, behind one QObject.
 
 Every device call is submitted to the runner's ``devices`` pool (one thread, in order); results and errors come
-back on the GUI thread as signals. The virtual lab (app.virtual_lab.VirtualLab: the sphere emulator on a pty,
+back on the GUI thread as signals. The virtual lab (drivers.virtual.lab.VirtualLab: the sphere emulator on a pty,
 the LedSphere driver over it, the virtual camera) is started on first use of a virtual device.
 """
 from __future__ import annotations
@@ -111,7 +111,7 @@ class Lab(QObject):
 
     def _ensure_virtual_lab(self) -> Any:      # devices thread
         if self.virtual_lab is None:
-            from app.virtual_lab import VirtualLab
+            from drivers.virtual.lab import VirtualLab
             lab = VirtualLab(mode=self.mode, frame_size=self.frame_size, seed=self.seed, bumps=self.shutter_bumps)
             lab.start()
             self.virtual_lab = lab

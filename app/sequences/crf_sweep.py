@@ -2,7 +2,7 @@
 
 For each light level, exposures run from the shortest offered time upwards until the field clips (or the
 light-on limit is reached); the mean green signal above black of the central region is recorded per frame,
-and app.crf.analyse_crf finds the linear limit and flags exposure times that depart from linearity.
+and app.processing.crf_analysis.analyse_crf finds the linear limit and flags exposure times that depart from linearity.
 Several light levels give every exposure time a sample inside the linear range (appendix A.2.1).
 """
 from __future__ import annotations
@@ -12,9 +12,9 @@ from typing import Iterator, Optional, Sequence
 
 import numpy as np
 
-from app.crf import CrfResult, analyse_crf
+from app.processing.crf_analysis import CrfResult, analyse_crf
 from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
-from app.sequences.calibration import exposure_key
+from app.workflow.vocabulary import exposure_key
 from app.sequences.shooter import Shooter
 from simulation.lightsource import LightSource
 

@@ -1,0 +1,41 @@
+"""``dualrgb calibration show FILE``: what a calibration profile is, and (with devices) whether it fits the stand.
+
+    dualrgb calibration show FILE [--virtual-lab | --port P --camera C] [--json J]
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+from app.commands.stand_options import add_device_options, add_reuse_options, open_devices, reuse_limits, write_json
+
+log = logging.getLogger(__name__)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("calibration", help="show a calibration profile and check it against the stand")
+    verbs = p.add_subparsers(dest="verb", metavar="VERB")
+    verbs.required = True
+    show = verbs.add_parser("show", help="what the calibration is; with devices, its reuse checks")
+    show.add_argument("file", type=Path)
+    add_reuse_options(show)
+    add_device_options(show)
+    show.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    from app.workflow.profile import CameraIdentity, SphereIdentity, check_reuse, describe, load_profile
+
+    profile = load_profile(args.file)
+    check = None
+    if args.virtual_lab or args.port or args.camera:
+        with open_devices(args, profile.mode) as dev:
+            check = check_reuse(profile, CameraIdentity.of(dev.camera), SphereIdentity.of(dev.sphere),
+                                profile.lights, reuse_limits(args))
+    for line in describe(profile, check):
+        print(line)
+    write_json(args.json_path, {**profile.to_dict(), "age_h": round(profile.age_h(), 3),
+                                "check": None if check is None else {"refusals": check.refusals,
+                                                                     "warnings": check.warnings}})
+    return 1 if check is not None and not check.ok and not args.force else 0

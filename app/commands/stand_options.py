@@ -1,0 +1,156 @@
+"""What ``dualrgb calibrate``, ``capture``, ``process`` and ``calibration show`` share: device options (the
+virtual lab or --port / --camera), progress on stderr, the JSON summary, the reuse limits. Not a command itself.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import logging
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterator, Optional
+
+from app.commands.options import count, frame_size, number, seed
+
+log = logging.getLogger(__name__)
+
+VIRTUAL_ORIGINALS = {"reflective": "painting", "transmissive": "film"}
+
+
+def add_device_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("devices")
+    g.add_argument("--virtual-lab", action="store_true", help="the built-in virtual lab (sphere emulator + camera)")
+    g.add_argument("--port", help="the LED sphere's serial port (e.g. /dev/ttyACM0)")
+    g.add_argument("--camera", help="the camera as 'MODEL @ PORT' (from `dualrgb devices`), or 'auto' (the first)")
+    g.add_argument("--frame-size", type=frame_size, default=(600, 400), help="virtual lab frames WxH (600x400)")
+    g.add_argument("--seed", type=seed, default=0, help="virtual lab noise seed")
+    g.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
+    g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
+    g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=0.2, help="seconds between light on and shutter (0.2)")
+    p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
+
+
+def add_reuse_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--force", action="store_true", help="use a calibration that does not match, with a warning")
+    p.add_argument("--max-age-h", type=number(0.0, 8760), default=8.0, help="warn when the calibration is older (8 h)")
+    p.add_argument("--max-temperature-drift", type=number(0.0, 100), default=5.0,
+                   help="refuse when the sphere is this many C from the calibration's temperature (5)")
+
+
+def progress_printer() -> Callable[[float, str], None]:
+    last = [None]
+
+    def progress(f: float, msg: str) -> None:
+        line = f"[{int(100 * f):3d}%] {msg}"
+        if line != last[0]:
+            last[0] = line
+            print(line, file=sys.stderr, flush=True)
+    return progress
+
+
+def ask_person(message: str) -> None:
+    """A prompt from a sequence: say it and wait for Enter (a terminal is needed)."""
+    if not sys.stdin or not sys.stdin.isatty():
+        raise ValueError(f"{message}: needs a person at the stand (run in a terminal, or use --virtual-lab)")
+    print(f">>> {message} (Enter)", file=sys.stderr, flush=True)
+    sys.stdin.readline()
+
+
+def write_json(path: Optional[Path], data: dict) -> None:
+    if path is None:
+        return
+    from app.session import atomic_write
+
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(Path(path), (json.dumps(data, indent=2, default=str) + "\n").encode())
+
+
+@dataclass
+class Devices:
+    camera: Any
+    sphere: Any
+    stand: Optional[Callable[[str, bool], Any]]
+    lab: Any = None
+
+
+def _apply_settings(camera: Any, args: argparse.Namespace) -> None:
+    from drivers.camera.base import CameraSettings
+
+    if args.iso is not None or args.aperture is not None:
+        camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
+
+
+@contextlib.contextmanager
+def open_devices(args: argparse.Namespace, mode: str = "reflective", original: Optional[str] = None
+                 ) -> Iterator[Devices]:
+    """The virtual lab or the real sphere + camera; LEDs off and ports closed on the way out, whatever happens.
+
+    In the virtual lab an original is placed as its virtual stand-in ``original`` (``--virtual-original``: a
+    virtual original's name, or a chart: 'test', 'test+nd' with the ND 2.0 filter over half)."""
+    if args.virtual_lab:
+        from drivers.virtual.lab import VirtualLab
+
+        with VirtualLab(mode=mode, frame_size=args.frame_size, seed=args.seed) as lab:
+            _apply_settings(lab.camera, args)
+
+            def stand(what: str, nd: bool = False) -> Any:
+                if what.startswith("original:"):     # the virtual stand-in; a chart works too ('test', 'test+nd')
+                    name = original or VIRTUAL_ORIGINALS[mode]
+                    chart, plus, _ = name.partition("+nd")
+                    if chart in ("train", "test"):
+                        return lab.place(chart, bool(plus) or nd)
+                    what = f"original:{name}"
+                return lab.place(what, nd)
+            yield Devices(lab.camera, lab.sphere, stand, lab)
+        return
+    if not args.port or not args.camera:
+        raise ValueError("name the devices: --port SERIAL_PORT --camera 'MODEL @ PORT' (or --virtual-lab)")
+    yield from _real_devices(args)
+
+
+def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
+    from drivers.camera.gphoto import GPhotoCamera
+    from drivers.led_sphere import LedSphere
+
+    model, _, port = args.camera.partition(" @ ")
+    if args.camera == "auto":
+        from drivers.usb_discovery import gphoto_cameras
+
+        found = gphoto_cameras()
+        if not found:
+            raise ValueError("--camera auto: no camera found (connect it by USB, switch it on; `dualrgb devices`)")
+        model, port = found[0].model, found[0].port
+    sphere = LedSphere(args.port).open()
+    try:
+        sphere.shutdown()
+        with GPhotoCamera(model=model or None, port=port or None) as camera:
+            _apply_settings(camera, args)
+            yield Devices(camera, sphere, None, None)
+    finally:
+        try:
+            sphere.shutdown()
+        finally:
+            sphere.close()
+
+
+def open_session(folder: Path, definition: dict, camera: Any, meta: Optional[dict] = None) -> Any:
+    """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
+    (anything else is refused in one line naming the difference; app.session). One writer at a time."""
+    from app.session import CaptureSession, camera_definition
+
+    session = CaptureSession.resume(Path(folder), definition, meta or {},
+                                    hint="use the same options and camera, or another --session")
+    try:
+        session.extend_definition(camera=camera_definition(camera))
+    except BaseException:
+        session.close()
+        raise
+    return session
+
+
+def reuse_limits(args: argparse.Namespace) -> Any:
+    from app.workflow.profile import ReuseLimits
+
+    return ReuseLimits(temperature_drift_c=args.max_temperature_drift, max_age_h=args.max_age_h)

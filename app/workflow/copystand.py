@@ -1,0 +1,353 @@
+"""The copy-stand day, Qt-free: calibrate once, then capture and deliver originals with that calibration.
+
+    stand = CopyStand(camera, sphere, session, stand=lab.place, lab=lab, progress=print_progress)
+    profile = stand.calibrate(preset, hdr_auto=True)                  # darks, flats, targets, matrix, profile
+    report = stand.capture(Original("ACC-123", title="Portrait"), profile)   # metering, HDR if needed, deliver
+    print(report.qa.text())
+
+The GUI, the CLI and the demo drive the stand through this object. Long work reports through plain callbacks:
+``progress(fraction, message)`` and ``on_event(ProgressEvent)`` (every frame saved / kept, every prompt);
+``cancel`` (a simulation.progress.CancelToken) stops between frames with the LEDs off. Hooks for a person:
+``prompt(message)`` returns when they have done what it asks (place the target, cap the lens; never called when
+a ``stand`` callback places things, as in the virtual lab) and ``reshoot(original, n_frames)`` answers whether an
+original already in the session is shot again (True: new frames under the next take) or kept (False).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Callable, Optional, Sequence
+
+import numpy as np
+
+from app.processing.pipeline import CaptureProcessor, ExposureRef
+from app.sequences.base import ProgressEvent, Sequence as BaseSequence
+from app.sequences.calibration import DarkSeries, FlatSeries, auto_exposure, snap_down
+from app.sequences.capture import SubjectCapture
+from app.sequences.hdr import meter_and_plan
+from app.sequences.shooter import SafetySettings, Shooter
+from app.workflow.coverage import coverage
+from app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
+from app.workflow.profile import (CalibrationProfile, CameraIdentity, ProfileError, ReuseCheck, ReuseLimits,
+                                  SphereIdentity, check_reuse, new_profile_id)
+from app.workflow.session_processing import SessionResult, process_session
+from app.workflow.targets import TargetSpec, reference_white, target_spec
+from app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, lights_of, split_take, subject_of
+from simulation.progress import CancelToken, Cancelled, ProgressCallback, report
+
+log = logging.getLogger(__name__)
+
+Prompt = Callable[[str], None]
+ReshootQuestion = Callable[[Original, int], bool]
+EventCallback = Callable[[ProgressEvent], None]
+VIRTUAL_TARGET_WIDTH_MM = 280.0     # the virtual lab's test target, outer corners of its corner patches
+
+
+def parsimony_defaults() -> dict:
+    from simulation.studies.parsimony import load_defaults
+
+    return load_defaults()
+
+
+@dataclass
+class StandSettings:
+    settle_s: float = SafetySettings().settle_s
+    dark_frames: int = 10                     # thesis 8.2.1
+    flat_frames: int = 3
+    hdr_exposures: Optional[int] = None       # most exposures per light; None: resources/parsimony.json
+    optimise_matrix: Optional[bool] = None    # also the dE00-optimised matrix; None: resources/parsimony.json
+    limits: ReuseLimits = field(default_factory=ReuseLimits)
+    force: bool = False                       # reuse a mismatching calibration with a warning
+    ppi: Optional[float] = None               # sampling set by the user (else from the target's size)
+    target_width_mm: Optional[float] = None   # test target's width (corner patches' outer corners) -> ppi
+    meter_tiles: int = 12                     # metering regions across the frame (HDR decision for originals)
+    original_frames: int = 1                  # frames averaged per exposure of an original (noise / sqrt(n))
+
+
+@dataclass
+class CaptureReport:
+    original: Original
+    new: int
+    kept: int
+    exposures: dict[str, list[float]]
+    delivery: Delivery
+    check: ReuseCheck
+    warnings: list[str] = field(default_factory=list)
+
+    def summary(self) -> str:
+        return f"{self.original.identifier}: {self.new} new, {self.kept} kept; {self.delivery.qa.text()}"
+
+
+class CopyStand:
+    """Devices + session + the rules of the copy-stand day (see the module docstring)."""
+
+    def __init__(self, camera: Any, sphere: Any, session: Any, *, stand: Optional[Callable[[str, bool], Any]] = None,
+                 lab: Any = None, settings: Optional[StandSettings] = None, progress: Optional[ProgressCallback] = None,
+                 cancel: Optional[CancelToken] = None, prompt: Optional[Prompt] = None,
+                 reshoot: Optional[ReshootQuestion] = None, on_event: Optional[EventCallback] = None):
+        self.camera, self.sphere, self.session, self.lab = camera, sphere, session, lab
+        self.settings = settings or StandSettings()
+        self.progress, self.cancel, self.prompt, self.reshoot, self.on_event = progress, cancel, prompt, reshoot, on_event
+        self.shooter = Shooter(camera, sphere, session, stand=stand, safety=SafetySettings(settle_s=self.settings.settle_s))
+
+    # ------------------------------------------------------------------ running sequences
+    def run_sequence(self, seq: BaseSequence, lo: float = 0.0, hi: float = 1.0) -> list[ProgressEvent]:
+        """Drive a sequence: prompts go to ``prompt``, progress to ``progress``, cancel stops it (LEDs off)."""
+        events = []
+        for ev in seq.run():
+            if self.cancel is not None and self.cancel.cancelled:
+                seq.cancel()
+            if ev.kind == EventKind.CANCELLED.value:
+                raise Cancelled(ev.message)
+            if ev.kind == EventKind.PROMPT.value:
+                if self.prompt is None:
+                    raise ValueError(f"{ev.message}: a person must do this (no stand and no prompt)")
+                self.prompt(ev.message)
+            report(self.progress, lo + (hi - lo) * ev.fraction, ev.message)
+            if self.on_event is not None:
+                self.on_event(ev)
+            events.append(ev)
+        return events
+
+    def _check_cancel(self) -> None:
+        if self.cancel is not None:
+            self.cancel.check()
+
+    # ------------------------------------------------------------------ calibration
+    def exposure_plan(self, base: dict[str, float], hdr_auto: bool) -> dict[str, list[float]]:
+        """Per light: the open-gate exposure, and with ``hdr_auto`` longer ones (HDR, thesis 8) up to the most the
+        parsimony study found worth it, each within the overlap the HDR planner keeps and the light-on limit."""
+        from app.sequences.hdr import LINEAR_LIMIT_DN
+
+        n = self.hdr_exposures() if hdr_auto else 1
+        limit = self.shooter.safety.max_exposure_s
+        usable = [s for s in self.camera.shutter_speeds() if s <= limit]
+        step = 0.8 * LINEAR_LIMIT_DN / 100.0                 # app.sequences.hdr.plan_hdr's overlap factor
+        plan = {}
+        for name, t in base.items():
+            ts = [t]
+            while len(ts) < n:
+                nxt = snap_down(usable, ts[-1] * step)
+                if nxt <= ts[-1]:
+                    break
+                ts.append(nxt)
+            plan[name] = ts
+        return plan
+
+    def hdr_exposures(self) -> int:
+        return int(self.settings.hdr_exposures or parsimony_defaults()["hdr_exposures"])
+
+    def auto_expose(self, lights: Sequence[NamedLight]) -> dict[str, float]:
+        base = {}
+        try:
+            for i, nl in enumerate(lights):
+                self._check_cancel()
+                report(self.progress, 0.1 * i / len(lights), f"auto-exposure: metering {nl.name} on the open gate")
+                base[nl.name], _ = auto_exposure(self.shooter, nl)
+        finally:
+            self.shooter.lights_off()
+        return base
+
+    def calibrate(self, preset: Any, *, hdr_auto: bool = False, grids: Optional[dict[str, Any]] = None,
+                  report_dir: Optional[Path] = None) -> CalibrationProfile:
+        """Auto-exposure, darks and flats at every planned exposure, training and test targets, characterisation:
+        the calibration profile, saved in ``<session>/calibration/``."""
+        lights = lights_of(preset)
+        base = self.auto_expose(lights)
+        plan = self.exposure_plan(base, hdr_auto)
+        shooter, s = self.shooter, self.settings
+        self.run_sequence(DarkSeries(shooter, sorted({t for ts in plan.values() for t in ts}), s.dark_frames), .1, .35)
+        self.run_sequence(FlatSeries(shooter, lights, plan, s.flat_frames), .35, .5)
+        for i, name in enumerate(("train", "test")):
+            self.run_sequence(SubjectCapture(shooter, lights, {n: [t] for n, t in base.items()},
+                                             Subject.target(name)), .5 + .05 * i, .55 + .05 * i)
+        specs = {name: target_spec(preset.mode, Subject.target(name), (grids or {}).get(name), lab=self.lab)
+                 for name in ("train", "test")}
+        optimise = self.settings.optimise_matrix
+        if optimise is None:
+            optimise = parsimony_defaults()["characterisation_model"] != "linear"
+        out = Path(report_dir or self.session.path / "calibration" / "report")
+        result = process_session(self.session, out, specs["train"], specs["test"], lights=[nl.name for nl in lights],
+                                 exposures={n: [t] for n, t in base.items()}, optimise=optimise,
+                                 white_xyz=reference_white(preset.mode), title=f"calibration, {preset.name}",
+                                 progress=lambda f, m: report(self.progress, 0.6 + 0.35 * f, m), cancel=self.cancel)
+        profile = self._profile(preset, lights, plan, base, result, specs["test"])
+        profile.save(self.session.path / "calibration")
+        report(self.progress, 1.0, f"calibration {profile.id} saved")
+        return profile
+
+    def _profile(self, preset: Any, lights: list[NamedLight], plan: dict[str, list[float]], base: dict[str, float],
+                 result: SessionResult, test: TargetSpec) -> CalibrationProfile:
+        proc = result.processor
+        entries = [e for e in self.session.entries() if e.role in (Role.DARK.value, Role.FLAT.value, Role.TARGET.value)]
+        sources = {e.file: e.sha256 for e in entries}
+        temps = [e.sphere_temperature_c for e in entries if e.sphere_temperature_c is not None]
+        sphere = SphereIdentity.of(self.sphere)
+        if temps:
+            sphere.temperature_c = float(np.mean(temps))
+        created = datetime.now(timezone.utc)
+        c = result.characterisation
+        first = next(iter(proc._whites.values()))
+        return CalibrationProfile(
+            id=new_profile_id(created, sources), created_at=created.isoformat(timespec="seconds"), mode=preset.mode,
+            camera=CameraIdentity.of(self.camera), sphere=sphere, preset=preset.name, lights=lights, exposures=plan,
+            base_exposures=base, matrix=c.matrix, statistics={**c.to_dict(), "report": str(result.files["report"])},
+            white_xyz=[float(v) for v in c.white], sources=sources, ppi=self._ppi(test),
+            raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
+                 "linear_limit": proc.linear_limit, "shape": list(first.white.shape)},
+            targets={"train": result.report.get("train"), "test": result.report.get("test")},
+            darks=proc.darks, whites=dict(proc._whites))
+
+    def _ppi(self, test: TargetSpec) -> Optional[float]:
+        if self.settings.ppi:
+            return float(self.settings.ppi)
+        width_mm = self.settings.target_width_mm or (VIRTUAL_TARGET_WIDTH_MM if self.lab is not None else None)
+        if not width_mm or test.grid is None:
+            return None
+        tl, tr = np.asarray(test.grid.corners[0]), np.asarray(test.grid.corners[1])
+        return round(float(np.hypot(*(tr - tl))) / (width_mm / 25.4), 2)     # stack pixels per inch
+
+    # ------------------------------------------------------------------ originals
+    def check(self, profile: CalibrationProfile, lights: Optional[Sequence[NamedLight]] = None) -> ReuseCheck:
+        """Compare the stand with the calibration; a mismatch raises ProfileError (one line) unless ``force``."""
+        result = check_reuse(profile, CameraIdentity.of(self.camera), SphereIdentity.of(self.sphere),
+                             lights if lights is not None else profile.lights, self.settings.limits)
+        if not result.ok:
+            if not self.settings.force:
+                raise ProfileError(f"calibration {profile.id} refused: {result.message()} (--force to use it anyway)")
+            result.warnings.insert(0, f"calibration used despite: {result.message()}")
+        for w in result.warnings:
+            log.warning("%s", w)
+        return result
+
+    def _take(self, original: Original, reshoot: Optional[bool]) -> tuple[int, int]:
+        """(take to record, frames already in the session for this original)."""
+        subject = original.subject
+        takes = [split_take(e.step_id or "")[1] for e in self.session.entries(include_superseded=True)
+                 if e.role == Role.ORIGINAL.value and subject_of(e) == subject]
+        if not takes:
+            return 1, 0
+        again = reshoot if reshoot is not None else (self.reshoot(original, len(takes)) if self.reshoot else False)
+        return (max(takes) + 1 if again else max(takes)), len(takes)
+
+    def meter(self, original: Original, profile: CalibrationProfile, take: int) -> tuple[dict[str, list[float]], list[str]]:
+        """Metering frame per light -> the calibrated exposures the original needs (HDR only when it must)."""
+        h, w = profile.raw["shape"]
+        n = self.settings.meter_tiles
+        rows, cols = np.linspace(0, h, n + 1).astype(int), np.linspace(0, w, n + 1).astype(int)
+        tiles = [(rows[i], rows[i + 1], cols[j], cols[j + 1]) for i in range(n) for j in range(n)]
+        plans = meter_and_plan(self.shooter, profile.lights, profile.base_exposures, original.subject, tiles,
+                               progress=lambda f, m: report(self.progress, 0.1 * f, m), cancel=self.cancel, take=take,
+                               max_frames=self.hdr_exposures())
+        exposures, warnings = {}, []
+        for nl in profile.lights:
+            wanted = len(plans[nl.name].exposures)
+            have = profile.exposures[nl.name]
+            exposures[nl.name] = have[:wanted]
+            if wanted > len(have):
+                warnings.append(f"{nl.name}: the scene needs {wanted} exposures, the calibration covers "
+                                f"{len(have)} (recalibrate with --hdr auto)")
+        return exposures, warnings
+
+    def capture(self, original: Original, profile: CalibrationProfile, *, reshoot: Optional[bool] = None,
+                out_dir: Optional[Path] = None) -> CaptureReport:
+        """Check the calibration, meter, capture (HDR when metering asks), deliver; frames already in the session
+        are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
+        checked = self.check(profile)
+        take, existing = self._take(original, reshoot)
+        exposures, warnings = self.meter(original, profile, take)
+        if profile.mode != original.mode:
+            warnings.append(f"calibrated {profile.mode}, original {original.mode}: colour not characterised for it")
+        builder = profile_processor(profile).begin_stack([nl.name for nl in profile.lights])
+        seq = SubjectCapture(self.shooter, profile.lights, exposures, original.subject, take,
+                             meta={"title": original.title, "operator": original.operator, "mode": original.mode},
+                             frames=self.settings.original_frames)
+
+        def landed(ev: ProgressEvent) -> None:            # merge each frame as soon as it is on disk
+            if ev.kind in (EventKind.FRAME.value, EventKind.KEPT.value):
+                e = next(x for x in self.session.entries() if x.seq == ev.data["entry"])
+                builder.add(ev.data["light"], ExposureRef(self.session.file_path(e), float(e.exposure_s), e.file),
+                            cancel=self.cancel)
+        outer, self.on_event = self.on_event, _chain(self.on_event, landed)
+        try:
+            self.run_sequence(seq, 0.1, 0.8)
+        finally:
+            self.on_event = outer
+        dose = original_dose(self.session, original.subject)
+        delivery = deliver(builder.result(), profile, original, Path(out_dir or self.session.path / "deliverables"),
+                           camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
+                           exposures=exposures, warnings=checked.warnings + warnings,
+                           extra={"session": str(self.session.path), "take": take, "frames": seq.steps()})
+        self._remember(original, dose, delivery, take, profile)
+        report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
+        return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)
+
+    def _remember(self, original: Original, total: LightDoseRecord, delivery: Delivery, take: int,
+                  profile: CalibrationProfile) -> None:
+        """The original's metadata and total dose in session.json (``dualrgb process`` re-delivers from it)."""
+        originals = dict(self.session.settings.get("originals", {}))
+        originals[original.identifier] = {**original.to_dict(), "take": take, "light_dose": total.to_dict(),
+                                          "sidecar": str(delivery.sidecar), "calibration": str(profile.path or "")}
+        self.session.update_settings(originals=originals)
+
+
+def original_dose(session: Any, subject: Subject) -> LightDoseRecord:
+    """Every lit period of an original (metering, every take) from the session manifest's dose lines."""
+    from app.light_dose import LightDose, light_from_record
+
+    total = LightDose()
+    marker = f"/{subject.key}/"
+    for d in session.doses():
+        if d.step_id and marker in d.step_id:
+            total.add(light_from_record(d.light), d.on_s)
+    return LightDoseRecord(total.lux_s, total.on_s)
+
+
+def _chain(*callbacks: Optional[EventCallback]) -> EventCallback:
+    def call(ev: ProgressEvent) -> None:
+        for cb in callbacks:
+            if cb is not None:
+                cb(ev)
+    return call
+
+
+def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
+    """A processor with the calibration's master darks and whites (nothing recomputed)."""
+    raw = profile.raw
+    proc = CaptureProcessor(darks=profile.darks, white_level=raw.get("white_level"), black_level=raw.get("black_level"),
+                            linear_limit=raw.get("linear_limit"), cfa=raw.get("cfa"))
+    for name, ff in profile.whites.items():
+        proc.put_white(name, ff)
+    return proc
+
+
+def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: Optional[float] = None,
+              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> list[Delivery]:
+    """Deliver every original of a session again with ``profile`` (``dualrgb process``)."""
+    from app.workflow.session_processing import select_lights, session_frames
+
+    frames = session_frames(session)
+    known = session.settings.get("originals", {})
+    names = [nl.name for nl in profile.lights]
+    originals = [s for s in frames.subjects if s.role is Role.ORIGINAL]
+    out = []
+    for i, subject in enumerate(originals):
+        if cancel is not None:
+            cancel.check()
+        meta = {k: v for k, v in known.get(subject.name, {}).items() if k in Original.__dataclass_fields__}
+        original = Original(**{**meta, "identifier": subject.name})
+        light_frames = select_lights(frames.subject(subject), names)
+        stack = profile_processor(profile).stack(light_frames, cancel=cancel)
+        out.append(deliver(stack, profile, original, out_dir, camera=profile.camera, ppi=ppi,
+                           dose=original_dose(session, subject),
+                           exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
+                           extra={"session": str(session.path), "reprocessed": True}))
+        report(progress, (i + 1) / len(originals), f"{original.identifier} delivered")
+    return out
+
+
+def calibration_coverage(session: Any, profile: CalibrationProfile) -> str:
+    """"darks 2/2 exposures, flats 4/4 light exposures" for the profile's plan in ``session``."""
+    return coverage(session, profile.exposures).summary()

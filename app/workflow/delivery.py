@@ -1,0 +1,198 @@
+"""Originals and their deliverables: what an original is, and the archival files made from its stack.
+
+Per original, named from its identifier (``<id>`` below, made file-safe), in ``<out>/<id>/``:
+
+* ``<id>_prophoto_16bit.tif`` and ``<id>_srgb_16bit.tif``: display-encoded RGB with the ICC profile embedded;
+* ``<id>_XYZ_16bit.tif``: linear CIE XYZ, 32768 = the reference white's Y (2x headroom);
+* ``<id>_<N>ch_16bit.tif``: the flat-fielded N-channel stack, 32768 = the white (open gate);
+* ``<id>.json``: the sidecar (format tag and software versions - dualrgb, numpy, numba, colour-science, rawpy,
+  LibRaw - from simulation.versions, the original, the calibration, exposures, light dose, QA, the files).
+
+Every TIFF carries resolution (ppi), Make/Model, DateTime, Software with the dualrgb version, an
+ImageDescription and XMP (identifier, title, operator, calibration id, light dose); see app.processing.outputs.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import re
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+
+from app.processing.encode import LINEAR_ONE, encode_deliverables
+from app.processing.outputs import TiffMetadata, icc_profile, tiff_datetime, write_tiff, xmp_packet
+from app.processing.pipeline import ChannelStack
+from app.session import atomic_write
+from app.workflow.profile import CalibrationProfile, CameraIdentity
+from app.workflow.vocabulary import Subject
+from simulation.versions import dualrgb_version, output_header
+
+log = logging.getLogger(__name__)
+
+SIDECAR_FORMAT = "dualrgb-delivery/1"
+MODES = ("reflective", "transmissive")
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+@dataclass
+class Original:
+    """An object to digitise: the identifier (accession number) is required and names every file."""
+
+    identifier: str
+    title: str = ""
+    operator: str = ""
+    notes: str = ""
+    mode: str = "reflective"
+
+    def __post_init__(self) -> None:
+        self.identifier = (self.identifier or "").strip()
+        if not self.identifier:
+            raise ValueError("an original needs an identifier (accession number), e.g. --id ACC-123")
+        if self.mode not in MODES:
+            raise ValueError(f"mode {self.mode!r}: expected {' or '.join(MODES)}")
+        if not self.file_stem:
+            raise ValueError(f"identifier {self.identifier!r}: needs at least one letter or digit for file names")
+
+    @property
+    def subject(self) -> Subject:
+        return Subject.original(self.identifier)
+
+    @property
+    def file_stem(self) -> str:
+        return _UNSAFE.sub("_", self.identifier).strip("._")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class LightDoseRecord:
+    """The light an original received while it was captured (metering included)."""
+
+    lux_s: float = 0.0
+    on_s: float = 0.0
+
+    @property
+    def lux_h(self) -> float:
+        return self.lux_s / 3600.0
+
+    def to_dict(self) -> dict:
+        return {"lux_s": round(self.lux_s, 4), "lux_h": round(self.lux_h, 8), "on_s": round(self.on_s, 4)}
+
+
+@dataclass
+class QaLine:
+    identifier: str
+    clipped_pct: float
+    underexposed_pct: float
+    invalid_pct: float
+    dose: LightDoseRecord
+    train_mean: Optional[float]
+    test_mean: Optional[float]
+    hdr: bool = False
+    warnings: list[str] = field(default_factory=list)
+
+    def text(self) -> str:
+        def de(v: Optional[float]) -> str:
+            return "n/a" if v is None else f"{v:.2f}"
+        return (f"{self.identifier}: clipped {self.clipped_pct:.2f} %, under-exposed {self.underexposed_pct:.2f} %, "
+                f"light dose {self.dose.lux_h:.3g} lux.h ({self.dose.lux_s:.3g} lux.s), calibration dE00 train "
+                f"{de(self.train_mean)} / test {de(self.test_mean)}" + (", HDR" if self.hdr else "")
+                + "".join(f"; {w}" for w in self.warnings))
+
+    def to_dict(self) -> dict:
+        return {"text": self.text(), "clipped_pct": round(self.clipped_pct, 4),
+                "underexposed_pct": round(self.underexposed_pct, 4), "invalid_pct": round(self.invalid_pct, 4),
+                "light_dose": self.dose.to_dict(), "calibration_train_de00_mean": self.train_mean,
+                "calibration_test_de00_mean": self.test_mean, "hdr": self.hdr, "warnings": self.warnings}
+
+
+@dataclass
+class Delivery:
+    original: Original
+    files: dict[str, Path]
+    sidecar: Path
+    qa: QaLine
+
+
+def _qa(stack: ChannelStack, invalid: float, profile: CalibrationProfile, original: Original,
+        dose: LightDoseRecord, hdr: bool, warnings: list[str]) -> QaLine:
+    best = profile.statistics.get("methods", {}).get(profile.statistics.get("best", ""), {})
+    clipped = max(stack.clipped_fraction.values(), default=0.0)
+    under = stack.underexposed_fraction
+    return QaLine(original.identifier, 100 * clipped, 100 * under, 100 * invalid, dose,
+                  (best.get("train") or {}).get("mean"), profile.test_mean, hdr, list(warnings))
+
+
+def _tiff_meta(original: Original, profile: CalibrationProfile, camera: CameraIdentity, dose: LightDoseRecord,
+               ppi: Optional[float], what: str, now: datetime) -> TiffMetadata:
+    software = f"dualrgb {dualrgb_version()}"
+    xmp = xmp_packet({"Operator": original.operator, "CalibrationID": profile.id, "Mode": original.mode,
+                      "LightDoseLuxHours": f"{dose.lux_h:.6g}", "LightDoseLuxSeconds": f"{dose.lux_s:.6g}",
+                      "Content": what, "Notes": original.notes},
+                     identifier=original.identifier, title=original.title, tool=software, created=now)
+    description = f"{original.identifier}" + (f" - {original.title}" if original.title else "") + f"; {what}"
+    make, _, model = (camera.model or "").partition(" ")
+    return TiffMetadata(software, description, make or camera.model, model or camera.model, ppi,
+                        tiff_datetime(now.astimezone()), xmp)
+
+
+def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original, out_dir: Path, *,
+            camera: CameraIdentity, dose: LightDoseRecord, ppi: Optional[float] = None,
+            exposures: Optional[dict[str, list[float]]] = None, warnings: Optional[list[str]] = None,
+            extra: Optional[dict] = None) -> Delivery:
+    """Encode the stack with the calibration's matrix and write every deliverable of ``original``."""
+    warnings = list(warnings or [])
+    ppi = ppi or profile.ppi
+    if not ppi:
+        warnings.append("no resolution: set the sampling (ppi) or calibrate with the target's size")
+    folder = Path(out_dir) / original.file_stem
+    folder.mkdir(parents=True, exist_ok=True)
+    now = datetime.now(timezone.utc)
+    enc = encode_deliverables(stack.data, profile.matrix.matrix, profile.white_xyz)
+    stem = original.file_stem
+    n = len(stack.channels)
+    jobs = {
+        "prophoto": (folder / f"{stem}_prophoto_16bit.tif", enc.rgb["ProPhoto RGB"], "rgb", icc_profile("ProPhoto RGB"),
+                     "ProPhoto RGB (ROMM), 16-bit, ICC embedded"),
+        "srgb": (folder / f"{stem}_srgb_16bit.tif", enc.rgb["sRGB"], "rgb", icc_profile("sRGB"),
+                 "sRGB, 16-bit, ICC embedded"),
+        "xyz": (folder / f"{stem}_XYZ_16bit.tif", enc.xyz, "minisblack", None,
+                f"CIE XYZ (D65, 2 deg), linear, {LINEAR_ONE:g} = reference white Y"),
+        "channels": (folder / f"{stem}_{n}ch_16bit.tif", enc.channels, "minisblack", None,
+                     f"{n} camera channels {' '.join(stack.channels)}, flat-fielded, linear, {LINEAR_ONE:g} = white"),
+    }
+
+    def write(item: tuple) -> Path:
+        path, image, photometric, icc, what = item
+        return write_tiff(path, image, _tiff_meta(original, profile, camera, dose, ppi, what, now),
+                          photometric=photometric, icc=icc)
+
+    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="deliver") as pool:   # I/O and memcpy overlap
+        files = dict(zip(jobs, pool.map(write, jobs.values())))
+    invalid = enc.invalid_fraction
+    del enc
+    qa = _qa(stack, invalid, profile, original, dose, any(len(v) > 1 for v in (exposures or {}).values()), warnings)
+    sidecar = folder / f"{stem}.json"
+    doc = {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"), "original": original.to_dict(),
+           "calibration": {"id": profile.id, "file": str(profile.path or ""), "created_at": profile.created_at,
+                           "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean},
+           "camera": asdict(camera), "ppi": ppi, "exposures": exposures or {}, "light_dose": dose.to_dict(),
+           "qa": qa.to_dict(), "encoding": {"rgb": "display-encoded, white = 65535",
+                                            "linear_one": LINEAR_ONE, "channels": stack.channels},
+           "files": {k: p.name for k, p in files.items()}, **(extra or {})}
+    atomic_write(sidecar, (json.dumps(doc, indent=2, default=str) + "\n").encode())
+    log.info("delivered %s: %s", original.identifier, qa.text())
+    return Delivery(original, files, sidecar, qa)
+
+
+def read_sidecar(path: Path) -> dict[str, Any]:
+    doc = json.loads(Path(path).read_text())
+    if doc.get("format") != SIDECAR_FORMAT:
+        raise ValueError(f"{path}: not a dualrgb delivery sidecar (format {doc.get('format')!r})")
+    return doc

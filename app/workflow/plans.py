@@ -1,0 +1,47 @@
+"""Sequences built from a kind, and the exposures darks and flats must cover, for the GUI's calibrate & capture.
+
+``build_sequence(SequenceKind.DARKS, ...)`` etc. make the same sequence objects the CLI and the demo run;
+``calibration_exposures`` is the rule for which exposures need darks and flats: every exposure a capture uses
+(the base exposures, every HDR bracket planned, and whatever the session already holds for those lights).
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any, Mapping, Optional, Sequence
+
+from app.sequences.base import Sequence as BaseSequence
+from app.sequences.calibration import DarkSeries, FlatSeries
+from app.sequences.capture import SubjectCapture
+from app.workflow.vocabulary import NamedLight, Role, SequenceKind, Subject, latest_takes, light_of, role_of
+
+log = logging.getLogger(__name__)
+
+
+def calibration_exposures(session: Any, base: Mapping[str, Sequence[float]],
+                          planned: Optional[Mapping[str, Sequence[float]]] = None) -> dict[str, list[float]]:
+    """Per light: every exposure the captures use (base, planned HDR brackets, targets and originals already in
+    the session under that light): darks and flats need all of them."""
+    out = {name: set(float(t) for t in ts) for name, ts in base.items()}
+    for name, ts in (planned or {}).items():
+        out.setdefault(name, set()).update(float(t) for t in ts)
+    if session is not None:
+        for e in latest_takes(session.entries()):
+            name = light_of(e)
+            if role_of(e) in (Role.TARGET, Role.ORIGINAL) and name in out and e.exposure_s:
+                out[name].add(float(e.exposure_s))
+    return {name: sorted(ts) for name, ts in out.items()}
+
+
+def build_sequence(kind: SequenceKind, shooter: Any, lights: Sequence[NamedLight], *,
+                   exposures: Mapping[str, Sequence[float]], frames: int = 1, subject: Optional[Subject] = None,
+                   take: int = 1) -> BaseSequence:
+    """The sequence of ``kind``: darks at every exposure in ``exposures``, flats per light at its exposures,
+    or ``subject`` under each light at its exposures (TARGET / HDR_TARGET / ORIGINAL)."""
+    kind = SequenceKind(kind)
+    if kind is SequenceKind.DARKS:
+        return DarkSeries(shooter, sorted({t for ts in exposures.values() for t in ts}), frames=frames)
+    if kind is SequenceKind.FLATS:
+        return FlatSeries(shooter, lights, {k: list(v) for k, v in exposures.items()}, frames=frames)
+    if subject is None:
+        raise ValueError(f"a {kind.value} sequence needs a subject (a target or an original)")
+    return SubjectCapture(shooter, lights, {k: list(v) for k, v in exposures.items()}, subject, take=take)

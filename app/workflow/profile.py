@@ -1,0 +1,315 @@
+"""The calibration profile: made once at the copy stand, reused all day, checked every time it is reused.
+
+A profile is two files written atomically next to each other: ``<id>.json`` (format tag, dualrgb version,
+camera and sphere identity, the lights with their exact levels, the exposure plan, the chosen matrix with its
+train/test statistics, the white point, creation time, the sha256 of every source frame and of the arrays file)
+and ``<id>.npz`` (the master darks per exposure time and the HDR flat-field whites per light, float32 mosaics).
+
+Reuse (:func:`check_reuse`): a different camera serial, camera model, ISO, aperture, light levels, or a sphere
+temperature more than ``ReuseLimits.temperature_drift_c`` away from the calibration's is a refusal (one line
+naming each mismatch; ``force`` turns it into a warning). The age is always reported; past
+``ReuseLimits.max_age_h`` (default 8 h) it warns. The temperature limit: LED output and peak wavelength follow
+junction temperature (thesis 4.3.2: drift appears as the sphere warms); 5 C keeps it within the range the
+thesis saw no drift in.
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import logging
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import numpy as np
+
+from app.processing.calibration import DarkFrame, FlatField, MasterDark
+from app.session import atomic_write
+from app.workflow.vocabulary import NamedLight, exposure_key
+from simulation.lightsource import LightSource
+from simulation.matrix_fit import CharacterisationMatrix
+from simulation.versions import dualrgb_version, software_versions
+
+log = logging.getLogger(__name__)
+
+FORMAT = "dualrgb-calibration/1"
+LEVEL_TOLERANCE = 1e-4          # the sphere quantises levels to 16-bit PWM
+
+
+class ProfileError(ValueError):
+    """A calibration profile is unreadable, damaged or does not fit the stand (one line)."""
+
+
+@dataclass
+class CameraIdentity:
+    model: str = ""
+    serial: str = ""
+    lens: str = ""
+    iso: Optional[int] = None
+    aperture: Optional[float] = None
+
+    @classmethod
+    def of(cls, camera: Any) -> "CameraIdentity":
+        """What the camera reports about itself (gphoto2: serialnumber / lensname config; virtual: its own)."""
+        summary = camera.config_summary()
+        settings = camera.settings()
+        get = getattr(camera, "get_config_value", None)
+
+        def config(*names: str) -> str:
+            for name in names:
+                if summary.get(name):
+                    return str(summary[name])
+                if get is not None:
+                    try:
+                        value = get(name)
+                    except Exception as exc:  # noqa: BLE001 - not every body reports every field
+                        log.debug("camera config %s: %s", name, exc)
+                        continue
+                    if value:
+                        return str(value)
+            return ""
+        return cls(str(summary.get("camera") or getattr(camera, "name", "")), config("serial", "serialnumber"),
+                   config("lens", "lensname"), settings.iso, settings.aperture)
+
+
+@dataclass
+class SphereIdentity:
+    model: str = ""
+    firmware: str = ""
+    serial: str = ""
+    temperature_c: Optional[float] = None
+
+    @classmethod
+    def of(cls, sphere: Any) -> "SphereIdentity":
+        info = sphere.identify()
+        return cls(str(info.get("model", "")), str(info.get("firmware", "")), str(info.get("serial", "")),
+                   float(sphere.temperature_c()))
+
+
+@dataclass
+class ReuseLimits:
+    temperature_drift_c: float = 5.0
+    max_age_h: float = 8.0
+
+
+@dataclass
+class ReuseCheck:
+    refusals: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    age_h: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return not self.refusals
+
+    def message(self) -> str:
+        return "; ".join(self.refusals)
+
+
+@dataclass
+class CalibrationProfile:
+    """Everything a capture needs from the calibration (arrays in ``darks`` / ``whites``, loaded from the .npz)."""
+
+    id: str
+    created_at: str
+    mode: str
+    camera: CameraIdentity
+    sphere: SphereIdentity
+    preset: str
+    lights: list[NamedLight]
+    exposures: dict[str, list[float]]           # light -> every calibrated exposure (base first)
+    base_exposures: dict[str, float]            # light -> open-gate exposure (80 % of the linear limit)
+    matrix: CharacterisationMatrix
+    statistics: dict                            # the characterisation: best, methods' train/test stats
+    white_xyz: list[float]
+    raw: dict                                   # white_level, black_level, cfa, linear_limit, shape
+    sources: dict[str, str]                     # frame file -> sha256
+    ppi: Optional[float] = None
+    targets: dict = field(default_factory=dict)
+    version: str = field(default_factory=dualrgb_version)
+    darks: Optional[MasterDark] = None
+    whites: dict[str, FlatField] = field(default_factory=dict)
+    path: Optional[Path] = None
+
+    # ---- derived ----
+    @property
+    def test_mean(self) -> Optional[float]:
+        best = self.statistics.get("methods", {}).get(self.statistics.get("best", ""), {})
+        return (best.get("test") or {}).get("mean")
+
+    def age_h(self, now: Optional[datetime] = None) -> float:
+        created = datetime.fromisoformat(self.created_at)
+        return ((now or datetime.now(timezone.utc)) - created).total_seconds() / 3600.0
+
+    def light(self, name: str) -> NamedLight:
+        for nl in self.lights:
+            if nl.name == name:
+                return nl
+        raise KeyError(f"calibration {self.id} has no light {name!r}")
+
+    def to_dict(self) -> dict:
+        return {"format": FORMAT, "version": self.version, "software": software_versions(), "id": self.id,
+                "created_at": self.created_at,
+                "mode": self.mode, "camera": asdict(self.camera), "sphere": asdict(self.sphere),
+                "preset": self.preset, "lights": [{"name": nl.name, **nl.light.to_dict()} for nl in self.lights],
+                "exposures": self.exposures, "base_exposures": self.base_exposures,
+                "matrix": self.matrix.to_dict(), "statistics": self.statistics, "white_xyz": self.white_xyz,
+                "raw": self.raw, "ppi": self.ppi, "targets": self.targets, "sources": self.sources}
+
+    # ---- files ----
+    def save(self, folder: Path) -> Path:
+        """``<folder>/<id>.npz`` then ``<folder>/<id>.json`` (atomic each; the JSON names the npz's sha256)."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        arrays = {}
+        dark_index, white_index = [], []
+        for i, t in enumerate(self.darks.exposures if self.darks else []):
+            f = self.darks.frame(t)
+            arrays[f"dark_{i}"] = f.mean
+            dark_index.append({"array": f"dark_{i}", "exposure_s": t, "n_frames": f.n_frames,
+                               "noise_dn": None if np.isnan(f.noise_dn) else f.noise_dn})
+        for i, (name, ff) in enumerate(self.whites.items()):
+            arrays[f"white_{i}"] = ff.white
+            white_index.append({"array": f"white_{i}", "light": name, "threshold": ff.threshold})
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        data = buf.getbuffer()
+        npz = folder / f"{self.id}.npz"
+        atomic_write(npz, data)
+        doc = {**self.to_dict(), "arrays": {"file": npz.name, "sha256": hashlib.sha256(data).hexdigest(),
+                                            "darks": dark_index, "whites": white_index}}
+        path = folder / f"{self.id}.json"
+        atomic_write(path, (json.dumps(doc, indent=2) + "\n").encode())
+        self.path = path
+        log.info("calibration %s saved: %s (+ %s, %.0f MB)", self.id, path, npz.name, len(data) / 1e6)
+        return path
+
+
+def load_profile(path: Path, *, arrays: bool = True) -> CalibrationProfile:
+    """Read a profile (and, with ``arrays``, its .npz, checked against the sha256 the JSON names)."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except OSError as exc:
+        raise ProfileError(f"{path}: cannot read the calibration ({exc.strerror or exc})") from None
+    except json.JSONDecodeError as exc:
+        raise ProfileError(f"{path}:{exc.lineno}: not a calibration (invalid JSON: {exc.msg})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise ProfileError(f"{path}: not a dualrgb calibration (format {doc.get('format') if isinstance(doc, dict) else None!r},"
+                           f" expected {FORMAT!r})")
+    try:
+        prof = _from_dict(doc)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ProfileError(f"{path}: damaged calibration ({type(exc).__name__}: {exc})") from None
+    prof.path = path
+    if arrays:
+        _load_arrays(prof, path.parent, doc["arrays"])
+    return prof
+
+
+def _from_dict(doc: dict) -> CalibrationProfile:
+    lights = [NamedLight(d["name"], LightSource.from_dict(d)) for d in doc["lights"]]
+    return CalibrationProfile(
+        id=doc["id"], created_at=doc["created_at"], mode=doc["mode"], camera=CameraIdentity(**doc["camera"]),
+        sphere=SphereIdentity(**doc["sphere"]), preset=doc["preset"], lights=lights,
+        exposures={k: [float(t) for t in v] for k, v in doc["exposures"].items()},
+        base_exposures={k: float(v) for k, v in doc["base_exposures"].items()},
+        matrix=CharacterisationMatrix.from_dict(doc["matrix"]), statistics=doc["statistics"],
+        white_xyz=[float(v) for v in doc["white_xyz"]], raw=doc["raw"], sources=doc["sources"], ppi=doc.get("ppi"),
+        targets=doc.get("targets", {}), version=doc.get("version", ""))
+
+
+def _load_arrays(prof: CalibrationProfile, folder: Path, index: dict) -> None:
+    npz = folder / index["file"]
+    try:
+        digest = _sha256(npz)
+    except OSError as exc:
+        raise ProfileError(f"{npz}: the calibration's arrays are missing ({exc.strerror or exc})") from None
+    if digest != index["sha256"]:
+        raise ProfileError(f"{npz}: damaged (sha256 differs from the one {prof.id}.json names)")
+    arrays = np.load(npz)                    # each array read when first used, the file never whole in memory
+    prof.darks = MasterDark()
+    for d in index["darks"]:
+        noise = d.get("noise_dn")
+        prof.darks.put(DarkFrame(float(d["exposure_s"]), arrays[d["array"]], int(d["n_frames"]),
+                                 noise_dn=float("nan") if noise is None else float(noise)))
+    prof.whites = {}
+    for w in index["whites"]:
+        ff = FlatField.__new__(FlatField)          # the threshold was decided when it was made: keep it
+        ff.white, ff.threshold, ff.n_invalid = arrays[w["array"]], float(w["threshold"]), 0
+        prof.whites[w["light"]] = ff
+
+
+def _sha256(path: Path, chunk: int = 1 << 22) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(chunk), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def check_reuse(prof: CalibrationProfile, camera: CameraIdentity, sphere: Optional[SphereIdentity] = None,
+                lights: Optional[Sequence[NamedLight]] = None, limits: ReuseLimits = ReuseLimits(),
+                now: Optional[datetime] = None) -> ReuseCheck:
+    """Compare the stand now with the calibration: refusals name each mismatch, warnings the age."""
+    out = ReuseCheck(age_h=prof.age_h(now))
+    c = prof.camera
+    for what, have, want in (("camera model", camera.model, c.model), ("camera serial", camera.serial, c.serial),
+                             ("ISO", camera.iso, c.iso), ("aperture f/", camera.aperture, c.aperture)):
+        if want not in (None, "") and have != want:
+            out.refusals.append(f"{what}{'' if what.endswith('/') else ' '}{have} differs from the calibration's "
+                                f"{want}")
+    if sphere is not None and prof.sphere.temperature_c is not None and sphere.temperature_c is not None:
+        drift = sphere.temperature_c - prof.sphere.temperature_c
+        if abs(drift) > limits.temperature_drift_c:
+            out.refusals.append(f"sphere temperature {sphere.temperature_c:.1f} C is {drift:+.1f} C from the "
+                                f"calibration's {prof.sphere.temperature_c:.1f} C (limit +-{limits.temperature_drift_c:g} C)")
+    if sphere is not None and prof.sphere.serial and sphere.serial != prof.sphere.serial:
+        out.refusals.append(f"sphere serial {sphere.serial} differs from the calibration's {prof.sphere.serial}")
+    for nl in lights or ():
+        _compare_light(prof, nl, out)
+    if out.age_h > limits.max_age_h:
+        out.warnings.append(f"calibration {prof.id} is {out.age_h:.1f} h old (over {limits.max_age_h:g} h): "
+                            "recalibrate when you can")
+    return out
+
+
+def _compare_light(prof: CalibrationProfile, nl: NamedLight, out: ReuseCheck) -> None:
+    try:
+        ref = prof.light(nl.name).light
+    except KeyError:
+        out.refusals.append(f"light {nl.name!r} is not in the calibration (it has {', '.join(l.name for l in prof.lights)})")
+        return
+    if not np.allclose(ref.weights(), nl.light.weights(), atol=LEVEL_TOLERANCE):
+        out.refusals.append(f"{nl.name} levels {nl.light.label()} differ from the calibration's {ref.label()}")
+
+
+def new_profile_id(created: datetime, sources: dict[str, str]) -> str:
+    digest = hashlib.sha256("".join(sorted(sources.values())).encode()).hexdigest()[:8]
+    return f"cal-{created.strftime('%Y%m%dT%H%M%SZ')}-{digest}"
+
+
+def describe(prof: CalibrationProfile, check: Optional[ReuseCheck] = None) -> list[str]:
+    """Human-readable lines for ``dualrgb calibration show``."""
+    stats = prof.statistics.get("methods", {}).get(prof.statistics.get("best", ""), {})
+    lines = [f"calibration {prof.id} ({FORMAT}, dualrgb {prof.version}), made {prof.created_at} "
+             f"({prof.age_h():.1f} h ago), {prof.mode}",
+             f"camera: {prof.camera.model} serial {prof.camera.serial or '?'}, ISO {prof.camera.iso}, "
+             f"f/{prof.camera.aperture}" + (f", lens {prof.camera.lens}" if prof.camera.lens else ""),
+             f"sphere: {prof.sphere.model} serial {prof.sphere.serial or '?'}, {prof.sphere.temperature_c} C",
+             f"preset {prof.preset}:"]
+    for nl in prof.lights:
+        ts = ", ".join(exposure_key(t) for t in prof.exposures.get(nl.name, []))
+        lines.append(f"  {nl.name}: {nl.light.label()}, exposures {ts} s")
+    lines.append(f"matrix: {prof.matrix.method} ({len(prof.matrix.channels)} channels, of "
+                 f"{', '.join(prof.statistics.get('methods', {}))}); train mean dE00 "
+                 f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, test mean {prof.test_mean or float('nan'):.3f}")
+    lines.append(f"darks {len(prof.darks.exposures) if prof.darks else '?'} exposures, whites "
+                 f"{len(prof.whites) or '?'} lights, {len(prof.sources)} source frames, "
+                 f"ppi {prof.ppi if prof.ppi else 'not set'}")
+    if check is not None:
+        lines += [f"REFUSED: {r}" for r in check.refusals] + [f"warning: {w}" for w in check.warnings]
+        lines.append("checks: " + ("ok" if check.ok else f"{len(check.refusals)} mismatch(es)"))
+    return lines

@@ -1,0 +1,199 @@
+"""A session's frames grouped by the vocabulary's rules, and the one path that processes them.
+
+``session_frames(session)`` is the only place that decides which frames are darks, which are whose flats and
+which belong to which subject and light (latest take of every step; old sessions' strings read);
+``process_session`` is the only processing path for a session: the GUI's Results, ``dualrgb process``,
+``dualrgb calibrate`` and ``dualrgb demo`` all call it, so the same session gives the same numbers everywhere.
+"""
+from __future__ import annotations
+
+import logging
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+from app.processing.characterise import Characterisation, characterise
+from app.processing.hdr import LINEAR_LIMIT_DN
+from app.processing.pipeline import CaptureProcessor, ChannelStack, ExposureRef, sub_progress
+from app.workflow.targets import TargetSpec, reference_white
+from app.workflow.vocabulary import Role, Subject, latest_takes, light_of, role_of, subject_of
+from simulation.progress import CancelToken, ProgressCallback, check, report
+
+log = logging.getLogger(__name__)
+
+LightFrames = dict[str, list[ExposureRef]]          # light name -> exposures (one subject or the flats)
+
+
+@dataclass
+class SessionFrames:
+    """The session's frames by purpose: darks, flats per light, and each subject's exposures per light."""
+
+    darks: list[ExposureRef] = field(default_factory=list)
+    flats: LightFrames = field(default_factory=dict)
+    subjects: dict[Subject, LightFrames] = field(default_factory=dict)
+
+    def subject(self, subject: Subject) -> LightFrames:
+        if subject not in self.subjects:
+            have = ", ".join(sorted(s.key for s in self.subjects)) or "none"
+            raise ValueError(f"the session has no captures of {subject.key} (subjects: {have})")
+        return self.subjects[subject]
+
+
+def _ref(session, e) -> ExposureRef:
+    if e.exposure_s is None:
+        raise ValueError(f"{e.file}: no exposure time in the session manifest")
+    return ExposureRef(session.file_path(e), float(e.exposure_s), e.file)
+
+
+def session_frames(session) -> SessionFrames:
+    """Group the session's latest takes: darks, flats by light, subjects by light (recording order kept).
+
+    A missing or damaged frame is named (app.session.DamagedFramesError), never processed."""
+    session.require_intact()
+    out = SessionFrames()
+    for e in latest_takes(session.entries()):
+        role = role_of(e)
+        if role is Role.DARK and e.exposure_s:
+            out.darks.append(_ref(session, e))
+        elif role is Role.FLAT:
+            out.flats.setdefault(light_of(e), []).append(_ref(session, e))
+        elif role in (Role.TARGET, Role.ORIGINAL):
+            subject = subject_of(e)
+            out.subjects.setdefault(subject, OrderedDict()).setdefault(light_of(e), []).append(_ref(session, e))
+    return out
+
+
+def subject_entries(session) -> dict[str, dict[str, list]]:
+    """Subject key -> light name -> manifest entries (latest takes): what the GUI lists."""
+    out: dict[str, dict[str, list]] = {}
+    for e in latest_takes(session.entries()):
+        subject = subject_of(e)
+        if subject is not None:
+            out.setdefault(subject.key, {}).setdefault(light_of(e), []).append(e)
+    return out
+
+
+def light_sets(light_names: Sequence[str]) -> dict[str, list[str]]:
+    """Group light names by preset ('<preset> light <n>'): a session may hold several presets' captures."""
+    out: dict[str, list[str]] = {}
+    for name in light_names:
+        preset, sep, _n = name.rpartition(" light ")
+        out.setdefault(preset if sep else name, []).append(name)
+    return out
+
+
+def select_lights(frames: LightFrames, lights: Optional[Sequence[str]] = None,
+                  exposures: Optional[dict[str, Sequence[float]]] = None) -> LightFrames:
+    """The exposures of ``lights`` (default: every light, in recording order), only ``exposures`` when given."""
+    names = list(lights) if lights is not None else list(frames)
+    missing = [n for n in names if n not in frames]
+    if missing:
+        raise ValueError(f"no frames under {', '.join(missing)} (lights captured: {', '.join(frames) or 'none'})")
+    out = {}
+    for n in names:
+        refs = frames[n]
+        if exposures is not None and n in exposures:
+            wanted = [float(t) for t in exposures[n]]
+            refs = [r for r in refs if any(abs(r.exposure_s - t) <= 0.02 * t for t in wanted)]
+            if not refs:
+                raise ValueError(f"{n}: none of the exposures {wanted} was captured")
+        out[n] = refs
+    return out
+
+
+def build_processor(frames: SessionFrames, lights: Sequence[str], *, white_level: Optional[float] = None,
+                    linear_limit: Optional[float] = LINEAR_LIMIT_DN, progress: Optional[ProgressCallback] = None,
+                    cancel: Optional[CancelToken] = None) -> CaptureProcessor:
+    """A processor with the session's dark frames and the HDR whites (flats) of ``lights``."""
+    proc = CaptureProcessor(dark_frames=frames.darks, white_level=white_level, linear_limit=linear_limit)
+    missing = [n for n in lights if n not in frames.flats]
+    if missing:
+        raise ValueError(f"no flats (open-gate frames) for {', '.join(missing)}: shoot them first")
+    for i, name in enumerate(lights):
+        proc.set_white(name, frames.flats[name], progress=sub_progress(progress, i / len(lights),
+                                                                        (i + 1) / len(lights)), cancel=cancel)
+    return proc
+
+
+@dataclass
+class SessionResult:
+    characterisation: Characterisation
+    report: dict
+    files: dict[str, Path]
+    patch_values: dict[str, np.ndarray]
+    processor: CaptureProcessor
+    lights: list[str]
+
+
+def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None
+                  ) -> tuple[np.ndarray, np.ndarray, ChannelStack]:
+    """Patch values (n, C), their standard deviations (n, C) and the stack of a captured target."""
+    from app.processing.patches import detect_cc24
+
+    stack = proc.stack(frames, progress=progress, cancel=cancel)
+    grid = spec.grid
+    if grid is None:
+        det = detect_cc24(stack.rgb(0)) if len(spec.names) == 24 else None
+        if det is None:
+            raise ValueError(f"{spec.subject.label}: no patch grid given and no chart detected; place the grid")
+        grid = det.grid
+    # patches fill the grid row by row; a partly filled last row is fine (190 patches on 12 x 17 cells)
+    if not len(spec.names) <= grid.n_patches < len(spec.names) + grid.cols:
+        raise ValueError(f"{spec.subject.label}: the grid has {grid.n_patches} cells ({grid.rows} x {grid.cols}) "
+                         f"but the target {len(spec.names)} patches")
+    sampled = grid.sample(stack.data)
+    return sampled.mean[:len(spec.names)], sampled.std[:len(spec.names)], stack
+
+
+def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[TargetSpec] = None, *,
+                    lights: Optional[Sequence[str]] = None, exposures: Optional[dict[str, Sequence[float]]] = None,
+                    white_level: Optional[float] = None, linear_limit: Optional[float] = LINEAR_LIMIT_DN,
+                    optimise: bool = True, white_xyz: Optional[np.ndarray] = None, title: str = "dual-RGB capture",
+                    progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+                    ) -> SessionResult:
+    """Darks, HDR whites, target stacks -> patch values -> matrices -> report.json + figures + CSVs in ``out_dir``.
+
+    ``lights`` picks the light set (a session may hold several presets' captures; default: the training
+    target's lights), ``exposures`` per light restricts which exposures are merged (default: all captured).
+    ``white_xyz`` is the Lab reference white on the targets' XYZ scale (default: D65, Y = 100).
+    """
+    from app.processing.outputs import write_matrices_csv, write_patch_csv
+    from app.processing.quality import CalibrationFrames
+    from app.processing.report import TargetData, build_report
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    frames = session_frames(session)
+    train_frames = select_lights(frames.subject(train.subject), lights, exposures)
+    names = list(train_frames)
+    proc = build_processor(frames, names, white_level=white_level, linear_limit=linear_limit,
+                           progress=sub_progress(progress, 0.0, 0.15), cancel=cancel)
+    vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel)
+    channels = stack.channels
+    vs = ss = None
+    if test is not None:
+        test_frames = select_lights(frames.subject(test.subject), names, exposures)
+        vs, ss, _ = sample_target(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel)
+    white = reference_white() if white_xyz is None else np.asarray(white_xyz, dtype=float)
+    c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
+                     optimise=optimise, progress=sub_progress(progress, 0.55, 0.8), cancel=cancel)
+    check(cancel)
+    files = {"matrices": write_matrices_csv(out_dir / "matrices.csv", {k: r.matrix for k, r in c.results.items()})}
+    for label, spec, values in (("train", train, vt), ("test", test, vs)):
+        if spec is not None:
+            preds = {k: r.matrix.apply(values) for k, r in c.results.items()}
+            errs = {k: (r.train_errors if label == "train" else r.test_errors) for k, r in c.results.items()}
+            files[f"patches_{label}"] = write_patch_csv(out_dir / f"patches_{label}.csv", spec.names, values,
+                                                        channels, spec.xyz, preds, errs, target=label)
+    data = [TargetData(s.names, s.xyz, v, s.layout, s.label or lbl, std=sd)
+            for s, v, sd, lbl in ((train, vt, st, "train"), (test, vs, ss, "test")) if s is not None]
+    calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
+    rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=train.simulated,
+                       title=title, extra={"session": str(session.path), "darks": proc.darks.exposures,
+                                           "lights": names}, calibration=calibration)
+    files["report"] = out_dir / "report.json"
+    report(progress, 1.0, "processing done")
+    return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names)

@@ -1,0 +1,128 @@
+"""Colour targets of a capture: what each patch should measure (reference XYZ, eq 4.2) and where it lies.
+
+The reference XYZ of a target captured under the virtual lab's ND 2.0 filter (thesis 8.3) is the target's XYZ
+with the patches under the filter scaled by its transmittance: that is what the camera saw. Grids are in the
+processed stack's (superpixel, half-size) pixel coordinates.
+"""
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+
+from app.processing.patches import PatchGrid
+from app.processing.report import layout_for
+from app.workflow.vocabulary import Subject, SubjectKind
+from simulation.colorimetry import tristimulus, white_point
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class TargetSpec:
+    """A colour target captured in the session: where its patches are and what they should be.
+
+    ``grid`` is in the stack's (superpixel, half-size) pixel coordinates; use ``PatchGrid.scaled(0.5)`` for a
+    grid placed on the full mosaic. None tries ``detect_cc24`` on the first light's RGB (24-patch targets).
+    ``simulated`` (n, C) are the simulated camera values for the thesis Fig 7.4 check (optional).
+    """
+
+    subject: Subject
+    xyz: np.ndarray                    # (n, 3) reference XYZ (eq 4.2 scale, Y of a perfect white = 100)
+    names: list[str]
+    grid: Optional[PatchGrid] = None
+    layout: Optional[tuple[int, int]] = None
+    simulated: Optional[np.ndarray] = None
+    label: str = ""
+    nd_mask: Optional[np.ndarray] = None     # patches under the ND filter (virtual lab)
+
+
+def packaged_target(mode: str, name: str) -> Any:
+    """The packaged training ('train') or test ('test') target of a mode (simulation.datasets)."""
+    from simulation.datasets import default_setup
+
+    if name not in ("train", "test"):
+        raise ValueError(f"target {name!r}: only the training and test targets have reference data")
+    return getattr(default_setup(mode), name)
+
+
+def nd_transmittance(nd_mask: Optional[np.ndarray], transmittance: float, n: int) -> np.ndarray:
+    """Per patch: the ND filter's transmittance where it covers the patch, 1 elsewhere."""
+    if nd_mask is None:
+        return np.ones(n)
+    return np.where(np.asarray(nd_mask, bool), float(transmittance), 1.0)
+
+
+def reference_xyz(mode: str, name: str, nd_scale: Optional[np.ndarray] = None) -> tuple[np.ndarray, list[str]]:
+    """Reference XYZ (D65, CIE 1931 2 deg, Y of a perfect white = 100) of a packaged target and its patch names;
+    ``nd_scale`` (per patch) multiplies the spectra (the ND filter's transmittance where it covers a patch)."""
+    from simulation.datasets import default_setup
+
+    setup = default_setup(mode)
+    target = getattr(setup, name)
+    spectra = target.spectra if nd_scale is None else target.spectra * np.asarray(nd_scale)[:, None]
+    return tristimulus(spectra, setup.illuminant, setup.cmfs), list(target.patch_names)
+
+
+def reference_white(mode: str = "reflective") -> np.ndarray:
+    """The Lab reference white on the targets' scale: D65, Y = 100."""
+    from simulation.datasets import default_setup
+
+    setup = default_setup(mode)
+    return white_point(setup.illuminant, setup.cmfs)
+
+
+def scene_grid(scene: Any, fraction: float = 0.5) -> PatchGrid:
+    """The patch grid of a virtual-lab scene in stack (superpixel) coordinates."""
+    corners_rc = np.asarray(scene.corners(), dtype=float)
+    rows, cols = scene.layout
+    return PatchGrid(corners_rc[:, ::-1], rows, cols, fraction=fraction).scaled(0.5)   # (row, col) -> (x, y)
+
+
+def virtual_target_spec(lab: Any, subject: Subject, *, simulated: Optional[np.ndarray] = None,
+                        grid: Optional[PatchGrid] = None, label: str = "") -> TargetSpec:
+    """A TargetSpec for a target captured in the virtual lab: its scene gives the grid and the ND patches."""
+    if subject.kind is not SubjectKind.TARGET:
+        raise ValueError(f"{subject.label}: not a colour target")
+    scene = lab.scene_for(subject.name, nd=subject.nd)
+    nd_mask = scene.nd_patches()
+    xyz, names = reference_xyz(lab.mode, subject.name, nd_transmittance(nd_mask, scene.nd_transmittance,
+                                                                        scene.n_patches))
+    target = packaged_target(lab.mode, subject.name)
+    return TargetSpec(subject, xyz, names, grid or scene_grid(scene), tuple(scene.layout), simulated,
+                      label or f"{subject.name} ({target.name})", nd_mask)
+
+
+def target_spec(mode: str, subject: Subject, grid: Optional[PatchGrid], *, lab: Any = None,
+                label: str = "") -> TargetSpec:
+    """The TargetSpec the GUI and the CLI use: the virtual lab's scene when there is one (ND included), else the
+    packaged target of ``mode`` with the grid placed by hand (None: CC24 auto-detection)."""
+    if lab is not None:
+        return virtual_target_spec(lab, subject, grid=grid, label=label)
+    if subject.nd:
+        raise ValueError(f"{subject.label}: the ND filter's coverage is known only in the virtual lab")
+    target = packaged_target(mode, subject.name)
+    xyz, names = reference_xyz(mode, subject.name)
+    if grid is None and len(names) != 24:
+        raise ValueError(f"{subject.label}: place the patch grid on it first ({len(names)} patches)")
+    if grid is not None and grid.n_patches < len(names):
+        raise ValueError(f"{subject.label}: the grid has {grid.n_patches} cells but the target {len(names)} "
+                         "patches; set rows and columns")
+    return TargetSpec(subject, xyz, names, grid, layout_for(len(names), target.layout), None,
+                      label or f"{subject.name} ({target.name})")
+
+
+def load_grid(path: Path) -> PatchGrid:
+    """A patch grid from JSON: {"corners": [[x, y] x4 (TL, TR, BR, BL, stack pixels)], "rows", "cols"[, "fraction"]}."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+        return PatchGrid(np.asarray(data["corners"], float), int(data["rows"]), int(data["cols"]),
+                         float(data.get("fraction", 0.5)))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"{path}: not a patch grid ({exc}); expected {{\"corners\": [[x, y], ...4], \"rows\": R, "
+                         "\"cols\": C}") from None

@@ -1,0 +1,124 @@
+"""The copy-stand day on the virtual lab through the CLI: `dualrgb calibrate` once, then in new processes
+`dualrgb capture` of three originals with the saved calibration, the deliverables read back, a mismatching
+stand refused, `dualrgb process` re-delivering."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tifffile
+
+FRAME = ["--frame-size", "240x160", "--settle", "0"]
+ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
+PAINT_FRAMES = "8"      # frames averaged per exposure of the painting: per-pixel noise / sqrt(8)
+
+
+def dualrgb(*args: str, ok: bool = True) -> subprocess.CompletedProcess:
+    r = subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, env=ENV, timeout=600)
+    if ok:
+        assert r.returncode == 0, r.stderr[-3000:]
+    return r
+
+
+@pytest.fixture(scope="module")
+def day(tmp_path_factory):
+    root = tmp_path_factory.mktemp("copystand")
+    dualrgb("calibrate", "--session", str(root / "calib"), "--virtual-lab", "--hdr", "auto", "--dark-frames", "3",
+            "--flat-frames", "8", "--no-de-fit", "--json", str(root / "cal.json"), *FRAME)
+    cal = json.loads((root / "cal.json").read_text())
+    captures = {}
+    for ident, mode, stand_in, frames in (("PAINT-1", "reflective", "painting", PAINT_FRAMES),
+                                          ("FILM-1", "transmissive", "film", "1"), ("SHADOW-1", "reflective", "shadow", "1")):
+        dualrgb("capture", "--session", str(root / "originals"), "--calibration", cal["calibration"], "--id", ident,
+                "--title", f"{ident} title", "--operator", "E2E", "--mode", mode, "--virtual-lab",
+                "--virtual-original", stand_in, "--frames", frames, "--json", str(root / f"{ident}.json"), *FRAME)
+        captures[ident] = json.loads((root / f"{ident}.json").read_text())
+    return root, cal, captures
+
+
+def test_calibration_profile_written_once(day):
+    root, cal, _ = day
+    assert cal["format"] == "dualrgb-calibration/1" and cal["camera"]["serial"] and cal["camera"]["iso"] == 50
+    assert all(len(ts) == 2 for ts in cal["exposures"].values())              # --hdr auto: 2 exposures per light
+    assert Path(cal["calibration"]).with_suffix(".npz").exists() and len(cal["sources"]) > 20
+
+
+def test_originals_delivered_with_metadata(day):
+    root, cal, captures = day
+    for ident, c in captures.items():
+        assert c["new"] > 0 and c["kept"] == 0 and c["calibration"] == cal["id"]
+        for key, path in c["files"].items():
+            with tifffile.TiffFile(path) as t:
+                page = t.pages[0]
+                assert page.dtype == np.uint16 and Path(path).name.startswith(ident)
+                assert page.tags["XResolution"].value[0] > 0 and page.tags["ResolutionUnit"].value == 2
+                assert page.tags["Software"].value.startswith("dualrgb ")
+                xmp = bytes(page.tags[700].value).decode()
+                assert f"<dc:identifier>{ident}</dc:identifier>" in xmp and cal["id"] in xmp and "E2E" in xmp
+        side = json.loads(Path(c["sidecar"]).read_text())
+        assert side["software"]["libraw"] and side["qa"]["light_dose"]["lux_s"] > 0
+    assert all(len(ts) == 1 for ts in captures["PAINT-1"]["exposures"].values())       # fits: no HDR
+    assert captures["PAINT-1"]["new"] == 2 * int(PAINT_FRAMES) and captures["FILM-1"]["new"] == 2
+    assert all(len(ts) == 2 for ts in captures["SHADOW-1"]["exposures"].values())      # deep shadow: HDR bracket
+    assert captures["SHADOW-1"]["qa"]["hdr"] and not captures["PAINT-1"]["qa"]["hdr"]
+    assert any("transmissive" in w for w in captures["FILM-1"]["qa"]["warnings"])
+
+
+def test_painting_xyz_against_ground_truth(day):
+    """The delivered XYZ TIFF of the virtual painting against its per-pixel ground truth (drivers/virtual/
+    originals.py): per pixel (8 frames averaged per exposure: with one frame the sensor noise, which the 6 x 3
+    matrix amplifies, alone costs ~0.7 dE00) and per material (noise averaged out, as a chart's patch means are),
+    the mean dE00 is within 0.3 of the calibration's test-target mean."""
+    from app.processing.encode import LINEAR_ONE
+    from app.processing.ground_truth import compare_to_ground_truth, write_de_map_png
+    from app.workflow.targets import reference_white
+    from drivers.virtual.originals import ground_truth_xyz
+
+    root, cal, captures = day
+    xyz = tifffile.imread(captures["PAINT-1"]["files"]["xyz"]).astype(np.float64) / LINEAR_ONE * 100.0
+    truth = ground_truth_xyz("painting", 160, 240)
+    result = compare_to_ground_truth(xyz, truth, reference_white())
+    write_de_map_png(root / "painting_de00.png", result.de_map, title="PAINT-1")
+    test_mean = cal["statistics"]["methods"][cal["statistics"]["best"]]["test"]["mean"]
+    print(f"painting: per-pixel dE00 mean {result.mean:.3f} p90 {result.p90:.3f} max {result.max:.3f}; "
+          f"materials {result.material_mean:.3f}; calibration test mean {test_mean:.3f}")
+    assert abs(result.material_mean - test_mean) < 0.3
+    assert abs(result.mean - test_mean) < 0.3
+    assert result.n_invalid == 0 and (root / "painting_de00.png").exists()
+
+
+def test_wrong_iso_or_serial_refused_in_one_line(day, tmp_path):
+    root, cal, _ = day
+    args = ["capture", "--id", "X-1", "--virtual-lab", *FRAME]
+    r = dualrgb(*args, "--session", str(tmp_path / "s1"), "--calibration", cal["calibration"], "--iso", "100", ok=False)
+    assert r.returncode == 1
+    line = r.stderr.strip().splitlines()[-1]
+    assert "ISO 100 differs from the calibration's 50" in line and line.startswith("dualrgb: error:")
+    doc = json.loads(Path(cal["calibration"]).read_text())
+    doc["camera"]["serial"] = "3021999"                        # a calibration made on another body
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(doc))
+    (tmp_path / doc["arrays"]["file"]).symlink_to(Path(cal["calibration"]).with_suffix(".npz"))
+    r = dualrgb(*args, "--session", str(tmp_path / "s2"), "--calibration", str(other), ok=False)
+    assert r.returncode == 1 and "camera serial" in r.stderr.strip().splitlines()[-1]
+    assert "3021999" in r.stderr and not (tmp_path / "s2" / "deliverables").exists()
+
+
+def test_reshoot_needs_asking_and_process_redelivers(day):
+    root, cal, captures = day
+    base = ["capture", "--session", str(root / "originals"), "--calibration", cal["calibration"], "--id", "PAINT-1",
+            "--virtual-lab", "--frames", PAINT_FRAMES, *FRAME]
+    n = 2 * int(PAINT_FRAMES)
+    again = dualrgb(*base)
+    assert f"PAINT-1: 0 new, {n} kept" in again.stdout
+    shot = dualrgb(*base, "--reshoot")
+    assert f"PAINT-1: {n} new, 0 kept" in shot.stdout
+    r = dualrgb("process", str(root / "originals"), "--out", str(root / "again"), "--json", str(root / "p.json"))
+    done = json.loads((root / "p.json").read_text())
+    assert {o["identifier"] for o in done["originals"]} == {"PAINT-1", "FILM-1", "SHADOW-1"}
+    assert (root / "again" / "SHADOW-1" / "SHADOW-1_XYZ_16bit.tif").exists() and r.returncode == 0
