@@ -62,6 +62,33 @@ def capture_patch_values(setup: SimulationSetup, W: np.ndarray, exposures_s: np.
         hdr_log.setLevel(level)
 
 
+GRID_FRACTION = 0.6          # the central part of each patch cell sampled here
+
+
+def capture_model(setup: SimulationSetup, *, width: int = 600, height: int = 400, dark_frames: int = 4):
+    """The expected-captured objective's model of this capture: its patch sizes (superpixels sampled per
+    patch, median), its dark frames and its single white frame (simulation.capture_model)."""
+    from dataclasses import replace
+
+    from simulation.capture_model import CaptureModel
+
+    pixels = []
+    for target in (setup.train, setup.test):
+        scene = Scene.with_target(target, width, height)
+        counts = _patch_grid(scene).sample(np.zeros((height // 2, width // 2, 1))).count[:scene.n_patches]
+        pixels.append(max(1, int(np.median(counts))))
+    cap = CaptureModel.virtual_lab(setup.mode)
+    return replace(cap, camera=replace(cap.camera, pixels_per_patch=pixels[0], dark_frames=dark_frames, flat_frames=1),
+                   test_pixels_per_patch=pixels[1])
+
+
+def _patch_grid(scene: Scene) -> PatchGrid:
+    """The scene's patch grid on the superpixel stack (scene corners are (row, col) on the sensor)."""
+    rows, cols = scene.layout
+    corners = np.array([[c / 2.0 - 0.5, r / 2.0 - 0.5] for r, c in scene.corners()])
+    return PatchGrid(corners, rows, cols, GRID_FRACTION)
+
+
 def _process(setup, lights, darks, whites, frames, scenes, sensor) -> dict[str, np.ndarray]:
     proc = CaptureProcessor(dark_frames=darks, white_level=sensor.white_level, black_level=sensor.black_level,
                             cfa="RGGB")
@@ -70,11 +97,7 @@ def _process(setup, lights, darks, whites, frames, scenes, sensor) -> dict[str, 
     out = {}
     for key, scene in scenes.items():
         stack = proc.stack(frames[key])
-        rows, cols = scene.layout
-        # scene corners are (row, col) on the sensor; the stack is superpixels (2x2), centres at (2y+0.5)
-        corners = np.array([[c / 2.0 - 0.5, r / 2.0 - 0.5] for r, c in scene.corners()])
-        grid = PatchGrid(corners, rows, cols, 0.6)
-        out[key] = grid.sample(stack.data).mean[:scene.n_patches]
+        out[key] = _patch_grid(scene).sample(stack.data).mean[:scene.n_patches]
     return out
 
 

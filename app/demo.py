@@ -3,7 +3,8 @@
 It holds no processing of its own: captures run through app.workflow.copystand.CopyStand and the sequences,
 processing through app.workflow.session_processing.process_session, exactly as the GUI and the CLI do.
 
-presets from the optimiser (exhaustive = dual-RGB, PSO = dual-RGB-PSO, NNLS D65 mix = 3-channel baseline)
+presets from the optimiser on the expected captured error of this capture (exhaustive = dual-RGB, the default
+successive-halving PSO = dual-RGB-PSO, realisable NNLS D65 mix = 3-channel baseline)
 -> the sphere emulator on a real pty + the virtual camera -> auto-exposure on the open gate -> (HDR plan on
 the ND-covered target) -> dark series at every exposure -> open-gate flats -> train and test captures ->
 master darks, eq 7.1 flat field / eq 8.9 HDR merge -> per-light superpixel images stacked to N channels ->
@@ -24,18 +25,19 @@ import numpy as np
 from app.sequences.calibration import DarkSeries, FlatSeries
 from app.sequences.capture import SubjectCapture
 from app.sequences.hdr import HdrPlan, meter_and_plan
+from app.processing.characterise import LEAST_SQUARES
 from app.processing.quality import quality_summary
 from app.session import CaptureSession, atomic_write, camera_definition, light_definition
 from app.session_log import SessionLog
 from app.workflow.copystand import CopyStand, StandSettings, parsimony_defaults
 from app.workflow.session_processing import process_session
-from app.workflow.targets import nd_transmittance, reference_white, virtual_target_spec
+from app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
 from app.workflow.vocabulary import NamedLight, Subject, lights_of
 from drivers.virtual.lab import VirtualLab
 from simulation.camera_model import channel_responses
 from simulation.lightsource import LightSource
-from simulation.objective import ErrorStats, Evaluator
-from simulation.presets import Preset, d65_mix, save_preset
+from simulation.objective import ErrorStats
+from simulation.presets import Preset, save_preset
 from simulation.progress import CancelToken, ProgressCallback, check, report, scaled
 from simulation.runner import run as run_simulation
 from simulation.versions import output_header
@@ -77,30 +79,77 @@ class Condition:
     hdr_plan: dict[str, HdrPlan] = field(default_factory=dict)
 
 
-def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback] = None) -> tuple[list[Condition], dict]:
-    """Presets from the optimiser (#2) and their simulated errors."""
+def demo_capture_model(settings: DemoSettings):
+    """The capture this demo makes, for the expected-captured objective: its frames' patch sizes (superpixels
+    the demo's patch grid averages, median over patches), its dark and flat frame counts, the virtual lab's
+    sensor, exact references (the virtual lab renders the spectra the reference XYZ come from)."""
+    from dataclasses import replace
+
+    from drivers.virtual.scene import Scene
+    from simulation.capture_model import CaptureModel
     from simulation.datasets import default_setup
+
     setup = default_setup(settings.mode)
-    ev = Evaluator(setup)
+    width, height = (int(v) // 2 * 2 for v in settings.frame_size)
+    pixels = []
+    for target in (setup.train, setup.test):
+        scene = Scene.with_target(target, width=width, height=height)
+        counts = scene_grid(scene).sample(np.zeros((height // 2, width // 2, 1))).count[:scene.n_patches]
+        pixels.append(max(1, int(np.median(counts))))
+    cap = CaptureModel.virtual_lab(settings.mode)
+    return replace(cap, camera=replace(cap.camera, pixels_per_patch=pixels[0], dark_frames=settings.dark_frames,
+                                       flat_frames=settings.flat_frames), test_pixels_per_patch=pixels[1])
+
+
+def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback] = None) -> tuple[list[Condition], dict]:
+    """Presets from the optimiser (#2) on the expected captured error of this demo's capture (#14), and what it
+    predicts for them: expected captured errors per characterisation, with the noise-free ones beside them."""
+    from simulation.datasets import default_setup
+    from simulation.expected_error import ExpectedErrorEvaluator
+    from simulation.runner import DEFAULT_METHOD
+    from simulation.sphere import realisable_d65_mix
+    setup = default_setup(settings.mode)
+    ev = ExpectedErrorEvaluator(setup, demo_capture_model(settings))
     presets = {}
-    report(progress, 0.0, "optimiser: exhaustive search")
-    presets["dual_rgb"] = run_simulation(setup, "exhaustive", top=1, progress=scaled(progress, 0.0, 0.02)).preset(
+    report(progress, 0.0, "optimiser: exhaustive search (expected captured error)")
+    presets["dual_rgb"] = run_simulation(setup, "exhaustive", top=1, evaluator=ev,
+                                         progress=scaled(progress, 0.0, 0.02)).preset(
         name=f"dual-RGB {settings.mode}")
-    report(progress, 0.02, "optimiser: PSO (thesis settings)")
-    presets["dual_rgb_pso"] = run_simulation(setup, "pso", seed=settings.seed, top=1,
+    report(progress, 0.02, f"optimiser: {DEFAULT_METHOD} PSO (expected captured error)")
+    presets["dual_rgb_pso"] = run_simulation(setup, DEFAULT_METHOD, seed=settings.seed, top=1, evaluator=ev,
                                              progress=scaled(progress, 0.02, 0.1)).preset(
         name=f"dual-RGB-PSO {settings.mode}")
-    mix, duv = d65_mix(setup.leds, setup.illuminant, setup.cmfs)
+    mix, duv = realisable_d65_mix(setup.leds, setup.illuminant, setup.cmfs, ev.capture.sphere)
     presets["three_channel"] = Preset("3-channel D65 mix", (mix,), method="nnls-d65", mode=settings.mode,
                                       model={"duv_to_d65": duv})
     out = []
     for name in settings.conditions:
         p = presets[name]
         W = np.stack([s.weights(ev.n_leds) for s in p.sources])
-        tr, te = ev.stats(W)
-        out.append(Condition(name, lights_of(p), {"train": round(tr.mean, 4), "test": round(te.mean, 4)}))
+        out.append(Condition(name, lights_of(p), _predictions(ev, W, settings.optimise_matrix)))
         save_preset(p, settings.out / "presets" / f"{name}.json")
     return out, {k: v.to_dict() for k, v in presets.items()}
+
+
+def _predictions(ev, W: np.ndarray, de_matrix: Optional[bool]) -> dict:
+    """What the optimiser predicts for a light set, per characterisation the processing may deliver: the
+    expected captured error of the least-squares matrix (the objective) and, with the dE00-optimised matrix,
+    that minus the matrix's noise-free gain (fitted on the noise-free simulated training values); and the
+    noise-free figures beside them."""
+    from app.processing.characterise import DE2000, LEAST_SQUARES, fit_de2000
+    from simulation.colorimetry import delta_e_2000, xyz_to_lab
+
+    tr, te = ev.stats(W)
+    etr, ete = ev.expected_stats(W)
+    out = {LEAST_SQUARES: {"train": round(etr.mean, 4), "test": round(ete.mean, 4)},
+           "noise_free": {"train": round(tr.mean, 4), "test": round(te.mean, 4)}}
+    if de_matrix is not False:
+        values = {k: ps.camera_values(W) for k, ps in (("train", ev.train), ("test", ev.test))}
+        A = fit_de2000(values["train"], ev.train.xyz, ev.train.white).matrix
+        gain = {k: float(e.mean) - float(delta_e_2000(ps.lab, xyz_to_lab(values[k] @ A, ps.white)).mean())
+                for k, e, ps in (("train", tr, ev.train), ("test", te, ev.test))}
+        out[DE2000] = {"train": round(etr.mean - gain["train"], 4), "test": round(ete.mean - gain["test"], 4)}
+    return out
 
 
 class DemoRun:
@@ -227,7 +276,10 @@ class DemoRun:
                               cancel=self.cancel)
         ch = res.characterisation
         best = ch.results[ch.best]
-        entry = {"train": best.train.to_dict(), "test": best.test.to_dict(), "simulated": c.simulated,
+        sim = c.simulated.get(ch.best, c.simulated[LEAST_SQUARES])      # the prediction for the delivered matrix
+        entry = {"train": best.train.to_dict(), "test": best.test.to_dict(),
+                 "simulated": {**sim, "matrix": ch.best, "noise_free_train": c.simulated["noise_free"]["train"],
+                               "noise_free_test": c.simulated["noise_free"]["test"], "per_matrix": c.simulated},
                  "matrix_method": ch.best,
                  "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
                  "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]} for nl in c.lights],

@@ -4,5 +4,6 @@ simulation.runner and simulation.lightsource use these."""
 from __future__ import annotations
 
 MODES = ("reflective", "transmissive")                     # reflective targets or film (transmissive), thesis 5.2
-METHODS = ("three-channel", "exhaustive", "pso", "ga")    # simulation.runner.run
+METHODS = ("halving", "exhaustive", "pso", "ga", "three-channel")   # simulation.runner.run; first = default
+OBJECTIVES = ("expected-captured", "noise-free", "robust")         # simulation.runner.make_evaluator; first = default
 N_SPHERE_LEDS = 10                                        # the sphere's LEDs, 1-based in LightSource (thesis Table 4.2)

@@ -17,11 +17,13 @@ _SEGMENT = 128
 
 
 @njit(error_model="numpy", parallel=True, cache=True)
-def fit_light_sets(idx, w, G, H, ridge, M_out, A_out):
+def fit_light_sets(idx, w, G, H, ridge, M_out, A_out, extra):
     """Characterise a batch of light sets from precomputed Gram matrices, in one pass per item.
 
     idx (P, L, m) int: LED indices (0-based) used by each light (pad with any index and weight 0);
-    w (P, L, m): their levels; G (K, 3, K, 3) = R^T R and H (K, 3, 3) = R^T XYZ over the training patches.
+    w (P, L, m): their levels; G (K, 3, K, 3) = R^T R and H (K, 3, 3) = R^T XYZ over the training patches;
+    extra (P, 3L): added to the diagonal of each item's normal equations before equilibration (zeros: least
+    squares; the expected noise variance of each channel: the attenuated fit of simulation.expected_error).
     Writes A_out (P, 3L, 3), the least-squares matrix (columns equilibrated, ridge ``ridge`` on the unit
     diagonal, zero channels get zero rows), and M_out (3, K*3, P) = the same map expressed on the per-LED
     responses: X'[p] = M_out[0, :, p] @ R_flat.T (and Y', Z'), laid out for simulation.fast_de.
@@ -44,7 +46,7 @@ def fit_light_sets(idx, w, G, H, ridge, M_out, A_out):
     for seg in prange(len(edges) - 1):
         lo, hi = edges[seg], edges[seg + 1]
         if hi - lo >= 8:
-            _fit_segment(idx[lo], w, G, H, ridge, M_out, A_out, lo, hi)
+            _fit_segment(idx[lo], w, G, H, ridge, M_out, A_out, extra, lo, hi)
             continue
         CtC = np.empty((n, n))
         CtB = np.empty((n, 3))
@@ -52,11 +54,11 @@ def fit_light_sets(idx, w, G, H, ridge, M_out, A_out):
         Lc = np.zeros((n, n))
         y = np.empty(n)
         for p in range(lo, hi):
-            _fit_one(idx[p], w[p], G, H, ridge, CtC, CtB, s, Lc, y, M_out, A_out, p)
+            _fit_one(idx[p], w[p], G, H, ridge, CtC, CtB, s, Lc, y, M_out, A_out, extra[p], p)
 
 
 @njit(error_model="numpy", inline="always")
-def _fit_one(idx, w, G, H, ridge, CtC, CtB, s, Lc, y, M_out, A_out, p):
+def _fit_one(idx, w, G, H, ridge, CtC, CtB, s, Lc, y, M_out, A_out, extra, p):
     """One item of fit_light_sets: normal equations, equilibration + ridge, Cholesky, then M_out[:, :, p]."""
     L, m = w.shape
     n = 3 * L
@@ -80,6 +82,8 @@ def _fit_one(idx, w, G, H, ridge, CtC, CtB, s, Lc, y, M_out, A_out, p):
                         k2 = idx[l2, i2]
                         for c2 in range(3):
                             CtC[r, 3 * l2 + c2] += w1 * w2 * G[k1, c1, k2, c2]
+    for i in range(n):
+        CtC[i, i] += extra[i]
     for i in range(n):
         s[i] = 1.0 / math.sqrt(CtC[i, i]) if CtC[i, i] > 0.0 else 0.0
     for i in range(n):
@@ -124,7 +128,7 @@ def _fit_one(idx, w, G, H, ridge, CtC, CtB, s, Lc, y, M_out, A_out, p):
 
 
 @njit(error_model="numpy", inline="always")
-def _fit_segment(idx, w, G, H, ridge, M_out, A_out, lo, hi):
+def _fit_segment(idx, w, G, H, ridge, M_out, A_out, extra, lo, hi):
     """fit_light_sets for items lo..hi-1 that share one LED index array ``idx`` (L, m) — every particle of one
     light set in PSO/GA — vectorised across the items: each step is a loop over the items, which LLVM turns into
     SIMD code, instead of one scalar 6x6 fit per item (~15x faster per item)."""
@@ -164,6 +168,7 @@ def _fit_segment(idx, w, G, H, ridge, M_out, A_out, lo, hi):
     s = np.empty((n, B))
     for i in range(n):
         for p in range(B):
+            CtC[i, i, p] += extra[lo + p, i]
             d = CtC[i, i, p]
             s[i, p] = 1.0 / math.sqrt(d) if d > 0.0 else 0.0
     for i in range(n):

@@ -57,11 +57,27 @@ def pso(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings
         cancel: Optional[CancelToken] = None) -> SearchOutcome:
     """Run PSO on every light set in ``groups`` (default: the 630 binned pairs); best first."""
     groups = list(groups) if groups is not None else light_pairs()
+    t0 = time.perf_counter()
+    n0 = evaluator.evaluations
+    best_x, best_c, history = swarm_bests(evaluator, groups, settings, seed, chunk=chunk, progress=progress,
+                                          cancel=cancel)
+    outcome = SearchOutcome("pso", seed, time.perf_counter() - t0, evaluator.evaluations - n0,
+                            candidates_from(groups, best_x, best_c),
+                            history=[float(h) for h in history.min(axis=0)],
+                            settings={**asdict(settings), "light_sets": len(groups)})
+    log.info("PSO over %d light sets: %.2f s, %d evaluations, best %.4f", len(groups), outcome.elapsed_s,
+             outcome.evaluations, outcome.best.train_cost)
+    return outcome
+
+
+def swarm_bests(evaluator: Evaluator, groups: Sequence[Group], settings: PsoSettings = PsoSettings(),
+                seed: int = 0, *, chunk: int = 32, progress: Optional[ProgressCallback] = None,
+                cancel: Optional[CancelToken] = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Algorithm 1 on every light set: the swarm bests' levels (G, L, m), costs (G,) and the best cost after
+    each iteration per set (G, iterations + 1), as arrays (what :func:`pso` and successive halving build on)."""
     idx_all, mask_all = group_arrays(groups)
     G, L, m = idx_all.shape
     N = settings.particles
-    t0 = time.perf_counter()
-    n0 = evaluator.evaluations
     best_x = np.empty((G, L, m))
     best_c = np.empty(G)
     history = np.full((G, settings.iterations + 1), np.inf)
@@ -99,10 +115,4 @@ def pso(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings
         best_x[lo:hi] = gbest_x
         best_c[lo:hi] = gbest_c
         report(progress, hi / G, f"PSO: {hi}/{G} light sets, best {best_c[:hi].min():.4f} dE00")
-    outcome = SearchOutcome("pso", seed, time.perf_counter() - t0, evaluator.evaluations - n0,
-                            candidates_from(groups, best_x, best_c),
-                            history=[float(h) for h in history.min(axis=0)],
-                            settings={**asdict(settings), "light_sets": G})
-    log.info("PSO over %d light sets: %.2f s, %d evaluations, best %.4f", G, outcome.elapsed_s,
-             outcome.evaluations, outcome.best.train_cost)
-    return outcome
+    return best_x, best_c, history

@@ -64,8 +64,10 @@ class Candidate:
 
     sources: tuple[LightSource, ...]
     train_cost: float                       # objective value found by the search (float32 kernel)
-    train: Optional[ErrorStats] = None      # float64 re-evaluation (filled for the reported top K)
+    train: Optional[ErrorStats] = None      # float64 noise-free re-evaluation (filled for the reported top K)
     test: Optional[ErrorStats] = None
+    expected_train: Optional[ErrorStats] = None     # float64 expected captured errors (simulation.expected_error)
+    expected_test: Optional[ErrorStats] = None
 
     def weights(self, n_leds: int) -> np.ndarray:
         return np.stack([s.weights(n_leds) for s in self.sources])
@@ -82,7 +84,20 @@ class Candidate:
             d["train"] = {k: round(v, 4) for k, v in self.train.to_dict().items()}
         if self.test:
             d["test"] = {k: round(v, 4) for k, v in self.test.to_dict().items()}
+        if self.expected_train:
+            d["expected_train_de00_mean"] = round(self.expected_train.mean, 4)
+            d["expected_test_de00_mean"] = round(self.expected_test.mean, 4)
+            d["expected_train"] = {k: round(v, 4) for k, v in self.expected_train.to_dict().items()}
+            d["expected_test"] = {k: round(v, 4) for k, v in self.expected_test.to_dict().items()}
         return d
+
+    def objective_mean(self, objective: str) -> float:
+        """The float64 figure of ``objective`` ('noise-free' or the expected captured training error)."""
+        if objective == "robust":
+            return self.train_cost               # the ensemble's figure (only the search computes it)
+        if objective != "noise-free" and self.expected_train is not None:
+            return self.expected_train.mean
+        return self.train.mean if self.train else self.train_cost
 
 
 @dataclass
@@ -112,11 +127,24 @@ def candidates_from(groups: Sequence[Group], levels: np.ndarray, costs: np.ndarr
     return out
 
 
-def refine_top(evaluator: Evaluator, outcome: SearchOutcome, top: int) -> SearchOutcome:
-    """Re-evaluate the best ``top`` candidates with the float64 reference (train and test stats)."""
+def refine_top(evaluator: Evaluator, outcome: SearchOutcome, top: int, expected=None) -> SearchOutcome:
+    """Re-evaluate the best ``top`` candidates with the float64 reference (train and test stats) and sort them
+    by the evaluator's objective. An evaluator that realises levels on the sphere's grid (``realise``) gets its
+    candidates' levels replaced by the realised ones first; ``expected`` (an object with ``expected_stats(W)``,
+    e.g. :class:`simulation.expected_error.ExpectedErrorEvaluator`, default: the evaluator if it has one) adds
+    the expected captured figures."""
+    realise = getattr(evaluator, "realise", None)
+    expected = expected if expected is not None else (evaluator if hasattr(evaluator, "expected_stats") else None)
     for cand in outcome.candidates[:top]:
-        cand.train, cand.test = evaluator.stats(cand.weights(evaluator.n_leds))
-    head = sorted(outcome.candidates[:top], key=lambda c: c.train.mean)
+        if realise is not None:
+            cand.sources = tuple(LightSource(s.leds, tuple(float(v) for v in realise(np.array(s.levels))), s.name)
+                                 for s in cand.sources)
+        W = cand.weights(evaluator.n_leds)
+        cand.train, cand.test = evaluator.stats(W)
+        if expected is not None:
+            cand.expected_train, cand.expected_test = expected.expected_stats(W)
+    objective = getattr(evaluator, "objective", "noise-free")
+    head = sorted(outcome.candidates[:top], key=lambda c: c.objective_mean(objective))
     outcome.candidates[:top] = head
     return outcome
 

@@ -37,11 +37,15 @@ def main(args: argparse.Namespace) -> int:
                             optimise_matrix=False if args.no_de_fit else None)
     with TerminalProgress("demo", lines=True) as progress:
         data = run_demo(settings, progress)
-    print(f"{'condition':<22} {'train mean':>10} {'test mean':>10} {'sim train':>10} {'sim test':>10}")
+    print(f"{'condition':<22} {'train mean':>10} {'test mean':>10} {'sim train':>10} {'sim test':>10} "
+          f"{'nf train':>9} {'nf test':>8}")
     for name in data["conditions"]:
         c = data[name]
-        print(f"{name:<22} {c['train']['mean']:>10.3f} {c['test']['mean']:>10.3f} "
-              f"{c['simulated']['train']:>10.3f} {c['simulated']['test']:>10.3f}")
+        sim = {} if "nd_patches" in c else c["simulated"]       # predictions are for the plain (no ND) scene
+        pred = " ".join(f"{sim[k]:>{w}.3f}" if k in sim else f"{'-':>{w}}"
+                        for k, w in (("train", 10), ("test", 10), ("noise_free_train", 9), ("noise_free_test", 8)))
+        print(f"{name:<22} {c['train']['mean']:>10.3f} {c['test']['mean']:>10.3f} {pred}")
+    print("sim: the expected captured error the optimiser predicted (for the delivered matrix); nf: noise-free")
     print(f"frames {data['frames']}, lost {data['lost_frames']}, light dose {data['light_dose']['lux_s']:.0f} lux.s, "
           f"{data['elapsed_s']:.1f} s -> {args.out / 'report.json'}")
     return 0

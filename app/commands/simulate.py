@@ -9,7 +9,7 @@ from pathlib import Path
 from app.commands.options import count, input_file, number, seed
 from app.json_output import add_json_option, write_json
 from app.terminal_progress import TerminalProgress
-from simulation.choices import METHODS, MODES
+from simulation.choices import METHODS, MODES, OBJECTIVES
 
 log = logging.getLogger(__name__)
 
@@ -28,10 +28,31 @@ FORMAT = "dualrgb-simulation/1"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("simulate", help="search light-source pairs (three-channel, exhaustive, PSO, GA)",
-                       description="Simulate dual-RGB capture and search the sphere's light-source pairs.")
+    p = sub.add_parser("simulate", help="search light-source pairs (halving PSO, exhaustive, PSO, GA, 3-channel)",
+                       description="Simulate dual-RGB capture and search the sphere's light-source pairs. Default: "
+                                   "successive halving over the thesis PSO with an L-BFGS-B polish, minimising "
+                                   "the expected captured error (camera noise, reference uncertainty, LED drift, "
+                                   "the sphere's level grid). --method pso --objective noise-free is the thesis' "
+                                   "Algorithm 1 exactly.")
     p.add_argument("--mode", choices=MODES, default="reflective")
-    p.add_argument("--method", choices=METHODS, default="exhaustive")
+    p.add_argument("--method", choices=METHODS, default="halving",
+                   help="halving (default: successive halving over PSO + L-BFGS-B polish), exhaustive (full "
+                        "intensity), pso (thesis Algorithm 1), ga (Algorithm 2), three-channel (camera under D65)")
+    p.add_argument("--objective", choices=OBJECTIVES, default="expected-captured",
+                   help="expected-captured (default), noise-free (the thesis' cost) or robust (mean over plausible "
+                        "worlds: LEDs, camera and reference off by a few nm / %%)")
+    p.add_argument("--reference-sd", type=number(0.0, 0.5), default=0.0,
+                   help="relative uncertainty (gain) of the target's reference XYZ (default 0: the packaged "
+                        "targets are exact; ~0.01 for a chart measured with a spectrophotometer)")
+    p.add_argument("--drift-nm", type=number(0.0, 20.0, unit=" nm"), default=0.0,
+                   help="sd of each LED's peak between captures in nm (default 0: no shift in the first 10 s on, "
+                        "thesis 4.3.2; > 0 uses the float64 objective, ~20x slower)")
+    p.add_argument("--min-level", type=number(0.0, 0.5), default=None,
+                   help="the sphere's minimum stable level (a level is 0 or at least this; default: "
+                        "simulation.sphere.SphereProperties, 0.01)")
+    p.add_argument("--pixels", type=count(1), default=None,
+                   help="pixels (superpixels) averaged per training patch (default: the virtual lab's 600x400 "
+                        "frames)")
     p.add_argument("--seed", type=seed, default=0)
     p.add_argument("--top", type=count(1, 630), default=5, help="how many light sets to print and write (default 5)")
     add_json_option(p)
@@ -65,7 +86,8 @@ def main(args: argparse.Namespace) -> int:
     if args.top < 1:
         raise ValueError(f"--top {args.top}: expected at least 1")
     with TerminalProgress(f"simulate {args.method}") as progress:
-        result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, progress=progress)
+        result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, objective=args.objective,
+                     capture=_capture(args), progress=progress)
     if args.json != "-":
         print(format_table(result))
     if args.json:
@@ -75,3 +97,18 @@ def main(args: argparse.Namespace) -> int:
         save_preset(result.preset(), args.preset_out)
         print(f"wrote preset {args.preset_out}", file=sys.stderr)
     return 0
+
+
+def _capture(args: argparse.Namespace):
+    """The capture model from the options (the virtual lab's for the mode, with the user's changes)."""
+    from dataclasses import replace
+
+    from simulation.capture_model import CaptureModel
+    from simulation.sphere import SphereProperties
+
+    cap = CaptureModel.virtual_lab(args.mode, reference_gain_sd=args.reference_sd, drift_sd_nm=args.drift_nm)
+    if args.min_level is not None:
+        cap = replace(cap, sphere=SphereProperties(min_stable_level=args.min_level))
+    if args.pixels is not None:
+        cap = replace(cap, camera=replace(cap.camera, pixels_per_patch=args.pixels))
+    return cap

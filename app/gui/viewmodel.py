@@ -137,7 +137,7 @@ def raw_view(path) -> RawView:
 
 
 class ConvergenceTap:
-    """Wraps simulation.objective.Evaluator for the live convergence plot: after every cost batch it calls
+    """Wraps the objective's evaluator (simulation.runner.make_evaluator) for the live convergence plot: after every cost batch it calls
     ``on_batch(evaluations, best_cost_so_far)`` (from the worker thread) and keeps the best light set seen, so a
     cancelled search still has its best so far (:meth:`partial`). Costs are unchanged; everything else is the
     wrapped evaluator's."""
@@ -150,13 +150,18 @@ class ConvergenceTap:
         self.best_w: np.ndarray | None = None         # (L, m) its levels
 
     @staticmethod
-    def make(setup, on_batch) -> ConvergenceTap:
-        from simulation.objective import Evaluator
+    def make(setup, on_batch, objective: str = "expected-captured") -> ConvergenceTap:
+        from simulation.runner import make_evaluator
 
-        return ConvergenceTap(Evaluator(setup), on_batch)
+        return ConvergenceTap(make_evaluator(setup, objective), on_batch)
 
     def __getattr__(self, name):
         return getattr(self._inner, name)
+
+    @property
+    def base(self):
+        """The wrapped evaluator (simulation.runner.run warms its kernels up)."""
+        return self._inner
 
     @property
     def evaluations(self) -> int:                 # read and written through (simulation.warmup restores it)
@@ -189,7 +194,10 @@ class ConvergenceTap:
             sources.append(LightSource(tuple(int(i) + 1 for i in leds[on]), tuple(float(v) for v in levels[on]))
                            if on.any() else LightSource((int(leds[0]) + 1,), (0.0,)))
         cand = Candidate(tuple(sources), self.best)
-        cand.train, cand.test = self._inner.stats(cand.weights(self._inner.n_leds))
+        W = cand.weights(self._inner.n_leds)
+        cand.train, cand.test = self._inner.stats(W)
+        if hasattr(self._inner, "expected_stats"):
+            cand.expected_train, cand.expected_test = self._inner.expected_stats(W)
         return cand
 
 

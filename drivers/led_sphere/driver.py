@@ -567,7 +567,6 @@ class LedSphere:
         watchdog, trip flag, faulty LEDs (2 exchanges)."""
         asked = time.monotonic()
         s = self.exchange("status")
-        levels = self.levels()
         self._watchdog_ms = s["wdog"]
         if not s["light"]:
             self._confirmed_off(asked)
@@ -576,6 +575,9 @@ class LedSphere:
             log.warning("LED sphere %s is lit (%.1f s) and this program did not switch it on: it goes off at the "
                         "%g s limit", self._url, s["ontime"], self._max_on_s)
         period = self._supervisor.current()
+        # the limit as of the STATUS reply (read before LEVELS? so its round trip does not age the figure)
+        off_in_s = None if period is None else max(0.0, period.deadline - time.monotonic())
+        levels = self.levels()
         return {
             "port": self.port,
             "light_on": bool(s["light"]),
@@ -588,7 +590,7 @@ class LedSphere:
             "watchdog_tripped": bool(s["trip"]),
             "faulty_leds": [i + 1 for i in range(P.MAX_CHANNELS) if s["fault"] >> i & 1],
             # host-side limit of the lit period: seconds until it goes off at the latest (None while off)
-            "off_in_s": None if period is None else max(0.0, period.deadline - time.monotonic()),
+            "off_in_s": off_in_s,
             "max_on_s": None if period is None else period.max_on_s,
         }
 

@@ -16,7 +16,8 @@ sqrt(var_S + v^2 var_F) / F / sqrt(pixels). Exposure *times* only matter through
 from a radiometric scale calibrated like the virtual camera: the open gate under the full-intensity light
 (1, 6, 8) reaches 10 500 DN at 1/60 s (thesis Table 7.1).
 
-The noise-aware objective is the expected training dE00 of a capture: Monte-Carlo over ``draws`` fixed
+(The app's objective is the analytic :mod:`simulation.expected_error`; this Monte-Carlo one is the study's
+check on it.) The noise-aware objective is the expected training dE00 of a capture: Monte-Carlo over ``draws`` fixed
 standard-normal draws (common random numbers: every candidate sees the same draws, so the objective is a
 smooth, deterministic function the optimisers can compare), the characterisation fitted on the *noisy*
 training values and applied to them (as the thesis reports captured training errors). It is vectorised over
@@ -34,6 +35,7 @@ from typing import Optional
 import numpy as np
 
 from simulation.camera_model import led_responses
+from simulation.capture_model import CameraNoise
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target, target_xyz
 from simulation.fast_de import mean_de2000_xyz
@@ -41,35 +43,6 @@ from simulation.hdr_estimators import HdrNoise, default_method, merge_exposures
 from simulation.matrix_fit import solve_normal_equations
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class CameraNoise:
-    """Sensor constants (D610-like at ISO 50, as the virtual camera) and the capture protocol."""
-
-    black_level: float = 600.0
-    linear_limit: float = 11000.0          # raw DN
-    max_code: int = 2**14 - 1              # 14-bit
-    target_fraction: float = 0.8           # open gate's brightest channel at 80 % of the linear limit
-    read_noise: float = 2.5                # DN rms per pixel
-    electrons_per_dn: float = 8.0          # conversion gain at ISO 50 (4 e-/DN at ISO 100)
-    dark_current: float = 0.3              # e-/s per pixel
-    dark_frames: int = 10                  # frames averaged into the master dark (thesis 7)
-    pixels_per_patch: int = 64             # pixels of one colour averaged per patch (small virtual-lab frames)
-    min_flat_dn: float = 5.0               # a channel whose open gate is darker than this is not used
-    reference_leds: tuple[int, ...] = (1, 6, 8)
-    reference_dn: float = 10500.0          # raw DN of the open gate under the reference light ...
-    reference_exposure_s: float = 1 / 60   # ... at this exposure (Table 7.1)
-
-    @property
-    def headroom(self) -> float:
-        """DN above black that the open gate's brightest channel gets."""
-        return self.target_fraction * self.linear_limit - self.black_level
-
-    def to_dict(self) -> dict:
-        from dataclasses import asdict
-
-        return asdict(self)
 
 
 @dataclass
@@ -134,7 +107,7 @@ class NoiseModel:
         Fs = np.where(usable, F, 1.0)[:, None]
         v = np.where(usable[:, None], S / Fs, 0.0)
         var_s = S / cam.electrons_per_dn + base[:, None, :, None]
-        var_f = F[:, None] / cam.electrons_per_dn + base[:, None, :, None]
+        var_f = (F[:, None] / cam.electrons_per_dn + base[:, None, :, None]) / cam.flat_frames
         std = np.where(usable[:, None], np.sqrt(var_s + v * v * var_f) / Fs, 0.0) / np.sqrt(cam.pixels_per_patch)
         B, n = v.shape[:2]
         return v.reshape(B, n, -1), std.reshape(B, n, -1)
@@ -226,7 +199,7 @@ class NoiseModel:
             return merge_exposures(x, usable, factors, method, span=cam.max_code - cam.black_level, noise=noise)[0]
 
         raw = merged(S[..., None])
-        white = merged(F[None, :, :, None])
+        white = np.mean([merged(F[None, :, :, None]) for _ in range(cam.flat_frames)], axis=0)
         usable = (F >= cam.min_flat_dn)[None, :, :, None]
         ratio = np.where(usable & (white > 0), raw / np.where(white > 0, white, 1.0), 0.0)
         return ratio.mean(axis=-1).reshape(n, L * 3)

@@ -7,8 +7,9 @@
 * ``lbfgs``: a random screen of every light set (fast kernel), then multi-start L-BFGS-B (scipy) on the best
   sets with the float64 cost and a forward-difference gradient evaluated as one batch of L*m + 1 points (the
   cost is smooth in the levels);
-* ``halving``: successive halving over light sets: every set gets a short PSO, the better half survives and
-  gets a PSO with twice the iterations, and so on; a set keeps its best result over the rungs.
+* ``halving``: the app's default optimiser (:mod:`simulation.halving`): successive halving over light sets
+  (every set gets a short PSO, the best 1/eta survive and get eta times the iterations, and so on; a set keeps
+  its best result over the rungs), then L-BFGS-B polishing of the best sets.
 
 Every function takes the evaluator first (plain or :class:`~simulation.studies.common.TracedEvaluator`),
 the light sets and a settings dataclass, and returns a :class:`~simulation.search.SearchOutcome` whose
@@ -31,6 +32,7 @@ import numpy as np
 from simulation.matrix_fit import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.ga import GaSettings, ga
+from simulation.halving import HalvingSettings, set_cost, successive_halving
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, enforce_constraints, pso
 from simulation.search import Group, SearchOutcome, candidates_from, exhaustive, group_arrays
@@ -76,19 +78,6 @@ class LbfgsSettings:
     lower: float = 1e-3         # levels stay above this so no light can switch itself off
 
 
-@dataclass(frozen=True)
-class HalvingSettings:
-    """Successive halving: rung r runs PSO with ``iterations * eta**r`` iterations on 1/eta of the sets."""
-
-    particles: int = 50
-    iterations: int = 2
-    eta: int = 2
-    min_sets: int = 4
-    c0: float = 0.95
-    c1: float = 2.0
-    c2: float = 2.0
-
-
 # ---------------------------------------------------------------------------------------------------------
 class Float64Cost:
     """Mean training dE00 of one light set's levels in float64 (the numpy reference path), batched.
@@ -119,18 +108,6 @@ class Float64Cost:
         A = solve_normal_equations(CT @ C, CT @ self.xyz)   # LAPACK: a handful of systems per call
         lab = xyz_to_lab(C @ A, self.white)
         return delta_e_2000(self.lab, lab).mean(axis=1)
-
-
-def _fast_pair_cost(evaluator, idx_row: np.ndarray, mask_row: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """Cost of one light set's levels given as X (S, D) in [0, 1] (D = L*m, padding masked out)."""
-    L, m = idx_row.shape
-
-    def cost(X: np.ndarray) -> np.ndarray:
-        X = np.atleast_2d(X).reshape(-1, L, m) * mask_row
-        idx = np.broadcast_to(idx_row, (X.shape[0], L, m))
-        return evaluator.cost_indexed(idx, X)
-
-    return cost
 
 
 def _normalised(levels: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -190,7 +167,7 @@ def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettin
                 check(cancel)
                 np.random.seed(np.random.SeedSequence([seed, gi]).generate_state(1)[0])
                 opt.reset()
-                cost, pos = opt.optimize(_fast_pair_cost(evaluator, idx_all[gi], mask_all[gi]),
+                cost, pos = opt.optimize(set_cost(evaluator, idx_all[gi], mask_all[gi]),
                                          iters=settings.iterations, verbose=False)
                 best_c[gi] = cost
                 best_x[gi] = _normalised(np.asarray(pos).reshape(L, m), mask_all[gi])
@@ -215,7 +192,7 @@ def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSetti
     best_c = np.empty(G)
     for gi in range(G):
         check(cancel)
-        fast = _fast_pair_cost(evaluator, idx_all[gi], mask_all[gi])
+        fast = set_cost(evaluator, idx_all[gi], mask_all[gi])
         res = differential_evolution(lambda X: fast(X.T), [(0.0, 1.0)] * D, maxiter=settings.maxiter,
                                      popsize=settings.popsize, mutation=settings.mutation,
                                      recombination=settings.recombination, tol=settings.tol, polish=False,
@@ -292,40 +269,8 @@ def lbfgs_search(evaluator, groups: Sequence[Group], settings: LbfgsSettings = L
 def halving_search(evaluator, groups: Sequence[Group], settings: HalvingSettings = HalvingSettings(),
                    seed: int = 0, *, progress: Optional[ProgressCallback] = None,
                    cancel: Optional[CancelToken] = None) -> SearchOutcome:
-    """Successive halving with the core PSO as the inner optimiser (each rung restarts PSO, seeded by rung)."""
-    groups = list(groups)
-    _, mask_all = group_arrays(groups)
-    G, L, m = mask_all.shape
-    t0, n0 = time.perf_counter(), evaluator.evaluations
-    best_x = np.zeros((G, L, m))
-    best_c = np.full(G, np.inf)
-    alive = np.arange(G)
-    iterations = settings.iterations
-    rung = 0
-    rungs = []
-    while True:
-        check(cancel)
-        ps = PsoSettings(settings.c0, settings.c1, settings.c2, iterations, settings.particles)
-        out = pso(evaluator, [groups[i] for i in alive], ps, seed=seed * 1000 + rung, cancel=cancel)
-        by_leds = {tuple(s.leds for s in c.sources): c for c in out.candidates}
-        for i in alive:
-            cand = by_leds[groups[i]]
-            if cand.train_cost < best_c[i]:
-                best_c[i] = cand.train_cost
-                best_x[i] = 0.0
-                for li, s in enumerate(cand.sources):
-                    best_x[i, li, :len(s.levels)] = s.levels
-        rungs.append({"rung": rung, "light_sets": int(len(alive)), "iterations": iterations,
-                      "best": float(best_c[alive].min())})
-        report(progress, min(1.0, (rung + 1) / 8), f"halving: rung {rung}, {len(alive)} light sets")
-        if len(alive) <= settings.min_sets:
-            break
-        keep = max(settings.min_sets, len(alive) // settings.eta)
-        alive = alive[np.argsort(best_c[alive], kind="stable")[:keep]]
-        iterations *= settings.eta
-        rung += 1
-    return _outcome("halving", groups, best_x, best_c, seed, t0, n0, evaluator,
-                    {**asdict(settings), "rungs": rungs})
+    """The default optimiser (simulation.halving.successive_halving)."""
+    return successive_halving(evaluator, groups, settings, seed, progress=progress, cancel=cancel)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -362,5 +307,5 @@ LABELS = {
     "pyswarms": "pyswarms GlobalBestPSO",
     "de": "scipy differential evolution",
     "lbfgs": "multi-start L-BFGS-B",
-    "halving": "successive halving (PSO)",
+    "halving": "successive halving (PSO) + L-BFGS-B (default)",
 }

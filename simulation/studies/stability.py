@@ -10,10 +10,12 @@
 4. Sensitivity of each optimum (fit re-done on the perturbed capture, as the lab would) to camera noise at
    those exposures (:mod:`.noise`), to LED peak drift (1 nm spectra shifted, setup rebuilt) and to target
    measurement error (camera sees perturbed reflectances, ground truth from the measured ones).
-5. The noise-aware objective: PSO on the expected captured training dE00, compared with the noise-free
-   optimum on an independent pixel-level capture simulation (and, where available, the virtual lab).
+5. Predicted against captured, both modes, both objectives (:mod:`.objectives`): the exhaustive and the default
+   optimiser's optima under the noise-free and the expected-captured objective, each captured (the virtual lab
+   through app.processing when available, else the pixel-level capture simulation); the transmissive
+   (2, 5, 9) + (2, 6, 9) pair is the worked example of a method that fails (and what fixes it).
 
-Outputs: ``stability.json``, ``stability.png`` (four panels), ``noise_aware.png`` and ``SUMMARY.md``.
+Outputs: ``stability.json``, ``stability.png`` (four panels), ``predicted_vs_captured.png`` and ``SUMMARY.md``.
 """
 from __future__ import annotations
 
@@ -38,7 +40,10 @@ from simulation.search import Candidate, exhaustive, light_pairs, refine_top
 from simulation.spectral_io import read_spectral_csv
 from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread, new_figure
 from simulation.studies.distributed import Runner, SerialRunner
-from simulation.studies.noise import CameraNoise, NoiseAwareEvaluator, NoiseModel, thesis_exposures_check
+from simulation.capture_model import CaptureModel
+from simulation.studies.noise import CameraNoise, NoiseModel, thesis_exposures_check
+from simulation.studies.objectives import (ObjectivesConfig, ObjectivesResult, objectives_study,
+                                           predicted_vs_captured_chart, study_capture_model, summary_lines)
 from simulation.studies.optimisers import DeSettings, HalvingSettings, LbfgsSettings, PyswarmsSettings
 from simulation.studies.speed_accuracy import Config, RunTask, run_task
 
@@ -61,19 +66,15 @@ class StabilityConfig:
     )
     clip_pso: PsoSettings = PsoSettings(particles=100, iterations=10)
     camera: CameraNoise = CameraNoise()
-    draws: int = 8                                      # Monte-Carlo draws of the noise-aware objective
-    check_draws: int = 32                               # fresh draws to report expected errors
-    noise_pso: PsoSettings = PsoSettings(particles=40, iterations=8)
-    noise_top_sets: int = 16
-    capture_repeats: int = 12
-    compare_top: int = 12                               # candidates in the predicted-vs-captured comparison
+    check_draws: int = 32                               # Monte-Carlo draws of the noise sensitivity
+    objectives: ObjectivesConfig = ObjectivesConfig(objectives=("noise-free", "expected-captured"),
+                                                    methods=("exhaustive", "halving"))
     drift_nm: tuple[float, ...] = (-5.0, -2.0, 2.0, 5.0)
     drift_random: int = 6
     drift_sigma_nm: float = 2.0
     target_draws: int = 6
     target_gain_sigma: float = 0.01
     target_spectral_sigma: float = 0.01
-    pixel_sweep: tuple[int, ...] = (16, 64, 256, 4096)
     lab_repeats: int = 2                                # virtual-lab captures per candidate (when available)
 
     @classmethod
@@ -83,10 +84,10 @@ class StabilityConfig:
                             Config("ga", "ga tiny", GaSettings(mu=6, lam=20, generations=2)),
                             Config("halving", "halving tiny", HalvingSettings(particles=8, iterations=1,
                                                                                min_sets=2))),
-                   clip_pso=PsoSettings(particles=8, iterations=2), draws=2, check_draws=2,
-                   noise_pso=PsoSettings(particles=6, iterations=2), noise_top_sets=2, capture_repeats=2,
-                   compare_top=3, drift_nm=(2.0,), drift_random=1, target_draws=1, pixel_sweep=(64,),
-                   lab_repeats=1)
+                   clip_pso=PsoSettings(particles=8, iterations=2), check_draws=2,
+                   objectives=replace(ObjectivesConfig.tiny(), objectives=("noise-free", "expected-captured"),
+                                      methods=("exhaustive", "halving")),
+                   drift_nm=(2.0,), drift_random=1, target_draws=1, lab_repeats=1)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -272,88 +273,6 @@ def sensitivity(spec: SetupSpec, cfg: StabilityConfig, optima: dict[str, np.ndar
     return out
 
 
-def noise_aware(spec: SetupSpec, cfg: StabilityConfig, model: NoiseModel, progress=None, cancel=None,
-                capture: Optional[Capture] = None) -> dict:
-    """Noise-free PSO over the light sets, a noise-aware screen of its per-set optima, noise-aware PSO on the
-    best ``noise_top_sets`` sets; both optima (and the top candidates) checked on simulated captures."""
-    ev = evaluator_for(spec)
-    groups = light_pairs()[:cfg.light_sets] if cfg.light_sets else light_pairs()
-    t0 = time.perf_counter()
-    nf = pso(ev, groups, PsoSettings(), seed=0, cancel=cancel)
-    t_nf = time.perf_counter() - t0
-    W_all = np.stack([c.weights(ev.n_leds) for c in nf.candidates])
-    na_eval = NoiseAwareEvaluator(model, cfg.draws, seed=0)
-    screen = na_eval.cost(W_all)
-    order = np.argsort(screen, kind="stable")[:cfg.noise_top_sets]
-    top_groups = [tuple(s.leds for s in nf.candidates[i].sources) for i in order]
-    report(progress, 0.75, "stability: noise-aware PSO")
-    t1 = time.perf_counter()
-    na = pso(na_eval, top_groups, cfg.noise_pso, seed=0, cancel=cancel)
-    t_na = time.perf_counter() - t1
-    # candidates to compare: the best noise-free per-set optima, and the noise-aware optimum
-    cands = {f"nf#{i + 1}": nf.candidates[i].weights(ev.n_leds) for i in range(min(cfg.compare_top, len(groups)))}
-    cands["noise-aware"] = na.best.weights(ev.n_leds)
-    rows = []
-    for name, W in cands.items():
-        check(cancel)
-        tr_nf, te_nf = (s.mean for s in ev.stats(W))
-        obj = model.expected_errors(W[None], cfg.draws, seed=0, exact=False)
-        fresh = model.expected_errors(W[None], cfg.check_draws, seed=99, exact=True)
-        cap = model.captured_errors(W, cfg.capture_repeats)
-        lab = capture(model.setup, W, model.exposures(W)) if capture is not None else None
-        rows.append({"name": name, "pair": [list(np.nonzero(w)[0] + 1) for w in W],
-                     "levels": [w[w > 0].round(4).tolist() for w in W],
-                     "noise_free_train": tr_nf, "noise_free_test": te_nf,
-                     "objective_train": float(obj["train"][0]),
-                     "expected_train": float(fresh["train"][0]), "expected_test": float(fresh["test"][0]),
-                     "captured_train": cap["train"], "captured_test": cap["test"],
-                     "captured_train_sd": cap["train_sd"], "captured_test_sd": cap["test_sd"],
-                     "exposures_s": model.exposures(W).tolist(),
-                     **({"lab_train": lab["train"], "lab_test": lab["test"], "lab_train_sd": lab["train_sd"]}
-                        if lab else {})})
-    cap_tr = np.array([r["captured_train"] for r in rows])
-    pred = {k: np.array([r[k] for r in rows]) for k in ("noise_free_train", "expected_train")}
-
-    def _spearman(a: np.ndarray, b: np.ndarray) -> Optional[float]:
-        if len(a) < 3:
-            return None
-        ra, rb = np.argsort(np.argsort(a)), np.argsort(np.argsort(b))
-        return float(np.corrcoef(ra, rb)[0, 1])
-
-    nf_row, na_row = rows[0], rows[-1]
-    sweep = []
-    for npx in cfg.pixel_sweep:
-        m = NoiseModel(model.setup, replace(model.camera, pixels_per_patch=npx))
-        e = m.expected_errors(np.stack([cands["nf#1"], cands["noise-aware"]]), cfg.check_draws, seed=99)
-        sweep.append({"pixels_per_patch": npx, "noise_free_optimum": float(e["train"][0]),
-                      "noise_aware_optimum": float(e["train"][1])})
-    return {
-        "camera": model.camera.to_dict(), "draws": cfg.draws, "pso_noise_free_s": t_nf, "pso_noise_aware_s": t_na,
-        "noise_aware_pso": {"settings": cfg.noise_pso.__dict__, "light_sets": len(top_groups),
-                            "evaluations": na.evaluations, "history": na.history},
-        "candidates": rows,
-        "prediction_error": {k: float(np.mean(np.abs(v - cap_tr))) for k, v in pred.items()},
-        "rank_correlation_with_captured": {k: _spearman(v, cap_tr) for k, v in pred.items()},
-        **(_lab_metrics(rows, pred, _spearman) if capture is not None else {}),
-        "noise_free_optimum": nf_row, "noise_aware_optimum": na_row,
-        "captured_gain_train": nf_row["captured_train"] - na_row["captured_train"],
-        "captured_gain_test": nf_row["captured_test"] - na_row["captured_test"],
-        "pixels_sweep": sweep,
-        "comparison": "patch-level simulation of the same noise model (pixel-level Poisson, read noise, "
-                      "14-bit rounding, clipping, master dark and white frame), held-out seeds"
-                      + ("; and the virtual lab (drivers.virtual camera + app.processing, small frames)"
-                         if capture is not None else ""),
-    }
-
-
-def _lab_metrics(rows: list[dict], pred: dict, spearman) -> dict:
-    lab = np.array([r["lab_train"] for r in rows])
-    return {"lab_prediction_error": {k: float(np.mean(np.abs(v - lab))) for k, v in pred.items()},
-            "lab_rank_correlation": {k: spearman(v, lab) for k, v in pred.items()},
-            "lab_gain_train": rows[0]["lab_train"] - rows[-1]["lab_train"],
-            "lab_gain_test": rows[0]["lab_test"] - rows[-1]["lab_test"]}
-
-
 @dataclass
 class StabilityResult:
     spec: SetupSpec
@@ -362,21 +281,23 @@ class StabilityResult:
     clipping: dict
     dim: dict
     sensitivity: dict
-    noise: dict
+    noise: ObjectivesResult
     elapsed_s: float
 
     def to_json(self) -> dict:
         return {"setup": self.spec.to_dict(), "elapsed_s": round(self.elapsed_s, 2), "seeds": self.seeds,
                 "led_clipping": self.clipping, "dim_leds": self.dim, "sensitivity": self.sensitivity,
-                "noise_aware": self.noise}
+                "predicted_vs_captured": self.noise.to_json()}
 
 
 def stability(spec: SetupSpec = SetupSpec(), cfg: StabilityConfig = StabilityConfig(), *,
               runner: Optional[Runner] = None, progress: Optional[ProgressCallback] = None,
-              cancel: Optional[CancelToken] = None, capture: Optional[Capture] = None) -> StabilityResult:
+              cancel: Optional[CancelToken] = None, capture: Optional[Capture] = None,
+              capture_model: Callable[[SimulationSetup], CaptureModel] = study_capture_model) -> StabilityResult:
     """All five parts; only the seed runs (part 1) go through ``runner`` (the rest is quick and serial).
-    ``capture(setup, W, exposures) -> {"train", "test", "train_sd", ...}``: a real capture chain to check the
-    objectives against (the CLI passes the virtual lab's, app.captured_accuracy.captured_errors)."""
+    ``capture(setup, W, exposures) -> {"train", "test", ...}``: a real capture chain to check the objectives
+    against (the CLI passes the virtual lab's, app.captured_accuracy.captured_errors), ``capture_model(setup)``
+    its model for the expected-captured objective (app.captured_accuracy.capture_model)."""
     t0 = time.perf_counter()
     seeds = seed_spread(spec, cfg, runner, progress, cancel)
     optima = {label: _weights(v["best_seed"]) for label, v in seeds.items()}
@@ -391,7 +312,8 @@ def stability(spec: SetupSpec = SetupSpec(), cfg: StabilityConfig = StabilityCon
     dim = dim_leds(model, optima)
     report(progress, 0.6, "stability: sensitivity")
     sens = sensitivity(spec, cfg, optima, model, cancel)
-    noise = noise_aware(spec, cfg, model, progress, cancel, capture)
+    report(progress, 0.75, "stability: predicted vs captured, both modes")
+    noise = objectives_study(spec, cfg.objectives, capture=capture, capture_model=capture_model, cancel=cancel)
     report(progress, 1.0, "stability: done")
     return StabilityResult(spec, cfg, seeds, clipping, dim, sens, noise, time.perf_counter() - t0)
 
@@ -444,47 +366,25 @@ def stability_chart(result: StabilityResult):
     a3.set_title("(c) sensitivity of each optimum")
     a3.legend(fontsize=6)
     a3.grid(True, alpha=0.3)
-    # (d) predicted vs captured
-    _predicted_vs_captured(a4, result.noise, "(d) ")
+    # (d) predicted vs captured, both modes and objectives
+    _predicted_vs_captured(a4, result.noise)
     return fig
 
 
-def _predicted_vs_captured(ax, noise: dict, prefix: str = "") -> None:
-    rows = noise["candidates"]
-    lab = "lab_train" in rows[0]
-    key = "lab_train" if lab else "captured_train"
-    cap = [r[key] for r in rows]
-    ax.plot([r["noise_free_train"] for r in rows], cap, "o", mfc="none", label="noise-free prediction")
-    ax.plot([r["expected_train"] for r in rows], cap, "o", label="noise-aware prediction")
-    nf, na = noise["noise_free_optimum"], noise["noise_aware_optimum"]
-    ax.plot(nf["noise_free_train"], nf[key], "*", ms=14, color="tab:blue", label="noise-free optimum")
-    ax.plot(na["expected_train"], na[key], "*", ms=14, color="tab:red", label="noise-aware optimum")
-    lo = min(min(cap), min(r["noise_free_train"] for r in rows)) * 0.95
-    hi = max(max(cap), max(r["expected_train"] for r in rows)) * 1.05
-    ax.plot([lo, hi], [lo, hi], "k--", lw=0.8)
+def _predicted_vs_captured(ax, noise: ObjectivesResult) -> None:
+    for mode, colour in zip(dict.fromkeys(r["mode"] for r in noise.rows), ("tab:blue", "tab:red")):
+        rows = [r for r in noise.rows if r["mode"] == mode]
+        ax.plot([r["noise_free_train"] for r in rows], [r["captured_train"] for r in rows], "o", mfc="none",
+                color=colour, label=f"{mode}: noise-free prediction")
+        ax.plot([r["expected_train"] for r in rows], [r["captured_train"] for r in rows], "s", color=colour,
+                label=f"{mode}: expected captured prediction")
+    hi = max(max(r["captured_train"], r["expected_train"]) for r in noise.rows) * 1.1
+    ax.plot([0, hi], [0, hi], "k--", lw=0.8)
     ax.set_xlabel("predicted training mean dE00")
-    ax.set_ylabel(("virtual-lab" if lab else "simulated-capture") + " training mean dE00")
-    ax.set_title(f"{prefix}predicted vs captured ({noise['camera']['pixels_per_patch']} px/patch model)")
-    ax.legend(fontsize=7)
+    ax.set_ylabel(f"captured ({noise.capture}) training mean dE00")
+    ax.set_title("(d) predicted vs captured, both modes and objectives")
+    ax.legend(fontsize=6)
     ax.grid(True, alpha=0.3)
-
-
-def noise_chart(result: StabilityResult):
-    fig, (a1, a2) = new_figure(11.0, 4.5, ncols=2)
-    _predicted_vs_captured(a1, result.noise)
-    sw = result.noise["pixels_sweep"]
-    px = [s["pixels_per_patch"] for s in sw]
-    a2.plot(px, [s["noise_free_optimum"] for s in sw], "o-", label="noise-free optimum")
-    a2.plot(px, [s["noise_aware_optimum"] for s in sw], "s-", label="noise-aware optimum")
-    a2.axhline(result.noise["noise_free_optimum"]["noise_free_train"], color="grey", ls=":",
-               label="noise-free optimum, no noise")
-    a2.set_xscale("log")
-    a2.set_xlabel("pixels averaged per patch and channel")
-    a2.set_ylabel("expected training mean dE00")
-    a2.set_title("expected error vs patch size")
-    a2.legend(fontsize=7)
-    a2.grid(True, alpha=0.3)
-    return fig
 
 
 def _fmt(v: Optional[float]) -> str:
@@ -494,7 +394,7 @@ def _fmt(v: Optional[float]) -> str:
 def write_outputs(result: StabilityResult, out: StudyOutput) -> None:
     out.write_json("stability.json", result.to_json())
     out.save_figure(stability_chart(result), "stability.png")
-    out.save_figure(noise_chart(result), "noise_aware.png")
+    out.save_figure(predicted_vs_captured_chart(result.noise), "predicted_vs_captured.png")
     lines = [f"Setup: {result.spec.label()}; {result.config.seeds} seeds; total {result.elapsed_s:.0f} s.", "",
              "## Seed spread", "", "| optimiser | best train (median [min-max]) | distinct pairs | most common pair |",
              "|---|---|---:|---|"]
@@ -526,34 +426,6 @@ def write_outputs(result: StabilityResult, out: StudyOutput) -> None:
         lines.append(f"| {name} | {r['nominal']['train']:.4f} | {r['noise']['delta_train']:+.4f} | "
                      + " | ".join(f"{v['delta_train']:+.4f}" for v in r["drift"].values())
                      + f" | {r['target_error']['delta_train']:+.4f} |")
-    n = result.noise
-    nf, na = n["noise_free_optimum"], n["noise_aware_optimum"]
-    lines += ["", "## Noise-aware objective", "",
-              f"Camera: {n['camera']['pixels_per_patch']} px per patch and channel, read noise "
-              f"{n['camera']['read_noise']} DN, {n['camera']['electrons_per_dn']} e-/DN, {n['draws']} fixed draws. "
-              f"Comparison: {n['comparison']}.", "",
-              "| optimum | pair @ levels | noise-free train | expected train (noise-aware) | captured train | "
-              "captured test |", "|---|---|---:|---:|---:|---:|",
-              f"| noise-free | {nf['pair']} @ {nf['levels']} | {nf['noise_free_train']:.4f} | "
-              f"{nf['expected_train']:.4f} | {nf['captured_train']:.4f} ± {nf['captured_train_sd']:.4f} | "
-              f"{nf['captured_test']:.4f} |",
-              f"| noise-aware | {na['pair']} @ {na['levels']} | {na['noise_free_train']:.4f} | "
-              f"{na['expected_train']:.4f} | {na['captured_train']:.4f} ± {na['captured_train_sd']:.4f} | "
-              f"{na['captured_test']:.4f} |", "",
-              f"Mean |predicted - captured| over {len(n['candidates'])} candidates: noise-free "
-              f"{n['prediction_error']['noise_free_train']:.4f}, "
-              f"noise-aware {n['prediction_error']['expected_train']:.4f}; "
-              f"rank correlation with the captured error: noise-free "
-              f"{_fmt(n['rank_correlation_with_captured']['noise_free_train'])}, noise-aware "
-              f"{_fmt(n['rank_correlation_with_captured']['expected_train'])}."]
-    if "lab_prediction_error" in n:
-        lines += ["", "Virtual lab (drivers.virtual camera + app.processing, 600x400 frames, "
-                      f"{result.config.lab_repeats} captures per light set): noise-free optimum "
-                      f"{nf['lab_train']:.4f} train / "
-                      f"{nf['lab_test']:.4f} test, noise-aware optimum {na['lab_train']:.4f} / {na['lab_test']:.4f}. "
-                      "Mean |predicted - virtual lab|: noise-free "
-                      f"{n['lab_prediction_error']['noise_free_train']:.4f}, "
-                      f"noise-aware {n['lab_prediction_error']['expected_train']:.4f}; rank correlation: noise-free "
-                      f"{_fmt(n['lab_rank_correlation']['noise_free_train'])}, noise-aware "
-                      f"{_fmt(n['lab_rank_correlation']['expected_train'])}."]
+    lines += ["", "## Predicted vs captured: both modes, noise-free and expected-captured objectives", ""]
+    lines += summary_lines(result.noise)
     out.write_summary("Stability and robustness", lines)

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from PIL import Image
 
-import resources
 from app.processing.ground_truth import (bin_to_superpixels, block_max, compare_to_ground_truth,
                                          write_de_map_png)
 from app.processing.patches import PatchGrid
@@ -23,21 +22,23 @@ from drivers.virtual.scene import Scene
 from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import default_setup
-from simulation.presets import load_preset
+from simulation.lightsource import LightSource
 from simulation.studies.noise import NoiseModel
 
 W, H = 600, 400
 SETUP = default_setup("reflective")
 WHITE = white_point(SETUP.illuminant, SETUP.cmfs)
 MAX_LIGHT_S = 9.0                                        # thesis 4.3.2: 10 s on, minus settling
+# A fixed light set, not a packaged preset (those follow the optimiser's objective: issue 14's expected-captured
+# presets are dimmer, their shadow HDR is limited by the light-on time): the noise-free thesis-PSO reflective pair.
+LIGHTS = (LightSource((1, 6, 7), (0.002242, 0.416392, 1.0)), LightSource((3, 5, 9), (0.660548, 0.393056, 1.0)))
 
 
 class Rig:
     """A virtual camera under a fixed light set, writing every capture as a DNG file (read back by rawpy)."""
 
     def __init__(self, folder: Path, sensor: SensorModel | None = None, seed: int = 3):
-        preset = load_preset(resources.path("presets", "reflective_pso.json"))
-        self.W = np.stack([s.weights() for s in preset.sources])
+        self.W = np.stack([s.weights() for s in LIGHTS])
         self.times = [min(SHUTTER_SPEEDS, key=lambda v: abs(np.log(v / t))) for t in NoiseModel(SETUP).exposures(self.W)]
         self.lights = [f"light {i + 1}" for i in range(len(self.W))]
         self.state = StaticLight(np.zeros(10))

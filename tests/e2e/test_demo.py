@@ -24,7 +24,7 @@ def test_demo_report_schema_and_dual_rgb_beats_three_channel(hdr_report):
     for cond in ("three_channel", "dual_rgb", "dual_rgb_pso", "hdr_dual_rgb", "hdr_dual_rgb_pso"):
         c = on_disk[cond]
         assert set(c["train"]) == {"mean", "median", "p90", "max"} and set(c["test"]) >= {"mean"}
-        assert set(c["simulated"]) == {"train", "test"}
+        assert set(c["simulated"]) >= {"train", "test", "noise_free_train", "noise_free_test", "matrix"}
     assert {"frames", "lost_frames", "light_dose", "elapsed_s"} <= set(on_disk)
     assert on_disk["format"] == "dualrgb-demo-report/1" and on_disk["software"]["numba"]
     assert json.loads((out / "dual_rgb" / "report.json").read_text())["format"] == "dualrgb-report/1"
@@ -48,10 +48,12 @@ def test_hdr_lowers_the_error_of_nd_covered_patches(hdr_report):
         assert all(len(l["exposures_s"]) >= 2 for l in hdr["lights"])
 
 
-def test_captured_errors_track_the_simulation(hdr_report):
+def test_captured_errors_track_the_prediction(hdr_report):
+    """Issue 14: the expected captured error the optimiser predicts is within 25 % of the captured one (train)."""
     data, _ = hdr_report
-    for cond in ("dual_rgb", "dual_rgb_pso"):
-        assert abs(data[cond]["train"]["mean"] - data[cond]["simulated"]["train"]) < 0.3
+    for cond in ("three_channel", "dual_rgb", "dual_rgb_pso"):
+        sim, captured = data[cond]["simulated"]["train"], data[cond]["train"]["mean"]
+        assert abs(sim - captured) <= 0.25 * captured, (cond, sim, captured)
 
 
 def test_demo_resumes_after_kill_without_reshooting(tmp_path):

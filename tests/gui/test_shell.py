@@ -118,6 +118,14 @@ def test_rename_packaged_preset_saves_a_copy(qtbot, make_window, tmp_path):
                                 for i in w.light.preset_items()), timeout=5000)
 
 
+def test_simulate_defaults_are_the_default_optimiser_on_the_expected_captured_error(make_window):
+    sim = make_window().simulate
+    assert sim.method.currentText() == "halving" and sim.objective.currentText() == "expected-captured"
+    assert sim.objective.isEnabled() and sim.seed.isEnabled()
+    sim.method.setCurrentText("three-channel")
+    assert not sim.objective.isEnabled()
+
+
 def test_simulate_tiny_pso_and_save_preset(qtbot, make_window):
     from simulation.presets import load_preset
 

@@ -71,3 +71,26 @@ def test_simulate_takes_its_default_step_from_the_parsimony_study(tmp_path, monk
     assert json.loads(out.read_text())["setup"]["grid"] == "410-780 nm / 20 nm"
     assert main(["simulate", "--method", "three-channel", "--step", "5", "--json", str(out)]) == 0
     assert json.loads(out.read_text())["setup"]["grid"] == "410-780 nm / 5 nm"
+
+
+def test_simulate_objectives_and_capture_options(tmp_path):
+    """Issue 14: the default objective is the expected captured error; --objective noise-free is the thesis'."""
+    out = {}
+    for objective in ("expected-captured", "noise-free"):
+        out[objective] = tmp_path / f"{objective}.json"
+        assert main(["simulate", "--mode", "transmissive", "--method", "exhaustive", "--objective", objective,
+                     "--top", "2", "--json", str(out[objective])]) == 0
+    ec, nf = (json.loads(out[k].read_text()) for k in ("expected-captured", "noise-free"))
+    assert ec["objective"] == "expected-captured" and ec["capture"]["sphere"]["min_stable_level"] == 0.01
+    assert (ec["results"][0]["source1"], ec["results"][0]["source2"]) == ([1, 6, 8], [3, 5, 9])
+    assert (nf["results"][0]["source1"], nf["results"][0]["source2"]) == ([2, 5, 9], [2, 6, 9])
+    for r in ec["results"] + nf["results"]:
+        assert r["expected_train_de00_mean"] >= r["train_de00_mean"] - 1e-3
+    default = tmp_path / "default.json"
+    assert main(["simulate", "--mode", "transmissive", "--method", "exhaustive", "--min-level", "0.02",
+                 "--reference-sd", "0.01", "--pixels", "400", "--json", str(default)]) == 0
+    d = json.loads(default.read_text())
+    assert d["capture"]["reference_gain_sd"] == 0.01 and d["capture"]["camera"]["pixels_per_patch"] == 400
+    r = subprocess.run([sys.executable, "-m", "app.cli", "simulate", "--min-level", "2"], capture_output=True,
+                       text=True)
+    assert r.returncode != 0 and "--min-level" in r.stderr and "Traceback" not in r.stderr

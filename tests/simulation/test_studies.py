@@ -2,6 +2,7 @@
 import json
 import logging
 import os
+from dataclasses import replace
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 import numpy as np
@@ -233,16 +234,38 @@ def test_stability_tiny_writes_outputs(tmp_path):
 
     res = stability(SPEC, StabilityConfig.tiny())
     write_outputs(res, StudyOutput(tmp_path))
-    for f in ("stability.json", "stability.png", "noise_aware.png", "SUMMARY.md"):
+    for f in ("stability.json", "stability.png", "predicted_vs_captured.png", "SUMMARY.md"):
         assert (tmp_path / f).stat().st_size > 0
     data = json.loads((tmp_path / "stability.json").read_text())
-    assert {"seeds", "led_clipping", "dim_leds", "sensitivity", "noise_aware"} <= set(data)
+    assert {"seeds", "led_clipping", "dim_leds", "sensitivity", "predicted_vs_captured"} <= set(data)
     assert len(data["led_clipping"]["rows"]) == 11
     for r in data["led_clipping"]["rows"]:
         assert r["reoptimised_train"] <= r["optimum_clipped_train"] + 1e-9
-    n = data["noise_aware"]
-    assert n["noise_aware_optimum"]["objective_train"] >= n["noise_aware_optimum"]["noise_free_train"] - 1e-3
+    rows = data["predicted_vs_captured"]["rows"]
+    assert {r["mode"] for r in rows} == {"reflective", "transmissive"}
+    assert {r["objective"] for r in rows} == {"noise-free", "expected-captured"}
+    for r in rows:
+        assert r["expected_train"] >= r["noise_free_train"] - 1e-3 and r["captured_train"] > 0
     assert {"noise", "drift", "target_error"} <= set(next(iter(data["sensitivity"].values())))
+
+
+def test_objectives_study_worked_example(tmp_path):
+    """The transmissive noise-free exhaustive pick is the collinear (2,5,9)+(2,6,9); it is captured far worse than
+    predicted noise-free, the expected-captured objective predicts it and picks another pair."""
+    from simulation.studies.objectives import ObjectivesConfig, objectives_study, write_outputs
+
+    cfg = replace(ObjectivesConfig.tiny(), modes=("transmissive",), methods=("exhaustive",))
+    res = objectives_study(SPEC, cfg)
+    write_outputs(res, StudyOutput(tmp_path))
+    for f in ("objectives.json", "objectives.png", "predicted_vs_captured.png", "SUMMARY.md"):
+        assert (tmp_path / f).stat().st_size > 0
+    by = {r["objective"]: r for r in res.rows}
+    nf, ec = by["noise-free"], by["expected-captured"]
+    assert nf["pair"] == [[2, 5, 9], [2, 6, 9]]
+    assert nf["captured_train"] > 2.5 * nf["noise_free_train"]
+    assert abs(nf["expected_train"] - nf["captured_train"]) < 0.1 * nf["captured_train"]
+    assert ec["pair"] != nf["pair"] and ec["captured_train"] < 0.8 * nf["captured_train"]
+    assert by["robust"]["robust_train"] <= nf["robust_train"]
 
 
 def test_parsimony_tiny_picks_valid_options(tmp_path):

@@ -1,0 +1,243 @@
+"""Noise-free, expected-captured and robust objectives compared (``dualrgb study objectives``; the stability
+study's predicted-vs-captured part).
+
+For each mode, each objective (:data:`simulation.runner.OBJECTIVES`) and each method (exhaustive at full
+intensity, the default successive halving over PSO, and the thesis PSO except on the 8x dearer robust
+objective), the optimum's wall time and its figures under every objective: noise-free, expected captured
+(float64) and robust (mean over the plausible worlds). Then each distinct optimum is *captured* at the levels the
+sphere holds (simulation.sphere: a noise-free optimum's trace level below the minimum stable level is 0 there)
+through the virtual lab and app.processing when a ``capture`` is given, else the pixel-level capture simulation
+of simulation.studies.noise, and the captured training error is set against both predictions.
+
+The worked example is the transmissive full-intensity pair (2, 5, 9) + (2, 6, 9): the best noise-free choice
+(0.45 dE00) shares LEDs 2 and 9 between its lights, so its six channels are nearly collinear, the fitted matrix
+amplifies the camera noise, and it is captured at ~1.9 dE00 (worse than 3-channel); the expected-captured
+objective predicts that and picks (1, 6, 8) + (3, 5, 9) instead.
+
+Outputs: ``objectives.json``, ``objectives.png`` (the speed-accuracy plane per mode), ``predicted_vs_captured.png``
+and ``SUMMARY.md``.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable, Optional
+
+import numpy as np
+
+from simulation.capture_model import CameraNoise, CaptureModel
+from simulation.datasets import MODES, SimulationSetup
+from simulation.halving import HalvingSettings, successive_halving
+from simulation.progress import CancelToken, ProgressCallback, check, report
+from simulation.pso import PsoSettings, pso
+from simulation.robust import RobustEvaluator, RobustSettings
+from simulation.runner import OBJECTIVES, make_evaluator
+from simulation.search import exhaustive, light_pairs, refine_top
+from simulation.studies.common import SetupSpec, StudyOutput, new_figure
+from simulation.studies.noise import NoiseModel
+
+log = logging.getLogger(__name__)
+
+Capture = Callable[[SimulationSetup, np.ndarray, np.ndarray], dict]
+WORKED_EXAMPLE = ("transmissive", ((2, 5, 9), (2, 6, 9)))
+
+
+@dataclass(frozen=True)
+class ObjectivesConfig:
+    modes: tuple[str, ...] = MODES
+    objectives: tuple[str, ...] = OBJECTIVES
+    methods: tuple[str, ...] = ("exhaustive", "halving", "pso")
+    light_sets: Optional[int] = None                 # None: all 630
+    halving: HalvingSettings = HalvingSettings()
+    pso: PsoSettings = PsoSettings()
+    robust: RobustSettings = RobustSettings()
+    capture_repeats: int = 2
+    seed: int = 0
+
+    @classmethod
+    def tiny(cls) -> "ObjectivesConfig":
+        return cls(light_sets=8, halving=HalvingSettings(particles=6, min_sets=2, polish_sets=1, polish_iterations=3),
+                   pso=PsoSettings(particles=8, iterations=2), robust=RobustSettings(worlds=2), capture_repeats=1)
+
+
+def study_capture_model(setup: SimulationSetup) -> CaptureModel:
+    """The expected-captured model of the pixel-level capture simulation (simulation.studies.noise): 64 pixels per
+    patch and channel, one white frame, plain means."""
+    return CaptureModel(camera=CameraNoise(), test_pixels_per_patch=None, green_pixels=1, trim_efficiency=1.0)
+
+
+def _groups(cfg: ObjectivesConfig, mode: str) -> list:
+    groups = light_pairs()
+    if cfg.light_sets:
+        groups = groups[:cfg.light_sets]
+        if mode == WORKED_EXAMPLE[0] and WORKED_EXAMPLE[1] not in groups:
+            groups.append(WORKED_EXAMPLE[1])
+    return groups
+
+
+def optima(setup: SimulationSetup, cfg: ObjectivesConfig, capture_model: CaptureModel,
+           cancel: Optional[CancelToken] = None) -> list[dict]:
+    """Every (objective, method) optimum with its wall time and its figures under all three objectives."""
+    groups = _groups(cfg, setup.mode)
+    judge = RobustEvaluator(setup, capture_model, cfg.robust)       # expected (nominal world) and robust figures
+    rows = []
+    for objective in cfg.objectives:
+        ev = judge if objective == "robust" else make_evaluator(setup, objective, capture_model)
+        for method in cfg.methods:
+            if method == "pso" and objective == "robust":
+                continue                                             # 8 worlds x 1.39 M evaluations
+            check(cancel)
+            t0 = time.perf_counter()
+            if method == "exhaustive":
+                out = exhaustive(ev, groups)
+            elif method == "halving":
+                out = successive_halving(ev, groups, cfg.halving, cfg.seed, cancel=cancel)
+            else:
+                out = pso(ev, groups, cfg.pso, cfg.seed, cancel=cancel)
+            seconds = time.perf_counter() - t0
+            best = refine_top(ev, out, 1, judge).best
+            W = judge.realise(best.weights(judge.n_leds))        # what the sphere holds: captured and judged
+            rows.append({"mode": setup.mode, "objective": objective, "method": method, "seconds": seconds,
+                         "evaluations": out.evaluations, "pair": [list(s.leds) for s in best.sources],
+                         "levels": [[float(W[li, k - 1]) for k in s.leds] for li, s in enumerate(best.sources)],
+                         "requested_levels": [list(s.levels) for s in best.sources],
+                         "noise_free_train": best.train.mean, "noise_free_test": best.test.mean,
+                         "expected_train": best.expected_train.mean, "expected_test": best.expected_test.mean,
+                         "robust_train": float(judge.world_costs(W).mean())})
+    return rows
+
+
+def captured(setup: SimulationSetup, rows: list[dict], capture: Optional[Capture], repeats: int) -> None:
+    """Capture each distinct optimum once (virtual lab or pixel-level simulation) and add its captured errors."""
+    model = NoiseModel(setup)
+    done: dict[str, dict] = {}
+    for row in rows:
+        W = np.zeros((2, model.n_leds))
+        for li, (leds, levels) in enumerate(zip(row["pair"], row["levels"])):
+            W[li, np.asarray(leds) - 1] = levels
+        key = repr(W.round(6).tolist())
+        if key not in done:
+            done[key] = (capture(setup, W, model.exposures(W)) if capture is not None
+                         else model.captured_errors(W, repeats))
+        row.update(captured_train=done[key]["train"], captured_test=done[key]["test"])
+
+
+@dataclass
+class ObjectivesResult:
+    config: ObjectivesConfig
+    rows: list[dict]
+    capture: str
+    elapsed_s: float = 0.0
+    summary: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {"elapsed_s": round(self.elapsed_s, 2), "capture": self.capture, "rows": self.rows,
+                "summary": self.summary, "robust": self.config.robust.to_dict()}
+
+
+def _summary(rows: list[dict]) -> dict:
+    """Mean |predicted - captured| / captured of each prediction, and the worked example's rows."""
+    out = {}
+    for key in ("noise_free_train", "expected_train"):
+        rel = [abs(r[key] - r["captured_train"]) / r["captured_train"] for r in rows if "captured_train" in r]
+        out[f"{key}_relative_error"] = float(np.mean(rel)) if rel else None
+        out[f"{key}_max_relative_error"] = float(np.max(rel)) if rel else None
+    out["worked_example"] = [r for r in rows if r["mode"] == WORKED_EXAMPLE[0] and r["method"] == "exhaustive"]
+    return out
+
+
+def objectives_study(spec: SetupSpec = SetupSpec(), cfg: ObjectivesConfig = ObjectivesConfig(), *,
+                     capture: Optional[Capture] = None,
+                     capture_model: Callable[[SimulationSetup], CaptureModel] = study_capture_model,
+                     progress: Optional[ProgressCallback] = None,
+                     cancel: Optional[CancelToken] = None) -> ObjectivesResult:
+    """All modes of ``cfg`` (``spec`` gives the grid and any user CSVs). ``capture(setup, W, exposures)`` is the
+    capture chain to check against (the CLI passes the virtual lab's) and ``capture_model(setup)`` its model."""
+    t0 = time.perf_counter()
+    rows = []
+    for i, mode in enumerate(cfg.modes):
+        setup = replace(spec, mode=mode).build()
+        report(progress, i / len(cfg.modes), f"objectives: {mode} optima")
+        mode_rows = optima(setup, cfg, capture_model(setup), cancel)
+        report(progress, (i + 0.6) / len(cfg.modes), f"objectives: {mode} captures")
+        captured(setup, mode_rows, capture, cfg.capture_repeats)
+        rows += mode_rows
+    report(progress, 1.0, "objectives: done")
+    return ObjectivesResult(cfg, rows, "virtual lab" if capture is not None else "pixel-level simulation",
+                            time.perf_counter() - t0, _summary(rows))
+
+
+# ---------------------------------------------------------------------------------------------------------
+_COLOURS = {"exhaustive": "black", "halving": "tab:green", "pso": "tab:blue"}
+_MARKERS = {"noise-free": "o", "expected-captured": "s", "robust": "D"}
+
+
+def speed_accuracy_chart(result: ObjectivesResult):
+    modes = list(dict.fromkeys(r["mode"] for r in result.rows))
+    fig, axes = new_figure(5.5 * len(modes), 4.6, ncols=len(modes))
+    for ax, mode in zip(np.atleast_1d(axes), modes):
+        for r in (r for r in result.rows if r["mode"] == mode):
+            kw = dict(color=_COLOURS[r["method"]], marker=_MARKERS[r["objective"]], ms=8, ls="none")
+            ax.plot(r["seconds"], r["expected_train"], **kw)
+            ax.plot(r["seconds"], r["robust_train"], mfc="none", **kw)
+        for method, c in _COLOURS.items():
+            ax.plot([], [], color=c, marker="o", ls="none", label=method)
+        for objective, m in _MARKERS.items():
+            ax.plot([], [], color="grey", marker=m, ls="none", label=f"optimised: {objective}")
+        ax.plot([], [], color="grey", marker="o", mfc="none", ls="none", label="hollow: robust figure")
+        ax.set_xscale("log")
+        ax.set_xlabel("wall time (s)")
+        ax.set_ylabel("expected captured training mean dE00")
+        ax.set_title(f"{mode}: optima judged by the expected captured error")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    return fig
+
+
+def predicted_vs_captured_chart(result: ObjectivesResult):
+    modes = list(dict.fromkeys(r["mode"] for r in result.rows))
+    fig, axes = new_figure(5.5 * len(modes), 4.6, ncols=len(modes))
+    for ax, mode in zip(np.atleast_1d(axes), modes):
+        rows = [r for r in result.rows if r["mode"] == mode and "captured_train" in r]
+        cap = [r["captured_train"] for r in rows]
+        ax.plot([r["noise_free_train"] for r in rows], cap, "o", mfc="none", color="tab:blue",
+                label="noise-free prediction")
+        ax.plot([r["expected_train"] for r in rows], cap, "s", color="tab:red", label="expected captured prediction")
+        for r in rows:
+            if mode == WORKED_EXAMPLE[0] and [tuple(p) for p in r["pair"]] == list(WORKED_EXAMPLE[1]):
+                ax.annotate("(2,5,9)+(2,6,9): noise-free pick", (r["noise_free_train"], r["captured_train"]),
+                            textcoords="offset points", xytext=(8, -12), fontsize=7)
+        hi = max(cap + [r["expected_train"] for r in rows]) * 1.1
+        ax.plot([0, hi], [0, hi], "k--", lw=0.8)
+        ax.set_xlabel("predicted training mean dE00")
+        ax.set_ylabel(f"captured ({result.capture}) training mean dE00")
+        ax.set_title(f"{mode}: predicted vs captured")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    return fig
+
+
+def summary_lines(result: ObjectivesResult) -> list[str]:
+    lines = ["| mode | objective | method | time s | pair @ levels | noise-free train | expected train | robust | "
+             "captured train | captured test |", "|---|---|---|---:|---|---:|---:|---:|---:|---:|"]
+    for r in result.rows:
+        levels = " + ".join(f"{tuple(p)}@{tuple(round(v, 4) for v in lv)}" for p, lv in zip(r["pair"], r["levels"]))
+        lines.append(f"| {r['mode']} | {r['objective']} | {r['method']} | {r['seconds']:.2f} | {levels} | "
+                     f"{r['noise_free_train']:.3f} | {r['expected_train']:.3f} | {r['robust_train']:.3f} | "
+                     f"{r.get('captured_train', float('nan')):.3f} | {r.get('captured_test', float('nan')):.3f} |")
+    s = result.summary
+    lines += ["", f"Mean |predicted - captured| / captured (training, {result.capture}): noise-free "
+                  f"{100 * s['noise_free_train_relative_error']:.0f} % (max {100 * s['noise_free_train_max_relative_error']:.0f} %), "
+                  f"expected captured {100 * s['expected_train_relative_error']:.0f} % "
+                  f"(max {100 * s['expected_train_max_relative_error']:.0f} %)."]
+    return lines
+
+
+def write_outputs(result: ObjectivesResult, out: StudyOutput) -> None:
+    out.write_json("objectives.json", result.to_json())
+    out.save_figure(speed_accuracy_chart(result), "objectives.png")
+    out.save_figure(predicted_vs_captured_chart(result), "predicted_vs_captured.png")
+    out.write_summary("Noise-free, expected-captured and robust objectives",
+                      [f"{len(result.rows)} optima, {result.elapsed_s:.0f} s; captures: {result.capture}.", ""]
+                      + summary_lines(result))
