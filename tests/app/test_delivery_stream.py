@@ -106,7 +106,7 @@ def test_delivered_files_are_the_old_paths_byte_for_byte(tmp_path, monkeypatch):
     data = rng.uniform(0, 1.3, (70, 45, 3)).astype(np.float32)
     data[3, 4, 1] = np.nan
     stack = ChannelStack(data, ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})
-    images = delivery._images(tmp_path / "out", "ACC-1", stack.channels)
+    images = delivery.deliverable_files(tmp_path / "out", "ACC-1", stack.channels)
     (tmp_path / "out").mkdir()
     files, invalid = delivery.write_images(stack, prof, images, lambda what: META, band_rows=16)
     enc = encode_deliverables(data, prof.matrix.matrix, prof.white_xyz)
