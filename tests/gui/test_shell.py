@@ -166,7 +166,10 @@ def test_simulation_cancel(qtbot, make_window):
     assert sim.status.text().startswith("PARTIAL (cancelled)")
     assert sim.table.rowCount() == 1 and "(partial)" in sim.table.item(0, 2).text()
     cand = sim.result.outcome.candidates[0]
-    assert cand.train.mean == pytest.approx(cand.train_cost, abs=1e-3)    # its float64 re-evaluation agrees
+    # its float64 re-evaluation agrees with the search's cost, in the objective the search ran (expected captured)
+    assert sim.result.objective == "expected-captured" and cand.expected_train is not None
+    assert cand.objective_mean(sim.result.objective) == pytest.approx(cand.train_cost, abs=1e-3)
+    assert cand.train.mean < cand.expected_train.mean               # noise-free is the lower bound
     assert sim.result.evaluations > 0
     assert sim.run_button.isEnabled()
 

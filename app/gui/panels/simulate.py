@@ -67,7 +67,8 @@ def partial_result(setup, tap: ConvergenceTap, method: str, seed: int, top: int,
         return None
     outcome = SearchOutcome(method, seed, elapsed_s, tap.evaluations, [cand], settings={"partial": True})
     return RunResult(mode=setup.mode, method=method, seed=seed, elapsed_s=elapsed_s, evaluations=tap.evaluations,
-                     three_channel={}, outcome=outcome, setup=setup, top=top, extra={"partial": True})
+                     three_channel={}, outcome=outcome, setup=setup, top=top, extra={"partial": True},
+                     objective=getattr(tap, "objective", "noise-free"))
 
 
 class SimulatePanel(QWidget):
