@@ -21,9 +21,9 @@ from app.processing.patches import PatchGrid
 from app.processing.pipeline import CaptureProcessor, ExposureRef
 from drivers.virtual.camera import StaticLight, VirtualCamera
 from drivers.virtual.scene import Scene
-from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup
+from simulation.matrix_fit import fit_matrix
 
 log = logging.getLogger(__name__)
 

@@ -98,10 +98,8 @@ def _cpu() -> float:
 
 def _child_process(folder: str, outputs: bool) -> dict:
     sys.path.insert(0, str(ROOT))
-    from app.processing.pipeline import CaptureProcessor, ExposureRef
-    from simulation.matrix_fit import CharacterisationMatrix
-
     from app.processing.kernels import warm_up
+    from app.processing.pipeline import CaptureProcessor, ExposureRef
 
     folder_p = Path(folder)
     plan = json.loads((folder_p / "plan.json").read_text())

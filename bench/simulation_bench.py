@@ -5,7 +5,6 @@ the L-BFGS-B cost per evaluation (float64 against the float32 kernel) for issue 
 from __future__ import annotations
 
 import time
-from typing import Optional
 
 import colour
 import numpy as np
@@ -86,7 +85,7 @@ def bench_simulation(mode: str = "reflective", seed: int = 0, naive_samples: int
     }
 
 
-def _row(outcome, seconds: float, objective: str, cpu_s: Optional[float] = None) -> dict:
+def _row(outcome, seconds: float, objective: str, cpu_s: float | None = None) -> dict:
     b = outcome.best
     row = {"objective": objective, "elapsed_s": round(seconds, 3), "evaluations": outcome.evaluations,
            **({"cpu_s": round(cpu_s, 3)} if cpu_s is not None else {}),

@@ -19,7 +19,7 @@ import struct
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional, Union
+from typing import Union
 
 import numpy as np
 
@@ -56,8 +56,8 @@ class RawFrame:
     white_level: int                           # saturation DN
     make: str = ""
     model: str = ""
-    exposure_s: Optional[float] = None
-    iso: Optional[float] = None
+    exposure_s: float | None = None
+    iso: float | None = None
     format: str = ""                           # 'DNG', 'NEF', ...
     extra: dict = field(default_factory=dict)
 
@@ -162,7 +162,7 @@ def _tiff_make_model(path: Path, head: bytes) -> tuple[str, str]:
         return "", ""
 
 
-def _tiff_data_end(path: Path, head: bytes) -> Optional[int]:
+def _tiff_data_end(path: Path, head: bytes) -> int | None:
     """The largest offset + byte count of the image data in a TIFF-based raw (main IFDs and SubIFDs, where
     NEF keeps its raw data), or None when the file is not TIFF-based or tifffile cannot parse it.
 
@@ -343,7 +343,7 @@ def _linear_args() -> dict:
 
 
 def linear_demosaic(frame: RawFrame, *, half_size: bool = False,
-                    algorithm: Optional[str] = None) -> np.ndarray:
+                    algorithm: str | None = None) -> np.ndarray:
     """Linear camera RGB as uint16 (H, W, 3) from LibRaw, black subtracted and scaled so the white level
     maps to 65535.
 

@@ -12,8 +12,9 @@ import os
 import re
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Callable, Optional, TypeVar
+from typing import TypeVar
 
 log = logging.getLogger(__name__)
 
@@ -34,10 +35,10 @@ class CameraInfo:
     model: str
     source: str                                   # 'gphoto2' or 'usb'
     port: str = ""
-    vendor_id: Optional[int] = None
-    product_id: Optional[int] = None
-    bus: Optional[int] = None
-    address: Optional[int] = None
+    vendor_id: int | None = None
+    product_id: int | None = None
+    bus: int | None = None
+    address: int | None = None
     status: str = ""                              # after a probe: 'ok' or the problem
 
     @property
@@ -47,7 +48,7 @@ class CameraInfo:
         return f"{self.vendor_id:04x}:{self.product_id:04x}"
 
     @property
-    def bus_address(self) -> Optional[tuple[int, int]]:
+    def bus_address(self) -> tuple[int, int] | None:
         if self.bus is not None and self.address is not None:
             return self.bus, self.address
         return parse_usb_port(self.port)
@@ -58,10 +59,10 @@ class SerialPortInfo:
     device: str
     description: str = ""
     hwid: str = ""
-    vendor_id: Optional[int] = None
-    product_id: Optional[int] = None
-    serial_number: Optional[str] = None
-    manufacturer: Optional[str] = None
+    vendor_id: int | None = None
+    product_id: int | None = None
+    serial_number: str | None = None
+    manufacturer: str | None = None
 
     @property
     def is_usb(self) -> bool:
@@ -96,7 +97,7 @@ class DeviceReport:
         return d
 
 
-def parse_usb_port(port: str) -> Optional[tuple[int, int]]:
+def parse_usb_port(port: str) -> tuple[int, int] | None:
     """(bus, address) from a gphoto2 port 'usb:001,007'; None for other ports."""
     m = re.fullmatch(r"usb:(\d+),(\d+)", port or "")
     return (int(m.group(1)), int(m.group(2))) if m else None

@@ -34,16 +34,15 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
 from simulation.camera_model import led_responses
 from simulation.capture_model import CaptureModel
-from simulation.matrix_fit import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target, target_xyz
 from simulation.fast_expected import mean_expected_de2000, prepare_expected
+from simulation.matrix_fit import solve_normal_equations
 from simulation.objective import ErrorStats, Evaluator, check_kernel_batch, kernel_threads
 
 log = logging.getLogger(__name__)
@@ -116,8 +115,8 @@ class Expected:
 class ExpectedErrorModel:
     """The expected captured error of light sets W (B, L, K) under ``capture`` (float64 reference path)."""
 
-    def __init__(self, setup: SimulationSetup, capture: Optional[CaptureModel] = None,
-                 reference: Optional[SimulationSetup] = None) -> None:
+    def __init__(self, setup: SimulationSetup, capture: CaptureModel | None = None,
+                 reference: SimulationSetup | None = None) -> None:
         self.setup = setup
         self.reference = reference or setup         # whose target spectra give the reference XYZ
         self.capture = capture or CaptureModel()
@@ -222,7 +221,7 @@ class ExpectedErrorModel:
         var = 2 * np.einsum("Bnab,Bnba->Bn", QS, QS) + 4 * np.einsum("Bna,Bnab,nbc,Bnc->Bn", b, QS, terms.Q, b)
         return s, var
 
-    def train_errors(self, W: np.ndarray, fit: Optional[dict] = None) -> Expected:
+    def train_errors(self, W: np.ndarray, fit: dict | None = None) -> Expected:
         """Expected captured training dE00 per patch (fit and errors on the same captured target)."""
         W = self.realise(np.asarray(W, dtype=float))
         f = fit or self.fit(W)
@@ -240,7 +239,7 @@ class ExpectedErrorModel:
         s, var = self._spread(Sigma, pred - tr.xyz, tr)
         return Expected(expected_norm(m * m, s, var), m)
 
-    def test_errors(self, W: np.ndarray, fit: Optional[dict] = None) -> Expected:
+    def test_errors(self, W: np.ndarray, fit: dict | None = None) -> Expected:
         """Expected captured test dE00 per patch: the test target captured on its own, the fit from the
         captured training target (its noise and drift reach the test predictions through the matrix)."""
         W = self.realise(np.asarray(W, dtype=float))
@@ -304,8 +303,8 @@ class ExpectedErrorEvaluator(Evaluator):
 
     objective = "expected-captured"
 
-    def __init__(self, setup: SimulationSetup, capture: Optional[CaptureModel] = None,
-                 reference: Optional[SimulationSetup] = None) -> None:
+    def __init__(self, setup: SimulationSetup, capture: CaptureModel | None = None,
+                 reference: SimulationSetup | None = None) -> None:
         super().__init__(setup, reference)
         self.model = ExpectedErrorModel(setup, capture, reference)
         self.capture = self.model.capture

@@ -12,10 +12,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 from numba import float32 as f32
+from numba import njit, prange
 
-from simulation.fast_de import _FASTMATH, _de2000, _f_lab   # one CIEDE2000 implementation for both objectives
+from simulation.fast_de import _FASTMATH, _de2000, _f_lab  # one CIEDE2000 implementation for both objectives
 
 _BLOCK = 256
 

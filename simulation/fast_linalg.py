@@ -12,7 +12,6 @@ import math
 import numpy as np
 from numba import njit, prange
 
-
 _SEGMENT = 128
 
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -35,9 +35,9 @@ class GaSettings:
     p_mutation: float = 0.9
 
 
-def ga(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings: GaSettings = GaSettings(),
-       seed: int = 0, *, chunk: int = 32, progress: Optional[ProgressCallback] = None,
-       cancel: Optional[CancelToken] = None) -> SearchOutcome:
+def ga(evaluator: Evaluator, groups: Sequence[Group] | None = None, settings: GaSettings = GaSettings(),
+       seed: int = 0, *, chunk: int = 32, progress: ProgressCallback | None = None,
+       cancel: CancelToken | None = None) -> SearchOutcome:
     groups = list(groups) if groups is not None else light_pairs()
     idx_all, mask_all = group_arrays(groups)
     G, L, m = idx_all.shape

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
-from typing import Callable, Optional, Sequence
 
 import numpy as np
 
@@ -46,10 +46,10 @@ class HalvingSettings:
     polish_step: float = 1e-3       # central differences: well above float32 noise and the PWM step
 
 
-def successive_halving(evaluator, groups: Optional[Sequence[Group]] = None,
+def successive_halving(evaluator, groups: Sequence[Group] | None = None,
                        settings: HalvingSettings = HalvingSettings(), seed: int = 0, *,
-                       progress: Optional[ProgressCallback] = None,
-                       cancel: Optional[CancelToken] = None) -> SearchOutcome:
+                       progress: ProgressCallback | None = None,
+                       cancel: CancelToken | None = None) -> SearchOutcome:
     """Successive halving with the thesis PSO as the inner optimiser (each rung restarts PSO, seeded by rung),
     then the L-BFGS-B polish of the best sets. Best first."""
     groups = list(groups) if groups is not None else light_pairs()
@@ -99,7 +99,7 @@ def set_cost(evaluator, idx_row: np.ndarray, mask_row: np.ndarray) -> Callable[[
 
 
 def polish(evaluator, groups: Sequence[Group], best_x: np.ndarray, best_c: np.ndarray,
-           settings: HalvingSettings, *, cancel: Optional[CancelToken] = None) -> list[dict]:
+           settings: HalvingSettings, *, cancel: CancelToken | None = None) -> list[dict]:
     """L-BFGS-B from the best ``settings.polish_sets`` sets' levels, in place where it improves (levels
     normalised as PSO's, eqs 6.2-6.4). Returns what it did per set."""
     from scipy.optimize import minimize

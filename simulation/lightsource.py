@@ -68,5 +68,5 @@ class LightSource:
         return {"leds": list(self.leds), "levels": [float(v) for v in self.levels], "name": self.name}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "LightSource":
+    def from_dict(cls, data: dict) -> LightSource:
         return cls(tuple(data["leds"]), tuple(data.get("levels") or ()), data.get("name", ""))

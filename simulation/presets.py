@@ -17,7 +17,6 @@ import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 from scipy.optimize import nnls
@@ -43,7 +42,7 @@ class Preset:
     name: str
     sources: tuple[LightSource, ...]
     method: str = "manual"
-    seed: Optional[int] = None
+    seed: int | None = None
     mode: str = "reflective"
     errors: dict = field(default_factory=dict)
     dataset: dict = field(default_factory=dict)

@@ -9,8 +9,8 @@ from __future__ import annotations
 import itertools
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -64,10 +64,10 @@ class Candidate:
 
     sources: tuple[LightSource, ...]
     train_cost: float                       # objective value found by the search (float32 kernel)
-    train: Optional[ErrorStats] = None      # float64 noise-free re-evaluation (filled for the reported top K)
-    test: Optional[ErrorStats] = None
-    expected_train: Optional[ErrorStats] = None     # float64 expected captured errors (simulation.expected_error)
-    expected_test: Optional[ErrorStats] = None
+    train: ErrorStats | None = None      # float64 noise-free re-evaluation (filled for the reported top K)
+    test: ErrorStats | None = None
+    expected_train: ErrorStats | None = None     # float64 expected captured errors (simulation.expected_error)
+    expected_test: ErrorStats | None = None
 
     def weights(self, n_leds: int) -> np.ndarray:
         return np.stack([s.weights(n_leds) for s in self.sources])
@@ -103,7 +103,7 @@ class Candidate:
 @dataclass
 class SearchOutcome:
     method: str
-    seed: Optional[int]
+    seed: int | None
     elapsed_s: float
     evaluations: int
     candidates: list[Candidate]             # best first
@@ -149,8 +149,8 @@ def refine_top(evaluator: Evaluator, outcome: SearchOutcome, top: int, expected=
     return outcome
 
 
-def exhaustive(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, *, batch: int = 20000,
-               progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+def exhaustive(evaluator: Evaluator, groups: Sequence[Group] | None = None, *, batch: int = 20000,
+               progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> SearchOutcome:
     """Full-intensity search over ``groups`` (default: the 630 binned pairs)."""
     groups = list(groups) if groups is not None else light_pairs()
     t0 = time.perf_counter()

@@ -104,7 +104,7 @@ def realisable_mix(leds: np.ndarray, target: np.ndarray, sphere: SpherePropertie
 
 
 def realisable_d65_mix(leds: np.ndarray, illuminant: np.ndarray, cmfs: np.ndarray,
-                       sphere: SphereProperties = SphereProperties()) -> tuple["LightSource", float]:
+                       sphere: SphereProperties = SphereProperties()) -> tuple[LightSource, float]:
     """The 3-channel baseline's D65-like sphere mix (thesis 1.4) realisable on ``sphere``, and its CIE 1976
     u'v' distance to D65."""
     import colour

@@ -24,7 +24,7 @@ SOFTWARE = ("numpy", "numba", "colour-science", "rawpy")
 
 
 def _version(distribution: str) -> str | None:
-    from importlib import metadata       # ~50 ms: only when a version is asked for
+    from importlib import metadata  # ~50 ms: only when a version is asked for
 
     try:
         return metadata.version(distribution)

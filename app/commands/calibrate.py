@@ -10,8 +10,14 @@ import sys
 from pathlib import Path
 
 from app.commands.options import count, input_file, number
-from app.commands.stand_options import (add_device_options, ask_person, open_devices, open_session,
-                                        progress_printer, write_json)
+from app.commands.stand_options import (
+    add_device_options,
+    ask_person,
+    open_devices,
+    open_session,
+    progress_printer,
+    write_json,
+)
 
 log = logging.getLogger(__name__)
 

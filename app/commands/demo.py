@@ -30,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.demo import DemoSettings, run_demo   # heavy imports only when the demo runs
+    from app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
                             seed=args.seed, dark_frames=args.dark_frames, new_session=args.new_session,

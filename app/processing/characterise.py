@@ -19,16 +19,16 @@ choice; both methods' errors on training and test targets use the float64 refere
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
 
 import numpy as np
 from scipy import optimize
 
-from simulation.matrix_fit import CharacterisationMatrix, fit_matrix
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.matrix_fit import CharacterisationMatrix, fit_matrix
 from simulation.objective import ErrorStats
-from simulation.progress import CancelToken, Cancelled, ProgressCallback, check, report
+from simulation.progress import Cancelled, CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 
@@ -45,16 +45,16 @@ def patch_errors(matrix: CharacterisationMatrix | np.ndarray, values: np.ndarray
     return delta_e_2000(xyz_to_lab(np.asarray(xyz, dtype=float), white), xyz_to_lab(pred, white))
 
 
-def fit_least_squares(values: np.ndarray, xyz: np.ndarray, channels: Optional[list[str]] = None
+def fit_least_squares(values: np.ndarray, xyz: np.ndarray, channels: list[str] | None = None
                       ) -> CharacterisationMatrix:
     m = fit_matrix(values, xyz, channels)
     m.method = LEAST_SQUARES
     return m
 
 
-def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels: Optional[list[str]] = None, *,
-               start: Optional[CharacterisationMatrix] = None, max_iter: int = 500,
-               progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels: list[str] | None = None, *,
+               start: CharacterisationMatrix | None = None, max_iter: int = 500,
+               progress: ProgressCallback | None = None, cancel: CancelToken | None = None
                ) -> CharacterisationMatrix:
     """The matrix minimising mean CIEDE2000 on (values, xyz), started from least squares (or ``start``)."""
     values = np.asarray(values, dtype=float)
@@ -118,14 +118,14 @@ def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels:
 class MethodResult:
     matrix: CharacterisationMatrix
     train_errors: np.ndarray
-    test_errors: Optional[np.ndarray] = None
+    test_errors: np.ndarray | None = None
 
     @property
     def train(self) -> ErrorStats:
         return ErrorStats.of(self.train_errors)
 
     @property
-    def test(self) -> Optional[ErrorStats]:
+    def test(self) -> ErrorStats | None:
         return None if self.test_errors is None else ErrorStats.of(self.test_errors)
 
     def to_dict(self) -> dict:
@@ -152,7 +152,7 @@ class ModelSelection:
                 "cv_mean_de00": {k: round(v, 4) for k, v in self.cv_mean.items()}}
 
 
-def _fitters(white: np.ndarray, channels: list[str], optimise: bool, cancel: Optional[CancelToken]) -> dict:
+def _fitters(white: np.ndarray, channels: list[str], optimise: bool, cancel: CancelToken | None) -> dict:
     fits = {LEAST_SQUARES: lambda v, x: fit_least_squares(v, x, channels)}
     if optimise:
         fits[DE2000] = lambda v, x: fit_de2000(v, x, white, channels, cancel=cancel)
@@ -161,7 +161,7 @@ def _fitters(white: np.ndarray, channels: list[str], optimise: bool, cancel: Opt
 
 def select_model(train_values: np.ndarray, train_xyz: np.ndarray, white: np.ndarray, channels: list[str], *,
                  optimise: bool = True, folds: int = CV_FOLDS, seed: int = 0,
-                 progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+                 progress: ProgressCallback | None = None, cancel: CancelToken | None = None
                  ) -> ModelSelection:
     """Choose the matrix method by k-fold cross-validation on the training target (it never sees a test target:
     none is passed). Folds are a seeded random partition; each patch's error comes from a fit without it."""
@@ -193,7 +193,7 @@ class Characterisation:
     results: dict[str, MethodResult]
     white: np.ndarray
     channels: list[str] = field(default_factory=list)
-    selection: Optional[ModelSelection] = None
+    selection: ModelSelection | None = None
 
     @property
     def best(self) -> str:
@@ -212,9 +212,9 @@ class Characterisation:
 
 
 def characterise(train_values: np.ndarray, train_xyz: np.ndarray, white: np.ndarray,
-                 test_values: Optional[np.ndarray] = None, test_xyz: Optional[np.ndarray] = None,
-                 channels: Optional[Sequence[str]] = None, *, optimise: bool = True,
-                 progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+                 test_values: np.ndarray | None = None, test_xyz: np.ndarray | None = None,
+                 channels: Sequence[str] | None = None, *, optimise: bool = True,
+                 progress: ProgressCallback | None = None, cancel: CancelToken | None = None
                  ) -> Characterisation:
     """Fit least squares and (``optimise``) the dE00-optimised matrix, choose one by cross-validation on the
     training target (``select_model``), then evaluate both on train and test."""

@@ -24,10 +24,10 @@ from __future__ import annotations
 import csv
 import logging
 import struct
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Mapping, Optional, Sequence
 from xml.sax.saxutils import escape
 
 import numpy as np
@@ -102,7 +102,7 @@ def _curv_tag(samples: np.ndarray) -> bytes:
     return b"curv" + b"\0" * 4 + struct.pack(">I", len(v)) + v.tobytes()
 
 
-def matrix_trc_icc(space: str, description: Optional[str] = None, n_curve: int = 4096) -> bytes:
+def matrix_trc_icc(space: str, description: str | None = None, n_curve: int = 4096) -> bytes:
     """A minimal ICC v2.4 matrix/TRC RGB display profile for a colour-science RGB colour space."""
     import colour
 
@@ -163,7 +163,7 @@ class TiffMetadata:
     description: str = ""
     make: str = ""
     model: str = ""
-    ppi: Optional[float] = None
+    ppi: float | None = None
     datetime: str = ""                         # "YYYY:MM:DD HH:MM:SS" (TIFF); default: now
     xmp: bytes = b""
 
@@ -178,12 +178,12 @@ class TiffMetadata:
         return out
 
 
-def tiff_datetime(when: Optional[datetime] = None) -> str:
+def tiff_datetime(when: datetime | None = None) -> str:
     return (when or datetime.now()).strftime("%Y:%m:%d %H:%M:%S")
 
 
 def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str = "", tool: str = "",
-               created: Optional[datetime] = None) -> bytes:
+               created: datetime | None = None) -> bytes:
     """An XMP packet: dc:identifier, dc:title, xmp:CreatorTool, xmp:CreateDate and ``dualrgb:<Key>`` fields."""
     created = created or datetime.now(timezone.utc)
     props = [f"<xmp:CreateDate>{created.isoformat(timespec='seconds')}</xmp:CreateDate>"]
@@ -208,7 +208,7 @@ def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str
 
 
 def write_tiff(path: Path, image: np.ndarray, meta: TiffMetadata, *, photometric: str = "minisblack",
-               icc: Optional[bytes] = None) -> Path:
+               icc: bytes | None = None) -> Path:
     """One uncompressed TIFF (contiguous samples) with ``meta`` in its tags, written atomically: tifffile writes
     straight into simulation.atomic_io.atomic_output's temp file (fsync, rename), no copy in memory."""
     import tifffile

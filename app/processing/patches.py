@@ -24,7 +24,6 @@ from __future__ import annotations
 import logging
 import os
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 from scipy import stats
@@ -111,7 +110,7 @@ class PatchGrid:
                 out.append(self.to_image(np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]])))
         return np.asarray(out)
 
-    def scaled(self, factor: float) -> "PatchGrid":
+    def scaled(self, factor: float) -> PatchGrid:
         """The same grid for an image scaled by ``factor`` (0.5: full mosaic -> superpixel image).
 
         Pixel centres at integer coordinates: x_scaled = (x + 0.5) * factor - 0.5.
@@ -176,7 +175,7 @@ def _import_detection():
     """Import colour_checker_detection without letting OpenCV's wheel repoint Qt's plugin path."""
     saved = {k: os.environ.get(k) for k in ("QT_QPA_PLATFORM_PLUGIN_PATH", "QT_QPA_FONTDIR")}
     try:
-        import colour_checker_detection as ccd  # noqa: PLC0415 - optional dependency
+        import colour_checker_detection as ccd
         return ccd
     finally:
         for k, v in saved.items():
@@ -186,7 +185,7 @@ def _import_detection():
                 os.environ[k] = v
 
 
-def detect_cc24(image: np.ndarray, *, fraction: float = 0.5) -> Optional[Cc24Detection]:
+def detect_cc24(image: np.ndarray, *, fraction: float = 0.5) -> Cc24Detection | None:
     """Find a ColorChecker Classic in an (H, W, 3) RGB image (linear or display-encoded, any scale).
 
     Returns None (with a log line) when ``colour-checker-detection`` is not installed or finds no chart.

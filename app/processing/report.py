@@ -33,10 +33,11 @@ from __future__ import annotations
 import json
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Optional, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -59,12 +60,12 @@ REPORT_FORMAT = "dualrgb-report/1"
 class Level:
     name: str
     mean: float
-    p90: Optional[float] = None
-    max: Optional[float] = None
+    p90: float | None = None
+    max: float | None = None
     strict: bool = False            # FADGI writes "<", ISO and Metamorfoze "<="
 
     def passes(self, s: ErrorStats) -> dict:
-        def ok(value: float, limit: Optional[float]) -> Optional[bool]:
+        def ok(value: float, limit: float | None) -> bool | None:
             if limit is None:
                 return None
             return bool(value < limit) if self.strict else bool(value <= limit)
@@ -199,7 +200,7 @@ def save_figure(fig, path: Path, **kwargs) -> Path:
     return path
 
 
-def layout_for(n: int, layout: Optional[tuple[int, int]] = None) -> tuple[int, int]:
+def layout_for(n: int, layout: tuple[int, int] | None = None) -> tuple[int, int]:
     if layout and layout[0] * layout[1] >= n:
         return int(layout[0]), int(layout[1])
     cols = int(math.ceil(math.sqrt(n * 1.5)))
@@ -207,8 +208,9 @@ def layout_for(n: int, layout: Optional[tuple[int, int]] = None) -> tuple[int, i
 
 
 def xyz_to_srgb8(xyz: np.ndarray, white: np.ndarray) -> np.ndarray:
-    from app.processing.outputs import xyz_to_rgb_matrix
     import colour
+
+    from app.processing.outputs import xyz_to_rgb_matrix
 
     M = xyz_to_rgb_matrix("sRGB", white) / float(white[1])
     lin = np.clip(np.asarray(xyz, float) @ M.T, 0, 1)
@@ -303,13 +305,13 @@ class TargetData:
     names: list[str]
     xyz: np.ndarray
     values: np.ndarray
-    layout: Optional[tuple[int, int]] = None
+    layout: tuple[int, int] | None = None
     label: str = ""
-    std: Optional[np.ndarray] = None          # (n, C) per-patch standard deviation of the camera values
+    std: np.ndarray | None = None          # (n, C) per-patch standard deviation of the camera values
 
 
 def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors: np.ndarray, label: str,
-                    calibration: Optional["CalibrationFrames"]) -> tuple[dict, list[str]]:
+                    calibration: CalibrationFrames | None) -> tuple[dict, list[str]]:
     """The quality metrics of one target (app.processing.quality) and their figures."""
     from app.processing.quality import STANDARD_LIMITS, assess
     from app.processing.quality_figures import lab_components_figure, tone_figure, uniformity_figure
@@ -332,9 +334,9 @@ def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors
 
 
 def build_report(out_dir: Path, characterisation: Characterisation, train: TargetData,
-                 test: Optional[TargetData] = None, *, simulated_train: Optional[np.ndarray] = None,
-                 title: str = "dual-RGB capture", extra: Optional[dict] = None,
-                 calibration: Optional["CalibrationFrames"] = None) -> dict:
+                 test: TargetData | None = None, *, simulated_train: np.ndarray | None = None,
+                 title: str = "dual-RGB capture", extra: dict | None = None,
+                 calibration: CalibrationFrames | None = None) -> dict:
     """Write report.json and the PNG figures into ``out_dir``; returns the JSON dict. ``calibration`` (the
     session's processor, darks and flats) adds sensor noise and illuminance non-uniformity to the quality
     metrics (app.processing.quality)."""

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Iterator, Sequence
+from collections.abc import Iterator, Sequence
 
-from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
+from app.sequences.base import PlannedFrame, ProgressEvent
+from app.sequences.base import Sequence as BaseSequence
 from app.sequences.shooter import Shooter, channel_levels
 from app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
 

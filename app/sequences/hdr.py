@@ -10,8 +10,8 @@ reaches ``min_signal`` or the light-on limit stops it (then the plan says so).
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 

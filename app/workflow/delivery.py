@@ -20,9 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Optional
-
-import numpy as np
+from typing import Any
 
 from app.processing.encode import LINEAR_ONE, encode_deliverables
 from app.processing.outputs import TiffMetadata, icc_profile, tiff_datetime, write_tiff, xmp_packet
@@ -92,13 +90,13 @@ class QaLine:
     underexposed_pct: float
     invalid_pct: float
     dose: LightDoseRecord
-    train_mean: Optional[float]
-    test_mean: Optional[float]
+    train_mean: float | None
+    test_mean: float | None
     hdr: bool = False
     warnings: list[str] = field(default_factory=list)
 
     def text(self) -> str:
-        def de(v: Optional[float]) -> str:
+        def de(v: float | None) -> str:
             return "n/a" if v is None else f"{v:.2f}"
         return (f"{self.identifier}: clipped {self.clipped_pct:.2f} %, under-exposed {self.underexposed_pct:.2f} %, "
                 f"light dose {self.dose.lux_h:.3g} lux.h ({self.dose.lux_s:.3g} lux.s), calibration dE00 train "
@@ -130,7 +128,7 @@ def _qa(stack: ChannelStack, invalid: float, profile: CalibrationProfile, origin
 
 
 def _tiff_meta(original: Original, profile: CalibrationProfile, camera: CameraIdentity, dose: LightDoseRecord,
-               ppi: Optional[float], what: str, now: datetime) -> TiffMetadata:
+               ppi: float | None, what: str, now: datetime) -> TiffMetadata:
     software = f"dualrgb {dualrgb_version()}"
     xmp = xmp_packet({"Operator": original.operator, "CalibrationID": profile.id, "Mode": original.mode,
                       "LightDoseLuxHours": f"{dose.lux_h:.6g}", "LightDoseLuxSeconds": f"{dose.lux_s:.6g}",
@@ -143,9 +141,9 @@ def _tiff_meta(original: Original, profile: CalibrationProfile, camera: CameraId
 
 
 def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original, out_dir: Path, *,
-            camera: CameraIdentity, dose: LightDoseRecord, ppi: Optional[float] = None,
-            exposures: Optional[dict[str, list[float]]] = None, warnings: Optional[list[str]] = None,
-            extra: Optional[dict] = None) -> Delivery:
+            camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
+            exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
+            extra: dict | None = None) -> Delivery:
     """Encode the stack with the calibration's matrix and write every deliverable of ``original``."""
     warnings = list(warnings or [])
     ppi = ppi or profile.ppi

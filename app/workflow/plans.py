@@ -7,7 +7,8 @@
 from __future__ import annotations
 
 import logging
-from typing import Any, Mapping, Optional, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from app.sequences.base import Sequence as BaseSequence
 from app.sequences.calibration import DarkSeries, FlatSeries
@@ -18,7 +19,7 @@ log = logging.getLogger(__name__)
 
 
 def calibration_exposures(session: Any, base: Mapping[str, Sequence[float]],
-                          planned: Optional[Mapping[str, Sequence[float]]] = None) -> dict[str, list[float]]:
+                          planned: Mapping[str, Sequence[float]] | None = None) -> dict[str, list[float]]:
     """Per light: every exposure the captures use (base, planned HDR brackets, targets and originals already in
     the session under that light): darks and flats need all of them."""
     out = {name: set(float(t) for t in ts) for name, ts in base.items()}
@@ -33,7 +34,7 @@ def calibration_exposures(session: Any, base: Mapping[str, Sequence[float]],
 
 
 def build_sequence(kind: SequenceKind, shooter: Any, lights: Sequence[NamedLight], *,
-                   exposures: Mapping[str, Sequence[float]], frames: int = 1, subject: Optional[Subject] = None,
+                   exposures: Mapping[str, Sequence[float]], frames: int = 1, subject: Subject | None = None,
                    take: int = 1) -> BaseSequence:
     """The sequence of ``kind``: darks at every exposure in ``exposures``, flats per light at its exposures,
     or ``subject`` under each light at its exposures (TARGET / HDR_TARGET / ORIGINAL)."""

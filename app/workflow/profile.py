@@ -18,10 +18,11 @@ import hashlib
 import io
 import json
 import logging
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Optional, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -47,11 +48,11 @@ class CameraIdentity:
     model: str = ""
     serial: str = ""
     lens: str = ""
-    iso: Optional[int] = None
-    aperture: Optional[float] = None
+    iso: int | None = None
+    aperture: float | None = None
 
     @classmethod
-    def of(cls, camera: Any) -> "CameraIdentity":
+    def of(cls, camera: Any) -> CameraIdentity:
         """What the camera reports about itself (gphoto2: serialnumber / lensname config; virtual: its own)."""
         summary = camera.config_summary()
         settings = camera.settings()
@@ -79,10 +80,10 @@ class SphereIdentity:
     model: str = ""
     firmware: str = ""
     serial: str = ""
-    temperature_c: Optional[float] = None
+    temperature_c: float | None = None
 
     @classmethod
-    def of(cls, sphere: Any) -> "SphereIdentity":
+    def of(cls, sphere: Any) -> SphereIdentity:
         info = sphere.identify()
         return cls(str(info.get("model", "")), str(info.get("firmware", "")), str(info.get("serial", "")),
                    float(sphere.temperature_c()))
@@ -126,20 +127,20 @@ class CalibrationProfile:
     white_xyz: list[float]
     raw: dict                                   # white_level, black_level, cfa, linear_limit, shape
     sources: dict[str, str]                     # frame file -> sha256
-    ppi: Optional[float] = None
+    ppi: float | None = None
     targets: dict = field(default_factory=dict)
     version: str = field(default_factory=dualrgb_version)
-    darks: Optional[MasterDark] = None
+    darks: MasterDark | None = None
     whites: dict[str, FlatField] = field(default_factory=dict)
-    path: Optional[Path] = None
+    path: Path | None = None
 
     # ---- derived ----
     @property
-    def test_mean(self) -> Optional[float]:
+    def test_mean(self) -> float | None:
         best = self.statistics.get("methods", {}).get(self.statistics.get("best", ""), {})
         return (best.get("test") or {}).get("mean")
 
-    def age_h(self, now: Optional[datetime] = None) -> float:
+    def age_h(self, now: datetime | None = None) -> float:
         created = datetime.fromisoformat(self.created_at)
         return ((now or datetime.now(timezone.utc)) - created).total_seconds() / 3600.0
 
@@ -250,9 +251,9 @@ def _sha256(path: Path, chunk: int = 1 << 22) -> str:
     return h.hexdigest()
 
 
-def check_reuse(prof: CalibrationProfile, camera: CameraIdentity, sphere: Optional[SphereIdentity] = None,
-                lights: Optional[Sequence[NamedLight]] = None, limits: ReuseLimits = ReuseLimits(),
-                now: Optional[datetime] = None) -> ReuseCheck:
+def check_reuse(prof: CalibrationProfile, camera: CameraIdentity, sphere: SphereIdentity | None = None,
+                lights: Sequence[NamedLight] | None = None, limits: ReuseLimits = ReuseLimits(),
+                now: datetime | None = None) -> ReuseCheck:
     """Compare the stand now with the calibration: refusals name each mismatch, warnings the age."""
     out = ReuseCheck(age_h=prof.age_h(now))
     c = prof.camera
@@ -291,7 +292,7 @@ def new_profile_id(created: datetime, sources: dict[str, str]) -> str:
     return f"cal-{created.strftime('%Y%m%dT%H%M%SZ')}-{digest}"
 
 
-def describe(prof: CalibrationProfile, check: Optional[ReuseCheck] = None) -> list[str]:
+def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[str]:
     """Human-readable lines for ``dualrgb calibration show``."""
     stats = prof.statistics.get("methods", {}).get(prof.statistics.get("best", ""), {})
     lines = [f"calibration {prof.id} ({FORMAT}, dualrgb {prof.version}), made {prof.created_at} "

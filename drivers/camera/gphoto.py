@@ -36,22 +36,47 @@ import logging
 import os
 import threading
 import time
+from collections.abc import Callable
 from io import BytesIO
-from typing import Any, Callable, Optional, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
 from drivers.camera.base import Camera, CameraError, CameraTimeout, Exposure, RawCapture, call_with_deadline
-from drivers.camera.gphoto_errors import (GP_ERROR, GP_ERROR_CAMERA_BUSY, GP_ERROR_CANCEL, GP_ERROR_IO_USB_FIND,
-                                          GP_ERROR_NOT_SUPPORTED, GP_ERROR_TIMEOUT, LibraryLog, camera_error,
-                                          gphoto_error_code)
-from drivers.camera.gphoto_files import CapturedFiles, GPhotoFiles
-from drivers.camera.gphoto_labels import capture_target_choice, force_untranslated, format_shutter, is_bulb_label
-from drivers.camera.gphoto_settings import BULB_LIMIT_S, RAM_TARGET, TARGET_NAMES, GPhotoSettings
+
 # the driver's public names, re-exported from the modules it is split into
-from drivers.camera.gphoto_errors import GP_ERROR_IO_USB_CLAIM, retry_busy  # noqa: F401,E402
-from drivers.camera.gphoto_labels import nearest_by_value, parse_aperture, parse_iso, parse_shutter  # noqa: F401
-from drivers.camera.gphoto_settings import RAW_QUALITY, ConfigEntry  # noqa: F401
+from drivers.camera.gphoto_errors import (  # noqa: F401
+    GP_ERROR,
+    GP_ERROR_CAMERA_BUSY,
+    GP_ERROR_CANCEL,
+    GP_ERROR_IO_USB_CLAIM,
+    GP_ERROR_IO_USB_FIND,
+    GP_ERROR_NOT_SUPPORTED,
+    GP_ERROR_TIMEOUT,
+    LibraryLog,
+    camera_error,
+    gphoto_error_code,
+    retry_busy,
+)
+from drivers.camera.gphoto_files import CapturedFiles, GPhotoFiles
+from drivers.camera.gphoto_labels import (  # noqa: F401
+    capture_target_choice,
+    force_untranslated,
+    format_shutter,
+    is_bulb_label,
+    nearest_by_value,
+    parse_aperture,
+    parse_iso,
+    parse_shutter,
+)
+from drivers.camera.gphoto_settings import (  # noqa: F401
+    BULB_LIMIT_S,
+    RAM_TARGET,
+    RAW_QUALITY,
+    TARGET_NAMES,
+    ConfigEntry,
+    GPhotoSettings,
+)
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +111,7 @@ def gphoto_available() -> bool:
     return True
 
 
-def latency_from_env() -> Optional[float]:
+def latency_from_env() -> float | None:
     """``$DUALRGB_GPHOTO_LATENCY_S`` (the measured allowance), or None when unset; one line when malformed."""
     text = os.environ.get(LATENCY_ENV, "").strip()
     if not text:
@@ -113,10 +138,10 @@ class PendingCall:
     """A libgphoto2 call left running on its own thread (the bulb release, whose wait for the camera goes on
     after the shutter has closed); the camera is not entered again until it has returned."""
 
-    def __init__(self, action: str, fn: Callable[[], Any], mark: int, on_done: Callable[["PendingCall"], None],
+    def __init__(self, action: str, fn: Callable[[], Any], mark: int, on_done: Callable[[PendingCall], None],
                  started: float):
         self.action, self.mark, self.on_done, self.started = action, mark, on_done, started
-        self.error: Optional[BaseException] = None
+        self.error: BaseException | None = None
         self.done = threading.Event()
         self.thread = threading.Thread(target=self._run, args=(fn,), name=f"camera: {action}", daemon=True)
 
@@ -128,7 +153,7 @@ class PendingCall:
         finally:
             self.done.set()
 
-    def start(self) -> "PendingCall":
+    def start(self) -> PendingCall:
         self.thread.start()
         return self
 
@@ -155,13 +180,13 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
 
     name = "gphoto2"
 
-    def __init__(self, model: Optional[str] = None, port: Optional[str] = None, *,
+    def __init__(self, model: str | None = None, port: str | None = None, *,
                  bulb_limit_s: float = BULB_LIMIT_S, file_timeout_s: float = 60.0, pair_timeout_s: float = 5.0,
-                 latency_s: Optional[float] = None, bulb_release_grace_s: float = 0.25,
-                 trigger_waits: Optional[bool] = None,
+                 latency_s: float | None = None, bulb_release_grace_s: float = 0.25,
+                 trigger_waits: bool | None = None,
                  busy_tries: int = 3, busy_delay_s: float = 0.5, delete_from_card: bool = False,
                  call_timeout_s: float = 20.0, capture_timeout_s: float = 30.0, download_timeout_s: float = 120.0,
-                 gp_module: Any = None, sleep: Optional[Callable[[float], None]] = None,
+                 gp_module: Any = None, sleep: Callable[[float], None] | None = None,
                  clock: Callable[[], float] = time.monotonic):
         self.model = model                  # after open(): the model libgphoto2 reports
         self.port = port
@@ -179,10 +204,10 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
         self.call_timeout_s = call_timeout_s
         self.capture_timeout_s = capture_timeout_s
         self.download_timeout_s = download_timeout_s
-        self._stuck: Optional[tuple[str, threading.Thread, float]] = None    # a call that passed its deadline
-        self._pending: Optional[PendingCall] = None
+        self._stuck: tuple[str, threading.Thread, float] | None = None    # a call that passed its deadline
+        self._pending: PendingCall | None = None
         self._gp = gp_module
-        self._log: Optional[LibraryLog] = None
+        self._log: LibraryLog | None = None
         self._abort_event = threading.Event()
         self._sleep = sleep if sleep is not None else self._abort_event.wait  # abort() ends a bulb wait early
         self._clock = clock
@@ -190,13 +215,13 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
         self._names: dict[str, str] = {}        # config name -> widget kind
         self._summary = ""
         self._lock = threading.RLock()
-        self._bulb_exposure_s: Optional[float] = None
-        self._timed_shutter: Optional[tuple[str, str]] = None   # (setting, label) to restore after bulb
+        self._bulb_exposure_s: float | None = None
+        self._timed_shutter: tuple[str, str] | None = None   # (setting, label) to restore after bulb
         self._live_view = False
         self.image_quality = ""
         self.auto_iso = ""                      # what the session record says: 'switched off', 'off', ...
         self.long_exposure_nr = ""
-        self.last_latency_s: Optional[float] = None   # measured: expose() return minus trigger minus exposure
+        self.last_latency_s: float | None = None   # measured: expose() return minus trigger minus exposure
 
     # ------------------------------------------------------------------------------ discovery and life
     @staticmethod
@@ -231,7 +256,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
             self._log = LibraryLog.attach(self._gp)
         return self._gp
 
-    def _call(self, action: str, fn: Callable[..., T], *args: Any, deadline_s: Optional[float] = None,
+    def _call(self, action: str, fn: Callable[..., T], *args: Any, deadline_s: float | None = None,
               retry: bool = True, opening_port: bool = False) -> T:
         """One libgphoto2 call: busy retries, error mapping with libgphoto2's logged reason, and a host-side
         deadline (default call_timeout_s)."""
@@ -367,7 +392,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
         to_ram = entry is None or entry.value == capture_target_choice(entry.choices, RAM_TARGET)
         return trigger_waits_for_exposure(self._summary, to_ram)
 
-    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
+    def expose(self, exposure_s: float | None = None) -> Exposure:
         """The exposure, returning once the shutter has closed; the file is fetched by :meth:`fetch`."""
         self._require_open()
         with self._lock:

@@ -12,8 +12,9 @@ library.c, ``camera_wait_for_event``): :meth:`GPhotoFiles._wait_for_raw` runs in
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any
 
 from drivers.camera.base import CameraError
 from drivers.camera.gphoto_errors import GP_ERROR_TIMEOUT
@@ -73,7 +74,7 @@ class GPhotoFiles:
             if want(*self._event(action, min(left, 1.0))):
                 return
 
-    def _pick(self, files: list[tuple[str, str]]) -> Optional[tuple[str, str]]:
+    def _pick(self, files: list[tuple[str, str]]) -> tuple[str, str] | None:
         if not self.expects_raw:
             return files[0] if files else None
         return next((f for f in files if is_raw_name(f[1])), None)

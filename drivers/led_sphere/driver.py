@@ -21,13 +21,14 @@ import logging
 import math
 import threading
 import time
-from typing import Any, Optional, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import serial
 
 from drivers.led_sphere import protocol as P
 from drivers.led_sphere.errors import LightReport, SphereError
-from drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S  # noqa: F401 (re-exported)
+from drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
 from drivers.led_sphere.supervisor import LitPeriod, OnTimeSupervisor
 from simulation.lightsource import N_SPHERE_LEDS, LightSource
 
@@ -65,11 +66,11 @@ class LedSphere:
         self._owns_port = isinstance(port, str)
         self._url = port if isinstance(port, str) else getattr(port, "port", None) or type(port).__name__
         self._ser: Any = None if isinstance(port, str) else port
-        self._light_on_since: Optional[float] = None
-        self._last_exchange: Optional[float] = None
+        self._light_on_since: float | None = None
+        self._last_exchange: float | None = None
         self._max_on_s = DEFAULT_MAX_ON_S
-        self._answered: Optional[bool] = None   # did the port answer like a sphere? (None: not asked yet)
-        self._device_limit: Optional[bool] = None   # ON <ms> works (True), firmware 1.0 (False), not tried (None)
+        self._answered: bool | None = None   # did the port answer like a sphere? (None: not asked yet)
+        self._device_limit: bool | None = None   # ON <ms> works (True), firmware 1.0 (False), not tried (None)
         self._watchdog_ms = P.DEFAULT_WATCHDOG_MS   # as far as this host knows
         self._supervisor = OnTimeSupervisor(self._switch_off_at_limit, name=f"LED sphere {self._url} on-time limit")
         if self._ser is not None:
@@ -119,7 +120,7 @@ class LedSphere:
     def is_open(self) -> bool:
         return self._ser is not None
 
-    def open(self) -> "LedSphere":
+    def open(self) -> LedSphere:
         """Open the serial port (a no-op for an object passed in already open)."""
         if self._ser is None:
             try:
@@ -159,7 +160,7 @@ class LedSphere:
             except _IO_ERRORS as exc:
                 log.warning("closing %s: %s", self._url, exc)
 
-    def __enter__(self) -> "LedSphere":
+    def __enter__(self) -> LedSphere:
         return self.open()
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -440,7 +441,7 @@ class LedSphere:
         """Every LED's level to 0 (the light switch is unchanged)."""
         self.exchange("all_off")
 
-    def on(self, max_on_s: Optional[float] = None) -> LitPeriod:
+    def on(self, max_on_s: float | None = None) -> LitPeriod:
         """Light on (master enable) for at most ``max_on_s`` seconds (default :attr:`max_on_s`); then checks that
         no driven LED reports a fault.
 
@@ -495,7 +496,7 @@ class LedSphere:
         return self._supervisor.exposure_done(period)
 
     @property
-    def lit_period(self) -> Optional[LitPeriod]:
+    def lit_period(self) -> LitPeriod | None:
         """The lit period not yet confirmed off, if any (its deadline: when the light goes off at the latest)."""
         return self._supervisor.current()
 
@@ -559,7 +560,7 @@ class LedSphere:
         return self._watchdog_ms / 1000
 
     @property
-    def seconds_since_last_exchange(self) -> Optional[float]:
+    def seconds_since_last_exchange(self) -> float | None:
         return None if self._last_exchange is None else self._clock() - self._last_exchange
 
     def status(self) -> dict[str, Any]:

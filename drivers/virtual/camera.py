@@ -34,9 +34,10 @@ import logging
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Optional
+from typing import Any
 
 import numpy as np
 
@@ -112,7 +113,7 @@ class SensorModel:
     electrons_per_dn_iso100: float = 4.0     # conversion gain; ISO 50 -> 8 e-/DN
     read_noise_dn: float = 2.5
     dark_current_e_per_s: float = 0.3
-    hot_pixels: Optional[int] = None         # default: a few (3 + 1 per 2 MP)
+    hot_pixels: int | None = None         # default: a few (3 + 1 per 2 MP)
     hot_current_e_per_s: tuple[float, float] = (2e3, 2e5)   # log-uniform range of the hot pixels' dark current
     open_gate_dn: float = 10500.0            # raw DN of the open gate, brightest channel, at the reference
     reference_exposure_s: float = 1 / 60
@@ -144,9 +145,9 @@ class ExposureRecord:
 
 @dataclass
 class _Cache:
-    scene: Optional[Scene] = None
-    drift: Optional[tuple[float, ...]] = None
-    per_led: Optional[np.ndarray] = None               # (n_leds, n_classes, 3)
+    scene: Scene | None = None
+    drift: tuple[float, ...] | None = None
+    per_led: np.ndarray | None = None               # (n_leds, n_classes, 3)
     planes: dict = field(default_factory=dict)          # (py, px) -> uint16 label plane
     profiles: dict = field(default_factory=dict)        # (py, px) -> (vy, vx)
     preview: dict = field(default_factory=dict)         # step -> (labels, vy, vx)
@@ -163,15 +164,15 @@ class VirtualCamera(Camera):
     def __init__(
         self,
         light: Callable[[], Any],
-        scene: Optional[Scene] = None,
+        scene: Scene | None = None,
         *,
         mode: str = "reflective",
         grid: SpectralGrid = DEFAULT_GRID,
-        camera_csv: Optional[str | Path] = None,
-        leds_csv: Optional[str | Path] = None,
-        sensor: Optional[SensorModel] = None,
-        seed: Optional[int] = 0,
-        bumps: Optional[dict[float, float]] = None,
+        camera_csv: str | Path | None = None,
+        leds_csv: str | Path | None = None,
+        sensor: SensorModel | None = None,
+        seed: int | None = 0,
+        bumps: dict[float, float] | None = None,
         bumps_enabled: bool = False,
         iso: int = 50,
         shutter_s: float = 1 / 60,
@@ -279,7 +280,7 @@ class VirtualCamera(Camera):
             return t                                            # bulb: timed by the host, taken as given
         return _nearest(SHUTTER_SPEEDS, t)
 
-    def inject(self, fault: Optional[str], **params: Any) -> None:
+    def inject(self, fault: str | None, **params: Any) -> None:
         """Start a fault (module docstring), or clear them all with None (which also ends a ``hang``)."""
         if fault is None:
             self._faults.clear()
@@ -292,7 +293,7 @@ class VirtualCamera(Camera):
         self._faults[fault] = dict(params)
         log.info("virtual camera: inject %s %s", fault, params)
 
-    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
+    def expose(self, exposure_s: float | None = None) -> Exposure:
         self._require_open()
         if exposure_s is not None:
             self._settings.shutter_s = self._snap_shutter(exposure_s)
@@ -377,7 +378,7 @@ class VirtualCamera(Camera):
         return d
 
     # --- simulation ---------------------------------------------------------------------------------------
-    def led_spectra(self, peak_shift_nm: Optional[np.ndarray] = None) -> np.ndarray:
+    def led_spectra(self, peak_shift_nm: np.ndarray | None = None) -> np.ndarray:
         """(n_leds, n_wl) relative LED spectra on the grid, each shifted by its drift (nm, + = redder)."""
         shifts = np.zeros(self.n_leds) if peak_shift_nm is None else np.asarray(peak_shift_nm, float)
         if shifts.shape != (self.n_leds,):
@@ -404,7 +405,7 @@ class VirtualCamera(Camera):
         return self._cache.per_led
 
     def _levels(self, snap: Any) -> tuple[np.ndarray, tuple[float, ...]]:
-        levels = np.asarray(getattr(snap, "levels"), dtype=float).reshape(-1)
+        levels = np.asarray(snap.levels, dtype=float).reshape(-1)
         if levels.shape != (self.n_leds,):
             raise ValueError(f"light snapshot has {levels.size} levels; expected {self.n_leds}")
         if not getattr(snap, "light_on", True):
@@ -464,7 +465,7 @@ class VirtualCamera(Camera):
         return (rng.integers(0, height, n), rng.integers(0, width, n),
                 np.exp(rng.uniform(math.log(lo), math.log(hi), n)))
 
-    def render_mosaic(self, exposure_s: Optional[float] = None, snap: Any = None) -> np.ndarray:
+    def render_mosaic(self, exposure_s: float | None = None, snap: Any = None) -> np.ndarray:
         """The raw Bayer mosaic (H, W) uint16 a capture would store (advances the noise generator)."""
         t = float(self._settings.shutter_s if exposure_s is None else self._snap_shutter(exposure_s))
         return self._render(t, self._light() if snap is None else snap)[0]

@@ -16,10 +16,11 @@ from __future__ import annotations
 import io
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
-from typing import BinaryIO, Optional, Sequence, Union
+from typing import BinaryIO
 
 import numpy as np
 
@@ -52,14 +53,14 @@ class DngInfo:
     black_level: int = 600
     white_level: int = 15520
     cfa: str = "RGGB"
-    exposure_s: Optional[float] = None
-    iso: Optional[int] = None
-    aperture: Optional[float] = None
+    exposure_s: float | None = None
+    iso: int | None = None
+    aperture: float | None = None
     model: str = "Nikon D610"
-    make: Optional[str] = None
-    color_matrix: Optional[np.ndarray] = None
-    as_shot_neutral: Optional[np.ndarray] = None
-    captured_at: Optional[float] = field(default=None)   # epoch seconds for DateTimeOriginal; None: now
+    make: str | None = None
+    color_matrix: np.ndarray | None = None
+    as_shot_neutral: np.ndarray | None = None
+    captured_at: float | None = field(default=None)   # epoch seconds for DateTimeOriginal; None: now
 
     def make_and_model(self) -> tuple[str, str]:
         if self.make:
@@ -118,7 +119,7 @@ def dng_tags(info: DngInfo) -> list[tuple[int, int, int, object, bool]]:
     return out
 
 
-def write_dng(target: Union[str, Path, BinaryIO], mosaic: np.ndarray, info: DngInfo) -> None:
+def write_dng(target: str | Path | BinaryIO, mosaic: np.ndarray, info: DngInfo) -> None:
     """Write ``mosaic`` ((H, W) uint16, raw DN with the black level in) as an uncompressed CFA DNG."""
     import tifffile  # ~0.1 s: only captures and tests pay it
 
@@ -136,7 +137,7 @@ def dng_bytes(mosaic: np.ndarray, info: DngInfo) -> bytes:
     return buf.getvalue()
 
 
-def save_dng(path: Union[str, Path], mosaic: np.ndarray, info: Optional[DngInfo] = None) -> Path:
+def save_dng(path: str | Path, mosaic: np.ndarray, info: DngInfo | None = None) -> Path:
     """Write a DNG file at ``path`` (tests and benches); returns the path."""
     path = Path(path)
     write_dng(path, mosaic, info or DngInfo())

@@ -43,9 +43,10 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import TYPE_CHECKING, Callable, Optional, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -418,7 +419,7 @@ def original(name: str, grid: SpectralGrid = DEFAULT_GRID) -> Original:
 
 
 def ground_truth_xyz(name: str, height: int, width: int, grid: SpectralGrid = DEFAULT_GRID,
-                     illuminant: Optional[np.ndarray] = None, cmfs: Optional[np.ndarray] = None) -> np.ndarray:
+                     illuminant: np.ndarray | None = None, cmfs: np.ndarray | None = None) -> np.ndarray:
     """(height, width, 3) float32 per-pixel XYZ of original ``name`` (eq 4.2: D65, CIE 1931 2 degree,
     410-780 nm; Y of a perfect white, or of the open gate for film, = 100), rows down, columns right."""
     if illuminant is None or cmfs is None:
@@ -442,8 +443,8 @@ def original_name(what: str) -> str:
     return name
 
 
-def original_scene(what: str, width: int, height: int, *, mode: Optional[str] = None,
-                   grid: SpectralGrid = DEFAULT_GRID, **scene_kw) -> "Scene":
+def original_scene(what: str, width: int, height: int, *, mode: str | None = None,
+                   grid: SpectralGrid = DEFAULT_GRID, **scene_kw) -> Scene:
     """The scene of original ``what`` ('original:<name>') at ``width`` x ``height`` sensor pixels.
 
     An original of the other mode than ``mode`` (a film in a reflective lab) is rendered all the same (the

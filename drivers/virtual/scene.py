@@ -24,7 +24,7 @@ import logging
 import math
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -49,10 +49,10 @@ class Scene:
     """
 
     kind: str = "target"                     # 'target' | 'original' | 'open_gate' | 'lens_cap'
-    target: Optional[Target] = None          # required for kind 'target' (reflective or transmissive)
+    target: Target | None = None          # required for kind 'target' (reflective or transmissive)
     width: int = 600                         # sensor columns (even; the D610 is 6080 x 4028)
     height: int = 400                        # sensor rows (even)
-    grid_shape: Optional[tuple[int, int]] = None   # (rows, cols); default from target.layout or near-square
+    grid_shape: tuple[int, int] | None = None   # (rows, cols); default from target.layout or near-square
     margin: float = 0.06                     # surround around the grid, fraction of width / height
     gap: float = 0.12                        # dark separator between patches, fraction of the pitch
     surround: float = 0.18                   # neutral surround (flat spectrum), mid grey
@@ -61,7 +61,7 @@ class Scene:
     nd_transmittance: float = ND_2_TRANSMITTANCE
     vignetting: float = 0.04                 # relative falloff at the frame corners (0 = none)
     name: str = ""
-    original: Optional["Original"] = None    # required for kind 'original'
+    original: Original | None = None    # required for kind 'original'
 
     def __post_init__(self) -> None:
         if self.kind not in SCENE_KINDS:
@@ -94,26 +94,26 @@ class Scene:
 
     # --- constructors -----------------------------------------------------------------------------------
     @classmethod
-    def with_target(cls, target: Target, width: int = 600, height: int = 400, **kw) -> "Scene":
+    def with_target(cls, target: Target, width: int = 600, height: int = 400, **kw) -> Scene:
         return cls(kind="target", target=target, width=width, height=height, name=kw.pop("name", target.name), **kw)
 
     @classmethod
-    def with_original(cls, original: "Original", width: int = 600, height: int = 400, **kw) -> "Scene":
+    def with_original(cls, original: Original, width: int = 600, height: int = 400, **kw) -> Scene:
         """An original on the stand (its class map follows the frame size)."""
         return cls(kind="original", original=original, width=width, height=height,
                    name=kw.pop("name", original.name), **kw)
 
     @classmethod
-    def open_gate(cls, width: int = 600, height: int = 400, **kw) -> "Scene":
+    def open_gate(cls, width: int = 600, height: int = 400, **kw) -> Scene:
         """Nothing on the stand: uniform white (reflectance / transmittance 1), the flat-field of eq 7.1."""
         return cls(kind="open_gate", width=width, height=height, name=kw.pop("name", "open gate"), **kw)
 
     @classmethod
-    def lens_cap(cls, width: int = 600, height: int = 400, **kw) -> "Scene":
+    def lens_cap(cls, width: int = 600, height: int = 400, **kw) -> Scene:
         """Lens cap on: no light reaches the sensor, the dark frame of eq 7.1."""
         return cls(kind="lens_cap", width=width, height=height, name=kw.pop("name", "lens cap"), **kw)
 
-    def resized(self, width: int, height: int) -> "Scene":
+    def resized(self, width: int, height: int) -> Scene:
         return replace(self, width=width, height=height)
 
     # --- geometry ---------------------------------------------------------------------------------------

@@ -41,8 +41,9 @@ import select
 import threading
 import time
 import tty
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Any
 
 import numpy as np
 
@@ -85,12 +86,12 @@ class LightInterval:
     at the same instant."""
 
     t_on: float
-    t_off: Optional[float]
+    t_off: float | None
     levels: tuple[float, ...]
     ended_by: str = ""
 
     @property
-    def duration_s(self) -> Optional[float]:
+    def duration_s(self) -> float | None:
         return None if self.t_off is None else self.t_off - self.t_on
 
 
@@ -136,8 +137,8 @@ class SphereEmulator:
         self._t = clock()
         self._pwm = np.zeros(n_leds, dtype=np.int64)
         self._light = False
-        self._light_since: Optional[float] = None
-        self._off_at: Optional[float] = None            # ON <ms>: when the light goes off by itself
+        self._light_since: float | None = None
+        self._off_at: float | None = None            # ON <ms>: when the light goes off by itself
         self._record: list[LightInterval] = []
         self._cause = ""
         self._on_time = np.zeros(n_leds)
@@ -151,11 +152,11 @@ class SphereEmulator:
         self._faults: dict[str, dict[str, Any]] = {}
         self._failed: dict[int, str] = {}
         self._rng = np.random.default_rng(0)
-        self._master: Optional[int] = None
-        self._slave: Optional[int] = None
-        self._wake: Optional[tuple[int, int]] = None
+        self._master: int | None = None
+        self._slave: int | None = None
+        self._wake: tuple[int, int] | None = None
         self._port = ""
-        self._thread: Optional[threading.Thread] = None
+        self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._pending: list[tuple[float, bytes]] = []
         self.requests: collections.deque[bytes] = collections.deque(maxlen=1000)   # recent request lines (log)
@@ -216,7 +217,7 @@ class SphereEmulator:
         self._master = self._slave = self._wake = None
         self._pending.clear()
 
-    def __enter__(self) -> "SphereEmulator":
+    def __enter__(self) -> SphereEmulator:
         self.start()
         return self
 

@@ -22,7 +22,6 @@ import logging
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -48,12 +47,12 @@ class HdrStudyConfig:
     nd_transmittance: float = 0.01
     repeats: int = 6
     pso: PsoSettings = PsoSettings(particles=100, iterations=10)
-    light_sets: Optional[int] = None
+    light_sets: int | None = None
     camera: CameraNoise = CameraNoise()
     seed: int = 2012
 
     @classmethod
-    def tiny(cls) -> "HdrStudyConfig":
+    def tiny(cls) -> HdrStudyConfig:
         return cls(levels_per_decade=2, pixels=4000, repeats=1, pso=PsoSettings(particles=8, iterations=2),
                    light_sets=8)
 
@@ -68,7 +67,7 @@ def levels(cfg: HdrStudyConfig) -> np.ndarray:
     return np.r_[0.0, np.logspace(0, 5, 5 * cfg.levels_per_decade + 1)]
 
 
-def bias_by_level(cfg: HdrStudyConfig, cancel: Optional[CancelToken] = None) -> dict:
+def bias_by_level(cfg: HdrStudyConfig, cancel: CancelToken | None = None) -> dict:
     """Per estimator: mean merged radiance, relative bias and relative noise per level; bias per decade."""
     cam = cfg.camera
     L = levels(cfg)
@@ -154,7 +153,7 @@ class HdrStudyResult:
 
 
 def hdr_study(spec: SetupSpec = SetupSpec(), cfg: HdrStudyConfig = HdrStudyConfig(), *,
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> HdrStudyResult:
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> HdrStudyResult:
     t0 = time.perf_counter()
     bias = bias_by_level(cfg, cancel)
     report(progress, 0.5, "HDR study: bias against signal level")
@@ -162,7 +161,7 @@ def hdr_study(spec: SetupSpec = SetupSpec(), cfg: HdrStudyConfig = HdrStudyConfi
     return HdrStudyResult(spec, cfg, bias, originals, time.perf_counter() - t0)
 
 
-def write_defaults(result: HdrStudyResult, path: Optional[str] = None) -> Path:
+def write_defaults(result: HdrStudyResult, path: str | None = None) -> Path:
     """Set ``hdr_merge`` (and its evidence) in the defaults file, keeping the parsimony study's keys."""
     from simulation.studies.parsimony import save_defaults
 

@@ -30,7 +30,6 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Optional
 
 import numpy as np
 
@@ -57,7 +56,7 @@ class NoiseModel:
     """Flat-fielded patch values of a light set with their noise, expected errors and simulated captures."""
 
     def __init__(self, setup: SimulationSetup, camera: CameraNoise = CameraNoise(),
-                 train: Optional[Target] = None, test: Optional[Target] = None) -> None:
+                 train: Target | None = None, test: Target | None = None) -> None:
         self.setup = setup
         self.camera = camera
         self.white = target_xyz(setup, train or setup.train)[1]
@@ -174,8 +173,8 @@ class NoiseModel:
 
     # ---- a pixel-level capture (held-out check) ----------------------------------------------------------
     def simulate_capture(self, W: np.ndarray, rng: np.random.Generator, which: str = "train", *,
-                         factors: tuple[float, ...] = (1.0,), transmittance: Optional[np.ndarray] = None,
-                         hdr_method: Optional[str] = None) -> np.ndarray:
+                         factors: tuple[float, ...] = (1.0,), transmittance: np.ndarray | None = None,
+                         hdr_method: str | None = None) -> np.ndarray:
         """Flat-fielded patch means (n, 3L) of one simulated capture of light set W (L, K), pixel by pixel.
 
         ``factors``: exposures relative to the open-gate exposure (several = an HDR bracket, merged as thesis
@@ -205,8 +204,8 @@ class NoiseModel:
         return ratio.mean(axis=-1).reshape(n, L * 3)
 
     def captured_errors(self, W: np.ndarray, repeats: int = 10, seed: int = 12345, *,
-                        factors: tuple[float, ...] = (1.0,), nd: Optional[dict[str, np.ndarray]] = None,
-                        models: tuple[str, ...] = (), hdr_method: Optional[str] = None,
+                        factors: tuple[float, ...] = (1.0,), nd: dict[str, np.ndarray] | None = None,
+                        models: tuple[str, ...] = (), hdr_method: str | None = None,
                         nd_in_truth: bool = True) -> dict:
         """Mean dE00 (float64) of ``repeats`` simulated captures of W (L, K): fit on the captured training
         target, errors of the captured training and test targets; seeds disjoint from the objective's.

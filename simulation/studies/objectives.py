@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -48,7 +48,7 @@ class ObjectivesConfig:
     modes: tuple[str, ...] = MODES
     objectives: tuple[str, ...] = OBJECTIVES
     methods: tuple[str, ...] = ("exhaustive", "halving", "pso")
-    light_sets: Optional[int] = None                 # None: all 630
+    light_sets: int | None = None                 # None: all 630
     halving: HalvingSettings = HalvingSettings()
     pso: PsoSettings = PsoSettings()
     robust: RobustSettings = RobustSettings()
@@ -56,7 +56,7 @@ class ObjectivesConfig:
     seed: int = 0
 
     @classmethod
-    def tiny(cls) -> "ObjectivesConfig":
+    def tiny(cls) -> ObjectivesConfig:
         return cls(light_sets=8, halving=HalvingSettings(particles=6, min_sets=2, polish_sets=1, polish_iterations=3),
                    pso=PsoSettings(particles=8, iterations=2), robust=RobustSettings(worlds=2), capture_repeats=1)
 
@@ -77,7 +77,7 @@ def _groups(cfg: ObjectivesConfig, mode: str) -> list:
 
 
 def optima(setup: SimulationSetup, cfg: ObjectivesConfig, capture_model: CaptureModel,
-           cancel: Optional[CancelToken] = None) -> list[dict]:
+           cancel: CancelToken | None = None) -> list[dict]:
     """Every (objective, method) optimum with its wall time and its figures under all three objectives."""
     groups = _groups(cfg, setup.mode)
     judge = RobustEvaluator(setup, capture_model, cfg.robust)       # expected (nominal world) and robust figures
@@ -108,7 +108,7 @@ def optima(setup: SimulationSetup, cfg: ObjectivesConfig, capture_model: Capture
     return rows
 
 
-def captured(setup: SimulationSetup, rows: list[dict], capture: Optional[Capture], repeats: int) -> None:
+def captured(setup: SimulationSetup, rows: list[dict], capture: Capture | None, repeats: int) -> None:
     """Capture each distinct optimum once (virtual lab or pixel-level simulation) and add its captured errors."""
     model = NoiseModel(setup)
     done: dict[str, dict] = {}
@@ -148,10 +148,10 @@ def _summary(rows: list[dict]) -> dict:
 
 
 def objectives_study(spec: SetupSpec = SetupSpec(), cfg: ObjectivesConfig = ObjectivesConfig(), *,
-                     capture: Optional[Capture] = None,
+                     capture: Capture | None = None,
                      capture_model: Callable[[SimulationSetup], CaptureModel] = study_capture_model,
-                     progress: Optional[ProgressCallback] = None,
-                     cancel: Optional[CancelToken] = None) -> ObjectivesResult:
+                     progress: ProgressCallback | None = None,
+                     cancel: CancelToken | None = None) -> ObjectivesResult:
     """All modes of ``cfg`` (``spec`` gives the grid and any user CSVs). ``capture(setup, W, exposures)`` is the
     capture chain to check against (the CLI passes the virtual lab's) and ``capture_model(setup)`` its model."""
     t0 = time.perf_counter()

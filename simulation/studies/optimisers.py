@@ -24,15 +24,15 @@ import logging
 import os
 import tempfile
 import time
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
-from typing import Callable, Iterator, Optional, Sequence
 
 import numpy as np
 
-from simulation.matrix_fit import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.ga import GaSettings, ga
 from simulation.halving import HalvingSettings, set_cost, successive_halving
+from simulation.matrix_fit import solve_normal_equations
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, enforce_constraints, pso
 from simulation.search import Group, SearchOutcome, candidates_from, exhaustive, group_arrays
@@ -114,8 +114,8 @@ def _normalised(levels: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return enforce_constraints(np.array(levels, dtype=float), mask.astype(float))
 
 
-def _outcome(method: str, groups: Sequence[Group], levels: np.ndarray, costs: np.ndarray, seed: Optional[int],
-             t0: float, n0: int, evaluator, settings: dict, history: Optional[list[float]] = None) -> SearchOutcome:
+def _outcome(method: str, groups: Sequence[Group], levels: np.ndarray, costs: np.ndarray, seed: int | None,
+             t0: float, n0: int, evaluator, settings: dict, history: list[float] | None = None) -> SearchOutcome:
     return SearchOutcome(method, seed, time.perf_counter() - t0, evaluator.evaluations - n0,
                          candidates_from(list(groups), levels, costs), history=history or [],
                          settings={**settings, "light_sets": len(groups)})
@@ -143,8 +143,8 @@ def _pyswarms_logging() -> Iterator[None]:
 
 
 def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettings = PyswarmsSettings(),
-                    seed: int = 0, *, progress: Optional[ProgressCallback] = None,
-                    cancel: Optional[CancelToken] = None) -> SearchOutcome:
+                    seed: int = 0, *, progress: ProgressCallback | None = None,
+                    cancel: CancelToken | None = None) -> SearchOutcome:
     """pyswarms GlobalBestPSO on every light set in turn (pyswarms draws from numpy's global generator:
     it is seeded per light set with (seed, set number) and restored afterwards). One optimiser is built and
     ``reset()`` for every set (building one costs ~10 ms of logging set-up)."""
@@ -160,7 +160,7 @@ def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettin
     bounds = (np.zeros(D), np.ones(D))
     try:
         with _pyswarms_logging():
-            from pyswarms.single import GlobalBestPSO      # its import configures logging too
+            from pyswarms.single import GlobalBestPSO  # its import configures logging too
 
             opt = GlobalBestPSO(settings.particles, D, options, bounds=bounds, bh_strategy="nearest")
             for gi in range(G):
@@ -179,7 +179,7 @@ def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettin
 
 
 def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSettings(), seed: int = 0, *,
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> SearchOutcome:
     """scipy differential_evolution on every light set in turn, vectorised per generation, no polishing."""
     from scipy.optimize import differential_evolution
 
@@ -206,8 +206,8 @@ def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSetti
 
 
 def lbfgs_search(evaluator, groups: Sequence[Group], settings: LbfgsSettings = LbfgsSettings(), seed: int = 0,
-                 *, progress: Optional[ProgressCallback] = None,
-                 cancel: Optional[CancelToken] = None) -> SearchOutcome:
+                 *, progress: ProgressCallback | None = None,
+                 cancel: CancelToken | None = None) -> SearchOutcome:
     """Random screen of every light set, then multi-start L-BFGS-B on :class:`Float64Cost` for the best sets.
 
     Why a screen: one float64 cost + gradient batch costs ~0.5-1 ms in numpy, so L-BFGS-B on all 630 sets
@@ -267,26 +267,26 @@ def lbfgs_search(evaluator, groups: Sequence[Group], settings: LbfgsSettings = L
 
 
 def halving_search(evaluator, groups: Sequence[Group], settings: HalvingSettings = HalvingSettings(),
-                   seed: int = 0, *, progress: Optional[ProgressCallback] = None,
-                   cancel: Optional[CancelToken] = None) -> SearchOutcome:
+                   seed: int = 0, *, progress: ProgressCallback | None = None,
+                   cancel: CancelToken | None = None) -> SearchOutcome:
     """The default optimiser (simulation.halving.successive_halving)."""
     return successive_halving(evaluator, groups, settings, seed, progress=progress, cancel=cancel)
 
 
 # ---------------------------------------------------------------------------------------------------------
 def exhaustive_search(evaluator, groups: Sequence[Group], settings: None = None, seed: int = 0, *,
-                      progress: Optional[ProgressCallback] = None,
-                      cancel: Optional[CancelToken] = None) -> SearchOutcome:
+                      progress: ProgressCallback | None = None,
+                      cancel: CancelToken | None = None) -> SearchOutcome:
     return exhaustive(evaluator, groups, progress=progress, cancel=cancel)
 
 
 def pso_search(evaluator, groups: Sequence[Group], settings: PsoSettings = PsoSettings(), seed: int = 0, *,
-               progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+               progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> SearchOutcome:
     return pso(evaluator, groups, settings, seed, progress=progress, cancel=cancel)
 
 
 def ga_search(evaluator, groups: Sequence[Group], settings: GaSettings = GaSettings(), seed: int = 0, *,
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> SearchOutcome:
     return ga(evaluator, groups, settings, seed, progress=progress, cancel=cancel)
 
 

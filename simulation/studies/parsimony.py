@@ -26,7 +26,6 @@ import logging
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -53,7 +52,7 @@ class ParsimonyConfig:
     steps: tuple[float, ...] = (1.0, 5.0, 10.0, 20.0)
     tolerance: float = 0.05
     pso: PsoSettings = PsoSettings(particles=100, iterations=10)
-    light_sets: Optional[int] = None
+    light_sets: int | None = None
     exposures: tuple[int, ...] = (1, 2, 3, 4)
     exposure_span: float = 100.0                 # ND 2.0
     nd_transmittance: float = 0.01
@@ -61,7 +60,7 @@ class ParsimonyConfig:
     camera: CameraNoise = CameraNoise()
 
     @classmethod
-    def tiny(cls) -> "ParsimonyConfig":
+    def tiny(cls) -> ParsimonyConfig:
         return cls(steps=(10.0, 20.0), pso=PsoSettings(particles=8, iterations=2), light_sets=8,
                    exposures=(1, 2), repeats=1)
 
@@ -220,7 +219,7 @@ class ParsimonyResult:
 
 
 def parsimony(spec: SetupSpec = SetupSpec(), cfg: ParsimonyConfig = ParsimonyConfig(), *,
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> ParsimonyResult:
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> ParsimonyResult:
     if cfg.tolerance <= 0:
         raise ValueError(f"tolerance {cfg.tolerance}: expected a positive dE00")
     t0 = time.perf_counter()
@@ -229,7 +228,7 @@ def parsimony(spec: SetupSpec = SetupSpec(), cfg: ParsimonyConfig = ParsimonyCon
     return ParsimonyResult(spec, cfg, steps, models, exposures, time.perf_counter() - t0)
 
 
-def load_defaults(path: Optional[str] = None) -> dict:
+def load_defaults(path: str | None = None) -> dict:
     """The app's defaults chosen by the parsimony study: ``path``, else the user's parsimony.json (per-user data
     folder), else the packaged resources/parsimony.json; the thesis defaults when none is readable."""
     try:
@@ -307,7 +306,7 @@ def parsimony_chart(result: ParsimonyResult):
     return fig
 
 
-def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Optional[str] = None) -> None:
+def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: str | None = None) -> None:
     out.write_json("parsimony_study.json", result.to_json())
     out.write_json("parsimony.json", result.defaults())
     if defaults_path:

@@ -16,7 +16,7 @@ import logging
 import time
 import warnings
 from dataclasses import asdict, dataclass, field
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 
@@ -24,11 +24,24 @@ from simulation.ga import GaSettings
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings
 from simulation.search import light_pairs, refine_top
-from simulation.studies.common import (SetupSpec, StudyOutput, TracedEvaluator, evaluator_for, median_spread,
-                                       new_figure, pareto_front)
+from simulation.studies.common import (
+    SetupSpec,
+    StudyOutput,
+    TracedEvaluator,
+    evaluator_for,
+    median_spread,
+    new_figure,
+    pareto_front,
+)
 from simulation.studies.distributed import Runner, SerialRunner
-from simulation.studies.optimisers import (LABELS, OPTIMISERS, DeSettings, HalvingSettings, LbfgsSettings,
-                                           PyswarmsSettings)
+from simulation.studies.optimisers import (
+    LABELS,
+    OPTIMISERS,
+    DeSettings,
+    HalvingSettings,
+    LbfgsSettings,
+    PyswarmsSettings,
+)
 from simulation.warmup import warm_up
 
 log = logging.getLogger(__name__)
@@ -90,7 +103,7 @@ class RunTask:
     spec: SetupSpec
     config: Config
     seed: int
-    light_sets: Optional[int] = None
+    light_sets: int | None = None
 
 
 def run_task(task: RunTask) -> dict:
@@ -153,9 +166,9 @@ def summarise(runs: list[dict], order: list[str]) -> list[dict]:
 
 
 def speed_accuracy(spec: SetupSpec = SetupSpec(), *, seeds: int = 3, budget: str = "default",
-                   light_sets: Optional[int] = None, runner: Optional[Runner] = None,
-                   progress: Optional[ProgressCallback] = None,
-                   cancel: Optional[CancelToken] = None) -> SpeedAccuracyResult:
+                   light_sets: int | None = None, runner: Runner | None = None,
+                   progress: ProgressCallback | None = None,
+                   cancel: CancelToken | None = None) -> SpeedAccuracyResult:
     """Run every configuration of ``budget`` with seeds 0..seeds-1 (exhaustive: once per seed too, for timing)."""
     if seeds < 1:
         raise ValueError(f"seeds {seeds}: expected at least 1")
@@ -173,7 +186,7 @@ def speed_accuracy(spec: SetupSpec = SetupSpec(), *, seeds: int = 3, budget: str
         runs = runner.map(run_task, tasks)
     n_sets = light_sets or len(light_pairs())
     result = SpeedAccuracyResult(spec, budget, list(range(seeds)), min(n_sets, len(light_pairs())), runs,
-                                 runner=getattr(runner, "describe", lambda: {})(),
+                                 runner=getattr(runner, "describe", dict)(),
                                  elapsed_s=time.perf_counter() - t0)
     result.summary = summarise(runs, [c.label for c in cfgs])
     for key, attr in (("train", "pareto_train"), ("test", "pareto_test")):

@@ -22,28 +22,34 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Callable, Optional
 
 import numpy as np
 
 import resources
 from simulation.camera_model import led_responses
-from simulation.matrix_fit import fit_matrix
+from simulation.capture_model import CaptureModel
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
 from simulation.ga import GaSettings
+from simulation.matrix_fit import fit_matrix
 from simulation.objective import Evaluator
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
 from simulation.search import Candidate, exhaustive, light_pairs, refine_top
 from simulation.spectral_io import read_spectral_csv
-from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread, new_figure
+from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread
 from simulation.studies.distributed import Runner, SerialRunner
-from simulation.capture_model import CaptureModel
 from simulation.studies.noise import CameraNoise, NoiseModel, thesis_exposures_check
-from simulation.studies.objectives import (ObjectivesConfig, ObjectivesResult, objectives_study,
-                                           predicted_vs_captured_chart, study_capture_model, summary_lines)
+from simulation.studies.objectives import (
+    ObjectivesConfig,
+    ObjectivesResult,
+    objectives_study,
+    predicted_vs_captured_chart,
+    study_capture_model,
+    summary_lines,
+)
 from simulation.studies.optimisers import DeSettings, HalvingSettings, LbfgsSettings, PyswarmsSettings
 from simulation.studies.speed_accuracy import Config, RunTask, run_task
 
@@ -55,7 +61,7 @@ Capture = Callable[[SimulationSetup, np.ndarray, np.ndarray], dict]
 @dataclass(frozen=True)
 class StabilityConfig:
     seeds: int = 3
-    light_sets: Optional[int] = None                    # None: all 630
+    light_sets: int | None = None                    # None: all 630
     methods: tuple[Config, ...] = (
         Config("pso", "pso 200x10 (thesis)", PsoSettings()),
         Config("ga", "ga (thesis budget)", GaSettings()),
@@ -78,7 +84,7 @@ class StabilityConfig:
     lab_repeats: int = 2                                # virtual-lab captures per candidate (when available)
 
     @classmethod
-    def tiny(cls) -> "StabilityConfig":
+    def tiny(cls) -> StabilityConfig:
         return cls(seeds=2, light_sets=10,
                    methods=(Config("pso", "pso 10x2", PsoSettings(particles=10, iterations=2)),
                             Config("ga", "ga tiny", GaSettings(mu=6, lam=20, generations=2)),
@@ -111,7 +117,7 @@ def _pair_key(best: dict) -> str:
     return f"{tuple(best['source1'])}+{tuple(best['source2'])}"
 
 
-def seed_spread(spec: SetupSpec, cfg: StabilityConfig, runner: Optional[Runner] = None, progress=None,
+def seed_spread(spec: SetupSpec, cfg: StabilityConfig, runner: Runner | None = None, progress=None,
                 cancel=None) -> dict:
     tasks = [RunTask(spec, c, s, cfg.light_sets) for c in cfg.methods for s in range(cfg.seeds)]
     if runner is None or isinstance(runner, SerialRunner):
@@ -197,7 +203,7 @@ def dim_leds(model: NoiseModel, optima: dict[str, np.ndarray]) -> dict:
             "relative_peaks": model.setup.leds.max(axis=1).round(4).tolist()}
 
 
-def shifted_setup(setup: SimulationSetup, shifts_nm: np.ndarray, leds_csv: Optional[str] = None) -> SimulationSetup:
+def shifted_setup(setup: SimulationSetup, shifts_nm: np.ndarray, leds_csv: str | None = None) -> SimulationSetup:
     """LED spectra (1 nm source data) moved by ``shifts_nm`` (per LED; + = towards longer wavelengths)."""
     table = read_spectral_csv(leds_csv or resources.path("leds", "sphere10_relative.csv"))
     wl = setup.grid.wavelengths
@@ -291,8 +297,8 @@ class StabilityResult:
 
 
 def stability(spec: SetupSpec = SetupSpec(), cfg: StabilityConfig = StabilityConfig(), *,
-              runner: Optional[Runner] = None, progress: Optional[ProgressCallback] = None,
-              cancel: Optional[CancelToken] = None, capture: Optional[Capture] = None,
+              runner: Runner | None = None, progress: ProgressCallback | None = None,
+              cancel: CancelToken | None = None, capture: Capture | None = None,
               capture_model: Callable[[SimulationSetup], CaptureModel] = study_capture_model) -> StabilityResult:
     """All five parts; only the seed runs (part 1) go through ``runner`` (the rest is quick and serial).
     ``capture(setup, W, exposures) -> {"train", "test", ...}``: a real capture chain to check the objectives
@@ -387,7 +393,7 @@ def _predicted_vs_captured(ax, noise: ObjectivesResult) -> None:
     ax.grid(True, alpha=0.3)
 
 
-def _fmt(v: Optional[float]) -> str:
+def _fmt(v: float | None) -> str:
     return "-" if v is None else f"{v:.2f}"
 
 

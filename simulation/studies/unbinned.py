@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -48,15 +48,15 @@ def _pair_table(n_leds: int) -> tuple[np.ndarray, np.ndarray]:
     return i.astype(np.int32), j.astype(np.int32)
 
 
-def pair_masks(n_leds: int, lo: int = 0, hi: Optional[int] = None) -> tuple[np.ndarray, np.ndarray]:
+def pair_masks(n_leds: int, lo: int = 0, hi: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Bit masks (a, b) of pairs ``lo:hi`` (LED k is bit k-1)."""
     i, j = _pair_table(n_leds)
     hi = len(i) if hi is None else hi
     return i[lo:hi].astype(np.int64) + 1, j[lo:hi].astype(np.int64) + 1
 
 
-def unbinned_group_arrays(n_leds: int = 10, lo: int = 0, hi: Optional[int] = None,
-                          m: Optional[int] = None) -> tuple[np.ndarray, np.ndarray]:
+def unbinned_group_arrays(n_leds: int = 10, lo: int = 0, hi: int | None = None,
+                          m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(idx, mask) of pairs ``lo:hi`` like ``group_arrays(unbinned_pairs(n_leds))[lo:hi]``, vectorised.
 
     ``m`` (default ``n_leds``, which is what ``group_arrays`` pads the full space to) is the padded width.
@@ -122,7 +122,7 @@ class UnbinnedResult:
     runner: dict
     tasks: int
     candidates: list[Candidate] = field(default_factory=list)
-    binned_best: Optional[dict] = None
+    binned_best: dict | None = None
 
     def to_json(self) -> dict:
         return {"setup": self.spec.to_dict(), "pairs": self.pairs, "seconds": round(self.seconds, 3),
@@ -135,8 +135,8 @@ class UnbinnedResult:
                 "binned_best": self.binned_best}
 
 
-def unbinned_search(spec: SetupSpec = SetupSpec(), runner: Optional[Runner] = None, *, tasks: int = 8,
-                    top: int = 20, n_leds: int = 10, limit: Optional[int] = None,
+def unbinned_search(spec: SetupSpec = SetupSpec(), runner: Runner | None = None, *, tasks: int = 8,
+                    top: int = 20, n_leds: int = 10, limit: int | None = None,
                     refine: int = 10) -> UnbinnedResult:
     """Search pairs 0..``limit`` (default all) of the unbinned space, split into ``tasks`` ranges."""
     runner = runner or SerialRunner()

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app.processing.ground_truth import (bin_to_superpixels, block_max, compare_to_ground_truth,
-                                         write_de_map_png)
+from app.processing.ground_truth import bin_to_superpixels, block_max, compare_to_ground_truth, write_de_map_png
 from app.processing.patches import PatchGrid
 from app.processing.pipeline import CaptureProcessor, ExposureRef
 from app.sequences.hdr import plan_hdr
@@ -19,10 +18,10 @@ from drivers.raw import load_raw
 from drivers.virtual.camera import SHUTTER_SPEEDS, SensorModel, StaticLight, VirtualCamera
 from drivers.virtual.originals import ground_truth_xyz, original, original_scene
 from drivers.virtual.scene import Scene
-from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import default_setup
 from simulation.lightsource import LightSource
+from simulation.matrix_fit import fit_matrix
 from simulation.studies.noise import NoiseModel
 
 W, H = 600, 400

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from synthetic_frames import BLACK, WHITE, write_dng
 
 from app.processing.calibration import combine_darks
 from app.processing.hdr import HDR_MERGE_METHODS, HdrMerge, HdrNoise
 from app.processing.mosaic import iter_open_raw, open_raw
 from drivers.raw import RawFileError
 from simulation.hdr_estimators import merge_exposures
-from synthetic_frames import BLACK, WHITE, write_dng
 
 
 @pytest.mark.parametrize("method", list(HDR_MERGE_METHODS))

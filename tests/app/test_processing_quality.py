@@ -4,12 +4,22 @@ from __future__ import annotations
 import colour
 import numpy as np
 import pytest
+from synthetic_frames import BLACK, WHITE, vignette
 
 from app.processing.pipeline import CaptureProcessor, ExposureRef
-from app.processing.quality import (CalibrationFrames, assess, grade_metrics, lab_differences, lightness_noise,
-                                    neutral_patches, sensor_noise, shading, temporal_noise,
-                                    tone_and_white_balance, uniformity)
-from synthetic_frames import BLACK, WHITE, vignette
+from app.processing.quality import (
+    CalibrationFrames,
+    assess,
+    grade_metrics,
+    lab_differences,
+    lightness_noise,
+    neutral_patches,
+    sensor_noise,
+    shading,
+    temporal_noise,
+    tone_and_white_balance,
+    uniformity,
+)
 
 RGGB = np.array([[0, 1], [1, 2]])
 

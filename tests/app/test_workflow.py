@@ -2,7 +2,6 @@
 checks, the delivery encoding (checked against colour-science) and TIFF metadata, coverage."""
 from __future__ import annotations
 
-import json
 from datetime import datetime, timedelta, timezone
 from types import SimpleNamespace
 
@@ -15,10 +14,27 @@ from app.processing.encode import LINEAR_ONE, encode_deliverables
 from app.processing.pipeline import ChannelStack
 from app.workflow.coverage import coverage
 from app.workflow.delivery import LightDoseRecord, Original, deliver, read_sidecar
-from app.workflow.profile import (CalibrationProfile, CameraIdentity, ProfileError, ReuseLimits, SphereIdentity,
-                                  check_reuse, load_profile)
-from app.workflow.vocabulary import (NamedLight, Role, Subject, latest_takes, light_name, light_of, read_light_name,
-                                     read_role, step_id, subject_of)
+from app.workflow.profile import (
+    CalibrationProfile,
+    CameraIdentity,
+    ProfileError,
+    ReuseLimits,
+    SphereIdentity,
+    check_reuse,
+    load_profile,
+)
+from app.workflow.vocabulary import (
+    NamedLight,
+    Role,
+    Subject,
+    latest_takes,
+    light_name,
+    light_of,
+    read_light_name,
+    read_role,
+    step_id,
+    subject_of,
+)
 from simulation.lightsource import LightSource
 from simulation.matrix_fit import CharacterisationMatrix
 

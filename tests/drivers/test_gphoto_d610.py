@@ -7,12 +7,12 @@ import logging
 import threading
 
 import pytest
+from gphoto_fake import BULB, FakeGPhoto2, open_scripted
 
 from app.sequences.shooter import SafetySettings
 from app.session import CaptureSession
 from drivers.camera.base import CameraError, CameraSettings
 from drivers.camera.gphoto import GPhotoCamera
-from gphoto_fake import BULB, FakeGPhoto2, open_scripted
 
 
 # ------------------------------------------------------------------------------------------ 1 bulb release

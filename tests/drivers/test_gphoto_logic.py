@@ -13,12 +13,19 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from gphoto_fake import EV_FILE_ADDED, FakeGPhoto2, Queued, open_scripted
 
 from drivers.camera.base import CameraError, CameraSettings
-from drivers.camera.gphoto import (GPhotoCamera, camera_error, format_shutter, nearest_by_value, parse_aperture,
-                                   parse_iso, parse_shutter, retry_busy)
-
-from gphoto_fake import EV_FILE_ADDED, FakeGPhoto2, Queued, open_scripted
+from drivers.camera.gphoto import (
+    GPhotoCamera,
+    camera_error,
+    format_shutter,
+    nearest_by_value,
+    parse_aperture,
+    parse_iso,
+    parse_shutter,
+    retry_busy,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import rawpy
+from rawtestfiles import D610_BLACK, D610_WHITE, mosaic_14bit, write_dng
 
 from drivers.raw import RawFileError, linear_demosaic, load_raw, superpixel
-from rawtestfiles import D610_BLACK, D610_WHITE, mosaic_14bit, write_dng
 
 
 @pytest.fixture

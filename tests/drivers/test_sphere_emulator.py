@@ -7,13 +7,19 @@ import time
 
 import numpy as np
 import pytest
+from sphere_fakes import FakeClock
 
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.led_sphere import protocol as P
-from drivers.virtual.sphere_emulator import (DRIFT_ONSET_S, MAX_SHIFT_NM, SphereEmulator, SphereSnapshot,
-                                             fade_factor, peak_shift_nm)
+from drivers.virtual.sphere_emulator import (
+    DRIFT_ONSET_S,
+    MAX_SHIFT_NM,
+    SphereEmulator,
+    SphereSnapshot,
+    fade_factor,
+    peak_shift_nm,
+)
 from simulation.lightsource import LightSource
-from sphere_fakes import FakeClock
 
 TIMEOUT = 0.2          # fault cases: the time they take
 OK_TIMEOUT = 2.0       # happy paths: only matters if something is wrong (keeps a loaded machine from flaking)

@@ -10,7 +10,7 @@ import rawpy
 import tifffile
 
 from drivers.camera.base import CameraError, CameraSettings
-from drivers.virtual.camera import CAMERA_NAME, SHUTTER_SPEEDS, SensorModel, VirtualCamera, parse_shutter
+from drivers.virtual.camera import CAMERA_NAME, SensorModel, VirtualCamera, parse_shutter
 from drivers.virtual.dng import DngInfo, dng_bytes
 from drivers.virtual.scene import Scene
 from simulation.camera_model import channel_responses

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from fault_rigs import ROOT
 
 pytestmark = pytest.mark.fault("input")

@@ -11,18 +11,23 @@ import sys
 import textwrap
 
 import pytest
+from fault_rigs import ROOT
 
 from app import session as session_mod
 from app.demo import DemoSettings
 from app.sequences.calibration import DarkSeries
 from app.sequences.shooter import SafetySettings, Shooter
-from app.session import (MANIFEST, CaptureSession, DamagedFramesError, DefinitionMismatch, SessionLockedError,
-                         light_definition)
+from app.session import (
+    MANIFEST,
+    CaptureSession,
+    DamagedFramesError,
+    DefinitionMismatch,
+    SessionLockedError,
+    light_definition,
+)
 from app.session_manifest import SessionEntry
 from simulation.atomic_io import InsufficientSpaceError
 from simulation.lightsource import LightSource
-
-from fault_rigs import ROOT
 
 pytestmark = pytest.mark.fault("session integrity")
 

@@ -5,6 +5,7 @@ Deleting the switch-off after each shot (app/sequences/shooter.py) makes this te
 from __future__ import annotations
 
 import pytest
+from light_record import LS1, LS2, lit_spans
 
 from app.sequences.calibration import DarkSeries, FlatSeries, auto_exposure
 from app.sequences.capture import SubjectCapture
@@ -13,7 +14,6 @@ from app.sequences.hdr import meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession
 from app.workflow.vocabulary import Subject
-from light_record import LS1, LS2, lit_spans
 
 SETTLE_S = 0.05
 SLACK_S = 0.2           # issue 9: per frame, light on at most exposure + settle + 0.2 s
