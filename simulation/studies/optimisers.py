@@ -155,7 +155,7 @@ def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettin
     t0, n0 = time.perf_counter(), evaluator.evaluations
     best_x = np.zeros((G, L, m))
     best_c = np.empty(G)
-    state = np.random.get_state()
+    state = np.random.get_state()  # noqa: NPY002 - pyswarms draws from numpy's global RNG: restored below
     options = {"c1": settings.c1, "c2": settings.c2, "w": settings.c0}
     bounds = (np.zeros(D), np.ones(D))
     try:
@@ -165,7 +165,7 @@ def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettin
             opt = GlobalBestPSO(settings.particles, D, options, bounds=bounds, bh_strategy="nearest")
             for gi in range(G):
                 check(cancel)
-                np.random.seed(np.random.SeedSequence([seed, gi]).generate_state(1)[0])
+                np.random.seed(np.random.SeedSequence([seed, gi]).generate_state(1)[0])  # noqa: NPY002 - as above
                 opt.reset()
                 cost, pos = opt.optimize(set_cost(evaluator, idx_all[gi], mask_all[gi]),
                                          iters=settings.iterations, verbose=False)
@@ -174,7 +174,7 @@ def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettin
                 if gi % 32 == 31 or gi == G - 1:
                     report(progress, (gi + 1) / G, f"pyswarms: {gi + 1}/{G} light sets")
     finally:
-        np.random.set_state(state)
+        np.random.set_state(state)  # noqa: NPY002 - the caller's global RNG as it was
     return _outcome("pyswarms", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
 
 
@@ -193,7 +193,7 @@ def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSetti
     for gi in range(G):
         check(cancel)
         fast = set_cost(evaluator, idx_all[gi], mask_all[gi])
-        res = differential_evolution(lambda X: fast(X.T), [(0.0, 1.0)] * D, maxiter=settings.maxiter,
+        res = differential_evolution(lambda X, fast=fast: fast(X.T), [(0.0, 1.0)] * D, maxiter=settings.maxiter,
                                      popsize=settings.popsize, mutation=settings.mutation,
                                      recombination=settings.recombination, tol=settings.tol, polish=False,
                                      vectorized=True, updating="deferred",
@@ -203,6 +203,41 @@ def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSetti
         if gi % 32 == 31 or gi == G - 1:
             report(progress, (gi + 1) / G, f"differential evolution: {gi + 1}/{G} light sets")
     return _outcome("de", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
+
+
+def _random_screen(evaluator, idx_all: np.ndarray, mask_all: np.ndarray, settings: LbfgsSettings, seed: int,
+                   cancel: CancelToken | None) -> tuple[np.ndarray, np.ndarray]:
+    """``settings.screen`` random levels per light set, costed by the fast kernel 64 sets at a time:
+    levels (G, S, L, m) and costs (G, S)."""
+    G, L, m = idx_all.shape
+    rng = np.random.default_rng([seed, 0x5C])
+    S = settings.screen
+    x = rng.uniform(settings.lower, 1.0, (G, S, L, m)) * mask_all[:, None]
+    c = np.empty((G, S))
+    for lo in range(0, G, 64):
+        check(cancel)
+        hi = min(G, lo + 64)
+        idx = np.broadcast_to(idx_all[lo:hi, None], (hi - lo, S, L, m)).reshape(-1, L, m)
+        c[lo:hi] = evaluator.cost_indexed(idx, x[lo:hi].reshape(-1, L, m)).reshape(hi - lo, S)
+    return x, c
+
+
+def _forward_difference(evaluator, f64: Float64Cost, step: float
+                        ) -> Callable[[np.ndarray], tuple[float, np.ndarray]]:
+    """The float64 cost and its forward-difference gradient (step ``step``) from one batch of D + 1 points,
+    counted as evaluations of ``evaluator`` (recorded in a TracedEvaluator's trace)."""
+    eye = np.eye(f64.dim) * step
+    record = getattr(evaluator, "record_external", None)
+
+    def fun_grad(v: np.ndarray) -> tuple[float, np.ndarray]:
+        cc = f64(np.vstack([v, v + eye]))
+        if record is not None:
+            record(cc)
+        else:
+            evaluator.evaluations += len(cc)
+        return float(cc[0]), (cc[1:] - cc[0]) / step
+
+    return fun_grad
 
 
 def lbfgs_search(evaluator, groups: Sequence[Group], settings: LbfgsSettings = LbfgsSettings(), seed: int = 0,
@@ -220,35 +255,17 @@ def lbfgs_search(evaluator, groups: Sequence[Group], settings: LbfgsSettings = L
     idx_all, mask_all = group_arrays(groups)
     G, L, m = idx_all.shape
     t0, n0 = time.perf_counter(), evaluator.evaluations
-    rng = np.random.default_rng([seed, 0x5C])
-    S = settings.screen
-    x = rng.uniform(settings.lower, 1.0, (G, S, L, m)) * mask_all[:, None]
-    c = np.empty((G, S))
-    for lo in range(0, G, 64):
-        check(cancel)
-        hi = min(G, lo + 64)
-        idx = np.broadcast_to(idx_all[lo:hi, None], (hi - lo, S, L, m)).reshape(-1, L, m)
-        c[lo:hi] = evaluator.cost_indexed(idx, x[lo:hi].reshape(-1, L, m)).reshape(hi - lo, S)
+    x, c = _random_screen(evaluator, idx_all, mask_all, settings, seed, cancel)
     arg = c.argmin(axis=1)
     best_c = c[np.arange(G), arg]
     best_x = np.stack([_normalised(x[g, arg[g]], mask_all[g]) for g in range(G)])
-    record = getattr(evaluator, "record_external", None)
     top = np.argsort(best_c, kind="stable")[:settings.top_sets]
     for n_done, gi in enumerate(top, start=1):
         check(cancel)
         group = groups[gi]
         f64 = Float64Cost(evaluator, group)
         D = f64.dim
-        eye = np.eye(D) * settings.step
-
-        def fun_grad(v: np.ndarray) -> tuple[float, np.ndarray]:
-            cc = f64(np.vstack([v, v + eye]))
-            if record is not None:
-                record(cc)
-            else:
-                evaluator.evaluations += len(cc)
-            return float(cc[0]), (cc[1:] - cc[0]) / settings.step
-
+        fun_grad = _forward_difference(evaluator, f64, settings.step)
         prng = np.random.default_rng([seed, int(gi)])
         first = np.concatenate([x[gi, arg[gi], li, :len(light)] for li, light in enumerate(group)])
         for start in range(settings.starts):
