@@ -21,7 +21,7 @@ import re
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Union
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -170,7 +170,7 @@ class SetAside:
                    _check(data, "at", (str,), optional=True) or "")
 
 
-ManifestLine = Union[SessionEntry, DoseRecord, SetAside]
+ManifestLine = SessionEntry | DoseRecord | SetAside
 _KINDS = {KIND_FRAME: SessionEntry, KIND_DOSE: DoseRecord, KIND_SET_ASIDE: SetAside}
 
 

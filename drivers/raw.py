@@ -179,7 +179,8 @@ def _tiff_data_end(path: Path, head: bytes) -> int | None:
             stack = list(tif.pages)
             while stack:
                 page = stack.pop()
-                for off, cnt in zip(page.dataoffsets or (), page.databytecounts or ()):
+                # a damaged file's two arrays may differ in length: the walk takes the pairs both give
+                for off, cnt in zip(page.dataoffsets or (), page.databytecounts or (), strict=False):
                     end = max(end, int(off) + int(cnt))
                 if getattr(page, "subifds", None):
                     stack.extend(page.pages)

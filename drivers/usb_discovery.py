@@ -89,9 +89,9 @@ class DeviceReport:
     def to_dict(self) -> dict:
         d = asdict(self)
         for key in ("gphoto_cameras", "usb_cameras"):
-            for cam, info in zip(d[key], getattr(self, key)):
+            for cam, info in zip(d[key], getattr(self, key), strict=True):
                 cam["usb_id"] = info.usb_id
-        for port, info in zip(d["serial_ports"], self.serial_ports):
+        for port, info in zip(d["serial_ports"], self.serial_ports, strict=True):
             port["is_usb"] = info.is_usb
         d["nothing_found"] = self.nothing_found
         return d

@@ -74,12 +74,13 @@ class CgatsTable:
             raise CgatsError(f"{self.source}: spectral fields must increase in wavelength; {wl[k + 1]:g} nm "
                              f"follows {wl[k]:g} nm")
         values = np.empty((len(wl), len(self.rows)))
-        for r, (row, line) in enumerate(zip(self.rows, self.row_lines)):
-            for c, (i, w) in enumerate(spec):
+        for r, (row, line) in enumerate(zip(self.rows, self.row_lines, strict=True)):
+            for c, (i, _wavelength) in enumerate(spec):
                 try:
                     values[c, r] = float(row[i])
                 except ValueError:
-                    raise CgatsError(f"{self.source}:{line}: field {self.fields[i]} {row[i]!r} is not a number") from None
+                    raise CgatsError(f"{self.source}:{line}: field {self.fields[i]} {row[i]!r} is not a number"
+                                     ) from None
         if not np.isfinite(values).all():
             c, r = np.argwhere(~np.isfinite(values))[0]
             raise CgatsError(f"{self.source}:{self.row_lines[r]}: {wl[c]:g} nm is not a finite number")

@@ -45,7 +45,7 @@ class LightSource:
     def weights(self, n_leds: int = N_SPHERE_LEDS) -> np.ndarray:
         """Dense level vector over all LEDs (0 for LEDs not in this source)."""
         w = np.zeros(n_leds)
-        for n, v in zip(self.leds, self.levels):
+        for n, v in zip(self.leds, self.levels, strict=True):
             w[n - 1] = v
         return w
 

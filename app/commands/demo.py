@@ -25,7 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--new-session", action="store_true",
                    help="when --out holds a session made with other options, start a new one beside it "
                         "(default: refuse, naming the difference)")
-    p.add_argument("--no-de-fit", action="store_true", help="fit least squares only (default: as the parsimony study chose, resources/parsimony.json)")
+    p.add_argument("--no-de-fit", action="store_true",
+                   help="fit least squares only (default: as the parsimony study chose, resources/parsimony.json)")
     p.set_defaults(func=main)
 
 

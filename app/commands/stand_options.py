@@ -29,7 +29,8 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--seed", type=seed, default=0, help="virtual lab noise seed")
     g.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
     g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
-    g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=0.2, help="seconds between light on and shutter (0.2)")
+    g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=0.2,
+                   help="seconds between light on and shutter (0.2)")
     p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
 
 

@@ -277,7 +277,7 @@ def unbinned_main(args: argparse.Namespace) -> int:
     result.binned_best = compare_binned(spec)
     write_outputs(result, out)
     lines = [f"{result.pairs} pairs in {result.seconds:.2f} s ({result.runner.get('runner')})"]
-    for n, c in zip(result.numbers, result.candidates):
+    for n, c in zip(result.numbers, result.candidates, strict=True):
         s1, s2 = (s.label() for s in c.sources)
         lines.append(f"#{n:<7} {s1:<24} {s2:<34} train {c.train.mean:.4f} test {c.test.mean:.4f}")
     lines.append(f"binned best: {result.binned_best['source1']} + {result.binned_best['source2']} "

@@ -241,7 +241,7 @@ class HdrMerge:
             raise ValueError(f"{len(frames)} frames but {len(exposures)} exposure times")
         darks = list(darks) if darks is not None else [None] * len(frames)
         m = cls(white_level, linear_limit, black_level=black_level, method=method, noise=noise)
-        for i, (f, t, d) in enumerate(zip(frames, exposures, darks)):
+        for i, (f, t, d) in enumerate(zip(frames, exposures, darks, strict=True)):
             m.add(f, t, d, cancel=cancel)
             report(progress, (i + 1) / len(frames), f"merged exposure {t:.6g} s")
         return m.result()

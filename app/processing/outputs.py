@@ -90,7 +90,8 @@ def _xyz_tag(xyz: Sequence[float]) -> bytes:
 
 def _desc_tag(text: str) -> bytes:
     a = text.encode("ascii", "replace") + b"\0"
-    return b"desc" + b"\0" * 4 + struct.pack(">I", len(a)) + a + struct.pack(">II", 0, 0) + struct.pack(">HB", 0, 0) + b"\0" * 67
+    return (b"desc" + b"\0" * 4 + struct.pack(">I", len(a)) + a + struct.pack(">II", 0, 0) + struct.pack(">HB", 0, 0)
+            + b"\0" * 67)
 
 
 def _text_tag(text: str) -> bytes:
@@ -252,5 +253,5 @@ def write_matrices_csv(path: Path, matrices: Mapping[str, CharacterisationMatrix
     rows: list[list[object]] = [["method", "channel", "X", "Y", "Z"]]
     for name, m in matrices.items():
         chans = m.channels or [f"ch{i + 1}" for i in range(m.matrix.shape[0])]
-        rows += [[name, ch] + [f"{v:.10g}" for v in row] for ch, row in zip(chans, m.matrix)]
+        rows += [[name, ch] + [f"{v:.10g}" for v in row] for ch, row in zip(chans, m.matrix, strict=True)]
     return _write_csv(path, rows)

@@ -36,7 +36,7 @@ TRIM = 0.10
 def homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """3x3 H with dst ~ H @ [src, 1] for 4 point pairs (direct linear transform)."""
     a = []
-    for (x, y), (u, v) in zip(src, dst):
+    for (x, y), (u, v) in zip(src, dst, strict=True):
         a.append([x, y, 1, 0, 0, 0, -u * x, -u * y, -u])
         a.append([0, 0, 0, x, y, 1, -v * x, -v * y, -v])
     _, _, vt = np.linalg.svd(np.asarray(a, dtype=float))

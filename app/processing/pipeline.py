@@ -129,7 +129,7 @@ class CaptureProcessor:
             raise ValueError("no exposures to merge")
         merge: HdrMerge | None = None
         refs = sorted(refs, key=lambda r: r.exposure_s)
-        for i, (ref, frame) in enumerate(zip(refs, iter_open_raw([r.source for r in refs]))):
+        for i, (ref, frame) in enumerate(zip(refs, iter_open_raw([r.source for r in refs]), strict=True)):
             check(cancel)
             self._prepare(frame)
             if merge is None:

@@ -27,7 +27,7 @@ class SubjectCapture(BaseSequence):
         super().__init__()
         self.shooter = shooter
         self.lights = list(lights)
-        self.exposures = {k: sorted(set(float(t) for t in v)) for k, v in exposures.items()}
+        self.exposures = {k: sorted({float(t) for t in v}) for k, v in exposures.items()}
         self.subject = subject
         self.take = take
         self.meta = dict(meta or {})

@@ -40,7 +40,7 @@ class LightSafetyError(RuntimeError):
     light was cut at its limit before the shutter closed (kept aside as 'rejected')."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class SafetySettings:
     max_on_s: float = 10.0          # per capture, light on at most (settle + exposure + latency)
     settle_s: float = 0.2           # after switching on, before the shutter opens
@@ -194,7 +194,7 @@ class Shooter:
             self._sleep(self.safety.settle_s)
             exposure = self._expose(exposure_s)
             complete = self.sphere.exposure_done(period)
-        except BaseException as exc:  # any failure, Ctrl-C too: the light goes off first, then it is raised
+        except BaseException as exc:  # noqa: BLE001 - any failure, Ctrl-C too: the light goes off first, then it is raised
             failure = exc
         off = self._switch_off()
         self._add_dose(light, period.lit_s(), step_id)
@@ -254,7 +254,7 @@ class Shooter:
         if self.sphere is not None:
             try:
                 temperature = self.sphere.temperature_c()
-            except Exception as exc:  # a temperature read failure must not lose the downloaded frame
+            except Exception as exc:  # noqa: BLE001 - a temperature read failure must not lose the downloaded frame
                 log.warning("could not read the sphere temperature: %s", exc)
         settings = {k: v for k, v in self.camera.settings().__dict__.items() if v is not None}
         return self.session.record(raw, role, step_id=step_id, light=light, sphere_temperature_c=temperature,

@@ -99,8 +99,10 @@ class CopyStand:
                  reshoot: ReshootQuestion | None = None, on_event: EventCallback | None = None):
         self.camera, self.sphere, self.session, self.lab = camera, sphere, session, lab
         self.settings = settings or StandSettings()
-        self.progress, self.cancel, self.prompt, self.reshoot, self.on_event = progress, cancel, prompt, reshoot, on_event
-        self.shooter = Shooter(camera, sphere, session, stand=stand, safety=SafetySettings(settle_s=self.settings.settle_s))
+        self.progress, self.cancel, self.prompt = progress, cancel, prompt
+        self.reshoot, self.on_event = reshoot, on_event
+        self.shooter = Shooter(camera, sphere, session, stand=stand,
+                               safety=SafetySettings(settle_s=self.settings.settle_s))
 
     # ------------------------------------------------------------------ running sequences
     def run_sequence(self, seq: BaseSequence, lo: float = 0.0, hi: float = 1.0) -> list[ProgressEvent]:
@@ -242,7 +244,8 @@ class CopyStand:
         again = reshoot if reshoot is not None else (self.reshoot(original, len(takes)) if self.reshoot else False)
         return (max(takes) + 1 if again else max(takes)), len(takes)
 
-    def meter(self, original: Original, profile: CalibrationProfile, take: int) -> tuple[dict[str, list[float]], list[str]]:
+    def meter(self, original: Original, profile: CalibrationProfile, take: int
+              ) -> tuple[dict[str, list[float]], list[str]]:
         """Metering frame per light -> the calibrated exposures the original needs (HDR only when it must)."""
         h, w = profile.raw["shape"]
         n = self.settings.meter_tiles

@@ -172,12 +172,13 @@ def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original
                           photometric=photometric, icc=icc)
 
     with ThreadPoolExecutor(max_workers=2, thread_name_prefix="deliver") as pool:   # I/O and memcpy overlap
-        files = dict(zip(jobs, pool.map(write, jobs.values())))
+        files = dict(zip(jobs, pool.map(write, jobs.values()), strict=True))
     invalid = enc.invalid_fraction
     del enc
     qa = _qa(stack, invalid, profile, original, dose, any(len(v) > 1 for v in (exposures or {}).values()), warnings)
     sidecar = folder / f"{stem}.json"
-    doc = {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"), "original": original.to_dict(),
+    doc = {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"),
+           "original": original.to_dict(),
            "calibration": {"id": profile.id, "file": str(profile.path or ""), "created_at": profile.created_at,
                            "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean},
            "camera": asdict(camera), "ppi": ppi, "exposures": exposures or {}, "light_dose": dose.to_dict(),

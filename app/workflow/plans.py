@@ -22,7 +22,7 @@ def calibration_exposures(session: Any, base: Mapping[str, Sequence[float]],
                           planned: Mapping[str, Sequence[float]] | None = None) -> dict[str, list[float]]:
     """Per light: every exposure the captures use (base, planned HDR brackets, targets and originals already in
     the session under that light): darks and flats need all of them."""
-    out = {name: set(float(t) for t in ts) for name, ts in base.items()}
+    out = {name: {float(t) for t in ts} for name, ts in base.items()}
     for name, ts in (planned or {}).items():
         out.setdefault(name, set()).update(float(t) for t in ts)
     if session is not None:

@@ -89,7 +89,7 @@ class SphereIdentity:
                    float(sphere.temperature_c()))
 
 
-@dataclass
+@dataclass(frozen=True)
 class ReuseLimits:
     temperature_drift_c: float = 5.0
     max_age_h: float = 8.0
@@ -198,8 +198,8 @@ def load_profile(path: Path, *, arrays: bool = True) -> CalibrationProfile:
     except json.JSONDecodeError as exc:
         raise ProfileError(f"{path}:{exc.lineno}: not a calibration (invalid JSON: {exc.msg})") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise ProfileError(f"{path}: not a dualrgb calibration (format {doc.get('format') if isinstance(doc, dict) else None!r},"
-                           f" expected {FORMAT!r})")
+        found = doc.get("format") if isinstance(doc, dict) else None
+        raise ProfileError(f"{path}: not a dualrgb calibration (format {found!r}, expected {FORMAT!r})")
     try:
         prof = _from_dict(doc)
     except (KeyError, TypeError, ValueError) as exc:
@@ -266,7 +266,8 @@ def check_reuse(prof: CalibrationProfile, camera: CameraIdentity, sphere: Sphere
         drift = sphere.temperature_c - prof.sphere.temperature_c
         if abs(drift) > limits.temperature_drift_c:
             out.refusals.append(f"sphere temperature {sphere.temperature_c:.1f} C is {drift:+.1f} C from the "
-                                f"calibration's {prof.sphere.temperature_c:.1f} C (limit +-{limits.temperature_drift_c:g} C)")
+                                f"calibration's {prof.sphere.temperature_c:.1f} C "
+                                f"(limit +-{limits.temperature_drift_c:g} C)")
     if sphere is not None and prof.sphere.serial and sphere.serial != prof.sphere.serial:
         out.refusals.append(f"sphere serial {sphere.serial} differs from the calibration's {prof.sphere.serial}")
     for nl in lights or ():
@@ -281,7 +282,8 @@ def _compare_light(prof: CalibrationProfile, nl: NamedLight, out: ReuseCheck) ->
     try:
         ref = prof.light(nl.name).light
     except KeyError:
-        out.refusals.append(f"light {nl.name!r} is not in the calibration (it has {', '.join(l.name for l in prof.lights)})")
+        known = ", ".join(light.name for light in prof.lights)
+        out.refusals.append(f"light {nl.name!r} is not in the calibration (it has {known})")
         return
     if not np.allclose(ref.weights(), nl.light.weights(), atol=LEVEL_TOLERANCE):
         out.refusals.append(f"{nl.name} levels {nl.light.label()} differ from the calibration's {ref.label()}")
@@ -306,7 +308,8 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
         lines.append(f"  {nl.name}: {nl.light.label()}, exposures {ts} s")
     lines.append(f"matrix: {prof.matrix.method} ({len(prof.matrix.channels)} channels, of "
                  f"{', '.join(prof.statistics.get('methods', {}))}); train mean dE00 "
-                 f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, test mean {prof.test_mean or float('nan'):.3f}")
+                 f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, "
+                 f"test mean {prof.test_mean or float('nan'):.3f}")
     lines.append(f"darks {len(prof.darks.exposures) if prof.darks else '?'} exposures, whites "
                  f"{len(prof.whites) or '?'} lights, {len(prof.sources)} source frames, "
                  f"ppi {prof.ppi if prof.ppi else 'not set'}")

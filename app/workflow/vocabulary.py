@@ -170,7 +170,7 @@ def read_light_name(text: str) -> str:
 
 def format_exposure(seconds: float | None) -> str:
     """An exposure time as photographers read it ('1/60 s', '2 s'): the camera driver's own notation."""
-    from drivers.camera.gphoto import format_shutter
+    from drivers.camera.gphoto_labels import format_shutter
 
     return format_shutter(seconds)
 
@@ -269,6 +269,6 @@ def latest_takes(entries: Sequence[Any]) -> list[Any]:
     return [e for e in entries if e.seq in keep]
 
 
-__all__ = ["EventKind", "format_exposure", "NamedLight", "Role", "SequenceKind", "Subject", "SubjectKind", "exposure_key",
-           "latest_takes", "light_name", "light_of", "lights_of", "read_light_name", "read_role", "role_of",
-           "split_take", "step_id", "subject_of"]
+__all__ = ["EventKind", "format_exposure", "NamedLight", "Role", "SequenceKind", "Subject", "SubjectKind",
+           "exposure_key", "latest_takes", "light_name", "light_of", "lights_of", "read_light_name", "read_role",
+           "role_of", "split_take", "step_id", "subject_of"]

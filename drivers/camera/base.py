@@ -58,7 +58,7 @@ def call_with_deadline(fn: Callable[[], T], deadline_s: float, action: str) -> T
     def run() -> None:
         try:
             box["value"] = fn()
-        except BaseException as exc:  # delivered to the caller's thread as it is
+        except BaseException as exc:  # noqa: BLE001 - delivered to the caller's thread as it is
             box["error"] = exc
         finally:
             done.set()

@@ -2,8 +2,9 @@
 
 All gphoto2 calls of the project live in this module and its helpers (``gphoto_errors``: error messages with
 libgphoto2's own logged reason; ``gphoto_labels``: what labels mean, in any language; ``gphoto_settings``: the
-configuration tree and the copy stand's settings; ``gphoto_files``: events, the raw file of a capture, downloads). ``gphoto2`` is imported lazily (first detect/open), so
-``import drivers.camera`` works without it, and tests can set ``VCAMERADIR`` (libgphoto2's virtual camera) first.
+configuration tree and the copy stand's settings; ``gphoto_files``: events, the raw file of a capture,
+downloads). ``gphoto2`` is imported lazily (first detect/open), so ``import drivers.camera`` works without it,
+and tests can set ``VCAMERADIR`` (libgphoto2's virtual camera) first.
 
 The light is on only while a frame is exposed, so :meth:`GPhotoCamera.expose` returns as close to the shutter
 closing as libgphoto2 allows (libgphoto2's ``capture()`` returns only after the camera has stored the file and,
@@ -43,13 +44,10 @@ from typing import Any, TypeVar
 import numpy as np
 
 from drivers.camera.base import Camera, CameraError, CameraTimeout, Exposure, RawCapture, call_with_deadline
-
-# the driver's public names, re-exported from the modules it is split into
-from drivers.camera.gphoto_errors import (  # noqa: F401
+from drivers.camera.gphoto_errors import (
     GP_ERROR,
     GP_ERROR_CAMERA_BUSY,
     GP_ERROR_CANCEL,
-    GP_ERROR_IO_USB_CLAIM,
     GP_ERROR_IO_USB_FIND,
     GP_ERROR_NOT_SUPPORTED,
     GP_ERROR_TIMEOUT,
@@ -58,25 +56,12 @@ from drivers.camera.gphoto_errors import (  # noqa: F401
     gphoto_error_code,
     retry_busy,
 )
+
+# re-exported: the error callers match (e.g. the GUI's advice on a camera another program holds)
+from drivers.camera.gphoto_errors import GP_ERROR_IO_USB_CLAIM as GP_ERROR_IO_USB_CLAIM
 from drivers.camera.gphoto_files import CapturedFiles, GPhotoFiles
-from drivers.camera.gphoto_labels import (  # noqa: F401
-    capture_target_choice,
-    force_untranslated,
-    format_shutter,
-    is_bulb_label,
-    nearest_by_value,
-    parse_aperture,
-    parse_iso,
-    parse_shutter,
-)
-from drivers.camera.gphoto_settings import (  # noqa: F401
-    BULB_LIMIT_S,
-    RAM_TARGET,
-    RAW_QUALITY,
-    TARGET_NAMES,
-    ConfigEntry,
-    GPhotoSettings,
-)
+from drivers.camera.gphoto_labels import capture_target_choice, force_untranslated, format_shutter, is_bulb_label
+from drivers.camera.gphoto_settings import BULB_LIMIT_S, RAM_TARGET, TARGET_NAMES, GPhotoSettings
 
 log = logging.getLogger(__name__)
 
@@ -148,7 +133,7 @@ class PendingCall:
     def _run(self, fn: Callable[[], Any]) -> None:
         try:
             fn()
-        except BaseException as exc:  # delivered by on_done to the thread that calls the camera next
+        except BaseException as exc:  # noqa: BLE001 - delivered by on_done to the thread that calls the camera next
             self.error = exc
         finally:
             self.done.set()

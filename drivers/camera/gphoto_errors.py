@@ -166,7 +166,7 @@ class LibraryLog:
         level = gp.GP_LOG_DEBUG if logging.getLogger("gphoto2").isEnabledFor(logging.DEBUG) else gp.GP_LOG_ERROR
         try:
             result = gp.gp_log_add_func(level, self._callback)
-        except Exception as exc:  # without the log, messages keep the generic text
+        except Exception as exc:  # noqa: BLE001 - without the log, messages keep the generic text
             log.info("could not attach to libgphoto2's log: %s", exc)
             return
         self._handles[id(gp)] = result[-1] if isinstance(result, (list, tuple)) else result

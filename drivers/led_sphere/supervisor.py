@@ -196,7 +196,7 @@ class OnTimeSupervisor:
                         self._name, period.max_on_s, late)
             try:
                 self._switch_off()
-            except Exception as exc:  # any failure: retried, then left to the firmware's own limit (logged)
+            except Exception as exc:  # noqa: BLE001 - any failure: retried, then left to the firmware's own limit (logged)
                 with self._cond:
                     self._next_try = time.monotonic() + self._retry_s
                     gave_up = self._attempts > self._retries

@@ -206,7 +206,8 @@ class VirtualCamera(Camera):
         self._sensor_seq = sensor_seq                            # hot pixels: a property of this sensor
         self._scene = scene if scene is not None else Scene.with_target(setup.test)
         self._cache = _Cache()
-        self._settings = CameraSettings(iso=int(_nearest(ISO_VALUES, iso)), shutter_s=_nearest(SHUTTER_SPEEDS, shutter_s),
+        self._settings = CameraSettings(iso=int(_nearest(ISO_VALUES, iso)),
+                                        shutter_s=_nearest(SHUTTER_SPEEDS, shutter_s),
                                         aperture=_nearest(APERTURES, aperture), image_quality=IMAGE_QUALITY,
                                         capture_target=CAPTURE_TARGETS[0])
         self._open = False
@@ -454,7 +455,8 @@ class VirtualCamera(Camera):
         sn = self.sensor
         levels = np.zeros(self.n_leds)
         levels[[n - 1 for n in REFERENCE_LIGHT]] = 1.0
-        white = levels @ led_responses(self.led_spectra(), np.ones((1, len(self.grid))), self.camera_sensitivities)[:, 0]
+        open_gate = np.ones((1, len(self.grid)))
+        white = levels @ led_responses(self.led_spectra(), open_gate, self.camera_sensitivities)[:, 0]
         return (sn.open_gate_dn - sn.black_level) / (sn.reference_exposure_s * sn.reference_iso / 100.0 * white.max())
 
     def _hot_pixels(self, height: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -477,7 +479,7 @@ class VirtualCamera(Camera):
         k = sn.electrons_per_dn_iso100 * 100.0 / self._settings.iso             # e- per DN
         dark_e = sn.dark_current_e_per_s * exposure_s
         out = np.empty((sc.height, sc.width), dtype=np.uint16)
-        for (py, px), ch in zip(((0, 0), (0, 1), (1, 0), (1, 1)), CFA_RGGB):
+        for (py, px), ch in zip(((0, 0), (0, 1), (1, 0), (1, 1)), CFA_RGGB, strict=True):
             if (py, px) not in self._cache.planes:
                 rows, cols = np.arange(py, sc.height, 2), np.arange(px, sc.width, 2)
                 self._cache.planes[(py, px)] = sc.labels(rows, cols)

@@ -66,9 +66,9 @@ _MAX_CLASSES = np.iinfo(np.uint16).max
 # ---------------------------------------------------------------- strokes (painted on the superpixel grid)
 def _span(box: Box, h2: int, w2: int) -> tuple[slice, slice]:
     """Superpixel rows / columns of ``box`` (at least one of each)."""
-    t, l, b, r = box
-    r0, c0 = int(round(t * h2)), int(round(l * w2))
-    return slice(r0, max(int(round(b * h2)), r0 + 1)), slice(c0, max(int(round(r * w2)), c0 + 1))
+    top, left, bottom, right = box
+    r0, c0 = int(round(top * h2)), int(round(left * w2))
+    return slice(r0, max(int(round(bottom * h2)), r0 + 1)), slice(c0, max(int(round(right * w2)), c0 + 1))
 
 
 @dataclass(frozen=True)
@@ -301,9 +301,9 @@ def _film_transmittance(grid: SpectralGrid) -> Callable[[np.ndarray], np.ndarray
 
 def _row(box: Box, classes: Sequence[int]) -> list[Fill]:
     """Equal blocks side by side across ``box``, one per class."""
-    t, l, b, r = box
-    w = (r - l) / len(classes)
-    return [Fill((t, l + k * w, b, l + (k + 1) * w), c) for k, c in enumerate(classes)]
+    top, left, bottom, right = box
+    w = (right - left) / len(classes)
+    return [Fill((top, left + k * w, bottom, left + (k + 1) * w), c) for k, c in enumerate(classes)]
 
 
 def _painting(grid: SpectralGrid) -> Original:

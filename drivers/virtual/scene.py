@@ -180,9 +180,9 @@ class Scene:
         rows, cols = self.layout
         top, left, py, px = self._grid_box
         g = self.gap * py / 2
-        t, b = top + g, top + rows * py - g
-        l, r = left + g, left + cols * px - g
-        return [(t, l), (t, r), (b, r), (b, l)]
+        y0, y1 = top + g, top + rows * py - g
+        x0, x1 = left + g, left + cols * px - g
+        return [(y0, x0), (y0, x1), (y1, x1), (y1, x0)]
 
     def nd_patches(self) -> np.ndarray:
         """Boolean per patch: under the ND filter (left ``cols // 2`` columns) when the filter is on."""
@@ -277,7 +277,7 @@ class Scene:
     def describe(self) -> dict[str, object]:
         d: dict[str, object] = {"kind": self.kind, "name": self.name, "size": f"{self.width}x{self.height}"}
         if self.kind == "target":
-            d.update(patches=self.n_patches, grid="%dx%d" % self.layout, nd_filter=self.nd_filter)
+            d.update(patches=self.n_patches, grid="{}x{}".format(*self.layout), nd_filter=self.nd_filter)
         elif self.kind == "original":
             d.update(self.original.describe())
         return d

@@ -296,7 +296,7 @@ class SphereEmulator:
         body = bytearray(reply[:-1] or b"OK")
         hits = self._rng.random(len(body)) < 0.35
         hits[0] = True
-        body = bytearray(int(self._rng.integers(0x80, 0x100)) if h else b for b, h in zip(body, hits))
+        body = bytearray(int(self._rng.integers(0x80, 0x100)) if h else b for b, h in zip(body, hits, strict=True))
         return bytes(body) + b"\n"
 
     def _respond(self, reply: bytes, delay_s: float = 0.0) -> None:
@@ -375,7 +375,7 @@ class SphereEmulator:
 
     def _record_light(self, cause: str) -> None:
         emitting = self._emitting()
-        levels = tuple(float(p) / P.PWM_MAX if on else 0.0 for p, on in zip(self._pwm, emitting))
+        levels = tuple(float(p) / P.PWM_MAX if on else 0.0 for p, on in zip(self._pwm, emitting, strict=True))
         current = self._record[-1] if self._record and self._record[-1].t_off is None else None
         if current is not None and current.levels == levels:
             return

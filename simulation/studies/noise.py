@@ -85,12 +85,12 @@ class NoiseModel:
     def signals(self, W: np.ndarray, which: str = "train") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """DN above black of patches S (B, n, L, 3) and open gate F (B, L, 3), and exposures t (B, L)."""
         W = np.asarray(W, dtype=float)
-        O = W @ self.open                                                     # (B, L, 3)
-        o_max = O.max(axis=-1)                                                # (B, L)
+        gate = W @ self.open                                                     # (B, L, 3)
+        o_max = gate.max(axis=-1)                                                # (B, L)
         scale = np.divide(self.camera.headroom, o_max, out=np.zeros_like(o_max), where=o_max > 0)
         C = np.einsum("blk,knc->bnlc", W, self.data[which].R)
         S = C * scale[:, None, :, None]
-        F = O * scale[:, :, None]
+        F = gate * scale[:, :, None]
         t = np.divide(self.camera.headroom, self.dn_per_unit_s * o_max, out=np.full_like(o_max, np.inf),
                       where=o_max > 0)
         return S, F, t

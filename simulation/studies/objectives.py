@@ -114,7 +114,7 @@ def captured(setup: SimulationSetup, rows: list[dict], capture: Capture | None, 
     done: dict[str, dict] = {}
     for row in rows:
         W = np.zeros((2, model.n_leds))
-        for li, (leds, levels) in enumerate(zip(row["pair"], row["levels"])):
+        for li, (leds, levels) in enumerate(zip(row["pair"], row["levels"], strict=True)):
             W[li, np.asarray(leds) - 1] = levels
         key = repr(W.round(6).tolist())
         if key not in done:
@@ -176,7 +176,7 @@ _MARKERS = {"noise-free": "o", "expected-captured": "s", "robust": "D"}
 def speed_accuracy_chart(result: ObjectivesResult):
     modes = list(dict.fromkeys(r["mode"] for r in result.rows))
     fig, axes = new_figure(5.5 * len(modes), 4.6, ncols=len(modes))
-    for ax, mode in zip(np.atleast_1d(axes), modes):
+    for ax, mode in zip(np.atleast_1d(axes), modes, strict=True):
         for r in (r for r in result.rows if r["mode"] == mode):
             kw = dict(color=_COLOURS[r["method"]], marker=_MARKERS[r["objective"]], ms=8, ls="none")
             ax.plot(r["seconds"], r["expected_train"], **kw)
@@ -198,7 +198,7 @@ def speed_accuracy_chart(result: ObjectivesResult):
 def predicted_vs_captured_chart(result: ObjectivesResult):
     modes = list(dict.fromkeys(r["mode"] for r in result.rows))
     fig, axes = new_figure(5.5 * len(modes), 4.6, ncols=len(modes))
-    for ax, mode in zip(np.atleast_1d(axes), modes):
+    for ax, mode in zip(np.atleast_1d(axes), modes, strict=True):
         rows = [r for r in result.rows if r["mode"] == mode and "captured_train" in r]
         cap = [r["captured_train"] for r in rows]
         ax.plot([r["noise_free_train"] for r in rows], cap, "o", mfc="none", color="tab:blue",
@@ -222,13 +222,15 @@ def summary_lines(result: ObjectivesResult) -> list[str]:
     lines = ["| mode | objective | method | time s | pair @ levels | noise-free train | expected train | robust | "
              "captured train | captured test |", "|---|---|---|---:|---|---:|---:|---:|---:|---:|"]
     for r in result.rows:
-        levels = " + ".join(f"{tuple(p)}@{tuple(round(v, 4) for v in lv)}" for p, lv in zip(r["pair"], r["levels"]))
+        levels = " + ".join(f"{tuple(p)}@{tuple(round(v, 4) for v in lv)}"
+                            for p, lv in zip(r["pair"], r["levels"], strict=True))
         lines.append(f"| {r['mode']} | {r['objective']} | {r['method']} | {r['seconds']:.2f} | {levels} | "
                      f"{r['noise_free_train']:.3f} | {r['expected_train']:.3f} | {r['robust_train']:.3f} | "
                      f"{r.get('captured_train', float('nan')):.3f} | {r.get('captured_test', float('nan')):.3f} |")
     s = result.summary
     lines += ["", f"Mean |predicted - captured| / captured (training, {result.capture}): noise-free "
-                  f"{100 * s['noise_free_train_relative_error']:.0f} % (max {100 * s['noise_free_train_max_relative_error']:.0f} %), "
+                  f"{100 * s['noise_free_train_relative_error']:.0f} % "
+                  f"(max {100 * s['noise_free_train_max_relative_error']:.0f} %), "
                   f"expected captured {100 * s['expected_train_relative_error']:.0f} % "
                   f"(max {100 * s['expected_train_max_relative_error']:.0f} %)."]
     return lines

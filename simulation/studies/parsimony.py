@@ -206,8 +206,8 @@ class ParsimonyResult:
                 "evidence": {
                     "step_deviation": {f"{r['step_nm']:g}": round(r["deviation"], 4) for r in self.steps["rows"]},
                     "model_test_de00": {k: round(v, 4) for k, v in self.models["scores"].items()},
-                    "exposures_test_de00": {str(r["exposures"]): round(s, 4)
-                                            for r, s in zip(self.exposures["rows"], self.exposures["scores"])}},
+                    "exposures_test_de00": {str(r["exposures"]): round(s, 4) for r, s in
+                                            zip(self.exposures["rows"], self.exposures["scores"], strict=True)}},
                 "setup": self.spec.to_dict(), "camera": self.config.camera.to_dict(),
                 "generated_by": "dualrgb study parsimony",
                 "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
@@ -331,7 +331,7 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: str 
     lines += ["", f"Chosen: **{m['chosen']}**.", "", "## HDR exposures (ND 2.0 over half the patches)", ""]
     e = result.exposures
     lines += [f"- {r['exposures']} exposure(s) x{', '.join(f'{f:.3g}' for f in r['factors'])}: {sc:.4f}"
-              for r, sc in zip(e["rows"], e["scores"])]
+              for r, sc in zip(e["rows"], e["scores"], strict=True)]
     lines += ["", f"Chosen: **{e['chosen']}** exposure(s) per light.", "",
               "Defaults written to parsimony.json (`dualrgb study parsimony --write-defaults` makes them the "
               "app's defaults)."]

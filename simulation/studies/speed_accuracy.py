@@ -218,8 +218,8 @@ def pareto_chart(result: SpeedAccuracyResult):
                 ax.annotate(row["label"].replace("pso ", "").replace(" (thesis)", "*"), (x["median"], y["median"]),
                             textcoords="offset points", xytext=(4, 3), fontsize=7, color=_COLOURS["pso"])
         rows = {r["label"]: r for r in result.summary}
-        fx = [rows[l]["seconds"]["median"] for l in front]
-        fy = [rows[l][key]["median"] for l in front]
+        fx = [rows[label]["seconds"]["median"] for label in front]
+        fy = [rows[label][key]["median"] for label in front]
         ax.step(fx, fy, where="post", color="grey", lw=1, ls="--", label="Pareto front (medians)")
         ax.set_xscale("log")
         ax.set_xlabel("wall time per run, s (median, min-max over seeds)")

@@ -193,9 +193,9 @@ def dim_leds(model: NoiseModel, optima: dict[str, np.ndarray]) -> dict:
     for name, W in optima.items():
         t = model.exposures(W)
         for li in range(W.shape[0]):
-            O = W[li] @ model.open
-            c = int(np.argmax(O))
-            share = float((W[li, 5:7] * model.open[5:7, c]).sum() / O[c]) if O[c] > 0 else None
+            gate = W[li] @ model.open
+            c = int(np.argmax(gate))
+            share = float((W[li, 5:7] * model.open[5:7, c]).sum() / gate[c]) if gate[c] > 0 else None
             rows.append({"optimum": name, "light": li + 1, "leds": (np.nonzero(W[li])[0] + 1).tolist(),
                          "levels": W[li][W[li] > 0].round(4).tolist(), "exposure_s": float(t[li]),
                          "brightest_channel": "RGB"[c], "share_led6_7": share})
@@ -378,7 +378,8 @@ def stability_chart(result: StabilityResult):
 
 
 def _predicted_vs_captured(ax, noise: ObjectivesResult) -> None:
-    for mode, colour in zip(dict.fromkeys(r["mode"] for r in noise.rows), ("tab:blue", "tab:red")):
+    modes = dict.fromkeys(r["mode"] for r in noise.rows)     # reflective and/or transmissive
+    for mode, colour in zip(modes, ("tab:blue", "tab:red")[:len(modes)], strict=True):
         rows = [r for r in noise.rows if r["mode"] == mode]
         ax.plot([r["noise_free_train"] for r in rows], [r["captured_train"] for r in rows], "o", mfc="none",
                 color=colour, label=f"{mode}: noise-free prediction")

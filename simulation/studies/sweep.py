@@ -61,7 +61,7 @@ def sweep(specs: Sequence[SetupSpec], methods: Sequence[str] = ("exhaustive", "p
     tasks = [RunTask(spec, c, s, light_sets) for spec in specs for c in chosen for s in range(seeds)]
     t0 = time.perf_counter()
     results = runner.map(run_task, tasks)
-    for task, r in zip(tasks, results):
+    for task, r in zip(tasks, results, strict=True):
         r["setup"] = _setup_label(task.spec)
         r.pop("trace", None)
     res = SweepResult(list(specs), [c.label for c in chosen], seeds, results,

@@ -129,8 +129,8 @@ class UnbinnedResult:
                 "pairs_per_second": round(self.pairs / self.seconds) if self.seconds > 0 else None,
                 "runner": self.runner, "tasks": self.tasks,
                 "top": [{"number": n, **c.to_dict(), "leds_total": sum(len(s.leds) for s in c.sources)}
-                        for n, c in zip(self.numbers, self.candidates)] if self.candidates else
-                [{"number": n, "cost": c} for n, c in zip(self.numbers, self.costs)],
+                        for n, c in zip(self.numbers, self.candidates, strict=True)] if self.candidates else
+                [{"number": n, "cost": c} for n, c in zip(self.numbers, self.costs, strict=True)],
                 "histogram": {"edges": [float(e) for e in HIST_EDGES[:-1]] + ["inf"], "counts": self.histogram},
                 "binned_best": self.binned_best}
 
@@ -156,7 +156,7 @@ def unbinned_search(spec: SetupSpec = SetupSpec(), runner: Runner | None = None,
                             describe(), len(work))
     if refine:
         ev = evaluator_for(spec)
-        for n, c in zip(result.numbers[:refine], result.costs[:refine]):
+        for n, c in zip(result.numbers[:refine], result.costs[:refine], strict=True):
             group = pair_group(n_leds, n)
             cand = Candidate(tuple(LightSource(light) for light in group), float(c))
             cand.train, cand.test = ev.stats(cand.weights(ev.n_leds))
@@ -209,7 +209,7 @@ def write_outputs(result: UnbinnedResult, out) -> None:
              f"at full level; {result.tasks} tasks on {result.runner}; {result.seconds:.2f} s "
              f"({result.pairs / max(result.seconds, 1e-9):.0f} pairs/s).", "",
              "| rank | pair number | light 1 | light 2 | train dE00 | test dE00 |", "|---:|---:|---|---|---:|---:|"]
-    for i, (n, c) in enumerate(zip(result.numbers, result.candidates), start=1):
+    for i, (n, c) in enumerate(zip(result.numbers, result.candidates, strict=True), start=1):
         lines.append(f"| {i} | {n} | {c.sources[0].leds} | {c.sources[1].leds} | {c.train.mean:.4f} | "
                      f"{c.test.mean:.4f} |")
     if result.binned_best:

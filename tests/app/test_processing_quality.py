@@ -62,7 +62,9 @@ def test_lightness_noise_propagates_channel_noise_to_l_star():
     y = float((v @ A[:, 1])[0])
     sy = float(np.sqrt(np.sum((sd[0] * A[:, 1]) ** 2)))
     eps = 1e-4                                                   # independent: finite difference of colour's L*
-    lab = lambda yy: colour.XYZ_to_Lab(np.array([0.3, yy, 0.3]) / 100, colour.XYZ_to_xy(white / 100))[0]
+    def lab(yy: float) -> float:
+        return colour.XYZ_to_Lab(np.array([0.3, yy, 0.3]) / 100, colour.XYZ_to_xy(white / 100))[0]
+
     slope = (lab(y + eps) - lab(y - eps)) / (2 * eps)
     assert lightness_noise(v, sd, A, white, np.array([0]))[0] == pytest.approx(slope * sy, rel=1e-5)
 
@@ -120,7 +122,7 @@ def test_sensor_noise_and_uniformity_from_darks_and_flats():
 
 def test_grading_statuses_scope_and_sources():
     colour_only = grade_metrics({"colour_mean_de00": 1.0, "colour_p90_de00": 2.0, "colour_max_de00": 3.0})
-    for std, g in colour_only.items():
+    for g in colour_only.values():
         assert g["scope"] == "colour accuracy only" and "SFR / MTF and sampling efficiency" in g["not_assessed"]
         assert g["metrics"]["tone_max_abs_dl"]["status"] == "not assessed"
         assert all(r["source"] for r in g["metrics"].values())

@@ -88,7 +88,8 @@ def _profile(tmp_path, **over) -> CalibrationProfile:
         camera=CameraIdentity("Nikon D610", "3012345", "60 mm", 50, 8.0), sphere=SphereIdentity("S", "1", "S-1", 25.0),
         preset="P", lights=lights, exposures={"P light 1": [0.01, 0.5]}, base_exposures={"P light 1": 0.01},
         matrix=CharacterisationMatrix(np.eye(3) * 90, ["R1", "G1", "B1"]),
-        statistics={"best": "least-squares", "methods": {"least-squares": {"train": {"mean": 0.4}, "test": {"mean": 0.3}}}},
+        statistics={"best": "least-squares",
+                    "methods": {"least-squares": {"train": {"mean": 0.4}, "test": {"mean": 0.3}}}},
         white_xyz=D65, raw={"white_level": 15520, "black_level": 600, "cfa": "RGGB", "linear_limit": 11000,
                             "shape": [8, 12]}, sources={"0001_dark.dng": "ab" * 32}, ppi=300.0,
         darks=darks, whites={"P light 1": FlatField(np.full((8, 12), 1000.0, np.float32))}, **over)
@@ -193,7 +194,8 @@ def test_coverage_counts_darks_and_flats():
 
 
 def test_streamed_stack_equals_the_batch_stack():
-    """StackBuilder (frames merged as they land, as CopyStand.capture does) gives the stack of CaptureProcessor.stack."""
+    """StackBuilder (frames merged as they land, as CopyStand.capture does) gives the stack of
+    CaptureProcessor.stack."""
     from app.processing.pipeline import CaptureProcessor, ExposureRef
 
     rng = np.random.default_rng(5)

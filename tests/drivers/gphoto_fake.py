@@ -29,7 +29,8 @@ from types import SimpleNamespace
 from typing import Any
 
 GENERIC = {-1: "Unspecified error", -2: "Bad parameters", -6: "Unsupported operation", -7: "I/O problem",
-           -10: "Timeout reading from or writing to the port", -52: "Could not find the requested device on the USB port",
+           -10: "Timeout reading from or writing to the port",
+           -52: "Could not find the requested device on the USB port",
            -53: "Could not claim the USB device", -105: "Unknown model", -108: "File not found",
            -110: "I/O in progress"}
 EV_UNKNOWN, EV_TIMEOUT, EV_FILE_ADDED, EV_FOLDER_ADDED, EV_CAPTURE_COMPLETE = 0, 1, 2, 3, 4
@@ -50,7 +51,8 @@ D610_SPEEDS = [(1, 4000), (1, 3200), (1, 2000), (1, 250), (1, 125), (1, 60), (1,
 NIKON_SUMMARY = ("Manufacturer: Nikon Corporation\nModel: D610\nVendor Extension ID: 0xa (1.0)\n"
                  "\nDevice Capabilities:\n\tFile Download, File Deletion, File Upload\n"
                  "\tGeneric Image Capture, No Open Capture, Nikon Capture 1, Nikon Capture 2, Nikon Capture 3\n")
-GENERIC_SUMMARY = "Vendor Extension ID: 0xa (1.0)\n\tGeneric Image Capture, No Open Capture, No vendor specific capture\n"
+GENERIC_SUMMARY = ("Vendor Extension ID: 0xa (1.0)\n"
+                   "\tGeneric Image Capture, No Open Capture, No vendor specific capture\n")
 
 
 def _small_jpeg() -> bytes:
@@ -171,7 +173,10 @@ class ScriptedD610:
 
     def widgets(self) -> dict[str, Widget]:
         t, speeds = self.t, self.speeds + [BULB]
-        on_off = lambda v: t["on"] if v else t["off"]    # noqa: E731
+
+        def on_off(v):
+            return t["on"] if v else t["off"]
+
         return {w.name: w for w in [
             Widget("iso", "radio", self.iso, ["100", "200", "400", "800", "1600", "Hi 1"], label="ISO Speed"),
             Widget("isoauto", "radio", on_off(self.isoauto), [t["on"], t["off"]], label="ISO Auto"),

@@ -16,16 +16,9 @@ import pytest
 from gphoto_fake import EV_FILE_ADDED, FakeGPhoto2, Queued, open_scripted
 
 from drivers.camera.base import CameraError, CameraSettings
-from drivers.camera.gphoto import (
-    GPhotoCamera,
-    camera_error,
-    format_shutter,
-    nearest_by_value,
-    parse_aperture,
-    parse_iso,
-    parse_shutter,
-    retry_busy,
-)
+from drivers.camera.gphoto import GPhotoCamera
+from drivers.camera.gphoto_errors import camera_error, retry_busy
+from drivers.camera.gphoto_labels import format_shutter, nearest_by_value, parse_aperture, parse_iso, parse_shutter
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import FrozenInstanceError
 
 import numpy as np
 import pytest
@@ -124,7 +125,7 @@ def test_snapshot_interface():
     for arr in (snap.levels, snap.on_time_s, snap.peak_shift_nm):
         assert isinstance(arr, np.ndarray) and arr.shape == (10,)
     assert isinstance(snap.temperature_c, float) and snap.light_on is False
-    with pytest.raises(Exception):
+    with pytest.raises(FrozenInstanceError):
         snap.light_on = True                         # frozen
 
 
@@ -287,7 +288,7 @@ def test_context_manager_over_pty_leaves_leds_off_on_exception(lab):
             sphere.apply(LightSource((2, 3)))
             sphere.on()
             assert emu.snapshot().levels.sum() == 2.0
-            1 / 0
+            raise ZeroDivisionError   # an error inside the with block
     assert emu.snapshot().levels.sum() == 0 and not emu.snapshot().light_on
 
 

@@ -1,4 +1,5 @@
-"""Light-safety test helpers: settings, lights, and reading the sphere emulator's own record of lit periods (its clock, not the host's) for light-safety tests."""
+"""Light-safety test helpers: settings, lights, and reading the sphere emulator's own record of lit periods (its
+clock, not the host's) for light-safety tests."""
 from __future__ import annotations
 
 import time

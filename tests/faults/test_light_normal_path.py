@@ -46,7 +46,7 @@ def test_light_only_while_a_frame_is_exposed_over_every_sequence(lab, tmp_path):
     assert len(lit) == len(exposures) - 2 and len(spans) == len(lit), (len(spans), len(lit), len(exposures))
     assert all(s.t_off is not None for s in spans), "the light is still on at the end"
     worst = 0.0
-    for span, frame in zip(spans, lit):                 # one lit span per lit frame, in order, around it
+    for span, frame in zip(spans, lit, strict=True):                 # one lit span per lit frame, in order, around it
         assert span.t_on <= frame.t_open and frame.t_close <= span.t_off, (span, frame)
         over = span.duration(0) - (frame.exposure_s + SETTLE_S)
         worst = max(worst, over)
