@@ -149,7 +149,9 @@ class LibraryLog:
         self._lines: collections.deque[tuple[int, str, str]] = collections.deque(maxlen=maxlen)
         self._counter = itertools.count(1)
         self._last = 0
-        self._handles: dict[int, Any] = {}      # id(gphoto2 module) -> its callback handle, kept alive
+        # id(gphoto2 module) -> (the module, its callback handle), both kept alive: a freed stand-in's id could
+        # be reused by the next one, which would then never be registered
+        self._handles: dict[int, tuple[Any, Any]] = {}
 
     @classmethod
     def attach(cls, gp: Any) -> LibraryLog:
@@ -169,7 +171,7 @@ class LibraryLog:
         except Exception as exc:  # noqa: BLE001 - without the log, messages keep the generic text
             log.info("could not attach to libgphoto2's log: %s", exc)
             return
-        self._handles[id(gp)] = result[-1] if isinstance(result, (list, tuple)) else result
+        self._handles[id(gp)] = (gp, result[-1] if isinstance(result, (list, tuple)) else result)
 
     def _callback(self, level: int, domain: str, text: str, *_data: Any) -> None:
         log.debug("libgphoto2 (%s) %s", domain, text)
