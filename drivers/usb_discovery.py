@@ -14,6 +14,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from typing import TypeVar
 
 log = logging.getLogger(__name__)
@@ -269,7 +270,8 @@ def claimed_camera_hints(report: DeviceReport) -> list[str]:
         if cam.bus_address in seen:
             continue
         where = f"bus {cam.bus} device {cam.address}"
-        holders = usb_device_holders(cam.bus, cam.address) if cam.bus is not None else []
+        ba = cam.bus_address
+        holders = usb_device_holders(*ba) if ba else []
         held = f"held by {', '.join(holders)}; " if holders else ""
         hints.append(f"{cam.model} ({cam.usb_id}, {where}) is on USB but gphoto2 does not list it: {held}"
                      f"{FREE_CAMERA_ADVICE}, and check the camera's USB mode and your USB permissions")
@@ -296,12 +298,12 @@ def discover(*, probe: bool = False, timeout_s: float = 3.0) -> DeviceReport:
     # pyusb knows the USB ids; copy them onto the gphoto2 entries for the same bus/address
     by_address = {c.bus_address: c for c in report.usb_cameras if c.bus_address}
     for cam in report.gphoto_cameras:
-        twin = by_address.get(cam.bus_address)
+        twin = by_address.get(cam.bus_address) if cam.bus_address else None
         if twin is not None:
             cam.vendor_id, cam.product_id = twin.vendor_id, twin.product_id
     if probe:
         for cam in report.gphoto_cameras:
-            cam.status = _bounded(lambda cam=cam: probe_camera(cam), timeout_s + 2.0,
+            cam.status = _bounded(partial(probe_camera, cam), timeout_s + 2.0,
                                   "no answer when opening it (switch the camera off and on)",
                                   f"open {cam.model}", report.notes)
     report.hints = _bounded(lambda: claimed_camera_hints(report), timeout_s, [], "USB hints", report.notes)

@@ -124,11 +124,11 @@ def _film_csvs() -> None:
     cc_names = list(cc)
     cc_vals = np.stack([cc[n].copy().align(FILM_SHAPE).values for n in cc_names], axis=1)
     target_lab = _lab_d65(cc_vals, wl)
-    fitted = []
-    for lab in target_lab:
-        res = least_squares(lambda a, lab=lab: _lab_d65(film_transmittance(a[None, :], wl), wl)[0] - lab,
-                            x0=np.array([0.5, 0.5, 0.5]), bounds=(0.0, 4.0))
-        fitted.append(res.x)
+    def lab_error(amounts: np.ndarray, lab: np.ndarray) -> np.ndarray:
+        return _lab_d65(film_transmittance(amounts[None, :], wl), wl)[0] - lab
+
+    fitted = [least_squares(lab_error, x0=np.array([0.5, 0.5, 0.5]), bounds=(0.0, 4.0), args=(lab,)).x
+              for lab in target_lab]
     t_test = film_transmittance(np.array(fitted), wl)
     write_spectral_csv(path("targets", "film_test_cc24.csv"), wl, t_test, cc_names,
                        {"title": "ColorChecker 24 reproduced on film", "units": "transmittance 0..1",

@@ -91,7 +91,7 @@ class CgatsTable:
             log.info("%s: spectral values up to %.3g, read as percent", self.source, values.max())
             values = values / 100.0
         if values.min() < -NEGATIVE_TOLERANCE:
-            c, r = np.unravel_index(int(np.argmin(values)), values.shape)
+            c, r = map(int, np.unravel_index(int(np.argmin(values)), values.shape))
             raise CgatsError(f"{self.source}:{self.row_lines[r]}: negative value {values[c, r]:g} at {wl[c]:g} nm")
         np.maximum(values, 0.0, out=values)
         meta = {k.lower(): v for k, v in self.keywords.items()}

@@ -60,7 +60,7 @@ def successive_halving(evaluator, groups: Sequence[Group] | None = None,
     best_c = np.full(G, np.inf)
     alive = np.arange(G)
     iterations = settings.iterations
-    rungs = []
+    rungs: list[dict[str, float]] = []
     while True:
         check(cancel)
         ps = PsoSettings(settings.c0, settings.c1, settings.c2, iterations, settings.particles)

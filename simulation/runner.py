@@ -81,7 +81,7 @@ class RunResult:
                   "test": cand.test.to_dict() if cand.test else {}}
         if cand.expected_train is not None:
             errors["expected_captured"] = {"train": cand.expected_train.to_dict(),
-                                           "test": cand.expected_test.to_dict()}
+                                           "test": cand.expected_test_errors.to_dict()}
         model = {"grid": self.setup.grid.label(), "camera": self.setup.camera_name, "observer": "CIE 1931 2°",
                  "illuminant": "D65", "objective": self.objective, **(self.outcome.settings or {})}
         if self.capture is not None:
@@ -152,8 +152,8 @@ def format_table(result: RunResult) -> str:
                      f" {'exp.tr':>7} {'exp.te':>7}")
         for i, ((s1, *rest), c) in enumerate(rows, start=1):
             s2 = rest[0] if rest else ""
-            exp = (f" {c.expected_train.mean:>7.3f} {c.expected_test.mean:>7.3f}" if c.expected_train else "")
-            lines.append(f"{i:>3}  {s1:<{w1}} {s2:<{w2}} {c.train.mean:>7.3f} {c.test.mean:>7.3f}{exp}")
+            exp = (f" {c.expected_train.mean:>7.3f} {c.expected_test_errors.mean:>7.3f}" if c.expected_train else "")
+            lines.append(f"{i:>3}  {s1:<{w1}} {s2:<{w2}} {c.train_errors.mean:>7.3f} {c.test_errors.mean:>7.3f}{exp}")
         lines.append("train/test: noise-free simulation; exp.tr/exp.te: expected captured ("
                      + (result.capture.label() if result.capture else "") + ")")
     return "\n".join(lines)

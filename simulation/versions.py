@@ -47,7 +47,7 @@ def _libraw_version() -> str | None:
 
 @functools.lru_cache(maxsize=1)
 def _versions() -> tuple[tuple[str, str | None], ...]:
-    out = [(DISTRIBUTION, dualrgb_version()), ("python", platform.python_version())]
+    out: list[tuple[str, str | None]] = [(DISTRIBUTION, dualrgb_version()), ("python", platform.python_version())]
     out += [(name, _version(name)) for name in SOFTWARE]
     return tuple(out + [("libraw", _libraw_version())])
 

@@ -23,6 +23,7 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
+C = TypeVar("C", bound="Camera")
 GP_ERROR_TIMEOUT = -10          # libgphoto2's timeout code, also used for host-side deadlines
 DEFAULT_LATENCY_S = 1.0         # a camera's latency allowance when it does not report its own
 
@@ -114,7 +115,11 @@ class Camera(abc.ABC):
     """Open/close (or use as a context manager), read/set settings, expose + fetch (= capture), preview."""
 
     name: str = "camera"
-    latency_s: float = DEFAULT_LATENCY_S
+
+    @property
+    def latency_s(self) -> float:
+        """The camera's allowance beyond the exposure (a stand-in's default; real cameras report their own)."""
+        return DEFAULT_LATENCY_S
 
     def latency_for(self, exposure_s: float) -> float:
         """How long after the end of an ``exposure_s`` exposure :meth:`expose` may take to return (trigger,
@@ -128,7 +133,7 @@ class Camera(abc.ABC):
     @abc.abstractmethod
     def close(self) -> None: ...
 
-    def __enter__(self) -> Camera:
+    def __enter__(self: C) -> C:
         self.open()
         return self
 

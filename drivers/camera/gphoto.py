@@ -189,12 +189,13 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
         self.call_timeout_s = call_timeout_s
         self.capture_timeout_s = capture_timeout_s
         self.download_timeout_s = download_timeout_s
-        self._stuck: tuple[str, threading.Thread, float] | None = None    # a call that passed its deadline
+        self._stuck: tuple[str, threading.Thread | None, float] | None = None    # a call past its deadline
         self._pending: PendingCall | None = None
         self._gp = gp_module
         self._log: LibraryLog | None = None
         self._abort_event = threading.Event()
-        self._sleep = sleep if sleep is not None else self._abort_event.wait  # abort() ends a bulb wait early
+        self._sleep: Callable[[float], object] = (sleep if sleep is not None
+                                                  else self._abort_event.wait)  # abort() ends a bulb wait early
         self._clock = clock
         self._cam: Any = None
         self._names: dict[str, str] = {}        # config name -> widget kind
@@ -233,19 +234,23 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
         nr = self.long_exposure_nr not in _NR_CLEAR and NR_MIN_EXPOSURE_S <= exposure_s <= self.bulb_limit_s
         return self._latency_s + (float(exposure_s) if nr else 0.0)
 
-    def _gp_module(self):
+    def _library(self) -> tuple[Any, LibraryLog]:
+        """python-gphoto2 (or the stand-in given) and libgphoto2's log, both set up on first use."""
         if self._gp is None:
             self._gp = _import_gphoto()
         if self._log is None:
             force_untranslated(self._gp)
             self._log = LibraryLog.attach(self._gp)
-        return self._gp
+        return self._gp, self._log
+
+    def _gp_module(self) -> Any:
+        return self._library()[0]
 
     def _call(self, action: str, fn: Callable[..., T], *args: Any, deadline_s: float | None = None,
               retry: bool = True, opening_port: bool = False) -> T:
         """One libgphoto2 call: busy retries, error mapping with libgphoto2's logged reason, and a host-side
         deadline (default call_timeout_s)."""
-        gp = self._gp_module()
+        gp, library_log = self._library()
         deadline = self.call_timeout_s if deadline_s is None else deadline_s
 
         def attempt() -> T:
@@ -258,10 +263,10 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
 
         with self._lock:
             self._finish_pending()
-            mark = self._log.mark()
+            mark = library_log.mark()
             return retry_busy(attempt, action, error_type=gp.GPhoto2Error, tries=self.busy_tries if retry else 1,
                               delay_s=self.busy_delay_s, sleep=self._sleep,
-                              mapper=lambda exc, act: camera_error(exc, act, logged=self._log.reason(mark),
+                              mapper=lambda exc, act: camera_error(exc, act, logged=library_log.reason(mark),
                                                                    opening_port=opening_port))
 
     def _check_not_stuck(self) -> None:
@@ -284,7 +289,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
             self._check_not_stuck()
         pending.on_done(pending)
 
-    def _require_open(self):
+    def _require_open(self) -> Any:
         if self._cam is None:
             raise CameraError("the camera is not open: call open() first (or use it as a context manager)")
         return self._cam
@@ -380,6 +385,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
     def expose(self, exposure_s: float | None = None) -> Exposure:
         """The exposure, returning once the shutter has closed; the file is fetched by :meth:`fetch`."""
         self._require_open()
+        actual: float | None
         with self._lock:
             if exposure_s is not None:
                 actual, bulb = self._set_shutter(float(exposure_s))
@@ -482,7 +488,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
             log.debug("releasing bulb after a failed start: %s", exc)
             return
         w.set_value(0)
-        pending = PendingCall("release the bulb", lambda: cam.set_single_config("bulb", w), self._log.mark(),
+        pending = PendingCall("release the bulb", lambda: cam.set_single_config("bulb", w), self._library()[1].mark(),
                               lambda p: self._release_outcome(p, opened), self._clock()).start()
         if pending.done.wait(self.bulb_release_grace_s if opened else self.call_timeout_s):
             self._release_outcome(pending, opened)
@@ -495,7 +501,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
             return
         if gphoto_error_code(exc) is None:
             raise exc
-        reason = self._log.reason(pending.mark)
+        reason = self._library()[1].reason(pending.mark)
         if gphoto_error_code(exc) in (GP_ERROR_CAMERA_BUSY, GP_ERROR) and "terminatecapture" not in reason.lower():
             log.info("bulb released; the camera is still processing the frame (%s)", reason or exc)
             return

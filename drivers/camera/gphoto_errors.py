@@ -109,8 +109,8 @@ def camera_error(exc: BaseException, action: str, *, logged: str = "", opening_p
     return CameraError(f"{msg} [gphoto2 {code}]" if code is not None else msg, code)
 
 
-def retry_busy(fn: Callable[[], T], action: str, *, error_type: type = Exception, tries: int = 3,
-               delay_s: float = 0.5, sleep: Callable[[float], None] = time.sleep,
+def retry_busy(fn: Callable[[], T], action: str, *, error_type: type[BaseException] = Exception, tries: int = 3,
+               delay_s: float = 0.5, sleep: Callable[[float], object] = time.sleep,
                mapper: Callable[[BaseException, str], CameraError] | None = None) -> T:
     """Call ``fn``; retry on 'camera busy' (-110) up to ``tries`` times with doubling delay, map errors.
 

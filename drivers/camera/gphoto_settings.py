@@ -20,6 +20,7 @@ from typing import Any
 
 from drivers.camera.base import CameraError, CameraSettings
 from drivers.camera.gphoto_errors import GP_ERROR_BAD_PARAMETERS, GP_ERROR_NOT_SUPPORTED, camera_error
+from drivers.camera.gphoto_host import GPhotoHost
 from drivers.camera.gphoto_labels import (
     bulb_choice,
     capture_target_choice,
@@ -71,7 +72,7 @@ class ConfigEntry:
     range: tuple[float, float, float] | None = None   # (min, max, step) for 'range'
 
 
-class GPhotoSettings:
+class GPhotoSettings(GPhotoHost):
     """Configuration access and the copy stand's settings (mixin of GPhotoCamera)."""
 
     _names: dict[str, str]
@@ -100,7 +101,8 @@ class GPhotoSettings:
             if kind in CHOICE_KINDS:
                 entry.choices = [w.get_choice(i) for i in range(w.count_choices())]
             elif kind == "range":
-                entry.range = tuple(float(x) for x in w.get_range())
+                lo, hi, step = w.get_range()
+                entry.range = (float(lo), float(hi), float(step))
             out.append(entry)
         return out
 

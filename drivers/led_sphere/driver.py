@@ -21,7 +21,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable
 from typing import Any
 
 import serial
@@ -34,13 +34,14 @@ from simulation.lightsource import N_SPHERE_LEDS, LightSource
 
 log = logging.getLogger(__name__)
 
+_TERMIOS_ERRORS: tuple[type[Exception], ...]
 try:                                    # pyserial's POSIX backend lets termios.error (not an OSError) through
-    from termios import error as _TermiosError
+    from termios import error as _termios_error
+    _TERMIOS_ERRORS = (_termios_error,)
 except ImportError:                     # pragma: no cover - Windows
-    class _TermiosError(Exception):
-        pass
+    _TERMIOS_ERRORS = ()
 
-_IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
+_IO_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, *_TERMIOS_ERRORS)
 _MAX_LINES_PER_ATTEMPT = 8     # stale replies skipped per attempt before giving up (a chattering line)
 
 
@@ -58,14 +59,14 @@ class LedSphere:
     def __init__(self, port: Any, timeout: float = DEFAULT_TIMEOUT_S, channels: int = N_SPHERE_LEDS,
                  clock=time.monotonic):
         self._timeout = DEFAULT_TIMEOUT_S
-        self._ser: Any = None
+        self._ser: Any = None                # not yet: the timeout setter configures an open port
         self.timeout = timeout
         self.channels = int(channels)
         self._clock = clock
         self._lock = threading.RLock()
         self._owns_port = isinstance(port, str)
         self._url = port if isinstance(port, str) else getattr(port, "port", None) or type(port).__name__
-        self._ser: Any = None if isinstance(port, str) else port
+        self._ser = None if isinstance(port, str) else port     # a name: opened by open()
         self._light_on_since: float | None = None
         self._last_exchange: float | None = None
         self._max_on_s = DEFAULT_MAX_ON_S
@@ -272,7 +273,7 @@ class LedSphere:
             if flush is not None:
                 flush()
             return True
-        except (*_IO_ERRORS, AttributeError) as exc:
+        except _IO_ERRORS + (AttributeError,) as exc:
             log.info("LED sphere %s: could not send the switch-off: %s", self._url, exc)
             return False
         finally:
@@ -415,7 +416,7 @@ class LedSphere:
     def level(self, led: int) -> float:
         return P.pwm_to_level(self.exchange("get_level", led=self._check_led(led)))
 
-    def set_levels(self, levels: Sequence[float]) -> list[float]:
+    def set_levels(self, levels: Iterable[float]) -> list[float]:
         """Every channel's level in one exchange (``channels`` values, LED 1 first); returns what was taken."""
         levels = list(levels)
         if len(levels) != self.channels:

@@ -35,7 +35,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -143,6 +143,19 @@ class ExposureRecord:
     lit: bool
 
 
+@dataclass(frozen=True)
+class _SetTo:
+    """What the virtual camera is set to: every field known (a CameraSettings' fields may each be None)."""
+
+    iso: int
+    shutter_s: float
+    aperture: float
+    capture_target: str
+
+    def as_settings(self) -> CameraSettings:
+        return CameraSettings(self.iso, self.shutter_s, self.aperture, IMAGE_QUALITY, self.capture_target)
+
+
 @dataclass
 class _Cache:
     scene: Scene | None = None
@@ -206,10 +219,8 @@ class VirtualCamera(Camera):
         self._sensor_seq = sensor_seq                            # hot pixels: a property of this sensor
         self._scene = scene if scene is not None else Scene.with_target(setup.test)
         self._cache = _Cache()
-        self._settings = CameraSettings(iso=int(_nearest(ISO_VALUES, iso)),
-                                        shutter_s=_nearest(SHUTTER_SPEEDS, shutter_s),
-                                        aperture=_nearest(APERTURES, aperture), image_quality=IMAGE_QUALITY,
-                                        capture_target=CAPTURE_TARGETS[0])
+        self._settings = _SetTo(iso=int(_nearest(ISO_VALUES, iso)), shutter_s=_nearest(SHUTTER_SPEEDS, shutter_s),
+                                aperture=_nearest(APERTURES, aperture), capture_target=CAPTURE_TARGETS[0])
         self._open = False
         self._counter = 0
         self._scale = self._calibrate()
@@ -243,18 +254,17 @@ class VirtualCamera(Camera):
             raise CameraError("the virtual camera is not open: call open() (or use it in a with-block) first")
 
     def settings(self) -> CameraSettings:
-        s = self._settings
-        return CameraSettings(s.iso, s.shutter_s, s.aperture, s.image_quality, s.capture_target)
+        return self._settings.as_settings()
 
     def apply(self, settings: CameraSettings) -> CameraSettings:
         self._require_open()
-        new = self.settings()
+        new = self._settings
         if settings.iso is not None:
-            new.iso = int(_nearest(ISO_VALUES, float(settings.iso)))
+            new = replace(new, iso=int(_nearest(ISO_VALUES, float(settings.iso))))
         if settings.shutter_s is not None:
-            new.shutter_s = self._snap_shutter(settings.shutter_s)
+            new = replace(new, shutter_s=self._snap_shutter(settings.shutter_s))
         if settings.aperture is not None:
-            new.aperture = _nearest(APERTURES, float(settings.aperture))
+            new = replace(new, aperture=_nearest(APERTURES, float(settings.aperture)))
         if settings.image_quality is not None and settings.image_quality != IMAGE_QUALITY:
             raise CameraError(f"image quality {settings.image_quality!r}: the virtual D610 records "
                               f"{IMAGE_QUALITY!r} only")
@@ -262,7 +272,7 @@ class VirtualCamera(Camera):
             if settings.capture_target not in CAPTURE_TARGETS:
                 raise CameraError(f"capture target {settings.capture_target!r}: expected one of "
                                   f"{', '.join(CAPTURE_TARGETS)}")
-            new.capture_target = settings.capture_target
+            new = replace(new, capture_target=settings.capture_target)
         self._settings = new
         return self.settings()
 
@@ -297,8 +307,8 @@ class VirtualCamera(Camera):
     def expose(self, exposure_s: float | None = None) -> Exposure:
         self._require_open()
         if exposure_s is not None:
-            self._settings.shutter_s = self._snap_shutter(exposure_s)
-        s = self.settings()
+            self._settings = replace(self._settings, shutter_s=self._snap_shutter(exposure_s))
+        s = self._settings                                       # frozen: the exposure keeps what it was taken with
         t = float(s.shutter_s)
         started = self._clock()
         if "latency" in self._faults:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import io
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
@@ -73,7 +73,7 @@ def _rational(x: float, max_den: int = 100000) -> tuple[int, int]:
     return f.numerator, f.denominator
 
 
-def _rationals(values: Sequence[float], max_den: int) -> tuple[int, ...]:
+def _rationals(values: Iterable[float], max_den: int) -> tuple[int, ...]:
     return tuple(v for x in values for v in _rational(x, max_den))
 
 
@@ -83,7 +83,10 @@ def _cfa_codes(cfa: str) -> tuple[int, ...]:
     return tuple(CFA_CODES[c] for c in cfa.upper())
 
 
-def dng_tags(info: DngInfo) -> list[tuple[int, int, int, object, bool]]:
+TagValue = tuple[int, ...] | str | int     # numbers (rationals as numerator, denominator pairs), ASCII text
+
+
+def dng_tags(info: DngInfo) -> list[tuple[int, int, int, TagValue, bool]]:
     """The DNG/EXIF tags of ``info`` as tifffile ``extratags`` (code, type, count, value, writeonce)."""
     cm = np.eye(3) if info.color_matrix is None else np.asarray(info.color_matrix, float)
     neutral = np.ones(3) if info.as_shot_neutral is None else np.asarray(info.as_shot_neutral, float)
@@ -91,7 +94,7 @@ def dng_tags(info: DngInfo) -> list[tuple[int, int, int, object, bool]]:
         raise ValueError(f"color matrix {cm.shape} / as-shot neutral {neutral.shape}: expected (3, 3) and (3,)")
     make, model = info.make_and_model()
     when = time.localtime(info.captured_at) if info.captured_at is not None else time.localtime()
-    tags: list[tuple[tuple[int, int], Sequence | str | int]] = [
+    tags: list[tuple[tuple[int, int], TagValue]] = [
         (_MAKE, make), (_MODEL, model), (_ORIENTATION, 1),
         (_CFA_REPEAT_DIM, (2, 2)), (_CFA_PATTERN, _cfa_codes(info.cfa)),
         (_DATE_TIME_ORIGINAL, time.strftime("%Y:%m:%d %H:%M:%S", when)),
@@ -109,12 +112,14 @@ def dng_tags(info: DngInfo) -> list[tuple[int, int, int, object, bool]]:
         tags.append((_ISO, (int(info.iso),)))
     out = []
     for (code, dtype), value in sorted(tags, key=lambda t: t[0][0]):
-        if dtype == 2:
-            count = len(str(value)) + 1
+        if isinstance(value, str):
+            count = len(value) + 1                  # ASCII: the text and its NUL
+        elif isinstance(value, int):
+            count = 1
         elif dtype in (5, 10):
-            count = len(value) // 2
+            count = len(value) // 2                 # rationals: two numbers each
         else:
-            count = len(value) if isinstance(value, (tuple, list)) else 1
+            count = len(value)
         out.append((code, dtype, count, value, True))
     return out
 

@@ -61,6 +61,11 @@ class VirtualLab:
             self.camera.close()
         self.emulator.stop()
 
+    def _started_camera(self) -> VirtualCamera:
+        if self.camera is None:
+            raise RuntimeError("the virtual lab is not started: call start() (or use it in a with-block) first")
+        return self.camera
+
     def __enter__(self) -> VirtualLab:
         return self.start()
 
@@ -83,14 +88,14 @@ class VirtualLab:
                              f"{', '.join(ORIGINAL_PREFIX + n for n in ORIGINALS)}")
         size = {"width": self.width, "height": self.height}
         if what.startswith(ORIGINAL_PREFIX):
-            scene = original_scene(what, **size, mode=self.mode, nd_filter=nd)
+            scene = original_scene(what, self.width, self.height, mode=self.mode, nd_filter=nd)
         elif what == "open-gate":
             scene = Scene.open_gate(**size)
         elif what == "lens-cap":
             scene = Scene.lens_cap(**size)
         else:
             scene = Scene.with_target(self.target(what), **size, nd_filter=nd, name=what)
-        self.camera.scene = scene
+        self._started_camera().scene = scene
         self.placed = what + (" + ND" if nd else "")
         return scene
 
@@ -100,7 +105,7 @@ class VirtualLab:
             return Scene.with_target(self.target(what), width=self.width, height=self.height, nd_filter=nd)
         if what.startswith(ORIGINAL_PREFIX):
             return original_scene(what, self.width, self.height, nd_filter=nd)
-        return dataclasses.replace(self.camera.scene)
+        return dataclasses.replace(self._started_camera().scene)
 
     def ground_truth_xyz(self, name: str, height: int | None = None, width: int | None = None) -> np.ndarray:
         """(height, width, 3) float32 per-pixel XYZ of original ``name`` ('painting' or 'original:painting') at

@@ -49,6 +49,7 @@ from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from simulation.colorimetry import tristimulus
 from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
@@ -243,7 +244,7 @@ class _Palette:
         self.names.append(name)
         return len(self.spectra) - 1
 
-    def ramp(self, name: str, a: np.ndarray, b: np.ndarray, steps: int = RAMP_STEPS,
+    def ramp(self, name: str, a: ArrayLike, b: ArrayLike, steps: int = RAMP_STEPS,
              to_spectrum: Callable[[np.ndarray], np.ndarray] = lambda x: x) -> tuple[int, ...]:
         """``steps`` classes from a to b: ``to_spectrum((1 - t) a + t b)`` (a, b spectra, or film dye amounts)."""
         t = np.linspace(0.0, 1.0, steps)
@@ -291,7 +292,7 @@ FILM_SOURCES = ("three-dye Beer-Lambert film model of resources/generate.py (the
                 "modelled, not measured")
 
 
-def _film_transmittance(grid: SpectralGrid) -> Callable[[np.ndarray], np.ndarray]:
+def _film_transmittance(grid: SpectralGrid) -> Callable[[ArrayLike], np.ndarray]:
     """Dye amounts (c, m, y) -> transmittance on ``grid``, the packaged film targets' model."""
     from resources.generate import film_transmittance
 
@@ -350,11 +351,13 @@ FILM_NEUTRAL = np.array([1.0, 0.93, 0.88])          # dye ratio of a neutral gre
 def _film(grid: SpectralGrid) -> Original:
     """A slide in a clear-base rebate; regions: near-white (rebate), dark (dense shadow), highlight, skin."""
     t, p = _film_transmittance(grid), _Palette()
-    dye = {"clear base": (0, 0, 0), "frame line": 1.6 * FILM_NEUTRAL, "dense shadow": 1.5 * FILM_NEUTRAL,
-           "highlight": 0.03 * FILM_NEUTRAL, "skin": (0.2, 0.45, 0.55), "lines": 1.1 * FILM_NEUTRAL,
-           "red": (0.05, 1.0, 0.9), "green": (0.9, 0.1, 0.9), "blue": (1.0, 0.8, 0.05),
-           "cyan": (1.0, 0.05, 0.1), "magenta": (0.05, 1.0, 0.05), "yellow": (0.05, 0.05, 1.0)}
-    cls = {k: p.add(f"{k}: c, m, y = {tuple(round(float(x), 3) for x in a)}", t(a)) for k, a in dye.items()}
+    dye: dict[str, ArrayLike] = {
+        "clear base": (0, 0, 0), "frame line": 1.6 * FILM_NEUTRAL, "dense shadow": 1.5 * FILM_NEUTRAL,
+        "highlight": 0.03 * FILM_NEUTRAL, "skin": (0.2, 0.45, 0.55), "lines": 1.1 * FILM_NEUTRAL,
+        "red": (0.05, 1.0, 0.9), "green": (0.9, 0.1, 0.9), "blue": (1.0, 0.8, 0.05),
+        "cyan": (1.0, 0.05, 0.1), "magenta": (0.05, 1.0, 0.05), "yellow": (0.05, 0.05, 1.0)}
+    cls = {k: p.add(f"{k}: c, m, y = {tuple(round(float(x), 3) for x in np.asarray(a))}", t(a))
+           for k, a in dye.items()}
     sky = p.ramp("sky", (0.9, 0.45, 0.05), (0.15, 0.1, 0.05), to_spectrum=t)
     ground = p.ramp("ground", (0.7, 0.2, 1.1), (0.2, 0.6, 1.2), to_spectrum=t)
     wedge = p.ramp("neutral wedge", (0, 0, 0), 1.5 * FILM_NEUTRAL, to_spectrum=t)

@@ -171,12 +171,13 @@ class SphereEmulator:
         os.set_blocking(master, False)
         self._master, self._slave = master, slave   # holding the slave open keeps the master readable
         self._port = os.ttyname(slave)
-        self._wake = os.pipe()
+        self._wake = wake = os.pipe()
         self._stop.clear()
         with self._lock:
             self._advance(self._clock())
             self._last_rx = self._t
-        self._thread = threading.Thread(target=self._serve, name=f"sphere-emulator {self._port}", daemon=True)
+        self._thread = threading.Thread(target=self._serve, args=(master, wake[0]),
+                                        name=f"sphere-emulator {self._port}", daemon=True)
         self._thread.start()
         log.info("sphere emulator serving on %s (watchdog %.1f s)", self._port, self._watchdog_ms / 1000)
         return self._port
@@ -224,10 +225,10 @@ class SphereEmulator:
     def __exit__(self, *exc) -> None:
         self.stop()
 
-    def _serve(self) -> None:
+    def _serve(self, master: int, wake: int) -> None:
+        """The serving thread: requests from the pty ``master``; a byte on ``wake`` ends the wait early."""
         buf = bytearray()
         discarding = False
-        master, wake = self._master, self._wake[0]
         while not self._stop.is_set():
             wait = 0.05
             if self._pending:
@@ -564,6 +565,7 @@ class SphereEmulator:
 
     def _cmd_light_on_for(self, ms: int) -> dict:
         self._cmd_set_light(1)
+        assert self._light_since is not None                  # on since now, or since earlier
         self._off_at = self._light_since + ms / 1000         # counted from when it came on: never extended
         return {"ms": ms}
 

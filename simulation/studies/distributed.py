@@ -41,7 +41,8 @@ def _limited(args: tuple[Callable[[Any], Any], Any, int]) -> Any:
     fn, item, threads = args
     import numba
 
-    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    most = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # set from the environment at import
+    numba.set_num_threads(max(1, min(threads, most)))
     return fn(item)
 
 

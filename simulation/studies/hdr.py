@@ -22,6 +22,7 @@ import logging
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -83,10 +84,10 @@ def bias_by_level(cfg: HdrStudyConfig, cancel: CancelToken | None = None) -> dic
         for m in HDR_MERGE_METHODS:
             e = merge_exposures(x, usable, times, m, span=cam.max_code - cam.black_level, noise=noise)[0]
             sums[m] += [e.sum(axis=1), (e * e).sum(axis=1), np.full(len(L), n)]
-    out = {"levels_dn_s": L.tolist(), "bracket_s": list(cfg.bracket_s), "pixels_per_level": cfg.pixels}
-    for m, (s1, s2, n) in sums.items():
-        mean = s1 / n
-        sd = np.sqrt(np.maximum(s2 / n - mean * mean, 0.0))
+    out: dict[str, Any] = {"levels_dn_s": L.tolist(), "bracket_s": list(cfg.bracket_s), "pixels_per_level": cfg.pixels}
+    for m, (s1, s2, count) in sums.items():
+        mean = s1 / count
+        sd = np.sqrt(np.maximum(s2 / count - mean * mean, 0.0))
         with np.errstate(divide="ignore", invalid="ignore"):
             rel = np.where(L > 0, mean / L - 1.0, np.nan)
             rel_sd = np.where(L > 0, sd / L, np.nan)
@@ -128,7 +129,7 @@ def dark_originals(spec: SetupSpec, cfg: HdrStudyConfig, cancel=None, progress=N
         report(progress, 0.5 + 0.5 * (i + 1) / steps, f"HDR study: {m}, {name}")
     scores = {m: float(np.mean([max(r[n][scene]["test"] for n in lights) for scene in ("dark_original", "nd_chart")]))
               for m, r in rows.items()}
-    chosen = min(scores, key=scores.get)
+    chosen = min(scores, key=scores.__getitem__)
     return {"light_sets": {k: [list(np.nonzero(w)[0] + 1) for w in W] for k, W in lights.items()},
             "results": rows, "scores": scores, "chosen": chosen,
             "criterion": "captured test mean dE00, mean over the dark original and the ND 2.0 chart, worst light set"}

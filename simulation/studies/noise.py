@@ -30,6 +30,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -72,8 +73,8 @@ class NoiseModel:
     def _patches(self, target: Target) -> _PatchData:
         xyz = target_xyz(self.setup, target)[0]
         lab = xyz_to_lab(xyz, self.white)
-        lab32 = tuple(np.ascontiguousarray(lab[:, i], dtype=np.float32) for i in range(3))
-        return _PatchData(led_responses(self.setup.leds, target.spectra, self.setup.camera), xyz, lab, lab32)
+        l32, a32, b32 = (np.ascontiguousarray(lab[:, i], dtype=np.float32) for i in range(3))
+        return _PatchData(led_responses(self.setup.leds, target.spectra, self.setup.camera), xyz, lab, (l32, a32, b32))
 
     # ---- the capture of a light set -------------------------------------------------------------------
     def exposures(self, W: np.ndarray) -> np.ndarray:
@@ -133,10 +134,10 @@ class NoiseModel:
             hi = min(B, lo + chunk)
             tr, te = self._expected_chunk(W[lo:hi], draws, seed, test, exact)
             out_tr[lo:hi] = tr
-            if test:
+            if out_te is not None:
                 out_te[lo:hi] = te
         res = {"train": out_tr.mean(axis=1), "train_draws": out_tr}
-        if test:
+        if out_te is not None:
             res.update({"test": out_te.mean(axis=1), "test_draws": out_te})
         return res
 
@@ -235,7 +236,7 @@ class NoiseModel:
                 fm = fit_model(m, Vtr, xyz_tr, self.white)
                 per_model[m]["train"].append(float(model_errors(fm, Vtr, xyz_tr, self.white).mean()))
                 per_model[m]["test"].append(float(model_errors(fm, Vte, xyz_te, self.white).mean()))
-        out = {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
+        out: dict[str, Any] = {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
                "test_sd": float(np.std(te)), "repeats": repeats}
         if models:
             out["models"] = {m: {k: float(np.mean(v)) for k, v in d.items()} for m, d in per_model.items()}

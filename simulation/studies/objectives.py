@@ -23,6 +23,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -102,8 +103,9 @@ def optima(setup: SimulationSetup, cfg: ObjectivesConfig, capture_model: Capture
                          "evaluations": out.evaluations, "pair": [list(s.leds) for s in best.sources],
                          "levels": [[float(W[li, k - 1]) for k in s.leds] for li, s in enumerate(best.sources)],
                          "requested_levels": [list(s.levels) for s in best.sources],
-                         "noise_free_train": best.train.mean, "noise_free_test": best.test.mean,
-                         "expected_train": best.expected_train.mean, "expected_test": best.expected_test.mean,
+                         "noise_free_train": best.train_errors.mean, "noise_free_test": best.test_errors.mean,
+                         "expected_train": best.expected_train_errors.mean,
+                         "expected_test": best.expected_test_errors.mean,
                          "robust_train": float(judge.world_costs(W).mean())})
     return rows
 
@@ -138,7 +140,7 @@ class ObjectivesResult:
 
 def _summary(rows: list[dict]) -> dict:
     """Mean |predicted - captured| / captured of each prediction, and the worked example's rows."""
-    out = {}
+    out: dict[str, Any] = {}
     for key in ("noise_free_train", "expected_train"):
         rel = [abs(r[key] - r["captured_train"]) / r["captured_train"] for r in rows if "captured_train" in r]
         out[f"{key}_relative_error"] = float(np.mean(rel)) if rel else None

@@ -178,10 +178,15 @@ def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettin
     return _outcome("pyswarms", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
 
 
+def _on_columns(cost: Callable[[np.ndarray], np.ndarray]) -> Callable[[np.ndarray], np.ndarray]:
+    """``cost`` (points as rows) for scipy's vectorised differential evolution, which passes them as columns."""
+    return lambda X: cost(X.T)
+
+
 def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSettings(), seed: int = 0, *,
               progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> SearchOutcome:
     """scipy differential_evolution on every light set in turn, vectorised per generation, no polishing."""
-    from scipy.optimize import differential_evolution
+    from scipy.optimize import Bounds, differential_evolution
 
     groups = list(groups)
     idx_all, mask_all = group_arrays(groups)
@@ -193,7 +198,9 @@ def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSetti
     for gi in range(G):
         check(cancel)
         fast = set_cost(evaluator, idx_all[gi], mask_all[gi])
-        res = differential_evolution(lambda X, fast=fast: fast(X.T), [(0.0, 1.0)] * D, maxiter=settings.maxiter,
+        # vectorized=True: the cost returns one value per column (scipy-stubs type only the scalar form)
+        res = differential_evolution(_on_columns(fast),  # type: ignore[arg-type]
+                                     Bounds(np.zeros(D), np.ones(D)), maxiter=settings.maxiter,
                                      popsize=settings.popsize, mutation=settings.mutation,
                                      recombination=settings.recombination, tol=settings.tol, polish=False,
                                      vectorized=True, updating="deferred",

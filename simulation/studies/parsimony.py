@@ -26,6 +26,7 @@ import logging
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -92,7 +93,7 @@ def spectral_steps(spec: SetupSpec, cfg: ParsimonyConfig, cancel=None, progress=
         ex = exhaustive(ev, groups)
         p = refine_top(ev, pso(ev, groups, cfg.pso, seed=0), 1)
         seconds = time.perf_counter() - t0
-        row = {"step_nm": step, "grid": ev.setup.grid.label(), "wavelengths": len(ev.setup.grid),
+        row: dict[str, Any] = {"step_nm": step, "grid": ev.setup.grid.label(), "wavelengths": len(ev.setup.grid),
                "seconds": seconds}
         for key, cand in (("exhaustive", ex.best), ("pso", p.best)):
             W = cand.weights(ev.n_leds)
@@ -158,7 +159,7 @@ def models_and_exposures(spec: SetupSpec, cfg: ParsimonyConfig, cancel=None, pro
     for k, n_exp in enumerate(cfg.exposures):
         check(cancel)
         factors = tuple(np.geomspace(1.0, cfg.exposure_span, n_exp)) if n_exp > 1 else (1.0,)
-        row = {"exposures": n_exp, "factors": [round(f, 3) for f in factors]}
+        row: dict[str, Any] = {"exposures": n_exp, "factors": [round(f, 3) for f in factors]}
         for name, W in lights.items():
             with_nd = model.captured_errors(W, cfg.repeats, factors=factors, nd=nd)
             without = model.captured_errors(W, max(1, cfg.repeats // 2), factors=factors)

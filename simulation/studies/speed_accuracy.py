@@ -123,7 +123,7 @@ def run_task(task: RunTask) -> dict:
     best = out.best
     return {"method": task.config.method, "label": task.config.label, "seed": task.seed,
             "seconds": seconds, "evaluations": ev.evaluations - n0, "train_cost": best.train_cost,
-            "train": best.train.mean, "test": best.test.mean,
+            "train": best.train_errors.mean, "test": best.test_errors.mean,
             "best": {**best.to_dict(), "levels_exact": {str(i + 1): list(src.levels)
                                                         for i, src in enumerate(best.sources)}},
             "trace": traced.trace.to_dict()}

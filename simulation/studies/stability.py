@@ -24,6 +24,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -174,8 +175,8 @@ def led_clipping(spec: SetupSpec, cfg: StabilityConfig, optimum: np.ndarray, can
         clipped = float(ev.stats(W)[0].mean)
         re = refine_top(ev, pso(ev, groups, cfg.clip_pso, seed=0), 1)
         # the clipped optimum is itself a candidate without the LED: the re-optimised best is the better one
-        reopt = min(re.best.train.mean, clipped)
-        re_pair = [list(s.leds) for s in re.best.sources] if re.best.train.mean <= clipped else \
+        reopt = min(re.best.train_errors.mean, clipped)
+        re_pair = [list(s.leds) for s in re.best.sources] if re.best.train_errors.mean <= clipped else \
             [list(np.nonzero(w)[0] + 1) for w in W]
         rows.append({"removed": list(leds), "full_intensity_best": ex.best.train_cost,
                      "full_intensity_best_pair": [list(s.leds) for s in ex.best.sources],
@@ -257,7 +258,7 @@ def sensitivity(spec: SetupSpec, cfg: StabilityConfig, optima: dict[str, np.ndar
     for name, W in optima.items():
         check(cancel)
         tr0, te0 = _mismatch_errors(setup, setup.train, setup.test, setup, W)
-        row = {"nominal": {"train": tr0, "test": te0}}
+        row: dict[str, Any] = {"nominal": {"train": tr0, "test": te0}}
         ntr, nte = _mismatch_errors(nominal_shift, setup.train, setup.test, setup, W)
         row["drift"] = {}
         for label, s in drift_setups:

@@ -210,8 +210,8 @@ def write_outputs(result: UnbinnedResult, out) -> None:
              f"({result.pairs / max(result.seconds, 1e-9):.0f} pairs/s).", "",
              "| rank | pair number | light 1 | light 2 | train dE00 | test dE00 |", "|---:|---:|---|---|---:|---:|"]
     for i, (n, c) in enumerate(zip(result.numbers, result.candidates, strict=True), start=1):
-        lines.append(f"| {i} | {n} | {c.sources[0].leds} | {c.sources[1].leds} | {c.train.mean:.4f} | "
-                     f"{c.test.mean:.4f} |")
+        lines.append(f"| {i} | {n} | {c.sources[0].leds} | {c.sources[1].leds} | {c.train_errors.mean:.4f} | "
+                     f"{c.test_errors.mean:.4f} |")
     if result.binned_best:
         b = result.binned_best
         lines += ["", f"Binned (3/3/4) full-intensity best for comparison: {tuple(b['source1'])} + "
