@@ -17,6 +17,7 @@ import os
 import stat
 import struct
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Union
@@ -371,24 +372,39 @@ def linear_demosaic(frame: RawFrame, *, half_size: bool = False,
         raise RawFileError(frame.path, _libraw_problem(exc, head)) from exc
 
 
+def bayer_superpixel(mosaic: np.ndarray, cfa: str, *, black: Sequence[float] | None = None,
+                     out: np.ndarray | None = None) -> np.ndarray:
+    """(H/2, W/2, 3) float32 R, (G1 + G2) / 2, B of each 2x2 cell of a Bayer mosaic (an odd last row/column is
+    dropped). ``cfa``: the cell's letters in raster order ('RGGB'); ``black``: the black level of each cell
+    position (raster order), subtracted and clipped at 0. NaN in a green pixel makes that cell's G NaN (not
+    silently the other green): invalid stays visible."""
+    h2, w2 = mosaic.shape[0] // 2, mosaic.shape[1] // 2
+    if out is None:
+        out = np.empty((h2, w2, 3), dtype=np.float32)
+    greens = []
+    for k, letter in enumerate(cfa):
+        r, c = divmod(k, 2)
+        plane = mosaic[r: 2 * h2: 2, c: 2 * w2: 2]
+        if black is not None:
+            plane = np.maximum(plane.astype(np.float32) - np.float32(black[k]), 0.0)
+        if letter == "R":
+            out[..., 0] = plane
+        elif letter == "B":
+            out[..., 2] = plane
+        else:
+            greens.append(plane)
+    np.add(greens[0], greens[1], out=out[..., 1], dtype=np.float32)
+    out[..., 1] *= 0.5
+    return out
+
+
 def superpixel(frame: RawFrame, *, subtract_black: bool = True) -> np.ndarray:
     """(H/2, W/2, 3) float32 R, (G1+G2)/2, B per 2x2 cell in DN, black subtracted (clipped at 0) by default.
 
     Computed from the in-memory mosaic, so values are exact (LibRaw's half_size output is the same image
     rounded and scaled to 16 bit); an odd last row/column is dropped.
     """
-    h2, w2 = frame.height // 2, frame.width // 2
-    out = np.empty((h2, w2, 3), dtype=np.float32)
-    greens = []
-    for name, (r, c), idx in frame.channels():
-        plane = frame.mosaic[r: 2 * h2: 2, c: 2 * w2: 2].astype(np.float32)
-        if subtract_black:
-            plane = np.maximum(plane - np.float32(frame.black_levels[idx]), 0.0)
-        if name == "R":
-            out[..., 0] = plane
-        elif name == "B":
-            out[..., 2] = plane
-        else:
-            greens.append(plane)
-    out[..., 1] = 0.5 * (greens[0] + greens[1])
-    return out
+    colours = [int(frame.pattern[r, c]) for r in range(2) for c in range(2)]
+    cfa = "".join(_letter(frame.color_desc, idx) for idx in colours)
+    black = [float(frame.black_levels[idx]) for idx in colours] if subtract_black else None
+    return bayer_superpixel(frame.mosaic, cfa, black=black)

@@ -26,6 +26,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -142,40 +143,54 @@ def _pyswarms_logging() -> Iterator[None]:
                 os.environ["LOG_CFG"] = previous
 
 
+def _set_by_set(method: str, label: str, evaluator, groups: Sequence[Group],
+                settings: PyswarmsSettings | DeSettings, seed: int,
+                optimise: Callable[[int, Callable[[np.ndarray], np.ndarray], int], tuple[float, np.ndarray]],
+                progress: ProgressCallback | None, cancel: CancelToken | None) -> SearchOutcome:
+    """Every light set optimised on its own, in turn: ``optimise(set number, cost, D)`` returns the set's best
+    cost and levels (D,), ``cost`` being the set's objective of a batch of levels (B, D)."""
+    groups = list(groups)
+    idx_all, mask_all = group_arrays(groups)
+    G, L, m = idx_all.shape
+    t0, n0 = time.perf_counter(), evaluator.evaluations
+    best_x = np.zeros((G, L, m))
+    best_c = np.empty(G)
+    for gi in range(G):
+        check(cancel)
+        best_c[gi], levels = optimise(gi, set_cost(evaluator, idx_all[gi], mask_all[gi]), L * m)
+        best_x[gi] = _normalised(np.asarray(levels).reshape(L, m), mask_all[gi])
+        if gi % 32 == 31 or gi == G - 1:
+            report(progress, (gi + 1) / G, f"{label}: {gi + 1}/{G} light sets")
+    return _outcome(method, groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
+
+
 def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettings = PyswarmsSettings(),
                     seed: int = 0, *, progress: ProgressCallback | None = None,
                     cancel: CancelToken | None = None) -> SearchOutcome:
     """pyswarms GlobalBestPSO on every light set in turn (pyswarms draws from numpy's global generator:
     it is seeded per light set with (seed, set number) and restored afterwards). One optimiser is built and
     ``reset()`` for every set (building one costs ~10 ms of logging set-up)."""
-    groups = list(groups)
-    idx_all, mask_all = group_arrays(groups)
-    G, L, m = idx_all.shape
-    D = L * m
-    t0, n0 = time.perf_counter(), evaluator.evaluations
-    best_x = np.zeros((G, L, m))
-    best_c = np.empty(G)
-    state = np.random.get_state()  # noqa: NPY002 - pyswarms draws from numpy's global RNG: restored below
     options = {"c1": settings.c1, "c2": settings.c2, "w": settings.c0}
-    bounds = (np.zeros(D), np.ones(D))
-    try:
-        with _pyswarms_logging():
+    swarm: list[Any] = []                              # the one optimiser, built for the first set
+
+    def optimise(gi: int, cost: Callable[[np.ndarray], np.ndarray], D: int) -> tuple[float, np.ndarray]:
+        if not swarm:
             from pyswarms.single import GlobalBestPSO  # its import configures logging too
 
-            opt = GlobalBestPSO(settings.particles, D, options, bounds=bounds, bh_strategy="nearest")
-            for gi in range(G):
-                check(cancel)
-                np.random.seed(np.random.SeedSequence([seed, gi]).generate_state(1)[0])  # noqa: NPY002 - as above
-                opt.reset()
-                cost, pos = opt.optimize(set_cost(evaluator, idx_all[gi], mask_all[gi]),
-                                         iters=settings.iterations, verbose=False)
-                best_c[gi] = cost
-                best_x[gi] = _normalised(np.asarray(pos).reshape(L, m), mask_all[gi])
-                if gi % 32 == 31 or gi == G - 1:
-                    report(progress, (gi + 1) / G, f"pyswarms: {gi + 1}/{G} light sets")
+            swarm.append(GlobalBestPSO(settings.particles, D, options, bounds=(np.zeros(D), np.ones(D)),
+                                       bh_strategy="nearest"))
+        np.random.seed(np.random.SeedSequence([seed, gi]).generate_state(1)[0])  # noqa: NPY002 - see below
+        swarm[0].reset()
+        best, pos = swarm[0].optimize(cost, iters=settings.iterations, verbose=False)
+        return best, np.asarray(pos)
+
+    state = np.random.get_state()  # noqa: NPY002 - pyswarms draws from numpy's global RNG: restored below
+    try:
+        with _pyswarms_logging():
+            return _set_by_set("pyswarms", "pyswarms", evaluator, groups, settings, seed, optimise, progress,
+                               cancel)
     finally:
         np.random.set_state(state)  # noqa: NPY002 - the caller's global RNG as it was
-    return _outcome("pyswarms", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
 
 
 def _on_columns(cost: Callable[[np.ndarray], np.ndarray]) -> Callable[[np.ndarray], np.ndarray]:
@@ -188,28 +203,18 @@ def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSetti
     """scipy differential_evolution on every light set in turn, vectorised per generation, no polishing."""
     from scipy.optimize import Bounds, differential_evolution
 
-    groups = list(groups)
-    idx_all, mask_all = group_arrays(groups)
-    G, L, m = idx_all.shape
-    D = L * m
-    t0, n0 = time.perf_counter(), evaluator.evaluations
-    best_x = np.zeros((G, L, m))
-    best_c = np.empty(G)
-    for gi in range(G):
-        check(cancel)
-        fast = set_cost(evaluator, idx_all[gi], mask_all[gi])
+    def optimise(gi: int, cost: Callable[[np.ndarray], np.ndarray], D: int) -> tuple[float, np.ndarray]:
         # vectorized=True: the cost returns one value per column (scipy-stubs type only the scalar form)
-        res = differential_evolution(_on_columns(fast),  # type: ignore[arg-type]
+        res = differential_evolution(_on_columns(cost),  # type: ignore[arg-type]
                                      Bounds(np.zeros(D), np.ones(D)), maxiter=settings.maxiter,
                                      popsize=settings.popsize, mutation=settings.mutation,
                                      recombination=settings.recombination, tol=settings.tol, polish=False,
                                      vectorized=True, updating="deferred",
                                      rng=np.random.default_rng([seed, gi]))
-        best_c[gi] = res.fun
-        best_x[gi] = _normalised(res.x.reshape(L, m), mask_all[gi])
-        if gi % 32 == 31 or gi == G - 1:
-            report(progress, (gi + 1) / G, f"differential evolution: {gi + 1}/{G} light sets")
-    return _outcome("de", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
+        return float(res.fun), res.x
+
+    return _set_by_set("de", "differential evolution", evaluator, groups, settings, seed, optimise, progress,
+                       cancel)
 
 
 def _random_screen(evaluator, idx_all: np.ndarray, mask_all: np.ndarray, settings: LbfgsSettings, seed: int,
