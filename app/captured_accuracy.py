@@ -117,10 +117,3 @@ def captured_errors(setup: SimulationSetup, W: np.ndarray, exposures_s: np.ndarr
     return {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
             "test_sd": float(np.std(te)), "repeats": repeats, "frame": [width, height],
             "dark_frames": dark_frames}
-
-
-def compare_optima(setup: SimulationSetup, candidates: dict[str, np.ndarray], exposures: dict[str, np.ndarray], *,
-                   repeats: int = 2, width: int = 600, height: int = 400) -> dict:
-    """Virtual-lab captured errors of named light sets (e.g. the noise-free and noise-aware optima)."""
-    return {name: captured_errors(setup, W, exposures[name], repeats=repeats, width=width, height=height)
-            for name, W in candidates.items()}

@@ -141,9 +141,3 @@ def release(key: str) -> None:
         finally:
             os.close(held.fd)
     log.debug("session lock released: %s", key)
-
-
-def held_here(folder: Path) -> int | None:
-    """How many references this process holds on ``folder``'s lock (None: not held here)."""
-    held = _registry.get(os.path.realpath(folder))
-    return held.count if held else None

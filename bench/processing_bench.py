@@ -143,6 +143,7 @@ def bench_processing(height: int = 4028, width: int = 6080, n_darks: int = 10, c
     for _ in range(repeats):                     # interleaved, so load from other processes hits all alike
         for kind in runs:
             runs[kind].append(_run_child(kind, folder))
+
     def seconds(run: dict) -> float:
         return run.get("seconds", run.get("seconds_total", run.get("seconds_stack")))
 

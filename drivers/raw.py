@@ -109,12 +109,6 @@ class RawFrame:
         order = {"R": 0, "G1": 1, "G2": 2, "B": 3}
         return sorted(out, key=lambda t: order.get(t[0], 9))
 
-    def channel_black(self, name: str) -> int:
-        for n, _, idx in self.channels():
-            if n == name:
-                return int(self.black_levels[idx])
-        raise KeyError(name)
-
     def plane(self, name: str) -> np.ndarray:
         """The (H/2, W/2) sub-image of one CFA position ('R', 'G1', 'G2', 'B'), a view into the mosaic."""
         for n, (r, c), _ in self.channels():

@@ -124,6 +124,7 @@ def _film_csvs() -> None:
     cc_names = list(cc)
     cc_vals = np.stack([cc[n].copy().align(FILM_SHAPE).values for n in cc_names], axis=1)
     target_lab = _lab_d65(cc_vals, wl)
+
     def lab_error(amounts: np.ndarray, lab: np.ndarray) -> np.ndarray:
         return _lab_d65(film_transmittance(amounts[None, :], wl), wl)[0] - lab
 

@@ -17,8 +17,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from simulation.grid import SpectralGrid
-
 _DELTA = 6.0 / 29.0
 _DELTA3 = _DELTA**3
 _25_7 = 25.0**7
@@ -46,14 +44,6 @@ def xyz_to_lab(xyz: np.ndarray, white: np.ndarray) -> np.ndarray:
     xyz = np.asarray(xyz, dtype=float)
     fx, fy, fz = (_f(xyz[..., i] / white[i]) for i in range(3))
     return np.stack([116 * fy - 16, 500 * (fx - fy), 200 * (fy - fz)], axis=-1)
-
-
-def lab_components(xyz_x: np.ndarray, xyz_y: np.ndarray, xyz_z: np.ndarray, white: np.ndarray,
-                   dtype=np.float32) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Lab as three separate arrays (the kernel's layout), computed in float64 and returned as ``dtype``."""
-    fx, fy, fz = _f(xyz_x / white[0]), _f(xyz_y / white[1]), _f(xyz_z / white[2])
-    return ((116 * fy - 16).astype(dtype, copy=False), (500 * (fx - fy)).astype(dtype, copy=False),
-            (200 * (fy - fz)).astype(dtype, copy=False))
 
 
 def delta_e_2000(lab1: np.ndarray, lab2: np.ndarray) -> np.ndarray:
@@ -176,7 +166,3 @@ def opposite_hue_sign(cross, a1p, b1):
     upper = (b1 > 0) | ((b1 == 0) & (a1p > 0))
     tie = np.where(upper, 1.0, -1.0).astype(np.result_type(cross), copy=False)
     return np.where(cross > 0, 1.0, np.where(cross < 0, -1.0, tie)).astype(np.result_type(cross), copy=False)
-
-
-def grid_white(grid: SpectralGrid, illuminant: np.ndarray, cmfs: np.ndarray) -> np.ndarray:  # pragma: no cover
-    return white_point(illuminant, cmfs)

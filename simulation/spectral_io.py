@@ -37,12 +37,6 @@ class SpectralTable:
     meta: dict[str, str] = field(default_factory=dict)
     source: str = ""
 
-    def column(self, name: str) -> np.ndarray:
-        try:
-            return self.values[:, self.columns.index(name)]
-        except ValueError:
-            raise KeyError(f"{self.source}: no column {name!r}; columns are {', '.join(self.columns)}") from None
-
 
 def read_spectral_csv(
     path: str | Path,

@@ -28,7 +28,7 @@ from scipy import optimize
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.matrix_fit import CharacterisationMatrix, fit_matrix
 from simulation.objective import ErrorStats
-from simulation.progress import Cancelled, CancelToken, ProgressCallback, check, report
+from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 
@@ -99,11 +99,8 @@ def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels:
         check(cancel)
         report(progress, min(it[0] / max_iter, 1.0), f"dE00 optimisation, iteration {it[0]}")
 
-    try:
-        res = optimize.minimize(cost_and_grad, p0, jac=True, method="BFGS", callback=callback,
-                                options={"maxiter": max_iter, "gtol": 1e-7})
-    except Cancelled:
-        raise
+    res = optimize.minimize(cost_and_grad, p0, jac=True, method="BFGS", callback=callback,
+                            options={"maxiter": max_iter, "gtol": 1e-7})
     p = res.x if res.fun < c0 else p0
     A = np.zeros_like(A0)
     A[live] = p.reshape(-1, 3) * scale * s[live, None]

@@ -74,6 +74,7 @@ class PatchGrid:
         if not 0 < self.fraction <= 1:
             raise ValueError(f"sampling fraction must be in (0, 1], got {self.fraction}")
         c = self.corners
+
         def cross(a: np.ndarray, b: np.ndarray) -> float:
             return float(a[0] * b[1] - a[1] * b[0])
         cross = [cross(c[(i + 1) % 4] - c[i], c[(i + 2) % 4] - c[(i + 1) % 4]) for i in range(4)]

@@ -30,7 +30,6 @@ from app.sequences.calibration import DarkSeries, FlatSeries, auto_exposure, sna
 from app.sequences.capture import SubjectCapture
 from app.sequences.hdr import meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
-from app.workflow.coverage import coverage
 from app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from app.workflow.profile import (
     CalibrationProfile,
@@ -234,15 +233,15 @@ class CopyStand:
             log.warning("%s", w)
         return result
 
-    def _take(self, original: Original, reshoot: bool | None) -> tuple[int, int]:
-        """(take to record, frames already in the session for this original)."""
+    def _take(self, original: Original, reshoot: bool | None) -> int:
+        """The take to record: the next one when the original is re-shot, else the latest (1 for a new one)."""
         subject = original.subject
         takes = [split_take(e.step_id or "")[1] for e in self.session.entries(include_superseded=True)
                  if e.role == Role.ORIGINAL.value and subject_of(e) == subject]
         if not takes:
-            return 1, 0
+            return 1
         again = reshoot if reshoot is not None else (self.reshoot(original, len(takes)) if self.reshoot else False)
-        return (max(takes) + 1 if again else max(takes)), len(takes)
+        return max(takes) + 1 if again else max(takes)
 
     def meter(self, original: Original, profile: CalibrationProfile, take: int
               ) -> tuple[dict[str, list[float]], list[str]]:
@@ -269,7 +268,7 @@ class CopyStand:
         """Check the calibration, meter, capture (HDR when metering asks), deliver; frames already in the session
         are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
         checked = self.check(profile)
-        take, existing = self._take(original, reshoot)
+        take = self._take(original, reshoot)
         exposures, warnings = self.meter(original, profile, take)
         if profile.mode != original.mode:
             warnings.append(f"calibrated {profile.mode}, original {original.mode}: colour not characterised for it")
@@ -359,8 +358,3 @@ def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: 
                            extra={"session": str(session.path), "reprocessed": True}))
         report(progress, (i + 1) / len(originals), f"{original.identifier} delivered")
     return out
-
-
-def calibration_coverage(session: Any, profile: CalibrationProfile) -> str:
-    """"darks 2/2 exposures, flats 4/4 light exposures" for the profile's plan in ``session``."""
-    return coverage(session, profile.exposures).summary()

@@ -391,4 +391,3 @@ class GPhotoSettings(GPhotoHost):
             if settings.shutter_s is not None:
                 self._set_shutter(float(settings.shutter_s))
             return self.settings()
-

@@ -595,4 +595,3 @@ class LedSphere:
             "off_in_s": off_in_s,
             "max_on_s": None if period is None else period.max_on_s,
         }
-

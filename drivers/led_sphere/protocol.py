@@ -287,9 +287,6 @@ class Command:
     def arg_format(self) -> str:
         return " ".join(f"<{f.name}>" + (" ..." if f.kind == "ints" else "") for f in self.args)
 
-    def request_format(self) -> str:
-        return " ".join([self.keyword] + ([self.arg_format()] if self.args else []))
-
     def reply_format(self) -> str:
         fields = [(f"{f.name}=" if f.key else "") + f"<{f.name}>" + (" ..." if f.kind == "ints" else "")
                   for f in self.reply]

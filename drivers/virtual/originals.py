@@ -410,6 +410,7 @@ def _shadow(grid: SpectralGrid) -> Original:
     return p.build("shadow", "reflective", "Still life in deep shadow (virtual HDR original)", strokes, regions,
                    grid, MEASURED_SOURCES)
 
+
 ORIGINALS: dict[str, Callable[[SpectralGrid], Original]] = {"painting": _painting, "film": _film, "shadow": _shadow}
 
 

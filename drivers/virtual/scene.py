@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -112,9 +112,6 @@ class Scene:
     def lens_cap(cls, width: int = 600, height: int = 400, **kw) -> Scene:
         """Lens cap on: no light reaches the sensor, the dark frame of eq 7.1."""
         return cls(kind="lens_cap", width=width, height=height, name=kw.pop("name", "lens cap"), **kw)
-
-    def resized(self, width: int, height: int) -> Scene:
-        return replace(self, width=width, height=height)
 
     # --- what the scene shows ---------------------------------------------------------------------------
     @property

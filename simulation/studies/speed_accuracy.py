@@ -15,7 +15,7 @@ from __future__ import annotations
 import logging
 import time
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -56,9 +56,6 @@ class Config:
     method: str
     label: str
     settings: Any = None
-
-    def settings_dict(self) -> dict:
-        return asdict(self.settings) if self.settings is not None else {}
 
 
 def configs(budget: str = "default") -> list[Config]:

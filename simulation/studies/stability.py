@@ -38,7 +38,7 @@ from simulation.matrix_fit import fit_matrix
 from simulation.objective import Evaluator
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
-from simulation.search import Candidate, exhaustive, light_pairs, refine_top
+from simulation.search import exhaustive, light_pairs, refine_top
 from simulation.spectral_io import read_spectral_csv
 from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread
 from simulation.studies.distributed import Runner, SerialRunner
@@ -106,12 +106,6 @@ def _weights(best: dict, n_leds: int = 10) -> np.ndarray:
         levels = best.get("levels_exact", {}).get(str(li + 1)) or best[f"intensities{li + 1}"]
         W[li, np.asarray(leds) - 1] = levels
     return W
-
-
-def _cand_dict(c: Candidate) -> dict:
-    d = c.to_dict()
-    d["levels_exact"] = {str(i + 1): list(s.levels) for i, s in enumerate(c.sources)}
-    return d
 
 
 def _pair_key(best: dict) -> str:
@@ -393,10 +387,6 @@ def _predicted_vs_captured(ax, noise: ObjectivesResult) -> None:
     ax.set_title("(d) predicted vs captured, both modes and objectives")
     ax.legend(fontsize=6)
     ax.grid(True, alpha=0.3)
-
-
-def _fmt(v: float | None) -> str:
-    return "-" if v is None else f"{v:.2f}"
 
 
 def write_outputs(result: StabilityResult, out: StudyOutput) -> None:

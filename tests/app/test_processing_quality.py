@@ -62,6 +62,7 @@ def test_lightness_noise_propagates_channel_noise_to_l_star():
     y = float((v @ A[:, 1])[0])
     sy = float(np.sqrt(np.sum((sd[0] * A[:, 1]) ** 2)))
     eps = 1e-4                                                   # independent: finite difference of colour's L*
+
     def lab(yy: float) -> float:
         return colour.XYZ_to_Lab(np.array([0.3, yy, 0.3]) / 100, colour.XYZ_to_xy(white / 100))[0]
 

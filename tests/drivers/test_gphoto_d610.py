@@ -239,4 +239,3 @@ def test_trigger_waits_only_on_nikon_capture_paths():
     assert trigger_waits_for_exposure("Nikon Capture 1, Nikon Capture 2", to_ram=True)
     assert not trigger_waits_for_exposure("Nikon Capture 1, Nikon Capture 2", to_ram=False)
     assert not trigger_waits_for_exposure("Generic Image Capture, No vendor specific capture", to_ram=True)
-

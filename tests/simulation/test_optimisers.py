@@ -64,6 +64,7 @@ def test_thesis_pso_update_steps_match_a_hand_computation():
     N = PsoSettings().particles
     C0, C1, C2 = 0.95, 2.0, 2.0
     rng = np.random.default_rng([seed, 0])                  # one generator per light set: (seed, set number)
+
     def cost(x):
         return rugged(x, target)
 
