@@ -65,7 +65,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "SUMMARY.md into --out.")
     ss = p.add_subparsers(dest="study", metavar="STUDY")
     ss.required = True
+    _optimiser_studies(ss)
+    _default_studies(ss)
+    _distributed_studies(ss)
 
+
+def _optimiser_studies(ss: argparse._SubParsersAction) -> None:
+    """speed-accuracy, stability, objectives: how the optimisers and their objectives compare."""
     q = ss.add_parser("speed-accuracy", help="best error against time and evaluations for every optimiser")
     _common(q, "speed-accuracy")
     q.add_argument("--seeds", type=positive, default=3, help="seeds per configuration (default 3)")
@@ -90,6 +96,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="check against the pixel-level capture simulation instead of the virtual lab")
     q.set_defaults(func=objectives_main)
 
+
+def _default_studies(ss: argparse._SubParsersAction) -> None:
+    """parsimony, hdr: the studies that choose the packaged defaults (resources/parsimony.json)."""
     q = ss.add_parser("parsimony", help="coarsest spectral step, simplest model, fewest HDR exposures")
     _common(q, "parsimony")
     q.add_argument("--budget", choices=("tiny", "default"), default="default")
@@ -106,6 +115,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also write the chosen estimator (hdr_merge) into the defaults at PATH (no PATH: "
                         "parsimony.json in the per-user data folder); the other defaults there are kept")
     q.set_defaults(func=hdr_main)
+
+
+def _distributed_studies(ss: argparse._SubParsersAction) -> None:
+    """unbinned, sweep: the large searches, split into tasks for Dask."""
     q = ss.add_parser("unbinned", help="full-intensity search over all ~523 k unbinned light-source pairs")
     _common(q, "unbinned", scheduler_default="local")
     q.add_argument("--tasks", type=positive, default=16, help="index ranges the search is split into (16)")

@@ -111,18 +111,26 @@ def combine_darks(frames: Iterable[FrameLike], *, reject_high: int = 1, reject_l
         k_hi = k_lo = 0
     mean = np.empty(shape, dtype=np.float32)
     dark_finish(total, hi, lo, k_hi, k_lo, float(n - k_hi - k_lo), mean)
-    noise = float("nan")
-    spikes = 0
+    noise, spikes = float("nan"), 0
     if reject_high and reject_low:
-        spread = hi[0, ::7, ::7].astype(np.float32) - lo[0, ::7, ::7].astype(np.float32)
-        # expected range of n Gaussian samples is ~ d_n * sigma (d_10 = 3.08): a robust global sigma
-        d_n = {2: 1.13, 3: 1.69, 4: 2.06, 5: 2.33, 6: 2.53, 7: 2.70, 8: 2.85, 9: 2.97, 10: 3.08}.get(n, 3.5)
-        noise = float(np.median(spread)) / d_n
-        if k_hi and noise > 0:
-            thr = np.float32(8 * max(noise, 0.5))
-            for rows in row_bands(shape[0], 512):
-                spikes += int(np.count_nonzero(hi[0][rows] - mean[rows] > thr))
+        noise, spikes = _noise_and_spikes(hi[0], lo[0], mean, n, spikes_rejected=bool(k_hi))
     return mean, n, k_hi, k_lo, noise, spikes
+
+
+def _noise_and_spikes(highest: np.ndarray, lowest: np.ndarray, mean: np.ndarray, n: int, *, spikes_rejected: bool
+                      ) -> tuple[float, int]:
+    """The dark frames' temporal noise (DN) from the spread between each pixel's highest and lowest of ``n``
+    frames, and how many pixels had a spike (a highest more than 8 sigma above the mean, when it was rejected)."""
+    spread = highest[::7, ::7].astype(np.float32) - lowest[::7, ::7].astype(np.float32)
+    # expected range of n Gaussian samples is ~ d_n * sigma (d_10 = 3.08): a robust global sigma
+    d_n = {2: 1.13, 3: 1.69, 4: 2.06, 5: 2.33, 6: 2.53, 7: 2.70, 8: 2.85, 9: 2.97, 10: 3.08}.get(n, 3.5)
+    noise = float(np.median(spread)) / d_n
+    spikes = 0
+    if spikes_rejected and noise > 0:
+        thr = np.float32(8 * max(noise, 0.5))
+        for rows in row_bands(mean.shape[0], 512):
+            spikes += int(np.count_nonzero(highest[rows] - mean[rows] > thr))
+    return noise, spikes
 
 
 class MasterDark:

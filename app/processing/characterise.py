@@ -19,7 +19,7 @@ choice; both methods' errors on training and test targets use the float64 refere
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -52,6 +52,18 @@ def fit_least_squares(values: np.ndarray, xyz: np.ndarray, channels: list[str] |
     return m
 
 
+def _batch_mean_de2000(V: np.ndarray, lab_ref: np.ndarray, white: np.ndarray, scale: float
+                       ) -> Callable[[np.ndarray], np.ndarray]:
+    """Mean dE00 of a batch of parameter vectors (k, n_params) in one vectorised pass: each is a matrix for the
+    equilibrated values ``V`` (n, channels), divided by ``scale``."""
+    def costs(P: np.ndarray) -> np.ndarray:
+        B = P.reshape(P.shape[0], -1, 3) * scale
+        pred = np.einsum("nc,kcj->knj", V, B)
+        return delta_e_2000(lab_ref[None], xyz_to_lab(pred, white)).mean(axis=1)
+
+    return costs
+
+
 def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels: list[str] | None = None, *,
                start: CharacterisationMatrix | None = None, max_iter: int = 500,
                progress: ProgressCallback | None = None, cancel: CancelToken | None = None
@@ -64,18 +76,10 @@ def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels:
     norms = np.linalg.norm(values, axis=0)
     live = norms > 0
     s = np.where(live, 1.0 / np.where(live, norms, 1.0), 0.0)     # equilibrate channels
-    V = values * s                                                # columns of unit norm
     B0 = A0[live] / s[live, None]
     scale = float(np.sqrt(np.mean(B0 ** 2))) or 1.0
-    lab_ref = xyz_to_lab(xyz, white)
-    Vl = V[:, live]
+    costs = _batch_mean_de2000((values * s)[:, live], xyz_to_lab(xyz, white), white, scale)   # columns of unit norm
     n_eval = [0]
-
-    def costs(P: np.ndarray) -> np.ndarray:
-        """Mean dE00 of a batch of parameter vectors (k, n_params) in one vectorised pass."""
-        B = P.reshape(P.shape[0], -1, 3) * scale
-        pred = np.einsum("nc,kcj->knj", Vl, B)
-        return delta_e_2000(lab_ref[None], xyz_to_lab(pred, white)).mean(axis=1)
 
     def cost(p: np.ndarray) -> float:
         return float(costs(p[None])[0])

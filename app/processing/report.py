@@ -333,6 +333,44 @@ def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors
     return q, figures
 
 
+def _target_figures(out_dir: Path, c: Characterisation, label: str, data: TargetData) -> list[str]:
+    """The chosen matrix on one target: dE00 heat map, Lab scatter and the patch mosaic (file names)."""
+    best, white = c.best, c.white
+    res = c.results[best]
+    errors = res.train_errors if label == "train" else res.test_errors
+    layout = layout_for(len(data.names), data.layout)
+    name = data.label or label
+    pred = res.matrix.apply(data.values)
+    return [heatmap_figure(out_dir / f"heatmap_{label}.png", errors, layout, f"{name}: ΔE00 per patch ({best})").name,
+            lab_scatter_figure(out_dir / f"lab_scatter_{label}.png", data.xyz, errors, white, name).name,
+            patch_mosaic_figure(out_dir / f"patches_{label}.png", data.xyz, pred, white, layout, name).name]
+
+
+def _targets_section(out_dir: Path, c: Characterisation, targets: list[tuple[str, TargetData]]
+                     ) -> tuple[list[str], dict]:
+    """Per target ('train', 'test'): its figures, and every fitted matrix's dE00 per patch (names alongside)."""
+    figures: list[str] = []
+    per_patch: dict = {}
+    for label, data in targets:
+        figures += _target_figures(out_dir, c, label, data)
+        per_patch[label] = {"names": list(data.names),
+                            "de00": {m: [round(float(v), 4) for v in (r.train_errors if label == "train"
+                                                                         else r.test_errors)]
+                                     for m, r in c.results.items()}}
+    return figures, per_patch
+
+
+def _dn_validation(out_dir: Path, c: Characterisation, simulated_train: np.ndarray, train: TargetData
+                   ) -> tuple[dict, str]:
+    """Simulated against captured training values per channel (thesis Fig 7.4): the section and its figure."""
+    fits = dn_validation(simulated_train, train.values, c.channels)
+    figure = dn_validation_figure(out_dir / "dn_validation.png", simulated_train, train.values, fits).name
+    union = sorted({i for f in fits for i in f.outliers})
+    return ({"channels": [f.to_dict(train.names) for f in fits], "outlier_patches": union,
+             "outlier_names": [train.names[i] for i in union],
+             "min_r2": min(f.r2 for f in fits), "min_r2_without_outliers": min(f.r2_clean for f in fits)}, figure)
+
+
 def build_report(out_dir: Path, characterisation: Characterisation, train: TargetData,
                  test: TargetData | None = None, *, simulated_train: np.ndarray | None = None,
                  title: str = "dual-RGB capture", extra: dict | None = None,
@@ -342,36 +380,13 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
     metrics (app.processing.quality)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    c = characterisation
-    white = c.white
-    best = c.best
-    figures: list[str] = []
-    sets = [("train", train)] + ([("test", test)] if test is not None else [])
-    per_patch: dict = {}
-    for label, data in sets:
-        res = c.results[best]
-        errors = res.train_errors if label == "train" else res.test_errors
-        layout = layout_for(len(data.names), data.layout)
-        name = data.label or label
-        figures.append(heatmap_figure(out_dir / f"heatmap_{label}.png", errors, layout,
-                                      f"{name}: ΔE00 per patch ({best})").name)
-        figures.append(lab_scatter_figure(out_dir / f"lab_scatter_{label}.png", data.xyz, errors, white, name).name)
-        pred = c.results[best].matrix.apply(data.values)
-        figures.append(patch_mosaic_figure(out_dir / f"patches_{label}.png", data.xyz, pred, white, layout,
-                                           name).name)
-        per_patch[label] = {"names": list(data.names),
-                            "de00": {m: [round(float(v), 4) for v in (r.train_errors if label == "train"
-                                                                         else r.test_errors)]
-                                     for m, r in c.results.items()}}
+    c, best = characterisation, characterisation.best
+    targets = [("train", train)] + ([("test", test)] if test is not None else [])
+    figures, per_patch = _targets_section(out_dir, c, targets)
     validation = None
     if simulated_train is not None:
-        fits = dn_validation(simulated_train, train.values, c.channels)
-        figures.append(dn_validation_figure(out_dir / "dn_validation.png", np.asarray(simulated_train),
-                                            train.values, fits).name)
-        union = sorted({i for f in fits for i in f.outliers})
-        validation = {"channels": [f.to_dict(train.names) for f in fits], "outlier_patches": union,
-                      "outlier_names": [train.names[i] for i in union],
-                      "min_r2": min(f.r2 for f in fits), "min_r2_without_outliers": min(f.r2_clean for f in fits)}
+        validation, figure = _dn_validation(out_dir, c, np.asarray(simulated_train), train)
+        figures.append(figure)
     graded_set = "test" if test is not None else "train"
     graded = c.results[best].test if test is not None else c.results[best].train
     graded_errors = c.results[best].test_errors if test is not None else c.results[best].train_errors
@@ -383,7 +398,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
         "title": title,
         "created_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "channels": c.channels,
-        "white_xyz": [float(v) for v in white],
+        "white_xyz": [float(v) for v in c.white],
         "best_method": best,
         "best_reason": c.selection.reason if c.selection else "the only matrix fitted",
         "model_selection": c.selection.to_dict() if c.selection else None,

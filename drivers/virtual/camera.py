@@ -213,8 +213,7 @@ class VirtualCamera(Camera):
         self.bumps = dict(DEFAULT_BUMPS if bumps is None else bumps)
         self.bumps_enabled = bumps_enabled
         self.seed = seed
-        seq = np.random.SeedSequence(seed)
-        noise_seq, sensor_seq = seq.spawn(2)
+        noise_seq, sensor_seq = np.random.SeedSequence(seed).spawn(2)
         self._rng = np.random.default_rng(noise_seq)
         self._sensor_seq = sensor_seq                            # hot pixels: a property of this sensor
         self._scene = scene if scene is not None else Scene.with_target(setup.test)

@@ -8,11 +8,11 @@ physical state the virtual camera needs, readable at any time with the thread-sa
 * per-LED continuous on-time, and the light dose (emitted level x seconds, artwork exposure);
 * temperature, rising with emitted power towards ambient + ``HEAT_C_PER_LED`` per LED at full level
   (first order, ``THERMAL_TAU_S``), over-temperature protection at ``OVER_TEMPERATURE_C``;
-* peak-wavelength drift with continuous on-time as measured in thesis 4.3.2 (Fig. 4.10): none during the first
-  10 s, then growing towards a per-LED maximum reached after about an hour (LED 4 ~7 nm, LED 7 none, the
-  others a few nm); LED 10 also fades after ~40 min on and does not recover (it "died" in the thesis run).
-  Drift depends on continuous on-time only, not on the level (the thesis measured at full level), and starts
-  over when the LED goes dark;
+* peak-wavelength drift with continuous on-time as measured in thesis 4.3.2 (Fig. 4.10; the model is in
+  drivers/virtual/led_physics.py): none during the first 10 s, then growing towards a per-LED maximum reached
+  after about an hour (LED 4 ~7 nm, LED 7 none, the others a few nm); LED 10 also fades after ~40 min on and does
+  not recover (it "died" in the thesis run). Drift depends on continuous on-time only, not on the level (the
+  thesis measured at full level), and starts over when the LED goes dark;
 * the watchdog: no request for ``watchdog_s`` -> every LED to 0 and the light off, ``trip`` set;
 * the on-time limit of ``ON <ms>`` (firmware 1.1): the light goes off by itself ``ms`` after it came on, whatever
   the host sends meanwhile (``firmware="1.0.0"`` emulates the old firmware that answers ``ON`` with ERR 1);
@@ -48,34 +48,21 @@ from typing import Any
 import numpy as np
 
 from drivers.led_sphere import protocol as P
+from drivers.virtual.led_physics import (
+    AMBIENT_C,
+    FADE_LED,
+    HEAT_C_PER_LED,
+    MAX_SHIFT_NM,
+    OVER_TEMPERATURE_C,
+    THERMAL_TAU_S,
+    fade_factor,
+    peak_shift_nm,
+)
 
 log = logging.getLogger(__name__)
 
-# Thesis 4.3.2 / Fig. 4.10: maximum peak shift after ~1 h (LED 4 7 nm, LED 7 none, others a few nm).
-MAX_SHIFT_NM = np.array([2.0, 3.0, 3.0, 7.0, 4.0, 3.0, 0.0, 3.0, 4.0, 5.0])
-DRIFT_ONSET_S = 10.0          # no shift at all during the first 10 s on
-DRIFT_TAU_S = 900.0           # 1 - exp(-(3600 - 10) / 900) = 0.98 of the maximum after an hour
-FADE_LED = 10                 # LED 10 malfunctioned towards the end of the hour (thesis 4.3.2)
-FADE_START_S = 2400.0         # its output starts to fall after 40 min continuously on ...
-FADE_TAU_S = 600.0            # ... to exp(-2) = 14 % after an hour; the loss is permanent
-AMBIENT_C = 24.0
-HEAT_C_PER_LED = 1.2          # steady-state rise per LED at full level
-THERMAL_TAU_S = 240.0
-OVER_TEMPERATURE_C = 45.0
-
 FAULTS = ("no_reply", "ignore", "garbled", "slow", "disconnect", "led_fail")
 _WIRE_FAULTS = ("no_reply", "ignore", "garbled", "slow")      # these take keywords=(...) to pick requests
-
-
-def peak_shift_nm(on_time_s: np.ndarray | float, max_shift_nm: np.ndarray | float = MAX_SHIFT_NM) -> np.ndarray:
-    """Peak-wavelength drift (nm, towards longer wavelengths) after ``on_time_s`` seconds continuously on."""
-    t = np.maximum(np.asarray(on_time_s, dtype=float) - DRIFT_ONSET_S, 0.0)
-    return np.asarray(max_shift_nm, dtype=float) * -np.expm1(-t / DRIFT_TAU_S)
-
-
-def fade_factor(on_time_s: float) -> float:
-    """LED 10's relative output after ``on_time_s`` seconds continuously on (1 before FADE_START_S)."""
-    return 1.0 if on_time_s <= FADE_START_S else math.exp(-(on_time_s - FADE_START_S) / FADE_TAU_S)
 
 
 @dataclass

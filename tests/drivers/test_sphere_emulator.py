@@ -12,14 +12,8 @@ from sphere_fakes import FakeClock
 
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.led_sphere import protocol as P
-from drivers.virtual.sphere_emulator import (
-    DRIFT_ONSET_S,
-    MAX_SHIFT_NM,
-    SphereEmulator,
-    SphereSnapshot,
-    fade_factor,
-    peak_shift_nm,
-)
+from drivers.virtual.led_physics import DRIFT_ONSET_S, MAX_SHIFT_NM, fade_factor, peak_shift_nm
+from drivers.virtual.sphere_emulator import SphereEmulator, SphereSnapshot
 from simulation.lightsource import LightSource
 
 TIMEOUT = 0.2          # fault cases: the time they take
