@@ -7,7 +7,9 @@ original). Each measurement runs in a fresh process (peak RSS = ru_maxrss):
 
   decode          rawpy.imread + a copy of raw_image_visible of the 4 original frames: the floor
   last_frame      CopyStand's streaming path: frames 1-3 are merged as they land (during the capture, not
-                  timed), then the last frame is decoded and merged, the stack flat-fielded, encoded and written
+                  timed), then the last frame is decoded and merged (phase frames_added), the last light
+                  flat-fielded into the stack (stack_result), the stack encoded band by band while the
+                  bands are written to the four TIFFs, then the sidecar (deliver)
   all_frames      the same from the 4 frames on disk (``dualrgb process``: re-delivering a session)
 
 Targets (issue 10): last_frame <= 1.5 x decode, peak RSS <= 2.5 GB. Loading the profile (~0.6 GB of master darks
@@ -117,13 +119,19 @@ def _child_digitise(folder: str, streaming: bool) -> dict:
         if streaming and i == len(frames) - 1:
             t0, c0 = time.perf_counter(), _cpu()        # the last frame lands: the clock starts
         builder.add(light, ExposureRef(path, t, path.name))
+    t_added = time.perf_counter()
     with tempfile.TemporaryDirectory(dir=folder) as out:
-        d = deliver(builder.result(), prof, Original("BENCH-1", title="bench"), Path(out), camera=prof.camera,
+        stack = builder.result()
+        t_stacked = time.perf_counter()
+        d = deliver(stack, prof, Original("BENCH-1", title="bench"), Path(out), camera=prof.camera,
                     dose=LightDoseRecord(1.0, 0.1), exposures={n: prof.exposures[n] for n in prof.exposures})
         size = sum(p.stat().st_size for p in d.files.values())
         seconds, cpu = time.perf_counter() - t0, _cpu() - c0
+        t_done = time.perf_counter()
     return {"seconds": seconds, "cpu_s": cpu, "load_profile_and_warm_up_s": t_ready - t_load,
-            "deliverables_mb": size / 1e6}
+            "deliverables_mb": size / 1e6,
+            "phases_s": {"frames_added": t_added - t0, "stack_result": t_stacked - t_added,
+                         "deliver": t_done - t_stacked}}
 
 
 def _run_child(kind: str, folder: Path) -> dict:
@@ -161,6 +169,8 @@ def bench_digitise(height: int = 4028, width: int = 6080, cache: str | None = No
         "peak_rss_mb": round(max(r["peak_rss_mb"] for k in ("last_frame", "all_frames") for r in runs[k])),
         "deliverables_mb": round(best["last_frame"]["deliverables_mb"]),
         "load_profile_and_warm_up_s": round(best["last_frame"]["load_profile_and_warm_up_s"], 2),
+        "last_frame_phases_s": {k: round(v, 3) for k, v in best["last_frame"]["phases_s"].items()},
+        "all_frames_phases_s": {k: round(v, 3) for k, v in best["all_frames"]["phases_s"].items()},
         "load_average_1min": round(os.getloadavg()[0], 2), "cpus": os.cpu_count(),
         "targets": {"last_frame_vs_decode": 1.5, "peak_rss_mb": 2560},
     }

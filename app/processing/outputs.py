@@ -208,21 +208,40 @@ def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str
     return text.encode("utf-8")
 
 
-def write_tiff(path: Path, image: np.ndarray, meta: TiffMetadata, *, photometric: str = "minisblack",
-               icc: bytes | None = None) -> Path:
-    """One uncompressed TIFF (contiguous samples) with ``meta`` in its tags, written atomically: tifffile writes
-    straight into simulation.atomic_io.atomic_output's temp file (fsync, rename), no copy in memory."""
-    import tifffile
-
-    path = Path(path)
-    kwargs = {}
+def tiff_kwargs(meta: TiffMetadata, *, photometric: str = "minisblack", icc: bytes | None = None) -> dict:
+    """``tifffile.imwrite`` arguments (all but the data) of an uncompressed TIFF with contiguous samples carrying
+    ``meta``: the one place the deliverables' TIFF layout is decided."""
+    kwargs: dict = dict(photometric=photometric, planarconfig="contig", iccprofile=icc,
+                        description=meta.description or None, software=meta.software,
+                        datetime=meta.datetime or tiff_datetime(), extratags=meta.tags(), metadata=None)
     if meta.ppi:
         kwargs.update(resolution=(float(meta.ppi), float(meta.ppi)), resolutionunit=RESOLUTION_UNIT_INCH)
-    with atomic_output(path, "wb") as fh:
-        tifffile.imwrite(fh, image, photometric=photometric, planarconfig="contig", iccprofile=icc,
-                         description=meta.description or None, software=meta.software,
-                         datetime=meta.datetime or tiff_datetime(), extratags=meta.tags(), metadata=None, **kwargs)
-    return path
+    return kwargs
+
+
+def open_tiff(path: Path, shape: tuple[int, ...], meta: TiffMetadata, *, dtype=np.uint16,
+              photometric: str = "minisblack", icc: bytes | None = None, band_rows: int = 64, executor=None,
+              direct: bool = True):
+    """A TIFF of ``shape`` to fill band by band (app.processing.tiff_stream.TiffStream), written atomically."""
+    from app.processing.tiff_stream import TiffStream
+
+    return TiffStream(path, shape, dtype, tiff_kwargs(meta, photometric=photometric, icc=icc),
+                      band_rows=band_rows, executor=executor, direct=direct)
+
+
+def write_tiff(path: Path, image: np.ndarray, meta: TiffMetadata, *, photometric: str = "minisblack",
+               icc: bytes | None = None, band_rows: int = 256) -> Path:
+    """One uncompressed TIFF (contiguous samples) with ``meta`` in its tags, written atomically (temp file,
+    fsync, rename) through the streamed writer of the deliverables: byte for byte what ``tifffile.imwrite`` of
+    the array writes."""
+    image = np.asarray(image)
+    with open_tiff(path, image.shape, meta, dtype=image.dtype.newbyteorder("="), photometric=photometric, icc=icc,
+                   band_rows=band_rows) as out:
+        for r0 in range(0, image.shape[0], out.band_rows):
+            rows = min(out.band_rows, image.shape[0] - r0)
+            out.band(rows)[...] = image[r0: r0 + rows]
+            out.commit()
+    return Path(path)
 
 
 # ---------------------------------------------------------------- CSVs

@@ -16,14 +16,16 @@ from __future__ import annotations
 import json
 import logging
 import re
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from app.processing.encode import LINEAR_ONE, encode_deliverables
-from app.processing.outputs import TiffMetadata, icc_profile, tiff_datetime, write_tiff, xmp_packet
+from app.processing.encode import LINEAR_ONE, DeliveryEncoder
+from app.processing.outputs import TiffMetadata, icc_profile, open_tiff, tiff_datetime, xmp_packet
 from app.processing.pipeline import ChannelStack
 from app.session import atomic_write
 from app.workflow.profile import CalibrationProfile, CameraIdentity
@@ -35,6 +37,7 @@ log = logging.getLogger(__name__)
 SIDECAR_FORMAT = "dualrgb-delivery/1"
 MODES = ("reflective", "transmissive")
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+BAND_ROWS = 256         # rows encoded and written at a time: 24 MP dual-RGB, 23 MB over the four files (128-512 alike)
 
 
 @dataclass
@@ -140,6 +143,57 @@ def _tiff_meta(original: Original, profile: CalibrationProfile, camera: CameraId
                         tiff_datetime(now.astimezone()), xmp)
 
 
+@dataclass
+class Deliverable:
+    """One deliverable TIFF: its file, samples per pixel, TIFF photometric, RGB space (display-encoded, its ICC
+    profile embedded; None: linear) and what it holds."""
+
+    path: Path
+    samples: int
+    photometric: str
+    space: str | None
+    what: str
+
+
+def deliverable_files(folder: Path, stem: str, channels: list[str]) -> dict[str, Deliverable]:
+    """The four TIFFs of an original named ``stem`` with the stack's ``channels``, by key (the sidecar's)."""
+    n = len(channels)
+    return {
+        "prophoto": Deliverable(folder / f"{stem}_prophoto_16bit.tif", 3, "rgb", "ProPhoto RGB",
+                           "ProPhoto RGB (ROMM), 16-bit, ICC embedded"),
+        "srgb": Deliverable(folder / f"{stem}_srgb_16bit.tif", 3, "rgb", "sRGB", "sRGB, 16-bit, ICC embedded"),
+        "xyz": Deliverable(folder / f"{stem}_XYZ_16bit.tif", 3, "minisblack", None,
+                      f"CIE XYZ (D65, 2 deg), linear, {LINEAR_ONE:g} = reference white Y"),
+        "channels": Deliverable(folder / f"{stem}_{n}ch_16bit.tif", n, "minisblack", None,
+                           f"{n} camera channels {' '.join(channels)}, flat-fielded, linear, {LINEAR_ONE:g} = white"),
+    }
+
+
+def write_images(stack: ChannelStack, profile: CalibrationProfile, images: dict[str, Deliverable],
+                 meta: Callable[[str], TiffMetadata], *, band_rows: int = BAND_ROWS,
+                 direct: bool = True) -> tuple[dict[str, Path], float]:
+    """Encode the stack band by band straight into the open TIFFs (app.processing.tiff_stream): while one band
+    is encoded (both cores, nogil), the writer threads put the previous one on disk; nothing image-sized but
+    the stack is held. Returns the files and the fraction of invalid (NaN) pixels."""
+    H, W, _ = stack.data.shape
+    rgb_keys = [k for k, im in images.items() if im.space]
+    with DeliveryEncoder(stack.data, profile.matrix.matrix, profile.white_xyz,
+                         [images[k].space for k in rgb_keys]) as enc, \
+            ThreadPoolExecutor(len(images), thread_name_prefix="deliver") as pool, ExitStack() as opened:
+        out = {k: opened.enter_context(open_tiff(im.path, (H, W, im.samples), meta(im.what), photometric=im.photometric,
+                                                 icc=icc_profile(im.space) if im.space else None,
+                                                 band_rows=band_rows, executor=pool, direct=direct))
+               for k, im in images.items()}
+        rgb = [out[k] for k in rgb_keys]
+        for r0 in range(0, H, band_rows):
+            rows = min(band_rows, H - r0)
+            enc.encode(r0, out["xyz"].band(rows), [o.band(rows) for o in rgb], out["channels"].band(rows))
+            for o in out.values():
+                o.commit()
+        invalid = enc.invalid_fraction
+    return {k: im.path for k, im in images.items()}, invalid
+
+
 def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original, out_dir: Path, *,
             camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
             exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
@@ -152,29 +206,9 @@ def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original
     folder = Path(out_dir) / original.file_stem
     folder.mkdir(parents=True, exist_ok=True)
     now = datetime.now(timezone.utc)
-    enc = encode_deliverables(stack.data, profile.matrix.matrix, profile.white_xyz)
     stem = original.file_stem
-    n = len(stack.channels)
-    jobs = {
-        "prophoto": (folder / f"{stem}_prophoto_16bit.tif", enc.rgb["ProPhoto RGB"], "rgb", icc_profile("ProPhoto RGB"),
-                     "ProPhoto RGB (ROMM), 16-bit, ICC embedded"),
-        "srgb": (folder / f"{stem}_srgb_16bit.tif", enc.rgb["sRGB"], "rgb", icc_profile("sRGB"),
-                 "sRGB, 16-bit, ICC embedded"),
-        "xyz": (folder / f"{stem}_XYZ_16bit.tif", enc.xyz, "minisblack", None,
-                f"CIE XYZ (D65, 2 deg), linear, {LINEAR_ONE:g} = reference white Y"),
-        "channels": (folder / f"{stem}_{n}ch_16bit.tif", enc.channels, "minisblack", None,
-                     f"{n} camera channels {' '.join(stack.channels)}, flat-fielded, linear, {LINEAR_ONE:g} = white"),
-    }
-
-    def write(item: tuple) -> Path:
-        path, image, photometric, icc, what = item
-        return write_tiff(path, image, _tiff_meta(original, profile, camera, dose, ppi, what, now),
-                          photometric=photometric, icc=icc)
-
-    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="deliver") as pool:   # I/O and memcpy overlap
-        files = dict(zip(jobs, pool.map(write, jobs.values()), strict=True))
-    invalid = enc.invalid_fraction
-    del enc
+    files, invalid = write_images(stack, profile, deliverable_files(folder, stem, stack.channels),
+                                  lambda what: _tiff_meta(original, profile, camera, dose, ppi, what, now))
     qa = _qa(stack, invalid, profile, original, dose, any(len(v) > 1 for v in (exposures or {}).values()), warnings)
     sidecar = folder / f"{stem}.json"
     doc = {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"),

@@ -8,21 +8,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import tifffile
+from workflow_profiles import make_profile as _profile
 
-from app.processing.calibration import DarkFrame, FlatField, MasterDark
 from app.processing.encode import LINEAR_ONE, encode_deliverables
 from app.processing.pipeline import ChannelStack
 from app.workflow.coverage import coverage
 from app.workflow.delivery import LightDoseRecord, Original, deliver, read_sidecar
-from app.workflow.profile import (
-    CalibrationProfile,
-    CameraIdentity,
-    ProfileError,
-    ReuseLimits,
-    SphereIdentity,
-    check_reuse,
-    load_profile,
-)
+from app.workflow.profile import CameraIdentity, ProfileError, ReuseLimits, SphereIdentity, check_reuse, load_profile
 from app.workflow.vocabulary import (
     NamedLight,
     Role,
@@ -36,7 +28,6 @@ from app.workflow.vocabulary import (
     subject_of,
 )
 from simulation.lightsource import LightSource
-from simulation.matrix_fit import CharacterisationMatrix
 
 D65 = [95.047, 100.0, 108.883]
 
@@ -76,25 +67,6 @@ def test_latest_take_wins():
     es = [entry(1, "original", "original/original:A/x/1"), entry(2, "original", "original/original:A/x/1#take2"),
           entry(3, "original", "original/original:A/y/1")]
     assert [e.seq for e in latest_takes(es)] == [2, 3]
-
-
-def _profile(tmp_path, **over) -> CalibrationProfile:
-    lights = [NamedLight("P light 1", LightSource((1, 6, 7), (0.0, 0.42, 1.0), "P light 1"))]
-    darks = MasterDark()
-    darks.put(DarkFrame(0.01, np.full((8, 12), 600, np.float32), 5))
-    created = over.pop("created", datetime.now(timezone.utc))
-    prof = CalibrationProfile(
-        id="cal-test", created_at=created.isoformat(timespec="seconds"), mode="reflective",
-        camera=CameraIdentity("Nikon D610", "3012345", "60 mm", 50, 8.0), sphere=SphereIdentity("S", "1", "S-1", 25.0),
-        preset="P", lights=lights, exposures={"P light 1": [0.01, 0.5]}, base_exposures={"P light 1": 0.01},
-        matrix=CharacterisationMatrix(np.eye(3) * 90, ["R1", "G1", "B1"]),
-        statistics={"best": "least-squares",
-                    "methods": {"least-squares": {"train": {"mean": 0.4}, "test": {"mean": 0.3}}}},
-        white_xyz=D65, raw={"white_level": 15520, "black_level": 600, "cfa": "RGGB", "linear_limit": 11000,
-                            "shape": [8, 12]}, sources={"0001_dark.dng": "ab" * 32}, ppi=300.0,
-        darks=darks, whites={"P light 1": FlatField(np.full((8, 12), 1000.0, np.float32))}, **over)
-    prof.save(tmp_path)
-    return prof
 
 
 def test_profile_round_trip_and_damage(tmp_path):
@@ -194,8 +166,7 @@ def test_coverage_counts_darks_and_flats():
 
 
 def test_streamed_stack_equals_the_batch_stack():
-    """StackBuilder (frames merged as they land, as CopyStand.capture does) gives the stack of
-    CaptureProcessor.stack."""
+    """StackBuilder (frames merged as they land, as CopyStand.capture does) = CaptureProcessor.stack."""
     from app.processing.pipeline import CaptureProcessor, ExposureRef
 
     rng = np.random.default_rng(5)

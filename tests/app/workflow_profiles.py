@@ -1,0 +1,33 @@
+"""A small saved calibration profile for the workflow and delivery tests (one light, 8 x 12 frames)."""
+from __future__ import annotations
+
+from datetime import datetime, timezone
+
+import numpy as np
+
+from app.processing.calibration import DarkFrame, FlatField, MasterDark
+from app.workflow.profile import CalibrationProfile, CameraIdentity, SphereIdentity
+from app.workflow.vocabulary import NamedLight
+from simulation.lightsource import LightSource
+from simulation.matrix_fit import CharacterisationMatrix
+
+D65 = [95.047, 100.0, 108.883]
+
+
+def make_profile(tmp_path, **over) -> CalibrationProfile:
+    lights = [NamedLight("P light 1", LightSource((1, 6, 7), (0.0, 0.42, 1.0), "P light 1"))]
+    darks = MasterDark()
+    darks.put(DarkFrame(0.01, np.full((8, 12), 600, np.float32), 5))
+    created = over.pop("created", datetime.now(timezone.utc))
+    prof = CalibrationProfile(
+        id="cal-test", created_at=created.isoformat(timespec="seconds"), mode="reflective",
+        camera=CameraIdentity("Nikon D610", "3012345", "60 mm", 50, 8.0), sphere=SphereIdentity("S", "1", "S-1", 25.0),
+        preset="P", lights=lights, exposures={"P light 1": [0.01, 0.5]}, base_exposures={"P light 1": 0.01},
+        matrix=CharacterisationMatrix(np.eye(3) * 90, ["R1", "G1", "B1"]),
+        statistics={"best": "least-squares",
+                    "methods": {"least-squares": {"train": {"mean": 0.4}, "test": {"mean": 0.3}}}},
+        white_xyz=D65, raw={"white_level": 15520, "black_level": 600, "cfa": "RGGB", "linear_limit": 11000,
+                            "shape": [8, 12]}, sources={"0001_dark.dng": "ab" * 32}, ppi=300.0,
+        darks=darks, whites={"P light 1": FlatField(np.full((8, 12), 1000.0, np.float32))}, **over)
+    prof.save(tmp_path)
+    return prof
