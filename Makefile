@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export QT_QPA_PLATFORM ?= offscreen
 
-.PHONY: run test wheel-smoke bench demo venv resources clean reliability
+.PHONY: run test lint wheel-smoke bench demo venv resources clean reliability
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -18,9 +18,16 @@ venv: $(STAMP)
 run: $(STAMP)
 	QT_QPA_PLATFORM= $(BIN)/dualrgb gui --virtual-lab
 
+# lint and type check first: a finding stops CI in seconds, before the slow tests
 test: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/mypy
 	$(BIN)/python -m pytest -q
 	$(MAKE) --no-print-directory wheel-smoke
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/mypy
 
 # the built wheel in a fresh venv, run from outside the checkout (.ci/wheel_smoke.sh says what it checks)
 wheel-smoke: $(STAMP)

@@ -21,9 +21,9 @@ from app.processing.patches import PatchGrid
 from app.processing.pipeline import CaptureProcessor, ExposureRef
 from drivers.virtual.camera import StaticLight, VirtualCamera
 from drivers.virtual.scene import Scene
-from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup
+from simulation.matrix_fit import fit_matrix
 
 log = logging.getLogger(__name__)
 
@@ -117,10 +117,3 @@ def captured_errors(setup: SimulationSetup, W: np.ndarray, exposures_s: np.ndarr
     return {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
             "test_sd": float(np.std(te)), "repeats": repeats, "frame": [width, height],
             "dark_frames": dark_frames}
-
-
-def compare_optima(setup: SimulationSetup, candidates: dict[str, np.ndarray], exposures: dict[str, np.ndarray], *,
-                   repeats: int = 2, width: int = 600, height: int = 400) -> dict:
-    """Virtual-lab captured errors of named light sets (e.g. the noise-free and noise-aware optima)."""
-    return {name: captured_errors(setup, W, exposures[name], repeats=repeats, width=width, height=height)
-            for name, W in candidates.items()}

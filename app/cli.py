@@ -14,7 +14,7 @@ import argparse
 import importlib
 import logging
 import sys
-from typing import Optional, Sequence
+from collections.abc import Sequence
 
 from simulation.versions import dualrgb_version
 
@@ -43,7 +43,7 @@ class _VersionAction(argparse.Action):
     """``--version``: like argparse's, but the version is looked up only when asked for (start-up time)."""
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
-                 option_string: Optional[str] = None) -> None:
+                 option_string: str | None = None) -> None:
         print(f"{parser.prog} {dualrgb_version()}")
         parser.exit()
 
@@ -59,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],

@@ -18,15 +18,14 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
+from app.processing.characterise import LEAST_SQUARES
+from app.processing.quality import quality_summary
 from app.sequences.calibration import DarkSeries, FlatSeries
 from app.sequences.capture import SubjectCapture
 from app.sequences.hdr import HdrPlan, meter_and_plan
-from app.processing.characterise import LEAST_SQUARES
-from app.processing.quality import quality_summary
 from app.session import CaptureSession, atomic_write, camera_definition, light_definition
 from app.session_log import SessionLog
 from app.workflow.copystand import CopyStand, StandSettings, parsimony_defaults
@@ -59,7 +58,7 @@ class DemoSettings:
     dark_frames: int = 10
     flat_frames: int = 3
     settle_s: float = 0.05
-    optimise_matrix: Optional[bool] = None   # also fit the dE00-optimised matrix; None: the parsimony study's choice
+    optimise_matrix: bool | None = None   # also fit the dE00-optimised matrix; None: the parsimony study's choice
     conditions: tuple[str, ...] = CONDITIONS
     new_session: bool = False                # a session made with other settings: use a new one, not refuse
 
@@ -101,7 +100,7 @@ def demo_capture_model(settings: DemoSettings):
                                        flat_frames=settings.flat_frames), test_pixels_per_patch=pixels[1])
 
 
-def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback] = None) -> tuple[list[Condition], dict]:
+def make_conditions(settings: DemoSettings, progress: ProgressCallback | None = None) -> tuple[list[Condition], dict]:
     """Presets from the optimiser (#2) on the expected captured error of this demo's capture (#14), and what it
     predicts for them: expected captured errors per characterisation, with the noise-free ones beside them."""
     from simulation.datasets import default_setup
@@ -131,7 +130,7 @@ def make_conditions(settings: DemoSettings, progress: Optional[ProgressCallback]
     return out, {k: v.to_dict() for k, v in presets.items()}
 
 
-def _predictions(ev, W: np.ndarray, de_matrix: Optional[bool]) -> dict:
+def _predictions(ev, W: np.ndarray, de_matrix: bool | None) -> dict:
     """What the optimiser predicts for a light set, per characterisation the processing may deliver: the
     expected captured error of the least-squares matrix (the objective) and, with the dE00-optimised matrix,
     that minus the matrix's noise-free gain (fitted on the noise-free simulated training values); and the
@@ -156,8 +155,8 @@ class DemoRun:
     """State of one demo run; ``run()`` returns the report dict. Capture and processing go through the copy-stand
     workflow (app.workflow): the same sequences, subjects and ``process_session`` as the GUI and the CLI."""
 
-    def __init__(self, settings: DemoSettings, progress: Optional[ProgressCallback] = None,
-                 cancel: Optional[CancelToken] = None):
+    def __init__(self, settings: DemoSettings, progress: ProgressCallback | None = None,
+                 cancel: CancelToken | None = None):
         self.s = settings
         self.progress = progress
         self.cancel = cancel
@@ -312,6 +311,6 @@ def _json(obj):
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
-def run_demo(settings: DemoSettings, progress: Optional[ProgressCallback] = None,
-             cancel: Optional[CancelToken] = None) -> dict:
+def run_demo(settings: DemoSettings, progress: ProgressCallback | None = None,
+             cancel: CancelToken | None = None) -> dict:
     return DemoRun(settings, progress, cancel).run()

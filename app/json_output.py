@@ -11,8 +11,9 @@ import json
 import logging
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable, Optional
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -26,7 +27,7 @@ def add_json_option(parser: argparse.ArgumentParser, help: str = HELP) -> None:
 
 
 def write_json(dest: str | os.PathLike[str], fmt: str, data: dict,
-               default: Optional[Callable[[Any], Any]] = None) -> Optional[Path]:
+               default: Callable[[Any], Any] | None = None) -> Path | None:
     """Write ``data`` with its header to ``dest`` ('-': stdout). A file is written whole or not at all
     (simulation.atomic_io) and its parent folders are created; returns the file's path (None for stdout)."""
     from simulation.atomic_io import atomic_write

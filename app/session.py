@@ -65,13 +65,26 @@ import os
 import re
 import weakref
 from pathlib import Path
-from typing import Any, Optional, Union
+from typing import Any, Union
 
 from app import session_lock
-from app.session_manifest import (DamagedFramesError, DefinitionMismatch, DoseRecord, SessionEntry, SessionError,
-                                  SessionLockedError, SetAside, VerifyReport, camera_definition,
-                                  definition_differences, json_default, light_definition, normalise, now,
-                                  read_manifest)
+from app.session_manifest import (
+    DamagedFramesError,
+    DefinitionMismatch,
+    DoseRecord,
+    SessionEntry,
+    SessionError,
+    SessionLockedError,
+    SetAside,
+    VerifyReport,
+    camera_definition,
+    definition_differences,
+    json_default,
+    light_definition,
+    normalise,
+    now,
+    read_manifest,
+)
 from drivers.camera.base import RawCapture
 from simulation import atomic_io
 from simulation.atomic_io import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
@@ -95,7 +108,7 @@ def _safe(text: str) -> str:
     return _SAFE.sub("_", text).strip("._") or "raw"
 
 
-def _light_dict(light: Any) -> Optional[dict]:
+def _light_dict(light: Any) -> dict | None:
     if light is None:
         return None
     if isinstance(light, dict):
@@ -141,7 +154,7 @@ class CaptureSession:
     """A capture session folder (see the module docstring). One writing process at a time (OS lock)."""
 
     def __init__(self, path: Path, settings: dict, lines: list, skipped_lines: list[int], *,
-                 lock_key: Optional[str] = None):
+                 lock_key: str | None = None):
         self.path = path
         self.settings = settings
         self._entries = [x for x in lines if isinstance(x, SessionEntry)]
@@ -156,8 +169,8 @@ class CaptureSession:
 
     # ---- creation / opening ----
     @classmethod
-    def create(cls, path: PathLike, meta: Optional[dict] = None, *,
-               definition: Optional[dict] = None) -> "CaptureSession":
+    def create(cls, path: PathLike, meta: dict | None = None, *,
+               definition: dict | None = None) -> CaptureSession:
         """A new session in ``path`` (created; must not exist or be an empty folder), locked for writing."""
         p = Path(path)
         if p.exists() and not p.is_dir():
@@ -195,8 +208,8 @@ class CaptureSession:
             raise _session_error(exc, p / MANIFEST) from exc
 
     @classmethod
-    def open(cls, path: PathLike, *, definition: Optional[dict] = None, readonly: bool = False,
-             clean_temp: bool = True, hint: str = "") -> "CaptureSession":
+    def open(cls, path: PathLike, *, definition: dict | None = None, readonly: bool = False,
+             clean_temp: bool = True, hint: str = "") -> CaptureSession:
         """Open an existing session; unreadable manifest lines are skipped with a warning (never fatal).
 
         ``definition``: refuse (:class:`DefinitionMismatch`, ``hint`` appended) when the session was made
@@ -233,8 +246,8 @@ class CaptureSession:
         return session
 
     @classmethod
-    def resume(cls, path: PathLike, definition: dict, meta: Optional[dict] = None, *,
-               new_if_different: bool = False, hint: str = "") -> "CaptureSession":
+    def resume(cls, path: PathLike, definition: dict, meta: dict | None = None, *,
+               new_if_different: bool = False, hint: str = "") -> CaptureSession:
         """The session for a run defined by ``definition``: a new one in ``path``, or the one there resumed
         (definition checked, missing/damaged frames set aside so their steps are shot again).
 
@@ -274,7 +287,7 @@ class CaptureSession:
             self._finalizer()
         self.readonly = True
 
-    def __enter__(self) -> "CaptureSession":
+    def __enter__(self) -> CaptureSession:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -315,7 +328,7 @@ class CaptureSession:
         self.update_settings(definition=definition)
 
     # ---- queries ----
-    def entries(self, role: Optional[str] = None, *, include_superseded: bool = False) -> list[SessionEntry]:
+    def entries(self, role: str | None = None, *, include_superseded: bool = False) -> list[SessionEntry]:
         """Entries in recording order; a retaken step (same step_id recorded again) shows only its last take;
         frames set aside (missing or damaged on resume) are left out."""
         out = [e for e in self._entries if e.seq not in self._aside_seqs]
@@ -371,9 +384,9 @@ class CaptureSession:
             name = f"{seq:04d}_{_safe(role)}_{_safe(Path(camera_name).name or 'capture.raw')}"
         return name
 
-    def record(self, raw: RawCapture, role: str, *, step_id: Optional[str] = None, light: Any = None,
-               sphere_temperature_c: Optional[float] = None, settings: Optional[dict] = None,
-               captured_at: Optional[str] = None, **meta: Any) -> SessionEntry:
+    def record(self, raw: RawCapture, role: str, *, step_id: str | None = None, light: Any = None,
+               sphere_temperature_c: float | None = None, settings: dict | None = None,
+               captured_at: str | None = None, **meta: Any) -> SessionEntry:
         """Write one downloaded raw file durably and log it; returns its manifest entry.
 
         ``light`` is a :class:`simulation.lightsource.LightSource` (or its dict); ``settings`` the camera
@@ -415,7 +428,7 @@ class CaptureSession:
         log.debug("recorded %s (%s, %d bytes)", name, role, len(data))
         return entry
 
-    def record_dose(self, light: Any, on_s: float, *, step_id: Optional[str] = None, **meta: Any) -> DoseRecord:
+    def record_dose(self, light: Any, on_s: float, *, step_id: str | None = None, **meta: Any) -> DoseRecord:
         """Log one lit period as it ends: ``light`` (a LightSource or its dict, exact levels) on for ``on_s``.
 
         Never raises for a failed write (the light was on whatever the disk says): the line is kept and written
@@ -476,7 +489,7 @@ class CaptureSession:
         self.settings = new
 
     # ---- checking ----
-    def _check_file(self, e: SessionEntry, check_hashes: bool) -> Optional[str]:
+    def _check_file(self, e: SessionEntry, check_hashes: bool) -> str | None:
         """None when the entry's file is intact, else 'missing' / 'damaged: ...'."""
         p = self.path / e.file
         if not p.is_file():
@@ -509,7 +522,7 @@ class CaptureSession:
         log.log(level, "verify %s: %s", self.path, report.summary())
         return report
 
-    def damaged(self, entries: Optional[list[SessionEntry]] = None) -> list[tuple[SessionEntry, str]]:
+    def damaged(self, entries: list[SessionEntry] | None = None) -> list[tuple[SessionEntry, str]]:
         """(entry, problem) for every current frame (or of ``entries``) that is missing or damaged."""
         out = []
         for e in self.entries() if entries is None else entries:
@@ -518,7 +531,7 @@ class CaptureSession:
                 out.append((e, problem))
         return out
 
-    def require_intact(self, entries: Optional[list[SessionEntry]] = None) -> None:
+    def require_intact(self, entries: list[SessionEntry] | None = None) -> None:
         """Before processing: raise :class:`DamagedFramesError` naming the first missing or damaged frame."""
         bad = self.damaged(entries)
         if bad:

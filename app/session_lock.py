@@ -16,7 +16,6 @@ import threading
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Optional
 
 log = logging.getLogger(__name__)
 
@@ -142,9 +141,3 @@ def release(key: str) -> None:
         finally:
             os.close(held.fd)
     log.debug("session lock released: %s", key)
-
-
-def held_here(folder: Path) -> Optional[int]:
-    """How many references this process holds on ``folder``'s lock (None: not held here)."""
-    held = _registry.get(os.path.realpath(folder))
-    return held.count if held else None

@@ -21,7 +21,6 @@ import threading
 import time
 from pathlib import Path
 from types import TracebackType
-from typing import Optional
 
 log = logging.getLogger(__name__)
 
@@ -43,14 +42,14 @@ class _SessionLogHandler(logging.Handler):
     def __init__(self, folder: Path, level: int) -> None:
         super().__init__(level)
         self.folder = folder
-        self._file: Optional[logging.FileHandler] = None
+        self._file: logging.FileHandler | None = None
         self._early: list[logging.LogRecord] = []
         formatter = logging.Formatter(FORMAT, datefmt="%Y-%m-%dT%H:%M:%S")
         formatter.converter = time.gmtime
         self.setFormatter(formatter)
         self.addFilter(_PackageFilter())
 
-    def _target(self) -> Optional[logging.FileHandler]:
+    def _target(self) -> logging.FileHandler | None:
         if self._file is None and (self.folder / SESSION_MARKER).is_file():
             self._file = logging.FileHandler(self.folder / LOG_NAME, encoding="utf-8")
             self._file.setFormatter(self.formatter)
@@ -99,7 +98,7 @@ class _RootLevel:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._users = 0
-        self._saved: Optional[tuple[int, list[logging.Handler]]] = None
+        self._saved: tuple[int, list[logging.Handler]] | None = None
 
     def lower(self, level: int) -> None:
         with self._lock:
@@ -133,7 +132,7 @@ class SessionLog:
     def __init__(self, folder: str | Path, level: int = logging.INFO) -> None:
         self.folder = Path(folder)
         self.level = level
-        self._handler: Optional[_SessionLogHandler] = None
+        self._handler: _SessionLogHandler | None = None
 
     @property
     def path(self) -> Path:
@@ -143,7 +142,7 @@ class SessionLog:
     def active(self) -> bool:
         return self._handler is not None
 
-    def start(self) -> "SessionLog":
+    def start(self) -> SessionLog:
         if self._handler is not None:
             return self
         self._handler = _SessionLogHandler(self.folder, self.level)
@@ -161,11 +160,11 @@ class SessionLog:
         self._handler = None
         _ROOT.restore()
 
-    def __enter__(self) -> "SessionLog":
+    def __enter__(self) -> SessionLog:
         return self.start()
 
-    def __exit__(self, exc_type: Optional[type[BaseException]], exc: Optional[BaseException],
-                 tb: Optional[TracebackType]) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         if exc is not None and self._handler is not None:
             log.error("session ended by %s: %s", type(exc).__name__, exc)
         self.stop()

@@ -21,7 +21,7 @@ import re
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Optional, Union
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +48,7 @@ def _file_name(data: dict, name: str = "file") -> str:
     return value
 
 
-def check_light(value: Any) -> Optional[dict]:
+def check_light(value: Any) -> dict | None:
     """A light dict {"name", "leds": [1-based ints], "levels": [numbers]} or None; ValueError otherwise."""
     if value is None:
         return None
@@ -72,14 +72,14 @@ class SessionEntry:
     role: str
     sha256: str
     size: int
-    step_id: Optional[str] = None
-    exposure_s: Optional[float] = None
-    iso: Optional[int] = None
-    aperture: Optional[float] = None
+    step_id: str | None = None
+    exposure_s: float | None = None
+    iso: int | None = None
+    aperture: float | None = None
     camera: str = ""
     camera_filename: str = ""                   # name the camera gave the file (DSC_0001.NEF)
-    light: Optional[dict] = None                # {"name", "leds": [1-based], "levels": [0..1]}
-    sphere_temperature_c: Optional[float] = None
+    light: dict | None = None                # {"name", "leds": [1-based], "levels": [0..1]}
+    sphere_temperature_c: float | None = None
     settings: dict = field(default_factory=dict)   # camera settings at capture time
     captured_at: str = ""                       # ISO 8601 UTC
     recorded_at: str = ""
@@ -89,7 +89,7 @@ class SessionEntry:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, data: dict) -> "SessionEntry":
+    def from_dict(cls, data: dict) -> SessionEntry:
         """An entry from a manifest object; ``ValueError`` naming the field when a type is wrong."""
         if not isinstance(data, dict):
             raise ValueError(f"expected a JSON object, found {type(data).__name__}")
@@ -129,7 +129,7 @@ class DoseRecord:
 
     light: dict
     on_s: float
-    step_id: Optional[str] = None
+    step_id: str | None = None
     at: str = ""
     meta: dict = field(default_factory=dict)
 
@@ -137,7 +137,7 @@ class DoseRecord:
         return {"kind": KIND_DOSE, **asdict(self)}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "DoseRecord":
+    def from_dict(cls, data: dict) -> DoseRecord:
         light = check_light(data.get("light"))
         if light is None:
             raise ValueError("dose line without a light")
@@ -156,21 +156,21 @@ class SetAside:
     seq: int
     file: str
     reason: str
-    moved_to: Optional[str] = None
-    step_id: Optional[str] = None
+    moved_to: str | None = None
+    step_id: str | None = None
     at: str = ""
 
     def to_dict(self) -> dict:
         return {"kind": KIND_SET_ASIDE, **asdict(self)}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "SetAside":
+    def from_dict(cls, data: dict) -> SetAside:
         return cls(_check(data, "seq", (int,)), _file_name(data), _check(data, "reason", (str,)),
                    _check(data, "moved_to", (str,), optional=True), _check(data, "step_id", (str,), optional=True),
                    _check(data, "at", (str,), optional=True) or "")
 
 
-ManifestLine = Union[SessionEntry, DoseRecord, SetAside]
+ManifestLine = SessionEntry | DoseRecord | SetAside
 _KINDS = {KIND_FRAME: SessionEntry, KIND_DOSE: DoseRecord, KIND_SET_ASIDE: SetAside}
 
 
@@ -194,7 +194,7 @@ def json_preview(value: Any) -> str:
 class SessionError(OSError):
     """A session problem with a one-line message (disk full, not a session folder, file missing...)."""
 
-    def __init__(self, code: Optional[int], message: str):
+    def __init__(self, code: int | None, message: str):
         super().__init__(code or errno.EIO, message)
         self.message = message
 

@@ -13,7 +13,7 @@ import logging
 import sys
 import threading
 from types import TracebackType
-from typing import Any, Optional, TextIO
+from typing import Any, TextIO
 
 from simulation.progress import COMPILING
 
@@ -32,8 +32,8 @@ def _is_terminal(stream: TextIO) -> bool:
 class TerminalProgress:
     """A monotonic progress callback for one command; use it as a context manager so the bar is closed."""
 
-    def __init__(self, title: str, *, lines: bool = False, stream: Optional[TextIO] = None,
-                 terminal: Optional[bool] = None) -> None:
+    def __init__(self, title: str, *, lines: bool = False, stream: TextIO | None = None,
+                 terminal: bool | None = None) -> None:
         self.title = title
         self.lines = lines
         self.stream = stream if stream is not None else sys.stderr
@@ -46,7 +46,7 @@ class TerminalProgress:
         self._redirect: Any = None
         self._lock = threading.Lock()
 
-    def __enter__(self) -> "TerminalProgress":
+    def __enter__(self) -> TerminalProgress:
         if self.terminal:                       # log lines print above the bar instead of through it
             from tqdm.contrib.logging import logging_redirect_tqdm
 
@@ -54,8 +54,8 @@ class TerminalProgress:
             self._redirect.__enter__()
         return self
 
-    def __exit__(self, exc_type: Optional[type[BaseException]], exc: Optional[BaseException],
-                 tb: Optional[TracebackType]) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         self.close()
 
     def __call__(self, fraction: float, message: str) -> None:

@@ -48,7 +48,10 @@ def make_profile(folder: Path) -> Path:
     if path.exists():
         return path
     plan = json.loads((folder / "plan.json").read_text())
-    ref = lambda f: ExposureRef(folder / f["file"], f["exposure_s"], f["file"])  # noqa: E731
+
+    def ref(f: dict) -> ExposureRef:
+        return ExposureRef(folder / f["file"], f["exposure_s"], f["file"])
+
     proc = CaptureProcessor(dark_frames=[ref(f) for f in plan["files"] if f["role"] == "dark"])
     for old, name in LIGHT_NAMES.items():
         proc.set_white(name, [ref(f) for f in plan["files"] if f["role"] == "flat" and f["light"] == old])
@@ -63,7 +66,8 @@ def make_profile(folder: Path) -> Path:
         id="cal-bench", created_at="2026-01-01T00:00:00+00:00", mode="reflective",
         camera=CameraIdentity("Nikon D610", "3000001", "", 50, 8.0), sphere=SphereIdentity("bench", "", "", 25.0),
         preset="bench", lights=lights, exposures=exposures, base_exposures={k: v[0] for k, v in exposures.items()},
-        matrix=CharacterisationMatrix(np.vstack([np.eye(3) * 50, np.eye(3) * 50]), ["R1", "G1", "B1", "R2", "G2", "B2"]),
+        matrix=CharacterisationMatrix(np.vstack([np.eye(3) * 50, np.eye(3) * 50]),
+                                      ["R1", "G1", "B1", "R2", "G2", "B2"]),
         statistics={"best": "least-squares", "methods": {}}, white_xyz=[95.047, 100.0, 108.883],
         raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
              "linear_limit": proc.linear_limit, "shape": list(white.shape)}, sources={}, ppi=400.0,
@@ -75,7 +79,8 @@ def make_profile(folder: Path) -> Path:
 
 def _scene_frames(folder: Path) -> list[tuple[str, Path, float]]:
     plan = json.loads((folder / "plan.json").read_text())
-    return [(LIGHT_NAMES[f["light"]], folder / f["file"], f["exposure_s"]) for f in plan["files"] if f["role"] == "scene"]
+    return [(LIGHT_NAMES[f["light"]], folder / f["file"], f["exposure_s"])
+            for f in plan["files"] if f["role"] == "scene"]
 
 
 def _child_decode(folder: str) -> dict:

@@ -98,14 +98,15 @@ def _cpu() -> float:
 
 def _child_process(folder: str, outputs: bool) -> dict:
     sys.path.insert(0, str(ROOT))
-    from app.processing.pipeline import CaptureProcessor, ExposureRef
-    from simulation.matrix_fit import CharacterisationMatrix
-
     from app.processing.kernels import warm_up
+    from app.processing.pipeline import CaptureProcessor, ExposureRef
 
     folder_p = Path(folder)
     plan = json.loads((folder_p / "plan.json").read_text())
-    ref = lambda f: ExposureRef(folder_p / f["file"], f["exposure_s"], f["file"])  # noqa: E731
+
+    def ref(f: dict) -> ExposureRef:
+        return ExposureRef(folder_p / f["file"], f["exposure_s"], f["file"])
+
     tw = time.perf_counter()
     warm_up()                                    # once per process: numba kernels from the on-disk cache
     t0, c0 = time.perf_counter(), _cpu()
@@ -115,7 +116,8 @@ def _child_process(folder: str, outputs: bool) -> dict:
     stack = proc.stack({light: [ref(f) for f in plan["files"] if f["role"] == "scene" and f["light"] == light]
                         for light in LIGHTS})
     t_stack = time.perf_counter() - t0
-    result = {"seconds_stack": t_stack, "cpu_stack": _cpu() - c0, "seconds_warm_up": t0 - tw, "stack_shape": list(stack.data.shape),
+    result = {"seconds_stack": t_stack, "cpu_stack": _cpu() - c0, "seconds_warm_up": t0 - tw,
+              "stack_shape": list(stack.data.shape),
               "stack_mean": float(np.nanmean(stack.data[::50, ::50]))}
     return result
 
@@ -141,7 +143,11 @@ def bench_processing(height: int = 4028, width: int = 6080, n_darks: int = 10, c
     for _ in range(repeats):                     # interleaved, so load from other processes hits all alike
         for kind in runs:
             runs[kind].append(_run_child(kind, folder))
-    best = {k: min(v, key=lambda r: r.get("seconds", r.get("seconds_total", r.get("seconds_stack")))) for k, v in runs.items()}
+
+    def seconds(run: dict) -> float:
+        return run.get("seconds", run.get("seconds_total", run.get("seconds_stack")))
+
+    best = {k: min(v, key=seconds) for k, v in runs.items()}
     dec = best["decode"]["seconds"]
     st = best["stack"]["seconds_stack"]
     cdec = min(r["cpu"] for r in runs["decode"])

@@ -41,7 +41,7 @@ def main(argv=None) -> int:
         t = time.perf_counter()
         try:
             result = getattr(importlib.import_module(mod), fn)(**kwargs)
-        except Exception as exc:  # a benchmark failing must not hide the others' results
+        except Exception as exc:  # noqa: BLE001 - a benchmark failing must not hide the others' results
             print(f"   FAILED: {type(exc).__name__}: {exc}", flush=True)
             failed += 1
             continue

@@ -5,7 +5,6 @@ the L-BFGS-B cost per evaluation (float64 against the float32 kernel) for issue 
 from __future__ import annotations
 
 import time
-from typing import Optional
 
 import colour
 import numpy as np
@@ -86,14 +85,15 @@ def bench_simulation(mode: str = "reflective", seed: int = 0, naive_samples: int
     }
 
 
-def _row(outcome, seconds: float, objective: str, cpu_s: Optional[float] = None) -> dict:
+def _row(outcome, seconds: float, objective: str, cpu_s: float | None = None) -> dict:
     b = outcome.best
     row = {"objective": objective, "elapsed_s": round(seconds, 3), "evaluations": outcome.evaluations,
            **({"cpu_s": round(cpu_s, 3)} if cpu_s is not None else {}),
            "leds": [list(s.leds) for s in b.sources], "levels": [list(s.levels) for s in b.sources],
            "train_de00": round(b.train.mean, 4), "test_de00": round(b.test.mean, 4)}
     if b.expected_train is not None:
-        row.update(expected_train_de00=round(b.expected_train.mean, 4), expected_test_de00=round(b.expected_test.mean, 4))
+        row.update(expected_train_de00=round(b.expected_train.mean, 4),
+                   expected_test_de00=round(b.expected_test.mean, 4))
     return row
 
 
@@ -139,19 +139,19 @@ def bench_cost_per_evaluation(ev: Evaluator, seed: int, repeats: int = 200) -> d
             f64(X)
         t64 = (time.perf_counter() - t) / repeats / points
         w = X.reshape(points, 2, 3)
-        I = np.broadcast_to(idx, (points, 2, 3))
-        ev.cost_indexed(I, w)
+        indices = np.broadcast_to(idx, (points, 2, 3))
+        ev.cost_indexed(indices, w)
         t = time.perf_counter()
         for _ in range(repeats):
-            ev.cost_indexed(I, w)
+            ev.cost_indexed(indices, w)
         t32 = (time.perf_counter() - t) / repeats / points
         out[label] = {"points": points, "float64_us_per_evaluation": round(t64 * 1e6, 2),
                       "float32_kernel_us_per_evaluation": round(t32 * 1e6, 2), "ratio": round(t64 / t32, 1)}
     big = rng.random((6400, 2, 3))
-    I = np.broadcast_to(idx, big.shape)
-    ev.cost_indexed(I, big)
+    indices = np.broadcast_to(idx, big.shape)
+    ev.cost_indexed(indices, big)
     t = time.perf_counter()
     for _ in range(5):
-        ev.cost_indexed(I, big)
+        ev.cost_indexed(indices, big)
     out["float32_kernel_us_per_evaluation_in_pso_batches"] = round((time.perf_counter() - t) / 5 / 6400 * 1e6, 3)
     return out

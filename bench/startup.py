@@ -13,7 +13,6 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Optional
 
 TARGET_S = 0.5
 REPEATS = 7
@@ -61,7 +60,7 @@ def _sample_dng(folder: Path) -> Path:
     return save_dng(folder / "sample.dng", mosaic, DngInfo(exposure_s=1 / 60, iso=100))
 
 
-def bench_startup(repeats: int = REPEATS, commands: Optional[dict[str, list[str]]] = None) -> dict:
+def bench_startup(repeats: int = REPEATS, commands: dict[str, list[str]] | None = None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         dng = _sample_dng(Path(tmp))
         commands = commands or {"--help": ["--help"], "--version": ["--version"], "sphere --help": ["sphere", "--help"],

@@ -10,6 +10,7 @@ import json
 import logging
 import time
 import tracemalloc
+from functools import partial
 
 import numpy as np
 
@@ -82,10 +83,10 @@ def bench_original(name: str = "painting", sizes: tuple[tuple[int, int], ...] = 
         cam = VirtualCamera(lambda: snap, original_scene(name, width, height), seed=1)
         cam.open()
         r: dict[str, float] = {"megapixels": round(width * height / 1e6, 2)}
-        for key, fn in (("render_cold_s", lambda: cam.render_mosaic(1 / 60)),
-                        ("render_warm_s", lambda: cam.render_mosaic(1 / 60)),
-                        ("capture_total_s", lambda: cam.capture(1 / 60)),
-                        ("ground_truth_s", lambda: ground_truth_xyz(name, height, width))):
+        for key, fn in (("render_cold_s", partial(cam.render_mosaic, 1 / 60)),
+                        ("render_warm_s", partial(cam.render_mosaic, 1 / 60)),
+                        ("capture_total_s", partial(cam.capture, 1 / 60)),
+                        ("ground_truth_s", partial(ground_truth_xyz, name, height, width))):
             t0 = time.perf_counter()
             fn()
             r[key] = round(time.perf_counter() - t0, 4)

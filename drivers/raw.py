@@ -17,9 +17,10 @@ import os
 import stat
 import struct
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional, Union
+from typing import Union
 
 import numpy as np
 
@@ -56,8 +57,8 @@ class RawFrame:
     white_level: int                           # saturation DN
     make: str = ""
     model: str = ""
-    exposure_s: Optional[float] = None
-    iso: Optional[float] = None
+    exposure_s: float | None = None
+    iso: float | None = None
     format: str = ""                           # 'DNG', 'NEF', ...
     extra: dict = field(default_factory=dict)
 
@@ -108,12 +109,6 @@ class RawFrame:
         order = {"R": 0, "G1": 1, "G2": 2, "B": 3}
         return sorted(out, key=lambda t: order.get(t[0], 9))
 
-    def channel_black(self, name: str) -> int:
-        for n, _, idx in self.channels():
-            if n == name:
-                return int(self.black_levels[idx])
-        raise KeyError(name)
-
     def plane(self, name: str) -> np.ndarray:
         """The (H/2, W/2) sub-image of one CFA position ('R', 'G1', 'G2', 'B'), a view into the mosaic."""
         for n, (r, c), _ in self.channels():
@@ -162,7 +157,7 @@ def _tiff_make_model(path: Path, head: bytes) -> tuple[str, str]:
         return "", ""
 
 
-def _tiff_data_end(path: Path, head: bytes) -> Optional[int]:
+def _tiff_data_end(path: Path, head: bytes) -> int | None:
     """The largest offset + byte count of the image data in a TIFF-based raw (main IFDs and SubIFDs, where
     NEF keeps its raw data), or None when the file is not TIFF-based or tifffile cannot parse it.
 
@@ -179,7 +174,8 @@ def _tiff_data_end(path: Path, head: bytes) -> Optional[int]:
             stack = list(tif.pages)
             while stack:
                 page = stack.pop()
-                for off, cnt in zip(page.dataoffsets or (), page.databytecounts or ()):
+                # a damaged file's two arrays may differ in length: the walk takes the pairs both give
+                for off, cnt in zip(page.dataoffsets or (), page.databytecounts or (), strict=False):
                     end = max(end, int(off) + int(cnt))
                 if getattr(page, "subifds", None):
                     stack.extend(page.pages)
@@ -343,7 +339,7 @@ def _linear_args() -> dict:
 
 
 def linear_demosaic(frame: RawFrame, *, half_size: bool = False,
-                    algorithm: Optional[str] = None) -> np.ndarray:
+                    algorithm: str | None = None) -> np.ndarray:
     """Linear camera RGB as uint16 (H, W, 3) from LibRaw, black subtracted and scaled so the white level
     maps to 65535.
 
@@ -370,24 +366,39 @@ def linear_demosaic(frame: RawFrame, *, half_size: bool = False,
         raise RawFileError(frame.path, _libraw_problem(exc, head)) from exc
 
 
+def bayer_superpixel(mosaic: np.ndarray, cfa: str, *, black: Sequence[float] | None = None,
+                     out: np.ndarray | None = None) -> np.ndarray:
+    """(H/2, W/2, 3) float32 R, (G1 + G2) / 2, B of each 2x2 cell of a Bayer mosaic (an odd last row/column is
+    dropped). ``cfa``: the cell's letters in raster order ('RGGB'); ``black``: the black level of each cell
+    position (raster order), subtracted and clipped at 0. NaN in a green pixel makes that cell's G NaN (not
+    silently the other green): invalid stays visible."""
+    h2, w2 = mosaic.shape[0] // 2, mosaic.shape[1] // 2
+    if out is None:
+        out = np.empty((h2, w2, 3), dtype=np.float32)
+    greens = []
+    for k, letter in enumerate(cfa):
+        r, c = divmod(k, 2)
+        plane = mosaic[r: 2 * h2: 2, c: 2 * w2: 2]
+        if black is not None:
+            plane = np.maximum(plane.astype(np.float32) - np.float32(black[k]), 0.0)
+        if letter == "R":
+            out[..., 0] = plane
+        elif letter == "B":
+            out[..., 2] = plane
+        else:
+            greens.append(plane)
+    np.add(greens[0], greens[1], out=out[..., 1], dtype=np.float32)
+    out[..., 1] *= 0.5
+    return out
+
+
 def superpixel(frame: RawFrame, *, subtract_black: bool = True) -> np.ndarray:
     """(H/2, W/2, 3) float32 R, (G1+G2)/2, B per 2x2 cell in DN, black subtracted (clipped at 0) by default.
 
     Computed from the in-memory mosaic, so values are exact (LibRaw's half_size output is the same image
     rounded and scaled to 16 bit); an odd last row/column is dropped.
     """
-    h2, w2 = frame.height // 2, frame.width // 2
-    out = np.empty((h2, w2, 3), dtype=np.float32)
-    greens = []
-    for name, (r, c), idx in frame.channels():
-        plane = frame.mosaic[r: 2 * h2: 2, c: 2 * w2: 2].astype(np.float32)
-        if subtract_black:
-            plane = np.maximum(plane - np.float32(frame.black_levels[idx]), 0.0)
-        if name == "R":
-            out[..., 0] = plane
-        elif name == "B":
-            out[..., 2] = plane
-        else:
-            greens.append(plane)
-    out[..., 1] = 0.5 * (greens[0] + greens[1])
-    return out
+    colours = [int(frame.pattern[r, c]) for r in range(2) for c in range(2)]
+    cfa = "".join(_letter(frame.color_desc, idx) for idx in colours)
+    black = [float(frame.black_levels[idx]) for idx in colours] if subtract_black else None
+    return bayer_superpixel(frame.mosaic, cfa, black=black)

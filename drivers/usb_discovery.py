@@ -12,8 +12,10 @@ import os
 import re
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Callable, Optional, TypeVar
+from functools import partial
+from typing import TypeVar
 
 log = logging.getLogger(__name__)
 
@@ -34,10 +36,10 @@ class CameraInfo:
     model: str
     source: str                                   # 'gphoto2' or 'usb'
     port: str = ""
-    vendor_id: Optional[int] = None
-    product_id: Optional[int] = None
-    bus: Optional[int] = None
-    address: Optional[int] = None
+    vendor_id: int | None = None
+    product_id: int | None = None
+    bus: int | None = None
+    address: int | None = None
     status: str = ""                              # after a probe: 'ok' or the problem
 
     @property
@@ -47,7 +49,7 @@ class CameraInfo:
         return f"{self.vendor_id:04x}:{self.product_id:04x}"
 
     @property
-    def bus_address(self) -> Optional[tuple[int, int]]:
+    def bus_address(self) -> tuple[int, int] | None:
         if self.bus is not None and self.address is not None:
             return self.bus, self.address
         return parse_usb_port(self.port)
@@ -58,10 +60,10 @@ class SerialPortInfo:
     device: str
     description: str = ""
     hwid: str = ""
-    vendor_id: Optional[int] = None
-    product_id: Optional[int] = None
-    serial_number: Optional[str] = None
-    manufacturer: Optional[str] = None
+    vendor_id: int | None = None
+    product_id: int | None = None
+    serial_number: str | None = None
+    manufacturer: str | None = None
 
     @property
     def is_usb(self) -> bool:
@@ -88,15 +90,15 @@ class DeviceReport:
     def to_dict(self) -> dict:
         d = asdict(self)
         for key in ("gphoto_cameras", "usb_cameras"):
-            for cam, info in zip(d[key], getattr(self, key)):
+            for cam, info in zip(d[key], getattr(self, key), strict=True):
                 cam["usb_id"] = info.usb_id
-        for port, info in zip(d["serial_ports"], self.serial_ports):
+        for port, info in zip(d["serial_ports"], self.serial_ports, strict=True):
             port["is_usb"] = info.is_usb
         d["nothing_found"] = self.nothing_found
         return d
 
 
-def parse_usb_port(port: str) -> Optional[tuple[int, int]]:
+def parse_usb_port(port: str) -> tuple[int, int] | None:
     """(bus, address) from a gphoto2 port 'usb:001,007'; None for other ports."""
     m = re.fullmatch(r"usb:(\d+),(\d+)", port or "")
     return (int(m.group(1)), int(m.group(2))) if m else None
@@ -268,7 +270,8 @@ def claimed_camera_hints(report: DeviceReport) -> list[str]:
         if cam.bus_address in seen:
             continue
         where = f"bus {cam.bus} device {cam.address}"
-        holders = usb_device_holders(cam.bus, cam.address) if cam.bus is not None else []
+        ba = cam.bus_address
+        holders = usb_device_holders(*ba) if ba else []
         held = f"held by {', '.join(holders)}; " if holders else ""
         hints.append(f"{cam.model} ({cam.usb_id}, {where}) is on USB but gphoto2 does not list it: {held}"
                      f"{FREE_CAMERA_ADVICE}, and check the camera's USB mode and your USB permissions")
@@ -295,12 +298,12 @@ def discover(*, probe: bool = False, timeout_s: float = 3.0) -> DeviceReport:
     # pyusb knows the USB ids; copy them onto the gphoto2 entries for the same bus/address
     by_address = {c.bus_address: c for c in report.usb_cameras if c.bus_address}
     for cam in report.gphoto_cameras:
-        twin = by_address.get(cam.bus_address)
+        twin = by_address.get(cam.bus_address) if cam.bus_address else None
         if twin is not None:
             cam.vendor_id, cam.product_id = twin.vendor_id, twin.product_id
     if probe:
         for cam in report.gphoto_cameras:
-            cam.status = _bounded(lambda cam=cam: probe_camera(cam), timeout_s + 2.0,
+            cam.status = _bounded(partial(probe_camera, cam), timeout_s + 2.0,
                                   "no answer when opening it (switch the camera off and on)",
                                   f"open {cam.model}", report.notes)
     report.hints = _bounded(lambda: claimed_camera_hints(report), timeout_s, [], "USB hints", report.notes)

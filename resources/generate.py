@@ -71,8 +71,10 @@ def _reflective_csvs() -> None:
     write_spectral_csv(path("targets", "reflective_train_rawtoaces190.csv"), train.wavelengths,
                        np.clip(train.values, 0.0, None),
                        [str(n) for n in train.labels],
-                       {"title": "Reflective training target (190 samples)", "units": "reflectance factor (0..1; a few fluorescent samples reach 1.44)",
-                        "source": "colour-science read_training_data_rawtoaces_v1() (rawtoaces training data; residues < 1e-9 clipped to 0)",
+                       {"title": "Reflective training target (190 samples)",
+                        "units": "reflectance factor (0..1; a few fluorescent samples reach 1.44)",
+                        "source": "colour-science read_training_data_rawtoaces_v1() (rawtoaces training data; "
+                                  "residues < 1e-9 clipped to 0)",
                         "generated_by": SCRIPT})
     cc = colour.SDS_COLOURCHECKERS["BabelColor Average"]
     names = list(cc)
@@ -122,11 +124,12 @@ def _film_csvs() -> None:
     cc_names = list(cc)
     cc_vals = np.stack([cc[n].copy().align(FILM_SHAPE).values for n in cc_names], axis=1)
     target_lab = _lab_d65(cc_vals, wl)
-    fitted = []
-    for lab in target_lab:
-        res = least_squares(lambda a: _lab_d65(film_transmittance(a[None, :], wl), wl)[0] - lab,
-                            x0=np.array([0.5, 0.5, 0.5]), bounds=(0.0, 4.0))
-        fitted.append(res.x)
+
+    def lab_error(amounts: np.ndarray, lab: np.ndarray) -> np.ndarray:
+        return _lab_d65(film_transmittance(amounts[None, :], wl), wl)[0] - lab
+
+    fitted = [least_squares(lab_error, x0=np.array([0.5, 0.5, 0.5]), bounds=(0.0, 4.0), args=(lab,)).x
+              for lab in target_lab]
     t_test = film_transmittance(np.array(fitted), wl)
     write_spectral_csv(path("targets", "film_test_cc24.csv"), wl, t_test, cc_names,
                        {"title": "ColorChecker 24 reproduced on film", "units": "transmittance 0..1",

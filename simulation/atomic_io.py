@@ -19,9 +19,10 @@ import errno
 import logging
 import os
 import shutil
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any, Iterator, Optional, Union
+from typing import IO, Any, Union
 
 log = logging.getLogger(__name__)
 
@@ -32,7 +33,7 @@ PathLike = Union[str, "os.PathLike[str]"]
 class FileWriteError(OSError):
     """A file could not be written; ``str()`` is one line naming the file and the problem."""
 
-    def __init__(self, code: Optional[int], message: str, filename: Optional[str] = None):
+    def __init__(self, code: int | None, message: str, filename: str | None = None):
         super().__init__(code or errno.EIO, message)
         self.message = message
         self.filename = filename
@@ -94,7 +95,7 @@ def write_all(fd: int, data: bytes) -> None:
         view = view[n:]
 
 
-def atomic_write(path: PathLike, data: Union[bytes, str], *, exclusive: bool = False) -> Path:
+def atomic_write(path: PathLike, data: bytes | str, *, exclusive: bool = False) -> Path:
     """Write ``data`` (str is UTF-8 encoded) to ``path`` atomically and durably; returns the path.
 
     ``exclusive``: the temp file must not exist yet (two writers of one name fail instead of mixing).

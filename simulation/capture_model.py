@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import logging
 from dataclasses import asdict, dataclass, field, replace
-from typing import Optional
 
 from simulation.sphere import SphereProperties
 
@@ -68,7 +67,7 @@ class CaptureModel:
     """
 
     camera: CameraNoise = field(default_factory=lambda: CameraNoise(pixels_per_patch=56, flat_frames=3))
-    test_pixels_per_patch: Optional[int] = 462
+    test_pixels_per_patch: int | None = 462
     green_pixels: int = 2
     trim_efficiency: float = 0.94
     reference_gain_sd: float = 0.0
@@ -77,7 +76,7 @@ class CaptureModel:
     sphere: SphereProperties = field(default_factory=SphereProperties)
 
     @classmethod
-    def virtual_lab(cls, mode: str, **changes) -> "CaptureModel":
+    def virtual_lab(cls, mode: str, **changes) -> CaptureModel:
         """The demo's capture on the virtual lab (600 x 400 frames, 10 darks, 3 flats) for ``mode``."""
         train_px, test_px = DEMO_PATCH_PIXELS.get(mode, DEMO_PATCH_PIXELS["reflective"])
         base = cls(camera=CameraNoise(pixels_per_patch=train_px, flat_frames=3, dark_frames=10),

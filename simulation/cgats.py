@@ -74,12 +74,13 @@ class CgatsTable:
             raise CgatsError(f"{self.source}: spectral fields must increase in wavelength; {wl[k + 1]:g} nm "
                              f"follows {wl[k]:g} nm")
         values = np.empty((len(wl), len(self.rows)))
-        for r, (row, line) in enumerate(zip(self.rows, self.row_lines)):
-            for c, (i, w) in enumerate(spec):
+        for r, (row, line) in enumerate(zip(self.rows, self.row_lines, strict=True)):
+            for c, (i, _wavelength) in enumerate(spec):
                 try:
                     values[c, r] = float(row[i])
                 except ValueError:
-                    raise CgatsError(f"{self.source}:{line}: field {self.fields[i]} {row[i]!r} is not a number") from None
+                    raise CgatsError(f"{self.source}:{line}: field {self.fields[i]} {row[i]!r} is not a number"
+                                     ) from None
         if not np.isfinite(values).all():
             c, r = np.argwhere(~np.isfinite(values))[0]
             raise CgatsError(f"{self.source}:{self.row_lines[r]}: {wl[c]:g} nm is not a finite number")
@@ -90,7 +91,7 @@ class CgatsTable:
             log.info("%s: spectral values up to %.3g, read as percent", self.source, values.max())
             values = values / 100.0
         if values.min() < -NEGATIVE_TOLERANCE:
-            c, r = np.unravel_index(int(np.argmin(values)), values.shape)
+            c, r = map(int, np.unravel_index(int(np.argmin(values)), values.shape))
             raise CgatsError(f"{self.source}:{self.row_lines[r]}: negative value {values[c, r]:g} at {wl[c]:g} nm")
         np.maximum(values, 0.0, out=values)
         meta = {k.lower(): v for k, v in self.keywords.items()}

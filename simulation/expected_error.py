@@ -20,11 +20,12 @@ prediction error of patch j has covariance
   S_j = sum_c sigma_jc^2 A_c A_c^T + Sigma_ref,j + sigma_d^2 sum_d e_j^(d) e_j^(d)T,
 with e^(d) = (I - H) dV^(d) A the part of a drift direction d (one LED of one light) the fit cannot absorb (H:
 the ridge fit's hat matrix). The fit's own absorption of the noise (a (1 - h_jj) factor, h_jj ~ 3L / n) is left
-out: against the Monte Carlo it over-corrects slightly. CIEDE2000 is locally a quadratic form: dE00^2 ~ dx^T Q_j dx with Q_j = J_j^T T_j J_j (J_j: XYZ -> Lab
-Jacobian, T_j: the dE00 metric at the reference colour, by polarisation of the float64 formula). For a
-Gaussian x with E|x|^2 = m^2 + tr(QS) = E2 and Var|x|^2 = 2 tr((QS)^2) + 4 b^T Q S Q b = V,
-E|x| ~ sqrt(E2) (1 - V / (8 E2^2)) (second order in the spread of |x|^2; exact to < 1 % for a 3-D isotropic
-spread, 6 % for a 1-D one). A Monte Carlo over noisy captures agrees within a few % (tests).
+out: against the Monte Carlo it over-corrects slightly. CIEDE2000 is locally a quadratic form:
+dE00^2 ~ dx^T Q_j dx with Q_j = J_j^T T_j J_j (J_j: XYZ -> Lab Jacobian, T_j: the dE00 metric at the reference
+colour, by polarisation of the float64 formula). For a Gaussian x with E|x|^2 = m^2 + tr(QS) = E2 and
+Var|x|^2 = 2 tr((QS)^2) + 4 b^T Q S Q b = V, E|x| ~ sqrt(E2) (1 - V / (8 E2^2)) (second order in the spread of
+|x|^2; exact to < 1 % for a 3-D isotropic spread, 6 % for a 1-D one). A Monte Carlo over noisy captures agrees
+within a few % (tests).
 
 References: thesis chapters 5-7 (eqs 5.4, 7.1; Table 7.2 for the gap this closes); Fuller, *Measurement Error
 Models* (1987), ch. 1-2 (attenuation of least squares by errors in the regressors); Sharma, Wu & Dalal (2005)
@@ -34,16 +35,15 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
 from simulation.camera_model import led_responses
 from simulation.capture_model import CaptureModel
-from simulation.matrix_fit import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target, target_xyz
 from simulation.fast_expected import mean_expected_de2000, prepare_expected
+from simulation.matrix_fit import solve_normal_equations
 from simulation.objective import ErrorStats, Evaluator, check_kernel_batch, kernel_threads
 
 log = logging.getLogger(__name__)
@@ -116,8 +116,8 @@ class Expected:
 class ExpectedErrorModel:
     """The expected captured error of light sets W (B, L, K) under ``capture`` (float64 reference path)."""
 
-    def __init__(self, setup: SimulationSetup, capture: Optional[CaptureModel] = None,
-                 reference: Optional[SimulationSetup] = None) -> None:
+    def __init__(self, setup: SimulationSetup, capture: CaptureModel | None = None,
+                 reference: SimulationSetup | None = None) -> None:
         self.setup = setup
         self.reference = reference or setup         # whose target spectra give the reference XYZ
         self.capture = capture or CaptureModel()
@@ -159,16 +159,16 @@ class ExpectedErrorModel:
 
     def flat_dn(self, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Open gate per light and channel (B, L, 3) in relative units and in DN above black."""
-        O = np.asarray(W, dtype=float) @ self.open
-        o_max = O.max(axis=-1, keepdims=True)
-        F = np.divide(self.capture.camera.headroom * O, o_max, out=np.zeros_like(O), where=o_max > 0)
-        return O, F
+        gate = np.asarray(W, dtype=float) @ self.open
+        o_max = gate.max(axis=-1, keepdims=True)
+        F = np.divide(self.capture.camera.headroom * gate, o_max, out=np.zeros_like(gate), where=o_max > 0)
+        return gate, F
 
     def values(self, W: np.ndarray, which: str) -> np.ndarray:
         """Noise-free flat-fielded patch values V0 (B, n, 3L) = camera values / open gate, channel by channel."""
-        O, _ = self.flat_dn(W)
+        gate, _ = self.flat_dn(W)
         C = np.einsum("blk,knc->bnlc", W, self.terms[which].R)
-        V = np.divide(C, O[:, None], out=np.zeros_like(C), where=O[:, None] > 0)
+        V = np.divide(C, gate[:, None], out=np.zeros_like(C), where=gate[:, None] > 0)
         return V.reshape(V.shape[0], V.shape[1], -1)
 
     def noise_coefficients(self, W: np.ndarray, which: str) -> np.ndarray:
@@ -206,9 +206,9 @@ class ExpectedErrorModel:
 
     def _drift_directions(self, W: np.ndarray, which: str) -> np.ndarray:
         """dV/d(shift) for every (light, LED): (B, L, K, n, 3L), zero where the LED is off."""
-        O, _ = self.flat_dn(W)
+        gate, _ = self.flat_dn(W)
         dC = np.einsum("blk,knc->blknc", W, self.terms[which].dR)
-        dC = np.divide(dC, O[:, :, None, None, :], out=np.zeros_like(dC), where=O[:, :, None, None, :] > 0)
+        dC = np.divide(dC, gate[:, :, None, None, :], out=np.zeros_like(dC), where=gate[:, :, None, None, :] > 0)
         B, L, K, n, _ = dC.shape
         out = np.zeros((B, L, K, n, L, 3))
         for li in range(L):
@@ -222,7 +222,7 @@ class ExpectedErrorModel:
         var = 2 * np.einsum("Bnab,Bnba->Bn", QS, QS) + 4 * np.einsum("Bna,Bnab,nbc,Bnc->Bn", b, QS, terms.Q, b)
         return s, var
 
-    def train_errors(self, W: np.ndarray, fit: Optional[dict] = None) -> Expected:
+    def train_errors(self, W: np.ndarray, fit: dict | None = None) -> Expected:
         """Expected captured training dE00 per patch (fit and errors on the same captured target)."""
         W = self.realise(np.asarray(W, dtype=float))
         f = fit or self.fit(W)
@@ -240,7 +240,7 @@ class ExpectedErrorModel:
         s, var = self._spread(Sigma, pred - tr.xyz, tr)
         return Expected(expected_norm(m * m, s, var), m)
 
-    def test_errors(self, W: np.ndarray, fit: Optional[dict] = None) -> Expected:
+    def test_errors(self, W: np.ndarray, fit: dict | None = None) -> Expected:
         """Expected captured test dE00 per patch: the test target captured on its own, the fit from the
         captured training target (its noise and drift reach the test predictions through the matrix)."""
         W = self.realise(np.asarray(W, dtype=float))
@@ -304,8 +304,8 @@ class ExpectedErrorEvaluator(Evaluator):
 
     objective = "expected-captured"
 
-    def __init__(self, setup: SimulationSetup, capture: Optional[CaptureModel] = None,
-                 reference: Optional[SimulationSetup] = None) -> None:
+    def __init__(self, setup: SimulationSetup, capture: CaptureModel | None = None,
+                 reference: SimulationSetup | None = None) -> None:
         super().__init__(setup, reference)
         self.model = ExpectedErrorModel(setup, capture, reference)
         self.capture = self.model.capture

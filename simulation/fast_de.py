@@ -18,8 +18,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 from numba import float32 as f32
+from numba import njit, prange
 
 _PI = f32(math.pi)
 _ONE = f32(1.0)

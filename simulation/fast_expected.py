@@ -12,10 +12,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 from numba import float32 as f32
+from numba import njit, prange
 
-from simulation.fast_de import _FASTMATH, _de2000, _f_lab   # one CIEDE2000 implementation for both objectives
+from simulation.fast_de import _FASTMATH, _de2000, _f_lab  # one CIEDE2000 implementation for both objectives
 
 _BLOCK = 256
 
@@ -163,39 +163,39 @@ def prepare_expected(idx, w, open_, rsum, gdiag, n_patches, headroom, t_scale, n
     gdiag (K, K, 3) (sum_j R_a,c R_b,c) in the responses' units; t_scale: exposure = headroom / (t_scale O_max);
     noise = (read_noise, electrons_per_dn, dark_current, dark_frames, flat_frames); px (3,): effective pixels per
     channel. Writes D_out (P, 3L) = sum_j sigma_jc^2, coef_out (3, 3L, P) (sigma^2 = c0 + c1 c + c2 c^2 in
-    response units) and adds to Cm_out (3L, 3K, P), zeros on entry, the map from per-LED responses to channels. The formulas are those of
-    ExpectedErrorModel.coefficients (float64 reference, tested against this).
+    response units) and adds to Cm_out (3L, 3K, P), zeros on entry, the map from per-LED responses to channels.
+    The formulas are those of ExpectedErrorModel.coefficients (float64 reference, tested against this).
     """
     P, L, m = w.shape
     read, gain, dark_i, n_dark, n_flat = noise[0], noise[1], noise[2], noise[3], noise[4]
     for p in prange(P):
-        for l in range(L):
+        for li in range(L):
             o_max = 0.0
             for c in range(3):
                 o = 0.0
                 for i in range(m):
-                    o += w[p, l, i] * open_[idx[p, l, i], c]
+                    o += w[p, li, i] * open_[idx[p, li, i], c]
                 o_max = max(o_max, o)
             t = headroom / (t_scale * o_max) if o_max > 0.0 else 0.0
             base = (read * read + t * dark_i / (gain * gain)) * (1.0 + 1.0 / n_dark) + 1.0 / 12.0
             for c in range(3):
-                ch = 3 * l + c
-                O = 0.0
+                ch = 3 * li + c
+                gate = 0.0
                 s1 = 0.0
                 s2 = 0.0
                 for i in range(m):
-                    wi = w[p, l, i]
-                    k = idx[p, l, i]
-                    O += wi * open_[k, c]
+                    wi = w[p, li, i]
+                    k = idx[p, li, i]
+                    gate += wi * open_[k, c]
                     s1 += wi * rsum[k, c]
                     Cm_out[ch, 3 * k + c, p] += wi
                     for i2 in range(m):
-                        s2 += wi * w[p, l, i2] * gdiag[k, idx[p, l, i2], c]
-                F = headroom * O / o_max if o_max > 0.0 else 0.0
+                        s2 += wi * w[p, li, i2] * gdiag[k, idx[p, li, i2], c]
+                F = headroom * gate / o_max if o_max > 0.0 else 0.0
                 a1 = 1.0 / (gain * F * px[c]) if F > 0.0 else 0.0
                 a0 = base / (F * F * px[c]) if F > 0.0 else 0.0
-                c0 = a0 * O * O
-                c1 = a1 * O
+                c0 = a0 * gate * gate
+                c1 = a1 * gate
                 c2 = (a1 + a0) / n_flat
                 coef_out[0, ch, p] = c0
                 coef_out[1, ch, p] = c1

@@ -12,7 +12,6 @@ import math
 import numpy as np
 from numba import njit, prange
 
-
 _SEGMENT = 128
 
 
@@ -35,9 +34,9 @@ def fit_light_sets(idx, w, G, H, ridge, M_out, A_out, extra):
     bounds = [0]
     for p in range(1, P):
         same = p - bounds[-1] < _SEGMENT
-        for l in range(L):
+        for li in range(L):
             for i in range(m):
-                if idx[p, l, i] != idx[p - 1, l, i]:
+                if idx[p, li, i] != idx[p - 1, li, i]:
                     same = False
         if not same:
             bounds.append(p)
@@ -138,9 +137,9 @@ def _fit_segment(idx, w, G, H, ridge, M_out, A_out, extra, lo, hi):
     q = L * m * 3
     wq = np.empty((L * m, B))
     for p in range(B):
-        for l in range(L):
+        for li in range(L):
             for i in range(m):
-                wq[l * m + i, p] = w[lo + p, l, i]
+                wq[li * m + i, p] = w[lo + p, li, i]
     CtC = np.zeros((n, n, B))
     CtB = np.zeros((n, 3, B))
     for a in range(q):
@@ -221,10 +220,10 @@ def _fit_segment(idx, w, G, H, ridge, M_out, A_out, extra, lo, hi):
         for o in range(3):
             for p in range(B):
                 M_out[o, r, lo + p] = 0.0
-    for l in range(L):
+    for li in range(L):
         for i in range(m):
-            k = idx[l, i]
+            k = idx[li, i]
             for c in range(3):
                 for o in range(3):
                     for p in range(B):
-                        M_out[o, 3 * k + c, lo + p] += wq[l * m + i, p] * A_out[lo + p, 3 * l + c, o]
+                        M_out[o, 3 * k + c, lo + p] += wq[li * m + i, p] * A_out[lo + p, 3 * li + c, o]

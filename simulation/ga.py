@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -35,9 +35,43 @@ class GaSettings:
     p_mutation: float = 0.9
 
 
-def ga(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings: GaSettings = GaSettings(),
-       seed: int = 0, *, chunk: int = 32, progress: Optional[ProgressCallback] = None,
-       cancel: Optional[CancelToken] = None) -> SearchOutcome:
+def _offspring(r: np.random.Generator, pop: np.ndarray, fit: np.ndarray, mask: np.ndarray, settings: GaSettings
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """One light set's lambda children (lam, D) of its population ``pop`` (mu, D) and the fitness each inherits
+    (NaN where it must be evaluated): crossover with probability p_c, else mutation (thesis Algorithm 2)."""
+    mu, D = pop.shape
+    lam = settings.lam
+    L, m = mask.shape[-2:]
+    cross = r.random(lam) <= settings.p_crossover
+    pa = r.integers(0, mu, lam)
+    pb = r.integers(0, mu, lam)
+    cut = r.integers(1, D, lam)
+    gene = r.integers(0, D, lam)
+    mutate = r.random(lam) <= settings.p_mutation
+    new_val = r.random(lam)
+    k = pop[pa].copy()
+    cols = np.arange(D)[None, :]
+    k = np.where(cross[:, None] & (cols >= cut[:, None]), pop[pb], k)
+    mut_rows = ~cross & mutate
+    k[mut_rows, gene[mut_rows]] = new_val[mut_rows]
+    k = enforce_constraints(k.reshape(lam, L, m), mask).reshape(lam, D)
+    same_a = np.all(k == pop[pa], axis=1)
+    same_b = cross & np.all(k == pop[pb], axis=1)
+    return k, np.where(same_a, fit[pa], np.where(same_b, fit[pb], np.nan))
+
+
+def _best_of(pop: np.ndarray, fit: np.ndarray, kids: np.ndarray, kid_fit: np.ndarray, mu: int
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The next populations (g, mu, D) and their fitness: the best mu of parents and children, per light set."""
+    allx = np.concatenate([pop, kids], axis=1)
+    allf = np.concatenate([fit, kid_fit], axis=1)
+    order = np.argsort(allf, axis=1, kind="stable")[:, :mu]
+    return np.take_along_axis(allx, order[..., None], axis=1), np.take_along_axis(allf, order, axis=1)
+
+
+def ga(evaluator: Evaluator, groups: Sequence[Group] | None = None, settings: GaSettings = GaSettings(),
+       seed: int = 0, *, chunk: int = 32, progress: ProgressCallback | None = None,
+       cancel: CancelToken | None = None) -> SearchOutcome:
     groups = list(groups) if groups is not None else light_pairs()
     idx_all, mask_all = group_arrays(groups)
     G, L, m = idx_all.shape
@@ -63,33 +97,13 @@ def ga(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings:
             kids = np.empty((g, lam, D))
             inherit = np.full((g, lam), np.nan)
             for gi, r in enumerate(rngs):
-                cross = r.random(lam) <= settings.p_crossover
-                pa = r.integers(0, mu, lam)
-                pb = r.integers(0, mu, lam)
-                cut = r.integers(1, D, lam)
-                gene = r.integers(0, D, lam)
-                mutate = r.random(lam) <= settings.p_mutation
-                new_val = r.random(lam)
-                k = pop[gi, pa].copy()
-                cols = np.arange(D)[None, :]
-                k = np.where(cross[:, None] & (cols >= cut[:, None]), pop[gi, pb], k)
-                mut_rows = ~cross & mutate
-                k[mut_rows, gene[mut_rows]] = new_val[mut_rows]
-                k = enforce_constraints(k.reshape(lam, L, m), mask[gi]).reshape(lam, D)
-                same_a = np.all(k == pop[gi, pa], axis=1)
-                same_b = cross & np.all(k == pop[gi, pb], axis=1)
-                inherit[gi] = np.where(same_a, fit[gi, pa], np.where(same_b, fit[gi, pb], np.nan))
-                kids[gi] = k
+                kids[gi], inherit[gi] = _offspring(r, pop[gi], fit[gi], mask[gi], settings)
             todo = np.isnan(inherit)
             kid_fit = inherit.copy()
             if todo.any():
                 sel = np.nonzero(todo)
                 kid_fit[sel] = evaluator.cost_indexed(idx_all[lo:hi][sel[0]], kids[sel].reshape(-1, L, m))
-            allx = np.concatenate([pop, kids], axis=1)
-            allf = np.concatenate([fit, kid_fit], axis=1)
-            order = np.argsort(allf, axis=1, kind="stable")[:, :mu]
-            pop = np.take_along_axis(allx, order[..., None], axis=1)
-            fit = np.take_along_axis(allf, order, axis=1)
+            pop, fit = _best_of(pop, fit, kids, kid_fit, mu)
             history[lo:hi, gen] = fit[:, 0]
         best_x[lo:hi] = pop[:, 0].reshape(g, L, m) * flat_mask.reshape(g, L, m)
         best_c[lo:hi] = fit[:, 0]

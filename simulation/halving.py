@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
-from typing import Callable, Optional, Sequence
 
 import numpy as np
 
@@ -46,10 +46,10 @@ class HalvingSettings:
     polish_step: float = 1e-3       # central differences: well above float32 noise and the PWM step
 
 
-def successive_halving(evaluator, groups: Optional[Sequence[Group]] = None,
+def successive_halving(evaluator, groups: Sequence[Group] | None = None,
                        settings: HalvingSettings = HalvingSettings(), seed: int = 0, *,
-                       progress: Optional[ProgressCallback] = None,
-                       cancel: Optional[CancelToken] = None) -> SearchOutcome:
+                       progress: ProgressCallback | None = None,
+                       cancel: CancelToken | None = None) -> SearchOutcome:
     """Successive halving with the thesis PSO as the inner optimiser (each rung restarts PSO, seeded by rung),
     then the L-BFGS-B polish of the best sets. Best first."""
     groups = list(groups) if groups is not None else light_pairs()
@@ -60,7 +60,7 @@ def successive_halving(evaluator, groups: Optional[Sequence[Group]] = None,
     best_c = np.full(G, np.inf)
     alive = np.arange(G)
     iterations = settings.iterations
-    rungs = []
+    rungs: list[dict[str, float]] = []
     while True:
         check(cancel)
         ps = PsoSettings(settings.c0, settings.c1, settings.c2, iterations, settings.particles)
@@ -98,8 +98,24 @@ def set_cost(evaluator, idx_row: np.ndarray, mask_row: np.ndarray) -> Callable[[
     return cost
 
 
+def _central_difference(cost: Callable[[np.ndarray], np.ndarray], live: np.ndarray, h: float
+                        ) -> Callable[[np.ndarray], tuple[float, np.ndarray]]:
+    """The cost of the ``live`` levels and its central-difference gradient (step ``h``, levels clipped to
+    [0, 1]), from one batch of 2D + 1 points."""
+    D = int(live.sum())
+    steps = np.vstack([np.zeros(D), np.eye(D) * h, -np.eye(D) * h])
+
+    def fun_grad(v: np.ndarray) -> tuple[float, np.ndarray]:
+        X = np.zeros((len(steps), live.size))
+        X[:, live] = np.clip(v + steps, 0.0, 1.0)
+        c = cost(X)
+        return float(c[0]), (c[1:D + 1] - c[D + 1:]) / (2 * h)
+
+    return fun_grad
+
+
 def polish(evaluator, groups: Sequence[Group], best_x: np.ndarray, best_c: np.ndarray,
-           settings: HalvingSettings, *, cancel: Optional[CancelToken] = None) -> list[dict]:
+           settings: HalvingSettings, *, cancel: CancelToken | None = None) -> list[dict]:
     """L-BFGS-B from the best ``settings.polish_sets`` sets' levels, in place where it improves (levels
     normalised as PSO's, eqs 6.2-6.4). Returns what it did per set."""
     from scipy.optimize import minimize
@@ -113,15 +129,7 @@ def polish(evaluator, groups: Sequence[Group], best_x: np.ndarray, best_c: np.nd
         live = mask.reshape(-1) > 0
         cost = set_cost(evaluator, idx_all[gi], mask)
         D = int(live.sum())
-        steps = np.vstack([np.zeros(D), np.eye(D) * h, -np.eye(D) * h])
-
-        def fun_grad(v: np.ndarray) -> tuple[float, np.ndarray]:
-            X = np.zeros((len(steps), live.size))
-            X[:, live] = np.clip(v + steps, 0.0, 1.0)
-            c = cost(X)
-            return float(c[0]), (c[1:D + 1] - c[D + 1:]) / (2 * h)
-
-        res = minimize(fun_grad, best_x[gi].reshape(-1)[live], jac=True, method="L-BFGS-B",
+        res = minimize(_central_difference(cost, live, h), best_x[gi].reshape(-1)[live], jac=True, method="L-BFGS-B",
                        bounds=[(0.0, 1.0)] * D, options={"maxiter": settings.polish_iterations, "ftol": 1e-7})
         x = np.zeros(live.size)
         x[live] = res.x

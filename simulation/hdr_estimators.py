@@ -31,8 +31,8 @@ multiple exposures", J. Electronic Imaging 12(2) (weights t^2 / variance).
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

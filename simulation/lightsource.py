@@ -45,7 +45,7 @@ class LightSource:
     def weights(self, n_leds: int = N_SPHERE_LEDS) -> np.ndarray:
         """Dense level vector over all LEDs (0 for LEDs not in this source)."""
         w = np.zeros(n_leds)
-        for n, v in zip(self.leds, self.levels):
+        for n, v in zip(self.leds, self.levels, strict=True):
             w[n - 1] = v
         return w
 
@@ -68,5 +68,5 @@ class LightSource:
         return {"leds": list(self.leds), "levels": [float(v) for v in self.levels], "name": self.name}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "LightSource":
+    def from_dict(cls, data: dict) -> LightSource:
         return cls(tuple(data["leds"]), tuple(data.get("levels") or ()), data.get("name", ""))

@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
 log = logging.getLogger(__name__)
 
 RIDGE = 1e-12  # relative to the equilibrated diagonal (= 1): regularises only singular values below ~1e-6
@@ -41,7 +40,7 @@ class CharacterisationMatrix:
         return {"matrix": self.matrix.round(10).tolist(), "channels": self.channels, "method": self.method}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "CharacterisationMatrix":
+    def from_dict(cls, data: dict) -> CharacterisationMatrix:
         return cls(np.asarray(data["matrix"], dtype=float), list(data.get("channels", [])),
                    data.get("method", "least-squares"))
 

@@ -11,18 +11,18 @@ from __future__ import annotations
 
 import contextlib
 import logging
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator, Optional
 
 import numba
 import numpy as np
 
 from simulation.camera_model import channel_names, channel_responses, led_responses
-from simulation.matrix_fit import RIDGE, CharacterisationMatrix, _check_patches, fit_matrix
-from simulation.fast_linalg import fit_light_sets
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target, check_setup, target_xyz
 from simulation.fast_de import mean_de2000_mapped
+from simulation.fast_linalg import fit_light_sets
+from simulation.matrix_fit import RIDGE, CharacterisationMatrix, _check_patches, fit_matrix
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +54,7 @@ class ErrorStats:
     max: float
 
     @classmethod
-    def of(cls, errors: np.ndarray) -> "ErrorStats":
+    def of(cls, errors: np.ndarray) -> ErrorStats:
         e = np.asarray(errors, dtype=float)
         return cls(float(e.mean()), float(np.median(e)), float(np.percentile(e, 90)), float(e.max()))
 
@@ -78,7 +78,7 @@ class PatchSet:
     """One target's patch-level data under one setup; ``reference``: the target whose spectra give the reference
     XYZ when they differ from what the camera sees (a robust world's measurement error), default ``target``."""
 
-    def __init__(self, setup: SimulationSetup, target: Target, reference: Optional[Target] = None):
+    def __init__(self, setup: SimulationSetup, target: Target, reference: Target | None = None):
         self.target = target
         self.xyz, self.white = target_xyz(setup, reference or target)    # eq 4.2 unless the setup says E308
         self.lab = xyz_to_lab(self.xyz, self.white)
@@ -101,7 +101,7 @@ class Evaluator:
 
     objective = "noise-free"
 
-    def __init__(self, setup: SimulationSetup, reference: Optional[SimulationSetup] = None):
+    def __init__(self, setup: SimulationSetup, reference: SimulationSetup | None = None):
         check_setup(setup)                       # shapes the kernels rely on, before anything is precomputed
         self.setup = setup
         ref = reference or setup
@@ -122,7 +122,7 @@ class Evaluator:
 
     # ---- batched path (optimisers) ----
     def fit_indexed(self, idx: np.ndarray, w: np.ndarray,
-                    extra: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+                    extra: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Batch characterisation: idx (P, L, m) 0-based LED indices, w (P, L, m) levels -> (M, A).
 
         ``extra`` (P, 3L): added to the normal equations' diagonal (None: plain least squares)."""

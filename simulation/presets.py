@@ -17,10 +17,6 @@ import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
-
-import numpy as np
-from scipy.optimize import nnls
 
 import resources
 from simulation.atomic_io import atomic_write
@@ -43,7 +39,7 @@ class Preset:
     name: str
     sources: tuple[LightSource, ...]
     method: str = "manual"
-    seed: Optional[int] = None
+    seed: int | None = None
     mode: str = "reflective"
     errors: dict = field(default_factory=dict)
     dataset: dict = field(default_factory=dict)
@@ -143,22 +139,3 @@ def packaged_presets() -> list[Path]:
     """The presets shipped in resources/presets (made by ``python -m resources.make_presets``)."""
     folder = resources.path("presets")
     return sorted(folder.glob("*.json")) if folder.is_dir() else []
-
-
-def d65_mix(leds: np.ndarray, illuminant: np.ndarray, cmfs: np.ndarray) -> tuple[LightSource, float]:
-    """A sphere mix approximating D65 for the 3-channel baseline (thesis 1.4).
-
-    Non-negative least squares of the LED spectra to the D65 spectrum, scaled so the largest level is 1.
-    Returns the light source and its chromaticity distance to D65 (CIE 1976 u'v').
-    """
-    levels, _ = nnls(np.asarray(leds).T, np.asarray(illuminant, dtype=float))
-    levels = levels / levels.max()
-
-    def uv(spd: np.ndarray) -> np.ndarray:
-        X, Y, Z = spd @ cmfs
-        d = X + 15 * Y + 3 * Z
-        return np.array([4 * X / d, 9 * Y / d])
-
-    duv = float(np.linalg.norm(uv(levels @ leds) - uv(illuminant)))
-    used = [i for i in range(len(levels)) if levels[i] > 1e-4]
-    return LightSource(tuple(i + 1 for i in used), tuple(float(levels[i]) for i in used), "D65 mix"), duv

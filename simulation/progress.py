@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import threading
-from typing import Callable, Optional
+from collections.abc import Callable
 
 ProgressCallback = Callable[[float, str], None]
 # the message simulation.warmup reports while numba compiles the kernels (front ends show it even when quiet)
@@ -31,18 +31,18 @@ class CancelToken:
             raise Cancelled("cancelled by the user")
 
 
-def report(progress: Optional[ProgressCallback], fraction: float, message: str) -> None:
+def report(progress: ProgressCallback | None, fraction: float, message: str) -> None:
     if progress is not None:
         progress(min(max(fraction, 0.0), 1.0), message)
 
 
-def scaled(progress: Optional[ProgressCallback], start: float, end: float) -> Optional[ProgressCallback]:
+def scaled(progress: ProgressCallback | None, start: float, end: float) -> ProgressCallback | None:
     """``progress`` for a sub-task that fills ``start``..``end`` of the whole (its 0..1 mapped there)."""
     if progress is None:
         return None
     return lambda fraction, message: report(progress, start + (end - start) * fraction, message)
 
 
-def check(cancel: Optional[CancelToken]) -> None:
+def check(cancel: CancelToken | None) -> None:
     if cancel is not None:
         cancel.check()

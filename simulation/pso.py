@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -52,9 +52,9 @@ def _rngs(seed: int, first: int, count: int) -> list[np.random.Generator]:
     return [np.random.default_rng([seed, first + i]) for i in range(count)]
 
 
-def pso(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings: PsoSettings = PsoSettings(),
-        seed: int = 0, *, chunk: int = 32, progress: Optional[ProgressCallback] = None,
-        cancel: Optional[CancelToken] = None) -> SearchOutcome:
+def pso(evaluator: Evaluator, groups: Sequence[Group] | None = None, settings: PsoSettings = PsoSettings(),
+        seed: int = 0, *, chunk: int = 32, progress: ProgressCallback | None = None,
+        cancel: CancelToken | None = None) -> SearchOutcome:
     """Run PSO on every light set in ``groups`` (default: the 630 binned pairs); best first."""
     groups = list(groups) if groups is not None else light_pairs()
     t0 = time.perf_counter()
@@ -71,8 +71,8 @@ def pso(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, settings
 
 
 def swarm_bests(evaluator: Evaluator, groups: Sequence[Group], settings: PsoSettings = PsoSettings(),
-                seed: int = 0, *, chunk: int = 32, progress: Optional[ProgressCallback] = None,
-                cancel: Optional[CancelToken] = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                seed: int = 0, *, chunk: int = 32, progress: ProgressCallback | None = None,
+                cancel: CancelToken | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Algorithm 1 on every light set: the swarm bests' levels (G, L, m), costs (G,) and the best cost after
     each iteration per set (G, iterations + 1), as arrays (what :func:`pso` and successive halving build on)."""
     idx_all, mask_all = group_arrays(groups)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import logging
 from dataclasses import asdict, dataclass, replace
-from typing import Optional
 
 import numpy as np
 
@@ -34,7 +33,7 @@ class RobustSettings:
     camera_shift_sd_nm: float = 2.0
     reference_gain_sd: float = 0.01
     reference_spectral_sd: float = 0.01
-    quantile: Optional[float] = None     # None: the mean over worlds; else this quantile (e.g. 0.9)
+    quantile: float | None = None     # None: the mean over worlds; else this quantile (e.g. 0.9)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -77,7 +76,7 @@ class RobustEvaluator(ExpectedErrorEvaluator):
 
     objective = "robust"
 
-    def __init__(self, setup: SimulationSetup, capture: Optional[CaptureModel] = None,
+    def __init__(self, setup: SimulationSetup, capture: CaptureModel | None = None,
                  settings: RobustSettings = RobustSettings()) -> None:
         super().__init__(setup, capture)
         self.settings = settings

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
 
 from simulation.capture_model import CaptureModel
 from simulation.choices import METHODS, OBJECTIVES
@@ -36,7 +36,7 @@ DEFAULT_OBJECTIVE = OBJECTIVES[0]           # "expected-captured"
 
 
 def make_evaluator(setup: SimulationSetup, objective: str = DEFAULT_OBJECTIVE,
-                   capture: Optional[CaptureModel] = None,
+                   capture: CaptureModel | None = None,
                    robust: RobustSettings = RobustSettings()) -> Evaluator:
     """The evaluator of ``objective``; ``capture`` defaults to the virtual lab's capture in the setup's mode."""
     if objective not in OBJECTIVES:
@@ -53,16 +53,16 @@ def make_evaluator(setup: SimulationSetup, objective: str = DEFAULT_OBJECTIVE,
 class RunResult:
     mode: str
     method: str
-    seed: Optional[int]
+    seed: int | None
     elapsed_s: float
     evaluations: int
     three_channel: dict
-    outcome: Optional[SearchOutcome]
+    outcome: SearchOutcome | None
     setup: SimulationSetup
     top: int = 10
     extra: dict = field(default_factory=dict)
     objective: str = DEFAULT_OBJECTIVE
-    capture: Optional[CaptureModel] = None
+    capture: CaptureModel | None = None
 
     def to_json(self) -> dict:
         results = [c.to_dict() for c in self.outcome.candidates[:self.top]] if self.outcome else []
@@ -73,7 +73,7 @@ class RunResult:
                 "settings": self.outcome.settings if self.outcome else {}, "setup": self.setup.describe(),
                 **({"capture": self.capture.to_dict()} if self.capture else {}), **self.extra}
 
-    def preset(self, rank: int = 0, name: Optional[str] = None) -> Preset:
+    def preset(self, rank: int = 0, name: str | None = None) -> Preset:
         if self.outcome is None:
             raise ValueError("the three-channel baseline has no light pair to save as a preset")
         cand = self.outcome.candidates[rank]
@@ -81,7 +81,7 @@ class RunResult:
                   "test": cand.test.to_dict() if cand.test else {}}
         if cand.expected_train is not None:
             errors["expected_captured"] = {"train": cand.expected_train.to_dict(),
-                                           "test": cand.expected_test.to_dict()}
+                                           "test": cand.expected_test_errors.to_dict()}
         model = {"grid": self.setup.grid.label(), "camera": self.setup.camera_name, "observer": "CIE 1931 2°",
                  "illuminant": "D65", "objective": self.objective, **(self.outcome.settings or {})}
         if self.capture is not None:
@@ -96,9 +96,9 @@ class RunResult:
 def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top: int = 10,
         bins: Sequence[int] = DEFAULT_BINS, pso_settings: PsoSettings = PsoSettings(),
         ga_settings: GaSettings = GaSettings(), halving_settings: HalvingSettings = HalvingSettings(),
-        progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None,
-        evaluator: Optional[Evaluator] = None, objective: str = DEFAULT_OBJECTIVE,
-        capture: Optional[CaptureModel] = None, robust: RobustSettings = RobustSettings()) -> RunResult:
+        progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
+        evaluator: Evaluator | None = None, objective: str = DEFAULT_OBJECTIVE,
+        capture: CaptureModel | None = None, robust: RobustSettings = RobustSettings()) -> RunResult:
     """``evaluator``: one built on ``setup`` for ``objective`` (make_evaluator) to use instead of a new one (the
     GUI passes one that reports the best cost so far for its live convergence plot). ``elapsed_s`` excludes the
     kernels' one-off compile (``extra["kernel_warm_up_s"]``; simulation.warmup)."""
@@ -152,8 +152,8 @@ def format_table(result: RunResult) -> str:
                      f" {'exp.tr':>7} {'exp.te':>7}")
         for i, ((s1, *rest), c) in enumerate(rows, start=1):
             s2 = rest[0] if rest else ""
-            exp = (f" {c.expected_train.mean:>7.3f} {c.expected_test.mean:>7.3f}" if c.expected_train else "")
-            lines.append(f"{i:>3}  {s1:<{w1}} {s2:<{w2}} {c.train.mean:>7.3f} {c.test.mean:>7.3f}{exp}")
+            exp = (f" {c.expected_train.mean:>7.3f} {c.expected_test_errors.mean:>7.3f}" if c.expected_train else "")
+            lines.append(f"{i:>3}  {s1:<{w1}} {s2:<{w2}} {c.train_errors.mean:>7.3f} {c.test_errors.mean:>7.3f}{exp}")
         lines.append("train/test: noise-free simulation; exp.tr/exp.te: expected captured ("
                      + (result.capture.label() if result.capture else "") + ")")
     return "\n".join(lines)

@@ -9,8 +9,8 @@ from __future__ import annotations
 import itertools
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -58,19 +58,42 @@ def group_arrays(groups: Sequence[Group]) -> tuple[np.ndarray, np.ndarray]:
     return idx, mask
 
 
+def _evaluated(stats: ErrorStats | None, what: str) -> ErrorStats:
+    if stats is None:
+        raise ValueError(f"this candidate has no {what} errors: it was not re-evaluated (refine_top)")
+    return stats
+
+
 @dataclass
 class Candidate:
     """One light set with its optimised levels and errors."""
 
     sources: tuple[LightSource, ...]
     train_cost: float                       # objective value found by the search (float32 kernel)
-    train: Optional[ErrorStats] = None      # float64 noise-free re-evaluation (filled for the reported top K)
-    test: Optional[ErrorStats] = None
-    expected_train: Optional[ErrorStats] = None     # float64 expected captured errors (simulation.expected_error)
-    expected_test: Optional[ErrorStats] = None
+    train: ErrorStats | None = None      # float64 noise-free re-evaluation (filled for the reported top K)
+    test: ErrorStats | None = None
+    expected_train: ErrorStats | None = None     # float64 expected captured errors (simulation.expected_error)
+    expected_test: ErrorStats | None = None
 
     def weights(self, n_leds: int) -> np.ndarray:
         return np.stack([s.weights(n_leds) for s in self.sources])
+
+    # the re-evaluated errors of a reported candidate (refine_top fills them; asking before is a bug)
+    @property
+    def train_errors(self) -> ErrorStats:
+        return _evaluated(self.train, "noise-free training")
+
+    @property
+    def test_errors(self) -> ErrorStats:
+        return _evaluated(self.test, "noise-free test")
+
+    @property
+    def expected_train_errors(self) -> ErrorStats:
+        return _evaluated(self.expected_train, "expected captured training")
+
+    @property
+    def expected_test_errors(self) -> ErrorStats:
+        return _evaluated(self.expected_test, "expected captured test")
 
     def to_dict(self) -> dict:
         d: dict = {}
@@ -86,9 +109,9 @@ class Candidate:
             d["test"] = {k: round(v, 4) for k, v in self.test.to_dict().items()}
         if self.expected_train:
             d["expected_train_de00_mean"] = round(self.expected_train.mean, 4)
-            d["expected_test_de00_mean"] = round(self.expected_test.mean, 4)
+            d["expected_test_de00_mean"] = round(self.expected_test_errors.mean, 4)
             d["expected_train"] = {k: round(v, 4) for k, v in self.expected_train.to_dict().items()}
-            d["expected_test"] = {k: round(v, 4) for k, v in self.expected_test.to_dict().items()}
+            d["expected_test"] = {k: round(v, 4) for k, v in self.expected_test_errors.to_dict().items()}
         return d
 
     def objective_mean(self, objective: str) -> float:
@@ -103,7 +126,7 @@ class Candidate:
 @dataclass
 class SearchOutcome:
     method: str
-    seed: Optional[int]
+    seed: int | None
     elapsed_s: float
     evaluations: int
     candidates: list[Candidate]             # best first
@@ -149,8 +172,8 @@ def refine_top(evaluator: Evaluator, outcome: SearchOutcome, top: int, expected=
     return outcome
 
 
-def exhaustive(evaluator: Evaluator, groups: Optional[Sequence[Group]] = None, *, batch: int = 20000,
-               progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+def exhaustive(evaluator: Evaluator, groups: Sequence[Group] | None = None, *, batch: int = 20000,
+               progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> SearchOutcome:
     """Full-intensity search over ``groups`` (default: the 630 binned pairs)."""
     groups = list(groups) if groups is not None else light_pairs()
     t0 = time.perf_counter()

@@ -37,12 +37,6 @@ class SpectralTable:
     meta: dict[str, str] = field(default_factory=dict)
     source: str = ""
 
-    def column(self, name: str) -> np.ndarray:
-        try:
-            return self.values[:, self.columns.index(name)]
-        except ValueError:
-            raise KeyError(f"{self.source}: no column {name!r}; columns are {', '.join(self.columns)}") from None
-
 
 def read_spectral_csv(
     path: str | Path,
@@ -84,6 +78,57 @@ def read_text_file(path: Path, what: str, error: type, max_bytes: int) -> str:
         raise error(f"{path}: binary or not UTF-8 (UTF-16?); expected a UTF-8 text {what} file") from None
 
 
+def _header_row(cells: list[str], where: str, expected_columns: int | None) -> list[str]:
+    """The header row (wavelength column, then the data columns' names); ``where`` is "file:line"."""
+    if len(cells) < 2:
+        raise SpectralDataError(f"{where}: header needs a wavelength column and at least one data column")
+    try:
+        float(cells[0])
+    except ValueError:
+        pass
+    else:
+        raise SpectralDataError(f"{where}: expected a header row (wavelength_nm,<names>...), found numbers")
+    if expected_columns is not None and len(cells) - 1 != expected_columns:
+        raise SpectralDataError(
+            f"{where}: expected {expected_columns} data columns after the wavelength, found {len(cells) - 1}"
+        )
+    return cells
+
+
+def _numbers(cells: list[str], header: list[str], where: str) -> list[float]:
+    """A data row as finite numbers, one per header column."""
+    if len(cells) != len(header):
+        raise SpectralDataError(f"{where}: expected {len(header)} columns as in the header, found {len(cells)}")
+    values: list[float] = []
+    for col, cell in zip(header, cells, strict=True):
+        try:
+            v = float(cell)
+        except ValueError:
+            raise SpectralDataError(f"{where}: column {col!r}: {cell!r} is not a number") from None
+        if math.isnan(v) or math.isinf(v):
+            raise SpectralDataError(f"{where}: column {col!r}: {cell} is not a finite number")
+        values.append(v)
+    return values
+
+
+def _check_row(values: list[float], header: list[str], where: str, previous_wl: float | None, *,
+               allow_negative: bool, max_value: float | None, wavelength_range: tuple[float, float]) -> None:
+    """The row's wavelength in range and above the previous row's; its values within the allowed range."""
+    wl = values[0]
+    if not wavelength_range[0] <= wl <= wavelength_range[1]:
+        raise SpectralDataError(
+            f"{where}: wavelength {wl:g} nm is outside {wavelength_range[0]:g}-{wavelength_range[1]:g} nm"
+            " (is the first column in nm?)"
+        )
+    if previous_wl is not None and wl <= previous_wl:
+        raise SpectralDataError(f"{where}: wavelengths must increase strictly; {wl:g} nm follows {previous_wl:g} nm")
+    for col, v in zip(header[1:], values[1:], strict=True):
+        if v < 0 and not allow_negative:
+            raise SpectralDataError(f"{where}: column {col!r}: negative value {v:g}")
+        if max_value is not None and v > max_value * (1 + 1e-9):
+            raise SpectralDataError(f"{where}: column {col!r}: value {v:g} exceeds {max_value:g}")
+
+
 def parse_spectral_csv(
     text: str,
     name: str = "<text>",
@@ -106,57 +151,24 @@ def parse_spectral_csv(
             if sep:
                 meta[key.strip().lower()] = value.strip()
             continue
+        where = f"{name}:{lineno}"
         try:
             cells = [c.strip() for c in next(csv.reader([line]))]
         except csv.Error as exc:
-            raise SpectralDataError(f"{name}:{lineno}: not a CSV row ({exc})") from None
+            raise SpectralDataError(f"{where}: not a CSV row ({exc})") from None
         if header is None:
-            if len(cells) < 2:
-                raise SpectralDataError(f"{name}:{lineno}: header needs a wavelength column and at least one data column")
-            try:
-                float(cells[0])
-            except ValueError:
-                pass
-            else:
-                raise SpectralDataError(f"{name}:{lineno}: expected a header row (wavelength_nm,<names>...), found numbers")
-            header = cells
-            if expected_columns is not None and len(header) - 1 != expected_columns:
-                raise SpectralDataError(
-                    f"{name}:{lineno}: expected {expected_columns} data columns after the wavelength, found {len(header) - 1}"
-                )
+            header = _header_row(cells, where, expected_columns)
             continue
-        if len(cells) != len(header):
-            raise SpectralDataError(f"{name}:{lineno}: expected {len(header)} columns as in the header, found {len(cells)}")
-        values: list[float] = []
-        for col, cell in zip(header, cells):
-            try:
-                v = float(cell)
-            except ValueError:
-                raise SpectralDataError(f"{name}:{lineno}: column {col!r}: {cell!r} is not a number") from None
-            if math.isnan(v) or math.isinf(v):
-                raise SpectralDataError(f"{name}:{lineno}: column {col!r}: {cell} is not a finite number")
-            values.append(v)
-        wl = values[0]
-        if not wavelength_range[0] <= wl <= wavelength_range[1]:
-            raise SpectralDataError(
-                f"{name}:{lineno}: wavelength {wl:g} nm is outside {wavelength_range[0]:g}-{wavelength_range[1]:g} nm"
-                " (is the first column in nm?)"
-            )
-        if wavelengths and wl <= wavelengths[-1]:
-            raise SpectralDataError(
-                f"{name}:{lineno}: wavelengths must increase strictly; {wl:g} nm follows {wavelengths[-1]:g} nm"
-            )
-        for col, v in zip(header[1:], values[1:]):
-            if v < 0 and not allow_negative:
-                raise SpectralDataError(f"{name}:{lineno}: column {col!r}: negative value {v:g}")
-            if max_value is not None and v > max_value * (1 + 1e-9):
-                raise SpectralDataError(f"{name}:{lineno}: column {col!r}: value {v:g} exceeds {max_value:g}")
-        wavelengths.append(wl)
+        values = _numbers(cells, header, where)
+        _check_row(values, header, where, wavelengths[-1] if wavelengths else None, allow_negative=allow_negative,
+                   max_value=max_value, wavelength_range=wavelength_range)
+        wavelengths.append(values[0])
         rows.append(values[1:])
     if header is None:
         raise SpectralDataError(f"{name}:1: no header row and no data")
     if len(rows) < 2:
-        raise SpectralDataError(f"{name}:{len(text.splitlines())}: need at least two wavelength rows, found {len(rows)}")
+        raise SpectralDataError(f"{name}:{len(text.splitlines())}: need at least two wavelength rows, "
+                                f"found {len(rows)}")
     table = SpectralTable(np.array(wavelengths), np.array(rows, dtype=float), header[1:], meta, name)
     log.debug("read %s: %d wavelengths x %d columns", name, *table.values.shape)
     return table
@@ -176,5 +188,5 @@ def write_spectral_csv(
             fh.write(f"# {key}: {value}\n")
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(["wavelength_nm", *columns])
-        for wl, row in zip(wavelengths, values):
+        for wl, row in zip(wavelengths, values, strict=True):
             writer.writerow([f"{wl:g}", *(fmt % v for v in row)])

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simulation.lightsource import LightSource
+
 log = logging.getLogger(__name__)
 
 PWM_MAX = 65535
@@ -104,12 +106,10 @@ def realisable_mix(leds: np.ndarray, target: np.ndarray, sphere: SpherePropertie
 
 
 def realisable_d65_mix(leds: np.ndarray, illuminant: np.ndarray, cmfs: np.ndarray,
-                       sphere: SphereProperties = SphereProperties()) -> tuple["LightSource", float]:
+                       sphere: SphereProperties = SphereProperties()) -> tuple[LightSource, float]:
     """The 3-channel baseline's D65-like sphere mix (thesis 1.4) realisable on ``sphere``, and its CIE 1976
     u'v' distance to D65."""
     import colour
-
-    from simulation.lightsource import LightSource
 
     levels = realisable_mix(leds, illuminant, sphere)
     used = np.nonzero(levels)[0]

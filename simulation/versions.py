@@ -24,7 +24,7 @@ SOFTWARE = ("numpy", "numba", "colour-science", "rawpy")
 
 
 def _version(distribution: str) -> str | None:
-    from importlib import metadata       # ~50 ms: only when a version is asked for
+    from importlib import metadata  # ~50 ms: only when a version is asked for
 
     try:
         return metadata.version(distribution)
@@ -47,7 +47,7 @@ def _libraw_version() -> str | None:
 
 @functools.lru_cache(maxsize=1)
 def _versions() -> tuple[tuple[str, str | None], ...]:
-    out = [(DISTRIBUTION, dualrgb_version()), ("python", platform.python_version())]
+    out: list[tuple[str, str | None]] = [(DISTRIBUTION, dualrgb_version()), ("python", platform.python_version())]
     out += [(name, _version(name)) for name in SOFTWARE]
     return tuple(out + [("libraw", _libraw_version())])
 

@@ -13,7 +13,7 @@ import logging
 import os
 import threading
 import time
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -46,7 +46,7 @@ def kernels_cached() -> bool | None:
     return all(states)
 
 
-def warm_up(evaluator: "Evaluator", progress: Optional[ProgressCallback] = None,
+def warm_up(evaluator: Evaluator, progress: ProgressCallback | None = None,
             notice_after_s: float = 1.0) -> float:
     """Compile or load the kernels ``evaluator`` uses; returns the seconds it took.
 

@@ -10,8 +10,14 @@ import sys
 from pathlib import Path
 
 from app.commands.options import count, input_file, number
-from app.commands.stand_options import (add_device_options, ask_person, open_devices, open_session,
-                                        progress_printer, write_json)
+from app.commands.stand_options import (
+    add_device_options,
+    ask_person,
+    open_devices,
+    open_session,
+    progress_printer,
+    write_json,
+)
 
 log = logging.getLogger(__name__)
 
@@ -30,7 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dark-frames", type=count(1, 200), default=10)
     p.add_argument("--flat-frames", type=count(1, 200), default=3)
     p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
-    p.add_argument("--target-width-mm", type=number(above=0.0), help="test target width (outer corners of its corner patches)")
+    p.add_argument("--target-width-mm", type=number(above=0.0),
+                   help="test target width (outer corners of its corner patches)")
     p.add_argument("--train-grid", type=input_file, help="patch grid JSON of the training target (real stands)")
     p.add_argument("--test-grid", type=input_file, help="patch grid JSON of the test target (real stands)")
     p.add_argument("--no-de-fit", action="store_true", help="least squares only")

@@ -10,8 +10,16 @@ import logging
 from pathlib import Path
 
 from app.commands.options import count, input_file, number
-from app.commands.stand_options import (add_device_options, add_reuse_options, ask_person, open_devices, open_session,
-                                        progress_printer, reuse_limits, write_json)
+from app.commands.stand_options import (
+    add_device_options,
+    add_reuse_options,
+    ask_person,
+    open_devices,
+    open_session,
+    progress_printer,
+    reuse_limits,
+    write_json,
+)
 
 log = logging.getLogger(__name__)
 

@@ -25,12 +25,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--new-session", action="store_true",
                    help="when --out holds a session made with other options, start a new one beside it "
                         "(default: refuse, naming the difference)")
-    p.add_argument("--no-de-fit", action="store_true", help="fit least squares only (default: as the parsimony study chose, resources/parsimony.json)")
+    p.add_argument("--no-de-fit", action="store_true",
+                   help="fit least squares only (default: as the parsimony study chose, resources/parsimony.json)")
     p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.demo import DemoSettings, run_demo   # heavy imports only when the demo runs
+    from app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
                             seed=args.seed, dark_frames=args.dark_frames, new_session=args.new_session,

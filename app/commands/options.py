@@ -15,7 +15,7 @@ import argparse
 import math
 import os
 import stat
-from typing import Callable, Optional
+from collections.abc import Callable
 
 # the virtual camera renders the whole frame in memory; the D610's own raw is 6080 x 4028
 MIN_FRAME_SIDE, MAX_FRAME_SIDE = 64, 8192
@@ -26,13 +26,13 @@ def _fail(text: str, problem: str) -> argparse.ArgumentTypeError:
     return argparse.ArgumentTypeError(f"{text!r}: {problem}")
 
 
-def _limits(lo: Optional[float], hi: Optional[float]) -> str:
+def _limits(lo: float | None, hi: float | None) -> str:
     if lo is not None and hi is not None:
         return f"from {lo:g} to {hi:g}"
     return f"at least {lo:g}" if lo is not None else f"at most {hi:g}"
 
 
-def number(lo: Optional[float] = None, hi: Optional[float] = None, *, above: Optional[float] = None,
+def number(lo: float | None = None, hi: float | None = None, *, above: float | None = None,
            unit: str = "") -> Callable[[str], float]:
     """A finite float in [lo, hi]; ``above``: strictly greater than it (e.g. a positive time)."""
     def parse(text: str) -> float:
@@ -56,7 +56,7 @@ def seconds(lo: float, hi: float) -> Callable[[str], float]:
     return number(lo, hi, above=0.0, unit=" s")
 
 
-def count(lo: int = 1, hi: Optional[int] = None) -> Callable[[str], int]:
+def count(lo: int = 1, hi: int | None = None) -> Callable[[str], int]:
     """A whole number in [lo, hi]."""
     def parse(text: str) -> int:
         try:

@@ -47,7 +47,7 @@ def raw_info(frame: RawFrame) -> dict:
 
 
 def format_info(info: dict) -> str:
-    from drivers.camera.gphoto import format_shutter
+    from drivers.camera.gphoto_labels import format_shutter
 
     shot = []
     if info["exposure_s"]:

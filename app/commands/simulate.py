@@ -64,7 +64,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
     p.add_argument("--train-csv", type=input_file,
                    help="measured training target spectra (spectral CSV or CGATS / X-Rite file)")
-    p.add_argument("--test-csv", type=input_file, help="measured test target spectra (spectral CSV or CGATS / X-Rite file)")
+    p.add_argument("--test-csv", type=input_file,
+                   help="measured test target spectra (spectral CSV or CGATS / X-Rite file)")
     p.add_argument("--reference-xyz", choices=("eq-4.2", "astm-e308"), default="eq-4.2",
                    help="targets' reference XYZ: the thesis' eq 4.2 sum over 410-780 nm (default) or ASTM E308 "
                         "(colour-science) over the measured spectra")

@@ -24,7 +24,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING
 
 from app.cli import UserError
 from app.commands.options import count, number, positive, seconds
@@ -49,8 +49,8 @@ class _SphereParser(argparse.ArgumentParser):
     may be lit from an earlier call, so the refusal first opens the port (default timeout), switches every LED
     and the light off and adds what happened to argparse's one error line (exit 2)."""
 
-    root: Optional["_SphereParser"] = None     # the 'sphere' parser, which saw --port
-    port: Optional[str] = None
+    root: _SphereParser | None = None     # the 'sphere' parser, which saw --port
+    port: str | None = None
 
     def parse_known_args(self, args=None, namespace=None):
         if self.root is None and args is not None:
@@ -64,7 +64,7 @@ class _SphereParser(argparse.ArgumentParser):
         super().error(message)
 
 
-def _port_in(args: list[str]) -> Optional[str]:
+def _port_in(args: list[str]) -> str | None:
     for i, arg in enumerate(args):
         if arg == "--port" and i + 1 < len(args):
             return args[i + 1]
@@ -121,7 +121,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.set_defaults(func=serve_emulator)
 
 
-def load_light_source(path: Path, index: int) -> "LightSource":
+def load_light_source(path: Path, index: int) -> LightSource:
     """Light source number ``index`` (1-based) of a preset file."""
     from simulation.presets import load_preset
 
@@ -159,7 +159,7 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run(sphere: "LedSphere", args: argparse.Namespace, light: Optional["LightSource"]) -> None:
+def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None) -> None:
     if args.action == "identify":
         info = sphere.identify()
         print(f"model {info['model']}, firmware {info['firmware']}, serial {info['serial']}")

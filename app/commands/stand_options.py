@@ -8,9 +8,10 @@ import contextlib
 import json
 import logging
 import sys
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator, Optional
+from typing import Any
 
 from app.commands.options import count, frame_size, number, seed
 
@@ -28,7 +29,8 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--seed", type=seed, default=0, help="virtual lab noise seed")
     g.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
     g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
-    g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=0.2, help="seconds between light on and shutter (0.2)")
+    g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=0.2,
+                   help="seconds between light on and shutter (0.2)")
     p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
 
 
@@ -58,7 +60,7 @@ def ask_person(message: str) -> None:
     sys.stdin.readline()
 
 
-def write_json(path: Optional[Path], data: dict) -> None:
+def write_json(path: Path | None, data: dict) -> None:
     if path is None:
         return
     from app.session import atomic_write
@@ -71,7 +73,7 @@ def write_json(path: Optional[Path], data: dict) -> None:
 class Devices:
     camera: Any
     sphere: Any
-    stand: Optional[Callable[[str, bool], Any]]
+    stand: Callable[[str, bool], Any] | None
     lab: Any = None
 
 
@@ -83,7 +85,7 @@ def _apply_settings(camera: Any, args: argparse.Namespace) -> None:
 
 
 @contextlib.contextmanager
-def open_devices(args: argparse.Namespace, mode: str = "reflective", original: Optional[str] = None
+def open_devices(args: argparse.Namespace, mode: str = "reflective", original: str | None = None
                  ) -> Iterator[Devices]:
     """The virtual lab or the real sphere + camera; LEDs off and ports closed on the way out, whatever happens.
 
@@ -135,7 +137,7 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
             sphere.close()
 
 
-def open_session(folder: Path, definition: dict, camera: Any, meta: Optional[dict] = None) -> Any:
+def open_session(folder: Path, definition: dict, camera: Any, meta: dict | None = None) -> Any:
     """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
     (anything else is refused in one line naming the difference; app.session). One writer at a time."""
     from app.session import CaptureSession, camera_definition

@@ -65,7 +65,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "SUMMARY.md into --out.")
     ss = p.add_subparsers(dest="study", metavar="STUDY")
     ss.required = True
+    _optimiser_studies(ss)
+    _default_studies(ss)
+    _distributed_studies(ss)
 
+
+def _optimiser_studies(ss: argparse._SubParsersAction) -> None:
+    """speed-accuracy, stability, objectives: how the optimisers and their objectives compare."""
     q = ss.add_parser("speed-accuracy", help="best error against time and evaluations for every optimiser")
     _common(q, "speed-accuracy")
     q.add_argument("--seeds", type=positive, default=3, help="seeds per configuration (default 3)")
@@ -90,6 +96,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="check against the pixel-level capture simulation instead of the virtual lab")
     q.set_defaults(func=objectives_main)
 
+
+def _default_studies(ss: argparse._SubParsersAction) -> None:
+    """parsimony, hdr: the studies that choose the packaged defaults (resources/parsimony.json)."""
     q = ss.add_parser("parsimony", help="coarsest spectral step, simplest model, fewest HDR exposures")
     _common(q, "parsimony")
     q.add_argument("--budget", choices=("tiny", "default"), default="default")
@@ -106,6 +115,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also write the chosen estimator (hdr_merge) into the defaults at PATH (no PATH: "
                         "parsimony.json in the per-user data folder); the other defaults there are kept")
     q.set_defaults(func=hdr_main)
+
+
+def _distributed_studies(ss: argparse._SubParsersAction) -> None:
+    """unbinned, sweep: the large searches, split into tasks for Dask."""
     q = ss.add_parser("unbinned", help="full-intensity search over all ~523 k unbinned light-source pairs")
     _common(q, "unbinned", scheduler_default="local")
     q.add_argument("--tasks", type=positive, default=16, help="index ranges the search is split into (16)")
@@ -277,7 +290,7 @@ def unbinned_main(args: argparse.Namespace) -> int:
     result.binned_best = compare_binned(spec)
     write_outputs(result, out)
     lines = [f"{result.pairs} pairs in {result.seconds:.2f} s ({result.runner.get('runner')})"]
-    for n, c in zip(result.numbers, result.candidates):
+    for n, c in zip(result.numbers, result.candidates, strict=True):
         s1, s2 = (s.label() for s in c.sources)
         lines.append(f"#{n:<7} {s1:<24} {s2:<34} train {c.train.mean:.4f} test {c.test.mean:.4f}")
     lines.append(f"binned best: {result.binned_best['source1']} + {result.binned_best['source2']} "

@@ -137,10 +137,10 @@ def raw_view(path) -> RawView:
 
 
 class ConvergenceTap:
-    """Wraps the objective's evaluator (simulation.runner.make_evaluator) for the live convergence plot: after every cost batch it calls
-    ``on_batch(evaluations, best_cost_so_far)`` (from the worker thread) and keeps the best light set seen, so a
-    cancelled search still has its best so far (:meth:`partial`). Costs are unchanged; everything else is the
-    wrapped evaluator's."""
+    """Wraps the objective's evaluator (simulation.runner.make_evaluator) for the live convergence plot: after
+    every cost batch it calls ``on_batch(evaluations, best_cost_so_far)`` (from the worker thread) and keeps the
+    best light set seen, so a cancelled search still has its best so far (:meth:`partial`). Costs are unchanged;
+    everything else is the wrapped evaluator's."""
 
     def __init__(self, inner, on_batch) -> None:
         self._inner = inner

@@ -19,16 +19,16 @@ choice; both methods' errors on training and test targets use the float64 refere
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
 
 import numpy as np
 from scipy import optimize
 
-from simulation.matrix_fit import CharacterisationMatrix, fit_matrix
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.matrix_fit import CharacterisationMatrix, fit_matrix
 from simulation.objective import ErrorStats
-from simulation.progress import CancelToken, Cancelled, ProgressCallback, check, report
+from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 
@@ -45,16 +45,28 @@ def patch_errors(matrix: CharacterisationMatrix | np.ndarray, values: np.ndarray
     return delta_e_2000(xyz_to_lab(np.asarray(xyz, dtype=float), white), xyz_to_lab(pred, white))
 
 
-def fit_least_squares(values: np.ndarray, xyz: np.ndarray, channels: Optional[list[str]] = None
+def fit_least_squares(values: np.ndarray, xyz: np.ndarray, channels: list[str] | None = None
                       ) -> CharacterisationMatrix:
     m = fit_matrix(values, xyz, channels)
     m.method = LEAST_SQUARES
     return m
 
 
-def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels: Optional[list[str]] = None, *,
-               start: Optional[CharacterisationMatrix] = None, max_iter: int = 500,
-               progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+def _batch_mean_de2000(V: np.ndarray, lab_ref: np.ndarray, white: np.ndarray, scale: float
+                       ) -> Callable[[np.ndarray], np.ndarray]:
+    """Mean dE00 of a batch of parameter vectors (k, n_params) in one vectorised pass: each is a matrix for the
+    equilibrated values ``V`` (n, channels), divided by ``scale``."""
+    def costs(P: np.ndarray) -> np.ndarray:
+        B = P.reshape(P.shape[0], -1, 3) * scale
+        pred = np.einsum("nc,kcj->knj", V, B)
+        return delta_e_2000(lab_ref[None], xyz_to_lab(pred, white)).mean(axis=1)
+
+    return costs
+
+
+def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels: list[str] | None = None, *,
+               start: CharacterisationMatrix | None = None, max_iter: int = 500,
+               progress: ProgressCallback | None = None, cancel: CancelToken | None = None
                ) -> CharacterisationMatrix:
     """The matrix minimising mean CIEDE2000 on (values, xyz), started from least squares (or ``start``)."""
     values = np.asarray(values, dtype=float)
@@ -64,18 +76,10 @@ def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels:
     norms = np.linalg.norm(values, axis=0)
     live = norms > 0
     s = np.where(live, 1.0 / np.where(live, norms, 1.0), 0.0)     # equilibrate channels
-    V = values * s                                                # columns of unit norm
     B0 = A0[live] / s[live, None]
     scale = float(np.sqrt(np.mean(B0 ** 2))) or 1.0
-    lab_ref = xyz_to_lab(xyz, white)
-    Vl = V[:, live]
+    costs = _batch_mean_de2000((values * s)[:, live], xyz_to_lab(xyz, white), white, scale)   # columns of unit norm
     n_eval = [0]
-
-    def costs(P: np.ndarray) -> np.ndarray:
-        """Mean dE00 of a batch of parameter vectors (k, n_params) in one vectorised pass."""
-        B = P.reshape(P.shape[0], -1, 3) * scale
-        pred = np.einsum("nc,kcj->knj", Vl, B)
-        return delta_e_2000(lab_ref[None], xyz_to_lab(pred, white)).mean(axis=1)
 
     def cost(p: np.ndarray) -> float:
         return float(costs(p[None])[0])
@@ -99,11 +103,8 @@ def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels:
         check(cancel)
         report(progress, min(it[0] / max_iter, 1.0), f"dE00 optimisation, iteration {it[0]}")
 
-    try:
-        res = optimize.minimize(cost_and_grad, p0, jac=True, method="BFGS", callback=callback,
-                                options={"maxiter": max_iter, "gtol": 1e-7})
-    except Cancelled:
-        raise
+    res = optimize.minimize(cost_and_grad, p0, jac=True, method="BFGS", callback=callback,
+                            options={"maxiter": max_iter, "gtol": 1e-7})
     p = res.x if res.fun < c0 else p0
     A = np.zeros_like(A0)
     A[live] = p.reshape(-1, 3) * scale * s[live, None]
@@ -118,14 +119,14 @@ def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels:
 class MethodResult:
     matrix: CharacterisationMatrix
     train_errors: np.ndarray
-    test_errors: Optional[np.ndarray] = None
+    test_errors: np.ndarray | None = None
 
     @property
     def train(self) -> ErrorStats:
         return ErrorStats.of(self.train_errors)
 
     @property
-    def test(self) -> Optional[ErrorStats]:
+    def test(self) -> ErrorStats | None:
         return None if self.test_errors is None else ErrorStats.of(self.test_errors)
 
     def to_dict(self) -> dict:
@@ -152,7 +153,7 @@ class ModelSelection:
                 "cv_mean_de00": {k: round(v, 4) for k, v in self.cv_mean.items()}}
 
 
-def _fitters(white: np.ndarray, channels: list[str], optimise: bool, cancel: Optional[CancelToken]) -> dict:
+def _fitters(white: np.ndarray, channels: list[str], optimise: bool, cancel: CancelToken | None) -> dict:
     fits = {LEAST_SQUARES: lambda v, x: fit_least_squares(v, x, channels)}
     if optimise:
         fits[DE2000] = lambda v, x: fit_de2000(v, x, white, channels, cancel=cancel)
@@ -161,7 +162,7 @@ def _fitters(white: np.ndarray, channels: list[str], optimise: bool, cancel: Opt
 
 def select_model(train_values: np.ndarray, train_xyz: np.ndarray, white: np.ndarray, channels: list[str], *,
                  optimise: bool = True, folds: int = CV_FOLDS, seed: int = 0,
-                 progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+                 progress: ProgressCallback | None = None, cancel: CancelToken | None = None
                  ) -> ModelSelection:
     """Choose the matrix method by k-fold cross-validation on the training target (it never sees a test target:
     none is passed). Folds are a seeded random partition; each patch's error comes from a fit without it."""
@@ -193,7 +194,7 @@ class Characterisation:
     results: dict[str, MethodResult]
     white: np.ndarray
     channels: list[str] = field(default_factory=list)
-    selection: Optional[ModelSelection] = None
+    selection: ModelSelection | None = None
 
     @property
     def best(self) -> str:
@@ -212,9 +213,9 @@ class Characterisation:
 
 
 def characterise(train_values: np.ndarray, train_xyz: np.ndarray, white: np.ndarray,
-                 test_values: Optional[np.ndarray] = None, test_xyz: Optional[np.ndarray] = None,
-                 channels: Optional[Sequence[str]] = None, *, optimise: bool = True,
-                 progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+                 test_values: np.ndarray | None = None, test_xyz: np.ndarray | None = None,
+                 channels: Sequence[str] | None = None, *, optimise: bool = True,
+                 progress: ProgressCallback | None = None, cancel: CancelToken | None = None
                  ) -> Characterisation:
     """Fit least squares and (``optimise``) the dE00-optimised matrix, choose one by cross-validation on the
     training target (``select_model``), then evaluate both on train and test."""

@@ -9,8 +9,8 @@ from the line in the linear region ("bumps" of a mechanical shutter), flagged by
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 

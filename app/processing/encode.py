@@ -19,10 +19,10 @@ reference white's Y (Y = 100 -> 32768), channels as flat-fielded (1.0 = the whit
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Sequence
 
 import numba
 import numpy as np

@@ -25,7 +25,6 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -98,7 +97,7 @@ def _matching_truth(xyz_image: np.ndarray, truth_xyz: np.ndarray) -> np.ndarray:
 
 
 def compare_to_ground_truth(xyz_image: np.ndarray, truth_xyz: np.ndarray, white: np.ndarray, *,
-                            band_rows: int = 256, mask: Optional[np.ndarray] = None) -> GroundTruthComparison:
+                            band_rows: int = 256, mask: np.ndarray | None = None) -> GroundTruthComparison:
     """Per-pixel CIEDE2000 of ``xyz_image`` against ``truth_xyz`` (both on ``white``'s scale, Y_white = 100).
 
     Parameters
@@ -190,6 +189,6 @@ def write_de_map_png(path: Path, de_map: np.ndarray, *, title: str = "", vmax: f
     bar = fig.colorbar(im, ax=ax, extend="max", fraction=0.046, pad=0.04)
     bar.set_label("ΔE00")
     fig.tight_layout()
-    from app.processing.report import save_figure       # the atomic write: a full disk leaves no half PNG
+    from app.processing.report import save_figure  # the atomic write: a full disk leaves no half PNG
 
     return save_figure(fig, path)

@@ -44,14 +44,20 @@ the white and then averaging with the same weights equals dividing the weighted 
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Optional, Sequence
 
 import numpy as np
 
 from app.processing.mosaic import DEFAULT_BAND_ROWS, FrameLike, mosaic_of
-from simulation.hdr_estimators import (HDR_METHOD_CODES, HDR_MERGE_METHODS, HdrNoise, check_method, default_method,
-                                       triangle_weight)
+from simulation.hdr_estimators import (
+    HDR_MERGE_METHODS,
+    HDR_METHOD_CODES,
+    HdrNoise,
+    check_method,
+    default_method,
+    triangle_weight,
+)
 from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
@@ -64,7 +70,7 @@ __all__ = ["HDR_MERGE_METHODS", "HdrMerge", "HdrNoise", "HdrResult", "LINEAR_LIM
 
 
 def exposure_weight(raw: np.ndarray, signal: np.ndarray, white_level: float, black_level: float = 0.0,
-                    linear_limit: Optional[float] = LINEAR_LIMIT_DN, out: Optional[np.ndarray] = None) -> np.ndarray:
+                    linear_limit: float | None = LINEAR_LIMIT_DN, out: np.ndarray | None = None) -> np.ndarray:
     """Weight of each pixel of one exposure: eq 8.9 on the dark-subtracted ``signal`` over the usable range,
     zero where the ``raw`` value is above the linear limit or clipped."""
     w = triangle_weight(signal, white_level - black_level, out=out)
@@ -100,9 +106,9 @@ class HdrMerge:
     ``own_result``, the radiance of ``result()`` lives in one of them (valid until the next merge).
     """
 
-    def __init__(self, white_level: float, linear_limit: Optional[float] = LINEAR_LIMIT_DN, *,
-                 black_level: float = 0.0, method: Optional[str] = None, noise: HdrNoise = HdrNoise(),
-                 band_rows: int = DEFAULT_BAND_ROWS, work: Optional[dict] = None, own_result: bool = False):
+    def __init__(self, white_level: float, linear_limit: float | None = LINEAR_LIMIT_DN, *,
+                 black_level: float = 0.0, method: str | None = None, noise: HdrNoise = HdrNoise(),
+                 band_rows: int = DEFAULT_BAND_ROWS, work: dict | None = None, own_result: bool = False):
         if white_level <= black_level:
             raise ValueError(f"white level {white_level} must be above the black level {black_level}")
         self.white_level = float(white_level)
@@ -113,8 +119,8 @@ class HdrMerge:
         self.band_rows = band_rows
         self._work = work if work is not None else {}
         self._own_result = own_result or work is None
-        self._sums: Optional[np.ndarray] = None        # (slots, H, W) float32, one slot per exposure time
-        self._counts: Optional[np.ndarray] = None      # (slots, H, W) uint8: usable | all frames << 4
+        self._sums: np.ndarray | None = None        # (slots, H, W) float32, one slot per exposure time
+        self._counts: np.ndarray | None = None      # (slots, H, W) uint8: usable | all frames << 4
         self._slot_times: list[float] = []
         self._slot_frames: list[int] = []
         self.exposures: list[float] = []
@@ -145,7 +151,7 @@ class HdrMerge:
         return k, True
 
     def add(self, frame: FrameLike, exposure_s: float, dark: np.ndarray | float | None = None,
-            cancel: Optional[CancelToken] = None) -> None:
+            cancel: CancelToken | None = None) -> None:
         """Add one exposure: raw mosaic (uint16 DN), its exposure time (s) and its master dark (None: the black
         level is subtracted instead)."""
         from app.processing.kernels import hdr_store
@@ -227,15 +233,15 @@ class HdrMerge:
     @classmethod
     def merge(cls, frames: Sequence[FrameLike], exposures: Sequence[float],
               darks: Sequence[np.ndarray | float | None] | None = None, *, white_level: float,
-              linear_limit: Optional[float] = LINEAR_LIMIT_DN, black_level: float = 0.0,
-              method: Optional[str] = None, noise: HdrNoise = HdrNoise(),
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> HdrResult:
+              linear_limit: float | None = LINEAR_LIMIT_DN, black_level: float = 0.0,
+              method: str | None = None, noise: HdrNoise = HdrNoise(),
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> HdrResult:
         """Merge a list of exposures in one call (frames may be paths: each is read once)."""
         if len(frames) != len(exposures):
             raise ValueError(f"{len(frames)} frames but {len(exposures)} exposure times")
         darks = list(darks) if darks is not None else [None] * len(frames)
         m = cls(white_level, linear_limit, black_level=black_level, method=method, noise=noise)
-        for i, (f, t, d) in enumerate(zip(frames, exposures, darks)):
+        for i, (f, t, d) in enumerate(zip(frames, exposures, darks, strict=True)):
             m.add(f, t, d, cancel=cancel)
             report(progress, (i + 1) / len(frames), f"merged exposure {t:.6g} s")
         return m.result()

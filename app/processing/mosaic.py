@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Sequence, Union
+from typing import Any, Union
 
 import numpy as np
 
@@ -167,23 +168,9 @@ def superpixel(mosaic: np.ndarray, cfa: str = "RGGB", out: np.ndarray | None = N
 
     NaN in a green pixel makes that cell's G NaN (not silently the other green): invalid stays visible.
     """
-    cfa = check_cfa(cfa)
-    h2, w2 = mosaic.shape[0] // 2, mosaic.shape[1] // 2
-    if out is None:
-        out = np.empty((h2, w2, 3), dtype=np.float32)
-    greens = []
-    for k, letter in enumerate(cfa):
-        r, c = divmod(k, 2)
-        plane = mosaic[r: 2 * h2: 2, c: 2 * w2: 2]
-        if letter == "R":
-            out[..., 0] = plane
-        elif letter == "B":
-            out[..., 2] = plane
-        else:
-            greens.append(plane)
-    np.add(greens[0], greens[1], out=out[..., 1], dtype=np.float32)
-    out[..., 1] *= 0.5
-    return out
+    from drivers.raw import bayer_superpixel
+
+    return bayer_superpixel(mosaic, check_cfa(cfa), out=out)
 
 
 def cfa_channel_index(cfa: str) -> np.ndarray:

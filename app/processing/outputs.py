@@ -24,10 +24,10 @@ from __future__ import annotations
 import csv
 import logging
 import struct
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Mapping, Optional, Sequence
 from xml.sax.saxutils import escape
 
 import numpy as np
@@ -90,7 +90,8 @@ def _xyz_tag(xyz: Sequence[float]) -> bytes:
 
 def _desc_tag(text: str) -> bytes:
     a = text.encode("ascii", "replace") + b"\0"
-    return b"desc" + b"\0" * 4 + struct.pack(">I", len(a)) + a + struct.pack(">II", 0, 0) + struct.pack(">HB", 0, 0) + b"\0" * 67
+    return (b"desc" + b"\0" * 4 + struct.pack(">I", len(a)) + a + struct.pack(">II", 0, 0) + struct.pack(">HB", 0, 0)
+            + b"\0" * 67)
 
 
 def _text_tag(text: str) -> bytes:
@@ -102,7 +103,7 @@ def _curv_tag(samples: np.ndarray) -> bytes:
     return b"curv" + b"\0" * 4 + struct.pack(">I", len(v)) + v.tobytes()
 
 
-def matrix_trc_icc(space: str, description: Optional[str] = None, n_curve: int = 4096) -> bytes:
+def matrix_trc_icc(space: str, description: str | None = None, n_curve: int = 4096) -> bytes:
     """A minimal ICC v2.4 matrix/TRC RGB display profile for a colour-science RGB colour space."""
     import colour
 
@@ -163,7 +164,7 @@ class TiffMetadata:
     description: str = ""
     make: str = ""
     model: str = ""
-    ppi: Optional[float] = None
+    ppi: float | None = None
     datetime: str = ""                         # "YYYY:MM:DD HH:MM:SS" (TIFF); default: now
     xmp: bytes = b""
 
@@ -178,12 +179,12 @@ class TiffMetadata:
         return out
 
 
-def tiff_datetime(when: Optional[datetime] = None) -> str:
+def tiff_datetime(when: datetime | None = None) -> str:
     return (when or datetime.now()).strftime("%Y:%m:%d %H:%M:%S")
 
 
 def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str = "", tool: str = "",
-               created: Optional[datetime] = None) -> bytes:
+               created: datetime | None = None) -> bytes:
     """An XMP packet: dc:identifier, dc:title, xmp:CreatorTool, xmp:CreateDate and ``dualrgb:<Key>`` fields."""
     created = created or datetime.now(timezone.utc)
     props = [f"<xmp:CreateDate>{created.isoformat(timespec='seconds')}</xmp:CreateDate>"]
@@ -207,7 +208,7 @@ def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str
     return text.encode("utf-8")
 
 
-def tiff_kwargs(meta: TiffMetadata, *, photometric: str = "minisblack", icc: Optional[bytes] = None) -> dict:
+def tiff_kwargs(meta: TiffMetadata, *, photometric: str = "minisblack", icc: bytes | None = None) -> dict:
     """``tifffile.imwrite`` arguments (all but the data) of an uncompressed TIFF with contiguous samples carrying
     ``meta``: the one place the deliverables' TIFF layout is decided."""
     kwargs: dict = dict(photometric=photometric, planarconfig="contig", iccprofile=icc,
@@ -219,7 +220,7 @@ def tiff_kwargs(meta: TiffMetadata, *, photometric: str = "minisblack", icc: Opt
 
 
 def open_tiff(path: Path, shape: tuple[int, ...], meta: TiffMetadata, *, dtype=np.uint16,
-              photometric: str = "minisblack", icc: Optional[bytes] = None, band_rows: int = 64, executor=None,
+              photometric: str = "minisblack", icc: bytes | None = None, band_rows: int = 64, executor=None,
               direct: bool = True):
     """A TIFF of ``shape`` to fill band by band (app.processing.tiff_stream.TiffStream), written atomically."""
     from app.processing.tiff_stream import TiffStream
@@ -229,7 +230,7 @@ def open_tiff(path: Path, shape: tuple[int, ...], meta: TiffMetadata, *, dtype=n
 
 
 def write_tiff(path: Path, image: np.ndarray, meta: TiffMetadata, *, photometric: str = "minisblack",
-               icc: Optional[bytes] = None, band_rows: int = 256) -> Path:
+               icc: bytes | None = None, band_rows: int = 256) -> Path:
     """One uncompressed TIFF (contiguous samples) with ``meta`` in its tags, written atomically (temp file,
     fsync, rename) through the streamed writer of the deliverables: byte for byte what ``tifffile.imwrite`` of
     the array writes."""
@@ -271,5 +272,5 @@ def write_matrices_csv(path: Path, matrices: Mapping[str, CharacterisationMatrix
     rows: list[list[object]] = [["method", "channel", "X", "Y", "Z"]]
     for name, m in matrices.items():
         chans = m.channels or [f"ch{i + 1}" for i in range(m.matrix.shape[0])]
-        rows += [[name, ch] + [f"{v:.10g}" for v in row] for ch, row in zip(chans, m.matrix)]
+        rows += [[name, ch] + [f"{v:.10g}" for v in row] for ch, row in zip(chans, m.matrix, strict=True)]
     return _write_csv(path, rows)

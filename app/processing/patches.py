@@ -24,7 +24,6 @@ from __future__ import annotations
 import logging
 import os
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 from scipy import stats
@@ -37,7 +36,7 @@ TRIM = 0.10
 def homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """3x3 H with dst ~ H @ [src, 1] for 4 point pairs (direct linear transform)."""
     a = []
-    for (x, y), (u, v) in zip(src, dst):
+    for (x, y), (u, v) in zip(src, dst, strict=True):
         a.append([x, y, 1, 0, 0, 0, -u * x, -u * y, -u])
         a.append([0, 0, 0, x, y, 1, -v * x, -v * y, -v])
     _, _, vt = np.linalg.svd(np.asarray(a, dtype=float))
@@ -75,6 +74,7 @@ class PatchGrid:
         if not 0 < self.fraction <= 1:
             raise ValueError(f"sampling fraction must be in (0, 1], got {self.fraction}")
         c = self.corners
+
         def cross(a: np.ndarray, b: np.ndarray) -> float:
             return float(a[0] * b[1] - a[1] * b[0])
         cross = [cross(c[(i + 1) % 4] - c[i], c[(i + 2) % 4] - c[(i + 1) % 4]) for i in range(4)]
@@ -111,7 +111,7 @@ class PatchGrid:
                 out.append(self.to_image(np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]])))
         return np.asarray(out)
 
-    def scaled(self, factor: float) -> "PatchGrid":
+    def scaled(self, factor: float) -> PatchGrid:
         """The same grid for an image scaled by ``factor`` (0.5: full mosaic -> superpixel image).
 
         Pixel centres at integer coordinates: x_scaled = (x + 0.5) * factor - 0.5.
@@ -176,7 +176,7 @@ def _import_detection():
     """Import colour_checker_detection without letting OpenCV's wheel repoint Qt's plugin path."""
     saved = {k: os.environ.get(k) for k in ("QT_QPA_PLATFORM_PLUGIN_PATH", "QT_QPA_FONTDIR")}
     try:
-        import colour_checker_detection as ccd  # noqa: PLC0415 - optional dependency
+        import colour_checker_detection as ccd
         return ccd
     finally:
         for k, v in saved.items():
@@ -186,7 +186,7 @@ def _import_detection():
                 os.environ[k] = v
 
 
-def detect_cc24(image: np.ndarray, *, fraction: float = 0.5) -> Optional[Cc24Detection]:
+def detect_cc24(image: np.ndarray, *, fraction: float = 0.5) -> Cc24Detection | None:
     """Find a ColorChecker Classic in an (H, W, 3) RGB image (linear or display-encoded, any scale).
 
     Returns None (with a log line) when ``colour-checker-detection`` is not installed or finds no chart.

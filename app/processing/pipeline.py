@@ -25,9 +25,8 @@ from __future__ import annotations
 
 import logging
 from collections import OrderedDict, defaultdict
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -67,7 +66,7 @@ class ChannelStack:
         return self.data[..., 3 * light_index: 3 * light_index + 3]
 
 
-def sub_progress(progress: Optional[ProgressCallback], lo: float, hi: float) -> Optional[ProgressCallback]:
+def sub_progress(progress: ProgressCallback | None, lo: float, hi: float) -> ProgressCallback | None:
     if progress is None:
         return None
     return lambda f, m: progress(lo + (hi - lo) * min(max(f, 0.0), 1.0), m)
@@ -76,10 +75,10 @@ def sub_progress(progress: Optional[ProgressCallback], lo: float, hi: float) -> 
 class CaptureProcessor:
     """Darks -> HDR whites -> flat-fielded HDR stacks, with caching of master darks and whites."""
 
-    def __init__(self, *, darks: Optional[MasterDark] = None, dark_frames: Sequence[ExposureRef] = (),
-                 white_level: Optional[float] = None, black_level: Optional[float] = None,
-                 linear_limit: Optional[float] = LINEAR_LIMIT_DN, cfa: Optional[str] = None, band_rows: int = 256,
-                 reject_high: int = 1, reject_low: int = 1, hdr_method: Optional[str] = None):
+    def __init__(self, *, darks: MasterDark | None = None, dark_frames: Sequence[ExposureRef] = (),
+                 white_level: float | None = None, black_level: float | None = None,
+                 linear_limit: float | None = LINEAR_LIMIT_DN, cfa: str | None = None, band_rows: int = 256,
+                 reject_high: int = 1, reject_low: int = 1, hdr_method: str | None = None):
         """``hdr_method``: the HDR merge estimator (app.processing.hdr; None: the parsimony study's default)."""
         self.darks = darks or MasterDark()
         self._dark_frames: dict[float, list[ExposureRef]] = defaultdict(list)
@@ -92,7 +91,7 @@ class CaptureProcessor:
         self.band_rows = band_rows
         self.reject = (reject_high, reject_low)
         self.hdr_method = hdr_method
-        self._whites: "OrderedDict[str, FlatField]" = OrderedDict()
+        self._whites: OrderedDict[str, FlatField] = OrderedDict()
         self._work: dict = {}          # scratch buffers reused across darks and merges (see calibration._buffer)
 
     def _dark_key(self, t: float) -> float:
@@ -102,8 +101,8 @@ class CaptureProcessor:
         return float(t)
 
     # ---- darks ----
-    def master_dark(self, exposure_s: float, *, progress: Optional[ProgressCallback] = None,
-                    cancel: Optional[CancelToken] = None) -> Optional[np.ndarray]:
+    def master_dark(self, exposure_s: float, *, progress: ProgressCallback | None = None,
+                    cancel: CancelToken | None = None) -> np.ndarray | None:
         """The master dark for ``exposure_s`` (built from the dark frames on first use), or None if none."""
         if exposure_s in self.darks:
             return self.darks.get(exposure_s)
@@ -128,9 +127,9 @@ class CaptureProcessor:
     def _merge(self, refs: Sequence[ExposureRef], progress, cancel, own_result: bool) -> HdrMerge:
         if not refs:
             raise ValueError("no exposures to merge")
-        merge: Optional[HdrMerge] = None
+        merge: HdrMerge | None = None
         refs = sorted(refs, key=lambda r: r.exposure_s)
-        for i, (ref, frame) in enumerate(zip(refs, iter_open_raw([r.source for r in refs]))):
+        for i, (ref, frame) in enumerate(zip(refs, iter_open_raw([r.source for r in refs]), strict=True)):
             check(cancel)
             self._prepare(frame)
             if merge is None:
@@ -142,14 +141,14 @@ class CaptureProcessor:
             report(progress, (i + 1) / len(refs), f"exposure {ref.exposure_s:.6g} s {ref.label}".strip())
         return merge
 
-    def hdr(self, refs: Sequence[ExposureRef], *, progress: Optional[ProgressCallback] = None,
-            cancel: Optional[CancelToken] = None) -> HdrResult:
+    def hdr(self, refs: Sequence[ExposureRef], *, progress: ProgressCallback | None = None,
+            cancel: CancelToken | None = None) -> HdrResult:
         """Dark-subtracted HDR mosaic (DN/s, the configured estimator) of the exposures of one light and subject
         (in new arrays: the result is the caller's to keep)."""
         return self._merge(refs, progress, cancel, True).result()
 
     def set_white(self, light: str, refs: Sequence[ExposureRef], *, min_fraction: float = 0.01,
-                  progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> FlatField:
+                  progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> FlatField:
         """HDR white of one light (8.2.2), kept for flat-fielding that light's images."""
         res = self.hdr(refs, progress=progress, cancel=cancel)
         ff = FlatField(res.radiance, min_fraction=min_fraction)
@@ -168,15 +167,15 @@ class CaptureProcessor:
         """Use a white made earlier (a calibration profile's) for ``light``."""
         self._whites[light] = white
 
-    def begin_stack(self, lights: Sequence[str], *, min_signal_dn: float = MIN_SIGNAL_DN) -> "StackBuilder":
+    def begin_stack(self, lights: Sequence[str], *, min_signal_dn: float = MIN_SIGNAL_DN) -> StackBuilder:
         """A stack filled exposure by exposure as frames arrive (see :class:`StackBuilder`)."""
         missing = [n for n in lights if n not in self._whites]
         if missing:
             raise ValueError(f"no white (flat) frames for {', '.join(missing)}: call set_white first")
         return StackBuilder(self, list(lights), min_signal_dn)
 
-    def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: Optional[ProgressCallback] = None,
-              cancel: Optional[CancelToken] = None) -> ChannelStack:
+    def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: ProgressCallback | None = None,
+              cancel: CancelToken | None = None) -> ChannelStack:
         """Flat-fielded HDR superpixel RGB of each light (in mapping order), stacked into one image."""
         builder = self.begin_stack(list(scenes))
         for li, name in enumerate(scenes):
@@ -202,7 +201,7 @@ class CaptureProcessor:
                         band_rows=self.band_rows, work=self._work, own_result=False)
 
 
-def _weak_cells(slots: tuple[np.ndarray, np.ndarray], floor_dn: float, so_far: Optional[np.ndarray]) -> np.ndarray:
+def _weak_cells(slots: tuple[np.ndarray, np.ndarray], floor_dn: float, so_far: np.ndarray | None) -> np.ndarray:
     """Superpixels none of whose four pixels reached ``floor_dn`` in any usable exposure, AND-ed with the lights
     before (a cell is under-exposed only if it is under every light); ``slots`` = HdrMerge.slots."""
     from app.processing.encode import weak_cells
@@ -225,12 +224,12 @@ class StackBuilder:
         self.proc = proc
         self.lights = lights
         self.min_signal_dn = min_signal_dn
-        self.out: Optional[np.ndarray] = None
+        self.out: np.ndarray | None = None
         self.clipped: dict[str, float] = {}
-        self._weak: Optional[np.ndarray] = None     # superpixels under-exposed under every light so far
+        self._weak: np.ndarray | None = None     # superpixels under-exposed under every light so far
         self._merges: dict[str, HdrMerge] = {}
 
-    def add(self, light: str, ref: ExposureRef, cancel: Optional[CancelToken] = None) -> None:
+    def add(self, light: str, ref: ExposureRef, cancel: CancelToken | None = None) -> None:
         from app.processing.mosaic import open_raw
 
         if light not in self.lights:
@@ -245,7 +244,7 @@ class StackBuilder:
             dark = self.proc._dark_for(frame, ref.exposure_s, cancel)
             merge.add(mosaic_of(frame), ref.exposure_s, dark, cancel=cancel)
 
-    def finish_light(self, light: str, merge: Optional[HdrMerge] = None) -> None:
+    def finish_light(self, light: str, merge: HdrMerge | None = None) -> None:
         merge = merge or self._merges.pop(light)
         ff = self.proc._whites[light]
         h, w = ff.white.shape

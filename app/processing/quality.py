@@ -26,12 +26,13 @@ Metamorfoze grade; ``grade_metrics`` says which criteria were and were not asses
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Optional, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.colorimetry import delta_e_2000
 
 if TYPE_CHECKING:                                   # pragma: no cover
     from app.processing.pipeline import CaptureProcessor, ExposureRef
@@ -88,7 +89,7 @@ NOT_MEASURED = ("SFR / MTF and sampling efficiency", "colour channel misregistra
                 "dynamic range", "geometric distortion")
 
 
-def grade_metrics(measured: dict[str, Optional[float]]) -> dict:
+def grade_metrics(measured: dict[str, float | None]) -> dict:
     """Per standard and metric: value, limit, comparison, status (pass / fail / not assessed) and the limit's
     source; ``scope`` says whether only colour was assessed; criteria with no measurement are listed."""
     out = {}
@@ -232,19 +233,19 @@ class CalibrationFrames:
     """What the report needs from a session's calibration: its processor (master darks, HDR whites) and the
     dark and flat frames (flats per light), so the report can measure noise and uniformity."""
 
-    processor: "CaptureProcessor"
-    darks: list["ExposureRef"] = field(default_factory=list)
-    flats: dict[str, list["ExposureRef"]] = field(default_factory=dict)
+    processor: CaptureProcessor
+    darks: list[ExposureRef] = field(default_factory=list)
+    flats: dict[str, list[ExposureRef]] = field(default_factory=dict)
 
 
-def _pairs_by_exposure(refs: Sequence["ExposureRef"]) -> dict[float, list["ExposureRef"]]:
+def _pairs_by_exposure(refs: Sequence[ExposureRef]) -> dict[float, list[ExposureRef]]:
     groups: dict[float, list] = {}
     for r in refs:
         groups.setdefault(round(float(r.exposure_s), 9), []).append(r)
     return {t: g for t, g in groups.items() if len(g) >= 2}
 
 
-def _mosaics(refs: Sequence["ExposureRef"]) -> list[np.ndarray]:
+def _mosaics(refs: Sequence[ExposureRef]) -> list[np.ndarray]:
     from app.processing.mosaic import iter_open_raw, mosaic_of
 
     return [np.array(mosaic_of(f), dtype=np.float32) for f in iter_open_raw([r.source for r in refs])]
@@ -304,16 +305,16 @@ def uniformity(cal: CalibrationFrames, cfa_index: np.ndarray) -> dict:
     return out
 
 
-def worst_residual_pct(uni: dict) -> Optional[float]:
+def worst_residual_pct(uni: dict) -> float | None:
     vals = [ch["range_pct"] for row in uni.values() for ch in row.get("after_flat_field", {}).values()]
     return float(max(vals)) if vals else None
 
 
 # ---------------------------------------------------------------- everything for the report
 def assess(lab_ref: np.ndarray, lab_cap: np.ndarray, names: Sequence[str], errors: np.ndarray, *,
-           values: Optional[np.ndarray] = None, std: Optional[np.ndarray] = None,
-           matrix: Optional[np.ndarray] = None, white: Optional[np.ndarray] = None,
-           calibration: Optional[CalibrationFrames] = None) -> dict:
+           values: np.ndarray | None = None, std: np.ndarray | None = None,
+           matrix: np.ndarray | None = None, white: np.ndarray | None = None,
+           calibration: CalibrationFrames | None = None) -> dict:
     """All metrics of one target (normally the test target) and their grading."""
     from app.processing.mosaic import cfa_channel_index
     from simulation.objective import ErrorStats
@@ -323,7 +324,7 @@ def assess(lab_ref: np.ndarray, lab_cap: np.ndarray, names: Sequence[str], error
     tone = tone_and_white_balance(lab_ref, lab_cap, idx)
     tone["names"] = [names[i] for i in idx]
     stats = ErrorStats.of(errors)
-    measured: dict[str, Optional[float]] = {"colour_mean_de00": stats.mean, "colour_p90_de00": stats.p90,
+    measured: dict[str, float | None] = {"colour_mean_de00": stats.mean, "colour_p90_de00": stats.p90,
                                             "colour_max_de00": stats.max, "tone_max_abs_dl": tone["max_abs_dL"],
                                             "white_balance_max_de": tone["max_white_balance"]}
     out = {"lab_differences": {"per_patch": {k: np.round(v, 4).tolist() for k, v in comp.items()},

@@ -3,12 +3,12 @@ tone response and white balance, and the illuminance non-uniformity maps (matplo
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Optional, Sequence
 
 import numpy as np
 
-from app.processing.report import _figure, _save          # the report's Agg figure and save helpers
+from app.processing.report import _figure, _save  # the report's Agg figure and save helpers
 
 log = logging.getLogger(__name__)
 
@@ -34,7 +34,7 @@ def lab_components_figure(path: Path, names: Sequence[str], comp: dict, title: s
     return _save(fig, path)
 
 
-def tone_figure(path: Path, tone: dict, limit: Optional[float], title: str) -> Path:
+def tone_figure(path: Path, tone: dict, limit: float | None, title: str) -> Path:
     """Neutral patches: captured vs reference L* (tone response) and each patch's dL* and white balance error."""
     fig = _figure(9.0, 3.6)
     a1, a2 = fig.add_subplot(121), fig.add_subplot(122)

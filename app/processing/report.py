@@ -33,10 +33,11 @@ from __future__ import annotations
 import json
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Optional, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -59,12 +60,12 @@ REPORT_FORMAT = "dualrgb-report/1"
 class Level:
     name: str
     mean: float
-    p90: Optional[float] = None
-    max: Optional[float] = None
+    p90: float | None = None
+    max: float | None = None
     strict: bool = False            # FADGI writes "<", ISO and Metamorfoze "<="
 
     def passes(self, s: ErrorStats) -> dict:
-        def ok(value: float, limit: Optional[float]) -> Optional[bool]:
+        def ok(value: float, limit: float | None) -> bool | None:
             if limit is None:
                 return None
             return bool(value < limit) if self.strict else bool(value <= limit)
@@ -199,7 +200,7 @@ def save_figure(fig, path: Path, **kwargs) -> Path:
     return path
 
 
-def layout_for(n: int, layout: Optional[tuple[int, int]] = None) -> tuple[int, int]:
+def layout_for(n: int, layout: tuple[int, int] | None = None) -> tuple[int, int]:
     if layout and layout[0] * layout[1] >= n:
         return int(layout[0]), int(layout[1])
     cols = int(math.ceil(math.sqrt(n * 1.5)))
@@ -207,8 +208,9 @@ def layout_for(n: int, layout: Optional[tuple[int, int]] = None) -> tuple[int, i
 
 
 def xyz_to_srgb8(xyz: np.ndarray, white: np.ndarray) -> np.ndarray:
-    from app.processing.outputs import xyz_to_rgb_matrix
     import colour
+
+    from app.processing.outputs import xyz_to_rgb_matrix
 
     M = xyz_to_rgb_matrix("sRGB", white) / float(white[1])
     lin = np.clip(np.asarray(xyz, float) @ M.T, 0, 1)
@@ -303,13 +305,13 @@ class TargetData:
     names: list[str]
     xyz: np.ndarray
     values: np.ndarray
-    layout: Optional[tuple[int, int]] = None
+    layout: tuple[int, int] | None = None
     label: str = ""
-    std: Optional[np.ndarray] = None          # (n, C) per-patch standard deviation of the camera values
+    std: np.ndarray | None = None          # (n, C) per-patch standard deviation of the camera values
 
 
 def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors: np.ndarray, label: str,
-                    calibration: Optional["CalibrationFrames"]) -> tuple[dict, list[str]]:
+                    calibration: CalibrationFrames | None) -> tuple[dict, list[str]]:
     """The quality metrics of one target (app.processing.quality) and their figures."""
     from app.processing.quality import STANDARD_LIMITS, assess
     from app.processing.quality_figures import lab_components_figure, tone_figure, uniformity_figure
@@ -331,45 +333,60 @@ def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors
     return q, figures
 
 
+def _target_figures(out_dir: Path, c: Characterisation, label: str, data: TargetData) -> list[str]:
+    """The chosen matrix on one target: dE00 heat map, Lab scatter and the patch mosaic (file names)."""
+    best, white = c.best, c.white
+    res = c.results[best]
+    errors = res.train_errors if label == "train" else res.test_errors
+    layout = layout_for(len(data.names), data.layout)
+    name = data.label or label
+    pred = res.matrix.apply(data.values)
+    return [heatmap_figure(out_dir / f"heatmap_{label}.png", errors, layout, f"{name}: ΔE00 per patch ({best})").name,
+            lab_scatter_figure(out_dir / f"lab_scatter_{label}.png", data.xyz, errors, white, name).name,
+            patch_mosaic_figure(out_dir / f"patches_{label}.png", data.xyz, pred, white, layout, name).name]
+
+
+def _targets_section(out_dir: Path, c: Characterisation, targets: list[tuple[str, TargetData]]
+                     ) -> tuple[list[str], dict]:
+    """Per target ('train', 'test'): its figures, and every fitted matrix's dE00 per patch (names alongside)."""
+    figures: list[str] = []
+    per_patch: dict = {}
+    for label, data in targets:
+        figures += _target_figures(out_dir, c, label, data)
+        per_patch[label] = {"names": list(data.names),
+                            "de00": {m: [round(float(v), 4) for v in (r.train_errors if label == "train"
+                                                                         else r.test_errors)]
+                                     for m, r in c.results.items()}}
+    return figures, per_patch
+
+
+def _dn_validation(out_dir: Path, c: Characterisation, simulated_train: np.ndarray, train: TargetData
+                   ) -> tuple[dict, str]:
+    """Simulated against captured training values per channel (thesis Fig 7.4): the section and its figure."""
+    fits = dn_validation(simulated_train, train.values, c.channels)
+    figure = dn_validation_figure(out_dir / "dn_validation.png", simulated_train, train.values, fits).name
+    union = sorted({i for f in fits for i in f.outliers})
+    return ({"channels": [f.to_dict(train.names) for f in fits], "outlier_patches": union,
+             "outlier_names": [train.names[i] for i in union],
+             "min_r2": min(f.r2 for f in fits), "min_r2_without_outliers": min(f.r2_clean for f in fits)}, figure)
+
+
 def build_report(out_dir: Path, characterisation: Characterisation, train: TargetData,
-                 test: Optional[TargetData] = None, *, simulated_train: Optional[np.ndarray] = None,
-                 title: str = "dual-RGB capture", extra: Optional[dict] = None,
-                 calibration: Optional["CalibrationFrames"] = None) -> dict:
+                 test: TargetData | None = None, *, simulated_train: np.ndarray | None = None,
+                 title: str = "dual-RGB capture", extra: dict | None = None,
+                 calibration: CalibrationFrames | None = None) -> dict:
     """Write report.json and the PNG figures into ``out_dir``; returns the JSON dict. ``calibration`` (the
     session's processor, darks and flats) adds sensor noise and illuminance non-uniformity to the quality
     metrics (app.processing.quality)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    c = characterisation
-    white = c.white
-    best = c.best
-    figures: list[str] = []
-    sets = [("train", train)] + ([("test", test)] if test is not None else [])
-    per_patch: dict = {}
-    for label, data in sets:
-        res = c.results[best]
-        errors = res.train_errors if label == "train" else res.test_errors
-        layout = layout_for(len(data.names), data.layout)
-        name = data.label or label
-        figures.append(heatmap_figure(out_dir / f"heatmap_{label}.png", errors, layout,
-                                      f"{name}: ΔE00 per patch ({best})").name)
-        figures.append(lab_scatter_figure(out_dir / f"lab_scatter_{label}.png", data.xyz, errors, white, name).name)
-        pred = c.results[best].matrix.apply(data.values)
-        figures.append(patch_mosaic_figure(out_dir / f"patches_{label}.png", data.xyz, pred, white, layout,
-                                           name).name)
-        per_patch[label] = {"names": list(data.names),
-                            "de00": {m: [round(float(v), 4) for v in (r.train_errors if label == "train"
-                                                                         else r.test_errors)]
-                                     for m, r in c.results.items()}}
+    c, best = characterisation, characterisation.best
+    targets = [("train", train)] + ([("test", test)] if test is not None else [])
+    figures, per_patch = _targets_section(out_dir, c, targets)
     validation = None
     if simulated_train is not None:
-        fits = dn_validation(simulated_train, train.values, c.channels)
-        figures.append(dn_validation_figure(out_dir / "dn_validation.png", np.asarray(simulated_train),
-                                            train.values, fits).name)
-        union = sorted({i for f in fits for i in f.outliers})
-        validation = {"channels": [f.to_dict(train.names) for f in fits], "outlier_patches": union,
-                      "outlier_names": [train.names[i] for i in union],
-                      "min_r2": min(f.r2 for f in fits), "min_r2_without_outliers": min(f.r2_clean for f in fits)}
+        validation, figure = _dn_validation(out_dir, c, np.asarray(simulated_train), train)
+        figures.append(figure)
     graded_set = "test" if test is not None else "train"
     graded = c.results[best].test if test is not None else c.results[best].train
     graded_errors = c.results[best].test_errors if test is not None else c.results[best].train_errors
@@ -381,7 +398,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
         "title": title,
         "created_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "channels": c.channels,
-        "white_xyz": [float(v) for v in white],
+        "white_xyz": [float(v) for v in c.white],
         "best_method": best,
         "best_reason": c.selection.reason if c.selection else "the only matrix fitted",
         "model_selection": c.selection.to_dict() if c.selection else None,

@@ -16,8 +16,9 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any, Iterator, Optional
+from typing import Any
 
 from simulation.atomic_io import require_free_space
 
@@ -42,7 +43,7 @@ class ProgressEvent:
     total: int                   # steps planned
     message: str
     kind: str = "progress"       # 'progress' | 'frame' (a frame was saved) | 'prompt' (needs the user) | 'done'
-    time_left_s: Optional[float] = None
+    time_left_s: float | None = None
     data: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -63,7 +64,7 @@ class Sequence:
         self._cancel = threading.Event()
         self._running = threading.Event()
         self._running.set()
-        self._t0: Optional[float] = None
+        self._t0: float | None = None
 
     # ---- control (thread-safe) ----
     def cancel(self) -> None:
@@ -101,7 +102,7 @@ class Sequence:
         if self._cancel.is_set():
             raise SequenceCancelled(f"{self.name} cancelled")
 
-    def estimate_left(self, step: int, total: int) -> Optional[float]:
+    def estimate_left(self, step: int, total: int) -> float | None:
         if self._t0 is None or step <= 0:
             return None
         return (time.monotonic() - self._t0) / step * max(total - step, 0)

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Iterator, Sequence
+from collections.abc import Iterator, Sequence
 
-from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
+from app.sequences.base import PlannedFrame, ProgressEvent
+from app.sequences.base import Sequence as BaseSequence
 from app.sequences.shooter import Shooter, channel_levels
 from app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
 
@@ -29,7 +30,7 @@ class DarkSeries(BaseSequence):
         if frames < 1:
             raise ValueError(f"dark frames {frames}: expected at least 1")
         self.shooter = shooter
-        self.exposures = sorted(set(float(t) for t in exposures))
+        self.exposures = sorted({float(t) for t in exposures})
         self.frames = frames
 
     def plan(self) -> list[PlannedFrame]:
@@ -65,7 +66,7 @@ class FlatSeries(BaseSequence):
         super().__init__()
         self.shooter = shooter
         self.lights = list(lights)
-        self.exposures = {k: sorted(set(float(t) for t in v)) for k, v in exposures.items()}
+        self.exposures = {k: sorted({float(t) for t in v}) for k, v in exposures.items()}
         self.frames = frames
         for nl in self.lights:
             for t in self.exposures.get(nl.name, []):
@@ -115,7 +116,7 @@ def auto_exposure(shooter: Shooter, nl: NamedLight, *, start_s: float = 1 / 60, 
     t = snap_down(usable, start_s)
     seqs = []
     goal = target_fraction * linear_limit
-    for attempt in range(max_tries):
+    for _ in range(max_tries):
         entry = shooter.shoot(Role.METERING.value, nl.light, t, step_id(Role.METERING, light=nl.name, exposure_s=t),
                               light_name=nl.name)
         seqs.append(entry.seq)

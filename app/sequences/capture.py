@@ -3,9 +3,10 @@ light (thesis 1.4, 7, 8)."""
 from __future__ import annotations
 
 import logging
-from typing import Iterator, Optional, Sequence
+from collections.abc import Iterator, Sequence
 
-from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
+from app.sequences.base import PlannedFrame, ProgressEvent
+from app.sequences.base import Sequence as BaseSequence
 from app.sequences.shooter import Shooter
 from app.workflow.vocabulary import EventKind, NamedLight, Subject, step_id
 
@@ -26,7 +27,7 @@ class SubjectCapture(BaseSequence):
         super().__init__()
         self.shooter = shooter
         self.lights = list(lights)
-        self.exposures = {k: sorted(set(float(t) for t in v)) for k, v in exposures.items()}
+        self.exposures = {k: sorted({float(t) for t in v}) for k, v in exposures.items()}
         self.subject = subject
         self.take = take
         self.meta = dict(meta or {})
@@ -46,12 +47,12 @@ class SubjectCapture(BaseSequence):
         return [PlannedFrame(self.subject.role.value, t, nl.light.label(), self.subject.label)
                 for nl, t, _i in self._shots()]
 
-    def _shots(self) -> list[tuple[NamedLight, float, Optional[int]]]:
+    def _shots(self) -> list[tuple[NamedLight, float, int | None]]:
         """(light, exposure, frame index or None for a single frame) in shooting order."""
         index = (lambda i: i) if self.frames > 1 else (lambda i: None)
         return [(nl, t, index(i)) for nl in self.lights for t in self.exposures[nl.name] for i in range(self.frames)]
 
-    def _step(self, nl: NamedLight, t: float, i: Optional[int]) -> str:
+    def _step(self, nl: NamedLight, t: float, i: int | None) -> str:
         return step_id(self.subject.role, subject=self.subject, light=nl.name, exposure_s=t, frame=i, take=self.take)
 
     def steps(self) -> list[str]:

@@ -8,14 +8,15 @@ Several light levels give every exposure time a sample inside the linear range (
 from __future__ import annotations
 
 import logging
-from typing import Iterator, Optional, Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 
 from app.processing.crf_analysis import CrfResult, analyse_crf
-from app.sequences.base import PlannedFrame, ProgressEvent, Sequence as BaseSequence
-from app.workflow.vocabulary import exposure_key
+from app.sequences.base import PlannedFrame, ProgressEvent
+from app.sequences.base import Sequence as BaseSequence
 from app.sequences.shooter import Shooter
+from app.workflow.vocabulary import exposure_key
 from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
@@ -36,7 +37,7 @@ class CrfSweep(BaseSequence):
     name = "CRF sweep"
 
     def __init__(self, shooter: Shooter, light: LightSource, levels: Sequence[float] = (1.0, 0.25, 0.0625),
-                 exposures: Optional[Sequence[float]] = None, min_exposure_s: float = 1 / 4000):
+                 exposures: Sequence[float] | None = None, min_exposure_s: float = 1 / 4000):
         super().__init__()
         self.shooter = shooter
         self.light = light

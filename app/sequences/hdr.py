@@ -3,15 +3,16 @@ exposures that bring every region into the sensor's linear range — one when it
 
 The first frame is taken at the light's open-gate exposure (brightest possible subject at ~80 % of the linear
 limit). Each region (patch box) is measured above black; a region is well exposed when its signal lies between
-``min_signal`` (default 100 DN: shot-noise SNR ~28 at ISO 50, 40x the read noise) and the linear limit. Longer exposures are added by the largest factor that keeps the previous
-frame's well-exposed range overlapping (linear limit x headroom / min_signal), until the darkest region
-reaches ``min_signal`` or the light-on limit stops it (then the plan says so).
+``min_signal`` (default 100 DN: shot-noise SNR ~28 at ISO 50, 40x the read noise) and the linear limit. Longer
+exposures are added by the largest factor that keeps the previous frame's well-exposed range overlapping (linear
+limit x headroom / min_signal), until the darkest region reaches ``min_signal`` or the light-on limit stops it
+(then the plan says so).
 """
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -40,18 +40,18 @@ class LightSafetyError(RuntimeError):
     light was cut at its limit before the shutter closed (kept aside as 'rejected')."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class SafetySettings:
     max_on_s: float = 10.0          # per capture, light on at most (settle + exposure + latency)
     settle_s: float = 0.2           # after switching on, before the shutter opens
     # the camera's allowance beyond the exposure (trigger, shutter lag, reporting the shutter closed); None: what
     # the camera reports (Camera.latency_for, filled in by for_camera), DEFAULT_LATENCY_S without a camera
-    latency_s: Optional[float] = None
+    latency_s: float | None = None
     expose_timeout_s: float = 30.0  # host-side deadline of an exposure beyond its exposure time
     fetch_timeout_s: float = 120.0  # host-side deadline of a download
-    camera_latency: Optional[Callable[[float], float]] = field(default=None, repr=False, compare=False)
+    camera_latency: Callable[[float], float] | None = field(default=None, repr=False, compare=False)
 
-    def for_camera(self, camera: Optional[Camera]) -> "SafetySettings":
+    def for_camera(self, camera: Camera | None) -> SafetySettings:
         """These settings with the camera's own latency allowance (unless one was given, or the camera - a
         stand-in - reports none)."""
         latency_for = getattr(camera, "latency_for", None)
@@ -113,7 +113,7 @@ def restate(error: BaseException, light: LightReport) -> BaseException:
 
 
 class Shooter:
-    def __init__(self, camera: Camera, sphere, session: CaptureSession, stand: Optional[Stand] = None,
+    def __init__(self, camera: Camera, sphere, session: CaptureSession, stand: Stand | None = None,
                  safety: SafetySettings = SafetySettings(), sleep: Callable[[float], None] = time.sleep,
                  clock: Callable[[], float] = time.monotonic):
         self.camera = camera
@@ -124,7 +124,7 @@ class Shooter:
         self.dose = LightDose()
         self._sleep = sleep
         self._clock = clock
-        self.placed: Optional[tuple[str, bool]] = None
+        self.placed: tuple[str, bool] | None = None
         self._frames: dict[int, RawFrame] = {}
 
     def place(self, what: str, nd: bool = False) -> bool:
@@ -140,7 +140,7 @@ class Shooter:
     def check_light_time(self, exposure_s: float) -> None:
         self.safety.check(exposure_s)
 
-    def lights_off(self) -> Optional[LightReport]:
+    def lights_off(self) -> LightReport | None:
         """Every LED and the light off (a sequence's start and cleanup); never raises (it runs in ``finally``
         blocks, where it must not hide the error being handled): what it could not confirm is logged and returned.
         Each shot has confirmed its own switch-off already."""
@@ -151,13 +151,13 @@ class Shooter:
             log.error("LED sphere: %s", report.message)
         return report
 
-    def shoot(self, role: str, light: Optional[LightSource], exposure_s: float, step_id: str,
+    def shoot(self, role: str, light: LightSource | None, exposure_s: float, step_id: str,
               **meta) -> SessionEntry:
         if self.session.has_step(step_id):
             log.info("step %s already in the session: not shot again", step_id)
             return self.session.entry(step_id)
         lit = light is not None and not light.is_dark
-        off: Optional[LightReport] = None
+        off: LightReport | None = None
         if lit:
             self.check_light_time(exposure_s)
             exposure, off, complete = self._lit_exposure(light, exposure_s, step_id)
@@ -187,14 +187,14 @@ class Shooter:
             if exc.period is not None:
                 self._add_dose(light, exc.period.lit_s(), step_id)
             raise
-        exposure: Optional[Exposure] = None
-        failure: Optional[BaseException] = None
+        exposure: Exposure | None = None
+        failure: BaseException | None = None
         complete = False
         try:
             self._sleep(self.safety.settle_s)
             exposure = self._expose(exposure_s)
             complete = self.sphere.exposure_done(period)
-        except BaseException as exc:  # any failure, Ctrl-C too: the light goes off first, then it is raised
+        except BaseException as exc:  # noqa: BLE001 - any failure, Ctrl-C too: the light goes off first, then it is raised
             failure = exc
         off = self._switch_off()
         self._add_dose(light, period.lit_s(), step_id)
@@ -216,7 +216,7 @@ class Shooter:
         return call_with_deadline(lambda: self.camera.expose(exposure_s),
                                   float(exposure_s) + self.safety.expose_timeout_s, "capture: the exposure")
 
-    def _fetch(self, exposure: Exposure, off: Optional[LightReport]) -> RawCapture:
+    def _fetch(self, exposure: Exposure, off: LightReport | None) -> RawCapture:
         try:
             return call_with_deadline(lambda: self.camera.fetch(exposure), self.safety.fetch_timeout_s,
                                       "capture: the download")
@@ -248,13 +248,13 @@ class Shooter:
             f"was triggered, {late:.2f} s beyond it), so the frame was not lit all through ({kept}; the step is shot "
             f"again); {off.message}; {advice}")
 
-    def _record(self, raw: RawCapture, role: str, step_id: str, light: Optional[LightSource],
+    def _record(self, raw: RawCapture, role: str, step_id: str, light: LightSource | None,
                 meta: dict) -> SessionEntry:
         temperature = None
         if self.sphere is not None:
             try:
                 temperature = self.sphere.temperature_c()
-            except Exception as exc:  # a temperature read failure must not lose the downloaded frame
+            except Exception as exc:  # noqa: BLE001 - a temperature read failure must not lose the downloaded frame
                 log.warning("could not read the sphere temperature: %s", exc)
         settings = {k: v for k, v in self.camera.settings().__dict__.items() if v is not None}
         return self.session.record(raw, role, step_id=step_id, light=light, sphere_temperature_c=temperature,

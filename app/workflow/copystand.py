@@ -15,27 +15,36 @@ original already in the session is shot again (True: new frames under the next t
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Callable, Optional, Sequence
+from typing import Any
 
 import numpy as np
 
 from app.processing.pipeline import CaptureProcessor, ExposureRef
-from app.sequences.base import ProgressEvent, Sequence as BaseSequence
+from app.sequences.base import ProgressEvent
+from app.sequences.base import Sequence as BaseSequence
 from app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from app.sequences.capture import SubjectCapture
 from app.sequences.shooter import SafetySettings, Shooter
-from app.workflow.coverage import coverage
-from app.workflow.metering import AutoExposure, HdrMetering
 from app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
-from app.workflow.profile import (CalibrationProfile, CameraIdentity, ProfileError, ReuseCheck, ReuseLimits,
-                                  SphereIdentity, check_reuse, new_profile_id)
+from app.workflow.metering import AutoExposure, HdrMetering
+from app.workflow.profile import (
+    CalibrationProfile,
+    CameraIdentity,
+    ProfileError,
+    ReuseCheck,
+    ReuseLimits,
+    SphereIdentity,
+    check_reuse,
+    new_profile_id,
+)
 from app.workflow.session_processing import SessionResult, process_session
 from app.workflow.targets import TargetSpec, reference_white, target_spec
 from app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, lights_of, split_take, subject_of
-from simulation.progress import CancelToken, Cancelled, ProgressCallback, report
+from simulation.progress import Cancelled, CancelToken, ProgressCallback, report
 
 log = logging.getLogger(__name__)
 
@@ -54,16 +63,16 @@ def parsimony_defaults() -> dict:
 @dataclass
 class StandSettings:
     settle_s: float = SafetySettings().settle_s
-    latency_s: Optional[float] = None         # the camera's latency allowance; None: what the camera reports
+    latency_s: float | None = None         # the camera's latency allowance; None: what the camera reports
     max_on_s: float = SafetySettings().max_on_s   # light on per capture at most (thesis 4.3.2: 10 s)
     dark_frames: int = 10                     # thesis 8.2.1
     flat_frames: int = 3
-    hdr_exposures: Optional[int] = None       # most exposures per light; None: resources/parsimony.json
-    optimise_matrix: Optional[bool] = None    # also the dE00-optimised matrix; None: resources/parsimony.json
+    hdr_exposures: int | None = None       # most exposures per light; None: resources/parsimony.json
+    optimise_matrix: bool | None = None    # also the dE00-optimised matrix; None: resources/parsimony.json
     limits: ReuseLimits = field(default_factory=ReuseLimits)
     force: bool = False                       # reuse a mismatching calibration with a warning
-    ppi: Optional[float] = None               # sampling set by the user (else from the target's size)
-    target_width_mm: Optional[float] = None   # test target's width (corner patches' outer corners) -> ppi
+    ppi: float | None = None               # sampling set by the user (else from the target's size)
+    target_width_mm: float | None = None   # test target's width (corner patches' outer corners) -> ppi
     meter_tiles: int = 12                     # metering regions across the frame (HDR decision for originals)
     original_frames: int = 1                  # frames averaged per exposure of an original (noise / sqrt(n))
 
@@ -85,13 +94,14 @@ class CaptureReport:
 class CopyStand:
     """Devices + session + the rules of the copy-stand day (see the module docstring)."""
 
-    def __init__(self, camera: Any, sphere: Any, session: Any, *, stand: Optional[Callable[[str, bool], Any]] = None,
-                 lab: Any = None, settings: Optional[StandSettings] = None, progress: Optional[ProgressCallback] = None,
-                 cancel: Optional[CancelToken] = None, prompt: Optional[Prompt] = None,
-                 reshoot: Optional[ReshootQuestion] = None, on_event: Optional[EventCallback] = None):
+    def __init__(self, camera: Any, sphere: Any, session: Any, *, stand: Callable[[str, bool], Any] | None = None,
+                 lab: Any = None, settings: StandSettings | None = None, progress: ProgressCallback | None = None,
+                 cancel: CancelToken | None = None, prompt: Prompt | None = None,
+                 reshoot: ReshootQuestion | None = None, on_event: EventCallback | None = None):
         self.camera, self.sphere, self.session, self.lab = camera, sphere, session, lab
         self.settings = settings or StandSettings()
-        self.progress, self.cancel, self.prompt, self.reshoot, self.on_event = progress, cancel, prompt, reshoot, on_event
+        self.progress, self.cancel, self.prompt = progress, cancel, prompt
+        self.reshoot, self.on_event = reshoot, on_event
         s = self.settings
         self.shooter = Shooter(camera, sphere, session, stand=stand,
                                safety=SafetySettings(settle_s=s.settle_s, latency_s=s.latency_s, max_on_s=s.max_on_s))
@@ -163,15 +173,15 @@ class CopyStand:
                         .5 + .05 * i, .55 + .05 * i))
         return out
 
-    def calibrate(self, preset: Any, *, hdr_auto: bool = False, grids: Optional[dict[str, Any]] = None,
-                  report_dir: Optional[Path] = None) -> CalibrationProfile:
+    def calibrate(self, preset: Any, *, hdr_auto: bool = False, grids: dict[str, Any] | None = None,
+                  report_dir: Path | None = None) -> CalibrationProfile:
         """Auto-exposure, darks and flats at every planned exposure, training and test targets, characterisation:
         the calibration profile, saved in ``<session>/calibration/``."""
         base = self.auto_expose(lights_of(preset))
         return self.calibrate_at(preset, base, hdr_auto=hdr_auto, grids=grids, report_dir=report_dir)
 
     def calibrate_at(self, preset: Any, base: dict[str, float], *, hdr_auto: bool = False,
-                     grids: Optional[dict[str, Any]] = None, report_dir: Optional[Path] = None) -> CalibrationProfile:
+                     grids: dict[str, Any | None] = None, report_dir: Path | None = None) -> CalibrationProfile:
         """:meth:`calibrate` from known open-gate exposures ``base`` (light name -> seconds)."""
         lights = lights_of(preset)
         plan = self.exposure_plan(base, hdr_auto)
@@ -214,7 +224,7 @@ class CopyStand:
             targets={"train": result.report.get("train"), "test": result.report.get("test")},
             darks=proc.darks, whites=dict(proc._whites))
 
-    def _ppi(self, test: TargetSpec) -> Optional[float]:
+    def _ppi(self, test: TargetSpec) -> float | None:
         if self.settings.ppi:
             return float(self.settings.ppi)
         width_mm = self.settings.target_width_mm or (VIRTUAL_TARGET_WIDTH_MM if self.lab is not None else None)
@@ -224,7 +234,7 @@ class CopyStand:
         return round(float(np.hypot(*(tr - tl))) / (width_mm / 25.4), 2)     # stack pixels per inch
 
     # ------------------------------------------------------------------ originals
-    def check(self, profile: CalibrationProfile, lights: Optional[Sequence[NamedLight]] = None) -> ReuseCheck:
+    def check(self, profile: CalibrationProfile, lights: Sequence[NamedLight] | None = None) -> ReuseCheck:
         """Compare the stand with the calibration; a mismatch raises ProfileError (one line) unless ``force``."""
         result = check_reuse(profile, CameraIdentity.of(self.camera), SphereIdentity.of(self.sphere),
                              lights if lights is not None else profile.lights, self.settings.limits)
@@ -236,15 +246,16 @@ class CopyStand:
             log.warning("%s", w)
         return result
 
-    def _take(self, original: Original, reshoot: Optional[bool]) -> tuple[int, int]:
+    def _take(self, original: Original, reshoot: bool | None) -> tuple[int, int]:
         """(take to record, frames already in the session for this original)."""
         takes = original_takes(self.session, original)
         if not takes:
-            return 1, 0
+            return 1
         again = reshoot if reshoot is not None else (self.reshoot(original, len(takes)) if self.reshoot else False)
-        return (max(takes) + 1 if again else max(takes)), len(takes)
+        return max(takes) + 1 if again else max(takes)
 
-    def meter(self, original: Original, profile: CalibrationProfile, take: int) -> tuple[dict[str, list[float]], list[str]]:
+    def meter(self, original: Original, profile: CalibrationProfile, take: int
+              ) -> tuple[dict[str, list[float]], list[str]]:
         """Metering frame per light -> the calibrated exposures the original needs (HDR only when it must)."""
         h, w = profile.raw["shape"]
         n = self.settings.meter_tiles
@@ -264,12 +275,12 @@ class CopyStand:
                                 f"{len(have)} (recalibrate with --hdr auto)")
         return exposures, warnings
 
-    def capture(self, original: Original, profile: CalibrationProfile, *, reshoot: Optional[bool] = None,
-                out_dir: Optional[Path] = None) -> CaptureReport:
+    def capture(self, original: Original, profile: CalibrationProfile, *, reshoot: bool | None = None,
+                out_dir: Path | None = None) -> CaptureReport:
         """Check the calibration, meter, capture (HDR when metering asks), deliver; frames already in the session
         are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
         checked = self.check(profile)
-        take, existing = self._take(original, reshoot)
+        take = self._take(original, reshoot)
         exposures, warnings = self.meter(original, profile, take)
         if profile.mode != original.mode:
             warnings.append(f"calibrated {profile.mode}, original {original.mode}: colour not characterised for it")
@@ -326,7 +337,7 @@ def original_dose(session: Any, subject: Subject) -> LightDoseRecord:
     return LightDoseRecord(total.lux_s, total.on_s)
 
 
-def _chain(*callbacks: Optional[EventCallback]) -> EventCallback:
+def _chain(*callbacks: EventCallback | None) -> EventCallback:
     def call(ev: ProgressEvent) -> None:
         for cb in callbacks:
             if cb is not None:
@@ -344,8 +355,8 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
     return proc
 
 
-def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: Optional[float] = None,
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> list[Delivery]:
+def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: float | None = None,
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> list[Delivery]:
     """Deliver every original of a session again with ``profile`` (``dualrgb process``)."""
     from app.workflow.session_processing import select_lights, session_frames
 
@@ -367,8 +378,3 @@ def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: 
                            extra={"session": str(session.path), "reprocessed": True}))
         report(progress, (i + 1) / len(originals), f"{original.identifier} delivered")
     return out
-
-
-def calibration_coverage(session: Any, profile: CalibrationProfile) -> str:
-    """"darks 2/2 exposures, flats 4/4 light exposures" for the profile's plan in ``session``."""
-    return coverage(session, profile.exposures).summary()

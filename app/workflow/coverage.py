@@ -4,8 +4,8 @@ the black level and the calibration is incomplete."""
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 from app.processing.calibration import EXPOSURE_RTOL
 from app.workflow.vocabulary import Role, latest_takes, light_of, role_of

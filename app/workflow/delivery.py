@@ -22,7 +22,7 @@ from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 from app.processing.encode import LINEAR_ONE, DeliveryEncoder
 from app.processing.outputs import TiffMetadata, icc_profile, open_tiff, tiff_datetime, xmp_packet
@@ -93,13 +93,13 @@ class QaLine:
     underexposed_pct: float
     invalid_pct: float
     dose: LightDoseRecord
-    train_mean: Optional[float]
-    test_mean: Optional[float]
+    train_mean: float | None
+    test_mean: float | None
     hdr: bool = False
     warnings: list[str] = field(default_factory=list)
 
     def text(self) -> str:
-        def de(v: Optional[float]) -> str:
+        def de(v: float | None) -> str:
             return "n/a" if v is None else f"{v:.2f}"
         return (f"{self.identifier}: clipped {self.clipped_pct:.2f} %, under-exposed {self.underexposed_pct:.2f} %, "
                 f"light dose {self.dose.lux_h:.3g} lux.h ({self.dose.lux_s:.3g} lux.s), calibration dE00 train "
@@ -131,7 +131,7 @@ def _qa(stack: ChannelStack, invalid: float, profile: CalibrationProfile, origin
 
 
 def _tiff_meta(original: Original, profile: CalibrationProfile, camera: CameraIdentity, dose: LightDoseRecord,
-               ppi: Optional[float], what: str, now: datetime) -> TiffMetadata:
+               ppi: float | None, what: str, now: datetime) -> TiffMetadata:
     software = f"dualrgb {dualrgb_version()}"
     xmp = xmp_packet({"Operator": original.operator, "CalibrationID": profile.id, "Mode": original.mode,
                       "LightDoseLuxHours": f"{dose.lux_h:.6g}", "LightDoseLuxSeconds": f"{dose.lux_s:.6g}",
@@ -195,9 +195,9 @@ def write_images(stack: ChannelStack, profile: CalibrationProfile, images: dict[
 
 
 def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original, out_dir: Path, *,
-            camera: CameraIdentity, dose: LightDoseRecord, ppi: Optional[float] = None,
-            exposures: Optional[dict[str, list[float]]] = None, warnings: Optional[list[str]] = None,
-            extra: Optional[dict] = None) -> Delivery:
+            camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
+            exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
+            extra: dict | None = None) -> Delivery:
     """Encode the stack with the calibration's matrix and write every deliverable of ``original``."""
     warnings = list(warnings or [])
     ppi = ppi or profile.ppi
@@ -211,7 +211,8 @@ def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original
                                   lambda what: _tiff_meta(original, profile, camera, dose, ppi, what, now))
     qa = _qa(stack, invalid, profile, original, dose, any(len(v) > 1 for v in (exposures or {}).values()), warnings)
     sidecar = folder / f"{stem}.json"
-    doc = {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"), "original": original.to_dict(),
+    doc = {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"),
+           "original": original.to_dict(),
            "calibration": {"id": profile.id, "file": str(profile.path or ""), "created_at": profile.created_at,
                            "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean},
            "camera": asdict(camera), "ppi": ppi, "exposures": exposures or {}, "light_dose": dose.to_dict(),

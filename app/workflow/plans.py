@@ -7,22 +7,32 @@
 from __future__ import annotations
 
 import logging
-from typing import Any, Mapping, Optional, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from app.sequences.base import Sequence as BaseSequence
 from app.sequences.calibration import DarkSeries, FlatSeries
 from app.sequences.capture import SubjectCapture
-from app.workflow.vocabulary import (NamedLight, Role, SequenceKind, Subject, latest_takes, light_of, role_of,
-                                     split_take, step_id)
+from app.workflow.vocabulary import (
+    NamedLight,
+    Role,
+    SequenceKind,
+    Subject,
+    latest_takes,
+    light_of,
+    role_of,
+    split_take,
+    step_id,
+)
 
 log = logging.getLogger(__name__)
 
 
 def calibration_exposures(session: Any, base: Mapping[str, Sequence[float]],
-                          planned: Optional[Mapping[str, Sequence[float]]] = None) -> dict[str, list[float]]:
+                          planned: Mapping[str, Sequence[float]] | None = None) -> dict[str, list[float]]:
     """Per light: every exposure the captures use (base, planned HDR brackets, targets and originals already in
     the session under that light): darks and flats need all of them."""
-    out = {name: set(float(t) for t in ts) for name, ts in base.items()}
+    out = {name: {float(t) for t in ts} for name, ts in base.items()}
     for name, ts in (planned or {}).items():
         out.setdefault(name, set()).update(float(t) for t in ts)
     if session is not None:
@@ -34,7 +44,7 @@ def calibration_exposures(session: Any, base: Mapping[str, Sequence[float]],
 
 
 def build_sequence(kind: SequenceKind, shooter: Any, lights: Sequence[NamedLight], *,
-                   exposures: Mapping[str, Sequence[float]], frames: int = 1, subject: Optional[Subject] = None,
+                   exposures: Mapping[str, Sequence[float]], frames: int = 1, subject: Subject | None = None,
                    take: int = 1) -> BaseSequence:
     """The sequence of ``kind``: darks at every exposure in ``exposures``, flats per light at its exposures,
     or ``subject`` under each light at its exposures (TARGET / HDR_TARGET / ORIGINAL)."""

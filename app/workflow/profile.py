@@ -18,10 +18,11 @@ import hashlib
 import io
 import json
 import logging
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Optional, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -47,11 +48,11 @@ class CameraIdentity:
     model: str = ""
     serial: str = ""
     lens: str = ""
-    iso: Optional[int] = None
-    aperture: Optional[float] = None
+    iso: int | None = None
+    aperture: float | None = None
 
     @classmethod
-    def of(cls, camera: Any) -> "CameraIdentity":
+    def of(cls, camera: Any) -> CameraIdentity:
         """What the camera reports about itself (gphoto2: serialnumber / lensname config; virtual: its own)."""
         summary = camera.config_summary()
         settings = camera.settings()
@@ -79,16 +80,16 @@ class SphereIdentity:
     model: str = ""
     firmware: str = ""
     serial: str = ""
-    temperature_c: Optional[float] = None
+    temperature_c: float | None = None
 
     @classmethod
-    def of(cls, sphere: Any) -> "SphereIdentity":
+    def of(cls, sphere: Any) -> SphereIdentity:
         info = sphere.identify()
         return cls(str(info.get("model", "")), str(info.get("firmware", "")), str(info.get("serial", "")),
                    float(sphere.temperature_c()))
 
 
-@dataclass
+@dataclass(frozen=True)
 class ReuseLimits:
     temperature_drift_c: float = 5.0
     max_age_h: float = 8.0
@@ -126,20 +127,20 @@ class CalibrationProfile:
     white_xyz: list[float]
     raw: dict                                   # white_level, black_level, cfa, linear_limit, shape
     sources: dict[str, str]                     # frame file -> sha256
-    ppi: Optional[float] = None
+    ppi: float | None = None
     targets: dict = field(default_factory=dict)
     version: str = field(default_factory=dualrgb_version)
-    darks: Optional[MasterDark] = None
+    darks: MasterDark | None = None
     whites: dict[str, FlatField] = field(default_factory=dict)
-    path: Optional[Path] = None
+    path: Path | None = None
 
     # ---- derived ----
     @property
-    def test_mean(self) -> Optional[float]:
+    def test_mean(self) -> float | None:
         best = self.statistics.get("methods", {}).get(self.statistics.get("best", ""), {})
         return (best.get("test") or {}).get("mean")
 
-    def age_h(self, now: Optional[datetime] = None) -> float:
+    def age_h(self, now: datetime | None = None) -> float:
         created = datetime.fromisoformat(self.created_at)
         return ((now or datetime.now(timezone.utc)) - created).total_seconds() / 3600.0
 
@@ -197,8 +198,8 @@ def load_profile(path: Path, *, arrays: bool = True) -> CalibrationProfile:
     except json.JSONDecodeError as exc:
         raise ProfileError(f"{path}:{exc.lineno}: not a calibration (invalid JSON: {exc.msg})") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise ProfileError(f"{path}: not a dualrgb calibration (format {doc.get('format') if isinstance(doc, dict) else None!r},"
-                           f" expected {FORMAT!r})")
+        found = doc.get("format") if isinstance(doc, dict) else None
+        raise ProfileError(f"{path}: not a dualrgb calibration (format {found!r}, expected {FORMAT!r})")
     try:
         prof = _from_dict(doc)
     except (KeyError, TypeError, ValueError) as exc:
@@ -250,9 +251,9 @@ def _sha256(path: Path, chunk: int = 1 << 22) -> str:
     return h.hexdigest()
 
 
-def check_reuse(prof: CalibrationProfile, camera: CameraIdentity, sphere: Optional[SphereIdentity] = None,
-                lights: Optional[Sequence[NamedLight]] = None, limits: ReuseLimits = ReuseLimits(),
-                now: Optional[datetime] = None) -> ReuseCheck:
+def check_reuse(prof: CalibrationProfile, camera: CameraIdentity, sphere: SphereIdentity | None = None,
+                lights: Sequence[NamedLight] | None = None, limits: ReuseLimits = ReuseLimits(),
+                now: datetime | None = None) -> ReuseCheck:
     """Compare the stand now with the calibration: refusals name each mismatch, warnings the age."""
     out = ReuseCheck(age_h=prof.age_h(now))
     c = prof.camera
@@ -265,7 +266,8 @@ def check_reuse(prof: CalibrationProfile, camera: CameraIdentity, sphere: Option
         drift = sphere.temperature_c - prof.sphere.temperature_c
         if abs(drift) > limits.temperature_drift_c:
             out.refusals.append(f"sphere temperature {sphere.temperature_c:.1f} C is {drift:+.1f} C from the "
-                                f"calibration's {prof.sphere.temperature_c:.1f} C (limit +-{limits.temperature_drift_c:g} C)")
+                                f"calibration's {prof.sphere.temperature_c:.1f} C "
+                                f"(limit +-{limits.temperature_drift_c:g} C)")
     if sphere is not None and prof.sphere.serial and sphere.serial != prof.sphere.serial:
         out.refusals.append(f"sphere serial {sphere.serial} differs from the calibration's {prof.sphere.serial}")
     for nl in lights or ():
@@ -280,7 +282,8 @@ def _compare_light(prof: CalibrationProfile, nl: NamedLight, out: ReuseCheck) ->
     try:
         ref = prof.light(nl.name).light
     except KeyError:
-        out.refusals.append(f"light {nl.name!r} is not in the calibration (it has {', '.join(l.name for l in prof.lights)})")
+        known = ", ".join(light.name for light in prof.lights)
+        out.refusals.append(f"light {nl.name!r} is not in the calibration (it has {known})")
         return
     if not np.allclose(ref.weights(), nl.light.weights(), atol=LEVEL_TOLERANCE):
         out.refusals.append(f"{nl.name} levels {nl.light.label()} differ from the calibration's {ref.label()}")
@@ -291,7 +294,7 @@ def new_profile_id(created: datetime, sources: dict[str, str]) -> str:
     return f"cal-{created.strftime('%Y%m%dT%H%M%SZ')}-{digest}"
 
 
-def describe(prof: CalibrationProfile, check: Optional[ReuseCheck] = None) -> list[str]:
+def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[str]:
     """Human-readable lines for ``dualrgb calibration show``."""
     stats = prof.statistics.get("methods", {}).get(prof.statistics.get("best", ""), {})
     lines = [f"calibration {prof.id} ({FORMAT}, dualrgb {prof.version}), made {prof.created_at} "
@@ -305,7 +308,8 @@ def describe(prof: CalibrationProfile, check: Optional[ReuseCheck] = None) -> li
         lines.append(f"  {nl.name}: {nl.light.label()}, exposures {ts} s")
     lines.append(f"matrix: {prof.matrix.method} ({len(prof.matrix.channels)} channels, of "
                  f"{', '.join(prof.statistics.get('methods', {}))}); train mean dE00 "
-                 f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, test mean {prof.test_mean or float('nan'):.3f}")
+                 f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, "
+                 f"test mean {prof.test_mean or float('nan'):.3f}")
     lines.append(f"darks {len(prof.darks.exposures) if prof.darks else '?'} exposures, whites "
                  f"{len(prof.whites) or '?'} lights, {len(prof.sources)} source frames, "
                  f"ppi {prof.ppi if prof.ppi else 'not set'}")

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import logging
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -85,8 +85,8 @@ def light_sets(light_names: Sequence[str]) -> dict[str, list[str]]:
     return out
 
 
-def select_lights(frames: LightFrames, lights: Optional[Sequence[str]] = None,
-                  exposures: Optional[dict[str, Sequence[float]]] = None) -> LightFrames:
+def select_lights(frames: LightFrames, lights: Sequence[str] | None = None,
+                  exposures: dict[str, Sequence[float]] | None = None) -> LightFrames:
     """The exposures of ``lights`` (default: every light, in recording order), only ``exposures`` when given."""
     names = list(lights) if lights is not None else list(frames)
     missing = [n for n in names if n not in frames]
@@ -104,9 +104,9 @@ def select_lights(frames: LightFrames, lights: Optional[Sequence[str]] = None,
     return out
 
 
-def build_processor(frames: SessionFrames, lights: Sequence[str], *, white_level: Optional[float] = None,
-                    linear_limit: Optional[float] = LINEAR_LIMIT_DN, progress: Optional[ProgressCallback] = None,
-                    cancel: Optional[CancelToken] = None) -> CaptureProcessor:
+def build_processor(frames: SessionFrames, lights: Sequence[str], *, white_level: float | None = None,
+                    linear_limit: float | None = LINEAR_LIMIT_DN, progress: ProgressCallback | None = None,
+                    cancel: CancelToken | None = None) -> CaptureProcessor:
     """A processor with the session's dark frames and the HDR whites (flats) of ``lights``."""
     proc = CaptureProcessor(dark_frames=frames.darks, white_level=white_level, linear_limit=linear_limit)
     missing = [n for n in lights if n not in frames.flats]
@@ -148,11 +148,11 @@ def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames,
     return sampled.mean[:len(spec.names)], sampled.std[:len(spec.names)], stack
 
 
-def process_session(session, out_dir: Path, train: TargetSpec, test: Optional[TargetSpec] = None, *,
-                    lights: Optional[Sequence[str]] = None, exposures: Optional[dict[str, Sequence[float]]] = None,
-                    white_level: Optional[float] = None, linear_limit: Optional[float] = LINEAR_LIMIT_DN,
-                    optimise: bool = True, white_xyz: Optional[np.ndarray] = None, title: str = "dual-RGB capture",
-                    progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None
+def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec | None = None, *,
+                    lights: Sequence[str] | None = None, exposures: dict[str, Sequence[float]] | None = None,
+                    white_level: float | None = None, linear_limit: float | None = LINEAR_LIMIT_DN,
+                    optimise: bool = True, white_xyz: np.ndarray | None = None, title: str = "dual-RGB capture",
+                    progress: ProgressCallback | None = None, cancel: CancelToken | None = None
                     ) -> SessionResult:
     """Darks, HDR whites, target stacks -> patch values -> matrices -> report.json + figures + CSVs in ``out_dir``.
 

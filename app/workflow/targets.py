@@ -10,7 +10,7 @@ import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 
@@ -34,11 +34,11 @@ class TargetSpec:
     subject: Subject
     xyz: np.ndarray                    # (n, 3) reference XYZ (eq 4.2 scale, Y of a perfect white = 100)
     names: list[str]
-    grid: Optional[PatchGrid] = None
-    layout: Optional[tuple[int, int]] = None
-    simulated: Optional[np.ndarray] = None
+    grid: PatchGrid | None = None
+    layout: tuple[int, int] | None = None
+    simulated: np.ndarray | None = None
     label: str = ""
-    nd_mask: Optional[np.ndarray] = None     # patches under the ND filter (virtual lab)
+    nd_mask: np.ndarray | None = None     # patches under the ND filter (virtual lab)
 
 
 def packaged_target(mode: str, name: str) -> Any:
@@ -50,15 +50,15 @@ def packaged_target(mode: str, name: str) -> Any:
     return getattr(default_setup(mode), name)
 
 
-def nd_transmittance(nd_mask: Optional[np.ndarray], transmittance: float, n: int) -> np.ndarray:
+def nd_transmittance(nd_mask: np.ndarray | None, transmittance: float, n: int) -> np.ndarray:
     """Per patch: the ND filter's transmittance where it covers the patch, 1 elsewhere."""
     if nd_mask is None:
         return np.ones(n)
     return np.where(np.asarray(nd_mask, bool), float(transmittance), 1.0)
 
 
-def reference_xyz(mode: str, name: str, nd_scale: Optional[np.ndarray] = None,
-                  method: Optional[str] = None) -> tuple[np.ndarray, list[str]]:
+def reference_xyz(mode: str, name: str, nd_scale: np.ndarray | None = None,
+                  method: str | None = None) -> tuple[np.ndarray, list[str]]:
     """Reference XYZ (D65, CIE 1931 2 deg, Y of a perfect white = 100) of a packaged target and its patch names;
     ``nd_scale`` (per patch) multiplies the spectra (the ND filter's transmittance where it covers a patch).
     ``method``: simulation.datasets.target_xyz's integration ('eq-4.2', the default, or 'astm-e308')."""
@@ -72,7 +72,7 @@ def reference_xyz(mode: str, name: str, nd_scale: Optional[np.ndarray] = None,
     return xyz, list(target.patch_names)
 
 
-def reference_white(mode: str = "reflective", method: Optional[str] = None) -> np.ndarray:
+def reference_white(mode: str = "reflective", method: str | None = None) -> np.ndarray:
     """The Lab reference white on the targets' scale: D65, Y = 100 (integrated like ``method``)."""
     from simulation.datasets import default_setup, target_xyz
 
@@ -89,8 +89,8 @@ def scene_grid(scene: Any, fraction: float = 0.5) -> PatchGrid:
     return PatchGrid(corners_rc[:, ::-1], rows, cols, fraction=fraction).scaled(0.5)   # (row, col) -> (x, y)
 
 
-def virtual_target_spec(lab: Any, subject: Subject, *, simulated: Optional[np.ndarray] = None,
-                        grid: Optional[PatchGrid] = None, label: str = "", method: Optional[str] = None) -> TargetSpec:
+def virtual_target_spec(lab: Any, subject: Subject, *, simulated: np.ndarray | None = None,
+                        grid: PatchGrid | None = None, label: str = "", method: str | None = None) -> TargetSpec:
     """A TargetSpec for a target captured in the virtual lab: its scene gives the grid and the ND patches."""
     if subject.kind is not SubjectKind.TARGET:
         raise ValueError(f"{subject.label}: not a colour target")
@@ -103,8 +103,8 @@ def virtual_target_spec(lab: Any, subject: Subject, *, simulated: Optional[np.nd
                       label or f"{subject.name} ({target.name})", nd_mask)
 
 
-def target_spec(mode: str, subject: Subject, grid: Optional[PatchGrid], *, lab: Any = None,
-                label: str = "", method: Optional[str] = None) -> TargetSpec:
+def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any = None,
+                label: str = "", method: str | None = None) -> TargetSpec:
     """The TargetSpec the GUI and the CLI use: the virtual lab's scene when there is one (ND included), else the
     packaged target of ``mode`` with the grid placed by hand (None: CC24 auto-detection). ``method``: how the
     reference XYZ is integrated (simulation.datasets.target_xyz: 'eq-4.2' or 'astm-e308')."""

@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import logging
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any, Optional, Sequence
+from typing import Any
 
 from simulation.lightsource import LightSource
 
@@ -86,11 +87,11 @@ class Subject:
             raise ValueError(f"target {self.name!r}: expected one of {', '.join(TARGET_NAMES)}")
 
     @classmethod
-    def target(cls, name: str, nd: bool = False) -> "Subject":
+    def target(cls, name: str, nd: bool = False) -> Subject:
         return cls(SubjectKind.TARGET, name, nd)
 
     @classmethod
-    def original(cls, identifier: str) -> "Subject":
+    def original(cls, identifier: str) -> Subject:
         return cls(SubjectKind.ORIGINAL, identifier.strip())
 
     @property
@@ -114,7 +115,7 @@ class Subject:
         return what + (" under the ND 2.0 filter" if self.nd else "")
 
     @classmethod
-    def parse(cls, key: str) -> "Subject":
+    def parse(cls, key: str) -> Subject:
         """The subject of a key made by :attr:`key` (old keys such as 'hdr-nd:test' are read too)."""
         kind, sep, name = key.partition(":")
         if not sep:
@@ -168,9 +169,9 @@ def read_light_name(text: str) -> str:
     return text or "light"
 
 
-def format_exposure(seconds: Optional[float]) -> str:
+def format_exposure(seconds: float | None) -> str:
     """An exposure time as photographers read it ('1/60 s', '2 s'): the camera driver's own notation."""
-    from drivers.camera.gphoto import format_shutter
+    from drivers.camera.gphoto_labels import format_shutter
 
     return format_shutter(seconds)
 
@@ -181,8 +182,8 @@ def exposure_key(t: float) -> str:
     return f"{t:.6g}"
 
 
-def step_id(role: Role, *, subject: Optional[Subject] = None, light: Optional[str] = None,
-            exposure_s: Optional[float] = None, frame: Optional[int] = None, take: int = 1) -> str:
+def step_id(role: Role, *, subject: Subject | None = None, light: str | None = None,
+            exposure_s: float | None = None, frame: int | None = None, take: int = 1) -> str:
     """The manifest step id of one frame: ``role[/subject][/light][/exposure][/frame][#takeN]``.
 
     A resumed sequence skips steps the session already has; a re-shoot records ``take`` 2, 3, ... and the
@@ -225,7 +226,7 @@ def read_role(text: str) -> tuple[Role, bool]:
                          f"(or an old one: {', '.join(_OLD_ROLES)})") from None
 
 
-def role_of(entry: Any) -> Optional[Role]:
+def role_of(entry: Any) -> Role | None:
     """The Role of a manifest entry, or None (with a log line) for a role this version does not know."""
     try:
         return read_role(entry.role)[0]
@@ -234,7 +235,7 @@ def role_of(entry: Any) -> Optional[Role]:
         return None
 
 
-def subject_of(entry: Any) -> Optional[Subject]:
+def subject_of(entry: Any) -> Subject | None:
     """What a target / original frame shows (new manifests: ``meta['subject']`` holds the key)."""
     try:
         role, nd = read_role(entry.role)
@@ -269,6 +270,6 @@ def latest_takes(entries: Sequence[Any]) -> list[Any]:
     return [e for e in entries if e.seq in keep]
 
 
-__all__ = ["EventKind", "format_exposure", "NamedLight", "Role", "SequenceKind", "Subject", "SubjectKind", "exposure_key",
-           "latest_takes", "light_name", "light_of", "lights_of", "read_light_name", "read_role", "role_of",
-           "split_take", "step_id", "subject_of"]
+__all__ = ["EventKind", "format_exposure", "NamedLight", "Role", "SequenceKind", "Subject", "SubjectKind",
+           "exposure_key", "latest_takes", "light_name", "light_of", "lights_of", "read_light_name", "read_role",
+           "role_of", "split_take", "step_id", "subject_of"]

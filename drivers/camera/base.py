@@ -14,14 +14,16 @@ from __future__ import annotations
 import abc
 import logging
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
+C = TypeVar("C", bound="Camera")
 GP_ERROR_TIMEOUT = -10          # libgphoto2's timeout code, also used for host-side deadlines
 DEFAULT_LATENCY_S = 1.0         # a camera's latency allowance when it does not report its own
 
@@ -32,7 +34,7 @@ class CameraError(RuntimeError):
     ``code`` is the libgphoto2 error code where there is one (e.g. -105 no camera, -53 USB claimed).
     """
 
-    def __init__(self, message: str, code: Optional[int] = None):
+    def __init__(self, message: str, code: int | None = None):
         super().__init__(message)
         self.code = code
 
@@ -41,7 +43,7 @@ class CameraTimeout(CameraError):
     """A camera call did not return within its host-side deadline. ``worker`` is the thread still inside it
     (the camera may finish later; until then it must not be called again)."""
 
-    def __init__(self, message: str, worker: Optional[threading.Thread] = None):
+    def __init__(self, message: str, worker: threading.Thread | None = None):
         super().__init__(message, GP_ERROR_TIMEOUT)
         self.worker = worker
 
@@ -57,7 +59,7 @@ def call_with_deadline(fn: Callable[[], T], deadline_s: float, action: str) -> T
     def run() -> None:
         try:
             box["value"] = fn()
-        except BaseException as exc:  # delivered to the caller's thread as it is
+        except BaseException as exc:  # noqa: BLE001 - delivered to the caller's thread as it is
             box["error"] = exc
         finally:
             done.set()
@@ -89,11 +91,11 @@ class Exposure:
 
 @dataclass
 class CameraSettings:
-    iso: Optional[int] = None
-    shutter_s: Optional[float] = None        # exposure time in seconds (> 30 s means bulb)
-    aperture: Optional[float] = None         # f-number
-    image_quality: Optional[str] = None      # e.g. 'NEF (Raw)'
-    capture_target: Optional[str] = None     # e.g. 'Internal RAM', 'Memory card'
+    iso: int | None = None
+    shutter_s: float | None = None        # exposure time in seconds (> 30 s means bulb)
+    aperture: float | None = None         # f-number
+    image_quality: str | None = None      # e.g. 'NEF (Raw)'
+    capture_target: str | None = None     # e.g. 'Internal RAM', 'Memory card'
 
 
 @dataclass
@@ -103,8 +105,8 @@ class RawCapture:
     data: bytes
     filename: str                             # camera-side name, e.g. DSC_0001.NEF / VIRT_0001.DNG
     exposure_s: float
-    iso: Optional[int] = None
-    aperture: Optional[float] = None
+    iso: int | None = None
+    aperture: float | None = None
     camera: str = ""
     extra: dict = field(default_factory=dict)
 
@@ -113,7 +115,11 @@ class Camera(abc.ABC):
     """Open/close (or use as a context manager), read/set settings, expose + fetch (= capture), preview."""
 
     name: str = "camera"
-    latency_s: float = DEFAULT_LATENCY_S
+
+    @property
+    def latency_s(self) -> float:
+        """The camera's allowance beyond the exposure (a stand-in's default; real cameras report their own)."""
+        return DEFAULT_LATENCY_S
 
     def latency_for(self, exposure_s: float) -> float:
         """How long after the end of an ``exposure_s`` exposure :meth:`expose` may take to return (trigger,
@@ -127,7 +133,7 @@ class Camera(abc.ABC):
     @abc.abstractmethod
     def close(self) -> None: ...
 
-    def __enter__(self) -> "Camera":
+    def __enter__(self: C) -> C:
         self.open()
         return self
 
@@ -147,7 +153,7 @@ class Camera(abc.ABC):
         """The exposure times (s) the camera offers, ascending (bulb excluded)."""
 
     @abc.abstractmethod
-    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
+    def expose(self, exposure_s: float | None = None) -> Exposure:
         """Take one raw exposure (setting the shutter first if given; bulb above 30 s); returns as soon as the
         shutter has closed, before any download."""
 
@@ -155,7 +161,7 @@ class Camera(abc.ABC):
     def fetch(self, exposure: Exposure) -> RawCapture:
         """Download the frame of an exposure (the light can be off by now)."""
 
-    def capture(self, exposure_s: Optional[float] = None) -> RawCapture:
+    def capture(self, exposure_s: float | None = None) -> RawCapture:
         """``expose()`` then ``fetch()``: one raw exposure, downloaded."""
         return self.fetch(self.expose(exposure_s))
 

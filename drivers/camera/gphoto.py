@@ -2,8 +2,9 @@
 
 All gphoto2 calls of the project live in this module and its helpers (``gphoto_errors``: error messages with
 libgphoto2's own logged reason; ``gphoto_labels``: what labels mean, in any language; ``gphoto_settings``: the
-configuration tree and the copy stand's settings; ``gphoto_files``: events, the raw file of a capture, downloads). ``gphoto2`` is imported lazily (first detect/open), so
-``import drivers.camera`` works without it, and tests can set ``VCAMERADIR`` (libgphoto2's virtual camera) first.
+configuration tree and the copy stand's settings; ``gphoto_files``: events, the raw file of a capture,
+downloads). ``gphoto2`` is imported lazily (first detect/open), so ``import drivers.camera`` works without it,
+and tests can set ``VCAMERADIR`` (libgphoto2's virtual camera) first.
 
 The light is on only while a frame is exposed, so :meth:`GPhotoCamera.expose` returns as close to the shutter
 closing as libgphoto2 allows (libgphoto2's ``capture()`` returns only after the camera has stored the file and,
@@ -36,22 +37,31 @@ import logging
 import os
 import threading
 import time
+from collections.abc import Callable
 from io import BytesIO
-from typing import Any, Callable, Optional, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
 from drivers.camera.base import Camera, CameraError, CameraTimeout, Exposure, RawCapture, call_with_deadline
-from drivers.camera.gphoto_errors import (GP_ERROR, GP_ERROR_CAMERA_BUSY, GP_ERROR_CANCEL, GP_ERROR_IO_USB_FIND,
-                                          GP_ERROR_NOT_SUPPORTED, GP_ERROR_TIMEOUT, LibraryLog, camera_error,
-                                          gphoto_error_code)
+from drivers.camera.gphoto_errors import (
+    GP_ERROR,
+    GP_ERROR_CAMERA_BUSY,
+    GP_ERROR_CANCEL,
+    GP_ERROR_IO_USB_FIND,
+    GP_ERROR_NOT_SUPPORTED,
+    GP_ERROR_TIMEOUT,
+    LibraryLog,
+    camera_error,
+    gphoto_error_code,
+    retry_busy,
+)
+
+# re-exported: the error callers match (e.g. the GUI's advice on a camera another program holds)
+from drivers.camera.gphoto_errors import GP_ERROR_IO_USB_CLAIM as GP_ERROR_IO_USB_CLAIM
 from drivers.camera.gphoto_files import CapturedFiles, GPhotoFiles
 from drivers.camera.gphoto_labels import capture_target_choice, force_untranslated, format_shutter, is_bulb_label
 from drivers.camera.gphoto_settings import BULB_LIMIT_S, RAM_TARGET, TARGET_NAMES, GPhotoSettings
-# the driver's public names, re-exported from the modules it is split into
-from drivers.camera.gphoto_errors import GP_ERROR_IO_USB_CLAIM, retry_busy  # noqa: F401,E402
-from drivers.camera.gphoto_labels import nearest_by_value, parse_aperture, parse_iso, parse_shutter  # noqa: F401
-from drivers.camera.gphoto_settings import RAW_QUALITY, ConfigEntry  # noqa: F401
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +96,7 @@ def gphoto_available() -> bool:
     return True
 
 
-def latency_from_env() -> Optional[float]:
+def latency_from_env() -> float | None:
     """``$DUALRGB_GPHOTO_LATENCY_S`` (the measured allowance), or None when unset; one line when malformed."""
     text = os.environ.get(LATENCY_ENV, "").strip()
     if not text:
@@ -113,22 +123,22 @@ class PendingCall:
     """A libgphoto2 call left running on its own thread (the bulb release, whose wait for the camera goes on
     after the shutter has closed); the camera is not entered again until it has returned."""
 
-    def __init__(self, action: str, fn: Callable[[], Any], mark: int, on_done: Callable[["PendingCall"], None],
+    def __init__(self, action: str, fn: Callable[[], Any], mark: int, on_done: Callable[[PendingCall], None],
                  started: float):
         self.action, self.mark, self.on_done, self.started = action, mark, on_done, started
-        self.error: Optional[BaseException] = None
+        self.error: BaseException | None = None
         self.done = threading.Event()
         self.thread = threading.Thread(target=self._run, args=(fn,), name=f"camera: {action}", daemon=True)
 
     def _run(self, fn: Callable[[], Any]) -> None:
         try:
             fn()
-        except BaseException as exc:  # delivered by on_done to the thread that calls the camera next
+        except BaseException as exc:  # noqa: BLE001 - delivered by on_done to the thread that calls the camera next
             self.error = exc
         finally:
             self.done.set()
 
-    def start(self) -> "PendingCall":
+    def start(self) -> PendingCall:
         self.thread.start()
         return self
 
@@ -155,13 +165,13 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
 
     name = "gphoto2"
 
-    def __init__(self, model: Optional[str] = None, port: Optional[str] = None, *,
+    def __init__(self, model: str | None = None, port: str | None = None, *,
                  bulb_limit_s: float = BULB_LIMIT_S, file_timeout_s: float = 60.0, pair_timeout_s: float = 5.0,
-                 latency_s: Optional[float] = None, bulb_release_grace_s: float = 0.25,
-                 trigger_waits: Optional[bool] = None,
+                 latency_s: float | None = None, bulb_release_grace_s: float = 0.25,
+                 trigger_waits: bool | None = None,
                  busy_tries: int = 3, busy_delay_s: float = 0.5, delete_from_card: bool = False,
                  call_timeout_s: float = 20.0, capture_timeout_s: float = 30.0, download_timeout_s: float = 120.0,
-                 gp_module: Any = None, sleep: Optional[Callable[[float], None]] = None,
+                 gp_module: Any = None, sleep: Callable[[float], None] | None = None,
                  clock: Callable[[], float] = time.monotonic):
         self.model = model                  # after open(): the model libgphoto2 reports
         self.port = port
@@ -179,24 +189,25 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
         self.call_timeout_s = call_timeout_s
         self.capture_timeout_s = capture_timeout_s
         self.download_timeout_s = download_timeout_s
-        self._stuck: Optional[tuple[str, threading.Thread, float]] = None    # a call that passed its deadline
-        self._pending: Optional[PendingCall] = None
+        self._stuck: tuple[str, threading.Thread | None, float] | None = None    # a call past its deadline
+        self._pending: PendingCall | None = None
         self._gp = gp_module
-        self._log: Optional[LibraryLog] = None
+        self._log: LibraryLog | None = None
         self._abort_event = threading.Event()
-        self._sleep = sleep if sleep is not None else self._abort_event.wait  # abort() ends a bulb wait early
+        self._sleep: Callable[[float], object] = (sleep if sleep is not None
+                                                  else self._abort_event.wait)  # abort() ends a bulb wait early
         self._clock = clock
         self._cam: Any = None
         self._names: dict[str, str] = {}        # config name -> widget kind
         self._summary = ""
         self._lock = threading.RLock()
-        self._bulb_exposure_s: Optional[float] = None
-        self._timed_shutter: Optional[tuple[str, str]] = None   # (setting, label) to restore after bulb
+        self._bulb_exposure_s: float | None = None
+        self._timed_shutter: tuple[str, str] | None = None   # (setting, label) to restore after bulb
         self._live_view = False
         self.image_quality = ""
         self.auto_iso = ""                      # what the session record says: 'switched off', 'off', ...
         self.long_exposure_nr = ""
-        self.last_latency_s: Optional[float] = None   # measured: expose() return minus trigger minus exposure
+        self.last_latency_s: float | None = None   # measured: expose() return minus trigger minus exposure
 
     # ------------------------------------------------------------------------------ discovery and life
     @staticmethod
@@ -223,19 +234,23 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
         nr = self.long_exposure_nr not in _NR_CLEAR and NR_MIN_EXPOSURE_S <= exposure_s <= self.bulb_limit_s
         return self._latency_s + (float(exposure_s) if nr else 0.0)
 
-    def _gp_module(self):
+    def _library(self) -> tuple[Any, LibraryLog]:
+        """python-gphoto2 (or the stand-in given) and libgphoto2's log, both set up on first use."""
         if self._gp is None:
             self._gp = _import_gphoto()
         if self._log is None:
             force_untranslated(self._gp)
             self._log = LibraryLog.attach(self._gp)
-        return self._gp
+        return self._gp, self._log
 
-    def _call(self, action: str, fn: Callable[..., T], *args: Any, deadline_s: Optional[float] = None,
+    def _gp_module(self) -> Any:
+        return self._library()[0]
+
+    def _call(self, action: str, fn: Callable[..., T], *args: Any, deadline_s: float | None = None,
               retry: bool = True, opening_port: bool = False) -> T:
         """One libgphoto2 call: busy retries, error mapping with libgphoto2's logged reason, and a host-side
         deadline (default call_timeout_s)."""
-        gp = self._gp_module()
+        gp, library_log = self._library()
         deadline = self.call_timeout_s if deadline_s is None else deadline_s
 
         def attempt() -> T:
@@ -248,10 +263,10 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
 
         with self._lock:
             self._finish_pending()
-            mark = self._log.mark()
+            mark = library_log.mark()
             return retry_busy(attempt, action, error_type=gp.GPhoto2Error, tries=self.busy_tries if retry else 1,
                               delay_s=self.busy_delay_s, sleep=self._sleep,
-                              mapper=lambda exc, act: camera_error(exc, act, logged=self._log.reason(mark),
+                              mapper=lambda exc, act: camera_error(exc, act, logged=library_log.reason(mark),
                                                                    opening_port=opening_port))
 
     def _check_not_stuck(self) -> None:
@@ -274,7 +289,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
             self._check_not_stuck()
         pending.on_done(pending)
 
-    def _require_open(self):
+    def _require_open(self) -> Any:
         if self._cam is None:
             raise CameraError("the camera is not open: call open() first (or use it as a context manager)")
         return self._cam
@@ -367,9 +382,10 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
         to_ram = entry is None or entry.value == capture_target_choice(entry.choices, RAM_TARGET)
         return trigger_waits_for_exposure(self._summary, to_ram)
 
-    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
+    def expose(self, exposure_s: float | None = None) -> Exposure:
         """The exposure, returning once the shutter has closed; the file is fetched by :meth:`fetch`."""
         self._require_open()
+        actual: float | None
         with self._lock:
             if exposure_s is not None:
                 actual, bulb = self._set_shutter(float(exposure_s))
@@ -472,7 +488,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
             log.debug("releasing bulb after a failed start: %s", exc)
             return
         w.set_value(0)
-        pending = PendingCall("release the bulb", lambda: cam.set_single_config("bulb", w), self._log.mark(),
+        pending = PendingCall("release the bulb", lambda: cam.set_single_config("bulb", w), self._library()[1].mark(),
                               lambda p: self._release_outcome(p, opened), self._clock()).start()
         if pending.done.wait(self.bulb_release_grace_s if opened else self.call_timeout_s):
             self._release_outcome(pending, opened)
@@ -485,7 +501,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
             return
         if gphoto_error_code(exc) is None:
             raise exc
-        reason = self._log.reason(pending.mark)
+        reason = self._library()[1].reason(pending.mark)
         if gphoto_error_code(exc) in (GP_ERROR_CAMERA_BUSY, GP_ERROR) and "terminatecapture" not in reason.lower():
             log.info("bulb released; the camera is still processing the frame (%s)", reason or exc)
             return

@@ -13,7 +13,8 @@ import itertools
 import logging
 import threading
 import time
-from typing import Any, Callable, Optional, TypeVar
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 from drivers.camera.base import CameraError
 
@@ -72,12 +73,12 @@ PERMISSION_WORDS = ("permission denied", "access denied", "insufficient permissi
 CLAIMED_WORDS = ("resource busy", "device or resource busy")
 
 
-def gphoto_error_code(exc: BaseException) -> Optional[int]:
+def gphoto_error_code(exc: BaseException) -> int | None:
     code = getattr(exc, "code", None)
     return int(code) if isinstance(code, int) else None
 
 
-def _advice(code: Optional[int], detail: str, logged: str, opening_port: bool) -> Optional[str]:
+def _advice(code: int | None, detail: str, logged: str, opening_port: bool) -> str | None:
     """The advice for a code, refined by libgphoto2's logged reason and by what was being done."""
     text = logged.lower()
     if code in (GP_ERROR_IO, GP_ERROR_IO_USB_CLAIM) and any(w in text for w in PERMISSION_WORDS):
@@ -108,9 +109,9 @@ def camera_error(exc: BaseException, action: str, *, logged: str = "", opening_p
     return CameraError(f"{msg} [gphoto2 {code}]" if code is not None else msg, code)
 
 
-def retry_busy(fn: Callable[[], T], action: str, *, error_type: type = Exception, tries: int = 3,
-               delay_s: float = 0.5, sleep: Callable[[float], None] = time.sleep,
-               mapper: Optional[Callable[[BaseException, str], CameraError]] = None) -> T:
+def retry_busy(fn: Callable[[], T], action: str, *, error_type: type[BaseException] = Exception, tries: int = 3,
+               delay_s: float = 0.5, sleep: Callable[[float], object] = time.sleep,
+               mapper: Callable[[BaseException, str], CameraError] | None = None) -> T:
     """Call ``fn``; retry on 'camera busy' (-110) up to ``tries`` times with doubling delay, map errors.
 
     Only exceptions of ``error_type`` that carry a libgphoto2 code are mapped to :class:`CameraError` (by
@@ -141,17 +142,19 @@ class LibraryLog:
     Every line also goes to this module's logger at DEBUG.
     """
 
-    _instance: Optional["LibraryLog"] = None
+    _instance: LibraryLog | None = None
     _guard = threading.Lock()
 
     def __init__(self, maxlen: int = 64):
         self._lines: collections.deque[tuple[int, str, str]] = collections.deque(maxlen=maxlen)
         self._counter = itertools.count(1)
         self._last = 0
-        self._handles: dict[int, Any] = {}      # id(gphoto2 module) -> its callback handle, kept alive
+        # id(gphoto2 module) -> (the module, its callback handle), both kept alive: a freed stand-in's id could
+        # be reused by the next one, which would then never be registered
+        self._handles: dict[int, tuple[Any, Any]] = {}
 
     @classmethod
-    def attach(cls, gp: Any) -> "LibraryLog":
+    def attach(cls, gp: Any) -> LibraryLog:
         """The process' log, its callback registered with ``gp`` (python-gphoto2 or a stand-in) once."""
         with cls._guard:
             if cls._instance is None:
@@ -165,10 +168,10 @@ class LibraryLog:
         level = gp.GP_LOG_DEBUG if logging.getLogger("gphoto2").isEnabledFor(logging.DEBUG) else gp.GP_LOG_ERROR
         try:
             result = gp.gp_log_add_func(level, self._callback)
-        except Exception as exc:  # without the log, messages keep the generic text
+        except Exception as exc:  # noqa: BLE001 - without the log, messages keep the generic text
             log.info("could not attach to libgphoto2's log: %s", exc)
             return
-        self._handles[id(gp)] = result[-1] if isinstance(result, (list, tuple)) else result
+        self._handles[id(gp)] = (gp, result[-1] if isinstance(result, (list, tuple)) else result)
 
     def _callback(self, level: int, domain: str, text: str, *_data: Any) -> None:
         log.debug("libgphoto2 (%s) %s", domain, text)

@@ -12,11 +12,13 @@ library.c, ``camera_wait_for_event``): :meth:`GPhotoFiles._wait_for_raw` runs in
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any
 
 from drivers.camera.base import CameraError
 from drivers.camera.gphoto_errors import GP_ERROR_TIMEOUT
+from drivers.camera.gphoto_host import GPhotoHost
 from drivers.camera.gphoto_settings import RAW_QUALITY
 
 log = logging.getLogger(__name__)
@@ -35,7 +37,7 @@ class CapturedFiles:
     files: list[tuple[str, str]] = field(default_factory=list)
 
 
-class GPhotoFiles:
+class GPhotoFiles(GPhotoHost):
     """Events, the raw file of a capture and downloads (mixin of GPhotoCamera)."""
 
     def _event(self, action: str, timeout_s: float) -> tuple[int, Any]:
@@ -73,7 +75,7 @@ class GPhotoFiles:
             if want(*self._event(action, min(left, 1.0))):
                 return
 
-    def _pick(self, files: list[tuple[str, str]]) -> Optional[tuple[str, str]]:
+    def _pick(self, files: list[tuple[str, str]]) -> tuple[str, str] | None:
         if not self.expects_raw:
             return files[0] if files else None
         return next((f for f in files if is_raw_name(f[1])), None)
@@ -87,12 +89,14 @@ class GPhotoFiles:
                 seen.append((data.folder, data.name))
             return self._pick(seen) is not None
 
-        if self._pick(seen) is None:
+        picked = self._pick(seen)
+        while picked is None:                       # _wait_until returns once one arrived, or raises
             kind = "raw file" if self.expects_raw else "file"
             self._wait_until(added, timeout_s, "capture: wait for the captured file",
                              f"no {kind} arrived within {{s:.0f}} s after the exposure ended" +
                              (f" (only {', '.join(n for _, n in seen)})" if seen else ""))
-        return self._pick(seen)
+            picked = self._pick(seen)
+        return picked
 
     def _rest_of_capture(self, seen: list[tuple[str, str]], taken: tuple[str, str]) -> list[tuple[str, str]]:
         """The capture's other files (the JPEG of a NEF+JPEG pair): waited for briefly, drained, reported."""

@@ -16,8 +16,9 @@ import logging
 import math
 import re
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Optional, Sequence, TypeVar
+from typing import Any, TypeVar
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +49,7 @@ def _num(s: str) -> float:
     return float(s.replace(",", "."))
 
 
-def parse_shutter(text: object) -> Optional[float]:
+def parse_shutter(text: object) -> float | None:
     """Exposure time in seconds from a shutter-speed label, or None for Bulb/Time/auto/flash-sync/unknown.
 
     Handles libgphoto2's localised "30,0000s" / "0.0100s" / "0,5000 s", Nikon shutterspeed2 "1/4000", "30",
@@ -75,7 +76,7 @@ def parse_shutter(text: object) -> Optional[float]:
     return None
 
 
-def parse_aperture(text: object) -> Optional[float]:
+def parse_aperture(text: object) -> float | None:
     """f-number from "f/5.6", "f5,6", "5.6"; None for anything else (e.g. a lens without aperture contact)."""
     if isinstance(text, (int, float)) and not isinstance(text, bool):
         return float(text) if text > 0 else None
@@ -86,7 +87,7 @@ def parse_aperture(text: object) -> Optional[float]:
     return value if value > 0 else None
 
 
-def parse_iso(text: object) -> Optional[int]:
+def parse_iso(text: object) -> int | None:
     """ISO number from "100", "ISO 100"; None for 'Auto', 'Hi 1', 'Lo 1' and other labels."""
     if isinstance(text, (int, float)) and not isinstance(text, bool):
         return int(text) if text > 0 else None
@@ -101,7 +102,7 @@ def nearest_by_value(target: float, options: Sequence[tuple[float, T]]) -> tuple
     return min(options, key=lambda o: abs(math.log(o[0] / target)))
 
 
-def format_shutter(seconds: Optional[float]) -> str:
+def format_shutter(seconds: float | None) -> str:
     if seconds is None:
         return "bulb"
     if seconds >= 1 or seconds <= 0:
@@ -120,11 +121,11 @@ def is_bulb_label(text: object) -> bool:
     return _word(text) in BULB_WORDS
 
 
-def bulb_choice(choices: Sequence[str]) -> Optional[str]:
+def bulb_choice(choices: Sequence[str]) -> str | None:
     return next((c for c in choices if is_bulb_label(c)), None)
 
 
-def on_off_choice(choices: Sequence[str], on: bool) -> Optional[str]:
+def on_off_choice(choices: Sequence[str], on: bool) -> str | None:
     """The choice meaning On (or Off) of a libgphoto2 On/Off setting (Nikon: ``longexpnr``, ``isoauto``).
 
     By word where it is known, else by libgphoto2's fixed order (On first, Off second)."""
@@ -135,7 +136,7 @@ def on_off_choice(choices: Sequence[str], on: bool) -> Optional[str]:
     return match
 
 
-def is_on_label(text: object, choices: Sequence[str] = ()) -> Optional[bool]:
+def is_on_label(text: object, choices: Sequence[str] = ()) -> bool | None:
     """True/False for an On/Off value (by word, or by position among ``choices``); None when unknown."""
     if _word(text) in ON_WORDS:
         return True
@@ -146,7 +147,7 @@ def is_on_label(text: object, choices: Sequence[str] = ()) -> Optional[bool]:
     return None
 
 
-def capture_target_choice(choices: Sequence[str], wanted: str) -> Optional[str]:
+def capture_target_choice(choices: Sequence[str], wanted: str) -> str | None:
     """The offered capture target meaning ``wanted`` ("Internal RAM" / "Memory card", any language or case);
     libgphoto2 lists Internal RAM first and Memory card second."""
     w = _word(wanted)
@@ -174,14 +175,14 @@ def is_pair_quality(label: object) -> bool:
     return ("nef" in w or "raw" in w) and "+" in w
 
 
-def raw_quality_choice(choices: Sequence[str]) -> Optional[str]:
+def raw_quality_choice(choices: Sequence[str]) -> str | None:
     """The raw-only choice of an image-quality setting, whatever its language."""
     return next((c for c in choices if is_raw_only_quality(c)), None)
 
 
 # ---------------------------------------------------------------------------------------------- locale
 GPHOTO_DOMAINS = ("libgphoto2-6", "libgphoto2_port-12")     # libgphoto2 2.5's gettext domains
-_EMPTY_LOCALEDIR: Optional[str] = None
+_EMPTY_LOCALEDIR: str | None = None
 
 
 def _domains(gp: Any) -> list[str]:

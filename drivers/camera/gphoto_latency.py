@@ -16,8 +16,8 @@ import argparse
 import logging
 import statistics
 import sys
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Optional, Sequence
 
 from drivers.camera.base import Camera, CameraError
 from drivers.camera.gphoto_labels import format_shutter
@@ -48,7 +48,7 @@ def suggested_allowance(measurements: Sequence[LatencyMeasurement]) -> float:
 
 
 def measure_latency(camera: Camera, exposures: Sequence[float] = EXPOSURES_S, repeats: int = 3,
-                    clock: Optional[Callable[[], float]] = None) -> list[LatencyMeasurement]:
+                    clock: Callable[[], float] | None = None) -> list[LatencyMeasurement]:
     """Expose and fetch ``repeats`` frames per exposure time (no light involved); the frames are discarded."""
     import time
 
@@ -68,7 +68,7 @@ def measure_latency(camera: Camera, exposures: Sequence[float] = EXPOSURES_S, re
     return out
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     from drivers.camera.gphoto import LATENCY_ENV, GPhotoCamera
 
     p = argparse.ArgumentParser(prog="python -m drivers.camera.gphoto_latency", description=__doc__.split("\n")[0])

@@ -14,14 +14,28 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Optional
+from typing import Any
 
 from drivers.camera.base import CameraError, CameraSettings
 from drivers.camera.gphoto_errors import GP_ERROR_BAD_PARAMETERS, GP_ERROR_NOT_SUPPORTED, camera_error
-from drivers.camera.gphoto_labels import (bulb_choice, capture_target_choice, format_shutter, is_bulb_label,
-                                          is_on_label, is_pair_quality, is_raw_only_quality, nearest_by_value,
-                                          on_off_choice, parse_aperture, parse_iso, parse_shutter, raw_quality_choice)
+from drivers.camera.gphoto_host import GPhotoHost
+from drivers.camera.gphoto_labels import (
+    bulb_choice,
+    capture_target_choice,
+    format_shutter,
+    is_bulb_label,
+    is_on_label,
+    is_pair_quality,
+    is_raw_only_quality,
+    nearest_by_value,
+    on_off_choice,
+    parse_aperture,
+    parse_iso,
+    parse_shutter,
+    raw_quality_choice,
+)
 
 log = logging.getLogger(__name__)
 
@@ -55,15 +69,15 @@ class ConfigEntry:
     value: Any
     readonly: bool = False
     choices: list[str] = field(default_factory=list)
-    range: Optional[tuple[float, float, float]] = None   # (min, max, step) for 'range'
+    range: tuple[float, float, float] | None = None   # (min, max, step) for 'range'
 
 
-class GPhotoSettings:
+class GPhotoSettings(GPhotoHost):
     """Configuration access and the copy stand's settings (mixin of GPhotoCamera)."""
 
     _names: dict[str, str]
-    _bulb_exposure_s: Optional[float]
-    _timed_shutter: Optional[tuple[str, str]]
+    _bulb_exposure_s: float | None
+    _timed_shutter: tuple[str, str] | None
     auto_iso: str
     long_exposure_nr: str
 
@@ -87,7 +101,8 @@ class GPhotoSettings:
             if kind in CHOICE_KINDS:
                 entry.choices = [w.get_choice(i) for i in range(w.count_choices())]
             elif kind == "range":
-                entry.range = tuple(float(x) for x in w.get_range())
+                lo, hi, step = w.get_range()
+                entry.range = (float(lo), float(hi), float(step))
             out.append(entry)
         return out
 
@@ -97,7 +112,7 @@ class GPhotoSettings:
         entries = self._walk_config(self._call("read configuration", cam.get_config))
         return {e.name: e for e in entries}
 
-    def _first_name(self, names: Iterable[str]) -> Optional[str]:
+    def _first_name(self, names: Iterable[str]) -> str | None:
         return next((n for n in names if n in self._names), None)
 
     def _entry(self, name: str) -> ConfigEntry:
@@ -176,7 +191,7 @@ class GPhotoSettings:
         self._call(f"set {name} to {value!r}", cam.set_single_config, name, w)
 
     # ------------------------------------------------------------------------------------- shutter
-    def _shutter_entry(self, writable: bool = False) -> Optional[ConfigEntry]:
+    def _shutter_entry(self, writable: bool = False) -> ConfigEntry | None:
         """The preferred shutter-speed setting that offers parsable speeds (Nikon: shutterspeed2, then
         shutterspeed); ``writable``: skip read-only ones."""
         for name in SHUTTER_NAMES:
@@ -196,7 +211,7 @@ class GPhotoSettings:
         entry = self._shutter_entry()
         return [] if entry is None else [v for v, _ in self._shutter_options(entry)]
 
-    def _shutter_now(self) -> tuple[Optional[float], str, str]:
+    def _shutter_now(self) -> tuple[float | None, str, str]:
         """(exposure in s or None, label, setting name) as the camera reports it, exact where it can be."""
         entry = self._shutter_entry()
         if entry is None:
@@ -376,4 +391,3 @@ class GPhotoSettings:
             if settings.shutter_s is not None:
                 self._set_shutter(float(settings.shutter_s))
             return self.settings()
-

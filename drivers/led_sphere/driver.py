@@ -21,25 +21,27 @@ import logging
 import math
 import threading
 import time
-from typing import Any, Optional, Sequence
+from collections.abc import Iterable
+from typing import Any
 
 import serial
 
 from drivers.led_sphere import protocol as P
 from drivers.led_sphere.errors import LightReport, SphereError
-from drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S  # noqa: F401 (re-exported)
+from drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
 from drivers.led_sphere.supervisor import LitPeriod, OnTimeSupervisor
 from simulation.lightsource import N_SPHERE_LEDS, LightSource
 
 log = logging.getLogger(__name__)
 
+_TERMIOS_ERRORS: tuple[type[Exception], ...]
 try:                                    # pyserial's POSIX backend lets termios.error (not an OSError) through
-    from termios import error as _TermiosError
+    from termios import error as _termios_error
+    _TERMIOS_ERRORS = (_termios_error,)
 except ImportError:                     # pragma: no cover - Windows
-    class _TermiosError(Exception):
-        pass
+    _TERMIOS_ERRORS = ()
 
-_IO_ERRORS = (serial.SerialException, OSError, _TermiosError)
+_IO_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, *_TERMIOS_ERRORS)
 _MAX_LINES_PER_ATTEMPT = 8     # stale replies skipped per attempt before giving up (a chattering line)
 
 
@@ -57,19 +59,19 @@ class LedSphere:
     def __init__(self, port: Any, timeout: float = DEFAULT_TIMEOUT_S, channels: int = N_SPHERE_LEDS,
                  clock=time.monotonic):
         self._timeout = DEFAULT_TIMEOUT_S
-        self._ser: Any = None
+        self._ser: Any = None                # not yet: the timeout setter configures an open port
         self.timeout = timeout
         self.channels = int(channels)
         self._clock = clock
         self._lock = threading.RLock()
         self._owns_port = isinstance(port, str)
         self._url = port if isinstance(port, str) else getattr(port, "port", None) or type(port).__name__
-        self._ser: Any = None if isinstance(port, str) else port
-        self._light_on_since: Optional[float] = None
-        self._last_exchange: Optional[float] = None
+        self._ser = None if isinstance(port, str) else port     # a name: opened by open()
+        self._light_on_since: float | None = None
+        self._last_exchange: float | None = None
         self._max_on_s = DEFAULT_MAX_ON_S
-        self._answered: Optional[bool] = None   # did the port answer like a sphere? (None: not asked yet)
-        self._device_limit: Optional[bool] = None   # ON <ms> works (True), firmware 1.0 (False), not tried (None)
+        self._answered: bool | None = None   # did the port answer like a sphere? (None: not asked yet)
+        self._device_limit: bool | None = None   # ON <ms> works (True), firmware 1.0 (False), not tried (None)
         self._watchdog_ms = P.DEFAULT_WATCHDOG_MS   # as far as this host knows
         self._supervisor = OnTimeSupervisor(self._switch_off_at_limit, name=f"LED sphere {self._url} on-time limit")
         if self._ser is not None:
@@ -119,7 +121,7 @@ class LedSphere:
     def is_open(self) -> bool:
         return self._ser is not None
 
-    def open(self) -> "LedSphere":
+    def open(self) -> LedSphere:
         """Open the serial port (a no-op for an object passed in already open)."""
         if self._ser is None:
             try:
@@ -159,7 +161,7 @@ class LedSphere:
             except _IO_ERRORS as exc:
                 log.warning("closing %s: %s", self._url, exc)
 
-    def __enter__(self) -> "LedSphere":
+    def __enter__(self) -> LedSphere:
         return self.open()
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -271,7 +273,7 @@ class LedSphere:
             if flush is not None:
                 flush()
             return True
-        except (*_IO_ERRORS, AttributeError) as exc:
+        except _IO_ERRORS + (AttributeError,) as exc:
             log.info("LED sphere %s: could not send the switch-off: %s", self._url, exc)
             return False
         finally:
@@ -414,7 +416,7 @@ class LedSphere:
     def level(self, led: int) -> float:
         return P.pwm_to_level(self.exchange("get_level", led=self._check_led(led)))
 
-    def set_levels(self, levels: Sequence[float]) -> list[float]:
+    def set_levels(self, levels: Iterable[float]) -> list[float]:
         """Every channel's level in one exchange (``channels`` values, LED 1 first); returns what was taken."""
         levels = list(levels)
         if len(levels) != self.channels:
@@ -440,7 +442,7 @@ class LedSphere:
         """Every LED's level to 0 (the light switch is unchanged)."""
         self.exchange("all_off")
 
-    def on(self, max_on_s: Optional[float] = None) -> LitPeriod:
+    def on(self, max_on_s: float | None = None) -> LitPeriod:
         """Light on (master enable) for at most ``max_on_s`` seconds (default :attr:`max_on_s`); then checks that
         no driven LED reports a fault.
 
@@ -495,7 +497,7 @@ class LedSphere:
         return self._supervisor.exposure_done(period)
 
     @property
-    def lit_period(self) -> Optional[LitPeriod]:
+    def lit_period(self) -> LitPeriod | None:
         """The lit period not yet confirmed off, if any (its deadline: when the light goes off at the latest)."""
         return self._supervisor.current()
 
@@ -559,7 +561,7 @@ class LedSphere:
         return self._watchdog_ms / 1000
 
     @property
-    def seconds_since_last_exchange(self) -> Optional[float]:
+    def seconds_since_last_exchange(self) -> float | None:
         return None if self._last_exchange is None else self._clock() - self._last_exchange
 
     def status(self) -> dict[str, Any]:
@@ -593,4 +595,3 @@ class LedSphere:
             "off_in_s": off_in_s,
             "max_on_s": None if period is None else period.max_on_s,
         }
-

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any
 
 #: What went wrong, as ``SphereError.kind``.
 KINDS = (
@@ -25,8 +25,8 @@ class SphereError(RuntimeError):
     ``period`` is the lit period (drivers.led_sphere.supervisor.LitPeriod) a failed ``on()`` started, if any.
     """
 
-    def __init__(self, message: str, kind: str = "device", code: Optional[int] = None,
-                 light: Optional[str] = None, period: Any = None):
+    def __init__(self, message: str, kind: str = "device", code: int | None = None,
+                 light: str | None = None, period: Any = None):
         if kind not in KINDS:
             raise ValueError(f"unknown SphereError kind {kind!r}")
         # One line, always: messages may quote device bytes.
@@ -45,4 +45,4 @@ class LightReport:
 
     off: bool
     message: str
-    error: Optional[SphereError] = None
+    error: SphereError | None = None

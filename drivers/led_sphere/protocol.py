@@ -17,8 +17,9 @@ import enum
 import logging
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -106,8 +107,8 @@ class Field:
 
     name: str
     kind: str
-    lo: Optional[float] = None
-    hi: Optional[float] = None
+    lo: float | None = None
+    hi: float | None = None
     decimals: int = 0
     key: bool = False
 
@@ -222,7 +223,7 @@ class Command:
             raise ValueError(f"{self.name}: request of {len(line)} bytes exceeds {MAX_REQUEST_BYTES}")
         return line
 
-    def decode(self, line: bytes, sent: Optional[dict[str, Any]] = None) -> dict[str, Any]:
+    def decode(self, line: bytes, sent: dict[str, Any] | None = None) -> dict[str, Any]:
         """Parse one reply line (terminator included or not) to this request.
 
         Returns the reply fields; raises :class:`DeviceReply` for ``ERR``, :class:`StaleReply` for a reply to
@@ -286,9 +287,6 @@ class Command:
     def arg_format(self) -> str:
         return " ".join(f"<{f.name}>" + (" ..." if f.kind == "ints" else "") for f in self.args)
 
-    def request_format(self) -> str:
-        return " ".join([self.keyword] + ([self.arg_format()] if self.args else []))
-
     def reply_format(self) -> str:
         fields = [(f"{f.name}=" if f.key else "") + f"<{f.name}>" + (" ..." if f.kind == "ints" else "")
                   for f in self.reply]
@@ -341,7 +339,7 @@ def version_tuple(version: str) -> tuple[int, ...]:
         return (0,)
 
 
-def supports(cmd: "Command", firmware: str) -> bool:
+def supports(cmd: Command, firmware: str) -> bool:
     """Whether firmware ``firmware`` knows ``cmd`` (by the version that introduced it)."""
     return version_tuple(firmware) >= version_tuple(cmd.since)
 

@@ -20,8 +20,8 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Optional
 
 log = logging.getLogger(__name__)
 
@@ -42,10 +42,10 @@ class LitPeriod:
     t_on: float
     max_on_s: float
     device_limit: bool = False
-    switched_at: Optional[float] = None
-    exposure_done_at: Optional[float] = None
-    capped_at: Optional[float] = None
-    off_at: Optional[float] = None
+    switched_at: float | None = None
+    exposure_done_at: float | None = None
+    capped_at: float | None = None
+    off_at: float | None = None
 
     @property
     def deadline(self) -> float:
@@ -64,7 +64,7 @@ class LitPeriod:
             return True
         return done is not None and done > self.deadline
 
-    def lit_s(self, now: Optional[float] = None) -> float:
+    def lit_s(self, now: float | None = None) -> float:
         """Seconds the object may have been lit: up to the confirmed switch-off; while that is unconfirmed, up to
         now, but never past the limit when the sphere enforces it itself."""
         now = time.monotonic() if now is None else now
@@ -90,11 +90,11 @@ class OnTimeSupervisor:
         self._retry_s = retry_s
         self._retries = retries
         self._cond = threading.Condition()
-        self._period: Optional[LitPeriod] = None
+        self._period: LitPeriod | None = None
         self._changed_at = float("-inf")       # when a period was last armed or ended
         self._attempts = 0
-        self._next_try: Optional[float] = None
-        self._thread: Optional[threading.Thread] = None
+        self._next_try: float | None = None
+        self._thread: threading.Thread | None = None
         self._stopped = False
 
     # ------------------------------------------------------------------------------------------ owner side
@@ -118,7 +118,7 @@ class OnTimeSupervisor:
                      self._name, now - t_on)
         return period
 
-    def current(self) -> Optional[LitPeriod]:
+    def current(self) -> LitPeriod | None:
         """The period not yet confirmed off, if any."""
         with self._cond:
             return self._period
@@ -140,7 +140,7 @@ class OnTimeSupervisor:
                 self._changed_at = period.off_at
                 self._cond.notify_all()
 
-    def adopt(self, on_for_s: float, max_on_s: float, asked_at: float) -> Optional[LitPeriod]:
+    def adopt(self, on_for_s: float, max_on_s: float, asked_at: float) -> LitPeriod | None:
         """The sphere said it is lit (for ``on_for_s``), to a request sent at ``asked_at``, and no period is armed:
         someone else switched it on; the limit applies to it too (unless a period began or ended meanwhile)."""
         with self._cond:
@@ -167,7 +167,7 @@ class OnTimeSupervisor:
             self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
             self._thread.start()
 
-    def _due_locked(self) -> Optional[LitPeriod]:
+    def _due_locked(self) -> LitPeriod | None:
         """Wait until a switch-off is due; returns its period, or None when stopped."""
         while not self._stopped:
             period = self._period
@@ -196,7 +196,7 @@ class OnTimeSupervisor:
                         self._name, period.max_on_s, late)
             try:
                 self._switch_off()
-            except Exception as exc:  # any failure: retried, then left to the firmware's own limit (logged)
+            except Exception as exc:  # noqa: BLE001 - any failure: retried, then left to the firmware's own limit (logged)
                 with self._cond:
                     self._next_try = time.monotonic() + self._retry_s
                     gave_up = self._attempts > self._retries

@@ -34,9 +34,10 @@ import logging
 import math
 import threading
 import time
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Optional
+from typing import Any
 
 import numpy as np
 
@@ -112,7 +113,7 @@ class SensorModel:
     electrons_per_dn_iso100: float = 4.0     # conversion gain; ISO 50 -> 8 e-/DN
     read_noise_dn: float = 2.5
     dark_current_e_per_s: float = 0.3
-    hot_pixels: Optional[int] = None         # default: a few (3 + 1 per 2 MP)
+    hot_pixels: int | None = None         # default: a few (3 + 1 per 2 MP)
     hot_current_e_per_s: tuple[float, float] = (2e3, 2e5)   # log-uniform range of the hot pixels' dark current
     open_gate_dn: float = 10500.0            # raw DN of the open gate, brightest channel, at the reference
     reference_exposure_s: float = 1 / 60
@@ -142,11 +143,24 @@ class ExposureRecord:
     lit: bool
 
 
+@dataclass(frozen=True)
+class _SetTo:
+    """What the virtual camera is set to: every field known (a CameraSettings' fields may each be None)."""
+
+    iso: int
+    shutter_s: float
+    aperture: float
+    capture_target: str
+
+    def as_settings(self) -> CameraSettings:
+        return CameraSettings(self.iso, self.shutter_s, self.aperture, IMAGE_QUALITY, self.capture_target)
+
+
 @dataclass
 class _Cache:
-    scene: Optional[Scene] = None
-    drift: Optional[tuple[float, ...]] = None
-    per_led: Optional[np.ndarray] = None               # (n_leds, n_classes, 3)
+    scene: Scene | None = None
+    drift: tuple[float, ...] | None = None
+    per_led: np.ndarray | None = None               # (n_leds, n_classes, 3)
     planes: dict = field(default_factory=dict)          # (py, px) -> uint16 label plane
     profiles: dict = field(default_factory=dict)        # (py, px) -> (vy, vx)
     preview: dict = field(default_factory=dict)         # step -> (labels, vy, vx)
@@ -163,15 +177,15 @@ class VirtualCamera(Camera):
     def __init__(
         self,
         light: Callable[[], Any],
-        scene: Optional[Scene] = None,
+        scene: Scene | None = None,
         *,
         mode: str = "reflective",
         grid: SpectralGrid = DEFAULT_GRID,
-        camera_csv: Optional[str | Path] = None,
-        leds_csv: Optional[str | Path] = None,
-        sensor: Optional[SensorModel] = None,
-        seed: Optional[int] = 0,
-        bumps: Optional[dict[float, float]] = None,
+        camera_csv: str | Path | None = None,
+        leds_csv: str | Path | None = None,
+        sensor: SensorModel | None = None,
+        seed: int | None = 0,
+        bumps: dict[float, float] | None = None,
         bumps_enabled: bool = False,
         iso: int = 50,
         shutter_s: float = 1 / 60,
@@ -199,15 +213,13 @@ class VirtualCamera(Camera):
         self.bumps = dict(DEFAULT_BUMPS if bumps is None else bumps)
         self.bumps_enabled = bumps_enabled
         self.seed = seed
-        seq = np.random.SeedSequence(seed)
-        noise_seq, sensor_seq = seq.spawn(2)
+        noise_seq, sensor_seq = np.random.SeedSequence(seed).spawn(2)
         self._rng = np.random.default_rng(noise_seq)
         self._sensor_seq = sensor_seq                            # hot pixels: a property of this sensor
         self._scene = scene if scene is not None else Scene.with_target(setup.test)
         self._cache = _Cache()
-        self._settings = CameraSettings(iso=int(_nearest(ISO_VALUES, iso)), shutter_s=_nearest(SHUTTER_SPEEDS, shutter_s),
-                                        aperture=_nearest(APERTURES, aperture), image_quality=IMAGE_QUALITY,
-                                        capture_target=CAPTURE_TARGETS[0])
+        self._settings = _SetTo(iso=int(_nearest(ISO_VALUES, iso)), shutter_s=_nearest(SHUTTER_SPEEDS, shutter_s),
+                                aperture=_nearest(APERTURES, aperture), capture_target=CAPTURE_TARGETS[0])
         self._open = False
         self._counter = 0
         self._scale = self._calibrate()
@@ -241,18 +253,17 @@ class VirtualCamera(Camera):
             raise CameraError("the virtual camera is not open: call open() (or use it in a with-block) first")
 
     def settings(self) -> CameraSettings:
-        s = self._settings
-        return CameraSettings(s.iso, s.shutter_s, s.aperture, s.image_quality, s.capture_target)
+        return self._settings.as_settings()
 
     def apply(self, settings: CameraSettings) -> CameraSettings:
         self._require_open()
-        new = self.settings()
+        new = self._settings
         if settings.iso is not None:
-            new.iso = int(_nearest(ISO_VALUES, float(settings.iso)))
+            new = replace(new, iso=int(_nearest(ISO_VALUES, float(settings.iso))))
         if settings.shutter_s is not None:
-            new.shutter_s = self._snap_shutter(settings.shutter_s)
+            new = replace(new, shutter_s=self._snap_shutter(settings.shutter_s))
         if settings.aperture is not None:
-            new.aperture = _nearest(APERTURES, float(settings.aperture))
+            new = replace(new, aperture=_nearest(APERTURES, float(settings.aperture)))
         if settings.image_quality is not None and settings.image_quality != IMAGE_QUALITY:
             raise CameraError(f"image quality {settings.image_quality!r}: the virtual D610 records "
                               f"{IMAGE_QUALITY!r} only")
@@ -260,7 +271,7 @@ class VirtualCamera(Camera):
             if settings.capture_target not in CAPTURE_TARGETS:
                 raise CameraError(f"capture target {settings.capture_target!r}: expected one of "
                                   f"{', '.join(CAPTURE_TARGETS)}")
-            new.capture_target = settings.capture_target
+            new = replace(new, capture_target=settings.capture_target)
         self._settings = new
         return self.settings()
 
@@ -279,7 +290,7 @@ class VirtualCamera(Camera):
             return t                                            # bulb: timed by the host, taken as given
         return _nearest(SHUTTER_SPEEDS, t)
 
-    def inject(self, fault: Optional[str], **params: Any) -> None:
+    def inject(self, fault: str | None, **params: Any) -> None:
         """Start a fault (module docstring), or clear them all with None (which also ends a ``hang``)."""
         if fault is None:
             self._faults.clear()
@@ -292,11 +303,11 @@ class VirtualCamera(Camera):
         self._faults[fault] = dict(params)
         log.info("virtual camera: inject %s %s", fault, params)
 
-    def expose(self, exposure_s: Optional[float] = None) -> Exposure:
+    def expose(self, exposure_s: float | None = None) -> Exposure:
         self._require_open()
         if exposure_s is not None:
-            self._settings.shutter_s = self._snap_shutter(exposure_s)
-        s = self.settings()
+            self._settings = replace(self._settings, shutter_s=self._snap_shutter(exposure_s))
+        s = self._settings                                       # frozen: the exposure keeps what it was taken with
         t = float(s.shutter_s)
         started = self._clock()
         if "latency" in self._faults:
@@ -377,7 +388,7 @@ class VirtualCamera(Camera):
         return d
 
     # --- simulation ---------------------------------------------------------------------------------------
-    def led_spectra(self, peak_shift_nm: Optional[np.ndarray] = None) -> np.ndarray:
+    def led_spectra(self, peak_shift_nm: np.ndarray | None = None) -> np.ndarray:
         """(n_leds, n_wl) relative LED spectra on the grid, each shifted by its drift (nm, + = redder)."""
         shifts = np.zeros(self.n_leds) if peak_shift_nm is None else np.asarray(peak_shift_nm, float)
         if shifts.shape != (self.n_leds,):
@@ -404,7 +415,7 @@ class VirtualCamera(Camera):
         return self._cache.per_led
 
     def _levels(self, snap: Any) -> tuple[np.ndarray, tuple[float, ...]]:
-        levels = np.asarray(getattr(snap, "levels"), dtype=float).reshape(-1)
+        levels = np.asarray(snap.levels, dtype=float).reshape(-1)
         if levels.shape != (self.n_leds,):
             raise ValueError(f"light snapshot has {levels.size} levels; expected {self.n_leds}")
         if not getattr(snap, "light_on", True):
@@ -453,7 +464,8 @@ class VirtualCamera(Camera):
         sn = self.sensor
         levels = np.zeros(self.n_leds)
         levels[[n - 1 for n in REFERENCE_LIGHT]] = 1.0
-        white = levels @ led_responses(self.led_spectra(), np.ones((1, len(self.grid))), self.camera_sensitivities)[:, 0]
+        open_gate = np.ones((1, len(self.grid)))
+        white = levels @ led_responses(self.led_spectra(), open_gate, self.camera_sensitivities)[:, 0]
         return (sn.open_gate_dn - sn.black_level) / (sn.reference_exposure_s * sn.reference_iso / 100.0 * white.max())
 
     def _hot_pixels(self, height: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -464,7 +476,7 @@ class VirtualCamera(Camera):
         return (rng.integers(0, height, n), rng.integers(0, width, n),
                 np.exp(rng.uniform(math.log(lo), math.log(hi), n)))
 
-    def render_mosaic(self, exposure_s: Optional[float] = None, snap: Any = None) -> np.ndarray:
+    def render_mosaic(self, exposure_s: float | None = None, snap: Any = None) -> np.ndarray:
         """The raw Bayer mosaic (H, W) uint16 a capture would store (advances the noise generator)."""
         t = float(self._settings.shutter_s if exposure_s is None else self._snap_shutter(exposure_s))
         return self._render(t, self._light() if snap is None else snap)[0]
@@ -476,7 +488,7 @@ class VirtualCamera(Camera):
         k = sn.electrons_per_dn_iso100 * 100.0 / self._settings.iso             # e- per DN
         dark_e = sn.dark_current_e_per_s * exposure_s
         out = np.empty((sc.height, sc.width), dtype=np.uint16)
-        for (py, px), ch in zip(((0, 0), (0, 1), (1, 0), (1, 1)), CFA_RGGB):
+        for (py, px), ch in zip(((0, 0), (0, 1), (1, 0), (1, 1)), CFA_RGGB, strict=True):
             if (py, px) not in self._cache.planes:
                 rows, cols = np.arange(py, sc.height, 2), np.arange(px, sc.width, 2)
                 self._cache.planes[(py, px)] = sc.labels(rows, cols)

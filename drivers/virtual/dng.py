@@ -16,10 +16,11 @@ from __future__ import annotations
 import io
 import logging
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
-from typing import BinaryIO, Optional, Sequence, Union
+from typing import BinaryIO
 
 import numpy as np
 
@@ -52,14 +53,14 @@ class DngInfo:
     black_level: int = 600
     white_level: int = 15520
     cfa: str = "RGGB"
-    exposure_s: Optional[float] = None
-    iso: Optional[int] = None
-    aperture: Optional[float] = None
+    exposure_s: float | None = None
+    iso: int | None = None
+    aperture: float | None = None
     model: str = "Nikon D610"
-    make: Optional[str] = None
-    color_matrix: Optional[np.ndarray] = None
-    as_shot_neutral: Optional[np.ndarray] = None
-    captured_at: Optional[float] = field(default=None)   # epoch seconds for DateTimeOriginal; None: now
+    make: str | None = None
+    color_matrix: np.ndarray | None = None
+    as_shot_neutral: np.ndarray | None = None
+    captured_at: float | None = field(default=None)   # epoch seconds for DateTimeOriginal; None: now
 
     def make_and_model(self) -> tuple[str, str]:
         if self.make:
@@ -72,7 +73,7 @@ def _rational(x: float, max_den: int = 100000) -> tuple[int, int]:
     return f.numerator, f.denominator
 
 
-def _rationals(values: Sequence[float], max_den: int) -> tuple[int, ...]:
+def _rationals(values: Iterable[float], max_den: int) -> tuple[int, ...]:
     return tuple(v for x in values for v in _rational(x, max_den))
 
 
@@ -82,7 +83,10 @@ def _cfa_codes(cfa: str) -> tuple[int, ...]:
     return tuple(CFA_CODES[c] for c in cfa.upper())
 
 
-def dng_tags(info: DngInfo) -> list[tuple[int, int, int, object, bool]]:
+TagValue = tuple[int, ...] | str | int     # numbers (rationals as numerator, denominator pairs), ASCII text
+
+
+def dng_tags(info: DngInfo) -> list[tuple[int, int, int, TagValue, bool]]:
     """The DNG/EXIF tags of ``info`` as tifffile ``extratags`` (code, type, count, value, writeonce)."""
     cm = np.eye(3) if info.color_matrix is None else np.asarray(info.color_matrix, float)
     neutral = np.ones(3) if info.as_shot_neutral is None else np.asarray(info.as_shot_neutral, float)
@@ -90,7 +94,7 @@ def dng_tags(info: DngInfo) -> list[tuple[int, int, int, object, bool]]:
         raise ValueError(f"color matrix {cm.shape} / as-shot neutral {neutral.shape}: expected (3, 3) and (3,)")
     make, model = info.make_and_model()
     when = time.localtime(info.captured_at) if info.captured_at is not None else time.localtime()
-    tags: list[tuple[tuple[int, int], Sequence | str | int]] = [
+    tags: list[tuple[tuple[int, int], TagValue]] = [
         (_MAKE, make), (_MODEL, model), (_ORIENTATION, 1),
         (_CFA_REPEAT_DIM, (2, 2)), (_CFA_PATTERN, _cfa_codes(info.cfa)),
         (_DATE_TIME_ORIGINAL, time.strftime("%Y:%m:%d %H:%M:%S", when)),
@@ -108,17 +112,19 @@ def dng_tags(info: DngInfo) -> list[tuple[int, int, int, object, bool]]:
         tags.append((_ISO, (int(info.iso),)))
     out = []
     for (code, dtype), value in sorted(tags, key=lambda t: t[0][0]):
-        if dtype == 2:
-            count = len(str(value)) + 1
+        if isinstance(value, str):
+            count = len(value) + 1                  # ASCII: the text and its NUL
+        elif isinstance(value, int):
+            count = 1
         elif dtype in (5, 10):
-            count = len(value) // 2
+            count = len(value) // 2                 # rationals: two numbers each
         else:
-            count = len(value) if isinstance(value, (tuple, list)) else 1
+            count = len(value)
         out.append((code, dtype, count, value, True))
     return out
 
 
-def write_dng(target: Union[str, Path, BinaryIO], mosaic: np.ndarray, info: DngInfo) -> None:
+def write_dng(target: str | Path | BinaryIO, mosaic: np.ndarray, info: DngInfo) -> None:
     """Write ``mosaic`` ((H, W) uint16, raw DN with the black level in) as an uncompressed CFA DNG."""
     import tifffile  # ~0.1 s: only captures and tests pay it
 
@@ -136,7 +142,7 @@ def dng_bytes(mosaic: np.ndarray, info: DngInfo) -> bytes:
     return buf.getvalue()
 
 
-def save_dng(path: Union[str, Path], mosaic: np.ndarray, info: Optional[DngInfo] = None) -> Path:
+def save_dng(path: str | Path, mosaic: np.ndarray, info: DngInfo | None = None) -> Path:
     """Write a DNG file at ``path`` (tests and benches); returns the path."""
     path = Path(path)
     write_dng(path, mosaic, info or DngInfo())

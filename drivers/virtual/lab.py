@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from typing import Optional
 
 import numpy as np
 
@@ -37,12 +36,12 @@ class VirtualLab:
         self.emulator = SphereEmulator(watchdog_s=watchdog_s)
         self._timeout = timeout_s
         self._bumps = bumps
-        self.sphere: Optional[LedSphere] = None
-        self.camera: Optional[VirtualCamera] = None
+        self.sphere: LedSphere | None = None
+        self.camera: VirtualCamera | None = None
         self.placed = ""
 
     # ---- lifecycle ----
-    def start(self) -> "VirtualLab":
+    def start(self) -> VirtualLab:
         port = self.emulator.start()
         log.info("virtual sphere emulator on %s", port)
         self.sphere = LedSphere(port, timeout=self._timeout).open()
@@ -62,7 +61,12 @@ class VirtualLab:
             self.camera.close()
         self.emulator.stop()
 
-    def __enter__(self) -> "VirtualLab":
+    def _started_camera(self) -> VirtualCamera:
+        if self.camera is None:
+            raise RuntimeError("the virtual lab is not started: call start() (or use it in a with-block) first")
+        return self.camera
+
+    def __enter__(self) -> VirtualLab:
         return self.start()
 
     def __exit__(self, *exc) -> None:
@@ -84,14 +88,14 @@ class VirtualLab:
                              f"{', '.join(ORIGINAL_PREFIX + n for n in ORIGINALS)}")
         size = {"width": self.width, "height": self.height}
         if what.startswith(ORIGINAL_PREFIX):
-            scene = original_scene(what, **size, mode=self.mode, nd_filter=nd)
+            scene = original_scene(what, self.width, self.height, mode=self.mode, nd_filter=nd)
         elif what == "open-gate":
             scene = Scene.open_gate(**size)
         elif what == "lens-cap":
             scene = Scene.lens_cap(**size)
         else:
             scene = Scene.with_target(self.target(what), **size, nd_filter=nd, name=what)
-        self.camera.scene = scene
+        self._started_camera().scene = scene
         self.placed = what + (" + ND" if nd else "")
         return scene
 
@@ -101,9 +105,9 @@ class VirtualLab:
             return Scene.with_target(self.target(what), width=self.width, height=self.height, nd_filter=nd)
         if what.startswith(ORIGINAL_PREFIX):
             return original_scene(what, self.width, self.height, nd_filter=nd)
-        return dataclasses.replace(self.camera.scene)
+        return dataclasses.replace(self._started_camera().scene)
 
-    def ground_truth_xyz(self, name: str, height: Optional[int] = None, width: Optional[int] = None) -> np.ndarray:
+    def ground_truth_xyz(self, name: str, height: int | None = None, width: int | None = None) -> np.ndarray:
         """(height, width, 3) float32 per-pixel XYZ of original ``name`` ('painting' or 'original:painting') at
         sensor resolution (default: this lab's frame): eq 4.2, D65, CIE 1931 2 degree, Y of a perfect white
         (clear film) = 100; rows down, columns right as the raw mosaic. Each 2x2 Bayer cell is one material, so

@@ -43,11 +43,13 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import TYPE_CHECKING, Callable, Optional, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from simulation.colorimetry import tristimulus
 from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
@@ -65,9 +67,9 @@ _MAX_CLASSES = np.iinfo(np.uint16).max
 # ---------------------------------------------------------------- strokes (painted on the superpixel grid)
 def _span(box: Box, h2: int, w2: int) -> tuple[slice, slice]:
     """Superpixel rows / columns of ``box`` (at least one of each)."""
-    t, l, b, r = box
-    r0, c0 = int(round(t * h2)), int(round(l * w2))
-    return slice(r0, max(int(round(b * h2)), r0 + 1)), slice(c0, max(int(round(r * w2)), c0 + 1))
+    top, left, bottom, right = box
+    r0, c0 = int(round(top * h2)), int(round(left * w2))
+    return slice(r0, max(int(round(bottom * h2)), r0 + 1)), slice(c0, max(int(round(right * w2)), c0 + 1))
 
 
 @dataclass(frozen=True)
@@ -242,7 +244,7 @@ class _Palette:
         self.names.append(name)
         return len(self.spectra) - 1
 
-    def ramp(self, name: str, a: np.ndarray, b: np.ndarray, steps: int = RAMP_STEPS,
+    def ramp(self, name: str, a: ArrayLike, b: ArrayLike, steps: int = RAMP_STEPS,
              to_spectrum: Callable[[np.ndarray], np.ndarray] = lambda x: x) -> tuple[int, ...]:
         """``steps`` classes from a to b: ``to_spectrum((1 - t) a + t b)`` (a, b spectra, or film dye amounts)."""
         t = np.linspace(0.0, 1.0, steps)
@@ -290,7 +292,7 @@ FILM_SOURCES = ("three-dye Beer-Lambert film model of resources/generate.py (the
                 "modelled, not measured")
 
 
-def _film_transmittance(grid: SpectralGrid) -> Callable[[np.ndarray], np.ndarray]:
+def _film_transmittance(grid: SpectralGrid) -> Callable[[ArrayLike], np.ndarray]:
     """Dye amounts (c, m, y) -> transmittance on ``grid``, the packaged film targets' model."""
     from resources.generate import film_transmittance
 
@@ -300,9 +302,9 @@ def _film_transmittance(grid: SpectralGrid) -> Callable[[np.ndarray], np.ndarray
 
 def _row(box: Box, classes: Sequence[int]) -> list[Fill]:
     """Equal blocks side by side across ``box``, one per class."""
-    t, l, b, r = box
-    w = (r - l) / len(classes)
-    return [Fill((t, l + k * w, b, l + (k + 1) * w), c) for k, c in enumerate(classes)]
+    top, left, bottom, right = box
+    w = (right - left) / len(classes)
+    return [Fill((top, left + k * w, bottom, left + (k + 1) * w), c) for k, c in enumerate(classes)]
 
 
 def _painting(grid: SpectralGrid) -> Original:
@@ -349,11 +351,13 @@ FILM_NEUTRAL = np.array([1.0, 0.93, 0.88])          # dye ratio of a neutral gre
 def _film(grid: SpectralGrid) -> Original:
     """A slide in a clear-base rebate; regions: near-white (rebate), dark (dense shadow), highlight, skin."""
     t, p = _film_transmittance(grid), _Palette()
-    dye = {"clear base": (0, 0, 0), "frame line": 1.6 * FILM_NEUTRAL, "dense shadow": 1.5 * FILM_NEUTRAL,
-           "highlight": 0.03 * FILM_NEUTRAL, "skin": (0.2, 0.45, 0.55), "lines": 1.1 * FILM_NEUTRAL,
-           "red": (0.05, 1.0, 0.9), "green": (0.9, 0.1, 0.9), "blue": (1.0, 0.8, 0.05),
-           "cyan": (1.0, 0.05, 0.1), "magenta": (0.05, 1.0, 0.05), "yellow": (0.05, 0.05, 1.0)}
-    cls = {k: p.add(f"{k}: c, m, y = {tuple(round(float(x), 3) for x in a)}", t(a)) for k, a in dye.items()}
+    dye: dict[str, ArrayLike] = {
+        "clear base": (0, 0, 0), "frame line": 1.6 * FILM_NEUTRAL, "dense shadow": 1.5 * FILM_NEUTRAL,
+        "highlight": 0.03 * FILM_NEUTRAL, "skin": (0.2, 0.45, 0.55), "lines": 1.1 * FILM_NEUTRAL,
+        "red": (0.05, 1.0, 0.9), "green": (0.9, 0.1, 0.9), "blue": (1.0, 0.8, 0.05),
+        "cyan": (1.0, 0.05, 0.1), "magenta": (0.05, 1.0, 0.05), "yellow": (0.05, 0.05, 1.0)}
+    cls = {k: p.add(f"{k}: c, m, y = {tuple(round(float(x), 3) for x in np.asarray(a))}", t(a))
+           for k, a in dye.items()}
     sky = p.ramp("sky", (0.9, 0.45, 0.05), (0.15, 0.1, 0.05), to_spectrum=t)
     ground = p.ramp("ground", (0.7, 0.2, 1.1), (0.2, 0.6, 1.2), to_spectrum=t)
     wedge = p.ramp("neutral wedge", (0, 0, 0), 1.5 * FILM_NEUTRAL, to_spectrum=t)
@@ -406,6 +410,7 @@ def _shadow(grid: SpectralGrid) -> Original:
     return p.build("shadow", "reflective", "Still life in deep shadow (virtual HDR original)", strokes, regions,
                    grid, MEASURED_SOURCES)
 
+
 ORIGINALS: dict[str, Callable[[SpectralGrid], Original]] = {"painting": _painting, "film": _film, "shadow": _shadow}
 
 
@@ -418,7 +423,7 @@ def original(name: str, grid: SpectralGrid = DEFAULT_GRID) -> Original:
 
 
 def ground_truth_xyz(name: str, height: int, width: int, grid: SpectralGrid = DEFAULT_GRID,
-                     illuminant: Optional[np.ndarray] = None, cmfs: Optional[np.ndarray] = None) -> np.ndarray:
+                     illuminant: np.ndarray | None = None, cmfs: np.ndarray | None = None) -> np.ndarray:
     """(height, width, 3) float32 per-pixel XYZ of original ``name`` (eq 4.2: D65, CIE 1931 2 degree,
     410-780 nm; Y of a perfect white, or of the open gate for film, = 100), rows down, columns right."""
     if illuminant is None or cmfs is None:
@@ -442,8 +447,8 @@ def original_name(what: str) -> str:
     return name
 
 
-def original_scene(what: str, width: int, height: int, *, mode: Optional[str] = None,
-                   grid: SpectralGrid = DEFAULT_GRID, **scene_kw) -> "Scene":
+def original_scene(what: str, width: int, height: int, *, mode: str | None = None,
+                   grid: SpectralGrid = DEFAULT_GRID, **scene_kw) -> Scene:
     """The scene of original ``what`` ('original:<name>') at ``width`` x ``height`` sensor pixels.
 
     An original of the other mode than ``mode`` (a film in a reflective lab) is rendered all the same (the

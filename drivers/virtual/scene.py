@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -49,10 +49,10 @@ class Scene:
     """
 
     kind: str = "target"                     # 'target' | 'original' | 'open_gate' | 'lens_cap'
-    target: Optional[Target] = None          # required for kind 'target' (reflective or transmissive)
+    target: Target | None = None          # required for kind 'target' (reflective or transmissive)
     width: int = 600                         # sensor columns (even; the D610 is 6080 x 4028)
     height: int = 400                        # sensor rows (even)
-    grid_shape: Optional[tuple[int, int]] = None   # (rows, cols); default from target.layout or near-square
+    grid_shape: tuple[int, int] | None = None   # (rows, cols); default from target.layout or near-square
     margin: float = 0.06                     # surround around the grid, fraction of width / height
     gap: float = 0.12                        # dark separator between patches, fraction of the pitch
     surround: float = 0.18                   # neutral surround (flat spectrum), mid grey
@@ -61,7 +61,7 @@ class Scene:
     nd_transmittance: float = ND_2_TRANSMITTANCE
     vignetting: float = 0.04                 # relative falloff at the frame corners (0 = none)
     name: str = ""
-    original: Optional["Original"] = None    # required for kind 'original'
+    original: Original | None = None    # required for kind 'original'
 
     def __post_init__(self) -> None:
         if self.kind not in SCENE_KINDS:
@@ -71,8 +71,8 @@ class Scene:
         if self.kind == "original" and self.original is None:
             raise ValueError("an 'original' scene needs an original (drivers.virtual.originals.original(name))")
         if self.kind == "original" and self.nd_filter:
-            raise ValueError(f"ND filter over original {self.original.name!r}: the ND half is for charts (thesis 8.3); "
-                             "originals bring their own range (e.g. 'shadow')")
+            raise ValueError(f"ND filter over original {self.shown_original.name!r}: the ND half is for charts "
+                             "(thesis 8.3); originals bring their own range (e.g. 'shadow')")
         for label, v in (("width", self.width), ("height", self.height)):
             if v < 8 or v % 2:
                 raise ValueError(f"scene {label} {v}: expected an even number of pixels >= 8 (Bayer 2x2 blocks)")
@@ -86,51 +86,63 @@ class Scene:
             raise ValueError(f"ND transmittance {self.nd_transmittance}: expected 0 < T <= 1")
         if self.kind == "target":
             rows, cols = self.layout
-            if rows < 1 or cols < 1 or rows * cols < len(self.target):
-                raise ValueError(f"grid {rows}x{cols} cannot hold {len(self.target)} patches")
+            if rows < 1 or cols < 1 or rows * cols < len(self.shown_target):
+                raise ValueError(f"grid {rows}x{cols} cannot hold {len(self.shown_target)} patches")
             if self.pitch[0] < 4 or self.pitch[1] < 4:
                 raise ValueError(
                     f"a {self.width}x{self.height} frame is too small for a {rows}x{cols} grid (patches under 4 px)")
 
     # --- constructors -----------------------------------------------------------------------------------
     @classmethod
-    def with_target(cls, target: Target, width: int = 600, height: int = 400, **kw) -> "Scene":
+    def with_target(cls, target: Target, width: int = 600, height: int = 400, **kw) -> Scene:
         return cls(kind="target", target=target, width=width, height=height, name=kw.pop("name", target.name), **kw)
 
     @classmethod
-    def with_original(cls, original: "Original", width: int = 600, height: int = 400, **kw) -> "Scene":
+    def with_original(cls, original: Original, width: int = 600, height: int = 400, **kw) -> Scene:
         """An original on the stand (its class map follows the frame size)."""
         return cls(kind="original", original=original, width=width, height=height,
                    name=kw.pop("name", original.name), **kw)
 
     @classmethod
-    def open_gate(cls, width: int = 600, height: int = 400, **kw) -> "Scene":
+    def open_gate(cls, width: int = 600, height: int = 400, **kw) -> Scene:
         """Nothing on the stand: uniform white (reflectance / transmittance 1), the flat-field of eq 7.1."""
         return cls(kind="open_gate", width=width, height=height, name=kw.pop("name", "open gate"), **kw)
 
     @classmethod
-    def lens_cap(cls, width: int = 600, height: int = 400, **kw) -> "Scene":
+    def lens_cap(cls, width: int = 600, height: int = 400, **kw) -> Scene:
         """Lens cap on: no light reaches the sensor, the dark frame of eq 7.1."""
         return cls(kind="lens_cap", width=width, height=height, name=kw.pop("name", "lens cap"), **kw)
 
-    def resized(self, width: int, height: int) -> "Scene":
-        return replace(self, width=width, height=height)
+    # --- what the scene shows ---------------------------------------------------------------------------
+    @property
+    def shown_target(self) -> Target:
+        """The target of a 'target' scene."""
+        if self.target is None:
+            raise ValueError(f"a {self.kind!r} scene shows no target")
+        return self.target
+
+    @property
+    def shown_original(self) -> Original:
+        """The original of an 'original' scene."""
+        if self.original is None:
+            raise ValueError(f"a {self.kind!r} scene shows no original")
+        return self.original
 
     # --- geometry ---------------------------------------------------------------------------------------
     @property
     def n_patches(self) -> int:
-        return len(self.target) if self.kind == "target" else 0
+        return len(self.shown_target) if self.kind == "target" else 0
 
     @cached_property
     def layout(self) -> tuple[int, int]:
         """(rows, cols) of the patch grid (rows grow so the grid holds every patch)."""
         if self.kind != "target":
             return (0, 0)
-        n = len(self.target)
+        n = len(self.shown_target)
         if self.grid_shape is not None:
             return int(self.grid_shape[0]), int(self.grid_shape[1])
-        if self.target.layout is not None:
-            cols = int(self.target.layout[1])
+        if self.shown_target.layout is not None:
+            cols = int(self.shown_target.layout[1])
         else:
             inner_aspect = self.width / self.height
             cols = max(1, int(round(math.sqrt(n * inner_aspect))))
@@ -180,9 +192,9 @@ class Scene:
         rows, cols = self.layout
         top, left, py, px = self._grid_box
         g = self.gap * py / 2
-        t, b = top + g, top + rows * py - g
-        l, r = left + g, left + cols * px - g
-        return [(t, l), (t, r), (b, r), (b, l)]
+        y0, y1 = top + g, top + rows * py - g
+        x0, x1 = left + g, left + cols * px - g
+        return [(y0, x0), (y0, x1), (y1, x1), (y1, x0)]
 
     def nd_patches(self) -> np.ndarray:
         """Boolean per patch: under the ND filter (left ``cols // 2`` columns) when the filter is on."""
@@ -196,7 +208,7 @@ class Scene:
     def n_classes(self) -> int:
         """Distinct pixel classes: patches, surround, gap (and those again under the ND filter)."""
         if self.kind == "original":
-            return self.original.n_classes
+            return self.shown_original.n_classes
         if self.kind != "target":
             return 1
         return 2 * (self.n_patches + 2)
@@ -211,11 +223,11 @@ class Scene:
         if self.kind == "lens_cap":
             return np.zeros((1, n_wavelengths))
         if self.kind == "original":
-            return self.original.class_spectra(n_wavelengths)
-        spectra = np.asarray(self.target.spectra, dtype=float)
+            return self.shown_original.class_spectra(n_wavelengths)
+        spectra = np.asarray(self.shown_target.spectra, dtype=float)
         if spectra.shape[1] != n_wavelengths:
             raise ValueError(
-                f"target {self.target.name!r} has {spectra.shape[1]} wavelengths but the camera's grid has "
+                f"target {self.shown_target.name!r} has {spectra.shape[1]} wavelengths but the camera's grid has "
                 f"{n_wavelengths}; load it on the same grid")
         base = np.vstack([spectra, np.full((1, n_wavelengths), self.surround),
                           np.full((1, n_wavelengths), self.gap_value)])
@@ -240,7 +252,7 @@ class Scene:
         row_idx = np.asarray(row_idx)
         col_idx = np.asarray(col_idx)
         if self.kind == "original":
-            return self.original.labels(row_idx, col_idx, self.height, self.width)
+            return self.shown_original.labels(row_idx, col_idx, self.height, self.width)
         if self.kind != "target":
             return np.zeros((len(row_idx), len(col_idx)), dtype=np.uint16)
         n = self.n_patches
@@ -277,7 +289,7 @@ class Scene:
     def describe(self) -> dict[str, object]:
         d: dict[str, object] = {"kind": self.kind, "name": self.name, "size": f"{self.width}x{self.height}"}
         if self.kind == "target":
-            d.update(patches=self.n_patches, grid="%dx%d" % self.layout, nd_filter=self.nd_filter)
+            d.update(patches=self.n_patches, grid="{}x{}".format(*self.layout), nd_filter=self.nd_filter)
         elif self.kind == "original":
-            d.update(self.original.describe())
+            d.update(self.shown_original.describe())
         return d

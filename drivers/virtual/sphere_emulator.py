@@ -8,11 +8,11 @@ physical state the virtual camera needs, readable at any time with the thread-sa
 * per-LED continuous on-time, and the light dose (emitted level x seconds, artwork exposure);
 * temperature, rising with emitted power towards ambient + ``HEAT_C_PER_LED`` per LED at full level
   (first order, ``THERMAL_TAU_S``), over-temperature protection at ``OVER_TEMPERATURE_C``;
-* peak-wavelength drift with continuous on-time as measured in thesis 4.3.2 (Fig. 4.10): none during the first
-  10 s, then growing towards a per-LED maximum reached after about an hour (LED 4 ~7 nm, LED 7 none, the
-  others a few nm); LED 10 also fades after ~40 min on and does not recover (it "died" in the thesis run).
-  Drift depends on continuous on-time only, not on the level (the thesis measured at full level), and starts
-  over when the LED goes dark;
+* peak-wavelength drift with continuous on-time as measured in thesis 4.3.2 (Fig. 4.10; the model is in
+  drivers/virtual/led_physics.py): none during the first 10 s, then growing towards a per-LED maximum reached
+  after about an hour (LED 4 ~7 nm, LED 7 none, the others a few nm); LED 10 also fades after ~40 min on and does
+  not recover (it "died" in the thesis run). Drift depends on continuous on-time only, not on the level (the
+  thesis measured at full level), and starts over when the LED goes dark;
 * the watchdog: no request for ``watchdog_s`` -> every LED to 0 and the light off, ``trip`` set;
 * the on-time limit of ``ON <ms>`` (firmware 1.1): the light goes off by itself ``ms`` after it came on, whatever
   the host sends meanwhile (``firmware="1.0.0"`` emulates the old firmware that answers ``ON`` with ERR 1);
@@ -41,40 +41,28 @@ import select
 import threading
 import time
 import tty
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Any
 
 import numpy as np
 
 from drivers.led_sphere import protocol as P
+from drivers.virtual.led_physics import (
+    AMBIENT_C,
+    FADE_LED,
+    HEAT_C_PER_LED,
+    MAX_SHIFT_NM,
+    OVER_TEMPERATURE_C,
+    THERMAL_TAU_S,
+    fade_factor,
+    peak_shift_nm,
+)
 
 log = logging.getLogger(__name__)
 
-# Thesis 4.3.2 / Fig. 4.10: maximum peak shift after ~1 h (LED 4 7 nm, LED 7 none, others a few nm).
-MAX_SHIFT_NM = np.array([2.0, 3.0, 3.0, 7.0, 4.0, 3.0, 0.0, 3.0, 4.0, 5.0])
-DRIFT_ONSET_S = 10.0          # no shift at all during the first 10 s on
-DRIFT_TAU_S = 900.0           # 1 - exp(-(3600 - 10) / 900) = 0.98 of the maximum after an hour
-FADE_LED = 10                 # LED 10 malfunctioned towards the end of the hour (thesis 4.3.2)
-FADE_START_S = 2400.0         # its output starts to fall after 40 min continuously on ...
-FADE_TAU_S = 600.0            # ... to exp(-2) = 14 % after an hour; the loss is permanent
-AMBIENT_C = 24.0
-HEAT_C_PER_LED = 1.2          # steady-state rise per LED at full level
-THERMAL_TAU_S = 240.0
-OVER_TEMPERATURE_C = 45.0
-
 FAULTS = ("no_reply", "ignore", "garbled", "slow", "disconnect", "led_fail")
 _WIRE_FAULTS = ("no_reply", "ignore", "garbled", "slow")      # these take keywords=(...) to pick requests
-
-
-def peak_shift_nm(on_time_s: np.ndarray | float, max_shift_nm: np.ndarray | float = MAX_SHIFT_NM) -> np.ndarray:
-    """Peak-wavelength drift (nm, towards longer wavelengths) after ``on_time_s`` seconds continuously on."""
-    t = np.maximum(np.asarray(on_time_s, dtype=float) - DRIFT_ONSET_S, 0.0)
-    return np.asarray(max_shift_nm, dtype=float) * -np.expm1(-t / DRIFT_TAU_S)
-
-
-def fade_factor(on_time_s: float) -> float:
-    """LED 10's relative output after ``on_time_s`` seconds continuously on (1 before FADE_START_S)."""
-    return 1.0 if on_time_s <= FADE_START_S else math.exp(-(on_time_s - FADE_START_S) / FADE_TAU_S)
 
 
 @dataclass
@@ -85,12 +73,12 @@ class LightInterval:
     at the same instant."""
 
     t_on: float
-    t_off: Optional[float]
+    t_off: float | None
     levels: tuple[float, ...]
     ended_by: str = ""
 
     @property
-    def duration_s(self) -> Optional[float]:
+    def duration_s(self) -> float | None:
         return None if self.t_off is None else self.t_off - self.t_on
 
 
@@ -136,8 +124,8 @@ class SphereEmulator:
         self._t = clock()
         self._pwm = np.zeros(n_leds, dtype=np.int64)
         self._light = False
-        self._light_since: Optional[float] = None
-        self._off_at: Optional[float] = None            # ON <ms>: when the light goes off by itself
+        self._light_since: float | None = None
+        self._off_at: float | None = None            # ON <ms>: when the light goes off by itself
         self._record: list[LightInterval] = []
         self._cause = ""
         self._on_time = np.zeros(n_leds)
@@ -151,11 +139,11 @@ class SphereEmulator:
         self._faults: dict[str, dict[str, Any]] = {}
         self._failed: dict[int, str] = {}
         self._rng = np.random.default_rng(0)
-        self._master: Optional[int] = None
-        self._slave: Optional[int] = None
-        self._wake: Optional[tuple[int, int]] = None
+        self._master: int | None = None
+        self._slave: int | None = None
+        self._wake: tuple[int, int] | None = None
         self._port = ""
-        self._thread: Optional[threading.Thread] = None
+        self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._pending: list[tuple[float, bytes]] = []
         self.requests: collections.deque[bytes] = collections.deque(maxlen=1000)   # recent request lines (log)
@@ -170,12 +158,13 @@ class SphereEmulator:
         os.set_blocking(master, False)
         self._master, self._slave = master, slave   # holding the slave open keeps the master readable
         self._port = os.ttyname(slave)
-        self._wake = os.pipe()
+        self._wake = wake = os.pipe()
         self._stop.clear()
         with self._lock:
             self._advance(self._clock())
             self._last_rx = self._t
-        self._thread = threading.Thread(target=self._serve, name=f"sphere-emulator {self._port}", daemon=True)
+        self._thread = threading.Thread(target=self._serve, args=(master, wake[0]),
+                                        name=f"sphere-emulator {self._port}", daemon=True)
         self._thread.start()
         log.info("sphere emulator serving on %s (watchdog %.1f s)", self._port, self._watchdog_ms / 1000)
         return self._port
@@ -216,17 +205,17 @@ class SphereEmulator:
         self._master = self._slave = self._wake = None
         self._pending.clear()
 
-    def __enter__(self) -> "SphereEmulator":
+    def __enter__(self) -> SphereEmulator:
         self.start()
         return self
 
     def __exit__(self, *exc) -> None:
         self.stop()
 
-    def _serve(self) -> None:
+    def _serve(self, master: int, wake: int) -> None:
+        """The serving thread: requests from the pty ``master``; a byte on ``wake`` ends the wait early."""
         buf = bytearray()
         discarding = False
-        master, wake = self._master, self._wake[0]
         while not self._stop.is_set():
             wait = 0.05
             if self._pending:
@@ -295,7 +284,7 @@ class SphereEmulator:
         body = bytearray(reply[:-1] or b"OK")
         hits = self._rng.random(len(body)) < 0.35
         hits[0] = True
-        body = bytearray(int(self._rng.integers(0x80, 0x100)) if h else b for b, h in zip(body, hits))
+        body = bytearray(int(self._rng.integers(0x80, 0x100)) if h else b for b, h in zip(body, hits, strict=True))
         return bytes(body) + b"\n"
 
     def _respond(self, reply: bytes, delay_s: float = 0.0) -> None:
@@ -374,7 +363,7 @@ class SphereEmulator:
 
     def _record_light(self, cause: str) -> None:
         emitting = self._emitting()
-        levels = tuple(float(p) / P.PWM_MAX if on else 0.0 for p, on in zip(self._pwm, emitting))
+        levels = tuple(float(p) / P.PWM_MAX if on else 0.0 for p, on in zip(self._pwm, emitting, strict=True))
         current = self._record[-1] if self._record and self._record[-1].t_off is None else None
         if current is not None and current.levels == levels:
             return
@@ -563,6 +552,7 @@ class SphereEmulator:
 
     def _cmd_light_on_for(self, ms: int) -> dict:
         self._cmd_set_light(1)
+        assert self._light_since is not None                  # on since now, or since earlier
         self._off_at = self._light_since + ms / 1000         # counted from when it came on: never extended
         return {"ms": ms}
 

@@ -15,7 +15,7 @@ import time
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from simulation.datasets import SimulationSetup, default_setup
 from simulation.grid import SpectralGrid
 from simulation.objective import Evaluator
 from simulation.versions import stamped
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure  # imported lazily at run time: a study's import stays light
 
 log = logging.getLogger(__name__)
 
@@ -36,10 +39,10 @@ class SetupSpec:
     step: float = 10.0
     start: float = 410.0
     end: float = 780.0
-    camera_csv: Optional[str] = None
-    leds_csv: Optional[str] = None
-    train_csv: Optional[str] = None
-    test_csv: Optional[str] = None
+    camera_csv: str | None = None
+    leds_csv: str | None = None
+    train_csv: str | None = None
+    test_csv: str | None = None
 
     @property
     def grid(self) -> SpectralGrid:
@@ -158,7 +161,7 @@ class StudyOutput:
         self.files.append(path)
         return path
 
-    def save_figure(self, fig: "Figure", name: str) -> Path:  # noqa: F821 (matplotlib imported lazily)
+    def save_figure(self, fig: Figure, name: str) -> Path:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
 
         path = self.folder / name

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from typing import Any, Callable, Iterator, Optional, Protocol, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, Protocol
 
 log = logging.getLogger(__name__)
 
@@ -40,7 +41,8 @@ def _limited(args: tuple[Callable[[Any], Any], Any, int]) -> Any:
     fn, item, threads = args
     import numba
 
-    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    most = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # set from the environment at import
+    numba.set_num_threads(max(1, min(threads, most)))
     return fn(item)
 
 
@@ -49,7 +51,7 @@ class DaskRunner:
 
     name = "dask"
 
-    def __init__(self, address: Optional[str] = None, workers: int = 2, threads: int = 1) -> None:
+    def __init__(self, address: str | None = None, workers: int = 2, threads: int = 1) -> None:
         from dask.distributed import Client, LocalCluster
 
         if log.getEffectiveLevel() > logging.INFO:
@@ -84,7 +86,7 @@ class DaskRunner:
 
 
 @contextlib.contextmanager
-def open_runner(scheduler: Optional[str] = None, *, workers: int = 2, threads: int = 1) -> Iterator[Runner]:
+def open_runner(scheduler: str | None = None, *, workers: int = 2, threads: int = 1) -> Iterator[Runner]:
     """``None`` or ``'serial'``: this process; ``'local'``: a LocalCluster of ``workers`` processes;
     anything else: the address of a running scheduler (``tcp://host:8786``)."""
     if scheduler in (None, "", "serial"):

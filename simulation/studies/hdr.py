@@ -22,7 +22,7 @@ import logging
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Optional
+from typing import Any
 
 import numpy as np
 
@@ -48,12 +48,12 @@ class HdrStudyConfig:
     nd_transmittance: float = 0.01
     repeats: int = 6
     pso: PsoSettings = PsoSettings(particles=100, iterations=10)
-    light_sets: Optional[int] = None
+    light_sets: int | None = None
     camera: CameraNoise = CameraNoise()
     seed: int = 2012
 
     @classmethod
-    def tiny(cls) -> "HdrStudyConfig":
+    def tiny(cls) -> HdrStudyConfig:
         return cls(levels_per_decade=2, pixels=4000, repeats=1, pso=PsoSettings(particles=8, iterations=2),
                    light_sets=8)
 
@@ -68,7 +68,7 @@ def levels(cfg: HdrStudyConfig) -> np.ndarray:
     return np.r_[0.0, np.logspace(0, 5, 5 * cfg.levels_per_decade + 1)]
 
 
-def bias_by_level(cfg: HdrStudyConfig, cancel: Optional[CancelToken] = None) -> dict:
+def bias_by_level(cfg: HdrStudyConfig, cancel: CancelToken | None = None) -> dict:
     """Per estimator: mean merged radiance, relative bias and relative noise per level; bias per decade."""
     cam = cfg.camera
     L = levels(cfg)
@@ -84,10 +84,10 @@ def bias_by_level(cfg: HdrStudyConfig, cancel: Optional[CancelToken] = None) -> 
         for m in HDR_MERGE_METHODS:
             e = merge_exposures(x, usable, times, m, span=cam.max_code - cam.black_level, noise=noise)[0]
             sums[m] += [e.sum(axis=1), (e * e).sum(axis=1), np.full(len(L), n)]
-    out = {"levels_dn_s": L.tolist(), "bracket_s": list(cfg.bracket_s), "pixels_per_level": cfg.pixels}
-    for m, (s1, s2, n) in sums.items():
-        mean = s1 / n
-        sd = np.sqrt(np.maximum(s2 / n - mean * mean, 0.0))
+    out: dict[str, Any] = {"levels_dn_s": L.tolist(), "bracket_s": list(cfg.bracket_s), "pixels_per_level": cfg.pixels}
+    for m, (s1, s2, count) in sums.items():
+        mean = s1 / count
+        sd = np.sqrt(np.maximum(s2 / count - mean * mean, 0.0))
         with np.errstate(divide="ignore", invalid="ignore"):
             rel = np.where(L > 0, mean / L - 1.0, np.nan)
             rel_sd = np.where(L > 0, sd / L, np.nan)
@@ -129,7 +129,7 @@ def dark_originals(spec: SetupSpec, cfg: HdrStudyConfig, cancel=None, progress=N
         report(progress, 0.5 + 0.5 * (i + 1) / steps, f"HDR study: {m}, {name}")
     scores = {m: float(np.mean([max(r[n][scene]["test"] for n in lights) for scene in ("dark_original", "nd_chart")]))
               for m, r in rows.items()}
-    chosen = min(scores, key=scores.get)
+    chosen = min(scores, key=scores.__getitem__)
     return {"light_sets": {k: [list(np.nonzero(w)[0] + 1) for w in W] for k, W in lights.items()},
             "results": rows, "scores": scores, "chosen": chosen,
             "criterion": "captured test mean dE00, mean over the dark original and the ND 2.0 chart, worst light set"}
@@ -154,7 +154,7 @@ class HdrStudyResult:
 
 
 def hdr_study(spec: SetupSpec = SetupSpec(), cfg: HdrStudyConfig = HdrStudyConfig(), *,
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> HdrStudyResult:
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> HdrStudyResult:
     t0 = time.perf_counter()
     bias = bias_by_level(cfg, cancel)
     report(progress, 0.5, "HDR study: bias against signal level")
@@ -162,7 +162,7 @@ def hdr_study(spec: SetupSpec = SetupSpec(), cfg: HdrStudyConfig = HdrStudyConfi
     return HdrStudyResult(spec, cfg, bias, originals, time.perf_counter() - t0)
 
 
-def write_defaults(result: HdrStudyResult, path: Optional[str] = None) -> Path:
+def write_defaults(result: HdrStudyResult, path: str | None = None) -> Path:
     """Set ``hdr_merge`` (and its evidence) in the defaults file, keeping the parsimony study's keys."""
     from simulation.studies.parsimony import save_defaults
 

@@ -12,13 +12,13 @@ Root-polynomial terms are homogeneous of degree 1 (exposure-invariant), like the
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
-from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.matrix_fit import fit_matrix
 
 log = logging.getLogger(__name__)
 

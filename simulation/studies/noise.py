@@ -30,7 +30,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Optional
+from typing import Any
 
 import numpy as np
 
@@ -57,7 +57,7 @@ class NoiseModel:
     """Flat-fielded patch values of a light set with their noise, expected errors and simulated captures."""
 
     def __init__(self, setup: SimulationSetup, camera: CameraNoise = CameraNoise(),
-                 train: Optional[Target] = None, test: Optional[Target] = None) -> None:
+                 train: Target | None = None, test: Target | None = None) -> None:
         self.setup = setup
         self.camera = camera
         self.white = target_xyz(setup, train or setup.train)[1]
@@ -73,8 +73,8 @@ class NoiseModel:
     def _patches(self, target: Target) -> _PatchData:
         xyz = target_xyz(self.setup, target)[0]
         lab = xyz_to_lab(xyz, self.white)
-        lab32 = tuple(np.ascontiguousarray(lab[:, i], dtype=np.float32) for i in range(3))
-        return _PatchData(led_responses(self.setup.leds, target.spectra, self.setup.camera), xyz, lab, lab32)
+        l32, a32, b32 = (np.ascontiguousarray(lab[:, i], dtype=np.float32) for i in range(3))
+        return _PatchData(led_responses(self.setup.leds, target.spectra, self.setup.camera), xyz, lab, (l32, a32, b32))
 
     # ---- the capture of a light set -------------------------------------------------------------------
     def exposures(self, W: np.ndarray) -> np.ndarray:
@@ -86,12 +86,12 @@ class NoiseModel:
     def signals(self, W: np.ndarray, which: str = "train") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """DN above black of patches S (B, n, L, 3) and open gate F (B, L, 3), and exposures t (B, L)."""
         W = np.asarray(W, dtype=float)
-        O = W @ self.open                                                     # (B, L, 3)
-        o_max = O.max(axis=-1)                                                # (B, L)
+        gate = W @ self.open                                                     # (B, L, 3)
+        o_max = gate.max(axis=-1)                                                # (B, L)
         scale = np.divide(self.camera.headroom, o_max, out=np.zeros_like(o_max), where=o_max > 0)
         C = np.einsum("blk,knc->bnlc", W, self.data[which].R)
         S = C * scale[:, None, :, None]
-        F = O * scale[:, :, None]
+        F = gate * scale[:, :, None]
         t = np.divide(self.camera.headroom, self.dn_per_unit_s * o_max, out=np.full_like(o_max, np.inf),
                       where=o_max > 0)
         return S, F, t
@@ -134,10 +134,10 @@ class NoiseModel:
             hi = min(B, lo + chunk)
             tr, te = self._expected_chunk(W[lo:hi], draws, seed, test, exact)
             out_tr[lo:hi] = tr
-            if test:
+            if out_te is not None:
                 out_te[lo:hi] = te
         res = {"train": out_tr.mean(axis=1), "train_draws": out_tr}
-        if test:
+        if out_te is not None:
             res.update({"test": out_te.mean(axis=1), "test_draws": out_te})
         return res
 
@@ -174,8 +174,8 @@ class NoiseModel:
 
     # ---- a pixel-level capture (held-out check) ----------------------------------------------------------
     def simulate_capture(self, W: np.ndarray, rng: np.random.Generator, which: str = "train", *,
-                         factors: tuple[float, ...] = (1.0,), transmittance: Optional[np.ndarray] = None,
-                         hdr_method: Optional[str] = None) -> np.ndarray:
+                         factors: tuple[float, ...] = (1.0,), transmittance: np.ndarray | None = None,
+                         hdr_method: str | None = None) -> np.ndarray:
         """Flat-fielded patch means (n, 3L) of one simulated capture of light set W (L, K), pixel by pixel.
 
         ``factors``: exposures relative to the open-gate exposure (several = an HDR bracket, merged as thesis
@@ -205,8 +205,8 @@ class NoiseModel:
         return ratio.mean(axis=-1).reshape(n, L * 3)
 
     def captured_errors(self, W: np.ndarray, repeats: int = 10, seed: int = 12345, *,
-                        factors: tuple[float, ...] = (1.0,), nd: Optional[dict[str, np.ndarray]] = None,
-                        models: tuple[str, ...] = (), hdr_method: Optional[str] = None,
+                        factors: tuple[float, ...] = (1.0,), nd: dict[str, np.ndarray] | None = None,
+                        models: tuple[str, ...] = (), hdr_method: str | None = None,
                         nd_in_truth: bool = True) -> dict:
         """Mean dE00 (float64) of ``repeats`` simulated captures of W (L, K): fit on the captured training
         target, errors of the captured training and test targets; seeds disjoint from the objective's.
@@ -236,7 +236,7 @@ class NoiseModel:
                 fm = fit_model(m, Vtr, xyz_tr, self.white)
                 per_model[m]["train"].append(float(model_errors(fm, Vtr, xyz_tr, self.white).mean()))
                 per_model[m]["test"].append(float(model_errors(fm, Vte, xyz_te, self.white).mean()))
-        out = {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
+        out: dict[str, Any] = {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
                "test_sd": float(np.std(te)), "repeats": repeats}
         if models:
             out["models"] = {m: {k: float(np.mean(v)) for k, v in d.items()} for m, d in per_model.items()}

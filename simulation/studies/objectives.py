@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Callable, Optional
+from typing import Any
 
 import numpy as np
 
@@ -48,7 +49,7 @@ class ObjectivesConfig:
     modes: tuple[str, ...] = MODES
     objectives: tuple[str, ...] = OBJECTIVES
     methods: tuple[str, ...] = ("exhaustive", "halving", "pso")
-    light_sets: Optional[int] = None                 # None: all 630
+    light_sets: int | None = None                 # None: all 630
     halving: HalvingSettings = HalvingSettings()
     pso: PsoSettings = PsoSettings()
     robust: RobustSettings = RobustSettings()
@@ -56,7 +57,7 @@ class ObjectivesConfig:
     seed: int = 0
 
     @classmethod
-    def tiny(cls) -> "ObjectivesConfig":
+    def tiny(cls) -> ObjectivesConfig:
         return cls(light_sets=8, halving=HalvingSettings(particles=6, min_sets=2, polish_sets=1, polish_iterations=3),
                    pso=PsoSettings(particles=8, iterations=2), robust=RobustSettings(worlds=2), capture_repeats=1)
 
@@ -77,7 +78,7 @@ def _groups(cfg: ObjectivesConfig, mode: str) -> list:
 
 
 def optima(setup: SimulationSetup, cfg: ObjectivesConfig, capture_model: CaptureModel,
-           cancel: Optional[CancelToken] = None) -> list[dict]:
+           cancel: CancelToken | None = None) -> list[dict]:
     """Every (objective, method) optimum with its wall time and its figures under all three objectives."""
     groups = _groups(cfg, setup.mode)
     judge = RobustEvaluator(setup, capture_model, cfg.robust)       # expected (nominal world) and robust figures
@@ -102,19 +103,20 @@ def optima(setup: SimulationSetup, cfg: ObjectivesConfig, capture_model: Capture
                          "evaluations": out.evaluations, "pair": [list(s.leds) for s in best.sources],
                          "levels": [[float(W[li, k - 1]) for k in s.leds] for li, s in enumerate(best.sources)],
                          "requested_levels": [list(s.levels) for s in best.sources],
-                         "noise_free_train": best.train.mean, "noise_free_test": best.test.mean,
-                         "expected_train": best.expected_train.mean, "expected_test": best.expected_test.mean,
+                         "noise_free_train": best.train_errors.mean, "noise_free_test": best.test_errors.mean,
+                         "expected_train": best.expected_train_errors.mean,
+                         "expected_test": best.expected_test_errors.mean,
                          "robust_train": float(judge.world_costs(W).mean())})
     return rows
 
 
-def captured(setup: SimulationSetup, rows: list[dict], capture: Optional[Capture], repeats: int) -> None:
+def captured(setup: SimulationSetup, rows: list[dict], capture: Capture | None, repeats: int) -> None:
     """Capture each distinct optimum once (virtual lab or pixel-level simulation) and add its captured errors."""
     model = NoiseModel(setup)
     done: dict[str, dict] = {}
     for row in rows:
         W = np.zeros((2, model.n_leds))
-        for li, (leds, levels) in enumerate(zip(row["pair"], row["levels"])):
+        for li, (leds, levels) in enumerate(zip(row["pair"], row["levels"], strict=True)):
             W[li, np.asarray(leds) - 1] = levels
         key = repr(W.round(6).tolist())
         if key not in done:
@@ -138,7 +140,7 @@ class ObjectivesResult:
 
 def _summary(rows: list[dict]) -> dict:
     """Mean |predicted - captured| / captured of each prediction, and the worked example's rows."""
-    out = {}
+    out: dict[str, Any] = {}
     for key in ("noise_free_train", "expected_train"):
         rel = [abs(r[key] - r["captured_train"]) / r["captured_train"] for r in rows if "captured_train" in r]
         out[f"{key}_relative_error"] = float(np.mean(rel)) if rel else None
@@ -148,10 +150,10 @@ def _summary(rows: list[dict]) -> dict:
 
 
 def objectives_study(spec: SetupSpec = SetupSpec(), cfg: ObjectivesConfig = ObjectivesConfig(), *,
-                     capture: Optional[Capture] = None,
+                     capture: Capture | None = None,
                      capture_model: Callable[[SimulationSetup], CaptureModel] = study_capture_model,
-                     progress: Optional[ProgressCallback] = None,
-                     cancel: Optional[CancelToken] = None) -> ObjectivesResult:
+                     progress: ProgressCallback | None = None,
+                     cancel: CancelToken | None = None) -> ObjectivesResult:
     """All modes of ``cfg`` (``spec`` gives the grid and any user CSVs). ``capture(setup, W, exposures)`` is the
     capture chain to check against (the CLI passes the virtual lab's) and ``capture_model(setup)`` its model."""
     t0 = time.perf_counter()
@@ -176,7 +178,7 @@ _MARKERS = {"noise-free": "o", "expected-captured": "s", "robust": "D"}
 def speed_accuracy_chart(result: ObjectivesResult):
     modes = list(dict.fromkeys(r["mode"] for r in result.rows))
     fig, axes = new_figure(5.5 * len(modes), 4.6, ncols=len(modes))
-    for ax, mode in zip(np.atleast_1d(axes), modes):
+    for ax, mode in zip(np.atleast_1d(axes), modes, strict=True):
         for r in (r for r in result.rows if r["mode"] == mode):
             kw = dict(color=_COLOURS[r["method"]], marker=_MARKERS[r["objective"]], ms=8, ls="none")
             ax.plot(r["seconds"], r["expected_train"], **kw)
@@ -198,7 +200,7 @@ def speed_accuracy_chart(result: ObjectivesResult):
 def predicted_vs_captured_chart(result: ObjectivesResult):
     modes = list(dict.fromkeys(r["mode"] for r in result.rows))
     fig, axes = new_figure(5.5 * len(modes), 4.6, ncols=len(modes))
-    for ax, mode in zip(np.atleast_1d(axes), modes):
+    for ax, mode in zip(np.atleast_1d(axes), modes, strict=True):
         rows = [r for r in result.rows if r["mode"] == mode and "captured_train" in r]
         cap = [r["captured_train"] for r in rows]
         ax.plot([r["noise_free_train"] for r in rows], cap, "o", mfc="none", color="tab:blue",
@@ -222,13 +224,15 @@ def summary_lines(result: ObjectivesResult) -> list[str]:
     lines = ["| mode | objective | method | time s | pair @ levels | noise-free train | expected train | robust | "
              "captured train | captured test |", "|---|---|---|---:|---|---:|---:|---:|---:|---:|"]
     for r in result.rows:
-        levels = " + ".join(f"{tuple(p)}@{tuple(round(v, 4) for v in lv)}" for p, lv in zip(r["pair"], r["levels"]))
+        levels = " + ".join(f"{tuple(p)}@{tuple(round(v, 4) for v in lv)}"
+                            for p, lv in zip(r["pair"], r["levels"], strict=True))
         lines.append(f"| {r['mode']} | {r['objective']} | {r['method']} | {r['seconds']:.2f} | {levels} | "
                      f"{r['noise_free_train']:.3f} | {r['expected_train']:.3f} | {r['robust_train']:.3f} | "
                      f"{r.get('captured_train', float('nan')):.3f} | {r.get('captured_test', float('nan')):.3f} |")
     s = result.summary
     lines += ["", f"Mean |predicted - captured| / captured (training, {result.capture}): noise-free "
-                  f"{100 * s['noise_free_train_relative_error']:.0f} % (max {100 * s['noise_free_train_max_relative_error']:.0f} %), "
+                  f"{100 * s['noise_free_train_relative_error']:.0f} % "
+                  f"(max {100 * s['noise_free_train_max_relative_error']:.0f} %), "
                   f"expected captured {100 * s['expected_train_relative_error']:.0f} % "
                   f"(max {100 * s['expected_train_max_relative_error']:.0f} %)."]
     return lines

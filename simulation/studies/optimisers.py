@@ -24,15 +24,16 @@ import logging
 import os
 import tempfile
 import time
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
-from typing import Callable, Iterator, Optional, Sequence
+from typing import Any
 
 import numpy as np
 
-from simulation.matrix_fit import solve_normal_equations
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.ga import GaSettings, ga
 from simulation.halving import HalvingSettings, set_cost, successive_halving
+from simulation.matrix_fit import solve_normal_equations
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, enforce_constraints, pso
 from simulation.search import Group, SearchOutcome, candidates_from, exhaustive, group_arrays
@@ -114,8 +115,8 @@ def _normalised(levels: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return enforce_constraints(np.array(levels, dtype=float), mask.astype(float))
 
 
-def _outcome(method: str, groups: Sequence[Group], levels: np.ndarray, costs: np.ndarray, seed: Optional[int],
-             t0: float, n0: int, evaluator, settings: dict, history: Optional[list[float]] = None) -> SearchOutcome:
+def _outcome(method: str, groups: Sequence[Group], levels: np.ndarray, costs: np.ndarray, seed: int | None,
+             t0: float, n0: int, evaluator, settings: dict, history: list[float] | None = None) -> SearchOutcome:
     return SearchOutcome(method, seed, time.perf_counter() - t0, evaluator.evaluations - n0,
                          candidates_from(list(groups), levels, costs), history=history or [],
                          settings={**settings, "light_sets": len(groups)})
@@ -142,72 +143,118 @@ def _pyswarms_logging() -> Iterator[None]:
                 os.environ["LOG_CFG"] = previous
 
 
-def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettings = PyswarmsSettings(),
-                    seed: int = 0, *, progress: Optional[ProgressCallback] = None,
-                    cancel: Optional[CancelToken] = None) -> SearchOutcome:
-    """pyswarms GlobalBestPSO on every light set in turn (pyswarms draws from numpy's global generator:
-    it is seeded per light set with (seed, set number) and restored afterwards). One optimiser is built and
-    ``reset()`` for every set (building one costs ~10 ms of logging set-up)."""
+def _set_by_set(method: str, label: str, evaluator, groups: Sequence[Group],
+                settings: PyswarmsSettings | DeSettings, seed: int,
+                optimise: Callable[[int, Callable[[np.ndarray], np.ndarray], int], tuple[float, np.ndarray]],
+                progress: ProgressCallback | None, cancel: CancelToken | None) -> SearchOutcome:
+    """Every light set optimised on its own, in turn: ``optimise(set number, cost, D)`` returns the set's best
+    cost and levels (D,), ``cost`` being the set's objective of a batch of levels (B, D)."""
     groups = list(groups)
     idx_all, mask_all = group_arrays(groups)
     G, L, m = idx_all.shape
-    D = L * m
-    t0, n0 = time.perf_counter(), evaluator.evaluations
-    best_x = np.zeros((G, L, m))
-    best_c = np.empty(G)
-    state = np.random.get_state()
-    options = {"c1": settings.c1, "c2": settings.c2, "w": settings.c0}
-    bounds = (np.zeros(D), np.ones(D))
-    try:
-        with _pyswarms_logging():
-            from pyswarms.single import GlobalBestPSO      # its import configures logging too
-
-            opt = GlobalBestPSO(settings.particles, D, options, bounds=bounds, bh_strategy="nearest")
-            for gi in range(G):
-                check(cancel)
-                np.random.seed(np.random.SeedSequence([seed, gi]).generate_state(1)[0])
-                opt.reset()
-                cost, pos = opt.optimize(set_cost(evaluator, idx_all[gi], mask_all[gi]),
-                                         iters=settings.iterations, verbose=False)
-                best_c[gi] = cost
-                best_x[gi] = _normalised(np.asarray(pos).reshape(L, m), mask_all[gi])
-                if gi % 32 == 31 or gi == G - 1:
-                    report(progress, (gi + 1) / G, f"pyswarms: {gi + 1}/{G} light sets")
-    finally:
-        np.random.set_state(state)
-    return _outcome("pyswarms", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
-
-
-def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSettings(), seed: int = 0, *,
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
-    """scipy differential_evolution on every light set in turn, vectorised per generation, no polishing."""
-    from scipy.optimize import differential_evolution
-
-    groups = list(groups)
-    idx_all, mask_all = group_arrays(groups)
-    G, L, m = idx_all.shape
-    D = L * m
     t0, n0 = time.perf_counter(), evaluator.evaluations
     best_x = np.zeros((G, L, m))
     best_c = np.empty(G)
     for gi in range(G):
         check(cancel)
-        fast = set_cost(evaluator, idx_all[gi], mask_all[gi])
-        res = differential_evolution(lambda X: fast(X.T), [(0.0, 1.0)] * D, maxiter=settings.maxiter,
+        best_c[gi], levels = optimise(gi, set_cost(evaluator, idx_all[gi], mask_all[gi]), L * m)
+        best_x[gi] = _normalised(np.asarray(levels).reshape(L, m), mask_all[gi])
+        if gi % 32 == 31 or gi == G - 1:
+            report(progress, (gi + 1) / G, f"{label}: {gi + 1}/{G} light sets")
+    return _outcome(method, groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
+
+
+def pyswarms_search(evaluator, groups: Sequence[Group], settings: PyswarmsSettings = PyswarmsSettings(),
+                    seed: int = 0, *, progress: ProgressCallback | None = None,
+                    cancel: CancelToken | None = None) -> SearchOutcome:
+    """pyswarms GlobalBestPSO on every light set in turn (pyswarms draws from numpy's global generator:
+    it is seeded per light set with (seed, set number) and restored afterwards). One optimiser is built and
+    ``reset()`` for every set (building one costs ~10 ms of logging set-up)."""
+    options = {"c1": settings.c1, "c2": settings.c2, "w": settings.c0}
+    swarm: list[Any] = []                              # the one optimiser, built for the first set
+
+    def optimise(gi: int, cost: Callable[[np.ndarray], np.ndarray], D: int) -> tuple[float, np.ndarray]:
+        if not swarm:
+            from pyswarms.single import GlobalBestPSO  # its import configures logging too
+
+            swarm.append(GlobalBestPSO(settings.particles, D, options, bounds=(np.zeros(D), np.ones(D)),
+                                       bh_strategy="nearest"))
+        np.random.seed(np.random.SeedSequence([seed, gi]).generate_state(1)[0])  # noqa: NPY002 - see below
+        swarm[0].reset()
+        best, pos = swarm[0].optimize(cost, iters=settings.iterations, verbose=False)
+        return best, np.asarray(pos)
+
+    state = np.random.get_state()  # noqa: NPY002 - pyswarms draws from numpy's global RNG: restored below
+    try:
+        with _pyswarms_logging():
+            return _set_by_set("pyswarms", "pyswarms", evaluator, groups, settings, seed, optimise, progress,
+                               cancel)
+    finally:
+        np.random.set_state(state)  # noqa: NPY002 - the caller's global RNG as it was
+
+
+def _on_columns(cost: Callable[[np.ndarray], np.ndarray]) -> Callable[[np.ndarray], np.ndarray]:
+    """``cost`` (points as rows) for scipy's vectorised differential evolution, which passes them as columns."""
+    return lambda X: cost(X.T)
+
+
+def de_search(evaluator, groups: Sequence[Group], settings: DeSettings = DeSettings(), seed: int = 0, *,
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> SearchOutcome:
+    """scipy differential_evolution on every light set in turn, vectorised per generation, no polishing."""
+    from scipy.optimize import Bounds, differential_evolution
+
+    def optimise(gi: int, cost: Callable[[np.ndarray], np.ndarray], D: int) -> tuple[float, np.ndarray]:
+        # vectorized=True: the cost returns one value per column (scipy-stubs type only the scalar form)
+        res = differential_evolution(_on_columns(cost),  # type: ignore[arg-type]
+                                     Bounds(np.zeros(D), np.ones(D)), maxiter=settings.maxiter,
                                      popsize=settings.popsize, mutation=settings.mutation,
                                      recombination=settings.recombination, tol=settings.tol, polish=False,
                                      vectorized=True, updating="deferred",
                                      rng=np.random.default_rng([seed, gi]))
-        best_c[gi] = res.fun
-        best_x[gi] = _normalised(res.x.reshape(L, m), mask_all[gi])
-        if gi % 32 == 31 or gi == G - 1:
-            report(progress, (gi + 1) / G, f"differential evolution: {gi + 1}/{G} light sets")
-    return _outcome("de", groups, best_x, best_c, seed, t0, n0, evaluator, asdict(settings))
+        return float(res.fun), res.x
+
+    return _set_by_set("de", "differential evolution", evaluator, groups, settings, seed, optimise, progress,
+                       cancel)
+
+
+def _random_screen(evaluator, idx_all: np.ndarray, mask_all: np.ndarray, settings: LbfgsSettings, seed: int,
+                   cancel: CancelToken | None) -> tuple[np.ndarray, np.ndarray]:
+    """``settings.screen`` random levels per light set, costed by the fast kernel 64 sets at a time:
+    levels (G, S, L, m) and costs (G, S)."""
+    G, L, m = idx_all.shape
+    rng = np.random.default_rng([seed, 0x5C])
+    S = settings.screen
+    x = rng.uniform(settings.lower, 1.0, (G, S, L, m)) * mask_all[:, None]
+    c = np.empty((G, S))
+    for lo in range(0, G, 64):
+        check(cancel)
+        hi = min(G, lo + 64)
+        idx = np.broadcast_to(idx_all[lo:hi, None], (hi - lo, S, L, m)).reshape(-1, L, m)
+        c[lo:hi] = evaluator.cost_indexed(idx, x[lo:hi].reshape(-1, L, m)).reshape(hi - lo, S)
+    return x, c
+
+
+def _forward_difference(evaluator, f64: Float64Cost, step: float
+                        ) -> Callable[[np.ndarray], tuple[float, np.ndarray]]:
+    """The float64 cost and its forward-difference gradient (step ``step``) from one batch of D + 1 points,
+    counted as evaluations of ``evaluator`` (recorded in a TracedEvaluator's trace)."""
+    eye = np.eye(f64.dim) * step
+    record = getattr(evaluator, "record_external", None)
+
+    def fun_grad(v: np.ndarray) -> tuple[float, np.ndarray]:
+        cc = f64(np.vstack([v, v + eye]))
+        if record is not None:
+            record(cc)
+        else:
+            evaluator.evaluations += len(cc)
+        return float(cc[0]), (cc[1:] - cc[0]) / step
+
+    return fun_grad
 
 
 def lbfgs_search(evaluator, groups: Sequence[Group], settings: LbfgsSettings = LbfgsSettings(), seed: int = 0,
-                 *, progress: Optional[ProgressCallback] = None,
-                 cancel: Optional[CancelToken] = None) -> SearchOutcome:
+                 *, progress: ProgressCallback | None = None,
+                 cancel: CancelToken | None = None) -> SearchOutcome:
     """Random screen of every light set, then multi-start L-BFGS-B on :class:`Float64Cost` for the best sets.
 
     Why a screen: one float64 cost + gradient batch costs ~0.5-1 ms in numpy, so L-BFGS-B on all 630 sets
@@ -220,35 +267,17 @@ def lbfgs_search(evaluator, groups: Sequence[Group], settings: LbfgsSettings = L
     idx_all, mask_all = group_arrays(groups)
     G, L, m = idx_all.shape
     t0, n0 = time.perf_counter(), evaluator.evaluations
-    rng = np.random.default_rng([seed, 0x5C])
-    S = settings.screen
-    x = rng.uniform(settings.lower, 1.0, (G, S, L, m)) * mask_all[:, None]
-    c = np.empty((G, S))
-    for lo in range(0, G, 64):
-        check(cancel)
-        hi = min(G, lo + 64)
-        idx = np.broadcast_to(idx_all[lo:hi, None], (hi - lo, S, L, m)).reshape(-1, L, m)
-        c[lo:hi] = evaluator.cost_indexed(idx, x[lo:hi].reshape(-1, L, m)).reshape(hi - lo, S)
+    x, c = _random_screen(evaluator, idx_all, mask_all, settings, seed, cancel)
     arg = c.argmin(axis=1)
     best_c = c[np.arange(G), arg]
     best_x = np.stack([_normalised(x[g, arg[g]], mask_all[g]) for g in range(G)])
-    record = getattr(evaluator, "record_external", None)
     top = np.argsort(best_c, kind="stable")[:settings.top_sets]
     for n_done, gi in enumerate(top, start=1):
         check(cancel)
         group = groups[gi]
         f64 = Float64Cost(evaluator, group)
         D = f64.dim
-        eye = np.eye(D) * settings.step
-
-        def fun_grad(v: np.ndarray) -> tuple[float, np.ndarray]:
-            cc = f64(np.vstack([v, v + eye]))
-            if record is not None:
-                record(cc)
-            else:
-                evaluator.evaluations += len(cc)
-            return float(cc[0]), (cc[1:] - cc[0]) / settings.step
-
+        fun_grad = _forward_difference(evaluator, f64, settings.step)
         prng = np.random.default_rng([seed, int(gi)])
         first = np.concatenate([x[gi, arg[gi], li, :len(light)] for li, light in enumerate(group)])
         for start in range(settings.starts):
@@ -267,26 +296,26 @@ def lbfgs_search(evaluator, groups: Sequence[Group], settings: LbfgsSettings = L
 
 
 def halving_search(evaluator, groups: Sequence[Group], settings: HalvingSettings = HalvingSettings(),
-                   seed: int = 0, *, progress: Optional[ProgressCallback] = None,
-                   cancel: Optional[CancelToken] = None) -> SearchOutcome:
+                   seed: int = 0, *, progress: ProgressCallback | None = None,
+                   cancel: CancelToken | None = None) -> SearchOutcome:
     """The default optimiser (simulation.halving.successive_halving)."""
     return successive_halving(evaluator, groups, settings, seed, progress=progress, cancel=cancel)
 
 
 # ---------------------------------------------------------------------------------------------------------
 def exhaustive_search(evaluator, groups: Sequence[Group], settings: None = None, seed: int = 0, *,
-                      progress: Optional[ProgressCallback] = None,
-                      cancel: Optional[CancelToken] = None) -> SearchOutcome:
+                      progress: ProgressCallback | None = None,
+                      cancel: CancelToken | None = None) -> SearchOutcome:
     return exhaustive(evaluator, groups, progress=progress, cancel=cancel)
 
 
 def pso_search(evaluator, groups: Sequence[Group], settings: PsoSettings = PsoSettings(), seed: int = 0, *,
-               progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+               progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> SearchOutcome:
     return pso(evaluator, groups, settings, seed, progress=progress, cancel=cancel)
 
 
 def ga_search(evaluator, groups: Sequence[Group], settings: GaSettings = GaSettings(), seed: int = 0, *,
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> SearchOutcome:
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> SearchOutcome:
     return ga(evaluator, groups, settings, seed, progress=progress, cancel=cancel)
 
 

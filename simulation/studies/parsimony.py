@@ -26,7 +26,7 @@ import logging
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Optional
+from typing import Any
 
 import numpy as np
 
@@ -53,7 +53,7 @@ class ParsimonyConfig:
     steps: tuple[float, ...] = (1.0, 5.0, 10.0, 20.0)
     tolerance: float = 0.05
     pso: PsoSettings = PsoSettings(particles=100, iterations=10)
-    light_sets: Optional[int] = None
+    light_sets: int | None = None
     exposures: tuple[int, ...] = (1, 2, 3, 4)
     exposure_span: float = 100.0                 # ND 2.0
     nd_transmittance: float = 0.01
@@ -61,7 +61,7 @@ class ParsimonyConfig:
     camera: CameraNoise = CameraNoise()
 
     @classmethod
-    def tiny(cls) -> "ParsimonyConfig":
+    def tiny(cls) -> ParsimonyConfig:
         return cls(steps=(10.0, 20.0), pso=PsoSettings(particles=8, iterations=2), light_sets=8,
                    exposures=(1, 2), repeats=1)
 
@@ -93,7 +93,7 @@ def spectral_steps(spec: SetupSpec, cfg: ParsimonyConfig, cancel=None, progress=
         ex = exhaustive(ev, groups)
         p = refine_top(ev, pso(ev, groups, cfg.pso, seed=0), 1)
         seconds = time.perf_counter() - t0
-        row = {"step_nm": step, "grid": ev.setup.grid.label(), "wavelengths": len(ev.setup.grid),
+        row: dict[str, Any] = {"step_nm": step, "grid": ev.setup.grid.label(), "wavelengths": len(ev.setup.grid),
                "seconds": seconds}
         for key, cand in (("exhaustive", ex.best), ("pso", p.best)):
             W = cand.weights(ev.n_leds)
@@ -159,7 +159,7 @@ def models_and_exposures(spec: SetupSpec, cfg: ParsimonyConfig, cancel=None, pro
     for k, n_exp in enumerate(cfg.exposures):
         check(cancel)
         factors = tuple(np.geomspace(1.0, cfg.exposure_span, n_exp)) if n_exp > 1 else (1.0,)
-        row = {"exposures": n_exp, "factors": [round(f, 3) for f in factors]}
+        row: dict[str, Any] = {"exposures": n_exp, "factors": [round(f, 3) for f in factors]}
         for name, W in lights.items():
             with_nd = model.captured_errors(W, cfg.repeats, factors=factors, nd=nd)
             without = model.captured_errors(W, max(1, cfg.repeats // 2), factors=factors)
@@ -207,8 +207,8 @@ class ParsimonyResult:
                 "evidence": {
                     "step_deviation": {f"{r['step_nm']:g}": round(r["deviation"], 4) for r in self.steps["rows"]},
                     "model_test_de00": {k: round(v, 4) for k, v in self.models["scores"].items()},
-                    "exposures_test_de00": {str(r["exposures"]): round(s, 4)
-                                            for r, s in zip(self.exposures["rows"], self.exposures["scores"])}},
+                    "exposures_test_de00": {str(r["exposures"]): round(s, 4) for r, s in
+                                            zip(self.exposures["rows"], self.exposures["scores"], strict=True)}},
                 "setup": self.spec.to_dict(), "camera": self.config.camera.to_dict(),
                 "generated_by": "dualrgb study parsimony",
                 "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
@@ -220,7 +220,7 @@ class ParsimonyResult:
 
 
 def parsimony(spec: SetupSpec = SetupSpec(), cfg: ParsimonyConfig = ParsimonyConfig(), *,
-              progress: Optional[ProgressCallback] = None, cancel: Optional[CancelToken] = None) -> ParsimonyResult:
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> ParsimonyResult:
     if cfg.tolerance <= 0:
         raise ValueError(f"tolerance {cfg.tolerance}: expected a positive dE00")
     t0 = time.perf_counter()
@@ -229,7 +229,7 @@ def parsimony(spec: SetupSpec = SetupSpec(), cfg: ParsimonyConfig = ParsimonyCon
     return ParsimonyResult(spec, cfg, steps, models, exposures, time.perf_counter() - t0)
 
 
-def load_defaults(path: Optional[str] = None) -> dict:
+def load_defaults(path: str | None = None) -> dict:
     """The app's defaults chosen by the parsimony study: ``path``, else the user's parsimony.json (per-user data
     folder), else the packaged resources/parsimony.json; the thesis defaults when none is readable."""
     try:
@@ -307,7 +307,7 @@ def parsimony_chart(result: ParsimonyResult):
     return fig
 
 
-def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Optional[str] = None) -> None:
+def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: str | None = None) -> None:
     out.write_json("parsimony_study.json", result.to_json())
     out.write_json("parsimony.json", result.defaults())
     if defaults_path:
@@ -332,7 +332,7 @@ def write_outputs(result: ParsimonyResult, out: StudyOutput, defaults_path: Opti
     lines += ["", f"Chosen: **{m['chosen']}**.", "", "## HDR exposures (ND 2.0 over half the patches)", ""]
     e = result.exposures
     lines += [f"- {r['exposures']} exposure(s) x{', '.join(f'{f:.3g}' for f in r['factors'])}: {sc:.4f}"
-              for r, sc in zip(e["rows"], e["scores"])]
+              for r, sc in zip(e["rows"], e["scores"], strict=True)]
     lines += ["", f"Chosen: **{e['chosen']}** exposure(s) per light.", "",
               "Defaults written to parsimony.json (`dualrgb study parsimony --write-defaults` makes them the "
               "app's defaults)."]

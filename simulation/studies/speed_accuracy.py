@@ -15,8 +15,8 @@ from __future__ import annotations
 import logging
 import time
 import warnings
-from dataclasses import asdict, dataclass, field
-from typing import Any, Optional
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -24,11 +24,24 @@ from simulation.ga import GaSettings
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings
 from simulation.search import light_pairs, refine_top
-from simulation.studies.common import (SetupSpec, StudyOutput, TracedEvaluator, evaluator_for, median_spread,
-                                       new_figure, pareto_front)
+from simulation.studies.common import (
+    SetupSpec,
+    StudyOutput,
+    TracedEvaluator,
+    evaluator_for,
+    median_spread,
+    new_figure,
+    pareto_front,
+)
 from simulation.studies.distributed import Runner, SerialRunner
-from simulation.studies.optimisers import (LABELS, OPTIMISERS, DeSettings, HalvingSettings, LbfgsSettings,
-                                           PyswarmsSettings)
+from simulation.studies.optimisers import (
+    LABELS,
+    OPTIMISERS,
+    DeSettings,
+    HalvingSettings,
+    LbfgsSettings,
+    PyswarmsSettings,
+)
 from simulation.warmup import warm_up
 
 log = logging.getLogger(__name__)
@@ -43,9 +56,6 @@ class Config:
     method: str
     label: str
     settings: Any = None
-
-    def settings_dict(self) -> dict:
-        return asdict(self.settings) if self.settings is not None else {}
 
 
 def configs(budget: str = "default") -> list[Config]:
@@ -90,7 +100,7 @@ class RunTask:
     spec: SetupSpec
     config: Config
     seed: int
-    light_sets: Optional[int] = None
+    light_sets: int | None = None
 
 
 def run_task(task: RunTask) -> dict:
@@ -110,7 +120,7 @@ def run_task(task: RunTask) -> dict:
     best = out.best
     return {"method": task.config.method, "label": task.config.label, "seed": task.seed,
             "seconds": seconds, "evaluations": ev.evaluations - n0, "train_cost": best.train_cost,
-            "train": best.train.mean, "test": best.test.mean,
+            "train": best.train_errors.mean, "test": best.test_errors.mean,
             "best": {**best.to_dict(), "levels_exact": {str(i + 1): list(src.levels)
                                                         for i, src in enumerate(best.sources)}},
             "trace": traced.trace.to_dict()}
@@ -153,9 +163,9 @@ def summarise(runs: list[dict], order: list[str]) -> list[dict]:
 
 
 def speed_accuracy(spec: SetupSpec = SetupSpec(), *, seeds: int = 3, budget: str = "default",
-                   light_sets: Optional[int] = None, runner: Optional[Runner] = None,
-                   progress: Optional[ProgressCallback] = None,
-                   cancel: Optional[CancelToken] = None) -> SpeedAccuracyResult:
+                   light_sets: int | None = None, runner: Runner | None = None,
+                   progress: ProgressCallback | None = None,
+                   cancel: CancelToken | None = None) -> SpeedAccuracyResult:
     """Run every configuration of ``budget`` with seeds 0..seeds-1 (exhaustive: once per seed too, for timing)."""
     if seeds < 1:
         raise ValueError(f"seeds {seeds}: expected at least 1")
@@ -173,7 +183,7 @@ def speed_accuracy(spec: SetupSpec = SetupSpec(), *, seeds: int = 3, budget: str
         runs = runner.map(run_task, tasks)
     n_sets = light_sets or len(light_pairs())
     result = SpeedAccuracyResult(spec, budget, list(range(seeds)), min(n_sets, len(light_pairs())), runs,
-                                 runner=getattr(runner, "describe", lambda: {})(),
+                                 runner=getattr(runner, "describe", dict)(),
                                  elapsed_s=time.perf_counter() - t0)
     result.summary = summarise(runs, [c.label for c in cfgs])
     for key, attr in (("train", "pareto_train"), ("test", "pareto_test")):
@@ -205,8 +215,8 @@ def pareto_chart(result: SpeedAccuracyResult):
                 ax.annotate(row["label"].replace("pso ", "").replace(" (thesis)", "*"), (x["median"], y["median"]),
                             textcoords="offset points", xytext=(4, 3), fontsize=7, color=_COLOURS["pso"])
         rows = {r["label"]: r for r in result.summary}
-        fx = [rows[l]["seconds"]["median"] for l in front]
-        fy = [rows[l][key]["median"] for l in front]
+        fx = [rows[label]["seconds"]["median"] for label in front]
+        fy = [rows[label][key]["median"] for label in front]
         ax.step(fx, fy, where="post", color="grey", lw=1, ls="--", label="Pareto front (medians)")
         ax.set_xscale("log")
         ax.set_xlabel("wall time per run, s (median, min-max over seeds)")

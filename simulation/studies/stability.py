@@ -22,28 +22,35 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Callable, Optional
+from typing import Any
 
 import numpy as np
 
 import resources
 from simulation.camera_model import led_responses
-from simulation.matrix_fit import fit_matrix
+from simulation.capture_model import CaptureModel
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target
 from simulation.ga import GaSettings
+from simulation.matrix_fit import fit_matrix
 from simulation.objective import Evaluator
 from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
-from simulation.search import Candidate, exhaustive, light_pairs, refine_top
+from simulation.search import exhaustive, light_pairs, refine_top
 from simulation.spectral_io import read_spectral_csv
-from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread, new_figure
+from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread
 from simulation.studies.distributed import Runner, SerialRunner
-from simulation.capture_model import CaptureModel
 from simulation.studies.noise import CameraNoise, NoiseModel, thesis_exposures_check
-from simulation.studies.objectives import (ObjectivesConfig, ObjectivesResult, objectives_study,
-                                           predicted_vs_captured_chart, study_capture_model, summary_lines)
+from simulation.studies.objectives import (
+    ObjectivesConfig,
+    ObjectivesResult,
+    objectives_study,
+    predicted_vs_captured_chart,
+    study_capture_model,
+    summary_lines,
+)
 from simulation.studies.optimisers import DeSettings, HalvingSettings, LbfgsSettings, PyswarmsSettings
 from simulation.studies.speed_accuracy import Config, RunTask, run_task
 
@@ -55,7 +62,7 @@ Capture = Callable[[SimulationSetup, np.ndarray, np.ndarray], dict]
 @dataclass(frozen=True)
 class StabilityConfig:
     seeds: int = 3
-    light_sets: Optional[int] = None                    # None: all 630
+    light_sets: int | None = None                    # None: all 630
     methods: tuple[Config, ...] = (
         Config("pso", "pso 200x10 (thesis)", PsoSettings()),
         Config("ga", "ga (thesis budget)", GaSettings()),
@@ -78,7 +85,7 @@ class StabilityConfig:
     lab_repeats: int = 2                                # virtual-lab captures per candidate (when available)
 
     @classmethod
-    def tiny(cls) -> "StabilityConfig":
+    def tiny(cls) -> StabilityConfig:
         return cls(seeds=2, light_sets=10,
                    methods=(Config("pso", "pso 10x2", PsoSettings(particles=10, iterations=2)),
                             Config("ga", "ga tiny", GaSettings(mu=6, lam=20, generations=2)),
@@ -101,17 +108,11 @@ def _weights(best: dict, n_leds: int = 10) -> np.ndarray:
     return W
 
 
-def _cand_dict(c: Candidate) -> dict:
-    d = c.to_dict()
-    d["levels_exact"] = {str(i + 1): list(s.levels) for i, s in enumerate(c.sources)}
-    return d
-
-
 def _pair_key(best: dict) -> str:
     return f"{tuple(best['source1'])}+{tuple(best['source2'])}"
 
 
-def seed_spread(spec: SetupSpec, cfg: StabilityConfig, runner: Optional[Runner] = None, progress=None,
+def seed_spread(spec: SetupSpec, cfg: StabilityConfig, runner: Runner | None = None, progress=None,
                 cancel=None) -> dict:
     tasks = [RunTask(spec, c, s, cfg.light_sets) for c in cfg.methods for s in range(cfg.seeds)]
     if runner is None or isinstance(runner, SerialRunner):
@@ -168,8 +169,8 @@ def led_clipping(spec: SetupSpec, cfg: StabilityConfig, optimum: np.ndarray, can
         clipped = float(ev.stats(W)[0].mean)
         re = refine_top(ev, pso(ev, groups, cfg.clip_pso, seed=0), 1)
         # the clipped optimum is itself a candidate without the LED: the re-optimised best is the better one
-        reopt = min(re.best.train.mean, clipped)
-        re_pair = [list(s.leds) for s in re.best.sources] if re.best.train.mean <= clipped else \
+        reopt = min(re.best.train_errors.mean, clipped)
+        re_pair = [list(s.leds) for s in re.best.sources] if re.best.train_errors.mean <= clipped else \
             [list(np.nonzero(w)[0] + 1) for w in W]
         rows.append({"removed": list(leds), "full_intensity_best": ex.best.train_cost,
                      "full_intensity_best_pair": [list(s.leds) for s in ex.best.sources],
@@ -187,9 +188,9 @@ def dim_leds(model: NoiseModel, optima: dict[str, np.ndarray]) -> dict:
     for name, W in optima.items():
         t = model.exposures(W)
         for li in range(W.shape[0]):
-            O = W[li] @ model.open
-            c = int(np.argmax(O))
-            share = float((W[li, 5:7] * model.open[5:7, c]).sum() / O[c]) if O[c] > 0 else None
+            gate = W[li] @ model.open
+            c = int(np.argmax(gate))
+            share = float((W[li, 5:7] * model.open[5:7, c]).sum() / gate[c]) if gate[c] > 0 else None
             rows.append({"optimum": name, "light": li + 1, "leds": (np.nonzero(W[li])[0] + 1).tolist(),
                          "levels": W[li][W[li] > 0].round(4).tolist(), "exposure_s": float(t[li]),
                          "brightest_channel": "RGB"[c], "share_led6_7": share})
@@ -197,7 +198,7 @@ def dim_leds(model: NoiseModel, optima: dict[str, np.ndarray]) -> dict:
             "relative_peaks": model.setup.leds.max(axis=1).round(4).tolist()}
 
 
-def shifted_setup(setup: SimulationSetup, shifts_nm: np.ndarray, leds_csv: Optional[str] = None) -> SimulationSetup:
+def shifted_setup(setup: SimulationSetup, shifts_nm: np.ndarray, leds_csv: str | None = None) -> SimulationSetup:
     """LED spectra (1 nm source data) moved by ``shifts_nm`` (per LED; + = towards longer wavelengths)."""
     table = read_spectral_csv(leds_csv or resources.path("leds", "sphere10_relative.csv"))
     wl = setup.grid.wavelengths
@@ -251,7 +252,7 @@ def sensitivity(spec: SetupSpec, cfg: StabilityConfig, optima: dict[str, np.ndar
     for name, W in optima.items():
         check(cancel)
         tr0, te0 = _mismatch_errors(setup, setup.train, setup.test, setup, W)
-        row = {"nominal": {"train": tr0, "test": te0}}
+        row: dict[str, Any] = {"nominal": {"train": tr0, "test": te0}}
         ntr, nte = _mismatch_errors(nominal_shift, setup.train, setup.test, setup, W)
         row["drift"] = {}
         for label, s in drift_setups:
@@ -291,8 +292,8 @@ class StabilityResult:
 
 
 def stability(spec: SetupSpec = SetupSpec(), cfg: StabilityConfig = StabilityConfig(), *,
-              runner: Optional[Runner] = None, progress: Optional[ProgressCallback] = None,
-              cancel: Optional[CancelToken] = None, capture: Optional[Capture] = None,
+              runner: Runner | None = None, progress: ProgressCallback | None = None,
+              cancel: CancelToken | None = None, capture: Capture | None = None,
               capture_model: Callable[[SimulationSetup], CaptureModel] = study_capture_model) -> StabilityResult:
     """All five parts; only the seed runs (part 1) go through ``runner`` (the rest is quick and serial).
     ``capture(setup, W, exposures) -> {"train", "test", ...}``: a real capture chain to check the objectives
@@ -372,7 +373,8 @@ def stability_chart(result: StabilityResult):
 
 
 def _predicted_vs_captured(ax, noise: ObjectivesResult) -> None:
-    for mode, colour in zip(dict.fromkeys(r["mode"] for r in noise.rows), ("tab:blue", "tab:red")):
+    modes = dict.fromkeys(r["mode"] for r in noise.rows)     # reflective and/or transmissive
+    for mode, colour in zip(modes, ("tab:blue", "tab:red")[:len(modes)], strict=True):
         rows = [r for r in noise.rows if r["mode"] == mode]
         ax.plot([r["noise_free_train"] for r in rows], [r["captured_train"] for r in rows], "o", mfc="none",
                 color=colour, label=f"{mode}: noise-free prediction")
@@ -385,10 +387,6 @@ def _predicted_vs_captured(ax, noise: ObjectivesResult) -> None:
     ax.set_title("(d) predicted vs captured, both modes and objectives")
     ax.legend(fontsize=6)
     ax.grid(True, alpha=0.3)
-
-
-def _fmt(v: Optional[float]) -> str:
-    return "-" if v is None else f"{v:.2f}"
 
 
 def write_outputs(result: StabilityResult, out: StudyOutput) -> None:

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -45,8 +45,8 @@ def _setup_label(spec: SetupSpec) -> str:
 
 
 def sweep(specs: Sequence[SetupSpec], methods: Sequence[str] = ("exhaustive", "pso", "halving"), *,
-          budget: str = "small", seeds: int = 2, light_sets: Optional[int] = None,
-          runner: Optional[Runner] = None) -> SweepResult:
+          budget: str = "small", seeds: int = 2, light_sets: int | None = None,
+          runner: Runner | None = None) -> SweepResult:
     """Run the ``budget`` configurations of ``methods`` (PSO: its thesis setting only) on every setup and seed."""
     runner = runner or SerialRunner()
     chosen: list[Config] = []
@@ -61,7 +61,7 @@ def sweep(specs: Sequence[SetupSpec], methods: Sequence[str] = ("exhaustive", "p
     tasks = [RunTask(spec, c, s, light_sets) for spec in specs for c in chosen for s in range(seeds)]
     t0 = time.perf_counter()
     results = runner.map(run_task, tasks)
-    for task, r in zip(tasks, results):
+    for task, r in zip(tasks, results, strict=True):
         r["setup"] = _setup_label(task.spec)
         r.pop("trace", None)
     res = SweepResult(list(specs), [c.label for c in chosen], seeds, results,

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -48,15 +48,15 @@ def _pair_table(n_leds: int) -> tuple[np.ndarray, np.ndarray]:
     return i.astype(np.int32), j.astype(np.int32)
 
 
-def pair_masks(n_leds: int, lo: int = 0, hi: Optional[int] = None) -> tuple[np.ndarray, np.ndarray]:
+def pair_masks(n_leds: int, lo: int = 0, hi: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Bit masks (a, b) of pairs ``lo:hi`` (LED k is bit k-1)."""
     i, j = _pair_table(n_leds)
     hi = len(i) if hi is None else hi
     return i[lo:hi].astype(np.int64) + 1, j[lo:hi].astype(np.int64) + 1
 
 
-def unbinned_group_arrays(n_leds: int = 10, lo: int = 0, hi: Optional[int] = None,
-                          m: Optional[int] = None) -> tuple[np.ndarray, np.ndarray]:
+def unbinned_group_arrays(n_leds: int = 10, lo: int = 0, hi: int | None = None,
+                          m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(idx, mask) of pairs ``lo:hi`` like ``group_arrays(unbinned_pairs(n_leds))[lo:hi]``, vectorised.
 
     ``m`` (default ``n_leds``, which is what ``group_arrays`` pads the full space to) is the padded width.
@@ -122,21 +122,21 @@ class UnbinnedResult:
     runner: dict
     tasks: int
     candidates: list[Candidate] = field(default_factory=list)
-    binned_best: Optional[dict] = None
+    binned_best: dict | None = None
 
     def to_json(self) -> dict:
         return {"setup": self.spec.to_dict(), "pairs": self.pairs, "seconds": round(self.seconds, 3),
                 "pairs_per_second": round(self.pairs / self.seconds) if self.seconds > 0 else None,
                 "runner": self.runner, "tasks": self.tasks,
                 "top": [{"number": n, **c.to_dict(), "leds_total": sum(len(s.leds) for s in c.sources)}
-                        for n, c in zip(self.numbers, self.candidates)] if self.candidates else
-                [{"number": n, "cost": c} for n, c in zip(self.numbers, self.costs)],
+                        for n, c in zip(self.numbers, self.candidates, strict=True)] if self.candidates else
+                [{"number": n, "cost": c} for n, c in zip(self.numbers, self.costs, strict=True)],
                 "histogram": {"edges": [float(e) for e in HIST_EDGES[:-1]] + ["inf"], "counts": self.histogram},
                 "binned_best": self.binned_best}
 
 
-def unbinned_search(spec: SetupSpec = SetupSpec(), runner: Optional[Runner] = None, *, tasks: int = 8,
-                    top: int = 20, n_leds: int = 10, limit: Optional[int] = None,
+def unbinned_search(spec: SetupSpec = SetupSpec(), runner: Runner | None = None, *, tasks: int = 8,
+                    top: int = 20, n_leds: int = 10, limit: int | None = None,
                     refine: int = 10) -> UnbinnedResult:
     """Search pairs 0..``limit`` (default all) of the unbinned space, split into ``tasks`` ranges."""
     runner = runner or SerialRunner()
@@ -156,7 +156,7 @@ def unbinned_search(spec: SetupSpec = SetupSpec(), runner: Optional[Runner] = No
                             describe(), len(work))
     if refine:
         ev = evaluator_for(spec)
-        for n, c in zip(result.numbers[:refine], result.costs[:refine]):
+        for n, c in zip(result.numbers[:refine], result.costs[:refine], strict=True):
             group = pair_group(n_leds, n)
             cand = Candidate(tuple(LightSource(light) for light in group), float(c))
             cand.train, cand.test = ev.stats(cand.weights(ev.n_leds))
@@ -209,9 +209,9 @@ def write_outputs(result: UnbinnedResult, out) -> None:
              f"at full level; {result.tasks} tasks on {result.runner}; {result.seconds:.2f} s "
              f"({result.pairs / max(result.seconds, 1e-9):.0f} pairs/s).", "",
              "| rank | pair number | light 1 | light 2 | train dE00 | test dE00 |", "|---:|---:|---|---|---:|---:|"]
-    for i, (n, c) in enumerate(zip(result.numbers, result.candidates), start=1):
-        lines.append(f"| {i} | {n} | {c.sources[0].leds} | {c.sources[1].leds} | {c.train.mean:.4f} | "
-                     f"{c.test.mean:.4f} |")
+    for i, (n, c) in enumerate(zip(result.numbers, result.candidates, strict=True), start=1):
+        lines.append(f"| {i} | {n} | {c.sources[0].leds} | {c.sources[1].leds} | {c.train_errors.mean:.4f} | "
+                     f"{c.test_errors.mean:.4f} |")
     if result.binned_best:
         b = result.binned_best
         lines += ["", f"Binned (3/3/4) full-intensity best for comparison: {tuple(b['source1'])} + "

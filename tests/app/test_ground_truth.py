@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app.processing.ground_truth import (bin_to_superpixels, block_max, compare_to_ground_truth,
-                                         write_de_map_png)
+from app.processing.ground_truth import bin_to_superpixels, block_max, compare_to_ground_truth, write_de_map_png
 from app.processing.patches import PatchGrid
 from app.processing.pipeline import CaptureProcessor, ExposureRef
 from app.sequences.hdr import plan_hdr
@@ -19,10 +18,10 @@ from drivers.raw import load_raw
 from drivers.virtual.camera import SHUTTER_SPEEDS, SensorModel, StaticLight, VirtualCamera
 from drivers.virtual.originals import ground_truth_xyz, original, original_scene
 from drivers.virtual.scene import Scene
-from simulation.matrix_fit import fit_matrix
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import default_setup
 from simulation.lightsource import LightSource
+from simulation.matrix_fit import fit_matrix
 from simulation.studies.noise import NoiseModel
 
 W, H = 600, 400
@@ -39,7 +38,8 @@ class Rig:
 
     def __init__(self, folder: Path, sensor: SensorModel | None = None, seed: int = 3):
         self.W = np.stack([s.weights() for s in LIGHTS])
-        self.times = [min(SHUTTER_SPEEDS, key=lambda v: abs(np.log(v / t))) for t in NoiseModel(SETUP).exposures(self.W)]
+        self.times = [min(SHUTTER_SPEEDS, key=lambda v, t=t: abs(np.log(v / t)))
+                      for t in NoiseModel(SETUP).exposures(self.W)]
         self.lights = [f"light {i + 1}" for i in range(len(self.W))]
         self.state = StaticLight(np.zeros(10))
         self.cam = VirtualCamera(lambda: self.state, Scene.lens_cap(W, H), sensor=sensor, seed=seed)
@@ -62,7 +62,7 @@ class Rig:
         """Darks (4 per exposure), one white per light, the training and test charts, the fitted matrix."""
         darks, charts = [], {"train": {}, "test": {}}
         scenes = {k: Scene.with_target(getattr(SETUP, k), W, H) for k in charts}
-        for li, name in enumerate(self.lights):
+        for li in range(len(self.lights)):
             for t in sorted({self.times[li], *(extra_exposures or {}).get(li, [])}):
                 darks += self.shoot(Scene.lens_cap(W, H), li, [t], frames=4)
         proc = CaptureProcessor(dark_frames=darks, white_level=self.cam.sensor.white_level, cfa="RGGB")

@@ -6,12 +6,19 @@ import inspect
 import numpy as np
 import pytest
 
-from app.processing.characterise import (DE2000, LEAST_SQUARES, characterise, fit_de2000, fit_least_squares,
-                                         patch_errors, select_model)
+from app.processing.characterise import (
+    DE2000,
+    LEAST_SQUARES,
+    characterise,
+    fit_de2000,
+    fit_least_squares,
+    patch_errors,
+    select_model,
+)
 from simulation.datasets import default_setup
 from simulation.lightsource import LightSource
 from simulation.objective import PatchSet
-from simulation.progress import CancelToken, Cancelled
+from simulation.progress import Cancelled, CancelToken
 
 
 @pytest.fixture(scope="module")

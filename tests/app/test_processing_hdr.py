@@ -5,11 +5,11 @@ import logging
 
 import numpy as np
 import pytest
+from synthetic_frames import BLACK, WHITE, dark_frames, expose, mosaic_scene, patch_reflectance, vignette
 
 from app.processing.hdr import HDR_MERGE_METHODS, HdrMerge, exposure_weight, triangle_weight
 from app.processing.pipeline import CaptureProcessor, ExposureRef
-from simulation.progress import CancelToken, Cancelled
-from synthetic_frames import BLACK, WHITE, dark_frames, expose, mosaic_scene, patch_reflectance, vignette
+from simulation.progress import Cancelled, CancelToken
 
 
 def test_eq_8_9_weight_scaled_to_the_usable_range():
@@ -65,7 +65,8 @@ def test_hdr_equals_single_exposure_when_scene_fits():
     assert np.allclose(res.radiance, (raw.astype(np.float64) - d) / 0.5, rtol=1e-5, atol=1e-3)
     # and two noiseless exposures that both fit give the same radiance as either alone
     d2 = dark_frames(h, w, 0.25, n=1, noise=0)[1]
-    res2 = HdrMerge.merge([expose(L, 0.25, d2), expose(L, 0.5, d)], [0.25, 0.5], [d2, d], white_level=WHITE, black_level=BLACK)
+    res2 = HdrMerge.merge([expose(L, 0.25, d2), expose(L, 0.5, d)], [0.25, 0.5], [d2, d],
+                          white_level=WHITE, black_level=BLACK)
     assert np.allclose(res2.radiance, L, rtol=2e-3)
 
 
@@ -74,7 +75,8 @@ def test_pixels_clipped_in_every_exposure_use_the_shortest(caplog):
     L[0, 0] = 1e6
     d = np.full((4, 6), 600.0)
     with caplog.at_level(logging.WARNING):
-        res = HdrMerge.merge([expose(L, 0.1, d), expose(L, 1.0, d)], [0.1, 1.0], [d, d], white_level=WHITE, black_level=BLACK)
+        res = HdrMerge.merge([expose(L, 0.1, d), expose(L, 1.0, d)], [0.1, 1.0], [d, d],
+                             white_level=WHITE, black_level=BLACK)
     assert res.clipped == 1 and "exceed the linear limit" in caplog.text
     assert res.radiance[0, 0] == pytest.approx((WHITE - 600) / 0.1)
     assert np.allclose(res.radiance[1:], 1000.0, rtol=0.01)

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from synthetic_frames import BLACK, WHITE, write_dng
 
 from app.processing.calibration import combine_darks
 from app.processing.hdr import HDR_MERGE_METHODS, HdrMerge, HdrNoise
 from app.processing.mosaic import iter_open_raw, open_raw
 from drivers.raw import RawFileError
 from simulation.hdr_estimators import merge_exposures
-from synthetic_frames import BLACK, WHITE, write_dng
 
 
 @pytest.mark.parametrize("method", list(HDR_MERGE_METHODS))
@@ -27,7 +27,7 @@ def test_hdr_kernels_match_the_numpy_reference(method):
     darks = [rng.uniform(590, 620, shape).astype(np.float32) for _ in range(3)]
     times = [0.1, 0.01, 1.0]                                                # not sorted: order must not matter
     res = HdrMerge.merge(raws, times, darks, white_level=WHITE, black_level=BLACK, method=method)
-    x = np.stack([r.astype(np.float32) - d for r, d in zip(raws, darks)])
+    x = np.stack([r.astype(np.float32) - d for r, d in zip(raws, darks, strict=True)])
     usable = np.stack([(r <= 11000) & (r < WHITE) for r in raws])
     ref, clipped = merge_exposures(x, usable, times, method, span=WHITE - BLACK, noise=HdrNoise())
     assert np.allclose(res.radiance, ref, rtol=2e-5, atol=1e-3)
@@ -35,7 +35,7 @@ def test_hdr_kernels_match_the_numpy_reference(method):
     assert clipped[3:5].all() and not clipped[:3].any()                     # dark pixels are never clipped
     # the fused flat-field + superpixel kernel gives the same merge
     m = HdrMerge(WHITE, black_level=BLACK, method=method)
-    for r, t, d in zip(raws, times, darks):
+    for r, t, d in zip(raws, times, darks, strict=True):
         m.add(r, t, d)
     white = np.full(shape, 2.0, np.float32)
     out = np.empty((shape[0] // 2, shape[1] // 2, 3), np.float32)
@@ -86,11 +86,11 @@ def test_hdr_kernels_average_frames_of_one_exposure_time_like_the_reference(meth
     raws[5][:2] = 15520                                                     # one frame clipped in two rows
     darks = [np.full(shape, 600.0, np.float32)] * len(times)
     m = HdrMerge(WHITE, black_level=BLACK, method=method, work={})
-    for r, t, d in zip(raws, times, darks):
+    for r, t, d in zip(raws, times, darks, strict=True):
         m.add(r, t, d)
     assert m._sums.shape[0] == 4 and sorted(m._slot_frames) == [4, 4, 4]      # 3 slots (capacity 4), not 12
     res = m.result()
-    x = np.stack([r.astype(np.float32) - d for r, d in zip(raws, darks)])
+    x = np.stack([r.astype(np.float32) - d for r, d in zip(raws, darks, strict=True)])
     usable = np.stack([(r <= 11000) & (r < WHITE) for r in raws])
     ref, clipped = merge_exposures(x, usable, times, method, span=WHITE - BLACK, noise=HdrNoise())
     assert np.allclose(res.radiance, ref, rtol=2e-5, atol=1e-3) and res.clipped == int(clipped.sum())

@@ -4,12 +4,22 @@ from __future__ import annotations
 import colour
 import numpy as np
 import pytest
+from synthetic_frames import BLACK, WHITE, vignette
 
 from app.processing.pipeline import CaptureProcessor, ExposureRef
-from app.processing.quality import (CalibrationFrames, assess, grade_metrics, lab_differences, lightness_noise,
-                                    neutral_patches, sensor_noise, shading, temporal_noise,
-                                    tone_and_white_balance, uniformity)
-from synthetic_frames import BLACK, WHITE, vignette
+from app.processing.quality import (
+    CalibrationFrames,
+    assess,
+    grade_metrics,
+    lab_differences,
+    lightness_noise,
+    neutral_patches,
+    sensor_noise,
+    shading,
+    temporal_noise,
+    tone_and_white_balance,
+    uniformity,
+)
 
 RGGB = np.array([[0, 1], [1, 2]])
 
@@ -52,7 +62,10 @@ def test_lightness_noise_propagates_channel_noise_to_l_star():
     y = float((v @ A[:, 1])[0])
     sy = float(np.sqrt(np.sum((sd[0] * A[:, 1]) ** 2)))
     eps = 1e-4                                                   # independent: finite difference of colour's L*
-    lab = lambda yy: colour.XYZ_to_Lab(np.array([0.3, yy, 0.3]) / 100, colour.XYZ_to_xy(white / 100))[0]
+
+    def lab(yy: float) -> float:
+        return colour.XYZ_to_Lab(np.array([0.3, yy, 0.3]) / 100, colour.XYZ_to_xy(white / 100))[0]
+
     slope = (lab(y + eps) - lab(y - eps)) / (2 * eps)
     assert lightness_noise(v, sd, A, white, np.array([0]))[0] == pytest.approx(slope * sy, rel=1e-5)
 
@@ -110,7 +123,7 @@ def test_sensor_noise_and_uniformity_from_darks_and_flats():
 
 def test_grading_statuses_scope_and_sources():
     colour_only = grade_metrics({"colour_mean_de00": 1.0, "colour_p90_de00": 2.0, "colour_max_de00": 3.0})
-    for std, g in colour_only.items():
+    for g in colour_only.values():
         assert g["scope"] == "colour accuracy only" and "SFR / MTF and sampling efficiency" in g["not_assessed"]
         assert g["metrics"]["tone_max_abs_dl"]["status"] == "not assessed"
         assert all(r["source"] for r in g["metrics"].values())

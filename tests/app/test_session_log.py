@@ -47,7 +47,7 @@ def test_records_before_the_session_exists_wait_for_it(tmp_path, quiet_console):
         CaptureSession.create(folder)                            # the folder must still be empty here
         log.info("first dark")
     lines = (folder / LOG_NAME).read_text().splitlines()
-    assert [l.split(": ", 1)[1] for l in lines if "test_session_log" in l] == ["optimiser done", "first dark"]
+    assert [line.split(": ", 1)[1] for line in lines if "test_session_log" in line] == ["optimiser done", "first dark"]
 
 
 def test_error_ending_the_session_is_logged_and_resume_appends(tmp_path, quiet_console):

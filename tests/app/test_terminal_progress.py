@@ -75,7 +75,7 @@ def test_warm_up_reports_a_compile_and_leaves_the_count(monkeypatch):
                                              (None, 5.0, [])):
         monkeypatch.setattr(warmup, "kernels_cached", lambda cached=cached: cached)
         seen = []
-        seconds = warmup.warm_up(ev, lambda f, m: seen.append((f, m)), notice_after_s=notice_after_s)
+        seconds = warmup.warm_up(ev, lambda f, m, seen=seen: seen.append((f, m)), notice_after_s=notice_after_s)
         assert seen == expected and seconds >= 0.3 and ev.evaluations == 7, (cached, notice_after_s)
 
 

@@ -2,7 +2,6 @@
 checks, the delivery encoding (checked against colour-science) and TIFF metadata, coverage."""
 from __future__ import annotations
 
-import json
 from datetime import datetime, timedelta, timezone
 from types import SimpleNamespace
 
@@ -16,8 +15,18 @@ from app.processing.pipeline import ChannelStack
 from app.workflow.coverage import coverage
 from app.workflow.delivery import LightDoseRecord, Original, deliver, read_sidecar
 from app.workflow.profile import CameraIdentity, ProfileError, ReuseLimits, SphereIdentity, check_reuse, load_profile
-from app.workflow.vocabulary import (NamedLight, Role, Subject, latest_takes, light_name, light_of, read_light_name,
-                                     read_role, step_id, subject_of)
+from app.workflow.vocabulary import (
+    NamedLight,
+    Role,
+    Subject,
+    latest_takes,
+    light_name,
+    light_of,
+    read_light_name,
+    read_role,
+    step_id,
+    subject_of,
+)
 from simulation.lightsource import LightSource
 
 D65 = [95.047, 100.0, 108.883]
@@ -157,7 +166,7 @@ def test_coverage_counts_darks_and_flats():
 
 
 def test_streamed_stack_equals_the_batch_stack():
-    """StackBuilder (frames merged as they land, as CopyStand.capture does) gives the stack of CaptureProcessor.stack."""
+    """StackBuilder (frames merged as they land, as CopyStand.capture does) = CaptureProcessor.stack."""
     from app.processing.pipeline import CaptureProcessor, ExposureRef
 
     rng = np.random.default_rng(5)

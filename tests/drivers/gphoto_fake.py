@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Any, Callable, Optional
+from typing import Any
 
 GENERIC = {-1: "Unspecified error", -2: "Bad parameters", -6: "Unsupported operation", -7: "I/O problem",
-           -10: "Timeout reading from or writing to the port", -52: "Could not find the requested device on the USB port",
+           -10: "Timeout reading from or writing to the port",
+           -52: "Could not find the requested device on the USB port",
            -53: "Could not claim the USB device", -105: "Unknown model", -108: "File not found",
            -110: "I/O in progress"}
 EV_UNKNOWN, EV_TIMEOUT, EV_FILE_ADDED, EV_FOLDER_ADDED, EV_CAPTURE_COMPLETE = 0, 1, 2, 3, 4
@@ -49,7 +51,8 @@ D610_SPEEDS = [(1, 4000), (1, 3200), (1, 2000), (1, 250), (1, 125), (1, 60), (1,
 NIKON_SUMMARY = ("Manufacturer: Nikon Corporation\nModel: D610\nVendor Extension ID: 0xa (1.0)\n"
                  "\nDevice Capabilities:\n\tFile Download, File Deletion, File Upload\n"
                  "\tGeneric Image Capture, No Open Capture, Nikon Capture 1, Nikon Capture 2, Nikon Capture 3\n")
-GENERIC_SUMMARY = "Vendor Extension ID: 0xa (1.0)\n\tGeneric Image Capture, No Open Capture, No vendor specific capture\n"
+GENERIC_SUMMARY = ("Vendor Extension ID: 0xa (1.0)\n"
+                   "\tGeneric Image Capture, No Open Capture, No vendor specific capture\n")
 
 
 def _small_jpeg() -> bytes:
@@ -125,23 +128,23 @@ class ScriptedD610:
     """The camera. Knobs (set before the calls they affect) script its behaviour; ``writes``, ``calls`` and
     ``releases`` record what the driver did."""
 
-    def __init__(self, module: "FakeGPhoto2", lang: str = "en", speeds=D610_SPEEDS, summary: str = NIKON_SUMMARY):
+    def __init__(self, module: FakeGPhoto2, lang: str = "en", speeds=D610_SPEEDS, summary: str = NIKON_SUMMARY):
         self.gp, self.t = module, LANGS[lang]
         self.speeds = list(speeds)
         self.summary = summary
-        self.exposure: Optional[tuple[int, int]] = (1, 125)
+        self.exposure: tuple[int, int] | None = (1, 125)
         self.quality, self.target, self.iso = self.t["jpeg"], self.t["ram"], "100"
         self.isoauto, self.longexpnr, self.live_view, self.shutter_open = True, True, False, False
         self.locked: set[str] = set()           # settings whose writes fail (-1, with libgphoto2's logged reason)
         self.set_errors: dict[str, list[int]] = {}   # one-shot error codes per setting write
-        self.init_error: Optional[tuple[int, str]] = None
+        self.init_error: tuple[int, str] | None = None
         self.trigger_busy = 0                   # trigger_capture answers -110 this many times first
         self.shutter_lag_s = 0.1
         self.pair_late_reads = 0                # the pair's JPEG is announced this many event reads after the NEF
         self.jpeg_first = False
-        self.release_gate: Optional[threading.Event] = None   # libgphoto2's wait after TerminateCapture lasts
-        self.gate_opened: Optional[bool] = None                # until this is set (True) or 10 s passed (False)
-        self.release_error: Optional[int] = None
+        self.release_gate: threading.Event | None = None   # libgphoto2's wait after TerminateCapture lasts
+        self.gate_opened: bool | None = None                # until this is set (True) or 10 s passed (False)
+        self.release_error: int | None = None
         self.terminate_fails = False
         self.processing_reads = 2               # event reads after a bulb release before its file is announced
         self.preview_data = _small_jpeg()
@@ -153,24 +156,27 @@ class ScriptedD610:
         self.reads = 0
         self.counter = 0
         self.exited = False
-        self.clock: Optional[FakeClock] = None
+        self.clock: FakeClock | None = None
 
     # ------------------------------------------------------------------------------------ labels
-    def _speed_label(self, speed: Optional[tuple[int, int]]) -> str:
+    def _speed_label(self, speed: tuple[int, int] | None) -> str:
         if speed is BULB:
             return self.t["bulb"]
         units = int(speed[0] * 10000 / speed[1])            # ExposureTime is in 0.1 ms
         return self.t["secs"].format(units / 10000).replace(".", self.t["point"])
 
     @staticmethod
-    def _speed2_label(speed: Optional[tuple[int, int]], t: dict) -> str:
+    def _speed2_label(speed: tuple[int, int] | None, t: dict) -> str:
         if speed is BULB:
             return t["bulb"]
         return f"{speed[0]}" if speed[1] == 1 else f"{speed[0]}/{speed[1]}"
 
     def widgets(self) -> dict[str, Widget]:
         t, speeds = self.t, self.speeds + [BULB]
-        on_off = lambda v: t["on"] if v else t["off"]    # noqa: E731
+
+        def on_off(v):
+            return t["on"] if v else t["off"]
+
         return {w.name: w for w in [
             Widget("iso", "radio", self.iso, ["100", "200", "400", "800", "1600", "Hi 1"], label="ISO Speed"),
             Widget("isoauto", "radio", on_off(self.isoauto), [t["on"], t["off"]], label="ISO Auto"),
@@ -342,7 +348,7 @@ class FakeGPhoto2:
         self.ports = ["usb:001,007"]
         self.camera = ScriptedD610(self, lang, **camera_kw)
 
-    def Camera(self):                           # noqa: N802 (python-gphoto2's name)
+    def Camera(self):
         return self.camera
 
     def gp_log_add_func(self, level, func):
@@ -354,7 +360,7 @@ class FakeGPhoto2:
         for _level, func in self.callbacks:
             func(self.GP_LOG_ERROR, domain, text)
 
-    def PortInfoList(self):                     # noqa: N802
+    def PortInfoList(self):
         return _PortList(SimpleNamespace(get_path=lambda p=p: p) for p in self.ports)
 
 
@@ -363,7 +369,7 @@ class _PortList(list):
     def count(self): return len(self)
 
 
-def open_scripted(lang: str = "en", setup: Optional[Callable[[ScriptedD610], None]] = None, **driver_kw):
+def open_scripted(lang: str = "en", setup: Callable[[ScriptedD610], None] | None = None, **driver_kw):
     """A GPhotoCamera opened on a ScriptedD610 (knobs set by ``setup`` before open): (camera, d610, clock, gp)."""
     from drivers.camera.gphoto import GPhotoCamera
 

@@ -3,8 +3,8 @@ writer): uncompressed, BitsPerSample 16, 14-bit data and WhiteLevel 15520 as the
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 

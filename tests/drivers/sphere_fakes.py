@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from typing import Iterator, Optional, Sequence
+from collections.abc import Iterator, Sequence
 
 import serial
 
@@ -17,13 +17,13 @@ class ScriptedSerial:
     fragment without terminator when that is all there is (as a real port does at its timeout), or b"".
     ``reset_input_buffer`` drops unread bytes, like the real port."""
 
-    def __init__(self, pairs: Sequence[tuple[bytes, Optional[bytes]]]):
+    def __init__(self, pairs: Sequence[tuple[bytes, bytes | None]]):
         self.pairs = list(pairs)
         self.index = 0
         self.buffer = bytearray()
         self.written: list[bytes] = []
-        self.timeout: Optional[float] = None
-        self.write_timeout: Optional[float] = None
+        self.timeout: float | None = None
+        self.write_timeout: float | None = None
         self.port = "scripted"
 
     def write(self, data: bytes) -> int:
@@ -42,7 +42,7 @@ class ScriptedSerial:
     def reset_input_buffer(self) -> None:
         self.buffer.clear()
 
-    def read_until(self, expected: bytes = b"\n", size: Optional[int] = None) -> bytes:
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
         nl = self.buffer.find(expected)
         end = len(self.buffer) if nl < 0 else nl + len(expected)
         if size is not None:
@@ -60,7 +60,7 @@ class ScriptedSerial:
 
 
 @contextlib.contextmanager
-def expected_protocol(pairs: Sequence[tuple[bytes, Optional[bytes]]], timeout: float = 0.05,
+def expected_protocol(pairs: Sequence[tuple[bytes, bytes | None]], timeout: float = 0.05,
                       **kwargs) -> Iterator[LedSphere]:
     """A LedSphere on a ScriptedSerial; on leaving the block every scripted exchange must have happened."""
     port = ScriptedSerial(pairs)
@@ -87,7 +87,7 @@ class FrameSerial:
         self.writes += 1
         return len(data)
 
-    def read_until(self, expected: bytes = b"\n", size: Optional[int] = None) -> bytes:
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
         if self.next >= len(self.frames):
             return b""
         frame = self.frames[self.next]
@@ -112,7 +112,7 @@ class BrokenSerial(ScriptedSerial):
             raise serial.SerialTimeoutException("Write timeout")
         return len(data)
 
-    def read_until(self, expected: bytes = b"\n", size: Optional[int] = None) -> bytes:
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
         raise serial.SerialException("device reports readiness to read but returned no data")
 
 

@@ -8,13 +8,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
+from rawtestfiles import D610_WHITE, mosaic_14bit, write_dng
 
 import app.commands.devices as devices_cmd
 from app.cli import main
 from drivers.usb_discovery import CameraInfo, DeviceReport, SerialPortInfo
-from rawtestfiles import D610_WHITE, mosaic_14bit, write_dng
 
 ROOT = Path(__file__).resolve().parents[2]
 

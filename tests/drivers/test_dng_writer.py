@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import rawpy
 import tifffile
+from rawtestfiles import D610_BLACK, D610_WHITE, mosaic_14bit
 
 from drivers.raw import load_raw
 from drivers.virtual.dng import DngInfo, dng_bytes, save_dng
-from rawtestfiles import D610_BLACK, D610_WHITE, mosaic_14bit
 
 NEUTRAL = np.array([0.5, 1.0, 0.8])
 MATRIX = np.array([[0.9, -0.1, 0.05], [-0.3, 1.1, 0.2], [0.01, 0.1, 0.6]])

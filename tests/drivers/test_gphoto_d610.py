@@ -7,12 +7,12 @@ import logging
 import threading
 
 import pytest
+from gphoto_fake import BULB, FakeGPhoto2, open_scripted
 
 from app.sequences.shooter import SafetySettings
 from app.session import CaptureSession
 from drivers.camera.base import CameraError, CameraSettings
 from drivers.camera.gphoto import GPhotoCamera
-from gphoto_fake import BULB, FakeGPhoto2, open_scripted
 
 
 # ------------------------------------------------------------------------------------------ 1 bulb release
@@ -239,4 +239,3 @@ def test_trigger_waits_only_on_nikon_capture_paths():
     assert trigger_waits_for_exposure("Nikon Capture 1, Nikon Capture 2", to_ram=True)
     assert not trigger_waits_for_exposure("Nikon Capture 1, Nikon Capture 2", to_ram=False)
     assert not trigger_waits_for_exposure("Generic Image Capture, No vendor specific capture", to_ram=True)
-

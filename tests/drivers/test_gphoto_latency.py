@@ -9,16 +9,16 @@ import time
 
 import numpy as np
 import pytest
+from gphoto_fake import FakeGPhoto2, open_scripted
 
 from app.sequences.shooter import LightSafetyError, SafetySettings, Shooter
 from app.session import CaptureSession
-from drivers.virtual.lab import VirtualLab
 from drivers.camera.base import DEFAULT_LATENCY_S, CameraError
 from drivers.camera.gphoto import DEFAULT_GPHOTO_LATENCY_S, LATENCY_ENV, GPhotoCamera
 from drivers.camera.gphoto_latency import measure_latency, suggested_allowance
 from drivers.virtual.camera import StaticLight, VirtualCamera
+from drivers.virtual.lab import VirtualLab
 from drivers.virtual.scene import Scene
-from gphoto_fake import FakeGPhoto2, open_scripted
 from simulation.lightsource import LightSource
 
 LS1 = LightSource((1, 6, 8))

@@ -5,6 +5,7 @@ D610 does through libgphoto2 (issue 15). The real-library path is covered by tes
 """
 from __future__ import annotations
 
+import gc
 import subprocess
 import sys
 from io import BytesIO
@@ -13,12 +14,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from gphoto_fake import EV_FILE_ADDED, FakeGPhoto2, Queued, open_scripted
 
 from drivers.camera.base import CameraError, CameraSettings
-from drivers.camera.gphoto import (GPhotoCamera, camera_error, format_shutter, nearest_by_value, parse_aperture,
-                                   parse_iso, parse_shutter, retry_busy)
-
-from gphoto_fake import EV_FILE_ADDED, FakeGPhoto2, Queued, open_scripted
+from drivers.camera.gphoto import GPhotoCamera
+from drivers.camera.gphoto_errors import LibraryLog, camera_error, retry_busy
+from drivers.camera.gphoto_labels import format_shutter, nearest_by_value, parse_aperture, parse_iso, parse_shutter
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -297,3 +298,16 @@ def test_reopen_after_reenumeration():
     cam, d610, _ = open_fake()
     cam.reopen()
     assert d610.exited and cam.is_open
+
+
+def test_library_log_hears_each_new_module_even_at_a_freed_ones_address():
+    """A freed gphoto2 stand-in's id can be reused by the next one; the log still registers the new one (it once
+    did not, so a test's camera errors lost libgphoto2's reason depending on which tests ran before)."""
+    for i in range(30):
+        gp = FakeGPhoto2()
+        library_log = LibraryLog.attach(gp)
+        mark = library_log.mark()
+        gp.log("gp_context_error", f"reason {i}")
+        assert library_log.reason(mark) == f"reason {i}"
+        del gp
+        gc.collect()                              # the stand-in and its camera form a cycle

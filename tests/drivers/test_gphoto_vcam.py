@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from rawtestfiles import mosaic_14bit, write_dng
 
 HELPER = Path(__file__).with_name("gphoto_vcam_helper.py")

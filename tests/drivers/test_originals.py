@@ -7,8 +7,15 @@ import pytest
 from colour.quality import SDS_TCS, SDS_VS
 
 from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.originals import (ORIGINALS, OHTA_NEUTRALS, ground_truth_xyz, measured_spectra, original,
-                                       original_name, original_scene)
+from drivers.virtual.originals import (
+    OHTA_NEUTRALS,
+    ORIGINALS,
+    ground_truth_xyz,
+    measured_spectra,
+    original,
+    original_name,
+    original_scene,
+)
 from drivers.virtual.scene import Scene
 from simulation.camera_model import channel_responses
 from simulation.datasets import default_setup

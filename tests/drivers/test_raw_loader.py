@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import rawpy
+from rawtestfiles import D610_BLACK, D610_WHITE, mosaic_14bit, write_dng
 
 from drivers.raw import RawFileError, linear_demosaic, load_raw, superpixel
-from rawtestfiles import D610_BLACK, D610_WHITE, mosaic_14bit, write_dng
 
 
 @pytest.fixture
@@ -60,7 +60,8 @@ def test_superpixel_is_exact_and_matches_libraw_half_size(tmp_path):
     half = linear_demosaic(frame, half_size=True)
     assert half.shape == (12, 16, 3) and half.dtype == np.uint16
     scale = 65535.0 / (D610_WHITE - D610_BLACK)
-    np.testing.assert_allclose(half.astype(np.float64), sp * scale, atol=2.0)  # LibRaw rounds each green before averaging
+    # LibRaw rounds each green before averaging
+    np.testing.assert_allclose(half.astype(np.float64), sp * scale, atol=2.0)
 
 
 def test_linear_demosaic_is_linear_and_keeps_white_point(tmp_path):

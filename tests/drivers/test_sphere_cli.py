@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sphere_fakes import FakeClock
 
 from app.cli import main
 from drivers.virtual.sphere_emulator import SphereEmulator
-from sphere_fakes import FakeClock
 
 ROOT = Path(__file__).resolve().parents[2]
 

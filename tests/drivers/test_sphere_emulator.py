@@ -4,16 +4,17 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import FrozenInstanceError
 
 import numpy as np
 import pytest
+from sphere_fakes import FakeClock
 
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.led_sphere import protocol as P
-from drivers.virtual.sphere_emulator import (DRIFT_ONSET_S, MAX_SHIFT_NM, SphereEmulator, SphereSnapshot,
-                                             fade_factor, peak_shift_nm)
+from drivers.virtual.led_physics import DRIFT_ONSET_S, MAX_SHIFT_NM, fade_factor, peak_shift_nm
+from drivers.virtual.sphere_emulator import SphereEmulator, SphereSnapshot
 from simulation.lightsource import LightSource
-from sphere_fakes import FakeClock
 
 TIMEOUT = 0.2          # fault cases: the time they take
 OK_TIMEOUT = 2.0       # happy paths: only matters if something is wrong (keeps a loaded machine from flaking)
@@ -118,7 +119,7 @@ def test_snapshot_interface():
     for arr in (snap.levels, snap.on_time_s, snap.peak_shift_nm):
         assert isinstance(arr, np.ndarray) and arr.shape == (10,)
     assert isinstance(snap.temperature_c, float) and snap.light_on is False
-    with pytest.raises(Exception):
+    with pytest.raises(FrozenInstanceError):
         snap.light_on = True                         # frozen
 
 
@@ -281,7 +282,7 @@ def test_context_manager_over_pty_leaves_leds_off_on_exception(lab):
             sphere.apply(LightSource((2, 3)))
             sphere.on()
             assert emu.snapshot().levels.sum() == 2.0
-            1 / 0
+            raise ZeroDivisionError   # an error inside the with block
     assert emu.snapshot().levels.sum() == 0 and not emu.snapshot().light_on
 
 

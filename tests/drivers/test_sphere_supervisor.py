@@ -7,10 +7,10 @@ import threading
 import time
 
 import pytest
+from sphere_fakes import ScriptedSerial
 
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.led_sphere.supervisor import OnTimeSupervisor
-from sphere_fakes import ScriptedSerial
 
 
 class Switch:

@@ -10,7 +10,7 @@ import rawpy
 import tifffile
 
 from drivers.camera.base import CameraError, CameraSettings
-from drivers.virtual.camera import CAMERA_NAME, SHUTTER_SPEEDS, SensorModel, VirtualCamera, parse_shutter
+from drivers.virtual.camera import CAMERA_NAME, SensorModel, VirtualCamera, parse_shutter
 from drivers.virtual.dng import DngInfo, dng_bytes
 from drivers.virtual.scene import Scene
 from simulation.camera_model import channel_responses
@@ -277,9 +277,9 @@ def test_patch_boxes_match_the_label_image():
         assert 0 <= r0 < r1 <= 400 and 0 <= c0 < c1 <= 600
         assert np.all(labels[r0:r1, c0:c1] == i + (n + 2) * nd[i])
     assert labels[0, 0] == n and labels[-1, -1] == n       # surround
-    (t, l), (_, r), (b, _), _ = scene.corners()
-    assert (t, l) == pytest.approx(boxes[0][::2], abs=1) and r == pytest.approx(boxes[21][3], abs=1)
-    assert b == pytest.approx(boxes[-1][1], abs=1)
+    (top, left), (_, right), (bottom, _), _ = scene.corners()
+    assert (top, left) == pytest.approx(boxes[0][::2], abs=1) and right == pytest.approx(boxes[21][3], abs=1)
+    assert bottom == pytest.approx(boxes[-1][1], abs=1)
 
 
 def test_open_gate_and_lens_cap_have_no_patches():

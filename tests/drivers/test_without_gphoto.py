@@ -27,8 +27,8 @@ def test_devices_report_carries_the_hint(no_gphoto, capsys, monkeypatch):
     import drivers.usb_discovery as ud
     from app.cli import main
 
-    monkeypatch.setattr(ud, "usb_cameras", lambda: [])
-    monkeypatch.setattr(ud, "serial_ports", lambda: [])
+    monkeypatch.setattr(ud, "usb_cameras", list)
+    monkeypatch.setattr(ud, "serial_ports", list)
     assert TETHERING_UNAVAILABLE in ud.discover().hints
     assert main(["devices", "--no-probe"]) == 1
     err = capsys.readouterr().err.strip()
@@ -36,8 +36,8 @@ def test_devices_report_carries_the_hint(no_gphoto, capsys, monkeypatch):
 
 
 def test_virtual_lab_captures_without_gphoto(no_gphoto, tmp_path):
-    from drivers.virtual.lab import VirtualLab
     from drivers.raw import load_raw
+    from drivers.virtual.lab import VirtualLab
 
     with VirtualLab(frame_size=(96, 64)) as lab:
         lab.place("open-gate")

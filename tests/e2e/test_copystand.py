@@ -33,7 +33,8 @@ def day(tmp_path_factory):
     cal = json.loads((root / "cal.json").read_text())
     captures = {}
     for ident, mode, stand_in, frames in (("PAINT-1", "reflective", "painting", PAINT_FRAMES),
-                                          ("FILM-1", "transmissive", "film", "1"), ("SHADOW-1", "reflective", "shadow", "1")):
+                                          ("FILM-1", "transmissive", "film", "1"),
+                                          ("SHADOW-1", "reflective", "shadow", "1")):
         dualrgb("capture", "--session", str(root / "originals"), "--calibration", cal["calibration"], "--id", ident,
                 "--title", f"{ident} title", "--operator", "E2E", "--mode", mode, "--virtual-lab",
                 "--virtual-original", stand_in, "--frames", frames, "--json", str(root / f"{ident}.json"), *FRAME)
@@ -52,7 +53,7 @@ def test_originals_delivered_with_metadata(day):
     root, cal, captures = day
     for ident, c in captures.items():
         assert c["new"] > 0 and c["kept"] == 0 and c["calibration"] == cal["id"]
-        for key, path in c["files"].items():
+        for path in c["files"].values():
             with tifffile.TiffFile(path) as t:
                 page = t.pages[0]
                 assert page.dtype == np.uint16 and Path(path).name.startswith(ident)

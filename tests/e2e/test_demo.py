@@ -45,7 +45,7 @@ def test_hdr_lowers_the_error_of_nd_covered_patches(hdr_report):
         hdr, single = data["hdr_" + cond], data["single_" + cond]
         assert hdr["nd_patches"]["train"]["mean"] < single["nd_patches"]["train"]["mean"]
         assert hdr["nd_patches"]["test"]["mean"] < single["nd_patches"]["test"]["mean"]
-        assert all(len(l["exposures_s"]) >= 2 for l in hdr["lights"])
+        assert all(len(light["exposures_s"]) >= 2 for light in hdr["lights"])
 
 
 def test_captured_errors_track_the_prediction(hdr_report):
@@ -71,15 +71,15 @@ def test_demo_resumes_after_kill_without_reshooting(tmp_path):
     assert manifest.exists()
     before = len(manifest.read_text().splitlines())
     assert before > 0
-    dosed_before = [json.loads(l)["on_s"] for l in manifest.read_text().splitlines()[:-1]
-                    if json.loads(l).get("kind") == "dose"]
+    dosed_before = [json.loads(entry)["on_s"] for entry in manifest.read_text().splitlines()[:-1]
+                    if json.loads(entry).get("kind") == "dose"]
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["lost_frames"] == 0 and report["session_valid"]
-    lines = [json.loads(l) for l in manifest.read_text().splitlines() if l.strip()]
-    steps = [l["step_id"] for l in lines if l.get("step_id") and l.get("kind", "frame") == "frame"]
+    lines = [json.loads(entry) for entry in manifest.read_text().splitlines() if entry.strip()]
+    steps = [entry["step_id"] for entry in lines if entry.get("step_id") and entry.get("kind", "frame") == "frame"]
     assert len(steps) == len(set(steps))           # nothing shot twice
-    doses = [l["on_s"] for l in lines if l.get("kind") == "dose"]
+    doses = [entry["on_s"] for entry in lines if entry.get("kind") == "dose"]
     assert dosed_before and doses[:len(dosed_before)] == dosed_before     # the killed run's light is counted
     assert report["light_dose"]["on_s"] == pytest.approx(sum(doses), abs=2e-3)

@@ -4,15 +4,15 @@ import threading
 import numpy as np
 import pytest
 
-from app.session import CaptureSession, SessionError
 from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure
 from app.sequences.capture import SubjectCapture
-from app.workflow.vocabulary import Subject
 from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import LightSafetyError, SafetySettings, Shooter, channel_levels
-from drivers.virtual.lab import VirtualLab
+from app.session import CaptureSession, SessionError
+from app.workflow.vocabulary import Subject
 from drivers.camera.base import CameraError
 from drivers.led_sphere import SphereError
+from drivers.virtual.lab import VirtualLab
 from simulation.lightsource import LightSource
 
 LS1 = NamedLight("LS1", LightSource((1, 6, 8)))

@@ -3,12 +3,12 @@ rigs, and the virtual lab with small frames and short light limits for the light
 from __future__ import annotations
 
 import pytest
+from fault_rigs import CountingCamera, CountingSphere
+from light_record import FAST
 
 from app.sequences.shooter import Shooter
 from app.session import CaptureSession
 from drivers.virtual.lab import VirtualLab
-from fault_rigs import CountingCamera, CountingSphere
-from light_record import FAST
 
 
 @pytest.fixture()

@@ -1,9 +1,9 @@
-"""Light-safety test helpers: settings, lights, and reading the sphere emulator's own record of lit periods (its clock, not the host's) for light-safety tests."""
+"""Light-safety test helpers: settings, lights, and reading the sphere emulator's own record of lit periods (its
+clock, not the host's) for light-safety tests."""
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Optional
 
 from app.sequences.calibration import NamedLight
 from app.sequences.shooter import SafetySettings
@@ -22,7 +22,7 @@ class LitSpan:
     """Contiguous light (level changes while lit joined): from ``t_on`` to ``t_off`` (None: still lit)."""
 
     t_on: float
-    t_off: Optional[float]
+    t_off: float | None
     ended_by: str
 
     def duration(self, now: float) -> float:

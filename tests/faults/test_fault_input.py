@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from fault_rigs import ROOT
 
 pytestmark = pytest.mark.fault("input")
@@ -179,7 +178,7 @@ def run_with_deadline(fn, seconds: float = 20.0):
     def target():
         try:
             box["value"] = fn()
-        except BaseException as exc:                         # handed back to the test thread
+        except BaseException as exc:  # noqa: BLE001 - handed back to the test thread
             box["error"] = exc
     t = threading.Thread(target=target, daemon=True)
     t.start()

@@ -11,18 +11,23 @@ import sys
 import textwrap
 
 import pytest
+from fault_rigs import ROOT
 
 from app import session as session_mod
 from app.demo import DemoSettings
 from app.sequences.calibration import DarkSeries
 from app.sequences.shooter import SafetySettings, Shooter
-from app.session import (MANIFEST, CaptureSession, DamagedFramesError, DefinitionMismatch, SessionLockedError,
-                         light_definition)
+from app.session import (
+    MANIFEST,
+    CaptureSession,
+    DamagedFramesError,
+    DefinitionMismatch,
+    SessionLockedError,
+    light_definition,
+)
 from app.session_manifest import SessionEntry
 from simulation.atomic_io import InsufficientSpaceError
 from simulation.lightsource import LightSource
-
-from fault_rigs import ROOT
 
 pytestmark = pytest.mark.fault("session integrity")
 
@@ -156,8 +161,8 @@ def test_light_dose_survives_a_crash_and_resume(tmp_path, rig):
     second = shooter_for(resumed, rig)
     for i in range(5):
         second.shoot("flat", LS1, 1 / 60, f"flat/{i}")                   # 0..2 skipped, 3..4 shot
-    doses = [json.loads(l) for l in (tmp_path / "s" / MANIFEST).read_text().splitlines()
-             if json.loads(l).get("kind") == "dose"]
+    doses = [json.loads(line) for line in (tmp_path / "s" / MANIFEST).read_text().splitlines()
+             if json.loads(line).get("kind") == "dose"]
     assert len(doses) == 5 and all(d["light"]["levels"] == [0.0, 0.42, 1.0] for d in doses)
     total = CaptureSession.open(tmp_path / "s", readonly=True).light_dose()
     assert total.on_s == pytest.approx(sum(d["on_s"] for d in doses))

@@ -9,9 +9,8 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
-from PySide6.QtCore import QSettings, Qt  # noqa: E402
-
-from light_record import LS1, assert_dark_within  # noqa: E402
+from light_record import LS1, assert_dark_within
+from PySide6.QtCore import QSettings, Qt
 
 MANUAL_LIMIT_S = 1.0
 

@@ -12,14 +12,14 @@ import time
 from pathlib import Path
 
 import pytest
+from light_record import FAST, LS1, assert_dark_within, lit_spans, wait_dark
 
 from app.sequences.shooter import LightSafetyError, Shooter
 from app.session import CaptureSession
-from drivers.virtual.lab import VirtualLab
 from drivers.camera.base import CameraError
 from drivers.led_sphere import LedSphere, SphereError
+from drivers.virtual.lab import VirtualLab
 from drivers.virtual.sphere_emulator import SphereEmulator
-from light_record import FAST, LS1, assert_dark_within, lit_spans, wait_dark
 
 ROOT = Path(__file__).resolve().parents[2]
 EXPOSURE_S = 1 / 60

@@ -5,6 +5,7 @@ Deleting the switch-off after each shot (app/sequences/shooter.py) makes this te
 from __future__ import annotations
 
 import pytest
+from light_record import LS1, LS2, lit_spans
 
 from app.sequences.calibration import DarkSeries, FlatSeries, auto_exposure
 from app.sequences.capture import SubjectCapture
@@ -13,7 +14,6 @@ from app.sequences.hdr import meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session import CaptureSession
 from app.workflow.vocabulary import Subject
-from light_record import LS1, LS2, lit_spans
 
 SETTLE_S = 0.05
 SLACK_S = 0.2           # issue 9: per frame, light on at most exposure + settle + 0.2 s
@@ -46,7 +46,7 @@ def test_light_only_while_a_frame_is_exposed_over_every_sequence(lab, tmp_path):
     assert len(lit) == len(exposures) - 2 and len(spans) == len(lit), (len(spans), len(lit), len(exposures))
     assert all(s.t_off is not None for s in spans), "the light is still on at the end"
     worst = 0.0
-    for span, frame in zip(spans, lit):                 # one lit span per lit frame, in order, around it
+    for span, frame in zip(spans, lit, strict=True):                 # one lit span per lit frame, in order, around it
         assert span.t_on <= frame.t_open and frame.t_close <= span.t_off, (span, frame)
         over = span.duration(0) - (frame.exposure_s + SETTLE_S)
         worst = max(worst, over)

@@ -2,7 +2,6 @@
 from collections import Counter
 
 import pytest
-
 from faults.plugin import END, START, render_table, replace_between_markers
 
 

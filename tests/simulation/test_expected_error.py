@@ -6,15 +6,16 @@ import numpy as np
 import pytest
 
 from simulation.capture_model import CameraNoise, CaptureModel
+from simulation.colorimetry import delta_e_2000
 from simulation.datasets import default_setup
 from simulation.expected_error import ExpectedErrorEvaluator, ExpectedErrorModel, de2000_metric, dense_weights
-from simulation.colorimetry import delta_e_2000
 from simulation.objective import Evaluator
 from simulation.presets import load_preset, packaged_presets
 from simulation.robust import RobustEvaluator, RobustSettings, plausible_worlds
 from simulation.search import group_arrays, light_pairs
 from simulation.sphere import PWM_MAX, SphereProperties, realisable_d65_mix
-from simulation.studies.noise import CameraNoise as StudyCamera, NoiseModel
+from simulation.studies.noise import CameraNoise as StudyCamera
+from simulation.studies.noise import NoiseModel
 
 COLLINEAR = ((2, 5, 9), (2, 6, 9))          # the transmissive exhaustive pair of issue 14: LEDs 2 and 9 shared
 WELL = ((1, 6, 8), (3, 5, 9))

@@ -64,7 +64,10 @@ def test_thesis_pso_update_steps_match_a_hand_computation():
     N = PsoSettings().particles
     C0, C1, C2 = 0.95, 2.0, 2.0
     rng = np.random.default_rng([seed, 0])                  # one generator per light set: (seed, set number)
-    cost = lambda x: rugged(x, target)
+
+    def cost(x):
+        return rugged(x, target)
+
     x = _constrain(rng.random((N, 2, 3)))
     v = np.zeros_like(x)
     c = cost(x)

@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from simulation.matrix_fit import CharacterisationError, fit_matrix
 from simulation.datasets import default_setup
 from simulation.ga import ga
 from simulation.lightsource import LightSource
+from simulation.matrix_fit import CharacterisationError, fit_matrix
 from simulation.objective import Evaluator, three_channel
 from simulation.pso import PsoSettings, enforce_constraints, pso
 from simulation.search import exhaustive, light_pairs, refine_top, triplets, unbinned_pairs

@@ -3,6 +3,7 @@ import json
 import logging
 import os
 from dataclasses import replace
+from itertools import pairwise
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 import numpy as np
@@ -96,19 +97,19 @@ def test_pyswarms_leaves_logging_and_cwd_alone(ev, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     root = logging.getLogger()
     handlers, level = list(root.handlers), root.level
-    state = np.random.get_state()[1].copy()
+    state = np.random.get_state()[1].copy()  # noqa: NPY002 - the global RNG pyswarms must leave as it was
     opt.pyswarms_search(ev, light_pairs()[:2], opt.PyswarmsSettings(particles=5, iterations=2))
     assert root.handlers == handlers and root.level == level
     assert not (tmp_path / "report.log").exists() and "LOG_CFG" not in os.environ
-    assert np.array_equal(np.random.get_state()[1], state)
+    assert np.array_equal(np.random.get_state()[1], state)  # noqa: NPY002 - as above
 
 
 def test_pareto_front_is_monotone():
     pts = [(1.0, 0.5), (0.5, 0.9), (2.0, 0.4), (3.0, 0.45), (0.1, 1.0), (2.5, 0.4)]
     front = pareto_front(pts)
     assert front == [4, 1, 0, 2]
-    xs, ys = zip(*(pts[i] for i in front))
-    assert list(xs) == sorted(xs) and all(b < a for a, b in zip(ys, ys[1:]))
+    xs, ys = zip(*(pts[i] for i in front), strict=True)
+    assert list(xs) == sorted(xs) and all(b < a for a, b in pairwise(ys))
 
 
 # ---- speed vs accuracy -----------------------------------------------------------------------------------
@@ -129,8 +130,8 @@ def test_speed_accuracy_tiny_writes_outputs(tmp_path):
     assert methods == {"exhaustive", "pso", "ga", "halving", "pyswarms", "de", "lbfgs"}
     rows = {c["label"]: c for c in data["configurations"]}
     for key in ("pareto_train", "pareto_test"):
-        pts = [(rows[l]["seconds"]["median"], rows[l][key.split("_")[1]]["median"]) for l in data[key]]
-        assert all(a[0] <= b[0] and b[1] < a[1] for a, b in zip(pts, pts[1:]))
+        pts = [(rows[label]["seconds"]["median"], rows[label][key.split("_")[1]]["median"]) for label in data[key]]
+        assert all(a[0] <= b[0] and b[1] < a[1] for a, b in pairwise(pts))
     for r in data["runs"]:
         assert r["evaluations"] > 0 and r["train"] > 0 and r["test"] > 0
         assert r["trace"]["best"] == sorted(r["trace"]["best"], reverse=True)
@@ -144,7 +145,7 @@ def test_speed_accuracy_dask_equals_serial(dask_runner):
     serial = speed_accuracy(SPEC, seeds=1, budget="tiny", light_sets=4)
     dask = speed_accuracy(SPEC, seeds=1, budget="tiny", light_sets=4, runner=dask_runner)
     assert dask.runner["runner"] == "dask" and len(dask.runs) == len(serial.runs)
-    for a, b in zip(serial.runs, dask.runs):
+    for a, b in zip(serial.runs, dask.runs, strict=True):
         assert (a["label"], a["seed"], a["evaluations"]) == (b["label"], b["seed"], b["evaluations"])
         assert a["train"] == pytest.approx(b["train"], abs=1e-9) and a["test"] == pytest.approx(b["test"], abs=1e-9)
         assert a["best"]["levels_exact"] == b["best"]["levels_exact"]
