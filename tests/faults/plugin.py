@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 START, END = "<!-- reliability:start -->", "<!-- reliability:end -->"
-CATEGORIES = ("light safety", "session integrity", "input")
+CATEGORIES = ("light safety", "session integrity", "input", "camera")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

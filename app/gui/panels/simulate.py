@@ -174,17 +174,17 @@ class SimulatePanel(QWidget):
         return buttons
 
     def _results_table(self) -> QTableWidget:
-        self.table = QTableWidget(0, 6)
-        self.table.setHorizontalHeaderLabels(["light 1", "light 2", "expected train ΔE00", "expected test ΔE00",
-                                              "noise-free train ΔE00", "noise-free test ΔE00"])
+        self.table = QTableWidget(0, 4)
+        self.table.setHorizontalHeaderLabels(["light 1", "light 2", "train ΔE00\nexpected / noise-free",
+                                              "test ΔE00\nexpected / noise-free"])
         self.table.setToolTip("Best light pairs: mean CIEDE2000 on the training and test targets, as a capture is "
-                              "expected to measure them (camera noise at the planned exposures) and in the "
+                              "expected to measure them (camera noise at the planned exposures) / in the "
                               "noise-free simulation; LED levels in %.")
         self.table.setWordWrap(True)
         header = self.table.horizontalHeader()
         for col in (0, 1):                          # the lights wrap; the numbers always show whole
             header.setSectionResizeMode(col, QHeaderView.Stretch)
-        for col in range(2, 6):
+        for col in (2, 3):
             header.setSectionResizeMode(col, QHeaderView.ResizeToContents)
         self.table.currentCellChanged.connect(lambda row, *_: self.show_candidate(row))
         return self.table
@@ -379,8 +379,8 @@ class SimulatePanel(QWidget):
         self.table.setRowCount(len(cands))
         for r, c in enumerate(cands):
             s1, s2 = c.sources[:2]
-            values = (light_pct(s1), light_pct(s2), _de(c.expected_train), _de(c.expected_test),
-                      _de(c.train, c.train_cost), _de(c.test))
+            values = (light_pct(s1), light_pct(s2), f"{_de(c.expected_train)} / {_de(c.train, c.train_cost)}",
+                      f"{_de(c.expected_test)} / {_de(c.test)}")
             for col, v in enumerate(values):
                 item = QTableWidgetItem(v + (" (partial)" if partial and col == 2 else ""))
                 item.setFlags(item.flags() & ~Qt.ItemIsEditable)
@@ -414,7 +414,7 @@ class SimulatePanel(QWidget):
         self.lights_plot.clear()
         for i, spd in enumerate(lights):
             self.lights_plot.plot(wl, spd, pen=pg.mkPen(LIGHT_PENS[i % 2], width=2),
-                                  name=f"light {i + 1}: {light_pct(cand.sources[i])}")
+                                  name=f"light {i + 1}: LEDs {', '.join(map(str, cand.sources[i].leds))}")
         sens = effective_sensitivities(lights, setup.camera)
         for i in range(len(lights)):                      # each light's three channels scaled together
             block = sens[:, 3 * i:3 * i + 3]
