@@ -15,6 +15,13 @@ from pathlib import Path
 import pytest
 
 START, END = "<!-- reliability:start -->", "<!-- reliability:end -->"
+CLEAN_MEANS = (
+    "a case is clean when its test passed, i.e. the injected fault was handled: light safety (lost or garbled "
+    "replies, a slow or hung camera, a dead host, GUI errors) with the light off within its cap on the emulator's "
+    "clock; session integrity (kill -9, resume with other options, full disk, torn manifests, damaged frames) with "
+    "every frame intact and none mixed; input (bad values, fuzzed raw files and CSVs) with a one-line error; camera "
+    "(libgphoto2 behaviours replayed by a scripted stand-in) with the right frame or a one-line error and the light "
+    "off.")
 CATEGORIES = ("light safety", "session integrity", "input", "camera")
 
 
@@ -74,8 +81,7 @@ def replace_between_markers(text: str, table: str, path: str = "README") -> str:
     head, rest = text.split(START)
     _, tail = rest.split(END)
     note = ("Produced by `make reliability` (`pytest -m fault --reliability-table README.md`): every "
-            "`@pytest.mark.fault` case in tests/; a case is clean when the injected fault was handled as issue 9 "
-            "requires.")
+            "`@pytest.mark.fault` case in tests/; " + CLEAN_MEANS)
     return f"{head}{START}\n{table}\n\n{note}\n{END}{tail}"
 
 
