@@ -44,3 +44,27 @@ def make_window(qtbot, settings):
 def wait_idle(qtbot, window, timeout=60000):
     """Until no task runs in any pool (device calls, computations, sequences)."""
     qtbot.waitUntil(lambda: not window.runner.busy(), timeout=timeout)
+
+
+DEVICE_TIMEOUT_MS = 180000
+
+
+def click(qtbot, button):
+    """A real mouse click on ``button``, which must be enabled (its tooltip says why when it is not)."""
+    from PySide6.QtCore import Qt
+
+    assert button.isEnabled(), f"{button.text()!r} is disabled: {button.toolTip()}"
+    qtbot.mouseClick(button, Qt.LeftButton)
+
+
+def connect_devices(qtbot, w):
+    """Connect the virtual sphere and the virtual camera from the Devices panel, as a technician does."""
+    dev = w.devices
+    wait_idle(qtbot, w)
+    dev.port_combo.setCurrentText("virtual sphere (emulator)")
+    click(qtbot, dev.sphere_button)
+    qtbot.waitUntil(lambda: w.lab.sphere is not None, timeout=DEVICE_TIMEOUT_MS)
+    dev.camera_combo.setCurrentText("virtual camera (virtual lab)")
+    click(qtbot, dev.camera_button)
+    qtbot.waitUntil(lambda: w.lab.camera is not None, timeout=DEVICE_TIMEOUT_MS)
+    wait_idle(qtbot, w)

@@ -10,19 +10,13 @@ import json
 import numpy as np
 import pytest
 import tifffile
-from PySide6.QtCore import Qt
 
 from app.workflow.day import DayStep, OriginalState, StepState
-from tests.gui.conftest import wait_idle
+from tests.gui.conftest import click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
 
 LONG = 180000
 STALL_LIMIT_S = 0.1
-
-
-def click(qtbot, button):
-    assert button.isEnabled(), f"{button.text()!r} is disabled: {button.toolTip()}"
-    qtbot.mouseClick(button, Qt.LeftButton)
 
 
 def finish(qtbot, w, view):
@@ -31,16 +25,9 @@ def finish(qtbot, w, view):
     return view.outcome
 
 
-def connect_devices(qtbot, w):
+def connect_both(qtbot, w):
+    connect_devices(qtbot, w)
     dev = w.devices
-    wait_idle(qtbot, w)
-    dev.port_combo.setCurrentText("virtual sphere (emulator)")
-    click(qtbot, dev.sphere_button)
-    qtbot.waitUntil(lambda: w.lab.sphere is not None, timeout=LONG)
-    dev.camera_combo.setCurrentText("virtual camera (virtual lab)")
-    click(qtbot, dev.camera_button)
-    qtbot.waitUntil(lambda: w.lab.camera is not None, timeout=LONG)
-    wait_idle(qtbot, w)
     assert dev.virtual_label.text().startswith("running"), dev.virtual_label.text()     # not "not started"
 
 
@@ -183,7 +170,7 @@ def test_production_day_through_the_gui(qtbot, make_window, tmp_path):
     dog = StallWatchdog()
     dog.start()
     dog.phase = "connect"
-    connect_devices(qtbot, w)
+    connect_both(qtbot, w)
     w.guide.refresh()
     assert w.guide.step(DayStep.CONNECT).state is not StepState.DONE            # no session yet
     cap = w.capture

@@ -3,18 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from PySide6.QtCore import Qt
 
 from app.gui.units import parse_exposure
-from tests.gui.conftest import wait_idle
+from tests.gui.conftest import click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
 
 LONG = 120000
-
-
-def click(qtbot, button):
-    assert button.isEnabled(), f"{button.text()!r} is disabled"
-    qtbot.mouseClick(button, Qt.LeftButton)
 
 
 def run_sequence(qtbot, w, kind, *, frames=None, target=None):
@@ -73,14 +67,7 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     dev = w.devices
 
     # ---- connect both devices from the Devices panel ----
-    wait_idle(qtbot, w)
-    dev.port_combo.setCurrentText("virtual sphere (emulator)")
-    click(qtbot, dev.sphere_button)
-    qtbot.waitUntil(lambda: w.lab.sphere is not None, timeout=LONG)
-    dev.camera_combo.setCurrentText("virtual camera (virtual lab)")
-    click(qtbot, dev.camera_button)
-    qtbot.waitUntil(lambda: w.lab.camera is not None, timeout=LONG)
-    wait_idle(qtbot, w)
+    connect_devices(qtbot, w)
     assert dev.sphere_light.state in ("ok", "on") and dev.camera_light.state == "ok"
     assert w.ctx.settings.value("devices/sphere_port") == "virtual sphere (emulator)"
 
