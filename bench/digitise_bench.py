@@ -23,13 +23,14 @@ import argparse
 import json
 import os
 import resource
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from bench.child import cpu_s, run_in_child
 
 ROOT = Path(__file__).resolve().parents[1]
 LIGHT_NAMES = {"light 1": "bench light 1", "light 2": "bench light 2"}
@@ -86,16 +87,11 @@ def _scene_frames(folder: Path) -> list[tuple[str, Path, float]]:
 def _child_decode(folder: str) -> dict:
     import rawpy
 
-    t0, c0 = time.perf_counter(), _cpu()
+    t0, c0 = time.perf_counter(), cpu_s()
     for _light, path, _t in _scene_frames(Path(folder)):
         with rawpy.imread(str(path)) as raw:
             raw.raw_image_visible.copy()
-    return {"seconds": time.perf_counter() - t0, "cpu_s": _cpu() - c0}
-
-
-def _cpu() -> float:
-    t = os.times()
-    return t.user + t.system
+    return {"seconds": time.perf_counter() - t0, "cpu_s": cpu_s() - c0}
 
 
 def _child_digitise(folder: str, streaming: bool) -> dict:
@@ -114,10 +110,10 @@ def _child_digitise(folder: str, streaming: bool) -> dict:
     t_ready = time.perf_counter()
     frames = _scene_frames(folder_p)
     builder = profile_processor(prof).begin_stack([nl.name for nl in prof.lights])
-    t0, c0 = time.perf_counter(), _cpu()
+    t0, c0 = time.perf_counter(), cpu_s()
     for i, (light, path, t) in enumerate(frames):
         if streaming and i == len(frames) - 1:
-            t0, c0 = time.perf_counter(), _cpu()        # the last frame lands: the clock starts
+            t0, c0 = time.perf_counter(), cpu_s()        # the last frame lands: the clock starts
         builder.add(light, ExposureRef(path, t, path.name))
     t_added = time.perf_counter()
     with tempfile.TemporaryDirectory(dir=folder) as out:
@@ -126,7 +122,7 @@ def _child_digitise(folder: str, streaming: bool) -> dict:
         d = deliver(stack, prof, Original("BENCH-1", title="bench"), Path(out), camera=prof.camera,
                     dose=LightDoseRecord(1.0, 0.1), exposures={n: prof.exposures[n] for n in prof.exposures})
         size = sum(p.stat().st_size for p in d.files.values())
-        seconds, cpu = time.perf_counter() - t0, _cpu() - c0
+        seconds, cpu = time.perf_counter() - t0, cpu_s() - c0
         t_done = time.perf_counter()
     return {"seconds": seconds, "cpu_s": cpu, "load_profile_and_warm_up_s": t_ready - t_load,
             "deliverables_mb": size / 1e6,
@@ -135,13 +131,9 @@ def _child_digitise(folder: str, streaming: bool) -> dict:
 
 
 def _run_child(kind: str, folder: Path) -> dict:
-    call = (f"_child_decode({str(folder)!r})" if kind == "decode"
-            else f"_child_digitise({str(folder)!r}, {kind == 'last_frame'})")
-    code = (f"import json, resource, sys; sys.path.insert(0, {str(ROOT)!r}); "
-            f"from bench.digitise_bench import _child_decode, _child_digitise; r = {call}; "
-            "r['peak_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024; print(json.dumps(r))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    if kind == "decode":
+        return run_in_child("bench.digitise_bench", "_child_decode", str(folder))
+    return run_in_child("bench.digitise_bench", "_child_digitise", str(folder), kind == "last_frame")
 
 
 def bench_digitise(height: int = 4028, width: int = 6080, cache: str | None = None, repeats: int = 3) -> dict:

@@ -22,13 +22,14 @@ import json
 import os
 import resource
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from bench.child import cpu_s, run_in_child
 
 ROOT = Path(__file__).resolve().parents[1]
 WHITE, BLACK = 15520, 600
@@ -82,18 +83,13 @@ def _child_decode(folder: str) -> dict:
     import rawpy
 
     plan = json.loads((Path(folder) / "plan.json").read_text())
-    t0, c0 = time.perf_counter(), _cpu()
+    t0, c0 = time.perf_counter(), cpu_s()
     total = 0
     for f in plan["files"]:
         with rawpy.imread(str(Path(folder) / f["file"])) as raw:
             m = raw.raw_image_visible.copy()
             total += int(m[0, 0])
-    return {"seconds": time.perf_counter() - t0, "cpu": _cpu() - c0, "files": len(plan["files"])}
-
-
-def _cpu() -> float:
-    t = os.times()
-    return t.user + t.system
+    return {"seconds": time.perf_counter() - t0, "cpu": cpu_s() - c0, "files": len(plan["files"])}
 
 
 def _child_process(folder: str, outputs: bool) -> dict:
@@ -109,27 +105,23 @@ def _child_process(folder: str, outputs: bool) -> dict:
 
     tw = time.perf_counter()
     warm_up()                                    # once per process: numba kernels from the on-disk cache
-    t0, c0 = time.perf_counter(), _cpu()
+    t0, c0 = time.perf_counter(), cpu_s()
     proc = CaptureProcessor(dark_frames=[ref(f) for f in plan["files"] if f["role"] == "dark"])
     for light in LIGHTS:
         proc.set_white(light, [ref(f) for f in plan["files"] if f["role"] == "flat" and f["light"] == light])
     stack = proc.stack({light: [ref(f) for f in plan["files"] if f["role"] == "scene" and f["light"] == light]
                         for light in LIGHTS})
     t_stack = time.perf_counter() - t0
-    result = {"seconds_stack": t_stack, "cpu_stack": _cpu() - c0, "seconds_warm_up": t0 - tw,
+    result = {"seconds_stack": t_stack, "cpu_stack": cpu_s() - c0, "seconds_warm_up": t0 - tw,
               "stack_shape": list(stack.data.shape),
               "stack_mean": float(np.nanmean(stack.data[::50, ::50]))}
     return result
 
 
 def _run_child(kind: str, folder: Path) -> dict:
-    code = (f"import json, resource, sys; sys.path.insert(0, {str(ROOT)!r}); "
-            f"from bench.processing_bench import _child_decode, _child_process; "
-            + (f"r = _child_decode({str(folder)!r})" if kind == "decode"
-               else f"r = _child_process({str(folder)!r}, {kind == 'outputs'})")
-            + "; r['peak_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024; print(json.dumps(r))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    if kind == "decode":
+        return run_in_child("bench.processing_bench", "_child_decode", str(folder))
+    return run_in_child("bench.processing_bench", "_child_process", str(folder), kind == "outputs")
 
 
 def bench_processing(height: int = 4028, width: int = 6080, n_darks: int = 10, cache: str | None = None,

@@ -1,0 +1,27 @@
+"""One measurement in a fresh Python process, so its peak RSS (``ru_maxrss``) is that measurement's alone, and the
+process CPU time the measurements report beside the wall time."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def cpu_s() -> float:
+    """User + system CPU seconds of this process so far."""
+    t = os.times()
+    return t.user + t.system
+
+
+def run_in_child(module: str, function: str, *args: object) -> dict:
+    """``module.function(*args)`` (a dict, its arguments plain literals) in a fresh interpreter, with
+    ``peak_rss_mb`` added."""
+    code = (f"import json, resource, sys; sys.path.insert(0, {str(ROOT)!r}); "
+            f"from {module} import {function}; r = {function}(*{args!r}); "
+            "r['peak_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024; print(json.dumps(r))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
