@@ -168,14 +168,19 @@ class Lab(QObject):
             log.info("LED sphere on %s: %s firmware %s", port, info.get("model"), info.get("firmware"))
             return sphere
 
-        def done(sphere: LedSphere) -> None:
-            self._set_sphere(sphere, port)
-            if port == VIRTUAL_SPHERE:
+        return self._connect(work, "Connect the LED sphere", self._set_sphere, port, port == VIRTUAL_SPHERE, on_done)
+
+    def _connect(self, work: Callable[[], Any], what: str, install: Callable[[Any, str], None], name: str,
+                 virtual: bool, on_done: Callable[[bool], None] | None) -> TaskHandle:
+        """Run ``work`` (it opens a device) as a device call; on success ``install(device, name)`` and tell
+        ``on_done(True)`` (False on failure, which the device call reports)."""
+        def done(device: Any) -> None:
+            install(device, name)
+            if virtual:
                 self.virtualLabChanged.emit()
             if on_done:
                 on_done(True)
-        return self.device_call(work, "Connect the LED sphere", on_result=done,
-                                on_error=lambda exc: on_done(False) if on_done else None)
+        return self.device_call(work, what, on_result=done, on_error=lambda exc: on_done(False) if on_done else None)
 
     def _set_sphere(self, sphere: LedSphere | None, port: str) -> None:
         self.sphere = sphere
@@ -276,14 +281,7 @@ class Lab(QObject):
             cam.open()
             return cam
 
-        def done(cam: Camera) -> None:
-            self._set_camera(cam, choice)
-            if choice == VIRTUAL_CAMERA:
-                self.virtualLabChanged.emit()
-            if on_done:
-                on_done(True)
-        return self.device_call(work, "Connect the camera", on_result=done,
-                                on_error=lambda exc: on_done(False) if on_done else None)
+        return self._connect(work, "Connect the camera", self._set_camera, choice, choice == VIRTUAL_CAMERA, on_done)
 
     def _set_camera(self, camera: Camera | None, name: str) -> None:
         self.camera = camera
