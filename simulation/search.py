@@ -150,22 +150,28 @@ def candidates_from(groups: Sequence[Group], levels: np.ndarray, costs: np.ndarr
     return out
 
 
-def refine_top(evaluator: Evaluator, outcome: SearchOutcome, top: int, expected=None) -> SearchOutcome:
-    """Re-evaluate the best ``top`` candidates with the float64 reference (train and test stats) and sort them
-    by the evaluator's objective. An evaluator that realises levels on the sphere's grid (``realise``) gets its
-    candidates' levels replaced by the realised ones first; ``expected`` (an object with ``expected_stats(W)``,
-    e.g. :class:`simulation.expected_error.ExpectedErrorEvaluator`, default: the evaluator if it has one) adds
-    the expected captured figures."""
+def evaluate_candidate(evaluator: Evaluator, cand: Candidate, expected=None) -> Candidate:
+    """Give ``cand`` its float64 reference train and test stats. An evaluator that realises levels on the sphere's
+    grid (``realise``) gets the candidate's levels replaced by the realised ones first; ``expected`` (an object
+    with ``expected_stats(W)``, e.g. :class:`simulation.expected_error.ExpectedErrorEvaluator`, default: the
+    evaluator if it has one) adds the expected captured figures."""
     realise = getattr(evaluator, "realise", None)
     expected = expected if expected is not None else (evaluator if hasattr(evaluator, "expected_stats") else None)
+    if realise is not None:
+        cand.sources = tuple(LightSource(s.leds, tuple(float(v) for v in realise(np.array(s.levels))), s.name)
+                             for s in cand.sources)
+    W = cand.weights(evaluator.n_leds)
+    cand.train, cand.test = evaluator.stats(W)
+    if expected is not None:
+        cand.expected_train, cand.expected_test = expected.expected_stats(W)
+    return cand
+
+
+def refine_top(evaluator: Evaluator, outcome: SearchOutcome, top: int, expected=None) -> SearchOutcome:
+    """Re-evaluate the best ``top`` candidates (:func:`evaluate_candidate`) and sort them by the evaluator's
+    objective."""
     for cand in outcome.candidates[:top]:
-        if realise is not None:
-            cand.sources = tuple(LightSource(s.leds, tuple(float(v) for v in realise(np.array(s.levels))), s.name)
-                                 for s in cand.sources)
-        W = cand.weights(evaluator.n_leds)
-        cand.train, cand.test = evaluator.stats(W)
-        if expected is not None:
-            cand.expected_train, cand.expected_test = expected.expected_stats(W)
+        evaluate_candidate(evaluator, cand, expected)
     objective = getattr(evaluator, "objective", "noise-free")
     head = sorted(outcome.candidates[:top], key=lambda c: c.objective_mean(objective))
     outcome.candidates[:top] = head

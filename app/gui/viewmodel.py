@@ -182,9 +182,10 @@ class ConvergenceTap:
         return costs
 
     def partial(self):
-        """The best light set seen so far as a simulation.search.Candidate with float64 train / test errors, or
-        None when no cost was computed yet."""
-        from simulation.search import Candidate
+        """The best light set seen so far as a simulation.search.Candidate evaluated like a finished search's
+        (simulation.search.evaluate_candidate: float64 train / test errors, expected captured ones where the
+        objective has them), or None when no cost was computed yet."""
+        from simulation.search import Candidate, evaluate_candidate
 
         if self.best_idx is None:
             return None
@@ -193,12 +194,7 @@ class ConvergenceTap:
             on = levels > 0
             sources.append(LightSource(tuple(int(i) + 1 for i in leds[on]), tuple(float(v) for v in levels[on]))
                            if on.any() else LightSource((int(leds[0]) + 1,), (0.0,)))
-        cand = Candidate(tuple(sources), self.best)
-        W = cand.weights(self._inner.n_leds)
-        cand.train, cand.test = self._inner.stats(W)
-        if hasattr(self._inner, "expected_stats"):
-            cand.expected_train, cand.expected_test = self._inner.expected_stats(W)
-        return cand
+        return evaluate_candidate(self._inner, Candidate(tuple(sources), self.best))
 
 
 def preview_histogram(frame: np.ndarray, black_level: float, white_level: float, gamma: float = 2.2,
