@@ -1,4 +1,5 @@
-"""Small widgets shared by the panels: status lights, the log view and its logging handler, error dialogs."""
+"""Small widgets shared by the panels: status lights, the log view and its logging handler, error dialogs, the
+panels' controls-beside-view layout."""
 from __future__ import annotations
 
 import logging
@@ -7,7 +8,16 @@ from collections.abc import Callable, Sequence
 
 from PySide6.QtCore import QObject, Qt, QTimer, Signal, Slot
 from PySide6.QtGui import QFont
-from PySide6.QtWidgets import QHBoxLayout, QLabel, QMessageBox, QPlainTextEdit, QSizePolicy, QVBoxLayout, QWidget
+from PySide6.QtWidgets import (
+    QHBoxLayout,
+    QLabel,
+    QMessageBox,
+    QPlainTextEdit,
+    QSizePolicy,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.de_scale import DeBand, de_bands
 
@@ -268,3 +278,18 @@ def image_widget(tooltip: str):
     vb.addItem(item)
     w.setToolTip(tooltip)
     return w, item, vb
+
+
+def side_by_side(panel: QWidget, left: QWidget, right: QWidget, *, stretch: tuple[int, int] = (0, 1),
+                 sizes: Sequence[int] | None = None) -> QSplitter:
+    """Fill ``panel`` with ``left`` (its controls) beside ``right`` (what they show) in a splitter the user can
+    drag; ``stretch``: how extra width is shared; ``sizes``: the starting widths in pixels."""
+    split = QSplitter(Qt.Horizontal)
+    split.addWidget(left)
+    split.addWidget(right)
+    split.setStretchFactor(0, stretch[0])
+    split.setStretchFactor(1, stretch[1])
+    if sizes:
+        split.setSizes(list(sizes))
+    QVBoxLayout(panel).addWidget(split)
+    return split

@@ -22,7 +22,7 @@ from PySide6.QtWidgets import (
 from app.gui.context import AppContext
 from app.gui.frame_preview import WARNING_STYLE, HistogramPlot
 from app.gui.viewmodel import RawView, preview_histogram, raw_view
-from app.gui.widgets import PathLabel, image_widget
+from app.gui.widgets import PathLabel, image_widget, side_by_side
 from app.session import atomic_write
 from app.workflow.vocabulary import format_exposure as format_shutter
 from drivers.camera.base import CameraSettings
@@ -52,11 +52,7 @@ class CameraPanel(QWidget):
         ll.addWidget(self._settings_box())
         ll.addWidget(self._capture_box())
         ll.addStretch(1)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(self._picture())
-        split.setStretchFactor(1, 1)
-        QVBoxLayout(self).addWidget(split)
+        side_by_side(self, left, self._picture())
         self._live_timer = QTimer(self)
         self._live_timer.setInterval(250)
         self._live_timer.timeout.connect(self._request_preview)

@@ -22,7 +22,6 @@ from PySide6.QtWidgets import (
     QPushButton,
     QScrollArea,
     QSpinBox,
-    QSplitter,
     QTableWidget,
     QTableWidgetItem,
     QTabWidget,
@@ -35,7 +34,7 @@ from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
 from app.gui.uniformity_view import UniformityView
 from app.gui.units import light_pct, parse_exposure, shutter
-from app.gui.widgets import PathLabel
+from app.gui.widgets import PathLabel, side_by_side
 from app.sequences.base import Sequence
 from app.sequences.capture import SubjectCapture
 from app.sequences.shooter import SafetySettings, Shooter
@@ -200,12 +199,7 @@ class CapturePanel(QWidget):
         self.right = QTabWidget()
         self.right.addTab(self.view, "Run")
         self.right.addTab(self.uniformity, "Flat-field uniformity")
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(scroll)
-        split.addWidget(self.right)
-        split.setStretchFactor(1, 1)
-        split.setSizes([470, 800])
-        QVBoxLayout(self).addWidget(split)
+        side_by_side(self, scroll, self.right, sizes=[470, 800])
 
     def _connect(self) -> None:
         self.lab.sessionChanged.connect(self._session_changed)

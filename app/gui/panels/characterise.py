@@ -26,7 +26,7 @@ from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
 from app.gui.units import dn, light_pct, shutter, shutters
 from app.gui.viewmodel import LINEAR_LIMIT_DN, light_from_levels
-from app.gui.widgets import plot_widget
+from app.gui.widgets import plot_widget, side_by_side
 from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import SafetySettings, Shooter
 from simulation.lightsource import LightSource
@@ -69,12 +69,7 @@ class CharacterisePanel(QWidget):
         ll.addWidget(self._settings_box())
         ll.addWidget(self.view, 1)
         ll.addWidget(self.result_label)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(self._plots())
-        split.setStretchFactor(1, 1)
-        split.setSizes([520, 760])
-        QVBoxLayout(self).addWidget(split)
+        side_by_side(self, left, self._plots(), sizes=[520, 760])
         for sig in (self.lab.cameraChanged, self.lab.sphereChanged, self.lab.sessionChanged):
             sig.connect(self.update_plan)
         ctx.workspace.runningChanged.connect(lambda _n: self.update_plan())

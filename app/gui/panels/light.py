@@ -27,7 +27,7 @@ from PySide6.QtWidgets import (
 from app.gui.context import AppContext
 from app.gui.units import dose, light_pct
 from app.gui.viewmodel import format_duration, light_from_levels, mixed_spectrum
-from app.gui.widgets import PathLabel, plot_widget
+from app.gui.widgets import PathLabel, plot_widget, side_by_side
 from drivers.led_sphere.limits import DEFAULT_MAX_ON_S
 from simulation.datasets import led_spectra
 from simulation.grid import SpectralGrid
@@ -84,11 +84,7 @@ class LightPanel(QWidget):
         right = QSplitter(Qt.Vertical)
         right.addWidget(self._spectrum_plot())
         right.addWidget(self._presets_box())
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(right)
-        split.setStretchFactor(1, 1)
-        QVBoxLayout(self).addWidget(split)
+        side_by_side(self, left, right)
         self._connect()
         saved = ctx.get("light/levels", "", str)
         try:

@@ -23,7 +23,6 @@ from PySide6.QtWidgets import (
     QLineEdit,
     QPushButton,
     QSpinBox,
-    QSplitter,
     QTableWidget,
     QTableWidgetItem,
     QVBoxLayout,
@@ -32,6 +31,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
+from app.gui.widgets import side_by_side
 from app.sequences.base import PlannedFrame, ProgressEvent
 from app.workflow.copystand import CaptureReport, StandSettings, original_takes
 from app.workflow.day import OriginalsQueue, OriginalState, QueueRow
@@ -67,12 +67,7 @@ class OriginalsPanel(QWidget):
         lv.addWidget(self._form_box())
         lv.addWidget(self._calibration_box())
         lv.addWidget(self._queue_box(), 1)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(self.view)
-        split.setStretchFactor(0, 3)
-        split.setStretchFactor(1, 2)
-        QVBoxLayout(self).addWidget(split)
+        side_by_side(self, left, self.view, stretch=(3, 2))
         self._connect()
         self._virtual_changed()
         self.show_calibration()

@@ -24,7 +24,6 @@ from PySide6.QtWidgets import (
     QProgressBar,
     QPushButton,
     QScrollArea,
-    QSplitter,
     QVBoxLayout,
     QWidget,
 )
@@ -32,7 +31,7 @@ from PySide6.QtWidgets import (
 from app.gui.context import AppContext
 from app.gui.results_plots import TargetPlots, TargetView
 from app.gui.units import with_unit
-from app.gui.widgets import PathLabel
+from app.gui.widgets import PathLabel, side_by_side
 from app.gui.workers import TaskHandle
 from app.workflow.session_processing import light_sets, subject_entries
 from app.workflow.vocabulary import Subject, SubjectKind
@@ -122,12 +121,7 @@ class ResultsPanel(QWidget):
         rl = QVBoxLayout(right)
         rl.addWidget(self.which)
         rl.addWidget(self.plots, 1)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(scroll)
-        split.addWidget(right)
-        split.setStretchFactor(1, 1)
-        split.setSizes([420, 900])
-        QVBoxLayout(self).addWidget(split)
+        side_by_side(self, scroll, right, sizes=[420, 900])
         self.lab.sessionChanged.connect(self.reload)
         ctx.bus.sessionUpdated.connect(self.reload)
         self.reload()

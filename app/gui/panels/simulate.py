@@ -34,7 +34,7 @@ import resources
 from app.gui.context import AppContext
 from app.gui.units import light_pct, time_left_s
 from app.gui.viewmodel import ConvergenceTap, format_duration
-from app.gui.widgets import plot_widget
+from app.gui.widgets import plot_widget, side_by_side
 from app.gui.workers import TaskHandle
 from simulation.camera_model import channel_names, effective_sensitivities
 from simulation.datasets import MODES, default_setup
@@ -94,12 +94,7 @@ class SimulatePanel(QWidget):
         self.right_tabs.addTab(self._search_plots(), "Search")
         self.right_tabs.addTab(self._study_charts(), "Study charts")
         self.right_tabs.currentChanged.connect(lambda i: self.load_figures() if i == 1 else None)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(self.right_tabs)
-        split.setStretchFactor(1, 1)
-        split.setSizes([480, 950])
-        QVBoxLayout(self).addWidget(split)
+        side_by_side(self, left, self.right_tabs, sizes=[480, 950])
         self._live_timer = QTimer(self)             # the live curve is redrawn at most 10 times a second
         self._live_timer.setInterval(100)
         self._live_timer.timeout.connect(self._draw_live)

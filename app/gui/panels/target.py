@@ -16,14 +16,13 @@ from PySide6.QtWidgets import (
     QLabel,
     QPushButton,
     QSpinBox,
-    QSplitter,
     QVBoxLayout,
     QWidget,
 )
 
 from app.gui.context import AppContext
 from app.gui.viewmodel import display_rgb
-from app.gui.widgets import image_widget
+from app.gui.widgets import image_widget, side_by_side
 from app.processing.patches import PatchGrid, detect_cc24
 from app.processing.report import layout_for
 from app.workflow.session_processing import subject_entries
@@ -52,11 +51,7 @@ class TargetPanel(QWidget):
         ll.addWidget(self._grid_box())
         ll.addWidget(self.info)
         ll.addStretch(1)
-        split = QSplitter(Qt.Horizontal)
-        split.addWidget(left)
-        split.addWidget(self._picture())
-        split.setStretchFactor(1, 1)
-        QVBoxLayout(self).addWidget(split)
+        side_by_side(self, left, self._picture())
         self.lab.sessionChanged.connect(self.reload)
         ctx.bus.sessionUpdated.connect(self.reload)
         self.reload()
