@@ -26,18 +26,19 @@ from app.processing.quality import quality_summary
 from app.sequences.calibration import DarkSeries, FlatSeries
 from app.sequences.capture import SubjectCapture
 from app.sequences.hdr import HdrPlan, meter_and_plan
-from app.session import CaptureSession, atomic_write, camera_definition, light_definition
-from app.session_log import SessionLog
+from app.session.capture_session import CaptureSession, atomic_write
+from app.session.log import SessionLog
+from app.session.manifest import camera_definition, light_definition
 from app.workflow.copystand import CopyStand, StandSettings, parsimony_defaults
 from app.workflow.session_processing import process_session
 from app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
 from app.workflow.vocabulary import NamedLight, Subject, lights_of
+from common.progress import CancelToken, ProgressCallback, check, report, scaled
 from drivers.virtual.lab import VirtualLab
 from simulation.camera_model import channel_responses
 from simulation.lightsource import LightSource
 from simulation.objective import ErrorStats
 from simulation.presets import Preset, save_preset
-from simulation.progress import CancelToken, ProgressCallback, check, report, scaled
 from simulation.runner import run as run_simulation
 from simulation.versions import output_header
 

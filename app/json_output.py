@@ -29,8 +29,8 @@ def add_json_option(parser: argparse.ArgumentParser, help: str = HELP) -> None:
 def write_json(dest: str | os.PathLike[str], fmt: str, data: dict,
                default: Callable[[Any], Any] | None = None) -> Path | None:
     """Write ``data`` with its header to ``dest`` ('-': stdout). A file is written whole or not at all
-    (simulation.atomic_io) and its parent folders are created; returns the file's path (None for stdout)."""
-    from simulation.atomic_io import atomic_write
+    (common.atomic_files) and its parent folders are created; returns the file's path (None for stdout)."""
+    from common.atomic_files import atomic_write
     from simulation.versions import stamped
 
     text = json.dumps(stamped(fmt, data), indent=2, default=default) + "\n"

@@ -1,10 +1,10 @@
 """Progress of long commands (simulate, study, demo) on stderr: a tqdm bar when stderr is a terminal.
 
-:class:`TerminalProgress` is a :data:`simulation.progress.ProgressCallback`. It never goes backwards (a
+:class:`TerminalProgress` is a :data:`common.progress.ProgressCallback`. It never goes backwards (a
 fraction below one already shown keeps the bar where it is; the message still updates), so callers that
 restart a sub-range cannot make the percentage jump back. When stderr is not a terminal (a pipe, a CI log) it
 writes one line per new percent (``lines=True``, what the demo's log needs) or only logs the messages at INFO;
-either way the kernels' one-off compile notice (simulation.progress.COMPILING) is printed, so a first run is
+either way the kernels' one-off compile notice (common.progress.COMPILING) is printed, so a first run is
 never silent.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ import threading
 from types import TracebackType
 from typing import Any, TextIO
 
-from simulation.progress import COMPILING
+from common.progress import COMPILING
 
 log = logging.getLogger(__name__)
 

@@ -16,8 +16,8 @@ import numpy as np
 
 from drivers.virtual.camera import StaticLight, VirtualCamera
 from drivers.virtual.dng import DngInfo, dng_bytes
-from drivers.virtual.originals import ground_truth_xyz, original_scene
-from drivers.virtual.scene import Scene
+from drivers.virtual.originals import ground_truth_xyz
+from drivers.virtual.scene import Scene, original_scene
 from simulation.datasets import default_setup
 
 log = logging.getLogger(__name__)

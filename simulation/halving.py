@@ -22,7 +22,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from simulation.progress import CancelToken, ProgressCallback, check, report
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, enforce_constraints, swarm_bests
 from simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
 

@@ -147,7 +147,7 @@ def merge_exposures(x: np.ndarray, usable: np.ndarray, exposures, method: str = 
 
 def default_method() -> str:
     """The estimator chosen by the parsimony study (resources/parsimony.json, key ``hdr_merge``)."""
-    from simulation.studies.parsimony import load_defaults
+    from simulation.defaults import load_defaults
 
     method = load_defaults().get("hdr_merge", HDR_THESIS)
     if method not in HDR_MERGE_METHODS:

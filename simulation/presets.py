@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import resources
-from simulation.atomic_io import atomic_write
+from common.atomic_files import atomic_write
 from simulation.lightsource import N_SPHERE_LEDS, LightSource
 from simulation.spectral_io import read_text_file
 from simulation.versions import output_header

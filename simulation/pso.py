@@ -17,8 +17,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.objective import Evaluator
-from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
 
 log = logging.getLogger(__name__)

@@ -15,6 +15,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from common.progress import CancelToken, ProgressCallback
 from simulation.capture_model import CaptureModel
 from simulation.choices import METHODS, OBJECTIVES
 from simulation.datasets import SimulationSetup
@@ -23,7 +24,6 @@ from simulation.ga import GaSettings, ga
 from simulation.halving import HalvingSettings, successive_halving
 from simulation.objective import Evaluator, three_channel
 from simulation.presets import Preset
-from simulation.progress import CancelToken, ProgressCallback
 from simulation.pso import PsoSettings, pso
 from simulation.robust import RobustEvaluator, RobustSettings
 from simulation.search import DEFAULT_BINS, SearchOutcome, exhaustive, light_pairs, refine_top

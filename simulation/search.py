@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.lightsource import LightSource
 from simulation.objective import ErrorStats, Evaluator
-from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simulation.progress import COMPILING, ProgressCallback, report
+from common.progress import COMPILING, ProgressCallback, report
 
 if TYPE_CHECKING:
     from simulation.objective import Evaluator

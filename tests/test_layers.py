@@ -1,7 +1,9 @@
 """The house's layers, enforced by an AST walk of every module (the rules of docs: ARCHITECTURE "layers").
 
-simulation/, drivers/ and resources/ import neither app/ nor Qt; only app/gui imports Qt; a GUI panel imports no
-other panel and no concrete driver module (it goes through the Qt-free workflow layer)."""
+common/ imports no other dualrgb package; simulation/, drivers/ and resources/ import neither app/ nor Qt; only
+app/gui imports Qt; a GUI panel imports no other panel and no concrete driver module (it goes through the Qt-free
+workflow layer). No two modules import each other, directly or through others (function-level and
+TYPE_CHECKING imports count: a circle is a design knot even where Python tolerates it)."""
 from __future__ import annotations
 
 import ast
@@ -12,11 +14,12 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 QT = ("PySide6", "pyqtgraph", "shiboken6")
 CONCRETE_DRIVERS = ("drivers.camera.gphoto", "drivers.led_sphere.driver", "drivers.virtual")
-PACKAGES = ("app", "drivers", "simulation", "resources")
+PACKAGES = ("app", "common", "drivers", "simulation", "resources")
 
 
-def imports(path: Path) -> list[str]:
-    """Absolute module names imported anywhere in ``path`` (function-level imports included)."""
+def imports(path: Path, *, names: bool = False) -> list[str]:
+    """Absolute module names imported anywhere in ``path`` (function-level imports included); with ``names``
+    also ``pkg.name`` for every ``from pkg import name`` (the name may be a module)."""
     tree = ast.parse(path.read_text(), filename=str(path))
     out = []
     for node in ast.walk(tree):
@@ -24,6 +27,8 @@ def imports(path: Path) -> list[str]:
             out += [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             out.append(node.module)
+            if names:
+                out += [f"{node.module}.{a.name}" for a in node.names]
     return out
 
 
@@ -34,6 +39,8 @@ def violations(root: Path = ROOT) -> list[str]:
             parts = path.relative_to(root).parts
             for mod in imports(path):
                 top = mod.split(".")[0]
+                if parts[0] == "common" and (top in PACKAGES or top in QT):
+                    bad.append(f"{'/'.join(parts)}: imports {mod}")
                 if parts[0] in ("simulation", "drivers", "resources") and (top == "app" or top in QT):
                     bad.append(f"{'/'.join(parts)}: imports {mod}")
                 if parts[0] == "app" and top in QT and parts[1] != "gui":
@@ -44,12 +51,91 @@ def violations(root: Path = ROOT) -> list[str]:
     return bad
 
 
+def module_graph(root: Path = ROOT) -> dict[str, set[str]]:
+    """Module -> the dualrgb modules it imports (a name resolved to the longest module it names; a package's
+    ``__init__`` importing its own submodules is no edge)."""
+    files = {}
+    for pkg in PACKAGES:
+        for path in (root / pkg).rglob("*.py"):
+            name = ".".join(path.relative_to(root).with_suffix("").parts)
+            files[name.removesuffix(".__init__")] = path
+
+    def resolve(name: str) -> str | None:
+        while name and name not in files:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    graph: dict[str, set[str]] = {}
+    for mod, path in files.items():
+        targets = {resolve(m) for m in imports(path, names=True)}
+        graph[mod] = {t for t in targets if t and t != mod and not mod.startswith(t + ".")}
+    return graph
+
+
+def import_circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan's algorithm, iterative)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    circles = []
+    for start in sorted(graph):
+        if start in index:
+            continue
+        work = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
+                    if member == node:
+                        break
+                if len(component) > 1:
+                    circles.append(sorted(component))
+    return circles
+
+
 def test_layers_hold():
     assert violations() == []
 
 
+def test_no_import_circles():
+    assert import_circles(module_graph()) == []
+
+
+def test_import_circles_are_found(tmp_path):
+    for pkg in PACKAGES:
+        (tmp_path / pkg).mkdir()
+        (tmp_path / pkg / "__init__.py").write_text("")
+    (tmp_path / "app" / "a.py").write_text("from app.b import x\n")
+    (tmp_path / "app" / "b.py").write_text("def f():\n    from app import c\n")        # function-level counts
+    (tmp_path / "app" / "c.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import app.a\n")
+    (tmp_path / "app" / "d.py").write_text("import app.a\n")                          # on no circle
+    assert import_circles(module_graph(tmp_path)) == [["app.a", "app.b", "app.c"]]
+
+
 @pytest.mark.parametrize("rel, source, expected", [
-    ("simulation/x.py", "from app.session import CaptureSession\n", "simulation/x.py: imports app.session"),
+    ("simulation/x.py", "from app.session.capture_session import CaptureSession\n", "imports app.session"),
+    ("common/x.py", "from simulation.grid import DEFAULT_GRID\n", "common/x.py: imports simulation.grid"),
     ("drivers/x.py", "def f():\n    import PySide6.QtCore\n", "drivers/x.py: imports PySide6.QtCore"),
     ("app/processing/x.py", "import pyqtgraph as pg\n", "outside app/gui"),
     ("app/gui/panels/x.py", "from app.gui.panels.camera import image_widget\n", "panel imports app.gui.panels"),

@@ -37,7 +37,7 @@ def newest_calibration(session) -> Path:
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.session import CaptureSession
+    from app.session.capture_session import CaptureSession
     from app.workflow.copystand import redeliver
     from app.workflow.profile import load_profile
 

@@ -75,10 +75,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     # imported here so that other subcommands start without loading colour-science and numba
     from simulation.datasets import default_setup
+    from simulation.defaults import load_defaults
     from simulation.grid import SpectralGrid
     from simulation.presets import save_preset
     from simulation.runner import format_table, run
-    from simulation.studies.parsimony import load_defaults
 
     step = args.step if args.step is not None else float(load_defaults()["spectral_step_nm"])
     setup = default_setup(args.mode, SpectralGrid(410.0, 780.0, step), camera_csv=args.camera_csv,

@@ -63,7 +63,7 @@ def ask_person(message: str) -> None:
 def write_json(path: Path | None, data: dict) -> None:
     if path is None:
         return
-    from app.session import atomic_write
+    from app.session.capture_session import atomic_write
 
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     atomic_write(Path(path), (json.dumps(data, indent=2, default=str) + "\n").encode())
@@ -140,7 +140,8 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
 def open_session(folder: Path, definition: dict, camera: Any, meta: dict | None = None) -> Any:
     """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
     (anything else is refused in one line naming the difference; app.session). One writer at a time."""
-    from app.session import CaptureSession, camera_definition
+    from app.session.capture_session import CaptureSession
+    from app.session.manifest import camera_definition
 
     session = CaptureSession.resume(Path(folder), definition, meta or {},
                                     hint="use the same options and camera, or another --session")

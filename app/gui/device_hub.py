@@ -15,7 +15,7 @@ from PySide6.QtCore import QObject, QTimer, Signal
 
 from app.gui.viewmodel import DoseFeed, light_from_levels
 from app.gui.workers import TaskHandle, TaskRunner
-from app.session_log import SessionLog
+from app.session.log import SessionLog
 from drivers.camera.base import Camera, CameraError
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.led_sphere.driver import DEFAULT_MAX_ON_S
@@ -48,7 +48,7 @@ def discover_cameras() -> tuple[list[str], list[str]]:
 class Lab(QObject):
     sphereChanged = Signal()
     cameraChanged = Signal()
-    sphereStatus = Signal(object)          # dict: LedSphere.status() plus 'dose' (app.light_dose.LightDose)
+    sphereStatus = Signal(object)          # dict: LedSphere.status() plus 'dose' (app.session.light_dose.LightDose)
     sessionChanged = Signal()
     lightApplied = Signal(object)          # LightSource now on the sphere
     virtualLabChanged = Signal()
@@ -337,7 +337,7 @@ class Lab(QObject):
     def session_definition(self) -> dict:
         """What defines the frames of a session made here (app.session: reopening with anything else is
         refused, naming the difference): the mode, the camera, and the virtual lab's frame size."""
-        from app.session import camera_definition
+        from app.session.manifest import camera_definition
 
         vl = self.virtual_lab
         out: dict[str, Any] = {"mode": vl.mode if vl is not None else self.mode}

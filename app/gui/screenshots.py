@@ -16,7 +16,8 @@ from pathlib import Path
 from PySide6.QtCore import QBuffer, QIODevice, QObject, QTimer
 from PySide6.QtWidgets import QApplication
 
-from simulation.atomic_io import atomic_write
+from app.workflow.day import OriginalState
+from common.atomic_files import atomic_write
 
 log = logging.getLogger(__name__)
 
@@ -120,7 +121,8 @@ class ScreenshotRun(QObject):
             org.stand_in.setCurrentText(stand_in)
             org.add_original()
         org.capture([r.identifier for r in w.ctx.workspace.queue.waiting()])
-        return lambda: all(r.state.value in ("delivered", "failed") for r in w.ctx.workspace.queue.rows)
+        ended = (OriginalState.DELIVERED, OriginalState.FAILED)
+        return lambda: all(r.state in ended for r in w.ctx.workspace.queue.rows)
 
     def _list_targets(self):
         tgt = self.w.target

@@ -62,7 +62,7 @@ def drive(run: Run, emit: Callable[[ProgressEvent], None], sphere: Any = None) -
         run.execute(emit)
         return
     for event in run.run():
-        if event.kind == EventKind.PROMPT.value:
+        if event.kind is EventKind.PROMPT:
             run.pause()
         emit(event)
 
@@ -233,10 +233,10 @@ class SequenceView(QWidget):
 
     def _on_event(self, ev: ProgressEvent) -> None:
         self.events.append(ev)
-        if ev.kind == EventKind.CANCELLED.value:
+        if ev.kind is EventKind.CANCELLED:
             self.outcome = "cancelled"
             self.message.setText(ev.message)
-        elif ev.kind == EventKind.PROMPT.value:
+        elif ev.kind is EventKind.PROMPT:
             self.message.setText(f"<b>{ev.message}</b>")
             self.continue_button.show()
             self.pause_button.setEnabled(False)
@@ -245,8 +245,8 @@ class SequenceView(QWidget):
         if "plan" in ev.data:
             self.show_plan(ev.data["plan"], self.seq.name if self.seq else "")
             self._ticked = 0
-        if ev.kind in (EventKind.FRAME.value, EventKind.KEPT.value) or ev.data.get("role") == "metering":
-            self.tick(self._ticked, "already in the session" if ev.kind == EventKind.KEPT.value else "saved now")
+        if ev.kind in (EventKind.FRAME, EventKind.KEPT) or ev.data.get("role") == "metering":
+            self.tick(self._ticked, "already in the session" if ev.kind is EventKind.KEPT else "saved now")
             self._ticked += 1
             self.ctx.bus.frameSaved.emit()
         self._preview(ev)
@@ -296,8 +296,8 @@ class SequenceView(QWidget):
     def _done_message(self, seq: Any) -> None:
         self.progress.setValue(1000)
         self.time_left.setText("")
-        frames = [e for e in self.events if e.kind == EventKind.FRAME.value]
-        kept = sum(e.kind == EventKind.KEPT.value for e in self.events)
+        frames = [e for e in self.events if e.kind is EventKind.FRAME]
+        kept = sum(e.kind is EventKind.KEPT for e in self.events)
         if frames and seq is not None and not isinstance(seq, StandRun):
             spent = time.monotonic() - self._t_start
             exposure = sum(float(e.data.get("exposure_s") or 0.0) for e in frames)

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from app.gui.units import dn, light_pct, percent, shutters
-from app.light_dose import LightDose
+from app.session.light_dose import LightDose
 from app.processing.hdr import LINEAR_LIMIT_DN  # the one linear limit (thesis 4.1), used everywhere
 from simulation.lightsource import LightSource
 
@@ -66,7 +66,7 @@ def raw_histogram(planes: dict[str, np.ndarray], white_level: float, linear_limi
 
 
 class DoseFeed:
-    """Feeds app.light_dose.LightDose from the panel's status polls (levels and light switch as the sphere
+    """Feeds app.session.light_dose.LightDose from the panel's status polls (levels and light switch as the sphere
     reports them): the light shown between two polls is counted for the time between them."""
 
     def __init__(self) -> None:

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.processing.mosaic import FrameLike, mosaic_of, row_bands
-from simulation.progress import CancelToken, ProgressCallback, check, report
+from common.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 

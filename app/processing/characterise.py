@@ -25,10 +25,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import optimize
 
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.matrix_fit import CharacterisationMatrix, fit_matrix
 from simulation.objective import ErrorStats
-from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 

@@ -189,6 +189,6 @@ def write_de_map_png(path: Path, de_map: np.ndarray, *, title: str = "", vmax: f
     bar = fig.colorbar(im, ax=ax, extend="max", fraction=0.046, pad=0.04)
     bar.set_label("ΔE00")
     fig.tight_layout()
-    from app.processing.report import save_figure  # the atomic write: a full disk leaves no half PNG
+    from app.processing.figure_files import save_figure  # the atomic write: a full disk leaves no half PNG
 
     return save_figure(fig, path)

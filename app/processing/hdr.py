@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.processing.mosaic import DEFAULT_BAND_ROWS, FrameLike, mosaic_of
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.hdr_estimators import (
     HDR_MERGE_METHODS,
     HDR_METHOD_CODES,
@@ -58,7 +59,6 @@ from simulation.hdr_estimators import (
     default_method,
     triangle_weight,
 )
-from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """Output files: 16-bit TIFFs with real TIFF metadata (resolution, Make/Model, DateTime, Software,
 ImageDescription), embedded ICC profiles and XMP; CSVs of patch values and matrices. Every file is written
-through ``simulation.atomic_io.atomic_output`` (temp file, fsync, rename): a reader sees the old file or the new.
+through ``common.atomic_files.atomic_output`` (temp file, fsync, rename): a reader sees the old file or the new.
 
 ICC profiles
     * sRGB: Pillow's ImageCms (LittleCMS' built-in sRGB, ``ImageCms.createProfile("sRGB")``).
@@ -32,7 +32,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from simulation.atomic_io import atomic_output
+from common.atomic_files import atomic_output
 from simulation.matrix_fit import CharacterisationMatrix
 
 log = logging.getLogger(__name__)

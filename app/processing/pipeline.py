@@ -33,8 +33,8 @@ import numpy as np
 from app.processing.calibration import FlatField, MasterDark
 from app.processing.hdr import LINEAR_LIMIT_DN, HdrMerge, HdrResult
 from app.processing.mosaic import FrameLike, cfa_of, iter_open_raw, mosaic_of, white_level_of
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.camera_model import CHANNELS
-from simulation.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.processing.report import _figure, _save  # the report's Agg figure and save helpers
+from app.processing.figure_files import new_figure, save_tight
 
 log = logging.getLogger(__name__)
 
@@ -23,7 +23,7 @@ def _finish_bars(ax, x, labels, title: str, rotation: int) -> None:
 def lab_components_figure(path: Path, names: Sequence[str], comp: dict, title: str) -> Path:
     """dL*, dC*ab, dH*ab per patch as grouped bars."""
     n = len(names)
-    fig = _figure(max(6.0, 0.32 * n + 2), 3.6)
+    fig = new_figure(max(6.0, 0.32 * n + 2), 3.6)
     ax = fig.add_subplot(111)
     x = np.arange(n)
     for j, (key, label) in enumerate((("dL", "ΔL*"), ("dC", "ΔC*ab"), ("dH", "ΔH*ab"))):
@@ -31,12 +31,12 @@ def lab_components_figure(path: Path, names: Sequence[str], comp: dict, title: s
     ax.axhline(0, color="0.3", lw=0.6)
     ax.set_ylabel("captured − reference")
     _finish_bars(ax, x, names, f"{title}: CIELAB differences per patch", 90)
-    return _save(fig, path)
+    return save_tight(fig, path)
 
 
 def tone_figure(path: Path, tone: dict, limit: float | None, title: str) -> Path:
     """Neutral patches: captured vs reference L* (tone response) and each patch's dL* and white balance error."""
-    fig = _figure(9.0, 3.6)
+    fig = new_figure(9.0, 3.6)
     a1, a2 = fig.add_subplot(121), fig.add_subplot(122)
     ref, cap = np.asarray(tone["reference_L"]), np.asarray(tone["captured_L"])
     a1.plot([0, 100], [0, 100], color="0.7", lw=0.8)
@@ -52,14 +52,14 @@ def tone_figure(path: Path, tone: dict, limit: float | None, title: str) -> Path
         for s in (1, -1):
             a2.axhline(s * limit, color="tab:red", ls="--", lw=0.8)
     _finish_bars(a2, x, tone.get("names", [str(i) for i in x]), f"{title}: per neutral patch", 60)
-    return _save(fig, path)
+    return save_tight(fig, path)
 
 
 def uniformity_figure(path: Path, uniformity: dict) -> Path:
     """Per light: percent deviation of the green channel's block means, raw light field and after flat-field."""
     lights = list(uniformity)
     cols = max(len(lights), 1)
-    fig = _figure(3.6 * cols, 5.6)
+    fig = new_figure(3.6 * cols, 5.6)
     for j, light in enumerate(lights):
         for i, key in enumerate(("light_field", "after_flat_field")):
             g = uniformity[light].get(key, {}).get("G")
@@ -75,4 +75,4 @@ def uniformity_figure(path: Path, uniformity: dict) -> Path:
             what = "light field" if key == "light_field" else "flat-fielded white"
             ax.set_title(f"{light}: {what}\nrange {g['range_pct']:.2f} %", fontsize=8)
             fig.colorbar(im, ax=ax, label="% from mean", fraction=0.046)
-    return _save(fig, path)
+    return save_tight(fig, path)

@@ -42,7 +42,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from app.processing.characterise import Characterisation
-from simulation.atomic_io import atomic_output, atomic_write
+from app.processing.figure_files import new_figure, save_figure, save_tight
+from common.atomic_files import atomic_write
 from simulation.colorimetry import xyz_to_lab
 from simulation.objective import ErrorStats
 from simulation.versions import output_header
@@ -178,28 +179,6 @@ def dn_validation(simulated: np.ndarray, captured: np.ndarray, channels: Sequenc
 
 
 # ---------------------------------------------------------------- figures
-def _figure(w: float, h: float):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(w, h), dpi=110)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    return save_figure(fig, path)
-
-
-def save_figure(fig, path: Path, **kwargs) -> Path:
-    """``fig.savefig`` through the atomic write (a full disk leaves no half PNG; the error names the file)."""
-    path = Path(path)
-    with atomic_output(path, "wb") as fh:
-        fig.savefig(fh, format=path.suffix.lstrip(".") or "png", **kwargs)
-    return path
-
-
 def layout_for(n: int, layout: tuple[int, int] | None = None) -> tuple[int, int]:
     if layout and layout[0] * layout[1] >= n:
         return int(layout[0]), int(layout[1])
@@ -221,7 +200,7 @@ def heatmap_figure(path: Path, errors: np.ndarray, layout: tuple[int, int], titl
     rows, cols = layout
     grid = np.full(rows * cols, np.nan)
     grid[: len(errors)] = errors
-    fig = _figure(max(4.0, cols * 0.55 + 1.5), max(2.5, rows * 0.5 + 1.0))
+    fig = new_figure(max(4.0, cols * 0.55 + 1.5), max(2.5, rows * 0.5 + 1.0))
     ax = fig.add_subplot(111)
     im = ax.imshow(grid.reshape(rows, cols), cmap="viridis", vmin=0)
     if len(errors) <= 60:
@@ -233,13 +212,13 @@ def heatmap_figure(path: Path, errors: np.ndarray, layout: tuple[int, int], titl
     ax.set_yticks([])
     ax.set_title(title)
     fig.colorbar(im, ax=ax, label="ΔE00")
-    return _save(fig, path)
+    return save_tight(fig, path)
 
 
 def lab_scatter_figure(path: Path, xyz_ref: np.ndarray, errors: np.ndarray, white: np.ndarray, title: str) -> Path:
     lab = xyz_to_lab(xyz_ref, white)
     chroma = np.hypot(lab[:, 1], lab[:, 2])
-    fig = _figure(9, 4)
+    fig = new_figure(9, 4)
     ax1, ax2 = fig.add_subplot(121), fig.add_subplot(122)
     sc = ax1.scatter(lab[:, 1], lab[:, 2], c=errors, cmap="plasma", s=22, vmin=0)
     ax1.axhline(0, color="0.8", lw=0.5)
@@ -267,13 +246,13 @@ def patch_mosaic_figure(path: Path, xyz_ref: np.ndarray, xyz_pred: np.ndarray, w
         y, x = r * cell, c * cell
         img[y + 1: y + cell - 1, x + 1: x + cell // 2] = gt[k]
         img[y + 1: y + cell - 1, x + cell // 2: x + cell - 1] = pr[k]
-    fig = _figure(max(4.0, cols * 0.5 + 1), max(2.5, rows * 0.5 + 0.8))
+    fig = new_figure(max(4.0, cols * 0.5 + 1), max(2.5, rows * 0.5 + 0.8))
     ax = fig.add_subplot(111)
     ax.imshow(img, interpolation="nearest")
     ax.set_xticks([])
     ax.set_yticks([])
     ax.set_title(f"{title}: left ground truth, right prediction (sRGB)")
-    return _save(fig, path)
+    return save_tight(fig, path)
 
 
 def dn_validation_figure(path: Path, simulated: np.ndarray, captured: np.ndarray, fits: Sequence[ChannelFit]
@@ -281,7 +260,7 @@ def dn_validation_figure(path: Path, simulated: np.ndarray, captured: np.ndarray
     n = len(fits)
     cols = min(n, 3)
     rows = int(math.ceil(n / cols))
-    fig = _figure(3.3 * cols, 3.0 * rows)
+    fig = new_figure(3.3 * cols, 3.0 * rows)
     for j, f in enumerate(fits):
         ax = fig.add_subplot(rows, cols, j + 1)
         x, y = simulated[:, j], captured[:, j]
@@ -294,7 +273,7 @@ def dn_validation_figure(path: Path, simulated: np.ndarray, captured: np.ndarray
         ax.set_title(f"{f.channel}: R²={f.r2:.4f} (clean {f.r2_clean:.4f})", fontsize=9)
         ax.set_xlabel("simulated")
         ax.set_ylabel("captured")
-    return _save(fig, path)
+    return save_tight(fig, path)
 
 
 # ---------------------------------------------------------------- the report

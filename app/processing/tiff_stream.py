@@ -16,7 +16,7 @@ page cache costs about as much CPU as the encoding itself (~1 GB/s on the 2-core
   next write, the last block is padded and the file truncated to its size. Where the file system refuses
   ``O_DIRECT`` (tmpfs, some network file systems, other OSes) the same writes go through the page cache.
 
-Atomic like every output (simulation.atomic_io): the file is written as ``.<name>.<pid>.tmp`` beside the
+Atomic like every output (common.atomic_files): the file is written as ``.<name>.<pid>.tmp`` beside the
 target, fsynced once at the end, renamed over the target, the folder fsynced; any error removes the temp file,
 leaves the previous file intact and raises a FileWriteError naming the target.
 """
@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from simulation.atomic_io import fsync_dir, remove_quietly, temp_path, write_error
+from common.atomic_files import fsync_dir, remove_quietly, temp_path, write_error
 
 log = logging.getLogger(__name__)
 

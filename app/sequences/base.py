@@ -20,7 +20,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from simulation.atomic_io import require_free_space
+from app.workflow.vocabulary import EventKind
+from common.atomic_files import require_free_space
 
 log = logging.getLogger(__name__)
 
@@ -42,7 +43,7 @@ class ProgressEvent:
     step: int                    # steps completed so far
     total: int                   # steps planned
     message: str
-    kind: str = "progress"       # 'progress' | 'frame' (a frame was saved) | 'prompt' (needs the user) | 'done'
+    kind: EventKind = EventKind.PROGRESS     # a frame saved or kept, a prompt for the user, done, cancelled
     time_left_s: float | None = None
     data: dict[str, Any] = field(default_factory=dict)
 
@@ -132,7 +133,7 @@ class Sequence:
                 self.checkpoint()
         except SequenceCancelled:
             log.info("%s cancelled", self.name)
-            yield ProgressEvent(0, 0, f"{self.name} cancelled; lights off", kind="cancelled")
+            yield ProgressEvent(0, 0, f"{self.name} cancelled; lights off", kind=EventKind.CANCELLED)
         finally:
             try:
                 self._cleanup()

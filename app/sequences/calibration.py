@@ -39,7 +39,7 @@ class DarkSeries(BaseSequence):
     def _steps(self) -> Iterator[ProgressEvent]:
         total = len(self.exposures) * self.frames
         if not self.shooter.place("lens-cap"):
-            yield ProgressEvent(0, total, "Put the lens cap on, then continue", kind=EventKind.PROMPT.value,
+            yield ProgressEvent(0, total, "Put the lens cap on, then continue", kind=EventKind.PROMPT,
                                 data={"place": "lens-cap"})
         self.shooter.lights_off()
         step = 0
@@ -49,7 +49,7 @@ class DarkSeries(BaseSequence):
                 kind = EventKind.KEPT if self.shooter.session.has_step(step_) else EventKind.FRAME
                 entry = self.shooter.shoot(Role.DARK.value, None, t, step_, frame_index=i)
                 step += 1
-                yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {t:g} s", kind=kind.value,
+                yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {t:g} s", kind=kind,
                                     data={"entry": entry.seq, "exposure_s": t})
 
     def _cleanup(self) -> None:
@@ -79,7 +79,7 @@ class FlatSeries(BaseSequence):
     def _steps(self) -> Iterator[ProgressEvent]:
         total = len(self.plan())
         if not self.shooter.place("open-gate"):
-            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind=EventKind.PROMPT.value,
+            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind=EventKind.PROMPT,
                                 data={"place": "open-gate"})
         step = 0
         for nl in self.lights:
@@ -90,7 +90,7 @@ class FlatSeries(BaseSequence):
                     entry = self.shooter.shoot(Role.FLAT.value, nl.light, t, step_, light_name=nl.name, frame_index=i)
                     step += 1
                     yield ProgressEvent(step, total, f"flat {nl.name} {i + 1}/{self.frames} at {t:g} s",
-                                        kind=kind.value, data={"entry": entry.seq, "exposure_s": t})
+                                        kind=kind, data={"entry": entry.seq, "exposure_s": t})
 
     def _cleanup(self) -> None:
         self.shooter.lights_off()

@@ -63,7 +63,7 @@ class SubjectCapture(BaseSequence):
         total = len(self.plan())
         if not self.shooter.place(self.subject.place, self.subject.nd):
             yield ProgressEvent(0, total, f"Place the {self.subject.label}, then continue",
-                                kind=EventKind.PROMPT.value, data={"place": self.subject.place, "nd": self.subject.nd})
+                                kind=EventKind.PROMPT, data={"place": self.subject.place, "nd": self.subject.nd})
         for step, (nl, t, i) in enumerate(self._shots(), start=1):
             sid = self._step(nl, t, i)
             kind = EventKind.KEPT if self.shooter.session.has_step(sid) else EventKind.FRAME
@@ -71,7 +71,7 @@ class SubjectCapture(BaseSequence):
                                        subject=self.subject.key, take=self.take, **self.meta)
             self.kept += kind is EventKind.KEPT
             self.new += kind is EventKind.FRAME
-            yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {t:g} s", kind=kind.value,
+            yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {t:g} s", kind=kind,
                                 data={"entry": entry.seq, "exposure_s": t, "light": nl.name})
 
     def _cleanup(self) -> None:

@@ -16,7 +16,7 @@ from app.processing.crf_analysis import CrfResult, analyse_crf
 from app.sequences.base import PlannedFrame, ProgressEvent
 from app.sequences.base import Sequence as BaseSequence
 from app.sequences.shooter import Shooter
-from app.workflow.vocabulary import exposure_key
+from app.workflow.vocabulary import EventKind, exposure_key
 from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
@@ -58,7 +58,7 @@ class CrfSweep(BaseSequence):
     def _steps(self) -> Iterator[ProgressEvent]:
         total = len(self.levels) * len(self.exposures)
         if not self.shooter.place("open-gate"):
-            yield ProgressEvent(0, total, "Open gate (no target), then continue", kind="prompt",
+            yield ProgressEvent(0, total, "Open gate (no target), then continue", kind=EventKind.PROMPT,
                                 data={"place": "open-gate"})
         step = 0
         for lv in self.levels:
@@ -72,7 +72,7 @@ class CrfSweep(BaseSequence):
                 pts.append((t, g))
                 self.shooter.forget()
                 step += 1
-                yield ProgressEvent(step, total, f"CRF x{lv:g}: {t:g} s -> {g:.0f} DN", kind="frame",
+                yield ProgressEvent(step, total, f"CRF x{lv:g}: {t:g} s -> {g:.0f} DN", kind=EventKind.FRAME,
                                     data={"exposure_s": t, "signal_dn": g, "level": lv})
                 if g >= 0.97 * (frame.white_level - max(frame.black_levels)):
                     clipped += 1
@@ -83,7 +83,7 @@ class CrfSweep(BaseSequence):
                 self.results[lv] = analyse_crf([p[0] for p in pts], [p[1] for p in pts])
             except ValueError as exc:
                 log.info("CRF x%g: %s", lv, exc)
-        yield ProgressEvent(total, total, "CRF sweep analysed", kind="done", data={"result": self.summary()})
+        yield ProgressEvent(total, total, "CRF sweep analysed", kind=EventKind.DONE, data={"result": self.summary()})
 
     def summary(self) -> dict:
         flagged = sorted({t for r in self.results.values() for t in r.flagged})

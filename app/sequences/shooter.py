@@ -22,8 +22,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from app.light_dose import LightDose
-from app.session import CaptureSession, SessionEntry
+from app.session.capture_session import CaptureSession
+from app.session.light_dose import LightDose
+from app.session.manifest import SessionEntry
 from drivers.camera.base import DEFAULT_LATENCY_S, Camera, CameraError, Exposure, RawCapture, call_with_deadline
 from drivers.led_sphere import LightReport, SphereError
 from drivers.raw import RawFrame, load_raw

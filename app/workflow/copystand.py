@@ -7,7 +7,7 @@
 
 The GUI, the CLI and the demo drive the stand through this object. Long work reports through plain callbacks:
 ``progress(fraction, message)`` and ``on_event(ProgressEvent)`` (every frame saved / kept, every prompt);
-``cancel`` (a simulation.progress.CancelToken) stops between frames with the LEDs off. Hooks for a person:
+``cancel`` (a common.progress.CancelToken) stops between frames with the LEDs off. Hooks for a person:
 ``prompt(message)`` returns when they have done what it asks (place the target, cap the lens; never called when
 a ``stand`` callback places things, as in the virtual lab) and ``reshoot(original, n_frames)`` answers whether an
 original already in the session is shot again (True: new frames under the next take) or kept (False).
@@ -43,8 +43,8 @@ from app.workflow.profile import (
 )
 from app.workflow.session_processing import SessionResult, process_session
 from app.workflow.targets import TargetSpec, reference_white, target_spec
-from app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, lights_of, split_take, subject_of
-from simulation.progress import Cancelled, CancelToken, ProgressCallback, report
+from app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, lights_of, role_of, split_take, subject_of
+from common.progress import Cancelled, CancelToken, ProgressCallback, report
 
 log = logging.getLogger(__name__)
 
@@ -55,7 +55,7 @@ VIRTUAL_TARGET_WIDTH_MM = 280.0     # the virtual lab's test target, outer corne
 
 
 def parsimony_defaults() -> dict:
-    from simulation.studies.parsimony import load_defaults
+    from simulation.defaults import load_defaults
 
     return load_defaults()
 
@@ -113,9 +113,9 @@ class CopyStand:
         for ev in seq.run():
             if self.cancel is not None and self.cancel.cancelled:
                 seq.cancel()
-            if ev.kind == EventKind.CANCELLED.value:
+            if ev.kind is EventKind.CANCELLED:
                 raise Cancelled(ev.message)
-            if ev.kind == EventKind.PROMPT.value:
+            if ev.kind is EventKind.PROMPT:
                 if self.prompt is None:
                     raise ValueError(f"{ev.message}: a person must do this (no stand and no prompt)")
                 self.prompt(ev.message)
@@ -205,7 +205,7 @@ class CopyStand:
     def _profile(self, preset: Any, lights: list[NamedLight], plan: dict[str, list[float]], base: dict[str, float],
                  result: SessionResult, test: TargetSpec) -> CalibrationProfile:
         proc = result.processor
-        entries = [e for e in self.session.entries() if e.role in (Role.DARK.value, Role.FLAT.value, Role.TARGET.value)]
+        entries = [e for e in self.session.entries() if role_of(e) in (Role.DARK, Role.FLAT, Role.TARGET)]
         sources = {e.file: e.sha256 for e in entries}
         temps = [e.sphere_temperature_c for e in entries if e.sphere_temperature_c is not None]
         sphere = SphereIdentity.of(self.sphere)
@@ -290,7 +290,7 @@ class CopyStand:
                              frames=self.settings.original_frames)
 
         def landed(ev: ProgressEvent) -> None:            # merge each frame as soon as it is on disk
-            if ev.kind in (EventKind.FRAME.value, EventKind.KEPT.value):
+            if ev.kind in (EventKind.FRAME, EventKind.KEPT):
                 e = next(x for x in self.session.entries() if x.seq == ev.data["entry"])
                 builder.add(ev.data["light"], ExposureRef(self.session.file_path(e), float(e.exposure_s), e.file),
                             cancel=self.cancel)
@@ -322,12 +322,12 @@ def original_takes(session: Any, original: Original) -> list[int]:
     "already in the session: re-shoot / keep" when it is not empty."""
     subject = original.subject
     return [split_take(e.step_id or "")[1] for e in session.entries(include_superseded=True)
-            if e.role == Role.ORIGINAL.value and subject_of(e) == subject]
+            if role_of(e) is Role.ORIGINAL and subject_of(e) == subject]
 
 
 def original_dose(session: Any, subject: Subject) -> LightDoseRecord:
     """Every lit period of an original (metering, every take) from the session manifest's dose lines."""
-    from app.light_dose import LightDose, light_from_record
+    from app.session.light_dose import LightDose, light_from_record
 
     total = LightDose()
     marker = f"/{subject.key}/"

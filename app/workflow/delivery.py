@@ -27,7 +27,7 @@ from typing import Any
 from app.processing.encode import LINEAR_ONE, DeliveryEncoder
 from app.processing.outputs import TiffMetadata, icc_profile, open_tiff, tiff_datetime, xmp_packet
 from app.processing.pipeline import ChannelStack
-from app.session import atomic_write
+from app.session.capture_session import atomic_write
 from app.workflow.profile import CalibrationProfile, CameraIdentity
 from app.workflow.vocabulary import Subject
 from simulation.versions import dualrgb_version, output_header

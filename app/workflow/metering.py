@@ -48,7 +48,7 @@ class AutoExposure(BaseSequence):
     def _steps(self) -> Iterator[ProgressEvent]:
         total = len(self.lights)
         if not self.shooter.place("open-gate"):
-            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind=EventKind.PROMPT.value,
+            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind=EventKind.PROMPT,
                                 data={"place": "open-gate"})
             self.shooter.placed = ("open-gate", False)        # the person did it: not asked again
         for i, nl in enumerate(self.lights, start=1):
@@ -94,7 +94,7 @@ class HdrMetering(BaseSequence):
         total = len(self.lights)
         if not self.shooter.place(self.subject.place, self.subject.nd):
             yield ProgressEvent(0, total, f"Place the {self.subject.label}, then continue",
-                                kind=EventKind.PROMPT.value, data={"place": self.subject.place})
+                                kind=EventKind.PROMPT, data={"place": self.subject.place})
             self.shooter.placed = (self.subject.place, self.subject.nd)
         for i, nl in enumerate(self.lights, start=1):
             self.checkpoint()

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from app.processing.calibration import DarkFrame, FlatField, MasterDark
-from app.session import atomic_write
+from app.session.capture_session import atomic_write
 from app.workflow.vocabulary import NamedLight, exposure_key
 from simulation.lightsource import LightSource
 from simulation.matrix_fit import CharacterisationMatrix

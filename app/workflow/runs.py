@@ -22,7 +22,7 @@ from typing import Any, Generic, TypeVar
 
 from app.sequences.base import PlannedFrame, ProgressEvent
 from app.workflow.vocabulary import EventKind
-from simulation.progress import Cancelled, CancelToken
+from common.progress import Cancelled, CancelToken
 
 log = logging.getLogger(__name__)
 
@@ -95,13 +95,13 @@ class StandRun(Generic[T]):
             emit(ProgressEvent(int(round(1000 * fraction)), 1000, message, data={RUN_PROGRESS: True}))
 
         def on_event(ev: ProgressEvent) -> None:
-            if ev.kind != EventKind.PROMPT.value:       # prompts are announced by ``prompt``
+            if ev.kind is not EventKind.PROMPT:       # prompts are announced by ``prompt``
                 emit(ev)
                 self._gate()
 
         def prompt(message: str) -> None:
             self.pause()
-            emit(ProgressEvent(0, 0, message, kind=EventKind.PROMPT.value))
+            emit(ProgressEvent(0, 0, message, kind=EventKind.PROMPT))
             self._gate()
 
         hooks = RunHooks(progress, self._token, prompt, on_event)
@@ -109,6 +109,6 @@ class StandRun(Generic[T]):
             self.result = self._work(hooks)
         except Cancelled:
             log.info("%s cancelled", self.name)
-            emit(ProgressEvent(0, 0, f"{self.name} cancelled; lights off", kind=EventKind.CANCELLED.value))
+            emit(ProgressEvent(0, 0, f"{self.name} cancelled; lights off", kind=EventKind.CANCELLED))
             return None
         return self.result

@@ -20,7 +20,7 @@ from app.processing.hdr import LINEAR_LIMIT_DN
 from app.processing.pipeline import CaptureProcessor, ChannelStack, ExposureRef, sub_progress
 from app.workflow.targets import TargetSpec, reference_white
 from app.workflow.vocabulary import Role, Subject, latest_takes, light_of, role_of, subject_of
-from simulation.progress import CancelToken, ProgressCallback, check, report
+from common.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 

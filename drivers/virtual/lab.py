@@ -16,8 +16,8 @@ import numpy as np
 
 from drivers.led_sphere import LedSphere
 from drivers.virtual.camera import VirtualCamera
-from drivers.virtual.originals import ORIGINAL_PREFIX, ORIGINALS, ground_truth_xyz, original_name, original_scene
-from drivers.virtual.scene import Scene
+from drivers.virtual.originals import ORIGINAL_PREFIX, ORIGINALS, ground_truth_xyz, original_name
+from drivers.virtual.scene import Scene, original_scene
 from drivers.virtual.sphere_emulator import SphereEmulator
 from simulation.datasets import Target, default_setup
 

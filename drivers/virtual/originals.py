@@ -46,16 +46,12 @@ import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from simulation.colorimetry import tristimulus
 from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
-
-if TYPE_CHECKING:
-    from drivers.virtual.scene import Scene
 
 log = logging.getLogger(__name__)
 
@@ -445,19 +441,3 @@ def original_name(what: str) -> str:
     if name not in ORIGINALS:
         raise ValueError(f"unknown original {what!r}: expected {', '.join(ORIGINAL_PREFIX + n for n in ORIGINALS)}")
     return name
-
-
-def original_scene(what: str, width: int, height: int, *, mode: str | None = None,
-                   grid: SpectralGrid = DEFAULT_GRID, **scene_kw) -> Scene:
-    """The scene of original ``what`` ('original:<name>') at ``width`` x ``height`` sensor pixels.
-
-    An original of the other mode than ``mode`` (a film in a reflective lab) is rendered all the same (the
-    camera model is eq 5.10 in both modes) but logged: its calibration should be of its own mode.
-    """
-    from drivers.virtual.scene import Scene
-
-    orig = original(original_name(what), grid)
-    if mode is not None and mode != orig.mode:
-        log.warning("original %r is %s but the lab is %s: calibrate in %s mode to deliver it", orig.name,
-                    orig.mode, mode, orig.mode)
-    return Scene.with_original(orig, width=width, height=height, **scene_kw)

@@ -24,14 +24,12 @@ import logging
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from drivers.virtual.originals import Original, original, original_name
 from simulation.datasets import Target
-
-if TYPE_CHECKING:
-    from drivers.virtual.originals import Original
+from simulation.grid import DEFAULT_GRID, SpectralGrid
 
 log = logging.getLogger(__name__)
 
@@ -293,3 +291,17 @@ class Scene:
         elif self.kind == "original":
             d.update(self.shown_original.describe())
         return d
+
+
+def original_scene(what: str, width: int, height: int, *, mode: str | None = None,
+                   grid: SpectralGrid = DEFAULT_GRID, **scene_kw) -> Scene:
+    """The scene of original ``what`` ('original:<name>') at ``width`` x ``height`` sensor pixels.
+
+    An original of the other mode than ``mode`` (a film in a reflective lab) is rendered all the same (the
+    camera model is eq 5.10 in both modes) but logged: its calibration should be of its own mode.
+    """
+    orig = original(original_name(what), grid)
+    if mode is not None and mode != orig.mode:
+        log.warning("original %r is %s but the lab is %s: calibrate in %s mode to deliver it", orig.name,
+                    orig.mode, mode, orig.mode)
+    return Scene.with_original(orig, width=width, height=height, **scene_kw)

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from simulation.atomic_io import atomic_output, atomic_write
+from common.atomic_files import atomic_output, atomic_write
 from simulation.datasets import SimulationSetup, default_setup
 from simulation.grid import SpectralGrid
 from simulation.objective import Evaluator

@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 import resources
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.hdr_estimators import HDR_MERGE_METHODS, HDR_THESIS, HdrNoise, merge_exposures
-from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
 from simulation.search import exhaustive, light_pairs
 from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, new_figure
@@ -164,7 +164,7 @@ def hdr_study(spec: SetupSpec = SetupSpec(), cfg: HdrStudyConfig = HdrStudyConfi
 
 def write_defaults(result: HdrStudyResult, path: str | None = None) -> Path:
     """Set ``hdr_merge`` (and its evidence) in the defaults file, keeping the parsimony study's keys."""
-    from simulation.studies.parsimony import save_defaults
+    from simulation.defaults import save_defaults
 
     return save_defaults(path or str(resources.path("parsimony.json")), {
         "hdr_merge": result.chosen,

@@ -27,10 +27,10 @@ from typing import Any
 
 import numpy as np
 
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.capture_model import CameraNoise, CaptureModel
 from simulation.datasets import MODES, SimulationSetup
 from simulation.halving import HalvingSettings, successive_halving
-from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
 from simulation.robust import RobustEvaluator, RobustSettings
 from simulation.runner import OBJECTIVES, make_evaluator

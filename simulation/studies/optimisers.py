@@ -30,11 +30,11 @@ from typing import Any
 
 import numpy as np
 
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.ga import GaSettings, ga
 from simulation.halving import HalvingSettings, set_cost, successive_halving
 from simulation.matrix_fit import solve_normal_equations
-from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, enforce_constraints, pso
 from simulation.search import Group, SearchOutcome, candidates_from, exhaustive, group_arrays
 

@@ -14,26 +14,23 @@ Three questions, each answered automatically with a tolerance (default 0.05 mean
    ``dualrgb study hdr`` chose (key ``hdr_merge``, kept). The fewest exposures within the tolerance of the most
    accurate bracket are chosen.
 
-The choices go to ``parsimony.json`` (format ``dualrgb-parsimony/1``). :func:`load_defaults` returns the
+The choices go to ``parsimony.json`` (format ``dualrgb-parsimony/1``); :mod:`simulation.defaults` reads the
 user's copy (``--write-defaults`` puts it in the per-user data folder, ``resources.user_path``) when there is
 one, else the packaged ``resources/parsimony.json`` from the reference run.
 """
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import logging
 import time
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-import resources
-from simulation.atomic_io import atomic_write
+from common.progress import CancelToken, ProgressCallback, check, report
+from simulation.defaults import FORMAT, save_defaults
 from simulation.hdr_estimators import default_method
-from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
 from simulation.search import exhaustive, light_pairs, refine_top
 from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, new_figure
@@ -42,11 +39,6 @@ from simulation.studies.noise import CameraNoise, NoiseModel
 from simulation.versions import output_header
 
 log = logging.getLogger(__name__)
-
-FORMAT = "dualrgb-parsimony/1"
-FALLBACK_DEFAULTS = {"spectral_step_nm": 10.0, "characterisation_model": "linear", "hdr_exposures": 1,
-                     "hdr_merge": "thesis"}
-
 
 @dataclass(frozen=True)
 class ParsimonyConfig:
@@ -227,38 +219,6 @@ def parsimony(spec: SetupSpec = SetupSpec(), cfg: ParsimonyConfig = ParsimonyCon
     steps = spectral_steps(spec, cfg, cancel, progress)
     models, exposures = models_and_exposures(spec, cfg, cancel, progress)
     return ParsimonyResult(spec, cfg, steps, models, exposures, time.perf_counter() - t0)
-
-
-def load_defaults(path: str | None = None) -> dict:
-    """The app's defaults chosen by the parsimony study: ``path``, else the user's parsimony.json (per-user data
-    folder), else the packaged resources/parsimony.json; the thesis defaults when none is readable."""
-    try:
-        p = path or resources.user_or_packaged("parsimony.json")
-        data = json.loads(open(p, encoding="utf-8").read())
-    except (OSError, ValueError) as exc:
-        log.info("no parsimony defaults (%s); using %s", exc, FALLBACK_DEFAULTS)
-        return dict(FALLBACK_DEFAULTS)
-    if data.get("format") != FORMAT:
-        log.warning("%s: format %r, expected %r; using the thesis defaults", p, data.get("format"), FORMAT)
-        return dict(FALLBACK_DEFAULTS)
-    return {k: data.get(k, v) for k, v in FALLBACK_DEFAULTS.items()}
-
-
-def save_defaults(path: str, update: dict) -> Path:
-    """Write ``update`` into the defaults file, keeping keys (and evidence) another study wrote there: the
-    parsimony study owns the step, model and exposure count, ``dualrgb study hdr`` the HDR estimator."""
-    p = Path(path)
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-        if data.get("format") != FORMAT:
-            data = {}
-    except (OSError, ValueError):
-        data = {}
-    evidence = {**data.get("evidence", {}), **update.get("evidence", {})}
-    data.update({**update, "format": FORMAT, "evidence": evidence})
-    p.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(p, json.dumps(data, indent=2) + "\n")
-    return p
 
 
 # ---------------------------------------------------------------------------------------------------------

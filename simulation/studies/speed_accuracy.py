@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.ga import GaSettings
-from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings
 from simulation.search import light_pairs, refine_top
 from simulation.studies.common import (

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 import resources
+from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.camera_model import led_responses
 from simulation.capture_model import CaptureModel
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
@@ -36,7 +37,6 @@ from simulation.datasets import SimulationSetup, Target
 from simulation.ga import GaSettings
 from simulation.matrix_fit import fit_matrix
 from simulation.objective import Evaluator
-from simulation.progress import CancelToken, ProgressCallback, check, report
 from simulation.pso import PsoSettings, pso
 from simulation.search import exhaustive, light_pairs, refine_top
 from simulation.spectral_io import read_spectral_csv

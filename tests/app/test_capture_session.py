@@ -14,8 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from app import session as session_mod
-from app.session import MANIFEST, CaptureSession, SessionError
+from app.session import capture_session as session_mod
+from app.session.capture_session import MANIFEST, CaptureSession
+from app.session.manifest import SessionError
 from drivers.camera.base import RawCapture
 from simulation.lightsource import LightSource
 
@@ -141,7 +142,7 @@ def test_disk_full_while_appending_manifest(tmp_path, monkeypatch):
 WRITER = textwrap.dedent("""
     import sys
     sys.path.insert(0, {root!r})
-    from app.session import CaptureSession
+    from app.session.capture_session import CaptureSession
     from drivers.camera.base import RawCapture
     s = CaptureSession.open({path!r})
     i = 0

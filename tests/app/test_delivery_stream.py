@@ -15,7 +15,7 @@ from app.processing import tiff_stream
 from app.processing.encode import LINEAR_ONE, RGB_SPACES, DeliveryEncoder, encode_deliverables, encoding_table
 from app.processing.outputs import TiffMetadata, icc_profile, open_tiff, tiff_kwargs, write_tiff, xyz_to_rgb_matrix
 from app.processing.pipeline import ChannelStack
-from simulation.atomic_io import FileWriteError
+from common.atomic_files import FileWriteError
 
 D65 = [95.047, 100.0, 108.883]
 META = TiffMetadata("dualrgb 9.9", "ACC-1; test", "Nikon", "D610", 300.0, "2026:01:02 03:04:05", b"<x:xmpmeta/>" * 37)

@@ -16,8 +16,8 @@ from app.processing.pipeline import CaptureProcessor, ExposureRef
 from app.sequences.hdr import plan_hdr
 from drivers.raw import load_raw
 from drivers.virtual.camera import SHUTTER_SPEEDS, SensorModel, StaticLight, VirtualCamera
-from drivers.virtual.originals import ground_truth_xyz, original, original_scene
-from drivers.virtual.scene import Scene
+from drivers.virtual.originals import ground_truth_xyz, original
+from drivers.virtual.scene import Scene, original_scene
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.datasets import default_setup
 from simulation.lightsource import LightSource

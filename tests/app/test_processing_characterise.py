@@ -15,10 +15,10 @@ from app.processing.characterise import (
     patch_errors,
     select_model,
 )
+from common.progress import Cancelled, CancelToken
 from simulation.datasets import default_setup
 from simulation.lightsource import LightSource
 from simulation.objective import PatchSet
-from simulation.progress import Cancelled, CancelToken
 
 
 @pytest.fixture(scope="module")

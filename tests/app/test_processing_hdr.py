@@ -9,7 +9,7 @@ from synthetic_frames import BLACK, WHITE, dark_frames, expose, mosaic_scene, pa
 
 from app.processing.hdr import HDR_MERGE_METHODS, HdrMerge, exposure_weight, triangle_weight
 from app.processing.pipeline import CaptureProcessor, ExposureRef
-from simulation.progress import Cancelled, CancelToken
+from common.progress import Cancelled, CancelToken
 
 
 def test_eq_8_9_weight_scaled_to_the_usable_range():

@@ -11,16 +11,16 @@ from synthetic_frames import dark_frames, expose, mosaic_scene, vignette, write_
 
 from app.processing.mosaic import mosaic_from_rgb
 from app.processing.patches import PatchGrid
-from app.session import CaptureSession
+from app.session.capture_session import CaptureSession
 from app.workflow.session_processing import process_session
 from app.workflow.targets import TargetSpec
 from app.workflow.vocabulary import Subject
+from common.progress import Cancelled, CancelToken
 from drivers.camera.base import RawCapture
 from simulation.camera_model import channel_responses
 from simulation.datasets import default_setup
 from simulation.lightsource import LightSource
 from simulation.objective import Evaluator
-from simulation.progress import Cancelled, CancelToken
 
 CELL = 5            # superpixel pixels per patch
 LIGHTS = [LightSource((1, 6, 8), name="light 1"), LightSource((3, 5, 9), name="light 2")]

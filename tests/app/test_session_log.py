@@ -1,12 +1,12 @@
-"""app.session_log: each session folder gets session.log with the app's records while it was open."""
+"""app.session.log: each session folder gets session.log with the app's records while it was open."""
 from __future__ import annotations
 
 import logging
 
 import pytest
 
-from app.session import CaptureSession
-from app.session_log import LOG_NAME, SessionLog
+from app.session.capture_session import CaptureSession
+from app.session.log import LOG_NAME, SessionLog
 
 log = logging.getLogger("app.test_session_log")
 

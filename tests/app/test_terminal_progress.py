@@ -9,7 +9,7 @@ import time
 import numpy as np
 
 from app.terminal_progress import STEPS, TerminalProgress
-from simulation.progress import COMPILING, scaled
+from common.progress import COMPILING, scaled
 
 
 def test_bar_never_goes_back_but_follows_the_message():

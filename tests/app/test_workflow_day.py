@@ -17,10 +17,10 @@ from app.workflow.day import DayState, DayStep, OriginalsQueue, OriginalState, S
 from app.workflow.delivery import Original
 from app.workflow.frame_checks import DARK_FRACTION, check_frame
 from app.workflow.runs import RUN_PROGRESS, StandRun
-from app.workflow.vocabulary import NamedLight, Role, step_id
+from app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
+from common.progress import Cancelled
 from drivers.raw import RawFrame
 from simulation.lightsource import LightSource
-from simulation.progress import Cancelled
 
 FRAME = (96, 64)
 LIGHTS = [NamedLight("p light 1", LightSource((1, 6, 8), name="p light 1")),
@@ -31,7 +31,7 @@ LIGHTS = [NamedLight("p light 1", LightSource((1, 6, 8), name="p light 1")),
 @pytest.fixture
 def stand(tmp_path):
     from app.sequences.shooter import SafetySettings, Shooter
-    from app.session import CaptureSession
+    from app.session.capture_session import CaptureSession
     from drivers.virtual.lab import VirtualLab
 
     with VirtualLab(frame_size=FRAME) as lab:
@@ -63,7 +63,7 @@ def test_metering_cancelled_between_lights_ends_dark(stand):
     for ev in seq.run():
         events.append(ev)
         seq.cancel()                                     # after the first light
-    assert events[-1].kind == "cancelled" and list(seq.exposures) == [LIGHTS[0].name]
+    assert events[-1].kind is EventKind.CANCELLED and list(seq.exposures) == [LIGHTS[0].name]
     assert not lab.emulator.snapshot().light_on and np.allclose(lab.emulator.snapshot().levels, 0)
 
 
@@ -104,7 +104,7 @@ def test_stand_run_pauses_between_frames_and_cancels():
     run.cancel()                                         # wakes it; the work stops at its next check
     t.join(5)
     assert reached.is_set() and run.result is None
-    assert [e.kind for e in seen] == ["progress", "frame", "cancelled"]
+    assert [e.kind for e in seen] == [EventKind.PROGRESS, EventKind.FRAME, EventKind.CANCELLED]
     assert seen[0].data[RUN_PROGRESS] and seen[0].step == 500 and seen[0].total == 1000
 
 
@@ -119,7 +119,7 @@ def test_stand_run_prompt_waits_for_resume():
     t = threading.Thread(target=lambda: run.execute(seen.append))
     t.start()
     t.join(0.3)
-    assert t.is_alive() and run.paused and seen[-1].kind == "prompt"
+    assert t.is_alive() and run.paused and seen[-1].kind is EventKind.PROMPT
     run.resume()
     t.join(5)
     assert run.result == 42
@@ -136,7 +136,7 @@ def test_stand_run_errors_propagate():
         raise Cancelled("cancelled by the user")
 
     seen = []
-    assert StandRun("job", [], cancelled).execute(seen.append) is None and seen[-1].kind == "cancelled"
+    assert StandRun("job", [], cancelled).execute(seen.append) is None and seen[-1].kind is EventKind.CANCELLED
 
 
 # ---------------------------------------------------------------- checklist and queue

@@ -10,7 +10,7 @@ import pytest
 from gphoto_fake import BULB, FakeGPhoto2, open_scripted
 
 from app.sequences.shooter import SafetySettings
-from app.session import CaptureSession
+from app.session.capture_session import CaptureSession
 from drivers.camera.base import CameraError, CameraSettings
 from drivers.camera.gphoto import GPhotoCamera
 

@@ -12,7 +12,7 @@ import pytest
 from gphoto_fake import FakeGPhoto2, open_scripted
 
 from app.sequences.shooter import LightSafetyError, SafetySettings, Shooter
-from app.session import CaptureSession
+from app.session.capture_session import CaptureSession
 from drivers.camera.base import DEFAULT_LATENCY_S, CameraError
 from drivers.camera.gphoto import DEFAULT_GPHOTO_LATENCY_S, LATENCY_ENV, GPhotoCamera
 from drivers.camera.gphoto_latency import measure_latency, suggested_allowance

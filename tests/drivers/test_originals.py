@@ -14,9 +14,8 @@ from drivers.virtual.originals import (
     measured_spectra,
     original,
     original_name,
-    original_scene,
 )
-from drivers.virtual.scene import Scene
+from drivers.virtual.scene import Scene, original_scene
 from simulation.camera_model import channel_responses
 from simulation.datasets import default_setup
 from simulation.grid import DEFAULT_GRID

@@ -8,7 +8,8 @@ from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_e
 from app.sequences.capture import SubjectCapture
 from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import LightSafetyError, SafetySettings, Shooter, channel_levels
-from app.session import CaptureSession, SessionError
+from app.session.capture_session import CaptureSession
+from app.session.manifest import SessionError
 from app.workflow.vocabulary import Subject
 from drivers.camera.base import CameraError
 from drivers.led_sphere import SphereError

@@ -7,7 +7,7 @@ from fault_rigs import CountingCamera, CountingSphere
 from light_record import FAST
 
 from app.sequences.shooter import Shooter
-from app.session import CaptureSession
+from app.session.capture_session import CaptureSession
 from drivers.virtual.lab import VirtualLab
 
 

@@ -13,20 +13,20 @@ import textwrap
 import pytest
 from fault_rigs import ROOT
 
-from app import session as session_mod
 from app.demo import DemoSettings
 from app.sequences.calibration import DarkSeries
 from app.sequences.shooter import SafetySettings, Shooter
-from app.session import (
-    MANIFEST,
-    CaptureSession,
+from app.session import capture_session as session_mod
+from app.session.capture_session import MANIFEST, CaptureSession
+from app.session.manifest import (
     DamagedFramesError,
     DefinitionMismatch,
+    SessionEntry,
     SessionLockedError,
     light_definition,
 )
-from app.session_manifest import SessionEntry
-from simulation.atomic_io import InsufficientSpaceError
+from app.workflow.vocabulary import EventKind
+from common.atomic_files import InsufficientSpaceError
 from simulation.lightsource import LightSource
 
 pytestmark = pytest.mark.fault("session integrity")
@@ -99,7 +99,7 @@ def test_demo_resume_with_other_options_is_refused_before_anything_runs(tmp_path
 HOLDER = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, {root!r})
-    from app.session import CaptureSession
+    from app.session.capture_session import CaptureSession
     s = CaptureSession.open({path!r})
     print("holding", flush=True)
     time.sleep(120)
@@ -231,7 +231,7 @@ def test_resume_sets_damaged_frames_aside_and_shoots_them_again(tmp_path, rig):
 
 # ---- 9. atomic writes and the free-space check ---------------------------------------------------------
 WRITERS = {
-    "report.json": "from simulation.atomic_io import atomic_write; atomic_write(path, '{\"x\": 1}' * 400000)",
+    "report.json": "from common.atomic_files import atomic_write; atomic_write(path, '{\"x\": 1}' * 400000)",
     "preset": ("from simulation.presets import Preset, save_preset; from simulation.lightsource import "
                "LightSource; save_preset(Preset('p' * 2000000, (LightSource((1,), (1.0,)),)), path)"),
     "rgb tiff": ("import numpy as np; from app.processing.outputs import TiffMetadata, icc_profile, write_tiff; "
@@ -242,13 +242,13 @@ WRITERS = {
     "patch csv": ("import numpy as np; from app.processing.outputs import write_patch_csv; n = 20000; "
                   "write_patch_csv(path, [str(i) for i in range(n)], np.ones((n, 6)), list('abcdef'), "
                   "np.ones((n, 3)), {}, {})"),
-    "png figure": ("from app.processing.report import _figure, save_figure; fig = _figure(6, 6); "
+    "png figure": ("from app.processing.figure_files import new_figure, save_figure; fig = new_figure(6, 6); "
                    "ax = fig.add_subplot(111); ax.imshow(__import__('numpy').random.rand(300, 300)); "
                    "save_figure(fig, path)"),
     "spectral csv": ("import numpy as np; from simulation.spectral_io import write_spectral_csv; "
                      "write_spectral_csv(path, np.arange(20000.), np.ones((20000, 8)), list('abcdefgh'), {})"),
-    "session settings": ("from app.session import CaptureSession; s = CaptureSession.open(path.parent); "
-                         "s.update_settings(notes='n' * 300000)"),
+    "session settings": ("from app.session.capture_session import CaptureSession; "
+                         "s = CaptureSession.open(path.parent); s.update_settings(notes='n' * 300000)"),
 }
 FULL_DISK = textwrap.dedent("""
     import json, os, resource, signal, sys
@@ -315,7 +315,7 @@ def test_sequence_larger_than_the_free_space_is_refused_before_any_shot(tmp_path
         list(seq.run())
     assert str(s.path) in str(info.value) and camera.captures == 0 and sphere.calls == []
     camera.frame_size_bytes = 1 * 2**20
-    assert len([e for e in DarkSeries(shooter_for(s, rig), [1 / 60], frames=3).run() if e.kind == "frame"]) == 3
+    assert len([e for e in DarkSeries(shooter_for(s, rig), [1 / 60], frames=3).run() if e.kind is EventKind.FRAME]) == 3
 
 
 # ---- 10. strange manifest lines, interrupted creation ------------------------------------------------

@@ -15,7 +15,7 @@ import pytest
 from light_record import FAST, LS1, assert_dark_within, lit_spans, wait_dark
 
 from app.sequences.shooter import LightSafetyError, Shooter
-from app.session import CaptureSession
+from app.session.capture_session import CaptureSession
 from drivers.camera.base import CameraError
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.virtual.lab import VirtualLab

@@ -12,7 +12,7 @@ from app.sequences.capture import SubjectCapture
 from app.sequences.crf_sweep import CrfSweep
 from app.sequences.hdr import meter_and_plan
 from app.sequences.shooter import SafetySettings, Shooter
-from app.session import CaptureSession
+from app.session.capture_session import CaptureSession
 from app.workflow.vocabulary import Subject
 
 SETTLE_S = 0.05

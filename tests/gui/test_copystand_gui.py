@@ -7,6 +7,7 @@ from __future__ import annotations
 import pytest
 from PySide6.QtCore import Qt
 
+from app.workflow.day import OriginalState
 from simulation.lightsource import LightSource
 from tests.gui.conftest import wait_idle
 
@@ -59,7 +60,7 @@ def test_a_mismatching_calibration_is_shown_before_capture(qtbot, make_window):
     assert "does not match the stand" in box.summary.text()
     org.force.setChecked(True)                        # use it anyway: allowed, and said in the deliverables
     assert org.capture_button.isEnabled()
-    assert [r.state.value for r in w.ctx.workspace.queue.rows] == ["waiting"]        # nothing was shot
+    assert [r.state for r in w.ctx.workspace.queue.rows] == [OriginalState.WAITING]        # nothing was shot
 
 
 @pytest.mark.timeout(120)

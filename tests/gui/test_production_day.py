@@ -14,6 +14,7 @@ import tifffile
 from app.workflow.day import DayStep, OriginalState, StepState
 from tests.gui.conftest import click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
+from app.workflow.vocabulary import EventKind
 
 LONG = 180000
 STALL_LIMIT_S = 0.1
@@ -66,7 +67,7 @@ def calibrate(qtbot, w, tmp_path):
     click(qtbot, box.calibrate_button)
     qtbot.waitUntil(lambda: any("plan" in e.data for e in cap.view.events), timeout=LONG)
     assert_locked(w)
-    qtbot.waitUntil(lambda: sum(e.kind == "frame" for e in cap.view.events) >= 3, timeout=LONG)
+    qtbot.waitUntil(lambda: sum(e.kind is EventKind.FRAME for e in cap.view.events) >= 3, timeout=LONG)
     guide.refresh()
     during = "\n".join(guide.step(DayStep.CALIBRATE).lines)
     assert "darks" in during and "exposures" in during, during
@@ -74,7 +75,7 @@ def calibrate(qtbot, w, tmp_path):
     profile = w.ctx.workspace.calibration
     assert profile is not None and all(len(ts) == 2 for ts in profile.exposures.values())    # HDR auto
     planned = next(len(e.data["plan"]) for e in cap.view.events if "plan" in e.data)
-    assert sum(e.kind == "frame" for e in cap.view.events) == planned       # every planned frame taken
+    assert sum(e.kind is EventKind.FRAME for e in cap.view.events) == planned       # every planned frame taken
     assert cap.view.ticked_rows() == list(range(planned))                   # and ticked in the plan
     # a single step's plan ticks what the session already has: a 10-frame dark series, 2 darks per exposure done
     cap.kind.setCurrentText("Open-gate flats")

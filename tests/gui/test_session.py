@@ -7,6 +7,7 @@ import pytest
 from app.gui.units import parse_exposure
 from tests.gui.conftest import click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
+from app.workflow.vocabulary import EventKind
 
 LONG = 120000
 
@@ -168,13 +169,13 @@ def test_cancel_and_pause_a_running_sequence(qtbot, make_window):
     cap.frames.setValue(6)
     cap.settle.setValue(0.1)
     click(qtbot, cap.view.start_button)
-    qtbot.waitUntil(lambda: any(e.kind == "frame" for e in cap.view.events), timeout=LONG)
+    qtbot.waitUntil(lambda: any(e.kind is EventKind.FRAME for e in cap.view.events), timeout=LONG)
     click(qtbot, cap.view.pause_button)
     assert cap.view.seq.paused
-    frames_at_pause = sum(e.kind == "frame" for e in cap.view.events)
+    frames_at_pause = sum(e.kind is EventKind.FRAME for e in cap.view.events)
     qtbot.wait(800)
     # at most the frame already in progress finishes; the sequence waits for Resume
-    assert sum(e.kind == "frame" for e in cap.view.events) <= frames_at_pause + 1
+    assert sum(e.kind is EventKind.FRAME for e in cap.view.events) <= frames_at_pause + 1
     assert cap.view.outcome == "" and cap.view.running
     click(qtbot, cap.view.pause_button)                     # resume
     qtbot.waitUntil(lambda: cap.view.outcome != "", timeout=LONG)
@@ -186,7 +187,7 @@ def test_cancel_and_pause_a_running_sequence(qtbot, make_window):
     cap.frames.setValue(40)
     planned = cap.view.table.rowCount()
     click(qtbot, cap.view.start_button)
-    qtbot.waitUntil(lambda: sum(e.kind == "frame" for e in cap.view.events) >= 2, timeout=LONG)
+    qtbot.waitUntil(lambda: sum(e.kind is EventKind.FRAME for e in cap.view.events) >= 2, timeout=LONG)
     w.cancel_action.trigger()
     qtbot.waitUntil(lambda: cap.view.outcome != "", timeout=LONG)
     wait_idle(qtbot, w)

@@ -62,8 +62,8 @@ def test_cli_modes_and_methods_match_the_simulation():
 
 
 def test_simulate_takes_its_default_step_from_the_parsimony_study(tmp_path, monkeypatch):
-    import simulation.studies.parsimony as parsimony
-    monkeypatch.setattr(parsimony, "load_defaults", lambda path=None: {"spectral_step_nm": 20.0,
+    import simulation.defaults as defaults
+    monkeypatch.setattr(defaults, "load_defaults", lambda path=None: {"spectral_step_nm": 20.0,
                                                                          "characterisation_model": "linear",
                                                                          "hdr_exposures": 1})
     out = tmp_path / "r.json"

@@ -270,7 +270,8 @@ def test_objectives_study_worked_example(tmp_path):
 
 
 def test_parsimony_tiny_picks_valid_options(tmp_path):
-    from simulation.studies.parsimony import FORMAT, ParsimonyConfig, load_defaults, parsimony, write_outputs
+    from simulation.defaults import FORMAT, load_defaults
+    from simulation.studies.parsimony import ParsimonyConfig, parsimony, write_outputs
 
     cfg = ParsimonyConfig.tiny()
     res = parsimony(SPEC, cfg)
@@ -293,8 +294,8 @@ def test_parsimony_tiny_picks_valid_options(tmp_path):
 
 
 def test_packaged_parsimony_defaults_load():
+    from simulation.defaults import load_defaults
     from simulation.hdr_estimators import HDR_MERGE_METHODS
-    from simulation.studies.parsimony import load_defaults
 
     d = load_defaults()
     assert d["spectral_step_nm"] in (1.0, 5.0, 10.0, 20.0) and d["characterisation_model"] in MODELS
@@ -302,9 +303,9 @@ def test_packaged_parsimony_defaults_load():
 
 
 def test_hdr_study_tiny_chooses_an_estimator_and_keeps_other_defaults(tmp_path):
+    from simulation.defaults import FORMAT, load_defaults
     from simulation.hdr_estimators import HDR_MERGE_METHODS
     from simulation.studies.hdr import HdrStudyConfig, hdr_study, write_defaults, write_outputs
-    from simulation.studies.parsimony import FORMAT, load_defaults
 
     cfg = HdrStudyConfig.tiny()
     res = hdr_study(SPEC, cfg)

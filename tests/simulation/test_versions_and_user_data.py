@@ -68,7 +68,7 @@ def test_user_path_follows_the_environment(user_data_dir, monkeypatch):
 
 
 def test_parsimony_defaults_user_copy_wins_packaged_is_the_fallback(user_data_dir):
-    from simulation.studies.parsimony import FORMAT, load_defaults
+    from simulation.defaults import FORMAT, load_defaults
 
     packaged = json.loads(resources.path("parsimony.json").read_text())
     assert load_defaults()["spectral_step_nm"] == packaged["spectral_step_nm"]

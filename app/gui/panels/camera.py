@@ -23,7 +23,7 @@ from app.gui.context import AppContext
 from app.gui.frame_preview import WARNING_STYLE, HistogramPlot
 from app.gui.viewmodel import RawView, preview_histogram, raw_view
 from app.gui.widgets import PathLabel, image_widget, side_by_side
-from app.session import atomic_write
+from app.session.capture_session import atomic_write
 from app.workflow.vocabulary import format_exposure as format_shutter
 from drivers.camera.base import CameraSettings
 

@@ -38,7 +38,7 @@ from app.gui.widgets import PathLabel, side_by_side
 from app.sequences.base import Sequence
 from app.sequences.capture import SubjectCapture
 from app.sequences.shooter import SafetySettings, Shooter
-from app.session import CaptureSession
+from app.session.capture_session import CaptureSession
 from app.workflow.copystand import StandSettings
 from app.workflow.metering import AutoExposure, HdrMetering
 from app.workflow.plans import build_sequence, next_take, planned_steps, steps_done

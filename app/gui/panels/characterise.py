@@ -27,6 +27,7 @@ from app.gui.sequence_view import SequenceView
 from app.gui.units import dn, light_pct, shutter, shutters
 from app.gui.viewmodel import LINEAR_LIMIT_DN, light_from_levels
 from app.gui.widgets import plot_widget, side_by_side
+from app.workflow.vocabulary import EventKind
 from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import SafetySettings, Shooter
 from simulation.lightsource import LightSource
@@ -201,7 +202,7 @@ class CharacterisePanel(QWidget):
         self.view.cancel()
 
     def _event(self, ev) -> None:
-        if ev.kind != "frame" or "signal_dn" not in ev.data:
+        if ev.kind is not EventKind.FRAME or "signal_dn" not in ev.data:
             return
         lv = float(ev.data["level"])
         self._live.setdefault(lv, []).append((float(ev.data["exposure_s"]), max(float(ev.data["signal_dn"]), 0.1)))

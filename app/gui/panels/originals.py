@@ -363,7 +363,7 @@ class OriginalsPanel(QWidget):
             self._brackets[ev.data["light"]] = list(ev.data["exposures"])
             if len(self._brackets) == len(self.ws.calibration.lights):
                 self.view.replan(self._plan(row, self._brackets))
-        if ev.kind in (EventKind.FRAME.value, EventKind.KEPT.value) and ev.total and ev.step >= ev.total:
+        if ev.kind in (EventKind.FRAME, EventKind.KEPT) and ev.total and ev.step >= ev.total:
             row.state = OriginalState.CAPTURED              # every frame is in the session; delivering
             self.ws.queue_changed()
 

@@ -262,7 +262,7 @@ class ResultsPanel(QWidget):
             on_result=self.show_result, on_error=self._failed, on_finished=self._finished)
 
     def _failed(self, exc: BaseException) -> None:
-        from simulation.progress import Cancelled
+        from common.progress import Cancelled
         if isinstance(exc, Cancelled):
             self.status.setText("processing cancelled")
             return

@@ -40,7 +40,7 @@ from simulation.camera_model import channel_names, effective_sensitivities
 from simulation.datasets import MODES, default_setup
 from simulation.ga import GaSettings
 from simulation.presets import save_preset
-from simulation.progress import COMPILING, Cancelled
+from common.progress import COMPILING, Cancelled
 from simulation.pso import PsoSettings
 from simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, METHODS, OBJECTIVES, RunResult, run
 from simulation.search import SearchOutcome

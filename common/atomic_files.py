@@ -10,8 +10,8 @@ and a :class:`FileWriteError` (an ``OSError``) with one line naming the target f
         csv.writer(fh).writerow(...)
     require_free_space(folder, needed_bytes, "the dark series")   # refuse up front what cannot fit
 
-It lives in ``simulation`` (the lowest layer, like ``simulation.progress``) so that drivers/, simulation/ and
-app/ share one implementation; ``app.session`` re-exports ``atomic_write``.
+It lives in ``common`` (below every layer, beside ``common.progress``) so that drivers/, simulation/ and app/
+share one implementation; ``app.session.capture_session.atomic_write`` wraps it to raise ``SessionError``.
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ Layout of a session folder::
     manifest.jsonl      append-only log, one JSON object per line, fsynced after every line
     0001_dark_DSC_0001.NEF, ...   the raw files exactly as downloaded (sha256 in the manifest)
     damaged/            frames found missing or damaged on resume, moved aside (never deleted)
-    .session.lock       the writer's OS lock and who holds it (app.session_lock)
+    .session.lock       the writer's OS lock and who holds it (app.session.lock)
 
 ``CaptureSession.record(raw, role, ...)`` writes the bytes of a :class:`drivers.camera.base.RawCapture` to a
 temp file in the same folder, flushes and fsyncs it, renames it to its final name (atomic on POSIX), fsyncs the
@@ -67,8 +67,8 @@ import weakref
 from pathlib import Path
 from typing import Any, Union
 
-from app import session_lock
-from app.session_manifest import (
+from app.session import lock as session_lock
+from app.session.manifest import (
     DamagedFramesError,
     DefinitionMismatch,
     DoseRecord,
@@ -85,9 +85,9 @@ from app.session_manifest import (
     now,
     read_manifest,
 )
+from common import atomic_files
+from common.atomic_files import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
 from drivers.camera.base import RawCapture
-from simulation import atomic_io
-from simulation.atomic_io import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
 from simulation.versions import software_versions
 
 log = logging.getLogger(__name__)
@@ -119,9 +119,9 @@ def _light_dict(light: Any) -> dict | None:
 
 
 def atomic_write(path: Path, data: bytes, *, exclusive: bool = False) -> None:
-    """:func:`simulation.atomic_io.atomic_write` raising :class:`SessionError` (one line naming the file)."""
+    """:func:`common.atomic_files.atomic_write` raising :class:`SessionError` (one line naming the file)."""
     try:
-        atomic_io.atomic_write(path, data, exclusive=exclusive)
+        atomic_files.atomic_write(path, data, exclusive=exclusive)
     except FileWriteError as exc:
         raise SessionError(exc.errno, str(exc)) from exc
 
@@ -129,7 +129,7 @@ def atomic_write(path: Path, data: bytes, *, exclusive: bool = False) -> None:
 def _session_error(exc: OSError, path: Path) -> SessionError:
     if isinstance(exc, SessionError):
         return exc
-    return SessionError(exc.errno, str(atomic_io.write_error(exc, path)))
+    return SessionError(exc.errno, str(atomic_files.write_error(exc, path)))
 
 
 def _settings_bytes(settings: dict) -> bytes:
@@ -355,8 +355,8 @@ class CaptureSession:
         return list(self._doses)
 
     def light_dose(self):
-        """The session's whole light dose (app.light_dose.LightDose) summed from its dose lines."""
-        from app.light_dose import LightDose, light_from_record
+        """The session's whole light dose (app.session.light_dose.LightDose) summed from its dose lines."""
+        from app.session.light_dose import LightDose, light_from_record
 
         total = LightDose()
         for d in self._doses:

@@ -25,8 +25,8 @@ from types import TracebackType
 log = logging.getLogger(__name__)
 
 LOG_NAME = "session.log"
-SESSION_MARKER = "session.json"          # app.session.SETTINGS
-PACKAGES = ("app", "drivers", "simulation")
+SESSION_MARKER = "session.json"          # app.session.capture_session.SETTINGS
+PACKAGES = ("app", "common", "drivers", "simulation")
 FORMAT = "%(asctime)s.%(msecs)03dZ %(levelname)-7s %(threadName)s %(name)s: %(message)s"
 MAX_EARLY_RECORDS = 10000                # held until the folder becomes a session
 
