@@ -29,7 +29,8 @@ from app.sequences.hdr import HdrPlan, meter_and_plan
 from app.session.capture_session import CaptureSession, atomic_write
 from app.session.log import SessionLog
 from app.session.manifest import camera_definition, light_definition
-from app.workflow.copystand import CopyStand, StandSettings, parsimony_defaults
+from app.workflow.copystand import CopyStand, StandSettings
+from app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, workflow_defaults
 from app.workflow.session_processing import process_session
 from app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
 from app.workflow.vocabulary import NamedLight, Subject, lights_of
@@ -49,15 +50,23 @@ REPORT_FORMAT = "dualrgb-demo-report/1"
 CONDITIONS = ("three_channel", "dual_rgb", "dual_rgb_pso")
 
 
+def _darks() -> int:
+    return workflow_defaults().dark_frames
+
+
+def _flats() -> int:
+    return workflow_defaults().flat_frames
+
+
 @dataclass
 class DemoSettings:
     out: Path
-    mode: str = "reflective"
+    mode: str = DEFAULT_MODE
     hdr: bool = False
-    frame_size: tuple[int, int] = (600, 400)
+    frame_size: tuple[int, int] = VIRTUAL_FRAME_SIZE
     seed: int = 0
-    dark_frames: int = 10
-    flat_frames: int = 3
+    dark_frames: int = field(default_factory=_darks)       # app.workflow.defaults, as calibrate and the GUI
+    flat_frames: int = field(default_factory=_flats)
     settle_s: float = 0.05
     optimise_matrix: bool | None = None   # also fit the dE00-optimised matrix; None: the parsimony study's choice
     conditions: tuple[str, ...] = CONDITIONS
@@ -169,7 +178,7 @@ class DemoRun:
             raise ValueError(f"demo settings: dark frames {s.dark_frames}, flat frames {s.flat_frames}, frame size "
                              f"{s.frame_size}, seed {s.seed}: expected >= 1, >= 1, >= 64 px, >= 0")
         if s.optimise_matrix is None:
-            s.optimise_matrix = parsimony_defaults()["characterisation_model"] != "linear"
+            s.optimise_matrix = workflow_defaults(s.mode).optimise_matrix
         s.out.mkdir(parents=True, exist_ok=True)
         session = CaptureSession.resume(s.out / "session", s.definition(), {"mode": s.mode, "demo": True},
                                         new_if_different=s.new_session,

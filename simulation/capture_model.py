@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 from dataclasses import asdict, dataclass, field, replace
 
+from simulation.choices import CALIBRATION_DARK_FRAMES, CALIBRATION_FLAT_FRAMES
 from simulation.sphere import SphereProperties
 
 log = logging.getLogger(__name__)
@@ -66,7 +67,8 @@ class CaptureModel:
     (thesis 4.3.2: no shift is detectable at 1 nm in the first 10 s on, which is how the sequences use them).
     """
 
-    camera: CameraNoise = field(default_factory=lambda: CameraNoise(pixels_per_patch=56, flat_frames=3))
+    camera: CameraNoise = field(default_factory=lambda: CameraNoise(pixels_per_patch=56,
+                                                                      flat_frames=CALIBRATION_FLAT_FRAMES))
     test_pixels_per_patch: int | None = 462
     green_pixels: int = 2
     trim_efficiency: float = 0.94
@@ -79,7 +81,8 @@ class CaptureModel:
     def virtual_lab(cls, mode: str, **changes) -> CaptureModel:
         """The demo's capture on the virtual lab (600 x 400 frames, 10 darks, 3 flats) for ``mode``."""
         train_px, test_px = DEMO_PATCH_PIXELS.get(mode, DEMO_PATCH_PIXELS["reflective"])
-        base = cls(camera=CameraNoise(pixels_per_patch=train_px, flat_frames=3, dark_frames=10),
+        base = cls(camera=CameraNoise(pixels_per_patch=train_px, flat_frames=CALIBRATION_FLAT_FRAMES,
+                                      dark_frames=CALIBRATION_DARK_FRAMES),
                    test_pixels_per_patch=test_px)
         return replace(base, **changes)
 

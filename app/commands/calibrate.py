@@ -1,6 +1,9 @@
 """``dualrgb calibrate``: darks, flats, training and test targets, matrix -> a calibration profile (made once a day).
 
-    dualrgb calibrate --session DIR [--preset P] [--hdr auto] (--virtual-lab | --port P --camera C) [--json J]
+    dualrgb calibrate [--session DIR] [--preset P] [--hdr auto|off] (--virtual-lab | --port P --camera C) [--json J]
+
+Every default (lights per mode, HDR plan, darks and flats, matrix, the session folder) is the GUI's too:
+app.workflow.defaults.
 """
 from __future__ import annotations
 
@@ -8,16 +11,19 @@ import argparse
 import logging
 import sys
 from pathlib import Path
+from typing import Any
 
 from app.commands.options import count, input_file, number
 from app.commands.stand_options import (
     add_device_options,
+    add_session_option,
     ask_person,
     open_devices,
     open_session,
     progress_printer,
     write_json,
 )
+from app.workflow import defaults as day
 
 log = logging.getLogger(__name__)
 
@@ -27,29 +33,37 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Auto-exposure, darks and flats at every planned exposure, the training and test "
                                    "targets, the characterisation matrix; writes the calibration profile "
                                    "(<session>/calibration/<id>.json + .npz).")
-    p.add_argument("--session", type=Path, required=True, help="session folder (created, or resumed)")
-    p.add_argument("--preset", default=None, help="preset file or packaged name (default: the PSO preset of --mode)")
-    p.add_argument("--mode", choices=("reflective", "transmissive"), default=None,
-                   help="default: the preset's mode (reflective)")
-    p.add_argument("--hdr", choices=("auto", "off"), default="off",
-                   help="auto: also calibrate the longer exposures HDR originals may need (resources/parsimony.json)")
-    p.add_argument("--dark-frames", type=count(1, 200), default=10)
-    p.add_argument("--flat-frames", type=count(1, 200), default=3)
+    add_session_option(p)
+    p.add_argument("--preset", default=None,
+                   help="preset file or packaged name (default: the mode's, "
+                        + ", ".join(f"{m}: {n}" for m, n in day.PRESETS.items()) + ")")
+    p.add_argument("--mode", choices=day.MODES, default=None,
+                   help=f"default: the preset's mode ({day.DEFAULT_MODE})")
+    p.add_argument("--hdr", choices=("auto", "off"), default=None,
+                   help="auto: also calibrate the longer exposures HDR originals may need (as many as "
+                        f"resources/parsimony.json says); default {'auto' if day.HDR_AUTO else 'off'}")
+    p.add_argument("--dark-frames", type=count(1, 200), default=None,
+                   help=f"dark frames per exposure (default {day.DARK_FRAMES})")
+    p.add_argument("--flat-frames", type=count(1, 200), default=None,
+                   help=f"open-gate frames per light and exposure (default {day.FLAT_FRAMES})")
     p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
     p.add_argument("--target-width-mm", type=number(above=0.0),
                    help="test target width (outer corners of its corner patches)")
     p.add_argument("--train-grid", type=input_file, help="patch grid JSON of the training target (real stands)")
     p.add_argument("--test-grid", type=input_file, help="patch grid JSON of the test target (real stands)")
-    p.add_argument("--no-de-fit", action="store_true", help="least squares only")
+    p.add_argument("--no-de-fit", action="store_true",
+                   help="least squares only (default: also the ΔE00-optimised matrix when resources/parsimony.json "
+                        "chose it)")
     add_device_options(p)
     p.set_defaults(func=main)
 
 
 def find_preset(name: str | None, mode: str | None):
-    """A preset by file path or packaged file name (with or without .json); default: '<mode>_pso'."""
+    """A preset by file path or packaged file name (with or without .json); default: the mode's
+    (app.workflow.defaults.default_preset_name)."""
     from simulation.presets import load_preset, packaged_presets
 
-    wanted = name or f"{mode or 'reflective'}_pso"
+    wanted = name or day.default_preset_name(mode)
     path = Path(wanted)
     if path.suffix == ".json" and path.exists():
         return load_preset(path)
@@ -60,23 +74,31 @@ def find_preset(name: str | None, mode: str | None):
     raise ValueError(f"preset {wanted!r}: no such file and not a packaged preset ({names})")
 
 
+def resolve(args: argparse.Namespace) -> tuple[Any, str, int, int]:
+    """What the options (or their defaults, app.workflow.defaults) ask for: (the preset, its mode set to the
+    run's, the HDR plan 'auto' / 'off', dark frames, flat frames)."""
+    preset = find_preset(args.preset, args.mode)
+    preset.mode = args.mode or preset.mode
+    d = day.workflow_defaults(preset.mode)
+    return preset, args.hdr or d.hdr, args.dark_frames or d.dark_frames, args.flat_frames or d.flat_frames
+
+
 def main(args: argparse.Namespace) -> int:
     from app.workflow.copystand import CopyStand, StandSettings
     from app.workflow.targets import load_grid
 
-    preset = find_preset(args.preset, args.mode)
-    mode = args.mode or preset.mode
-    preset.mode = mode
+    preset, hdr, darks, flats = resolve(args)
+    mode = preset.mode
     grids = {k: load_grid(v) for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
-    settings = StandSettings(settle_s=args.settle, dark_frames=args.dark_frames, flat_frames=args.flat_frames,
+    settings = StandSettings(settle_s=args.settle, dark_frames=darks, flat_frames=flats,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
                              target_width_mm=args.target_width_mm)
-    definition = {"workflow": "calibrate", "mode": mode, "preset": preset.name, "hdr": args.hdr,
-                  "dark_frames": args.dark_frames, "flat_frames": args.flat_frames, "settle_s": args.settle}
+    definition = {"workflow": "calibrate", "mode": mode, "preset": preset.name, "hdr": hdr,
+                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle}
     with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person)
-        profile = stand.calibrate(preset, hdr_auto=args.hdr == "auto", grids=grids)
+        profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
     from app.workflow.profile import describe
 
     for line in describe(profile):

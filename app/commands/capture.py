@@ -1,6 +1,6 @@
 """``dualrgb capture``: one original, with a saved calibration, to its deliverables.
 
-    dualrgb capture --session DIR --calibration FILE --id ACC-123 [--title ..] [--operator ..] [--notes ..]
+    dualrgb capture [--session DIR] --calibration FILE --id ACC-123 [--title ..] [--operator ..] [--notes ..]
                     [--mode reflective|transmissive] [--reshoot] [--force] (--virtual-lab | --port P --camera C)
 """
 from __future__ import annotations
@@ -13,6 +13,7 @@ from app.commands.options import count, input_file, number
 from app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
+    add_session_option,
     ask_person,
     open_devices,
     open_session,
@@ -20,6 +21,7 @@ from app.commands.stand_options import (
     reuse_limits,
     write_json,
 )
+from app.workflow.defaults import MODES, VIRTUAL_ORIGINALS
 
 log = logging.getLogger(__name__)
 
@@ -29,13 +31,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Checks the calibration against the stand (camera serial, ISO, aperture, lights, "
                                    "sphere temperature, age), meters the original, captures it (an HDR bracket "
                                    "only when metering asks) and writes its deliverables.")
-    p.add_argument("--session", type=Path, required=True, help="session folder (created, or resumed)")
+    add_session_option(p)
     p.add_argument("--calibration", type=input_file, required=True, help="calibration profile (.json)")
     p.add_argument("--id", dest="identifier", required=True, help="identifier / accession number (names the files)")
     p.add_argument("--title", default="")
     p.add_argument("--operator", default="")
     p.add_argument("--notes", default="")
-    p.add_argument("--mode", choices=("reflective", "transmissive"), default=None,
+    p.add_argument("--mode", choices=MODES, default=None,
                    help="default: the calibration's")
     p.add_argument("--reshoot", action="store_true", help="shoot an original already in the session again")
     p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables)")
@@ -43,7 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--frames", type=count(1, 100), default=1,
                    help="frames averaged per exposure (noise / sqrt(N), light dose x N; default 1)")
     p.add_argument("--virtual-original", default=None,
-                   help="virtual lab: which virtual original stands in (default painting / film by mode)")
+                   help="virtual lab: which virtual original stands in (default by mode: "
+                        + ", ".join(f"{m}: {o}" for m, o in VIRTUAL_ORIGINALS.items()) + ")")
     add_reuse_options(p)
     add_device_options(p)
     p.set_defaults(func=main)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from app.commands.options import count, frame_size, seed
 from app.terminal_progress import TerminalProgress
+from app.workflow.defaults import DARK_FRAMES, DEFAULT_MODE, MODES, VIRTUAL_FRAME_SIZE
 
 log = logging.getLogger(__name__)
 
@@ -16,12 +17,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Presets, darks, flats, train/test captures, processing and report on the "
                                    "virtual lab (sphere emulator on a pty + virtual camera).")
     p.add_argument("--out", type=Path, required=True, help="output folder (session, presets, report.json)")
-    p.add_argument("--mode", choices=("reflective", "transmissive"), default="reflective")
+    p.add_argument("--mode", choices=MODES, default=DEFAULT_MODE)
     p.add_argument("--hdr", action="store_true", help="add the ND 2.0-filtered scene with HDR brackets")
-    p.add_argument("--frame-size", type=frame_size, default=(600, 400),
-                   help="virtual frame WxH, 64..8192 per side (default 600x400)")
+    p.add_argument("--frame-size", type=frame_size, default=VIRTUAL_FRAME_SIZE,
+                   help="virtual frame WxH, 64..8192 per side (default {}x{})".format(*VIRTUAL_FRAME_SIZE))
     p.add_argument("--seed", type=seed, default=0)
-    p.add_argument("--dark-frames", type=count(1, 200), default=10, help="dark frames per exposure (default 10)")
+    p.add_argument("--dark-frames", type=count(1, 200), default=None,
+                   help=f"dark frames per exposure (default {DARK_FRAMES})")
     p.add_argument("--new-session", action="store_true",
                    help="when --out holds a session made with other options, start a new one beside it "
                         "(default: refuse, naming the difference)")
@@ -34,8 +36,10 @@ def main(args: argparse.Namespace) -> int:
     from app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
-                            seed=args.seed, dark_frames=args.dark_frames, new_session=args.new_session,
+                            seed=args.seed, new_session=args.new_session,
                             optimise_matrix=False if args.no_de_fit else None)
+    if args.dark_frames is not None:
+        settings.dark_frames = args.dark_frames
     with TerminalProgress("demo", lines=True) as progress:
         data = run_demo(settings, progress)
     print(f"{'condition':<22} {'train mean':>10} {'test mean':>10} {'sim train':>10} {'sim test':>10} "

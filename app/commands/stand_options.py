@@ -14,10 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from app.commands.options import count, frame_size, number, seed
+from app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
 
 log = logging.getLogger(__name__)
-
-VIRTUAL_ORIGINALS = {"reflective": "painting", "transmissive": "film"}
 
 
 def add_device_options(p: argparse.ArgumentParser) -> None:
@@ -25,12 +24,13 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--virtual-lab", action="store_true", help="the built-in virtual lab (sphere emulator + camera)")
     g.add_argument("--port", help="the LED sphere's serial port (e.g. /dev/ttyACM0)")
     g.add_argument("--camera", help="the camera as 'MODEL @ PORT' (from `dualrgb devices`), or 'auto' (the first)")
-    g.add_argument("--frame-size", type=frame_size, default=(600, 400), help="virtual lab frames WxH (600x400)")
+    g.add_argument("--frame-size", type=frame_size, default=VIRTUAL_FRAME_SIZE,
+                   help="virtual lab frames WxH ({}x{})".format(*VIRTUAL_FRAME_SIZE))
     g.add_argument("--seed", type=seed, default=0, help="virtual lab noise seed")
     g.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
     g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
-    g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=0.2,
-                   help="seconds between light on and shutter (0.2)")
+    g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=SETTLE_S,
+                   help=f"seconds between light on and shutter ({SETTLE_S:g})")
     p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
 
 
@@ -85,7 +85,7 @@ def _apply_settings(camera: Any, args: argparse.Namespace) -> None:
 
 
 @contextlib.contextmanager
-def open_devices(args: argparse.Namespace, mode: str = "reflective", original: str | None = None
+def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: str | None = None
                  ) -> Iterator[Devices]:
     """The virtual lab or the real sphere + camera; LEDs off and ports closed on the way out, whatever happens.
 
@@ -137,14 +137,28 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
             sphere.close()
 
 
-def open_session(folder: Path, definition: dict, camera: Any, meta: dict | None = None) -> Any:
+def add_session_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--session", type=Path, default=None,
+                   help="session folder (created, or resumed); default: a new dated one such as 2026-11-24_1 in "
+                        "the captures folder (<per-user data folder>/captures)")
+
+
+def open_session(folder: Path | None, definition: dict, camera: Any, meta: dict | None = None) -> Any:
     """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
-    (anything else is refused in one line naming the difference; app.session). One writer at a time."""
+    (anything else is refused in one line naming the difference; app.session). One writer at a time. No
+    ``folder``: a new dated session in the captures folder (app.workflow.folders), named on stderr."""
     from app.session.capture_session import CaptureSession
     from app.session.manifest import camera_definition
 
-    session = CaptureSession.resume(Path(folder), definition, meta or {},
-                                    hint="use the same options and camera, or another --session")
+    if folder is None:
+        from app.workflow.defaults import captures_dir
+        from app.workflow.folders import new_session
+
+        session = new_session(captures_dir(), meta or {}, definition)
+        print(f"dualrgb: new session {session.path}", file=sys.stderr, flush=True)
+    else:
+        session = CaptureSession.resume(Path(folder), definition, meta or {},
+                                        hint="use the same options and camera, or another --session")
     try:
         session.extend_definition(camera=camera_definition(camera))
     except BaseException:

@@ -29,7 +29,8 @@ from app.gui.viewmodel import calibration_lines
 from app.gui.widgets import PathLabel
 from app.sequences.base import ProgressEvent
 from app.sequences.shooter import Shooter
-from app.workflow.copystand import StandSettings, parsimony_defaults
+from app.workflow.copystand import StandSettings
+from app.workflow.defaults import workflow_defaults
 from app.workflow.metering import AutoExposure
 from app.workflow.profile import (
     CalibrationProfile,
@@ -68,20 +69,22 @@ class CalibrationBox(QGroupBox):
     # ------------------------------------------------------------------ builders
     def _build(self) -> None:
         form = QFormLayout(self)
+        d = workflow_defaults(self.ctx.lab.mode)          # the same defaults as `dualrgb calibrate`
         self.hdr_auto = QCheckBox("also the longer exposures HDR originals may need")
-        self.hdr_auto.setChecked(self.ctx.get("calibration/hdr_auto", True, bool))
+        self.hdr_auto.setChecked(self.ctx.get("calibration/hdr_auto", d.hdr_auto, bool))
         self.hdr_auto.setToolTip("Darks and flats also at the longer exposures of an HDR bracket (as many as the "
                                  "parsimony study found worth it), so dark originals can be captured with this "
                                  "calibration.")
         self.hdr_auto.toggled.connect(lambda on: self.ctx.set("calibration/hdr_auto", on))
-        self.dark_frames, self.flat_frames = self._count(10, "darks"), self._count(3, "flats")
+        self.dark_frames, self.flat_frames = self._count(d.dark_frames, "darks"), self._count(d.flat_frames, "flats")
         self.de_fit = QCheckBox("also fit the ΔE00-optimised matrix (slower)")
-        self.de_fit.setChecked(parsimony_defaults().get("characterisation_model", "linear") != "linear")
+        self.de_fit.setChecked(d.optimise_matrix)
         self.de_fit.setToolTip("Besides least squares; the delivered one is chosen by cross-validation on the "
                                "training target.")
         self.calibrate_button = QPushButton("Calibrate")
         self.calibrate_button.setToolTip("Auto-exposure, darks, flats, the training and test targets and the matrix "
-                                         "in one run; the calibration is saved in the session.")
+                                         "in one run; the calibration is saved in the session (a new dated one in "
+                                         "the captures folder when there is none).")
         self.calibrate_button.clicked.connect(self.calibrate)
         self.summary = QLabel("no calibration yet")
         self.summary.setWordWrap(True)
@@ -114,16 +117,28 @@ class CalibrationBox(QGroupBox):
         spin = QSpinBox()
         spin.setRange(1, 100)
         spin.setValue(self.ctx.get(f"calibration/{what}", default, int))
-        spin.setToolTip(f"Frames per exposure time ({'thesis 8.2.1: 10' if what == 'darks' else 'open gate: 3'}).")
+        spin.setToolTip(f"Frames per exposure time (default {default}{', thesis 8.2.1' if what == 'darks' else ''}).")
         spin.valueChanged.connect(lambda v: self.ctx.set(f"calibration/{what}", v))
         return spin
 
     # ------------------------------------------------------------------ calibrate
     def calibrate(self) -> None:
+        """The whole calibration as one run; without a session one is made first (AppContext.with_session)."""
         ws, lab = self.ws, self.ctx.lab
         if ws.preset is None or not ws.lights:
             self.ctx.errors.report("Calibrate", "choose the preset whose lights the day uses first")
             return
+        try:
+            plan = AutoExposure(self.plan_shooter(), list(ws.lights)).plan()
+            if lab.camera is None or lab.sphere is None:
+                raise ValueError("connect the LED sphere and the camera in Devices first")
+        except ValueError as exc:
+            self.ctx.errors.report("Calibrate", exc)
+            return
+        self.ctx.with_session(lambda: self._start(plan), "the calibration")
+
+    def _start(self, plan: list) -> None:
+        ws, lab = self.ws, self.ctx.lab
         settings = self.stand_settings()
         settings.dark_frames, settings.flat_frames = self.dark_frames.value(), self.flat_frames.value()
         settings.optimise_matrix = self.de_fit.isChecked()
@@ -133,13 +148,12 @@ class CalibrationBox(QGroupBox):
         def work(hooks: RunHooks) -> CalibrationProfile:
             stand = lab.copy_stand(settings, hooks)
             base = stand.auto_expose(lights)
-            plan = stand.exposure_plan(base, hdr)
+            plan = stand.exposure_plan(base, hdr, preset.mode)
             frames = [f for seq, _lo, _hi in stand.calibration_sequences(lights, plan, base) for f in seq.plan()]
             hooks.on_event(ProgressEvent(0, 0, "auto-exposure done: darks, flats and the targets next",
                                          data={"plan": frames, "base": base, "exposures": plan}))
             return stand.calibrate_at(preset, base, hdr_auto=hdr, grids=grids)
         try:
-            plan = AutoExposure(self.plan_shooter(), lights).plan()
             lab.copy_stand(settings)                                # refuses early: devices, session
         except ValueError as exc:
             self.ctx.errors.report("Calibrate", exc)
@@ -166,7 +180,7 @@ class CalibrationBox(QGroupBox):
 
     # ------------------------------------------------------------------ save, load, check
     def _ask_save(self) -> None:
-        folder = QFileDialog.getExistingDirectory(self, "Save the calibration into", str(self.ctx.data_dir()))
+        folder = QFileDialog.getExistingDirectory(self, "Save the calibration into", str(self.ctx.captures_dir))
         if folder:
             self.save_to(Path(folder))
 

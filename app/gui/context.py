@@ -3,6 +3,7 @@ questions to the technician, and a signal bus for events."""
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,8 @@ from app.gui.device_hub import Lab
 from app.gui.widgets import Asker, ErrorReporter
 from app.gui.workers import TaskRunner
 from app.gui.workspace import Workspace
+from app.workflow.defaults import captures_dir
+from app.workflow.folders import new_session
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +53,7 @@ class AppContext:
     asker: Asker
     opened: list[Path] = field(default_factory=list)     # files and folders opened for the user (tests read it)
     open_externally: bool = True
+    _waiting_for_session: list[Callable[[], None]] = field(default_factory=list)
 
     # ---- typed settings, saved as soon as they change ----
     def get(self, key: str, default: Any = None, type_: type | None = None) -> Any:
@@ -70,7 +74,8 @@ class AppContext:
         self.settings.sync()
 
     def data_dir(self) -> Path:
-        """Next to the settings file (~/.config/dualrgb/ by default; a test's temp dir in tests)."""
+        """The settings file's folder (~/.config/dualrgb/ by default; a test's temp dir in tests): the window's
+        own small files, never captures (:attr:`captures_dir`)."""
         name = self.settings.fileName()
         if name and self.settings.format() == QSettings.IniFormat:
             return Path(name).parent
@@ -95,4 +100,33 @@ class AppContext:
 
     @property
     def captures_dir(self) -> Path:
-        return self.path_setting("paths/captures", self.data_dir() / "captures")
+        """The folder chosen in Devices, else the day's default (app.workflow.defaults.captures_dir: the per-user
+        data folder, not the settings folder)."""
+        return self.path_setting("paths/captures", captures_dir())
+
+    # ---- the session rule: starting without one makes one ----
+    def with_session(self, then: Callable[[], None], reason: str) -> None:
+        """Call ``then`` once there is a session: the current one, or a new dated one made in the captures folder
+        first (app.workflow.folders.new_session, on the devices thread; the status bar and the guide say so).
+        Calls arriving while it is being made wait for it."""
+        lab = self.lab
+        if lab.session is not None:
+            then()
+            return
+        self._waiting_for_session.append(then)
+        if len(self._waiting_for_session) > 1:
+            return
+        root, meta = self.captures_dir, {"operator": self.get("originals/operator", "", str),
+                                         "virtual_lab": lab.is_virtual}
+
+        def made(session: Any) -> None:
+            lab.set_session(session, note=f"made for {reason}")
+            waiting, self._waiting_for_session[:] = list(self._waiting_for_session), []
+            for call in waiting:
+                call()
+
+        def failed(exc: BaseException) -> None:
+            self._waiting_for_session.clear()
+            self.errors.report("New session", exc)
+        self.runner.submit(lambda: new_session(root, meta, lab.session_definition()), pool="devices",
+                           name="new session", on_result=made, on_error=failed)

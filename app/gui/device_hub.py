@@ -16,6 +16,7 @@ from PySide6.QtCore import QObject, QTimer, Signal
 from app.gui.viewmodel import DoseFeed, light_from_levels
 from app.gui.workers import TaskHandle, TaskRunner
 from app.session.log import SessionLog
+from app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
 from drivers.camera.base import Camera, CameraError
 from drivers.led_sphere import LedSphere, SphereError
 from drivers.led_sphere.driver import DEFAULT_MAX_ON_S
@@ -25,7 +26,6 @@ log = logging.getLogger(__name__)
 
 VIRTUAL_SPHERE = "virtual sphere (emulator)"
 VIRTUAL_CAMERA = "virtual camera (virtual lab)"
-VIRTUAL_ORIGINALS = {"reflective": "painting", "transmissive": "film"}   # the stand-in when none is chosen
 NO_CAMERA_ADVICE = ("no camera found: connect the camera by USB, switch it on (mode dial to M) and press "
                     "'Detect' again; on a desktop, close photo programs that grab it (gvfs)")
 
@@ -52,12 +52,13 @@ class Lab(QObject):
     sessionChanged = Signal()
     lightApplied = Signal(object)          # LightSource now on the sphere
     virtualLabChanged = Signal()
+    modeChanged = Signal(str)              # reflective / transmissive (the lights' default follows it)
     failed = Signal(str, object)           # title, exception: shown by the window as an actionable dialog
     succeeded = Signal(str)                # title of a device call that worked (its earlier error is stale)
     message = Signal(str)                  # one line for the status bar
 
     def __init__(self, runner: TaskRunner, parent: QObject | None = None,
-                 frame_size: tuple[int, int] = (600, 400), mode: str = "reflective", seed: int = 0,
+                 frame_size: tuple[int, int] = VIRTUAL_FRAME_SIZE, mode: str = DEFAULT_MODE, seed: int = 0,
                  shutter_bumps: bool = False):
         super().__init__(parent)
         self.runner = runner
@@ -71,6 +72,7 @@ class Lab(QObject):
         self.camera: Camera | None = None
         self.camera_name: str = ""
         self.session: Any = None                  # app.session.CaptureSession
+        self.session_note = ""                    # why it was made ('made for the calibration'), '' by hand
         self.session_log: SessionLog | None = None   # its session.log while it is the current session
         self.last_status: dict = {}
         self.dose = DoseFeed()
@@ -112,6 +114,11 @@ class Lab(QObject):
                 raise SphereError(f"{exc}; {report.message}", kind=exc.kind, code=exc.code,
                                   light="off" if report.off else "unknown") from None
         return run
+
+    def set_mode(self, mode: str) -> None:
+        if mode != self.mode:
+            self.mode = mode
+            self.modeChanged.emit(mode)
 
     @property
     def is_virtual(self) -> bool:
@@ -307,7 +314,7 @@ class Lab(QObject):
         vl = self.virtual_lab
         if vl is None:
             return None
-        default = VIRTUAL_ORIGINALS.get(vl.mode, "painting")
+        default = VIRTUAL_ORIGINALS.get(vl.mode, VIRTUAL_ORIGINALS[DEFAULT_MODE])
 
         def place(what: str, nd: bool = False) -> Any:
             if what.startswith("original:"):
@@ -323,7 +330,7 @@ class Lab(QObject):
         if self.camera is None or self.sphere is None:
             raise ValueError("connect the LED sphere and the camera in Devices first")
         if self.session is None:
-            raise ValueError("start a session first (Calibrate & capture: New session)")
+            raise ValueError("no session: one is made when a calibration, a run or an original starts")
         return CopyStand(self.camera, self.sphere, self.session, stand=self.stand(stand_in), lab=self.virtual_lab,
                          settings=settings, **(hooks.stand_kwargs() if hooks is not None else {}))
 
@@ -347,14 +354,18 @@ class Lab(QObject):
             out["camera"] = camera_definition(self.camera)
         return out
 
-    def set_session(self, session: Any) -> None:
+    def set_session(self, session: Any, note: str = "") -> None:
+        """Make ``session`` the current one; ``note`` says why it was made when it was made for the technician
+        (the status bar and the guide show it)."""
         if self.session_log is not None:
             self.session_log.stop()
         self.session = session
+        self.session_note = note if session is not None else ""
         self.session_log = SessionLog(session.path).start() if session is not None else None
         self.sessionChanged.emit()
         if session is not None:
-            self.message.emit(f"session folder {session.path}")
+            self.message.emit(f"new session {session.path.name} in {session.path.parent} ({note})" if note
+                              else f"session folder {session.path}")
 
     # ------------------------------------------------------------------ shutdown
     def stop_polling(self) -> None:

@@ -22,10 +22,12 @@ STATE_LOOK = {StepState.DONE: ("✓", "#2e7d32", "#e8f5e9"), StepState.ACTIVE: (
               StepState.TODO: ("○", "#757575", "#fafafa"), StepState.WARNING: ("⚠", "#b26a00", "#fff8e1")}
 STEP_PANEL = {DayStep.CONNECT: "devices", DayStep.CALIBRATE: "capture", DayStep.ORIGINALS: "originals",
               DayStep.DELIVER: "originals"}
-STEP_TIPS = {DayStep.CONNECT: "Connect the LED sphere and the camera (Devices) and start a session (Calibrate & "
-                              "capture: New session).",
+STEP_TIPS = {DayStep.CONNECT: "Connect the LED sphere and the camera (Devices). A session folder is made in the "
+                              "captures folder when you first calibrate, run or capture (or press New session in "
+                              "Calibrate & capture).",
              DayStep.CALIBRATE: "Once a day or when something changes: darks, flats, the training and test targets "
-                                "and the matrix (Calibrate & capture: Calibrate). Save it to reuse it.",
+                                "and the matrix (Calibrate & capture: Calibrate; it makes a session if there is "
+                                "none). Save it to reuse it.",
              DayStep.ORIGINALS: "Add each original with its identifier and capture it with the calibration (HDR "
                                 "when metering asks for it).",
              DayStep.DELIVER: "Each captured original's archival TIFFs and sidecar are written at once to "
@@ -103,7 +105,8 @@ class WorkflowGuide(QWidget):
                         camera=lab.camera_name if lab.camera is not None else "", session=session,
                         plan=ws.planned_exposures(session) if ws.lights or ws.run_plan else {},
                         profile=ws.calibration, check=ws.calibration_check, queue=ws.queue,
-                        deliverables=(session.path / "deliverables") if session is not None else None)
+                        deliverables=(session.path / "deliverables") if session is not None else None,
+                        session_note=lab.session_note)
 
     def refresh(self) -> None:
         self.steps = day_checklist(self.state())

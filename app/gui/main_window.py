@@ -17,6 +17,7 @@ from app.gui.panels.placeholder import NotAvailablePanel
 from app.gui.widgets import Asker, ErrorReporter, LogView
 from app.gui.workers import TaskRunner
 from app.gui.workspace import Workspace
+from app.workflow.defaults import VIRTUAL_FRAME_SIZE
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +39,7 @@ PANEL_TITLES = {"devices": "Devices", "light": "Light source", "camera": "Camera
 
 
 class MainWindow(QMainWindow):
-    def __init__(self, settings: QSettings | None = None, *, frame_size: tuple[int, int] = (600, 400),
+    def __init__(self, settings: QSettings | None = None, *, frame_size: tuple[int, int] = VIRTUAL_FRAME_SIZE,
                  show_dialogs: bool = True, shutter_bumps: bool = False):
         super().__init__()
         self.setWindowTitle("dualrgb — dual-RGB copy stand")

@@ -1,6 +1,6 @@
-"""``dualrgb gui --screenshot DIR``: a small real session on the virtual lab - connect, calibrate, two originals
-(one needing HDR) captured and delivered, results, a search, a CRF sweep - one PNG per panel plus the workflow
-guide and the flat-field uniformity map, then exit.
+"""``dualrgb gui --screenshot DIR``: a small real session on the virtual lab - connect, calibrate (the default
+lights, into the session the calibration makes), two originals (one needing HDR) captured and delivered, results,
+a search, a CRF sweep - one PNG per panel plus the workflow guide and the flat-field uniformity map, then exit.
 
 The run is a list of steps driven by a QTimer: each step starts something (a device call, a sequence, the
 processing, a simulation) through the panels' own code, and the next one starts when every worker is idle.
@@ -43,8 +43,8 @@ class ScreenshotRun(QObject):
 
     def start(self) -> None:
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        self.w.ctx.set("paths/captures", str(self.work_dir / "captures"))
-        self.w.ctx.set("paths/presets", str(self.work_dir / "presets"))
+        self.w.devices.set_folder("paths/captures", str(self.work_dir / "captures"))
+        self.w.devices.set_folder("paths/presets", str(self.work_dir / "presets"))
         self._timer.start()
 
     # ------------------------------------------------------------------ the session
@@ -58,7 +58,7 @@ class ScreenshotRun(QObject):
             ("screenshot light", lambda: self.shoot("light")),
             ("take a picture", self._camera_shot),
             ("screenshot camera", lambda: self.shoot("camera")),
-            ("new session", lambda: cap.new_session() or (lambda: w.lab.session is not None and bool(cap.presets))),
+            ("lights listed", lambda: lambda: bool(cap.presets) and None not in cap.chooser.figures),
             ("calibrate", self._calibrate),
             ("screenshot capture", lambda: self.shoot("capture")),
             ("flat-field uniformity", self._uniformity),
@@ -94,8 +94,7 @@ class ScreenshotRun(QObject):
         return lambda: self.w.camera.last_view is not None
 
     def _calibrate(self):
-        cap, ws = self.w.capture, self.w.ctx.workspace
-        cap.choose_preset("dual-RGB reflective")
+        cap, ws = self.w.capture, self.w.ctx.workspace        # the recommended lights; the session made for it
         box = cap.calibration
         box.dark_frames.setValue(2)
         box.flat_frames.setValue(2)

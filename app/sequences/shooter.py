@@ -25,6 +25,7 @@ import numpy as np
 from app.session.capture_session import CaptureSession
 from app.session.light_dose import LightDose
 from app.session.manifest import SessionEntry
+from app.workflow.defaults import SETTLE_S
 from drivers.camera.base import DEFAULT_LATENCY_S, Camera, CameraError, Exposure, RawCapture, call_with_deadline
 from drivers.led_sphere import LightReport, SphereError
 from drivers.raw import RawFrame, load_raw
@@ -44,7 +45,7 @@ class LightSafetyError(RuntimeError):
 @dataclass(frozen=True)
 class SafetySettings:
     max_on_s: float = 10.0          # per capture, light on at most (settle + exposure + latency)
-    settle_s: float = 0.2           # after switching on, before the shutter opens
+    settle_s: float = SETTLE_S      # after switching on, before the shutter opens (app.workflow.defaults)
     # the camera's allowance beyond the exposure (trigger, shutter lag, reporting the shutter closed); None: what
     # the camera reports (Camera.latency_for, filled in by for_camera), DEFAULT_LATENCY_S without a camera
     latency_s: float | None = None

@@ -29,6 +29,7 @@ from app.sequences.base import Sequence as BaseSequence
 from app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from app.sequences.capture import SubjectCapture
 from app.sequences.shooter import SafetySettings, Shooter
+from app.workflow.defaults import study_defaults, workflow_defaults
 from app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from app.workflow.metering import AutoExposure, HdrMetering
 from app.workflow.profile import (
@@ -54,10 +55,12 @@ EventCallback = Callable[[ProgressEvent], None]
 VIRTUAL_TARGET_WIDTH_MM = 280.0     # the virtual lab's test target, outer corners of its corner patches
 
 
-def parsimony_defaults() -> dict:
-    from simulation.defaults import load_defaults
+def _dark_frames() -> int:
+    return workflow_defaults().dark_frames
 
-    return load_defaults()
+
+def _flat_frames() -> int:
+    return workflow_defaults().flat_frames
 
 
 @dataclass
@@ -65,8 +68,8 @@ class StandSettings:
     settle_s: float = SafetySettings().settle_s
     latency_s: float | None = None         # the camera's latency allowance; None: what the camera reports
     max_on_s: float = SafetySettings().max_on_s   # light on per capture at most (thesis 4.3.2: 10 s)
-    dark_frames: int = 10                     # thesis 8.2.1
-    flat_frames: int = 3
+    dark_frames: int = field(default_factory=_dark_frames)     # app.workflow.defaults (thesis 8.2.1: 10)
+    flat_frames: int = field(default_factory=_flat_frames)
     hdr_exposures: int | None = None       # most exposures per light; None: resources/parsimony.json
     optimise_matrix: bool | None = None    # also the dE00-optimised matrix; None: resources/parsimony.json
     limits: ReuseLimits = field(default_factory=ReuseLimits)
@@ -130,12 +133,13 @@ class CopyStand:
             self.cancel.check()
 
     # ------------------------------------------------------------------ calibration
-    def exposure_plan(self, base: dict[str, float], hdr_auto: bool) -> dict[str, list[float]]:
+    def exposure_plan(self, base: dict[str, float], hdr_auto: bool, mode: str | None = None
+                      ) -> dict[str, list[float]]:
         """Per light: the open-gate exposure, and with ``hdr_auto`` longer ones (HDR, thesis 8) up to the most the
         parsimony study found worth it, each within the overlap the HDR planner keeps and the light-on limit."""
         from app.sequences.hdr import LINEAR_LIMIT_DN
 
-        n = self.hdr_exposures() if hdr_auto else 1
+        n = self.hdr_exposures(mode) if hdr_auto else 1
         limit = self.shooter.safety.max_exposure_s
         usable = [s for s in self.camera.shutter_speeds() if s <= limit]
         step = 0.8 * LINEAR_LIMIT_DN / 100.0                 # app.sequences.hdr.plan_hdr's overlap factor
@@ -150,8 +154,8 @@ class CopyStand:
             plan[name] = ts
         return plan
 
-    def hdr_exposures(self) -> int:
-        return int(self.settings.hdr_exposures or parsimony_defaults()["hdr_exposures"])
+    def hdr_exposures(self, mode: str | None = None) -> int:
+        return int(self.settings.hdr_exposures or study_defaults(mode)["hdr_exposures"])
 
     def auto_expose(self, lights: Sequence[NamedLight]) -> dict[str, float]:
         """Per light, the open-gate exposure (app.workflow.metering.AutoExposure: cancellable between lights)."""
@@ -173,25 +177,27 @@ class CopyStand:
                         .5 + .05 * i, .55 + .05 * i))
         return out
 
-    def calibrate(self, preset: Any, *, hdr_auto: bool = False, grids: dict[str, Any] | None = None,
+    def calibrate(self, preset: Any, *, hdr_auto: bool | None = None, grids: dict[str, Any] | None = None,
                   report_dir: Path | None = None) -> CalibrationProfile:
         """Auto-exposure, darks and flats at every planned exposure, training and test targets, characterisation:
-        the calibration profile, saved in ``<session>/calibration/``."""
+        the calibration profile, saved in ``<session>/calibration/``. ``hdr_auto`` None: the day's default
+        (app.workflow.defaults)."""
         base = self.auto_expose(lights_of(preset))
         return self.calibrate_at(preset, base, hdr_auto=hdr_auto, grids=grids, report_dir=report_dir)
 
-    def calibrate_at(self, preset: Any, base: dict[str, float], *, hdr_auto: bool = False,
+    def calibrate_at(self, preset: Any, base: dict[str, float], *, hdr_auto: bool | None = None,
                      grids: dict[str, Any | None] = None, report_dir: Path | None = None) -> CalibrationProfile:
         """:meth:`calibrate` from known open-gate exposures ``base`` (light name -> seconds)."""
         lights = lights_of(preset)
-        plan = self.exposure_plan(base, hdr_auto)
+        defaults = workflow_defaults(preset.mode)
+        plan = self.exposure_plan(base, defaults.hdr_auto if hdr_auto is None else hdr_auto, preset.mode)
         for seq, lo, hi in self.calibration_sequences(lights, plan, base):
             self.run_sequence(seq, lo, hi)
         specs = {name: target_spec(preset.mode, Subject.target(name), (grids or {}).get(name), lab=self.lab)
                  for name in ("train", "test")}
         optimise = self.settings.optimise_matrix
         if optimise is None:
-            optimise = parsimony_defaults()["characterisation_model"] != "linear"
+            optimise = defaults.optimise_matrix
         out = Path(report_dir or self.session.path / "calibration" / "report")
         result = process_session(self.session, out, specs["train"], specs["test"], lights=[nl.name for nl in lights],
                                  exposures={n: [t] for n, t in base.items()}, optimise=optimise,
@@ -262,7 +268,7 @@ class CopyStand:
         rows, cols = np.linspace(0, h, n + 1).astype(int), np.linspace(0, w, n + 1).astype(int)
         tiles = [(rows[i], rows[i + 1], cols[j], cols[j + 1]) for i in range(n) for j in range(n)]
         seq = HdrMetering(self.shooter, profile.lights, profile.base_exposures, original.subject, tiles, take=take,
-                          max_frames=self.hdr_exposures())
+                          max_frames=self.hdr_exposures(profile.mode))
         self.run_sequence(seq, 0.0, 0.1)
         plans = seq.plans
         exposures, warnings = {}, []

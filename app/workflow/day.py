@@ -104,8 +104,18 @@ class OriginalsQueue:
             except (TypeError, ValueError) as exc:
                 log.warning("session original %r skipped: %s", ident, exc)
                 continue
-            _read_delivery(row, Path(meta.get("sidecar") or ""))
+            _read_delivery(row, _sidecar(session, row.original, meta.get("sidecar")))
         return queue
+
+
+def _sidecar(session: Any, original: Original, recorded: str | None) -> Path:
+    """The sidecar session.json names, or where delivery puts it in this session's folder when that path is gone
+    (a session moved to another captures folder keeps its deliverables)."""
+    path = Path(recorded or "")
+    if recorded and path.is_file():
+        return path
+    moved = Path(session.path) / "deliverables" / original.file_stem / f"{original.file_stem}.json"
+    return moved if moved.is_file() else path
 
 
 def _read_delivery(row: QueueRow, sidecar: Path) -> None:
@@ -165,6 +175,7 @@ class DayState:
     check: ReuseCheck | None = None
     queue: OriginalsQueue = field(default_factory=OriginalsQueue)
     deliverables: Path | None = None
+    session_note: str = ""                # why the session was made ('for the calibration'), '' when by hand
 
 
 def day_checklist(state: DayState) -> list[GuideStep]:
@@ -179,11 +190,19 @@ def day_checklist(state: DayState) -> list[GuideStep]:
 
 
 def _connect(st: DayState) -> GuideStep:
+    """The devices; the session is made when the first calibration, run or original starts (or by hand)."""
     lines = [f"sphere: {st.sphere or 'not connected'}", f"camera: {st.camera or 'not connected'}",
-             f"session: {Path(st.session.path).name} ({len(st.session.entries())} frames)" if st.session is not None
-             else "session: none (New session)"]
-    done = bool(st.sphere and st.camera and st.session is not None)
+             _session_line(st)]
+    done = bool(st.sphere and st.camera)
     return GuideStep(DayStep.CONNECT, StepState.DONE if done else StepState.TODO, lines)
+
+
+def _session_line(st: DayState) -> str:
+    if st.session is None:
+        return "session: none yet; a dated one is made in the captures folder (Devices) when you calibrate, run or " \
+               "capture"
+    note = f", {st.session_note}" if st.session_note else ""
+    return f"session: {Path(st.session.path).name} ({len(st.session.entries())} frames{note})"
 
 
 def targets_captured(session: Any) -> set[str]:

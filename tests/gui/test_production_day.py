@@ -173,7 +173,8 @@ def test_production_day_through_the_gui(qtbot, make_window, tmp_path):
     dog.phase = "connect"
     connect_both(qtbot, w)
     w.guide.refresh()
-    assert w.guide.step(DayStep.CONNECT).state is not StepState.DONE            # no session yet
+    connect = w.guide.step(DayStep.CONNECT)                 # the devices: a session is made when one is needed
+    assert connect.state is StepState.DONE and connect.lines[2].startswith("session: none yet"), connect.lines
     cap = w.capture
     click(qtbot, cap.new_button)
     qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)

@@ -146,7 +146,7 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert "not assessed: SFR / MTF" in res.quality.text()                      # issue 11 item 6
     res.export_to(tmp_path / "export")
     wait_idle(qtbot, w)
-    assert len(list((tmp_path / "export").glob("session-*-results/report.json"))) == 1
+    assert len(list((tmp_path / "export").glob(f"{w.lab.session.path.name}-results/report.json"))) == 1
 
     # ---- the GUI thread never stalled ----
     dog.stop()

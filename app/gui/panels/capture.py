@@ -4,7 +4,6 @@ dual-RGB capture of a target, HDR metering and capture - every one planned, paus
 the LEDs off, its frames ticked in the plan. While anything runs, what it depends on is locked."""
 from __future__ import annotations
 
-import datetime as _dt
 import logging
 from pathlib import Path
 
@@ -31,6 +30,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.calibration_box import CalibrationBox
 from app.gui.context import AppContext
+from app.gui.preset_chooser import PresetChooser
 from app.gui.sequence_view import SequenceView
 from app.gui.uniformity_view import UniformityView
 from app.gui.units import light_pct, parse_exposure, shutter
@@ -40,11 +40,13 @@ from app.sequences.capture import SubjectCapture
 from app.sequences.shooter import SafetySettings, Shooter
 from app.session.capture_session import CaptureSession
 from app.workflow.copystand import StandSettings
+from app.workflow.defaults import workflow_defaults
+from app.workflow.folders import new_session as new_dated_session
 from app.workflow.metering import AutoExposure, HdrMetering
 from app.workflow.plans import build_sequence, next_take, planned_steps, steps_done
 from app.workflow.runs import StandRun
 from app.workflow.vocabulary import NamedLight, SequenceKind, Subject, lights_of
-from simulation.presets import Preset, PresetError, load_preset, packaged_presets
+from simulation.presets import Preset
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +63,6 @@ class CapturePanel(QWidget):
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx, self.lab, self.ws = ctx, ctx.lab, ctx.workspace
-        self.presets: list[tuple[Path, Preset]] = []
         self.lights: list[NamedLight] = []
         self.hdr_plans: dict = {}
         self.hdr_key: tuple[str, bool] = ("", False)
@@ -74,7 +75,7 @@ class CapturePanel(QWidget):
         self._layout(boxes)
         self._connect()
         self._kind_changed()
-        self.load_presets()
+        self.chooser.load()
         self._session_changed()
         self._update_enabled()
 
@@ -84,7 +85,8 @@ class CapturePanel(QWidget):
         lay = QHBoxLayout(box)
         self.session_label = PathLabel("no session")
         self.new_button = QPushButton("New session")
-        self.new_button.setToolTip("Make a new session folder in the captures folder.")
+        self.new_button.setToolTip("Make a new dated session folder (e.g. 2026-11-24_1) in the captures folder now; "
+                                   "Calibrate, a run or an original makes one when there is none.")
         self.new_button.clicked.connect(lambda: self.new_session())
         self.open_button = QPushButton("Open…")
         self.open_button.setToolTip("Continue an earlier session: frames already taken are not taken again; "
@@ -98,9 +100,9 @@ class CapturePanel(QWidget):
     def _lights_box(self) -> QGroupBox:
         box = QGroupBox("Lights")
         lay = QVBoxLayout(box)
-        self.preset_combo = QComboBox()
-        self.preset_combo.setToolTip("The preset whose lights this session uses (one preset per session).")
-        self.preset_combo.currentIndexChanged.connect(self._preset_chosen)
+        self.chooser = PresetChooser(self.ctx)
+        self.chooser.chosen.connect(self._preset_chosen)
+        self.preset_combo = self.chooser.combo
         self.light_table = QTableWidget(0, 3)
         self.light_table.setHorizontalHeaderLabels(["light", "LED levels", "exposure"])
         self.light_table.setToolTip("Exposure per light (e.g. 1/80 or 0.5): set by auto-exposure on the open gate, "
@@ -117,7 +119,7 @@ class CapturePanel(QWidget):
         self.auto_button.setToolTip("Meter the open gate under each light and set the exposure that puts the "
                                     "brightest channel at 80 % of the linear limit (a sequence: pause, cancel).")
         self.auto_button.clicked.connect(self.auto_expose)
-        lay.addWidget(self.preset_combo)
+        lay.addWidget(self.chooser)
         lay.addWidget(self.light_table)
         lay.addWidget(self.auto_button)
         lay.addLayout(self._safety_form())
@@ -161,7 +163,8 @@ class CapturePanel(QWidget):
                              "the target under each light; HDR adds longer exposures for dark regions.")
         self.frames = QSpinBox()
         self.frames.setRange(1, 100)
-        self.frames.setToolTip("Frames per exposure (darks: 10 in the thesis; flats: 3).")
+        d = workflow_defaults()
+        self.frames.setToolTip(f"Frames per exposure (darks: {d.dark_frames}, thesis 8.2.1; flats: {d.flat_frames}).")
         self.target = QComboBox()
         for label, _ in TARGETS:
             self.target.addItem(label)
@@ -206,17 +209,20 @@ class CapturePanel(QWidget):
         self.lab.sphereChanged.connect(self._update_enabled)
         self.lab.cameraChanged.connect(self._update_enabled)
         self.ws.runningChanged.connect(lambda _name: self._update_enabled())
-        self.ctx.bus.presetsChanged.connect(self.load_presets)
+        self.ctx.bus.presetsChanged.connect(self.chooser.load)
         self.ctx.bus.frameSaved.connect(self._show_frames)
 
     # ------------------------------------------------------------------ session
     def new_session(self, folder: Path | None = None, meta: dict | None = None) -> None:
-        folder = folder or self.ctx.captures_dir / _dt.datetime.now().strftime("session-%Y%m%d-%H%M%S")
+        """A new session in ``folder``, or under a dated name in the captures folder (app.workflow.folders)."""
+        root = self.ctx.captures_dir
         info = {"operator": self.ctx.get("originals/operator", "", str), "virtual_lab": self.lab.is_virtual,
                 **(meta or {})}
         lab = self.lab
 
         def work() -> CaptureSession:
+            if folder is None:
+                return new_dated_session(root, info, lab.session_definition())
             return CaptureSession.create(folder, info, definition=lab.session_definition())
         self.ctx.runner.submit(work, pool="devices", name="new session", on_result=self.lab.set_session,
                                on_error=lambda exc: self.ctx.errors.report("New session", exc))
@@ -262,50 +268,17 @@ class CapturePanel(QWidget):
     def _show_frames(self) -> None:
         s = self.lab.session
         self.session_label.set_path(f"{s.path}  ({len(s.entries())} frames)" if s is not None else
-                                    "no session: press New session")
+                                    f"no session yet: one is made in {self.ctx.captures_dir} when a run starts")
 
     # ------------------------------------------------------------------ lights
-    def load_presets(self) -> None:
-        folder = self.ctx.presets_dir
-
-        def work() -> list[tuple[Path, Preset]]:
-            out = []
-            for p in packaged_presets() + (sorted(folder.glob("*.json")) if folder.is_dir() else []):
-                try:
-                    out.append((p, load_preset(p)))
-                except PresetError as exc:
-                    log.warning("preset skipped: %s", exc)
-            return out
-
-        self.ctx.runner.submit(work, pool="compute", name="load presets", on_result=self._fill_presets,
-                               on_error=lambda exc: self.ctx.errors.report("Presets", exc))
-
-    def _fill_presets(self, presets: list[tuple[Path, Preset]]) -> None:
-        wanted = self.ctx.get("capture/preset", "", str)
-        current = str(self.presets[self.preset_combo.currentIndex()][0]) if self.presets and \
-            self.preset_combo.currentIndex() >= 0 else wanted
-        self.presets = presets
-        self.preset_combo.blockSignals(True)
-        self.preset_combo.clear()
-        for _path, p in presets:
-            self.preset_combo.addItem(f"{p.name}  ({len(p.sources)} light{'s' if len(p.sources) > 1 else ''})")
-        paths = [str(p) for p, _ in presets]
-        self.preset_combo.setCurrentIndex(paths.index(current) if current in paths else 0)
-        self.preset_combo.blockSignals(False)
-        self._preset_chosen(self.preset_combo.currentIndex())
+    @property
+    def presets(self) -> list[tuple[Path, Preset]]:
+        return self.chooser.presets
 
     def choose_preset(self, name: str) -> None:
-        for i, (_path, p) in enumerate(self.presets):
-            if p.name == name:
-                self.preset_combo.setCurrentIndex(i)
-                return
-        raise ValueError(f"no preset named {name!r}")
+        self.chooser.choose(name)
 
-    def _preset_chosen(self, index: int) -> None:
-        if not 0 <= index < len(self.presets):
-            return
-        path, preset = self.presets[index]
-        self.ctx.set("capture/preset", str(path))
+    def _preset_chosen(self, preset: Preset) -> None:
         old = dict(self.ws.base_exposures)
         self.lights = lights_of(preset)
         self.hdr_plans = {}
@@ -371,10 +344,9 @@ class CapturePanel(QWidget):
         return Shooter(self.lab.camera, None, None, safety=self.safety())
 
     def shooter(self) -> Shooter:
-        if self.lab.camera is None or self.lab.sphere is None:
-            raise ValueError("connect the LED sphere and the camera in Devices first")
+        self._require_devices()
         if self.lab.session is None:
-            raise ValueError("start a session first (New session)")
+            raise ValueError("no session yet (one is made when a run starts)")
         return Shooter(self.lab.camera, self.lab.sphere, self.lab.session, stand=self.lab.stand(),
                        safety=self.safety())
 
@@ -416,7 +388,9 @@ class CapturePanel(QWidget):
     def _kind_changed(self, *_args) -> None:
         kind = self.kind.currentText()
         self.frames.blockSignals(True)
-        self.frames.setValue(self.ctx.get(f"capture/frames/{kind}", 10 if kind == "Dark series" else 3, int))
+        d = workflow_defaults(self.lab.mode)
+        default = d.dark_frames if kind == "Dark series" else d.flat_frames
+        self.frames.setValue(self.ctx.get(f"capture/frames/{kind}", default, int))
         self.frames.blockSignals(False)
         self._update_enabled()
         self.update_plan()
@@ -426,7 +400,8 @@ class CapturePanel(QWidget):
         self.update_plan()
 
     def _ready(self) -> bool:
-        return self.lab.camera is not None and self.lab.sphere is not None and self.lab.session is not None
+        """The devices are connected (a session is made when the run starts, if there is none)."""
+        return self.lab.camera is not None and self.lab.sphere is not None
 
     def _update_enabled(self) -> None:
         """Lock what a running sequence depends on (session, lights, exposures, settings); devices and a session
@@ -447,9 +422,8 @@ class CapturePanel(QWidget):
         self.calibration.set_locked(running)
         self.calibration.calibrate_button.setEnabled(ready)
         if not self._ready() and not running:
-            missing = [w for w, ok in (("the sphere", self.lab.sphere), ("the camera", self.lab.camera),
-                                       ("a session", self.lab.session)) if ok is None]
-            self.view.message.setText("needs " + ", ".join(missing) + " before it can start")
+            missing = [w for w, ok in (("the sphere", self.lab.sphere), ("the camera", self.lab.camera)) if ok is None]
+            self.view.message.setText("needs " + " and ".join(missing) + " (Devices) before it can start")
 
     # ------------------------------------------------------------------ running
     def capture_shortcut(self) -> None:
@@ -457,6 +431,21 @@ class CapturePanel(QWidget):
             self.start()
 
     def start(self) -> None:
+        """Start the chosen step; without a session one is made first (AppContext.with_session)."""
+        what = self.kind.currentText().lower()
+        try:
+            self.build(None)                      # refuses (nothing made) what cannot run
+            self._require_devices()
+        except ValueError as exc:
+            self.ctx.errors.report(f"Start {what}", exc)
+            return
+        self.ctx.with_session(self._start_now, f"the {what}")
+
+    def _require_devices(self) -> None:
+        if self.lab.camera is None or self.lab.sphere is None:
+            raise ValueError("connect the LED sphere and the camera in Devices first")
+
+    def _start_now(self) -> None:
         try:
             seq = self.build(self.shooter())
         except ValueError as exc:
@@ -503,11 +492,19 @@ class CapturePanel(QWidget):
 
     def auto_expose(self) -> None:
         try:
-            seq = AutoExposure(self.shooter(), self.lights)
+            self._require_devices()
         except ValueError as exc:
             self.ctx.errors.report("Auto-exposure", exc)
             return
-        self.view.start(seq)
+
+        def now() -> None:
+            try:
+                seq = AutoExposure(self.shooter(), self.lights)
+            except ValueError as exc:
+                self.ctx.errors.report("Auto-exposure", exc)
+                return
+            self.view.start(seq)
+        self.ctx.with_session(now, "the auto-exposure")
 
     def patch_boxes(self, target: str, nd: bool) -> list[tuple[int, int, int, int]]:
         """Patch boxes (full-frame rows/cols) for HDR metering: the virtual lab's scene, or the grid placed in
@@ -529,11 +526,20 @@ class CapturePanel(QWidget):
         try:
             base = {n: ts[0] for n, ts in self.exposures().items()}
             subject = self.subject()
-            seq = HdrMetering(self.shooter(), self.lights, base, subject, self.patch_boxes(subject.name, subject.nd))
+            boxes = self.patch_boxes(subject.name, subject.nd)
+            self._require_devices()
         except ValueError as exc:
             self.ctx.errors.report("Plan HDR", exc)
             return
-        self.view.start(seq)
+
+        def now() -> None:
+            try:
+                seq = HdrMetering(self.shooter(), self.lights, base, subject, boxes)
+            except ValueError as exc:
+                self.ctx.errors.report("Plan HDR", exc)
+                return
+            self.view.start(seq)
+        self.ctx.with_session(now, "the HDR metering")
 
     def shutdown(self) -> None:
         self.view.cancel()

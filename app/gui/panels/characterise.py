@@ -30,6 +30,7 @@ from app.gui.widgets import plot_widget, side_by_side
 from app.workflow.vocabulary import EventKind
 from app.sequences.crf_sweep import CrfSweep
 from app.sequences.shooter import SafetySettings, Shooter
+from app.workflow.defaults import SETTLE_S
 from simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
@@ -151,7 +152,7 @@ class CharacterisePanel(QWidget):
 
     def safety(self) -> SafetySettings:
         latency = self.ctx.get("capture/latency_s", 0.0, float)
-        return SafetySettings(settle_s=self.ctx.get("capture/settle_s", 0.2, float),
+        return SafetySettings(settle_s=self.ctx.get("capture/settle_s", SETTLE_S, float),
                               latency_s=latency if latency > 0 else None)
 
     def build(self, shooter: Shooter) -> CrfSweep:
@@ -169,20 +170,24 @@ class CharacterisePanel(QWidget):
         except ValueError as exc:
             self.view.clear_plan(str(exc))
             return
-        self.view.settle_s = self.ctx.get("capture/settle_s", 0.2, float)
+        self.view.settle_s = self.ctx.get("capture/settle_s", SETTLE_S, float)
         self.view.show_plan(seq.plan(), "CRF sweep (stops early once a level clips)")
-        ready = (self.lab.camera is not None and self.lab.sphere is not None and self.lab.session is not None
-                 and not self.ctx.workspace.running)
+        ready = self.lab.camera is not None and self.lab.sphere is not None and not self.ctx.workspace.running
         self.view.start_button.setEnabled(ready)
         if not ready and not self.ctx.workspace.running:
-            self.view.message.setText("needs the sphere, the camera and a session (Calibrate & capture)")
+            self.view.message.setText("needs the sphere and the camera (Devices); a session is made if there is none")
 
     # ------------------------------------------------------------------ running
     def start(self) -> None:
+        """Start the sweep; without a session one is made first (AppContext.with_session)."""
+        if self.lab.camera is None or self.lab.sphere is None:
+            self.ctx.errors.report("CRF sweep", "connect the sphere and the camera first (Devices)")
+            return
+        self.ctx.with_session(self._start_now, "the CRF sweep")
+
+    def _start_now(self) -> None:
         lab = self.lab
         try:
-            if lab.camera is None or lab.sphere is None or lab.session is None:
-                raise ValueError("connect the sphere and the camera and start a session first")
             self.sweep = self.build(Shooter(lab.camera, lab.sphere, lab.session, stand=lab.stand(),
                                             safety=self.safety()))
         except ValueError as exc:

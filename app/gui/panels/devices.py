@@ -1,16 +1,31 @@
-"""Devices: connect the LED sphere (serial port or the emulator) and the camera (gphoto2 or virtual)."""
+"""Devices: connect the LED sphere (serial port or the emulator) and the camera (gphoto2 or virtual); the mode; the
+folders (captures with their free space, your presets), and captures left in the old default folder offered."""
 from __future__ import annotations
 
 import logging
 
-from PySide6.QtWidgets import QComboBox, QFileDialog, QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout, QWidget
+from PySide6.QtWidgets import (
+    QComboBox,
+    QFileDialog,
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.context import AppContext
 from app.gui.device_hub import NO_CAMERA_ADVICE, VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
 from app.gui.widgets import PathLabel, StatusLight
+from app.workflow.defaults import DEFAULT_MODE, MODES
+from app.workflow.folders import LegacyCaptures, folder_summary, legacy_captures, move_sessions
 
 log = logging.getLogger(__name__)
 
+USE, MOVE, LEAVE = "Use it", "Move them", "Leave them"
+LEGACY_CHOICES = (USE, MOVE, LEAVE)
 PLACES = (("test target (CC24)", "test", False), ("training target", "train", False),
           ("test target + ND 2.0 over half", "test", True), ("open gate (flat field)", "open-gate", False),
           ("lens cap (dark)", "lens-cap", False))
@@ -97,11 +112,11 @@ class DevicesPanel(QWidget):
         self.virtual_label = QLabel("not started")
         self.virtual_label.setWordWrap(True)
         self.mode_combo = QComboBox()
-        self.mode_combo.addItems(["reflective", "transmissive"])
+        self.mode_combo.addItems(list(MODES))
         self.mode_combo.setToolTip("Reflective: prints and paintings on the stand; transmissive: film on the light "
                                    "box (chooses the virtual lab's targets and the reference data).")
-        self.mode_combo.setCurrentText(self.ctx.get("virtual/mode", "reflective", str))
-        self.lab.mode = self.mode_combo.currentText()
+        self.mode_combo.setCurrentText(self.ctx.get("virtual/mode", DEFAULT_MODE, str))
+        self.lab.set_mode(self.mode_combo.currentText())
         self.mode_combo.currentTextChanged.connect(self._mode_changed)
         for col, w in enumerate((self.virtual_button, self.place_combo, self.place_button, self.mode_combo)):
             vg.addWidget(w, 0, col)
@@ -113,7 +128,9 @@ class DevicesPanel(QWidget):
         fg = QGridLayout(box)
         self.folder_labels: dict[str, PathLabel] = {}
         for r, (key, title, tip) in enumerate((
-                ("paths/captures", "Captures", "Where sessions and test shots are saved."),
+                ("paths/captures", "Captures", "Where sessions (raw frames, calibrations, deliverables) and test "
+                                               "shots are saved, with the free space there; default: the per-user "
+                                               "data folder (app.workflow.defaults)."),
                 ("paths/presets", "Your presets", "Where your own light presets are saved (the packaged ones "
                                                   "are always listed too)."))):
             label = PathLabel()
@@ -125,8 +142,25 @@ class DevicesPanel(QWidget):
             fg.addWidget(label, r, 1)
             fg.addWidget(button, r, 2)
             self.folder_labels[key] = label
+        self.legacy: LegacyCaptures | None = None
+        self.legacy_label = QLabel("")
+        self.legacy_label.setWordWrap(True)
+        self.legacy_use = QPushButton("Use it")
+        self.legacy_use.setToolTip("Make the old folder the captures folder again (its sessions open as before).")
+        self.legacy_use.clicked.connect(self.use_legacy)
+        self.legacy_move = QPushButton("Move them here")
+        self.legacy_move.setToolTip("Move its sessions and test shots, as they are, into the captures folder above.")
+        self.legacy_move.clicked.connect(self.move_legacy)
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.legacy_use)
+        buttons.addWidget(self.legacy_move)
+        fg.addWidget(self.legacy_label, 2, 0, 1, 2)
+        fg.addLayout(buttons, 2, 2)
         fg.setColumnStretch(1, 1)
+        for w in (self.legacy_label, self.legacy_use, self.legacy_move):
+            w.hide()
         self._show_folders()
+        self.find_legacy()
         return box
 
     # ------------------------------------------------------------------ sphere
@@ -236,8 +270,12 @@ class DevicesPanel(QWidget):
 
     # ------------------------------------------------------------------ folders
     def _show_folders(self) -> None:
-        self.folder_labels["paths/captures"].set_path(str(self.ctx.captures_dir))
+        captures, label = self.ctx.captures_dir, self.folder_labels["paths/captures"]
+        label.set_path(str(captures))
         self.folder_labels["paths/presets"].set_path(str(self.ctx.presets_dir))
+        self.ctx.runner.submit(lambda: folder_summary(captures), pool="compute", name="free space",
+                               on_result=lambda text: label.set_path(text) if captures == self.ctx.captures_dir
+                               else None, on_error=lambda exc: log.warning("free space: %s", exc))
 
     def _choose_folder(self, key: str, title: str) -> None:
         current = self.ctx.captures_dir if key == "paths/captures" else self.ctx.presets_dir
@@ -250,6 +288,57 @@ class DevicesPanel(QWidget):
         self._show_folders()
         if key == "paths/presets":
             self.ctx.bus.presetsChanged.emit()
+        else:
+            self.find_legacy()
+
+    # ------------------------------------------------------------------ the old default captures folder
+    def find_legacy(self) -> None:
+        """Look for sessions in the old default captures folder (beside the settings file) and offer them."""
+        settings_dir, captures = self.ctx.data_dir(), self.ctx.captures_dir
+        self.ctx.runner.submit(lambda: legacy_captures(settings_dir, captures), pool="compute",
+                               name="old captures folder", on_result=self._legacy_found,
+                               on_error=lambda exc: log.warning("old captures folder: %s", exc))
+
+    def _legacy_found(self, legacy: LegacyCaptures | None) -> None:
+        self.legacy = legacy
+        for w in (self.legacy_label, self.legacy_use, self.legacy_move):
+            w.setVisible(legacy is not None)
+        if legacy is None:
+            return
+        self.legacy_label.setText(f"{legacy.text()} (the default before this version); they stay openable "
+                                  "there (Calibrate & capture: Open…)")
+        if self.ctx.get("paths/legacy_offered", "", str) == str(legacy.folder):
+            return                                   # asked once; the notice above stays
+        self.ctx.set("paths/legacy_offered", str(legacy.folder))
+        text = (f"{legacy.text()}, where captures went before this version (beside the settings file). New "
+                f"sessions now go to {self.ctx.captures_dir}. Use the old folder, move its sessions into the new "
+                "one, or leave them where they are (Devices keeps this offer; Open… still opens them)?")
+        self.ctx.asker.ask("Earlier captures", text, LEGACY_CHOICES, self._legacy_answer, default=LEAVE)
+
+    def _legacy_answer(self, choice: str) -> None:
+        if choice == USE:
+            self.use_legacy()
+        elif choice == MOVE:
+            self.move_legacy()
+
+    def use_legacy(self) -> None:
+        if self.legacy is not None:
+            self.set_folder("paths/captures", str(self.legacy.folder))
+
+    def move_legacy(self) -> None:
+        legacy, target = self.legacy, self.ctx.captures_dir
+        if legacy is None:
+            return
+        busy = [self.lab.session.path] if self.lab.session is not None else []
+        self.lab.message.emit(f"moving the sessions of {legacy.folder} to {target} …")
+
+        def moved(report) -> None:
+            self.lab.message.emit(f"{legacy.folder} -> {target}: {report.text()}")
+            self._show_folders()
+            self.find_legacy()
+        self.ctx.runner.submit(lambda: move_sessions(legacy.folder, target, busy), pool="devices",
+                               name="move the old captures", on_result=moved,
+                               on_error=lambda exc: self.ctx.errors.report("Move the old captures", exc))
 
     # ------------------------------------------------------------------ virtual lab / errors
     def _place(self) -> None:
@@ -258,7 +347,7 @@ class DevicesPanel(QWidget):
 
     def _mode_changed(self, mode: str) -> None:
         self.ctx.set("virtual/mode", mode)
-        self.lab.mode = mode
+        self.lab.set_mode(mode)
 
     def _virtual_changed(self) -> None:
         vl = self.lab.virtual_lab

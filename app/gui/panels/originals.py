@@ -35,6 +35,7 @@ from app.gui.widgets import side_by_side
 from app.sequences.base import PlannedFrame, ProgressEvent
 from app.workflow.copystand import CaptureReport, StandSettings, original_takes
 from app.workflow.day import OriginalsQueue, OriginalState, QueueRow
+from app.workflow.defaults import SETTLE_S
 from app.workflow.delivery import MODES, Original
 from app.workflow.runs import RunHooks, StandRun
 from app.workflow.vocabulary import EventKind, Role
@@ -261,7 +262,7 @@ class OriginalsPanel(QWidget):
     def _update_enabled(self) -> None:
         running = bool(self.ws.running)
         ok = (self.ws.calibration is not None and self.lab.camera is not None and self.lab.sphere is not None
-              and self.lab.session is not None and not running
+              and not running
               and (not self.ws.calibration_refused or self.force.isChecked()))
         sel = [self.ws.queue.row(i) for i in self.selected()]
         self.qa_label.setText("\n".join([f"{r.identifier} ({r.state.value}): {r.qa or '—'}"] + r.warnings)
@@ -285,8 +286,8 @@ class OriginalsPanel(QWidget):
             return "calibrate first (Calibrate & capture), or load a saved calibration"
         if self.ws.calibration_refused and not self.force.isChecked():
             return "the calibration does not match the stand (see above)"
-        if self.lab.camera is None or self.lab.sphere is None or self.lab.session is None:
-            return "connect the devices and start a session"
+        if self.lab.camera is None or self.lab.sphere is None:
+            return "connect the LED sphere and the camera (Devices)"
         return ""
 
     # ------------------------------------------------------------------ capture
@@ -300,7 +301,7 @@ class OriginalsPanel(QWidget):
             self.ctx.errors.report("Capture originals", why)
             return
         self.batch = list(identifiers)
-        self._next()
+        self.ctx.with_session(self._next, "the originals")      # makes one when there is none
 
     def _next(self) -> None:
         while self.batch:
@@ -353,7 +354,7 @@ class OriginalsPanel(QWidget):
     def _stand_settings(self) -> dict:
         g = self.ctx.get
         latency = g("capture/latency_s", 0.0, float)
-        return {"settle_s": g("capture/settle_s", 0.2, float), "latency_s": latency if latency > 0 else None}
+        return {"settle_s": g("capture/settle_s", SETTLE_S, float), "latency_s": latency if latency > 0 else None}
 
     def _run_event(self, ev: ProgressEvent) -> None:
         row = self.current

@@ -1,0 +1,74 @@
+"""Each preset's expected captured error, as ``dualrgb simulate`` reports it for those lights, so that choosing
+lights other than the recommended ones is an informed choice (the GUI shows it beside each preset's name).
+
+The figure is the float64 expected captured mean ΔE00 on the training and test targets of the preset's mode
+(simulation.search.evaluate_candidate with simulation.expected_error.ExpectedErrorEvaluator) under the setup
+and capture model ``dualrgb simulate`` uses by default: the packaged data on the parsimony study's spectral step
+and the virtual lab's capture (simulation.capture_model.CaptureModel.virtual_lab). Every preset is judged by
+the same model, whatever its file says it was made with (a preset made with measured CSVs carries figures for
+those), so the figures compare. About 20 ms per preset once the setup is loaded (a second or two, once): run
+it off the GUI thread; results are cached per process.
+"""
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+from app.workflow.defaults import study_defaults
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class PresetFigures:
+    """Expected captured mean ΔE00 of a preset's lights in its mode."""
+
+    mode: str
+    train: float
+    test: float
+
+    def text(self) -> str:
+        return f"expected ΔE00 {self.train:.2f} / {self.test:.2f}"
+
+
+@lru_cache(maxsize=4)
+def _evaluator(mode: str, step_nm: float) -> Any:
+    from simulation.capture_model import CaptureModel
+    from simulation.datasets import default_setup
+    from simulation.expected_error import ExpectedErrorEvaluator
+    from simulation.grid import SpectralGrid
+
+    setup = default_setup(mode, SpectralGrid(410.0, 780.0, step_nm))          # as `dualrgb simulate`
+    return ExpectedErrorEvaluator(setup, CaptureModel.virtual_lab(mode))
+
+
+@lru_cache(maxsize=256)
+def _figures(mode: str, step_nm: float, lights: tuple[tuple[tuple[int, ...], tuple[float, ...]], ...]
+             ) -> PresetFigures:
+    from simulation.lightsource import LightSource
+    from simulation.search import Candidate, evaluate_candidate
+
+    cand = Candidate(tuple(LightSource(leds, levels) for leds, levels in lights), 0.0)
+    evaluate_candidate(_evaluator(mode, step_nm), cand)
+    return PresetFigures(mode, float(cand.expected_train_errors.mean), float(cand.expected_test_errors.mean))
+
+
+def preset_figures(preset: Any) -> PresetFigures:
+    """The expected captured figures of ``preset`` (a simulation.presets.Preset) in its own mode."""
+    lights = tuple((tuple(s.leds), tuple(float(v) for v in s.levels)) for s in preset.sources)
+    return _figures(preset.mode, float(study_defaults(preset.mode)["spectral_step_nm"]), lights)
+
+
+def figures_of(presets: Sequence[Any]) -> list[PresetFigures | None]:
+    """:func:`preset_figures` of each preset; None for one that cannot be judged (logged)."""
+    out: list[PresetFigures | None] = []
+    for p in presets:
+        try:
+            out.append(preset_figures(p))
+        except (ValueError, KeyError) as exc:
+            log.warning("preset %s: no expected figures (%s)", getattr(p, "name", p), exc)
+            out.append(None)
+    return out
