@@ -15,6 +15,7 @@ raising.
 """
 from __future__ import annotations
 
+import collections
 import logging
 import math
 import threading
@@ -31,6 +32,7 @@ log = logging.getLogger(__name__)
 DEFAULT_TIMEOUT_S = 2.0           # per echo / answer
 DEFAULT_MOTION_TIMEOUT_S = 30.0   # a wavelength slew across the range, a grating change
 WAVELENGTH_TOLERANCE_NM = 0.5     # WAVE? after GOWAVE must be this close (the drive stops on a motor step)
+_MAX_STALE_LINES = 4              # late echoes of earlier statements skipped per attempt
 
 _TERMIOS_ERRORS: tuple[type[Exception], ...]
 try:                                    # pyserial's POSIX backend lets termios.error (not an OSError) through
@@ -64,6 +66,7 @@ class Cornerstone:
         self._ser: Any = None if isinstance(port, str) else port
         self._answered: bool | None = None      # did the port answer like a monochromator? (None: not asked yet)
         self._info: str | None = None
+        self._recent: collections.deque[bytes] = collections.deque(maxlen=4)    # the last statements sent
 
     @staticmethod
     def _check_time(seconds: Any, what: str) -> float:
@@ -172,6 +175,7 @@ class Cornerstone:
             if reset is not None:
                 reset()                          # drop a late echo or answer of an earlier statement
             ser.write(request)
+            self._recent.append(request)
             flush = getattr(ser, "flush", None)
             if flush is not None:
                 flush()
@@ -184,12 +188,20 @@ class Cornerstone:
         log.debug("-> %r", request)
 
     def _receive(self, stmt: P.Statement, request: bytes, shown: str, wait_s: float) -> Any:
-        """The echo (TimeoutError when it does not come in ``wait_s``), then a query's answer."""
-        echo = self._read_line(time.monotonic() + wait_s, shown)
-        if not P.is_echo(echo, request):
-            raise MonochromatorError(f"monochromator {self._url}: expected the echo of {shown!r}, got "
-                                     f"{P.show(echo)}; check baud rate 9600 and that no other program uses the "
-                                     "port", kind="garbled")
+        """The echo (TimeoutError when it does not come in ``wait_s``), then a query's answer. A late echo of an
+        earlier statement (it came after its timeout) is skipped."""
+        deadline = time.monotonic() + wait_s
+        for _ in range(_MAX_STALE_LINES + 1):
+            echo = self._read_line(deadline, shown)
+            if P.is_echo(echo, request):
+                break
+            if not any(P.is_echo(echo, earlier) for earlier in self._recent):
+                raise MonochromatorError(f"monochromator {self._url}: expected the echo of {shown!r}, got "
+                                         f"{P.show(echo)}; check baud rate 9600 and that no other program uses the "
+                                         "port", kind="garbled")
+            log.info("monochromator %s: skipping a late echo %s", self._url, P.show(echo))
+        else:
+            raise TimeoutError
         if not stmt.is_query:
             return None
         try:

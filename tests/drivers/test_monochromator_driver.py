@@ -169,6 +169,13 @@ def test_garbled_echo_or_answer(back):
     assert info.value.kind == "garbled" and "\n" not in str(info.value)
 
 
+def test_a_late_echo_of_an_earlier_statement_is_skipped():
+    pairs = [(b"WAVE?\r\n", None), (b"WAVE?\r\n", b"WAVE?\r\n500.000\r\n"),
+             (b"SHUTTER?\r\n", b"WAVE?\r\nSHUTTER?\r\nC\r\n")]
+    with expected_protocol(pairs) as mono:
+        assert mono.wavelength() == 500.0 and mono.shutter_is_open() is False
+
+
 def test_a_bare_lf_echo_and_lowercase_statement_echo_are_accepted():
     with expected_protocol([(b"WAVE?\r\n", b"wave?\n550.000\n")]) as mono:
         assert mono.wavelength() == pytest.approx(550.0)
