@@ -29,7 +29,7 @@ from drivers.virtual.scene import FieldLight, Scene
 log = logging.getLogger(__name__)
 
 # the camera's relative radiance units per W sr-1 m-2 nm-1 of the diffused output: with the default optics the
-# brightest band (red, ~600 nm) gives ~17 000 DN/s at ISO 50, f/8, so the sweep's exposures run from ~1/4 s at
+# brightest band (red, ~600 nm) gives ~13 000 DN/s at ISO 50, f/8, so the sweep's exposures run from ~1/2 s at
 # the peaks to the 30 s cap where the camera barely responds
 CAMERA_UNITS_PER_RADIANCE = 1.0
 

@@ -14,7 +14,7 @@ The model, per set wavelength ``lambda_0`` (spectral radiance of the diffused ou
 * ``T_f``: the filter wheel position's transmittance (open, or an order-sorting long-pass with a 10 nm logistic
   edge);
 * ``tri``: the slit function of equal entrance and exit slits, a triangle of full width at half maximum
-  ``FWHM = slit width x reciprocal linear dispersion`` (default 1.25 mm x 6.4 nm/mm = 8.0 nm for the
+  ``FWHM = slit width x reciprocal linear dispersion`` (default 1.0 mm x 6.4 nm/mm = 6.4 nm for the
   1200 l/mm grating of a Cornerstone 130), zero beyond +-FWHM.
 
 Second-order light and stray light are not modelled (an order-sorting filter removes the former on a real stand).
@@ -86,7 +86,7 @@ class MonochromatorOptics:
     lamp_temperature_k: float = 3000.0
     lamp_radiance_560: float = 0.1        # W sr-1 m-2 nm-1 of the lamp at 560 nm, before the monochromator
     transmittance: float = 0.3            # optics + diffusing sphere
-    slit_mm: float = 1.25
+    slit_mm: float = 1.0
     gratings: tuple[Grating, ...] = field(default_factory=_default_gratings)
     filters: dict[int, FilterPosition] = field(default_factory=_default_filters)
 

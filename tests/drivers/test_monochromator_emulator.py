@@ -74,16 +74,16 @@ def test_state_changes():
 # ---------------------------------------------------------------------------------------------- the light
 def test_band_is_a_triangle_of_the_stated_width_on_the_lamp_times_throughput():
     optics = MonochromatorOptics()
-    assert optics.fwhm_nm(1) == pytest.approx(1.25 * 6.4)
+    assert optics.fwhm_nm(1) == pytest.approx(1.0 * 6.4)
     wl = np.arange(530.0, 571.0, 0.5)
     band = optics.spectrum(550.0, wl)
     lamp = planck_law(wl * 1e-9, 3000.0) / planck_law(560e-9, 3000.0) * 0.1      # independently: Planck, 3000 K
     eta = 0.8 * np.sinc(1 - 500.0 / wl) ** 2                                    # the scalar blaze model
-    slit = np.clip(1 - np.abs(wl - 550.0) / 8.0, 0, None)
+    slit = np.clip(1 - np.abs(wl - 550.0) / 6.4, 0, None)
     assert band == pytest.approx(lamp * 0.3 * eta * slit, rel=1e-9)
     above_half = wl[band >= band.max() / 2]
-    assert above_half[-1] - above_half[0] == pytest.approx(8.0, abs=1.0)          # FWHM within the sampling
-    assert np.all(band[np.abs(wl - 550) >= 8.0] == 0)
+    assert above_half[-1] - above_half[0] == pytest.approx(6.4, abs=1.0)          # FWHM within the sampling
+    assert np.all(band[np.abs(wl - 550) >= 6.4] == 0)
 
 
 def test_nothing_comes_out_with_the_shutter_closed_and_the_record_says_when_it_was_open():

@@ -52,10 +52,12 @@ def test_virtual_spectroradiometer_csv_and_cgats_agree_with_the_band_it_measured
     a = read_radiance_reference(tsr.write_csv(tmp_path / "r.csv", set_nm))
     b = read_radiance_reference(tsr.write_cgats(tmp_path / "r.cgats", set_nm))
     for nm in set_nm:
-        wl = np.arange(nm - 8, nm + 8.001, 0.001)                           # the band, integrated finely by hand
+        wl = np.arange(nm - 7, nm + 7.001, 0.001)                           # the band, integrated finely by hand
         expected = np.sum(optics.spectrum(nm, wl)) * 0.001
-        assert a.at(nm)[0] == pytest.approx(expected, rel=2e-3)
-        assert b.at(nm)[0] == pytest.approx(expected, rel=2e-3)
+        # sampled every 1 nm, the 6.4 nm triangle's corners fall between samples: +0.6 % (the same at every
+        # wavelength, so the normalised CSRF does not see it)
+        assert a.at(nm)[0] == pytest.approx(expected, rel=1e-2)
+        assert b.at(nm)[0] == pytest.approx(a.at(nm)[0], rel=1e-6)
 
 
 def test_radiance_table_with_uncertainty(tmp_path):
@@ -82,7 +84,7 @@ def test_virtual_photodiode_power_follows_the_band(tmp_path):
     diode.write(tmp_path / "r.csv", tmp_path / "i.csv", set_nm)
     ref = read_photodiode_reference(tmp_path / "r.csv", tmp_path / "i.csv")
     for nm in set_nm:
-        wl = np.arange(nm - 8, nm + 8.001, 0.001)
+        wl = np.arange(nm - 7, nm + 7.001, 0.001)
         band = np.sum(optics.spectrum(nm, wl)) * 0.001
         assert ref.at(nm)[0] / 1e-6 == pytest.approx(band, rel=2e-3)         # etendue 1e-6 m2 sr
 
