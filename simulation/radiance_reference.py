@@ -99,7 +99,13 @@ def band_integral(wl: np.ndarray, spectrum: np.ndarray, set_nm: float, window_nm
 
 
 def band_peak(wl: np.ndarray, spectrum: np.ndarray, set_nm: float, window_nm: float) -> float:
-    """The spectrum's maximum within +-``window_nm`` of the set wavelength (thesis eq 4.1's L)."""
+    """The spectrum's maximum within +-``window_nm`` of the set wavelength.
+
+    References
+    ----------
+    Thesis *High Dynamic Range Imaging for Dual-RGB System for Cultural Heritage*, 4.2, eq 4.1 (L, "the peak
+    value of the light source radiance captured at lambda").
+    """
     _, s = _window(wl, spectrum, set_nm, window_nm)
     return float(s.max()) if len(s) else float("nan")
 

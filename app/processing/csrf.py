@@ -152,7 +152,24 @@ class CsrfResult:
 
 
 def compute_csrf(signals: list[WavelengthSignal], radiance: RadianceReference) -> CsrfResult:
-    """Eq 4.1 per wavelength and channel, normalised so the green maximum is 1 (module docstring)."""
+    """Eq 4.1 per wavelength and channel, normalised so the green maximum is 1 (module docstring).
+
+    Parameters
+    ----------
+    signals
+        The dark-subtracted signal rates per set wavelength (:func:`session_signals`).
+    radiance
+        The monochromator's radiance at those wavelengths (its relative uncertainty is propagated).
+
+    Returns
+    -------
+    CsrfResult
+        Relative sensitivities (n, 3), their standard uncertainties, exposures and low-signal flags.
+
+    References
+    ----------
+    Thesis *High Dynamic Range Imaging for Dual-RGB System for Cultural Heritage*, 4.2, eq 4.1.
+    """
     wl = np.array([s.wavelength_nm for s in signals])
     ref = [radiance.at(nm) for nm in wl]
     L = np.array([v for v, _ in ref])[:, None]
