@@ -62,8 +62,9 @@ class CgatsTable:
                 return [r[j] for r in self.rows]
         return [str(i + 1) for i in range(len(self.rows))]
 
-    def spectral_table(self) -> SpectralTable:
-        """The measured spectra, wavelengths (n_wl,) x patches (n_wl, n_patches)."""
+    def spectral_values(self) -> tuple[np.ndarray, np.ndarray]:
+        """The spectral fields as numbers, as written: wavelengths (n_wl,), values (n_wl, n_rows); one-line
+        CgatsError for a missing, unordered or non-numeric field (no unit is assumed: radiance readings use this)."""
         spec = self.spectral_fields()
         if len(spec) < 2:
             raise CgatsError(f"{self.source}: no spectral fields (expected nm380 ... or SPECTRAL_NM380 ...); "
@@ -84,6 +85,12 @@ class CgatsTable:
         if not np.isfinite(values).all():
             c, r = np.argwhere(~np.isfinite(values))[0]
             raise CgatsError(f"{self.source}:{self.row_lines[r]}: {wl[c]:g} nm is not a finite number")
+        return wl, values
+
+    def spectral_table(self) -> SpectralTable:
+        """The measured spectra as reflectance / transmittance factors, wavelengths (n_wl,) x patches
+        (n_wl, n_patches)."""
+        wl, values = self.spectral_values()
         if values.max() > 2.0:
             if values.max() > 200.0:
                 raise CgatsError(f"{self.source}: spectral values up to {values.max():g}: neither factors (0-1) nor "

@@ -97,11 +97,20 @@ def load_target(path: str | Path, grid: SpectralGrid = DEFAULT_GRID, name: str |
                   table.columns, _layout(table.meta), table.source, table)
 
 
+#: The standard-uncertainty columns a measured camera CSV may carry after R, G, B (``dualrgb measure csrf``).
+CAMERA_UNCERTAINTY_COLUMNS = ("u_red", "u_green", "u_blue")
+
+
 def load_camera(path: str | Path, grid: SpectralGrid = DEFAULT_GRID) -> np.ndarray:
-    """A camera sensitivity CSV with exactly three columns (R, G, B), resampled to ``grid``."""
-    table = read_spectral_csv(path, expected_columns=3)
+    """A camera sensitivity CSV with three columns (R, G, B), resampled to ``grid``; a measured one may add their
+    standard uncertainties as three more columns named :data:`CAMERA_UNCERTAINTY_COLUMNS` (not used here)."""
+    table = read_spectral_csv(path)
+    extra = [c.strip().lower() for c in table.columns[3:]]
+    if len(table.columns) != 3 and tuple(extra) != CAMERA_UNCERTAINTY_COLUMNS:
+        raise SpectralDataError(f"{table.source}: expected 3 data columns (R, G, B; optionally followed by "
+                                f"{', '.join(CAMERA_UNCERTAINTY_COLUMNS)}), found {len(table.columns)}")
     _check_covers(table, grid)
-    return resample(table.wavelengths, table.values, grid)
+    return resample(table.wavelengths, table.values[:, :3], grid)
 
 
 def load_leds(path: str | Path, grid: SpectralGrid = DEFAULT_GRID, expected: int | None = None) -> np.ndarray:

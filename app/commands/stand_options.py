@@ -112,9 +112,10 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
     yield from _real_devices(args)
 
 
-def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
+@contextlib.contextmanager
+def real_camera(args: argparse.Namespace) -> Iterator[Any]:
+    """The tethered camera ``args.camera`` ('MODEL @ PORT' or 'auto': the first found), ISO / aperture applied."""
     from drivers.camera.gphoto import GPhotoCamera
-    from drivers.led_sphere import LedSphere
 
     model, _, port = args.camera.partition(" @ ")
     if args.camera == "auto":
@@ -124,11 +125,18 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
         if not found:
             raise ValueError("--camera auto: no camera found (connect it by USB, switch it on; `dualrgb devices`)")
         model, port = found[0].model, found[0].port
+    with GPhotoCamera(model=model or None, port=port or None) as camera:
+        _apply_settings(camera, args)
+        yield camera
+
+
+def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
+    from drivers.led_sphere import LedSphere
+
     sphere = LedSphere(args.port).open()
     try:
         sphere.shutdown()
-        with GPhotoCamera(model=model or None, port=port or None) as camera:
-            _apply_settings(camera, args)
+        with real_camera(args) as camera:
             yield Devices(camera, sphere, None, None)
     finally:
         try:

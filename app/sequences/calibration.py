@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 from app.sequences.base import PlannedFrame, ProgressEvent
 from app.sequences.base import Sequence as BaseSequence
@@ -102,6 +102,31 @@ def snap_down(shutters: Sequence[float], t: float) -> float:
     return max(ok) if ok else min(shutters)
 
 
+Meter = Callable[[float], tuple[float, float]]     # exposure_s -> (brightest level above black, headroom), DN
+
+
+def converge_exposure(meter: Meter, usable: Sequence[float], start_s: float, goal_dn: float, *,
+                      max_tries: int = 5, what: str = "") -> float:
+    """The offered exposure (``usable``) putting the brightest level at ``goal_dn`` (snapped down: at or below it).
+
+    ``meter(t)`` takes a frame at ``t`` and returns its brightest level and the headroom (white - black). A
+    clipped frame (level >= 97 % of the headroom) cannot be scaled from: the next try is 3 stops shorter. Stops
+    when the next exposure is the same or within a third of a stop of the last one (or after ``max_tries``).
+    """
+    t = snap_down(usable, start_s)
+    for _ in range(max_tries):
+        level, headroom = meter(t)
+        if level >= 0.97 * headroom:                 # clipped: cannot scale from it, step down 3 stops
+            new_t = snap_down(usable, t / 8)
+        else:
+            new_t = snap_down(usable, t * goal_dn / max(level, 1.0))
+        log.info("auto-exposure %s: %g s -> level %.0f DN; next %g s", what, t, level, new_t)
+        if new_t == t or (level < 0.97 * headroom and abs(math.log2(new_t / t)) < 0.34):
+            return new_t
+        t = new_t
+    return t
+
+
 def auto_exposure(shooter: Shooter, nl: NamedLight, *, start_s: float = 1 / 60, target_fraction: float = 0.8,
                   linear_limit: float = LINEAR_LIMIT_DN, max_tries: int = 5) -> tuple[float, list[int]]:
     """Exposure putting the open gate's brightest channel at ``target_fraction`` of the linear limit.
@@ -113,22 +138,14 @@ def auto_exposure(shooter: Shooter, nl: NamedLight, *, start_s: float = 1 / 60, 
     if not usable:
         raise ValueError(f"no shutter speed fits the {shooter.safety.max_on_s:g} s light-on limit")
     shooter.place("open-gate")
-    t = snap_down(usable, start_s)
-    seqs = []
-    goal = target_fraction * linear_limit
-    for _ in range(max_tries):
+    seqs: list[int] = []
+
+    def meter(t: float) -> tuple[float, float]:
         entry = shooter.shoot(Role.METERING.value, nl.light, t, step_id(Role.METERING, light=nl.name, exposure_s=t),
                               light_name=nl.name)
         seqs.append(entry.seq)
         frame = shooter.frame(entry)
-        level = float(channel_levels(frame).max())
-        headroom = frame.white_level - max(frame.black_levels)
-        if level >= 0.97 * headroom:                 # clipped: cannot scale from it, step down 3 stops
-            new_t = snap_down(usable, t / 8)
-        else:
-            new_t = snap_down(usable, t * goal / max(level, 1.0))
-        log.info("auto-exposure %s: %g s -> level %.0f DN; next %g s", nl.name, t, level, new_t)
-        if new_t == t or (level < 0.97 * headroom and abs(math.log2(new_t / t)) < 0.34):
-            return new_t, seqs
-        t = new_t
+        return float(channel_levels(frame).max()), float(frame.white_level - max(frame.black_levels))
+
+    t = converge_exposure(meter, usable, start_s, target_fraction * linear_limit, max_tries=max_tries, what=nl.name)
     return t, seqs

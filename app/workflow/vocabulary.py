@@ -41,6 +41,7 @@ class Role(str, Enum):
     CRF = "crf"                # camera response / exposure-time linearity series
     METERING = "metering"      # auto-exposure and HDR metering frames (kept, never processed)
     REJECTED = "rejected"      # lit for less than its exposure (app.sequences.shooter): kept aside, never processed
+    CSRF = "csrf"              # a monochromatic frame measuring the camera's spectral sensitivity (thesis 4.2)
 
 
 class SubjectKind(str, Enum):
@@ -158,6 +159,11 @@ def lights_of(preset: Any) -> list[NamedLight]:
     return out
 
 
+def monochromatic_light(wavelength_nm: float) -> str:
+    """The one name of a monochromator's light set to ``wavelength_nm``: ``"monochromatic 550 nm"``."""
+    return f"monochromatic {float(wavelength_nm):g} nm"
+
+
 _OLD_LIGHT = re.compile(r"^(?P<prefix>.*?)[-_ ]?LS(?P<n>\d+)$")
 
 
@@ -271,5 +277,5 @@ def latest_takes(entries: Sequence[Any]) -> list[Any]:
 
 
 __all__ = ["EventKind", "format_exposure", "NamedLight", "Role", "SequenceKind", "Subject", "SubjectKind",
-           "exposure_key", "latest_takes", "light_name", "light_of", "lights_of", "read_light_name", "read_role",
-           "role_of", "split_take", "step_id", "subject_of"]
+           "exposure_key", "latest_takes", "light_name", "light_of", "lights_of", "monochromatic_light",
+           "read_light_name", "read_role", "role_of", "split_take", "step_id", "subject_of"]

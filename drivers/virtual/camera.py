@@ -7,7 +7,7 @@ It renders what the real camera would record, with the same simulation the optim
   (resources/leds/sphere10_relative.csv) is shifted by its drift, brought to the simulation grid and, by
   superposition (thesis 3.1.2), mixed with the levels;
 * scene: :class:`drivers.virtual.scene.Scene` (a target, the open gate, the lens cap; ND 2.0 over half the
-  target; vignetting);
+  target; vignetting; or a uniform field emitting its own light, a monochromator's band: ``field_response``);
 * responses: eq 5.10 per pixel *class* (patch, surround, gap; see scene.py), never per pixel. Per-LED class
   responses are cached per scene and drift, so a new light costs an (n_classes x 10) @ (10,) product;
 * sensor: Bayer RGGB, 14-bit, DN = black + gain * t * ISO/100 * response; shot noise on electrons, read noise,
@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.integrate import trapezoid
 
 import resources
 from drivers.camera.base import Camera, CameraError, CameraSettings, Exposure, RawCapture
@@ -320,13 +321,14 @@ class VirtualCamera(Camera):
         t_open = self._clock()
         levels, drift = self._levels(self._light())
         snap = StaticLight(levels.copy(), np.array(drift))       # what the sensor saw, frozen
+        scene = self._scene.at_exposure()                       # a field's light as it is now, frozen
         if self.realtime:
             time.sleep(t)
         ended = self._clock()
-        lit = bool(np.any(levels > 0))
+        lit = bool(np.any(levels > 0)) or (scene.kind == "field" and scene.shown_field.emits())
         self.exposure_log.append(ExposureRecord(t_open, ended, t, lit))
         return Exposure(exposure_s=t, started=started, ended=ended, bulb=t > BULB_ABOVE_S,
-                        handle=(snap, s, self._scene))
+                        handle=(snap, s, scene))
 
     def fetch(self, exposure: Exposure) -> RawCapture:
         self._require_open()
@@ -457,7 +459,22 @@ class VirtualCamera(Camera):
     def _expected_dn(self, exposure_s: float, snap: Any) -> np.ndarray:
         if self._scene.kind == "lens_cap":
             return np.zeros((1, 3))
+        if self._scene.kind == "field":
+            return self.field_response(self._scene)[None, :] * self.exposure_gain(exposure_s)
         return self.class_responses(snap) * self.exposure_gain(exposure_s)
+
+    def field_response(self, scene: Scene) -> np.ndarray:
+        """(3,) relative response to a uniform field's emission: its spectral radiance integrated (trapezoid, on the
+        field's own wavelengths: a narrow band is sampled far finer than the grid) against the sensitivities this
+        camera renders with, linearly interpolated from the grid and held at its end values beyond it (as
+        ``simulation.grid.resample``), divided by the grid step so a broad field matches the grid's sums."""
+        wl, radiance = scene.shown_field.emission()
+        wl, radiance = np.asarray(wl, dtype=float), np.asarray(radiance, dtype=float)
+        if wl.size < 2:
+            return np.zeros(3)
+        grid = self.grid.wavelengths
+        sens = np.stack([np.interp(wl, grid, self.camera_sensitivities[:, c]) for c in range(3)], axis=1)
+        return trapezoid(radiance[:, None] * sens, wl, axis=0) / self.grid.step
 
     def _calibrate(self) -> float:
         """Radiometric scale: DN per (relative response x s x ISO/100) from the Table 7.1 reference."""
@@ -547,7 +564,7 @@ class VirtualCamera(Camera):
 
     def _neutral(self, snap: Any) -> np.ndarray:
         """DNG AsShotNeutral: the camera's response to a white under this light, largest component 1."""
-        if self._scene.kind == "lens_cap":
+        if self._scene.kind in ("lens_cap", "field"):
             return np.ones(3)
         levels, drift = self._levels(snap)
         white = levels @ led_responses(self.led_spectra(np.array(drift)), np.ones((1, len(self.grid))),

@@ -1,5 +1,6 @@
 """What lies on the virtual copy stand: a target (patches on a grid), an original (a painting, a film frame;
-drivers/virtual/originals.py), the open gate, or the lens cap.
+drivers/virtual/originals.py), the open gate, the lens cap, or a uniform field that emits its own light (a
+monochromator's output diffused by an integrating sphere, thesis 4.2: :class:`FieldLight`).
 
 The scene is described at patch level: every pixel carries a *class* (a patch, the neutral surround, the
 dark gaps between patches, and the same again under the ND 2.0 filter of thesis 8.3), and each class has one
@@ -22,7 +23,8 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -33,10 +35,32 @@ from simulation.grid import DEFAULT_GRID, SpectralGrid
 
 log = logging.getLogger(__name__)
 
-SCENE_KINDS = ("target", "original", "open_gate", "lens_cap")
+SCENE_KINDS = ("target", "original", "open_gate", "lens_cap", "field")
 ND_2_TRANSMITTANCE = 0.01          # optical density 2.0
 _OUTSIDE = -2                       # 1-D cell codes: outside the grid
 _GAP = -1                           # ... inside the grid, in a gap
+
+
+Emission = Callable[[], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True, eq=False)
+class FieldLight:
+    """A uniform field that emits its own light, whatever the sphere does: ``emission()`` returns (wavelengths in
+    nm, spectral radiance) *now*, the radiance in the camera's relative units (the virtual camera integrates it
+    against the sensitivities it renders with: ``VirtualCamera.field_response``)."""
+
+    emission: Emission
+    name: str = "field"
+
+    def frozen(self) -> FieldLight:
+        """This field as it emits now, fixed (what one exposure sees)."""
+        wl, radiance = self.emission()
+        wl, radiance = np.array(wl, dtype=float), np.array(radiance, dtype=float)
+        return FieldLight(lambda: (wl, radiance), self.name)
+
+    def emits(self) -> bool:
+        return bool(np.any(np.asarray(self.emission()[1]) > 0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,7 +70,7 @@ class Scene:
     Frozen (derived geometry is cached on the instance) and compared by identity.
     """
 
-    kind: str = "target"                     # 'target' | 'original' | 'open_gate' | 'lens_cap'
+    kind: str = "target"                     # 'target' | 'original' | 'open_gate' | 'lens_cap' | 'field'
     target: Target | None = None          # required for kind 'target' (reflective or transmissive)
     width: int = 600                         # sensor columns (even; the D610 is 6080 x 4028)
     height: int = 400                        # sensor rows (even)
@@ -60,6 +84,7 @@ class Scene:
     vignetting: float = 0.04                 # relative falloff at the frame corners (0 = none)
     name: str = ""
     original: Original | None = None    # required for kind 'original'
+    field: FieldLight | None = None     # required for kind 'field'
 
     def __post_init__(self) -> None:
         if self.kind not in SCENE_KINDS:
@@ -68,6 +93,8 @@ class Scene:
             raise ValueError("a 'target' scene needs a target with at least one patch")
         if self.kind == "original" and self.original is None:
             raise ValueError("an 'original' scene needs an original (drivers.virtual.originals.original(name))")
+        if self.kind == "field" and self.field is None:
+            raise ValueError("a 'field' scene needs its FieldLight (what it emits)")
         if self.kind == "original" and self.nd_filter:
             raise ValueError(f"ND filter over original {self.shown_original.name!r}: the ND half is for charts "
                              "(thesis 8.3); originals bring their own range (e.g. 'shadow')")
@@ -111,7 +138,25 @@ class Scene:
         """Lens cap on: no light reaches the sensor, the dark frame of eq 7.1."""
         return cls(kind="lens_cap", width=width, height=height, name=kw.pop("name", "lens cap"), **kw)
 
+    @classmethod
+    def uniform_field(cls, field: FieldLight, width: int = 600, height: int = 400, **kw) -> Scene:
+        """A uniform field emitting ``field``'s light (no target; the sphere's light plays no part)."""
+        return cls(kind="field", field=field, width=width, height=height, name=kw.pop("name", field.name), **kw)
+
+    def at_exposure(self) -> Scene:
+        """This scene as one exposure sees it: a field's emission is fixed at this moment; other kinds as they are."""
+        if self.kind != "field":
+            return self
+        return replace(self, field=self.shown_field.frozen())
+
     # --- what the scene shows ---------------------------------------------------------------------------
+    @property
+    def shown_field(self) -> FieldLight:
+        """The light of a 'field' scene."""
+        if self.field is None:
+            raise ValueError(f"a {self.kind!r} scene emits no light of its own")
+        return self.field
+
     @property
     def shown_target(self) -> Target:
         """The target of a 'target' scene."""
@@ -220,6 +265,8 @@ class Scene:
             return np.ones((1, n_wavelengths))
         if self.kind == "lens_cap":
             return np.zeros((1, n_wavelengths))
+        if self.kind == "field":
+            raise ValueError("a 'field' scene emits its own light: the camera renders it with field_response")
         if self.kind == "original":
             return self.shown_original.class_spectra(n_wavelengths)
         spectra = np.asarray(self.shown_target.spectra, dtype=float)

@@ -1,7 +1,7 @@
 """SphereEmulator: the LED sphere's firmware, speaking drivers/led_sphere/protocol.py on a real pseudo-terminal.
 
-``start()`` opens a pty (os.openpty) and serves it from a background thread; any serial client (the LedSphere
-driver, pyserial, ``screen``) opens the returned slave path as if it were /dev/ttyACM0. The emulator keeps the
+``start()`` opens a pty (drivers.virtual.pty_link) and serves it from a background thread; any serial client (the
+LedSphere driver, pyserial, ``screen``) opens the returned slave path as if it were /dev/ttyACM0. The emulator keeps the
 physical state the virtual camera needs, readable at any time with the thread-safe :meth:`snapshot`:
 
 * levels (16-bit PWM per LED), the master switch, what each LED actually emits now;
@@ -36,11 +36,8 @@ import collections
 import dataclasses
 import logging
 import math
-import os
-import select
 import threading
 import time
-import tty
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -58,6 +55,7 @@ from drivers.virtual.led_physics import (
     fade_factor,
     peak_shift_nm,
 )
+from drivers.virtual.pty_link import PtyLineServer
 
 log = logging.getLogger(__name__)
 
@@ -139,71 +137,38 @@ class SphereEmulator:
         self._faults: dict[str, dict[str, Any]] = {}
         self._failed: dict[int, str] = {}
         self._rng = np.random.default_rng(0)
-        self._master: int | None = None
-        self._slave: int | None = None
-        self._wake: tuple[int, int] | None = None
-        self._port = ""
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
-        self._pending: list[tuple[float, bytes]] = []
+        self._server = PtyLineServer("sphere-emulator", self._on_line, max_line=P.MAX_REQUEST_BYTES,
+                                     on_tick=self._tick)
         self.requests: collections.deque[bytes] = collections.deque(maxlen=1000)   # recent request lines (log)
 
     # ------------------------------------------------------------------------------------------ serving
     def start(self) -> str:
         """Open a pty and serve it in a background thread; returns the path a serial client opens."""
-        if self._thread is not None and self._thread.is_alive():
-            return self._port
-        master, slave = os.openpty()
-        tty.setraw(slave)                   # no echo, no CR/LF translation: bytes pass verbatim
-        os.set_blocking(master, False)
-        self._master, self._slave = master, slave   # holding the slave open keeps the master readable
-        self._port = os.ttyname(slave)
-        self._wake = wake = os.pipe()
-        self._stop.clear()
+        if self._server.running:
+            return self._server.port
         with self._lock:
             self._advance(self._clock())
             self._last_rx = self._t
-        self._thread = threading.Thread(target=self._serve, args=(master, wake[0]),
-                                        name=f"sphere-emulator {self._port}", daemon=True)
-        self._thread.start()
-        log.info("sphere emulator serving on %s (watchdog %.1f s)", self._port, self._watchdog_ms / 1000)
-        return self._port
+        port = self._server.start()
+        log.info("sphere emulator serving on %s (watchdog %.1f s)", port, self._watchdog_ms / 1000)
+        return port
 
     @property
     def port(self) -> str:
-        return self._port
+        return self._server.port
 
     @property
     def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
+        return self._server.running
 
     def stop(self) -> None:
         """Stop serving and close the pty; the sphere is powered off (every LED off, light off)."""
-        self._close_pty()
+        self._server.close()
         with self._lock:
             self._advance(self._clock())
             self._pwm[:] = 0
             self._set_light(False)
             self._settle("power off")
-
-    def _close_pty(self) -> None:
-        self._stop.set()
-        if self._wake is not None:
-            try:
-                os.write(self._wake[1], b"x")
-            except OSError:
-                pass
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5)
-        self._thread = None
-        for fd in (self._master, self._slave, *(self._wake or ())):
-            if fd is not None:
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
-        self._master = self._slave = self._wake = None
-        self._pending.clear()
 
     def __enter__(self) -> SphereEmulator:
         self.start()
@@ -212,46 +177,10 @@ class SphereEmulator:
     def __exit__(self, *exc) -> None:
         self.stop()
 
-    def _serve(self, master: int, wake: int) -> None:
-        """The serving thread: requests from the pty ``master``; a byte on ``wake`` ends the wait early."""
-        buf = bytearray()
-        discarding = False
-        while not self._stop.is_set():
-            wait = 0.05
-            if self._pending:
-                wait = max(0.0, min(wait, self._pending[0][0] - time.monotonic()))
-            try:
-                ready, _, _ = select.select([master, wake], [], [], wait)
-            except (OSError, ValueError):
-                break
-            if self._stop.is_set():
-                break
-            if master in ready:
-                try:
-                    data = os.read(master, 4096)
-                except BlockingIOError:
-                    data = b""
-                except OSError as exc:      # EIO: no slave open (cannot happen while we hold it) or closed
-                    log.debug("pty read: %s", exc)
-                    data = b""
-                buf += data
-                while True:
-                    nl = buf.find(b"\n")
-                    if nl < 0:
-                        if len(buf) >= P.MAX_REQUEST_BYTES:
-                            if not discarding:
-                                self._on_line(bytes(buf), too_long=True)
-                            discarding = True
-                            buf.clear()
-                        break
-                    line, buf = bytes(buf[:nl]), buf[nl + 1:]
-                    if discarding:
-                        discarding = False
-                        continue
-                    self._on_line(line.rstrip(b"\r"), too_long=len(line) + 1 > P.MAX_REQUEST_BYTES)
-            self._flush_pending()
-            with self._lock:
-                self._advance(self._clock())
+    def _tick(self) -> None:
+        """Every wake-up of the serving thread: the physics runs on (watchdog, on-time limit) without requests."""
+        with self._lock:
+            self._advance(self._clock())
 
     def _active_faults(self, line: bytes) -> dict[str, dict[str, Any]]:
         """The wire faults that apply to this request line (those with ``keywords`` only for their keywords)."""
@@ -288,24 +217,7 @@ class SphereEmulator:
         return bytes(body) + b"\n"
 
     def _respond(self, reply: bytes, delay_s: float = 0.0) -> None:
-        if delay_s > 0:
-            self._pending.append((time.monotonic() + delay_s, reply))
-            self._pending.sort(key=lambda p: p[0])
-        else:
-            self._write(reply)
-
-    def _flush_pending(self) -> None:
-        now = time.monotonic()
-        while self._pending and self._pending[0][0] <= now:
-            self._write(self._pending.pop(0)[1])
-
-    def _write(self, data: bytes) -> None:
-        if self._master is None:
-            return
-        try:
-            os.write(self._master, data)
-        except OSError as exc:              # client not reading and the pty buffer full: the reply is lost
-            log.warning("sphere emulator: reply %r dropped (%s)", data, exc)
+        self._server.respond(reply, delay_s)
 
     # ------------------------------------------------------------------------------------------ faults
     def inject(self, fault: str | None, **params: Any) -> None:
@@ -322,7 +234,7 @@ class SphereEmulator:
             raise ValueError(f"unknown fault {fault!r}; expected one of {', '.join(FAULTS)} or None")
         log.info("sphere emulator: inject %s %s", fault, params)
         if fault == "disconnect":
-            self._close_pty()
+            self._server.close()
             return
         if fault == "led_fail":
             led = int(params.get("led", 1))

@@ -18,10 +18,11 @@ START, END = "<!-- reliability:start -->", "<!-- reliability:end -->"
 CLEAN_MEANS = (
     "a case is clean when its test passed, i.e. the injected fault was handled: light safety (lost or garbled "
     "replies, a slow or hung camera, a dead host, GUI errors) with the light off within its cap on the emulator's "
-    "clock; session integrity (kill -9, resume with other options, full disk, torn manifests, damaged frames) with "
-    "every frame intact and none mixed; input (bad values, fuzzed raw files and CSVs) with a one-line error; camera "
-    "(libgphoto2 behaviours replayed by a scripted stand-in) with the right frame or a one-line error and the light "
-    "off.")
+    "clock, and the monochromator's shutter closed (or, where it cannot answer, the message saying its state is "
+    "unknown); session integrity (kill -9, resume with other options, full disk, torn manifests, damaged frames) "
+    "with every frame intact and none mixed; input (bad values, fuzzed raw files and CSVs) with a one-line error; "
+    "camera (libgphoto2 behaviours replayed by a scripted stand-in) with the right frame or a one-line error and the "
+    "light off.")
 CATEGORIES = ("light safety", "session integrity", "input", "camera")
 
 

@@ -1,0 +1,86 @@
+"""Measuring the camera's spectral sensitivity (thesis 4.2): the one place the CLI (and a GUI) call.
+
+    result = measure_csrf(camera, monochromator, session, CsrfSettings(380, 780, 10), radiance=reference,
+                          out=Path("d610_csrf.csv"), prompt=ask_person, on_event=show)
+
+runs the sweep (app.sequences.csrf.CsrfSweep: prompts go to ``prompt``, which returns when the person has done
+it; every other event to ``on_event``), then the processing (app.processing.csrf) against the radiance reference,
+and writes the camera CSV. ``radiance`` may be a callable, called after the sweep (the virtual lab's
+spectroradiometer measures then). A cancel (``cancel`` token, checked between steps) ends with the shutter
+closed and returns None; nothing is written.
+"""
+from __future__ import annotations
+
+import contextlib
+import datetime
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from app.processing.csrf import CsrfResult, compute_csrf, session_signals, write_camera_csv
+from app.sequences.base import ProgressEvent
+from app.sequences.csrf import CsrfSettings, CsrfSweep
+from app.session.capture_session import CaptureSession
+from app.workflow.vocabulary import EventKind
+from common.progress import CancelToken
+from simulation.radiance_reference import RadianceReference
+
+log = logging.getLogger(__name__)
+
+Radiance = RadianceReference | Callable[[list[float]], RadianceReference]
+
+
+@dataclass
+class CsrfMeasurement:
+    """What a finished measurement gives: the result, where it was written, the sweep's exposures."""
+
+    result: CsrfResult
+    path: Path
+    session: Path
+    exposures: dict[float, float]
+    instrument: dict[str, str]
+
+
+def run_sweep(sweep: CsrfSweep, *, prompt: Callable[[str], None] | None,
+              on_event: Callable[[ProgressEvent], None] | None, cancel: CancelToken | None) -> bool:
+    """Run the sweep; False when it was cancelled. Prompts go to ``prompt`` (ValueError without one)."""
+    with contextlib.closing(sweep.run()) as events:       # an error in a callback still closes the shutter
+        for event in events:
+            if event.kind is EventKind.PROMPT:
+                if prompt is None:
+                    raise ValueError(f"{event.message}: this measurement needs a person at the monochromator")
+                prompt(event.message)
+            elif on_event is not None:
+                on_event(event)
+            if event.kind is EventKind.CANCELLED:
+                return False
+            if cancel is not None and cancel.cancelled:
+                sweep.cancel()
+    return True
+
+
+def provenance(sweep: CsrfSweep, session: CaptureSession, camera: Any) -> dict[str, str]:
+    """The camera CSV's header lines: instrument, camera, date, session."""
+    summary = camera.config_summary() if hasattr(camera, "config_summary") else {}
+    return {**{f"monochromator_{k}" if k != "instrument" else "monochromator": str(v)
+               for k, v in sweep.instrument.items()},
+            "camera": str(summary.get("camera", getattr(camera, "name", "camera"))),
+            "camera_settings": f"ISO {summary.get('iso', '?')}, f/{summary.get('aperture', '?')}",
+            "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+            "session": f"{session.path.name} (created {session.settings.get('created_at', '?')})"}
+
+
+def measure_csrf(camera: Any, monochromator: Any, session: CaptureSession, settings: CsrfSettings, *,
+                 radiance: Radiance, out: str | Path, prompt: Callable[[str], None] | None = None,
+                 on_event: Callable[[ProgressEvent], None] | None = None,
+                 cancel: CancelToken | None = None) -> CsrfMeasurement | None:
+    """Sweep, process, write the camera CSV to ``out`` (module docstring); None when cancelled."""
+    sweep = CsrfSweep(camera, monochromator, session, settings)
+    if not run_sweep(sweep, prompt=prompt, on_event=on_event, cancel=cancel):
+        return None
+    reference = radiance(settings.wavelengths()) if callable(radiance) else radiance
+    result = compute_csrf(session_signals(session, settings.region), reference)
+    path = write_camera_csv(result, out, provenance(sweep, session, camera))
+    return CsrfMeasurement(result, path, session.path, dict(sweep.exposures), dict(sweep.instrument))
