@@ -8,8 +8,9 @@ successive-halving PSO = dual-RGB-PSO, realisable NNLS D65 mix = 3-channel basel
 -> the sphere emulator on a real pty + the virtual camera -> auto-exposure on the open gate -> (HDR plan on
 the ND-covered target) -> dark series at every exposure -> open-gate flats -> train and test captures ->
 master darks, eq 7.1 flat field / eq 8.9 HDR merge -> per-light superpixel images stacked to N channels ->
-patch means (PatchGrid on the target's corners) -> characterisation (least squares and dE00-optimised) ->
-report.json, and per condition a folder with its report.json, PNG figures and CSVs.
+patch means (PatchGrid on the target's corners) -> characterisation (least squares and dE00-optimised) and the
+spectral estimate (app.processing.spectral: its test RMSE, GFC and dE00 under other lights beside the colour
+figures) -> report.json, and per condition a folder with its report.json, PNG figures and CSVs.
 """
 from __future__ import annotations
 
@@ -293,7 +294,8 @@ class DemoRun:
                  "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
                  "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]} for nl in c.lights],
                  "report": str(res.files["report"]), "figures": res.report.get("figures", []),
-                 "quality": quality_summary(res.report["quality"])}
+                 "quality": quality_summary(res.report["quality"]),
+                 "spectral": res.spectral.summary() if res.spectral is not None else None}
         if nd:
             entry["nd_patches"] = {
                 "train": ErrorStats.of(best.train_errors[specs["train"].nd_mask]).to_dict(),

@@ -1,7 +1,9 @@
 """Simulation benchmarks: the thesis-scale PSO sweep, the exhaustive search and a naive reference (one evaluation
 at a time, numpy.linalg.pinv + colour.delta_E) for issue 2; the default optimiser (successive halving over PSO +
 L-BFGS-B polish) beside the thesis PSO on the noise-free objective and on the default expected-captured one, and
-the L-BFGS-B cost per evaluation (float64 against the float32 kernel) for issue 12. All in the same run."""
+the L-BFGS-B cost per evaluation (float64 against the float32 kernel) for issue 12; the spectral objective's cost
+per evaluation beside the expected-captured kernel's, and the default optimiser on it, for issue 21. All in the
+same run."""
 from __future__ import annotations
 
 import time
@@ -82,7 +84,39 @@ def bench_simulation(mode: str = "reflective", seed: int = 0, naive_samples: int
         "ratio_target": 100.0,
         "default_optimiser": bench_default_optimiser(setup, ev, out, t_pso, cpu_pso, seed),
         "lbfgs_cost_per_evaluation": bench_cost_per_evaluation(ev, seed),
+        "spectral_objective": bench_spectral_objective(setup, seed),
     }
+
+
+def _us_per_evaluation(evaluator, idx: np.ndarray, w: np.ndarray, repeats: int = 5) -> float:
+    evaluator.cost_indexed(idx, w)
+    t = time.perf_counter()
+    for _ in range(repeats):
+        evaluator.cost_indexed(idx, w)
+    return (time.perf_counter() - t) / repeats / len(w) * 1e6
+
+
+def bench_spectral_objective(setup, seed: int = 0, batch: int = 6400) -> dict:
+    """Issue 21: the spectral objective (expected captured spectral RMSE, numpy over the batch) per evaluation
+    in PSO-sized batches beside the expected-captured kernel, and the default optimiser on it."""
+    from simulation.spectral_objective import SpectralEvaluator
+
+    spectral, expected = SpectralEvaluator(setup), ExpectedErrorEvaluator(setup)
+    idx, mask = group_arrays(light_pairs())
+    rng = np.random.default_rng(seed)
+    pick = rng.integers(0, len(idx), batch)
+    w = mask[pick] * rng.random(mask[pick].shape)
+    out = {"batch": batch, "spectral_us_per_evaluation": round(_us_per_evaluation(spectral, idx[pick], w), 3),
+           "expected_captured_us_per_evaluation": round(_us_per_evaluation(expected, idx[pick], w), 3)}
+    t, c = time.perf_counter(), time.process_time()
+    best = refine_top(spectral, successive_halving(spectral, light_pairs(), HalvingSettings(), seed=seed), 1).best
+    out["default_optimiser"] = {"elapsed_s": round(time.perf_counter() - t, 3),
+                                "cpu_s": round(time.process_time() - c, 3), "evaluations": spectral.evaluations,
+                                "leds": [list(s.leds) for s in best.sources],
+                                "levels": [list(s.levels) for s in best.sources],
+                                "expected_train_spectral_rmse": round(best.spectral["train"]["rmse"], 5),
+                                "expected_test_spectral_rmse": round(best.spectral["test"]["rmse"], 5)}
+    return out
 
 
 def _row(outcome, seconds: float, objective: str, cpu_s: float | None = None) -> dict:

@@ -36,3 +36,13 @@ def effective_sensitivities(lights: np.ndarray, camera: np.ndarray) -> np.ndarra
     """Eq 5.15: the N-light system's channel sensitivities L_i(lambda) * CSRF_c(lambda), shape (n_wl, 3 * n_lights)."""
     lights = np.atleast_2d(lights)
     return (lights[:, :, None] * camera[None]).transpose(1, 0, 2).reshape(camera.shape[0], -1)
+
+
+def flat_fielded_sensitivities(lights: np.ndarray, camera: np.ndarray) -> np.ndarray:
+    """The sensitivities of flat-fielded values (eq 7.1: a patch's value over the open gate's, channel by
+    channel): eq 5.15 with each channel divided by its response to a perfect white, (n_wl, 3 * n_lights).
+
+    A channel the open gate leaves dark (a light switched off) gets a zero column."""
+    S = effective_sensitivities(np.asarray(lights, dtype=float), np.asarray(camera, dtype=float))
+    gate = S.sum(axis=0)
+    return np.divide(S, gate, out=np.zeros_like(S), where=gate > 0)

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 from common.progress import CancelToken, ProgressCallback
 from simulation.capture_model import CaptureModel
-from simulation.choices import METHODS, OBJECTIVES
+from simulation.choices import DEFAULT_SPECTRAL_WEIGHT, METHODS, OBJECTIVES, SPECTRAL_OBJECTIVES
 from simulation.datasets import SimulationSetup
 from simulation.expected_error import ExpectedErrorEvaluator
 from simulation.ga import GaSettings, ga
@@ -36,9 +36,10 @@ DEFAULT_OBJECTIVE = OBJECTIVES[0]           # "expected-captured"
 
 
 def make_evaluator(setup: SimulationSetup, objective: str = DEFAULT_OBJECTIVE,
-                   capture: CaptureModel | None = None,
-                   robust: RobustSettings = RobustSettings()) -> Evaluator:
-    """The evaluator of ``objective``; ``capture`` defaults to the virtual lab's capture in the setup's mode."""
+                   capture: CaptureModel | None = None, robust: RobustSettings = RobustSettings(),
+                   spectral_weight: float = DEFAULT_SPECTRAL_WEIGHT) -> Evaluator:
+    """The evaluator of ``objective``; ``capture`` defaults to the virtual lab's capture in the setup's mode;
+    ``spectral_weight``: the mixed objective's weight (simulation.spectral_objective)."""
     if objective not in OBJECTIVES:
         raise ValueError(f"objective {objective!r}: expected one of {', '.join(OBJECTIVES)}")
     if objective == "noise-free":
@@ -46,6 +47,11 @@ def make_evaluator(setup: SimulationSetup, objective: str = DEFAULT_OBJECTIVE,
     capture = capture or CaptureModel.virtual_lab(setup.mode)
     if objective == "robust":
         return RobustEvaluator(setup, capture, robust)
+    if objective in SPECTRAL_OBJECTIVES:
+        from simulation.spectral_objective import SpectralEvaluator, SpectralObjectiveSettings
+
+        return SpectralEvaluator(setup, capture, SpectralObjectiveSettings(spectral_weight=spectral_weight),
+                                 mixed=objective == "mixed")
     return ExpectedErrorEvaluator(setup, capture)
 
 
@@ -82,10 +88,14 @@ class RunResult:
         if cand.expected_train is not None:
             errors["expected_captured"] = {"train": cand.expected_train.to_dict(),
                                            "test": cand.expected_test_errors.to_dict()}
+        if cand.spectral is not None:
+            errors["expected_spectral_rmse"] = cand.spectral
         model = {"grid": self.setup.grid.label(), "camera": self.setup.camera_name, "observer": "CIE 1931 2°",
                  "illuminant": "D65", "objective": self.objective, **(self.outcome.settings or {})}
         if self.capture is not None:
             model["capture"] = self.capture.to_dict()
+        if "spectral_objective" in self.extra:
+            model["spectral_objective"] = self.extra["spectral_objective"]
         return Preset(
             name=name or f"{self.mode} {self.method} " + " + ".join(s.label() for s in cand.sources),
             sources=tuple(type(s)(s.leds, s.levels, f"source {i}") for i, s in enumerate(cand.sources, start=1)),
@@ -98,7 +108,8 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
         ga_settings: GaSettings = GaSettings(), halving_settings: HalvingSettings = HalvingSettings(),
         progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
         evaluator: Evaluator | None = None, objective: str = DEFAULT_OBJECTIVE,
-        capture: CaptureModel | None = None, robust: RobustSettings = RobustSettings()) -> RunResult:
+        capture: CaptureModel | None = None, robust: RobustSettings = RobustSettings(),
+        spectral_weight: float = DEFAULT_SPECTRAL_WEIGHT) -> RunResult:
     """``evaluator``: one built on ``setup`` for ``objective`` (make_evaluator) to use instead of a new one (the
     GUI passes one that reports the best cost so far for its live convergence plot). ``elapsed_s`` excludes the
     kernels' one-off compile (``extra["kernel_warm_up_s"]``; simulation.warmup)."""
@@ -110,7 +121,8 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
     if method == "three-channel":
         return RunResult(setup.mode, method, None, time.perf_counter() - t0, 1, baseline, None, setup, top,
                          objective="noise-free")
-    evaluator = evaluator if evaluator is not None else make_evaluator(setup, objective, capture, robust)
+    evaluator = evaluator if evaluator is not None else make_evaluator(setup, objective, capture, robust,
+                                                                       spectral_weight)
     objective = getattr(evaluator, "objective", objective)
     capture = getattr(evaluator, "capture", None)
     base = getattr(evaluator, "base", evaluator)          # a GUI tap wraps the evaluator
@@ -132,8 +144,24 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
         expected = ExpectedErrorEvaluator(setup, capture)
     refine_top(evaluator, outcome, max(top, 1), expected)
     return RunResult(setup.mode, method, outcome.seed, time.perf_counter() - t0 - warm_s, outcome.evaluations,
-                     baseline, outcome, setup, top, extra={"kernel_warm_up_s": round(warm_s, 3)},
+                     baseline, outcome, setup, top, extra={"kernel_warm_up_s": round(warm_s, 3),
+                                                           **_spectral_settings(base)},
                      objective=objective, capture=capture)
+
+
+def _spectral_settings(evaluator: Evaluator) -> dict:
+    """A spectral objective's own settings for the JSON and the preset: the estimate, its prior, the weight."""
+    spectral, settings = getattr(evaluator, "spectral", None), getattr(evaluator, "settings", None)
+    if spectral is None or settings is None:
+        return {}
+    return {"spectral_objective": {"estimate": "wiener", "prior": spectral.prior.to_dict(),
+                                   "spectral_weight": settings.spectral_weight,
+                                   "figure": "expected captured spectral RMSE, pooled over the target's patches "
+                                             "and the grid's wavelengths"}}
+
+
+SPECTRAL_LEGEND = ("sp.tr/sp.te: expected captured spectral RMSE (reflectance or transmittance factor, 0.01 = 1 %) "
+                   "of the Wiener estimate, pooled over the target's patches and 410-780 nm")
 
 
 def format_table(result: RunResult) -> str:
@@ -148,12 +176,17 @@ def format_table(result: RunResult) -> str:
         rows = [([s.label() for s in c.sources[:2]], c) for c in result.outcome.candidates[:result.top]]
         w1 = max([len("light source 1")] + [len(r[0][0]) for r in rows])
         w2 = max([len("light source 2")] + [len(r[0][-1]) for r in rows])
+        spectral = any(c.spectral for _, c in rows)
         lines.append(f"{'#':>3}  {'light source 1':<{w1}} {'light source 2':<{w2}} {'train':>7} {'test':>7}"
-                     f" {'exp.tr':>7} {'exp.te':>7}")
+                     f" {'exp.tr':>7} {'exp.te':>7}" + (f" {'sp.tr':>7} {'sp.te':>7}" if spectral else ""))
         for i, ((s1, *rest), c) in enumerate(rows, start=1):
             s2 = rest[0] if rest else ""
             exp = (f" {c.expected_train.mean:>7.3f} {c.expected_test_errors.mean:>7.3f}" if c.expected_train else "")
+            if c.spectral:
+                exp += f" {c.spectral['train']['rmse']:>7.4f} {c.spectral['test']['rmse']:>7.4f}"
             lines.append(f"{i:>3}  {s1:<{w1}} {s2:<{w2}} {c.train_errors.mean:>7.3f} {c.test_errors.mean:>7.3f}{exp}")
         lines.append("train/test: noise-free simulation; exp.tr/exp.te: expected captured ("
                      + (result.capture.label() if result.capture else "") + ")")
+        if spectral:
+            lines.append(SPECTRAL_LEGEND)
     return "\n".join(lines)

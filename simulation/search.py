@@ -74,6 +74,8 @@ class Candidate:
     test: ErrorStats | None = None
     expected_train: ErrorStats | None = None     # float64 expected captured errors (simulation.expected_error)
     expected_test: ErrorStats | None = None
+    spectral: dict | None = None            # expected captured spectral RMSE (simulation.spectral_objective)
+    objective_value: float | None = None    # float64 figure of a spectral objective (sorts the reported top K)
 
     def weights(self, n_leds: int) -> np.ndarray:
         return np.stack([s.weights(n_leds) for s in self.sources])
@@ -112,10 +114,17 @@ class Candidate:
             d["expected_test_de00_mean"] = round(self.expected_test_errors.mean, 4)
             d["expected_train"] = {k: round(v, 4) for k, v in self.expected_train.to_dict().items()}
             d["expected_test"] = {k: round(v, 4) for k, v in self.expected_test_errors.to_dict().items()}
+        if self.spectral:
+            d["expected_train_spectral_rmse"] = round(self.spectral["train"]["rmse"], 5)
+            d["expected_test_spectral_rmse"] = round(self.spectral["test"]["rmse"], 5)
+            d["expected_spectral"] = self.spectral
         return d
 
     def objective_mean(self, objective: str) -> float:
-        """The float64 figure of ``objective`` ('noise-free' or the expected captured training error)."""
+        """The float64 figure of ``objective`` ('noise-free' or the expected captured training error; a spectral
+        objective's own figure)."""
+        if self.objective_value is not None:
+            return self.objective_value
         if objective == "robust":
             return self.train_cost               # the ensemble's figure (only the search computes it)
         if objective != "noise-free" and self.expected_train is not None:
@@ -164,6 +173,10 @@ def evaluate_candidate(evaluator: Evaluator, cand: Candidate, expected=None) -> 
     cand.train, cand.test = evaluator.stats(W)
     if expected is not None:
         cand.expected_train, cand.expected_test = expected.expected_stats(W)
+    spectral, value = getattr(evaluator, "spectral_stats", None), getattr(evaluator, "objective_value", None)
+    if spectral is not None and value is not None:        # a spectral objective (simulation.spectral_objective)
+        cand.spectral = spectral(W)
+        cand.objective_value = value(W)
     return cand
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from app.commands.options import count, input_file, number, seed
 from app.json_output import add_json_option, write_json
 from app.terminal_progress import TerminalProgress
-from simulation.choices import METHODS, MODES, OBJECTIVES
+from simulation.choices import DEFAULT_SPECTRAL_WEIGHT, METHODS, MODES, OBJECTIVES
 
 log = logging.getLogger(__name__)
 
@@ -39,8 +39,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="halving (default: successive halving over PSO + L-BFGS-B polish), exhaustive (full "
                         "intensity), pso (thesis Algorithm 1), ga (Algorithm 2), three-channel (camera under D65)")
     p.add_argument("--objective", choices=OBJECTIVES, default="expected-captured",
-                   help="expected-captured (default), noise-free (the thesis' cost) or robust (mean over plausible "
-                        "worlds: LEDs, camera and reference off by a few nm / %%)")
+                   help="expected-captured (default: expected captured mean dE00 of the training target), "
+                        "noise-free (the thesis' cost), robust (mean over plausible worlds: LEDs, camera and "
+                        "reference off by a few nm / %%), spectral (for spectra: the expected captured RMSE of the "
+                        "training target's spectra estimated by the Wiener method, reflectance or transmittance "
+                        "factor pooled over patches and 410-780 nm, 0.01 = 1 %%) or mixed (mean dE00 + "
+                        "--spectral-weight x 100 x that RMSE)")
+    p.add_argument("--spectral-weight", type=number(0.0, 100.0), default=DEFAULT_SPECTRAL_WEIGHT,
+                   help=f"--objective mixed: the weight of the spectral RMSE in %% against mean dE00 (default "
+                        f"{DEFAULT_SPECTRAL_WEIGHT:g}: 1 %% RMSE costs as much as {DEFAULT_SPECTRAL_WEIGHT:g} dE00)")
     p.add_argument("--reference-sd", type=number(0.0, 0.5), default=0.0,
                    help="relative uncertainty (gain) of the target's reference XYZ (default 0: the packaged "
                         "targets are exact; ~0.01 for a chart measured with a spectrophotometer)")
@@ -88,7 +95,7 @@ def main(args: argparse.Namespace) -> int:
         raise ValueError(f"--top {args.top}: expected at least 1")
     with TerminalProgress(f"simulate {args.method}") as progress:
         result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, objective=args.objective,
-                     capture=_capture(args), progress=progress)
+                     capture=_capture(args), progress=progress, spectral_weight=args.spectral_weight)
     if args.json != "-":
         print(format_table(result))
     if args.json:

@@ -6,6 +6,7 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study objectives     [--out DIR] [--budget tiny|default] [--no-virtual-lab]
   dualrgb study parsimony      [--out DIR] [--budget tiny|default] [--tolerance DE] [--write-defaults [PATH]]
   dualrgb study hdr            [--out DIR] [--budget tiny|default] [--write-defaults [PATH]]
+  dualrgb study spectral       [--out DIR] [--budget tiny|default] [--modes reflective,transmissive] [--step NM]
   dualrgb study unbinned       [--out DIR] [--scheduler local|serial|ADDRESS] [--tasks N] [--top N]
   dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
                                [--seeds N] [--scheduler local|ADDRESS]
@@ -60,14 +61,28 @@ def _common(p: argparse.ArgumentParser, name: str, scheduler_default: str = "ser
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("study", help="studies: speed vs accuracy, stability, parsimony, HDR merge, unbinned search",
+    p = sub.add_parser("study", help="studies: speed vs accuracy, stability, parsimony, HDR merge, spectral "
+                                     "estimation, unbinned search",
                        description="Studies around the light-source search; each writes JSON, PNG charts and "
                                    "SUMMARY.md into --out.")
     ss = p.add_subparsers(dest="study", metavar="STUDY")
     ss.required = True
     _optimiser_studies(ss)
     _default_studies(ss)
+    _spectral_study(ss)
     _distributed_studies(ss)
+
+
+def _spectral_study(ss: argparse._SubParsersAction) -> None:
+    """spectral: estimation methods x lights chosen for colour or for spectra, both modes."""
+    q = ss.add_parser("spectral", help="spectral estimation: methods x colour- / spectral-chosen lights (+ 3-channel), "
+                                       "spectral RMSE against dE00 and time")
+    _out_option(q, "spectral")
+    q.add_argument("--modes", default="reflective,transmissive", help="target sets (reflective,transmissive)")
+    q.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=10.0, help="spectral step in nm (10)")
+    q.add_argument("--budget", choices=("tiny", "default"), default="default",
+                   help="tiny: a short search for the spectral-chosen lights (a quick check)")
+    q.set_defaults(func=spectral_main)
 
 
 def _optimiser_studies(ss: argparse._SubParsersAction) -> None:
@@ -277,6 +292,29 @@ def hdr_main(args: argparse.Namespace) -> int:
                  + ([f"defaults written to {target}"] if target else []))
 
 
+def _modes(text: str) -> tuple[str, ...]:
+    modes = tuple(m.strip() for m in text.split(",") if m.strip())
+    bad = [m for m in modes if m not in MODES]
+    if bad or not modes:
+        raise ValueError(f"--modes {text!r}: expected some of {', '.join(MODES)}")
+    return modes
+
+
+def spectral_main(args: argparse.Namespace) -> int:
+    from simulation.studies.common import SetupSpec, StudyOutput
+    from simulation.studies.spectral import SpectralStudyConfig, spectral_study, write_outputs
+
+    cfg = SpectralStudyConfig.tiny() if args.budget == "tiny" else SpectralStudyConfig()
+    cfg = replace(cfg, modes=_modes(args.modes))
+    out = StudyOutput(_out(args))
+    with _progress(args) as progress:
+        result = spectral_study(SetupSpec(cfg.modes[0], args.step), cfg, progress=progress)
+    write_outputs(result, out)
+    return _done(out, [f"{r['mode']:<12} {r['lights']:<15} {r['method']:<8} RMSE {r['rmse']:.4f} (seen "
+                       f"{r['rmse_seen']:.4f}), GFC {r['gfc']:.4f}, dE00 D65 {r['de00']['D65']:.3f} A "
+                       f"{r['de00']['A']:.3f} FL11 {r['de00']['FL11']:.3f}" for r in result.rows])
+
+
 def unbinned_main(args: argparse.Namespace) -> int:
     from simulation.studies.common import StudyOutput
     from simulation.studies.distributed import open_runner
@@ -304,10 +342,7 @@ def sweep_main(args: argparse.Namespace) -> int:
     from simulation.studies.optimisers import OPTIMISERS
     from simulation.studies.sweep import sweep, write_outputs
 
-    modes = [m.strip() for m in args.modes.split(",") if m.strip()]
-    bad = [m for m in modes if m not in MODES]
-    if bad or not modes:
-        raise ValueError(f"--modes {args.modes!r}: expected some of {', '.join(MODES)}")
+    modes = list(_modes(args.modes))
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     bad = [m for m in methods if m not in OPTIMISERS]
     if bad or not methods:

@@ -13,7 +13,10 @@ Contents (thesis Table 7.2, Figs 7.4-7.11):
     labelled "colour accuracy only";
   * the quality metrics of app.processing.quality (dL*/dC*/dH*, tone response, white balance, noise,
     illuminance non-uniformity, sensor noise) graded per metric against FADGI 4-star / ISO 19264-1 A /
-    Metamorfoze Full, "not assessed" where a criterion is not measured (SFR...), with their figures.
+    Metamorfoze Full, "not assessed" where a criterion is not measured (SFR...), with their figures;
+  * when the targets' spectra are known, the spectral estimate (app.processing.spectral): the method chosen by
+    cross-validation on the training target, spectral RMSE, GFC and CIEDE2000 under D65, A, D50, FL11 and a
+    warm-white LED on both targets, and estimated against reference spectra of a few test patches.
 
 Published limits used (colour accuracy, CIEDE2000 of a reference target):
   FADGI 2023 (Technical Guidelines for Digitizing Cultural Heritage Materials, 3rd ed.), per star level:
@@ -50,6 +53,7 @@ from simulation.versions import output_header
 
 if TYPE_CHECKING:                                   # pragma: no cover
     from app.processing.quality import CalibrationFrames
+    from app.processing.spectral import SpectralCharacterisation
 
 log = logging.getLogger(__name__)
 
@@ -350,22 +354,40 @@ def _dn_validation(out_dir: Path, c: Characterisation, simulated_train: np.ndarr
              "min_r2": min(f.r2 for f in fits), "min_r2_without_outliers": min(f.r2_clean for f in fits)}, figure)
 
 
+def _model_sections(out_dir: Path, c: Characterisation, train: TargetData, test: TargetData | None,
+                    simulated_train: np.ndarray | None, spectral: SpectralCharacterisation | None
+                    ) -> tuple[dict, list[str]]:
+    """The simulated-vs-captured check (Fig 7.4) and the spectral estimate, when there are data for them."""
+    sections: dict = {"dn_validation": None, "spectral": None}
+    figures: list[str] = []
+    if simulated_train is not None:
+        sections["dn_validation"], figure = _dn_validation(out_dir, c, np.asarray(simulated_train), train)
+        figures.append(figure)
+    if spectral is not None:
+        from app.processing.spectral import spectral_section
+
+        names = {"train": train.names, "test": test.names if test is not None else []}
+        sections["spectral"], more = spectral_section(out_dir, spectral, names)
+        figures += more
+    return sections, figures
+
+
 def build_report(out_dir: Path, characterisation: Characterisation, train: TargetData,
                  test: TargetData | None = None, *, simulated_train: np.ndarray | None = None,
                  title: str = "dual-RGB capture", extra: dict | None = None,
-                 calibration: CalibrationFrames | None = None) -> dict:
+                 calibration: CalibrationFrames | None = None,
+                 spectral: SpectralCharacterisation | None = None) -> dict:
     """Write report.json and the PNG figures into ``out_dir``; returns the JSON dict. ``calibration`` (the
     session's processor, darks and flats) adds sensor noise and illuminance non-uniformity to the quality
-    metrics (app.processing.quality)."""
+    metrics (app.processing.quality); ``spectral`` (app.processing.spectral) the spectral estimate's figures
+    (RMSE, GFC, dE00 under other lights) and a spectra figure."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     c, best = characterisation, characterisation.best
     targets = [("train", train)] + ([("test", test)] if test is not None else [])
     figures, per_patch = _targets_section(out_dir, c, targets)
-    validation = None
-    if simulated_train is not None:
-        validation, figure = _dn_validation(out_dir, c, np.asarray(simulated_train), train)
-        figures.append(figure)
+    sections, more = _model_sections(out_dir, c, train, test, simulated_train, spectral)
+    figures += more
     graded_set = "test" if test is not None else "train"
     graded = c.results[best].test if test is not None else c.results[best].train
     graded_errors = c.results[best].test_errors if test is not None else c.results[best].train_errors
@@ -388,7 +410,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
                       "scope": "colour accuracy only (dE00 of the target); the other criteria: see 'quality'",
                       "results": grade(graded)},
         "quality": quality,
-        "dn_validation": validation,
+        **sections,
         "per_patch": per_patch,
         "figures": figures,
         **(extra or {}),

@@ -228,7 +228,7 @@ class CopyStand:
             raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
                  "linear_limit": proc.linear_limit, "shape": list(first.white.shape)},
             targets={"train": result.report.get("train"), "test": result.report.get("test")},
-            darks=proc.darks, whites=dict(proc._whites))
+            darks=proc.darks, whites=dict(proc._whites), **_spectral_fields(result))
 
     def _ppi(self, test: TargetSpec) -> float | None:
         if self.settings.ppi:
@@ -321,6 +321,14 @@ class CopyStand:
         originals[original.identifier] = {**original.to_dict(), "take": take, "light_dose": total.to_dict(),
                                           "sidecar": str(delivery.sidecar), "calibration": str(profile.path or "")}
         self.session.update_settings(originals=originals)
+
+
+def _spectral_fields(result: SessionResult) -> dict:
+    """The profile's spectral estimator and section from the processing (none without the targets' spectra)."""
+    if result.spectral is None:
+        return {}
+    section = result.spectral.to_dict()
+    return {"estimator": result.spectral.estimator, "spectral": {k: v for k, v in section.items() if k != "estimator"}}
 
 
 def original_takes(session: Any, original: Original) -> list[int]:

@@ -5,6 +5,14 @@ camera and sphere identity, the lights with their exact levels, the exposure pla
 train/test statistics, the white point, creation time, the sha256 of every source frame and of the arrays file)
 and ``<id>.npz`` (the master darks per exposure time and the HDR flat-field whites per light, float32 mosaics).
 
+The spectral estimate (issue 21) is an optional ``spectral`` section of the same format, ``dualrgb-calibration/1``
+(an addition older readers ignore): the fitted estimator (simulation.spectral_estimation.SpectralEstimator, a
+linear map + clip from the profile's channels to the spectra), how it was chosen (cross-validation on the
+training target) and its figures on both targets (spectral RMSE, GFC, CIEDE2000 under D65, A, D50, FL11 and a
+warm-white LED). A profile without it (made before, or without the targets' spectra) loads and says spectra are
+unavailable (:meth:`CalibrationProfile.spectral_estimator`). The estimator maps the same channels as the matrix
+(checked on load) from the same lights (checked on every reuse, :func:`check_reuse`).
+
 Reuse (:func:`check_reuse`): a different camera serial, camera model, ISO, aperture, light levels, or a sphere
 temperature more than ``ReuseLimits.temperature_drift_c`` away from the calibration's is a refusal (one line
 naming each mismatch; ``force`` turns it into a warning). The age is always reported; past
@@ -31,6 +39,7 @@ from app.session.capture_session import atomic_write
 from app.workflow.vocabulary import NamedLight, exposure_key
 from simulation.lightsource import LightSource
 from simulation.matrix_fit import CharacterisationMatrix
+from simulation.spectral_estimation import SpectralEstimator
 from simulation.versions import dualrgb_version, software_versions
 
 log = logging.getLogger(__name__)
@@ -133,6 +142,8 @@ class CalibrationProfile:
     darks: MasterDark | None = None
     whites: dict[str, FlatField] = field(default_factory=dict)
     path: Path | None = None
+    spectral: dict = field(default_factory=dict)     # the spectral section without the estimator (figures, choice)
+    estimator: SpectralEstimator | None = None       # the spectral estimate; None: spectra unavailable
 
     # ---- derived ----
     @property
@@ -143,6 +154,18 @@ class CalibrationProfile:
     def age_h(self, now: datetime | None = None) -> float:
         created = datetime.fromisoformat(self.created_at)
         return ((now or datetime.now(timezone.utc)) - created).total_seconds() / 3600.0
+
+    def spectral_estimator(self, channels: Sequence[str] | None = None) -> SpectralEstimator:
+        """The spectral estimator, for values of ``channels`` (default: the matrix's); ProfileError (one line) when
+        the profile has none (spectra unavailable) or maps other channels."""
+        if self.estimator is None:
+            raise ProfileError(f"calibration {self.id}: spectra unavailable (no spectral estimator in this profile, "
+                               f"made by dualrgb {self.version or '?'}); calibrate again to estimate spectra")
+        want = list(channels) if channels is not None else list(self.matrix.channels)
+        if list(self.estimator.channels) != want:
+            raise ProfileError(f"calibration {self.id}: the spectral estimator maps channels "
+                               f"{', '.join(self.estimator.channels)}, not {', '.join(want)}")
+        return self.estimator
 
     def light(self, name: str) -> NamedLight:
         for nl in self.lights:
@@ -157,7 +180,8 @@ class CalibrationProfile:
                 "preset": self.preset, "lights": [{"name": nl.name, **nl.light.to_dict()} for nl in self.lights],
                 "exposures": self.exposures, "base_exposures": self.base_exposures,
                 "matrix": self.matrix.to_dict(), "statistics": self.statistics, "white_xyz": self.white_xyz,
-                "raw": self.raw, "ppi": self.ppi, "targets": self.targets, "sources": self.sources}
+                "raw": self.raw, "ppi": self.ppi, "targets": self.targets, "sources": self.sources,
+                **({"spectral": {"estimator": self.estimator.to_dict(), **self.spectral}} if self.estimator else {})}
 
     # ---- files ----
     def save(self, folder: Path) -> Path:
@@ -219,7 +243,20 @@ def _from_dict(doc: dict) -> CalibrationProfile:
         base_exposures={k: float(v) for k, v in doc["base_exposures"].items()},
         matrix=CharacterisationMatrix.from_dict(doc["matrix"]), statistics=doc["statistics"],
         white_xyz=[float(v) for v in doc["white_xyz"]], raw=doc["raw"], sources=doc["sources"], ppi=doc.get("ppi"),
-        targets=doc.get("targets", {}), version=doc.get("version", ""))
+        targets=doc.get("targets", {}), version=doc.get("version", ""), **_spectral_of(doc))
+
+
+def _spectral_of(doc: dict) -> dict:
+    """The optional spectral section: {"estimator", "spectral"} for the profile (empty when absent)."""
+    section = doc.get("spectral")
+    if not section:
+        return {}
+    estimator = SpectralEstimator.from_dict(section.get("estimator"), "spectral estimator")
+    channels = list(doc["matrix"].get("channels", []))
+    if channels and list(estimator.channels) != channels:
+        raise ValueError(f"the spectral estimator maps {', '.join(estimator.channels)} but the matrix "
+                         f"{', '.join(channels)}")
+    return {"estimator": estimator, "spectral": {k: v for k, v in section.items() if k != "estimator"}}
 
 
 def _load_arrays(prof: CalibrationProfile, folder: Path, index: dict) -> None:
@@ -310,6 +347,7 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
                  f"{', '.join(prof.statistics.get('methods', {}))}); train mean dE00 "
                  f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, "
                  f"test mean {prof.test_mean or float('nan'):.3f}")
+    lines.append(spectral_line(prof))
     lines.append(f"darks {len(prof.darks.exposures) if prof.darks else '?'} exposures, whites "
                  f"{len(prof.whites) or '?'} lights, {len(prof.sources)} source frames, "
                  f"ppi {prof.ppi if prof.ppi else 'not set'}")
@@ -317,3 +355,17 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
         lines += [f"REFUSED: {r}" for r in check.refusals] + [f"warning: {w}" for w in check.warnings]
         lines.append("checks: " + ("ok" if check.ok else f"{len(check.refusals)} mismatch(es)"))
     return lines
+
+
+def spectral_line(prof: CalibrationProfile) -> str:
+    """One line on the spectral estimate: method and the test target's figures, or that spectra are unavailable."""
+    if prof.estimator is None:
+        return "spectra: unavailable (this calibration has no spectral estimator; calibrate again to estimate them)"
+    f = prof.spectral.get("test") or prof.spectral.get("train") or {}
+    which = "test" if prof.spectral.get("test") else "train"
+    chosen = (prof.spectral.get("selection") or {}).get("chosen", prof.estimator.method)
+    if not f:
+        return f"spectra: {chosen}"
+    de = ", ".join(f"{k} {v['mean']:.2f}" for k, v in f.get("de00", {}).items())
+    return (f"spectra: {chosen}; {which} RMSE mean {f['rmse']['mean']:.4f} / p90 {f['rmse']['p90']:.4f}, GFC "
+            f"{f['gfc']['mean']:.4f}, mean dE00 under {de}")

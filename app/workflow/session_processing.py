@@ -12,6 +12,7 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,6 +22,10 @@ from app.processing.pipeline import CaptureProcessor, ChannelStack, ExposureRef,
 from app.workflow.targets import TargetSpec, reference_white
 from app.workflow.vocabulary import Role, Subject, latest_takes, light_of, role_of, subject_of
 from common.progress import CancelToken, ProgressCallback, check, report
+from simulation.lightsource import LightSource
+
+if TYPE_CHECKING:
+    from app.processing.spectral import SpectralCharacterisation
 
 log = logging.getLogger(__name__)
 
@@ -126,6 +131,7 @@ class SessionResult:
     patch_values: dict[str, np.ndarray]
     processor: CaptureProcessor
     lights: list[str]
+    spectral: SpectralCharacterisation | None = None      # the spectral estimate (known target spectra)
 
 
 def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None
@@ -160,7 +166,6 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec 
     target's lights), ``exposures`` per light restricts which exposures are merged (default: all captured).
     ``white_xyz`` is the Lab reference white on the targets' XYZ scale (default: D65, Y = 100).
     """
-    from app.processing.outputs import write_matrices_csv, write_patch_csv
     from app.processing.quality import CalibrationFrames
     from app.processing.report import TargetData, build_report
 
@@ -181,19 +186,58 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec 
     c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
                      optimise=optimise, progress=sub_progress(progress, 0.55, 0.8), cancel=cancel)
     check(cancel)
-    files = {"matrices": write_matrices_csv(out_dir / "matrices.csv", {k: r.matrix for k, r in c.results.items()})}
-    for label, spec, values in (("train", train, vt), ("test", test, vs)):
-        if spec is not None:
-            preds = {k: r.matrix.apply(values) for k, r in c.results.items()}
-            errs = {k: (r.train_errors if label == "train" else r.test_errors) for k, r in c.results.items()}
-            files[f"patches_{label}"] = write_patch_csv(out_dir / f"patches_{label}.csv", spec.names, values,
-                                                        channels, spec.xyz, preds, errs, target=label)
+    spectral = _spectral(session, train, test, (vt, st, vs), channels, c.matrix.matrix, names, cancel)
+    files = _patch_files(out_dir, c, channels, ((train, vt), (test, vs)))
     data = [TargetData(s.names, s.xyz, v, s.layout, s.label or lbl, std=sd)
             for s, v, sd, lbl in ((train, vt, st, "train"), (test, vs, ss, "test")) if s is not None]
     calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
     rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=train.simulated,
                        title=title, extra={"session": str(session.path), "darks": proc.darks.exposures,
-                                           "lights": names}, calibration=calibration)
+                                           "lights": names}, calibration=calibration, spectral=spectral)
     files["report"] = out_dir / "report.json"
     report(progress, 1.0, "processing done")
-    return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names)
+    return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names,
+                         spectral)
+
+
+def _patch_files(out_dir: Path, c: Characterisation, channels: list[str],
+                 targets: Sequence[tuple[TargetSpec | None, np.ndarray | None]]) -> dict[str, Path]:
+    """matrices.csv and patches_<target>.csv (every fitted matrix's prediction and error per patch)."""
+    from app.processing.outputs import write_matrices_csv, write_patch_csv
+
+    files = {"matrices": write_matrices_csv(out_dir / "matrices.csv", {k: r.matrix for k, r in c.results.items()})}
+    for label, (spec, values) in zip(("train", "test"), targets, strict=True):
+        if spec is not None and values is not None:
+            preds = {k: r.matrix.apply(values) for k, r in c.results.items()}
+            errs = {k: (r.train_errors if label == "train" else r.test_errors) for k, r in c.results.items()}
+            files[f"patches_{label}"] = write_patch_csv(out_dir / f"patches_{label}.csv", spec.names, values,
+                                                        channels, spec.xyz, preds, errs, target=label)
+    return files
+
+
+def frame_lights(session, subject: Subject, names: Sequence[str]) -> list[LightSource] | None:
+    """The lights (LEDs, exact levels) the manifest recorded for ``subject``'s frames under ``names``, in that
+    order; None when a light was not recorded."""
+    from app.session.light_dose import light_from_record
+
+    found: dict[str, LightSource] = {}
+    for e in latest_takes(session.entries()):
+        if subject_of(e) == subject and e.light and light_of(e) in names:
+            found.setdefault(light_of(e), light_from_record(e.light))
+    return [found[n] for n in names] if all(n in found for n in names) else None
+
+
+def _spectral(session, train: TargetSpec, test: TargetSpec | None, values: tuple, channels: list[str],
+              xyz_matrix: np.ndarray, names: Sequence[str], cancel: CancelToken | None):
+    """The spectral estimate (app.processing.spectral) when the training target's spectra are known, else None.
+    ``values``: training means, training per-pixel spread, test means."""
+    from app.processing.spectral import SpectralInputs, characterise_spectra
+
+    if train.spectra is None or not train.mode:
+        return None
+    vt, st, vs = values
+    with_test = test is not None and test.spectra is not None and vs is not None
+    return characterise_spectra(SpectralInputs(
+        train.mode, list(channels), vt, train.spectra, st, vs if with_test else None,
+        test.spectra if with_test and test is not None else None, xyz_matrix,
+        frame_lights(session, train.subject, names)), cancel)

@@ -39,6 +39,8 @@ class TargetSpec:
     simulated: np.ndarray | None = None
     label: str = ""
     nd_mask: np.ndarray | None = None     # patches under the ND filter (virtual lab)
+    spectra: np.ndarray | None = None     # (n, n_wl) reference spectra on the simulation grid (ND included)
+    mode: str = ""                        # the packaged data (grid, CMFs, LEDs, camera) the spectra belong to
 
 
 def packaged_target(mode: str, name: str) -> Any:
@@ -72,6 +74,13 @@ def reference_xyz(mode: str, name: str, nd_scale: np.ndarray | None = None,
     return xyz, list(target.patch_names)
 
 
+def reference_spectra(mode: str, name: str, nd_scale: np.ndarray | None = None) -> np.ndarray:
+    """The reflectance (transmittance) factors (n, n_wl) of a packaged target on the simulation grid; ``nd_scale``
+    (per patch) multiplies them (the ND filter's transmittance where it covers a patch)."""
+    spectra = np.asarray(packaged_target(mode, name).spectra, dtype=float)
+    return spectra if nd_scale is None else spectra * np.asarray(nd_scale, dtype=float)[:, None]
+
+
 def reference_white(mode: str = "reflective", method: str | None = None) -> np.ndarray:
     """The Lab reference white on the targets' scale: D65, Y = 100 (integrated like ``method``)."""
     from simulation.datasets import default_setup, target_xyz
@@ -96,11 +105,12 @@ def virtual_target_spec(lab: Any, subject: Subject, *, simulated: np.ndarray | N
         raise ValueError(f"{subject.label}: not a colour target")
     scene = lab.scene_for(subject.name, nd=subject.nd)
     nd_mask = scene.nd_patches()
-    xyz, names = reference_xyz(lab.mode, subject.name, nd_transmittance(nd_mask, scene.nd_transmittance,
-                                                                        scene.n_patches), method)
+    nd_scale = nd_transmittance(nd_mask, scene.nd_transmittance, scene.n_patches)
+    xyz, names = reference_xyz(lab.mode, subject.name, nd_scale, method)
     target = packaged_target(lab.mode, subject.name)
     return TargetSpec(subject, xyz, names, grid or scene_grid(scene), tuple(scene.layout), simulated,
-                      label or f"{subject.name} ({target.name})", nd_mask)
+                      label or f"{subject.name} ({target.name})", nd_mask,
+                      reference_spectra(lab.mode, subject.name, nd_scale), lab.mode)
 
 
 def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any = None,
@@ -120,7 +130,8 @@ def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any
         raise ValueError(f"{subject.label}: the grid has {grid.n_patches} cells but the target {len(names)} "
                          "patches; set rows and columns")
     return TargetSpec(subject, xyz, names, grid, layout_for(len(names), target.layout), None,
-                      label or f"{subject.name} ({target.name})")
+                      label or f"{subject.name} ({target.name})", spectra=reference_spectra(mode, subject.name),
+                      mode=mode)
 
 
 def load_grid(path: Path) -> PatchGrid:

@@ -1,7 +1,7 @@
 """Noise-free, expected-captured and robust objectives compared (``dualrgb study objectives``; the stability
 study's predicted-vs-captured part).
 
-For each mode, each objective (:data:`simulation.runner.OBJECTIVES`) and each method (exhaustive at full
+For each mode, each colour objective (:data:`simulation.choices.COLOUR_OBJECTIVES`) and each method (exhaustive at full
 intensity, the default successive halving over PSO, and the thesis PSO except on the 8x dearer robust
 objective), the optimum's wall time and its figures under every objective: noise-free, expected captured
 (float64) and robust (mean over the plausible worlds). Then each distinct optimum is *captured* at the levels the
@@ -29,11 +29,12 @@ import numpy as np
 
 from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.capture_model import CameraNoise, CaptureModel
+from simulation.choices import COLOUR_OBJECTIVES
 from simulation.datasets import MODES, SimulationSetup
 from simulation.halving import HalvingSettings, successive_halving
 from simulation.pso import PsoSettings, pso
 from simulation.robust import RobustEvaluator, RobustSettings
-from simulation.runner import OBJECTIVES, make_evaluator
+from simulation.runner import make_evaluator
 from simulation.search import exhaustive, light_pairs, refine_top
 from simulation.studies.common import SetupSpec, StudyOutput, new_figure
 from simulation.studies.noise import NoiseModel
@@ -47,7 +48,7 @@ WORKED_EXAMPLE = ("transmissive", ((2, 5, 9), (2, 6, 9)))
 @dataclass(frozen=True)
 class ObjectivesConfig:
     modes: tuple[str, ...] = MODES
-    objectives: tuple[str, ...] = OBJECTIVES
+    objectives: tuple[str, ...] = COLOUR_OBJECTIVES
     methods: tuple[str, ...] = ("exhaustive", "halving", "pso")
     light_sets: int | None = None                 # None: all 630
     halving: HalvingSettings = HalvingSettings()

@@ -49,6 +49,28 @@ def test_calibration_profile_written_once(day):
     assert Path(cal["calibration"]).with_suffix(".npz").exists() and len(cal["sources"]) > 20
 
 
+def test_calibration_carries_the_spectral_estimate(day):
+    """Issue 21: the calibration fits the spectral estimator on the captured training target and its JSON carries
+    the test target's spectral RMSE (mean, p90), GFC and mean dE00 under every other light; the profile loads it."""
+    from app.workflow.profile import load_profile
+
+    _, cal, _ = day
+    sp = cal["spectral"]
+    assert sp["estimator"]["format"] == "dualrgb-spectral-estimator/1"
+    assert sp["estimator"]["channels"] == cal["matrix"]["channels"] and len(sp["estimator"]["wavelengths_nm"]) == 38
+    assert "cross-validation on the training target" in sp["selection"]["criterion"]
+    test = sp["test"]
+    assert 0.0 < test["rmse"]["mean"] < 0.05 and test["rmse"]["p90"] >= test["rmse"]["mean"]
+    assert 0.98 < test["gfc"]["mean"] <= 1.0
+    assert set(test["de00"]) == {"D65", "A", "D50", "FL11", "LED 2880 K"}
+    assert all(0.0 < v["mean"] < 2.0 for v in test["de00"].values())
+    est = load_profile(Path(cal["calibration"])).spectral_estimator()
+    assert est.method == sp["estimator"]["method"] and est.apply(np.ones((2, len(est.channels)))).max() <= 1.0
+    report = json.loads(Path(cal["statistics"]["report"]).read_text())        # the calibration's report
+    assert report["spectral"]["summary"]["rmse_mean"] == pytest.approx(test["rmse"]["mean"], abs=1e-5)
+    assert "spectra_test.png" in report["figures"]
+
+
 def test_originals_delivered_with_metadata(day):
     root, cal, captures = day
     for ident, c in captures.items():

@@ -39,6 +39,20 @@ def test_demo_report_schema_and_dual_rgb_beats_three_channel(hdr_report):
         assert data["dual_rgb_pso"][split]["mean"] < data["three_channel"][split]["mean"]
 
 
+def test_demo_reports_the_spectral_estimate_beside_colour(hdr_report):
+    """Issue 21: every condition's entry carries its spectral figures; six channels estimate spectra better than
+    three (the same estimator, chosen on the training target)."""
+    _, out = hdr_report
+    on_disk = json.loads((out / "report.json").read_text())
+    for cond in on_disk["conditions"]:
+        sp = on_disk[cond]["spectral"]
+        assert sp["target"] == "test" and 0 < sp["rmse_mean"] <= sp["rmse_p90"] and 0.9 < sp["gfc_mean"] <= 1
+        assert set(sp["de00_mean"]) == {"D65", "A", "D50", "FL11", "LED 2880 K"}
+    for cond in ("dual_rgb", "dual_rgb_pso"):
+        assert on_disk[cond]["spectral"]["rmse_mean"] < on_disk["three_channel"]["spectral"]["rmse_mean"]
+    assert (out / "dual_rgb_pso" / "spectra_test.png").exists()
+
+
 def test_hdr_lowers_the_error_of_nd_covered_patches(hdr_report):
     data, _ = hdr_report
     for cond in ("dual_rgb", "dual_rgb_pso"):
