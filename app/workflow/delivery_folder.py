@@ -89,14 +89,15 @@ def check_folder(out_dir: Path, original: Original) -> None:
 
 
 def prepare(out_dir: Path, original: Original) -> None:
-    """What must hold before an original is shot: its deliverables folder is creatable and not another's."""
+    """What must hold before an original is shot (nothing is created): its deliverables folder is not another
+    original's, and the deliverables folder (or the folder it will be made in) is writable."""
     check_folder(out_dir, original)
-    try:
-        Path(out_dir).mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise DeliveryFolderError(f"{out_dir}: cannot create the deliverables folder ({exc.strerror or exc})") from exc
-    if not os.access(out_dir, os.W_OK):
-        raise DeliveryFolderError(f"{out_dir}: the deliverables folder is not writable")
+    existing = Path(out_dir).absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir() or not os.access(existing, os.W_OK | os.X_OK):
+        raise DeliveryFolderError(f"{out_dir}: the deliverables folder cannot be written ({existing} is not a "
+                                  "writable folder)")
 
 
 @contextmanager
@@ -104,6 +105,10 @@ def staged(out_dir: Path, original: Original) -> Iterator[Path]:
     """A fresh folder to write ``original``'s new deliverables into, swapped in when the block ends without error
     (the previous set kept in ``previous/``; see the module docstring); removed on error."""
     prepare(out_dir, original)
+    try:
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DeliveryFolderError(f"{out_dir}: cannot create the deliverables folder ({exc.strerror or exc})") from exc
     stage = Path(out_dir) / f".{original.file_stem}.{secrets.token_hex(4)}.new"
     stage.mkdir()                                   # (not tempfile.mkdtemp: its 0700 would stay on the folder)
     try:
