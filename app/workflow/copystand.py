@@ -31,7 +31,7 @@ from app.sequences.capture import SubjectCapture
 from app.sequences.shooter import SafetySettings, Shooter
 from app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from app.workflow.delivery_folder import prepare, sidecar_identifier
-from app.workflow.metadata import check_original
+from app.workflow.metadata import MetadataError, check_original
 from app.workflow.metering import AutoExposure, HdrMetering
 from app.workflow.profile import (
     CalibrationProfile,
@@ -376,8 +376,7 @@ def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: 
     frames = session_frames(session)
     known = session.settings.get("originals", {})
     names = [nl.name for nl in profile.lights]
-    originals = [(s, Original.from_dict(known.get(s.name, {}), identifier=s.name))
-                 for s in frames.subjects if s.role is Role.ORIGINAL]
+    originals = [(s, _known_original(session, known, s.name)) for s in frames.subjects if s.role is Role.ORIGINAL]
     for _subject, original in originals:
         prepare(Path(out_dir), original)
     out = []
@@ -392,6 +391,15 @@ def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: 
                            extra={"session": str(session.path), "reprocessed": True}))
         report(progress, (i + 1) / len(originals), f"{original.identifier} delivered")
     return out
+
+
+def _known_original(session: Any, known: dict, identifier: str) -> Original:
+    """An original as session.json remembers it, validated again (MetadataError naming the original)."""
+    try:
+        return Original.from_dict(known.get(identifier, {}), identifier=identifier)
+    except MetadataError as exc:
+        raise MetadataError(f"{session.path / 'session.json'}: original {identifier!r}: {exc.field}",
+                            exc.problem) from None
 
 
 # ---------------------------------------------------------------- a day's queue

@@ -93,6 +93,7 @@ def test_colliding_identifiers_never_overwrite(cal, first, second):
     before = digests(folder)
     capture(calibration, session, second, "--json", str(root / "b.json"))
     b = json.loads((root / "b.json").read_text())
+    assert (b["new"], b["kept"]) == (2, 0)                        # its own frames: none of the first's kept
     assert Path(b["sidecar"]).parent.name.casefold() != folder.name.casefold()
     assert digests(folder) == before and read_xmp(Path(a["files"]["xyz"])).identifier == first
     assert read_xmp(Path(b["files"]["xyz"])).identifier == second
