@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import logging
+import re
 import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -183,20 +184,51 @@ def tiff_datetime(when: datetime | None = None) -> str:
     return (when or datetime.now()).strftime("%Y:%m:%d %H:%M:%S")
 
 
+_XML_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*")
+# XML 1.0 Char: tab, LF, CR, U+0020-U+D7FF, U+E000-U+FFFD, U+10000-U+10FFFF (app.workflow.metadata refuses these
+# and more before anything is captured; this is the last guard, so no packet is ever ill-formed)
+_NOT_XML_CHAR = re.compile("[^\t\n\r\u0020-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def _xml_text(name: str, value: object) -> str:
+    text = str(value)
+    bad = _NOT_XML_CHAR.search(text)
+    if bad:
+        raise ValueError(f"XMP {name}: U+{ord(bad.group()):04X} at character {bad.start() + 1} is not allowed in XML")
+    return escape(text)
+
+
+def _xml_name(name: str) -> str:
+    if not _XML_NAME.fullmatch(name):
+        raise ValueError(f"XMP property {name!r}: not an XML name")
+    return name
+
+
 def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str = "", tool: str = "",
-               created: datetime | None = None) -> bytes:
-    """An XMP packet: dc:identifier, dc:title, xmp:CreatorTool, xmp:CreateDate and ``dualrgb:<Key>`` fields."""
+               created: datetime | None = None, columns: Mapping[str, str] | None = None) -> bytes:
+    """An XMP packet (UTF-8): dc:identifier, dc:title, xmp:CreatorTool, xmp:CreateDate and ``dualrgb:<Key>`` fields.
+
+    ``columns`` (property -> the exact column name it came from) adds a ``dualrgb:ExtraColumns`` bag of
+    {``dualrgb:Property``, ``dualrgb:Column``} so the names of a queue CSV's extra columns survive exactly.
+    Text that XML 1.0 cannot carry raises ValueError naming the property (the workflow refuses it earlier).
+    """
     created = created or datetime.now(timezone.utc)
     props = [f"<xmp:CreateDate>{created.isoformat(timespec='seconds')}</xmp:CreateDate>"]
     if tool:
-        props.append(f"<xmp:CreatorTool>{escape(tool)}</xmp:CreatorTool>")
+        props.append(f"<xmp:CreatorTool>{_xml_text('CreatorTool', tool)}</xmp:CreatorTool>")
     if identifier:
-        props.append(f"<dc:identifier>{escape(identifier)}</dc:identifier>")
+        props.append(f"<dc:identifier>{_xml_text('dc:identifier', identifier)}</dc:identifier>")
     if title:
-        props.append(f'<dc:title><rdf:Alt><rdf:li xml:lang="x-default">{escape(title)}</rdf:li></rdf:Alt></dc:title>')
+        props.append(f'<dc:title><rdf:Alt><rdf:li xml:lang="x-default">{_xml_text("dc:title", title)}</rdf:li>'
+                     '</rdf:Alt></dc:title>')
     for key, value in fields.items():
         if value is not None and value != "":
-            props.append(f"<dualrgb:{key}>{escape(str(value))}</dualrgb:{key}>")
+            props.append(f"<dualrgb:{_xml_name(key)}>{_xml_text(key, value)}</dualrgb:{key}>")
+    if columns:
+        items = "".join(f'<rdf:li rdf:parseType="Resource"><dualrgb:Property>{_xml_text("Property", prop)}'
+                        f'</dualrgb:Property><dualrgb:Column>{_xml_text("Column", col)}</dualrgb:Column></rdf:li>'
+                        for prop, col in columns.items())
+        props.append(f"<dualrgb:ExtraColumns><rdf:Bag>{items}</rdf:Bag></dualrgb:ExtraColumns>")
     body = "\n    ".join(props)
     text = ('<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>\n'
             '<x:xmpmeta xmlns:x="adobe:ns:meta/">\n'

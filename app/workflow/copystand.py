@@ -31,6 +31,8 @@ from app.sequences.capture import SubjectCapture
 from app.sequences.shooter import SafetySettings, Shooter
 from app.workflow.defaults import study_defaults, workflow_defaults
 from app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
+from app.workflow.delivery_folder import prepare, sidecar_identifier
+from app.workflow.metadata import MetadataError, check_original
 from app.workflow.metering import AutoExposure, HdrMetering
 from app.workflow.profile import (
     CalibrationProfile,
@@ -281,10 +283,20 @@ class CopyStand:
                                 f"{len(have)} (recalibrate with --hdr auto)")
         return exposures, warnings
 
+    def deliverables(self, out_dir: Path | None = None) -> Path:
+        return Path(out_dir or self.session.path / "deliverables")
+
+    def preflight(self, original: Original, out_dir: Path | None = None) -> None:
+        """What must hold before the light goes on for ``original``: its metadata validate (app.workflow.metadata)
+        and its deliverables folder is creatable and not another original's (app.workflow.delivery_folder)."""
+        check_original(original)
+        prepare(self.deliverables(out_dir), original)
+
     def capture(self, original: Original, profile: CalibrationProfile, *, reshoot: bool | None = None,
                 out_dir: Path | None = None) -> CaptureReport:
-        """Check the calibration, meter, capture (HDR when metering asks), deliver; frames already in the session
-        are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
+        """Check the original (:meth:`preflight`) and the calibration, meter, capture (HDR when metering asks),
+        deliver; frames already in the session are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
+        self.preflight(original, out_dir)
         checked = self.check(profile)
         take = self._take(original, reshoot)
         exposures, warnings = self.meter(original, profile, take)
@@ -306,7 +318,7 @@ class CopyStand:
         finally:
             self.on_event = outer
         dose = original_dose(self.session, original.subject)
-        delivery = deliver(builder.result(), profile, original, Path(out_dir or self.session.path / "deliverables"),
+        delivery = deliver(builder.result(), profile, original, self.deliverables(out_dir),
                            camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
                            exposures=exposures, warnings=checked.warnings + warnings,
                            extra={"session": str(self.session.path), "take": take, "frames": seq.steps()})
@@ -371,19 +383,20 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
 
 def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: float | None = None,
               progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> list[Delivery]:
-    """Deliver every original of a session again with ``profile`` (``dualrgb process``)."""
+    """Deliver every original of a session again with ``profile`` (``dualrgb process``); each original's current
+    deliverables move to its ``previous/`` folder. Every folder is checked before the first is written."""
     from app.workflow.session_processing import select_lights, session_frames
 
     frames = session_frames(session)
     known = session.settings.get("originals", {})
     names = [nl.name for nl in profile.lights]
-    originals = [s for s in frames.subjects if s.role is Role.ORIGINAL]
+    originals = [(s, _known_original(session, known, s.name)) for s in frames.subjects if s.role is Role.ORIGINAL]
+    for _subject, original in originals:
+        prepare(Path(out_dir), original)
     out = []
-    for i, subject in enumerate(originals):
+    for i, (subject, original) in enumerate(originals):
         if cancel is not None:
             cancel.check()
-        meta = {k: v for k, v in known.get(subject.name, {}).items() if k in Original.__dataclass_fields__}
-        original = Original(**{**meta, "identifier": subject.name})
         light_frames = select_lights(frames.subject(subject), names)
         stack = profile_processor(profile).stack(light_frames, cancel=cancel)
         out.append(deliver(stack, profile, original, out_dir, camera=profile.camera, ppi=ppi,
@@ -392,3 +405,63 @@ def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: 
                            extra={"session": str(session.path), "reprocessed": True}))
         report(progress, (i + 1) / len(originals), f"{original.identifier} delivered")
     return out
+
+
+def _known_original(session: Any, known: dict, identifier: str) -> Original:
+    """An original as session.json remembers it, validated again (MetadataError naming the original)."""
+    try:
+        return Original.from_dict(known.get(identifier, {}), identifier=identifier)
+    except MetadataError as exc:
+        raise MetadataError(f"{session.path / 'session.json'}: original {identifier!r}: {exc.field}",
+                            exc.problem) from None
+
+
+# ---------------------------------------------------------------- a day's queue
+@dataclass
+class QueueOutcome:
+    """One original of a queue: captured and delivered (``report``), or already delivered and kept (``kept``:
+    its sidecar)."""
+
+    original: Original
+    report: CaptureReport | None = None
+    kept: Path | None = None
+
+    def summary(self) -> str:
+        if self.report is not None:
+            return self.report.summary()
+        return f"{self.original.identifier}: already delivered, kept"
+
+
+def delivered_sidecar(session: Any, original: Original) -> Path | None:
+    """The sidecar of ``original``'s delivery in ``session`` (session.json 'originals'), when it exists and names
+    the same identifier; None otherwise."""
+    meta = (session.settings.get("originals") or {}).get(original.identifier) or {}
+    sidecar = Path(meta.get("sidecar") or "")
+    if not meta.get("sidecar") or not sidecar.is_file():
+        return None
+    try:
+        return sidecar if sidecar_identifier(sidecar) == original.identifier else None
+    except ValueError as exc:
+        log.warning("%s: %s", original.identifier, exc)
+        return None
+
+
+def capture_queue(stand: CopyStand, originals: Sequence[Original], profile: CalibrationProfile, *,
+                  reshoot: bool = False, out_dir: Path | None = None,
+                  on_outcome: Callable[[QueueOutcome], None] | None = None) -> list[QueueOutcome]:
+    """Capture and deliver ``originals`` in order (``dualrgb capture --queue``). Every original is checked first
+    (:meth:`CopyStand.preflight`: nothing is lit while one cannot be delivered); one already delivered in the
+    session is kept and said so unless ``reshoot``."""
+    for original in originals:
+        stand.preflight(original, out_dir)
+    outcomes = []
+    for original in originals:
+        stand._check_cancel()
+        kept = None if reshoot else delivered_sidecar(stand.session, original)
+        outcome = (QueueOutcome(original, kept=kept) if kept is not None
+                   else QueueOutcome(original, report=stand.capture(original, profile, reshoot=reshoot,
+                                                                    out_dir=out_dir)))
+        outcomes.append(outcome)
+        if on_outcome is not None:
+            on_outcome(outcome)
+    return outcomes

@@ -78,6 +78,16 @@ class OriginalsQueue:
         self.rows.append(row)
         return row
 
+    def add_many(self, originals: Sequence[Original], stand_in: str = "", frames: int = 1) -> list[str]:
+        """Add ``originals`` in order (a queue CSV's: app.workflow.queue_csv); returns why any was left out."""
+        left_out = []
+        for original in originals:
+            try:
+                self.add(original, stand_in, frames)
+            except ValueError as exc:
+                left_out.append(str(exc))
+        return left_out
+
     def row(self, identifier: str) -> QueueRow:
         for r in self.rows:
             if r.identifier == identifier:
@@ -98,9 +108,8 @@ class OriginalsQueue:
         """The originals already delivered in ``session`` (session.json 'originals', their sidecars)."""
         queue = cls()
         for ident, meta in (session.settings.get("originals") or {}).items():
-            fields = {k: v for k, v in meta.items() if k in Original.__dataclass_fields__}
             try:
-                row = queue.add(Original(**{**fields, "identifier": ident}))
+                row = queue.add(Original.from_dict(meta, identifier=ident))
             except (TypeError, ValueError) as exc:
                 log.warning("session original %r skipped: %s", ident, exc)
                 continue

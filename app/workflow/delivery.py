@@ -1,6 +1,8 @@
-"""Originals and their deliverables: what an original is, and the archival files made from its stack.
+"""The archival files made from an original's stack (what an original is and how its fields are checked:
+app.workflow.metadata; where its files go and how a re-delivery keeps the previous set: app.workflow.delivery_folder).
 
-Per original, named from its identifier (``<id>`` below, made file-safe), in ``<out>/<id>/``:
+Per original, named from its identifier (``<id>`` below: app.workflow.metadata.file_stem, portable and distinct for
+distinct identifiers), in ``<out>/<id>/`` (:func:`deliverable_files` lists them, the one place that does):
 
 * ``<id>_prophoto_16bit.tif`` and ``<id>_srgb_16bit.tif``: display-encoded RGB with the ICC profile embedded;
 * ``<id>_XYZ_16bit.tif``: linear CIE XYZ, 32768 = the reference white's Y (2x headroom);
@@ -9,66 +11,33 @@ Per original, named from its identifier (``<id>`` below, made file-safe), in ``<
   LibRaw - from simulation.versions, the original, the calibration, exposures, light dose, QA, the files).
 
 Every TIFF carries resolution (ppi), Make/Model, DateTime, Software with the dualrgb version, an
-ImageDescription and XMP (identifier, title, operator, calibration id, light dose); see app.processing.outputs.
+ImageDescription and XMP (identifier, title, operator, notes, extra fields, calibration id, light dose); see
+app.processing.outputs. Text policy: the XMP packet (UTF-8) and the sidecar (UTF-8 JSON) carry every field exactly
+as normalised; TIFF's ASCII tags (ImageDescription, Make, Model) carry app.workflow.metadata.ascii_text of it.
 """
 from __future__ import annotations
 
 import json
 import logging
-import re
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
 
 from app.processing.encode import LINEAR_ONE, DeliveryEncoder
 from app.processing.outputs import TiffMetadata, icc_profile, open_tiff, tiff_datetime, xmp_packet
 from app.processing.pipeline import ChannelStack
 from app.session.capture_session import atomic_write
+from app.workflow.delivery_folder import SIDECAR_FORMAT, read_sidecar, staged
+from app.workflow.metadata import MODES, Original, ascii_text, xmp_property
 from app.workflow.profile import CalibrationProfile, CameraIdentity
-from app.workflow.vocabulary import Subject
 from simulation.versions import dualrgb_version, output_header
 
 log = logging.getLogger(__name__)
 
-SIDECAR_FORMAT = "dualrgb-delivery/1"
-MODES = ("reflective", "transmissive")
-_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 BAND_ROWS = 256         # rows encoded and written at a time: 24 MP dual-RGB, 23 MB over the four files (128-512 alike)
-
-
-@dataclass
-class Original:
-    """An object to digitise: the identifier (accession number) is required and names every file."""
-
-    identifier: str
-    title: str = ""
-    operator: str = ""
-    notes: str = ""
-    mode: str = "reflective"
-
-    def __post_init__(self) -> None:
-        self.identifier = (self.identifier or "").strip()
-        if not self.identifier:
-            raise ValueError("an original needs an identifier (accession number), e.g. --id ACC-123")
-        if self.mode not in MODES:
-            raise ValueError(f"mode {self.mode!r}: expected {' or '.join(MODES)}")
-        if not self.file_stem:
-            raise ValueError(f"identifier {self.identifier!r}: needs at least one letter or digit for file names")
-
-    @property
-    def subject(self) -> Subject:
-        return Subject.original(self.identifier)
-
-    @property
-    def file_stem(self) -> str:
-        return _UNSAFE.sub("_", self.identifier).strip("._")
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 @dataclass
@@ -133,14 +102,21 @@ def _qa(stack: ChannelStack, invalid: float, profile: CalibrationProfile, origin
 def _tiff_meta(original: Original, profile: CalibrationProfile, camera: CameraIdentity, dose: LightDoseRecord,
                ppi: float | None, what: str, now: datetime) -> TiffMetadata:
     software = f"dualrgb {dualrgb_version()}"
+    extra = {xmp_property(name): value for name, value in original.extra.items()}
     xmp = xmp_packet({"Operator": original.operator, "CalibrationID": profile.id, "Mode": original.mode,
                       "LightDoseLuxHours": f"{dose.lux_h:.6g}", "LightDoseLuxSeconds": f"{dose.lux_s:.6g}",
-                      "Content": what, "Notes": original.notes},
-                     identifier=original.identifier, title=original.title, tool=software, created=now)
-    description = f"{original.identifier}" + (f" - {original.title}" if original.title else "") + f"; {what}"
+                      "Content": what, "Notes": original.notes, **extra},
+                     identifier=original.identifier, title=original.title, tool=software, created=now,
+                     columns={xmp_property(name): name for name in original.extra})
     make, _, model = (camera.model or "").partition(" ")
-    return TiffMetadata(software, description, make or camera.model, model or camera.model, ppi,
-                        tiff_datetime(now.astimezone()), xmp)
+    return TiffMetadata(software, image_description(original, what), ascii_text(make or camera.model),
+                        ascii_text(model or camera.model), ppi, tiff_datetime(now.astimezone()), xmp)
+
+
+def image_description(original: Original, what: str) -> str:
+    """TIFF ImageDescription (7-bit ASCII): ``<identifier> - <title>; <what>`` transliterated
+    (app.workflow.metadata.ascii_text); the exact text is in the XMP packet."""
+    return ascii_text(original.identifier + (f" - {original.title}" if original.title else "") + f"; {what}")
 
 
 @dataclass
@@ -198,34 +174,34 @@ def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original
             camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
             exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
             extra: dict | None = None) -> Delivery:
-    """Encode the stack with the calibration's matrix and write every deliverable of ``original``."""
+    """Encode the stack with the calibration's matrix and write every deliverable of ``original``: into a fresh
+    folder, swapped in whole when complete (a re-delivery keeps the previous set in ``<stem>/previous/``; a folder
+    of another original is refused: app.workflow.delivery_folder)."""
     warnings = list(warnings or [])
     ppi = ppi or profile.ppi
     if not ppi:
         warnings.append("no resolution: set the sampling (ppi) or calibrate with the target's size")
-    folder = Path(out_dir) / original.file_stem
-    folder.mkdir(parents=True, exist_ok=True)
     now = datetime.now(timezone.utc)
     stem = original.file_stem
-    files, invalid = write_images(stack, profile, deliverable_files(folder, stem, stack.channels),
-                                  lambda what: _tiff_meta(original, profile, camera, dose, ppi, what, now))
-    qa = _qa(stack, invalid, profile, original, dose, any(len(v) > 1 for v in (exposures or {}).values()), warnings)
-    sidecar = folder / f"{stem}.json"
-    doc = {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"),
-           "original": original.to_dict(),
-           "calibration": {"id": profile.id, "file": str(profile.path or ""), "created_at": profile.created_at,
-                           "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean},
-           "camera": asdict(camera), "ppi": ppi, "exposures": exposures or {}, "light_dose": dose.to_dict(),
-           "qa": qa.to_dict(), "encoding": {"rgb": "display-encoded, white = 65535",
-                                            "linear_one": LINEAR_ONE, "channels": stack.channels},
-           "files": {k: p.name for k, p in files.items()}, **(extra or {})}
-    atomic_write(sidecar, (json.dumps(doc, indent=2, default=str) + "\n").encode())
+    final = Path(out_dir) / stem
+    with staged(Path(out_dir), original) as folder:
+        written, invalid = write_images(stack, profile, deliverable_files(folder, stem, stack.channels),
+                                        lambda what: _tiff_meta(original, profile, camera, dose, ppi, what, now))
+        qa = _qa(stack, invalid, profile, original, dose, any(len(v) > 1 for v in (exposures or {}).values()),
+                 warnings)
+        doc = {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"),
+               "original": original.to_dict(), "file_stem": stem,
+               "calibration": {"id": profile.id, "file": str(profile.path or ""), "created_at": profile.created_at,
+                               "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean},
+               "camera": asdict(camera), "ppi": ppi, "exposures": exposures or {}, "light_dose": dose.to_dict(),
+               "qa": qa.to_dict(), "encoding": {"rgb": "display-encoded, white = 65535",
+                                                "linear_one": LINEAR_ONE, "channels": stack.channels},
+               "files": {k: p.name for k, p in written.items()}, **(extra or {})}
+        atomic_write(folder / f"{stem}.json",
+                     (json.dumps(doc, indent=2, ensure_ascii=False, default=str) + "\n").encode("utf-8"))
     log.info("delivered %s: %s", original.identifier, qa.text())
-    return Delivery(original, files, sidecar, qa)
+    return Delivery(original, {k: final / p.name for k, p in written.items()}, final / f"{stem}.json", qa)
 
 
-def read_sidecar(path: Path) -> dict[str, Any]:
-    doc = json.loads(Path(path).read_text())
-    if doc.get("format") != SIDECAR_FORMAT:
-        raise ValueError(f"{path}: not a dualrgb delivery sidecar (format {doc.get('format')!r})")
-    return doc
+__all__ = ["BAND_ROWS", "MODES", "SIDECAR_FORMAT", "Deliverable", "Delivery", "LightDoseRecord", "Original", "QaLine",
+           "deliver", "deliverable_files", "image_description", "read_sidecar", "write_images"]

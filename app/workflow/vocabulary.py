@@ -5,7 +5,9 @@ What ties a capture to its processing lives here and nowhere else:
 * :class:`Role` - why a frame was taken (dark, flat, target, original, crf, metering);
 * :class:`Subject` - what lay on the stand (the training / test target, with or without the virtual lab's ND 2.0
   filter, or an original by its identifier); ``Subject.key`` is the one string form (``"target:train"``,
-  ``"target:test+nd"``, ``"original:ACC-123"``);
+  ``"target:test+nd"``, ``"original:ACC-123"``); in it an identifier's ``% / : # +`` are written ``%25 %2F %3A
+  %23 %2B`` (:func:`key_name`), so no identifier can reach into the separators of keys and step ids (``ACC/1``
+  is ``original:ACC%2F1``, never a step under ``original:ACC``);
 * :func:`light_name` - the one name of a preset's light (``"dual-RGB reflective light 1"``), used for the
   sphere, the session manifest, the flats, the processing and the reports alike;
 * :func:`step_id` - the manifest's step id of a frame (resume and re-shoot key on it);
@@ -29,6 +31,8 @@ from simulation.lightsource import LightSource
 log = logging.getLogger(__name__)
 
 TAKE_SEPARATOR = "#take"
+_KEY_ESCAPES = {c: f"%{ord(c):02X}" for c in "%/:#+"}     # '%' first: the escape itself
+_KEY_ESCAPED = re.compile("|".join(re.escape(v) for v in _KEY_ESCAPES.values()), re.IGNORECASE)
 
 
 class Role(str, Enum):
@@ -97,7 +101,7 @@ class Subject:
 
     @property
     def key(self) -> str:
-        return f"{self.kind.value}:{self.name}" + ("+nd" if self.nd else "")
+        return f"{self.kind.value}:{key_name(self.name)}" + ("+nd" if self.nd else "")
 
     @property
     def role(self) -> Role:
@@ -125,13 +129,24 @@ class Subject:
         name = name[:-3] if nd else name
         role, old_nd = read_role(kind)
         if role is Role.ORIGINAL:
-            return cls.original(name)
+            return cls.original(name_of_key(name + ("+nd" if nd else "")))
         if role is Role.TARGET:
             return cls.target(name, nd or old_nd)
         raise ValueError(f"subject {key!r}: {kind!r} is not a target or an original")
 
     def __str__(self) -> str:
         return self.key
+
+
+def key_name(name: str) -> str:
+    """A subject's name as it appears in keys and step ids: ``% / : # +`` escaped (``ACC/1`` -> ``ACC%2F1``)."""
+    return "".join(_KEY_ESCAPES.get(c, c) for c in name)
+
+
+def name_of_key(text: str) -> str:
+    """The name that :func:`key_name` wrote as ``text`` (keys of sessions before the escaping read unchanged,
+    unless an identifier held a '%' followed by one of the escapes' hex pairs)."""
+    return _KEY_ESCAPED.sub(lambda m: chr(int(m.group(0)[1:], 16)), text)
 
 
 # ---------------------------------------------------------------- lights
@@ -277,5 +292,5 @@ def latest_takes(entries: Sequence[Any]) -> list[Any]:
 
 
 __all__ = ["EventKind", "format_exposure", "NamedLight", "Role", "SequenceKind", "Subject", "SubjectKind",
-           "exposure_key", "latest_takes", "light_name", "light_of", "lights_of", "monochromatic_light",
-           "read_light_name", "read_role", "role_of", "split_take", "step_id", "subject_of"]
+           "exposure_key", "key_name", "latest_takes", "light_name", "light_of", "lights_of", "monochromatic_light",
+           "name_of_key", "read_light_name", "read_role", "role_of", "split_take", "step_id", "subject_of"]

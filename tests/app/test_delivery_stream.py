@@ -146,6 +146,8 @@ def test_a_write_failing_mid_stream_keeps_the_previous_file_and_names_it(tmp_pat
 
 @pytest.mark.fault("session integrity")
 def test_a_failed_delivery_leaves_no_partial_deliverable(tmp_path, monkeypatch):
+    """The files of a delivery are written into a fresh folder and swapped in only when all are complete: a disk
+    filling up mid-delivery leaves no folder for the original (and no staging folder) behind."""
     from app.workflow.delivery import LightDoseRecord, Original, deliver
 
     prof = _profile(tmp_path)
@@ -153,10 +155,24 @@ def test_a_failed_delivery_leaves_no_partial_deliverable(tmp_path, monkeypatch):
     _failing_pwrite(monkeypatch, after=5)
     with pytest.raises(FileWriteError, match="ACC-9_.*16bit.tif: disk full"):
         deliver(stack, prof, Original("ACC-9"), tmp_path / "out", camera=prof.camera, dose=LightDoseRecord())
-    left = sorted(p.name for p in (tmp_path / "out" / "ACC-9").iterdir())
-    assert not [n for n in left if n.endswith((".tmp", ".json"))], left
-    for name in left:                              # whatever was renamed into place is complete
-        assert tifffile.imread(tmp_path / "out" / "ACC-9" / name).shape[:2] == (300, 200)
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+@pytest.mark.fault("session integrity")
+def test_a_failed_redelivery_keeps_the_previous_set_untouched(tmp_path, monkeypatch):
+    from app.workflow.delivery import LightDoseRecord, Original, deliver
+
+    prof = _profile(tmp_path)
+    stack = ChannelStack(np.full((300, 200, 3), 0.5, np.float32), ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})
+    first = deliver(stack, prof, Original("ACC-9"), tmp_path / "out", camera=prof.camera, dose=LightDoseRecord())
+    folder = first.sidecar.parent
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    _failing_pwrite(monkeypatch, after=5)
+    with pytest.raises(FileWriteError, match="disk full"):
+        deliver(stack, prof, Original("ACC-9"), tmp_path / "out", camera=prof.camera,
+                dose=LightDoseRecord())
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+    assert [p.name for p in (tmp_path / "out").iterdir()] == ["ACC-9"]
 
 
 def test_a_stream_closed_early_is_refused_and_removed(tmp_path):

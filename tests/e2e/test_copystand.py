@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import tifffile
+from xmp_check import read_xmp
 
 FRAME = ["--frame-size", "240x160", "--settle", "0"]
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -81,8 +82,9 @@ def test_originals_delivered_with_metadata(day):
                 assert page.dtype == np.uint16 and Path(path).name.startswith(ident)
                 assert page.tags["XResolution"].value[0] > 0 and page.tags["ResolutionUnit"].value == 2
                 assert page.tags["Software"].value.startswith("dualrgb ")
-                xmp = bytes(page.tags[700].value).decode()
-                assert f"<dc:identifier>{ident}</dc:identifier>" in xmp and cal["id"] in xmp and "E2E" in xmp
+            xmp = read_xmp(Path(path))
+            assert (xmp.identifier, xmp.title, xmp.dualrgb["Operator"]) == (ident, f"{ident} title", "E2E")
+            assert xmp.dualrgb["CalibrationID"] == cal["id"]
         side = json.loads(Path(c["sidecar"]).read_text())
         assert side["software"]["libraw"] and side["qa"]["light_dose"]["lux_s"] > 0
     assert all(len(ts) == 1 for ts in captures["PAINT-1"]["exposures"].values())       # fits: no HDR
@@ -144,4 +146,5 @@ def test_reshoot_needs_asking_and_process_redelivers(day):
     r = dualrgb("process", str(root / "originals"), "--out", str(root / "again"), "--json", str(root / "p.json"))
     done = json.loads((root / "p.json").read_text())
     assert {o["identifier"] for o in done["originals"]} == {"PAINT-1", "FILM-1", "SHADOW-1"}
-    assert (root / "again" / "SHADOW-1" / "SHADOW-1_XYZ_16bit.tif").exists() and r.returncode == 0
+    assert r.returncode == 0
+    assert read_xmp(root / "again" / "SHADOW-1" / "SHADOW-1_XYZ_16bit.tif").identifier == "SHADOW-1"

@@ -9,11 +9,11 @@ import json
 
 import numpy as np
 import pytest
-import tifffile
 
 from app.workflow.day import DayStep, OriginalState, StepState
 from tests.gui.conftest import click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
+from xmp_check import read_xmp
 from app.workflow.vocabulary import EventKind
 
 LONG = 180000
@@ -124,8 +124,10 @@ def capture_originals(qtbot, w):
     assert [r.state for r in ws.queue.rows] == [OriginalState.DELIVERED] * 2, [r.qa for r in ws.queue.rows]
     for row in (paint, shadow):
         assert row.files and all(p.exists() and p.name.startswith(row.identifier) for p in row.files.values())
-        with tifffile.TiffFile(row.files["srgb"]) as t:
-            assert f"<dc:identifier>{row.identifier}</dc:identifier>" in bytes(t.pages[0].tags[700].value).decode()
+        for path in row.files.values():
+            xmp = read_xmp(path)
+            assert (xmp.identifier, xmp.title, xmp.dualrgb["Operator"]) == (row.identifier, f"{row.identifier} title",
+                                                                            "GUI test")
         side = json.loads(row.sidecar.read_text())
         assert side["original"]["identifier"] == row.identifier and side["original"]["operator"] == "GUI test"
     shadow_exposures = json.loads(shadow.sidecar.read_text())["exposures"]

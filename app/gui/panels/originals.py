@@ -5,17 +5,22 @@ the archival TIFFs, sidecar and QA line).
 Each row shows its state (waiting / capturing / captured / delivered / failed) and QA line; the delivered TIFF
 and its folder open from here. An original already in the session asks "re-shoot / keep" and reports
 "0 new, 2 kept". The calibration's check against the stand is shown above the Capture button, before anything is
-shot.
+shot. *Import CSV...* adds a day's originals from the collection database through
+app.workflow.queue_csv.read_queue_csv (the CLI's ``--queue``): its bad rows are listed, one line each, and only
+added on request is the rest.
 """
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
+from pathlib import Path
 
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
+    QFileDialog,
     QFormLayout,
     QGroupBox,
     QHBoxLayout,
@@ -36,7 +41,8 @@ from app.sequences.base import PlannedFrame, ProgressEvent
 from app.workflow.copystand import CaptureReport, StandSettings, original_takes
 from app.workflow.day import OriginalsQueue, OriginalState, QueueRow
 from app.workflow.defaults import SETTLE_S
-from app.workflow.delivery import MODES, Original
+from app.workflow.metadata import MODES, Original
+from app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
 from app.workflow.runs import RunHooks, StandRun
 from app.workflow.vocabulary import EventKind, Role
 
@@ -47,6 +53,7 @@ STATE_COLOURS = {OriginalState.WAITING: "#fafafa", OriginalState.CAPTURING: "#e3
                  OriginalState.CAPTURED: "#fff8e1", OriginalState.DELIVERED: "#e8f5e9",
                  OriginalState.FAILED: "#ffebee"}
 RESHOOT, KEEP = "Re-shoot", "Keep"
+ADD_VALID, CANCEL = "Add the valid rows", "Cancel"
 
 
 class OriginalsPanel(QWidget):
@@ -107,8 +114,32 @@ class OriginalsPanel(QWidget):
         self.stand_in_label = QLabel("Virtual stand-in")
         form.addRow(self.stand_in_label, self.stand_in)
         form.addRow("Frames per exposure", self.frames)
-        form.addRow(self.add_button)
+        self._import_rows(form)
         return box
+
+    def _import_rows(self, form: QFormLayout) -> None:
+        """Add / Import CSV... buttons, the CSV's column names, the last import's bad rows."""
+        self.import_button = QPushButton("Import CSV…")
+        self.import_button.setToolTip("Add a day's originals from a CSV exported from the collection database "
+                                      "(UTF-8; columns identifier, title, operator, notes, mode; other columns are "
+                                      "kept as extra metadata). Every row is checked first; bad rows are listed.")
+        self.import_button.clicked.connect(self.choose_csv)
+        self.csv_columns = QLineEdit(self.ctx.get("originals/csv_columns", "", str))
+        self.csv_columns.setPlaceholderText("only if the header differs: identifier=Accession No.; title=Titel")
+        self.csv_columns.setToolTip("Which column of the collection database's CSV holds a field, when its header does "
+                                    "not name it identifier, title, operator, notes or mode (as --column does on the "
+                                    "command line). Remembered.")
+        self.csv_columns.textChanged.connect(lambda t: self.ctx.set("originals/csv_columns", t))
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.add_button)
+        buttons.addWidget(self.import_button)
+        form.addRow(buttons)
+        form.addRow("CSV columns", self.csv_columns)
+        self.import_report = QLabel("")
+        self.import_report.setWordWrap(True)
+        self.import_report.setTextInteractionFlags(Qt.TextSelectableByMouse)
+        self.import_report.setToolTip("The last CSV import: its bad rows, one line each (row, column, problem).")
+        form.addRow(self.import_report)
 
     def _calibration_box(self) -> QGroupBox:
         box = QGroupBox("Calibration used")
@@ -186,6 +217,47 @@ class OriginalsPanel(QWidget):
             w.clear()
         self.ws.queue_changed()
         return row
+
+    def choose_csv(self) -> None:
+        start = self.ctx.get("originals/csv_folder", str(Path.home()), str)
+        path, _ = QFileDialog.getOpenFileName(self, "Import originals from a CSV", start,
+                                              "CSV files (*.csv *.txt);;All files (*)")
+        if path:
+            self.import_csv(Path(path))
+
+    def import_csv(self, path: Path) -> None:
+        """Read and check a queue CSV (the workflow's read_queue_csv); bad rows are listed, and the valid rows
+        are added at once when there are none, else when the technician asks for it."""
+        session = self.lab.session
+        try:
+            imported = read_queue_csv(Path(path), columns=column_options(self.csv_columns.text()),
+                                      default_mode=self.mode.currentText(),
+                                      out_dir=session.path / "deliverables" if session is not None else None)
+        except ValueError as exc:
+            self.ctx.errors.report("Import CSV", exc)
+            return
+        self.ctx.errors.clear("Import CSV")
+        self.ctx.set("originals/csv_folder", str(Path(path).parent))
+        bad = imported.bad_lines()
+        self.import_report.setText("\n".join([imported.summary()] + bad))
+        if not bad:
+            self._add_imported(imported)
+            return
+        text = (f"{imported.summary()}:\n" + "\n".join(bad) + f"\n\nAdd the {len(imported.entries)} valid rows "
+                "and leave the bad ones out, or cancel and fix the file?")
+        self.ctx.asker.ask("Bad rows in the CSV", text, (ADD_VALID, CANCEL),
+                           lambda choice: self._add_imported(imported) if choice == ADD_VALID else None,
+                           default=CANCEL)
+
+    def _add_imported(self, imported: QueueImport) -> None:
+        operator = self.operator.text().strip()
+        originals = [o if o.operator or not operator else replace(o, operator=operator) for o in imported.originals]
+        left_out = self.ws.queue.add_many(originals, self.stand_in.currentText() if self.lab.is_virtual else "",
+                                          self.frames.value())
+        added = len(originals) - len(left_out)
+        self.import_report.setText("\n".join([f"{imported.summary()}; {added} added"] + imported.bad_lines()
+                                              + left_out))
+        self.ws.queue_changed()
 
     def selected(self) -> list[str]:
         rows = sorted({i.row() for i in self.table.selectedIndexes()})

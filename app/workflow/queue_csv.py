@@ -1,0 +1,272 @@
+"""A day's queue from the collection database: a CSV exported from a collection-management system, read and every
+row validated before anything is shot (``dualrgb capture --queue``, the GUI's *Import CSV...*; both call
+:func:`read_queue_csv`). An example: ``docs/queue-example.csv``.
+
+Format
+    UTF-8, with or without a byte-order mark; CRLF or LF; comma-separated (semicolon or tab when the header line
+    has more of those: spreadsheets in some locales); quoted fields may hold the separator, quotes (doubled) and
+    line breaks. Row 1 is the header naming the columns: ``identifier`` (required), ``title``, ``operator``,
+    ``notes``, ``mode`` (matched ignoring case; another name with ``columns={"identifier": "Accession No."}``,
+    ``--column identifier="Accession No."``). Every other column is an extra field of the original, kept with its
+    exact name (sidecar ``original.extra``; XMP ``dualrgb:Extra_<name>``: app.workflow.metadata.xmp_property).
+
+Rows
+    Numbered as a spreadsheet shows them: the header is row 1, a quoted field's line breaks stay within its row.
+    Empty rows are skipped. Each field is normalised by app.workflow.metadata (the GUI's and the CLI's rules); an
+    empty mode is the calibration's. A bad row is one line naming the row, the column and the problem
+    (``row 5, column 'Title': control character U+0001 at character 4 is not allowed``); a repeated identifier is
+    a bad row (the later one), as is a row whose deliverables folder holds another original's files.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from app.workflow.delivery_folder import DeliveryFolderError, check_folder
+from app.workflow.metadata import (
+    COLUMN_RULE,
+    EXTRA_RULE,
+    FIELD_RULES,
+    MAX_EXTRA,
+    MetadataError,
+    Original,
+    normalise,
+    normalise_identifier,
+    normalise_mode,
+)
+
+log = logging.getLogger(__name__)
+
+FIELDS = ("identifier", "title", "operator", "notes", "mode")
+DELIMITERS = (",", ";", "\t")
+
+
+@dataclass(frozen=True)
+class RowProblem:
+    row: int             # as a spreadsheet numbers it (the header is row 1)
+    column: str          # the column's name in the header
+    problem: str
+
+
+@dataclass(frozen=True)
+class QueueEntry:
+    row: int
+    original: Original
+
+
+@dataclass
+class QueueImport:
+    """What a queue CSV holds: the originals of its good rows, in order, and the problems of its bad rows."""
+
+    path: Path
+    entries: list[QueueEntry] = field(default_factory=list)
+    problems: list[RowProblem] = field(default_factory=list)
+    columns: dict[str, str] = field(default_factory=dict)      # field -> the column it was read from
+    extra_columns: list[str] = field(default_factory=list)
+
+    @property
+    def originals(self) -> list[Original]:
+        return [e.original for e in self.entries]
+
+    @property
+    def bad_rows(self) -> list[int]:
+        return sorted({p.row for p in self.problems})
+
+    def bad_lines(self) -> list[str]:
+        """One line per bad row: ``row 5, column 'Title': ...; column 'mode': ...``."""
+        out = []
+        for row in self.bad_rows:
+            parts = [f"column {p.column!r}: {p.problem}" for p in self.problems if p.row == row]
+            out.append(f"row {row}, " + "; ".join(parts))
+        return out
+
+    def summary(self) -> str:
+        bad = self.bad_rows
+        return (f"{self.path.name}: {len(self.entries) + len(bad)} rows, {len(self.entries)} to shoot"
+                + (f", {len(bad)} bad (rows {', '.join(map(str, bad))})" if bad else ""))
+
+
+def column_option(text: str) -> tuple[str, str]:
+    """``FIELD=COLUMN NAME`` (``--column identifier="Accession No."``) -> (field, column name)."""
+    name, sep, column = text.partition("=")
+    name = name.strip().lower()
+    if not sep or name not in FIELDS or not column.strip():
+        raise ValueError(f"{text!r}: expected FIELD=COLUMN NAME with FIELD one of {', '.join(FIELDS)}")
+    return name, column.strip()
+
+
+def column_options(text: str) -> dict[str, str]:
+    """``identifier=Inv. Nr.; title=Titel`` (the GUI's column names) -> {field: column name}; empty: {}."""
+    return dict(column_option(part) for part in text.split(";") if part.strip())
+
+
+def _letter(index: int) -> str:
+    """A spreadsheet's column letter: 0 -> A, 25 -> Z, 26 -> AA."""
+    out = ""
+    index += 1
+    while index:
+        index, r = divmod(index - 1, 26)
+        out = chr(65 + r) + out
+    return out
+
+
+def _records(path: Path) -> list[list[str]]:
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the queue CSV ({exc.strerror or exc})") from exc
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02X} at offset {exc.start}); export the "
+                         "CSV as UTF-8") from None
+    first = text.split("\n", 1)[0]
+    delimiter = max(DELIMITERS, key=first.count)
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter, strict=True)
+    rows: list[list[str]] = []
+    try:
+        rows.extend(reader)
+    except csv.Error as exc:
+        raise ValueError(f"{path}: row {len(rows) + 1}: not CSV ({exc})") from None
+    if not rows or not any(c.strip() for c in rows[0]):
+        raise ValueError(f"{path}: no header row (row 1 names the columns: identifier, title, ...)")
+    return rows
+
+
+def _header(path: Path, cells: list[str]) -> list[str]:
+    names = []
+    for i, cell in enumerate(cells):
+        try:
+            names.append(normalise(COLUMN_RULE, cell, f"row 1, column {_letter(i)}"))
+        except MetadataError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+    while names and not names[-1]:
+        names.pop()
+    for i, name in enumerate(names):
+        if not name:
+            raise ValueError(f"{path}: row 1, column {_letter(i)}: the header names no column here")
+        if name in names[:i]:
+            raise ValueError(f"{path}: row 1: column {name!r} appears twice ({_letter(names.index(name))} and "
+                             f"{_letter(i)})")
+    return names
+
+
+def _field_columns(path: Path, names: list[str], columns: Mapping[str, str]) -> dict[str, int]:
+    """Field -> index of its column in the header."""
+    out: dict[str, int] = {}
+    for name in FIELDS:
+        wanted = normalise(COLUMN_RULE, columns.get(name, name), "--column").casefold()
+        hits = [i for i, n in enumerate(names) if n.casefold() == wanted]
+        if len(hits) > 1:
+            raise ValueError(f"{path}: columns {', '.join(repr(names[i]) for i in hits)} all read as {name!r}; "
+                             f"rename one, or choose with --column {name}=NAME")
+        if hits and hits[0] in out.values():
+            raise ValueError(f"{path}: column {names[hits[0]]!r} is read as two fields; check --column")
+        if hits:
+            out[name] = hits[0]
+        elif name in columns or name == "identifier":
+            raise ValueError(f"{path}: no column {columns.get(name, name)!r} for the {name} (the header has "
+                             f"{', '.join(map(repr, names))}); name it with --column {name}=NAME")
+    if len(names) - len(out) > MAX_EXTRA:
+        raise ValueError(f"{path}: {len(names) - len(out)} extra columns, at most {MAX_EXTRA}")
+    return out
+
+
+def _value(name: str, cell: str, column: str, default_mode: str) -> str:
+    if name == "identifier":
+        return normalise_identifier(cell, column)
+    if name == "mode":
+        return normalise_mode(cell, column) if cell.strip() else default_mode
+    return normalise(FIELD_RULES[name], cell, column)
+
+
+def _row(number: int, cells: list[str], names: list[str], index: dict[str, int],
+         default_mode: str) -> tuple[Original | None, list[RowProblem]]:
+    problems = []
+    if any(c.strip() for c in cells[len(names):]):
+        problems.append(RowProblem(number, _letter(len(names)), "a value beyond the last named column"))
+    cells = cells + [""] * (len(names) - len(cells))
+    values, extra = {}, {}
+    for i, column in enumerate(names):
+        name = next((k for k, j in index.items() if j == i), None)
+        try:
+            if name is not None:
+                values[name] = _value(name, cells[i], column, default_mode)
+            else:
+                extra[column] = normalise(EXTRA_RULE, cells[i], column)
+        except MetadataError as exc:
+            problems.append(RowProblem(number, column, exc.problem))
+    if problems:
+        return None, problems
+    try:
+        return Original(**values, extra=extra), []
+    except MetadataError as exc:            # (every value is normalised already: a guard)
+        return None, [RowProblem(number, exc.field, exc.problem)]
+
+
+def read_queue_csv(path: Path, *, columns: Mapping[str, str] | None = None, default_mode: str = "reflective",
+                   out_dir: Path | None = None) -> QueueImport:
+    """Read and validate a queue CSV (the module docstring says the format).
+
+    Parameters
+    ----------
+    path
+        The CSV file.
+    columns
+        Field -> column name where the header does not use the field's own name (``{"identifier": "Inv. Nr."}``).
+    default_mode
+        The mode of rows whose mode is empty (or of a CSV without a mode column): the calibration's.
+    out_dir
+        The deliverables folder: a row whose folder there holds another original's files is a bad row.
+
+    Returns
+    -------
+    QueueImport
+        The good rows' originals in order, and one problem per bad cell (``bad_lines``: one line per bad row).
+        A file that is not a readable queue (not UTF-8, not CSV, no identifier column) raises ValueError, one line.
+    """
+    path = Path(path)
+    records = _records(path)
+    names = _header(path, records[0])
+    index = _field_columns(path, names, dict(columns or {}))
+    default_mode = normalise_mode(default_mode)
+    out = QueueImport(path, columns={k: names[i] for k, i in index.items()},
+                      extra_columns=[n for i, n in enumerate(names) if i not in index.values()])
+    seen: dict[str, int] = {}
+    stems: dict[str, int] = {}
+    id_column = names[index["identifier"]]
+    for number, cells in enumerate(records[1:], start=2):
+        if not any(c.strip() for c in cells):
+            continue
+        original, problems = _row(number, cells, names, index, default_mode)
+        if original is not None:
+            problems = _duplicate(number, original, seen, stems, id_column, out_dir)
+        if original is None or problems:
+            out.problems += problems
+            continue
+        seen[original.identifier] = stems[original.file_stem.casefold()] = number
+        out.entries.append(QueueEntry(number, original))
+    log.info("%s", out.summary())
+    return out
+
+
+def _duplicate(number: int, original: Original, seen: dict[str, int], stems: dict[str, int], column: str,
+               out_dir: Path | None) -> list[RowProblem]:
+    if original.identifier in seen:
+        return [RowProblem(number, column, f"{original.identifier!r} is also row {seen[original.identifier]}")]
+    if original.file_stem.casefold() in stems:
+        return [RowProblem(number, column, f"{original.identifier!r} would share the file name "
+                                           f"{original.file_stem!r} with row {stems[original.file_stem.casefold()]}")]
+    if out_dir is not None:
+        try:
+            check_folder(Path(out_dir), original)
+        except DeliveryFolderError as exc:
+            return [RowProblem(number, column, str(exc))]
+    return []
+
+
+__all__ = ["FIELDS", "QueueEntry", "QueueImport", "RowProblem", "column_option", "column_options", "read_queue_csv"]
