@@ -32,6 +32,7 @@ COMMAND_MODULES = (
     "app.commands.process",
     "app.commands.calibration",
     "app.commands.study",
+    "app.commands.measure",
 )
 
 

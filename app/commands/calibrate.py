@@ -9,13 +9,14 @@ import logging
 import sys
 from pathlib import Path
 
-from app.commands.options import count, input_file, number
+from app.commands.options import count, input_file, number, stand_dir
 from app.commands.stand_options import (
     add_device_options,
     ask_person,
     open_devices,
     open_session,
     progress_printer,
+    virtual_world,
     write_json,
 )
 
@@ -41,6 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--train-grid", type=input_file, help="patch grid JSON of the training target (real stands)")
     p.add_argument("--test-grid", type=input_file, help="patch grid JSON of the test target (real stands)")
     p.add_argument("--no-de-fit", action="store_true", help="least squares only")
+    p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
+                   help="a stand folder (`dualrgb measure leds`): warn when the preset sets an LED below the "
+                        "measured minimum stable level, where its output is not proportional to the level")
     add_device_options(p)
     p.set_defaults(func=main)
 
@@ -65,6 +69,11 @@ def main(args: argparse.Namespace) -> int:
     from app.workflow.targets import load_grid
 
     preset = find_preset(args.preset, args.mode)
+    if args.stand_dir:
+        from app.workflow.led_stand import load_stand, unstable_levels
+
+        for line in unstable_levels(preset.sources, load_stand(args.stand_dir)):
+            print(f"warning: {line}", file=sys.stderr)
     mode = args.mode or preset.mode
     preset.mode = mode
     grids = {k: load_grid(v) for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
@@ -72,7 +81,8 @@ def main(args: argparse.Namespace) -> int:
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
                              target_width_mm=args.target_width_mm)
     definition = {"workflow": "calibrate", "mode": mode, "preset": preset.name, "hdr": args.hdr,
-                  "dark_frames": args.dark_frames, "flat_frames": args.flat_frames, "settle_s": args.settle}
+                  "dark_frames": args.dark_frames, "flat_frames": args.flat_frames, "settle_s": args.settle,
+                  **virtual_world(args)}
     with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person)

@@ -18,6 +18,7 @@ from app.commands.stand_options import (
     open_session,
     progress_printer,
     reuse_limits,
+    virtual_world,
     write_json,
 )
 
@@ -59,7 +60,7 @@ def main(args: argparse.Namespace) -> int:
     settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
                              original_frames=args.frames)
     with open_devices(args, original.mode, args.virtual_original) as dev, \
-            open_session(args.session, {"workflow": "originals"}, dev.camera) as session:
+            open_session(args.session, {"workflow": "originals", **virtual_world(args)}, dev.camera) as session:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person, reshoot=lambda _o, _n: args.reshoot)
         result = stand.capture(original, profile, reshoot=args.reshoot, out_dir=args.out)

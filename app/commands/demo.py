@@ -5,7 +5,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from app.commands.options import count, frame_size, seed
+from app.commands.options import add_world_option, count, frame_size, seed
 from app.terminal_progress import TerminalProgress
 
 log = logging.getLogger(__name__)
@@ -21,6 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--frame-size", type=frame_size, default=(600, 400),
                    help="virtual frame WxH, 64..8192 per side (default 600x400)")
     p.add_argument("--seed", type=seed, default=0)
+    add_world_option(p)
     p.add_argument("--dark-frames", type=count(1, 200), default=10, help="dark frames per exposure (default 10)")
     p.add_argument("--new-session", action="store_true",
                    help="when --out holds a session made with other options, start a new one beside it "
@@ -34,7 +35,8 @@ def main(args: argparse.Namespace) -> int:
     from app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
-                            seed=args.seed, dark_frames=args.dark_frames, new_session=args.new_session,
+                            seed=args.seed, world=args.world, dark_frames=args.dark_frames,
+                            new_session=args.new_session,
                             optimise_matrix=False if args.no_de_fit else None)
     with TerminalProgress("demo", lines=True) as progress:
         data = run_demo(settings, progress)

@@ -80,7 +80,7 @@ def application(argv: list[str] | None = None):
 
 
 def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
-        frame_size: tuple[int, int] = (600, 400)) -> int:
+        frame_size: tuple[int, int] = (600, 400), world: str | None = None) -> int:
     if screenshot_dir is not None and (display_problem() or live_display_problem()) is not None:
         os.environ["QT_QPA_PLATFORM"] = "offscreen"      # screenshots need no screen
     problem = display_problem() or live_display_problem()
@@ -117,6 +117,7 @@ def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
         return run_.exit_code
 
     window = MainWindow(frame_size=frame_size)
+    window.lab.world = world                 # what the virtual lab renders (drivers.virtual.world)
     window.show()
     if virtual_lab:
         window.lab.start_virtual_lab()
