@@ -12,38 +12,11 @@ import logging
 import sys
 from pathlib import Path
 
-from app.commands.options import add_world_option, count, input_file, number, seed
+from app.commands.options import add_world_option, input_file, leds, number, numbers, seed
 
 log = logging.getLogger(__name__)
 
 MAX_WARMUP_MIN = 59.5          # the sphere's longest lit period is one hour, less the margin
-
-
-def _led_list(text: str, allow: tuple[str, ...] = ()) -> tuple[int, ...]:
-    if text in allow:
-        return tuple(range(1, 11)) if text == "all" else ()
-    try:
-        leds = tuple(int(x, 10) for x in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected comma-separated LED numbers like 1,4,10"
-                                         + (f" or {' / '.join(allow)}" if allow else "")) from None
-    if any(not 1 <= n <= 10 for n in leds) or len(set(leds)) != len(leds):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected distinct LED numbers from 1 to 10")
-    return leds
-
-
-def _warmup_leds(text: str) -> tuple[int, ...]:
-    return _led_list(text, ("all", "none"))
-
-
-def _levels(text: str) -> tuple[float, ...]:
-    try:
-        levels = tuple(float(x) for x in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected comma-separated levels like 0,0.002,0.01,1") from None
-    if not levels or any(not 0.0 <= v <= 1.0 for v in levels):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected levels from 0 to 1")
-    return tuple(sorted(set(levels)))
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -58,10 +31,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--virtual-lab", action="store_true", help="the virtual lab's sphere and spectroradiometer")
     add_world_option(p)
     p.add_argument("--out", type=Path, required=True, help="the stand folder to write")
-    p.add_argument("--leds", type=_led_list, default=tuple(range(1, 11)), help="LEDs to measure (default all)")
-    p.add_argument("--levels", type=_levels, default=None,
+    p.add_argument("--leds", type=leds(), default=tuple(range(1, 11)), help="LEDs to measure (default all)")
+    p.add_argument("--levels", type=numbers(0.0, 1.0), default=None,
                    help="PWM levels, comma-separated (default 0, 0.2 %%..5 %% finely, then up to 1)")
-    p.add_argument("--warmup-leds", type=_warmup_leds, default=tuple(range(1, 11)),
+    p.add_argument("--warmup-leds", type=leds(words=("all", "none")), default=tuple(range(1, 11)),
                    help="LEDs to hold on for the warm-up series: all (default), none or e.g. 1,4,10")
     p.add_argument("--warmup-min", type=number(0.1, MAX_WARMUP_MIN, unit=" min"), default=59.0,
                    help="warm-up length per LED in minutes (default 59)")
@@ -114,6 +87,7 @@ def import_main(args: argparse.Namespace) -> int:
 def _print(result, out: Path) -> None:
     print(f"{'LED':>3} {'peak nm':>8} {'FWHM nm':>8} {'dead band':>9} {'knee':>6} {'exp':>5} {'stable':>7} "
           f"{'drift nm':>8} {'tau min':>7}")
+    print(f"{'':>3} {'':>8} {'':>8} {'(fitted low-level response)':>29} {'':>7} {'at end':>8}")
     for led, r in sorted(result.leds.items()):
         shape, fit = r.shape or {}, (r.levels or {}).get("fit") or {}
         drift = (r.warmup or {}).get("fit") or {}
@@ -122,11 +96,9 @@ def _print(result, out: Path) -> None:
             return f"{d[key] * scale:>{w}{fmt}}" if key in d else f"{'-':>{w}}"
         print(f"{led:>3} {cell(shape, 'peak_nm', 8, '.2f')} {cell(shape, 'fwhm_nm', 8, '.2f')} "
               f"{cell(fit, 'dead_band', 9, '.4f')} {cell(fit, 'knee', 6, '.3f')} {cell(fit, 'exponent', 5, '.2f')} "
-              f"{cell(fit, 'min_stable_level', 7, '.4f')} {cell(drift, 'max_shift_nm', 8, '.2f')} "
+              f"{cell(fit, 'min_stable_level', 7, '.4f')} {cell(drift, 'shift_at_end_nm', 8, '.2f')} "
               f"{cell(drift, 'tau_s', 7, '.1f', 1 / 60)}")
     level = result.min_stable_level
     print(f"minimum stable level {level:.4f}" if level is not None else "minimum stable level: not measured")
     print(f"stand folder: {out} (simulate --stand-dir {out})")
 
-
-__all__ = ["count", "register"]

@@ -75,6 +75,36 @@ seed = count(0, MAX_SEED)
 positive = count(1)
 
 
+def numbers(lo: float, hi: float) -> Callable[[str], tuple[float, ...]]:
+    """A comma-separated list of finite numbers in [lo, hi] (sorted, duplicates dropped), e.g. ``0,0.002,1``."""
+    one = number(lo, hi)
+
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            return tuple(sorted({one(cell) for cell in text.split(",")}))
+        except argparse.ArgumentTypeError as exc:
+            raise _fail(text, f"expected comma-separated numbers from {lo:g} to {hi:g} ({exc})") from None
+    parse.__name__ = "numbers"
+    return parse
+
+
+def leds(n: int = 10, words: tuple[str, ...] = ()) -> Callable[[str], tuple[int, ...]]:
+    """Distinct LED numbers 1..n, comma-separated (``1,4,10``); ``all`` / ``none`` when in ``words``."""
+    def parse(text: str) -> tuple[int, ...]:
+        if text in words:
+            return tuple(range(1, n + 1)) if text == "all" else ()
+        try:
+            found = tuple(int(x, 10) for x in text.split(","))
+        except ValueError:
+            found = ()
+        if not found or any(not 1 <= v <= n for v in found) or len(set(found)) != len(found):
+            also = f" or {' / '.join(words)}" if words else ""
+            raise _fail(text, f"expected distinct LED numbers from 1 to {n}, comma-separated like 1,4,10{also}")
+        return found
+    parse.__name__ = "leds"
+    return parse
+
+
 def frame_size(text: str) -> tuple[int, int]:
     """``WIDTHxHEIGHT`` with each side from 64 to 8192 pixels."""
     try:
@@ -134,5 +164,5 @@ def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) 
                              "sony-ilce-7rm2, mismatched-d700, aged-leds) or a world JSON file (default nominal)")
 
 
-__all__ = ["MAX_FRAME_SIDE", "add_world_option", "count", "frame_size", "input_file", "number", "positive",
-           "seconds", "seed", "stand_dir", "world"]
+__all__ = ["MAX_FRAME_SIDE", "add_world_option", "count", "frame_size", "input_file", "leds", "number", "numbers",
+           "positive", "seconds", "seed", "stand_dir", "world"]

@@ -107,6 +107,7 @@ def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
         settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.IniFormat)
         # the virtual D610's shutter bumps on, so the Characterise picture shows what the sweep flags
         window = MainWindow(settings, frame_size=(300, 200), show_dialogs=False, shutter_bumps=True)
+        window.lab.world = world
         window.resize(1400, 900)
         window.show()
         run_ = ScreenshotRun(window, Path(screenshot_dir), tmp)

@@ -57,7 +57,7 @@ def drift_figure(result: Any, path: Path) -> Path:
         t = np.asarray(w["t_s"])
         ax.plot(t / 60, w["peak_shift_nm"], "o", ms=2.5, color=colour, label=f"LED {led}")
         if w.get("fit"):
-            fit = DriftFit(**w["fit"])
+            fit = DriftFit(**{k: w["fit"][k] for k in ("max_shift_nm", "tau_s", "onset_s", "rms_nm")})
             tt = np.linspace(0, t.max(), 300)
             ax.plot(tt / 60, fit.shift(tt), color=colour, lw=1)
     ax.set_xlabel("minutes continuously on (full level)")

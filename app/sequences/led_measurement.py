@@ -68,8 +68,10 @@ class LedMeasurementPlan:
 
     @property
     def warmup_times(self) -> list[float]:
-        n = int(self.warmup_s // self.interval_s + 1e-9)
-        return [i * self.interval_s for i in range(n + 1)]
+        """Seconds on of the warm-up readings: every ``interval_s`` from 0, and at ``warmup_s``."""
+        n = int(self.warmup_s / self.interval_s + 1e-9)
+        times = [i * self.interval_s for i in range(n + 1)]
+        return times if self.warmup_s - times[-1] < 1e-6 else [*times, self.warmup_s]
 
     @property
     def steps(self) -> int:

@@ -107,7 +107,8 @@ def _warmup(readings: LedReadings, led: int) -> dict[str, Any] | None:
     result: dict[str, Any] = {"t_s": t.tolist(), "peak_nm": peaks.tolist(), "peak_shift_nm": shift.tolist(),
                               "relative_output": (integral / integral[0]).tolist(), "fit": None}
     try:
-        result["fit"] = fit_drift(t, shift).to_dict()
+        fit = fit_drift(t, shift)
+        result["fit"] = {**fit.to_dict(), "shift_at_end_nm": float(fit.shift(t.max()))}
     except ValueError as exc:
         log.warning("LED %d: %s", led, exc)
     return result
