@@ -233,6 +233,7 @@ class DemoRun:
         report_data = {
             **output_header(REPORT_FORMAT),
             "mode": s.mode, "frame_size": list(s.frame_size), "hdr": s.hdr,
+            "world": {"identity": load_world(s.world).identity, **load_world(s.world).to_dict()},
             "conditions": list(result),          # the names; each condition's figures are top-level keys
             **result,
             "presets": presets,
