@@ -37,6 +37,7 @@ from app.workflow.targets import nd_transmittance, reference_white, scene_grid, 
 from app.workflow.vocabulary import NamedLight, Subject, lights_of
 from common.progress import CancelToken, ProgressCallback, check, report, scaled
 from drivers.virtual.lab import VirtualLab
+from drivers.virtual.world import load_world
 from simulation.camera_model import channel_responses
 from simulation.lightsource import LightSource
 from simulation.objective import ErrorStats
@@ -72,12 +73,14 @@ class DemoSettings:
     optimise_matrix: bool | None = None   # also fit the dE00-optimised matrix; None: the parsimony study's choice
     conditions: tuple[str, ...] = CONDITIONS
     new_session: bool = False                # a session made with other settings: use a new one, not refuse
+    world: str | None = None                 # what the virtual lab renders (drivers.virtual.world; None nominal)
 
     def definition(self) -> dict:
         """What defines this run's frames (app.session: a resume with anything else is refused)."""
         return {"workflow": "demo", "mode": self.mode, "frame_size": list(self.frame_size), "seed": self.seed,
                 "hdr": self.hdr, "dark_frames": self.dark_frames, "flat_frames": self.flat_frames,
-                "settle_s": self.settle_s, "conditions": list(self.conditions)}
+                "settle_s": self.settle_s, "conditions": list(self.conditions),
+                "world": load_world(self.world).identity}
 
 
 @dataclass
@@ -194,7 +197,7 @@ class DemoRun:
         s = self.s
         conds, presets = make_conditions(s, self.progress)
         report(self.progress, 0.1, "starting the virtual lab")
-        with VirtualLab(mode=s.mode, frame_size=s.frame_size, seed=s.seed) as lab:
+        with VirtualLab(mode=s.mode, frame_size=s.frame_size, seed=s.seed, world=s.world) as lab:
             session.extend_definition(camera=camera_definition(lab.camera),
                                       lights={c.name: [light_definition(nl.light, nl.name) for nl in c.lights]
                                               for c in conds})
@@ -240,6 +243,7 @@ class DemoRun:
         report_data = {
             **output_header(REPORT_FORMAT),
             "mode": s.mode, "frame_size": list(s.frame_size), "hdr": s.hdr,
+            "world": {"identity": load_world(s.world).identity, **load_world(s.world).to_dict()},
             "conditions": list(result),          # the names; each condition's figures are top-level keys
             **result,
             "presets": presets,

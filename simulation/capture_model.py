@@ -9,7 +9,8 @@
 
 The defaults describe the built-in virtual lab at the demo's 600 x 400 frames (patch sizes measured on its
 grid: 56 superpixels per training patch in reflective mode, 36 in transmissive mode, 462 per CC24 test patch)
-with exact references (the virtual lab renders the same spectra the reference XYZ come from). For a real
+with exact references (the virtual lab's nominal world renders the same spectra the reference XYZ come from; other
+worlds, drivers/virtual/world.py, may not). For a real
 chart measured with a spectrophotometer set ``reference_gain_sd`` (the stability study: a 1 % gain error costs
 ~0.15 dE00); for full-size frames set the patch sizes.
 """

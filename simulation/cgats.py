@@ -1,34 +1,48 @@
-"""Reference target data from CGATS / X-Rite measurement files (ANSI CGATS.17, i1Profiler, ArgyllCMS .ti3,
-X-Rite ColorChecker data): the patches' measured spectra as a :class:`SpectralTable`.
+"""Spectra from CGATS / X-Rite measurement files (ANSI CGATS.17, i1Profiler, ArgyllCMS .ti3 / .sp, X-Rite
+ColorChecker data) as a :class:`SpectralTable`: reference targets' reflectances (:func:`read_cgats_spectra`) and
+spectroradiometer readings of light sources (:func:`read_cgats_emission`), and the one writer of spectral CGATS
+files (:func:`write_cgats_spectra`, the ArgyllCMS spectral keywords).
 
 Why hand-written: colour-science's ``read_sds_from_xrite_file`` reads the X-Rite flavour only ("nm380" fields)
 and, by its own description, is "absolutely not bullet-proof": a truncated row or a stray token gives a wrong
-spectrum or a Python exception, not a message a user can act on. This reader accepts both field spellings
-(``nm380`` and ``SPECTRAL_NM380`` / ``SPECTRAL_NM_380``), quoted names with spaces, comments, and checks the
-declared NUMBER_OF_FIELDS / NUMBER_OF_SETS; every problem is one line naming file, line and what was expected
-(tests check it against colour's reader on colour's own X-Rite test file).
+spectrum or a Python exception, not a message a user can act on. This reader accepts every field spelling
+(``nm380``, ``SPECTRAL_NM380`` / ``SPECTRAL_NM_380``, ArgyllCMS's ``SPEC_380``), quoted names with spaces,
+comments, and checks the declared NUMBER_OF_FIELDS / NUMBER_OF_SETS; every problem is one line naming file,
+line and what was expected (tests check it against colour's reader on colour's own X-Rite test file).
 
-Values: reflectance (or transmittance) factors; a file whose spectral values exceed 2 is taken to be in percent
-(ArgyllCMS writes 0-100) and divided by 100; values down to -0.005 (instrument noise at the ends of the
+Values are divided by the file's ``SPECTRAL_NORM`` keyword when it has one (ArgyllCMS: the stored values are
+value x norm). Reflectance (or transmittance) factors: a file whose spectral values still exceed 2 is taken to be
+in percent (ArgyllCMS writes 0-100) and divided by 100; values down to -0.005 (instrument noise at the ends of the
 spectrum) are set to 0, more negative ones are an error. Colorimetric fields (XYZ_*, LAB_*) are kept in
 ``CgatsTable.rows`` but not used: they are for the instrument's illuminant and observer (often D50), while the
 reference XYZ here is computed from the spectra (eq 4.2 or ASTM E308, ``simulation.datasets.target_xyz``).
+Emission (spectral radiance or irradiance of a light source, e.g. ``spotread -s`` / instrument software): the
+values after ``SPECTRAL_NORM`` as they are, small negatives (instrument noise) kept; the units are the file's
+(``DUALRGB_UNITS`` when dualrgb wrote it; ArgyllCMS's emission unit is mW m^-2 sr^-1 nm^-1).
+
+References
+----------
+ANSI CGATS.17-2009, *Graphic technology - Exchange format for colour and process control data*; ArgyllCMS file
+formats (argyllcms.com/doc/File_Formats.html): the ``.sp`` / ``.ti3`` spectral keywords ``SPECTRAL_BANDS``,
+``SPECTRAL_START_NM``, ``SPECTRAL_END_NM``, ``SPECTRAL_NORM`` and fields ``SPEC_<nm>``.
 """
 from __future__ import annotations
 
 import logging
 import re
 import shlex
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from common.atomic_files import atomic_write
 from simulation.spectral_io import SpectralDataError, SpectralTable
 
 log = logging.getLogger(__name__)
 
-_SPECTRAL = re.compile(r"^(?:SPECTRAL_NM_?|SPECTRAL_|NM_?)(\d+(?:\.\d+)?)$", re.IGNORECASE)
+_SPECTRAL = re.compile(r"^(?:SPECTRAL_NM_?|SPECTRAL_|SPEC_|NM_?)(\d+(?:\.\d+)?)$", re.IGNORECASE)
 _NAME_FIELDS = ("SAMPLE_NAME", "SAMPLE_ID", "SAMPLEID", "SAMPLE_LOC")
 NEGATIVE_TOLERANCE = 0.005
 
@@ -63,8 +77,9 @@ class CgatsTable:
         return [str(i + 1) for i in range(len(self.rows))]
 
     def spectral_values(self) -> tuple[np.ndarray, np.ndarray]:
-        """The spectral fields as numbers, as written: wavelengths (n_wl,), values (n_wl, n_rows); one-line
-        CgatsError for a missing, unordered or non-numeric field (no unit is assumed: radiance readings use this)."""
+        """The spectral fields as numbers: wavelengths (n_wl,), values (n_wl, n_rows) divided by SPECTRAL_NORM
+        (1 when absent; no unit is assumed: radiance readings use this too); one-line CgatsError for a missing,
+        unordered or non-numeric field, or SPECTRAL_BANDS / _START_NM / _END_NM that disagree with the fields."""
         spec = self.spectral_fields()
         if len(spec) < 2:
             raise CgatsError(f"{self.source}: no spectral fields (expected nm380 ... or SPECTRAL_NM380 ...); "
@@ -85,11 +100,35 @@ class CgatsTable:
         if not np.isfinite(values).all():
             c, r = np.argwhere(~np.isfinite(values))[0]
             raise CgatsError(f"{self.source}:{self.row_lines[r]}: {wl[c]:g} nm is not a finite number")
-        return wl, values
+        self._check_bands(wl)
+        return wl, values / self._norm()
+
+    def _norm(self) -> float:
+        text = self.keywords.get("SPECTRAL_NORM")
+        try:
+            norm = 1.0 if text is None else float(text)
+        except ValueError:
+            norm = float("nan")
+        if not np.isfinite(norm) or norm <= 0:
+            raise CgatsError(f"{self.source}: SPECTRAL_NORM {text!r}: expected a positive number")
+        return norm
+
+    def _check_bands(self, wl: np.ndarray) -> None:
+        """SPECTRAL_BANDS / SPECTRAL_START_NM / SPECTRAL_END_NM, where given, must match the fields."""
+        declared = {"SPECTRAL_BANDS": len(wl), "SPECTRAL_START_NM": wl[0], "SPECTRAL_END_NM": wl[-1]}
+        for key, actual in declared.items():
+            if key not in self.keywords:
+                continue
+            try:
+                ok = abs(float(self.keywords[key]) - float(actual)) < 1e-6
+            except ValueError:
+                ok = False
+            if not ok:
+                raise CgatsError(f"{self.source}: {key} {self.keywords[key]!r} does not match the spectral fields "
+                                 f"({len(wl)} bands, {wl[0]:g}-{wl[-1]:g} nm)")
 
     def spectral_table(self) -> SpectralTable:
-        """The measured spectra as reflectance / transmittance factors, wavelengths (n_wl,) x patches
-        (n_wl, n_patches)."""
+        """The measured reflectances (or transmittances), wavelengths (n_wl,) x patches (n_wl, n_patches)."""
         wl, values = self.spectral_values()
         if values.max() > 2.0:
             if values.max() > 200.0:
@@ -104,6 +143,17 @@ class CgatsTable:
         meta = {k.lower(): v for k, v in self.keywords.items()}
         meta.setdefault("title", Path(self.source).stem)
         return SpectralTable(wl, values, self.names(), meta, self.source)
+
+    def emission_table(self) -> SpectralTable:
+        """Spectroradiometer readings (module docstring): wavelengths (n_wl,) x readings (n_wl, n_sets); a file
+        of one reading without a name field is named after the file."""
+        wl, values = self.spectral_values()
+        meta = {k.lower(): v for k, v in self.keywords.items()}
+        meta.setdefault("title", Path(self.source).stem)
+        names = self.names()
+        if len(self.rows) == 1 and not any(f.upper() in _NAME_FIELDS for f in self.fields):
+            names = [Path(self.source).stem]
+        return SpectralTable(wl, values, names, meta, self.source)
 
 
 def is_cgats(path: str | Path) -> bool:
@@ -185,3 +235,47 @@ def read_cgats(path: str | Path) -> CgatsTable:
 
 def read_cgats_spectra(path: str | Path) -> SpectralTable:
     return read_cgats(path).spectral_table()
+
+
+def read_cgats_emission(path: str | Path) -> SpectralTable:
+    """Spectroradiometer readings from a CGATS / ArgyllCMS .sp / .ti3 file (one reading per data row)."""
+    return read_cgats(path).emission_table()
+
+
+def write_cgats_spectra(path: str | Path, wavelengths: np.ndarray, values: np.ndarray, names: list[str], *,
+                        file_id: str = "CTI3", descriptor: str = "", keywords: dict[str, str] | None = None,
+                        fmt: str = "%.8g") -> Path:
+    """Write spectra as a CGATS file with the ArgyllCMS spectral keywords (atomically).
+
+    Parameters
+    ----------
+    path : the file (``.ti3``, ``.sp`` ...).
+    wavelengths : (n_wl,) nm, evenly spaced (SPECTRAL_START_NM / SPECTRAL_END_NM / SPECTRAL_BANDS describe them).
+    values : (n_wl, n) one spectrum per column, written as one data row each (SPECTRAL_NORM 1).
+    names : n SAMPLE_ID values.
+    file_id : the file's first line (``CTI3``, ``SPECT`` ...).
+    keywords : further keywords (e.g. MEAS_TYPE, DUALRGB_UNITS), declared with KEYWORD as ArgyllCMS does.
+
+    Returns
+    -------
+    The path written.
+    """
+    wl = np.asarray(wavelengths, dtype=float)
+    data = np.asarray(values, dtype=float).reshape(len(wl), -1)
+    steps = np.diff(wl)
+    if len(wl) < 2 or not np.allclose(steps, steps[0]):
+        raise ValueError(f"{path}: CGATS spectral fields need evenly spaced wavelengths")
+    if data.shape[1] != len(names):
+        raise ValueError(f"{path}: {data.shape[1]} spectra but {len(names)} names")
+    declared = {"SPECTRAL_BANDS": str(len(wl)), "SPECTRAL_START_NM": f"{wl[0]:.6f}",
+                "SPECTRAL_END_NM": f"{wl[-1]:.6f}", "SPECTRAL_NORM": "1.000000", **(keywords or {})}
+    lines = [file_id, "", f'DESCRIPTOR "{descriptor or "spectral data"}"', 'ORIGINATOR "dualrgb"',
+             f'CREATED "{time.strftime("%a %b %d %H:%M:%S %Y")}"']
+    for key, value in declared.items():
+        lines += [f'KEYWORD "{key}"', f'{key} "{value}"']
+    fields = ["SAMPLE_ID", *(f"SPEC_{w:g}" for w in wl)]
+    lines += ["", f"NUMBER_OF_FIELDS {len(fields)}", "BEGIN_DATA_FORMAT", " ".join(fields), "END_DATA_FORMAT", "",
+              f"NUMBER_OF_SETS {len(names)}", "BEGIN_DATA"]
+    lines += [" ".join([f'"{name}"', *(fmt % v for v in data[:, j])]) for j, name in enumerate(names)]
+    lines.append("END_DATA")
+    return atomic_write(Path(path), "\n".join(lines) + "\n")

@@ -8,7 +8,10 @@ sphere will emit, and the expected-captured objective scores that, so no preset 
 (issue 14: LED 1 at 0.0022 in the reflective PSO optimum, PWM 20 of 65 535 in the transmissive one).
 
 ``min_stable_level`` = 1 % is an assumption for a typical constant-current PWM LED driver (not measured on the
-thesis' sphere); set the measured value here when it is known.
+thesis' sphere); a stand measurement (``dualrgb measure leds`` / ``import-leds``, simulation/led_fit.py) gives the
+measured value, which ``simulate --stand-dir`` uses instead. :class:`LowLevelResponse` is the model of how an LED's
+output follows its level near the bottom (a dead band, then a curve up to a knee): the virtual lab's worlds
+render with it and the stand measurement fits it.
 """
 from __future__ import annotations
 
@@ -23,6 +26,42 @@ from simulation.lightsource import LightSource
 log = logging.getLogger(__name__)
 
 PWM_MAX = 65535
+
+
+@dataclass(frozen=True)
+class LowLevelResponse:
+    """How an LED's output follows its PWM level near the bottom (relative to full output = 1).
+
+    ``level <= dead_band``: no output; ``dead_band < level < knee``: ``knee * ((level - dead_band) / (knee -
+    dead_band)) ** exponent`` (a curve meeting the proportional response at the knee); ``level >= knee``:
+    proportional (output = level). ``dead_band = knee = 0`` is the ideal driver (the nominal model).
+    """
+
+    dead_band: float = 0.0
+    knee: float = 0.0
+    exponent: float = 1.0
+
+    @property
+    def identity(self) -> bool:
+        return self.knee <= 0.0 and self.dead_band <= 0.0
+
+    def output(self, levels: np.ndarray) -> np.ndarray:
+        """Relative output for ``levels`` (any shape, 0..1); the same array object when the response is ideal."""
+        if self.identity:
+            return levels
+        lv = np.asarray(levels, dtype=float)
+        d, k = self.dead_band, max(self.knee, self.dead_band)
+        out = lv.copy()
+        low = lv < k
+        if k > d:
+            x = np.clip((lv[low] - d) / (k - d), 0.0, None)
+            out[low] = k * x ** self.exponent
+        else:
+            out[low] = 0.0
+        return out
+
+    def to_dict(self) -> dict[str, float]:
+        return {"dead_band": self.dead_band, "knee": self.knee, "exponent": self.exponent}
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.commands.options import count, input_file, number
+from app.commands.options import count, input_file, number, stand_dir
 from app.commands.stand_options import (
     add_device_options,
     add_session_option,
@@ -21,6 +21,7 @@ from app.commands.stand_options import (
     open_devices,
     open_session,
     progress_printer,
+    virtual_world,
     write_json,
 )
 from app.workflow import defaults as day
@@ -54,6 +55,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-de-fit", action="store_true",
                    help="least squares only (default: also the ΔE00-optimised matrix when resources/parsimony.json "
                         "chose it)")
+    p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
+                   help="a stand folder (`dualrgb measure leds`): warn when the preset sets an LED below the "
+                        "measured minimum stable level, where its output is not proportional to the level")
     add_device_options(p)
     p.set_defaults(func=main)
 
@@ -89,12 +93,17 @@ def main(args: argparse.Namespace) -> int:
 
     preset, hdr, darks, flats = resolve(args)
     mode = preset.mode
+    if args.stand_dir:
+        from app.workflow.led_stand import load_stand, unstable_levels
+
+        for line in unstable_levels(preset.sources, load_stand(args.stand_dir)):
+            print(f"warning: {line}", file=sys.stderr)
     grids = {k: load_grid(v) for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
     settings = StandSettings(settle_s=args.settle, dark_frames=darks, flat_frames=flats,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
                              target_width_mm=args.target_width_mm)
     definition = {"workflow": "calibrate", "mode": mode, "preset": preset.name, "hdr": hdr,
-                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle}
+                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle, **virtual_world(args)}
     with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person)

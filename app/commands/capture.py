@@ -27,6 +27,7 @@ from app.commands.stand_options import (
     open_session,
     progress_printer,
     reuse_limits,
+    virtual_world,
     write_json,
 )
 from app.workflow.defaults import MODES, VIRTUAL_ORIGINALS
@@ -79,15 +80,17 @@ def column_option(text: str) -> tuple[str, str]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _originals(args: argparse.Namespace, mode: str, out_dir: Path) -> tuple[list, list[str]]:
-    """The originals to shoot, every one checked before a device opens, and the queue's bad-row lines."""
+def _originals(args: argparse.Namespace, mode: str, out_dir: Path | None) -> tuple[list, list[str]]:
+    """The originals to shoot, every one checked before a device opens, and the queue's bad-row lines
+    (``out_dir`` None: the deliverables folder of a session not made yet, which holds nothing to check)."""
     from app.workflow.delivery_folder import check_folder
     from app.workflow.metadata import Original
     from app.workflow.queue_csv import read_queue_csv
 
     if not args.queue:
         original = Original(args.identifier, args.title, args.operator, args.notes, mode)
-        check_folder(out_dir, original)
+        if out_dir is not None:
+            check_folder(out_dir, original)
         return [original], []
     if args.title or args.notes:
         raise ValueError("--title and --notes name one original (--id); a queue's come from its CSV")
@@ -112,12 +115,13 @@ def main(args: argparse.Namespace) -> int:
     from app.workflow.profile import load_profile
 
     profile = load_profile(args.calibration)
-    out_dir = Path(args.out or args.session / "deliverables")
+    out_dir = Path(args.out) if args.out else args.session / "deliverables" if args.session else None
     originals, bad = _originals(args, args.mode or profile.mode, out_dir)      # refused here: nothing is open yet
     settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
                              original_frames=args.frames)
     with open_devices(args, args.mode or profile.mode, args.virtual_original) as dev, \
-            open_session(args.session, {"workflow": "originals"}, dev.camera) as session:
+            open_session(args.session, {"workflow": "originals", **virtual_world(args)}, dev.camera) as session:
+        out_dir = out_dir or session.path / "deliverables"
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person, reshoot=lambda _o, _n: args.reshoot)
         if not args.queue:                  # one original: shot, or its frames kept and delivered again

@@ -5,7 +5,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from app.commands.options import count, frame_size, seed
+from app.commands.options import add_world_option, count, frame_size, seed
 from app.terminal_progress import TerminalProgress
 from app.workflow.defaults import DARK_FRAMES, DEFAULT_MODE, MODES, VIRTUAL_FRAME_SIZE
 
@@ -22,6 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--frame-size", type=frame_size, default=VIRTUAL_FRAME_SIZE,
                    help="virtual frame WxH, 64..8192 per side (default {}x{})".format(*VIRTUAL_FRAME_SIZE))
     p.add_argument("--seed", type=seed, default=0)
+    add_world_option(p)
     p.add_argument("--dark-frames", type=count(1, 200), default=None,
                    help=f"dark frames per exposure (default {DARK_FRAMES})")
     p.add_argument("--new-session", action="store_true",
@@ -36,7 +37,7 @@ def main(args: argparse.Namespace) -> int:
     from app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
-                            seed=args.seed, new_session=args.new_session,
+                            seed=args.seed, world=args.world, new_session=args.new_session,
                             optimise_matrix=False if args.no_de_fit else None)
     if args.dark_frames is not None:
         settings.dark_frames = args.dark_frames

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from app.commands.options import add_world_option
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("gui", help="the copy-stand window (devices, light, camera, capture, results, simulation)",
@@ -13,10 +15,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="start connected to the virtual lab (sphere emulator + virtual camera), no hardware needed")
     p.add_argument("--screenshot", type=Path, metavar="DIR",
                    help="run a small session on the virtual lab, save one PNG per panel in DIR, then exit")
+    add_world_option(p)
     p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
     from app.gui.app import run  # Qt is imported only when the window is really wanted
 
-    return run(virtual_lab=args.virtual_lab or args.screenshot is not None, screenshot_dir=args.screenshot)
+    return run(virtual_lab=args.virtual_lab or args.screenshot is not None, screenshot_dir=args.screenshot,
+               world=args.world)

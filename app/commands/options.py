@@ -6,6 +6,7 @@ lights), and a bad value gives argparse's one-line ``argument --x: ...`` error n
     p.add_argument("--dark-frames", type=count(1, 200), default=10)
     p.add_argument("--frame-size", type=frame_size, default=(600, 400))
     p.add_argument("--leds-csv", type=input_file)
+    add_world_option(p)                  # --world NAME|FILE: what the virtual lab renders
 
 Numbers are finite (``inf``/``nan`` refused), integers are whole (``2.5`` refused), bounds are inclusive.
 """
@@ -74,6 +75,36 @@ seed = count(0, MAX_SEED)
 positive = count(1)
 
 
+def numbers(lo: float, hi: float) -> Callable[[str], tuple[float, ...]]:
+    """A comma-separated list of finite numbers in [lo, hi] (sorted, duplicates dropped), e.g. ``0,0.002,1``."""
+    one = number(lo, hi)
+
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            return tuple(sorted({one(cell) for cell in text.split(",")}))
+        except argparse.ArgumentTypeError as exc:
+            raise _fail(text, f"expected comma-separated numbers from {lo:g} to {hi:g} ({exc})") from None
+    parse.__name__ = "numbers"
+    return parse
+
+
+def leds(n: int = 10, words: tuple[str, ...] = ()) -> Callable[[str], tuple[int, ...]]:
+    """Distinct LED numbers 1..n, comma-separated (``1,4,10``); ``all`` / ``none`` when in ``words``."""
+    def parse(text: str) -> tuple[int, ...]:
+        if text in words:
+            return tuple(range(1, n + 1)) if text == "all" else ()
+        try:
+            found = tuple(int(x, 10) for x in text.split(","))
+        except ValueError:
+            found = ()
+        if not found or any(not 1 <= v <= n for v in found) or len(set(found)) != len(found):
+            also = f" or {' / '.join(words)}" if words else ""
+            raise _fail(text, f"expected distinct LED numbers from 1 to {n}, comma-separated like 1,4,10{also}")
+        return found
+    parse.__name__ = "leds"
+    return parse
+
+
 def frame_size(text: str) -> tuple[int, int]:
     """``WIDTHxHEIGHT`` with each side from 64 to 8192 pixels."""
     try:
@@ -100,4 +131,38 @@ def input_file(text: str) -> str:
     return text
 
 
-__all__ = ["MAX_FRAME_SIDE", "count", "frame_size", "input_file", "number", "positive", "seconds", "seed"]
+def stand_dir(text: str) -> str:
+    """A stand folder (holding stand.json, as ``dualrgb measure`` writes it)."""
+    if not os.path.isdir(text):
+        raise _fail(text, "expected a stand folder (written by `dualrgb measure leds` or `measure import-leds`)")
+    if not os.path.isfile(os.path.join(text, "stand.json")):
+        raise _fail(text, "no stand.json in it; expected a folder written by `dualrgb measure leds` / `import-leds`")
+    return text
+
+
+def world(text: str) -> str:
+    """A packaged world's name (resources/worlds/<name>.json) or an existing world JSON file; the file's keys are
+    checked when the virtual lab loads it (drivers.virtual.world), before any device acts."""
+    import resources
+
+    if resources.path("worlds", f"{text}.json").is_file():
+        return text
+    if text.endswith(".json") or os.sep in text or os.path.exists(text):
+        return input_file(text)
+    names = sorted(p.stem for p in resources.path("worlds").glob("*.json"))
+    raise _fail(text, f"expected a packaged world ({', '.join(names)}) or a world JSON file")
+
+
+world.__name__ = "world"
+
+
+def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--world NAME|FILE`` (default ``nominal``): what the virtual lab renders (a camera, LEDs, flare and
+    reference error that may differ from the nominal model; README "Worlds"). ``args.world`` is the text."""
+    parser.add_argument("--world", type=world, default="nominal", metavar="NAME|FILE",
+                        help="virtual lab: the world it renders, a packaged name (nominal, nikon-d700, "
+                             "sony-ilce-7rm2, mismatched-d700, aged-leds) or a world JSON file (default nominal)")
+
+
+__all__ = ["MAX_FRAME_SIDE", "add_world_option", "count", "frame_size", "input_file", "leds", "number", "numbers",
+           "positive", "seconds", "seed", "stand_dir", "world"]

@@ -6,7 +6,7 @@ import logging
 import sys
 from pathlib import Path
 
-from app.commands.options import count, input_file, number, seed
+from app.commands.options import count, input_file, number, seed, stand_dir
 from app.json_output import add_json_option, write_json
 from app.terminal_progress import TerminalProgress
 from simulation.choices import DEFAULT_SPECTRAL_WEIGHT, METHODS, MODES, OBJECTIVES
@@ -69,6 +69,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="spectral step in nm (default: the parsimony study's choice, resources/parsimony.json: 10)")
     p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
     p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
+    p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
+                   help="a stand folder from `dualrgb measure leds` / `measure import-leds`: its measured LED "
+                        "spectra (leds.csv) and minimum stable level replace the nominal ones (an explicit "
+                        "--leds-csv / --min-level wins)")
     p.add_argument("--train-csv", type=input_file,
                    help="measured training target spectra (spectral CSV or CGATS / X-Rite file)")
     p.add_argument("--test-csv", type=input_file,
@@ -87,6 +91,7 @@ def main(args: argparse.Namespace) -> int:
     from simulation.presets import save_preset
     from simulation.runner import format_table, run
 
+    _apply_stand(args)
     step = args.step if args.step is not None else float(load_defaults()["spectral_step_nm"])
     setup = default_setup(args.mode, SpectralGrid(410.0, 780.0, step), camera_csv=args.camera_csv,
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv,
@@ -105,6 +110,21 @@ def main(args: argparse.Namespace) -> int:
         save_preset(result.preset(), args.preset_out)
         print(f"wrote preset {args.preset_out}", file=sys.stderr)
     return 0
+
+
+def _apply_stand(args: argparse.Namespace) -> None:
+    """``--stand-dir``: the measured LED spectra and minimum stable level, where not given explicitly."""
+    if args.stand_dir is None:
+        return
+    from app.workflow.led_stand import load_stand
+
+    stand = load_stand(args.stand_dir)
+    if args.leds_csv is None and stand.leds_csv is not None:
+        args.leds_csv = str(stand.leds_csv)
+    if args.min_level is None and stand.min_stable_level is not None:
+        args.min_level = stand.min_stable_level
+    print(f"stand {stand.folder}: LED spectra {args.leds_csv or 'nominal'}, minimum stable level "
+          f"{args.min_level if args.min_level is not None else 'nominal'}", file=sys.stderr)
 
 
 def _capture(args: argparse.Namespace):

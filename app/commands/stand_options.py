@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from app.commands.options import count, frame_size, number, seed
+from app.commands.options import add_world_option, count, frame_size, number, seed
 from app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
 
 log = logging.getLogger(__name__)
@@ -27,6 +27,7 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--frame-size", type=frame_size, default=VIRTUAL_FRAME_SIZE,
                    help="virtual lab frames WxH ({}x{})".format(*VIRTUAL_FRAME_SIZE))
     g.add_argument("--seed", type=seed, default=0, help="virtual lab noise seed")
+    add_world_option(g)
     g.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
     g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
     g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=SETTLE_S,
@@ -94,7 +95,7 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
     if args.virtual_lab:
         from drivers.virtual.lab import VirtualLab
 
-        with VirtualLab(mode=mode, frame_size=args.frame_size, seed=args.seed) as lab:
+        with VirtualLab(mode=mode, frame_size=args.frame_size, seed=args.seed, world=args.world) as lab:
             _apply_settings(lab.camera, args)
 
             def stand(what: str, nd: bool = False) -> Any:
@@ -173,6 +174,16 @@ def open_session(folder: Path | None, definition: dict, camera: Any, meta: dict 
         session.close()
         raise
     return session
+
+
+def virtual_world(args: argparse.Namespace) -> dict[str, str]:
+    """``{"world": identity}`` for a virtual-lab run (a session shot in one world is never resumed in another;
+    drivers.virtual.world.World.identity), ``{}`` on a real stand."""
+    if not args.virtual_lab:
+        return {}
+    from drivers.virtual.world import load_world
+
+    return {"world": load_world(args.world).identity}
 
 
 def reuse_limits(args: argparse.Namespace) -> Any:

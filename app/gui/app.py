@@ -80,7 +80,7 @@ def application(argv: list[str] | None = None):
 
 
 def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
-        frame_size: tuple[int, int] | None = None) -> int:
+        frame_size: tuple[int, int] | None = None, world: str | None = None) -> int:
     if screenshot_dir is not None and (display_problem() or live_display_problem()) is not None:
         os.environ["QT_QPA_PLATFORM"] = "offscreen"      # screenshots need no screen
     problem = display_problem() or live_display_problem()
@@ -107,6 +107,7 @@ def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
         settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.IniFormat)
         # the virtual D610's shutter bumps on, so the Characterise picture shows what the sweep flags
         window = MainWindow(settings, frame_size=(300, 200), show_dialogs=False, shutter_bumps=True)
+        window.lab.world = world
         window.resize(1400, 900)
         window.show()
         run_ = ScreenshotRun(window, Path(screenshot_dir), tmp)
@@ -117,6 +118,7 @@ def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
         return run_.exit_code
 
     window = MainWindow(frame_size=frame_size) if frame_size else MainWindow()
+    window.lab.world = world                 # what the virtual lab renders (drivers.virtual.world)
     window.show()
     if virtual_lab:
         window.lab.start_virtual_lab()

@@ -66,6 +66,7 @@ class Lab(QObject):
         self.mode = mode
         self.seed = seed
         self.shutter_bumps = shutter_bumps         # virtual lab: the D610's exposure-time bumps (appendix A)
+        self.world: Any = None                     # virtual lab: its world (name, file or World; None nominal)
         self.virtual_lab: Any = None
         self.sphere: LedSphere | None = None
         self.sphere_port: str = ""
@@ -127,7 +128,8 @@ class Lab(QObject):
     def _ensure_virtual_lab(self) -> Any:      # devices thread
         if self.virtual_lab is None:
             from drivers.virtual.lab import VirtualLab
-            lab = VirtualLab(mode=self.mode, frame_size=self.frame_size, seed=self.seed, bumps=self.shutter_bumps)
+            lab = VirtualLab(mode=self.mode, frame_size=self.frame_size, seed=self.seed, bumps=self.shutter_bumps,
+                             world=self.world)
             lab.start()
             self.virtual_lab = lab
             log.info("virtual lab started: sphere emulator on %s, %dx%d frames", lab.port, *self.frame_size)

@@ -327,13 +327,17 @@ def light_definition(light: Any, name: str = "") -> dict:
 
 
 def camera_definition(camera: Any) -> dict:
-    """A camera's identity and the settings that change its frames (model, ISO, aperture, quality)."""
+    """A camera's identity and the settings that change its frames (model, ISO, aperture, quality; a virtual
+    camera's world: drivers.virtual.world)."""
     s = camera.settings()
     summary = {}
     try:
         summary = camera.config_summary()
     except (RuntimeError, OSError, ValueError):   # identity is best effort; such a camera is named by class
         summary = {}
-    return {"model": str(summary.get("camera") or getattr(camera, "name", type(camera).__name__)),
-            "serial": str(summary.get("serial", "")), "iso": s.iso, "aperture": s.aperture,
-            "image_quality": s.image_quality}
+    out = {"model": str(summary.get("camera") or getattr(camera, "name", type(camera).__name__)),
+           "serial": str(summary.get("serial", "")), "iso": s.iso, "aperture": s.aperture,
+           "image_quality": s.image_quality}
+    if summary.get("world"):
+        out["world"] = str(summary["world"])
+    return out

@@ -13,7 +13,8 @@ warm-white LED). A profile without it (made before, or without the targets' spec
 unavailable (:meth:`CalibrationProfile.spectral_estimator`). The estimator maps the same channels as the matrix
 (checked on load) from the same lights (checked on every reuse, :func:`check_reuse`).
 
-Reuse (:func:`check_reuse`): a different camera serial, camera model, ISO, aperture, light levels, or a sphere
+Reuse (:func:`check_reuse`): a different camera serial, camera model, ISO, aperture, virtual-lab world
+(drivers.virtual.world: a calibration made in one world is refused in another), light levels, or a sphere
 temperature more than ``ReuseLimits.temperature_drift_c`` away from the calibration's is a refusal (one line
 naming each mismatch; ``force`` turns it into a warning). The age is always reported; past
 ``ReuseLimits.max_age_h`` (default 8 h) it warns. The temperature limit: LED output and peak wavelength follow
@@ -59,6 +60,7 @@ class CameraIdentity:
     lens: str = ""
     iso: int | None = None
     aperture: float | None = None
+    world: str = ""                  # the virtual lab's world identity ('' for a real camera)
 
     @classmethod
     def of(cls, camera: Any) -> CameraIdentity:
@@ -81,7 +83,7 @@ class CameraIdentity:
                         return str(value)
             return ""
         return cls(str(summary.get("camera") or getattr(camera, "name", "")), config("serial", "serialnumber"),
-                   config("lens", "lensname"), settings.iso, settings.aperture)
+                   config("lens", "lensname"), settings.iso, settings.aperture, str(summary.get("world") or ""))
 
 
 @dataclass
@@ -299,6 +301,9 @@ def check_reuse(prof: CalibrationProfile, camera: CameraIdentity, sphere: Sphere
         if want not in (None, "") and have != want:
             out.refusals.append(f"{what}{'' if what.endswith('/') else ' '}{have} differs from the calibration's "
                                 f"{want}")
+    if c.world and camera.world != c.world:
+        out.refusals.append(f"virtual-lab world {camera.world or 'none (a real camera)'} differs from the "
+                            f"calibration's {c.world}")
     if sphere is not None and prof.sphere.temperature_c is not None and sphere.temperature_c is not None:
         drift = sphere.temperature_c - prof.sphere.temperature_c
         if abs(drift) > limits.temperature_drift_c:
@@ -337,7 +342,8 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
     lines = [f"calibration {prof.id} ({FORMAT}, dualrgb {prof.version}), made {prof.created_at} "
              f"({prof.age_h():.1f} h ago), {prof.mode}",
              f"camera: {prof.camera.model} serial {prof.camera.serial or '?'}, ISO {prof.camera.iso}, "
-             f"f/{prof.camera.aperture}" + (f", lens {prof.camera.lens}" if prof.camera.lens else ""),
+             f"f/{prof.camera.aperture}" + (f", lens {prof.camera.lens}" if prof.camera.lens else "")
+             + (f", virtual-lab world {prof.camera.world}" if prof.camera.world else ""),
              f"sphere: {prof.sphere.model} serial {prof.sphere.serial or '?'}, {prof.sphere.temperature_c} C",
              f"preset {prof.preset}:"]
     for nl in prof.lights:

@@ -2,12 +2,16 @@
 
 It renders what the real camera would record, with the same simulation the optimiser uses:
 
+* world: what the stand really is (drivers/virtual/world.py; default the nominal model, rendered bit for bit as
+  before worlds): the camera's sensitivities (:attr:`VirtualCamera.camera_sensitivities`), the LEDs, the flare;
 * light: the sphere emulator's *current* state through ``light()`` (a snapshot with ``.levels`` (10,) emitted
   levels 0..1, ``.peak_shift_nm`` (10,) LED drift (thesis 4.3.2) and ``.light_on``). Each LED's 1 nm spectrum
-  (resources/leds/sphere10_relative.csv) is shifted by its drift, brought to the simulation grid and, by
-  superposition (thesis 3.1.2), mixed with the levels;
+  (resources/leds/sphere10_relative.csv) is shaped as the world's LED and shifted by its drift
+  (drivers/virtual/sphere_light.py), brought to the simulation grid and, by superposition (thesis 3.1.2), mixed
+  with the levels through the world's low-level response;
 * scene: :class:`drivers.virtual.scene.Scene` (a target, the open gate, the lens cap; ND 2.0 over half the
   target; vignetting; or a uniform field emitting its own light, a monochromator's band: ``field_response``);
+  the world's flare adds a fraction of the frame's mean signal to every pixel;
 * responses: eq 5.10 per pixel *class* (patch, surround, gap; see scene.py), never per pixel. Per-LED class
   responses are cached per scene and drift, so a new light costs an (n_classes x 10) @ (10,) product;
 * sensor: Bayer RGGB, 14-bit, DN = black + gain * t * ISO/100 * response; shot noise on electrons, read noise,
@@ -42,14 +46,14 @@ from typing import Any
 import numpy as np
 from scipy.integrate import trapezoid
 
-import resources
 from drivers.camera.base import Camera, CameraError, CameraSettings, Exposure, RawCapture
 from drivers.virtual.dng import DngInfo, dng_bytes
 from drivers.virtual.scene import Scene
+from drivers.virtual.sphere_light import SphereLight
+from drivers.virtual.world import World, load_world
 from simulation.camera_model import led_responses
 from simulation.datasets import default_setup, load_camera
 from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
-from simulation.spectral_io import read_spectral_csv
 
 log = logging.getLogger(__name__)
 
@@ -165,6 +169,7 @@ class _Cache:
     planes: dict = field(default_factory=dict)          # (py, px) -> uint16 label plane
     profiles: dict = field(default_factory=dict)        # (py, px) -> (vy, vx)
     preview: dict = field(default_factory=dict)         # step -> (labels, vy, vx)
+    fractions: np.ndarray | None = None                 # (n_classes,) frame coverage (flare)
 
 
 class VirtualCamera(Camera):
@@ -194,6 +199,7 @@ class VirtualCamera(Camera):
         serial: str = VIRTUAL_SERIAL,
         clock: Callable[[], float] = time.monotonic,
         realtime: bool = False,
+        world: World | str | None = None,
     ) -> None:
         self._light = light
         self.serial = serial                                     # what a real body reports as serialnumber
@@ -205,11 +211,10 @@ class VirtualCamera(Camera):
         self.mode = mode
         self.grid = grid
         setup = default_setup(mode, grid)
-        self.camera_sensitivities = load_camera(camera_csv, grid) if camera_csv else setup.camera   # (n_wl, 3)
-        table = read_spectral_csv(leds_csv or resources.path("leds", "sphere10_relative.csv"))
-        self._led_wl = table.wavelengths
-        self._led_native = table.values.T.copy()                  # (n_leds, n_native), 1 nm in the resources
-        self.n_leds = self._led_native.shape[0]
+        self.world = load_world(world)
+        # (n_wl, 3) on ``grid``: what every frame is rendered with (the world's camera, or ``camera_csv``)
+        self.camera_sensitivities = load_camera(camera_csv or self.world.camera_path, grid)
+        self.sphere_light = SphereLight(self.world, leds_csv)   # the world's LEDs (shape, output, low end)
         self.sensor = sensor or SensorModel()
         self.bumps = dict(DEFAULT_BUMPS if bumps is None else bumps)
         self.bumps_enabled = bumps_enabled
@@ -225,6 +230,10 @@ class VirtualCamera(Camera):
         self._counter = 0
         self._scale = self._calibrate()
         self._cm = self._color_matrix()
+
+    @property
+    def n_leds(self) -> int:
+        return self.sphere_light.n_leds
 
     # --- the copy stand -----------------------------------------------------------------------------------
     @property
@@ -383,25 +392,18 @@ class VirtualCamera(Camera):
     def config_summary(self) -> dict[str, object]:
         d: dict[str, object] = {"camera": CAMERA_NAME, "serial": self.serial, "lens": VIRTUAL_LENS,
                                 **super().config_summary()}
-        d.update(scene=self._scene.describe(), mode=self.mode, grid=self.grid.label(),
+        d.update(world=self.world.identity, scene=self._scene.describe(), mode=self.mode, grid=self.grid.label(),
                  bumps="on" if self.bumps_enabled else "off", seed=self.seed,
                  sensor=f"{self._scene.width}x{self._scene.height} RGGB 14-bit, black {self.sensor.black_level},"
                         f" white {self.sensor.white_level}")
         return d
 
     # --- simulation ---------------------------------------------------------------------------------------
-    def led_spectra(self, peak_shift_nm: np.ndarray | None = None) -> np.ndarray:
-        """(n_leds, n_wl) relative LED spectra on the grid, each shifted by its drift (nm, + = redder)."""
-        shifts = np.zeros(self.n_leds) if peak_shift_nm is None else np.asarray(peak_shift_nm, float)
-        if shifts.shape != (self.n_leds,):
-            raise ValueError(f"peak_shift_nm has shape {shifts.shape}; expected ({self.n_leds},)")
-        wl = self._led_wl
-        shifted = np.empty_like(self._led_native)
-        for k in range(self.n_leds):
-            # S_k(lambda - shift): the whole spectrum moves; zero outside the measured range
-            shifted[k] = np.interp(wl, wl + shifts[k], self._led_native[k], left=0.0, right=0.0) if shifts[k] \
-                else self._led_native[k]
-        return resample(wl, shifted.T, self.grid).T
+    def led_spectra(self, peak_shift_nm: np.ndarray | None = None, *, nominal: bool = False) -> np.ndarray:
+        """(n_leds, n_wl) relative LED spectra on the grid as the world's sphere emits them at full output, each
+        shifted by its drift (nm, + = redder; drivers.virtual.sphere_light); ``nominal``: the nominal LEDs."""
+        light = self.sphere_light
+        return resample(light.wavelengths, light.spectra(peak_shift_nm, nominal=nominal).T, self.grid).T
 
     def _sync_scene(self) -> None:
         if self._cache.scene is not self._scene:
@@ -429,7 +431,7 @@ class VirtualCamera(Camera):
     def class_responses(self, snap: Any = None) -> np.ndarray:
         """Relative eq 5.10 responses (n_classes, 3) of the scene's pixel classes under ``snap`` (default: now)."""
         levels, drift = self._levels(self._light() if snap is None else snap)
-        return np.tensordot(levels, self._per_led(drift), axes=1)
+        return np.tensordot(self.sphere_light.output(levels), self._per_led(drift), axes=1)
 
     def simulated_patch_responses(self, snap: Any = None) -> np.ndarray:
         """(n_patches, 3) relative responses of the target's patches (ND applied where it covers them).
@@ -459,9 +461,24 @@ class VirtualCamera(Camera):
     def _expected_dn(self, exposure_s: float, snap: Any) -> np.ndarray:
         if self._scene.kind == "lens_cap":
             return np.zeros((1, 3))
-        if self._scene.kind == "field":
-            return self.field_response(self._scene)[None, :] * self.exposure_gain(exposure_s)
-        return self.class_responses(snap) * self.exposure_gain(exposure_s)
+        if self._scene.kind == "field":         # a uniform field: its mean signal is its signal
+            return self.field_response(self._scene)[None, :] * self.exposure_gain(exposure_s) * (1.0 + self.world.flare)
+        signal = self.class_responses(snap) * self.exposure_gain(exposure_s)
+        if self.world.flare > 0.0:          # veiling glare: a fraction of the frame's mean signal everywhere
+            signal = signal + self.world.flare * (self._class_fractions() @ signal)
+        return signal
+
+    def _class_fractions(self) -> np.ndarray:
+        """(n_classes,) the fraction of the frame each pixel class covers (on a grid of at most ~512 columns;
+        vignetting left out), cached per scene: weights of the frame's mean signal for the flare."""
+        self._sync_scene()
+        if self._cache.fractions is None:
+            sc = self._scene
+            step = max(1, sc.width // 512)
+            labels = sc.labels(np.arange(0, sc.height, step), np.arange(0, sc.width, step))
+            counts = np.bincount(labels.ravel(), minlength=sc.n_classes).astype(float)
+            self._cache.fractions = counts / counts.sum()
+        return self._cache.fractions
 
     def field_response(self, scene: Scene) -> np.ndarray:
         """(3,) relative response to a uniform field's emission: its spectral radiance integrated (trapezoid, on the
@@ -481,8 +498,8 @@ class VirtualCamera(Camera):
         sn = self.sensor
         levels = np.zeros(self.n_leds)
         levels[[n - 1 for n in REFERENCE_LIGHT]] = 1.0
-        open_gate = np.ones((1, len(self.grid)))
-        white = levels @ led_responses(self.led_spectra(), open_gate, self.camera_sensitivities)[:, 0]
+        open_gate = np.ones((1, len(self.grid)))           # the body's gain is set under the nominal LEDs
+        white = levels @ led_responses(self.led_spectra(nominal=True), open_gate, self.camera_sensitivities)[:, 0]
         return (sn.open_gate_dn - sn.black_level) / (sn.reference_exposure_s * sn.reference_iso / 100.0 * white.max())
 
     def _hot_pixels(self, height: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -567,6 +584,6 @@ class VirtualCamera(Camera):
         if self._scene.kind in ("lens_cap", "field"):
             return np.ones(3)
         levels, drift = self._levels(snap)
-        white = levels @ led_responses(self.led_spectra(np.array(drift)), np.ones((1, len(self.grid))),
-                                       self.camera_sensitivities)[:, 0]
+        white = self.sphere_light.output(levels) @ led_responses(
+            self.led_spectra(np.array(drift)), np.ones((1, len(self.grid))), self.camera_sensitivities)[:, 0]
         return white / white.max() if white.max() > 0 else np.ones(3)

@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import time
+from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -19,6 +22,7 @@ from drivers.virtual.camera import VirtualCamera
 from drivers.virtual.originals import ORIGINAL_PREFIX, ORIGINALS, ground_truth_xyz, original_name
 from drivers.virtual.scene import Scene, original_scene
 from drivers.virtual.sphere_emulator import SphereEmulator
+from drivers.virtual.world import World, load_world
 from simulation.datasets import Target, default_setup
 
 log = logging.getLogger(__name__)
@@ -27,13 +31,19 @@ PLACES = ("train", "test", "open-gate", "lens-cap")
 
 
 class VirtualLab:
+    """The lab; ``world`` (a packaged name, a JSON file or a :class:`World`; default nominal) is what it renders
+    (drivers/virtual/world.py); ``clock`` is the emulator's (and camera's) clock, e.g. a
+    :class:`drivers.virtual.clock.SkippableClock` for an hour-long warm-up measured in moments."""
+
     def __init__(self, mode: str = "reflective", frame_size: tuple[int, int] = (600, 400), seed: int = 0,
-                 watchdog_s: float = 30.0, bumps: bool = False, timeout_s: float = 1.0):
+                 watchdog_s: float = 30.0, bumps: bool = False, timeout_s: float = 1.0,
+                 world: World | str | Path | None = None, clock: Callable[[], float] = time.monotonic):
         self.mode = mode
         self.width, self.height = (int(frame_size[0]) // 2 * 2, int(frame_size[1]) // 2 * 2)
         self.seed = seed
-        self.setup = default_setup(mode)
-        self.emulator = SphereEmulator(watchdog_s=watchdog_s)
+        self.world = load_world(world)
+        self.setup = default_setup(mode)            # the packaged reference data the calibration uses
+        self.emulator = SphereEmulator(watchdog_s=watchdog_s, clock=clock)
         self._timeout = timeout_s
         self._bumps = bumps
         self.sphere: LedSphere | None = None
@@ -46,7 +56,7 @@ class VirtualLab:
         log.info("virtual sphere emulator on %s", port)
         self.sphere = LedSphere(port, timeout=self._timeout).open()
         self.camera = VirtualCamera(self.emulator.snapshot, mode=self.mode, seed=self.seed,
-                                    bumps_enabled=self._bumps, clock=self.emulator.clock)
+                                    bumps_enabled=self._bumps, clock=self.emulator.clock, world=self.world)
         self.camera.open()
         self.place("open-gate")
         return self
@@ -78,7 +88,12 @@ class VirtualLab:
 
     # ---- the copy stand ----
     def target(self, which: str) -> Target:
+        """The packaged reference data of the training or test target (what the calibration computes with)."""
         return {"train": self.setup.train, "test": self.setup.test}[which]
+
+    def true_target(self, which: str) -> Target:
+        """The target as it lies on the stand in this world (its reference error applied; World.true_target)."""
+        return self.world.true_target(self.target(which))
 
     def place(self, what: str, nd: bool = False) -> Scene:
         """Put the training or test target, the open gate, the lens cap (ND 2.0 over half a target) or an
@@ -94,7 +109,7 @@ class VirtualLab:
         elif what == "lens-cap":
             scene = Scene.lens_cap(**size)
         else:
-            scene = Scene.with_target(self.target(what), **size, nd_filter=nd, name=what)
+            scene = Scene.with_target(self.true_target(what), **size, nd_filter=nd, name=what)
         self._started_camera().scene = scene
         self.placed = what + (" + ND" if nd else "")
         return scene
@@ -102,7 +117,7 @@ class VirtualLab:
     def scene_for(self, what: str, nd: bool = False) -> Scene:
         """The scene ``place(what, nd)`` would put on the stand (for patch geometry) without placing it."""
         if what in ("train", "test"):
-            return Scene.with_target(self.target(what), width=self.width, height=self.height, nd_filter=nd)
+            return Scene.with_target(self.true_target(what), width=self.width, height=self.height, nd_filter=nd)
         if what.startswith(ORIGINAL_PREFIX):
             return original_scene(what, self.width, self.height, nd_filter=nd)
         return dataclasses.replace(self._started_camera().scene)
