@@ -169,7 +169,7 @@ class DemoRun:
             raise ValueError(f"demo settings: dark frames {s.dark_frames}, flat frames {s.flat_frames}, frame size "
                              f"{s.frame_size}, seed {s.seed}: expected >= 1, >= 1, >= 64 px, >= 0")
         if s.optimise_matrix is None:
-            s.optimise_matrix = parsimony_defaults()["characterisation_model"] != "linear"
+            s.optimise_matrix = parsimony_defaults(s.mode)["characterisation_model"] != "linear"
         s.out.mkdir(parents=True, exist_ok=True)
         session = CaptureSession.resume(s.out / "session", s.definition(), {"mode": s.mode, "demo": True},
                                         new_if_different=s.new_session,
@@ -273,7 +273,7 @@ class DemoRun:
         res = process_session(self.session, self.s.out / label, specs["train"], specs["test"],
                               lights=[nl.name for nl in c.lights], exposures=ts, optimise=self.s.optimise_matrix,
                               white_xyz=reference_white(self.s.mode), title=f"{label} ({self.s.mode}, virtual lab)",
-                              cancel=self.cancel)
+                              cancel=self.cancel, mode=self.s.mode)
         ch = res.characterisation
         best = ch.results[ch.best]
         sim = c.simulated.get(ch.best, c.simulated[LEAST_SQUARES])      # the prediction for the delivered matrix

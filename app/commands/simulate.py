@@ -59,7 +59,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset-out", type=Path, help="save the best light pair as a preset JSON here")
     p.add_argument("--bins", type=_bins, default=(3, 3, 4), help="LED bins, shortest wavelengths first (3,3,4)")
     p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=None,
-                   help="spectral step in nm (default: the parsimony study's choice, resources/parsimony.json: 10)")
+                   help="spectral step in nm (default: the parsimony study's choice for the mode, "
+                        "resources/parsimony.json)")
     p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
     p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
     p.add_argument("--train-csv", type=input_file,
@@ -74,14 +75,17 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     # imported here so that other subcommands start without loading colour-science and numba
+    from dataclasses import replace
+
     from simulation.datasets import default_setup
-    from simulation.defaults import load_defaults
-    from simulation.grid import SpectralGrid
+    from simulation.defaults import default_grid
     from simulation.presets import save_preset
     from simulation.runner import format_table, run
 
-    step = args.step if args.step is not None else float(load_defaults()["spectral_step_nm"])
-    setup = default_setup(args.mode, SpectralGrid(410.0, 780.0, step), camera_csv=args.camera_csv,
+    grid = default_grid(args.mode)                     # the parsimony study's grid for this mode
+    if args.step is not None:
+        grid = replace(grid, step=args.step)
+    setup = default_setup(args.mode, grid, camera_csv=args.camera_csv,
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv,
                           reference_xyz=args.reference_xyz)
     if args.top < 1:

@@ -76,7 +76,9 @@ class CalibrationBox(QGroupBox):
         self.hdr_auto.toggled.connect(lambda on: self.ctx.set("calibration/hdr_auto", on))
         self.dark_frames, self.flat_frames = self._count(10, "darks"), self._count(3, "flats")
         self.de_fit = QCheckBox("also fit the ΔE00-optimised matrix (slower)")
-        self.de_fit.setChecked(parsimony_defaults().get("characterisation_model", "linear") != "linear")
+        lab = self.ctx.lab
+        mode = lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode    # the mode the day starts in
+        self.de_fit.setChecked(parsimony_defaults(mode).get("characterisation_model", "linear") != "linear")
         self.de_fit.setToolTip("Besides least squares; the delivered one is chosen by cross-validation on the "
                                "training target.")
         self.calibrate_button = QPushButton("Calibrate")
@@ -133,7 +135,7 @@ class CalibrationBox(QGroupBox):
         def work(hooks: RunHooks) -> CalibrationProfile:
             stand = lab.copy_stand(settings, hooks)
             base = stand.auto_expose(lights)
-            plan = stand.exposure_plan(base, hdr)
+            plan = stand.exposure_plan(base, hdr, preset.mode)
             frames = [f for seq, _lo, _hi in stand.calibration_sequences(lights, plan, base) for f in seq.plan()]
             hooks.on_event(ProgressEvent(0, 0, "auto-exposure done: darks, flats and the targets next",
                                          data={"plan": frames, "base": base, "exposures": plan}))

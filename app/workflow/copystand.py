@@ -54,10 +54,11 @@ EventCallback = Callable[[ProgressEvent], None]
 VIRTUAL_TARGET_WIDTH_MM = 280.0     # the virtual lab's test target, outer corners of its corner patches
 
 
-def parsimony_defaults() -> dict:
+def parsimony_defaults(mode: str) -> dict:
+    """The studies' defaults for ``mode`` ('reflective' / 'transmissive'; simulation.defaults.load_defaults)."""
     from simulation.defaults import load_defaults
 
-    return load_defaults()
+    return load_defaults(mode)
 
 
 @dataclass
@@ -130,12 +131,13 @@ class CopyStand:
             self.cancel.check()
 
     # ------------------------------------------------------------------ calibration
-    def exposure_plan(self, base: dict[str, float], hdr_auto: bool) -> dict[str, list[float]]:
+    def exposure_plan(self, base: dict[str, float], hdr_auto: bool, mode: str) -> dict[str, list[float]]:
         """Per light: the open-gate exposure, and with ``hdr_auto`` longer ones (HDR, thesis 8) up to the most the
-        parsimony study found worth it, each within the overlap the HDR planner keeps and the light-on limit."""
+        parsimony study found worth it in ``mode``, each within the overlap the HDR planner keeps and the light-on
+        limit."""
         from app.sequences.hdr import LINEAR_LIMIT_DN
 
-        n = self.hdr_exposures() if hdr_auto else 1
+        n = self.hdr_exposures(mode) if hdr_auto else 1
         limit = self.shooter.safety.max_exposure_s
         usable = [s for s in self.camera.shutter_speeds() if s <= limit]
         step = 0.8 * LINEAR_LIMIT_DN / 100.0                 # app.sequences.hdr.plan_hdr's overlap factor
@@ -150,8 +152,8 @@ class CopyStand:
             plan[name] = ts
         return plan
 
-    def hdr_exposures(self) -> int:
-        return int(self.settings.hdr_exposures or parsimony_defaults()["hdr_exposures"])
+    def hdr_exposures(self, mode: str) -> int:
+        return int(self.settings.hdr_exposures or parsimony_defaults(mode)["hdr_exposures"])
 
     def auto_expose(self, lights: Sequence[NamedLight]) -> dict[str, float]:
         """Per light, the open-gate exposure (app.workflow.metering.AutoExposure: cancellable between lights)."""
@@ -184,19 +186,20 @@ class CopyStand:
                      grids: dict[str, Any | None] = None, report_dir: Path | None = None) -> CalibrationProfile:
         """:meth:`calibrate` from known open-gate exposures ``base`` (light name -> seconds)."""
         lights = lights_of(preset)
-        plan = self.exposure_plan(base, hdr_auto)
+        plan = self.exposure_plan(base, hdr_auto, preset.mode)
         for seq, lo, hi in self.calibration_sequences(lights, plan, base):
             self.run_sequence(seq, lo, hi)
         specs = {name: target_spec(preset.mode, Subject.target(name), (grids or {}).get(name), lab=self.lab)
                  for name in ("train", "test")}
         optimise = self.settings.optimise_matrix
         if optimise is None:
-            optimise = parsimony_defaults()["characterisation_model"] != "linear"
+            optimise = parsimony_defaults(preset.mode)["characterisation_model"] != "linear"
         out = Path(report_dir or self.session.path / "calibration" / "report")
         result = process_session(self.session, out, specs["train"], specs["test"], lights=[nl.name for nl in lights],
                                  exposures={n: [t] for n, t in base.items()}, optimise=optimise,
                                  white_xyz=reference_white(preset.mode), title=f"calibration, {preset.name}",
-                                 progress=lambda f, m: report(self.progress, 0.6 + 0.35 * f, m), cancel=self.cancel)
+                                 progress=lambda f, m: report(self.progress, 0.6 + 0.35 * f, m), cancel=self.cancel,
+                                 mode=preset.mode)
         profile = self._profile(preset, lights, plan, base, result, specs["test"])
         profile.save(self.session.path / "calibration")
         report(self.progress, 1.0, f"calibration {profile.id} saved")
@@ -262,7 +265,7 @@ class CopyStand:
         rows, cols = np.linspace(0, h, n + 1).astype(int), np.linspace(0, w, n + 1).astype(int)
         tiles = [(rows[i], rows[i + 1], cols[j], cols[j + 1]) for i in range(n) for j in range(n)]
         seq = HdrMetering(self.shooter, profile.lights, profile.base_exposures, original.subject, tiles, take=take,
-                          max_frames=self.hdr_exposures())
+                          max_frames=self.hdr_exposures(profile.mode))
         self.run_sequence(seq, 0.0, 0.1)
         plans = seq.plans
         exposures, warnings = {}, []
@@ -349,7 +352,7 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
     """A processor with the calibration's master darks and whites (nothing recomputed)."""
     raw = profile.raw
     proc = CaptureProcessor(darks=profile.darks, white_level=raw.get("white_level"), black_level=raw.get("black_level"),
-                            linear_limit=raw.get("linear_limit"), cfa=raw.get("cfa"))
+                            linear_limit=raw.get("linear_limit"), cfa=raw.get("cfa"), mode=profile.mode)
     for name, ff in profile.whites.items():
         proc.put_white(name, ff)
     return proc

@@ -47,7 +47,7 @@ from drivers.virtual.dng import DngInfo, dng_bytes
 from drivers.virtual.scene import Scene
 from simulation.camera_model import led_responses
 from simulation.datasets import default_setup, load_camera
-from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
+from simulation.grid import SpectralGrid, resample
 from simulation.spectral_io import read_spectral_csv
 
 log = logging.getLogger(__name__)
@@ -180,7 +180,7 @@ class VirtualCamera(Camera):
         scene: Scene | None = None,
         *,
         mode: str = "reflective",
-        grid: SpectralGrid = DEFAULT_GRID,
+        grid: SpectralGrid | None = None,
         camera_csv: str | Path | None = None,
         leds_csv: str | Path | None = None,
         sensor: SensorModel | None = None,
@@ -202,9 +202,9 @@ class VirtualCamera(Camera):
         self._faults: dict[str, dict[str, Any]] = {}
         self._released = threading.Event()
         self.mode = mode
-        self.grid = grid
-        setup = default_setup(mode, grid)
-        self.camera_sensitivities = load_camera(camera_csv, grid) if camera_csv else setup.camera   # (n_wl, 3)
+        setup = default_setup(mode, grid)                       # grid None: the mode's default grid
+        self.grid = setup.grid
+        self.camera_sensitivities = load_camera(camera_csv, self.grid) if camera_csv else setup.camera   # (n_wl, 3)
         table = read_spectral_csv(leds_csv or resources.path("leds", "sphere10_relative.csv"))
         self._led_wl = table.wavelengths
         self._led_native = table.values.T.copy()                  # (n_leds, n_native), 1 nm in the resources
