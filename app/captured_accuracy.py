@@ -32,7 +32,7 @@ def capture_patch_values(setup: SimulationSetup, W: np.ndarray, exposures_s: np.
                          height: int = 400, dark_frames: int = 4, seed: int = 0) -> dict[str, np.ndarray]:
     """Flat-fielded patch means (n, 3L) of the training and test targets under light set W (L, K)."""
     state = StaticLight(np.zeros(W.shape[1]))
-    cam = VirtualCamera(lambda: state, Scene.lens_cap(width, height), mode=setup.mode, seed=seed)
+    cam = VirtualCamera(lambda: state, Scene.lens_cap(width, height), mode=setup.mode, grid=setup.grid, seed=seed)
     cam.open()
     lights = [f"light {i + 1}" for i in range(W.shape[0])]
     frames: dict[str, dict[str, list[ExposureRef]]] = {"train": {}, "test": {}}
@@ -91,7 +91,7 @@ def _patch_grid(scene: Scene) -> PatchGrid:
 
 def _process(setup, lights, darks, whites, frames, scenes, sensor) -> dict[str, np.ndarray]:
     proc = CaptureProcessor(dark_frames=darks, white_level=sensor.white_level, black_level=sensor.black_level,
-                            cfa="RGGB")
+                            cfa="RGGB", mode=setup.mode)
     for name in lights:
         proc.set_white(name, whites[name])
     out = {}

@@ -287,7 +287,7 @@ class DemoRun:
         res = process_session(self.session, self.s.out / label, specs["train"], specs["test"],
                               lights=[nl.name for nl in c.lights], exposures=ts, optimise=self.s.optimise_matrix,
                               white_xyz=reference_white(self.s.mode), title=f"{label} ({self.s.mode}, virtual lab)",
-                              cancel=self.cancel)
+                              cancel=self.cancel, mode=self.s.mode)
         ch = res.characterisation
         best = ch.results[ch.best]
         sim = c.simulated.get(ch.best, c.simulated[LEAST_SQUARES])      # the prediction for the delivered matrix

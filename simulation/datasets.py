@@ -157,12 +157,17 @@ def _default_setup(mode: str, grid: SpectralGrid) -> SimulationSetup:
     )
 
 
-def default_setup(mode: str = "reflective", grid: SpectralGrid = DEFAULT_GRID, *, camera_csv: str | None = None,
+def default_setup(mode: str = "reflective", grid: SpectralGrid | None = None, *, camera_csv: str | None = None,
                   leds_csv: str | None = None, train_csv: str | None = None,
                   test_csv: str | None = None, reference_xyz: str = REFERENCE_EQ_4_2) -> SimulationSetup:
     """The packaged data for ``mode``, optionally with a user's own measured CSVs replacing parts of it, and the
-    way the targets' reference XYZ are computed (``target_xyz``)."""
+    way the targets' reference XYZ are computed (``target_xyz``). ``grid`` None: the grid the parsimony study
+    chose for the mode (simulation.defaults.default_grid; the thesis' 410-780 nm at 10 nm where it suffices)."""
     check_reference_method(reference_xyz)
+    if grid is None:
+        from simulation.defaults import default_grid
+
+        grid = default_grid(mode) if mode in MODES else DEFAULT_GRID
     base = _default_setup(mode, grid)
     if reference_xyz != base.reference_xyz:
         base = dataclasses.replace(base, reference_xyz=reference_xyz)

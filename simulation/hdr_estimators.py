@@ -145,12 +145,20 @@ def merge_exposures(x: np.ndarray, usable: np.ndarray, exposures, method: str = 
     return radiance, ~any_usable
 
 
-def default_method() -> str:
-    """The estimator chosen by the parsimony study (resources/parsimony.json, key ``hdr_merge``)."""
+def default_method(mode: str | None) -> str:
+    """The estimator ``dualrgb study hdr`` chose for ``mode`` (resources/parsimony.json, key ``hdr_merge``).
+    ``mode`` None (a merge that does not know what it images: the bare HdrMerge of a test): the choice both
+    modes share; ValueError when they differ, so no caller silently takes the other mode's estimator."""
+    from simulation.choices import MODES
     from simulation.defaults import load_defaults
 
-    method = load_defaults().get("hdr_merge", HDR_THESIS)
+    if mode is None:
+        chosen = {m: default_method(m) for m in MODES}
+        if len(set(chosen.values())) > 1:
+            raise ValueError(f"the HDR merge default differs by mode ({chosen}): pass the mode")
+        return chosen[MODES[0]]
+    method = load_defaults(mode).get("hdr_merge", HDR_THESIS)
     if method not in HDR_MERGE_METHODS:
-        log.warning("parsimony defaults name HDR merge %r, unknown here; using %s", method, HDR_THESIS)
+        log.warning("parsimony defaults name HDR merge %r for %s, unknown here; using %s", method, mode, HDR_THESIS)
         return HDR_THESIS
     return method

@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "noise-free (the thesis' cost), robust (mean over plausible worlds: LEDs, camera and "
                         "reference off by a few nm / %%), spectral (for spectra: the expected captured RMSE of the "
                         "training target's spectra estimated by the Wiener method, reflectance or transmittance "
-                        "factor pooled over patches and 410-780 nm, 0.01 = 1 %%) or mixed (mean dE00 + "
+                        "factor pooled over patches and the mode's grid, 0.01 = 1 %%) or mixed (mean dE00 + "
                         "--spectral-weight x 100 x that RMSE)")
     p.add_argument("--spectral-weight", type=number(0.0, 100.0), default=DEFAULT_SPECTRAL_WEIGHT,
                    help=f"--objective mixed: the weight of the spectral RMSE in %% against mean dE00 (default "
@@ -66,7 +66,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset-out", type=Path, help="save the best light pair as a preset JSON here")
     p.add_argument("--bins", type=_bins, default=(3, 3, 4), help="LED bins, shortest wavelengths first (3,3,4)")
     p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=None,
-                   help="spectral step in nm (default: the parsimony study's choice, resources/parsimony.json: 10)")
+                   help="spectral step in nm (default: the parsimony study's choice for the mode, "
+                        "resources/parsimony.json)")
+    _add_measurement_options(p)
+    p.set_defaults(func=main)
+
+
+def _add_measurement_options(p: argparse.ArgumentParser) -> None:
+    """What the stand and its targets measured, replacing the nominal model's curves where given."""
     p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
     p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
     p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
@@ -78,22 +85,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--test-csv", type=input_file,
                    help="measured test target spectra (spectral CSV or CGATS / X-Rite file)")
     p.add_argument("--reference-xyz", choices=("eq-4.2", "astm-e308"), default="eq-4.2",
-                   help="targets' reference XYZ: the thesis' eq 4.2 sum over 410-780 nm (default) or ASTM E308 "
+                   help="targets' reference XYZ: the thesis' eq 4.2 sum over the mode's grid (default) or ASTM E308 "
                         "(colour-science) over the measured spectra")
-    p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
     # imported here so that other subcommands start without loading colour-science and numba
+    from dataclasses import replace
+
     from simulation.datasets import default_setup
-    from simulation.defaults import load_defaults
-    from simulation.grid import SpectralGrid
+    from simulation.defaults import default_grid
     from simulation.presets import save_preset
     from simulation.runner import format_table, run
 
     _apply_stand(args)
-    step = args.step if args.step is not None else float(load_defaults()["spectral_step_nm"])
-    setup = default_setup(args.mode, SpectralGrid(410.0, 780.0, step), camera_csv=args.camera_csv,
+    grid = default_grid(args.mode)                     # the parsimony study's grid for this mode
+    if args.step is not None:
+        grid = replace(grid, step=args.step)
+    setup = default_setup(args.mode, grid, camera_csv=args.camera_csv,
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv,
                           reference_xyz=args.reference_xyz)
     if args.top < 1:

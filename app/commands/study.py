@@ -4,10 +4,12 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study speed-accuracy [--out DIR] [--seeds N] [--budget tiny|small|default]
   dualrgb study stability      [--out DIR] [--seeds N] [--budget tiny|default] [--pixels N]
   dualrgb study objectives     [--out DIR] [--budget tiny|default] [--no-virtual-lab]
-  dualrgb study parsimony      [--out DIR] [--budget tiny|default] [--tolerance DE] [--write-defaults [PATH]]
-  dualrgb study hdr            [--out DIR] [--budget tiny|default] [--write-defaults [PATH]]
+  dualrgb study parsimony      [--out DIR] [--mode both|reflective|transmissive] [--budget tiny|default]
+                               [--tolerance DE] [--write-defaults [PATH]]
+  dualrgb study hdr            [--out DIR] [--mode both|...] [--budget tiny|default] [--write-defaults [PATH]]
   dualrgb study spectral       [--out DIR] [--budget tiny|default] [--modes reflective,transmissive] [--step NM]
   dualrgb study unbinned       [--out DIR] [--scheduler local|serial|ADDRESS] [--tasks N] [--top N]
+  dualrgb study thesis         [--out DIR] [--budget full|small] [--json PATH] [--readme README.md]
   dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
                                [--seeds N] [--scheduler local|ADDRESS]
 
@@ -24,6 +26,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from app.commands import study_thesis
 from app.commands.options import count, input_file, number, positive
 from app.terminal_progress import TerminalProgress
 from simulation.choices import MODES
@@ -46,10 +49,17 @@ def _out(args: argparse.Namespace) -> Path:
     return args.out if args.out is not None else resources.user_path("studies", args.study)
 
 
-def _common(p: argparse.ArgumentParser, name: str, scheduler_default: str = "serial") -> None:
+BOTH = "both"
+
+
+def _common(p: argparse.ArgumentParser, name: str, scheduler_default: str = "serial", both: bool = False) -> None:
     _out_option(p, name)
-    p.add_argument("--mode", choices=MODES, default="reflective")
-    p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=10.0, help="spectral step in nm (default 10)")
+    if both:               # the studies that choose defaults answer for each mode
+        p.add_argument("--mode", choices=(*MODES, BOTH), default=BOTH, help="target mode, or both (default)")
+    else:
+        p.add_argument("--mode", choices=MODES, default="reflective")
+    p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=None,
+                   help="spectral step in nm (default: the mode's grid, resources/parsimony.json)")
     p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
     p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
     p.add_argument("--train-csv", type=input_file, help="measured training target spectra")
@@ -71,6 +81,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     _default_studies(ss)
     _spectral_study(ss)
     _distributed_studies(ss)
+    study_thesis.register(ss, _out_option)          # the thesis' tables reproduced (its own module)
 
 
 def _spectral_study(ss: argparse._SubParsersAction) -> None:
@@ -114,8 +125,8 @@ def _optimiser_studies(ss: argparse._SubParsersAction) -> None:
 
 def _default_studies(ss: argparse._SubParsersAction) -> None:
     """parsimony, hdr: the studies that choose the packaged defaults (resources/parsimony.json)."""
-    q = ss.add_parser("parsimony", help="coarsest spectral step, simplest model, fewest HDR exposures")
-    _common(q, "parsimony")
+    q = ss.add_parser("parsimony", help="coarsest spectral grid, simplest model, fewest HDR exposures, per mode")
+    _common(q, "parsimony", both=True)
     q.add_argument("--budget", choices=("tiny", "default"), default="default")
     q.add_argument("--tolerance", type=number(0.0, 10.0), default=0.05, help="allowed loss in mean dE00 (default 0.05)")
     q.add_argument("--write-defaults", nargs="?", const=True, metavar="PATH",
@@ -123,8 +134,8 @@ def _default_studies(ss: argparse._SubParsersAction) -> None:
                         "folder, which the app then reads instead of its packaged defaults)")
     q.set_defaults(func=parsimony_main)
 
-    q = ss.add_parser("hdr", help="HDR merge estimators: bias against signal, dE00 on dark originals")
-    _common(q, "hdr")
+    q = ss.add_parser("hdr", help="HDR merge estimators: bias against signal, dE00 on dark originals, per mode")
+    _common(q, "hdr", both=True)
     q.add_argument("--budget", choices=("tiny", "default"), default="default")
     q.add_argument("--write-defaults", nargs="?", const=True, metavar="PATH",
                    help="also write the chosen estimator (hdr_merge) into the defaults at PATH (no PATH: "
@@ -156,16 +167,28 @@ def _distributed_studies(ss: argparse._SubParsersAction) -> None:
     q.set_defaults(func=sweep_main)
 
 
-def _spec(args: argparse.Namespace):
+def _specs(args: argparse.Namespace) -> list:
+    """One setup spec per mode asked for (``--mode both``: reflective, then transmissive)."""
+    modes = MODES if args.mode == BOTH else (args.mode,)
+    return [_spec(args, m) for m in modes]
+
+
+def _spec(args: argparse.Namespace, mode: str | None = None):
+    """The study's setup: ``mode`` (default ``--mode``) on its default grid (simulation.defaults), ``--step``
+    replacing the step, and any measured CSVs."""
+    from simulation.defaults import default_grid
     from simulation.studies.common import SetupSpec
 
-    if args.step <= 0:
+    mode = mode or (MODES[0] if args.mode == BOTH else args.mode)
+    grid = default_grid(mode)
+    step = grid.step if args.step is None else args.step
+    if step <= 0:
         raise ValueError(f"--step {args.step}: expected a positive number of nm")
     for name in ("camera_csv", "leds_csv", "train_csv", "test_csv"):
         path = getattr(args, name)
         if path and not Path(path).is_file():
             raise FileNotFoundError(f"--{name.replace('_', '-')} {path}: no such file")
-    return SetupSpec(args.mode, args.step, camera_csv=args.camera_csv, leds_csv=args.leds_csv,
+    return SetupSpec(mode, step, grid.start, grid.end, camera_csv=args.camera_csv, leds_csv=args.leds_csv,
                      train_csv=args.train_csv, test_csv=args.test_csv)
 
 
@@ -248,48 +271,55 @@ def objectives_main(args: argparse.Namespace) -> int:
     return _done(out, _worked_example(result))
 
 
+def _defaults_target(args: argparse.Namespace) -> str | None:
+    """Where ``--write-defaults`` writes (no PATH: parsimony.json in the per-user data folder)."""
+    import resources
+
+    if not args.write_defaults:
+        return None
+    return str(resources.user_path("parsimony.json")) if args.write_defaults is True else args.write_defaults
+
+
 def parsimony_main(args: argparse.Namespace) -> int:
     from simulation.studies.common import StudyOutput
-    from simulation.studies.parsimony import ParsimonyConfig, parsimony, write_outputs
+    from simulation.studies.parsimony import ParsimonyConfig, parsimony
+    from simulation.studies.parsimony_report import write_outputs
 
-    spec = _spec(args)
     cfg = ParsimonyConfig.tiny() if args.budget == "tiny" else ParsimonyConfig()
     cfg = replace(cfg, tolerance=args.tolerance)
     out = StudyOutput(_out(args))
     with _progress(args) as progress:
-        result = parsimony(spec, cfg, progress=progress)
-    target = None
-    if args.write_defaults:
-        import resources
-
-        target = str(resources.user_path("parsimony.json")) if args.write_defaults is True else args.write_defaults
-    write_outputs(result, out, target)
-    d = result.defaults()
-    return _done(out, [f"spectral step {d['spectral_step_nm']:g} nm (10 nm justified: {d['default_10nm_justified']}), "
-                       f"model {d['characterisation_model']}, {d['hdr_exposures']} HDR exposure(s)"]
-                 + ([f"defaults written to {target}"] if target else []))
+        results = [parsimony(spec, cfg, progress=progress) for spec in _specs(args)]
+    target = _defaults_target(args)
+    write_outputs(results, out, target)
+    lines = []
+    for r in results:
+        d = r.defaults()
+        lines.append(f"{r.mode}: spectral grid {d['spectral_start_nm']:g}-{d['spectral_end_nm']:g} nm / "
+                     f"{d['spectral_step_nm']:g} nm (thesis grid acceptable: {d['thesis_grid_acceptable']}), "
+                     f"model {d['characterisation_model']}, {d['hdr_exposures']} HDR exposure(s); {r.elapsed_s:.0f} s")
+    return _done(out, lines + ([f"defaults written to {target}"] if target else []))
 
 
 def hdr_main(args: argparse.Namespace) -> int:
-    import resources
     from simulation.studies.common import StudyOutput
-    from simulation.studies.hdr import HdrStudyConfig, hdr_study, write_defaults, write_outputs
+    from simulation.studies.hdr import HdrStudyConfig, hdr_study, pm, write_defaults, write_outputs
 
-    spec = _spec(args)
     cfg = HdrStudyConfig.tiny() if args.budget == "tiny" else HdrStudyConfig()
     out = StudyOutput(_out(args))
     with _progress(args) as progress:
-        result = hdr_study(spec, cfg, progress=progress)
+        result = hdr_study(_specs(args), cfg, progress=progress)
     write_outputs(result, out)
-    target = None
-    if args.write_defaults:
-        target = str(resources.user_path("parsimony.json")) if args.write_defaults is True else args.write_defaults
+    target = _defaults_target(args)
+    if target:
         write_defaults(result, target)
-    lines = [f"{m}: bias per decade " + ", ".join(f"{d} DN/s {100 * v:+.3f} %" for d, v in
-                                                  result.bias[m]["bias_per_decade"].items())
-             + f"; test dE00 score {result.originals['scores'][m]:.4f}" for m in result.originals["scores"]]
-    return _done(out, lines + [f"chosen HDR merge: {result.chosen}"]
-                 + ([f"defaults written to {target}"] if target else []))
+    lines = [f"{m}: bias per decade " + ", ".join(f"{d} DN/s {pm(100 * v['mean'], 100 * v['se'], ' %')}"
+                                                  for d, v in result.bias[m]["bias_per_decade"].items())
+             for m in result.bias["methods"]]
+    lines += [f"{mode}: chosen HDR merge {o['chosen']} (training CV score "
+              + ", ".join(f"{k} {v:.4f}" for k, v in o["scores"].items()) + ")"
+              for mode, o in result.originals.items()]
+    return _done(out, lines + ([f"defaults written to {target}"] if target else []))
 
 
 def _modes(text: str) -> tuple[str, ...]:
@@ -337,6 +367,7 @@ def unbinned_main(args: argparse.Namespace) -> int:
 
 
 def sweep_main(args: argparse.Namespace) -> int:
+    from simulation.defaults import default_grid
     from simulation.studies.common import SetupSpec, StudyOutput
     from simulation.studies.distributed import open_runner
     from simulation.studies.optimisers import OPTIMISERS
@@ -351,7 +382,9 @@ def sweep_main(args: argparse.Namespace) -> int:
     for path in args.camera_csv:
         if not Path(path).is_file():
             raise FileNotFoundError(f"--camera-csv {path}: no such file")
-    specs = [SetupSpec(mode, camera_csv=cam) for mode in modes for cam in [None, *args.camera_csv]]
+    grids = {mode: default_grid(mode) for mode in modes}              # each mode on its default grid
+    specs = [SetupSpec(mode, grids[mode].step, grids[mode].start, grids[mode].end, camera_csv=cam)
+             for mode in modes for cam in [None, *args.camera_csv]]
     out = StudyOutput(_out(args))
     with open_runner(args.scheduler, workers=args.workers) as runner:
         result = sweep(specs, methods, budget=args.budget, seeds=args.seeds, light_sets=args.light_sets,

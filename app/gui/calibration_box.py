@@ -69,7 +69,9 @@ class CalibrationBox(QGroupBox):
     # ------------------------------------------------------------------ builders
     def _build(self) -> None:
         form = QFormLayout(self)
-        d = workflow_defaults(self.ctx.lab.mode)          # the same defaults as `dualrgb calibrate`
+        lab = self.ctx.lab
+        mode = lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode    # the mode the day starts in
+        d = workflow_defaults(mode)                       # the same defaults as `dualrgb calibrate`
         self.hdr_auto = QCheckBox("also the longer exposures HDR originals may need")
         self.hdr_auto.setChecked(self.ctx.get("calibration/hdr_auto", d.hdr_auto, bool))
         self.hdr_auto.setToolTip("Darks and flats also at the longer exposures of an HDR bracket (as many as the "

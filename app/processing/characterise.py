@@ -27,6 +27,7 @@ from scipy import optimize
 
 from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from simulation.cross_validation import CV_FOLDS, fold_parts
 from simulation.matrix_fit import CharacterisationMatrix, fit_matrix
 from simulation.objective import ErrorStats
 
@@ -34,7 +35,6 @@ log = logging.getLogger(__name__)
 
 LEAST_SQUARES = "least-squares"
 DE2000 = "de2000"
-CV_FOLDS = 5
 
 
 def patch_errors(matrix: CharacterisationMatrix | np.ndarray, values: np.ndarray, xyz: np.ndarray,
@@ -172,8 +172,8 @@ def select_model(train_values: np.ndarray, train_xyz: np.ndarray, white: np.ndar
     values = np.asarray(train_values, dtype=float)
     xyz = np.asarray(train_xyz, dtype=float)
     n = len(values)
-    k = max(2, min(folds, n // 2))
-    parts = np.array_split(np.random.default_rng(seed).permutation(n), k)
+    parts = fold_parts(n, folds, seed)            # the partition rule the studies choose their defaults with
+    k = len(parts)
     errors = {m: np.empty(n) for m in fitters}
     for i, held in enumerate(parts):
         check(cancel)

@@ -108,13 +108,14 @@ class HdrMerge:
 
     def __init__(self, white_level: float, linear_limit: float | None = LINEAR_LIMIT_DN, *,
                  black_level: float = 0.0, method: str | None = None, noise: HdrNoise = HdrNoise(),
-                 band_rows: int = DEFAULT_BAND_ROWS, work: dict | None = None, own_result: bool = False):
+                 band_rows: int = DEFAULT_BAND_ROWS, work: dict | None = None, own_result: bool = False,
+                 mode: str | None = None):
         if white_level <= black_level:
             raise ValueError(f"white level {white_level} must be above the black level {black_level}")
         self.white_level = float(white_level)
         self.black_level = float(black_level)
         self.linear_limit = linear_limit
-        self.method = check_method(method) if method is not None else default_method()
+        self.method = check_method(method) if method is not None else default_method(mode)   # the study's, per mode
         self.noise = noise
         self.band_rows = band_rows
         self._work = work if work is not None else {}

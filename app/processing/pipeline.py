@@ -78,8 +78,10 @@ class CaptureProcessor:
     def __init__(self, *, darks: MasterDark | None = None, dark_frames: Sequence[ExposureRef] = (),
                  white_level: float | None = None, black_level: float | None = None,
                  linear_limit: float | None = LINEAR_LIMIT_DN, cfa: str | None = None, band_rows: int = 256,
-                 reject_high: int = 1, reject_low: int = 1, hdr_method: str | None = None):
-        """``hdr_method``: the HDR merge estimator (app.processing.hdr; None: the parsimony study's default)."""
+                 reject_high: int = 1, reject_low: int = 1, hdr_method: str | None = None,
+                 mode: str | None = None):
+        """``hdr_method``: the HDR merge estimator (app.processing.hdr; None: the HDR study's default for ``mode``,
+        'reflective' or 'transmissive')."""
         self.darks = darks or MasterDark()
         self._dark_frames: dict[float, list[ExposureRef]] = defaultdict(list)
         for ref in dark_frames:
@@ -91,6 +93,7 @@ class CaptureProcessor:
         self.band_rows = band_rows
         self.reject = (reject_high, reject_low)
         self.hdr_method = hdr_method
+        self.mode = mode
         self._whites: OrderedDict[str, FlatField] = OrderedDict()
         self._work: dict = {}          # scratch buffers reused across darks and merges (see calibration._buffer)
 
@@ -134,7 +137,7 @@ class CaptureProcessor:
             self._prepare(frame)
             if merge is None:
                 merge = HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level,
-                                 method=self.hdr_method, band_rows=self.band_rows, work=self._work,
+                                 method=self.hdr_method, mode=self.mode, band_rows=self.band_rows, work=self._work,
                                  own_result=own_result)
             dark = self._dark_for(frame, ref.exposure_s, cancel)
             merge.add(mosaic_of(frame), ref.exposure_s, dark, cancel=cancel)
@@ -198,7 +201,7 @@ class CaptureProcessor:
 
     def new_merge(self) -> HdrMerge:
         return HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level, method=self.hdr_method,
-                        band_rows=self.band_rows, work=self._work, own_result=False)
+                        mode=self.mode, band_rows=self.band_rows, work=self._work, own_result=False)
 
 
 def _weak_cells(slots: tuple[np.ndarray, np.ndarray], floor_dn: float, so_far: np.ndarray | None) -> np.ndarray:

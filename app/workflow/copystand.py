@@ -135,10 +135,10 @@ class CopyStand:
             self.cancel.check()
 
     # ------------------------------------------------------------------ calibration
-    def exposure_plan(self, base: dict[str, float], hdr_auto: bool, mode: str | None = None
-                      ) -> dict[str, list[float]]:
+    def exposure_plan(self, base: dict[str, float], hdr_auto: bool, mode: str) -> dict[str, list[float]]:
         """Per light: the open-gate exposure, and with ``hdr_auto`` longer ones (HDR, thesis 8) up to the most the
-        parsimony study found worth it, each within the overlap the HDR planner keeps and the light-on limit."""
+        parsimony study found worth it in ``mode``, each within the overlap the HDR planner keeps and the light-on
+        limit."""
         from app.sequences.hdr import LINEAR_LIMIT_DN
 
         n = self.hdr_exposures(mode) if hdr_auto else 1
@@ -156,7 +156,7 @@ class CopyStand:
             plan[name] = ts
         return plan
 
-    def hdr_exposures(self, mode: str | None = None) -> int:
+    def hdr_exposures(self, mode: str) -> int:
         return int(self.settings.hdr_exposures or study_defaults(mode)["hdr_exposures"])
 
     def auto_expose(self, lights: Sequence[NamedLight]) -> dict[str, float]:
@@ -204,7 +204,8 @@ class CopyStand:
         result = process_session(self.session, out, specs["train"], specs["test"], lights=[nl.name for nl in lights],
                                  exposures={n: [t] for n, t in base.items()}, optimise=optimise,
                                  white_xyz=reference_white(preset.mode), title=f"calibration, {preset.name}",
-                                 progress=lambda f, m: report(self.progress, 0.6 + 0.35 * f, m), cancel=self.cancel)
+                                 progress=lambda f, m: report(self.progress, 0.6 + 0.35 * f, m), cancel=self.cancel,
+                                 mode=preset.mode)
         profile = self._profile(preset, lights, plan, base, result, specs["test"])
         profile.save(self.session.path / "calibration")
         report(self.progress, 1.0, f"calibration {profile.id} saved")
@@ -375,7 +376,7 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
     """A processor with the calibration's master darks and whites (nothing recomputed)."""
     raw = profile.raw
     proc = CaptureProcessor(darks=profile.darks, white_level=raw.get("white_level"), black_level=raw.get("black_level"),
-                            linear_limit=raw.get("linear_limit"), cfa=raw.get("cfa"))
+                            linear_limit=raw.get("linear_limit"), cfa=raw.get("cfa"), mode=profile.mode)
     for name, ff in profile.whites.items():
         proc.put_white(name, ff)
     return proc

@@ -50,7 +50,7 @@ class WorkflowDefaults:
     dark_frames: int
     flat_frames: int
     optimise_matrix: bool
-    spectral_step_nm: float
+    spectral_grid: tuple[float, float, float]     # start, end, step in nm (simulation.grid.SpectralGrid)
     settle_s: float
     captures: Path
     virtual_original: str
@@ -70,13 +70,12 @@ def check_mode(mode: str | None) -> str:
 
 
 def study_defaults(mode: str | None = None) -> dict:
-    """The parsimony study's choices (``spectral_step_nm``, ``characterisation_model``, ``hdr_exposures``,
-    ``hdr_merge``) for ``mode``: the user's parsimony.json when there is one, else the packaged one
-    (simulation.defaults). The workflow reads that file only here."""
+    """The parsimony study's choices for ``mode`` (``spectral_start_nm`` / ``_end_nm`` / ``_step_nm``,
+    ``characterisation_model``, ``hdr_exposures``, ``hdr_merge``): the user's parsimony.json when there is one,
+    else the packaged one (simulation.defaults.load_defaults). The workflow reads that file only here."""
     from simulation.defaults import load_defaults
 
-    check_mode(mode)
-    return load_defaults()
+    return load_defaults(check_mode(mode))
 
 
 def default_preset_name(mode: str | None = None) -> str:
@@ -102,5 +101,7 @@ def workflow_defaults(mode: str | None = None) -> WorkflowDefaults:
         mode=mode, preset=default_preset_name(mode), hdr_auto=HDR_AUTO, hdr_exposures=int(study["hdr_exposures"]),
         dark_frames=DARK_FRAMES, flat_frames=FLAT_FRAMES,
         optimise_matrix=study["characterisation_model"] != "linear",
-        spectral_step_nm=float(study["spectral_step_nm"]), settle_s=SETTLE_S, captures=captures_dir(),
+        spectral_grid=(float(study["spectral_start_nm"]), float(study["spectral_end_nm"]),
+                       float(study["spectral_step_nm"])),
+        settle_s=SETTLE_S, captures=captures_dir(),
         virtual_original=VIRTUAL_ORIGINALS[mode])

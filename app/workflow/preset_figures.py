@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
-from app.workflow.defaults import study_defaults
+from app.workflow.defaults import workflow_defaults
 
 log = logging.getLogger(__name__)
 
@@ -35,31 +35,31 @@ class PresetFigures:
 
 
 @lru_cache(maxsize=4)
-def _evaluator(mode: str, step_nm: float) -> Any:
+def _evaluator(mode: str, grid: tuple[float, float, float]) -> Any:
     from simulation.capture_model import CaptureModel
     from simulation.datasets import default_setup
     from simulation.expected_error import ExpectedErrorEvaluator
     from simulation.grid import SpectralGrid
 
-    setup = default_setup(mode, SpectralGrid(410.0, 780.0, step_nm))          # as `dualrgb simulate`
+    setup = default_setup(mode, SpectralGrid(*grid))          # the mode's grid, as `dualrgb simulate`
     return ExpectedErrorEvaluator(setup, CaptureModel.virtual_lab(mode))
 
 
 @lru_cache(maxsize=256)
-def _figures(mode: str, step_nm: float, lights: tuple[tuple[tuple[int, ...], tuple[float, ...]], ...]
+def _figures(mode: str, grid: tuple[float, float, float], lights: tuple[tuple[tuple[int, ...], tuple[float, ...]], ...]
              ) -> PresetFigures:
     from simulation.lightsource import LightSource
     from simulation.search import Candidate, evaluate_candidate
 
     cand = Candidate(tuple(LightSource(leds, levels) for leds, levels in lights), 0.0)
-    evaluate_candidate(_evaluator(mode, step_nm), cand)
+    evaluate_candidate(_evaluator(mode, grid), cand)
     return PresetFigures(mode, float(cand.expected_train_errors.mean), float(cand.expected_test_errors.mean))
 
 
 def preset_figures(preset: Any) -> PresetFigures:
     """The expected captured figures of ``preset`` (a simulation.presets.Preset) in its own mode."""
     lights = tuple((tuple(s.leds), tuple(float(v) for v in s.levels)) for s in preset.sources)
-    return _figures(preset.mode, float(study_defaults(preset.mode)["spectral_step_nm"]), lights)
+    return _figures(preset.mode, workflow_defaults(preset.mode).spectral_grid, lights)
 
 
 def figures_of(presets: Sequence[Any]) -> list[PresetFigures | None]:

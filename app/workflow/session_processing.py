@@ -111,9 +111,10 @@ def select_lights(frames: LightFrames, lights: Sequence[str] | None = None,
 
 def build_processor(frames: SessionFrames, lights: Sequence[str], *, white_level: float | None = None,
                     linear_limit: float | None = LINEAR_LIMIT_DN, progress: ProgressCallback | None = None,
-                    cancel: CancelToken | None = None) -> CaptureProcessor:
-    """A processor with the session's dark frames and the HDR whites (flats) of ``lights``."""
-    proc = CaptureProcessor(dark_frames=frames.darks, white_level=white_level, linear_limit=linear_limit)
+                    cancel: CancelToken | None = None, mode: str | None = None) -> CaptureProcessor:
+    """A processor with the session's dark frames and the HDR whites (flats) of ``lights``; ``mode``
+    ('reflective' / 'transmissive') picks the HDR merge the HDR study chose for it."""
+    proc = CaptureProcessor(dark_frames=frames.darks, white_level=white_level, linear_limit=linear_limit, mode=mode)
     missing = [n for n in lights if n not in frames.flats]
     if missing:
         raise ValueError(f"no flats (open-gate frames) for {', '.join(missing)}: shoot them first")
@@ -158,13 +159,14 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec 
                     lights: Sequence[str] | None = None, exposures: dict[str, Sequence[float]] | None = None,
                     white_level: float | None = None, linear_limit: float | None = LINEAR_LIMIT_DN,
                     optimise: bool = True, white_xyz: np.ndarray | None = None, title: str = "dual-RGB capture",
-                    progress: ProgressCallback | None = None, cancel: CancelToken | None = None
-                    ) -> SessionResult:
+                    progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
+                    mode: str | None = None) -> SessionResult:
     """Darks, HDR whites, target stacks -> patch values -> matrices -> report.json + figures + CSVs in ``out_dir``.
 
     ``lights`` picks the light set (a session may hold several presets' captures; default: the training
     target's lights), ``exposures`` per light restricts which exposures are merged (default: all captured).
-    ``white_xyz`` is the Lab reference white on the targets' XYZ scale (default: D65, Y = 100).
+    ``white_xyz`` is the Lab reference white on the targets' XYZ scale (default: D65, Y = 100). ``mode``
+    ('reflective' / 'transmissive'): the HDR merge is that mode's default (resources/parsimony.json).
     """
     from app.processing.quality import CalibrationFrames
     from app.processing.report import TargetData, build_report
@@ -175,7 +177,7 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec 
     train_frames = select_lights(frames.subject(train.subject), lights, exposures)
     names = list(train_frames)
     proc = build_processor(frames, names, white_level=white_level, linear_limit=linear_limit,
-                           progress=sub_progress(progress, 0.0, 0.15), cancel=cancel)
+                           progress=sub_progress(progress, 0.0, 0.15), cancel=cancel, mode=mode)
     vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel)
     channels = stack.channels
     vs = ss = None

@@ -53,7 +53,7 @@ from drivers.virtual.sphere_light import SphereLight
 from drivers.virtual.world import World, load_world
 from simulation.camera_model import led_responses
 from simulation.datasets import default_setup, load_camera
-from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
+from simulation.grid import SpectralGrid, resample
 
 log = logging.getLogger(__name__)
 
@@ -186,7 +186,7 @@ class VirtualCamera(Camera):
         scene: Scene | None = None,
         *,
         mode: str = "reflective",
-        grid: SpectralGrid = DEFAULT_GRID,
+        grid: SpectralGrid | None = None,
         camera_csv: str | Path | None = None,
         leds_csv: str | Path | None = None,
         sensor: SensorModel | None = None,
@@ -209,11 +209,11 @@ class VirtualCamera(Camera):
         self._faults: dict[str, dict[str, Any]] = {}
         self._released = threading.Event()
         self.mode = mode
-        self.grid = grid
-        setup = default_setup(mode, grid)
+        setup = default_setup(mode, grid)                       # grid None: the mode's default grid
+        self.grid = setup.grid
         self.world = load_world(world)
-        # (n_wl, 3) on ``grid``: what every frame is rendered with (the world's camera, or ``camera_csv``)
-        self.camera_sensitivities = load_camera(camera_csv or self.world.camera_path, grid)
+        # (n_wl, 3) on the grid: what every frame is rendered with (the world's camera, or ``camera_csv``)
+        self.camera_sensitivities = load_camera(camera_csv or self.world.camera_path, self.grid)
         self.sphere_light = SphereLight(self.world, leds_csv)   # the world's LEDs (shape, output, low end)
         self.sensor = sensor or SensorModel()
         self.bumps = dict(DEFAULT_BUMPS if bumps is None else bumps)

@@ -103,7 +103,7 @@ class VirtualLab:
                              f"{', '.join(ORIGINAL_PREFIX + n for n in ORIGINALS)}")
         size = {"width": self.width, "height": self.height}
         if what.startswith(ORIGINAL_PREFIX):
-            scene = original_scene(what, self.width, self.height, mode=self.mode, nd_filter=nd)
+            scene = original_scene(what, self.width, self.height, mode=self.mode, grid=self.setup.grid, nd_filter=nd)
         elif what == "open-gate":
             scene = Scene.open_gate(**size)
         elif what == "lens-cap":
@@ -119,7 +119,7 @@ class VirtualLab:
         if what in ("train", "test"):
             return Scene.with_target(self.true_target(what), width=self.width, height=self.height, nd_filter=nd)
         if what.startswith(ORIGINAL_PREFIX):
-            return original_scene(what, self.width, self.height, nd_filter=nd)
+            return original_scene(what, self.width, self.height, grid=self.setup.grid, nd_filter=nd)
         return dataclasses.replace(self._started_camera().scene)
 
     def ground_truth_xyz(self, name: str, height: int | None = None, width: int | None = None) -> np.ndarray:

@@ -191,7 +191,7 @@ class NoiseModel:
         n, L = S.shape[:2]
         shape = (n, L, 3, cam.pixels_per_patch)
         dark_e = (np.where(np.isfinite(t), t, 0.0) * cam.dark_current)[None, :, None, None]   # electrons
-        method = hdr_method or default_method()
+        method = hdr_method or default_method(self.setup.mode)
         noise = HdrNoise(cam.read_noise, cam.electrons_per_dn)
 
         def merged(signal_dn: np.ndarray) -> np.ndarray:
@@ -207,40 +207,68 @@ class NoiseModel:
     def captured_errors(self, W: np.ndarray, repeats: int = 10, seed: int = 12345, *,
                         factors: tuple[float, ...] = (1.0,), nd: dict[str, np.ndarray] | None = None,
                         models: tuple[str, ...] = (), hdr_method: str | None = None,
-                        nd_in_truth: bool = True) -> dict:
+                        nd_in_truth: bool = True, folds: int = 0) -> dict:
         """Mean dE00 (float64) of ``repeats`` simulated captures of W (L, K): fit on the captured training
         target, errors of the captured training and test targets; seeds disjoint from the objective's.
         ``nd``: per target ('train', 'test') transmittance of an ND filter; ``models``: also fit these
         characterisation models (simulation.studies.models) and report their errors under 'models';
-        ``hdr_method``: the HDR merge estimator (simulate_capture); ``nd_in_truth`` False: the ground truth is the
-        target without the filter (a uniformly dark original, judged after exposure normalisation: the fitted
-        matrix absorbs the scale)."""
-        from simulation.studies.models import fit_model, model_errors
-
-        tr, te = [], []
-        per_model: dict[str, dict[str, list[float]]] = {m: {"train": [], "test": []} for m in models}
+        ``hdr_method``: the HDR merge estimator (simulate_capture; None: the setup's mode's default);
+        ``nd_in_truth`` False: the ground truth is the target without the filter (a uniformly dark original, judged
+        after exposure normalisation: the fitted matrix absorbs the scale). ``folds`` > 0: also the
+        ``folds``-fold cross-validated error on the captured *training* target ('train_cv', and 'cv' per model),
+        the figure a default is chosen by (simulation.cross_validation); the test figures are only reported.
+        Every figure comes with its standard deviation over the repeats ('*_sd') and the standard error of
+        its mean ('*_se' = sd / sqrt(repeats))."""
+        per: dict[str, list[float]] = {"train": [], "test": [], "train_cv": []}
+        per_model: dict[str, dict[str, list[float]]] = {m: {"train": [], "test": [], "cv": []} for m in models}
         for r in range(repeats):
             rng = np.random.default_rng([seed, r])
-            Vtr = self.simulate_capture(W, rng, "train", factors=factors, transmittance=(nd or {}).get("train"),
-                                        hdr_method=hdr_method)
-            Vte = self.simulate_capture(W, rng, "test", factors=factors, transmittance=(nd or {}).get("test"),
-                                        hdr_method=hdr_method)
-            xyz_tr, xyz_te = self.data["train"].xyz, self.data["test"].xyz
-            if nd and nd_in_truth:
-                xyz_tr = xyz_tr * nd["train"][:, None]
-                xyz_te = xyz_te * nd["test"][:, None]
-            A = solve_normal_equations((Vtr.T @ Vtr)[None], (Vtr.T @ xyz_tr)[None])[0]
-            tr.append(float(delta_e_2000(xyz_to_lab(xyz_tr, self.white), xyz_to_lab(Vtr @ A, self.white)).mean()))
-            te.append(float(delta_e_2000(xyz_to_lab(xyz_te, self.white), xyz_to_lab(Vte @ A, self.white)).mean()))
+            caps = {which: self.simulate_capture(W, rng, which, factors=factors,
+                                                 transmittance=(nd or {}).get(which), hdr_method=hdr_method)
+                    for which in ("train", "test")}
+            truth = {which: self.data[which].xyz * (nd[which][:, None] if nd and nd_in_truth else 1.0)
+                     for which in ("train", "test")}
+            results = {m: self._fit_and_judge(m, caps, truth, folds) for m in dict.fromkeys(("linear", *models))}
+            for k, v in zip(("train", "test", "train_cv"), ("train", "test", "cv"), strict=True):
+                per[k].append(results["linear"][v])
             for m in models:
-                fm = fit_model(m, Vtr, xyz_tr, self.white)
-                per_model[m]["train"].append(float(model_errors(fm, Vtr, xyz_tr, self.white).mean()))
-                per_model[m]["test"].append(float(model_errors(fm, Vte, xyz_te, self.white).mean()))
-        out: dict[str, Any] = {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
-               "test_sd": float(np.std(te)), "repeats": repeats}
+                for k in per_model[m]:
+                    per_model[m][k].append(results[m][k])
+        out: dict[str, Any] = {"repeats": repeats, **_summary(per, folds)}
         if models:
-            out["models"] = {m: {k: float(np.mean(v)) for k, v in d.items()} for m, d in per_model.items()}
+            out["models"] = {m: _summary(d, folds) for m, d in per_model.items()}
         return out
+
+    def _fit_and_judge(self, model: str, caps: dict, truth: dict, folds: int) -> dict[str, float]:
+        """One capture: the model fitted on the captured training target, mean dE00 of training and test, and
+        (``folds``) the cross-validated mean on the training target. 'linear' is the least-squares matrix."""
+        from simulation.cross_validation import cross_validated_errors
+        from simulation.studies.models import fit_model, model_errors
+
+        Vtr, Vte = caps["train"], caps["test"]
+        fm = fit_model(model, Vtr, truth["train"], self.white)
+        out = {"train": float(model_errors(fm, Vtr, truth["train"], self.white).mean()),
+               "test": float(model_errors(fm, Vte, truth["test"], self.white).mean()), "cv": float("nan")}
+        if folds:
+            def score(keep: np.ndarray, held: np.ndarray) -> np.ndarray:
+                f = fit_model(model, Vtr[keep], truth["train"][keep], self.white)
+                return model_errors(f, Vtr[held], truth["train"][held], self.white)
+
+            out["cv"] = float(cross_validated_errors(score, len(Vtr), folds).mean())
+        return out
+
+
+def _summary(per: dict[str, list[float]], folds: int) -> dict[str, float]:
+    """Mean, standard deviation and standard error of the mean over repeats of each figure."""
+    out: dict[str, float] = {}
+    for k, v in per.items():
+        if k in ("train_cv", "cv") and not folds:
+            continue
+        a = np.asarray(v, dtype=float)
+        out[k] = float(a.mean())
+        out[f"{k}_sd"] = float(a.std())
+        out[f"{k}_se"] = float(a.std(ddof=1) / np.sqrt(a.size)) if a.size > 1 else float("nan")
+    return out
 
 
 def capture_bracket(cam: CameraNoise, signal_dn: np.ndarray, factors, rng: np.random.Generator, shape: tuple,

@@ -40,8 +40,13 @@ def test_the_defaults_and_where_they_come_from(user_data_dir):
     cam = CaptureModel.virtual_lab("reflective").camera       # what every preset's expected figure assumes
     assert (d.mode, d.preset, d.hdr, d.virtual_original) == ("reflective", "reflective_pso", "auto", "painting")
     assert (d.dark_frames, d.flat_frames) == (cam.dark_frames, cam.flat_frames) == (10, 3)
-    assert d.hdr_exposures == packaged["hdr_exposures"] == 2
-    assert d.optimise_matrix is (packaged["characterisation_model"] != "linear")
+    entry = packaged["modes"]["reflective"]                           # dualrgb-parsimony/2: one entry per mode
+    assert d.hdr_exposures == entry["hdr_exposures"] == 2
+    assert d.optimise_matrix is (entry["characterisation_model"] != "linear")
+    assert d.spectral_grid == (entry["spectral_start_nm"], entry["spectral_end_nm"], entry["spectral_step_nm"])
+    film = packaged["modes"]["transmissive"]
+    assert defaults.workflow_defaults("transmissive").spectral_grid == (
+        film["spectral_start_nm"], film["spectral_end_nm"], film["spectral_step_nm"])
     assert d.captures == user_data_dir / "captures"                   # DUALRGB_DATA_DIR moves it (conftest)
     assert defaults.workflow_defaults("transmissive").preset == "transmissive_pso"
     with pytest.raises(ValueError, match="mode 'film': expected reflective or transmissive"):

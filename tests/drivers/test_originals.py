@@ -61,7 +61,7 @@ def test_clear_film_base_has_y_of_its_transmittance():
     """Hand check: a flat transmittance T has XYZ = T x the white's XYZ; the base density is 0.05."""
     truth = ground_truth_xyz("film", 400, 600)
     values = region_values(truth, original("film").region_boxes(400, 600)["near-white"])
-    setup = default_setup("transmissive")
+    setup = default_setup("transmissive", DEFAULT_GRID)            # the grid ground_truth_xyz used
     white = 100.0 * (setup.illuminant @ setup.cmfs) / (setup.illuminant @ setup.cmfs[:, 1])
     np.testing.assert_allclose(values, np.broadcast_to(10 ** -0.05 * white, values.shape), rtol=1e-5)
 
@@ -130,7 +130,7 @@ def test_region_means_follow_eq_5_10_like_chart_patches(name):
     gate = cam.render_mosaic(1 / 60).astype(float) - BLACK
     cam.scene = original_scene(name, 600, 400, vignetting=0.0)
     frame = cam.render_mosaic(1 / 60).astype(float) - BLACK
-    setup = default_setup(original(name).mode)
+    setup = default_setup(original(name).mode, DEFAULT_GRID)          # the camera's and the original's grid
     spd = snap.levels @ setup.leds
     o = original(name)
     for region, (r0, r1, c0, c1) in o.region_boxes(400, 600).items():

@@ -61,14 +61,21 @@ def test_cli_modes_and_methods_match_the_simulation():
     assert simulate.MODES == MODES and simulate.METHODS == METHODS
 
 
-def test_simulate_takes_its_default_step_from_the_parsimony_study(tmp_path, monkeypatch):
+def test_simulate_takes_its_default_grid_from_the_parsimony_study_per_mode(tmp_path, monkeypatch):
     import simulation.defaults as defaults
-    monkeypatch.setattr(defaults, "load_defaults", lambda path=None: {"spectral_step_nm": 20.0,
-                                                                         "characterisation_model": "linear",
-                                                                         "hdr_exposures": 1})
+
+    chosen = {"reflective": (410.0, 20.0), "transmissive": (380.0, 5.0)}
+
+    def fake(mode, path=None):
+        start, step = chosen[mode]
+        return {**defaults.FALLBACK_DEFAULTS, "spectral_start_nm": start, "spectral_step_nm": step}
+
+    monkeypatch.setattr(defaults, "load_defaults", fake)
     out = tmp_path / "r.json"
     assert main(["simulate", "--method", "three-channel", "--json", str(out)]) == 0
     assert json.loads(out.read_text())["setup"]["grid"] == "410-780 nm / 20 nm"
+    assert main(["simulate", "--mode", "transmissive", "--method", "three-channel", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["setup"]["grid"] == "380-780 nm / 5 nm"
     assert main(["simulate", "--method", "three-channel", "--step", "5", "--json", str(out)]) == 0
     assert json.loads(out.read_text())["setup"]["grid"] == "410-780 nm / 5 nm"
 

@@ -71,38 +71,44 @@ def test_parsimony_defaults_user_copy_wins_packaged_is_the_fallback(user_data_di
     from simulation.defaults import FORMAT, load_defaults
 
     packaged = json.loads(resources.path("parsimony.json").read_text())
-    assert load_defaults()["spectral_step_nm"] == packaged["spectral_step_nm"]
+    for mode in ("reflective", "transmissive"):
+        assert load_defaults(mode)["spectral_step_nm"] == packaged["modes"][mode]["spectral_step_nm"]
     mine = resources.user_path("parsimony.json")
     mine.parent.mkdir(parents=True)
-    mine.write_text(json.dumps({"format": FORMAT, "spectral_step_nm": 5.0, "characterisation_model": "linear",
-                                "hdr_exposures": 3}))
-    assert load_defaults() == {"spectral_step_nm": 5.0, "characterisation_model": "linear", "hdr_exposures": 3,
-                               "hdr_merge": "thesis"}      # a key the file lacks: the thesis default
+    mine.write_text(json.dumps({"format": FORMAT, "modes": {"transmissive": {
+        "spectral_step_nm": 5.0, "characterisation_model": "linear", "hdr_exposures": 3}}}))
+    assert load_defaults("transmissive") == {"spectral_step_nm": 5.0, "spectral_start_nm": 410.0,
+                                             "spectral_end_nm": 780.0, "characterisation_model": "linear",
+                                             "hdr_exposures": 3, "hdr_merge": "thesis"}   # missing keys: the thesis'
 
 
 def test_study_parsimony_writes_defaults_and_charts_to_the_user_folder(user_data_dir, monkeypatch, capsys):
-    """The CLI wiring only (the study itself is tested in test_studies): a stub result stands in."""
+    """The CLI wiring only (the study itself is tested in test_studies): a stub result stands in, once per mode."""
     import app.commands.study as study_cmd
     import simulation.studies.parsimony as parsimony
+    import simulation.studies.parsimony_report as parsimony_report
 
     written = {}
 
-    def fake_write_outputs(result, out, target):
-        written.update(folder=out.folder, target=target)
+    def fake_write_outputs(results, out, target):
+        written.update(folder=out.folder, target=target, modes=[r.mode for r in results])
 
     class Result:
+        def __init__(self, mode):
+            self.mode, self.elapsed_s = mode, 0.0
+
         @staticmethod
         def defaults():
-            return {"spectral_step_nm": 10.0, "default_10nm_justified": True, "characterisation_model": "linear",
-                    "hdr_exposures": 2}
+            return {"spectral_step_nm": 10.0, "spectral_start_nm": 410.0, "spectral_end_nm": 780.0,
+                    "thesis_grid_acceptable": True, "characterisation_model": "linear", "hdr_exposures": 2}
 
-    monkeypatch.setattr(parsimony, "parsimony", lambda spec, cfg, progress=None: Result())
-    monkeypatch.setattr(parsimony, "write_outputs", fake_write_outputs)
+    monkeypatch.setattr(parsimony, "parsimony", lambda spec, cfg, progress=None: Result(spec.mode))
+    monkeypatch.setattr(parsimony_report, "write_outputs", fake_write_outputs)
     monkeypatch.setattr(study_cmd, "_done", lambda out, lines: 0)
     from app.cli import main
 
     assert main(["study", "parsimony", "--budget", "tiny", "--write-defaults"]) == 0
     assert written == {"folder": user_data_dir / "studies" / "parsimony",
-                       "target": str(user_data_dir / "parsimony.json")}
+                       "target": str(user_data_dir / "parsimony.json"), "modes": ["reflective", "transmissive"]}
     packaged = resources.path("parsimony.json")
     assert user_data_dir not in packaged.parents

@@ -64,7 +64,8 @@ def process(lab, session, grids: dict, train_subject: str, test_subject: str | N
     out_dir = Path(session.path) / "results"
     result = process_session(session, out_dir, specs["train"], specs.get("test"), lights=lights, optimise=optimise,
                              white_xyz=reference_white(mode, method),
-                             title=f"dual-RGB capture, {Path(session.path).name}", progress=progress, cancel=cancel)
+                             title=f"dual-RGB capture, {Path(session.path).name}", progress=progress, cancel=cancel,
+                             mode=mode)
     c = result.characterisation
     best = c.results[c.best]
     views = {}
