@@ -17,7 +17,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from app.commands.options import count, input_file, number
+from app.commands.options import column_option, count, input_file, number
 from app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
@@ -69,15 +69,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_reuse_options(p)
     add_device_options(p)
     p.set_defaults(func=main)
-
-
-def column_option(text: str) -> tuple[str, str]:
-    from app.workflow.queue_csv import column_option as parse
-
-    try:
-        return parse(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _originals(args: argparse.Namespace, mode: str, out_dir: Path | None) -> tuple[list, list[str]]:

@@ -156,6 +156,16 @@ def world(text: str) -> str:
 world.__name__ = "world"
 
 
+def column_option(text: str) -> tuple[str, str]:
+    """``FIELD=NAME``: the queue CSV's column that holds an original's field (app.workflow.queue_csv)."""
+    from app.workflow.queue_csv import column_option as parse
+
+    try:
+        return parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """``--world NAME|FILE`` (default ``nominal``): what the virtual lab renders (a camera, LEDs, flare and
     reference error that may differ from the nominal model; README "Worlds"). ``args.world`` is the text."""
@@ -164,5 +174,5 @@ def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) 
                              "sony-ilce-7rm2, mismatched-d700, aged-leds) or a world JSON file (default nominal)")
 
 
-__all__ = ["MAX_FRAME_SIDE", "add_world_option", "count", "frame_size", "input_file", "leds", "number", "numbers",
-           "positive", "seconds", "seed", "stand_dir", "world"]
+__all__ = ["MAX_FRAME_SIDE", "add_world_option", "column_option", "count", "frame_size", "input_file", "leds",
+           "number", "numbers", "positive", "seconds", "seed", "stand_dir", "world"]
