@@ -101,3 +101,25 @@ def input_file(text: str) -> str:
 
 
 __all__ = ["MAX_FRAME_SIDE", "count", "frame_size", "input_file", "number", "positive", "seconds", "seed"]
+
+
+def render_illuminant(text: str) -> str:
+    """A light the spectral rendering is seen under (simulation.other_lights: D65, D50, A, FL11, LED; any case)
+    -> its command-line name."""
+    from simulation.other_lights import light_key, light_of_key
+
+    try:
+        return light_key(light_of_key(text))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_render_option(p: argparse.ArgumentParser) -> None:
+    """``--render-illuminant``: the light the delivered spectral rendering is seen under."""
+    from simulation.other_lights import REFERENCE_LIGHT, light_key, light_keys
+
+    names = ", ".join(f"{k} ({v})" if k != v else k for k, v in light_keys().items())
+    default = light_key(REFERENCE_LIGHT)
+    p.add_argument("--render-illuminant", type=render_illuminant, default=default, metavar="LIGHT",
+                   help=f"the light the spectral cube is rendered under (<id>_under_<LIGHT>_prophoto_16bit.tif): "
+                        f"{names}; default {default}")

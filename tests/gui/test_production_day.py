@@ -124,7 +124,8 @@ def capture_originals(qtbot, w):
     assert [r.state for r in ws.queue.rows] == [OriginalState.DELIVERED] * 2, [r.qa for r in ws.queue.rows]
     for row in (paint, shadow):
         assert row.files and all(p.exists() and p.name.startswith(row.identifier) for p in row.files.values())
-        for path in row.files.values():
+        assert {"spectral", "spectral_header", "render"} <= set(row.files)          # the cube and its rendering
+        for path in (p for p in row.files.values() if p.suffix == ".tif"):
             xmp = read_xmp(path)
             assert (xmp.identifier, xmp.title, xmp.dualrgb["Operator"]) == (row.identifier, f"{row.identifier} title",
                                                                             "GUI test")
