@@ -44,9 +44,14 @@ O_DIRECT = getattr(os, "O_DIRECT", 0)     # Linux only; 0 elsewhere = through th
 
 
 def aligned_empty(nbytes: int) -> np.ndarray:
-    """A uint8 buffer of ``nbytes`` (rounded up to BLOCK) starting on a BLOCK boundary."""
+    """A uint8 buffer of ``nbytes`` (rounded up to BLOCK) starting on a BLOCK boundary, its pages already mapped.
+
+    Every page is touched here, before any write is in flight: a page first touched by the encoder while an
+    O_DIRECT write pins the other buffer's pages waits for the process's memory-map lock, which made the first
+    two bands of a delivery 2-5x slower (with 256-row bands, the spectral cube's 59 MB each: +0.25 s at 24 MP)."""
     n = -(-nbytes // BLOCK) * BLOCK
     raw = np.empty(n + BLOCK, np.uint8)
+    raw[::BLOCK] = 0
     skip = (-raw.ctypes.data) % BLOCK
     return raw[skip: skip + n]
 

@@ -50,7 +50,7 @@ from simulation.versions import dualrgb_version, output_header
 
 log = logging.getLogger(__name__)
 
-BAND_ROWS = 256         # rows encoded and written at a time: 24 MP dual-RGB, 23 MB over the four files (128-512 alike)
+BAND_ROWS = 64          # rows encoded and written at a time: 24 MP dual-RGB, 6 MB over the four TIFFs + 15 MB of cube
 
 
 @dataclass
