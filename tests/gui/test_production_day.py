@@ -135,6 +135,9 @@ def capture_originals(qtbot, w):
     assert all(len(ts) == 2 for ts in shadow_exposures.values()) and "HDR" in shadow.qa      # metering asked
     assert all(len(ts) == 1 for ts in json.loads(paint.sidecar.read_text())["exposures"].values())
     org.select("PAINT-1")
+    qtbot.waitUntil(lambda: org.delivered.view is not None and org.delivered.view.identifier == "PAINT-1",
+                    timeout=LONG)                          # the Delivered tab: its cube, a pixel's spectrum
+    assert org.delivered.spectrum.curves and org.delivered.image.image.shape[2] == 3
     click(qtbot, org.open_tiff_button)
     click(qtbot, org.open_folder_button)
     assert w.ctx.opened[-2:] == [paint.files["srgb"], paint.folder]
