@@ -51,6 +51,18 @@ def placed_truth(lab: Any) -> OriginalTruth | None:
     return original_truth(original_name(placed), lab.height, lab.width, getattr(lab, "mode", "reflective"))
 
 
+def compare(truth: OriginalTruth, xyz: np.ndarray, spectra=None) -> dict:
+    """The ``virtual_truth`` figures of a delivered ``xyz`` image (H, W, 3, the white's scale) and, when given, its
+    ``spectra`` ((H, W, n_wl) or a function (r0, r1) -> those rows; app.processing.spectral_truth)."""
+    from app.processing.ground_truth import compare_to_ground_truth
+    from app.processing.spectral_truth import compare_spectra_to_ground_truth
+
+    out: dict = {"original": truth.name, "xyz": compare_to_ground_truth(xyz, truth.xyz, truth.white).to_dict()}
+    if spectra is not None:
+        out["spectral"] = compare_spectra_to_ground_truth(spectra, truth.spectral).to_dict()
+    return out
+
+
 def assess(truth: OriginalTruth, files: dict[str, Path], white_y: float) -> dict:
     """The sidecar's ``virtual_truth`` section: the delivered XYZ TIFF (``files['xyz']``) and, when delivered, the
     ENVI cube (``files['spectral_header']``) against ``truth``; ``white_y``: the XYZ TIFF's white Y."""
@@ -58,15 +70,10 @@ def assess(truth: OriginalTruth, files: dict[str, Path], white_y: float) -> dict
 
     from app.processing.encode import LINEAR_ONE
     from app.processing.envi import open_cube
-    from app.processing.ground_truth import compare_to_ground_truth
-    from app.processing.spectral_truth import compare_spectra_to_ground_truth
 
     xyz = tifffile.imread(files["xyz"]).astype(np.float64) / LINEAR_ONE * white_y
-    out: dict = {"original": truth.name, "xyz": compare_to_ground_truth(xyz, truth.xyz, truth.white).to_dict()}
-    if "spectral_header" in files:
-        cube = open_cube(files["spectral_header"])
-        out["spectral"] = compare_spectra_to_ground_truth(cube.rows, truth.spectral).to_dict()
-    return out
+    cube = open_cube(files["spectral_header"]) if "spectral_header" in files else None
+    return compare(truth, xyz, cube.rows if cube is not None else None)
 
 
 def qa_text(section: dict) -> str:
