@@ -98,8 +98,11 @@ class TargetPlots(QWidget):
         grid.addWidget(self.lc_plot, 2, 1)
         self.spectra = SpectrumPlot("Click a patch on the ΔE00 map or the mosaic: its reference spectrum (solid) "
                                     "and the calibration's spectral estimate of it (dashed).")
+        self.spectra.setMaximumHeight(200)               # below the maps and the Lab plots, never instead of them
         grid.addWidget(self.spectra, 3, 0, 1, 2)
         grid.addWidget(self.title, 4, 0, 1, 2)
+        for row, stretch in ((1, 3), (2, 3), (3, 2)):          # the maps and the Lab plots keep their room
+            grid.setRowStretch(row, stretch)
         self.view: TargetView | None = None
         self.patch: int | None = None
         on_image_click(self.heat_widget, self.heat_item, self.click_cell)
@@ -135,9 +138,9 @@ class TargetPlots(QWidget):
                                                         "spectra or the lights are unknown)")
             return
         self.spectra.show_spectra(sp.wavelengths, [("reference", sp.reference[k], "#212121", False),
-                                                   (f"estimate ({sp.method})", sp.estimate[k], "#1565c0", True)],
-                                  f"{view.names[k]}: spectral RMSE {sp.rmse[k]:.4f} ({sp.quantity}), ΔE00 "
-                                  f"{view.errors[k]:.2f}")
+                                                   ("estimate", sp.estimate[k], "#1565c0", True)],
+                                  f"{view.names[k]}: spectral RMSE {sp.rmse[k]:.4f} ({sp.quantity}; estimated by "
+                                  f"{sp.method}), ΔE00 {view.errors[k]:.2f}")
 
     def _heat(self, view: TargetView) -> None:
         rows, cols = view.layout

@@ -65,6 +65,7 @@ class DeliveredView(QWidget):
         self.ctx = ctx
         self.view = None                             # app.workflow.delivered_view.DeliveredView
         self.pixel: tuple[int, int] | None = None
+        self.shown_light = ""                        # the light the image on screen is rendered under
         self.image_widget, self.image, self.box = image_widget(
             "The delivered original, its spectral cube seen under the light chosen above (sRGB on screen). Click "
             "a pixel to see its spectrum.")
@@ -77,15 +78,17 @@ class DeliveredView(QWidget):
         self.info = QLabel("no delivered original selected")
         self.info.setWordWrap(True)
         self.spectrum = SpectrumPlot("The clicked pixel's spectrum, read from the delivered cube.")
+        self.image_widget.setMinimumHeight(260)
+        self.spectrum.setMinimumHeight(200)
         on_image_click(self.image_widget, self.image, self.click_pixel)
         top = QHBoxLayout()
         top.addWidget(QLabel("Seen under"))
         top.addWidget(self.illuminant, 1)
         lay = QVBoxLayout(self)
         lay.addLayout(top)
-        lay.addWidget(self.image_widget, 3)
+        lay.addWidget(self.image_widget, 1)
         lay.addWidget(self.info)
-        lay.addWidget(self.spectrum, 2)
+        lay.addWidget(self.spectrum, 1)
 
     @property
     def light(self) -> str:
@@ -99,7 +102,7 @@ class DeliveredView(QWidget):
             return
         light = self.light
         self.info.setText(f"loading {Path(sidecar).parent.name} …")
-        self.ctx.runner.submit(lambda: (v := open_delivered(sidecar), v.render(light)), pool="compute",
+        self.ctx.runner.submit(lambda: (v := open_delivered(sidecar), (v.render(light), light)), pool="compute",
                                name="delivered preview", on_result=self._loaded,
                                on_error=lambda exc: self.info.setText(f"{Path(sidecar).name}: {exc}"))
 
@@ -107,9 +110,12 @@ class DeliveredView(QWidget):
         self.view, image = payload
         self.pixel = None
         self._show_image(image)
+        if self.shown_light != self.light:          # the light was changed while the cube loaded
+            self.render()
         h, w = self.view.preview_shape
+        shown = "full resolution" if self.view.step == 1 else f"every {self.view.step}th pixel"
         self.info.setText(f"{self.view.identifier}: {self.view.quantity} by {self.view.method}, {w} x {h} shown "
-                          f"(every {self.view.step}. pixel); click a pixel for its spectrum")
+                          f"({shown}); click a pixel for its spectrum")
         self.click_pixel(h // 2, w // 2)
 
     def render(self) -> None:
@@ -117,11 +123,12 @@ class DeliveredView(QWidget):
         view, light = self.view, self.light
         if view is None:
             return
-        self.ctx.runner.submit(lambda: view.render(light), pool="compute", name="render under a light",
+        self.ctx.runner.submit(lambda: (view.render(light), light), pool="compute", name="render under a light",
                                on_result=self._show_image,
                                on_error=lambda exc: self.ctx.errors.report("Render under a light", exc))
 
-    def _show_image(self, image: np.ndarray) -> None:
+    def _show_image(self, rendered: tuple[np.ndarray, str]) -> None:
+        image, self.shown_light = rendered
         self.image.setImage(image, autoLevels=False, levels=(0, 255))
         self.box.autoRange()
 
