@@ -175,3 +175,18 @@ def test_a_disk_full_while_the_cube_is_written_leaves_no_delivery(tmp_path, monk
                 dose=LightDoseRecord())
     assert "ACC-2_spectral.img" in str(info.value) and "\n" not in str(info.value)
     assert list((tmp_path / "out").iterdir()) == []
+
+
+@pytest.mark.fault("input")
+@pytest.mark.parametrize("command", ["capture", "process"])
+def test_an_unknown_rendering_light_is_refused_before_anything_runs(command, tmp_path):
+    import subprocess
+    import sys
+
+    args = (["capture", "--calibration", __file__, "--session", str(tmp_path / "s"), "--id", "X-1", "--virtual-lab"]
+            if command == "capture" else ["process", str(tmp_path)])
+    r = subprocess.run([sys.executable, "-m", "app.cli", *args, "--render-illuminant", "F2"], capture_output=True,
+                       text=True, timeout=60)
+    line = r.stderr.strip().splitlines()[-1]
+    assert r.returncode == 2 and "--render-illuminant" in line and "'F2'" in line and "LED (LED 2880 K)" in line
+    assert not any(tmp_path.iterdir())

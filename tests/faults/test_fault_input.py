@@ -295,7 +295,8 @@ def test_every_numeric_option_uses_a_shared_validator():
     from app import cli as cli_mod
     from app.commands import options
 
-    shared = {f.__name__ for f in (options.frame_size, options.input_file)} | {"number", "count"}
+    shared = {f.__name__ for f in (options.frame_size, options.input_file, options.render_illuminant)} | {
+        "number", "count"}
     raw = [a.dest for a in _all_actions(cli_mod.build_parser()) if getattr(a, "type", None) in (int, float)]
     allowed_raw = {"led", "level"}               # `sphere set`: checked by LedSphere, with the light switched off
     assert set(raw) <= allowed_raw, f"bare int/float options: {raw}"
