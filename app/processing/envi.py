@@ -1,5 +1,5 @@
-"""ENVI spectral cubes: the header (a text file the spectral-imaging ecosystem reads: ENVI, Spectral Python,
-GDAL, QGIS, hylite ...), the data file streamed band by band, and reading a delivered cube back.
+"""ENVI spectral cubes: the header (the text format the spectral-imaging ecosystem reads: ENVI, Spectral Python,
+GDAL's ENVI driver ...), the data file streamed band by band, and reading a delivered cube back.
 
 The layout written here (the one place it is decided):
 
