@@ -10,7 +10,10 @@ the ND-covered target) -> dark series at every exposure -> open-gate flats -> tr
 master darks, eq 7.1 flat field / eq 8.9 HDR merge -> per-light superpixel images stacked to N channels ->
 patch means (PatchGrid on the target's corners) -> characterisation (least squares and dE00-optimised) and the
 spectral estimate (app.processing.spectral: its test RMSE, GFC and dE00 under other lights beside the colour
-figures) -> report.json, and per condition a folder with its report.json, PNG figures and CSVs.
+figures) -> report.json, and per condition a folder with its report.json, PNG figures and CSVs. The mode's
+virtual original (the painting, or the film) is captured too, under the default lights (dual-RGB-PSO), and its
+stack, mapped by that condition's matrix and spectral estimator, is compared per pixel with the original's truth:
+report.json's ``original`` holds dE00 and spectral RMSE (mean, p90, per material; app.workflow.virtual_truth).
 """
 from __future__ import annotations
 
@@ -31,7 +34,7 @@ from app.session.capture_session import CaptureSession, atomic_write
 from app.session.log import SessionLog
 from app.session.manifest import camera_definition, light_definition
 from app.workflow.copystand import CopyStand, StandSettings
-from app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, workflow_defaults
+from app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS, workflow_defaults
 from app.workflow.session_processing import process_session
 from app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
 from app.workflow.vocabulary import NamedLight, Subject, lights_of
@@ -50,6 +53,7 @@ log = logging.getLogger(__name__)
 REPORT_FORMAT = "dualrgb-demo-report/1"
 
 CONDITIONS = ("three_channel", "dual_rgb", "dual_rgb_pso")
+ORIGINAL_CONDITION = "dual_rgb_pso"       # the default lights: the virtual original is captured under them
 
 
 def _darks() -> int:
@@ -235,7 +239,14 @@ class DemoRun:
                     stand.run_sequence(SubjectCapture(stand.shooter, c.lights, {n: p.exposures for n, p in
                                                                                 c.hdr_plan.items()},
                                                       Subject.target(target, nd=True)), 0.8, 1.0)
+            if c.name == ORIGINAL_CONDITION:
+                stand.run_sequence(SubjectCapture(stand.shooter, c.lights, {n: [t] for n, t in c.exposure.items()},
+                                                  self.original_subject()), 0.8, 1.0)
         return exposures
+
+    def original_subject(self) -> Subject:
+        """The mode's virtual original (its name is its identifier: the lab places 'original:painting')."""
+        return Subject.original(VIRTUAL_ORIGINALS[self.s.mode])
 
     def write_report(self, session, conds, presets, exposures, result) -> dict:
         s = self.s
@@ -244,7 +255,7 @@ class DemoRun:
             **output_header(REPORT_FORMAT),
             "mode": s.mode, "frame_size": list(s.frame_size), "hdr": s.hdr,
             "world": {"identity": load_world(s.world).identity, **load_world(s.world).to_dict()},
-            "conditions": list(result),          # the names; each condition's figures are top-level keys
+            "conditions": [k for k in result if k != "original"],   # each condition's figures are top-level keys
             **result,
             "presets": presets,
             "exposures": exposures,
@@ -272,11 +283,30 @@ class DemoRun:
 
     def process(self, conds: list[Condition]) -> dict:
         out: dict = {}
+        self.results: dict = {}
         for c in conds:
             for label, nd, ts in self.variants(c):
                 check(self.cancel)
                 out[label] = self.process_variant(c, label, nd, ts)
+        c = next(c for c in conds if c.name == ORIGINAL_CONDITION)
+        out["original"] = self.assess_original(c, self.results[c.name])
         return out
+
+    def assess_original(self, c: Condition, res) -> dict:
+        """The virtual original's stack (captured under ``c``'s lights) through ``c``'s matrix and spectral
+        estimator, per pixel against the original's truth (app.workflow.virtual_truth)."""
+        from app.workflow.session_processing import select_lights, session_frames
+        from app.workflow.virtual_truth import compare, original_truth
+
+        subject = self.original_subject()
+        frames = session_frames(self.session).subject(subject)
+        stack = res.processor.stack(select_lights(frames, [nl.name for nl in c.lights]), cancel=self.cancel)
+        ch = res.characterisation
+        truth = original_truth(subject.name, self.lab.height, self.lab.width, self.s.mode)
+        spectra = res.spectral.estimator.apply(stack.data) if res.spectral is not None else None
+        figures = compare(truth, ch.results[ch.best].matrix.apply(stack.data), spectra)
+        return {**figures, "condition": c.name, "matrix": ch.best, "frames_per_exposure": 1,
+                "spectral_method": res.spectral.selection.chosen.label() if res.spectral is not None else None}
 
     def process_variant(self, c: Condition, label: str, nd: bool, ts: dict[str, list[float]]) -> dict:
         specs = {t: virtual_target_spec(self.lab, Subject.target(t, nd), label=f"{t} ({label})")
@@ -288,6 +318,7 @@ class DemoRun:
                               lights=[nl.name for nl in c.lights], exposures=ts, optimise=self.s.optimise_matrix,
                               white_xyz=reference_white(self.s.mode), title=f"{label} ({self.s.mode}, virtual lab)",
                               cancel=self.cancel, mode=self.s.mode)
+        self.results[label] = res
         ch = res.characterisation
         best = ch.results[ch.best]
         sim = c.simulated.get(ch.best, c.simulated[LEAST_SQUARES])      # the prediction for the delivered matrix

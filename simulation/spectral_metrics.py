@@ -28,12 +28,12 @@ import numpy as np
 from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from simulation.grid import SpectralGrid
 from simulation.objective import ErrorStats
+from simulation.other_lights import OTHER_LIGHTS
 
 log = logging.getLogger(__name__)
 
-# name shown -> (colour-science collection, key); D65 first: the reference illuminant of the characterisation
-OTHER_LIGHTS = {"D65": ("illuminant", "D65"), "A": ("illuminant", "A"), "D50": ("illuminant", "D50"),
-                "FL11": ("illuminant", "FL11"), "LED 2880 K": ("light source", "Luxeon WW 2880")}
+__all__ = ["GFC_GOOD", "GFC_VERY_GOOD", "OTHER_LIGHTS", "delta_e_under", "gfc", "gfc_summary", "light_spd",
+           "seen_wavelengths", "spectral_figures", "spectral_rmse"]
 GFC_GOOD, GFC_VERY_GOOD = 0.99, 0.999
 
 

@@ -1,7 +1,8 @@
 """``dualrgb capture``: one original, or a day's queue from a CSV, with a saved calibration, to the deliverables.
 
     dualrgb capture [--session DIR] --calibration FILE --id ACC-123 [--title ..] [--operator ..] [--notes ..]
-                    [--mode reflective|transmissive] [--reshoot] [--force] (--virtual-lab | --port P --camera C)
+                    [--mode reflective|transmissive] [--reshoot] [--force] [--render-illuminant A]
+                    (--virtual-lab | --port P --camera C)
     dualrgb capture --session DIR --calibration FILE --queue originals.csv [--column identifier="Accession No."]
                     [--skip-invalid] [--operator ..] [--reshoot] ...
 
@@ -17,7 +18,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from app.commands.options import column_option, count, input_file, number
+from app.commands.options import add_render_option, column_option, count, input_file, number
 from app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
@@ -66,6 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--virtual-original", default=None,
                    help="virtual lab: which virtual original stands in (default by mode: "
                         + ", ".join(f"{m}: {o}" for m, o in VIRTUAL_ORIGINALS.items()) + ")")
+    add_render_option(p)
     add_reuse_options(p)
     add_device_options(p)
     p.set_defaults(func=main)
@@ -109,7 +111,7 @@ def main(args: argparse.Namespace) -> int:
     out_dir = Path(args.out) if args.out else args.session / "deliverables" if args.session else None
     originals, bad = _originals(args, args.mode or profile.mode, out_dir)      # refused here: nothing is open yet
     settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
-                             original_frames=args.frames)
+                             original_frames=args.frames, render_illuminant=args.render_illuminant)
     with open_devices(args, args.mode or profile.mode, args.virtual_original) as dev, \
             open_session(args.session, {"workflow": "originals", **virtual_world(args)}, dev.camera) as session:
         out_dir = out_dir or session.path / "deliverables"

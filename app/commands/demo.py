@@ -52,6 +52,12 @@ def main(args: argparse.Namespace) -> int:
                         for k, w in (("train", 10), ("test", 10), ("noise_free_train", 9), ("noise_free_test", 8)))
         print(f"{name:<22} {c['train']['mean']:>10.3f} {c['test']['mean']:>10.3f} {pred}")
     print("sim: the expected captured error the optimiser predicted (for the delivered matrix); nf: noise-free")
+    o = data.get("original")
+    if o:
+        sp = o.get("spectral") or {}
+        print(f"original {o['original']} ({o['condition']} lights, per pixel against its truth): dE00 mean "
+              f"{o['xyz']['mean']:.3f} / p90 {o['xyz']['p90']:.3f}"
+              + (f", spectral RMSE mean {sp['rmse_mean']:.4f} / p90 {sp['rmse_p90']:.4f}" if sp else ""))
     print(f"frames {data['frames']}, lost {data['lost_frames']}, light dose {data['light_dose']['lux_s']:.0f} lux.s, "
           f"{data['elapsed_s']:.1f} s -> {args.out / 'report.json'}")
     return 0

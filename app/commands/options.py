@@ -166,6 +166,28 @@ def column_option(text: str) -> tuple[str, str]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def render_illuminant(text: str) -> str:
+    """A light the spectral rendering is seen under (simulation.other_lights: D65, D50, A, FL11, LED; any case)
+    -> its command-line name."""
+    from simulation.other_lights import light_key, light_of_key
+
+    try:
+        return light_key(light_of_key(text))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_render_option(p: argparse.ArgumentParser) -> None:
+    """``--render-illuminant``: the light the delivered spectral rendering is seen under."""
+    from simulation.other_lights import REFERENCE_LIGHT, light_key, light_keys
+
+    names = ", ".join(f"{k} ({v})" if k != v else k for k, v in light_keys().items())
+    default = light_key(REFERENCE_LIGHT)
+    p.add_argument("--render-illuminant", type=render_illuminant, default=default, metavar="LIGHT",
+                   help=f"the light the spectral cube is rendered under (<id>_under_<LIGHT>_prophoto_16bit.tif): "
+                        f"{names}; default {default}")
+
+
 def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """``--world NAME|FILE`` (default ``nominal``): what the virtual lab renders (a camera, LEDs, flare and
     reference error that may differ from the nominal model; README "Worlds"). ``args.world`` is the text."""
@@ -174,5 +196,6 @@ def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) 
                              "sony-ilce-7rm2, mismatched-d700, aged-leds) or a world JSON file (default nominal)")
 
 
-__all__ = ["MAX_FRAME_SIDE", "add_world_option", "column_option", "count", "frame_size", "input_file", "leds",
-           "number", "numbers", "positive", "seconds", "seed", "stand_dir", "world"]
+__all__ = ["MAX_FRAME_SIDE", "add_render_option", "add_world_option", "column_option", "count", "frame_size",
+           "input_file", "leds", "number", "numbers", "positive", "render_illuminant", "seconds", "seed", "stand_dir",
+           "world"]

@@ -1,6 +1,6 @@
 """``dualrgb process``: deliver a session's originals again, e.g. with a newer calibration.
 
-    dualrgb process SESSION [--calibration FILE] [--out DIR] [--json J]
+    dualrgb process SESSION [--calibration FILE] [--out DIR] [--render-illuminant A] [--json J]
 """
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from app.commands.options import number
+from app.commands.options import add_render_option, number
 from app.commands.stand_options import progress_printer, write_json
 
 log = logging.getLogger(__name__)
@@ -23,6 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables)")
     p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
     p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
+    add_render_option(p)
     p.set_defaults(func=main)
 
 
@@ -44,7 +45,7 @@ def main(args: argparse.Namespace) -> int:
     session = CaptureSession.open(args.session, readonly=True)      # frames checked before use (session_frames)
     profile = load_profile(args.calibration or newest_calibration(session))
     deliveries = redeliver(session, profile, args.out or args.session / "deliverables", ppi=args.ppi,
-                           progress=progress_printer())
+                           progress=progress_printer(), render_illuminant=args.render_illuminant)
     if not deliveries:
         raise ValueError(f"{args.session}: no originals to process")
     for d in deliveries:

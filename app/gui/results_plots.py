@@ -1,5 +1,6 @@
 """The Results panel's plots of one target: ΔE00 per patch on a fixed traffic-light scale with the patch names,
-reference -> prediction vectors on a*b* and L*C*, and the reference | prediction mosaic with its legend."""
+reference -> prediction vectors on a*b* and L*C*, the reference | prediction mosaic with its legend, and the
+estimated against the reference spectrum of the patch clicked on the heat map or the mosaic."""
 from __future__ import annotations
 
 import logging
@@ -11,6 +12,7 @@ from PySide6.QtGui import QFont
 from PySide6.QtWidgets import QGridLayout, QLabel, QWidget
 
 from app.gui.de_scale import SCALE_MAX, de_band, lookup_table
+from app.gui.spectra_view import SpectrumPlot, on_image_click
 from app.gui.widgets import DeLegend, image_widget, plot_widget
 
 log = logging.getLogger(__name__)
@@ -31,6 +33,19 @@ class TargetView:
     srgb_ref: np.ndarray
     srgb_pred: np.ndarray
     layout: tuple[int, int]
+    spectra: PatchSpectra | None = None
+
+
+@dataclass
+class PatchSpectra:
+    """Reference and estimated spectra (n, n_wl) of a target's patches (the calibration's spectral estimate)."""
+
+    wavelengths: np.ndarray
+    reference: np.ndarray
+    estimate: np.ndarray
+    rmse: np.ndarray               # (n,) per patch
+    method: str
+    quantity: str
 
 
 def cell_name(name: str, width: int = 9) -> str:
@@ -81,18 +96,51 @@ class TargetPlots(QWidget):
         grid.addWidget(self.mosaic_widget, 1, 1)
         grid.addWidget(self.ab_plot, 2, 0)
         grid.addWidget(self.lc_plot, 2, 1)
-        grid.addWidget(self.title, 3, 0, 1, 2)
+        self.spectra = SpectrumPlot("Click a patch on the ΔE00 map or the mosaic: its reference spectrum (solid) "
+                                    "and the calibration's spectral estimate of it (dashed).")
+        self.spectra.setMaximumHeight(200)               # below the maps and the Lab plots, never instead of them
+        grid.addWidget(self.spectra, 3, 0, 1, 2)
+        grid.addWidget(self.title, 4, 0, 1, 2)
+        for row, stretch in ((1, 3), (2, 3), (3, 2)):          # the maps and the Lab plots keep their room
+            grid.setRowStretch(row, stretch)
+        self.view: TargetView | None = None
+        self.patch: int | None = None
+        on_image_click(self.heat_widget, self.heat_item, self.click_cell)
+        on_image_click(self.mosaic_widget, self.mosaic_item, self.click_cell, scale=CELL)
         self._lut = lookup_table()
         self._cell_font = QFont()
         self._cell_font.setPointSize(7)
 
     def show_view(self, view: TargetView) -> None:
+        self.view = view
         self._heat(view)
         self._scatter(view)
         self._mosaic(view)
         worst = int(np.argmax(view.errors))
         self.title.setText(f"{view.label}: {len(view.names)} patches; worst {view.names[worst]} "
                            f"{view.errors[worst]:.2f} ΔE00")
+        self.select_patch(worst)
+
+    def click_cell(self, row: int, col: int) -> None:
+        """A click on the heat map or mosaic cell (row, col): that patch's spectra."""
+        if self.view is not None and col < self.view.layout[1]:
+            self.select_patch(row * self.view.layout[1] + col)
+
+    def select_patch(self, k: int) -> None:
+        """Estimated against reference spectrum of patch ``k`` (or why there is none)."""
+        view = self.view
+        if view is None or not 0 <= k < len(view.names):
+            return
+        self.patch = k
+        sp = view.spectra
+        if sp is None:
+            self.spectra.show_spectra(np.array([]), [], f"{view.names[k]}: no spectral estimate (the targets' "
+                                                        "spectra or the lights are unknown)")
+            return
+        self.spectra.show_spectra(sp.wavelengths, [("reference", sp.reference[k], "#212121", False),
+                                                   ("estimate", sp.estimate[k], "#1565c0", True)],
+                                  f"{view.names[k]}: spectral RMSE {sp.rmse[k]:.4f} ({sp.quantity}; estimated by "
+                                  f"{sp.method}), ΔE00 {view.errors[k]:.2f}")
 
     def _heat(self, view: TargetView) -> None:
         rows, cols = view.layout

@@ -66,6 +66,8 @@ class ScreenshotRun(QObject):
             ("originals", self._originals),
             ("select an original", lambda: w.originals.select("ACC-1902-03")),
             ("screenshot originals", lambda: self.shoot("originals")),
+            ("delivered: the painting under A", self._delivered),
+            ("screenshot delivered", lambda: self.shoot("originals", "delivered")),
             ("screenshot guide", lambda: self.shoot_widget(w.guide_dock, "guide")),
             ("list targets", self._list_targets),
             ("grid on the training target", lambda: self._place_grid("target:train")),
@@ -122,6 +124,14 @@ class ScreenshotRun(QObject):
         org.capture([r.identifier for r in w.ctx.workspace.queue.waiting()])
         ended = (OriginalState.DELIVERED, OriginalState.FAILED)
         return lambda: all(r.state in ended for r in w.ctx.workspace.queue.rows)
+
+    def _delivered(self):
+        org = self.w.originals
+        dv = org.delivered
+        org.tabs.setCurrentWidget(dv)
+        dv.illuminant.setCurrentIndex(dv.illuminant.findData("A"))
+        org.select("ACC-1887-12")
+        return lambda: dv.view is not None and dv.view.identifier == "ACC-1887-12" and dv.shown_light == "A"
 
     def _list_targets(self):
         tgt = self.w.target

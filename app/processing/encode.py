@@ -112,7 +112,7 @@ def _xyz16_row(x, y, z, scale, out):  # pragma: no cover - compiled
 
 
 @njit(nogil=True, cache=True)
-def _rgb_row(x, y, z, m, lut, lin, idx, out):  # pragma: no cover - compiled
+def rgb_row(x, y, z, m, lut, lin, idx, out):  # pragma: no cover - compiled
     """One display-encoded RGB space of one row into ``out`` (W * 3): linear RGB = ``m`` (3, 3) @ XYZ, clipped
     to [0, 1], through ``lut`` with linear interpolation (``lin``, ``idx``: scratch rows)."""
     zero = np.float32(0.0)
@@ -156,7 +156,7 @@ def _encode_rows(stack, r0, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi): 
         bad += _xyz_row(s, A, x, y, z)
         over += _xyz16_row(x, y, z, scale_xyz, xyz16[r].reshape(W * 3))
         for q in range(len(rgb16)):
-            _rgb_row(x, y, z, M[q], luts[q], lin, idx, rgb16[q][r].reshape(W * 3))
+            rgb_row(x, y, z, M[q], luts[q], lin, idx, rgb16[q][r].reshape(W * 3))
     return bad, over
 
 

@@ -164,8 +164,9 @@ def block_max(de_map: np.ndarray, max_pixels: int) -> np.ndarray:
 
 
 def write_de_map_png(path: Path, de_map: np.ndarray, *, title: str = "", vmax: float = DE_MAP_MAX,
-                     max_pixels: int = 1600) -> Path:
-    """A PNG of the dE00 map with a colour bar on a fixed 0..``vmax`` scale (larger errors show as ``vmax``).
+                     max_pixels: int = 1600, label: str = "ΔE00") -> Path:
+    """A PNG of the dE00 map (or another per-pixel error, named by ``label``) with a colour bar on a fixed
+    0..``vmax`` scale (larger errors show as ``vmax``).
 
     Maps wider or taller than ``max_pixels`` are shown block-max-reduced (the worst pixel of each block), so
     an isolated large error stays visible; NaN (invalid) pixels are grey.
@@ -187,7 +188,7 @@ def write_de_map_png(path: Path, de_map: np.ndarray, *, title: str = "", vmax: f
     ax.set_yticks([])
     ax.set_title(title or "CIEDE2000 against ground truth")
     bar = fig.colorbar(im, ax=ax, extend="max", fraction=0.046, pad=0.04)
-    bar.set_label("ΔE00")
+    bar.set_label(label)
     fig.tight_layout()
     from app.processing.figure_files import save_figure  # the atomic write: a full disk leaves no half PNG
 

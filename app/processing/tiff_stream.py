@@ -16,6 +16,9 @@ page cache costs about as much CPU as the encoding itself (~1 GB/s on the 2-core
   next write, the last block is padded and the file truncated to its size. Where the file system refuses
   ``O_DIRECT`` (tmpfs, some network file systems, other OSes) the same writes go through the page cache.
 
+:class:`RawStream` streams a headerless raw file the same way (the data file of an ENVI spectral cube:
+app.processing.envi_cube).
+
 Atomic like every output (common.atomic_files): the file is written as ``.<name>.<pid>.tmp`` beside the
 target, fsynced once at the end, renamed over the target, the folder fsynced; any error removes the temp file,
 leaves the previous file intact and raises a FileWriteError naming the target.
@@ -41,9 +44,14 @@ O_DIRECT = getattr(os, "O_DIRECT", 0)     # Linux only; 0 elsewhere = through th
 
 
 def aligned_empty(nbytes: int) -> np.ndarray:
-    """A uint8 buffer of ``nbytes`` (rounded up to BLOCK) starting on a BLOCK boundary."""
+    """A uint8 buffer of ``nbytes`` (rounded up to BLOCK) starting on a BLOCK boundary, its pages already mapped.
+
+    Every page is touched here, before any write is in flight: a page first touched by the encoder while an
+    O_DIRECT write pins the other buffer's pages waits for the process's memory-map lock, which made the first
+    two bands of a delivery 2-5x slower (with 256-row bands, the spectral cube's 59 MB each: +0.25 s at 24 MP)."""
     n = -(-nbytes // BLOCK) * BLOCK
     raw = np.empty(n + BLOCK, np.uint8)
+    raw[::BLOCK] = 0
     skip = (-raw.ctypes.data) % BLOCK
     return raw[skip: skip + n]
 
@@ -261,3 +269,19 @@ class TiffStream:
             self.close()
         else:
             self.abort()
+
+
+class RawStream(TiffStream):
+    """A headerless raw file of ``shape`` and ``dtype`` (C order, the dtype's byte order) filled band by band
+    exactly like :class:`TiffStream` (O_DIRECT where the file system takes it, atomic): e.g. an ENVI cube's data
+    file, whose header is a separate text file."""
+
+    def __init__(self, path: Path, shape: tuple[int, ...], dtype: Any, *, band_rows: int,
+                 executor: Executor | None = None, direct: bool = True):
+        super().__init__(path, shape, dtype, {}, band_rows=band_rows, executor=executor, direct=direct)
+
+    def _write_header(self, kwargs: dict) -> tuple[int, int, bytes]:
+        """No header: an empty temp file, the pixels from byte 0."""
+        with open(self._tmp, "wb"):
+            pass
+        return 0, self.shape[0] * self.row_bytes, b""

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from app.processing.pipeline import CaptureProcessor, ExposureRef
+from app.processing.render import DEFAULT_RENDER_ILLUMINANT, check_illuminant
 from app.sequences.base import ProgressEvent
 from app.sequences.base import Sequence as BaseSequence
 from app.sequences.calibration import DarkSeries, FlatSeries, snap_down
@@ -46,6 +47,7 @@ from app.workflow.profile import (
 )
 from app.workflow.session_processing import SessionResult, process_session
 from app.workflow.targets import TargetSpec, reference_white, target_spec
+from app.workflow.virtual_truth import placed_truth
 from app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, lights_of, role_of, split_take, subject_of
 from common.progress import Cancelled, CancelToken, ProgressCallback, report
 
@@ -80,6 +82,7 @@ class StandSettings:
     target_width_mm: float | None = None   # test target's width (corner patches' outer corners) -> ppi
     meter_tiles: int = 12                     # metering regions across the frame (HDR decision for originals)
     original_frames: int = 1                  # frames averaged per exposure of an original (noise / sqrt(n))
+    render_illuminant: str = DEFAULT_RENDER_ILLUMINANT   # the light the spectral rendering is seen under
 
 
 @dataclass
@@ -289,8 +292,10 @@ class CopyStand:
 
     def preflight(self, original: Original, out_dir: Path | None = None) -> None:
         """What must hold before the light goes on for ``original``: its metadata validate (app.workflow.metadata)
-        and its deliverables folder is creatable and not another original's (app.workflow.delivery_folder)."""
+        and its deliverables folder is creatable and not another original's (app.workflow.delivery_folder), and the
+        spectral rendering's light is known (app.processing.render)."""
         check_original(original)
+        check_illuminant(self.settings.render_illuminant)
         prepare(self.deliverables(out_dir), original)
 
     def capture(self, original: Original, profile: CalibrationProfile, *, reshoot: bool | None = None,
@@ -322,7 +327,8 @@ class CopyStand:
         delivery = deliver(builder.result(), profile, original, self.deliverables(out_dir),
                            camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
                            exposures=exposures, warnings=checked.warnings + warnings,
-                           extra={"session": str(self.session.path), "take": take, "frames": seq.steps()})
+                           extra={"session": str(self.session.path), "take": take, "frames": seq.steps()},
+                           render_illuminant=self.settings.render_illuminant, truth=placed_truth(self.lab))
         self._remember(original, dose, delivery, take, profile)
         report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
         return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)
@@ -383,9 +389,11 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
 
 
 def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: float | None = None,
-              progress: ProgressCallback | None = None, cancel: CancelToken | None = None) -> list[Delivery]:
+              progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
+              render_illuminant: str = DEFAULT_RENDER_ILLUMINANT) -> list[Delivery]:
     """Deliver every original of a session again with ``profile`` (``dualrgb process``); each original's current
-    deliverables move to its ``previous/`` folder. Every folder is checked before the first is written."""
+    deliverables move to its ``previous/`` folder. Every folder is checked before the first is written. The
+    spectral rendering is seen under ``render_illuminant``."""
     from app.workflow.session_processing import select_lights, session_frames
 
     frames = session_frames(session)
@@ -403,7 +411,8 @@ def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: 
         out.append(deliver(stack, profile, original, out_dir, camera=profile.camera, ppi=ppi,
                            dose=original_dose(session, subject),
                            exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
-                           extra={"session": str(session.path), "reprocessed": True}))
+                           extra={"session": str(session.path), "reprocessed": True},
+                           render_illuminant=render_illuminant))
         report(progress, (i + 1) / len(originals), f"{original.identifier} delivered")
     return out
 

@@ -53,6 +53,20 @@ def test_demo_reports_the_spectral_estimate_beside_colour(hdr_report):
     assert (out / "dual_rgb_pso" / "spectra_test.png").exists()
 
 
+def test_demo_reports_the_virtual_original_against_its_truth(hdr_report):
+    """Issue 21: the virtual painting, captured under the default (PSO) lights, per pixel against its measured
+    spectra: dE00 and spectral RMSE beside each other; per material the spectral RMSE is within 0.02 of the test
+    chart's (both out of sample)."""
+    _, out = hdr_report
+    on_disk = json.loads((out / "report.json").read_text())
+    o = on_disk["original"]
+    assert o["original"] == "painting" and o["condition"] == "dual_rgb_pso" and "original" not in on_disk["conditions"]
+    assert o["xyz"]["n_invalid"] == 0 and 0 < o["xyz"]["material_mean"] < 1.0 <= o["xyz"]["max"] + 1.0
+    sp, chart = o["spectral"], on_disk["dual_rgb_pso"]["spectral"]["rmse_mean"]
+    assert sp["n_invalid"] == 0 and sp["rmse_p90"] >= sp["rmse_mean"] > 0
+    assert abs(sp["material_rmse_mean"] - chart) < 0.02
+
+
 def test_hdr_lowers_the_error_of_nd_covered_patches(hdr_report):
     data, _ = hdr_report
     for cond in ("dual_rgb", "dual_rgb_pso"):

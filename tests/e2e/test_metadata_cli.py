@@ -17,6 +17,8 @@ import tifffile
 from queue_rows import BAD, good_identifiers, write_queue_csv
 from xmp_check import EXIFTOOL, exiftool_text, read_xmp
 
+from app.processing.envi import read_header
+
 FRAME = ["--frame-size", "96x64", "--settle", "0"]
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 WORLD = {"ACC-5": ("Öl auf Holz", "Jürgen Weiß", "ACC-5 - Ol auf Holz"),
@@ -58,12 +60,14 @@ def test_world_originals_deliver_exactly_and_process_keeps_the_previous_set(cal)
         done = json.loads((root / "w.json").read_text())
         side = json.loads(Path(done["sidecar"]).read_text(encoding="utf-8"))
         assert side["original"]["identifier"] == ident and side["original"]["title"] == title
-        for path in done["files"].values():
+        for path in (p for p in done["files"].values() if p.endswith(".tif")):
             xmp = read_xmp(Path(path))
             assert (xmp.identifier, xmp.title, xmp.dualrgb["Operator"], xmp.dualrgb["Notes"]) == \
                 (ident, title, operator, "Zeile 1\nligne 2")
             with tifffile.TiffFile(path) as t:
                 assert t.pages[0].tags["ImageDescription"].value.startswith(WORLD[ident][2] + "; ")
+        header = read_header(Path(done["files"]["spectral_header"]))        # the cube: ASCII as the TIFF tags
+        assert WORLD[ident][2] in header["description"] and header["description"].isascii()
         if EXIFTOOL is not None:
             assert exiftool_text(Path(done["files"]["srgb"]), "XMP-dc:Title") == title
     folders = sorted((session / "deliverables").iterdir())

@@ -124,7 +124,8 @@ def capture_originals(qtbot, w):
     assert [r.state for r in ws.queue.rows] == [OriginalState.DELIVERED] * 2, [r.qa for r in ws.queue.rows]
     for row in (paint, shadow):
         assert row.files and all(p.exists() and p.name.startswith(row.identifier) for p in row.files.values())
-        for path in row.files.values():
+        assert {"spectral", "spectral_header", "render"} <= set(row.files)          # the cube and its rendering
+        for path in (p for p in row.files.values() if p.suffix == ".tif"):
             xmp = read_xmp(path)
             assert (xmp.identifier, xmp.title, xmp.dualrgb["Operator"]) == (row.identifier, f"{row.identifier} title",
                                                                             "GUI test")
@@ -134,6 +135,9 @@ def capture_originals(qtbot, w):
     assert all(len(ts) == 2 for ts in shadow_exposures.values()) and "HDR" in shadow.qa      # metering asked
     assert all(len(ts) == 1 for ts in json.loads(paint.sidecar.read_text())["exposures"].values())
     org.select("PAINT-1")
+    qtbot.waitUntil(lambda: org.delivered.view is not None and org.delivered.view.identifier == "PAINT-1",
+                    timeout=LONG)                          # the Delivered tab: its cube, a pixel's spectrum
+    assert org.delivered.spectrum.curves and org.delivered.image.image.shape[2] == 3
     click(qtbot, org.open_tiff_button)
     click(qtbot, org.open_folder_button)
     assert w.ctx.opened[-2:] == [paint.files["srgb"], paint.folder]

@@ -3,11 +3,12 @@ delivered at once (app.workflow.copystand.CopyStand.capture: metering, an HDR br
 the archival TIFFs, sidecar and QA line).
 
 Each row shows its state (waiting / capturing / captured / delivered / failed) and QA line; the delivered TIFF
-and its folder open from here. An original already in the session asks "re-shoot / keep" and reports
-"0 new, 2 kept". The calibration's check against the stand is shown above the Capture button, before anything is
-shot. *Import CSV...* adds a day's originals from the collection database through
-app.workflow.queue_csv.read_queue_csv (the CLI's ``--queue``): its bad rows are listed, one line each, and only
-added on request is the rest.
+and its folder open from here, and the *Delivered* tab shows the selected original's spectral cube seen under a
+light of choice, with the spectrum of a clicked pixel (app.gui.spectra_view). An original already in the
+session asks "re-shoot / keep" and reports "0 new, 2 kept". The calibration's check against the stand is shown
+above the Capture button, before anything is shot. *Import CSV...* adds a day's originals from the collection
+database through app.workflow.queue_csv.read_queue_csv (the CLI's ``--queue``): its bad rows are listed, one line
+each, and only added on request is the rest.
 """
 from __future__ import annotations
 
@@ -30,12 +31,14 @@ from PySide6.QtWidgets import (
     QSpinBox,
     QTableWidget,
     QTableWidgetItem,
+    QTabWidget,
     QVBoxLayout,
     QWidget,
 )
 
 from app.gui.context import AppContext
 from app.gui.sequence_view import SequenceView
+from app.gui.spectra_view import DeliveredView
 from app.gui.widgets import side_by_side
 from app.sequences.base import PlannedFrame, ProgressEvent
 from app.workflow.copystand import CaptureReport, StandSettings, original_takes
@@ -70,12 +73,17 @@ class OriginalsPanel(QWidget):
         self.view.start_button.hide()
         self.view.event.connect(self._run_event)
         self.view.finished.connect(self._run_finished)
+        self.delivered = DeliveredView(ctx)
+        self._shown: Path | None = None              # the sidecar the Delivered tab shows
+        self.tabs = QTabWidget()
+        self.tabs.addTab(self.view, "Capture")
+        self.tabs.addTab(self.delivered, "Delivered")
         left = QWidget()
         lv = QVBoxLayout(left)
         lv.addWidget(self._form_box())
         lv.addWidget(self._calibration_box())
         lv.addWidget(self._queue_box(), 1)
-        side_by_side(self, left, self.view, stretch=(3, 2))
+        side_by_side(self, left, self.tabs, stretch=(3, 2))
         self._connect()
         self._virtual_changed()
         self.show_calibration()
@@ -346,6 +354,8 @@ class OriginalsPanel(QWidget):
         delivered = [r for r in sel if r.state is OriginalState.DELIVERED]
         self.open_tiff_button.setEnabled(len(delivered) == 1)
         self.open_folder_button.setEnabled(len(delivered) == 1)
+        if len(delivered) == 1 and delivered[0].sidecar != self._shown and delivered[0].files.get("spectral"):
+            self.show_delivered(delivered[0])
         self.force.setEnabled(not running)
         why = self._why_not(running)
         self.capture_button.setToolTip(why or "Meter, capture (an HDR bracket when metering asks) and deliver the "
@@ -462,6 +472,11 @@ class OriginalsPanel(QWidget):
         self.ctx.bus.sessionUpdated.emit()
         if outcome == "done":
             self._next()
+
+    def show_delivered(self, row: QueueRow) -> None:
+        """The Delivered tab: ``row``'s cube under the chosen light (loaded in the compute pool)."""
+        self._shown = row.sidecar
+        self.delivered.show_delivery(row.sidecar)
 
     def _open(self, what: str) -> None:
         sel = [self.ws.queue.row(i) for i in self.selected()]

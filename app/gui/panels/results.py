@@ -29,7 +29,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.gui.context import AppContext
-from app.gui.results_plots import TargetPlots, TargetView
+from app.gui.results_plots import PatchSpectra, TargetPlots, TargetView
 from app.gui.units import with_unit
 from app.gui.widgets import PathLabel, side_by_side
 from app.gui.workers import TaskHandle
@@ -74,8 +74,21 @@ def process(lab, session, grids: dict, train_subject: str, test_subject: str | N
         errors = best.train_errors if label == "train" else best.test_errors
         views[label] = TargetView(spec.label, spec.names, np.asarray(errors), xyz_to_lab(spec.xyz, c.white),
                                   xyz_to_lab(pred, c.white), xyz_to_srgb8(spec.xyz, c.white),
-                                  xyz_to_srgb8(pred, c.white), spec.layout or (1, len(spec.names)))
+                                  xyz_to_srgb8(pred, c.white), spec.layout or (1, len(spec.names)),
+                                  patch_spectra(result.spectral, label))
     return result, views, out_dir
+
+
+def patch_spectra(sc, target: str) -> PatchSpectra | None:
+    """The estimated and reference spectra of ``target``'s patches (app.processing.spectral's
+    SpectralCharacterisation; None without one)."""
+    from simulation.spectral_metrics import spectral_rmse
+
+    if sc is None or target not in sc.estimates:
+        return None
+    ref, est = sc.references[target], sc.estimates[target]
+    return PatchSpectra(sc.wavelengths, ref, est, spectral_rmse(est, ref), sc.selection.chosen.label(),
+                        sc.estimator.quantity)
 
 
 def quality_lines(report: dict) -> list[str]:
