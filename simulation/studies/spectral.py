@@ -12,7 +12,7 @@ For each mode the training target's values under three light sets:
 and every spectral method (simulation.spectral_estimation), each with its settings chosen by 5-fold
 cross-validation on the training target (simulation.spectral_selection). The estimators see noise-free values
 (the thesis' simulation) and are told the capture model's noise of a training patch mean; they are judged on the
-test target: spectral RMSE (over 410-780 nm and over the wavelengths the system sees), GFC, mean CIEDE2000 under
+test target: spectral RMSE (over the mode's grid and over the wavelengths the system sees), GFC, mean CIEDE2000 under
 D65, A, D50, FL11 and a warm-white LED. Time: the lights' search (spectral- and mixed-chosen; the shipped
 preset's search is not repeated) plus the cross-validated fit; applying an estimator is one matrix product for every
 method (its cost per megapixel is measured once).
@@ -35,6 +35,7 @@ from common.progress import CancelToken, ProgressCallback, check, report
 from simulation.camera_model import flat_fielded_sensitivities
 from simulation.capture_model import CaptureModel
 from simulation.datasets import MODES, SimulationSetup
+from simulation.defaults import default_grid
 from simulation.halving import HalvingSettings, successive_halving
 from simulation.search import light_pairs, refine_top
 from simulation.spectral_estimation import SPECTRAL_METHODS, SpectralEstimator, SpectralTraining
@@ -172,10 +173,16 @@ class SpectralStudyResult:
     def to_json(self) -> dict:
         return {"setup": self.spec.to_dict(), "config": asdict(self.config), "elapsed_s": round(self.elapsed_s, 2),
                 "apply_us_per_pixel": self.apply_us_per_pixel, "modes": self.modes,
-                "metrics": {"rmse": "mean over test patches of the RMSE over 410-780 nm (factor, 0.01 = 1 %)",
+                "metrics": {"rmse": "mean over test patches of the RMSE over the mode's grid (factor, 0.01 = 1 %)",
                             "rmse_seen": "the same over the wavelengths the system sees (1 % of a channel's peak)",
                             "gfc": "mean goodness-of-fit coefficient", "de00": "mean CIEDE2000 under each light",
                             "lights": list(OTHER_LIGHTS)}}
+
+
+def mode_spec(mode: str, step: float) -> SetupSpec:
+    """The mode's grid (the parsimony study's range, simulation.defaults.default_grid) at ``step`` nm."""
+    grid = default_grid(mode)
+    return SetupSpec(mode, step, grid.start, grid.end)
 
 
 def spectral_study(spec: SetupSpec = SetupSpec(), cfg: SpectralStudyConfig = SpectralStudyConfig(), *,
@@ -185,10 +192,10 @@ def spectral_study(spec: SetupSpec = SetupSpec(), cfg: SpectralStudyConfig = Spe
     modes = []
     for i, mode in enumerate(cfg.modes):
         report(progress, i / len(cfg.modes), f"spectral study: {mode}")
-        setup = SetupSpec(mode, spec.step, spec.start, spec.end).build()
+        setup = mode_spec(mode, spec.step).build()
         modes.append(mode_study(setup, cfg, cancel=cancel))
     report(progress, 1.0, "spectral study done")
-    wl = SetupSpec(cfg.modes[0], spec.step, spec.start, spec.end).grid.wavelengths
+    wl = mode_spec(cfg.modes[0], spec.step).grid.wavelengths
     apply_us = {f"{c} channels": apply_us_per_pixel(
         SpectralEstimator(np.zeros((len(wl), c)), wl, [f"c{i}" for i in range(c)], "pinv")) for c in (3, 6)}
     return SpectralStudyResult(spec, cfg, modes, apply_us, time.perf_counter() - t0)
@@ -225,7 +232,7 @@ def _plane(a1, a2, m: dict) -> None:
     for ax in (a1, a2):
         ax.axhline(0.03, color="k", ls="--", lw=0.8)
         ax.grid(True, alpha=0.3)
-        ax.set_ylabel("test mean spectral RMSE (410-780 nm)")
+        ax.set_ylabel("test mean spectral RMSE (the mode's grid)")
     handles = [a1.plot([], [], "o", color=c, label=k)[0] for k, c in _COLOURS.items()]
     handles += [a1.plot([], [], _MARKERS[k], color="0.3", label=k)[0] for k in _MARKERS]
     a1.legend(handles=handles, fontsize=7, loc="best")
