@@ -28,6 +28,19 @@ def led_responses(leds: np.ndarray, samples: np.ndarray, camera: np.ndarray) -> 
     return np.einsum("kw,nw,wc->knc", leds, np.atleast_2d(samples), camera)
 
 
+def with_flare(responses: np.ndarray, flare: float) -> np.ndarray:
+    """Per-LED responses (n_leds, n, 3) of a target's patches with veiling glare: each patch gets ``flare`` times
+    the frame's mean response, the frame's mean taken as the target's mean patch (linear in the levels, so it
+    holds for every light by superposition). ``flare`` 0: the same array.
+
+    The virtual lab's worlds add glare the same way, from the frame's actual mean (drivers/virtual/camera.py); the
+    stand fit (simulation/stand_fit.py) estimates ``flare`` from calibration captures.
+    """
+    if not flare:
+        return responses
+    return responses + flare * responses.mean(axis=1, keepdims=True)
+
+
 def channel_names(n_lights: int) -> list[str]:
     return [f"{c}{i + 1}" for i in range(n_lights) for c in CHANNELS]
 

@@ -62,6 +62,7 @@ class SimulationSetup:
     camera_name: str = "Nikon 5100 (NPL)"
     led_names: list[str] = field(default_factory=lambda: [f"LED{i}" for i in range(1, 11)])
     reference_xyz: str = REFERENCE_EQ_4_2   # how the targets' reference XYZ are computed (target_xyz)
+    flare: float = 0.0              # veiling glare, fraction of the mean signal (camera_model.with_flare)
 
     def describe(self) -> dict:
         return {"mode": self.mode, "grid": self.grid.label(), "camera": self.camera_name,

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simulation.camera_model import led_responses
+from simulation.camera_model import led_responses, with_flare
 from simulation.capture_model import CaptureModel
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target, target_xyz
@@ -142,9 +142,9 @@ class ExpectedErrorModel:
         Q = np.einsum("nab,nbc,ncd->nad", J.transpose(0, 2, 1), de2000_metric(lab), J)
         ref_cov = (c.reference_gain_sd**2 * np.einsum("na,nb->nab", xyz, xyz)
                    + c.reference_sd**2 * np.einsum("na,ab->nab", xyz**2, np.eye(3)))
-        return TargetTerms(led_responses(s.leds, target.spectra, s.camera),
-                           led_responses(self.dleds, target.spectra, s.camera), xyz, lab, Q, ref_cov,
-                           c.pixels(which) * c.trim_efficiency)
+        R = with_flare(led_responses(s.leds, target.spectra, s.camera), s.flare)      # the flare's part too
+        dR = with_flare(led_responses(self.dleds, target.spectra, s.camera), s.flare)
+        return TargetTerms(R, dR, xyz, lab, Q, ref_cov, c.pixels(which) * c.trim_efficiency)
 
     # ---- the capture of a light set ----------------------------------------------------------------------
     def realise(self, W: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from simulation.camera_model import channel_names, channel_responses, led_responses
+from simulation.camera_model import channel_names, channel_responses, led_responses, with_flare
 from simulation.colorimetry import delta_e_2000, xyz_to_lab
 from simulation.datasets import SimulationSetup, Target, check_setup, target_xyz
 from simulation.fast_de import mean_de2000_mapped
@@ -82,7 +82,7 @@ class PatchSet:
         self.target = target
         self.xyz, self.white = target_xyz(setup, reference or target)    # eq 4.2 unless the setup says E308
         self.lab = xyz_to_lab(self.xyz, self.white)
-        self.R = led_responses(setup.leds, target.spectra, setup.camera)     # (K, n, 3)
+        self.R = with_flare(led_responses(setup.leds, target.spectra, setup.camera), setup.flare)  # (K, n, 3)
         self._lab32 = [np.ascontiguousarray(self.lab[:, i], dtype=np.float32) for i in range(3)]
 
     def __len__(self) -> int:

@@ -57,7 +57,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "chose it)")
     p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
                    help="a stand folder (`dualrgb measure leds`): warn when the preset sets an LED below the "
-                        "measured minimum stable level, where its output is not proportional to the level")
+                        "measured minimum stable level, where its output is not proportional to the level; its LED "
+                        "spectra are the stand model's starting curves")
+    p.add_argument("--camera-csv", type=input_file,
+                   help="the camera's measured sensitivities (`dualrgb measure csrf`): the stand model fitted to the "
+                        "captures starts from them instead of the nominal curves")
     add_device_options(p)
     p.set_defaults(func=main)
 
@@ -87,6 +91,15 @@ def resolve(args: argparse.Namespace) -> tuple[Any, str, int, int]:
     return preset, args.hdr or d.hdr, args.dark_frames or d.dark_frames, args.flat_frames or d.flat_frames
 
 
+def _stand_start(args: argparse.Namespace) -> Any:
+    """The measured curves the stand fit starts from (None: nominal)."""
+    if not (args.camera_csv or args.stand_dir):
+        return None
+    from app.workflow.stand_reoptimise import Measurements, assemble
+
+    return assemble(None, Measurements.of(args.camera_csv, None, args.stand_dir))[0]
+
+
 def main(args: argparse.Namespace) -> int:
     from app.workflow.copystand import CopyStand, StandSettings
     from app.workflow.targets import load_grid
@@ -101,7 +114,7 @@ def main(args: argparse.Namespace) -> int:
     grids = {k: load_grid(v) for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
     settings = StandSettings(settle_s=args.settle, dark_frames=darks, flat_frames=flats,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
-                             target_width_mm=args.target_width_mm)
+                             target_width_mm=args.target_width_mm, stand_start=_stand_start(args))
     definition = {"workflow": "calibrate", "mode": mode, "preset": preset.name, "hdr": hdr,
                   "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle, **virtual_world(args)}
     with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:

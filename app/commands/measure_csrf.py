@@ -5,9 +5,10 @@
     dualrgb measure csrf --manual --camera auto --photodiode resp.csv --photocurrent current.csv --out d610.csv
 
 The sweep runs in a session folder (``--session``, default ``<out>-session`` beside the CSV): crash-safe and
-resumable with the same options. On the virtual lab without ``--radiance`` the virtual spectroradiometer measures
-the monochromator's output after the sweep (``<session>/radiance-virtual.csv``), and the result is compared with
-the curves the virtual camera renders with.
+resumable with the same options. On the virtual lab (``--world``: the camera it renders with is the world's; the
+world is part of the session's definition) without ``--radiance`` the virtual spectroradiometer measures the
+monochromator's output after the sweep (``<session>/radiance-virtual.csv``), and the result is compared with the
+curves the virtual camera renders with.
 """
 from __future__ import annotations
 
@@ -19,8 +20,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from app.commands.options import count, frame_size, input_file, number, seconds, seed
-from app.commands.stand_options import ask_person, open_session, real_camera
+from app.commands.options import add_world_option, count, frame_size, input_file, number, seconds, seed
+from app.commands.stand_options import ask_person, open_session, real_camera, virtual_world
 from app.json_output import add_json_option, write_json
 
 log = logging.getLogger(__name__)
@@ -64,8 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     v = p.add_argument_group("devices")
     v.add_argument("--frame-size", type=frame_size, default=(240, 160), help="virtual lab frames WxH (240x160)")
     v.add_argument("--seed", type=seed, default=0, help="virtual lab noise seed")
-    v.add_argument("--virtual-camera-csv", type=input_file,
-                   help="the virtual lab renders with this camera CSV instead of the nominal one")
+    add_world_option(v)          # the camera the bench renders with is the world's (another camera: a world file)
     v.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
     v.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
     add_json_option(p)
@@ -81,8 +81,9 @@ def _check_options(args: argparse.Namespace) -> None:
         if args.camera:
             raise ValueError("--camera is for a real camera; --virtual-lab has its own")
     else:
-        if args.virtual_camera_csv:
-            raise ValueError("--virtual-camera-csv is for --virtual-lab")
+        if args.world != "nominal":
+            raise ValueError(f"--world {args.world}: a world is what the virtual lab renders; use it with "
+                             "--virtual-lab")
         if not args.camera:
             raise ValueError("name the camera: --camera 'MODEL @ PORT' or --camera auto (`dualrgb devices`)")
         if not (args.radiance or args.photodiode):
@@ -104,7 +105,7 @@ def _devices(args: argparse.Namespace) -> Iterator[tuple[Any, Any, Any]]:
     if args.virtual_lab:
         from drivers.virtual.monochromator_bench import MonochromatorBench
 
-        with MonochromatorBench(frame_size=args.frame_size, seed=args.seed, camera_csv=args.virtual_camera_csv,
+        with MonochromatorBench(frame_size=args.frame_size, seed=args.seed, world=args.world,
                                 timeout_s=args.timeout) as bench:
             if args.iso or args.aperture:
                 from drivers.camera.base import CameraSettings
@@ -135,7 +136,7 @@ def main(args: argparse.Namespace) -> int:
     folder = args.session or args.out.with_name(f"{args.out.stem}-session")
     with _devices(args) as (camera, mono, bench):
         definition = {**settings.definition(), "monochromator": "virtual" if bench else
-                      "manual" if args.manual else "cornerstone"}
+                      "manual" if args.manual else "cornerstone", **virtual_world(args)}
         with open_session(folder, definition, camera, {"measurement": "csrf"}) as session:
             radiance = reference if reference is not None else _virtual_radiance(bench, session.path, args)
             m = measure_csrf(camera, mono, session, settings, radiance=radiance, out=args.out, prompt=ask_person,

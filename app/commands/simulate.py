@@ -68,18 +68,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=None,
                    help="spectral step in nm (default: the parsimony study's choice for the mode, "
                         "resources/parsimony.json)")
-    _add_measurement_options(p)
+    _add_data_options(p)
     p.set_defaults(func=main)
 
 
-def _add_measurement_options(p: argparse.ArgumentParser) -> None:
-    """What the stand and its targets measured, replacing the nominal model's curves where given."""
+def _add_data_options(p: argparse.ArgumentParser) -> None:
+    """The measured data that replace the packaged ones, and the stand to re-optimise for."""
     p.add_argument("--camera-csv", type=input_file, help="measured camera sensitivities (wavelength_nm,R,G,B)")
     p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
     p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
                    help="a stand folder from `dualrgb measure leds` / `measure import-leds`: its measured LED "
                         "spectra (leds.csv) and minimum stable level replace the nominal ones (an explicit "
                         "--leds-csv / --min-level wins)")
+    p.add_argument("--stand", type=input_file, metavar="CAL.json",
+                   help="re-optimise for the stand a calibration profile fitted (its stand model: the nominal "
+                        "curves, the measurements given by --camera-csv / --leds-csv / --stand-dir / --min-level, and "
+                        "the parameters fitted to its captures; refitted when the measurements differ from its own)")
     p.add_argument("--train-csv", type=input_file,
                    help="measured training target spectra (spectral CSV or CGATS / X-Rite file)")
     p.add_argument("--test-csv", type=input_file,
@@ -95,9 +99,12 @@ def main(args: argparse.Namespace) -> int:
 
     from simulation.datasets import default_setup
     from simulation.defaults import default_grid
-    from simulation.presets import save_preset
-    from simulation.runner import format_table, run
+    from simulation.runner import run
 
+    if args.top < 1:
+        raise ValueError(f"--top {args.top}: expected at least 1")
+    if args.stand is not None:
+        return _main_stand(args)
     _apply_stand(args)
     grid = default_grid(args.mode)                     # the parsimony study's grid for this mode
     if args.step is not None:
@@ -105,20 +112,52 @@ def main(args: argparse.Namespace) -> int:
     setup = default_setup(args.mode, grid, camera_csv=args.camera_csv,
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv,
                           reference_xyz=args.reference_xyz)
-    if args.top < 1:
-        raise ValueError(f"--top {args.top}: expected at least 1")
     with TerminalProgress(f"simulate {args.method}") as progress:
         result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, objective=args.objective,
                      capture=_capture(args), progress=progress, spectral_weight=args.spectral_weight)
+    return _write(args, result, result.preset() if args.preset_out else None)
+
+
+def _write(args: argparse.Namespace, result, preset) -> int:
+    """The table on stdout, the JSON and the preset where asked."""
+    from simulation.presets import save_preset
+    from simulation.runner import format_table
+
     if args.json != "-":
         print(format_table(result))
     if args.json:
         if write_json(args.json, FORMAT, result.to_json()):
             print(f"wrote {args.json}", file=sys.stderr)
     if args.preset_out:
-        save_preset(result.preset(), args.preset_out)
+        save_preset(preset, args.preset_out)
         print(f"wrote preset {args.preset_out}", file=sys.stderr)
     return 0
+
+
+def _main_stand(args: argparse.Namespace) -> int:
+    """``--stand CAL.json``: the same search on the stand model (app.workflow.stand_reoptimise)."""
+    from dataclasses import replace
+
+    from app.workflow.profile import load_profile
+    from app.workflow.stand_reoptimise import Measurements, assemble, reoptimise, stand_preset
+    from simulation.defaults import default_grid
+
+    profile = load_profile(args.stand)
+    model, notes = assemble(profile, Measurements.of(args.camera_csv, args.leds_csv, args.stand_dir, args.min_level))
+    for line in notes:
+        print(f"stand: {line}", file=sys.stderr)
+    grid = default_grid(args.mode)                     # the parsimony study's grid for this mode
+    if args.step is not None:
+        grid = replace(grid, step=args.step)
+    with TerminalProgress(f"simulate {args.method} (stand {profile.id})") as progress:
+        result = reoptimise(model, args.mode, method=args.method, objective=args.objective, seed=args.seed,
+                            top=args.top, capture=_capture(args), grid=grid,
+                            targets={"train_csv": args.train_csv, "test_csv": args.test_csv,
+                                     "reference_xyz": args.reference_xyz}, progress=progress, bins=args.bins,
+                            spectral_weight=args.spectral_weight)
+    result.extra["stand"]["calibration"] = str(profile.path)
+    return _write(args, result, stand_preset(result, model, f"{args.mode} for stand {profile.id}")
+                  if args.preset_out else None)
 
 
 def _apply_stand(args: argparse.Namespace) -> None:

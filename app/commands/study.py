@@ -12,6 +12,7 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study thesis         [--out DIR] [--budget full|small] [--json PATH] [--readme README.md]
   dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
                                [--seeds N] [--scheduler local|ADDRESS]
+  dualrgb study stand          [--out DIR] [--world W] [--seeds N] [--frame-size WxH]   (app.workflow.stand_study)
 
 ``--out`` defaults to ``studies/<study>`` in the per-user data folder (resources.user_path), where the GUI lists
 the charts. ``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
@@ -27,7 +28,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from app.commands import study_thesis
-from app.commands.options import count, input_file, number, positive
+from app.commands.options import add_world_option, count, frame_size, input_file, number, positive
 from app.terminal_progress import TerminalProgress
 from simulation.choices import MODES
 
@@ -82,6 +83,34 @@ def register(sub: argparse._SubParsersAction) -> None:
     _spectral_study(ss)
     _distributed_studies(ss)
     study_thesis.register(ss, _out_option)          # the thesis' tables reproduced (its own module)
+    _stand_study(ss)
+
+
+def _stand_study(ss: argparse._SubParsersAction) -> None:
+    """stand: the stand model fitted to a calibration in a mismatched world, and the lights re-chosen on it."""
+    q = ss.add_parser("stand", help="the stand model fitted to calibration captures in a virtual-lab world: R^2, "
+                                    "predicted vs captured dE00, lights re-optimised on it vs the nominal preset "
+                                    "and the world's optimum")
+    _out_option(q, "stand")
+    q.add_argument("--mode", choices=MODES, default="reflective")
+    add_world_option(q)
+    q.set_defaults(world="mismatched-d700")
+    q.add_argument("--seeds", type=positive, default=3, help="capture seeds per light set (default 3)")
+    q.add_argument("--frame-size", type=frame_size, default=(600, 400), help="virtual lab frames WxH (600x400)")
+    q.set_defaults(func=stand_main)
+
+
+def stand_main(args: argparse.Namespace) -> int:
+    from app.workflow.stand_study import StandStudyConfig, stand_study, summary_lines, write_outputs
+    from simulation.studies.common import StudyOutput
+
+    out = StudyOutput(_out(args))
+    cfg = StandStudyConfig(world=args.world, mode=args.mode, frame_size=args.frame_size,
+                           seeds=tuple(range(args.seeds)))
+    with _progress(args) as progress:
+        result = stand_study(cfg, out.folder / "work", progress=progress)
+    write_outputs(result, out)
+    return _done(out, summary_lines(result)[4:])
 
 
 def _spectral_study(ss: argparse._SubParsersAction) -> None:

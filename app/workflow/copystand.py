@@ -83,6 +83,8 @@ class StandSettings:
     meter_tiles: int = 12                     # metering regions across the frame (HDR decision for originals)
     original_frames: int = 1                  # frames averaged per exposure of an original (noise / sqrt(n))
     render_illuminant: str = DEFAULT_RENDER_ILLUMINANT   # the light the spectral rendering is seen under
+    stand_start: Any = None                   # the stand model the fit starts from (simulation.stand_model; None:
+                                              # nominal): measured camera / LEDs (calibrate --camera-csv, --stand-dir)
 
 
 @dataclass
@@ -208,7 +210,7 @@ class CopyStand:
                                  exposures={n: [t] for n, t in base.items()}, optimise=optimise,
                                  white_xyz=reference_white(preset.mode), title=f"calibration, {preset.name}",
                                  progress=lambda f, m: report(self.progress, 0.6 + 0.35 * f, m), cancel=self.cancel,
-                                 mode=preset.mode)
+                                 mode=preset.mode, stand_start=self.settings.stand_start)
         profile = self._profile(preset, lights, plan, base, result, specs["test"])
         profile.save(self.session.path / "calibration")
         report(self.progress, 1.0, f"calibration {profile.id} saved")
@@ -234,7 +236,7 @@ class CopyStand:
             raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
                  "linear_limit": proc.linear_limit, "shape": list(first.white.shape)},
             targets={"train": result.report.get("train"), "test": result.report.get("test")},
-            darks=proc.darks, whites=dict(proc._whites), **_spectral_fields(result))
+            darks=proc.darks, whites=dict(proc._whites), **_spectral_fields(result), **_stand_fields(result))
 
     def _ppi(self, test: TargetSpec) -> float | None:
         if self.settings.ppi:
@@ -348,6 +350,13 @@ def _spectral_fields(result: SessionResult) -> dict:
         return {}
     section = result.spectral.to_dict()
     return {"estimator": result.spectral.estimator, "spectral": {k: v for k, v in section.items() if k != "estimator"}}
+
+
+def _stand_fields(result: SessionResult) -> dict:
+    """The profile's stand model section and its observations (none when the fit was not made)."""
+    if result.stand is None:
+        return {}
+    return {"stand": result.stand.summary(), "stand_observations": result.stand.observations}
 
 
 def original_takes(session: Any, original: Original) -> list[int]:

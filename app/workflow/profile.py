@@ -13,6 +13,12 @@ warm-white LED). A profile without it (made before, or without the targets' spec
 unavailable (:meth:`CalibrationProfile.spectral_estimator`). The estimator maps the same channels as the matrix
 (checked on load) from the same lights (checked on every reuse, :func:`check_reuse`).
 
+The stand model fitted to the calibration's captures (app/workflow/stand_calibration.py) is another optional
+section, ``stand_model``: the fitted model (measurements it started from, parameters with uncertainties), R^2 of
+the nominal and the fitted model against the captured patch means, the captured test CIEDE2000 beside what each
+model predicts; the observations it was fitted to are ``stand_*`` arrays in the .npz (a refit from other
+measurements needs only the profile). A profile without it loads and says the stand model was not fitted.
+
 Reuse (:func:`check_reuse`): a different camera serial, camera model, ISO, aperture, virtual-lab world
 (drivers.virtual.world: a calibration made in one world is refused in another), light levels, or a sphere
 temperature more than ``ReuseLimits.temperature_drift_c`` away from the calibration's is a refusal (one line
@@ -37,10 +43,13 @@ import numpy as np
 
 from app.processing.calibration import DarkFrame, FlatField, MasterDark
 from app.session.capture_session import atomic_write
+from app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
 from app.workflow.vocabulary import NamedLight, exposure_key
+from simulation.defaults import default_grid
 from simulation.lightsource import LightSource
 from simulation.matrix_fit import CharacterisationMatrix
 from simulation.spectral_estimation import SpectralEstimator
+from simulation.stand_fit import StandObservations
 from simulation.versions import dualrgb_version, software_versions
 
 log = logging.getLogger(__name__)
@@ -146,6 +155,8 @@ class CalibrationProfile:
     path: Path | None = None
     spectral: dict = field(default_factory=dict)     # the spectral section without the estimator (figures, choice)
     estimator: SpectralEstimator | None = None       # the spectral estimate; None: spectra unavailable
+    stand: dict = field(default_factory=dict)        # the stand model section (app.workflow.stand_calibration)
+    stand_observations: StandObservations | None = None   # what it was fitted to (from the .npz)
 
     # ---- derived ----
     @property
@@ -183,7 +194,8 @@ class CalibrationProfile:
                 "exposures": self.exposures, "base_exposures": self.base_exposures,
                 "matrix": self.matrix.to_dict(), "statistics": self.statistics, "white_xyz": self.white_xyz,
                 "raw": self.raw, "ppi": self.ppi, "targets": self.targets, "sources": self.sources,
-                **({"spectral": {"estimator": self.estimator.to_dict(), **self.spectral}} if self.estimator else {})}
+                **({"spectral": {"estimator": self.estimator.to_dict(), **self.spectral}} if self.estimator else {}),
+                **({"stand_model": self.stand} if self.stand else {})}
 
     # ---- files ----
     def save(self, folder: Path) -> Path:
@@ -200,6 +212,8 @@ class CalibrationProfile:
         for i, (name, ff) in enumerate(self.whites.items()):
             arrays[f"white_{i}"] = ff.white
             white_index.append({"array": f"white_{i}", "light": name, "threshold": ff.threshold})
+        if self.stand_observations is not None:
+            arrays.update(observation_arrays(self.stand_observations))
         buf = io.BytesIO()
         np.savez(buf, **arrays)
         data = buf.getbuffer()
@@ -245,7 +259,8 @@ def _from_dict(doc: dict) -> CalibrationProfile:
         base_exposures={k: float(v) for k, v in doc["base_exposures"].items()},
         matrix=CharacterisationMatrix.from_dict(doc["matrix"]), statistics=doc["statistics"],
         white_xyz=[float(v) for v in doc["white_xyz"]], raw=doc["raw"], sources=doc["sources"], ppi=doc.get("ppi"),
-        targets=doc.get("targets", {}), version=doc.get("version", ""), **_spectral_of(doc))
+        targets=doc.get("targets", {}), version=doc.get("version", ""), stand=dict(doc.get("stand_model") or {}),
+        **_spectral_of(doc))
 
 
 def _spectral_of(doc: dict) -> dict:
@@ -280,6 +295,9 @@ def _load_arrays(prof: CalibrationProfile, folder: Path, index: dict) -> None:
         ff = FlatField.__new__(FlatField)          # the threshold was decided when it was made: keep it
         ff.white, ff.threshold, ff.n_invalid = arrays[w["array"]], float(w["threshold"]), 0
         prof.whites[w["light"]] = ff
+    if prof.stand:
+        prof.stand_observations = observations_from_arrays(arrays, float(prof.stand.get("dn_scale", 1.0)),
+                                                           default_grid(prof.mode))
 
 
 def _sha256(path: Path, chunk: int = 1 << 22) -> str:
@@ -354,6 +372,7 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
                  f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, "
                  f"test mean {prof.test_mean or float('nan'):.3f}")
     lines.append(spectral_line(prof))
+    lines += describe_stand(prof.stand)
     lines.append(f"darks {len(prof.darks.exposures) if prof.darks else '?'} exposures, whites "
                  f"{len(prof.whites) or '?'} lights, {len(prof.sources)} source frames, "
                  f"ppi {prof.ppi if prof.ppi else 'not set'}")

@@ -26,6 +26,8 @@ from simulation.lightsource import LightSource
 
 if TYPE_CHECKING:
     from app.processing.spectral import SpectralCharacterisation
+    from app.workflow.stand_calibration import StandResult
+    from simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
@@ -133,6 +135,7 @@ class SessionResult:
     processor: CaptureProcessor
     lights: list[str]
     spectral: SpectralCharacterisation | None = None      # the spectral estimate (known target spectra)
+    stand: StandResult | None = None                        # the stand model fitted to the captures
 
 
 def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None
@@ -160,13 +163,16 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec 
                     white_level: float | None = None, linear_limit: float | None = LINEAR_LIMIT_DN,
                     optimise: bool = True, white_xyz: np.ndarray | None = None, title: str = "dual-RGB capture",
                     progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
-                    mode: str | None = None) -> SessionResult:
+                    mode: str | None = None, stand_start: StandModel | None = None) -> SessionResult:
     """Darks, HDR whites, target stacks -> patch values -> matrices -> report.json + figures + CSVs in ``out_dir``.
 
     ``lights`` picks the light set (a session may hold several presets' captures; default: the training
     target's lights), ``exposures`` per light restricts which exposures are merged (default: all captured).
     ``white_xyz`` is the Lab reference white on the targets' XYZ scale (default: D65, Y = 100). ``mode``
-    ('reflective' / 'transmissive'): the HDR merge is that mode's default (resources/parsimony.json).
+    ('reflective' / 'transmissive'): the HDR merge is that mode's default (resources/parsimony.json). When the
+    targets' spectra and the lights are known the stand model is fitted to the captures (app.workflow.
+    stand_calibration; from ``stand_start``: nominal, or with measurements) and the report shows the thesis Fig 7.4
+    check before (nominal, ``dn_validation``) and after (``stand_model``).
     """
     from app.processing.quality import CalibrationFrames
     from app.processing.report import TargetData, build_report
@@ -180,26 +186,40 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec 
                            progress=sub_progress(progress, 0.0, 0.15), cancel=cancel, mode=mode)
     vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel)
     channels = stack.channels
-    vs = ss = None
+    vs = ss = stack_t = None
     if test is not None:
         test_frames = select_lights(frames.subject(test.subject), names, exposures)
-        vs, ss, _ = sample_target(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel)
+        vs, ss, stack_t = sample_target(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel)
     white = reference_white() if white_xyz is None else np.asarray(white_xyz, dtype=float)
     c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
                      optimise=optimise, progress=sub_progress(progress, 0.55, 0.8), cancel=cancel)
     check(cancel)
     spectral = _spectral(session, train, test, (vt, st, vs), channels, c.matrix.matrix, names, cancel)
+    stand = fit_session_stand(session, frames, proc, names, (train, vt, st, stack), (test, vs, stack_t), c, stand_start)
     files = _patch_files(out_dir, c, channels, ((train, vt), (test, vs)))
     data = [TargetData(s.names, s.xyz, v, s.layout, s.label or lbl, std=sd)
             for s, v, sd, lbl in ((train, vt, st, "train"), (test, vs, ss, "test")) if s is not None]
     calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
-    rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=train.simulated,
+    simulated, extra = _stand_report(stand, train, out_dir, channels)
+    rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=simulated,
                        title=title, extra={"session": str(session.path), "darks": proc.darks.exposures,
-                                           "lights": names}, calibration=calibration, spectral=spectral)
+                                           "lights": names, **extra}, calibration=calibration, spectral=spectral)
     files["report"] = out_dir / "report.json"
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names,
-                         spectral)
+                         spectral, stand)
+
+
+def _stand_report(stand: StandResult | None, train: TargetSpec, out_dir: Path, channels: list[str]
+                  ) -> tuple[np.ndarray | None, dict]:
+    """The report's simulated training values for Fig 7.4 (the target's own, else the nominal stand model's) and
+    its ``stand_model`` section (the fitted model's check, app.workflow.stand_calibration)."""
+    if stand is None:
+        return train.simulated, {}
+    from app.workflow.stand_calibration import report_section
+
+    simulated = train.simulated if train.simulated is not None else stand.values("start")
+    return simulated, {"stand_model": report_section(stand, out_dir, channels, train.names)}
 
 
 def _patch_files(out_dir: Path, c: Characterisation, channels: list[str],
@@ -243,3 +263,19 @@ def _spectral(session, train: TargetSpec, test: TargetSpec | None, values: tuple
         train.mode, list(channels), vt, train.spectra, st, vs if with_test else None,
         test.spectra if with_test and test is not None else None, xyz_matrix,
         frame_lights(session, train.subject, names)), cancel)
+
+
+def fit_session_stand(session, frames: SessionFrames, proc: CaptureProcessor, names: Sequence[str], train: tuple,
+                      test: tuple, c: Characterisation, start: StandModel | None) -> StandResult | None:
+    """The stand model fitted to the processed captures (app.workflow.stand_calibration) when the training
+    target's spectra and the lights' levels are known, else None. ``train``: (spec, means, per-pixel sd, stack);
+    ``test``: (spec or None, means, stack)."""
+    from app.workflow.stand_calibration import fit_processed
+
+    spec = train[0]
+    lights = frame_lights(session, spec.subject, names)
+    if spec.spectra is None or not spec.mode or lights is None:
+        return None
+    entry = next((e for e in latest_takes(session.entries()) if subject_of(e) == spec.subject), None)
+    settings = (getattr(entry, "iso", None), getattr(entry, "aperture", None))
+    return fit_processed(proc, frames, list(names), lights, train, test, c, start, settings)

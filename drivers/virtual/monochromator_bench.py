@@ -2,8 +2,8 @@
 Cornerstone driver talking to it through that pty (the code path of the real instrument), and the virtual camera
 looking at the monochromator's output diffused by an integrating sphere - a uniform field
 (drivers.virtual.scene.FieldLight) whose light is the emulator's band at the moment of each exposure, rendered
-through the sensitivities the camera renders everything with (``VirtualCamera.camera_sensitivities``; pass
-``camera_csv`` to render with another camera, until the virtual lab's worlds name one).
+through the sensitivities the camera renders everything with (``VirtualCamera.camera_sensitivities``: the
+``world``'s camera, drivers.virtual.world; another camera is a world file naming its ``camera_csv``).
 
     with MonochromatorBench(frame_size=(240, 160)) as bench:
         bench.monochromator.goto(550); bench.monochromator.open_shutter(); raw = bench.camera.capture(0.25)
@@ -13,7 +13,6 @@ through the sensitivities the camera renders everything with (``VirtualCamera.ca
 from __future__ import annotations
 
 import logging
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,6 +24,7 @@ from drivers.virtual.monochromator_emulator import MonochromatorEmulator
 from drivers.virtual.monochromator_light import MonochromatorOptics
 from drivers.virtual.radiometers import VirtualPhotodiode, VirtualSpectroradiometer
 from drivers.virtual.scene import FieldLight, Scene
+from drivers.virtual.world import World, load_world
 
 log = logging.getLogger(__name__)
 
@@ -38,12 +38,12 @@ class MonochromatorBench:
     """See the module docstring. ``manual=True``: the monochromator is a ManualMonochromator (a person turns the
     emulated instrument's knob: :meth:`MonochromatorEmulator.set_by_hand`), else the Cornerstone driver."""
 
-    def __init__(self, frame_size: tuple[int, int] = (240, 160), seed: int = 0, camera_csv: str | Path | None = None,
+    def __init__(self, frame_size: tuple[int, int] = (240, 160), seed: int = 0, world: World | str | None = None,
                  optics: MonochromatorOptics | None = None, timeout_s: float = 1.0, manual: bool = False,
                  vignetting: float = 0.04):
         self.width, self.height = (int(frame_size[0]) // 2 * 2, int(frame_size[1]) // 2 * 2)
         self.seed = seed
-        self.camera_csv = camera_csv
+        self.world = load_world(world)
         self.emulator = MonochromatorEmulator(optics)
         self._timeout = timeout_s
         self._manual = manual
@@ -65,7 +65,7 @@ class MonochromatorBench:
         field = FieldLight(self._emission, "monochromator output (integrating sphere)")
         self.camera = VirtualCamera(lambda: dark_sphere, Scene.uniform_field(field, self.width, self.height,
                                                                              vignetting=self._vignetting),
-                                    camera_csv=self.camera_csv, seed=self.seed, clock=self.emulator.clock)
+                                    world=self.world, seed=self.seed, clock=self.emulator.clock)
         self.camera.open()
         log.info("virtual monochromator bench on %s (%s)", port, "manual" if self._manual else "Cornerstone")
         return self

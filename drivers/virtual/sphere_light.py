@@ -4,7 +4,8 @@ spectroradiometer measures (one model for both).
 * shape: each LED's 1 nm spectrum (resources/leds/sphere10_relative.csv, thesis Table 4.2 shaped with
   ``colour.sd_single_led``), moved by the world's peak shift plus the emulator's drift at that moment (thesis
   4.3.2, drivers/virtual/led_physics.py), and stretched about its peak by the world's width scale:
-  ``S'(lambda) = S(p + (lambda - p - shift) / width)`` (peak height kept, FWHM x width);
+  ``S'(lambda) = S(p + (lambda - p - shift) / width)`` (peak height kept, FWHM x width) - with
+  :func:`simulation.led_shapes.shaped_led_spectra`, the function the fitted stand model predicts with;
 * output: times the world's output scale; the PWM level becomes output through the world's low-level response
   (:class:`drivers.virtual.world.LowLevelResponse`), and LEDs add up (superposition, thesis 3.1.2);
 * absolute scale (the spectroradiometer): a relative unit is LED 2's peak spectral radiance in thesis Table 4.2
@@ -21,6 +22,7 @@ import numpy as np
 
 import resources
 from drivers.virtual.world import World, load_world
+from simulation.led_shapes import shaped_led_spectra, table_peaks
 from simulation.spectral_io import read_spectral_csv
 
 log = logging.getLogger(__name__)
@@ -47,7 +49,7 @@ class SphereLight:
         self.wavelengths = table.wavelengths
         self.native = table.values.T.copy()                      # (n_leds, n_wl) relative radiance
         self.n_leds = self.native.shape[0]
-        self.peaks_nm = self.wavelengths[np.argmax(self.native, axis=1)]
+        self.peaks_nm = table_peaks(self.wavelengths, self.native)
         if self.n_leds != len(self.world.led_peak_shift_nm) and not self.world.leds_nominal:
             raise ValueError(f"world {self.world.name!r} describes {len(self.world.led_peak_shift_nm)} LEDs but "
                              f"{table.source} has {self.n_leds}")
@@ -64,21 +66,11 @@ class SphereLight:
         if drift.shape != (self.n_leds,):
             raise ValueError(f"peak_shift_nm has shape {drift.shape}; expected ({self.n_leds},)")
         use_world = not nominal and not self.world.leds_nominal
-        shifts = self._world_shift() + drift if use_world else drift
-        wl = self.wavelengths
-        out = np.empty_like(self.native)
-        for k in range(self.n_leds):
-            width = self.world.led_width_scale[k] if use_world else 1.0
-            if width != 1.0:      # S(p + (wl - p - s) / w): sample positions p + s + (wl - p) w carry S(wl)
-                p = self.peaks_nm[k]
-                out[k] = np.interp(wl, p + shifts[k] + (wl - p) * width, self.native[k], left=0.0, right=0.0)
-            elif shifts[k]:       # S(wl - s): the whole spectrum moves; zero outside the table's range
-                out[k] = np.interp(wl, wl + shifts[k], self.native[k], left=0.0, right=0.0)
-            else:
-                out[k] = self.native[k]
-            if use_world and self.world.led_output_scale[k] != 1.0:
-                out[k] *= self.world.led_output_scale[k]
-        return out
+        if not use_world:
+            return shaped_led_spectra(self.wavelengths, self.native, drift, peaks_nm=self.peaks_nm)
+        w = self.world
+        return shaped_led_spectra(self.wavelengths, self.native, self._world_shift() + drift, w.led_width_scale,
+                                  w.led_output_scale, self.peaks_nm)
 
     def output(self, levels: np.ndarray) -> np.ndarray:
         """Relative output of each LED at PWM ``levels`` (the world's low-level response; ideal: ``levels``)."""

@@ -32,11 +32,25 @@ def test_virtual_lab_writes_the_camera_csv_and_json(tmp_path, capsys):
     assert "kept" in capsys.readouterr().err and len(list((tmp_path / "cam-session").glob("*.DNG"))) == n_files
 
 
+def test_the_world_is_rendered_and_recorded_in_the_session(tmp_path, capsys):
+    out = tmp_path / "cam.csv"
+    args = ["measure", "csrf", "--virtual-lab", *SHORT, "--out", str(out), "--world", "nikon-d700"]
+    assert main(args) == 0
+    definition = json.loads((tmp_path / "cam-session" / "session.json").read_text())["definition"]
+    assert definition["world"].startswith("nikon-d700 (")
+    capsys.readouterr()
+    assert main(args[:-1] + ["sony-ilce-7rm2"]) == 1            # the same session in another world: refused
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "world" in err[0], err
+
+
 BAD = [
     (["--manual", "--radiance", "{radiance}"], "name the camera"),
     (["--monochromator", "/dev/null", "--camera", "auto"], "needs the monochromator's radiance"),
     (["--virtual-lab", "--photodiode", "{radiance}"], "--photodiode and --photocurrent go together"),
     (["--virtual-lab", "--camera", "auto"], "--camera is for a real camera"),
+    (["--manual", "--camera", "auto", "--radiance", "{radiance}", "--world", "nikon-d700"],
+     "use it with --virtual-lab"),
     (["--virtual-lab", "--start", "700", "--end", "600"], "range 700-600 nm"),
     (["--virtual-lab", "--radiance", "{bad}"], "does not name a set wavelength"),
 ]

@@ -17,7 +17,7 @@ from app.session.manifest import DefinitionMismatch, camera_definition
 from app.workflow.profile import CameraIdentity, check_reuse, load_profile
 from drivers.virtual.camera import StaticLight, VirtualCamera
 from drivers.virtual.world import load_world
-from tests.app.workflow_profiles import make_profile
+from tests.workflow_profiles import make_profile
 
 
 def _camera(world: str) -> VirtualCamera:

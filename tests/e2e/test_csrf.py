@@ -3,12 +3,14 @@ the Cornerstone driver over the emulator's pty, the virtual camera rendering the
 curves it renders with, the virtual spectroradiometer's file, the processing, the camera CSV.
 
 Must show: the measurement recovers the rendering camera's curves within 2 % of each channel's peak (RMS), also
-for cameras other than the nominal one (the RMS is computed here, from the CSV read back and the camera's own
-array); a hand-set monochromator with its prompts answered by a "person" (the test); a crash resumed without
-re-shooting; the shutter open only while frames are exposed, and closed after a cancel, a camera error and a
-monochromator error."""
+for cameras other than the nominal one: world files naming another camera CSV and the packaged worlds of measured
+cameras (the RMS is computed here, from the CSV read back and the camera's own array or, for the packaged worlds,
+its CSV in resources/cameras read directly); a hand-set monochromator with its prompts answered by a "person"
+(the test); a crash resumed without re-shooting; the shutter open only while frames are exposed, and closed after
+a cancel, a camera error and a monochromator error."""
 from __future__ import annotations
 
+import json
 import re
 
 import colour
@@ -22,6 +24,7 @@ from app.workflow.vocabulary import EventKind
 from drivers.camera.base import CameraError
 from drivers.monochromator.errors import MonochromatorError
 from drivers.virtual.monochromator_bench import MonochromatorBench
+from drivers.virtual.world import load_world
 from simulation.datasets import default_setup
 from simulation.radiance_reference import read_radiance_reference
 from simulation.spectral_io import read_spectral_csv
@@ -53,6 +56,13 @@ def sigma(tmp_path):
     return path
 
 
+def world_of(tmp_path, camera_csv):
+    """A world file whose camera is ``camera_csv`` (how the virtual lab renders with another camera)."""
+    path = tmp_path / "world.json"
+    path.write_text(json.dumps({"name": f"camera {camera_csv.stem}", "camera_csv": str(camera_csv)}))
+    return load_world(path)
+
+
 def measure(bench, tmp_path, settings=FULL, name="s", **kw):
     session = CaptureSession.create(tmp_path / name, definition=settings.definition())
 
@@ -80,7 +90,7 @@ def rms_percent(csv_path, wavelengths, truth) -> dict[str, float]:
 @pytest.mark.parametrize("camera", ["nominal", "shifted", "sigma"])
 def test_recovers_the_rendering_cameras_curves_within_2_percent(tmp_path, camera):
     csv = {"nominal": None, "shifted": nikon_shifted, "sigma": sigma}[camera]
-    with MonochromatorBench(frame_size=FRAME, camera_csv=csv(tmp_path) if csv else None) as bench:
+    with MonochromatorBench(frame_size=FRAME, world=world_of(tmp_path, csv(tmp_path)) if csv else None) as bench:
         m, session = measure(bench, tmp_path)
         wavelengths, truth = bench.truth()
     rms = rms_percent(m.path, wavelengths, truth)
@@ -92,6 +102,20 @@ def test_recovers_the_rendering_cameras_curves_within_2_percent(tmp_path, camera
     assert "session" in table.meta and "dualrgb" in table.meta and table.meta["range"].startswith("380-780 nm")
     setup = default_setup(camera_csv=str(m.path))                    # what `simulate --camera-csv` reads
     assert setup.camera.shape == (len(setup.grid), 3)
+
+
+@pytest.mark.parametrize("world,camera_file", [("sony-ilce-7rm2", "sony_ilce_7rm2_rawtoaces.csv"),
+                                               ("nikon-d700", "nikon_d700_rawtoaces.csv")])
+def test_recovers_a_packaged_measured_camera_worlds_curves_within_2_percent(tmp_path, world, camera_file):
+    with MonochromatorBench(frame_size=FRAME, world=world) as bench:
+        assert bench.camera.config_summary()["world"] == load_world(world).identity
+        m, _ = measure(bench, tmp_path)
+    table = read_spectral_csv(__import__("resources").path("cameras", camera_file))    # the world's camera, as shipped
+    wavelengths = np.arange(410.0, 781.0, 10.0)
+    truth = np.stack([np.interp(wavelengths, table.wavelengths, table.values[:, c]) for c in range(3)], axis=1)
+    rms = rms_percent(m.path, wavelengths, truth)
+    print(f"[csrf] world {world}: RMS error, % of peak: " + ", ".join(f"{k} {v:.2f}" for k, v in rms.items()))
+    assert all(v <= 2.0 for v in rms.values()), rms
 
 
 def test_a_hand_set_monochromator_with_prompts_answered_by_a_person(tmp_path):

@@ -1,5 +1,7 @@
 """Simulate & optimise: choose the sphere's two lights in simulation (exhaustive / PSO / GA), watch the search
-converge, look at the chosen lights and the six channel sensitivities, save the result as a preset."""
+converge, look at the chosen lights and the six channel sensitivities, save the result as a preset. "Re-optimise
+for this stand" runs the same search on the stand model the loaded calibration fitted
+(app.workflow.stand_reoptimise, as ``dualrgb simulate --stand``)."""
 from __future__ import annotations
 
 import logging
@@ -69,6 +71,32 @@ def partial_result(setup, tap: ConvergenceTap, method: str, seed: int, top: int,
     return RunResult(mode=setup.mode, method=method, seed=seed, elapsed_s=elapsed_s, evaluations=tap.evaluations,
                      three_channel={}, outcome=outcome, setup=setup, top=top, extra={"partial": True},
                      objective=getattr(tap, "objective", "noise-free"))
+
+
+def _stand_search(profile, mode: str, method: str, seed: int, top: int, objective: str, progress, cancel, emit,
+                  **settings) -> RunResult | None:
+    """The search on a calibration's stand model (app.workflow.stand_reoptimise), with the live plot's tap; a
+    cancelled search keeps its best so far, as the plain search does."""
+    from app.workflow.stand_reoptimise import assemble, reoptimise
+    from simulation.runner import make_evaluator
+
+    model, notes = assemble(profile)
+    holder: dict = {}
+
+    def tap_for(setup, capture):
+        holder["setup"] = setup
+        holder["tap"] = ConvergenceTap(make_evaluator(setup, objective, capture), lambda n, best: emit((n, best)))
+        return holder["tap"] if method != "three-channel" else None
+    t0 = time.perf_counter()
+    try:
+        result = reoptimise(model, mode, method=method, objective=objective, seed=seed, top=top, progress=progress,
+                            cancel=cancel, evaluator_factory=tap_for, **settings)
+    except Cancelled:
+        if "tap" not in holder:
+            return None
+        return partial_result(holder["setup"], holder["tap"], method, seed, top, time.perf_counter() - t0)
+    result.extra["stand"].update(calibration=profile.id, notes=notes)
+    return result
 
 
 class SimulatePanel(QWidget):
@@ -155,12 +183,19 @@ class SimulatePanel(QWidget):
         self.cancel_button.setToolTip("Stop the search (Esc); the best light pair found so far is kept (partial).")
         self.cancel_button.clicked.connect(self.cancel_running)
         self.cancel_button.setEnabled(False)
+        self.stand_button = QPushButton("Re-optimise for this stand")
+        self.stand_button.setToolTip("The same search on the stand model the current calibration fitted to its "
+                                     "captures (LED outputs and peaks, camera gains and curves, flare), as "
+                                     "`dualrgb simulate --stand`; load or make a calibration first.")
+        self.stand_button.clicked.connect(self.start_for_stand)
+        self.ctx.workspace.calibrationChanged.connect(self._stand_changed)
         self.save_button = QPushButton("Save as preset…")
         self.save_button.setToolTip("Save the selected light pair as a preset; it appears in Light source.")
         self.save_button.clicked.connect(self._ask_save)
         self.save_button.setEnabled(False)
-        for w in (self.run_button, self.cancel_button, self.save_button):
+        for w in (self.run_button, self.stand_button, self.cancel_button, self.save_button):
             buttons.addWidget(w)
+        self._stand_changed()
         self.progress = QProgressBar()
         self.progress.setRange(0, 1000)
         self.time_left = QLabel("")
@@ -260,7 +295,26 @@ class SimulatePanel(QWidget):
         self.objective.setEnabled(method != "three-channel")
 
     # ------------------------------------------------------------------ run
+    def _stand_changed(self) -> None:
+        profile = self.ctx.workspace.calibration
+        self.stand_button.setEnabled(profile is not None and bool(profile.stand)
+                                     and not (self.handle is not None and self.handle.running))
+
+    def start_for_stand(self) -> None:
+        """The search on the current calibration's stand model (off the GUI thread, like :meth:`start`)."""
+        profile = self.ctx.workspace.calibration
+        if profile is None or not profile.stand:
+            self.ctx.errors.report("Re-optimise for this stand", "load or make a calibration with a fitted stand "
+                                                                 "model first (Calibrate & capture)")
+            return
+        self._launch(profile)
+
     def start(self) -> None:
+        """The search on the nominal model (Run search)."""
+        self._launch(None)
+
+    def _launch(self, stand_profile) -> None:
+        """Start the search in the compute pool; ``stand_profile``: a calibration whose stand model it runs on."""
         if self.handle is not None and self.handle.running:
             return
         mode, method, seed, top = (self.mode.currentText(), self.method.currentText(), self.seed.value(),
@@ -276,12 +330,17 @@ class SimulatePanel(QWidget):
         self.time_left.setText("")
         self._t_search = None
         self._live_timer.start()
-        self.status.setText(f"running {method} ({mode}) …")
+        self.status.setText(f"running {method} ({mode})" + (f" for stand {stand_profile.id}" if stand_profile else "")
+                            + " …")
         self.run_button.setEnabled(False)
+        self.stand_button.setEnabled(False)
         self.cancel_button.setEnabled(True)
         self.save_button.setEnabled(False)
 
         def work(progress, cancel, emit) -> RunResult:
+            if stand_profile is not None:
+                return _stand_search(stand_profile, mode, method, seed, top, objective, progress, cancel, emit,
+                                     pso_settings=pso_settings, ga_settings=ga_settings)
             setup = default_setup(mode)
             tap = ConvergenceTap.make(setup, lambda n, best: emit((n, best)), objective)
             evaluator = tap if method != "three-channel" else None
@@ -330,6 +389,7 @@ class SimulatePanel(QWidget):
 
     def _finished(self) -> None:
         self.run_button.setEnabled(True)
+        self._stand_changed()
         self.cancel_button.setEnabled(False)
         self._live_timer.stop()
         self._draw_live()
@@ -358,6 +418,9 @@ class SimulatePanel(QWidget):
             text = "PARTIAL (cancelled): the best light pair found so far; " + text
         if base:
             text += f"; 3-channel D65 baseline: train {base['train']:.2f}, test {base['test']:.2f} ΔE00"
+        stand = result.extra.get("stand")
+        if stand:
+            text += "; on the stand model: " + "; ".join(stand.get("notes", []))
         self.status.setText(text)
         self.table.setRowCount(0)
         if result.outcome is None:
@@ -435,6 +498,8 @@ class SimulatePanel(QWidget):
             self.ctx.errors.report("Save the preset", "run a PSO, GA or exhaustive search first")
             return None
         preset = self.result.preset(rank, name=name)
+        if self.result.extra.get("stand"):                    # chosen on a stand model: the preset names it
+            preset.model["stand"] = self.result.extra["stand"]["model"]
         slug = "".join(c if c.isalnum() or c in "-_" else "_" for c in name).strip("_") or "preset"
         path = self.ctx.presets_dir / f"{slug}.json"
         self.ctx.runner.submit(lambda: save_preset(preset, path), pool="compute", name="save preset",

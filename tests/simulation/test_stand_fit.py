@@ -1,0 +1,112 @@
+"""The stand model and its fit (simulation.led_shapes, simulation.stand_model, simulation.stand_fit), against
+captures computed by hand (tests/simulation/stand_data.py: np.interp shifts, explicit eq 5.10 sums)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from simulation.camera_model import led_responses
+from simulation.datasets import default_setup
+from simulation.led_shapes import shaped_led_spectra
+from simulation.objective import PatchSet
+from simulation.stand_fit import Priors, fit_stand, predict, r2_per_channel
+from simulation.stand_model import StandModel, StandParameters
+from tests.simulation.stand_data import LIGHTS, hand_observations
+
+SHIFT = np.array([2.0, 0.0, -3.0, 0.0, 3.0, -2.0, 1.5, 3.0, 2.5, 0.0])     # LEDs 2, 4, 10 are never lit
+OUTPUT = np.array([0.9, 1.0, 1.1, 1.0, 0.95, 1.05, 0.9, 1.1, 1.0, 1.0])
+GAINS = (0.8, 1.1, 1.3)
+D700 = "resources/cameras/nikon_d700_rawtoaces.csv"
+
+
+def test_led_shapes_move_stretch_and_scale_a_spectrum():
+    wl = np.arange(380.0, 781.0)
+    g = np.exp(-0.5 * ((wl - 500.0) / 10.0) ** 2)[None]
+    moved = shaped_led_spectra(wl, g, [4.0])[0]
+    assert wl[np.argmax(moved)] == 504.0 and moved.max() == pytest.approx(1.0)
+    wide = shaped_led_spectra(wl, g, None, [1.5], [0.5])[0]
+    half = wl[wide >= 0.25]                                            # half of the scaled peak 0.5
+    assert half[-1] - half[0] == pytest.approx(1.5 * 2.3548 * 10.0, abs=2.0) and wide.max() == pytest.approx(0.5)
+    assert shaped_led_spectra(wl, g)[0] is not g[0] and np.array_equal(shaped_led_spectra(wl, g)[0], g[0])
+
+
+def test_predict_is_the_hand_computation():
+    obs = hand_observations(SHIFT, OUTPUT, GAINS, 0.004, camera_csv=D700)
+    model = StandModel(camera_csv=D700, params=StandParameters(tuple(OUTPUT), tuple(SHIFT), channel_gain=GAINS,
+                                                               flare=0.004))
+    pred = predict(model, obs)
+    assert pred.white == pytest.approx(obs.white, rel=1e-9)
+    assert pred.train == pytest.approx(obs.train, rel=1e-9) and pred.test == pytest.approx(obs.test, rel=1e-9)
+    assert min(r2_per_channel(pred.train, obs.train)) == pytest.approx(1.0)
+
+
+def test_the_fit_recovers_a_known_stand_with_a_measured_camera():
+    obs = hand_observations(SHIFT, OUTPUT, GAINS, 0.005, camera_csv=D700, noise=0.001)
+    fit = fit_stand(obs, StandModel(camera_csv=D700))
+    p = fit.model.params
+    lit = [0, 2, 4, 5, 6, 7, 8]
+    assert np.abs(np.array(p.led_peak_shift_nm)[lit] - SHIFT[lit]).max() < 0.3
+    # outputs and gains are only known up to one common factor (a brighter sphere or a more sensitive camera):
+    ratio = np.array(p.led_output_scale)[lit] / OUTPUT[lit]
+    assert ratio.std() / ratio.mean() < 0.01
+    assert np.array(p.channel_gain) / np.array(GAINS) * ratio.mean() == pytest.approx(1.0, rel=0.01)
+    assert p.flare == pytest.approx(0.005, abs=3e-4)
+    assert p.led_peak_shift_nm[1] == 0.0 and p.led_output_scale[3] == 1.0      # never lit: stay nominal, not fitted
+    assert not any(par.key.startswith("camera_") for par in fit.parameters)    # a measured camera keeps its shape
+    assert fit.min_r2("fitted", "test") > 0.9999 > fit.min_r2("start", "test")
+    assert fit.warnings == []
+
+
+def test_uncertainties_cover_the_truth():
+    obs = hand_observations(SHIFT, OUTPUT, GAINS, 0.005, camera_csv=D700, noise=0.004, seed=3)
+    fit = fit_stand(obs, StandModel(camera_csv=D700))
+    shifts = {par.key: par for par in fit.parameters if par.key.startswith("led_peak_shift_nm")}
+    z = [(par.value - SHIFT[int(key.split("[")[1][:-1])]) / par.sd for key, par in shifts.items()]
+    assert max(abs(v) for v in z) < 4.0, z
+    assert all(0 < par.sd < par.prior_sd for par in shifts.values())
+    flare = next(par for par in fit.parameters if par.key == "flare")
+    assert abs(flare.value - 0.005) < 4 * flare.sd
+
+
+def test_a_parameter_on_its_bound_is_one_warning_line(caplog):
+    obs = hand_observations(flare=0.3)                                   # beyond the flare's upper bound 0.2
+    fit = fit_stand(obs, StandModel(), Priors(flare_sd=1.0))
+    assert len(fit.warnings) == 1 and "\n" not in fit.warnings[0]
+    assert fit.warnings[0].startswith("stand fit: flare = 0.2 is at its upper bound 0.2")
+    assert next(p for p in fit.parameters if p.key == "flare").at_bound == "upper"
+    assert fit.warnings[0] in caplog.text
+
+
+def test_a_nominal_camera_gets_its_curves_shift_and_width_fitted():
+    obs = hand_observations(SHIFT, OUTPUT, GAINS, 0.005, camera_csv=D700)
+    with_shape, without = fit_stand(obs), fit_stand(obs, camera_shape=False)
+    assert any(par.key == "camera_width_scale[2]" for par in with_shape.parameters)
+    assert with_shape.min_r2("fitted") > without.min_r2("fitted")
+
+
+def test_the_stand_models_setup_carries_its_leds_camera_and_flare_into_the_optimiser():
+    params = StandParameters(tuple(OUTPUT), tuple(SHIFT), channel_gain=GAINS, flare=0.01)
+    setup = StandModel(camera_csv=D700, params=params).setup("reflective")
+    nominal = default_setup("reflective")
+    from tests.simulation.stand_data import hand_camera, hand_leds
+
+    assert setup.leds == pytest.approx(hand_leds(SHIFT, OUTPUT), rel=1e-9, abs=1e-12)
+    assert setup.camera == pytest.approx(hand_camera(D700) * np.array(GAINS), rel=1e-9, abs=1e-12)
+    assert setup.train.spectra is nominal.train.spectra and setup.flare == 0.01
+    R = led_responses(setup.leds, setup.train.spectra, setup.camera)
+    assert PatchSet(setup, setup.train).R == pytest.approx(R + 0.01 * R.mean(axis=1, keepdims=True))
+
+
+@pytest.mark.fault("input")
+@pytest.mark.parametrize("doc,fragment", [({"flare": "x"}, "'flare': expected a number"),
+                                          ({"channel_gain": [1, 2]}, "'channel_gain': expected 3 numbers")])
+def test_bad_stored_parameters_are_one_line(doc, fragment):
+    with pytest.raises(ValueError, match=fragment) as info:
+        StandParameters.from_dict(doc)
+    assert "\n" not in str(info.value)
+
+
+def test_lights_and_levels_shape_checked():
+    obs = hand_observations()
+    with pytest.raises(ValueError, match="white has shape"):
+        type(obs)(LIGHTS, obs.white[:2], obs.train, obs.train_spectra, obs.train_frame)
