@@ -20,6 +20,13 @@ Methods (the dispatch table :data:`SPECTRAL_METHODS`, colour-science style):
 * ``pinv``: least squares from the training values to the training spectra (Moore-Penrose; with ``ridge``
   > 0 a ridge regression, the ridge relative to the mean diagonal of C^T C), the "training-based" estimate.
 
+``offset=True`` (``wiener`` and ``pinv``) makes the map affine, ``spectra = values M^T + b``: the fit is made on
+the training data centred on their means (the Wiener prior is then the covariance, not the second moment) and
+``b = mean spectrum - mean values M^T``. Where the system sees nothing (below ~410 nm and above ~690 nm for the
+Nikon CSRF) a linear map can only scale the spectrum with the visible signal; a film's transmittance there is its
+base's, nearly constant whatever the dyes, which only an offset carries. Cross-validation on the training target
+chooses between the two (simulation.spectral_selection).
+
 References
 ----------
 Pratt & Mancill (1976), Spectral estimation techniques for the spectral calibration of a color image scanner,
@@ -43,6 +50,7 @@ FORMAT = "dualrgb-spectral-estimator/1"
 PHYSICAL_RANGE = (0.0, 1.0)             # reflectance or transmittance factor of a non-fluorescent original
 MARKOV_STEP_NM = 10.0                   # the smoothness prior's rho is the correlation of samples 10 nm apart
 JITTER = 1e-10                          # relative to the mean diagonal: keeps a dark channel's system solvable
+QUANTITIES = {"reflective": "reflectance factor", "transmissive": "transmittance factor"}     # what a mode measures
 
 
 class SpectralEstimationError(ValueError):
@@ -92,7 +100,7 @@ class SpectralTraining:
     noise_var: np.ndarray | None = None
     colour_weights: np.ndarray | None = None
     xyz_matrix: np.ndarray | None = None
-    quantity: str = "reflectance factor"
+    quantity: str = QUANTITIES["reflective"]
 
     def __post_init__(self) -> None:
         self.values = np.asarray(self.values, dtype=float)
@@ -131,8 +139,8 @@ class SpectralTraining:
 class SpectralEstimator:
     """A fitted estimate: ``spectra = clip(values @ matrix.T, *bounds)``, ``matrix`` (n_wl, n_channels).
 
-    The per-pixel cube applies it in row bands (:meth:`apply` with ``out``); ``to_dict`` / ``from_dict``
-    store it in a calibration profile (JSON)."""
+    ``offset`` (n_wl,) makes it affine (module docstring; None: linear). The per-pixel cube applies it in row
+    bands (:meth:`apply` with ``out``); ``to_dict`` / ``from_dict`` store it in a calibration profile (JSON)."""
 
     matrix: np.ndarray
     wavelengths: np.ndarray
@@ -140,7 +148,8 @@ class SpectralEstimator:
     method: str
     settings: dict = field(default_factory=dict)
     bounds: tuple[float, float] = PHYSICAL_RANGE
-    quantity: str = "reflectance factor"
+    quantity: str = QUANTITIES["reflective"]
+    offset: np.ndarray | None = None
 
     @property
     def n_channels(self) -> int:
@@ -151,7 +160,8 @@ class SpectralEstimator:
         return int(self.matrix.shape[0])
 
     def apply(self, values: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Spectra (..., n_wl) of ``values`` (..., n_channels): one matrix product and a clip to ``bounds``.
+        """Spectra (..., n_wl) of ``values`` (..., n_channels): one matrix product (+ the offset) and a clip
+        to ``bounds``.
 
         float32 values give float32 spectra (the cube streams float32 row bands), anything else float64; NaN
         values (pixels without a usable flat field) give NaN spectra. ``out``: a preallocated result array."""
@@ -161,13 +171,16 @@ class SpectralEstimator:
                                           f"({', '.join(self.channels)}), got {values.shape[-1]}")
         dtype = np.float32 if values.dtype == np.float32 else np.float64
         est = np.matmul(values.astype(dtype, copy=False), self.matrix.T.astype(dtype), out=out)
+        if self.offset is not None:
+            est += self.offset.astype(dtype)
         return np.clip(est, self.bounds[0], self.bounds[1], out=est)
 
     def to_dict(self) -> dict:
         return {"format": FORMAT, "method": self.method, "quantity": self.quantity,
                 "wavelengths_nm": [float(v) for v in self.wavelengths], "channels": list(self.channels),
                 "bounds": [float(b) for b in self.bounds], "settings": self.settings,
-                "matrix": [[float(v) for v in row] for row in self.matrix]}
+                "matrix": [[float(v) for v in row] for row in self.matrix],
+                **({"offset": [float(v) for v in self.offset]} if self.offset is not None else {})}
 
     @classmethod
     def from_dict(cls, data: dict, source: str = "spectral estimator") -> SpectralEstimator:
@@ -180,18 +193,24 @@ class SpectralEstimator:
             wavelengths = np.asarray(data["wavelengths_nm"], dtype=float)
             channels = [str(c) for c in data["channels"]]
             lo, hi = (float(b) for b in data.get("bounds", PHYSICAL_RANGE))
+            offset = None if data.get("offset") is None else np.asarray(data["offset"], dtype=float)
         except (KeyError, TypeError, ValueError) as exc:
             raise SpectralEstimationError(f"{source}: damaged ({type(exc).__name__}: {exc})") from None
         if matrix.shape != (len(wavelengths), len(channels)) or not np.isfinite(matrix).all() or not lo < hi:
             raise SpectralEstimationError(f"{source}: matrix {matrix.shape} does not fit {len(wavelengths)} "
                                           f"wavelengths x {len(channels)} channels (or is not finite)")
+        if offset is not None and (offset.shape != (len(wavelengths),) or not np.isfinite(offset).all()):
+            raise SpectralEstimationError(f"{source}: offset {offset.shape} does not fit {len(wavelengths)} "
+                                          "wavelengths (or is not finite)")
         return cls(matrix, wavelengths, channels, str(data.get("method", "")), dict(data.get("settings") or {}),
-                   (lo, hi), str(data.get("quantity", "reflectance factor")))
+                   (lo, hi), str(data.get("quantity", QUANTITIES["reflective"])), offset)
 
 
-def _estimator(training: SpectralTraining, matrix: np.ndarray, method: str, settings: dict) -> SpectralEstimator:
+def _estimator(training: SpectralTraining, matrix: np.ndarray, method: str, settings: dict,
+               offset: np.ndarray | None = None) -> SpectralEstimator:
     return SpectralEstimator(matrix, training.wavelengths.copy(), list(training.channels), method, settings,
-                             PHYSICAL_RANGE, training.quantity)
+                             PHYSICAL_RANGE, training.quantity, offset)
+
 
 
 def wiener_matrix(sensitivities: np.ndarray, prior: np.ndarray, noise_var: np.ndarray | None) -> np.ndarray:
@@ -220,21 +239,30 @@ def pinv_matrix(values: np.ndarray, spectra: np.ndarray, ridge: float = 0.0) -> 
 
 
 def fit_wiener(training: SpectralTraining, prior: SpectralPrior = SpectralPrior(),
-               noise_var: np.ndarray | None = None) -> SpectralEstimator:
+               noise_var: np.ndarray | None = None, offset: bool = False) -> SpectralEstimator:
     """The Wiener estimate (module docstring) with ``prior`` and the noise ``noise_var`` (default: the
-    training's ``noise_var``, else none)."""
+    training's ``noise_var``, else none); ``offset``: the affine estimate about the training mean (the prior
+    built from the centred spectra: their covariance)."""
     if training.sensitivities is None:
         raise SpectralEstimationError("wiener needs the system's sensitivities (the lights' spectra x the camera's "
                                       "CSRF); without them use matrix-r or pinv")
     noise = training.noise_var if noise_var is None else noise_var
-    M = wiener_matrix(training.sensitivities, prior.matrix(training.spectra, training.wavelengths), noise)
-    return _estimator(training, M, "wiener", {"prior": prior.to_dict(),
-                                              "noise_var": None if noise is None else [float(v) for v in noise]})
+    S = np.asarray(training.sensitivities, dtype=float)
+    mean = training.spectra.mean(axis=0) if offset else np.zeros(len(training.wavelengths))
+    M = wiener_matrix(S, prior.matrix(training.spectra - mean, training.wavelengths), noise)
+    settings = {"prior": prior.to_dict(), "noise_var": None if noise is None else [float(v) for v in noise],
+                **({"offset": True} if offset else {})}
+    return _estimator(training, M, "wiener", settings, mean - (mean @ S) @ M.T if offset else None)
 
 
-def fit_pinv(training: SpectralTraining, ridge: float = 0.0) -> SpectralEstimator:
-    """Least squares from the training values to the training spectra (``ridge`` > 0: ridge regression)."""
-    return _estimator(training, pinv_matrix(training.values, training.spectra, ridge), "pinv", {"ridge": ridge})
+def fit_pinv(training: SpectralTraining, ridge: float = 0.0, offset: bool = False) -> SpectralEstimator:
+    """Least squares from the training values to the training spectra (``ridge`` > 0: ridge regression);
+    ``offset``: with an intercept (fitted on the centred data, so the ridge does not shrink it)."""
+    if not offset:
+        return _estimator(training, pinv_matrix(training.values, training.spectra, ridge), "pinv", {"ridge": ridge})
+    mv, ms = training.values.mean(axis=0), training.spectra.mean(axis=0)
+    M = pinv_matrix(training.values - mv, training.spectra - ms, ridge)
+    return _estimator(training, M, "pinv", {"ridge": ridge, "offset": True}, ms - mv @ M.T)
 
 
 def fit_matrix_r(training: SpectralTraining, prior: SpectralPrior = SpectralPrior(),

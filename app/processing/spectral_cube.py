@@ -3,9 +3,9 @@ app.processing.envi) and the rendering under a chosen light (16-bit ProPhoto RGB
 from one pass over the stack.
 
 Per pixel, the calibration's spectral estimator (simulation.spectral_estimation.SpectralEstimator: one linear
-map of the N channels and a clip to the physical range) gives the factor at every wavelength; it is stored x the
-cube's scale factor, and the clipped spectrum is seen under the rendering light (eq 4.2 weights) and encoded
-like the other RGB deliverables (app.processing.encode's tables).
+map of the N channels, its offset where it is affine, and a clip to the physical range) gives the factor at every
+wavelength; it is stored x the cube's scale factor, and the clipped spectrum is seen under the rendering light
+(eq 4.2 weights) and encoded like the other RGB deliverables (app.processing.encode's tables).
 
 Why hand-written: the cube of a 24 MP original is 6 M pixels x 38 wavelengths (465 MB at 16 bits). In numpy the
 matrix product alone writes a 930 MB float32 temporary (in bands: one per band), then the clip, the scale, the
@@ -52,8 +52,8 @@ def _planes(s, planes, valid):  # pragma: no cover - compiled
 
 
 @njit(nogil=True, cache=True)
-def _cube_row(planes, valid, M, lo, hi, scale, ignore, wts, acc, x, y, z, cube):  # pragma: no cover - compiled
-    """One row: per wavelength b the estimate sum_c M[b, c] plane_c clipped to [lo, hi], stored x ``scale`` in
+def _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, cube):  # pragma: no cover
+    """One row: per wavelength b the estimate off[b] + sum_c M[b, c] plane_c clipped to [lo, hi], stored x ``scale`` in
     ``cube[b]`` (``ignore`` where not ``valid``) and added into x, y, z with the rendering weights ``wts[b]``."""
     B, C = M.shape
     W = planes.shape[1]
@@ -65,8 +65,9 @@ def _cube_row(planes, valid, M, lo, hi, scale, ignore, wts, acc, x, y, z, cube):
         z[j] = zero
     for b in range(B):
         m0 = M[b, 0]
+        ob = off[b]
         for j in range(W):
-            acc[j] = m0 * planes[0, j]
+            acc[j] = ob + m0 * planes[0, j]
         for c in range(1, C):
             mc = M[b, c]
             for j in range(W):
@@ -90,7 +91,7 @@ def _cube_row(planes, valid, M, lo, hi, scale, ignore, wts, acc, x, y, z, cube):
 
 
 @njit(nogil=True, cache=True)
-def _spectral_rows(stack, r0, M, lo, hi, scale, ignore, wts, m_rgb, lut, cube, rgb, a, b):  # pragma: no cover
+def _spectral_rows(stack, r0, M, off, lo, hi, scale, ignore, wts, m_rgb, lut, cube, rgb, a, b):  # pragma: no cover
     """Band rows ``a`` .. ``b`` (stack rows ``r0 + a`` ..) into ``cube`` (rows, B, W) uint16 and, when it has rows,
     ``rgb`` (rows, W, 3) uint16. Returns the invalid pixels."""
     W = stack.shape[1]
@@ -106,7 +107,7 @@ def _spectral_rows(stack, r0, M, lo, hi, scale, ignore, wts, m_rgb, lut, cube, r
     bad = 0
     for r in range(a, b):
         bad += _planes(stack[r0 + r].reshape(W * C), planes, valid)
-        _cube_row(planes, valid, M, lo, hi, scale, ignore, wts, acc, x, y, z, cube[r])
+        _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, cube[r])
         if rgb.shape[0] > 0:
             rgb_row(x, y, z, m_rgb, lut, lin, idx, rgb[r].reshape(W * 3))
     return bad
@@ -116,12 +117,12 @@ class SpectralEncoder:
     """The cube and the rendering of one (H, W, N) float32 stack, row band by row band (app.workflow.delivery
     streams each band while the next is encoded).
 
-    ``matrix`` (n_wl, N) and ``bounds``: the spectral estimator's map and clip; ``rendering``: the light and RGB
-    space of the rendered image (None: the cube only)."""
+    ``matrix`` (n_wl, N), ``offset`` (n_wl,; None: none) and ``bounds``: the spectral estimator's map and clip;
+    ``rendering``: the light and RGB space of the rendered image (None: the cube only)."""
 
     def __init__(self, stack: np.ndarray, matrix: np.ndarray, bounds: Sequence[float],
-                 rendering: Rendering | None = None, *, scale: float = SCALE_FACTOR, ignore: int = IGNORE_VALUE,
-                 threads: int | None = None):
+                 rendering: Rendering | None = None, *, offset: np.ndarray | None = None, scale: float = SCALE_FACTOR,
+                 ignore: int = IGNORE_VALUE, threads: int | None = None):
         self.stack = np.ascontiguousarray(stack, dtype=np.float32)
         M = np.ascontiguousarray(matrix, dtype=np.float32)
         if self.stack.ndim != 3 or M.ndim != 2 or M.shape[1] != self.stack.shape[2]:
@@ -131,6 +132,9 @@ class SpectralEncoder:
             raise ValueError(f"spectral range {lo:g}..{hi:g} x scale {scale:g} does not fit below {ignore}")
         if rendering is not None and len(rendering.wavelengths) != M.shape[0]:
             raise ValueError(f"rendering on {len(rendering.wavelengths)} wavelengths, estimate on {M.shape[0]}")
+        self.off = np.zeros(M.shape[0], np.float32) if offset is None else np.ascontiguousarray(offset, np.float32)
+        if self.off.shape != (M.shape[0],):
+            raise ValueError(f"spectral offset {self.off.shape} for a map of {M.shape[0]} wavelengths")
         self.M, self.lo, self.hi = M, np.float32(lo), np.float32(hi)
         self.scale, self.ignore = np.float32(scale), np.uint16(ignore)
         self.rendering = rendering
@@ -158,8 +162,8 @@ class SpectralEncoder:
             raise ValueError(f"rows {r0}..{r0 + rows} of {H}, cube band {cube.shape}, rendering band "
                              f"{None if rgb is None else rgb.shape}")
         out_rgb = rgb if rgb is not None else np.empty((0, W, 3), np.uint16)
-        args = (self.stack, r0, self.M, self.lo, self.hi, self.scale, self.ignore, self._wts, self._m_rgb, self._lut,
-                cube, out_rgb)
+        args = (self.stack, r0, self.M, self.off, self.lo, self.hi, self.scale, self.ignore, self._wts, self._m_rgb,
+                self._lut, cube, out_rgb)
         cuts = np.linspace(0, rows, min(self.threads * self.chunks_per_thread, max(rows, 1)) + 1).astype(int)
         if len(cuts) <= 2:
             counts = [_spectral_rows(*args, 0, rows)]
@@ -186,9 +190,10 @@ class SpectralEncoder:
 
 
 def encode_spectral(stack: np.ndarray, matrix: np.ndarray, bounds: Sequence[float],
-                    rendering: Rendering | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+                    rendering: Rendering | None = None, offset: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray | None]:
     """The whole cube (H, n_wl, W) and rendering (H, W, 3) in memory (delivery streams them instead)."""
-    with SpectralEncoder(stack, matrix, bounds, rendering) as enc:
+    with SpectralEncoder(stack, matrix, bounds, rendering, offset=offset) as enc:
         H, W, B = enc.shape
         cube = np.empty((H, B, W), np.uint16)
         rgb = np.empty((H, W, 3), np.uint16) if rendering is not None else None

@@ -22,6 +22,7 @@ from app.workflow.delivery import LightDoseRecord, Original, deliver
 from common.atomic_files import FileWriteError
 from simulation.grid import DEFAULT_GRID
 from simulation.other_lights import OTHER_LIGHTS, light_keys
+from simulation.spectral_estimation import SpectralEstimator
 
 WL = DEFAULT_GRID.wavelengths
 
@@ -40,6 +41,25 @@ def test_the_banded_cube_is_the_estimator_per_pixel():
     assert np.abs(got[ok] - np.round(ref[ok] * SCALE_FACTOR)).max() <= 1
     assert (got[~ok] == IGNORE_VALUE).all() and enc.invalid == 1
     assert got[ok].max() == SCALE_FACTOR and got[ok].min() == 0          # the clip to [0, 1] is exercised
+
+
+def test_the_cube_carries_an_affine_estimators_offset():
+    """An affine estimator (film: simulation.spectral_estimation's offset): the kernel adds the offset before the
+    clip, as SpectralEstimator.apply does, in the cube and in the rendering; a wrong-sized offset is refused."""
+    base = estimator()
+    offset = np.linspace(-0.3, 0.4, len(WL))
+    est = SpectralEstimator(base.matrix, base.wavelengths, base.channels, "pinv", {"offset": True}, offset=offset)
+    s = stack(9, 13)
+    ref = est.apply(s.data.astype(np.float64))
+    assert not np.allclose(ref, base.apply(s.data.astype(np.float64)), atol=0.05, equal_nan=True)
+    cube, rgb = encode_spectral(s.data, est.matrix, est.bounds, rendering("A", WL), offset=est.offset)
+    _, rgb_linear = encode_spectral(s.data, base.matrix, base.bounds, rendering("A", WL))
+    got = np.moveaxis(cube, 1, -1).astype(float)
+    ok = ~np.isnan(s.data).any(-1)
+    assert np.abs(got[ok] - np.round(ref[ok] * SCALE_FACTOR)).max() <= 1
+    assert rgb is not None and rgb_linear is not None and np.abs(rgb.astype(int) - rgb_linear).max() > 1000
+    with pytest.raises(ValueError, match="spectral offset"):
+        SpectralEncoder(s.data, est.matrix, est.bounds, offset=offset[:-1])
 
 
 @pytest.mark.parametrize("light", list(OTHER_LIGHTS))
