@@ -22,11 +22,12 @@ from simulation.datasets import SimulationSetup
 from simulation.expected_error import ExpectedErrorEvaluator
 from simulation.ga import GaSettings, ga
 from simulation.halving import HalvingSettings, successive_halving
+from simulation.lightsource import LightSource
 from simulation.objective import Evaluator, three_channel
 from simulation.presets import Preset
 from simulation.pso import PsoSettings, pso
 from simulation.robust import RobustEvaluator, RobustSettings
-from simulation.search import DEFAULT_BINS, SearchOutcome, exhaustive, light_pairs, refine_top
+from simulation.search import DEFAULT_BINS, SearchOutcome, add_incumbents, exhaustive, light_pairs, refine_top
 from simulation.warmup import warm_up
 
 log = logging.getLogger(__name__)
@@ -109,10 +110,12 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
         progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
         evaluator: Evaluator | None = None, objective: str = DEFAULT_OBJECTIVE,
         capture: CaptureModel | None = None, robust: RobustSettings = RobustSettings(),
-        spectral_weight: float = DEFAULT_SPECTRAL_WEIGHT) -> RunResult:
+        spectral_weight: float = DEFAULT_SPECTRAL_WEIGHT,
+        incumbents: Sequence[Sequence[LightSource]] = ()) -> RunResult:
     """``evaluator``: one built on ``setup`` for ``objective`` (make_evaluator) to use instead of a new one (the
     GUI passes one that reports the best cost so far for its live convergence plot). ``elapsed_s`` excludes the
-    kernels' one-off compile (``extra["kernel_warm_up_s"]``; simulation.warmup)."""
+    kernels' one-off compile (``extra["kernel_warm_up_s"]``; simulation.warmup). ``incumbents``: light sets
+    already in use, ranked among the search's candidates (simulation.search.add_incumbents)."""
     if method not in METHODS:
         raise ValueError(f"method {method!r}: expected one of {', '.join(METHODS)}")
     t0 = time.perf_counter()
@@ -138,6 +141,8 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
         outcome = ga(evaluator, groups, ga_settings, seed, progress=progress, cancel=cancel)
     else:
         outcome = successive_halving(evaluator, groups, halving_settings, seed, progress=progress, cancel=cancel)
+    if incumbents:
+        add_incumbents(evaluator, outcome, incumbents)
     expected = None
     if capture is None:          # a noise-free search: report the expected captured figures too
         capture = CaptureModel.virtual_lab(setup.mode)

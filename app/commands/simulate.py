@@ -139,7 +139,7 @@ def _main_stand(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from app.workflow.profile import load_profile
-    from app.workflow.stand_reoptimise import Measurements, assemble, reoptimise, stand_preset
+    from app.workflow.stand_reoptimise import Measurements, assemble, calibration_lights, reoptimise, stand_preset
     from simulation.defaults import default_grid
 
     profile = load_profile(args.stand)
@@ -154,7 +154,7 @@ def _main_stand(args: argparse.Namespace) -> int:
                             top=args.top, capture=_capture(args), grid=grid,
                             targets={"train_csv": args.train_csv, "test_csv": args.test_csv,
                                      "reference_xyz": args.reference_xyz}, progress=progress, bins=args.bins,
-                            spectral_weight=args.spectral_weight)
+                            spectral_weight=args.spectral_weight, incumbents=[calibration_lights(profile)])
     result.extra["stand"]["calibration"] = str(profile.path)
     return _write(args, result, stand_preset(result, model, f"{args.mode} for stand {profile.id}")
                   if args.preset_out else None)

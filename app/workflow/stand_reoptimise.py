@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,6 +20,7 @@ from typing import Any
 from app.workflow.profile import CalibrationProfile, ProfileError
 from common.progress import CancelToken, ProgressCallback
 from simulation.capture_model import CaptureModel
+from simulation.lightsource import LightSource
 from simulation.stand_fit import fit_stand
 from simulation.stand_model import StandModel
 
@@ -101,11 +103,13 @@ def _stored(profile: CalibrationProfile | None) -> StandModel | None:
 def reoptimise(model: StandModel, mode: str, *, method: str | None = None, objective: str | None = None,
                seed: int = 0, top: int = 5, capture: CaptureModel | None = None, grid: Any = None,
                targets: dict | None = None, progress: ProgressCallback | None = None,
-               cancel: CancelToken | None = None, evaluator_factory: Any = None, **run_options: Any) -> Any:
+               cancel: CancelToken | None = None, evaluator_factory: Any = None,
+               incumbents: Sequence[Sequence[LightSource]] = (), **run_options: Any) -> Any:
     """The optimiser (simulation.runner.run: default method and objective as ``dualrgb simulate``) on the stand
     model's setup; returns its RunResult. ``capture`` defaults to the virtual lab's for ``mode``, with the stand's
     minimum stable level; ``targets``: default_setup's train_csv / test_csv / reference_xyz; ``evaluator_factory``
-    (setup, capture) -> an evaluator to use (the GUI's live plot)."""
+    (setup, capture) -> an evaluator to use (the GUI's live plot); ``incumbents``: the lights in use (the
+    calibration's: :func:`calibration_lights`), kept when the search finds nothing better on the stand model."""
     from simulation.defaults import default_grid
     from simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, run
 
@@ -113,9 +117,15 @@ def reoptimise(model: StandModel, mode: str, *, method: str | None = None, objec
     cap = model.capture(capture or CaptureModel.virtual_lab(mode))
     evaluator = evaluator_factory(setup, cap) if evaluator_factory is not None else None
     result = run(setup, method or DEFAULT_METHOD, seed=seed, top=top, objective=objective or DEFAULT_OBJECTIVE,
-                 capture=cap, progress=progress, cancel=cancel, evaluator=evaluator, **run_options)
+                 capture=cap, progress=progress, cancel=cancel, evaluator=evaluator, incumbents=incumbents,
+                 **run_options)
     result.extra["stand"] = {"model": model.to_dict()}
     return result
+
+
+def calibration_lights(profile: CalibrationProfile) -> tuple[LightSource, ...]:
+    """The light set a calibration profile was made with (one light source per named light)."""
+    return tuple(nl.light for nl in profile.lights)
 
 
 def stand_preset(result: Any, model: StandModel, name: str | None = None) -> Any:

@@ -164,16 +164,17 @@ def _preset_of(lights: np.ndarray, name: str, mode: str) -> Any:
     return Preset(name, sources, method="study stand", mode=mode)
 
 
-def reoptimised_lights(models: dict[str, StandModel], mode: str, capture: Any,
+def reoptimised_lights(models: dict[str, StandModel], mode: str, capture: Any, incumbent: Any = None,
                        progress: ProgressCallback | None = None) -> dict[str, np.ndarray]:
     """The lights (L, n_leds) re-optimised on each model (app.workflow.stand_reoptimise.reoptimise: the default
-    optimiser and objective), keyed 're-optimised: <model>'."""
+    optimiser and objective, the calibration's lights ``incumbent`` kept where nothing better is found, as
+    ``simulate --stand`` does), keyed 're-optimised: <model>'."""
     from app.workflow.stand_reoptimise import reoptimise
 
     out = {}
     for i, (name, model) in enumerate(models.items()):
         report(progress, i / len(models), f"optimising on the {name} model")
-        result = reoptimise(model, mode, top=1, capture=capture)
+        result = reoptimise(model, mode, top=1, capture=capture, incumbents=[incumbent] if incumbent else ())
         out[f"re-optimised: {name}"] = np.stack([s.weights() for s in result.preset().sources])
     return out
 
@@ -198,6 +199,7 @@ def stand_study(cfg: StandStudyConfig, folder: Path, progress: ProgressCallback 
                 cancel: CancelToken | None = None) -> StandStudy:
     """Run the study (module docstring) in ``folder`` (sessions, the camera CSV); returns its figures."""
     from app.workflow.defaults import default_preset_name
+    from app.workflow.stand_reoptimise import calibration_lights
     from drivers.virtual.world import load_world
     from simulation.capture_model import CaptureModel
     from simulation.presets import load_preset, packaged_presets
@@ -217,7 +219,7 @@ def stand_study(cfg: StandStudyConfig, folder: Path, progress: ProgressCallback 
     capture = _calibration_capture(profile)
     lights = {"nominal preset": levels, **reoptimised_lights({k: models[k] for k in (*FITS, "world")}, cfg.mode,
                                                              CaptureModel.virtual_lab(cfg.mode),
-                                                             scaled(progress, 0.1, 0.15))}
+                                                             calibration_lights(profile), scaled(progress, 0.1, 0.15))}
     captured = capture_lights(cfg, lights, folder, {"nominal preset": {cfg.seeds[0]: profile}},
                               scaled(progress, 0.15, 0.95), cancel)
     study = StandStudy(cfg)

@@ -77,7 +77,7 @@ def _stand_search(profile, mode: str, method: str, seed: int, top: int, objectiv
                   **settings) -> RunResult | None:
     """The search on a calibration's stand model (app.workflow.stand_reoptimise), with the live plot's tap; a
     cancelled search keeps its best so far, as the plain search does."""
-    from app.workflow.stand_reoptimise import assemble, reoptimise
+    from app.workflow.stand_reoptimise import assemble, calibration_lights, reoptimise
     from simulation.runner import make_evaluator
 
     model, notes = assemble(profile)
@@ -90,7 +90,8 @@ def _stand_search(profile, mode: str, method: str, seed: int, top: int, objectiv
     t0 = time.perf_counter()
     try:
         result = reoptimise(model, mode, method=method, objective=objective, seed=seed, top=top, progress=progress,
-                            cancel=cancel, evaluator_factory=tap_for, **settings)
+                            cancel=cancel, evaluator_factory=tap_for, incumbents=[calibration_lights(profile)],
+                            **settings)
     except Cancelled:
         if "tap" not in holder:
             return None
