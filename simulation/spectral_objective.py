@@ -16,6 +16,11 @@ moves an estimate towards a reference inside [0, 1]). The prior is chosen once p
 cross-validation on the training target under the mode's packaged colour preset, then held fixed while the
 lights move (choosing it per candidate would cost ~250 fits per evaluation).
 
+Film (the modes whose estimates may be affine, simulation.spectral_selection.OFFSETS): the estimate is the affine
+Wiener about the training mean mu, r = mu + M (v - S^T mu) with K the centred prior; its error M (S^T (r_j - mu) +
+n_j) - (r_j - mu) is the linear case's with every spectrum centred, so the same algebra runs on centred spectra,
+while the noise variances still come from the uncentred values (two more Gram matrices).
+
 ``mixed``: expected captured mean CIEDE2000 (the default objective) + ``spectral_weight`` x 100 x the expected
 spectral RMSE: with the default weight 0.1, 1 % RMSE (0.01) costs as much as 0.1 dE00.
 """
@@ -33,7 +38,8 @@ from simulation.datasets import SimulationSetup
 from simulation.expected_error import ExpectedErrorEvaluator, ExpectedErrorModel, dense_weights
 from simulation.matrix_fit import solve_normal_equations
 from simulation.objective import ErrorStats, check_kernel_batch
-from simulation.spectral_estimation import SpectralPrior, SpectralTraining
+from simulation.spectral_estimation import QUANTITIES, SpectralPrior, SpectralTraining
+from simulation.spectral_selection import OFFSETS, select_estimator
 
 log = logging.getLogger(__name__)
 
@@ -46,7 +52,6 @@ def reference_prior(setup: SimulationSetup, model: ExpectedErrorModel) -> Spectr
     no such preset."""
     import resources
     from simulation.presets import PresetError, load_preset
-    from simulation.spectral_selection import select_estimator
 
     try:
         preset = load_preset(resources.path("presets", f"{setup.mode}_pso.json"), setup.leds.shape[0])
@@ -58,12 +63,14 @@ def reference_prior(setup: SimulationSetup, model: ExpectedErrorModel) -> Spectr
     S = flat_fielded_sensitivities(lights, setup.camera)
     V = model.values(W[None], "train")
     noise = model.variances(V, model.noise_coefficients(W[None], "train"))[0].mean(axis=0)
-    training = SpectralTraining(V[0], setup.train.spectra, setup.grid.wavelengths, sensitivities=S, noise_var=noise)
+    training = SpectralTraining(V[0], setup.train.spectra, setup.grid.wavelengths, sensitivities=S, noise_var=noise,
+                                quantity=QUANTITIES.get(setup.mode, QUANTITIES["reflective"]))
     prior = select_estimator(training, ("wiener",)).chosen.prior
     return prior or SpectralPrior()
 
 
 GRAMS = ("G1", "G2", "H1 train", "H1", "H2")    # the per-LED Gram matrices one batch contracts, in this order
+RAW_GRAMS = ("H1 train raw", "H1 raw")          # ... and, for an affine estimate, the uncentred H1s (the noise)
 
 
 @dataclass
@@ -73,17 +80,25 @@ class _TargetGrams:
     n: int
     H1: np.ndarray          # (K, K, 3, 3) E_k^T (R^T R) E_j
     H2: np.ndarray          # (K, K, 3, 3) E_k^T (R^T R) K E_j
-    rsum: np.ndarray        # (K, 3) (sum_j r_j)^T E_k
+    rsum: np.ndarray        # (K, 3) (sum_j r_j)^T E_k, of the uncentred spectra (the noise's signal)
     rr: np.ndarray          # (n,) |r_j|^2
     RE: np.ndarray          # (n, K, 3) r_j^T E_k
     RKE: np.ndarray         # (n, K, 3) r_j^T K E_k
+    H1raw: np.ndarray       # H1 of the uncentred spectra (the noise's sum of v^2; H1 itself without a centre)
+    REraw: np.ndarray       # RE of the uncentred spectra (the noise's values)
 
     @classmethod
-    def of(cls, R: np.ndarray, E: np.ndarray, KE: np.ndarray) -> _TargetGrams:
-        RtRE = np.einsum("nw,nv,kvc->kwc", R, R, E, optimize=True)
-        return cls(len(R), np.einsum("kwc,jwd->kjcd", E, RtRE), np.einsum("kwc,jwd->kjcd", RtRE, KE),
-                   np.einsum("w,kwc->kc", R.sum(axis=0), E), np.sum(R * R, axis=1),
-                   np.einsum("nw,kwc->nkc", R, E), np.einsum("nw,kwc->nkc", R, KE))
+    def of(cls, R: np.ndarray, E: np.ndarray, KE: np.ndarray, mean: np.ndarray | None = None) -> _TargetGrams:
+        """``R`` (n, n_wl) spectra; ``mean``: the centre of an affine estimate (the bias terms use R - mean)."""
+        Rc = R if mean is None else R - mean
+        RtRE = np.einsum("nw,nv,kvc->kwc", Rc, Rc, E, optimize=True)
+        H1 = np.einsum("kwc,jwd->kjcd", E, RtRE)
+        RE = np.einsum("nw,kwc->nkc", Rc, E)
+        H1raw, REraw = (H1, RE) if mean is None else (
+            np.einsum("kwc,jwd->kjcd", E, np.einsum("nw,nv,kvc->kwc", R, R, E, optimize=True)),
+            np.einsum("nw,kwc->nkc", R, E))
+        return cls(len(R), H1, np.einsum("kwc,jwd->kjcd", RtRE, KE), np.einsum("w,kwc->kc", R.sum(axis=0), E),
+                   np.sum(Rc * Rc, axis=1), RE, np.einsum("nw,kwc->nkc", Rc, KE), H1raw, REraw)
 
 
 class SpectralModel:
@@ -97,21 +112,27 @@ class SpectralModel:
     def __init__(self, setup: SimulationSetup, model: ExpectedErrorModel, prior: SpectralPrior | None = None):
         self.setup, self.model = setup, model
         self.prior = prior or reference_prior(setup, model)
-        K = self.prior.matrix(setup.train.spectra, setup.grid.wavelengths)
+        # film: the affine estimate about the training mean (module docstring), as the calibration may deliver
+        self.affine = True in OFFSETS.get(QUANTITIES.get(setup.mode, ""), (False,))
+        mean = np.asarray(setup.train.spectra, dtype=float).mean(axis=0) if self.affine else None
+        K = self.prior.matrix(setup.train.spectra - (0.0 if mean is None else mean), setup.grid.wavelengths)
         E = setup.leds[:, :, None] * setup.camera[None]                  # (K, n_wl, 3)
         self.open = E.sum(axis=1)                                       # (K, 3): each LED's open gate
         KE = np.einsum("wv,kvc->kwc", K, E)
         self.G1 = np.einsum("kwc,jwd->kjcd", E, KE)                      # E_k^T K E_j
         self.G2 = np.einsum("kwc,jwd->kjcd", KE, KE)                     # E_k^T K^2 E_j
         self.n_wl = len(setup.grid.wavelengths)
-        self.targets = {which: _TargetGrams.of(np.asarray(t.spectra, dtype=float), E, KE)
+        self.targets = {which: _TargetGrams.of(np.asarray(t.spectra, dtype=float), E, KE, mean)
                         for which, t in (("train", setup.train), ("test", setup.test))}
         tr = self.targets["train"]
         n_leds = len(E)
-        # stack[j, (k, g, c, d)] = Gram g [k, j, c, d]: one GEMM with the levels contracts all of GRAMS over j
-        self._stacks = {which: np.ascontiguousarray(np.stack([self.G1, self.G2, tr.H1, t.H1, t.H2], axis=2)
-                                                    .transpose(1, 0, 2, 3, 4).reshape(n_leds, -1))
-                        for which, t in self.targets.items()}
+        self._names = GRAMS + (RAW_GRAMS if self.affine else ())
+        # the grams the noise sums read: the uncentred H1s where the estimate is affine, else H1 itself
+        self._noise_train, self._noise_target = (5, 6) if self.affine else (2, 3)
+        # stack[j, (k, g, c, d)] = Gram g [k, j, c, d]: one GEMM with the levels contracts all of the grams over j
+        self._stacks = {which: np.ascontiguousarray(np.stack(
+            [self.G1, self.G2, tr.H1, t.H1, t.H2] + ([tr.H1raw, t.H1raw] if self.affine else []), axis=2)
+            .transpose(1, 0, 2, 3, 4).reshape(n_leds, -1)) for which, t in self.targets.items()}
 
     def _inverse_gate(self, W: np.ndarray) -> np.ndarray:
         """1 / the open gate's response per light and channel (B, 3L); 0 for a dark channel."""
@@ -119,11 +140,13 @@ class SpectralModel:
         return np.divide(1.0, gate, out=np.zeros_like(gate), where=gate > 0)
 
     def _grams(self, W: np.ndarray, inv: np.ndarray, which: str) -> np.ndarray:
-        """S^T G S (B, 5, 3L, 3L) for each of :data:`GRAMS` (S: the flat-fielded values' sensitivities)."""
+        """S^T G S (B, 5 or 7, 3L, 3L) for each of :data:`GRAMS` (+ :data:`RAW_GRAMS` for an affine estimate; S:
+        the flat-fielded values' sensitivities)."""
         B, L, K = W.shape
+        g = len(self._names)
         T = (W.reshape(B * L, K) @ self._stacks[which]).reshape(B, L, K, -1)     # sum over j
-        Y = np.einsum("blk,bmkx->blmx", W, T).reshape(B, L, L, len(GRAMS), 3, 3)                # over k
-        P = Y.transpose(0, 3, 1, 4, 2, 5).reshape(B, len(GRAMS), 3 * L, 3 * L)
+        Y = np.einsum("blk,bmkx->blmx", W, T).reshape(B, L, L, g, 3, 3)                         # over k
+        P = Y.transpose(0, 3, 1, 4, 2, 5).reshape(B, g, 3 * L, 3 * L)
         return P * inv[:, None, :, None] * inv[:, None, None, :]
 
     def _noise_sums(self, W: np.ndarray, inv: np.ndarray, which: str, h1: np.ndarray) -> np.ndarray:
@@ -139,7 +162,8 @@ class SpectralModel:
         noise."""
         P = grams[:, 0].copy()
         p = P.shape[1]
-        P[:, np.arange(p), np.arange(p)] += self._noise_sums(W, inv, "train", grams[:, 2]) / self.targets["train"].n
+        P[:, np.arange(p), np.arange(p)] += (self._noise_sums(W, inv, "train", grams[:, self._noise_train])
+                                             / self.targets["train"].n)
         X = solve_normal_equations(P, np.broadcast_to(np.eye(p), P.shape).copy())
         return X, X.transpose(0, 2, 1) @ grams[:, 1] @ X
 
@@ -155,7 +179,7 @@ class SpectralModel:
         X, MtM = self._estimator(W, inv, grams)
         bias = (np.einsum("bcd,bdc->b", MtM, grams[:, 3]) - 2 * np.einsum("bcd,bdc->b", grams[:, 4], X)
                 + t.rr.sum())
-        noise = np.einsum("bc,bcc->b", self._noise_sums(W, inv, which, grams[:, 3]), MtM)
+        noise = np.einsum("bc,bcc->b", self._noise_sums(W, inv, which, grams[:, self._noise_target]), MtM)
         return np.sqrt(np.maximum(bias + noise, 0.0) / (t.n * self.n_wl))
 
     def patch_rmse(self, W: np.ndarray, which: str = "train") -> np.ndarray:
@@ -167,7 +191,8 @@ class SpectralModel:
         X, MtM = self._estimator(W, inv, self._grams(W, inv, which))
         V = np.einsum("blk,nkc->bnlc", W, t.RE).reshape(B, t.n, -1) * inv[:, None]          # v_j = S^T r_j
         RM = (np.einsum("blk,nkc->bnlc", W, t.RKE).reshape(B, t.n, -1) * inv[:, None]) @ X   # r_j^T M
-        noise = self.model.variances(V, self.model.noise_coefficients(W, which))            # (B, n, 3L)
+        Vraw = V if not self.affine else np.einsum("blk,nkc->bnlc", W, t.REraw).reshape(B, t.n, -1) * inv[:, None]
+        noise = self.model.variances(Vraw, self.model.noise_coefficients(W, which))         # (B, n, 3L)
         mse = (np.einsum("bnc,bcd,bnd->bn", V, MtM, V) - 2 * np.einsum("bnc,bnc->bn", RM, V) + t.rr[None]
                + np.einsum("bnc,bcc->bn", noise, MtM))
         return np.sqrt(np.maximum(mse, 0.0) / self.n_wl)
