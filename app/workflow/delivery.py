@@ -133,8 +133,9 @@ def _tiff_meta(original: Original, profile: CalibrationProfile, camera: CameraId
 
 def image_description(original: Original, what: str) -> str:
     """TIFF ImageDescription (7-bit ASCII): ``<identifier> - <title>; <what>`` transliterated
-    (app.workflow.metadata.ascii_text); the exact text is in the XMP packet."""
-    return ascii_text(original.identifier + (f" - {original.title}" if original.title else "") + f"; {what}")
+    (app.workflow.metadata.ascii_text) without surrounding spaces (a spacing accent such as '¯' transliterates to
+    one, and TIFF readers, tifffile among them, strip it); the exact text is in the XMP packet."""
+    return ascii_text(original.identifier + (f" - {original.title}" if original.title else "") + f"; {what}").strip()
 
 
 @dataclass

@@ -10,7 +10,7 @@ import unicodedata
 
 import numpy as np
 import tifffile
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 from workflow_profiles import make_profile
 from xmp_check import read_xmp
@@ -66,6 +66,8 @@ def check_refusal(exc: MetadataError, given: dict) -> None:
 
 
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+# found by this test: a spacing accent transliterates to a space that TIFF readers strip
+@example(identifier="\u00afA", title="", operator="", notes="", extra={}, inject=None, nasty="")
 @given(identifier=IDENTIFIER, title=CLEAN, operator=CLEAN, notes=CLEAN, extra=EXTRA, inject=INJECT, nasty=ANY)
 def test_random_unicode_is_delivered_exactly_or_refused_up_front(tmp_path_factory, identifier, title, operator,
                                                                   notes, extra, inject, nasty):
