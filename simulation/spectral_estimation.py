@@ -53,6 +53,11 @@ JITTER = 1e-10                          # relative to the mean diagonal: keeps a
 QUANTITIES = {"reflective": "reflectance factor", "transmissive": "transmittance factor"}     # what a mode measures
 
 
+def quantity_of(mode: str) -> str:
+    """What ``mode`` measures (:data:`QUANTITIES`; anything else: reflectance)."""
+    return QUANTITIES.get(mode, QUANTITIES["reflective"])
+
+
 class SpectralEstimationError(ValueError):
     """Training data or a stored estimator that cannot define a spectral estimate (one line)."""
 
@@ -210,7 +215,6 @@ def _estimator(training: SpectralTraining, matrix: np.ndarray, method: str, sett
                offset: np.ndarray | None = None) -> SpectralEstimator:
     return SpectralEstimator(matrix, training.wavelengths.copy(), list(training.channels), method, settings,
                              PHYSICAL_RANGE, training.quantity, offset)
-
 
 
 def wiener_matrix(sensitivities: np.ndarray, prior: np.ndarray, noise_var: np.ndarray | None) -> np.ndarray:

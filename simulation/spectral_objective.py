@@ -16,7 +16,7 @@ moves an estimate towards a reference inside [0, 1]). The prior is chosen once p
 cross-validation on the training target under the mode's packaged colour preset, then held fixed while the
 lights move (choosing it per candidate would cost ~250 fits per evaluation).
 
-Film (the modes whose estimates may be affine, simulation.spectral_selection.OFFSETS): the estimate is the affine
+Film (the modes whose estimates may be affine, simulation.spectral_selection.map_forms): the estimate is the affine
 Wiener about the training mean mu, r = mu + M (v - S^T mu) with K the centred prior; its error M (S^T (r_j - mu) +
 n_j) - (r_j - mu) is the linear case's with every spectrum centred, so the same algebra runs on centred spectra,
 while the noise variances still come from the uncentred values (two more Gram matrices).
@@ -38,8 +38,8 @@ from simulation.datasets import SimulationSetup
 from simulation.expected_error import ExpectedErrorEvaluator, ExpectedErrorModel, dense_weights
 from simulation.matrix_fit import solve_normal_equations
 from simulation.objective import ErrorStats, check_kernel_batch
-from simulation.spectral_estimation import QUANTITIES, SpectralPrior, SpectralTraining
-from simulation.spectral_selection import OFFSETS, select_estimator
+from simulation.spectral_estimation import SpectralPrior, SpectralTraining, quantity_of
+from simulation.spectral_selection import map_forms, select_estimator
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +64,7 @@ def reference_prior(setup: SimulationSetup, model: ExpectedErrorModel) -> Spectr
     V = model.values(W[None], "train")
     noise = model.variances(V, model.noise_coefficients(W[None], "train"))[0].mean(axis=0)
     training = SpectralTraining(V[0], setup.train.spectra, setup.grid.wavelengths, sensitivities=S, noise_var=noise,
-                                quantity=QUANTITIES.get(setup.mode, QUANTITIES["reflective"]))
+                                quantity=quantity_of(setup.mode))
     prior = select_estimator(training, ("wiener",)).chosen.prior
     return prior or SpectralPrior()
 
@@ -113,7 +113,7 @@ class SpectralModel:
         self.setup, self.model = setup, model
         self.prior = prior or reference_prior(setup, model)
         # film: the affine estimate about the training mean (module docstring), as the calibration may deliver
-        self.affine = True in OFFSETS.get(QUANTITIES.get(setup.mode, ""), (False,))
+        self.affine = True in map_forms(quantity_of(setup.mode))
         mean = np.asarray(setup.train.spectra, dtype=float).mean(axis=0) if self.affine else None
         K = self.prior.matrix(setup.train.spectra - (0.0 if mean is None else mean), setup.grid.wavelengths)
         E = setup.leds[:, :, None] * setup.camera[None]                  # (K, n_wl, 3)
@@ -128,7 +128,8 @@ class SpectralModel:
         n_leds = len(E)
         self._names = GRAMS + (RAW_GRAMS if self.affine else ())
         # the grams the noise sums read: the uncentred H1s where the estimate is affine, else H1 itself
-        self._noise_train, self._noise_target = (5, 6) if self.affine else (2, 3)
+        self._noise_train, self._noise_target = (self._names.index(g + (" raw" if self.affine else ""))
+                                                 for g in ("H1 train", "H1"))
         # stack[j, (k, g, c, d)] = Gram g [k, j, c, d]: one GEMM with the levels contracts all of the grams over j
         self._stacks = {which: np.ascontiguousarray(np.stack(
             [self.G1, self.G2, tr.H1, t.H1, t.H2] + ([tr.H1raw, t.H1raw] if self.affine else []), axis=2)

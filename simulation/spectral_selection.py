@@ -41,6 +41,11 @@ RIDGES = (0.0, 1e-4, 1e-3, 1e-2)
 OFFSETS = {QUANTITIES["transmissive"]: (False, True), QUANTITIES["reflective"]: (False,)}
 
 
+def map_forms(quantity: str) -> tuple[bool, ...]:
+    """The offsets cross-validation may choose for ``quantity`` (:data:`OFFSETS`; True: an affine map)."""
+    return OFFSETS.get(quantity, (False,))
+
+
 @dataclass(frozen=True)
 class SpectralCandidate:
     """One method with one setting: ``prior`` (wiener, matrix-r with the sensitivities) or ``ridge``; ``offset``:
@@ -85,7 +90,7 @@ def candidates(training: SpectralTraining, methods: tuple[str, ...] | None = Non
         raise SpectralEstimationError(f"spectral methods {', '.join(unknown)}: expected some of "
                                       f"{', '.join(SPECTRAL_METHODS)}")
     priors = [SpectralPrior(s, w) for s in SMOOTHNESS for w in TRAINING_WEIGHTS]
-    offsets = OFFSETS.get(training.quantity, (False,))
+    offsets = map_forms(training.quantity)
     known = training.sensitivities is not None
     out: list[SpectralCandidate] = []
     for m in methods:

@@ -25,7 +25,7 @@ import numpy as np
 
 from common.progress import CancelToken
 from simulation.lightsource import LightSource
-from simulation.spectral_estimation import QUANTITIES, SpectralEstimator, SpectralTraining
+from simulation.spectral_estimation import SpectralEstimator, SpectralTraining, quantity_of
 from simulation.spectral_selection import SpectralSelection
 
 log = logging.getLogger(__name__)
@@ -114,7 +114,7 @@ def training_data(inputs: SpectralInputs) -> tuple[SpectralTraining, np.ndarray 
     if inputs.train_std is not None and np.isfinite(inputs.train_std).all():
         noise = np.median(np.asarray(inputs.train_std, dtype=float) ** 2, axis=0)
     weights = setup.illuminant[:, None] * setup.cmfs * 100.0 / float(setup.illuminant @ setup.cmfs[:, 1])
-    quantity = QUANTITIES[inputs.mode]
+    quantity = quantity_of(inputs.mode)
     return SpectralTraining(values, inputs.train_spectra, setup.grid.wavelengths, list(inputs.channels), S, noise,
                             weights, inputs.xyz_matrix, quantity), gain
 

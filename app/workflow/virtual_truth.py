@@ -31,7 +31,6 @@ class OriginalTruth:
     xyz: np.ndarray
     spectral: SpectralTruth
     white: np.ndarray
-    mode: str = "reflective"
 
     def on_wavelengths(self, wavelengths: np.ndarray) -> OriginalTruth:
         """This truth with its spectra on ``wavelengths`` (a uniform grid: a delivered cube's bands)."""
@@ -65,7 +64,7 @@ def original_truth(name: str, height: int, width: int, mode: str = "reflective")
     from drivers.virtual.originals import ground_truth_xyz
 
     spectral = _spectral_truth(name, height, width, default_grid(mode))
-    return OriginalTruth(name, ground_truth_xyz(name, height, width), spectral, reference_white(mode), mode)
+    return OriginalTruth(name, ground_truth_xyz(name, height, width), spectral, reference_white(mode))
 
 
 def placed_truth(lab: Any) -> OriginalTruth | None:

@@ -38,10 +38,10 @@ from simulation.datasets import MODES, SimulationSetup
 from simulation.defaults import default_grid
 from simulation.halving import HalvingSettings, successive_halving
 from simulation.search import light_pairs, refine_top
-from simulation.spectral_estimation import QUANTITIES, SPECTRAL_METHODS, SpectralEstimator, SpectralTraining
+from simulation.spectral_estimation import SPECTRAL_METHODS, SpectralEstimator, SpectralTraining, quantity_of
 from simulation.spectral_metrics import OTHER_LIGHTS, seen_wavelengths, spectral_figures, spectral_rmse
 from simulation.spectral_objective import SpectralEvaluator
-from simulation.spectral_selection import OFFSETS, select_estimator
+from simulation.spectral_selection import map_forms, select_estimator
 from simulation.studies.common import SetupSpec, StudyOutput
 
 log = logging.getLogger(__name__)
@@ -92,7 +92,7 @@ def training_of(setup: SimulationSetup, ev: SpectralEvaluator, W: np.ndarray) ->
     noise = model.variances(model.values(W[None], "train"), model.noise_coefficients(W[None], "train"))[0]
     A = setup.illuminant[:, None] * setup.cmfs * 100.0 / float(setup.illuminant @ setup.cmfs[:, 1])
     return SpectralTraining(setup.train.spectra @ S, setup.train.spectra, setup.grid.wavelengths, sensitivities=S,
-                            noise_var=noise.mean(axis=0), colour_weights=A, quantity=QUANTITIES[setup.mode])
+                            noise_var=noise.mean(axis=0), colour_weights=A, quantity=quantity_of(setup.mode))
 
 
 def method_row(setup: SimulationSetup, training: SpectralTraining, S: np.ndarray, method: str) -> dict:
@@ -113,9 +113,9 @@ def method_row(setup: SimulationSetup, training: SpectralTraining, S: np.ndarray
 
 def linear_bound(setup: SimulationSetup, S: np.ndarray) -> float:
     """Mean test RMSE of least squares fitted on the test target itself (a bound, never used to choose), with an
-    offset where the mode's estimates may have one (simulation.spectral_selection.OFFSETS)."""
+    offset where the mode's estimates may have one (simulation.spectral_selection.map_forms)."""
     values = setup.test.spectra @ S
-    if True in OFFSETS[QUANTITIES[setup.mode]]:
+    if True in map_forms(quantity_of(setup.mode)):
         values = np.c_[values, np.ones(len(values))]
     M = np.linalg.lstsq(values, setup.test.spectra, rcond=None)[0]
     return float(spectral_rmse(np.clip(values @ M, 0.0, 1.0), setup.test.spectra).mean())
