@@ -182,7 +182,7 @@ def evaluate_candidate(evaluator: Evaluator, cand: Candidate, expected=None) -> 
 
 def add_incumbents(evaluator: Evaluator, outcome: SearchOutcome,
                    incumbents: Sequence[Sequence[LightSource]]) -> SearchOutcome:
-    """Light sets the user already has (a calibration's lights, the mode's preset) costed by the search's own
+    """Light sets the user already has (a calibration's lights) costed by the search's own
     objective and ranked among its candidates, so a re-optimisation never reports lights its objective rates worse
     than those (a stochastic search can miss the basin they lie in: halving, seed 0, did on a film stand, 0.2985
     where the preset scores 0.2629). A set with another number of lights than the search's is left out."""
@@ -190,8 +190,9 @@ def add_incumbents(evaluator: Evaluator, outcome: SearchOutcome,
     for sources in incumbents:
         if n_lights is not None and len(sources) != n_lights:
             continue
-        W = np.stack([s.weights(evaluator.n_leds) for s in sources])[None]
-        outcome.candidates.append(Candidate(tuple(sources), float(evaluator.cost(W)[0])))
+        cand = Candidate(tuple(sources), 0.0)
+        cand.train_cost = float(evaluator.cost(cand.weights(evaluator.n_leds)[None])[0])
+        outcome.candidates.append(cand)
     outcome.candidates.sort(key=lambda c: c.train_cost)
     return outcome
 
