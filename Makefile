@@ -21,13 +21,13 @@ run: $(STAMP)
 # lint and type check first: a finding stops CI in seconds, before the slow tests
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(BIN)/mypy
+	$(BIN)/python -m tools.typecheck
 	$(BIN)/python -m pytest -q
 	$(MAKE) --no-print-directory wheel-smoke
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
-	$(BIN)/mypy
+	$(BIN)/python -m tools.typecheck
 
 # the built wheel in a fresh venv, run from outside the checkout (.ci/wheel_smoke.sh says what it checks)
 wheel-smoke: $(STAMP)
@@ -44,8 +44,8 @@ demo: $(STAMP)
 	$(BIN)/dualrgb demo --out demo-out
 
 resources: $(STAMP)
-	$(BIN)/python -m resources.generate
-	$(BIN)/python -m resources.make_presets
+	$(BIN)/python -m tools.generate_resources
+	$(BIN)/python -m tools.make_presets
 
 clean:
-	rm -rf $(VENV) .pytest_cache bench/results
+	rm -rf $(VENV) .pytest_cache bench/results build

@@ -70,13 +70,22 @@ run="$work/run"                              # outside the checkout: the install
 mkdir -p "$run"
 cd "$run"
 export DUALRGB_DATA_DIR="$run/user-data" PYTHONPATH="" QT_QPA_PLATFORM=offscreen
-where="$("$bin/python" -c 'import app, os; print(os.path.dirname(app.__file__))')"
-[[ "$where" == "$work/venv/"* ]] || fail "app imported from $where, not from the installed wheel"
+where="$("$bin/python" -c 'import dualrgb.app, os; print(os.path.dirname(dualrgb.app.__file__))')"
+[[ "$where" == "$work/venv/"* ]] || fail "dualrgb.app imported from $where, not from the installed wheel"
+step "one namespace: top_level.txt is dualrgb alone, nothing else at the top of site-packages"
+top="$(cat "$work"/venv/lib/python*/site-packages/dualrgb-*.dist-info/top_level.txt 2>/dev/null || true)"
+[[ "$top" == "dualrgb" ]] || fail "top_level.txt lists '$top', expected 'dualrgb' alone"
+for name in app common drivers simulation resources tools; do
+    "$bin/python" -c "import importlib.util, sys; sys.exit(importlib.util.find_spec('$name') is not None)" \
+        || fail "the wheel installed a top-level '$name'"
+done
 
 expected="$(sed -n 's/^version = "\(.*\)"/\1/p' "$repo/pyproject.toml")"
-step "dualrgb --version"
+step "dualrgb --version; python -m dualrgb --version"
 version="$("$bin/dualrgb" --version)"
 [[ "$version" == "dualrgb $expected" ]] || fail "--version printed '$version', expected 'dualrgb $expected'"
+version="$("$bin/python" -m dualrgb --version)"
+[[ "$version" == "dualrgb $expected" ]] || fail "python -m dualrgb --version printed '$version'"
 
 step "dualrgb simulate --method exhaustive --top 3 (the first run compiles the numba kernels)"
 "$bin/dualrgb" simulate --method exhaustive --top 3 --json sim.json > sim.txt

@@ -17,13 +17,13 @@ import logging
 
 import numpy as np
 
-from app.processing.patches import PatchGrid
-from app.processing.pipeline import CaptureProcessor, ExposureRef
-from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.scene import Scene
-from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import SimulationSetup
-from simulation.matrix_fit import fit_matrix
+from dualrgb.app.processing.patches import PatchGrid
+from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.scene import Scene
+from dualrgb.simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
+from dualrgb.simulation.datasets import SimulationSetup
+from dualrgb.simulation.matrix_fit import fit_matrix
 
 log = logging.getLogger(__name__)
 
@@ -53,7 +53,7 @@ def capture_patch_values(setup: SimulationSetup, W: np.ndarray, exposures_s: np.
     finally:
         cam.close()
     sensor = cam.sensor
-    hdr_log = logging.getLogger("app.processing.hdr")
+    hdr_log = logging.getLogger("dualrgb.app.processing.hdr")
     level = hdr_log.level
     hdr_log.setLevel(logging.ERROR)       # hot pixels in long exposures trigger its "exceed the linear limit"
     try:
@@ -70,7 +70,7 @@ def capture_model(setup: SimulationSetup, *, width: int = 600, height: int = 400
     patch, median), its dark frames and its single white frame (simulation.capture_model)."""
     from dataclasses import replace
 
-    from simulation.capture_model import CaptureModel
+    from dualrgb.simulation.capture_model import CaptureModel
 
     pixels = []
     for target in (setup.train, setup.test):

@@ -16,23 +16,23 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from simulation.versions import dualrgb_version
+from dualrgb.simulation.versions import dualrgb_version
 
 log = logging.getLogger(__name__)
 
 COMMAND_MODULES = (
-    "app.commands.simulate",
-    "app.commands.sphere",
-    "app.commands.raw_info",
-    "app.commands.devices",
-    "app.commands.gui",
-    "app.commands.demo",
-    "app.commands.calibrate",
-    "app.commands.capture",
-    "app.commands.process",
-    "app.commands.calibration",
-    "app.commands.study",
-    "app.commands.measure",
+    "dualrgb.app.commands.simulate",
+    "dualrgb.app.commands.sphere",
+    "dualrgb.app.commands.raw_info",
+    "dualrgb.app.commands.devices",
+    "dualrgb.app.commands.gui",
+    "dualrgb.app.commands.demo",
+    "dualrgb.app.commands.calibrate",
+    "dualrgb.app.commands.capture",
+    "dualrgb.app.commands.process",
+    "dualrgb.app.commands.calibration",
+    "dualrgb.app.commands.study",
+    "dualrgb.app.commands.measure",
 )
 
 
@@ -78,6 +78,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    # `python -m app.cli`: run the imported module's main, so commands' `app.cli.UserError` is the one caught here
-    from app.cli import main as _main
+    # `python -m dualrgb.app.cli`: run the imported module's main, so commands' `UserError` is the one caught here
+    from dualrgb.app.cli import main as _main
     sys.exit(_main())

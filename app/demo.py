@@ -25,28 +25,28 @@ from pathlib import Path
 
 import numpy as np
 
-from app.processing.characterise import LEAST_SQUARES
-from app.processing.quality import quality_summary
-from app.sequences.calibration import DarkSeries, FlatSeries
-from app.sequences.capture import SubjectCapture
-from app.sequences.hdr import HdrPlan, meter_and_plan
-from app.session.capture_session import CaptureSession, atomic_write
-from app.session.log import SessionLog
-from app.session.manifest import camera_definition, light_definition
-from app.workflow.copystand import CopyStand, StandSettings
-from app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS, workflow_defaults
-from app.workflow.session_processing import process_session
-from app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
-from app.workflow.vocabulary import NamedLight, Subject, lights_of
-from common.progress import CancelToken, ProgressCallback, check, report, scaled
-from drivers.virtual.lab import VirtualLab
-from drivers.virtual.world import load_world
-from simulation.camera_model import channel_responses
-from simulation.lightsource import LightSource
-from simulation.objective import ErrorStats
-from simulation.presets import Preset, save_preset
-from simulation.runner import run as run_simulation
-from simulation.versions import output_header
+from dualrgb.app.processing.characterise import LEAST_SQUARES
+from dualrgb.app.processing.quality import quality_summary
+from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries
+from dualrgb.app.sequences.capture import SubjectCapture
+from dualrgb.app.sequences.hdr import HdrPlan, meter_and_plan
+from dualrgb.app.session.capture_session import CaptureSession, atomic_write
+from dualrgb.app.session.log import SessionLog
+from dualrgb.app.session.manifest import camera_definition, light_definition
+from dualrgb.app.workflow.copystand import CopyStand, StandSettings
+from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS, workflow_defaults
+from dualrgb.app.workflow.session_processing import process_session
+from dualrgb.app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
+from dualrgb.app.workflow.vocabulary import NamedLight, Subject, lights_of
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report, scaled
+from dualrgb.drivers.virtual.lab import VirtualLab
+from dualrgb.drivers.virtual.world import load_world
+from dualrgb.simulation.camera_model import channel_responses
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.objective import ErrorStats
+from dualrgb.simulation.presets import Preset, save_preset
+from dualrgb.simulation.runner import run as run_simulation
+from dualrgb.simulation.versions import output_header
 
 log = logging.getLogger(__name__)
 
@@ -102,9 +102,9 @@ def demo_capture_model(settings: DemoSettings):
     sensor, exact references (the virtual lab renders the spectra the reference XYZ come from)."""
     from dataclasses import replace
 
-    from drivers.virtual.scene import Scene
-    from simulation.capture_model import CaptureModel
-    from simulation.datasets import default_setup
+    from dualrgb.drivers.virtual.scene import Scene
+    from dualrgb.simulation.capture_model import CaptureModel
+    from dualrgb.simulation.datasets import default_setup
 
     setup = default_setup(settings.mode)
     width, height = (int(v) // 2 * 2 for v in settings.frame_size)
@@ -121,10 +121,10 @@ def demo_capture_model(settings: DemoSettings):
 def make_conditions(settings: DemoSettings, progress: ProgressCallback | None = None) -> tuple[list[Condition], dict]:
     """Presets from the optimiser (#2) on the expected captured error of this demo's capture (#14), and what it
     predicts for them: expected captured errors per characterisation, with the noise-free ones beside them."""
-    from simulation.datasets import default_setup
-    from simulation.expected_error import ExpectedErrorEvaluator
-    from simulation.runner import DEFAULT_METHOD
-    from simulation.sphere import realisable_d65_mix
+    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
+    from dualrgb.simulation.runner import DEFAULT_METHOD
+    from dualrgb.simulation.sphere import realisable_d65_mix
     setup = default_setup(settings.mode)
     ev = ExpectedErrorEvaluator(setup, demo_capture_model(settings))
     presets = {}
@@ -153,8 +153,8 @@ def _predictions(ev, W: np.ndarray, de_matrix: bool | None) -> dict:
     expected captured error of the least-squares matrix (the objective) and, with the dE00-optimised matrix,
     that minus the matrix's noise-free gain (fitted on the noise-free simulated training values); and the
     noise-free figures beside them."""
-    from app.processing.characterise import DE2000, LEAST_SQUARES, fit_de2000
-    from simulation.colorimetry import delta_e_2000, xyz_to_lab
+    from dualrgb.app.processing.characterise import DE2000, LEAST_SQUARES, fit_de2000
+    from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
 
     tr, te = ev.stats(W)
     etr, ete = ev.expected_stats(W)
@@ -295,8 +295,8 @@ class DemoRun:
     def assess_original(self, c: Condition, res) -> dict:
         """The virtual original's stack (captured under ``c``'s lights) through ``c``'s matrix and spectral
         estimator, per pixel against the original's truth (app.workflow.virtual_truth)."""
-        from app.workflow.session_processing import select_lights, session_frames
-        from app.workflow.virtual_truth import compare, original_truth
+        from dualrgb.app.workflow.session_processing import select_lights, session_frames
+        from dualrgb.app.workflow.virtual_truth import compare, original_truth
 
         subject = self.original_subject()
         frames = session_frames(self.session).subject(subject)

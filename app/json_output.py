@@ -30,8 +30,8 @@ def write_json(dest: str | os.PathLike[str], fmt: str, data: dict,
                default: Callable[[Any], Any] | None = None) -> Path | None:
     """Write ``data`` with its header to ``dest`` ('-': stdout). A file is written whole or not at all
     (common.atomic_files) and its parent folders are created; returns the file's path (None for stdout)."""
-    from common.atomic_files import atomic_write
-    from simulation.versions import stamped
+    from dualrgb.common.atomic_files import atomic_write
+    from dualrgb.simulation.versions import stamped
 
     text = json.dumps(stamped(fmt, data), indent=2, default=default) + "\n"
     if str(dest) == STDOUT:

@@ -15,7 +15,7 @@ import threading
 from types import TracebackType
 from typing import Any, TextIO
 
-from common.progress import COMPILING
+from dualrgb.common.progress import COMPILING
 
 log = logging.getLogger(__name__)
 

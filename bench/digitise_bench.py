@@ -42,9 +42,9 @@ LIGHT_NAMES = {"light 1": "bench light 1", "light 2": "bench light 2"}
 def bench_estimator(lights: list) -> object:
     """The Wiener estimate of the bench lights (the model's sensitivities, the packaged training target): what a
     calibration with these lights would store."""
-    from app.processing.spectral import model_sensitivities
-    from simulation.datasets import default_setup
-    from simulation.spectral_estimation import SpectralTraining, fit_wiener
+    from dualrgb.app.processing.spectral import model_sensitivities
+    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.spectral_estimation import SpectralTraining, fit_wiener
 
     setup = default_setup("reflective")
     S = model_sensitivities("reflective", [nl.light for nl in lights])
@@ -57,11 +57,11 @@ def make_profile(folder: Path, spectral: bool = True) -> Path:
     """The calibration profile of the bench set (master darks, HDR whites, a plausible matrix and, with
     ``spectral``, a spectral estimator), cached."""
     sys.path.insert(0, str(ROOT))
-    from app.processing.pipeline import CaptureProcessor, ExposureRef
-    from app.workflow.profile import CalibrationProfile, CameraIdentity, SphereIdentity, load_profile
-    from app.workflow.vocabulary import NamedLight
-    from simulation.lightsource import LightSource
-    from simulation.matrix_fit import CharacterisationMatrix
+    from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+    from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity, SphereIdentity, load_profile
+    from dualrgb.app.workflow.vocabulary import NamedLight
+    from dualrgb.simulation.lightsource import LightSource
+    from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 
     path = folder / "calibration" / ("cal-bench-spectral.json" if spectral else "cal-bench.json")
     if path.exists():
@@ -114,11 +114,11 @@ def _child_decode(folder: str) -> dict:
 
 def _child_digitise(folder: str, streaming: bool, spectral: bool = True) -> dict:
     sys.path.insert(0, str(ROOT))
-    from app.processing import encode, kernels, spectral_cube
-    from app.processing.pipeline import ExposureRef
-    from app.workflow.copystand import profile_processor
-    from app.workflow.delivery import LightDoseRecord, Original, deliver
-    from app.workflow.profile import load_profile
+    from dualrgb.app.processing import encode, kernels, spectral_cube
+    from dualrgb.app.processing.pipeline import ExposureRef
+    from dualrgb.app.workflow.copystand import profile_processor
+    from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.profile import load_profile
 
     folder_p = Path(folder)
     t_load = time.perf_counter()
@@ -154,7 +154,7 @@ def _child_warm() -> dict:
     """Compile the kernels into numba's on-disk cache once, so no measured run pays (or counts the memory of)
     LLVM compiling them."""
     sys.path.insert(0, str(ROOT))
-    from app.processing import encode, kernels, spectral_cube
+    from dualrgb.app.processing import encode, kernels, spectral_cube
 
     kernels.warm_up()
     encode.warm_up()

@@ -37,7 +37,7 @@ LIGHTS = {"light 1": (1 / 1250, 1 / 8), "light 2": (1 / 2500, 1 / 20)}     # the
 
 
 def _write_dng(path: Path, data: np.ndarray, exposure_s: float) -> None:
-    from drivers.virtual.dng import DngInfo, save_dng
+    from dualrgb.drivers.virtual.dng import DngInfo, save_dng
 
     save_dng(path, np.ascontiguousarray(data, dtype=np.uint16), DngInfo(BLACK, WHITE, exposure_s=exposure_s))
 
@@ -94,8 +94,8 @@ def _child_decode(folder: str) -> dict:
 
 def _child_process(folder: str, outputs: bool) -> dict:
     sys.path.insert(0, str(ROOT))
-    from app.processing.kernels import warm_up
-    from app.processing.pipeline import CaptureProcessor, ExposureRef
+    from dualrgb.app.processing.kernels import warm_up
+    from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
 
     folder_p = Path(folder)
     plan = json.loads((folder_p / "plan.json").read_text())

@@ -11,14 +11,14 @@ import time
 import colour
 import numpy as np
 
-from simulation.camera_model import channel_responses
-from simulation.datasets import default_setup
-from simulation.expected_error import ExpectedErrorEvaluator
-from simulation.halving import HalvingSettings, successive_halving
-from simulation.objective import Evaluator
-from simulation.pso import PsoSettings, pso
-from simulation.search import exhaustive, group_arrays, light_pairs, refine_top
-from simulation.studies.optimisers import Float64Cost
+from dualrgb.simulation.camera_model import channel_responses
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
+from dualrgb.simulation.halving import HalvingSettings, successive_halving
+from dualrgb.simulation.objective import Evaluator
+from dualrgb.simulation.pso import PsoSettings, pso
+from dualrgb.simulation.search import exhaustive, group_arrays, light_pairs, refine_top
+from dualrgb.simulation.studies.optimisers import Float64Cost
 
 DEFAULT_TARGET_S = 1.0          # issue 12: the default optimiser on this 2-core machine ...
 BEST_KNOWN_TRAIN = 0.400        # ... reaching the best known optimum (reflective, noise-free)
@@ -99,7 +99,7 @@ def _us_per_evaluation(evaluator, idx: np.ndarray, w: np.ndarray, repeats: int =
 def bench_spectral_objective(setup, seed: int = 0, batch: int = 6400) -> dict:
     """Issue 21: the spectral objective (expected captured spectral RMSE, numpy over the batch) per evaluation
     in PSO-sized batches beside the expected-captured kernel, and the default optimiser on it."""
-    from simulation.spectral_objective import SpectralEvaluator
+    from dualrgb.simulation.spectral_objective import SpectralEvaluator
 
     spectral, expected = SpectralEvaluator(setup), ExpectedErrorEvaluator(setup)
     idx, mask = group_arrays(light_pairs())

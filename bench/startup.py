@@ -20,7 +20,7 @@ REPEATS = 7
 
 def _cli() -> list[str]:
     script = Path(sys.executable).with_name("dualrgb")
-    return [str(script)] if script.exists() else [sys.executable, "-m", "app.cli"]
+    return [str(script)] if script.exists() else [sys.executable, "-m", "dualrgb"]
 
 
 def _seconds(argv: list[str]) -> float:
@@ -40,7 +40,7 @@ def _medians(runs: dict[str, list[str]], repeats: int) -> dict[str, float]:
 
 def import_profile(args: list[str], top: int = 12) -> list[str]:
     """The ``top`` imports with the largest cumulative time (microseconds) of ``dualrgb ARGS``."""
-    code = f"import sys; from app.cli import main; sys.argv[0] = 'dualrgb'; main({args!r})"
+    code = f"import sys; from dualrgb.app.cli import main; sys.argv[0] = 'dualrgb'; main({args!r})"
     r = subprocess.run([sys.executable, "-X", "importtime", "-c", code], capture_output=True, text=True)
     rows = []
     for line in r.stderr.splitlines():
@@ -54,7 +54,7 @@ def import_profile(args: list[str], top: int = 12) -> list[str]:
 def _sample_dng(folder: Path) -> Path:
     import numpy as np
 
-    from drivers.virtual.dng import DngInfo, save_dng
+    from dualrgb.drivers.virtual.dng import DngInfo, save_dng
 
     mosaic = np.random.default_rng(0).integers(600, 15520, (64, 96), dtype=np.uint16)
     return save_dng(folder / "sample.dng", mosaic, DngInfo(exposure_s=1 / 60, iso=100))

@@ -5,8 +5,8 @@ from __future__ import annotations
 import os
 import time
 
-from simulation.studies.common import SetupSpec, evaluator_for
-from simulation.studies.unbinned import unbinned_group_arrays, unbinned_search
+from dualrgb.simulation.studies.common import SetupSpec, evaluator_for
+from dualrgb.simulation.studies.unbinned import unbinned_group_arrays, unbinned_search
 
 TARGET_S = 30.0
 

@@ -14,11 +14,11 @@ from functools import partial
 
 import numpy as np
 
-from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.dng import DngInfo, dng_bytes
-from drivers.virtual.originals import ground_truth_xyz
-from drivers.virtual.scene import Scene, original_scene
-from simulation.datasets import default_setup
+from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.dng import DngInfo, dng_bytes
+from dualrgb.drivers.virtual.originals import ground_truth_xyz
+from dualrgb.drivers.virtual.scene import Scene, original_scene
+from dualrgb.simulation.datasets import default_setup
 
 log = logging.getLogger(__name__)
 

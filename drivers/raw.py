@@ -128,7 +128,7 @@ def _detect_format(path: Path, head: bytes) -> str:
             import tifffile
 
             with tifffile.TiffFile(path) as tif:
-                if 50706 in tif.pages[0].tags:  # DNGVersion
+                if 50706 in tif.pages.first.tags:  # DNGVersion
                     return "DNG"
         except _TIFF_ERRORS as exc:          # TiffFileError is a ValueError
             log.debug("tifffile could not read %s: %s", path, exc)
@@ -143,7 +143,7 @@ def _tiff_make_model(path: Path, head: bytes) -> tuple[str, str]:
         import tifffile
 
         with tifffile.TiffFile(path) as tif:
-            tags = tif.pages[0].tags
+            tags = tif.pages.first.tags
             make = tags.get(271)
             model = tags.get(272)
             unique = tags.get(50708)  # DNG UniqueCameraModel
@@ -178,7 +178,7 @@ def _tiff_data_end(path: Path, head: bytes) -> int | None:
                 for off, cnt in zip(page.dataoffsets or (), page.databytecounts or (), strict=False):
                     end = max(end, int(off) + int(cnt))
                 if getattr(page, "subifds", None):
-                    stack.extend(page.pages)
+                    stack.extend(page.pages or ())
         return end
     except _TIFF_ERRORS as exc:
         log.debug("tifffile could not walk %s: %s", path, exc)

@@ -131,7 +131,7 @@ def _bounded(fn: Callable[[], T], timeout_s: float, default: T, what: str, notes
 # ----------------------------------------------------------------------------------------- probes
 def gphoto_cameras() -> list[CameraInfo]:
     """Cameras libgphoto2 autodetects (raises if gphoto2 is missing or fails; discover() catches)."""
-    from drivers.camera.gphoto import GPhotoCamera
+    from dualrgb.drivers.camera.gphoto import GPhotoCamera
 
     out = []
     for model, port in GPhotoCamera.detect():
@@ -252,8 +252,8 @@ def gvfs_monitor_pids() -> list[int]:
 
 def probe_camera(cam: CameraInfo) -> str:
     """Open and close one gphoto2 camera: 'ok', or the one-line problem (e.g. claimed by gvfs, -53)."""
-    from drivers.camera.base import CameraError
-    from drivers.camera.gphoto import GPhotoCamera
+    from dualrgb.drivers.camera.base import CameraError
+    from dualrgb.drivers.camera.gphoto import GPhotoCamera
 
     try:
         with GPhotoCamera(model=cam.model, port=cam.port, busy_tries=1):
@@ -307,7 +307,7 @@ def discover(*, probe: bool = False, timeout_s: float = 3.0) -> DeviceReport:
                                   "no answer when opening it (switch the camera off and on)",
                                   f"open {cam.model}", report.notes)
     report.hints = _bounded(lambda: claimed_camera_hints(report), timeout_s, [], "USB hints", report.notes)
-    from drivers.camera.gphoto import TETHERING_UNAVAILABLE, gphoto_available
+    from dualrgb.drivers.camera.gphoto import TETHERING_UNAVAILABLE, gphoto_available
 
     if not gphoto_available():
         report.hints.append(TETHERING_UNAVAILABLE)

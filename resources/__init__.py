@@ -1,8 +1,8 @@
 """Data only: LED spectra, camera sensitivities, targets, presets and reference charts, read with
 importlib.resources from the installed package; and the per-user folder for what the app writes at run time.
 
-Every CSV says in its header its units, its source and how it was made; ``python -m resources.generate``
-(``make resources``) rebuilds them all from colour-science data and the models in that script.
+Every CSV says in its header its units, its source and how it was made; ``python -m tools.generate_resources``
+(``make resources``, not shipped) rebuilds them all from colour-science data and the models in that script.
 Nothing is ever written into the package: ``user_path`` is the place (e.g. ``~/.local/share/dualrgb`` on Linux,
 ``%LOCALAPPDATA%\\dualrgb`` on Windows, ``~/Library/Application Support/dualrgb`` on macOS; the
 ``DUALRGB_DATA_DIR`` environment variable moves it), and a packaged file is the fallback where a user copy

@@ -19,8 +19,8 @@ from __future__ import annotations
 import logging
 from dataclasses import asdict, dataclass, field, replace
 
-from simulation.choices import CALIBRATION_DARK_FRAMES, CALIBRATION_FLAT_FRAMES
-from simulation.sphere import SphereProperties
+from dualrgb.simulation.choices import CALIBRATION_DARK_FRAMES, CALIBRATION_FLAT_FRAMES
+from dualrgb.simulation.sphere import SphereProperties
 
 log = logging.getLogger(__name__)
 

@@ -37,8 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
-from common.atomic_files import atomic_write
-from simulation.spectral_io import SpectralDataError, SpectralTable
+from dualrgb.common.atomic_files import atomic_write
+from dualrgb.simulation.spectral_io import SpectralDataError, SpectralTable
 
 log = logging.getLogger(__name__)
 

@@ -15,11 +15,11 @@ from pathlib import Path
 import colour
 import numpy as np
 
-import resources
-from simulation.choices import MODES
-from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
-from simulation.lightsource import N_SPHERE_LEDS
-from simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv
+from dualrgb import resources
+from dualrgb.simulation.choices import MODES
+from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid, resample
+from dualrgb.simulation.lightsource import N_SPHERE_LEDS
+from dualrgb.simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv
 
 log = logging.getLogger(__name__)
 
@@ -88,7 +88,7 @@ def load_target(path: str | Path, grid: SpectralGrid = DEFAULT_GRID, name: str |
 
     Values above 1 are accepted up to 2 (fluorescent samples have reflectance factors above 1).
     """
-    from simulation.cgats import is_cgats, read_cgats_spectra
+    from dualrgb.simulation.cgats import is_cgats, read_cgats_spectra
 
     table = read_cgats_spectra(path) if is_cgats(path) else read_spectral_csv(path, max_value=2.0)
     if table.values.max() > 2.0 * (1 + 1e-9):
@@ -166,7 +166,7 @@ def default_setup(mode: str = "reflective", grid: SpectralGrid | None = None, *,
     chose for the mode (simulation.defaults.default_grid; the thesis' 410-780 nm at 10 nm where it suffices)."""
     check_reference_method(reference_xyz)
     if grid is None:
-        from simulation.defaults import default_grid
+        from dualrgb.simulation.defaults import default_grid
 
         grid = default_grid(mode) if mode in MODES else DEFAULT_GRID
     base = _default_setup(mode, grid)
@@ -247,7 +247,7 @@ def target_xyz(setup: SimulationSetup, target: Target, method: str | None = None
     and extrapolation): the standard integration for measured spectra. The two differ by 0.078 mean / 0.256 max
     dE00 on the packaged CC24 (tests/simulation/test_reference_xyz.py).
     """
-    from simulation.colorimetry import tristimulus, white_point
+    from dualrgb.simulation.colorimetry import tristimulus, white_point
 
     method = check_reference_method(method or setup.reference_xyz)
     if method == REFERENCE_EQ_4_2:

@@ -24,10 +24,10 @@ import logging
 from pathlib import Path
 from typing import Any
 
-import resources
-from common.atomic_files import atomic_write
-from simulation.choices import MODES
-from simulation.grid import SpectralGrid
+from dualrgb import resources
+from dualrgb.common.atomic_files import atomic_write
+from dualrgb.simulation.choices import MODES
+from dualrgb.simulation.grid import SpectralGrid
 
 log = logging.getLogger(__name__)
 

@@ -38,13 +38,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simulation.camera_model import led_responses, with_flare
-from simulation.capture_model import CaptureModel
-from simulation.colorimetry import delta_e_2000, xyz_to_lab
-from simulation.datasets import SimulationSetup, Target, target_xyz
-from simulation.fast_expected import mean_expected_de2000, prepare_expected
-from simulation.matrix_fit import solve_normal_equations
-from simulation.objective import ErrorStats, Evaluator, check_kernel_batch, kernel_threads
+from dualrgb.simulation.camera_model import led_responses, with_flare
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
+from dualrgb.simulation.datasets import SimulationSetup, Target, target_xyz
+from dualrgb.simulation.fast_expected import mean_expected_de2000, prepare_expected
+from dualrgb.simulation.matrix_fit import solve_normal_equations
+from dualrgb.simulation.objective import ErrorStats, Evaluator, check_kernel_batch, kernel_threads
 
 log = logging.getLogger(__name__)
 

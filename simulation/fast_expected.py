@@ -15,7 +15,7 @@ import numpy as np
 from numba import float32 as f32
 from numba import njit, prange
 
-from simulation.fast_de import _FASTMATH, _de2000, _f_lab  # one CIEDE2000 implementation for both objectives
+from dualrgb.simulation.fast_de import _FASTMATH, _de2000, _f_lab  # one CIEDE2000 implementation for both objectives
 
 _BLOCK = 256
 

@@ -22,9 +22,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.pso import PsoSettings, enforce_constraints, swarm_bests
-from simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.pso import PsoSettings, enforce_constraints, swarm_bests
+from dualrgb.simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
 
 log = logging.getLogger(__name__)
 

@@ -149,8 +149,8 @@ def default_method(mode: str | None) -> str:
     """The estimator ``dualrgb study hdr`` chose for ``mode`` (resources/parsimony.json, key ``hdr_merge``).
     ``mode`` None (a merge that does not know what it images: the bare HdrMerge of a test): the choice both
     modes share; ValueError when they differ, so no caller silently takes the other mode's estimator."""
-    from simulation.choices import MODES
-    from simulation.defaults import load_defaults
+    from dualrgb.simulation.choices import MODES
+    from dualrgb.simulation.defaults import load_defaults
 
     if mode is None:
         chosen = {m: default_method(m) for m in MODES}

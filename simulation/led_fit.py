@@ -28,7 +28,7 @@ from scipy.integrate import trapezoid
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 
-from simulation.sphere import LowLevelResponse
+from dualrgb.simulation.sphere import LowLevelResponse
 
 log = logging.getLogger(__name__)
 

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simulation.choices import N_SPHERE_LEDS
+from dualrgb.simulation.choices import N_SPHERE_LEDS
 
 LEVEL_DIGITS = 4      # significant digits printed: retyping printed levels reproduces the mean dE00 to < 1e-4
 

@@ -17,12 +17,12 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from simulation.camera_model import channel_names, channel_responses, led_responses, with_flare
-from simulation.colorimetry import delta_e_2000, xyz_to_lab
-from simulation.datasets import SimulationSetup, Target, check_setup, target_xyz
-from simulation.fast_de import mean_de2000_mapped
-from simulation.fast_linalg import fit_light_sets
-from simulation.matrix_fit import RIDGE, CharacterisationMatrix, _check_patches, fit_matrix
+from dualrgb.simulation.camera_model import channel_names, channel_responses, led_responses, with_flare
+from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
+from dualrgb.simulation.datasets import SimulationSetup, Target, check_setup, target_xyz
+from dualrgb.simulation.fast_de import mean_de2000_mapped
+from dualrgb.simulation.fast_linalg import fit_light_sets
+from dualrgb.simulation.matrix_fit import RIDGE, CharacterisationMatrix, _check_patches, fit_matrix
 
 log = logging.getLogger(__name__)
 

@@ -18,11 +18,11 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import resources
-from common.atomic_files import atomic_write
-from simulation.lightsource import N_SPHERE_LEDS, LightSource
-from simulation.spectral_io import read_text_file
-from simulation.versions import output_header
+from dualrgb import resources
+from dualrgb.common.atomic_files import atomic_write
+from dualrgb.simulation.lightsource import N_SPHERE_LEDS, LightSource
+from dualrgb.simulation.spectral_io import read_text_file
+from dualrgb.simulation.versions import output_header
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +50,7 @@ class Preset:
         return {**output_header(FORMAT), "name": self.name, "method": self.method, "seed": self.seed, "mode": self.mode,
                 "sources": [s.to_dict() for s in self.sources], "errors": self.errors, "dataset": self.dataset,
                 "model": self.model,
-                "created": self.created or _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+                "created": self.created or _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
 
 
 def save_preset(preset: Preset, path: str | Path) -> Path:
@@ -136,6 +136,6 @@ def load_preset(path: str | Path, n_leds: int = N_SPHERE_LEDS) -> Preset:
 
 
 def packaged_presets() -> list[Path]:
-    """The presets shipped in resources/presets (made by ``python -m resources.make_presets``)."""
+    """The presets shipped in resources/presets (made by ``python -m tools.make_presets``)."""
     folder = resources.path("presets")
     return sorted(folder.glob("*.json")) if folder.is_dir() else []

@@ -17,9 +17,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.objective import Evaluator
-from simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.objective import Evaluator
+from dualrgb.simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
 
 log = logging.getLogger(__name__)
 

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import trapezoid
 
-from simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv
+from dualrgb.simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv
 
 log = logging.getLogger(__name__)
 
@@ -161,7 +161,7 @@ def _percent(text: str | None, source: str) -> float:
 
 
 def _read_cgats_readings(path: Path) -> tuple[SpectralTable, list[float]]:
-    from simulation.cgats import read_cgats
+    from dualrgb.simulation.cgats import read_cgats
 
     cg = read_cgats(path)
     wl, values = cg.spectral_values()
@@ -176,7 +176,7 @@ def _read_cgats_readings(path: Path) -> tuple[SpectralTable, list[float]]:
 def read_radiance_reference(path: str | Path, *, method: str = "integral",
                             window_nm: float = DEFAULT_WINDOW_NM) -> RadianceReference:
     """The radiance reference in ``path``: spectroradiometer spectra (CSV or CGATS) or a radiance table."""
-    from simulation.cgats import is_cgats
+    from dualrgb.simulation.cgats import is_cgats
 
     p = Path(path)
     if is_cgats(p):

@@ -15,9 +15,9 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from simulation.capture_model import CaptureModel
-from simulation.datasets import SimulationSetup, Target
-from simulation.expected_error import ExpectedErrorEvaluator
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.datasets import SimulationSetup, Target
+from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
 
 log = logging.getLogger(__name__)
 

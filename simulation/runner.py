@@ -15,20 +15,20 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from common.progress import CancelToken, ProgressCallback
-from simulation.capture_model import CaptureModel
-from simulation.choices import DEFAULT_SPECTRAL_WEIGHT, METHODS, OBJECTIVES, SPECTRAL_OBJECTIVES
-from simulation.datasets import SimulationSetup
-from simulation.expected_error import ExpectedErrorEvaluator
-from simulation.ga import GaSettings, ga
-from simulation.halving import HalvingSettings, successive_halving
-from simulation.lightsource import LightSource
-from simulation.objective import Evaluator, three_channel
-from simulation.presets import Preset
-from simulation.pso import PsoSettings, pso
-from simulation.robust import RobustEvaluator, RobustSettings
-from simulation.search import DEFAULT_BINS, SearchOutcome, add_incumbents, exhaustive, light_pairs, refine_top
-from simulation.warmup import warm_up
+from dualrgb.common.progress import CancelToken, ProgressCallback
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.choices import DEFAULT_SPECTRAL_WEIGHT, METHODS, OBJECTIVES, SPECTRAL_OBJECTIVES
+from dualrgb.simulation.datasets import SimulationSetup
+from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
+from dualrgb.simulation.ga import GaSettings, ga
+from dualrgb.simulation.halving import HalvingSettings, successive_halving
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.objective import Evaluator, three_channel
+from dualrgb.simulation.presets import Preset
+from dualrgb.simulation.pso import PsoSettings, pso
+from dualrgb.simulation.robust import RobustEvaluator, RobustSettings
+from dualrgb.simulation.search import DEFAULT_BINS, SearchOutcome, add_incumbents, exhaustive, light_pairs, refine_top
+from dualrgb.simulation.warmup import warm_up
 
 log = logging.getLogger(__name__)
 
@@ -49,7 +49,7 @@ def make_evaluator(setup: SimulationSetup, objective: str = DEFAULT_OBJECTIVE,
     if objective == "robust":
         return RobustEvaluator(setup, capture, robust)
     if objective in SPECTRAL_OBJECTIVES:
-        from simulation.spectral_objective import SpectralEvaluator, SpectralObjectiveSettings
+        from dualrgb.simulation.spectral_objective import SpectralEvaluator, SpectralObjectiveSettings
 
         return SpectralEvaluator(setup, capture, SpectralObjectiveSettings(spectral_weight=spectral_weight),
                                  mixed=objective == "mixed")

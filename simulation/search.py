@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.lightsource import LightSource
-from simulation.objective import ErrorStats, Evaluator
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.objective import ErrorStats, Evaluator
 
 log = logging.getLogger(__name__)
 

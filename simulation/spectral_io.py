@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.atomic_files import atomic_output
+from dualrgb.common.atomic_files import atomic_output
 
 log = logging.getLogger(__name__)
 

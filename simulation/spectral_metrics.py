@@ -25,10 +25,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.grid import SpectralGrid
-from simulation.objective import ErrorStats
-from simulation.other_lights import OTHER_LIGHTS
+from dualrgb.simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
+from dualrgb.simulation.grid import SpectralGrid
+from dualrgb.simulation.objective import ErrorStats
+from dualrgb.simulation.other_lights import OTHER_LIGHTS
 
 log = logging.getLogger(__name__)
 

@@ -31,15 +31,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simulation.camera_model import flat_fielded_sensitivities
-from simulation.capture_model import CaptureModel
-from simulation.choices import DEFAULT_SPECTRAL_WEIGHT
-from simulation.datasets import SimulationSetup
-from simulation.expected_error import ExpectedErrorEvaluator, ExpectedErrorModel, dense_weights
-from simulation.matrix_fit import solve_normal_equations
-from simulation.objective import ErrorStats, check_kernel_batch
-from simulation.spectral_estimation import SpectralPrior, SpectralTraining, quantity_of
-from simulation.spectral_selection import map_forms, select_estimator
+from dualrgb.simulation.camera_model import flat_fielded_sensitivities
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.choices import DEFAULT_SPECTRAL_WEIGHT
+from dualrgb.simulation.datasets import SimulationSetup
+from dualrgb.simulation.expected_error import ExpectedErrorEvaluator, ExpectedErrorModel, dense_weights
+from dualrgb.simulation.matrix_fit import solve_normal_equations
+from dualrgb.simulation.objective import ErrorStats, check_kernel_batch
+from dualrgb.simulation.spectral_estimation import SpectralPrior, SpectralTraining, quantity_of
+from dualrgb.simulation.spectral_selection import map_forms, select_estimator
 
 log = logging.getLogger(__name__)
 
@@ -50,8 +50,8 @@ def reference_prior(setup: SimulationSetup, model: ExpectedErrorModel) -> Spectr
     """The Wiener prior chosen by cross-validation on the training target under the mode's packaged colour
     preset (``resources/presets/<mode>_pso.json``) with this capture's noise; the default prior when there is
     no such preset."""
-    import resources
-    from simulation.presets import PresetError, load_preset
+    from dualrgb import resources
+    from dualrgb.simulation.presets import PresetError, load_preset
 
     try:
         preset = load_preset(resources.path("presets", f"{setup.mode}_pso.json"), setup.leds.shape[0])

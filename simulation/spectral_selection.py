@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from common.progress import CancelToken, check
-from simulation.spectral_estimation import (
+from dualrgb.common.progress import CancelToken, check
+from dualrgb.simulation.spectral_estimation import (
     QUANTITIES,
     SPECTRAL_METHODS,
     SpectralEstimationError,
@@ -24,7 +24,7 @@ from simulation.spectral_estimation import (
     SpectralTraining,
     fit_spectral,
 )
-from simulation.spectral_metrics import spectral_rmse
+from dualrgb.simulation.spectral_metrics import spectral_rmse
 
 log = logging.getLogger(__name__)
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simulation.lightsource import LightSource
+from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 

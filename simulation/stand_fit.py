@@ -41,10 +41,10 @@ from typing import Any
 
 import numpy as np
 
-from simulation.camera_model import CHANNELS, led_responses
-from simulation.capture_model import CameraNoise, CaptureModel
-from simulation.grid import DEFAULT_GRID, SpectralGrid
-from simulation.stand_model import StandModel, StandParameters
+from dualrgb.simulation.camera_model import CHANNELS, led_responses
+from dualrgb.simulation.capture_model import CameraNoise, CaptureModel
+from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid
+from dualrgb.simulation.stand_model import StandModel, StandParameters
 
 log = logging.getLogger(__name__)
 
@@ -354,7 +354,7 @@ def expected_de00(model: StandModel, mode: str, levels: np.ndarray, capture: Cap
                   ) -> dict[str, float]:
     """Mean expected captured CIEDE2000 (least-squares matrix; simulation.expected_error) of the light set
     ``levels`` (L, n_leds) on the training and test targets, as ``model`` predicts it under ``capture``."""
-    from simulation.expected_error import ExpectedErrorModel
+    from dualrgb.simulation.expected_error import ExpectedErrorModel
 
     setup = model.setup(mode)
     out = ExpectedErrorModel(setup, model.capture(capture or CaptureModel.virtual_lab(mode))).expected(

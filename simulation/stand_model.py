@@ -29,14 +29,14 @@ from typing import Any
 
 import numpy as np
 
-import resources
-from simulation.capture_model import CaptureModel
-from simulation.choices import N_SPHERE_LEDS
-from simulation.datasets import SimulationSetup, check_setup, default_setup
-from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
-from simulation.led_shapes import shaped_led_spectra
-from simulation.spectral_io import SpectralDataError, read_spectral_csv
-from simulation.sphere import SphereProperties
+from dualrgb import resources
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.choices import N_SPHERE_LEDS
+from dualrgb.simulation.datasets import SimulationSetup, check_setup, default_setup
+from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid, resample
+from dualrgb.simulation.led_shapes import shaped_led_spectra
+from dualrgb.simulation.spectral_io import SpectralDataError, read_spectral_csv
+from dualrgb.simulation.sphere import SphereProperties
 
 log = logging.getLogger(__name__)
 

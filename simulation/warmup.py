@@ -17,10 +17,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from common.progress import COMPILING, ProgressCallback, report
+from dualrgb.common.progress import COMPILING, ProgressCallback, report
 
 if TYPE_CHECKING:
-    from simulation.objective import Evaluator
+    from dualrgb.simulation.objective import Evaluator
 
 log = logging.getLogger(__name__)
 
@@ -37,8 +37,8 @@ def _cached(dispatcher: object) -> bool | None:
 def kernels_cached() -> bool | None:
     """True when every kernel the optimisers use has an on-disk cache index, False when one has none, None
     when that cannot be told."""
-    from simulation.fast_de import mean_de2000_mapped
-    from simulation.fast_linalg import fit_light_sets
+    from dualrgb.simulation.fast_de import mean_de2000_mapped
+    from dualrgb.simulation.fast_linalg import fit_light_sets
 
     states = [_cached(k) for k in (fit_light_sets, mean_de2000_mapped)]
     if None in states:
@@ -53,7 +53,7 @@ def warm_up(evaluator: Evaluator, progress: ProgressCallback | None = None,
     The call goes through :class:`simulation.objective.Evaluator`'s own ``cost_indexed`` (not a subclass's
     override, so a GUI convergence tap sees no point) and leaves ``evaluator.evaluations`` unchanged.
     """
-    from simulation.objective import Evaluator
+    from dualrgb.simulation.objective import Evaluator
 
     idx = np.zeros((4, 2, 3), dtype=np.int64)
     idx[:, 1] = 1

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from workflow_profiles import make_profile
 
-from app.processing.pipeline import ChannelStack
-from simulation.grid import DEFAULT_GRID
-from simulation.spectral_estimation import SpectralEstimator
+from dualrgb.app.processing.pipeline import ChannelStack
+from dualrgb.simulation.grid import DEFAULT_GRID
+from dualrgb.simulation.spectral_estimation import SpectralEstimator
 
 WL = DEFAULT_GRID.wavelengths
 SPECTRAL = {"test": {"rmse": {"mean": 0.042, "p90": 0.071}, "gfc": {"mean": 0.991},

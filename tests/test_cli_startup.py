@@ -12,7 +12,7 @@ HEAVY = ("numpy", "scipy", "colour", "matplotlib", "numba", "rawpy", "PySide6", 
 
 PROBE = """
 import sys
-from app.cli import build_parser
+from dualrgb.app.cli import build_parser
 parser = build_parser()
 try:
     parser.parse_args({argv!r})
@@ -37,7 +37,7 @@ def test_parser_imports_nothing_heavy(argv):
 def test_version_is_the_distributions(capsys):
     from importlib import metadata
 
-    from app.cli import main
+    from dualrgb.app.cli import main
 
     with pytest.raises(SystemExit) as exit_:
         main(["--version"])

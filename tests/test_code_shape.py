@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("app", "common", "drivers", "simulation", "resources")     # what the wheel installs
+PACKAGES = ("dualrgb", "app", "common", "drivers", "simulation", "resources")     # what the wheel installs
 MAX_FUNCTION_LINES = 50
 MAX_MODULE_LINES = 600
 

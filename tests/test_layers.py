@@ -14,12 +14,14 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 QT = ("PySide6", "pyqtgraph", "shiboken6")
 CONCRETE_DRIVERS = ("drivers.camera.gphoto", "drivers.led_sphere.driver", "drivers.virtual")
+NAMESPACE = "dualrgb."
 PACKAGES = ("app", "common", "drivers", "simulation", "resources")
 
 
 def imports(path: Path, *, names: bool = False) -> list[str]:
     """Absolute module names imported anywhere in ``path`` (function-level imports included); with ``names``
-    also ``pkg.name`` for every ``from pkg import name`` (the name may be a module)."""
+    also ``pkg.name`` for every ``from pkg import name`` (the name may be a module). dualrgb's own modules are
+    named by their folders (``dualrgb.app.cli`` -> ``app.cli``), as the rules below are."""
     tree = ast.parse(path.read_text(), filename=str(path))
     out = []
     for node in ast.walk(tree):
@@ -29,7 +31,7 @@ def imports(path: Path, *, names: bool = False) -> list[str]:
             out.append(node.module)
             if names:
                 out += [f"{node.module}.{a.name}" for a in node.names]
-    return out
+    return [name.removeprefix(NAMESPACE) for name in out]
 
 
 def violations(root: Path = ROOT) -> list[str]:
@@ -126,20 +128,22 @@ def test_import_circles_are_found(tmp_path):
     for pkg in PACKAGES:
         (tmp_path / pkg).mkdir()
         (tmp_path / pkg / "__init__.py").write_text("")
-    (tmp_path / "app" / "a.py").write_text("from app.b import x\n")
-    (tmp_path / "app" / "b.py").write_text("def f():\n    from app import c\n")        # function-level counts
-    (tmp_path / "app" / "c.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import app.a\n")
-    (tmp_path / "app" / "d.py").write_text("import app.a\n")                          # on no circle
+    (tmp_path / "app" / "a.py").write_text("from dualrgb.app.b import x\n")
+    (tmp_path / "app" / "b.py").write_text("def f():\n    from dualrgb.app import c\n")        # function-level counts
+    (tmp_path / "app" / "c.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                                           "    import dualrgb.app.a\n")
+    (tmp_path / "app" / "d.py").write_text("import dualrgb.app.a\n")                          # on no circle
     assert import_circles(module_graph(tmp_path)) == [["app.a", "app.b", "app.c"]]
 
 
 @pytest.mark.parametrize("rel, source, expected", [
-    ("simulation/x.py", "from app.session.capture_session import CaptureSession\n", "imports app.session"),
-    ("common/x.py", "from simulation.grid import DEFAULT_GRID\n", "common/x.py: imports simulation.grid"),
+    ("simulation/x.py", "from dualrgb.app.session.capture_session import CaptureSession\n", "imports app.session"),
+    ("common/x.py", "from dualrgb.simulation.grid import DEFAULT_GRID\n", "common/x.py: imports simulation.grid"),
     ("drivers/x.py", "def f():\n    import PySide6.QtCore\n", "drivers/x.py: imports PySide6.QtCore"),
     ("app/processing/x.py", "import pyqtgraph as pg\n", "outside app/gui"),
-    ("app/gui/panels/x.py", "from app.gui.panels.camera import image_widget\n", "panel imports app.gui.panels"),
-    ("app/gui/panels/y.py", "from drivers.camera.gphoto import format_shutter\n", "panel imports drivers.camera"),
+    ("app/gui/panels/x.py", "from dualrgb.app.gui.panels.camera import image_widget\n", "panel imports app.gui.panels"),
+    ("app/gui/panels/y.py", "from dualrgb.drivers.camera.gphoto import format_shutter\n",
+     "panel imports drivers.camera"),
 ])
 def test_each_rule_catches_its_violation(tmp_path, rel, source, expected):
     for pkg in PACKAGES:

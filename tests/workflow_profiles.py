@@ -1,15 +1,15 @@
 """A small saved calibration profile for the workflow and delivery tests (one light, 8 x 12 frames)."""
 from __future__ import annotations
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 
-from app.processing.calibration import DarkFrame, FlatField, MasterDark
-from app.workflow.profile import CalibrationProfile, CameraIdentity, SphereIdentity
-from app.workflow.vocabulary import NamedLight
-from simulation.lightsource import LightSource
-from simulation.matrix_fit import CharacterisationMatrix
+from dualrgb.app.processing.calibration import DarkFrame, FlatField, MasterDark
+from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity, SphereIdentity
+from dualrgb.app.workflow.vocabulary import NamedLight
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 
 D65 = [95.047, 100.0, 108.883]
 
@@ -18,7 +18,7 @@ def make_profile(tmp_path, **over) -> CalibrationProfile:
     lights = [NamedLight("P light 1", LightSource((1, 6, 7), (0.0, 0.42, 1.0), "P light 1"))]
     darks = MasterDark()
     darks.put(DarkFrame(0.01, np.full((8, 12), 600, np.float32), 5))
-    created = over.pop("created", datetime.now(timezone.utc))
+    created = over.pop("created", datetime.now(UTC))
     prof = CalibrationProfile(
         id="cal-test", created_at=created.isoformat(timespec="seconds"), mode="reflective",
         camera=CameraIdentity("Nikon D610", "3012345", "60 mm", 50, 8.0), sphere=SphereIdentity("S", "1", "S-1", 25.0),

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import tifffile
 
-from app.processing.outputs import XMP_NAMESPACE
+from dualrgb.app.processing.outputs import XMP_NAMESPACE
 
 RDF = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
 DC = "http://purl.org/dc/elements/1.1/"

@@ -13,8 +13,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from app.commands.options import count, input_file, number, stand_dir
-from app.commands.stand_options import (
+from dualrgb.app.commands.options import count, input_file, number, stand_dir
+from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_session_option,
     ask_person,
@@ -24,7 +24,7 @@ from app.commands.stand_options import (
     virtual_world,
     write_json,
 )
-from app.workflow import defaults as day
+from dualrgb.app.workflow import defaults as day
 
 log = logging.getLogger(__name__)
 
@@ -69,7 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def find_preset(name: str | None, mode: str | None):
     """A preset by file path or packaged file name (with or without .json); default: the mode's
     (app.workflow.defaults.default_preset_name)."""
-    from simulation.presets import load_preset, packaged_presets
+    from dualrgb.simulation.presets import load_preset, packaged_presets
 
     wanted = name or day.default_preset_name(mode)
     path = Path(wanted)
@@ -95,19 +95,19 @@ def _stand_start(args: argparse.Namespace) -> Any:
     """The measured curves the stand fit starts from (None: nominal)."""
     if not (args.camera_csv or args.stand_dir):
         return None
-    from app.workflow.stand_reoptimise import Measurements, assemble
+    from dualrgb.app.workflow.stand_reoptimise import Measurements, assemble
 
     return assemble(None, Measurements.of(args.camera_csv, None, args.stand_dir))[0]
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.workflow.copystand import CopyStand, StandSettings
-    from app.workflow.targets import load_grid
+    from dualrgb.app.workflow.copystand import CopyStand, StandSettings
+    from dualrgb.app.workflow.targets import load_grid
 
     preset, hdr, darks, flats = resolve(args)
     mode = preset.mode
     if args.stand_dir:
-        from app.workflow.led_stand import load_stand, unstable_levels
+        from dualrgb.app.workflow.led_stand import load_stand, unstable_levels
 
         for line in unstable_levels(preset.sources, load_stand(args.stand_dir)):
             print(f"warning: {line}", file=sys.stderr)
@@ -121,7 +121,7 @@ def main(args: argparse.Namespace) -> int:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person)
         profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
-    from app.workflow.profile import describe
+    from dualrgb.app.workflow.profile import describe
 
     for line in describe(profile):
         print(line)

@@ -8,7 +8,13 @@ import argparse
 import logging
 from pathlib import Path
 
-from app.commands.stand_options import add_device_options, add_reuse_options, open_devices, reuse_limits, write_json
+from dualrgb.app.commands.stand_options import (
+    add_device_options,
+    add_reuse_options,
+    open_devices,
+    reuse_limits,
+    write_json,
+)
 
 log = logging.getLogger(__name__)
 
@@ -25,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.workflow.profile import CameraIdentity, SphereIdentity, check_reuse, describe, load_profile
+    from dualrgb.app.workflow.profile import CameraIdentity, SphereIdentity, check_reuse, describe, load_profile
 
     profile = load_profile(args.file)
     check = None

@@ -18,8 +18,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from app.commands.options import add_render_option, column_option, count, input_file, number
-from app.commands.stand_options import (
+from dualrgb.app.commands.options import add_render_option, column_option, count, input_file, number
+from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
     add_session_option,
@@ -31,7 +31,7 @@ from app.commands.stand_options import (
     virtual_world,
     write_json,
 )
-from app.workflow.defaults import MODES, VIRTUAL_ORIGINALS
+from dualrgb.app.workflow.defaults import MODES, VIRTUAL_ORIGINALS
 
 log = logging.getLogger(__name__)
 
@@ -76,9 +76,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _originals(args: argparse.Namespace, mode: str, out_dir: Path | None) -> tuple[list, list[str]]:
     """The originals to shoot, every one checked before a device opens, and the queue's bad-row lines
     (``out_dir`` None: the deliverables folder of a session not made yet, which holds nothing to check)."""
-    from app.workflow.delivery_folder import check_folder
-    from app.workflow.metadata import Original
-    from app.workflow.queue_csv import read_queue_csv
+    from dualrgb.app.workflow.delivery_folder import check_folder
+    from dualrgb.app.workflow.metadata import Original
+    from dualrgb.app.workflow.queue_csv import read_queue_csv
 
     if not args.queue:
         original = Original(args.identifier, args.title, args.operator, args.notes, mode)
@@ -104,8 +104,8 @@ def _originals(args: argparse.Namespace, mode: str, out_dir: Path | None) -> tup
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.workflow.copystand import CopyStand, QueueOutcome, StandSettings, capture_queue
-    from app.workflow.profile import load_profile
+    from dualrgb.app.workflow.copystand import CopyStand, QueueOutcome, StandSettings, capture_queue
+    from dualrgb.app.workflow.profile import load_profile
 
     profile = load_profile(args.calibration)
     out_dir = Path(args.out) if args.out else args.session / "deliverables" if args.session else None

@@ -5,9 +5,9 @@ import argparse
 import logging
 from pathlib import Path
 
-from app.commands.options import add_world_option, count, frame_size, seed
-from app.terminal_progress import TerminalProgress
-from app.workflow.defaults import DARK_FRAMES, DEFAULT_MODE, MODES, VIRTUAL_FRAME_SIZE
+from dualrgb.app.commands.options import add_world_option, count, frame_size, seed
+from dualrgb.app.terminal_progress import TerminalProgress
+from dualrgb.app.workflow.defaults import DARK_FRAMES, DEFAULT_MODE, MODES, VIRTUAL_FRAME_SIZE
 
 log = logging.getLogger(__name__)
 
@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
+    from dualrgb.app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
                             seed=args.seed, world=args.world, new_session=args.new_session,

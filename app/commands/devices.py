@@ -6,12 +6,12 @@ import argparse
 import logging
 from typing import TYPE_CHECKING
 
-from app.cli import UserError
-from app.commands.options import seconds
-from app.json_output import add_json_option, write_json
+from dualrgb.app.cli import UserError
+from dualrgb.app.commands.options import seconds
+from dualrgb.app.json_output import add_json_option, write_json
 
 if TYPE_CHECKING:
-    from drivers.usb_discovery import DeviceReport
+    from dualrgb.drivers.usb_discovery import DeviceReport
 
 log = logging.getLogger(__name__)
 
@@ -66,7 +66,7 @@ def format_report(report: DeviceReport, show_all: bool = False) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drivers.usb_discovery import discover
+    from dualrgb.drivers.usb_discovery import discover
 
     report = discover(probe=not args.no_probe, timeout_s=args.timeout)
     if args.json:

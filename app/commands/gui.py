@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.commands.options import add_world_option
+from dualrgb.app.commands.options import add_world_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,7 +20,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.gui.app import run  # Qt is imported only when the window is really wanted
+    from dualrgb.app.gui.app import run  # Qt is imported only when the window is really wanted
 
     return run(virtual_lab=args.virtual_lab or args.screenshot is not None, screenshot_dir=args.screenshot,
                world=args.world)

@@ -12,8 +12,8 @@ import logging
 log = logging.getLogger(__name__)
 
 MEASURE_MODULES = (
-    "app.commands.measure_csrf",
-    "app.commands.measure_leds",
+    "dualrgb.app.commands.measure_csrf",
+    "dualrgb.app.commands.measure_leds",
 )
 
 

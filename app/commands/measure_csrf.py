@@ -20,9 +20,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from app.commands.options import add_world_option, count, frame_size, input_file, number, seconds, seed
-from app.commands.stand_options import ask_person, open_session, real_camera, virtual_world
-from app.json_output import add_json_option, write_json
+from dualrgb.app.commands.options import add_world_option, count, frame_size, input_file, number, seconds, seed
+from dualrgb.app.commands.stand_options import ask_person, open_session, real_camera, virtual_world
+from dualrgb.app.json_output import add_json_option, write_json
 
 log = logging.getLogger(__name__)
 
@@ -92,7 +92,7 @@ def _check_options(args: argparse.Namespace) -> None:
 
 
 def _reference(args: argparse.Namespace) -> Any:
-    from simulation.radiance_reference import read_photodiode_reference, read_radiance_reference
+    from dualrgb.simulation.radiance_reference import read_photodiode_reference, read_radiance_reference
 
     if args.photodiode:
         return read_photodiode_reference(args.photodiode, args.photocurrent)
@@ -103,17 +103,17 @@ def _reference(args: argparse.Namespace) -> Any:
 def _devices(args: argparse.Namespace) -> Iterator[tuple[Any, Any, Any]]:
     """(camera, monochromator, bench or None); the shutter closed and ports closed on the way out."""
     if args.virtual_lab:
-        from drivers.virtual.monochromator_bench import MonochromatorBench
+        from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench
 
         with MonochromatorBench(frame_size=args.frame_size, seed=args.seed, world=args.world,
                                 timeout_s=args.timeout) as bench:
             if args.iso or args.aperture:
-                from drivers.camera.base import CameraSettings
+                from dualrgb.drivers.camera.base import CameraSettings
 
                 bench.camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
             yield bench.camera, bench.monochromator, bench
         return
-    from drivers.monochromator import Cornerstone, ManualMonochromator
+    from dualrgb.drivers.monochromator import Cornerstone, ManualMonochromator
 
     with contextlib.ExitStack() as stack:
         mono = ManualMonochromator() if args.manual else stack.enter_context(
@@ -126,8 +126,8 @@ def _printer(event: Any) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.sequences.csrf import CsrfSettings
-    from app.workflow.csrf import measure_csrf
+    from dualrgb.app.sequences.csrf import CsrfSettings
+    from dualrgb.app.workflow.csrf import measure_csrf
 
     _check_options(args)
     settings = CsrfSettings(args.start, args.end, args.step, frames=args.frames, dark_frames=args.dark_frames,
@@ -150,7 +150,7 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _virtual_radiance(bench: Any, session_path: Path, args: argparse.Namespace) -> Any:
-    from simulation.radiance_reference import read_radiance_reference
+    from dualrgb.simulation.radiance_reference import read_radiance_reference
 
     def measure(wavelengths: list[float]) -> Any:
         path = bench.spectroradiometer().write_csv(session_path / "radiance-virtual.csv", wavelengths)
@@ -162,7 +162,7 @@ def _virtual_radiance(bench: Any, session_path: Path, args: argparse.Namespace) 
 def _virtual_check(bench: Any, m: Any) -> dict[str, float] | None:
     if bench is None:
         return None
-    from app.processing.csrf import rms_error_percent
+    from dualrgb.app.processing.csrf import rms_error_percent
 
     return rms_error_percent(m.result, *bench.truth())
 

@@ -12,7 +12,7 @@ import logging
 import sys
 from pathlib import Path
 
-from app.commands.options import add_world_option, input_file, leds, number, numbers, seed
+from dualrgb.app.commands.options import add_world_option, input_file, leds, number, numbers, seed
 
 log = logging.getLogger(__name__)
 
@@ -57,10 +57,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.sequences.led_measurement import DEFAULT_LEVELS, LedMeasurementPlan
-    from app.terminal_progress import TerminalProgress
-    from app.workflow.led_stand import measure_virtual
-    from drivers.virtual.spectroradiometer import RadiometerSettings
+    from dualrgb.app.sequences.led_measurement import DEFAULT_LEVELS, LedMeasurementPlan
+    from dualrgb.app.terminal_progress import TerminalProgress
+    from dualrgb.app.workflow.led_stand import measure_virtual
+    from dualrgb.drivers.virtual.spectroradiometer import RadiometerSettings
 
     if not args.virtual_lab:
         raise ValueError("measure leds drives a spectroradiometer, and only the virtual lab's has a driver: use "
@@ -77,7 +77,7 @@ def main(args: argparse.Namespace) -> int:
 
 
 def import_main(args: argparse.Namespace) -> int:
-    from app.workflow.led_stand import import_readings
+    from dualrgb.app.workflow.led_stand import import_readings
 
     result, _files = import_readings(args.readings, args.out, args.tolerance)
     _print(result, args.out)

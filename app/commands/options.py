@@ -143,8 +143,7 @@ def stand_dir(text: str) -> str:
 def world(text: str) -> str:
     """A packaged world's name (resources/worlds/<name>.json) or an existing world JSON file; the file's keys are
     checked when the virtual lab loads it (drivers.virtual.world), before any device acts."""
-    import resources
-
+    from dualrgb import resources
     if resources.path("worlds", f"{text}.json").is_file():
         return text
     if text.endswith(".json") or os.sep in text or os.path.exists(text):
@@ -158,7 +157,7 @@ world.__name__ = "world"
 
 def column_option(text: str) -> tuple[str, str]:
     """``FIELD=NAME``: the queue CSV's column that holds an original's field (app.workflow.queue_csv)."""
-    from app.workflow.queue_csv import column_option as parse
+    from dualrgb.app.workflow.queue_csv import column_option as parse
 
     try:
         return parse(text)
@@ -169,7 +168,7 @@ def column_option(text: str) -> tuple[str, str]:
 def render_illuminant(text: str) -> str:
     """A light the spectral rendering is seen under (simulation.other_lights: D65, D50, A, FL11, LED; any case)
     -> its command-line name."""
-    from simulation.other_lights import light_key, light_of_key
+    from dualrgb.simulation.other_lights import light_key, light_of_key
 
     try:
         return light_key(light_of_key(text))
@@ -179,7 +178,7 @@ def render_illuminant(text: str) -> str:
 
 def add_render_option(p: argparse.ArgumentParser) -> None:
     """``--render-illuminant``: the light the delivered spectral rendering is seen under."""
-    from simulation.other_lights import REFERENCE_LIGHT, light_key, light_keys
+    from dualrgb.simulation.other_lights import REFERENCE_LIGHT, light_key, light_keys
 
     names = ", ".join(f"{k} ({v})" if k != v else k for k, v in light_keys().items())
     default = light_key(REFERENCE_LIGHT)

@@ -8,8 +8,8 @@ import argparse
 import logging
 from pathlib import Path
 
-from app.commands.options import add_render_option, number
-from app.commands.stand_options import progress_printer, write_json
+from dualrgb.app.commands.options import add_render_option, number
+from dualrgb.app.commands.stand_options import progress_printer, write_json
 
 log = logging.getLogger(__name__)
 
@@ -38,9 +38,9 @@ def newest_calibration(session) -> Path:
 
 
 def main(args: argparse.Namespace) -> int:
-    from app.session.capture_session import CaptureSession
-    from app.workflow.copystand import redeliver
-    from app.workflow.profile import load_profile
+    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.copystand import redeliver
+    from dualrgb.app.workflow.profile import load_profile
 
     session = CaptureSession.open(args.session, readonly=True)      # frames checked before use (session_frames)
     profile = load_profile(args.calibration or newest_calibration(session))

@@ -6,10 +6,10 @@ import argparse
 import logging
 from typing import TYPE_CHECKING
 
-from app.json_output import add_json_option, write_json
+from dualrgb.app.json_output import add_json_option, write_json
 
 if TYPE_CHECKING:
-    from drivers.raw import RawFrame
+    from dualrgb.drivers.raw import RawFrame
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +47,7 @@ def raw_info(frame: RawFrame) -> dict:
 
 
 def format_info(info: dict) -> str:
-    from drivers.camera.gphoto_labels import format_shutter
+    from dualrgb.drivers.camera.gphoto_labels import format_shutter
 
     shot = []
     if info["exposure_s"]:
@@ -74,7 +74,7 @@ def format_info(info: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drivers.raw import load_raw
+    from dualrgb.drivers.raw import load_raw
 
     info = raw_info(load_raw(args.file))   # RawFileError is a ValueError: one line, exit 1 (app.cli)
     if args.json:

@@ -6,10 +6,10 @@ import logging
 import sys
 from pathlib import Path
 
-from app.commands.options import count, input_file, number, seed, stand_dir
-from app.json_output import add_json_option, write_json
-from app.terminal_progress import TerminalProgress
-from simulation.choices import DEFAULT_SPECTRAL_WEIGHT, METHODS, MODES, OBJECTIVES
+from dualrgb.app.commands.options import count, input_file, number, seed, stand_dir
+from dualrgb.app.json_output import add_json_option, write_json
+from dualrgb.app.terminal_progress import TerminalProgress
+from dualrgb.simulation.choices import DEFAULT_SPECTRAL_WEIGHT, METHODS, MODES, OBJECTIVES
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +56,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "thesis 4.3.2; > 0 uses the float64 objective, ~20x slower)")
     p.add_argument("--min-level", type=number(0.0, 0.5), default=None,
                    help="the sphere's minimum stable level (a level is 0 or at least this; default: "
-                        "simulation.sphere.SphereProperties, 0.01)")
+                        "dualrgb.simulation.sphere.SphereProperties, 0.01)")
     p.add_argument("--pixels", type=count(1), default=None,
                    help="pixels (superpixels) averaged per training patch (default: the virtual lab's 600x400 "
                         "frames)")
@@ -97,9 +97,9 @@ def main(args: argparse.Namespace) -> int:
     # imported here so that other subcommands start without loading colour-science and numba
     from dataclasses import replace
 
-    from simulation.datasets import default_setup
-    from simulation.defaults import default_grid
-    from simulation.runner import run
+    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.defaults import default_grid
+    from dualrgb.simulation.runner import run
 
     if args.top < 1:
         raise ValueError(f"--top {args.top}: expected at least 1")
@@ -120,8 +120,8 @@ def main(args: argparse.Namespace) -> int:
 
 def _write(args: argparse.Namespace, result, preset) -> int:
     """The table on stdout, the JSON and the preset where asked."""
-    from simulation.presets import save_preset
-    from simulation.runner import format_table
+    from dualrgb.simulation.presets import save_preset
+    from dualrgb.simulation.runner import format_table
 
     if args.json != "-":
         print(format_table(result))
@@ -138,9 +138,15 @@ def _main_stand(args: argparse.Namespace) -> int:
     """``--stand CAL.json``: the same search on the stand model (app.workflow.stand_reoptimise)."""
     from dataclasses import replace
 
-    from app.workflow.profile import load_profile
-    from app.workflow.stand_reoptimise import Measurements, assemble, calibration_lights, reoptimise, stand_preset
-    from simulation.defaults import default_grid
+    from dualrgb.app.workflow.profile import load_profile
+    from dualrgb.app.workflow.stand_reoptimise import (
+        Measurements,
+        assemble,
+        calibration_lights,
+        reoptimise,
+        stand_preset,
+    )
+    from dualrgb.simulation.defaults import default_grid
 
     profile = load_profile(args.stand)
     model, notes = assemble(profile, Measurements.of(args.camera_csv, args.leds_csv, args.stand_dir, args.min_level))
@@ -164,7 +170,7 @@ def _apply_stand(args: argparse.Namespace) -> None:
     """``--stand-dir``: the measured LED spectra and minimum stable level, where not given explicitly."""
     if args.stand_dir is None:
         return
-    from app.workflow.led_stand import load_stand
+    from dualrgb.app.workflow.led_stand import load_stand
 
     stand = load_stand(args.stand_dir)
     if args.leds_csv is None and stand.leds_csv is not None:
@@ -179,8 +185,8 @@ def _capture(args: argparse.Namespace):
     """The capture model from the options (the virtual lab's for the mode, with the user's changes)."""
     from dataclasses import replace
 
-    from simulation.capture_model import CaptureModel
-    from simulation.sphere import SphereProperties
+    from dualrgb.simulation.capture_model import CaptureModel
+    from dualrgb.simulation.sphere import SphereProperties
 
     cap = CaptureModel.virtual_lab(args.mode, reference_gain_sd=args.reference_sd, drift_sd_nm=args.drift_nm)
     if args.min_level is not None:

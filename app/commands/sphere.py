@@ -26,15 +26,15 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.cli import UserError
-from app.commands.options import count, number, positive, seconds
-from app.json_output import add_json_option, write_json
-from drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
-from simulation.choices import N_SPHERE_LEDS
+from dualrgb.app.cli import UserError
+from dualrgb.app.commands.options import count, number, positive, seconds
+from dualrgb.app.json_output import add_json_option, write_json
+from dualrgb.drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
+from dualrgb.simulation.choices import N_SPHERE_LEDS
 
 if TYPE_CHECKING:       # the driver imports pyserial and numpy: only when a command talks to the sphere
-    from drivers.led_sphere import LedSphere
-    from simulation.lightsource import LightSource
+    from dualrgb.drivers.led_sphere import LedSphere
+    from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
@@ -75,7 +75,7 @@ def _port_in(args: list[str]) -> str | None:
 
 def switch_off_after_refusal(port: str) -> str:
     """Open ``port``, switch every LED and the light off, close it; what happened, in words."""
-    from drivers.led_sphere import LedSphere, SphereError
+    from dualrgb.drivers.led_sphere import LedSphere, SphereError
 
     try:
         sphere = LedSphere(port, timeout=DEFAULT_TIMEOUT_S).open()
@@ -123,7 +123,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def load_light_source(path: Path, index: int) -> LightSource:
     """Light source number ``index`` (1-based) of a preset file."""
-    from simulation.presets import load_preset
+    from dualrgb.simulation.presets import load_preset
 
     sources = load_preset(path).sources           # PresetError is a ValueError: one line naming the file
     if not 1 <= index <= len(sources):
@@ -134,7 +134,7 @@ def load_light_source(path: Path, index: int) -> LightSource:
 def main(args: argparse.Namespace) -> int:
     if not args.port:
         raise UserError(f"no sphere port: give --port (e.g. /dev/ttyACM0) or set {PORT_ENV}")
-    from drivers.led_sphere import LedSphere, SphereError
+    from dualrgb.drivers.led_sphere import LedSphere, SphereError
 
     light, problem = None, None
     if args.action == "apply":
@@ -197,7 +197,7 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
 
 
 def serve_emulator(args: argparse.Namespace) -> int:
-    from drivers.virtual.sphere_emulator import SphereEmulator
+    from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
 
     try:
         emulator = SphereEmulator(watchdog_s=args.watchdog)

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from app.commands.options import add_world_option, count, frame_size, number, seed
-from app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
+from dualrgb.app.commands.options import add_world_option, count, frame_size, number, seed
+from dualrgb.app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +64,7 @@ def ask_person(message: str) -> None:
 def write_json(path: Path | None, data: dict) -> None:
     if path is None:
         return
-    from app.session.capture_session import atomic_write
+    from dualrgb.app.session.capture_session import atomic_write
 
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     atomic_write(Path(path), (json.dumps(data, indent=2, default=str) + "\n").encode())
@@ -79,7 +79,7 @@ class Devices:
 
 
 def _apply_settings(camera: Any, args: argparse.Namespace) -> None:
-    from drivers.camera.base import CameraSettings
+    from dualrgb.drivers.camera.base import CameraSettings
 
     if args.iso is not None or args.aperture is not None:
         camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
@@ -93,7 +93,7 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
     In the virtual lab an original is placed as its virtual stand-in ``original`` (``--virtual-original``: a
     virtual original's name, or a chart: 'test', 'test+nd' with the ND 2.0 filter over half)."""
     if args.virtual_lab:
-        from drivers.virtual.lab import VirtualLab
+        from dualrgb.drivers.virtual.lab import VirtualLab
 
         with VirtualLab(mode=mode, frame_size=args.frame_size, seed=args.seed, world=args.world) as lab:
             _apply_settings(lab.camera, args)
@@ -116,11 +116,11 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
 @contextlib.contextmanager
 def real_camera(args: argparse.Namespace) -> Iterator[Any]:
     """The tethered camera ``args.camera`` ('MODEL @ PORT' or 'auto': the first found), ISO / aperture applied."""
-    from drivers.camera.gphoto import GPhotoCamera
+    from dualrgb.drivers.camera.gphoto import GPhotoCamera
 
     model, _, port = args.camera.partition(" @ ")
     if args.camera == "auto":
-        from drivers.usb_discovery import gphoto_cameras
+        from dualrgb.drivers.usb_discovery import gphoto_cameras
 
         found = gphoto_cameras()
         if not found:
@@ -132,7 +132,7 @@ def real_camera(args: argparse.Namespace) -> Iterator[Any]:
 
 
 def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
-    from drivers.led_sphere import LedSphere
+    from dualrgb.drivers.led_sphere import LedSphere
 
     sphere = LedSphere(args.port).open()
     try:
@@ -156,12 +156,12 @@ def open_session(folder: Path | None, definition: dict, camera: Any, meta: dict 
     """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
     (anything else is refused in one line naming the difference; app.session). One writer at a time. No
     ``folder``: a new dated session in the captures folder (app.workflow.folders), named on stderr."""
-    from app.session.capture_session import CaptureSession
-    from app.session.manifest import camera_definition
+    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.session.manifest import camera_definition
 
     if folder is None:
-        from app.workflow.defaults import captures_dir
-        from app.workflow.folders import new_session
+        from dualrgb.app.workflow.defaults import captures_dir
+        from dualrgb.app.workflow.folders import new_session
 
         session = new_session(captures_dir(), meta or {}, definition)
         print(f"dualrgb: new session {session.path}", file=sys.stderr, flush=True)
@@ -181,12 +181,12 @@ def virtual_world(args: argparse.Namespace) -> dict[str, str]:
     drivers.virtual.world.World.identity), ``{}`` on a real stand."""
     if not args.virtual_lab:
         return {}
-    from drivers.virtual.world import load_world
+    from dualrgb.drivers.virtual.world import load_world
 
     return {"world": load_world(args.world).identity}
 
 
 def reuse_limits(args: argparse.Namespace) -> Any:
-    from app.workflow.profile import ReuseLimits
+    from dualrgb.app.workflow.profile import ReuseLimits
 
     return ReuseLimits(temperature_drift_c=args.max_temperature_drift, max_age_h=args.max_age_h)

@@ -27,10 +27,10 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from app.commands import study_thesis
-from app.commands.options import add_world_option, count, frame_size, input_file, number, positive
-from app.terminal_progress import TerminalProgress
-from simulation.choices import MODES
+from dualrgb.app.commands import study_thesis
+from dualrgb.app.commands.options import add_world_option, count, frame_size, input_file, number, positive
+from dualrgb.app.terminal_progress import TerminalProgress
+from dualrgb.simulation.choices import MODES
 
 log = logging.getLogger(__name__)
 
@@ -45,8 +45,7 @@ def _out_option(p: argparse.ArgumentParser, name: str) -> None:
 
 
 def _out(args: argparse.Namespace) -> Path:
-    import resources
-
+    from dualrgb import resources
     return args.out if args.out is not None else resources.user_path("studies", args.study)
 
 
@@ -101,8 +100,8 @@ def _stand_study(ss: argparse._SubParsersAction) -> None:
 
 
 def stand_main(args: argparse.Namespace) -> int:
-    from app.workflow.stand_study import StandStudyConfig, stand_study, summary_lines, write_outputs
-    from simulation.studies.common import StudyOutput
+    from dualrgb.app.workflow.stand_study import StandStudyConfig, stand_study, summary_lines, write_outputs
+    from dualrgb.simulation.studies.common import StudyOutput
 
     out = StudyOutput(_out(args))
     cfg = StandStudyConfig(world=args.world, mode=args.mode, frame_size=args.frame_size,
@@ -205,8 +204,8 @@ def _specs(args: argparse.Namespace) -> list:
 def _spec(args: argparse.Namespace, mode: str | None = None):
     """The study's setup: ``mode`` (default ``--mode``) on its default grid (simulation.defaults), ``--step``
     replacing the step, and any measured CSVs."""
-    from simulation.defaults import default_grid
-    from simulation.studies.common import SetupSpec
+    from dualrgb.simulation.defaults import default_grid
+    from dualrgb.simulation.studies.common import SetupSpec
 
     mode = mode or (MODES[0] if args.mode == BOTH else args.mode)
     grid = default_grid(mode)
@@ -233,9 +232,9 @@ def _done(out, headline: list[str]) -> int:
 
 
 def speed_accuracy_main(args: argparse.Namespace) -> int:
-    from simulation.studies.common import StudyOutput
-    from simulation.studies.distributed import open_runner
-    from simulation.studies.speed_accuracy import speed_accuracy, write_outputs
+    from dualrgb.simulation.studies.common import StudyOutput
+    from dualrgb.simulation.studies.distributed import open_runner
+    from dualrgb.simulation.studies.speed_accuracy import speed_accuracy, write_outputs
 
     spec = _spec(args)
     out = StudyOutput(_out(args))
@@ -250,9 +249,9 @@ def speed_accuracy_main(args: argparse.Namespace) -> int:
 
 
 def stability_main(args: argparse.Namespace) -> int:
-    from simulation.studies.common import StudyOutput
-    from simulation.studies.distributed import open_runner
-    from simulation.studies.stability import StabilityConfig, stability, write_outputs
+    from dualrgb.simulation.studies.common import StudyOutput
+    from dualrgb.simulation.studies.distributed import open_runner
+    from dualrgb.simulation.studies.stability import StabilityConfig, stability, write_outputs
 
     spec = _spec(args)
     cfg = StabilityConfig.tiny() if args.budget == "tiny" else StabilityConfig()
@@ -272,7 +271,7 @@ def _lab_capture(args: argparse.Namespace, repeats: int):
     """The virtual lab's capture chain and its model for the expected-captured objective (None, None without)."""
     if args.no_virtual_lab:
         return None, None
-    from app.captured_accuracy import capture_model, captured_errors
+    from dualrgb.app.captured_accuracy import capture_model, captured_errors
 
     def capture(setup, W, exposures):
         return captured_errors(setup, W, exposures, repeats=repeats)
@@ -287,8 +286,8 @@ def _worked_example(noise) -> list[str]:
 
 
 def objectives_main(args: argparse.Namespace) -> int:
-    from simulation.studies.common import StudyOutput
-    from simulation.studies.objectives import ObjectivesConfig, objectives_study, write_outputs
+    from dualrgb.simulation.studies.common import StudyOutput
+    from dualrgb.simulation.studies.objectives import ObjectivesConfig, objectives_study, write_outputs
 
     cfg = ObjectivesConfig.tiny() if args.budget == "tiny" else ObjectivesConfig()
     capture, capture_model = _lab_capture(args, cfg.capture_repeats)
@@ -302,17 +301,16 @@ def objectives_main(args: argparse.Namespace) -> int:
 
 def _defaults_target(args: argparse.Namespace) -> str | None:
     """Where ``--write-defaults`` writes (no PATH: parsimony.json in the per-user data folder)."""
-    import resources
-
+    from dualrgb import resources
     if not args.write_defaults:
         return None
     return str(resources.user_path("parsimony.json")) if args.write_defaults is True else args.write_defaults
 
 
 def parsimony_main(args: argparse.Namespace) -> int:
-    from simulation.studies.common import StudyOutput
-    from simulation.studies.parsimony import ParsimonyConfig, parsimony
-    from simulation.studies.parsimony_report import write_outputs
+    from dualrgb.simulation.studies.common import StudyOutput
+    from dualrgb.simulation.studies.parsimony import ParsimonyConfig, parsimony
+    from dualrgb.simulation.studies.parsimony_report import write_outputs
 
     cfg = ParsimonyConfig.tiny() if args.budget == "tiny" else ParsimonyConfig()
     cfg = replace(cfg, tolerance=args.tolerance)
@@ -331,8 +329,8 @@ def parsimony_main(args: argparse.Namespace) -> int:
 
 
 def hdr_main(args: argparse.Namespace) -> int:
-    from simulation.studies.common import StudyOutput
-    from simulation.studies.hdr import HdrStudyConfig, hdr_study, pm, write_defaults, write_outputs
+    from dualrgb.simulation.studies.common import StudyOutput
+    from dualrgb.simulation.studies.hdr import HdrStudyConfig, hdr_study, pm, write_defaults, write_outputs
 
     cfg = HdrStudyConfig.tiny() if args.budget == "tiny" else HdrStudyConfig()
     out = StudyOutput(_out(args))
@@ -360,8 +358,8 @@ def _modes(text: str) -> tuple[str, ...]:
 
 
 def spectral_main(args: argparse.Namespace) -> int:
-    from simulation.studies.common import SetupSpec, StudyOutput
-    from simulation.studies.spectral import SpectralStudyConfig, spectral_study, write_outputs
+    from dualrgb.simulation.studies.common import SetupSpec, StudyOutput
+    from dualrgb.simulation.studies.spectral import SpectralStudyConfig, spectral_study, write_outputs
 
     cfg = SpectralStudyConfig.tiny() if args.budget == "tiny" else SpectralStudyConfig()
     cfg = replace(cfg, modes=_modes(args.modes))
@@ -375,9 +373,9 @@ def spectral_main(args: argparse.Namespace) -> int:
 
 
 def unbinned_main(args: argparse.Namespace) -> int:
-    from simulation.studies.common import StudyOutput
-    from simulation.studies.distributed import open_runner
-    from simulation.studies.unbinned import compare_binned, unbinned_search, write_outputs
+    from dualrgb.simulation.studies.common import StudyOutput
+    from dualrgb.simulation.studies.distributed import open_runner
+    from dualrgb.simulation.studies.unbinned import compare_binned, unbinned_search, write_outputs
 
     spec = _spec(args)
     out = StudyOutput(_out(args))
@@ -396,11 +394,11 @@ def unbinned_main(args: argparse.Namespace) -> int:
 
 
 def sweep_main(args: argparse.Namespace) -> int:
-    from simulation.defaults import default_grid
-    from simulation.studies.common import SetupSpec, StudyOutput
-    from simulation.studies.distributed import open_runner
-    from simulation.studies.optimisers import OPTIMISERS
-    from simulation.studies.sweep import sweep, write_outputs
+    from dualrgb.simulation.defaults import default_grid
+    from dualrgb.simulation.studies.common import SetupSpec, StudyOutput
+    from dualrgb.simulation.studies.distributed import open_runner
+    from dualrgb.simulation.studies.optimisers import OPTIMISERS
+    from dualrgb.simulation.studies.sweep import sweep, write_outputs
 
     modes = list(_modes(args.modes))
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]

@@ -14,7 +14,7 @@ import argparse
 import logging
 import sys
 
-from app.json_output import add_json_option
+from dualrgb.app.json_output import add_json_option
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +38,7 @@ def _capture(args: argparse.Namespace):
     """The virtual lab's capture of a light set (app.captured_accuracy), unless asked not to or in a small run."""
     if args.no_virtual_lab or args.budget == "small":
         return None
-    from app.captured_accuracy import captured_errors
+    from dualrgb.app.captured_accuracy import captured_errors
 
     def capture(setup, W, exposures):
         return captured_errors(setup, W, exposures, repeats=2)
@@ -47,12 +47,12 @@ def _capture(args: argparse.Namespace):
 
 
 def main(args: argparse.Namespace) -> int:
-    import resources
-    from app.json_output import write_json
-    from app.terminal_progress import TerminalProgress
-    from simulation.studies.common import StudyOutput
-    from simulation.studies.thesis import ThesisConfig, load_thesis_tables, reproduce
-    from simulation.studies.thesis_report import FORMAT, build_rows, markdown, report_json, write_readme
+    from dualrgb import resources
+    from dualrgb.app.json_output import write_json
+    from dualrgb.app.terminal_progress import TerminalProgress
+    from dualrgb.simulation.studies.common import StudyOutput
+    from dualrgb.simulation.studies.thesis import ThesisConfig, load_thesis_tables, reproduce
+    from dualrgb.simulation.studies.thesis_report import FORMAT, build_rows, markdown, report_json, write_readme
 
     cfg = ThesisConfig.small() if args.budget == "small" else ThesisConfig()
     with TerminalProgress("study thesis") as progress:

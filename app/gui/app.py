@@ -38,7 +38,7 @@ def live_display_problem(env: Mapping[str, str] | None = None,
     """After :func:`display_problem`'s rules: does the display really answer, and can Qt's platform plugin load
     here? One line (missing system libraries with the install command, a stale DISPLAY or WAYLAND_DISPLAY) or
     None. A stale Wayland socket beside a live X display makes Qt use xcb (QT_QPA_PLATFORM is set)."""
-    from app.gui import platform_check
+    from dualrgb.app.gui import platform_check
 
     env = os.environ if env is None else env
     platform = (env.get("QT_QPA_PLATFORM") or "").split(":")[0].strip().lower()
@@ -85,23 +85,23 @@ def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
         os.environ["QT_QPA_PLATFORM"] = "offscreen"      # screenshots need no screen
     problem = display_problem() or live_display_problem()
     if problem is not None:
-        from app.cli import UserError
+        from dualrgb.app.cli import UserError
         raise UserError(problem)
     if pyside_drops_none_references():
         import PySide6
 
-        from app.cli import UserError
+        from dualrgb.app.cli import UserError
         raise UserError(f"PySide6 {PySide6.__version__} has a reference-count bug that crashes the window on this "
                         "Python; install another version: pip install 'PySide6-Essentials!=6.12.0'")
     app = application()
-    from app.gui.main_window import MainWindow
+    from dualrgb.app.gui.main_window import MainWindow
 
     if screenshot_dir is not None:
         import tempfile
 
         from PySide6.QtCore import QSettings
 
-        from app.gui.screenshots import ScreenshotRun
+        from dualrgb.app.gui.screenshots import ScreenshotRun
 
         tmp = Path(tempfile.mkdtemp(prefix="dualrgb-screens-"))
         settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.IniFormat)

@@ -23,16 +23,16 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.context import AppContext
-from app.gui.sequence_view import SequenceView
-from app.gui.viewmodel import calibration_lines
-from app.gui.widgets import PathLabel
-from app.sequences.base import ProgressEvent
-from app.sequences.shooter import Shooter
-from app.workflow.copystand import StandSettings
-from app.workflow.defaults import workflow_defaults
-from app.workflow.metering import AutoExposure
-from app.workflow.profile import (
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.sequence_view import SequenceView
+from dualrgb.app.gui.viewmodel import calibration_lines
+from dualrgb.app.gui.widgets import PathLabel
+from dualrgb.app.sequences.base import ProgressEvent
+from dualrgb.app.sequences.shooter import Shooter
+from dualrgb.app.workflow.copystand import StandSettings
+from dualrgb.app.workflow.defaults import workflow_defaults
+from dualrgb.app.workflow.metering import AutoExposure
+from dualrgb.app.workflow.profile import (
     CalibrationProfile,
     CameraIdentity,
     ReuseLimits,
@@ -40,8 +40,8 @@ from app.workflow.profile import (
     check_reuse,
     load_profile,
 )
-from app.workflow.runs import RunHooks, StandRun
-from app.workflow.vocabulary import Subject
+from dualrgb.app.workflow.runs import RunHooks, StandRun
+from dualrgb.app.workflow.vocabulary import Subject
 
 log = logging.getLogger(__name__)
 

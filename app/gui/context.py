@@ -11,12 +11,12 @@ from typing import Any
 from PySide6.QtCore import QObject, QSettings, QStandardPaths, QUrl, Signal
 from PySide6.QtGui import QDesktopServices
 
-from app.gui.device_hub import Lab
-from app.gui.widgets import Asker, ErrorReporter
-from app.gui.workers import TaskRunner
-from app.gui.workspace import Workspace
-from app.workflow.defaults import captures_dir
-from app.workflow.folders import new_session
+from dualrgb.app.gui.device_hub import Lab
+from dualrgb.app.gui.widgets import Asker, ErrorReporter
+from dualrgb.app.gui.workers import TaskRunner
+from dualrgb.app.gui.workspace import Workspace
+from dualrgb.app.workflow.defaults import captures_dir
+from dualrgb.app.workflow.folders import new_session
 
 log = logging.getLogger(__name__)
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.processing.quality import STANDARD_LIMITS
+from dualrgb.app.processing.quality import STANDARD_LIMITS
 
 SCALE_MAX = 12.0           # the heat map's fixed top (ΔE00); every value above shows the last band's colour
 

@@ -13,14 +13,14 @@ from typing import Any
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
-from app.gui.viewmodel import DoseFeed, light_from_levels
-from app.gui.workers import TaskHandle, TaskRunner
-from app.session.log import SessionLog
-from app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
-from drivers.camera.base import Camera, CameraError
-from drivers.led_sphere import LedSphere, SphereError
-from drivers.led_sphere.driver import DEFAULT_MAX_ON_S
-from simulation.lightsource import LightSource
+from dualrgb.app.gui.viewmodel import DoseFeed, light_from_levels
+from dualrgb.app.gui.workers import TaskHandle, TaskRunner
+from dualrgb.app.session.log import SessionLog
+from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
+from dualrgb.drivers.camera.base import Camera, CameraError
+from dualrgb.drivers.led_sphere import LedSphere, SphereError
+from dualrgb.drivers.led_sphere.driver import DEFAULT_MAX_ON_S
+from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
@@ -32,14 +32,14 @@ NO_CAMERA_ADVICE = ("no camera found: connect the camera by USB, switch it on (m
 
 def serial_ports() -> list[str]:
     """Serial ports the sphere may be on (drivers.usb_discovery; USB adapters first), the emulator entry first."""
-    from drivers.usb_discovery import serial_ports as found
+    from dualrgb.drivers.usb_discovery import serial_ports as found
     ports = sorted(found(), key=lambda p: (not p.is_usb, p.device))
     return [VIRTUAL_SPHERE] + [p.device for p in ports]
 
 
 def discover_cameras() -> tuple[list[str], list[str]]:
     """(camera choices 'model @ port' plus the virtual camera, hints such as 'claimed by gvfs: do this')."""
-    from drivers.usb_discovery import discover
+    from dualrgb.drivers.usb_discovery import discover
     report = discover(probe=False)
     names = [f"{c.model} @ {c.port}" for c in report.gphoto_cameras]
     return names + [VIRTUAL_CAMERA], list(report.hints)
@@ -127,7 +127,7 @@ class Lab(QObject):
 
     def _ensure_virtual_lab(self) -> Any:      # devices thread
         if self.virtual_lab is None:
-            from drivers.virtual.lab import VirtualLab
+            from dualrgb.drivers.virtual.lab import VirtualLab
             lab = VirtualLab(mode=self.mode, frame_size=self.frame_size, seed=self.seed, bumps=self.shutter_bumps,
                              world=self.world)
             lab.start()
@@ -282,7 +282,7 @@ class Lab(QObject):
         def work() -> Camera:
             if choice == VIRTUAL_CAMERA:
                 return self._ensure_virtual_lab().camera
-            from drivers.camera.gphoto import GPhotoCamera
+            from dualrgb.drivers.camera.gphoto import GPhotoCamera
             model, _, port = choice.partition(" @ ")
             if not port:
                 raise CameraError(NO_CAMERA_ADVICE, -105)
@@ -327,7 +327,7 @@ class Lab(QObject):
     def copy_stand(self, settings: Any, hooks: Any = None, stand_in: str = "") -> Any:
         """An app.workflow.copystand.CopyStand on these devices and the current session (``hooks``: a StandRun's
         callbacks: progress, cancel, prompts, events)."""
-        from app.workflow.copystand import CopyStand
+        from dualrgb.app.workflow.copystand import CopyStand
 
         if self.camera is None or self.sphere is None:
             raise ValueError("connect the LED sphere and the camera in Devices first")
@@ -338,7 +338,7 @@ class Lab(QObject):
 
     @staticmethod
     def virtual_originals() -> list[str]:
-        from drivers.virtual.originals import ORIGINALS
+        from dualrgb.drivers.virtual.originals import ORIGINALS
 
         return list(ORIGINALS)
 
@@ -346,7 +346,7 @@ class Lab(QObject):
     def session_definition(self) -> dict:
         """What defines the frames of a session made here (app.session: reopening with anything else is
         refused, naming the difference): the mode, the camera, and the virtual lab's frame size."""
-        from app.session.manifest import camera_definition
+        from dualrgb.app.session.manifest import camera_definition
 
         vl = self.virtual_lab
         out: dict[str, Any] = {"mode": vl.mode if vl is not None else self.mode}

@@ -13,10 +13,10 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtWidgets import QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
-from app.gui.context import AppContext
-from app.gui.units import percent
-from app.gui.viewmodel import LINEAR_LIMIT_DN, RawHistogram, RawView, raw_view
-from app.gui.widgets import image_widget, plot_widget
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.units import percent
+from dualrgb.app.gui.viewmodel import LINEAR_LIMIT_DN, RawHistogram, RawView, raw_view
+from dualrgb.app.gui.widgets import image_widget, plot_widget
 
 log = logging.getLogger(__name__)
 

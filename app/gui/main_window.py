@@ -10,28 +10,28 @@ from PySide6.QtCore import QByteArray, QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
 from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QScrollArea, QTabWidget, QWidget
 
-from app.gui.context import AppContext, Bus, default_settings
-from app.gui.device_hub import Lab
-from app.gui.guide import WorkflowGuide
-from app.gui.panels.placeholder import NotAvailablePanel
-from app.gui.widgets import Asker, ErrorReporter, LogView
-from app.gui.workers import TaskRunner
-from app.gui.workspace import Workspace
-from app.workflow.defaults import VIRTUAL_FRAME_SIZE
+from dualrgb.app.gui.context import AppContext, Bus, default_settings
+from dualrgb.app.gui.device_hub import Lab
+from dualrgb.app.gui.guide import WorkflowGuide
+from dualrgb.app.gui.panels.placeholder import NotAvailablePanel
+from dualrgb.app.gui.widgets import Asker, ErrorReporter, LogView
+from dualrgb.app.gui.workers import TaskRunner
+from dualrgb.app.gui.workspace import Workspace
+from dualrgb.app.workflow.defaults import VIRTUAL_FRAME_SIZE
 
 log = logging.getLogger(__name__)
 
 # (attribute, module, class, what is missing when the module cannot be imported)
 PANELS = (
-    ("devices", "app.gui.panels.devices", "DevicesPanel", "device drivers"),
-    ("light", "app.gui.panels.light", "LightPanel", "LED sphere driver"),
-    ("camera", "app.gui.panels.camera", "CameraPanel", "camera drivers"),
-    ("capture", "app.gui.panels.capture", "CapturePanel", "capture sequences (app.sequences)"),
-    ("originals", "app.gui.panels.originals", "OriginalsPanel", "the copy-stand workflow (app.workflow)"),
-    ("target", "app.gui.panels.target", "TargetPanel", "patch grid (app.processing.patches)"),
-    ("results", "app.gui.panels.results", "ResultsPanel", "characterisation report (app.processing)"),
-    ("simulate", "app.gui.panels.simulate", "SimulatePanel", "simulation runner"),
-    ("characterise", "app.gui.panels.characterise", "CharacterisePanel", "CRF sweep sequence"),
+    ("devices", "dualrgb.app.gui.panels.devices", "DevicesPanel", "device drivers"),
+    ("light", "dualrgb.app.gui.panels.light", "LightPanel", "LED sphere driver"),
+    ("camera", "dualrgb.app.gui.panels.camera", "CameraPanel", "camera drivers"),
+    ("capture", "dualrgb.app.gui.panels.capture", "CapturePanel", "capture sequences (app.sequences)"),
+    ("originals", "dualrgb.app.gui.panels.originals", "OriginalsPanel", "the copy-stand workflow (app.workflow)"),
+    ("target", "dualrgb.app.gui.panels.target", "TargetPanel", "patch grid (app.processing.patches)"),
+    ("results", "dualrgb.app.gui.panels.results", "ResultsPanel", "characterisation report (app.processing)"),
+    ("simulate", "dualrgb.app.gui.panels.simulate", "SimulatePanel", "simulation runner"),
+    ("characterise", "dualrgb.app.gui.panels.characterise", "CharacterisePanel", "CRF sweep sequence"),
 )
 PANEL_TITLES = {"devices": "Devices", "light": "Light source", "camera": "Camera", "capture": "Calibrate && capture",
                 "originals": "Originals", "target": "Target", "results": "Results",

@@ -14,10 +14,10 @@ from pathlib import Path
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QComboBox, QLabel, QVBoxLayout, QWidget
 
-from app.gui.context import AppContext
-from app.workflow.defaults import default_preset_path
-from app.workflow.preset_figures import PresetFigures, figures_of
-from simulation.presets import Preset, PresetError, load_preset, packaged_presets
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.workflow.defaults import default_preset_path
+from dualrgb.app.workflow.preset_figures import PresetFigures, figures_of
+from dualrgb.simulation.presets import Preset, PresetError, load_preset, packaged_presets
 
 log = logging.getLogger(__name__)
 

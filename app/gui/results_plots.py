@@ -11,9 +11,9 @@ import pyqtgraph as pg
 from PySide6.QtGui import QFont
 from PySide6.QtWidgets import QGridLayout, QLabel, QWidget
 
-from app.gui.de_scale import SCALE_MAX, de_band, lookup_table
-from app.gui.spectra_view import SpectrumPlot, on_image_click
-from app.gui.widgets import DeLegend, image_widget, plot_widget
+from dualrgb.app.gui.de_scale import SCALE_MAX, de_band, lookup_table
+from dualrgb.app.gui.spectra_view import SpectrumPlot, on_image_click
+from dualrgb.app.gui.widgets import DeLegend, image_widget, plot_widget
 
 log = logging.getLogger(__name__)
 

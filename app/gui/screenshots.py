@@ -16,8 +16,8 @@ from pathlib import Path
 from PySide6.QtCore import QBuffer, QIODevice, QObject, QTimer
 from PySide6.QtWidgets import QApplication
 
-from app.workflow.day import OriginalState
-from common.atomic_files import atomic_write
+from dualrgb.app.workflow.day import OriginalState
+from dualrgb.common.atomic_files import atomic_write
 
 log = logging.getLogger(__name__)
 

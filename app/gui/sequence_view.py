@@ -27,15 +27,15 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.context import AppContext
-from app.gui.frame_preview import FramePreview
-from app.gui.units import shutter, time_left_s
-from app.gui.viewmodel import format_duration
-from app.gui.workers import TaskHandle
-from app.sequences.base import PlannedFrame, ProgressEvent, Sequence
-from app.workflow.runs import RUN_PROGRESS, StandRun
-from app.workflow.vocabulary import EventKind
-from simulation.lightsource import LightSource
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.frame_preview import FramePreview
+from dualrgb.app.gui.units import shutter, time_left_s
+from dualrgb.app.gui.viewmodel import format_duration
+from dualrgb.app.gui.workers import TaskHandle
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent, Sequence
+from dualrgb.app.workflow.runs import RUN_PROGRESS, StandRun
+from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 

@@ -11,8 +11,8 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
-from app.gui.context import AppContext
-from app.gui.widgets import image_widget, plot_widget
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.widgets import image_widget, plot_widget
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +60,7 @@ class DeliveredView(QWidget):
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
-        from app.workflow.delivered_view import render_lights
+        from dualrgb.app.workflow.delivered_view import render_lights
 
         self.ctx = ctx
         self.view = None                             # app.workflow.delivered_view.DeliveredView
@@ -96,7 +96,7 @@ class DeliveredView(QWidget):
 
     def show_delivery(self, sidecar: Path | None) -> None:
         """Load the delivered cube of ``sidecar`` in the compute pool and show it."""
-        from app.workflow.delivered_view import open_delivered
+        from dualrgb.app.workflow.delivered_view import open_delivered
 
         if sidecar is None:
             return

@@ -11,10 +11,10 @@ from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
 
-from app.gui.context import AppContext
-from app.gui.units import shutter, with_unit
-from app.gui.widgets import image_widget
-from app.workflow.frame_checks import UniformityMap, flat_uniformity
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.units import shutter, with_unit
+from dualrgb.app.gui.widgets import image_widget
+from dualrgb.app.workflow.frame_checks import UniformityMap, flat_uniformity
 
 log = logging.getLogger(__name__)
 

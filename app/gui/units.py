@@ -6,8 +6,8 @@ import math
 import re
 from collections.abc import Sequence
 
-from app.workflow.vocabulary import format_exposure
-from simulation.lightsource import LightSource, format_level
+from dualrgb.app.workflow.vocabulary import format_exposure
+from dualrgb.simulation.lightsource import LightSource, format_level
 
 NBSP = "\u00a0"          # between a number and its unit: a wrapping label never splits "90 %"
 

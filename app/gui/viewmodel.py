@@ -13,10 +13,10 @@ from typing import Any
 
 import numpy as np
 
-from app.gui.units import dn, light_pct, percent, shutters
-from app.session.light_dose import LightDose
-from app.processing.hdr import LINEAR_LIMIT_DN  # the one linear limit (thesis 4.1), used everywhere
-from simulation.lightsource import LightSource
+from dualrgb.app.gui.units import dn, light_pct, percent, shutters
+from dualrgb.app.session.light_dose import LightDose
+from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN  # the one linear limit (thesis 4.1), used everywhere
+from dualrgb.simulation.lightsource import LightSource
 
 
 def light_from_levels(levels: Sequence[float], name: str = "") -> LightSource:
@@ -125,8 +125,8 @@ class RawView:
 
 def raw_view(path) -> RawView:
     """Load a raw file (drivers.raw) and make its picture and DN histogram (run in a worker)."""
-    from app.workflow.frame_checks import check_frame
-    from drivers.raw import load_raw, superpixel
+    from dualrgb.app.workflow.frame_checks import check_frame
+    from dualrgb.drivers.raw import load_raw, superpixel
 
     frame = load_raw(path)
     planes = {name: frame.plane(name) for name, _, _ in frame.channels()}
@@ -151,7 +151,7 @@ class ConvergenceTap:
 
     @staticmethod
     def make(setup, on_batch, objective: str = "expected-captured") -> ConvergenceTap:
-        from simulation.runner import make_evaluator
+        from dualrgb.simulation.runner import make_evaluator
 
         return ConvergenceTap(make_evaluator(setup, objective), on_batch)
 
@@ -185,7 +185,7 @@ class ConvergenceTap:
         """The best light set seen so far as a simulation.search.Candidate evaluated like a finished search's
         (simulation.search.evaluate_candidate: float64 train / test errors, expected captured ones where the
         objective has them), or None when no cost was computed yet."""
-        from simulation.search import Candidate, evaluate_candidate
+        from dualrgb.simulation.search import Candidate, evaluate_candidate
 
         if self.best_idx is None:
             return None

@@ -19,7 +19,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.de_scale import DeBand, de_bands
+from dualrgb.app.gui.de_scale import DeBand, de_bands
 
 log = logging.getLogger(__name__)
 

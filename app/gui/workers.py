@@ -22,7 +22,7 @@ from typing import Any
 
 from PySide6.QtCore import QObject, QRunnable, Qt, QThreadPool, Signal, Slot
 
-from common.progress import CancelToken
+from dualrgb.common.progress import CancelToken
 
 log = logging.getLogger(__name__)
 

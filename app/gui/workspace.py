@@ -11,13 +11,13 @@ from typing import Any
 import numpy as np
 from PySide6.QtCore import QObject, Signal
 
-from app.gui.units import light_pct
-from app.processing.patches import PatchGrid
-from app.workflow.day import OriginalsQueue
-from app.workflow.plans import calibration_exposures
-from app.workflow.profile import CalibrationProfile, ReuseCheck
-from app.workflow.vocabulary import NamedLight
-from simulation.lightsource import N_SPHERE_LEDS
+from dualrgb.app.gui.units import light_pct
+from dualrgb.app.processing.patches import PatchGrid
+from dualrgb.app.workflow.day import OriginalsQueue
+from dualrgb.app.workflow.plans import calibration_exposures
+from dualrgb.app.workflow.profile import CalibrationProfile, ReuseCheck
+from dualrgb.app.workflow.vocabulary import NamedLight
+from dualrgb.simulation.lightsource import N_SPHERE_LEDS
 
 log = logging.getLogger(__name__)
 

@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.processing.mosaic import FrameLike, mosaic_of, row_bands
-from common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.app.processing.mosaic import FrameLike, mosaic_of, row_bands
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
 
 log = logging.getLogger(__name__)
 
@@ -76,12 +76,12 @@ def combine_darks(frames: Iterable[FrameLike], *, reject_high: int = 1, reject_l
     """Streamed min/max-rejected mean of dark mosaics -> (mean float32, n, k_high, k_low, noise, spikes).
 
     ``work`` is an optional dict of scratch buffers reused between calls (same frame size)."""
-    from app.processing.kernels import dark_accumulate, dark_finish
+    from dualrgb.app.processing.kernels import dark_accumulate, dark_finish
 
     total = hi = lo = None
     n = 0
     shape = None
-    from app.processing.mosaic import iter_open_raw
+    from dualrgb.app.processing.mosaic import iter_open_raw
 
     for f in iter_open_raw(list(frames)):
         check(cancel)

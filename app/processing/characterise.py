@@ -25,11 +25,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import optimize
 
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.colorimetry import delta_e_2000, xyz_to_lab
-from simulation.cross_validation import CV_FOLDS, fold_parts
-from simulation.matrix_fit import CharacterisationMatrix, fit_matrix
-from simulation.objective import ErrorStats
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
+from dualrgb.simulation.cross_validation import CV_FOLDS, fold_parts
+from dualrgb.simulation.matrix_fit import CharacterisationMatrix, fit_matrix
+from dualrgb.simulation.objective import ErrorStats
 
 log = logging.getLogger(__name__)
 

@@ -30,13 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from app.session.capture_session import CaptureSession
-from app.workflow.vocabulary import Role, exposure_key, format_exposure
-from drivers.raw import RawFrame, load_raw
-from simulation.datasets import CAMERA_UNCERTAINTY_COLUMNS
-from simulation.radiance_reference import RadianceReference
-from simulation.spectral_io import write_spectral_csv
-from simulation.versions import dualrgb_version
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.vocabulary import Role, exposure_key, format_exposure
+from dualrgb.drivers.raw import RawFrame, load_raw
+from dualrgb.simulation.datasets import CAMERA_UNCERTAINTY_COLUMNS
+from dualrgb.simulation.radiance_reference import RadianceReference
+from dualrgb.simulation.spectral_io import write_spectral_csv
+from dualrgb.simulation.versions import dualrgb_version
 
 log = logging.getLogger(__name__)
 

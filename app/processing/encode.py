@@ -190,7 +190,7 @@ class DeliveryEncoder:
 
     def __init__(self, stack: np.ndarray, matrix: np.ndarray, white_xyz: Sequence[float],
                  spaces: Sequence[str] = RGB_SPACES, threads: int | None = None):
-        from app.processing.outputs import xyz_to_rgb_matrix
+        from dualrgb.app.processing.outputs import xyz_to_rgb_matrix
 
         self.stack = np.ascontiguousarray(stack, dtype=np.float32)
         A = np.asarray(matrix, dtype=np.float32)

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.atomic_files import atomic_write
+from dualrgb.common.atomic_files import atomic_write
 
 log = logging.getLogger(__name__)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from common.atomic_files import atomic_output
+from dualrgb.common.atomic_files import atomic_output
 
 
 def new_figure(w: float, h: float):

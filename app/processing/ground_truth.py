@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.processing.mosaic import row_bands
-from simulation.colorimetry import delta_e_2000, xyz_to_lab
+from dualrgb.app.processing.mosaic import row_bands
+from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
 
 log = logging.getLogger(__name__)
 
@@ -190,6 +190,6 @@ def write_de_map_png(path: Path, de_map: np.ndarray, *, title: str = "", vmax: f
     bar = fig.colorbar(im, ax=ax, extend="max", fraction=0.046, pad=0.04)
     bar.set_label(label)
     fig.tight_layout()
-    from app.processing.figure_files import save_figure  # the atomic write: a full disk leaves no half PNG
+    from dualrgb.app.processing.figure_files import save_figure  # the atomic write: a full disk leaves no half PNG
 
     return save_figure(fig, path)

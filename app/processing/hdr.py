@@ -49,9 +49,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.processing.mosaic import DEFAULT_BAND_ROWS, FrameLike, mosaic_of
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.hdr_estimators import (
+from dualrgb.app.processing.mosaic import DEFAULT_BAND_ROWS, FrameLike, mosaic_of
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.hdr_estimators import (
     HDR_MERGE_METHODS,
     HDR_METHOD_CODES,
     HdrNoise,
@@ -129,7 +129,7 @@ class HdrMerge:
     def _slot(self, exposure_s: float, shape: tuple[int, int]) -> tuple[int, bool]:
         """The slot of this exposure time (frames of one exposure time share one: their mean is merged) and
         whether it is new; grows the slot buffers as exposure times arrive."""
-        from app.processing.calibration import _buffer
+        from dualrgb.app.processing.calibration import _buffer
 
         for k, t in enumerate(self._slot_times):
             if abs(t - exposure_s) <= 1e-3 * max(t, exposure_s):
@@ -155,7 +155,7 @@ class HdrMerge:
             cancel: CancelToken | None = None) -> None:
         """Add one exposure: raw mosaic (uint16 DN), its exposure time (s) and its master dark (None: the black
         level is subtracted instead)."""
-        from app.processing.kernels import hdr_store
+        from dualrgb.app.processing.kernels import hdr_store
 
         check(cancel)
         if not exposure_s or exposure_s <= 0:
@@ -205,8 +205,8 @@ class HdrMerge:
         self._slot_times, self._slot_frames = [], []
 
     def result(self) -> HdrResult:
-        from app.processing.calibration import _buffer
-        from app.processing.kernels import hdr_merge
+        from dualrgb.app.processing.calibration import _buffer
+        from dualrgb.app.processing.kernels import hdr_merge
 
         self._require()
         shape = self._sums.shape[1:]
@@ -219,8 +219,8 @@ class HdrMerge:
     def flat_superpixel(self, white: np.ndarray, threshold: float, cfa: str, out: np.ndarray) -> int:
         """Merge, flat-field by ``white`` (eq 7.1, NaN where white <= threshold) and write the half-size R,
         mean(G1, G2), B into ``out`` (H/2, W/2, 3) in one pass. Returns the clipped-pixel count."""
-        from app.processing.kernels import hdr_merge_flat_superpixel
-        from app.processing.mosaic import cfa_channel_index
+        from dualrgb.app.processing.kernels import hdr_merge_flat_superpixel
+        from dualrgb.app.processing.mosaic import cfa_channel_index
 
         self._require()
         if white.shape != self._sums.shape[1:]:

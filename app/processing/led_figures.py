@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 
-from app.processing.figure_files import new_figure, save_tight
-from simulation.led_fit import DriftFit
-from simulation.sphere import LowLevelResponse
+from dualrgb.app.processing.figure_files import new_figure, save_tight
+from dualrgb.simulation.led_fit import DriftFit
+from dualrgb.simulation.sphere import LowLevelResponse
 
 log = logging.getLogger(__name__)
 

@@ -36,7 +36,7 @@ def mosaic_of(frame: FrameLike) -> np.ndarray:
     if isinstance(frame, np.ndarray):
         m = frame
     elif isinstance(frame, (str, Path, os.PathLike)):   # (copies; the pipeline uses open_raw instead)
-        from drivers.raw import load_raw
+        from dualrgb.drivers.raw import load_raw
 
         m = load_raw(frame).mosaic
     elif hasattr(frame, "mosaic"):
@@ -73,7 +73,7 @@ def open_raw(source: FrameLike) -> Iterator[Any]:
         return
     import rawpy
 
-    from drivers.raw import load_raw
+    from dualrgb.drivers.raw import load_raw
 
     path = Path(source)
     try:
@@ -168,7 +168,7 @@ def superpixel(mosaic: np.ndarray, cfa: str = "RGGB", out: np.ndarray | None = N
 
     NaN in a green pixel makes that cell's G NaN (not silently the other green): invalid stays visible.
     """
-    from drivers.raw import bayer_superpixel
+    from dualrgb.drivers.raw import bayer_superpixel
 
     return bayer_superpixel(mosaic, check_cfa(cfa), out=out)
 

@@ -27,14 +27,14 @@ import re
 import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from xml.sax.saxutils import escape
 
 import numpy as np
 
-from common.atomic_files import atomic_output
-from simulation.matrix_fit import CharacterisationMatrix
+from dualrgb.common.atomic_files import atomic_output
+from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 
 log = logging.getLogger(__name__)
 
@@ -140,7 +140,7 @@ def matrix_trc_icc(space: str, description: str | None = None, n_curve: int = 40
         data += body
     data += b"\0" * ((-len(data)) % 4)
     size = 128 + len(table) + len(data)
-    now = datetime.now(timezone.utc)
+    now = datetime.now(UTC)
     header = (struct.pack(">I", size) + b"none" + bytes([2, 0x40, 0, 0]) + b"mntr" + b"RGB " + b"XYZ "
               + struct.pack(">6H", now.year, now.month, now.day, now.hour, now.minute, now.second)
               + b"acsp" + b"APPL" + struct.pack(">I", 0) + b"none" + b"\0" * 4 + b"\0" * 8
@@ -212,7 +212,7 @@ def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str
     {``dualrgb:Property``, ``dualrgb:Column``} so the names of a queue CSV's extra columns survive exactly.
     Text that XML 1.0 cannot carry raises ValueError naming the property (the workflow refuses it earlier).
     """
-    created = created or datetime.now(timezone.utc)
+    created = created or datetime.now(UTC)
     props = [f"<xmp:CreateDate>{created.isoformat(timespec='seconds')}</xmp:CreateDate>"]
     if tool:
         props.append(f"<xmp:CreatorTool>{_xml_text('CreatorTool', tool)}</xmp:CreatorTool>")
@@ -255,7 +255,7 @@ def open_tiff(path: Path, shape: tuple[int, ...], meta: TiffMetadata, *, dtype=n
               photometric: str = "minisblack", icc: bytes | None = None, band_rows: int = 64, executor=None,
               direct: bool = True):
     """A TIFF of ``shape`` to fill band by band (app.processing.tiff_stream.TiffStream), written atomically."""
-    from app.processing.tiff_stream import TiffStream
+    from dualrgb.app.processing.tiff_stream import TiffStream
 
     return TiffStream(path, shape, dtype, tiff_kwargs(meta, photometric=photometric, icc=icc),
                       band_rows=band_rows, executor=executor, direct=direct)

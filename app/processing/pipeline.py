@@ -30,11 +30,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.processing.calibration import FlatField, MasterDark
-from app.processing.hdr import LINEAR_LIMIT_DN, HdrMerge, HdrResult
-from app.processing.mosaic import FrameLike, cfa_of, iter_open_raw, mosaic_of, white_level_of
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.camera_model import CHANNELS
+from dualrgb.app.processing.calibration import FlatField, MasterDark
+from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN, HdrMerge, HdrResult
+from dualrgb.app.processing.mosaic import FrameLike, cfa_of, iter_open_raw, mosaic_of, white_level_of
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.camera_model import CHANNELS
 
 log = logging.getLogger(__name__)
 
@@ -207,7 +207,7 @@ class CaptureProcessor:
 def _weak_cells(slots: tuple[np.ndarray, np.ndarray], floor_dn: float, so_far: np.ndarray | None) -> np.ndarray:
     """Superpixels none of whose four pixels reached ``floor_dn`` in any usable exposure, AND-ed with the lights
     before (a cell is under-exposed only if it is under every light); ``slots`` = HdrMerge.slots."""
-    from app.processing.encode import weak_cells
+    from dualrgb.app.processing.encode import weak_cells
 
     sums, counts = slots
     first = so_far is None
@@ -233,7 +233,7 @@ class StackBuilder:
         self._merges: dict[str, HdrMerge] = {}
 
     def add(self, light: str, ref: ExposureRef, cancel: CancelToken | None = None) -> None:
-        from app.processing.mosaic import open_raw
+        from dualrgb.app.processing.mosaic import open_raw
 
         if light not in self.lights:
             raise ValueError(f"{light!r} is not one of this stack's lights ({', '.join(self.lights)})")

@@ -32,10 +32,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simulation.colorimetry import delta_e_2000
+from dualrgb.simulation.colorimetry import delta_e_2000
 
 if TYPE_CHECKING:                                   # pragma: no cover
-    from app.processing.pipeline import CaptureProcessor, ExposureRef
+    from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
 
 log = logging.getLogger(__name__)
 
@@ -246,7 +246,7 @@ def _pairs_by_exposure(refs: Sequence[ExposureRef]) -> dict[float, list[Exposure
 
 
 def _mosaics(refs: Sequence[ExposureRef]) -> list[np.ndarray]:
-    from app.processing.mosaic import iter_open_raw, mosaic_of
+    from dualrgb.app.processing.mosaic import iter_open_raw, mosaic_of
 
     return [np.array(mosaic_of(f), dtype=np.float32) for f in iter_open_raw([r.source for r in refs])]
 
@@ -316,8 +316,8 @@ def assess(lab_ref: np.ndarray, lab_cap: np.ndarray, names: Sequence[str], error
            matrix: np.ndarray | None = None, white: np.ndarray | None = None,
            calibration: CalibrationFrames | None = None) -> dict:
     """All metrics of one target (normally the test target) and their grading."""
-    from app.processing.mosaic import cfa_channel_index
-    from simulation.objective import ErrorStats
+    from dualrgb.app.processing.mosaic import cfa_channel_index
+    from dualrgb.simulation.objective import ErrorStats
 
     comp = lab_differences(lab_ref, lab_cap)
     idx = neutral_patches(lab_ref)

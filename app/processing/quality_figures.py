@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.processing.figure_files import new_figure, save_tight
+from dualrgb.app.processing.figure_files import new_figure, save_tight
 
 log = logging.getLogger(__name__)
 

@@ -27,7 +27,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from simulation.other_lights import REFERENCE_LIGHT, light_key
+from dualrgb.simulation.other_lights import REFERENCE_LIGHT, light_key
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +38,7 @@ DEFAULT_RENDER_ILLUMINANT = light_key(REFERENCE_LIGHT)
 def check_illuminant(key: str) -> str:
     """``key`` (a command-line name in any case, or the light's full name) -> the command-line name
     (simulation.other_lights); anything else is a one-line ValueError naming the choices."""
-    from simulation.other_lights import light_of_key
+    from dualrgb.simulation.other_lights import light_of_key
 
     return light_key(light_of_key(key))
 
@@ -70,7 +70,7 @@ class Rendering:
     def rgb16(self, spectra: np.ndarray) -> np.ndarray:
         """Display-encoded 16-bit RGB (..., 3) of spectra (NaN spectra give 0): the numpy formulation of what the
         cube's kernel writes (for previews; the deliverable is streamed by app.processing.spectral_cube)."""
-        from app.processing.encode import encoding_table
+        from dualrgb.app.processing.encode import encoding_table
 
         lin = np.nan_to_num(self.linear_rgb(spectra), nan=0.0)
         lut = encoding_table(self.space)
@@ -96,12 +96,12 @@ def rendering(illuminant: str, wavelengths: np.ndarray | tuple[float, ...],
 
 @lru_cache(maxsize=16)
 def _rendering(key: str, wavelengths: tuple[float, ...], space: str) -> Rendering:
-    from app.processing.outputs import xyz_to_rgb_matrix
-    from simulation.colorimetry import white_point
-    from simulation.datasets import default_setup
-    from simulation.grid import SpectralGrid
-    from simulation.other_lights import light_keys
-    from simulation.spectral_metrics import light_spd
+    from dualrgb.app.processing.outputs import xyz_to_rgb_matrix
+    from dualrgb.simulation.colorimetry import white_point
+    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.grid import SpectralGrid
+    from dualrgb.simulation.other_lights import light_keys
+    from dualrgb.simulation.spectral_metrics import light_spd
 
     wl = np.asarray(wavelengths)
     steps = np.diff(wl)

@@ -38,22 +38,22 @@ import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from app.processing.characterise import Characterisation
-from app.processing.figure_files import new_figure, save_figure, save_tight
-from common.atomic_files import atomic_write
-from simulation.colorimetry import xyz_to_lab
-from simulation.objective import ErrorStats
-from simulation.versions import output_header
+from dualrgb.app.processing.characterise import Characterisation
+from dualrgb.app.processing.figure_files import new_figure, save_figure, save_tight
+from dualrgb.common.atomic_files import atomic_write
+from dualrgb.simulation.colorimetry import xyz_to_lab
+from dualrgb.simulation.objective import ErrorStats
+from dualrgb.simulation.versions import output_header
 
 if TYPE_CHECKING:                                   # pragma: no cover
-    from app.processing.quality import CalibrationFrames
-    from app.processing.spectral import SpectralCharacterisation
+    from dualrgb.app.processing.quality import CalibrationFrames
+    from dualrgb.app.processing.spectral import SpectralCharacterisation
 
 log = logging.getLogger(__name__)
 
@@ -193,7 +193,7 @@ def layout_for(n: int, layout: tuple[int, int] | None = None) -> tuple[int, int]
 def xyz_to_srgb8(xyz: np.ndarray, white: np.ndarray) -> np.ndarray:
     import colour
 
-    from app.processing.outputs import xyz_to_rgb_matrix
+    from dualrgb.app.processing.outputs import xyz_to_rgb_matrix
 
     M = xyz_to_rgb_matrix("sRGB", white) / float(white[1])
     lin = np.clip(np.asarray(xyz, float) @ M.T, 0, 1)
@@ -296,8 +296,8 @@ class TargetData:
 def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors: np.ndarray, label: str,
                     calibration: CalibrationFrames | None) -> tuple[dict, list[str]]:
     """The quality metrics of one target (app.processing.quality) and their figures."""
-    from app.processing.quality import STANDARD_LIMITS, assess
-    from app.processing.quality_figures import lab_components_figure, tone_figure, uniformity_figure
+    from dualrgb.app.processing.quality import STANDARD_LIMITS, assess
+    from dualrgb.app.processing.quality_figures import lab_components_figure, tone_figure, uniformity_figure
 
     m = c.results[c.best].matrix
     lab_ref = xyz_to_lab(data.xyz, c.white)
@@ -364,7 +364,7 @@ def _model_sections(out_dir: Path, c: Characterisation, train: TargetData, test:
         sections["dn_validation"], figure = _dn_validation(out_dir, c, np.asarray(simulated_train), train)
         figures.append(figure)
     if spectral is not None:
-        from app.processing.spectral import spectral_section
+        from dualrgb.app.processing.spectral import spectral_section
 
         names = {"train": train.names, "test": test.names if test is not None else []}
         sections["spectral"], more = spectral_section(out_dir, spectral, names)
@@ -397,7 +397,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
     report = {
         **output_header(REPORT_FORMAT),
         "title": title,
-        "created_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "created_at": datetime.now(UTC).isoformat(timespec="seconds"),
         "channels": c.channels,
         "white_xyz": [float(v) for v in c.white],
         "best_method": best,

@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from common.progress import CancelToken
-from simulation.lightsource import LightSource
-from simulation.spectral_estimation import SpectralEstimator, SpectralTraining, quantity_of
-from simulation.spectral_selection import SpectralSelection
+from dualrgb.common.progress import CancelToken
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.spectral_estimation import SpectralEstimator, SpectralTraining, quantity_of
+from dualrgb.simulation.spectral_selection import SpectralSelection
 
 log = logging.getLogger(__name__)
 
@@ -66,8 +66,8 @@ class SpectralCharacterisation:
 
 def model_sensitivities(mode: str, lights: Sequence[LightSource]) -> np.ndarray:
     """The flat-fielded values' sensitivities (n_wl, 3 L) of ``lights`` in the packaged model of ``mode``."""
-    from simulation.camera_model import flat_fielded_sensitivities
-    from simulation.datasets import default_setup
+    from dualrgb.simulation.camera_model import flat_fielded_sensitivities
+    from dualrgb.simulation.datasets import default_setup
 
     setup = default_setup(mode)
     return flat_fielded_sensitivities(np.stack([light.spectrum(setup.leds) for light in lights]), setup.camera)
@@ -98,7 +98,7 @@ class SpectralInputs:
 
 def training_data(inputs: SpectralInputs) -> tuple[SpectralTraining, np.ndarray | None]:
     """The :class:`SpectralTraining` of a capture and the model gain per channel (None without the lights)."""
-    from simulation.datasets import default_setup
+    from dualrgb.simulation.datasets import default_setup
 
     setup = default_setup(inputs.mode)
     values = np.asarray(inputs.train_values, dtype=float)
@@ -121,9 +121,9 @@ def training_data(inputs: SpectralInputs) -> tuple[SpectralTraining, np.ndarray 
 
 def characterise_spectra(inputs: SpectralInputs, cancel: CancelToken | None = None) -> SpectralCharacterisation:
     """Fit, choose (cross-validation on the training target) and evaluate the spectral estimate of a capture."""
-    from simulation.datasets import default_setup
-    from simulation.spectral_metrics import seen_wavelengths, spectral_figures
-    from simulation.spectral_selection import select_estimator
+    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.spectral_metrics import seen_wavelengths, spectral_figures
+    from dualrgb.simulation.spectral_selection import select_estimator
 
     training, gain = training_data(inputs)
     selection = select_estimator(training, cancel=cancel)
@@ -145,7 +145,7 @@ def characterise_spectra(inputs: SpectralInputs, cancel: CancelToken | None = No
 
 def spectra_figure(path: Path, sc: SpectralCharacterisation, names: Sequence[str], target: str = "test") -> Path:
     """Estimated (dashed) against reference (solid) spectra of a few patches spread over ``target``."""
-    from app.processing.figure_files import new_figure, save_tight
+    from dualrgb.app.processing.figure_files import new_figure, save_tight
 
     ref, est = sc.references[target], sc.estimates[target]
     picks = np.unique(np.linspace(0, len(ref) - 1, min(FIGURE_PATCHES, len(ref))).astype(int))

@@ -25,9 +25,9 @@ import numba
 import numpy as np
 from numba import njit
 
-from app.processing.encode import encoding_table, rgb_row
-from app.processing.envi import IGNORE_VALUE, SCALE_FACTOR
-from app.processing.render import Rendering
+from dualrgb.app.processing.encode import encoding_table, rgb_row
+from dualrgb.app.processing.envi import IGNORE_VALUE, SCALE_FACTOR
+from dualrgb.app.processing.render import Rendering
 
 log = logging.getLogger(__name__)
 
@@ -203,7 +203,7 @@ def encode_spectral(stack: np.ndarray, matrix: np.ndarray, bounds: Sequence[floa
 
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) the kernels on a tiny stack."""
-    from app.processing.render import rendering
+    from dualrgb.app.processing.render import rendering
 
     wl = np.arange(410.0, 790.0, 10.0)
     for n in (6, 3):

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from app.processing.mosaic import row_bands
-from simulation.spectral_metrics import spectral_rmse
+from dualrgb.app.processing.mosaic import row_bands
+from dualrgb.simulation.spectral_metrics import spectral_rmse
 
 log = logging.getLogger(__name__)
 
@@ -158,7 +158,7 @@ def compare_spectra_to_ground_truth(cube: np.ndarray | Rows, truth: SpectralTrut
 
 def write_rmse_map_png(path, rmse_map: np.ndarray, *, title: str = "", vmax: float = RMSE_MAP_MAX):
     """A PNG of the spectral RMSE map on a fixed 0..``vmax`` scale (app.processing.ground_truth's figure)."""
-    from app.processing.ground_truth import write_de_map_png
+    from dualrgb.app.processing.ground_truth import write_de_map_png
 
     return write_de_map_png(path, rmse_map, title=title or "spectral RMSE against ground truth", vmax=vmax,
                             label="spectral RMSE (factor)")

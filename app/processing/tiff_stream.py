@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from common.atomic_files import fsync_dir, remove_quietly, temp_path, write_error
+from dualrgb.common.atomic_files import fsync_dir, remove_quietly, temp_path, write_error
 
 log = logging.getLogger(__name__)
 

@@ -20,8 +20,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from app.workflow.vocabulary import EventKind
-from common.atomic_files import require_free_space
+from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.common.atomic_files import require_free_space
 
 log = logging.getLogger(__name__)
 

@@ -12,10 +12,10 @@ import logging
 import math
 from collections.abc import Callable, Iterator, Sequence
 
-from app.sequences.base import PlannedFrame, ProgressEvent
-from app.sequences.base import Sequence as BaseSequence
-from app.sequences.shooter import Shooter, channel_levels
-from app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.sequences.base import Sequence as BaseSequence
+from dualrgb.app.sequences.shooter import Shooter, channel_levels
+from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
 
 log = logging.getLogger(__name__)
 

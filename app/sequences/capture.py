@@ -5,10 +5,10 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterator, Sequence
 
-from app.sequences.base import PlannedFrame, ProgressEvent
-from app.sequences.base import Sequence as BaseSequence
-from app.sequences.shooter import Shooter
-from app.workflow.vocabulary import EventKind, NamedLight, Subject, step_id
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.sequences.base import Sequence as BaseSequence
+from dualrgb.app.sequences.shooter import Shooter
+from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Subject, step_id
 
 log = logging.getLogger(__name__)
 

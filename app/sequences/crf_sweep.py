@@ -12,12 +12,12 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from app.processing.crf_analysis import CrfResult, analyse_crf
-from app.sequences.base import PlannedFrame, ProgressEvent
-from app.sequences.base import Sequence as BaseSequence
-from app.sequences.shooter import Shooter
-from app.workflow.vocabulary import EventKind, exposure_key
-from simulation.lightsource import LightSource
+from dualrgb.app.processing.crf_analysis import CrfResult, analyse_crf
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.sequences.base import Sequence as BaseSequence
+from dualrgb.app.sequences.shooter import Shooter
+from dualrgb.app.workflow.vocabulary import EventKind, exposure_key
+from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 

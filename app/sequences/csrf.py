@@ -23,16 +23,16 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from app.sequences.base import PlannedFrame, ProgressEvent
-from app.sequences.base import Sequence as BaseSequence
-from app.sequences.calibration import LINEAR_LIMIT_DN, converge_exposure, snap_down
-from app.sequences.shooter import channel_levels
-from app.session.capture_session import CaptureSession
-from app.session.manifest import SessionEntry
-from app.workflow.vocabulary import EventKind, Role, format_exposure, monochromatic_light, step_id
-from drivers.camera.base import Camera, CameraError, Exposure, RawCapture, call_with_deadline
-from drivers.monochromator.errors import MonochromatorError, ShutterReport
-from drivers.raw import RawFrame, load_raw
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.sequences.base import Sequence as BaseSequence
+from dualrgb.app.sequences.calibration import LINEAR_LIMIT_DN, converge_exposure, snap_down
+from dualrgb.app.sequences.shooter import channel_levels
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.session.manifest import SessionEntry
+from dualrgb.app.workflow.vocabulary import EventKind, Role, format_exposure, monochromatic_light, step_id
+from dualrgb.drivers.camera.base import Camera, CameraError, Exposure, RawCapture, call_with_deadline
+from dualrgb.drivers.monochromator.errors import MonochromatorError, ShutterReport
+from dualrgb.drivers.raw import RawFrame, load_raw
 
 log = logging.getLogger(__name__)
 

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.sequences.calibration import LINEAR_LIMIT_DN, snap_down
-from app.workflow.vocabulary import Role, Subject, step_id
-from drivers.raw import RawFrame
+from dualrgb.app.sequences.calibration import LINEAR_LIMIT_DN, snap_down
+from dualrgb.app.workflow.vocabulary import Role, Subject, step_id
+from dualrgb.drivers.raw import RawFrame
 
 log = logging.getLogger(__name__)
 

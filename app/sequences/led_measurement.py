@@ -26,10 +26,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from app.sequences.base import PlannedFrame, ProgressEvent
-from app.sequences.base import Sequence as BaseSequence
-from app.workflow.led_readings import level_id, warmup_id
-from app.workflow.vocabulary import EventKind
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.sequences.base import Sequence as BaseSequence
+from dualrgb.app.workflow.led_readings import level_id, warmup_id
+from dualrgb.app.workflow.vocabulary import EventKind
 
 log = logging.getLogger(__name__)
 

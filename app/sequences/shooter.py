@@ -22,14 +22,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from app.session.capture_session import CaptureSession
-from app.session.light_dose import LightDose
-from app.session.manifest import SessionEntry
-from app.workflow.defaults import SETTLE_S
-from drivers.camera.base import DEFAULT_LATENCY_S, Camera, CameraError, Exposure, RawCapture, call_with_deadline
-from drivers.led_sphere import LightReport, SphereError
-from drivers.raw import RawFrame, load_raw
-from simulation.lightsource import LightSource
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.session.light_dose import LightDose
+from dualrgb.app.session.manifest import SessionEntry
+from dualrgb.app.workflow.defaults import SETTLE_S
+from dualrgb.drivers.camera.base import DEFAULT_LATENCY_S, Camera, CameraError, Exposure, RawCapture, call_with_deadline
+from dualrgb.drivers.led_sphere import LightReport, SphereError
+from dualrgb.drivers.raw import RawFrame, load_raw
+from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 

@@ -67,8 +67,8 @@ import weakref
 from pathlib import Path
 from typing import Any, Union
 
-from app.session import lock as session_lock
-from app.session.manifest import (
+from dualrgb.app.session import lock as session_lock
+from dualrgb.app.session.manifest import (
     DamagedFramesError,
     DefinitionMismatch,
     DoseRecord,
@@ -85,10 +85,10 @@ from app.session.manifest import (
     now,
     read_manifest,
 )
-from common import atomic_files
-from common.atomic_files import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
-from drivers.camera.base import RawCapture
-from simulation.versions import software_versions
+from dualrgb.common import atomic_files
+from dualrgb.common.atomic_files import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
+from dualrgb.drivers.camera.base import RawCapture
+from dualrgb.simulation.versions import software_versions
 
 log = logging.getLogger(__name__)
 
@@ -356,7 +356,7 @@ class CaptureSession:
 
     def light_dose(self):
         """The session's whole light dose (app.session.light_dose.LightDose) summed from its dose lines."""
-        from app.session.light_dose import LightDose, light_from_record
+        from dualrgb.app.session.light_dose import LightDose, light_from_record
 
         total = LightDose()
         for d in self._doses:

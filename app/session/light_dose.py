@@ -19,9 +19,9 @@ from functools import lru_cache
 import colour
 import numpy as np
 
-import resources
-from simulation.lightsource import LightSource
-from simulation.spectral_io import read_spectral_csv
+from dualrgb import resources
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.spectral_io import read_spectral_csv
 
 log = logging.getLogger(__name__)
 

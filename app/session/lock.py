@@ -14,7 +14,7 @@ import socket
 import sys
 import threading
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 log = logging.getLogger(__name__)
@@ -92,7 +92,7 @@ def read_holder(folder: Path) -> dict:
 
 def _write_holder(fd: int) -> None:
     info = {"pid": os.getpid(), "host": socket.gethostname(),
-            "since": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "since": datetime.now(UTC).isoformat(timespec="seconds"),
             "program": " ".join(os.path.basename(a) for a in sys.argv[:2])}
     os.ftruncate(fd, 0)
     os.lseek(fd, 0, os.SEEK_SET)

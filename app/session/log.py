@@ -7,11 +7,11 @@ Front ends (the demo, the CLI commands, the GUI) call it when they open a sessio
     log_file = SessionLog(session.path).start()   # or start/stop, e.g. for the GUI's current session
     log_file.stop()
 
-Records of the ``app``, ``drivers`` and ``simulation`` loggers at INFO and above (DEBUG with ``level``) are
-appended to ``<session>/session.log``, one line each with a UTC timestamp, whatever the console shows; a
-resumed session appends. The handler sits on the root logger, so records from worker threads are kept too.
-The file is written only once the folder is a session (``session.json`` exists), so opening the log before
-``CaptureSession.create`` cannot make the folder "not empty".
+Records of dualrgb's own loggers (``dualrgb.app``, ``dualrgb.drivers``, ``dualrgb.simulation``, ...) at INFO
+and above (DEBUG with ``level``) are appended to ``<session>/session.log``, one line each with a UTC timestamp,
+whatever the console shows; a resumed session appends. The handler sits on the root logger, so records from worker
+threads are kept too. The file is written only once the folder is a session (``session.json`` exists), so opening
+the log before ``CaptureSession.create`` cannot make the folder "not empty".
 """
 from __future__ import annotations
 
@@ -26,14 +26,14 @@ log = logging.getLogger(__name__)
 
 LOG_NAME = "session.log"
 SESSION_MARKER = "session.json"          # app.session.capture_session.SETTINGS
-PACKAGES = ("app", "common", "drivers", "simulation")
+NAMESPACE = "dualrgb"
 FORMAT = "%(asctime)s.%(msecs)03dZ %(levelname)-7s %(threadName)s %(name)s: %(message)s"
 MAX_EARLY_RECORDS = 10000                # held until the folder becomes a session
 
 
 class _PackageFilter(logging.Filter):
     def filter(self, record: logging.LogRecord) -> bool:
-        return record.name.split(".", 1)[0] in PACKAGES
+        return record.name.split(".", 1)[0] == NAMESPACE
 
 
 class _SessionLogHandler(logging.Handler):

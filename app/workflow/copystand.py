@@ -17,25 +17,25 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from app.processing.pipeline import CaptureProcessor, ExposureRef
-from app.processing.render import DEFAULT_RENDER_ILLUMINANT, check_illuminant
-from app.sequences.base import ProgressEvent
-from app.sequences.base import Sequence as BaseSequence
-from app.sequences.calibration import DarkSeries, FlatSeries, snap_down
-from app.sequences.capture import SubjectCapture
-from app.sequences.shooter import SafetySettings, Shooter
-from app.workflow.defaults import study_defaults, workflow_defaults
-from app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
-from app.workflow.delivery_folder import prepare, sidecar_identifier
-from app.workflow.metadata import MetadataError, check_original
-from app.workflow.metering import AutoExposure, HdrMetering
-from app.workflow.profile import (
+from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT, check_illuminant
+from dualrgb.app.sequences.base import ProgressEvent
+from dualrgb.app.sequences.base import Sequence as BaseSequence
+from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
+from dualrgb.app.sequences.capture import SubjectCapture
+from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
+from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
+from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
+from dualrgb.app.workflow.metadata import MetadataError, check_original
+from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
+from dualrgb.app.workflow.profile import (
     CalibrationProfile,
     CameraIdentity,
     ProfileError,
@@ -45,11 +45,20 @@ from app.workflow.profile import (
     check_reuse,
     new_profile_id,
 )
-from app.workflow.session_processing import SessionResult, process_session
-from app.workflow.targets import TargetSpec, reference_white, target_spec
-from app.workflow.virtual_truth import placed_truth
-from app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, lights_of, role_of, split_take, subject_of
-from common.progress import Cancelled, CancelToken, ProgressCallback, report
+from dualrgb.app.workflow.session_processing import SessionResult, process_session
+from dualrgb.app.workflow.targets import TargetSpec, reference_white, target_spec
+from dualrgb.app.workflow.virtual_truth import placed_truth
+from dualrgb.app.workflow.vocabulary import (
+    EventKind,
+    NamedLight,
+    Role,
+    Subject,
+    lights_of,
+    role_of,
+    split_take,
+    subject_of,
+)
+from dualrgb.common.progress import Cancelled, CancelToken, ProgressCallback, report
 
 log = logging.getLogger(__name__)
 
@@ -144,7 +153,7 @@ class CopyStand:
         """Per light: the open-gate exposure, and with ``hdr_auto`` longer ones (HDR, thesis 8) up to the most the
         parsimony study found worth it in ``mode``, each within the overlap the HDR planner keeps and the light-on
         limit."""
-        from app.sequences.hdr import LINEAR_LIMIT_DN
+        from dualrgb.app.sequences.hdr import LINEAR_LIMIT_DN
 
         n = self.hdr_exposures(mode) if hdr_auto else 1
         limit = self.shooter.safety.max_exposure_s
@@ -225,7 +234,7 @@ class CopyStand:
         sphere = SphereIdentity.of(self.sphere)
         if temps:
             sphere.temperature_c = float(np.mean(temps))
-        created = datetime.now(timezone.utc)
+        created = datetime.now(UTC)
         c = result.characterisation
         first = next(iter(proc._whites.values()))
         return CalibrationProfile(
@@ -369,7 +378,7 @@ def original_takes(session: Any, original: Original) -> list[int]:
 
 def original_dose(session: Any, subject: Subject) -> LightDoseRecord:
     """Every lit period of an original (metering, every take) from the session manifest's dose lines."""
-    from app.session.light_dose import LightDose, light_from_record
+    from dualrgb.app.session.light_dose import LightDose, light_from_record
 
     total = LightDose()
     marker = f"/{subject.key}/"
@@ -403,7 +412,7 @@ def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: 
     """Deliver every original of a session again with ``profile`` (``dualrgb process``); each original's current
     deliverables move to its ``previous/`` folder. Every folder is checked before the first is written. The
     spectral rendering is seen under ``render_illuminant``."""
-    from app.workflow.session_processing import select_lights, session_frames
+    from dualrgb.app.workflow.session_processing import select_lights, session_frames
 
     frames = session_frames(session)
     known = session.settings.get("originals", {})

@@ -7,8 +7,8 @@ import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-from app.processing.calibration import EXPOSURE_RTOL
-from app.workflow.vocabulary import Role, latest_takes, light_of, role_of
+from dualrgb.app.processing.calibration import EXPOSURE_RTOL
+from dualrgb.app.workflow.vocabulary import Role, latest_takes, light_of, role_of
 
 log = logging.getLogger(__name__)
 

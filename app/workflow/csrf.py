@@ -19,13 +19,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from app.processing.csrf import CsrfResult, compute_csrf, session_signals, write_camera_csv
-from app.sequences.base import ProgressEvent
-from app.sequences.csrf import CsrfSettings, CsrfSweep
-from app.session.capture_session import CaptureSession
-from app.workflow.vocabulary import EventKind
-from common.progress import CancelToken
-from simulation.radiance_reference import RadianceReference
+from dualrgb.app.processing.csrf import CsrfResult, compute_csrf, session_signals, write_camera_csv
+from dualrgb.app.sequences.base import ProgressEvent
+from dualrgb.app.sequences.csrf import CsrfSettings, CsrfSweep
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.common.progress import CancelToken
+from dualrgb.simulation.radiance_reference import RadianceReference
 
 log = logging.getLogger(__name__)
 

@@ -16,19 +16,19 @@ import json
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
-from app.workflow.coverage import Coverage, coverage, plan_coverage
-from app.workflow.delivery import Original
-from app.workflow.profile import CalibrationProfile, ReuseCheck
-from app.workflow.vocabulary import Role, latest_takes, role_of, subject_of
+from dualrgb.app.workflow.coverage import Coverage, coverage, plan_coverage
+from dualrgb.app.workflow.delivery import Original
+from dualrgb.app.workflow.profile import CalibrationProfile, ReuseCheck
+from dualrgb.app.workflow.vocabulary import Role, latest_takes, role_of, subject_of
 
 log = logging.getLogger(__name__)
 
 
-class OriginalState(str, Enum):
+class OriginalState(StrEnum):
     WAITING = "waiting"
     CAPTURING = "capturing"
     CAPTURED = "captured"         # every frame is in the session; the deliverables are being written
@@ -141,14 +141,14 @@ def _read_delivery(row: QueueRow, sidecar: Path) -> None:
 
 
 # ---------------------------------------------------------------- the checklist
-class DayStep(str, Enum):
+class DayStep(StrEnum):
     CONNECT = "connect"
     CALIBRATE = "calibrate"
     ORIGINALS = "originals"
     DELIVER = "deliver"
 
 
-class StepState(str, Enum):
+class StepState(StrEnum):
     TODO = "todo"
     ACTIVE = "active"             # the next thing to do
     DONE = "done"

@@ -22,8 +22,8 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
-import resources
-from simulation.choices import CALIBRATION_DARK_FRAMES, CALIBRATION_FLAT_FRAMES, MODES
+from dualrgb import resources
+from dualrgb.simulation.choices import CALIBRATION_DARK_FRAMES, CALIBRATION_FLAT_FRAMES, MODES
 
 log = logging.getLogger(__name__)
 
@@ -73,7 +73,7 @@ def study_defaults(mode: str | None = None) -> dict:
     """The parsimony study's choices for ``mode`` (``spectral_start_nm`` / ``_end_nm`` / ``_step_nm``,
     ``characterisation_model``, ``hdr_exposures``, ``hdr_merge``): the user's parsimony.json when there is one,
     else the packaged one (simulation.defaults.load_defaults). The workflow reads that file only here."""
-    from simulation.defaults import load_defaults
+    from dualrgb.simulation.defaults import load_defaults
 
     return load_defaults(check_mode(mode))
 

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.processing.envi import CubeFile, open_cube
-from app.processing.render import rendering
+from dualrgb.app.processing.envi import CubeFile, open_cube
+from dualrgb.app.processing.render import rendering
 
 log = logging.getLogger(__name__)
 
@@ -66,7 +66,7 @@ class DeliveredView:
 def open_delivered(sidecar: Path, max_side: int = PREVIEW_MAX_SIDE) -> DeliveredView:
     """The delivered view of the original whose sidecar is ``sidecar``; a delivery without a spectral cube (an
     old calibration) is a one-line ValueError."""
-    from app.workflow.delivery_folder import read_sidecar
+    from dualrgb.app.workflow.delivery_folder import read_sidecar
 
     sidecar = Path(sidecar)
     doc = read_sidecar(sidecar)
@@ -84,6 +84,6 @@ def open_delivered(sidecar: Path, max_side: int = PREVIEW_MAX_SIDE) -> Delivered
 
 def render_lights() -> dict[str, str]:
     """The lights a delivered original can be seen under: command-line name -> light name (D65 first)."""
-    from simulation.other_lights import light_keys
+    from dualrgb.simulation.other_lights import light_keys
 
     return light_keys()

@@ -13,7 +13,7 @@ distinct identifiers), in ``<out>/<id>/`` (:func:`deliverable_files` lists them,
 * ``<id>_under_<light>_prophoto_16bit.tif``: the cube rendered under the chosen light (``--render-illuminant``:
   D65 by default, D50, A, FL11, LED), ProPhoto RGB, ICC embedded (app.processing.render);
 * ``<id>.json``: the sidecar (format tag and software versions - dualrgb, numpy, numba, colour-science, rawpy,
-  LibRaw - from simulation.versions, the original, the calibration, exposures, light dose, QA, the spectral
+  LibRaw - from dualrgb.simulation.versions, the original, the calibration, exposures, light dose, QA, the spectral
   deliverables' wavelengths, scale, method and calibration, the files; on the virtual lab the figures against the
   virtual original's truth: app.workflow.virtual_truth).
 
@@ -30,23 +30,23 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, nullcontext
 from dataclasses import asdict, dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
-from app.processing.encode import LINEAR_ONE, DeliveryEncoder
-from app.processing.envi import DTYPE, IGNORE_VALUE, INTERLEAVE, SCALE_FACTOR, EnviHeader
-from app.processing.outputs import TiffMetadata, icc_profile, open_tiff, tiff_datetime, xmp_packet
-from app.processing.pipeline import ChannelStack
-from app.processing.render import DEFAULT_RENDER_ILLUMINANT, Rendering, rendering
-from app.processing.spectral_cube import SpectralEncoder
-from app.processing.tiff_stream import RawStream
-from app.session.capture_session import atomic_write
-from app.workflow.delivery_folder import SIDECAR_FORMAT, read_sidecar, staged
-from app.workflow.metadata import MODES, Original, ascii_text, xmp_property
-from app.workflow.profile import CalibrationProfile, CameraIdentity
-from app.workflow.virtual_truth import OriginalTruth, assess, qa_text
-from simulation.spectral_estimation import SpectralEstimator
-from simulation.versions import dualrgb_version, output_header
+from dualrgb.app.processing.encode import LINEAR_ONE, DeliveryEncoder
+from dualrgb.app.processing.envi import DTYPE, IGNORE_VALUE, INTERLEAVE, SCALE_FACTOR, EnviHeader
+from dualrgb.app.processing.outputs import TiffMetadata, icc_profile, open_tiff, tiff_datetime, xmp_packet
+from dualrgb.app.processing.pipeline import ChannelStack
+from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT, Rendering, rendering
+from dualrgb.app.processing.spectral_cube import SpectralEncoder
+from dualrgb.app.processing.tiff_stream import RawStream
+from dualrgb.app.session.capture_session import atomic_write
+from dualrgb.app.workflow.delivery_folder import SIDECAR_FORMAT, read_sidecar, staged
+from dualrgb.app.workflow.metadata import MODES, Original, ascii_text, xmp_property
+from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity
+from dualrgb.app.workflow.virtual_truth import OriginalTruth, assess, qa_text
+from dualrgb.simulation.spectral_estimation import SpectralEstimator
+from dualrgb.simulation.versions import dualrgb_version, output_header
 
 log = logging.getLogger(__name__)
 
@@ -282,7 +282,7 @@ def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original
     spectral = SpectralPlan.of(profile, render_illuminant)
     if spectral is None:
         warnings.append(f"no spectral cube: calibration {profile.id} has no spectral estimator (calibrate again)")
-    now = datetime.now(timezone.utc)
+    now = datetime.now(UTC)
     stem = original.file_stem
     final = Path(out_dir) / stem
     with staged(Path(out_dir), original) as folder:

@@ -21,12 +21,12 @@ import secrets
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from app.workflow.metadata import Original
-from common.atomic_files import fsync_dir
+from dualrgb.app.workflow.metadata import Original
+from dualrgb.common.atomic_files import fsync_dir
 
 log = logging.getLogger(__name__)
 
@@ -142,9 +142,9 @@ def _version_name(folder: Path) -> str:
     except (OSError, ValueError) as exc:
         log.debug("%s: no readable creation time (%s); its modification time names it", folder, exc)
     if when is None:
-        when = datetime.fromtimestamp(folder.stat().st_mtime, timezone.utc)
+        when = datetime.fromtimestamp(folder.stat().st_mtime, UTC)
     if when.tzinfo is not None:
-        when = when.astimezone(timezone.utc)
+        when = when.astimezone(UTC)
     return when.strftime("%Y%m%dT%H%M%SZ")
 
 

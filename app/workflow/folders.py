@@ -21,9 +21,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.session import lock as session_lock
-from app.session.capture_session import SETTINGS, CaptureSession, SessionError
-from app.workflow.defaults import CAPTURES
+from dualrgb.app.session import lock as session_lock
+from dualrgb.app.session.capture_session import SETTINGS, CaptureSession, SessionError
+from dualrgb.app.workflow.defaults import CAPTURES
 
 log = logging.getLogger(__name__)
 

@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from app.processing.hdr import LINEAR_LIMIT_DN
-from app.sequences.shooter import channel_levels
-from app.workflow.vocabulary import Role, latest_takes, light_of, role_of
-from drivers.raw import RawFrame, load_raw
+from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN
+from dualrgb.app.sequences.shooter import channel_levels
+from dualrgb.app.workflow.vocabulary import Role, latest_takes, light_of, role_of
+from dualrgb.drivers.raw import RawFrame, load_raw
 
 log = logging.getLogger(__name__)
 
@@ -73,8 +73,8 @@ class UniformityMap:
 def flat_uniformity(session: Any, light: str) -> UniformityMap:
     """Uniformity of ``light``'s open-gate flats in ``session`` (the exposure with the most frames; dark level
     subtracted as the black level, which is what matters for a percent-of-mean map)."""
-    from app.processing.mosaic import cfa_channel_index
-    from app.processing.quality import block_means, shading
+    from dualrgb.app.processing.mosaic import cfa_channel_index
+    from dualrgb.app.processing.quality import block_means, shading
 
     flats: dict[float, list] = {}
     for e in latest_takes(session.entries()):

@@ -95,8 +95,8 @@ class LedReadings:
 
 
 def _read_table(path: Path):
-    from simulation.cgats import is_cgats, read_cgats_emission
-    from simulation.spectral_io import read_spectral_csv
+    from dualrgb.simulation.cgats import is_cgats, read_cgats_emission
+    from dualrgb.simulation.spectral_io import read_spectral_csv
 
     if is_cgats(path):
         return read_cgats_emission(path)

@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from app.workflow.led_readings import LedReadings
-from simulation.led_fit import STABLE_TOLERANCE, band_output, fit_drift, fit_low_level, led_band, led_shape
+from dualrgb.app.workflow.led_readings import LedReadings
+from dualrgb.simulation.led_fit import STABLE_TOLERANCE, band_output, fit_drift, fit_low_level, led_band, led_shape
 
 log = logging.getLogger(__name__)
 
@@ -130,8 +130,8 @@ def analyse(readings: LedReadings, tolerance: float = STABLE_TOLERANCE) -> Stand
 
 def write_stand(result: StandMeasurement, out_dir: str | Path, extra: dict[str, Any] | None = None) -> list[Path]:
     """The stand folder's files (module docstring); returns their paths."""
-    from app.json_output import write_json
-    from simulation.spectral_io import write_spectral_csv
+    from dualrgb.app.json_output import write_json
+    from dualrgb.simulation.spectral_io import write_spectral_csv
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -152,7 +152,7 @@ def write_stand(result: StandMeasurement, out_dir: str | Path, extra: dict[str, 
 
 
 def _write_levels_csv(result: StandMeasurement, out: Path) -> list[Path]:
-    from common.atomic_files import atomic_write
+    from dualrgb.common.atomic_files import atomic_write
 
     curves = {k: r.levels for k, r in sorted(result.leds.items()) if r.levels}
     if not curves:
@@ -172,7 +172,7 @@ def _write_levels_csv(result: StandMeasurement, out: Path) -> list[Path]:
 
 
 def _figures(result: StandMeasurement, out: Path) -> list[Path]:
-    from app.processing.led_figures import drift_figure, levels_figure
+    from dualrgb.app.processing.led_figures import drift_figure, levels_figure
 
     files = []
     if any(r.levels for r in result.leds.values()):
@@ -219,12 +219,12 @@ def measure_virtual(out_dir: str | Path, world: Any = None, plan: Any = None, ra
     spectroradiometer (``radiometer``: its RadiometerSettings), on a skippable clock (an hour of warm-up takes
     moments), read the instrument's files back like a real instrument's, analyse, and write the stand folder
     ``out_dir`` (instrument files under ``readings/``)."""
-    from app.sequences.led_measurement import LedMeasurement, sleeper
-    from app.workflow.led_readings import read_readings
-    from common.progress import report
-    from drivers.virtual.clock import SkippableClock
-    from drivers.virtual.lab import VirtualLab
-    from drivers.virtual.spectroradiometer import VirtualSpectroradiometer
+    from dualrgb.app.sequences.led_measurement import LedMeasurement, sleeper
+    from dualrgb.app.workflow.led_readings import read_readings
+    from dualrgb.common.progress import report
+    from dualrgb.drivers.virtual.clock import SkippableClock
+    from dualrgb.drivers.virtual.lab import VirtualLab
+    from dualrgb.drivers.virtual.spectroradiometer import VirtualSpectroradiometer
 
     out = Path(out_dir)
     clock = SkippableClock()
@@ -247,7 +247,7 @@ def measure_virtual(out_dir: str | Path, world: Any = None, plan: Any = None, ra
 def import_readings(paths: list[str | Path], out_dir: str | Path,
                     tolerance: float = STABLE_TOLERANCE) -> tuple[StandMeasurement, list[Path]]:
     """A real instrument's reading files (app.workflow.led_readings names them) -> the stand folder ``out_dir``."""
-    from app.workflow.led_readings import read_readings
+    from dualrgb.app.workflow.led_readings import read_readings
 
     result = analyse(read_readings(paths), tolerance)
     return result, write_stand(result, out_dir)

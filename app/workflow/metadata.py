@@ -45,11 +45,11 @@ import re
 import unicodedata
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import StrEnum
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from app.workflow.vocabulary import Subject
+    from dualrgb.app.workflow.vocabulary import Subject
 
 log = logging.getLogger(__name__)
 
@@ -59,7 +59,7 @@ _BREAK = re.compile(r"\r\n|[\n\r\x0b\u2028\u2029]")
 _BREAK_RUN = re.compile(r"[ \t]*(?:(?:\r\n|[\n\r\x0b\u2028\u2029])[ \t]*)+")
 
 
-class Whitespace(str, Enum):
+class Whitespace(StrEnum):
     """What a field does with a line break or a tab."""
 
     REFUSE = "refused"
@@ -222,7 +222,7 @@ class Original:
 
     @property
     def subject(self) -> Subject:
-        from app.workflow.vocabulary import Subject  # (numpy through simulation: kept off the CLI's start-up)
+        from dualrgb.app.workflow.vocabulary import Subject  # (numpy through simulation: kept off the CLI's start-up)
 
         return Subject.original(self.identifier)
 

@@ -15,11 +15,11 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterator, Sequence
 
-from app.sequences.base import PlannedFrame, ProgressEvent
-from app.sequences.base import Sequence as BaseSequence
-from app.sequences.calibration import auto_exposure
-from app.sequences.hdr import HdrPlan, meter_and_plan
-from app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, format_exposure, step_id
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.sequences.base import Sequence as BaseSequence
+from dualrgb.app.sequences.calibration import auto_exposure
+from dualrgb.app.sequences.hdr import HdrPlan, meter_and_plan
+from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, format_exposure, step_id
 
 log = logging.getLogger(__name__)
 

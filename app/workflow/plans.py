@@ -10,10 +10,10 @@ import logging
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from app.sequences.base import Sequence as BaseSequence
-from app.sequences.calibration import DarkSeries, FlatSeries
-from app.sequences.capture import SubjectCapture
-from app.workflow.vocabulary import (
+from dualrgb.app.sequences.base import Sequence as BaseSequence
+from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries
+from dualrgb.app.sequences.capture import SubjectCapture
+from dualrgb.app.workflow.vocabulary import (
     NamedLight,
     Role,
     SequenceKind,

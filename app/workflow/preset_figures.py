@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
-from app.workflow.defaults import workflow_defaults
+from dualrgb.app.workflow.defaults import workflow_defaults
 
 log = logging.getLogger(__name__)
 
@@ -36,10 +36,10 @@ class PresetFigures:
 
 @lru_cache(maxsize=4)
 def _evaluator(mode: str, grid: tuple[float, float, float]) -> Any:
-    from simulation.capture_model import CaptureModel
-    from simulation.datasets import default_setup
-    from simulation.expected_error import ExpectedErrorEvaluator
-    from simulation.grid import SpectralGrid
+    from dualrgb.simulation.capture_model import CaptureModel
+    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
+    from dualrgb.simulation.grid import SpectralGrid
 
     setup = default_setup(mode, SpectralGrid(*grid))          # the mode's grid, as `dualrgb simulate`
     return ExpectedErrorEvaluator(setup, CaptureModel.virtual_lab(mode))
@@ -48,8 +48,8 @@ def _evaluator(mode: str, grid: tuple[float, float, float]) -> Any:
 @lru_cache(maxsize=256)
 def _figures(mode: str, grid: tuple[float, float, float], lights: tuple[tuple[tuple[int, ...], tuple[float, ...]], ...]
              ) -> PresetFigures:
-    from simulation.lightsource import LightSource
-    from simulation.search import Candidate, evaluate_candidate
+    from dualrgb.simulation.lightsource import LightSource
+    from dualrgb.simulation.search import Candidate, evaluate_candidate
 
     cand = Candidate(tuple(LightSource(leds, levels) for leds, levels in lights), 0.0)
     evaluate_candidate(_evaluator(mode, grid), cand)

@@ -35,22 +35,22 @@ import json
 import logging
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from app.processing.calibration import DarkFrame, FlatField, MasterDark
-from app.session.capture_session import atomic_write
-from app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
-from app.workflow.vocabulary import NamedLight, exposure_key
-from simulation.defaults import default_grid
-from simulation.lightsource import LightSource
-from simulation.matrix_fit import CharacterisationMatrix
-from simulation.spectral_estimation import SpectralEstimator
-from simulation.stand_fit import StandObservations
-from simulation.versions import dualrgb_version, software_versions
+from dualrgb.app.processing.calibration import DarkFrame, FlatField, MasterDark
+from dualrgb.app.session.capture_session import atomic_write
+from dualrgb.app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
+from dualrgb.app.workflow.vocabulary import NamedLight, exposure_key
+from dualrgb.simulation.defaults import default_grid
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.matrix_fit import CharacterisationMatrix
+from dualrgb.simulation.spectral_estimation import SpectralEstimator
+from dualrgb.simulation.stand_fit import StandObservations
+from dualrgb.simulation.versions import dualrgb_version, software_versions
 
 log = logging.getLogger(__name__)
 
@@ -166,7 +166,7 @@ class CalibrationProfile:
 
     def age_h(self, now: datetime | None = None) -> float:
         created = datetime.fromisoformat(self.created_at)
-        return ((now or datetime.now(timezone.utc)) - created).total_seconds() / 3600.0
+        return ((now or datetime.now(UTC)) - created).total_seconds() / 3600.0
 
     def spectral_estimator(self, channels: Sequence[str] | None = None) -> SpectralEstimator:
         """The spectral estimator, for values of ``channels`` (default: the matrix's); ProfileError (one line) when

@@ -26,8 +26,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.workflow.delivery_folder import DeliveryFolderError, check_folder
-from app.workflow.metadata import (
+from dualrgb.app.workflow.delivery_folder import DeliveryFolderError, check_folder
+from dualrgb.app.workflow.metadata import (
     COLUMN_RULE,
     EXTRA_RULE,
     FIELD_RULES,

@@ -20,9 +20,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
-from app.sequences.base import PlannedFrame, ProgressEvent
-from app.workflow.vocabulary import EventKind
-from common.progress import Cancelled, CancelToken
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.common.progress import Cancelled, CancelToken
 
 log = logging.getLogger(__name__)
 

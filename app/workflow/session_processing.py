@@ -16,18 +16,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from app.processing.characterise import Characterisation, characterise
-from app.processing.hdr import LINEAR_LIMIT_DN
-from app.processing.pipeline import CaptureProcessor, ChannelStack, ExposureRef, sub_progress
-from app.workflow.targets import TargetSpec, reference_white
-from app.workflow.vocabulary import Role, Subject, latest_takes, light_of, role_of, subject_of
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.lightsource import LightSource
+from dualrgb.app.processing.characterise import Characterisation, characterise
+from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN
+from dualrgb.app.processing.pipeline import CaptureProcessor, ChannelStack, ExposureRef, sub_progress
+from dualrgb.app.workflow.targets import TargetSpec, reference_white
+from dualrgb.app.workflow.vocabulary import Role, Subject, latest_takes, light_of, role_of, subject_of
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.lightsource import LightSource
 
 if TYPE_CHECKING:
-    from app.processing.spectral import SpectralCharacterisation
-    from app.workflow.stand_calibration import StandResult
-    from simulation.stand_model import StandModel
+    from dualrgb.app.processing.spectral import SpectralCharacterisation
+    from dualrgb.app.workflow.stand_calibration import StandResult
+    from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
@@ -141,7 +141,7 @@ class SessionResult:
 def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None
                   ) -> tuple[np.ndarray, np.ndarray, ChannelStack]:
     """Patch values (n, C), their standard deviations (n, C) and the stack of a captured target."""
-    from app.processing.patches import detect_cc24
+    from dualrgb.app.processing.patches import detect_cc24
 
     stack = proc.stack(frames, progress=progress, cancel=cancel)
     grid = spec.grid
@@ -174,8 +174,8 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec 
     stand_calibration; from ``stand_start``: nominal, or with measurements) and the report shows the thesis Fig 7.4
     check before (nominal, ``dn_validation``) and after (``stand_model``).
     """
-    from app.processing.quality import CalibrationFrames
-    from app.processing.report import TargetData, build_report
+    from dualrgb.app.processing.quality import CalibrationFrames
+    from dualrgb.app.processing.report import TargetData, build_report
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -216,7 +216,7 @@ def _stand_report(stand: StandResult | None, train: TargetSpec, out_dir: Path, c
     its ``stand_model`` section (the fitted model's check, app.workflow.stand_calibration)."""
     if stand is None:
         return train.simulated, {}
-    from app.workflow.stand_calibration import report_section
+    from dualrgb.app.workflow.stand_calibration import report_section
 
     simulated = train.simulated if train.simulated is not None else stand.values("start")
     return simulated, {"stand_model": report_section(stand, out_dir, channels, train.names)}
@@ -225,7 +225,7 @@ def _stand_report(stand: StandResult | None, train: TargetSpec, out_dir: Path, c
 def _patch_files(out_dir: Path, c: Characterisation, channels: list[str],
                  targets: Sequence[tuple[TargetSpec | None, np.ndarray | None]]) -> dict[str, Path]:
     """matrices.csv and patches_<target>.csv (every fitted matrix's prediction and error per patch)."""
-    from app.processing.outputs import write_matrices_csv, write_patch_csv
+    from dualrgb.app.processing.outputs import write_matrices_csv, write_patch_csv
 
     files = {"matrices": write_matrices_csv(out_dir / "matrices.csv", {k: r.matrix for k, r in c.results.items()})}
     for label, (spec, values) in zip(("train", "test"), targets, strict=True):
@@ -240,7 +240,7 @@ def _patch_files(out_dir: Path, c: Characterisation, channels: list[str],
 def frame_lights(session, subject: Subject, names: Sequence[str]) -> list[LightSource] | None:
     """The lights (LEDs, exact levels) the manifest recorded for ``subject``'s frames under ``names``, in that
     order; None when a light was not recorded."""
-    from app.session.light_dose import light_from_record
+    from dualrgb.app.session.light_dose import light_from_record
 
     found: dict[str, LightSource] = {}
     for e in latest_takes(session.entries()):
@@ -253,7 +253,7 @@ def _spectral(session, train: TargetSpec, test: TargetSpec | None, values: tuple
               xyz_matrix: np.ndarray, names: Sequence[str], cancel: CancelToken | None):
     """The spectral estimate (app.processing.spectral) when the training target's spectra are known, else None.
     ``values``: training means, training per-pixel spread, test means."""
-    from app.processing.spectral import SpectralInputs, characterise_spectra
+    from dualrgb.app.processing.spectral import SpectralInputs, characterise_spectra
 
     if train.spectra is None or not train.mode:
         return None
@@ -270,7 +270,7 @@ def fit_session_stand(session, frames: SessionFrames, proc: CaptureProcessor, na
     """The stand model fitted to the processed captures (app.workflow.stand_calibration) when the training
     target's spectra and the lights' levels are known, else None. ``train``: (spec, means, per-pixel sd, stack);
     ``test``: (spec or None, means, stack)."""
-    from app.workflow.stand_calibration import fit_processed
+    from dualrgb.app.workflow.stand_calibration import fit_processed
 
     spec = train[0]
     lights = frame_lights(session, spec.subject, names)

@@ -23,13 +23,13 @@ from typing import Any
 
 import numpy as np
 
-from app.processing.characterise import LEAST_SQUARES, Characterisation
-from simulation.capture_model import CaptureModel
-from simulation.defaults import default_grid
-from simulation.grid import DEFAULT_GRID, SpectralGrid
-from simulation.lightsource import LightSource
-from simulation.stand_fit import StandFit, StandObservations, expected_de00, fit_stand
-from simulation.stand_model import StandModel
+from dualrgb.app.processing.characterise import LEAST_SQUARES, Characterisation
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.defaults import default_grid
+from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.stand_fit import StandFit, StandObservations, expected_de00, fit_stand
+from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
@@ -219,7 +219,7 @@ def report_section(result: StandResult, out_dir: Path, channels: list[str], patc
     """The report's ``stand_model`` section: the fitted model's Fig 7.4 check (line R^2 and outliers, as the
     report's ``dn_validation`` of the starting model), both models' R^2 against the captures, the parameters and
     CIEDE2000, and a figure of captured against predicted DN for both."""
-    from app.processing.report import dn_validation
+    from dualrgb.app.processing.report import dn_validation
 
     fits = dn_validation(result.values("fitted"), result.captured("train"), channels)
     union = sorted({i for f in fits for i in f.outliers})
@@ -235,7 +235,7 @@ def report_section(result: StandResult, out_dir: Path, channels: list[str], patc
 def stand_figure(path: Path, result: StandResult, channels: list[str]) -> Path:
     """Captured against predicted training DN per channel: the starting model (grey) and the fitted one (black),
     R^2 of each."""
-    from app.processing.figure_files import new_figure, save_tight
+    from dualrgb.app.processing.figure_files import new_figure, save_tight
 
     captured = result.captured("train")
     cols = min(len(channels), 3)

@@ -17,12 +17,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from app.workflow.profile import CalibrationProfile, ProfileError
-from common.progress import CancelToken, ProgressCallback
-from simulation.capture_model import CaptureModel
-from simulation.lightsource import LightSource
-from simulation.stand_fit import fit_stand
-from simulation.stand_model import StandModel
+from dualrgb.app.workflow.profile import CalibrationProfile, ProfileError
+from dualrgb.common.progress import CancelToken, ProgressCallback
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.stand_fit import fit_stand
+from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
@@ -44,7 +44,7 @@ class Measurements:
            stand_dir: str | Path | None = None, min_level: float | None = None) -> Measurements:
         """From the options: an explicit LED CSV or minimum level wins over the stand folder's."""
         if stand_dir is not None:
-            from app.workflow.led_stand import load_stand
+            from dualrgb.app.workflow.led_stand import load_stand
 
             stand = load_stand(stand_dir)
             leds_csv = leds_csv or stand.leds_csv
@@ -110,8 +110,8 @@ def reoptimise(model: StandModel, mode: str, *, method: str | None = None, objec
     minimum stable level; ``targets``: default_setup's train_csv / test_csv / reference_xyz; ``evaluator_factory``
     (setup, capture) -> an evaluator to use (the GUI's live plot); ``incumbents``: the lights in use (the
     calibration's: :func:`calibration_lights`), kept when the search finds nothing better on the stand model."""
-    from simulation.defaults import default_grid
-    from simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, run
+    from dualrgb.simulation.defaults import default_grid
+    from dualrgb.simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, run
 
     setup = model.setup(mode, grid or default_grid(mode), **(targets or {}))
     cap = model.capture(capture or CaptureModel.virtual_lab(mode))

@@ -26,10 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from app.workflow.profile import CalibrationProfile
-from common.progress import CancelToken, ProgressCallback, check, report, scaled
-from simulation.stand_fit import StandObservations, expected_de00, fit_stand, predict, r2_per_channel
-from simulation.stand_model import StandModel, StandParameters
+from dualrgb.app.workflow.profile import CalibrationProfile
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report, scaled
+from dualrgb.simulation.stand_fit import StandObservations, expected_de00, fit_stand, predict, r2_per_channel
+from dualrgb.simulation.stand_model import StandModel, StandParameters
 
 log = logging.getLogger(__name__)
 
@@ -75,10 +75,10 @@ def world_model(world: Any) -> StandModel:
 # ---- the virtual lab's part ---------------------------------------------------------------------------------
 def calibrate_in_world(cfg: StandStudyConfig, preset: Any, seed: int, folder: Path) -> CalibrationProfile:
     """A calibration (``hdr off``) in the study's world with ``preset``'s lights, in session ``folder``."""
-    from app.session.capture_session import CaptureSession
-    from app.workflow.copystand import CopyStand, StandSettings
-    from drivers.virtual.lab import VirtualLab
-    from drivers.virtual.world import load_world
+    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.copystand import CopyStand, StandSettings
+    from dualrgb.drivers.virtual.lab import VirtualLab
+    from dualrgb.drivers.virtual.world import load_world
 
     definition = {"workflow": "study stand", "preset": preset.name, "seed": seed, "mode": cfg.mode,
                   "frame_size": list(cfg.frame_size), "world": load_world(cfg.world).identity}
@@ -94,11 +94,11 @@ def calibrate_in_world(cfg: StandStudyConfig, preset: Any, seed: int, folder: Pa
 
 def measure_camera(cfg: StandStudyConfig, folder: Path) -> Path:
     """The camera CSV the monochromator sweep measures in the study's world (thesis 4.2)."""
-    from app.sequences.csrf import CsrfSettings
-    from app.session.capture_session import CaptureSession
-    from app.workflow.csrf import measure_csrf
-    from drivers.virtual.monochromator_bench import MonochromatorBench
-    from simulation.radiance_reference import read_radiance_reference
+    from dualrgb.app.sequences.csrf import CsrfSettings
+    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.csrf import measure_csrf
+    from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench
+    from dualrgb.simulation.radiance_reference import read_radiance_reference
 
     settings = CsrfSettings(380.0, 780.0, cfg.csrf_step_nm)
     with MonochromatorBench(frame_size=cfg.csrf_frame_size, world=cfg.world) as bench:
@@ -143,7 +143,7 @@ def model_figures(models: dict[str, StandModel], obs: StandObservations, levels:
 
 def stand_models(profile: CalibrationProfile, csrf: Path, world: Any) -> dict[str, StandModel]:
     """The study's stand models (module docstring, step 2)."""
-    from app.workflow.stand_reoptimise import Measurements, assemble
+    from dualrgb.app.workflow.stand_reoptimise import Measurements, assemble
 
     obs = profile.stand_observations
     if obs is None:
@@ -155,8 +155,8 @@ def stand_models(profile: CalibrationProfile, csrf: Path, world: Any) -> dict[st
 
 # ---- the study ------------------------------------------------------------------------------------------------
 def _preset_of(lights: np.ndarray, name: str, mode: str) -> Any:
-    from simulation.lightsource import LightSource
-    from simulation.presets import Preset
+    from dualrgb.simulation.lightsource import LightSource
+    from dualrgb.simulation.presets import Preset
 
     sources = tuple(LightSource(tuple(int(k) + 1 for k in np.flatnonzero(w)), tuple(float(w[k]) for k in
                                                                                  np.flatnonzero(w)), f"source {i}")
@@ -169,7 +169,7 @@ def reoptimised_lights(models: dict[str, StandModel], mode: str, capture: Any, i
     """The lights (L, n_leds) re-optimised on each model (app.workflow.stand_reoptimise.reoptimise: the default
     optimiser and objective, the calibration's lights ``incumbent`` kept where nothing better is found, as
     ``simulate --stand`` does), keyed 're-optimised: <model>'."""
-    from app.workflow.stand_reoptimise import reoptimise
+    from dualrgb.app.workflow.stand_reoptimise import reoptimise
 
     out = {}
     for i, (name, model) in enumerate(models.items()):
@@ -198,11 +198,11 @@ def capture_lights(cfg: StandStudyConfig, lights: dict[str, np.ndarray], folder:
 def stand_study(cfg: StandStudyConfig, folder: Path, progress: ProgressCallback | None = None,
                 cancel: CancelToken | None = None) -> StandStudy:
     """Run the study (module docstring) in ``folder`` (sessions, the camera CSV); returns its figures."""
-    from app.workflow.defaults import default_preset_name
-    from app.workflow.stand_reoptimise import calibration_lights
-    from drivers.virtual.world import load_world
-    from simulation.capture_model import CaptureModel
-    from simulation.presets import load_preset, packaged_presets
+    from dualrgb.app.workflow.defaults import default_preset_name
+    from dualrgb.app.workflow.stand_reoptimise import calibration_lights
+    from dualrgb.drivers.virtual.world import load_world
+    from dualrgb.simulation.capture_model import CaptureModel
+    from dualrgb.simulation.presets import load_preset, packaged_presets
 
     folder = Path(folder)
     world = load_world(cfg.world)
@@ -234,7 +234,7 @@ def stand_study(cfg: StandStudyConfig, folder: Path, progress: ProgressCallback 
 
 def _calibration_capture(profile: CalibrationProfile) -> Any:
     """The expected-captured model of the profile's calibration (its patch sizes and frame counts)."""
-    from app.workflow.stand_calibration import calibration_capture
+    from dualrgb.app.workflow.stand_calibration import calibration_capture
 
     c = profile.stand.get("capture") or {}
     return calibration_capture(profile.mode, np.array([c.get("train_pixels", 56)]),
@@ -270,7 +270,7 @@ def summary_lines(study: StandStudy) -> list[str]:
 def study_figure(study: StandStudy) -> Any:
     """Left: each model's predicted test dE00 for the preset's lights against the captured one. Right: the
     captured train and test dE00 of each light set (bars: mean over seeds; whiskers: their range)."""
-    from simulation.studies.common import new_figure
+    from dualrgb.simulation.studies.common import new_figure
 
     fig, (a1, a2) = new_figure(12.0, 4.8, ncols=2)
     names = list(study.models)

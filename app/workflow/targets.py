@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from app.processing.patches import PatchGrid
-from app.processing.report import layout_for
-from app.workflow.vocabulary import Subject, SubjectKind
-from simulation.colorimetry import white_point
+from dualrgb.app.processing.patches import PatchGrid
+from dualrgb.app.processing.report import layout_for
+from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
+from dualrgb.simulation.colorimetry import white_point
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +45,7 @@ class TargetSpec:
 
 def packaged_target(mode: str, name: str) -> Any:
     """The packaged training ('train') or test ('test') target of a mode (simulation.datasets)."""
-    from simulation.datasets import default_setup
+    from dualrgb.simulation.datasets import default_setup
 
     if name not in ("train", "test"):
         raise ValueError(f"target {name!r}: only the training and test targets have reference data")
@@ -64,7 +64,7 @@ def reference_xyz(mode: str, name: str, nd_scale: np.ndarray | None = None,
     """Reference XYZ (D65, CIE 1931 2 deg, Y of a perfect white = 100) of a packaged target and its patch names;
     ``nd_scale`` (per patch) multiplies the spectra (the ND filter's transmittance where it covers a patch).
     ``method``: simulation.datasets.target_xyz's integration ('eq-4.2', the default, or 'astm-e308')."""
-    from simulation.datasets import default_setup, target_xyz
+    from dualrgb.simulation.datasets import default_setup, target_xyz
 
     setup = default_setup(mode)
     target = getattr(setup, name)
@@ -83,7 +83,7 @@ def reference_spectra(mode: str, name: str, nd_scale: np.ndarray | None = None) 
 
 def reference_white(mode: str = "reflective", method: str | None = None) -> np.ndarray:
     """The Lab reference white on the targets' scale: D65, Y = 100 (integrated like ``method``)."""
-    from simulation.datasets import default_setup, target_xyz
+    from dualrgb.simulation.datasets import default_setup, target_xyz
 
     setup = default_setup(mode)
     if method is None:

@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from app.processing.spectral_truth import SpectralTruth
-from simulation.defaults import default_grid
-from simulation.grid import SpectralGrid
+from dualrgb.app.processing.spectral_truth import SpectralTruth
+from dualrgb.simulation.defaults import default_grid
+from dualrgb.simulation.grid import SpectralGrid
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +50,7 @@ def grid_of(wavelengths: np.ndarray) -> SpectralGrid:
 
 
 def _spectral_truth(name: str, height: int, width: int, grid: SpectralGrid) -> SpectralTruth:
-    from drivers.virtual.originals import original
+    from dualrgb.drivers.virtual.originals import original
 
     o = original(name, grid)
     return SpectralTruth(o.class_map(height, width), o.spectra, o.grid.wavelengths)
@@ -60,8 +60,8 @@ def original_truth(name: str, height: int, width: int, mode: str = "reflective")
     """The truth of virtual original ``name`` in a ``width`` x ``height`` frame; its spectra on the mode's grid
     (simulation.defaults: the grid the calibration's spectral estimate delivers by default; a cube on other bands
     is compared on those, :meth:`OriginalTruth.on_wavelengths`)."""
-    from app.workflow.targets import reference_white
-    from drivers.virtual.originals import ground_truth_xyz
+    from dualrgb.app.workflow.targets import reference_white
+    from dualrgb.drivers.virtual.originals import ground_truth_xyz
 
     spectral = _spectral_truth(name, height, width, default_grid(mode))
     return OriginalTruth(name, ground_truth_xyz(name, height, width), spectral, reference_white(mode))
@@ -69,7 +69,7 @@ def original_truth(name: str, height: int, width: int, mode: str = "reflective")
 
 def placed_truth(lab: Any) -> OriginalTruth | None:
     """The truth of the virtual original the lab has on the stand now (None: a chart, or not a virtual lab)."""
-    from drivers.virtual.originals import ORIGINAL_PREFIX, original_name
+    from dualrgb.drivers.virtual.originals import ORIGINAL_PREFIX, original_name
 
     placed = str(getattr(lab, "placed", "") or "")
     if lab is None or not placed.startswith(ORIGINAL_PREFIX) or "+" in placed:      # a chart, or under ND
@@ -80,8 +80,8 @@ def placed_truth(lab: Any) -> OriginalTruth | None:
 def compare(truth: OriginalTruth, xyz: np.ndarray, spectra=None) -> dict:
     """The ``virtual_truth`` figures of a delivered ``xyz`` image (H, W, 3, the white's scale) and, when given, its
     ``spectra`` ((H, W, n_wl) or a function (r0, r1) -> those rows; app.processing.spectral_truth)."""
-    from app.processing.ground_truth import compare_to_ground_truth
-    from app.processing.spectral_truth import compare_spectra_to_ground_truth
+    from dualrgb.app.processing.ground_truth import compare_to_ground_truth
+    from dualrgb.app.processing.spectral_truth import compare_spectra_to_ground_truth
 
     out: dict = {"original": truth.name, "xyz": compare_to_ground_truth(xyz, truth.xyz, truth.white).to_dict()}
     if spectra is not None:
@@ -94,8 +94,8 @@ def assess(truth: OriginalTruth, files: dict[str, Path], white_y: float) -> dict
     ENVI cube (``files['spectral_header']``) against ``truth``; ``white_y``: the XYZ TIFF's white Y."""
     import tifffile
 
-    from app.processing.encode import LINEAR_ONE
-    from app.processing.envi import open_cube
+    from dualrgb.app.processing.encode import LINEAR_ONE
+    from dualrgb.app.processing.envi import open_cube
 
     xyz = tifffile.imread(files["xyz"]).astype(np.float64) / LINEAR_ONE * white_y
     cube = open_cube(files["spectral_header"]) if "spectral_header" in files else None

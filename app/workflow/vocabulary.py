@@ -23,10 +23,10 @@ import logging
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 from typing import Any
 
-from simulation.lightsource import LightSource
+from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
@@ -35,7 +35,7 @@ _KEY_ESCAPES = {c: f"%{ord(c):02X}" for c in "%/:#+"}     # '%' first: the escap
 _KEY_ESCAPED = re.compile("|".join(re.escape(v) for v in _KEY_ESCAPES.values()), re.IGNORECASE)
 
 
-class Role(str, Enum):
+class Role(StrEnum):
     """Why a frame was taken (the manifest's ``role``)."""
 
     DARK = "dark"              # lens cap on (master dark per exposure time, thesis 8.2.1)
@@ -48,12 +48,12 @@ class Role(str, Enum):
     CSRF = "csrf"              # a monochromatic frame measuring the camera's spectral sensitivity (thesis 4.2)
 
 
-class SubjectKind(str, Enum):
+class SubjectKind(StrEnum):
     TARGET = "target"
     ORIGINAL = "original"
 
 
-class SequenceKind(str, Enum):
+class SequenceKind(StrEnum):
     """What a sequence does; :func:`app.workflow.sequences.build_sequence` makes one from a kind."""
 
     DARKS = "darks"
@@ -63,7 +63,7 @@ class SequenceKind(str, Enum):
     ORIGINAL = "original"      # an original with the calibration's exposures (HDR when metering asks)
 
 
-class EventKind(str, Enum):
+class EventKind(StrEnum):
     """The ``kind`` of an :class:`app.sequences.base.ProgressEvent`."""
 
     PROGRESS = "progress"
@@ -192,7 +192,7 @@ def read_light_name(text: str) -> str:
 
 def format_exposure(seconds: float | None) -> str:
     """An exposure time as photographers read it ('1/60 s', '2 s'): the camera driver's own notation."""
-    from drivers.camera.gphoto_labels import format_shutter
+    from dualrgb.drivers.camera.gphoto_labels import format_shutter
 
     return format_shutter(seconds)
 

@@ -26,7 +26,7 @@ and ``camera_trigger_capture``):
 downloads it into memory and records the exact exposure (``shutterspeed2``), auto ISO and long-exposure noise
 reduction state in the frame's metadata. :attr:`GPhotoCamera.latency_s` is the light's allowance beyond the
 exposure: ``DEFAULT_GPHOTO_LATENCY_S`` or ``$DUALRGB_GPHOTO_LATENCY_S``, measured with
-``python -m drivers.camera.gphoto_latency`` (docs/first-session-d610.md).
+``python -m dualrgb.drivers.camera.gphoto_latency`` (docs/first-session-d610.md).
 
 Every libgphoto2 call has a host-side deadline (:func:`drivers.camera.base.call_with_deadline`) and the camera is
 never entered twice; 'camera busy' (-110) is retried a bounded number of times with backoff.
@@ -43,8 +43,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from drivers.camera.base import Camera, CameraError, CameraTimeout, Exposure, RawCapture, call_with_deadline
-from drivers.camera.gphoto_errors import (
+from dualrgb.drivers.camera.base import Camera, CameraError, CameraTimeout, Exposure, RawCapture, call_with_deadline
+from dualrgb.drivers.camera.gphoto_errors import (
     GP_ERROR,
     GP_ERROR_CAMERA_BUSY,
     GP_ERROR_CANCEL,
@@ -58,10 +58,15 @@ from drivers.camera.gphoto_errors import (
 )
 
 # re-exported: the error callers match (e.g. the GUI's advice on a camera another program holds)
-from drivers.camera.gphoto_errors import GP_ERROR_IO_USB_CLAIM as GP_ERROR_IO_USB_CLAIM
-from drivers.camera.gphoto_files import CapturedFiles, GPhotoFiles
-from drivers.camera.gphoto_labels import capture_target_choice, force_untranslated, format_shutter, is_bulb_label
-from drivers.camera.gphoto_settings import BULB_LIMIT_S, RAM_TARGET, TARGET_NAMES, GPhotoSettings
+from dualrgb.drivers.camera.gphoto_errors import GP_ERROR_IO_USB_CLAIM as GP_ERROR_IO_USB_CLAIM
+from dualrgb.drivers.camera.gphoto_files import CapturedFiles, GPhotoFiles
+from dualrgb.drivers.camera.gphoto_labels import (
+    capture_target_choice,
+    force_untranslated,
+    format_shutter,
+    is_bulb_label,
+)
+from dualrgb.drivers.camera.gphoto_settings import BULB_LIMIT_S, RAM_TARGET, TARGET_NAMES, GPhotoSettings
 
 log = logging.getLogger(__name__)
 
@@ -107,7 +112,7 @@ def latency_from_env() -> float | None:
         value = -1.0
     if not 0 < value <= 60:
         raise CameraError(f"{LATENCY_ENV}={text!r}: expected the camera's latency in seconds, 0 < s <= 60 "
-                          "(measure it: python -m drivers.camera.gphoto_latency)")
+                          "(measure it: python -m dualrgb.drivers.camera.gphoto_latency)")
     return value
 
 
@@ -437,7 +442,7 @@ class GPhotoCamera(GPhotoFiles, GPhotoSettings, Camera):
         allowed = self.latency_for(exposure_s)
         if self.last_latency_s > allowed:
             log.warning("the camera reported the shutter closed %.2f s after a %s exposure, beyond its %.2f s "
-                        "allowance (measure it: python -m drivers.camera.gphoto_latency; set %s)",
+                        "allowance (measure it: python -m dualrgb.drivers.camera.gphoto_latency; set %s)",
                         self.last_latency_s, format_shutter(exposure_s), allowed, LATENCY_ENV)
 
     def _check_raw_quality(self) -> None:

@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from drivers.camera.base import CameraError
+from dualrgb.drivers.camera.base import CameraError
 
 log = logging.getLogger(__name__)
 

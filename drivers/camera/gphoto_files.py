@@ -16,10 +16,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from drivers.camera.base import CameraError
-from drivers.camera.gphoto_errors import GP_ERROR_TIMEOUT
-from drivers.camera.gphoto_host import GPhotoHost
-from drivers.camera.gphoto_settings import RAW_QUALITY
+from dualrgb.drivers.camera.base import CameraError
+from dualrgb.drivers.camera.gphoto_errors import GP_ERROR_TIMEOUT
+from dualrgb.drivers.camera.gphoto_host import GPhotoHost
+from dualrgb.drivers.camera.gphoto_settings import RAW_QUALITY
 
 log = logging.getLogger(__name__)
 

@@ -5,7 +5,7 @@ camera slower than its allowance gets every frame rejected (the light is cut bef
 shutter closed). Run it once on the copy stand, lens cap on (no light is switched on; the frames are downloaded
 and discarded, and deleted from the card):
 
-    python -m drivers.camera.gphoto_latency [--port usb:001,007] [--repeats 3]
+    python -m dualrgb.drivers.camera.gphoto_latency [--port usb:001,007] [--repeats 3]
 
 It prints one line per exposure time and the allowance to use, to be set as ``DUALRGB_GPHOTO_LATENCY_S``
 (docs/first-session-d610.md).
@@ -19,8 +19,8 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from drivers.camera.base import Camera, CameraError
-from drivers.camera.gphoto_labels import format_shutter
+from dualrgb.drivers.camera.base import Camera, CameraError
+from dualrgb.drivers.camera.gphoto_labels import format_shutter
 
 log = logging.getLogger(__name__)
 
@@ -69,9 +69,10 @@ def measure_latency(camera: Camera, exposures: Sequence[float] = EXPOSURES_S, re
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from drivers.camera.gphoto import LATENCY_ENV, GPhotoCamera
+    from dualrgb.drivers.camera.gphoto import LATENCY_ENV, GPhotoCamera
 
-    p = argparse.ArgumentParser(prog="python -m drivers.camera.gphoto_latency", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m dualrgb.drivers.camera.gphoto_latency",
+                                description=__doc__.split("\n")[0])
     p.add_argument("--port", help="the camera's port from `dualrgb devices` (default: the first camera)")
     p.add_argument("--repeats", type=int, default=3, choices=range(1, 21), metavar="1..20",
                    help="frames per exposure time (default 3)")

@@ -18,10 +18,10 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from drivers.camera.base import CameraError, CameraSettings
-from drivers.camera.gphoto_errors import GP_ERROR_BAD_PARAMETERS, GP_ERROR_NOT_SUPPORTED, camera_error
-from drivers.camera.gphoto_host import GPhotoHost
-from drivers.camera.gphoto_labels import (
+from dualrgb.drivers.camera.base import CameraError, CameraSettings
+from dualrgb.drivers.camera.gphoto_errors import GP_ERROR_BAD_PARAMETERS, GP_ERROR_NOT_SUPPORTED, camera_error
+from dualrgb.drivers.camera.gphoto_host import GPhotoHost
+from dualrgb.drivers.camera.gphoto_labels import (
     bulb_choice,
     capture_target_choice,
     format_shutter,

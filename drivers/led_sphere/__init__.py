@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from drivers.led_sphere.errors import LightReport, SphereError
+from dualrgb.drivers.led_sphere.errors import LightReport, SphereError
 
 __all__ = ["LedSphere", "LightReport", "SphereError"]
 
@@ -13,7 +13,7 @@ def __getattr__(name: str) -> Any:
     """``LedSphere`` is imported on first use: the driver loads pyserial and numpy, which the CLI's parser and
     the protocol table do not need (PEP 562)."""
     if name == "LedSphere":
-        from drivers.led_sphere.driver import LedSphere
+        from dualrgb.drivers.led_sphere.driver import LedSphere
 
         return LedSphere
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -26,11 +26,11 @@ from typing import Any
 
 import serial
 
-from drivers.led_sphere import protocol as P
-from drivers.led_sphere.errors import LightReport, SphereError
-from drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
-from drivers.led_sphere.supervisor import LitPeriod, OnTimeSupervisor
-from simulation.lightsource import N_SPHERE_LEDS, LightSource
+from dualrgb.drivers.led_sphere import protocol as P
+from dualrgb.drivers.led_sphere.errors import LightReport, SphereError
+from dualrgb.drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
+from dualrgb.drivers.led_sphere.supervisor import LitPeriod, OnTimeSupervisor
+from dualrgb.simulation.lightsource import N_SPHERE_LEDS, LightSource
 
 log = logging.getLogger(__name__)
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from drivers.monochromator.errors import MonochromatorError, ShutterReport
-from drivers.monochromator.manual import ManualMonochromator
+from dualrgb.drivers.monochromator.errors import MonochromatorError, ShutterReport
+from dualrgb.drivers.monochromator.manual import ManualMonochromator
 
 __all__ = ["Cornerstone", "ManualMonochromator", "MonochromatorError", "ShutterReport"]
 
@@ -15,7 +15,7 @@ def __getattr__(name: str) -> Any:
     """``Cornerstone`` is imported on first use: the driver loads pyserial, which the CLI's parser does not need
     (PEP 562)."""
     if name == "Cornerstone":
-        from drivers.monochromator.driver import Cornerstone
+        from dualrgb.drivers.monochromator.driver import Cornerstone
 
         return Cornerstone
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -24,8 +24,8 @@ from typing import Any
 
 import serial
 
-from drivers.monochromator import protocol as P
-from drivers.monochromator.errors import MonochromatorError, ShutterReport
+from dualrgb.drivers.monochromator import protocol as P
+from dualrgb.drivers.monochromator.errors import MonochromatorError, ShutterReport
 
 log = logging.getLogger(__name__)
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import logging
 
-from drivers.monochromator.errors import MonochromatorError, ShutterReport
-from drivers.monochromator.protocol import NM
+from dualrgb.drivers.monochromator.errors import MonochromatorError, ShutterReport
+from dualrgb.drivers.monochromator.protocol import NM
 
 log = logging.getLogger(__name__)
 

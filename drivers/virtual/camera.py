@@ -46,14 +46,14 @@ from typing import Any
 import numpy as np
 from scipy.integrate import trapezoid
 
-from drivers.camera.base import Camera, CameraError, CameraSettings, Exposure, RawCapture
-from drivers.virtual.dng import DngInfo, dng_bytes
-from drivers.virtual.scene import Scene
-from drivers.virtual.sphere_light import SphereLight
-from drivers.virtual.world import World, load_world
-from simulation.camera_model import led_responses
-from simulation.datasets import default_setup, load_camera
-from simulation.grid import SpectralGrid, resample
+from dualrgb.drivers.camera.base import Camera, CameraError, CameraSettings, Exposure, RawCapture
+from dualrgb.drivers.virtual.dng import DngInfo, dng_bytes
+from dualrgb.drivers.virtual.scene import Scene
+from dualrgb.drivers.virtual.sphere_light import SphereLight
+from dualrgb.drivers.virtual.world import World, load_world
+from dualrgb.simulation.camera_model import led_responses
+from dualrgb.simulation.datasets import default_setup, load_camera
+from dualrgb.simulation.grid import SpectralGrid, resample
 
 log = logging.getLogger(__name__)
 

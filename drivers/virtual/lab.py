@@ -17,13 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from drivers.led_sphere import LedSphere
-from drivers.virtual.camera import VirtualCamera
-from drivers.virtual.originals import ORIGINAL_PREFIX, ORIGINALS, ground_truth_xyz, original_name
-from drivers.virtual.scene import Scene, original_scene
-from drivers.virtual.sphere_emulator import SphereEmulator
-from drivers.virtual.world import World, load_world
-from simulation.datasets import Target, default_setup
+from dualrgb.drivers.led_sphere import LedSphere
+from dualrgb.drivers.virtual.camera import VirtualCamera
+from dualrgb.drivers.virtual.originals import ORIGINAL_PREFIX, ORIGINALS, ground_truth_xyz, original_name
+from dualrgb.drivers.virtual.scene import Scene, original_scene
+from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
+from dualrgb.drivers.virtual.world import World, load_world
+from dualrgb.simulation.datasets import Target, default_setup
 
 log = logging.getLogger(__name__)
 

@@ -17,14 +17,14 @@ from typing import Any
 
 import numpy as np
 
-from drivers.monochromator.driver import Cornerstone
-from drivers.monochromator.manual import ManualMonochromator
-from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.monochromator_emulator import MonochromatorEmulator
-from drivers.virtual.monochromator_light import MonochromatorOptics
-from drivers.virtual.radiometers import VirtualPhotodiode, VirtualSpectroradiometer
-from drivers.virtual.scene import FieldLight, Scene
-from drivers.virtual.world import World, load_world
+from dualrgb.drivers.monochromator.driver import Cornerstone
+from dualrgb.drivers.monochromator.manual import ManualMonochromator
+from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.monochromator_emulator import MonochromatorEmulator
+from dualrgb.drivers.virtual.monochromator_light import MonochromatorOptics
+from dualrgb.drivers.virtual.radiometers import VirtualPhotodiode, VirtualSpectroradiometer
+from dualrgb.drivers.virtual.scene import FieldLight, Scene
+from dualrgb.drivers.virtual.world import World, load_world
 
 log = logging.getLogger(__name__)
 

@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from drivers.monochromator import protocol as P
-from drivers.virtual.monochromator_light import MonochromatorOptics
-from drivers.virtual.pty_link import PtyLineServer
+from dualrgb.drivers.monochromator import protocol as P
+from dualrgb.drivers.virtual.monochromator_light import MonochromatorOptics
+from dualrgb.drivers.virtual.pty_link import PtyLineServer
 
 log = logging.getLogger(__name__)
 

@@ -5,7 +5,7 @@ Three originals, registered by name in :data:`ORIGINALS`:
 * ``painting`` (reflective): a small landscape with a figure: flat colour fields, smooth gradients (sky,
   field, a grey ramp), fine lines (a hatched strip, a fence, a diagonal hatch), a near-white and a dark area,
   and a row of "flowers" in the 15 saturated NIST CQS samples;
-* ``film`` (transmissive): a slide frame in the three-dye Beer-Lambert film model of ``resources.generate``
+* ``film`` (transmissive): a slide frame in the three-dye Beer-Lambert film model of ``simulation.film_model``
   (the same dyes as the packaged film targets): the clear-base rebate (near-white), a frame line, gradients in
   dye amount (sky, ground, a neutral wedge), colour fields, fine lines and a dense (dark) area;
 * ``shadow`` (reflective): a chiaroscuro still life whose deep shadow (the darkest paint mixed with a perfect
@@ -50,8 +50,8 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike
 
-from simulation.colorimetry import tristimulus
-from simulation.grid import DEFAULT_GRID, SpectralGrid, resample
+from dualrgb.simulation.colorimetry import tristimulus
+from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid, resample
 
 log = logging.getLogger(__name__)
 
@@ -284,13 +284,13 @@ def measured_spectra(grid: SpectralGrid = DEFAULT_GRID) -> dict[str, np.ndarray]
 
 
 # ---------------------------------------------------------------- the registry
-FILM_SOURCES = ("three-dye Beer-Lambert film model of resources/generate.py (the packaged film targets' dyes); "
+FILM_SOURCES = ("three-dye Beer-Lambert film model of simulation/film_model.py (the packaged film targets' dyes); "
                 "modelled, not measured")
 
 
 def _film_transmittance(grid: SpectralGrid) -> Callable[[ArrayLike], np.ndarray]:
     """Dye amounts (c, m, y) -> transmittance on ``grid``, the packaged film targets' model."""
-    from resources.generate import film_transmittance
+    from dualrgb.simulation.film_model import film_transmittance
 
     wl = grid.wavelengths
     return lambda amounts: film_transmittance(np.asarray(amounts, float)[None, :], wl)[:, 0]
@@ -423,7 +423,7 @@ def ground_truth_xyz(name: str, height: int, width: int, grid: SpectralGrid = DE
     """(height, width, 3) float32 per-pixel XYZ of original ``name`` (eq 4.2: D65, CIE 1931 2 degree,
     410-780 nm; Y of a perfect white, or of the open gate for film, = 100), rows down, columns right."""
     if illuminant is None or cmfs is None:
-        from simulation.datasets import default_setup
+        from dualrgb.simulation.datasets import default_setup
 
         setup = default_setup("reflective", grid)
         illuminant = setup.illuminant if illuminant is None else illuminant

@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import trapezoid
 
-from common.atomic_files import atomic_write
-from drivers.virtual.monochromator_light import MonochromatorOptics
-from simulation.spectral_io import write_spectral_csv
-from simulation.versions import dualrgb_version
+from dualrgb.common.atomic_files import atomic_write
+from dualrgb.drivers.virtual.monochromator_light import MonochromatorOptics
+from dualrgb.simulation.spectral_io import write_spectral_csv
+from dualrgb.simulation.versions import dualrgb_version
 
 log = logging.getLogger(__name__)
 

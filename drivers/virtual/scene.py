@@ -29,9 +29,9 @@ from functools import cached_property
 
 import numpy as np
 
-from drivers.virtual.originals import Original, original, original_name
-from simulation.datasets import Target
-from simulation.grid import DEFAULT_GRID, SpectralGrid
+from dualrgb.drivers.virtual.originals import Original, original, original_name
+from dualrgb.simulation.datasets import Target
+from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid
 
 log = logging.getLogger(__name__)
 

@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from drivers.virtual.sphere_light import RADIANCE_UNIT, SphereLight, radiance_per_relative_unit
-from simulation.cgats import write_cgats_spectra
-from simulation.spectral_io import write_spectral_csv
+from dualrgb.drivers.virtual.sphere_light import RADIANCE_UNIT, SphereLight, radiance_per_relative_unit
+from dualrgb.simulation.cgats import write_cgats_spectra
+from dualrgb.simulation.spectral_io import write_spectral_csv
 
 log = logging.getLogger(__name__)
 

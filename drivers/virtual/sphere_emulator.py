@@ -44,8 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from drivers.led_sphere import protocol as P
-from drivers.virtual.led_physics import (
+from dualrgb.drivers.led_sphere import protocol as P
+from dualrgb.drivers.virtual.led_physics import (
     AMBIENT_C,
     FADE_LED,
     HEAT_C_PER_LED,
@@ -55,7 +55,7 @@ from drivers.virtual.led_physics import (
     fade_factor,
     peak_shift_nm,
 )
-from drivers.virtual.pty_link import PtyLineServer
+from dualrgb.drivers.virtual.pty_link import PtyLineServer
 
 log = logging.getLogger(__name__)
 

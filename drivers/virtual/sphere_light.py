@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-import resources
-from drivers.virtual.world import World, load_world
-from simulation.led_shapes import shaped_led_spectra, table_peaks
-from simulation.spectral_io import read_spectral_csv
+from dualrgb import resources
+from dualrgb.drivers.virtual.world import World, load_world
+from dualrgb.simulation.led_shapes import shaped_led_spectra, table_peaks
+from dualrgb.simulation.spectral_io import read_spectral_csv
 
 log = logging.getLogger(__name__)
 

@@ -47,10 +47,10 @@ from typing import Any
 
 import numpy as np
 
-import resources
-from simulation.datasets import Target, load_camera
-from simulation.grid import DEFAULT_GRID, SpectralGrid
-from simulation.sphere import LowLevelResponse
+from dualrgb import resources
+from dualrgb.simulation.datasets import Target, load_camera
+from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid
+from dualrgb.simulation.sphere import LowLevelResponse
 
 log = logging.getLogger(__name__)
 
@@ -230,7 +230,7 @@ def parse_world(doc: Any, source: str = "<world>", folder: Path | None = None) -
 
 def _check_camera(world: World) -> None:
     """The camera CSV must read as three channels covering the simulation grid (one line naming it)."""
-    from simulation.spectral_io import SpectralDataError
+    from dualrgb.simulation.spectral_io import SpectralDataError
 
     try:
         world.camera_sensitivities()
@@ -240,7 +240,7 @@ def _check_camera(world: World) -> None:
 
 def read_world(path: str | Path) -> World:
     """Read and check a world JSON file."""
-    from simulation.spectral_io import read_text_file
+    from dualrgb.simulation.spectral_io import read_text_file
 
     path = Path(path)
     text = read_text_file(path, "world JSON", WorldError, MAX_WORLD_BYTES)

@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from common.atomic_files import atomic_output, atomic_write
-from simulation.datasets import SimulationSetup, default_setup
-from simulation.grid import SpectralGrid
-from simulation.objective import Evaluator
-from simulation.versions import stamped
+from dualrgb.common.atomic_files import atomic_output, atomic_write
+from dualrgb.simulation.datasets import SimulationSetup, default_setup
+from dualrgb.simulation.grid import SpectralGrid
+from dualrgb.simulation.objective import Evaluator
+from dualrgb.simulation.versions import stamped
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure  # imported lazily at run time: a study's import stays light
@@ -214,8 +214,7 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
 def study_charts() -> list[tuple[str, Path]]:
     """(label, PNG) of the charts to show: the user's own ``dualrgb study`` runs (in the per-user data folder,
     where the studies write by default) first, then the reference charts packaged with the app."""
-    import resources
-
+    from dualrgb import resources
     mine = resources.user_path("studies")
     charts = [(f"{p.parent.name}/{p.name}", p) for p in sorted(mine.glob("*/*.png"))] if mine.is_dir() else []
     packaged = resources.path("figures")

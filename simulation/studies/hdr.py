@@ -32,13 +32,13 @@ from typing import Any
 
 import numpy as np
 
-import resources
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.hdr_estimators import HDR_MERGE_METHODS, HDR_THESIS, HdrNoise, merge_exposures
-from simulation.pso import PsoSettings
-from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, new_figure
-from simulation.studies.lights import study_lights
-from simulation.studies.noise import CameraNoise, NoiseModel, capture_bracket
+from dualrgb import resources
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.hdr_estimators import HDR_MERGE_METHODS, HDR_THESIS, HdrNoise, merge_exposures
+from dualrgb.simulation.pso import PsoSettings
+from dualrgb.simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, new_figure
+from dualrgb.simulation.studies.lights import study_lights
+from dualrgb.simulation.studies.noise import CameraNoise, NoiseModel, capture_bracket
 
 log = logging.getLogger(__name__)
 
@@ -194,7 +194,7 @@ def hdr_study(specs: SetupSpec | list[SetupSpec] = SetupSpec(), cfg: HdrStudyCon
 def write_defaults(result: HdrStudyResult, path: str | None = None) -> Path:
     """Set each studied mode's ``hdr_merge`` (with its criterion and evidence) in the defaults file, keeping the
     parsimony study's keys and the other mode."""
-    from simulation.defaults import save_defaults
+    from dualrgb.simulation.defaults import save_defaults
 
     target = path or str(resources.path("parsimony.json"))
     for mode, o in result.originals.items():

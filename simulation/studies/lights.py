@@ -11,11 +11,11 @@ import logging
 
 import numpy as np
 
-import resources
-from simulation.presets import load_preset
-from simulation.pso import PsoSettings, pso
-from simulation.search import exhaustive, light_pairs
-from simulation.studies.common import SetupSpec, evaluator_for
+from dualrgb import resources
+from dualrgb.simulation.presets import load_preset
+from dualrgb.simulation.pso import PsoSettings, pso
+from dualrgb.simulation.search import exhaustive, light_pairs
+from dualrgb.simulation.studies.common import SetupSpec, evaluator_for
 
 log = logging.getLogger(__name__)
 

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simulation.colorimetry import delta_e_2000, xyz_to_lab
-from simulation.matrix_fit import fit_matrix
+from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
+from dualrgb.simulation.matrix_fit import fit_matrix
 
 log = logging.getLogger(__name__)
 

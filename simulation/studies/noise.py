@@ -34,13 +34,13 @@ from typing import Any
 
 import numpy as np
 
-from simulation.camera_model import led_responses
-from simulation.capture_model import CameraNoise
-from simulation.colorimetry import delta_e_2000, xyz_to_lab
-from simulation.datasets import SimulationSetup, Target, target_xyz
-from simulation.fast_de import mean_de2000_xyz
-from simulation.hdr_estimators import HdrNoise, default_method, merge_exposures
-from simulation.matrix_fit import solve_normal_equations
+from dualrgb.simulation.camera_model import led_responses
+from dualrgb.simulation.capture_model import CameraNoise
+from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
+from dualrgb.simulation.datasets import SimulationSetup, Target, target_xyz
+from dualrgb.simulation.fast_de import mean_de2000_xyz
+from dualrgb.simulation.hdr_estimators import HdrNoise, default_method, merge_exposures
+from dualrgb.simulation.matrix_fit import solve_normal_equations
 
 log = logging.getLogger(__name__)
 
@@ -242,8 +242,8 @@ class NoiseModel:
     def _fit_and_judge(self, model: str, caps: dict, truth: dict, folds: int) -> dict[str, float]:
         """One capture: the model fitted on the captured training target, mean dE00 of training and test, and
         (``folds``) the cross-validated mean on the training target. 'linear' is the least-squares matrix."""
-        from simulation.cross_validation import cross_validated_errors
-        from simulation.studies.models import fit_model, model_errors
+        from dualrgb.simulation.cross_validation import cross_validated_errors
+        from dualrgb.simulation.studies.models import fit_model, model_errors
 
         Vtr, Vte = caps["train"], caps["test"]
         fm = fit_model(model, Vtr, truth["train"], self.white)
@@ -326,7 +326,7 @@ class NoiseAwareEvaluator:
 @lru_cache(maxsize=4)
 def thesis_exposures_check(mode: str = "transmissive") -> list[dict]:
     """Exposures the model gives the four lights of thesis Table 7.1, beside the thesis's values."""
-    from simulation.datasets import default_setup
+    from dualrgb.simulation.datasets import default_setup
 
     model = NoiseModel(default_setup(mode))
     rows = [((1, 6, 8), (1.0, 1.0, 1.0), 1 / 60), ((3, 5, 9), (1.0, 1.0, 1.0), 1 / 500),

@@ -27,17 +27,17 @@ from typing import Any
 
 import numpy as np
 
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.capture_model import CameraNoise, CaptureModel
-from simulation.choices import COLOUR_OBJECTIVES
-from simulation.datasets import MODES, SimulationSetup
-from simulation.halving import HalvingSettings, successive_halving
-from simulation.pso import PsoSettings, pso
-from simulation.robust import RobustEvaluator, RobustSettings
-from simulation.runner import make_evaluator
-from simulation.search import exhaustive, light_pairs, refine_top
-from simulation.studies.common import SetupSpec, StudyOutput, new_figure
-from simulation.studies.noise import NoiseModel
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.capture_model import CameraNoise, CaptureModel
+from dualrgb.simulation.choices import COLOUR_OBJECTIVES
+from dualrgb.simulation.datasets import MODES, SimulationSetup
+from dualrgb.simulation.halving import HalvingSettings, successive_halving
+from dualrgb.simulation.pso import PsoSettings, pso
+from dualrgb.simulation.robust import RobustEvaluator, RobustSettings
+from dualrgb.simulation.runner import make_evaluator
+from dualrgb.simulation.search import exhaustive, light_pairs, refine_top
+from dualrgb.simulation.studies.common import SetupSpec, StudyOutput, new_figure
+from dualrgb.simulation.studies.noise import NoiseModel
 
 log = logging.getLogger(__name__)
 

@@ -30,13 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.colorimetry import delta_e_2000, xyz_to_lab
-from simulation.ga import GaSettings, ga
-from simulation.halving import HalvingSettings, set_cost, successive_halving
-from simulation.matrix_fit import solve_normal_equations
-from simulation.pso import PsoSettings, enforce_constraints, pso
-from simulation.search import Group, SearchOutcome, candidates_from, exhaustive, group_arrays
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
+from dualrgb.simulation.ga import GaSettings, ga
+from dualrgb.simulation.halving import HalvingSettings, set_cost, successive_halving
+from dualrgb.simulation.matrix_fit import solve_normal_equations
+from dualrgb.simulation.pso import PsoSettings, enforce_constraints, pso
+from dualrgb.simulation.search import Group, SearchOutcome, candidates_from, exhaustive, group_arrays
 
 log = logging.getLogger(__name__)
 

@@ -41,16 +41,16 @@ from typing import Any
 
 import numpy as np
 
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.capture_model import CaptureModel
-from simulation.halving import HalvingSettings, successive_halving
-from simulation.hdr_estimators import default_method
-from simulation.pso import PsoSettings
-from simulation.search import exhaustive, group_arrays, light_pairs
-from simulation.studies.common import SetupSpec, evaluator_for
-from simulation.studies.lights import study_lights
-from simulation.studies.models import MODEL_TERMS, MODELS
-from simulation.studies.noise import CameraNoise, NoiseModel
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.halving import HalvingSettings, successive_halving
+from dualrgb.simulation.hdr_estimators import default_method
+from dualrgb.simulation.pso import PsoSettings
+from dualrgb.simulation.search import exhaustive, group_arrays, light_pairs
+from dualrgb.simulation.studies.common import SetupSpec, evaluator_for
+from dualrgb.simulation.studies.lights import study_lights
+from dualrgb.simulation.studies.models import MODEL_TERMS, MODELS
+from dualrgb.simulation.studies.noise import CameraNoise, NoiseModel
 
 log = logging.getLogger(__name__)
 
@@ -117,9 +117,9 @@ def _timings(spec: SetupSpec, cfg: ParsimonyConfig) -> dict:
     """Cost of a grid: CPU time to set up both evaluators (resampling, per-LED responses) and microseconds per
     evaluation of the noise-free and expected-captured objectives on one batch of random levels (kernels warmed
     first)."""
-    from simulation.datasets import default_setup
-    from simulation.expected_error import ExpectedErrorEvaluator
-    from simulation.objective import Evaluator
+    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
+    from dualrgb.simulation.objective import Evaluator
 
     capture = CaptureModel.virtual_lab(spec.mode)
     setup = default_setup(spec.mode, spec.grid)
@@ -259,7 +259,7 @@ def hdr_exposures(spec: SetupSpec, cfg: ParsimonyConfig, lights: dict, cancel=No
 
 
 def _noise_free_models(ev, W: np.ndarray) -> dict:
-    from simulation.studies.models import fit_model, model_errors
+    from dualrgb.simulation.studies.models import fit_model, model_errors
 
     tr = ev.train.camera_values(W)
     te = ev.test.camera_values(W)
@@ -312,11 +312,11 @@ class ParsimonyResult:
 
 def defaults_header() -> dict:
     """Top-level keys of a parsimony.json the study writes (format tag, versions, provenance)."""
-    from simulation.defaults import FORMAT
-    from simulation.versions import output_header
+    from dualrgb.simulation.defaults import FORMAT
+    from dualrgb.simulation.versions import output_header
 
     return {**output_header(FORMAT), "generated_by": "dualrgb study parsimony",
-            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")}
 
 
 def parsimony(spec: SetupSpec = SetupSpec(), cfg: ParsimonyConfig = ParsimonyConfig(), *,

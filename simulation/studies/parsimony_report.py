@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from simulation.studies.common import StudyOutput
-from simulation.studies.models import MODELS
-from simulation.studies.parsimony import ParsimonyResult, defaults_header
+from dualrgb.simulation.studies.common import StudyOutput
+from dualrgb.simulation.studies.models import MODELS
+from dualrgb.simulation.studies.parsimony import ParsimonyResult, defaults_header
 
 log = logging.getLogger(__name__)
 
@@ -142,7 +142,7 @@ def _choice_lines(result: ParsimonyResult) -> list[str]:
 def write_outputs(results: Sequence[ParsimonyResult], out: StudyOutput, defaults_path: str | None = None) -> None:
     """parsimony_study.json (every mode), parsimony.json (the per-mode defaults, also written into
     ``defaults_path`` when given, keeping the HDR study's keys there), parsimony.png, SUMMARY.md."""
-    from simulation.defaults import save_defaults
+    from dualrgb.simulation.defaults import save_defaults
 
     out.write_json("parsimony_study.json", {"modes": {r.mode: r.to_json() for r in results}})
     targets: list[str | Path] = [out.folder / "parsimony.json", *([defaults_path] if defaults_path else [])]

@@ -31,18 +31,18 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.camera_model import flat_fielded_sensitivities
-from simulation.capture_model import CaptureModel
-from simulation.datasets import MODES, SimulationSetup
-from simulation.defaults import default_grid
-from simulation.halving import HalvingSettings, successive_halving
-from simulation.search import light_pairs, refine_top
-from simulation.spectral_estimation import SPECTRAL_METHODS, SpectralEstimator, SpectralTraining, quantity_of
-from simulation.spectral_metrics import OTHER_LIGHTS, seen_wavelengths, spectral_figures, spectral_rmse
-from simulation.spectral_objective import SpectralEvaluator
-from simulation.spectral_selection import map_forms, select_estimator
-from simulation.studies.common import SetupSpec, StudyOutput
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.camera_model import flat_fielded_sensitivities
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.datasets import MODES, SimulationSetup
+from dualrgb.simulation.defaults import default_grid
+from dualrgb.simulation.halving import HalvingSettings, successive_halving
+from dualrgb.simulation.search import light_pairs, refine_top
+from dualrgb.simulation.spectral_estimation import SPECTRAL_METHODS, SpectralEstimator, SpectralTraining, quantity_of
+from dualrgb.simulation.spectral_metrics import OTHER_LIGHTS, seen_wavelengths, spectral_figures, spectral_rmse
+from dualrgb.simulation.spectral_objective import SpectralEvaluator
+from dualrgb.simulation.spectral_selection import map_forms, select_estimator
+from dualrgb.simulation.studies.common import SetupSpec, StudyOutput
 
 log = logging.getLogger(__name__)
 
@@ -65,9 +65,9 @@ class SpectralStudyConfig:
 def light_sets(setup: SimulationSetup, ev: SpectralEvaluator, cfg: SpectralStudyConfig,
                cancel: CancelToken | None = None) -> dict[str, dict]:
     """name -> {"W": levels (L, K) as the sphere holds them, "label", "search_s"} for :data:`LIGHT_SETS`."""
-    import resources
-    from simulation.presets import load_preset
-    from simulation.sphere import realisable_d65_mix
+    from dualrgb import resources
+    from dualrgb.simulation.presets import load_preset
+    from dualrgb.simulation.sphere import realisable_d65_mix
 
     def entry(sources, search_s: float) -> dict:
         W = ev.realise(np.stack([s.weights(ev.n_leds) for s in sources]))

@@ -20,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.ga import GaSettings
-from simulation.pso import PsoSettings
-from simulation.search import light_pairs, refine_top
-from simulation.studies.common import (
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.ga import GaSettings
+from dualrgb.simulation.pso import PsoSettings
+from dualrgb.simulation.search import light_pairs, refine_top
+from dualrgb.simulation.studies.common import (
     SetupSpec,
     StudyOutput,
     TracedEvaluator,
@@ -33,8 +33,8 @@ from simulation.studies.common import (
     new_figure,
     pareto_front,
 )
-from simulation.studies.distributed import Runner, SerialRunner
-from simulation.studies.optimisers import (
+from dualrgb.simulation.studies.distributed import Runner, SerialRunner
+from dualrgb.simulation.studies.optimisers import (
     LABELS,
     OPTIMISERS,
     DeSettings,
@@ -42,7 +42,7 @@ from simulation.studies.optimisers import (
     LbfgsSettings,
     PyswarmsSettings,
 )
-from simulation.warmup import warm_up
+from dualrgb.simulation.warmup import warm_up
 
 log = logging.getLogger(__name__)
 

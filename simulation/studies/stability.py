@@ -28,22 +28,22 @@ from typing import Any
 
 import numpy as np
 
-import resources
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.camera_model import led_responses
-from simulation.capture_model import CaptureModel
-from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import SimulationSetup, Target
-from simulation.ga import GaSettings
-from simulation.matrix_fit import fit_matrix
-from simulation.objective import Evaluator
-from simulation.pso import PsoSettings, pso
-from simulation.search import exhaustive, light_pairs, refine_top
-from simulation.spectral_io import read_spectral_csv
-from simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread
-from simulation.studies.distributed import Runner, SerialRunner
-from simulation.studies.noise import CameraNoise, NoiseModel, thesis_exposures_check
-from simulation.studies.objectives import (
+from dualrgb import resources
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.camera_model import led_responses
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
+from dualrgb.simulation.datasets import SimulationSetup, Target
+from dualrgb.simulation.ga import GaSettings
+from dualrgb.simulation.matrix_fit import fit_matrix
+from dualrgb.simulation.objective import Evaluator
+from dualrgb.simulation.pso import PsoSettings, pso
+from dualrgb.simulation.search import exhaustive, light_pairs, refine_top
+from dualrgb.simulation.spectral_io import read_spectral_csv
+from dualrgb.simulation.studies.common import SetupSpec, StudyOutput, evaluator_for, median_spread
+from dualrgb.simulation.studies.distributed import Runner, SerialRunner
+from dualrgb.simulation.studies.noise import CameraNoise, NoiseModel, thesis_exposures_check
+from dualrgb.simulation.studies.objectives import (
     ObjectivesConfig,
     ObjectivesResult,
     objectives_study,
@@ -51,8 +51,8 @@ from simulation.studies.objectives import (
     study_capture_model,
     summary_lines,
 )
-from simulation.studies.optimisers import DeSettings, HalvingSettings, LbfgsSettings, PyswarmsSettings
-from simulation.studies.speed_accuracy import Config, RunTask, run_task
+from dualrgb.simulation.studies.optimisers import DeSettings, HalvingSettings, LbfgsSettings, PyswarmsSettings
+from dualrgb.simulation.studies.speed_accuracy import Config, RunTask, run_task
 
 log = logging.getLogger(__name__)
 

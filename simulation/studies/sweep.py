@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from simulation.studies.common import SetupSpec, StudyOutput, median_spread, new_figure
-from simulation.studies.distributed import Runner, SerialRunner
-from simulation.studies.speed_accuracy import Config, RunTask, configs, run_task
+from dualrgb.simulation.studies.common import SetupSpec, StudyOutput, median_spread, new_figure
+from dualrgb.simulation.studies.distributed import Runner, SerialRunner
+from dualrgb.simulation.studies.speed_accuracy import Config, RunTask, configs, run_task
 
 log = logging.getLogger(__name__)
 

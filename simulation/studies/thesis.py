@@ -32,17 +32,17 @@ from typing import Any
 
 import numpy as np
 
-import resources
-from common.progress import CancelToken, ProgressCallback, check, report
-from simulation.capture_model import CaptureModel
-from simulation.datasets import SimulationSetup, default_setup
-from simulation.ga import GaSettings
-from simulation.grid import SpectralGrid
-from simulation.hdr_estimators import HDR_THESIS, default_method
-from simulation.pso import PsoSettings
-from simulation.runner import RunResult, run
-from simulation.search import Candidate
-from simulation.studies.noise import NoiseModel
+from dualrgb import resources
+from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.datasets import SimulationSetup, default_setup
+from dualrgb.simulation.ga import GaSettings
+from dualrgb.simulation.grid import SpectralGrid
+from dualrgb.simulation.hdr_estimators import HDR_THESIS, default_method
+from dualrgb.simulation.pso import PsoSettings
+from dualrgb.simulation.runner import RunResult, run
+from dualrgb.simulation.search import Candidate
+from dualrgb.simulation.studies.noise import NoiseModel
 
 log = logging.getLogger(__name__)
 
@@ -161,8 +161,8 @@ def exposures_figures(setup: SimulationSetup, tables: dict) -> dict:
 def capture_lights(runs: ModeRuns) -> dict[str, np.ndarray]:
     """The project's counterparts of the thesis' captured conditions: the sphere's D65 mix (3-channel), the
     exhaustive best and the PSO best, realised on the sphere's level grid (as the virtual lab sets them)."""
-    from simulation.expected_error import ExpectedErrorEvaluator
-    from simulation.sphere import realisable_d65_mix
+    from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
+    from dualrgb.simulation.sphere import realisable_d65_mix
 
     s = runs.setup
     ev = ExpectedErrorEvaluator(s, CaptureModel.virtual_lab(s.mode))
@@ -177,7 +177,7 @@ def capture_lights(runs: ModeRuns) -> dict[str, np.ndarray]:
 def capture_figures(runs: ModeRuns, cfg: ThesisConfig, capture: Capture | None) -> dict:
     """Table 7.2: per condition, predicted (expected captured, mean and median) and captured (virtual lab if
     ``capture`` else the pixel-level simulation; mean with its standard error over repeats)."""
-    from simulation.expected_error import ExpectedErrorEvaluator
+    from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
 
     s = runs.setup
     ev = ExpectedErrorEvaluator(s, CaptureModel.virtual_lab(s.mode))

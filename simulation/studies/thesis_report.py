@@ -12,8 +12,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from common.atomic_files import atomic_write
-from simulation.lightsource import LightSource
+from dualrgb.common.atomic_files import atomic_write
+from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 

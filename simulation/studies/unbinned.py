@@ -17,10 +17,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from simulation.lightsource import LightSource
-from simulation.search import Candidate, Group
-from simulation.studies.common import SetupSpec, evaluator_for
-from simulation.studies.distributed import Runner, SerialRunner
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.search import Candidate, Group
+from dualrgb.simulation.studies.common import SetupSpec, evaluator_for
+from dualrgb.simulation.studies.distributed import Runner, SerialRunner
 
 log = logging.getLogger(__name__)
 
@@ -168,7 +168,7 @@ def unbinned_search(spec: SetupSpec = SetupSpec(), runner: Runner | None = None,
 
 def compare_binned(spec: SetupSpec, bins: Sequence[int] = (3, 3, 4)) -> dict:
     """The binned (630-pair) full-intensity best, for reference."""
-    from simulation.search import exhaustive, light_pairs, refine_top
+    from dualrgb.simulation.search import exhaustive, light_pairs, refine_top
 
     ev = evaluator_for(spec)
     out = refine_top(ev, exhaustive(ev, light_pairs(bins)), 1)
@@ -176,7 +176,7 @@ def compare_binned(spec: SetupSpec, bins: Sequence[int] = (3, 3, 4)) -> dict:
 
 
 def unbinned_chart(result: UnbinnedResult):
-    from simulation.studies.common import new_figure
+    from dualrgb.simulation.studies.common import new_figure
 
     fig, ax = new_figure(8.0, 4.6)
     edges = HIST_EDGES[:-1]

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.processing.mosaic import mosaic_from_rgb
-from drivers.virtual.dng import DngInfo, save_dng
+from dualrgb.app.processing.mosaic import mosaic_from_rgb
+from dualrgb.drivers.virtual.dng import DngInfo, save_dng
 
 WHITE = 15520
 BLACK = 600

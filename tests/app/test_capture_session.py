@@ -1,4 +1,4 @@
-"""app.session: durable writes, manifest, resume, verify, SIGKILL mid-writes and disk-full behaviour."""
+"""dualrgb.app.session: durable writes, manifest, resume, verify, SIGKILL mid-writes and disk-full behaviour."""
 from __future__ import annotations
 
 import errno
@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from app.session import capture_session as session_mod
-from app.session.capture_session import MANIFEST, CaptureSession
-from app.session.manifest import SessionError
-from drivers.camera.base import RawCapture
-from simulation.lightsource import LightSource
+from dualrgb.app.session import capture_session as session_mod
+from dualrgb.app.session.capture_session import MANIFEST, CaptureSession
+from dualrgb.app.session.manifest import SessionError
+from dualrgb.drivers.camera.base import RawCapture
+from dualrgb.simulation.lightsource import LightSource
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -142,8 +142,8 @@ def test_disk_full_while_appending_manifest(tmp_path, monkeypatch):
 WRITER = textwrap.dedent("""
     import sys
     sys.path.insert(0, {root!r})
-    from app.session.capture_session import CaptureSession
-    from drivers.camera.base import RawCapture
+    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.drivers.camera.base import RawCapture
     s = CaptureSession.open({path!r})
     i = 0
     while True:

@@ -1,12 +1,12 @@
-"""app.captured_accuracy: a light set captured through the virtual camera and app.processing (small frames)
+"""dualrgb.app.captured_accuracy: a light set captured through the virtual camera and app.processing (small frames)
 gives the patch values and the accuracy the simulation predicts."""
 import numpy as np
 import pytest
 
-from app.captured_accuracy import capture_patch_values, captured_errors
-from simulation.datasets import default_setup
-from simulation.objective import Evaluator
-from simulation.studies.noise import NoiseModel
+from dualrgb.app.captured_accuracy import capture_patch_values, captured_errors
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.objective import Evaluator
+from dualrgb.simulation.studies.noise import NoiseModel
 
 
 def test_virtual_lab_capture_matches_the_noise_model():

@@ -6,15 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.processing.csrf import compute_csrf, session_signals, write_camera_csv
-from app.session.capture_session import CaptureSession
-from app.session.manifest import DamagedFramesError
-from app.workflow.vocabulary import Role, monochromatic_light, step_id
-from drivers.camera.base import RawCapture
-from drivers.virtual.dng import DngInfo, dng_bytes
-from simulation.datasets import load_camera
-from simulation.radiance_reference import RadianceReference
-from simulation.spectral_io import SpectralDataError, read_spectral_csv
+from dualrgb.app.processing.csrf import compute_csrf, session_signals, write_camera_csv
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.session.manifest import DamagedFramesError
+from dualrgb.app.workflow.vocabulary import Role, monochromatic_light, step_id
+from dualrgb.drivers.camera.base import RawCapture
+from dualrgb.drivers.virtual.dng import DngInfo, dng_bytes
+from dualrgb.simulation.datasets import load_camera
+from dualrgb.simulation.radiance_reference import RadianceReference
+from dualrgb.simulation.spectral_io import SpectralDataError, read_spectral_csv
 
 H, W = 40, 60
 BLACK = 600

@@ -11,11 +11,18 @@ import pytest
 import tifffile
 from workflow_profiles import make_profile as _profile
 
-from app.processing import tiff_stream
-from app.processing.encode import LINEAR_ONE, RGB_SPACES, DeliveryEncoder, encode_deliverables, encoding_table
-from app.processing.outputs import TiffMetadata, icc_profile, open_tiff, tiff_kwargs, write_tiff, xyz_to_rgb_matrix
-from app.processing.pipeline import ChannelStack
-from common.atomic_files import FileWriteError
+from dualrgb.app.processing import tiff_stream
+from dualrgb.app.processing.encode import LINEAR_ONE, RGB_SPACES, DeliveryEncoder, encode_deliverables, encoding_table
+from dualrgb.app.processing.outputs import (
+    TiffMetadata,
+    icc_profile,
+    open_tiff,
+    tiff_kwargs,
+    write_tiff,
+    xyz_to_rgb_matrix,
+)
+from dualrgb.app.processing.pipeline import ChannelStack
+from dualrgb.common.atomic_files import FileWriteError
 
 D65 = [95.047, 100.0, 108.883]
 META = TiffMetadata("dualrgb 9.9", "ACC-1; test", "Nikon", "D610", 300.0, "2026:01:02 03:04:05", b"<x:xmpmeta/>" * 37)
@@ -97,7 +104,7 @@ def test_streamed_tiff_is_byte_for_byte_tifffiles(tmp_path, direct, shape, band_
 def test_delivered_files_are_the_old_paths_byte_for_byte(tmp_path, monkeypatch):
     """Before streaming, deliver encoded whole arrays and wrote each with tifffile.imwrite (outputs.tiff_kwargs
     holds those arguments): same pixels, tags, XMP and ICC."""
-    from app.workflow import delivery
+    from dualrgb.app.workflow import delivery
 
     iccs = {s: icc_profile(s) for s in RGB_SPACES}                  # the ProPhoto one carries its creation time
     monkeypatch.setattr(delivery, "icc_profile", iccs.__getitem__)
@@ -148,7 +155,7 @@ def test_a_write_failing_mid_stream_keeps_the_previous_file_and_names_it(tmp_pat
 def test_a_failed_delivery_leaves_no_partial_deliverable(tmp_path, monkeypatch):
     """The files of a delivery are written into a fresh folder and swapped in only when all are complete: a disk
     filling up mid-delivery leaves no folder for the original (and no staging folder) behind."""
-    from app.workflow.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
 
     prof = _profile(tmp_path)
     stack = ChannelStack(np.full((300, 200, 3), 0.5, np.float32), ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})
@@ -160,7 +167,7 @@ def test_a_failed_delivery_leaves_no_partial_deliverable(tmp_path, monkeypatch):
 
 @pytest.mark.fault("session integrity")
 def test_a_failed_redelivery_keeps_the_previous_set_untouched(tmp_path, monkeypatch):
-    from app.workflow.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
 
     prof = _profile(tmp_path)
     stack = ChannelStack(np.full((300, 200, 3), 0.5, np.float32), ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})

@@ -10,19 +10,19 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app.processing.ground_truth import bin_to_superpixels, block_max, compare_to_ground_truth, write_de_map_png
-from app.processing.patches import PatchGrid
-from app.processing.pipeline import CaptureProcessor, ExposureRef
-from app.sequences.hdr import plan_hdr
-from drivers.raw import load_raw
-from drivers.virtual.camera import SHUTTER_SPEEDS, SensorModel, StaticLight, VirtualCamera
-from drivers.virtual.originals import ground_truth_xyz, original
-from drivers.virtual.scene import Scene, original_scene
-from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import default_setup
-from simulation.lightsource import LightSource
-from simulation.matrix_fit import fit_matrix
-from simulation.studies.noise import NoiseModel
+from dualrgb.app.processing.ground_truth import bin_to_superpixels, block_max, compare_to_ground_truth, write_de_map_png
+from dualrgb.app.processing.patches import PatchGrid
+from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+from dualrgb.app.sequences.hdr import plan_hdr
+from dualrgb.drivers.raw import load_raw
+from dualrgb.drivers.virtual.camera import SHUTTER_SPEEDS, SensorModel, StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.originals import ground_truth_xyz, original
+from dualrgb.drivers.virtual.scene import Scene, original_scene
+from dualrgb.simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.matrix_fit import fit_matrix
+from dualrgb.simulation.studies.noise import NoiseModel
 
 W, H = 600, 400
 SETUP = default_setup("reflective")

@@ -15,16 +15,16 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from app.cli import main as cli
-from app.sequences.led_measurement import LedMeasurement, LedMeasurementPlan, sleeper
-from app.workflow.led_readings import parse_reading_id, read_readings
-from app.workflow.led_stand import import_readings, load_stand, measure_virtual, unstable_levels
-from drivers.virtual.clock import SkippableClock
-from drivers.virtual.lab import VirtualLab
-from drivers.virtual.led_physics import MAX_SHIFT_NM, fade_factor, peak_shift_nm
-from drivers.virtual.spectroradiometer import RadiometerSettings, VirtualSpectroradiometer
-from drivers.virtual.world import load_world
-from simulation.lightsource import LightSource
+from dualrgb.app.cli import main as cli
+from dualrgb.app.sequences.led_measurement import LedMeasurement, LedMeasurementPlan, sleeper
+from dualrgb.app.workflow.led_readings import parse_reading_id, read_readings
+from dualrgb.app.workflow.led_stand import import_readings, load_stand, measure_virtual, unstable_levels
+from dualrgb.drivers.virtual.clock import SkippableClock
+from dualrgb.drivers.virtual.lab import VirtualLab
+from dualrgb.drivers.virtual.led_physics import MAX_SHIFT_NM, fade_factor, peak_shift_nm
+from dualrgb.drivers.virtual.spectroradiometer import RadiometerSettings, VirtualSpectroradiometer
+from dualrgb.drivers.virtual.world import load_world
+from dualrgb.simulation.lightsource import LightSource
 
 TABLE_4_2_PEAKS = np.array([416, 448, 467, 491, 520, 545, 572, 597, 626, 680], dtype=float)
 
@@ -55,7 +55,7 @@ def test_level_series_recovers_the_worlds_low_level_response(aged):
         assert fit["dead_band"] == pytest.approx(truth.dead_band, abs=5e-4)
         assert fit["knee"] == pytest.approx(truth.knee, abs=3e-3)
         assert fit["exponent"] == pytest.approx(truth.exponent, abs=0.1)
-        from simulation.sphere import LowLevelResponse
+        from dualrgb.simulation.sphere import LowLevelResponse
         got = LowLevelResponse(fit["dead_band"], fit["knee"], fit["exponent"]).output(fine.copy())
         np.testing.assert_allclose(got, truth.output(fine.copy()), atol=1e-3)
     # proportional within 5 % from the first measured level at or above where the curve is within 5 %
@@ -108,7 +108,7 @@ def test_warmup_series_recovers_the_emulators_drift(warmed):
     for led in (4, 7, 10):
         w = result.leds[led].warmup
         assert w["t_s"][-1] == pytest.approx(3540, abs=1)
-        from simulation.led_fit import DriftFit
+        from dualrgb.simulation.led_fit import DriftFit
         fit = DriftFit(**{k: w["fit"][k] for k in ("max_shift_nm", "tau_s", "onset_s", "rms_nm")})
         truth = peak_shift_nm(t, MAX_SHIFT_NM[led - 1])
         np.testing.assert_allclose(fit.shift(t), truth, atol=0.15)

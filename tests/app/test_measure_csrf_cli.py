@@ -6,10 +6,10 @@ import json
 
 import pytest
 
-from app.cli import main
-from app.commands.measure_csrf import RADIANCE_METHODS
-from simulation.radiance_reference import REDUCTION_METHODS
-from simulation.spectral_io import read_spectral_csv
+from dualrgb.app.cli import main
+from dualrgb.app.commands.measure_csrf import RADIANCE_METHODS
+from dualrgb.simulation.radiance_reference import REDUCTION_METHODS
+from dualrgb.simulation.spectral_io import read_spectral_csv
 
 SHORT = ["--start", "500", "--end", "600", "--step", "50", "--frame-size", "96x64"]
 

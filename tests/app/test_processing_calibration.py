@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from synthetic_frames import dark_frames, expose, mosaic_scene, patch_image, patch_reflectance, vignette
 
-from app.processing.calibration import FlatField, MasterDark, combine_darks
-from app.processing.mosaic import mosaic_from_rgb, row_bands, superpixel
+from dualrgb.app.processing.calibration import FlatField, MasterDark, combine_darks
+from dualrgb.app.processing.mosaic import mosaic_from_rgb, row_bands, superpixel
 
 
 def test_master_dark_rejects_transient_outliers_and_keeps_hot_pixels():

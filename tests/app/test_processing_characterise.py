@@ -6,7 +6,7 @@ import inspect
 import numpy as np
 import pytest
 
-from app.processing.characterise import (
+from dualrgb.app.processing.characterise import (
     DE2000,
     LEAST_SQUARES,
     characterise,
@@ -15,10 +15,10 @@ from app.processing.characterise import (
     patch_errors,
     select_model,
 )
-from common.progress import Cancelled, CancelToken
-from simulation.datasets import default_setup
-from simulation.lightsource import LightSource
-from simulation.objective import PatchSet
+from dualrgb.common.progress import Cancelled, CancelToken
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.objective import PatchSet
 
 
 @pytest.fixture(scope="module")

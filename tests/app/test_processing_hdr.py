@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from synthetic_frames import BLACK, WHITE, dark_frames, expose, mosaic_scene, patch_reflectance, vignette
 
-from app.processing.hdr import HDR_MERGE_METHODS, HdrMerge, exposure_weight, triangle_weight
-from app.processing.pipeline import CaptureProcessor, ExposureRef
-from common.progress import Cancelled, CancelToken
+from dualrgb.app.processing.hdr import HDR_MERGE_METHODS, HdrMerge, exposure_weight, triangle_weight
+from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+from dualrgb.common.progress import Cancelled, CancelToken
 
 
 def test_eq_8_9_weight_scaled_to_the_usable_range():

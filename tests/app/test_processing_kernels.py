@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from synthetic_frames import BLACK, WHITE, write_dng
 
-from app.processing.calibration import combine_darks
-from app.processing.hdr import HDR_MERGE_METHODS, HdrMerge, HdrNoise
-from app.processing.mosaic import iter_open_raw, open_raw
-from drivers.raw import RawFileError
-from simulation.hdr_estimators import merge_exposures
+from dualrgb.app.processing.calibration import combine_darks
+from dualrgb.app.processing.hdr import HDR_MERGE_METHODS, HdrMerge, HdrNoise
+from dualrgb.app.processing.mosaic import iter_open_raw, open_raw
+from dualrgb.drivers.raw import RawFileError
+from dualrgb.simulation.hdr_estimators import merge_exposures
 
 
 @pytest.mark.parametrize("method", list(HDR_MERGE_METHODS))

@@ -6,8 +6,8 @@ import io
 
 import numpy as np
 
-from app.processing.outputs import icc_profile, matrix_trc_icc, write_matrices_csv, write_patch_csv
-from simulation.matrix_fit import CharacterisationMatrix
+from dualrgb.app.processing.outputs import icc_profile, matrix_trc_icc, write_matrices_csv, write_patch_csv
+from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 
 
 def test_icc_profiles_load_in_littlecms_and_prophoto_matches_colour_science():

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.processing import patches as patches_mod
-from app.processing.patches import PatchGrid, detect_cc24, homography
+from dualrgb.app.processing import patches as patches_mod
+from dualrgb.app.processing.patches import PatchGrid, detect_cc24, homography
 
 # find_spec, not importorskip: importing the package directly would let OpenCV repoint Qt's plugin path in
 # this pytest process (what detect_cc24 guards against) and break Qt tests that run after these
@@ -139,7 +139,7 @@ def test_detect_cc24_no_chart_returns_none():
 
 @needs_ccd
 def test_detector_import_keeps_qt_plugin_path():
-    code = ("import os\nfrom app.processing.patches import _import_detection\n_import_detection()\n"
+    code = ("import os\nfrom dualrgb.app.processing.patches import _import_detection\n_import_detection()\n"
             "print(os.environ.get('QT_QPA_PLATFORM_PLUGIN_PATH'))")
     env = {k: v for k, v in os.environ.items() if k not in ("QT_QPA_PLATFORM_PLUGIN_PATH", "QT_QPA_FONTDIR")}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env,

@@ -9,18 +9,18 @@ import numpy as np
 import pytest
 from synthetic_frames import dark_frames, expose, mosaic_scene, vignette, write_dng
 
-from app.processing.mosaic import mosaic_from_rgb
-from app.processing.patches import PatchGrid
-from app.session.capture_session import CaptureSession
-from app.workflow.session_processing import process_session
-from app.workflow.targets import TargetSpec
-from app.workflow.vocabulary import Subject
-from common.progress import Cancelled, CancelToken
-from drivers.camera.base import RawCapture
-from simulation.camera_model import channel_responses
-from simulation.datasets import default_setup
-from simulation.lightsource import LightSource
-from simulation.objective import Evaluator
+from dualrgb.app.processing.mosaic import mosaic_from_rgb
+from dualrgb.app.processing.patches import PatchGrid
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.session_processing import process_session
+from dualrgb.app.workflow.targets import TargetSpec
+from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.common.progress import Cancelled, CancelToken
+from dualrgb.drivers.camera.base import RawCapture
+from dualrgb.simulation.camera_model import channel_responses
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.objective import Evaluator
 
 CELL = 5            # superpixel pixels per patch
 LIGHTS = [LightSource((1, 6, 8), name="light 1"), LightSource((3, 5, 9), name="light 2")]
@@ -138,9 +138,9 @@ def test_cancel_stops_processing(session_dir, tmp_path):
 
 
 def test_partly_filled_last_grid_row_is_accepted_and_a_wrong_grid_is_not():
-    from app.processing.patches import PatchGrid
-    from app.processing.pipeline import ChannelStack
-    from app.workflow.session_processing import sample_target
+    from dualrgb.app.processing.patches import PatchGrid
+    from dualrgb.app.processing.pipeline import ChannelStack
+    from dualrgb.app.workflow.session_processing import sample_target
 
     class FakeProcessor:
         def stack(self, scenes, progress=None, cancel=None):

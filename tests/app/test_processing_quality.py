@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from synthetic_frames import BLACK, WHITE, vignette
 
-from app.processing.pipeline import CaptureProcessor, ExposureRef
-from app.processing.quality import (
+from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+from dualrgb.app.processing.quality import (
     CalibrationFrames,
     assess,
     grade_metrics,

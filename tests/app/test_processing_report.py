@@ -6,11 +6,18 @@ import json
 import numpy as np
 import pytest
 
-from app.processing.characterise import characterise
-from app.processing.report import STANDARDS, TargetData, build_report, dn_validation, fit_line_with_outliers, grade
-from simulation.datasets import default_setup
-from simulation.lightsource import LightSource
-from simulation.objective import ErrorStats, PatchSet
+from dualrgb.app.processing.characterise import characterise
+from dualrgb.app.processing.report import (
+    STANDARDS,
+    TargetData,
+    build_report,
+    dn_validation,
+    fit_line_with_outliers,
+    grade,
+)
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.objective import ErrorStats, PatchSet
 
 
 def test_line_fit_flags_outliers_and_r2_improves():

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from workflow_profiles import make_profile
 
-import resources
-from app.processing.spectral import SpectralInputs, characterise_spectra, fitted_gain, model_sensitivities
-from app.workflow.profile import ProfileError, describe, load_profile
-from simulation.datasets import default_setup
-from simulation.presets import load_preset
-from simulation.spectral_estimation import SpectralEstimator
+from dualrgb import resources
+from dualrgb.app.processing.spectral import SpectralInputs, characterise_spectra, fitted_gain, model_sensitivities
+from dualrgb.app.workflow.profile import ProfileError, describe, load_profile
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.presets import load_preset
+from dualrgb.simulation.spectral_estimation import SpectralEstimator
 
 
 def _capture(mode: str = "reflective", gain: float = 1.0):

@@ -1,14 +1,14 @@
-"""app.session.log: each session folder gets session.log with the app's records while it was open."""
+"""dualrgb.app.session.log: each session folder gets session.log with the app's records while it was open."""
 from __future__ import annotations
 
 import logging
 
 import pytest
 
-from app.session.capture_session import CaptureSession
-from app.session.log import LOG_NAME, SessionLog
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.session.log import LOG_NAME, SessionLog
 
-log = logging.getLogger("app.test_session_log")
+log = logging.getLogger("dualrgb.app.test_session_log")
 
 
 @pytest.fixture
@@ -29,7 +29,7 @@ def test_records_while_open_go_to_the_session_log(tmp_path, quiet_console):
     log.info("before: not in the log")
     with SessionLog(session.path):
         log.info("exposure %s s", "1/60")
-        logging.getLogger("drivers.led_sphere.x").warning("sphere warm")
+        logging.getLogger("dualrgb.drivers.led_sphere.x").warning("sphere warm")
         logging.getLogger("someone.else").warning("not ours")
         assert quiet_console.level == logging.WARNING          # the console does not get chattier
     log.info("after: not in the log")
@@ -62,8 +62,8 @@ def test_error_ending_the_session_is_logged_and_resume_appends(tmp_path, quiet_c
 
 
 def test_gui_lab_switches_the_log_with_the_session(tmp_path, qapp):
-    from app.gui.device_hub import Lab
-    from app.gui.workers import TaskRunner
+    from dualrgb.app.gui.device_hub import Lab
+    from dualrgb.app.gui.workers import TaskRunner
 
     lab = Lab(TaskRunner())
     a, b = CaptureSession.create(tmp_path / "a"), CaptureSession.create(tmp_path / "b")
@@ -81,7 +81,7 @@ def test_gui_lab_switches_the_log_with_the_session(tmp_path, qapp):
 def test_progress_bar_and_session_log_keep_the_console_quiet(tmp_path, quiet_console, capsys):
     import io
 
-    from app.terminal_progress import TerminalProgress
+    from dualrgb.app.terminal_progress import TerminalProgress
 
     session = CaptureSession.create(tmp_path / "s")
     with TerminalProgress("demo", stream=io.StringIO(), terminal=True) as bar, SessionLog(session.path):

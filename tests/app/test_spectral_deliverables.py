@@ -14,15 +14,15 @@ from spectral_profiles import estimator, spectral_profile, stack
 from workflow_profiles import make_profile
 from xmp_check import read_xmp
 
-from app.processing import tiff_stream
-from app.processing.envi import IGNORE_VALUE, SCALE_FACTOR, open_cube, read_header
-from app.processing.render import check_illuminant, rendering
-from app.processing.spectral_cube import SpectralEncoder, encode_spectral
-from app.workflow.delivery import LightDoseRecord, Original, deliver
-from common.atomic_files import FileWriteError
-from simulation.grid import DEFAULT_GRID
-from simulation.other_lights import OTHER_LIGHTS, light_keys
-from simulation.spectral_estimation import SpectralEstimator
+from dualrgb.app.processing import tiff_stream
+from dualrgb.app.processing.envi import IGNORE_VALUE, SCALE_FACTOR, open_cube, read_header
+from dualrgb.app.processing.render import check_illuminant, rendering
+from dualrgb.app.processing.spectral_cube import SpectralEncoder, encode_spectral
+from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+from dualrgb.common.atomic_files import FileWriteError
+from dualrgb.simulation.grid import DEFAULT_GRID
+from dualrgb.simulation.other_lights import OTHER_LIGHTS, light_keys
+from dualrgb.simulation.spectral_estimation import SpectralEstimator
 
 WL = DEFAULT_GRID.wavelengths
 
@@ -205,7 +205,7 @@ def test_an_unknown_rendering_light_is_refused_before_anything_runs(command, tmp
 
     args = (["capture", "--calibration", __file__, "--session", str(tmp_path / "s"), "--id", "X-1", "--virtual-lab"]
             if command == "capture" else ["process", str(tmp_path)])
-    r = subprocess.run([sys.executable, "-m", "app.cli", *args, "--render-illuminant", "F2"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "dualrgb", *args, "--render-illuminant", "F2"], capture_output=True,
                        text=True, timeout=60)
     line = r.stderr.strip().splitlines()[-1]
     assert r.returncode == 2 and "--render-illuminant" in line and "'F2'" in line and "LED (LED 2880 K)" in line

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.processing.spectral_truth import SpectralTruth, compare_spectra_to_ground_truth, write_rmse_map_png
+from dualrgb.app.processing.spectral_truth import SpectralTruth, compare_spectra_to_ground_truth, write_rmse_map_png
 
 WL = np.arange(410.0, 790.0, 10.0)
 

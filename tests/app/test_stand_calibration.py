@@ -7,13 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from app.cli import main
-from app.workflow.profile import ProfileError, describe, load_profile
-from app.workflow.stand_calibration import StandResult, centre_level
-from app.workflow.stand_reoptimise import Measurements, assemble
-from simulation.capture_model import CaptureModel
-from simulation.stand_fit import fit_stand
-from simulation.stand_model import StandModel
+from dualrgb.app.cli import main
+from dualrgb.app.workflow.profile import ProfileError, describe, load_profile
+from dualrgb.app.workflow.stand_calibration import StandResult, centre_level
+from dualrgb.app.workflow.stand_reoptimise import Measurements, assemble
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.stand_fit import fit_stand
+from dualrgb.simulation.stand_model import StandModel
 from tests.simulation.stand_data import hand_observations
 from tests.workflow_profiles import make_profile
 

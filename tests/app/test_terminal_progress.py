@@ -8,8 +8,8 @@ import time
 
 import numpy as np
 
-from app.terminal_progress import STEPS, TerminalProgress
-from common.progress import COMPILING, scaled
+from dualrgb.app.terminal_progress import STEPS, TerminalProgress
+from dualrgb.common.progress import COMPILING, scaled
 
 
 def test_bar_never_goes_back_but_follows_the_message():
@@ -36,7 +36,7 @@ def test_lines_when_not_a_terminal_are_monotonic_and_once_per_percent():
 def test_compile_notice_is_shown_even_when_quiet(caplog):
     stream = io.StringIO()
     bar = TerminalProgress("simulate pso", stream=stream, terminal=False)
-    with caplog.at_level(logging.INFO, logger="app.terminal_progress"):
+    with caplog.at_level(logging.INFO, logger="dualrgb.app.terminal_progress"):
         bar(0.0, COMPILING)
         bar(0.0, COMPILING)
         bar(0.5, "iteration 5")
@@ -65,7 +65,7 @@ class _SlowEvaluator:
 
 
 def test_warm_up_reports_a_compile_and_leaves_the_count(monkeypatch):
-    from simulation import objective, warmup
+    from dualrgb.simulation import objective, warmup
 
     monkeypatch.setattr(objective.Evaluator, "cost_indexed", _SlowEvaluator.cost_indexed)
     ev = _SlowEvaluator()
@@ -81,17 +81,17 @@ def test_warm_up_reports_a_compile_and_leaves_the_count(monkeypatch):
 
 def test_kernels_cache_index_is_readable_on_this_numba():
     """numba's cache internals that warm_up reads exist in the installed numba (None would mean they moved)."""
-    from simulation import warmup
-    from simulation.datasets import default_setup
-    from simulation.objective import Evaluator
+    from dualrgb.simulation import warmup
+    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.objective import Evaluator
 
     warmup.warm_up(Evaluator(default_setup("reflective")))               # compiled or loaded: now on disk
     assert warmup.kernels_cached() is True
 
 
 def test_run_time_excludes_the_warm_up(monkeypatch):
-    from simulation import runner
-    from simulation.datasets import default_setup
+    from dualrgb.simulation import runner
+    from dualrgb.simulation.datasets import default_setup
 
     clock = [1000.0]                                   # the runner's clock moves only while "compiling"
 

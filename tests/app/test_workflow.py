@@ -3,7 +3,7 @@ checks, the delivery encoding (checked against colour-science) and TIFF metadata
 from __future__ import annotations
 
 import hashlib
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from types import SimpleNamespace
 
 import numpy as np
@@ -12,12 +12,19 @@ import tifffile
 from workflow_profiles import make_profile as _profile
 from xmp_check import read_xmp
 
-from app.processing.encode import LINEAR_ONE, encode_deliverables
-from app.processing.pipeline import ChannelStack
-from app.workflow.coverage import coverage
-from app.workflow.delivery import LightDoseRecord, Original, deliver, read_sidecar
-from app.workflow.profile import CameraIdentity, ProfileError, ReuseLimits, SphereIdentity, check_reuse, load_profile
-from app.workflow.vocabulary import (
+from dualrgb.app.processing.encode import LINEAR_ONE, encode_deliverables
+from dualrgb.app.processing.pipeline import ChannelStack
+from dualrgb.app.workflow.coverage import coverage
+from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver, read_sidecar
+from dualrgb.app.workflow.profile import (
+    CameraIdentity,
+    ProfileError,
+    ReuseLimits,
+    SphereIdentity,
+    check_reuse,
+    load_profile,
+)
+from dualrgb.app.workflow.vocabulary import (
     NamedLight,
     Role,
     Subject,
@@ -29,7 +36,7 @@ from app.workflow.vocabulary import (
     step_id,
     subject_of,
 )
-from simulation.lightsource import LightSource
+from dualrgb.simulation.lightsource import LightSource
 
 D65 = [95.047, 100.0, 108.883]
 
@@ -99,7 +106,7 @@ def test_reuse_refuses_a_different_camera(tmp_path, change, words):
 
 
 def test_reuse_refuses_other_levels_and_a_warm_sphere_and_warns_when_old(tmp_path):
-    prof = _profile(tmp_path, created=datetime.now(timezone.utc) - timedelta(hours=9))
+    prof = _profile(tmp_path, created=datetime.now(UTC) - timedelta(hours=9))
     other = [NamedLight("P light 1", LightSource((1, 6, 7), (0.0, 0.5, 1.0)))]
     warm = SphereIdentity("S", "1", "S-1", 31.0)
     check = check_reuse(prof, prof.camera, warm, other, ReuseLimits(temperature_drift_c=5.0))
@@ -171,7 +178,7 @@ def test_coverage_counts_darks_and_flats():
 
 def test_streamed_stack_equals_the_batch_stack():
     """StackBuilder (frames merged as they land, as CopyStand.capture does) = CaptureProcessor.stack."""
-    from app.processing.pipeline import CaptureProcessor, ExposureRef
+    from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
 
     rng = np.random.default_rng(5)
     h, w = 16, 20

@@ -11,16 +11,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from app.sequences.base import PlannedFrame, ProgressEvent
-from app.workflow.coverage import plan_coverage
-from app.workflow.day import DayState, DayStep, OriginalsQueue, OriginalState, StepState, day_checklist
-from app.workflow.delivery import Original
-from app.workflow.frame_checks import DARK_FRACTION, check_frame
-from app.workflow.runs import RUN_PROGRESS, StandRun
-from app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
-from common.progress import Cancelled
-from drivers.raw import RawFrame
-from simulation.lightsource import LightSource
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.workflow.coverage import plan_coverage
+from dualrgb.app.workflow.day import DayState, DayStep, OriginalsQueue, OriginalState, StepState, day_checklist
+from dualrgb.app.workflow.delivery import Original
+from dualrgb.app.workflow.frame_checks import DARK_FRACTION, check_frame
+from dualrgb.app.workflow.runs import RUN_PROGRESS, StandRun
+from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
+from dualrgb.common.progress import Cancelled
+from dualrgb.drivers.raw import RawFrame
+from dualrgb.simulation.lightsource import LightSource
 
 FRAME = (96, 64)
 LIGHTS = [NamedLight("p light 1", LightSource((1, 6, 8), name="p light 1")),
@@ -30,9 +30,9 @@ LIGHTS = [NamedLight("p light 1", LightSource((1, 6, 8), name="p light 1")),
 # ---------------------------------------------------------------- metering sequences on the virtual lab
 @pytest.fixture
 def stand(tmp_path):
-    from app.sequences.shooter import SafetySettings, Shooter
-    from app.session.capture_session import CaptureSession
-    from drivers.virtual.lab import VirtualLab
+    from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.drivers.virtual.lab import VirtualLab
 
     with VirtualLab(frame_size=FRAME) as lab:
         session = CaptureSession.create(tmp_path / "s", {})
@@ -42,7 +42,7 @@ def stand(tmp_path):
 
 
 def test_auto_exposure_sequence_meters_each_light(stand):
-    from app.workflow.metering import AutoExposure
+    from dualrgb.app.workflow.metering import AutoExposure
 
     lab, session, shooter = stand
     seq = AutoExposure(shooter, LIGHTS)
@@ -55,7 +55,7 @@ def test_auto_exposure_sequence_meters_each_light(stand):
 
 
 def test_metering_cancelled_between_lights_ends_dark(stand):
-    from app.workflow.metering import AutoExposure
+    from dualrgb.app.workflow.metering import AutoExposure
 
     lab, _session, shooter = stand
     seq = AutoExposure(shooter, LIGHTS)
@@ -68,8 +68,8 @@ def test_metering_cancelled_between_lights_ends_dark(stand):
 
 
 def test_hdr_metering_plans_a_bracket_for_the_nd_target(stand):
-    from app.workflow.metering import AutoExposure, HdrMetering
-    from app.workflow.vocabulary import Subject
+    from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
+    from dualrgb.app.workflow.vocabulary import Subject
 
     lab, session, shooter = stand
     auto = AutoExposure(shooter, LIGHTS)
@@ -203,11 +203,11 @@ def test_plan_coverage_against_a_calibration():
 
 # ---------------------------------------------------------------- planned steps and takes
 def test_planned_steps_done_and_next_take():
-    from app.sequences.calibration import DarkSeries
-    from app.sequences.capture import SubjectCapture
-    from app.sequences.shooter import Shooter
-    from app.workflow.plans import next_take, planned_steps, steps_done
-    from app.workflow.vocabulary import Subject
+    from dualrgb.app.sequences.calibration import DarkSeries
+    from dualrgb.app.sequences.capture import SubjectCapture
+    from dualrgb.app.sequences.shooter import Shooter
+    from dualrgb.app.workflow.plans import next_take, planned_steps, steps_done
+    from dualrgb.app.workflow.vocabulary import Subject
 
     darks = DarkSeries(None, [0.01, 0.5], frames=2)
     steps = planned_steps(darks)
@@ -236,8 +236,8 @@ def test_check_frame_dark_and_clipped():
 
 
 def test_flat_uniformity_shows_the_vignetting(stand):
-    from app.sequences.calibration import FlatSeries
-    from app.workflow.frame_checks import flat_uniformity
+    from dualrgb.app.sequences.calibration import FlatSeries
+    from dualrgb.app.workflow.frame_checks import flat_uniformity
 
     lab, session, shooter = stand
     list(FlatSeries(shooter, LIGHTS[:1], {LIGHTS[0].name: [0.01]}, frames=2).run())

@@ -14,15 +14,15 @@ from pathlib import Path
 
 import pytest
 
-import resources
-from app.cli import build_parser, main
-from app.commands import calibrate, stand_options
-from app.session.capture_session import CaptureSession
-from app.workflow import defaults
-from app.workflow.day import OriginalsQueue, OriginalState
-from app.workflow.folders import dated_name, legacy_captures, move_sessions, new_session, sessions_in
-from app.workflow.preset_figures import preset_figures
-from simulation.presets import load_preset
+from dualrgb import resources
+from dualrgb.app.cli import build_parser, main
+from dualrgb.app.commands import calibrate, stand_options
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow import defaults
+from dualrgb.app.workflow.day import OriginalsQueue, OriginalState
+from dualrgb.app.workflow.folders import dated_name, legacy_captures, move_sessions, new_session, sessions_in
+from dualrgb.app.workflow.preset_figures import preset_figures
+from dualrgb.simulation.presets import load_preset
 
 DAY = dt.date(2026, 11, 24)
 
@@ -35,7 +35,7 @@ def cli_choice(*argv: str):
 def test_the_defaults_and_where_they_come_from(user_data_dir):
     d = defaults.workflow_defaults()
     packaged = json.loads(resources.path("parsimony.json").read_text())      # read here, not through the app
-    from simulation.capture_model import CaptureModel
+    from dualrgb.simulation.capture_model import CaptureModel
 
     cam = CaptureModel.virtual_lab("reflective").camera       # what every preset's expected figure assumes
     assert (d.mode, d.preset, d.hdr, d.virtual_original) == ("reflective", "reflective_pso", "auto", "painting")
@@ -64,8 +64,8 @@ def test_calibrate_resolves_its_defaults_from_the_one_place(monkeypatch):
     monkeypatch.setattr(defaults, "HDR_AUTO", False)
     preset, hdr, darks, flats = cli_choice()                                      # ... and the CLI follows
     assert (preset.name, hdr, darks, flats) == ("dual-RGB reflective", "off", 4, 3)
-    from app.demo import DemoSettings
-    from app.workflow.copystand import StandSettings
+    from dualrgb.app.demo import DemoSettings
+    from dualrgb.app.workflow.copystand import StandSettings
 
     assert StandSettings().dark_frames == DemoSettings(out=Path("x")).dark_frames == 4
 
@@ -86,7 +86,7 @@ class _Camera:
     name = "stub camera"
 
     def settings(self):
-        from drivers.camera.base import CameraSettings
+        from dualrgb.drivers.camera.base import CameraSettings
         return CameraSettings(iso=100, aperture=8.0)
 
     def config_summary(self):
@@ -136,7 +136,7 @@ def test_the_old_default_captures_folder_is_found_and_moved_whole(tmp_path, user
 def test_a_session_another_program_holds_is_not_moved(tmp_path):
     old, new = tmp_path / "old", tmp_path / "new"
     held = _old_session(old, "held")
-    code = ("import sys, time; from app.session import lock; lock.acquire(sys.argv[1]); print('locked', "
+    code = ("import sys, time; from dualrgb.app.session import lock; lock.acquire(sys.argv[1]); print('locked', "
             "flush=True); time.sleep(60)")
     proc = subprocess.Popen([sys.executable, "-c", code, str(held)], stdout=subprocess.PIPE, text=True,
                             cwd=Path(__file__).resolve().parents[2], env={**os.environ})

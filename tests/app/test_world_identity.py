@@ -10,13 +10,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from app.cli import build_parser
-from app.commands.stand_options import virtual_world
-from app.session.capture_session import CaptureSession
-from app.session.manifest import DefinitionMismatch, camera_definition
-from app.workflow.profile import CameraIdentity, check_reuse, load_profile
-from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.world import load_world
+from dualrgb.app.cli import build_parser
+from dualrgb.app.commands.stand_options import virtual_world
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.session.manifest import DefinitionMismatch, camera_definition
+from dualrgb.app.workflow.profile import CameraIdentity, check_reuse, load_profile
+from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.world import load_world
 from tests.workflow_profiles import make_profile
 
 

@@ -371,7 +371,7 @@ class _PortList(list):
 
 def open_scripted(lang: str = "en", setup: Callable[[ScriptedD610], None] | None = None, **driver_kw):
     """A GPhotoCamera opened on a ScriptedD610 (knobs set by ``setup`` before open): (camera, d610, clock, gp)."""
-    from drivers.camera.gphoto import GPhotoCamera
+    from dualrgb.drivers.camera.gphoto import GPhotoCamera
 
     gp = FakeGPhoto2(lang)
     clock = FakeClock()

@@ -16,8 +16,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository root
 
-from drivers.camera.base import CameraError, CameraSettings
-from drivers.camera.gphoto import GPhotoCamera, camera_error
+from dualrgb.drivers.camera.base import CameraError, CameraSettings
+from dualrgb.drivers.camera.gphoto import GPhotoCamera, camera_error
 
 
 def _err(exc: CameraError) -> dict:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drivers.virtual.dng import DngInfo, save_dng
+from dualrgb.drivers.virtual.dng import DngInfo, save_dng
 
 D610_WHITE = 15520
 D610_BLACK = 600

@@ -8,7 +8,7 @@ from collections.abc import Iterator, Sequence
 
 import serial
 
-from drivers.led_sphere import LedSphere
+from dualrgb.drivers.led_sphere import LedSphere
 
 
 class ScriptedSerial:

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from test_gphoto_logic import open_fake
 
-from drivers.camera.base import CameraError, CameraTimeout, call_with_deadline
-from drivers.raw import load_raw
-from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.scene import Scene
+from dualrgb.drivers.camera.base import CameraError, CameraTimeout, call_with_deadline
+from dualrgb.drivers.raw import load_raw
+from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.scene import Scene
 
 
 def test_call_with_deadline_returns_raises_or_times_out():

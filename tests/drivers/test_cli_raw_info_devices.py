@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 from rawtestfiles import D610_WHITE, mosaic_14bit, write_dng
 
-import app.commands.devices as devices_cmd
-from app.cli import main
-from drivers.usb_discovery import CameraInfo, DeviceReport, SerialPortInfo
+import dualrgb.app.commands.devices as devices_cmd
+from dualrgb.app.cli import main
+from dualrgb.drivers.usb_discovery import CameraInfo, DeviceReport, SerialPortInfo
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def run_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     full_env = {k: v for k, v in os.environ.items() if k != "VCAMERADIR"}
     full_env.update(env or {})
-    return subprocess.run([sys.executable, "-m", "app.cli", *args], cwd=ROOT, env=full_env, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "dualrgb", *args], cwd=ROOT, env=full_env, capture_output=True,
                           text=True, timeout=120)
 
 
@@ -92,7 +92,7 @@ def test_raw_info_truncated_file_as_a_process(dng, tmp_path):
 
 # ---------------------------------------------------------------------------------------------- devices
 def test_devices_nothing_attached_in_process(monkeypatch, capsys):
-    monkeypatch.setattr("drivers.usb_discovery.discover",
+    monkeypatch.setattr("dualrgb.drivers.usb_discovery.discover",
                         lambda probe, timeout_s: DeviceReport(serial_ports=[SerialPortInfo("/dev/ttyS0")]))
     assert main(["devices"]) == 1
     cap = capsys.readouterr()
@@ -114,7 +114,7 @@ def test_devices_lists_cameras_ports_and_hints(monkeypatch, capsys):
         seen.update(probe=probe, timeout_s=timeout_s)
         return report
 
-    monkeypatch.setattr("drivers.usb_discovery.discover", fake)
+    monkeypatch.setattr("dualrgb.drivers.usb_discovery.discover", fake)
     assert main(["devices"]) == 0
     out = capsys.readouterr().out
     assert seen == {"probe": True, "timeout_s": 3.0}

@@ -1,4 +1,4 @@
-"""drivers.virtual.dng: the one DNG writer carries what LibRaw and the pipeline read, checked through rawpy and
+"""dualrgb.drivers.virtual.dng: the one DNG writer carries what LibRaw and the pipeline read, checked through rawpy and
 tifffile (independent readers), and rejects what it cannot write."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import rawpy
 import tifffile
 from rawtestfiles import D610_BLACK, D610_WHITE, mosaic_14bit
 
-from drivers.raw import load_raw
-from drivers.virtual.dng import DngInfo, dng_bytes, save_dng
+from dualrgb.drivers.raw import load_raw
+from dualrgb.drivers.virtual.dng import DngInfo, dng_bytes, save_dng
 
 NEUTRAL = np.array([0.5, 1.0, 0.8])
 MATRIX = np.array([[0.9, -0.1, 0.05], [-0.3, 1.1, 0.2], [0.01, 0.1, 0.6]])
@@ -60,8 +60,8 @@ def test_bad_cfa_is_one_line(bad, match):
 
 
 def test_virtual_camera_capture_is_a_readable_dng(tmp_path):
-    from drivers.virtual.camera import StaticLight, VirtualCamera
-    from drivers.virtual.scene import Scene
+    from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+    from dualrgb.drivers.virtual.scene import Scene
 
     levels = np.zeros(10)
     levels[[0, 5, 7]] = 1.0

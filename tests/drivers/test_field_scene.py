@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import resources
-from drivers.raw import load_raw
-from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.scene import FieldLight, Scene
-from simulation.spectral_io import read_spectral_csv
+from dualrgb import resources
+from dualrgb.drivers.raw import load_raw
+from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.scene import FieldLight, Scene
+from dualrgb.simulation.spectral_io import read_spectral_csv
 
 DARK = StaticLight(np.zeros(10), light_on=False)
 

@@ -9,10 +9,10 @@ import threading
 import pytest
 from gphoto_fake import BULB, FakeGPhoto2, open_scripted
 
-from app.sequences.shooter import SafetySettings
-from app.session.capture_session import CaptureSession
-from drivers.camera.base import CameraError, CameraSettings
-from drivers.camera.gphoto import GPhotoCamera
+from dualrgb.app.sequences.shooter import SafetySettings
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.drivers.camera.base import CameraError, CameraSettings
+from dualrgb.drivers.camera.gphoto import GPhotoCamera
 
 
 # ------------------------------------------------------------------------------------------ 1 bulb release
@@ -27,7 +27,7 @@ def test_bulb_release_is_sent_once_and_busy_afterwards_means_closed(code, caplog
     # expose() returned after the release was sent, while libgphoto2 still waits for the camera
     assert not d610.shutter_open and len(d610.releases) == 1 and d610.gate_opened is None
     d610.release_gate.set()
-    with caplog.at_level(logging.INFO, logger="drivers.camera.gphoto"):
+    with caplog.at_level(logging.INFO, logger="dualrgb.drivers.camera.gphoto"):
         raw = cam.fetch(exposure)                    # waits for the release, then for the file
     assert raw.filename == "capt0000.nef" and raw.extra["bulb"] and d610.gate_opened is True
     assert d610.writes.count(("bulb", 0)) == 1       # released once: no retry of the release
@@ -233,7 +233,7 @@ def test_a_camera_that_is_no_nikon_reports_the_end_of_the_exposure_by_event():
 
 
 def test_trigger_waits_only_on_nikon_capture_paths():
-    from drivers.camera.gphoto import trigger_waits_for_exposure
+    from dualrgb.drivers.camera.gphoto import trigger_waits_for_exposure
 
     assert trigger_waits_for_exposure("\tGeneric Image Capture, Nikon Capture 3\n", to_ram=False)
     assert trigger_waits_for_exposure("Nikon Capture 1, Nikon Capture 2", to_ram=True)

@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 from gphoto_fake import FakeGPhoto2, open_scripted
 
-from app.sequences.shooter import LightSafetyError, SafetySettings, Shooter
-from app.session.capture_session import CaptureSession
-from drivers.camera.base import DEFAULT_LATENCY_S, CameraError
-from drivers.camera.gphoto import DEFAULT_GPHOTO_LATENCY_S, LATENCY_ENV, GPhotoCamera
-from drivers.camera.gphoto_latency import measure_latency, suggested_allowance
-from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.lab import VirtualLab
-from drivers.virtual.scene import Scene
-from simulation.lightsource import LightSource
+from dualrgb.app.sequences.shooter import LightSafetyError, SafetySettings, Shooter
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.drivers.camera.base import DEFAULT_LATENCY_S, CameraError
+from dualrgb.drivers.camera.gphoto import DEFAULT_GPHOTO_LATENCY_S, LATENCY_ENV, GPhotoCamera
+from dualrgb.drivers.camera.gphoto_latency import measure_latency, suggested_allowance
+from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.lab import VirtualLab
+from dualrgb.drivers.virtual.scene import Scene
+from dualrgb.simulation.lightsource import LightSource
 
 LS1 = LightSource((1, 6, 8))
 

@@ -16,10 +16,16 @@ import numpy as np
 import pytest
 from gphoto_fake import EV_FILE_ADDED, FakeGPhoto2, Queued, open_scripted
 
-from drivers.camera.base import CameraError, CameraSettings
-from drivers.camera.gphoto import GPhotoCamera
-from drivers.camera.gphoto_errors import LibraryLog, camera_error, retry_busy
-from drivers.camera.gphoto_labels import format_shutter, nearest_by_value, parse_aperture, parse_iso, parse_shutter
+from dualrgb.drivers.camera.base import CameraError, CameraSettings
+from dualrgb.drivers.camera.gphoto import GPhotoCamera
+from dualrgb.drivers.camera.gphoto_errors import LibraryLog, camera_error, retry_busy
+from dualrgb.drivers.camera.gphoto_labels import (
+    format_shutter,
+    nearest_by_value,
+    parse_aperture,
+    parse_iso,
+    parse_shutter,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -131,7 +137,7 @@ def test_other_errors_are_not_retried():
 
 
 def test_import_does_not_load_gphoto2():
-    code = "import sys, drivers.camera, drivers.camera.gphoto; print('gphoto2' in sys.modules)"
+    code = "import sys, dualrgb.drivers.camera, dualrgb.drivers.camera.gphoto; print('gphoto2' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 from sphere_fakes import BrokenSerial, FakeClock, FrameSerial, ScriptedSerial, expected_protocol
 
-from drivers.led_sphere import LedSphere, SphereError
-from drivers.led_sphere import protocol as P
-from simulation.lightsource import LightSource
+from dualrgb.drivers.led_sphere import LedSphere, SphereError
+from dualrgb.drivers.led_sphere import protocol as P
+from dualrgb.simulation.lightsource import LightSource
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "led-sphere-protocol.md"
 

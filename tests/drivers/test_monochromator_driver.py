@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 from sphere_fakes import BrokenSerial, ScriptedSerial
 
-from drivers.monochromator import protocol as P
-from drivers.monochromator.driver import Cornerstone
-from drivers.monochromator.errors import MonochromatorError
+from dualrgb.drivers.monochromator import protocol as P
+from dualrgb.drivers.monochromator.driver import Cornerstone
+from dualrgb.drivers.monochromator.errors import MonochromatorError
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "monochromator-protocol.md"
 OK = (b"STB?\r\n", b"STB?\r\n00\r\n")                # the status check after every command

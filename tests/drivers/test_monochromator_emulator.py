@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from colour.colorimetry import planck_law
 
-from drivers.monochromator import protocol as P
-from drivers.monochromator.driver import Cornerstone
-from drivers.monochromator.errors import MonochromatorError
-from drivers.virtual.monochromator_emulator import MonochromatorEmulator
-from drivers.virtual.monochromator_light import MonochromatorOptics
+from dualrgb.drivers.monochromator import protocol as P
+from dualrgb.drivers.monochromator.driver import Cornerstone
+from dualrgb.drivers.monochromator.errors import MonochromatorError
+from dualrgb.drivers.virtual.monochromator_emulator import MonochromatorEmulator
+from dualrgb.drivers.virtual.monochromator_light import MonochromatorOptics
 
 TIMEOUT = 0.25
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from colour.quality import SDS_TCS, SDS_VS
 
-from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.originals import (
+from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.originals import (
     OHTA_NEUTRALS,
     ORIGINALS,
     ground_truth_xyz,
@@ -15,10 +15,10 @@ from drivers.virtual.originals import (
     original,
     original_name,
 )
-from drivers.virtual.scene import Scene, original_scene
-from simulation.camera_model import channel_responses
-from simulation.datasets import default_setup
-from simulation.grid import DEFAULT_GRID
+from dualrgb.drivers.virtual.scene import Scene, original_scene
+from dualrgb.simulation.camera_model import channel_responses
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.grid import DEFAULT_GRID
 
 BLACK = 600
 
@@ -169,7 +169,7 @@ def test_names_and_refusals():
 
 
 def test_virtual_lab_places_originals_and_gives_their_truth():
-    from drivers.virtual.lab import VirtualLab
+    from dualrgb.drivers.virtual.lab import VirtualLab
 
     with VirtualLab(frame_size=(240, 160), timeout_s=0.3) as lab:
         scene = lab.place("original:painting")

@@ -1,4 +1,4 @@
-"""drivers.raw: DNG round-trip through drivers.virtual.dng (tifffile) -> rawpy is bit-exact; damaged files give
+"""dualrgb.drivers.raw: DNG round-trip through drivers.virtual.dng (tifffile) -> rawpy is bit-exact; damaged files give
 one-line RawFileErrors."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import rawpy
 from rawtestfiles import D610_BLACK, D610_WHITE, mosaic_14bit, write_dng
 
-from drivers.raw import RawFileError, linear_demosaic, load_raw, superpixel
+from dualrgb.drivers.raw import RawFileError, linear_demosaic, load_raw, superpixel
 
 
 @pytest.fixture

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from sphere_fakes import FakeClock
 
-from app.cli import main
-from drivers.virtual.sphere_emulator import SphereEmulator
+from dualrgb.app.cli import main
+from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -138,7 +138,7 @@ def test_disconnected_emulator(emu, capsys):
 def test_subprocess_emulator_and_cli():
     """The real entry points: `dualrgb sphere-emulator` in one process, `dualrgb sphere` in another."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYTHONWARNINGS": "ignore"}
-    cmd = [sys.executable, "-c", "import sys; from app.cli import main; sys.exit(main(sys.argv[1:]))"]
+    cmd = [sys.executable, "-c", "import sys; from dualrgb.app.cli import main; sys.exit(main(sys.argv[1:]))"]
     server = subprocess.Popen(cmd + ["sphere-emulator", "--watchdog", "5"], cwd=ROOT, env=env,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

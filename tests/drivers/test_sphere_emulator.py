@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from sphere_fakes import FakeClock
 
-from drivers.led_sphere import LedSphere, SphereError
-from drivers.led_sphere import protocol as P
-from drivers.virtual.led_physics import DRIFT_ONSET_S, MAX_SHIFT_NM, fade_factor, peak_shift_nm
-from drivers.virtual.sphere_emulator import SphereEmulator, SphereSnapshot
-from simulation.lightsource import LightSource
+from dualrgb.drivers.led_sphere import LedSphere, SphereError
+from dualrgb.drivers.led_sphere import protocol as P
+from dualrgb.drivers.virtual.led_physics import DRIFT_ONSET_S, MAX_SHIFT_NM, fade_factor, peak_shift_nm
+from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator, SphereSnapshot
+from dualrgb.simulation.lightsource import LightSource
 
 TIMEOUT = 0.2          # fault cases: the time they take
 OK_TIMEOUT = 2.0       # happy paths: only matters if something is wrong (keeps a loaded machine from flaking)

@@ -1,4 +1,4 @@
-"""drivers.usb_discovery: never raises for 'nothing found', bounded probes, claimed-camera hints."""
+"""dualrgb.drivers.usb_discovery: never raises for 'nothing found', bounded probes, claimed-camera hints."""
 from __future__ import annotations
 
 import threading
@@ -6,8 +6,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from drivers import usb_discovery as ud
-from drivers.usb_discovery import CameraInfo, DeviceReport, SerialPortInfo, discover, parse_usb_port
+from dualrgb.drivers import usb_discovery as ud
+from dualrgb.drivers.usb_discovery import CameraInfo, DeviceReport, SerialPortInfo, discover, parse_usb_port
 
 D610_PTP = CameraInfo(model="Nikon DSC D610", source="gphoto2", port="usb:001,007", bus=1, address=7)
 D610_USB = CameraInfo(model="Nikon D610", source="usb", vendor_id=0x04B0, product_id=0x0434, bus=1, address=7)

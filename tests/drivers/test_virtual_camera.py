@@ -9,12 +9,12 @@ import pytest
 import rawpy
 import tifffile
 
-from drivers.camera.base import CameraError, CameraSettings
-from drivers.virtual.camera import CAMERA_NAME, SensorModel, VirtualCamera, parse_shutter
-from drivers.virtual.dng import DngInfo, dng_bytes
-from drivers.virtual.scene import Scene
-from simulation.camera_model import channel_responses
-from simulation.datasets import Target, default_setup
+from dualrgb.drivers.camera.base import CameraError, CameraSettings
+from dualrgb.drivers.virtual.camera import CAMERA_NAME, SensorModel, VirtualCamera, parse_shutter
+from dualrgb.drivers.virtual.dng import DngInfo, dng_bytes
+from dualrgb.drivers.virtual.scene import Scene
+from dualrgb.simulation.camera_model import channel_responses
+from dualrgb.simulation.datasets import Target, default_setup
 
 BLACK, WHITE = 600, 15520
 
@@ -109,7 +109,7 @@ def test_dng_stores_exposure_iso_aperture_and_camera_name(snap):
 
 
 def test_dng_loads_with_the_projects_raw_loader(snap, tmp_path):
-    from drivers.raw import load_raw
+    from dualrgb.drivers.raw import load_raw
 
     cap = make_camera(snap).capture(1 / 60)
     path = tmp_path / cap.filename
@@ -385,8 +385,8 @@ def test_bad_snapshot_is_refused(snap):
 
 def test_reads_the_sphere_emulator_live():
     """Integration with drivers.virtual.sphere_emulator: levels, light switch and warm-up drift reach the frame."""
-    from drivers.led_sphere import protocol as P
-    from drivers.virtual.sphere_emulator import SphereEmulator
+    from dualrgb.drivers.led_sphere import protocol as P
+    from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
 
     now = [0.0]
     sphere = SphereEmulator(clock=lambda: now[0])

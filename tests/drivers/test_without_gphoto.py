@@ -6,8 +6,8 @@ import sys
 
 import pytest
 
-from drivers.camera.base import CameraError
-from drivers.camera.gphoto import TETHERING_UNAVAILABLE, GPhotoCamera, gphoto_available
+from dualrgb.drivers.camera.base import CameraError
+from dualrgb.drivers.camera.gphoto import TETHERING_UNAVAILABLE, GPhotoCamera, gphoto_available
 
 
 @pytest.fixture
@@ -24,8 +24,8 @@ def test_tethering_says_what_it_needs_in_one_line(no_gphoto):
 
 
 def test_devices_report_carries_the_hint(no_gphoto, capsys, monkeypatch):
-    import drivers.usb_discovery as ud
-    from app.cli import main
+    import dualrgb.drivers.usb_discovery as ud
+    from dualrgb.app.cli import main
 
     monkeypatch.setattr(ud, "usb_cameras", list)
     monkeypatch.setattr(ud, "serial_ports", list)
@@ -36,8 +36,8 @@ def test_devices_report_carries_the_hint(no_gphoto, capsys, monkeypatch):
 
 
 def test_virtual_lab_captures_without_gphoto(no_gphoto, tmp_path):
-    from drivers.raw import load_raw
-    from drivers.virtual.lab import VirtualLab
+    from dualrgb.drivers.raw import load_raw
+    from dualrgb.drivers.virtual.lab import VirtualLab
 
     with VirtualLab(frame_size=(96, 64)) as lab:
         lab.place("open-gate")

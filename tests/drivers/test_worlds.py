@@ -10,15 +10,15 @@ import colour
 import numpy as np
 import pytest
 
-import resources
-from drivers.virtual.camera import StaticLight, VirtualCamera
-from drivers.virtual.lab import VirtualLab
-from drivers.virtual.scene import Scene
-from drivers.virtual.world import World, WorldError, load_world, packaged_worlds, read_world
-from simulation.camera_model import led_responses
-from simulation.datasets import default_setup, load_camera
-from simulation.grid import DEFAULT_GRID
-from simulation.sphere import LowLevelResponse
+from dualrgb import resources
+from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.lab import VirtualLab
+from dualrgb.drivers.virtual.scene import Scene
+from dualrgb.drivers.virtual.world import World, WorldError, load_world, packaged_worlds, read_world
+from dualrgb.simulation.camera_model import led_responses
+from dualrgb.simulation.datasets import default_setup, load_camera
+from dualrgb.simulation.grid import DEFAULT_GRID
+from dualrgb.simulation.sphere import LowLevelResponse
 
 # Recorded with the virtual lab as it was before worlds (commit 055eb80) by the procedure of _nominal_digest:
 # 16 renders (4 scenes x 2 lights, mosaic + live view) at 240x160, seed 3. numpy's Generator streams are stable
@@ -75,7 +75,7 @@ def test_rawtoaces_cameras_keep_source_licence_and_numbers():
                    "LICENSE-rawtoaces", "commit 300324c09fcc8bf19ac5066100c85d1022589b48"):
         assert needle in text
     assert "Apache License" in resources.path("cameras", "LICENSE-rawtoaces").read_text()
-    from simulation.spectral_io import read_spectral_csv
+    from dualrgb.simulation.spectral_io import read_spectral_csv
 
     d700 = read_spectral_csv(resources.path("cameras", "nikon_d700_rawtoaces.csv"))
     assert d700.values[0].tolist() == [0.0087, 0.0123, 0.0156] and d700.wavelengths[[0, -1]].tolist() == [380, 780]

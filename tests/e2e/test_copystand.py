@@ -20,7 +20,7 @@ PAINT_FRAMES = "8"      # frames averaged per exposure of the painting: per-pixe
 
 
 def dualrgb(*args: str, ok: bool = True) -> subprocess.CompletedProcess:
-    r = subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, env=ENV, timeout=600)
+    r = subprocess.run([sys.executable, "-m", "dualrgb", *args], capture_output=True, text=True, env=ENV, timeout=600)
     if ok:
         assert r.returncode == 0, r.stderr[-3000:]
     return r
@@ -63,7 +63,7 @@ def test_calibration_profile_written_once(day):
 def test_calibration_carries_the_spectral_estimate(day):
     """Issue 21: the calibration fits the spectral estimator on the captured training target and its JSON carries
     the test target's spectral RMSE (mean, p90), GFC and mean dE00 under every other light; the profile loads it."""
-    from app.workflow.profile import load_profile
+    from dualrgb.app.workflow.profile import load_profile
 
     _, cal, _ = day
     sp = cal["spectral"]
@@ -110,10 +110,10 @@ def test_painting_xyz_against_ground_truth(day):
     originals.py): per pixel (8 frames averaged per exposure: with one frame the sensor noise, which the 6 x 3
     matrix amplifies, alone costs ~0.7 dE00) and per material (noise averaged out, as a chart's patch means are),
     the mean dE00 is within 0.3 of the calibration's test-target mean."""
-    from app.processing.encode import LINEAR_ONE
-    from app.processing.ground_truth import compare_to_ground_truth, write_de_map_png
-    from app.workflow.targets import reference_white
-    from drivers.virtual.originals import ground_truth_xyz
+    from dualrgb.app.processing.encode import LINEAR_ONE
+    from dualrgb.app.processing.ground_truth import compare_to_ground_truth, write_de_map_png
+    from dualrgb.app.workflow.targets import reference_white
+    from dualrgb.drivers.virtual.originals import ground_truth_xyz
 
     root, cal, captures = day
     xyz = tifffile.imread(captures["PAINT-1"]["files"]["xyz"]).astype(np.float64) / LINEAR_ONE * 100.0
@@ -136,9 +136,9 @@ def test_spectral_cube_against_ground_truth(day, ident, name):
     (noise averaged out), beside the calibration's test-target RMSE; the capture's sidecar and QA line carry the
     same per-pixel figures (app.workflow.virtual_truth)."""
     spy = pytest.importorskip("spectral")
-    from app.processing.spectral_truth import SpectralTruth, compare_spectra_to_ground_truth, write_rmse_map_png
-    from drivers.virtual.originals import original
-    from simulation.defaults import default_grid
+    from dualrgb.app.processing.spectral_truth import SpectralTruth, compare_spectra_to_ground_truth, write_rmse_map_png
+    from dualrgb.drivers.virtual.originals import original
+    from dualrgb.simulation.defaults import default_grid
 
     root, cal, captures = day
     c = captures[ident]

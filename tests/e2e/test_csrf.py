@@ -17,17 +17,17 @@ import colour
 import numpy as np
 import pytest
 
-from app.sequences.csrf import CsrfSettings, CsrfSweep
-from app.session.capture_session import CaptureSession
-from app.workflow.csrf import measure_csrf, run_sweep
-from app.workflow.vocabulary import EventKind
-from drivers.camera.base import CameraError
-from drivers.monochromator.errors import MonochromatorError
-from drivers.virtual.monochromator_bench import MonochromatorBench
-from drivers.virtual.world import load_world
-from simulation.datasets import default_setup
-from simulation.radiance_reference import read_radiance_reference
-from simulation.spectral_io import read_spectral_csv
+from dualrgb.app.sequences.csrf import CsrfSettings, CsrfSweep
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.csrf import measure_csrf, run_sweep
+from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.drivers.camera.base import CameraError
+from dualrgb.drivers.monochromator.errors import MonochromatorError
+from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench
+from dualrgb.drivers.virtual.world import load_world
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.radiance_reference import read_radiance_reference
+from dualrgb.simulation.spectral_io import read_spectral_csv
 
 FRAME = (96, 64)
 FULL = CsrfSettings(380, 780, 10)

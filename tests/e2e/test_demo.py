@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from app.demo import DemoSettings, run_demo
+from dualrgb.app.demo import DemoSettings, run_demo
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +86,7 @@ def test_captured_errors_track_the_prediction(hdr_report):
 
 def test_demo_resumes_after_kill_without_reshooting(tmp_path):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    cmd = [sys.executable, "-m", "app.cli", "demo", "--out", str(tmp_path), "--frame-size", "240x160",
+    cmd = [sys.executable, "-m", "dualrgb", "demo", "--out", str(tmp_path), "--frame-size", "240x160",
            "--dark-frames", "3", "--no-de-fit"]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
     deadline = time.time() + 120

@@ -17,7 +17,7 @@ import tifffile
 from queue_rows import BAD, good_identifiers, write_queue_csv
 from xmp_check import EXIFTOOL, exiftool_text, read_xmp
 
-from app.processing.envi import read_header
+from dualrgb.app.processing.envi import read_header
 
 FRAME = ["--frame-size", "96x64", "--settle", "0"]
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -27,7 +27,7 @@ WORLD = {"ACC-5": ("Öl auf Holz", "Jürgen Weiß", "ACC-5 - Ol auf Holz"),
 
 
 def dualrgb(*args: str, ok: bool = True) -> subprocess.CompletedProcess:
-    r = subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, env=ENV, timeout=600)
+    r = subprocess.run([sys.executable, "-m", "dualrgb", *args], capture_output=True, text=True, env=ENV, timeout=600)
     if ok:
         assert r.returncode == 0, r.stderr[-3000:]
     return r

@@ -4,17 +4,17 @@ import threading
 import numpy as np
 import pytest
 
-from app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure
-from app.sequences.capture import SubjectCapture
-from app.sequences.crf_sweep import CrfSweep
-from app.sequences.shooter import LightSafetyError, SafetySettings, Shooter, channel_levels
-from app.session.capture_session import CaptureSession
-from app.session.manifest import SessionError
-from app.workflow.vocabulary import Subject
-from drivers.camera.base import CameraError
-from drivers.led_sphere import SphereError
-from drivers.virtual.lab import VirtualLab
-from simulation.lightsource import LightSource
+from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure
+from dualrgb.app.sequences.capture import SubjectCapture
+from dualrgb.app.sequences.crf_sweep import CrfSweep
+from dualrgb.app.sequences.shooter import LightSafetyError, SafetySettings, Shooter, channel_levels
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.session.manifest import SessionError
+from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.drivers.camera.base import CameraError
+from dualrgb.drivers.led_sphere import SphereError
+from dualrgb.drivers.virtual.lab import VirtualLab
+from dualrgb.simulation.lightsource import LightSource
 
 LS1 = NamedLight("LS1", LightSource((1, 6, 8)))
 LS2 = NamedLight("LS2", LightSource((3, 5, 9)))

@@ -20,10 +20,10 @@ import json
 import numpy as np
 import pytest
 
-from app.cli import main
-from app.workflow.profile import load_profile
-from simulation.stand_fit import predict
-from simulation.stand_model import StandModel
+from dualrgb.app.cli import main
+from dualrgb.app.workflow.profile import load_profile
+from dualrgb.simulation.stand_fit import predict
+from dualrgb.simulation.stand_model import StandModel
 
 pytestmark = pytest.mark.slow
 MEASURED, NOMINAL_CAMERA, LEDS_ONLY = "fitted, measured camera", "fitted, nominal camera", \

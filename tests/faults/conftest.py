@@ -6,9 +6,9 @@ import pytest
 from fault_rigs import CountingCamera, CountingSphere
 from light_record import FAST
 
-from app.sequences.shooter import Shooter
-from app.session.capture_session import CaptureSession
-from drivers.virtual.lab import VirtualLab
+from dualrgb.app.sequences.shooter import Shooter
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.drivers.virtual.lab import VirtualLab
 
 
 @pytest.fixture()

@@ -7,9 +7,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from drivers.camera.base import CameraSettings, Exposure, RawCapture
-from drivers.led_sphere import LightReport
-from drivers.led_sphere.supervisor import LitPeriod
+from dualrgb.drivers.camera.base import CameraSettings, Exposure, RawCapture
+from dualrgb.drivers.led_sphere import LightReport
+from dualrgb.drivers.led_sphere.supervisor import LitPeriod
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from app.sequences.calibration import NamedLight
-from app.sequences.shooter import SafetySettings
-from drivers.virtual.sphere_emulator import SphereEmulator
-from simulation.lightsource import LightSource
+from dualrgb.app.sequences.calibration import NamedLight
+from dualrgb.app.sequences.shooter import SafetySettings
+from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
+from dualrgb.simulation.lightsource import LightSource
 
 MARGIN_S = 0.5          # issue 9: the LEDs are off within the limit + 0.5 s, on the emulator's clock
 LS1 = NamedLight("LS1", LightSource((1, 6, 8)))

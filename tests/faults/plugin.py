@@ -91,7 +91,7 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     tried = session.config._fault_tried                # type: ignore[attr-defined]
     if not target or not tried:
         return
-    from common.atomic_files import atomic_write
+    from dualrgb.common.atomic_files import atomic_write
 
     path = Path(target)
     text = replace_between_markers(path.read_text(encoding="utf-8"), render_table(tried, session.config._fault_clean),

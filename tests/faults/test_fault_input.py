@@ -22,7 +22,7 @@ pytestmark = pytest.mark.fault("input")
 
 def cli(*argv: str, env: dict | None = None, timeout: float = 120) -> subprocess.CompletedProcess:
     full = {**os.environ, "PYTHONWARNINGS": "ignore", **(env or {})}
-    return subprocess.run([sys.executable, "-m", "app.cli", *argv], capture_output=True, text=True, env=full,
+    return subprocess.run([sys.executable, "-m", "dualrgb", *argv], capture_output=True, text=True, env=full,
                           cwd=ROOT, timeout=timeout)
 
 
@@ -55,9 +55,9 @@ KERNEL_GUARDS = """
 import sys
 from dataclasses import replace
 import numpy as np
-from simulation.datasets import default_setup
-from simulation.objective import Evaluator
-from simulation.fast_de import mean_de2000_xyz
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.objective import Evaluator
+from dualrgb.simulation.fast_de import mean_de2000_xyz
 setup = default_setup("reflective")
 ev = Evaluator(setup)
 idx = np.zeros((2, 2, 3), dtype=np.int64)
@@ -132,7 +132,7 @@ BAD_PRESETS = {
 
 @pytest.mark.parametrize("case", sorted(BAD_PRESETS))
 def test_bad_preset_is_one_line_naming_the_file(tmp_path, case):
-    from simulation.presets import PresetError, load_preset
+    from dualrgb.simulation.presets import PresetError, load_preset
 
     path = tmp_path / "preset.json"
     path.write_text(BAD_PRESETS[case])
@@ -143,7 +143,7 @@ def test_bad_preset_is_one_line_naming_the_file(tmp_path, case):
 
 @pytest.mark.parametrize("kind", ["utf-16", "binary", "too large", "fifo", "folder"])
 def test_unreadable_preset_files_name_the_file(tmp_path, kind):
-    from simulation.presets import PresetError, load_preset
+    from dualrgb.simulation.presets import PresetError, load_preset
 
     path = tmp_path / "preset.json"
     if kind == "utf-16":
@@ -162,7 +162,7 @@ def test_unreadable_preset_files_name_the_file(tmp_path, kind):
 
 
 def test_a_good_preset_still_loads_exactly(tmp_path):
-    from simulation.presets import load_preset
+    from dualrgb.simulation.presets import load_preset
 
     path = tmp_path / "p.json"
     path.write_text(_preset(GOOD, {"leds": [3, 5, 9], "levels": [1, 1, 1], "name": "second"}))
@@ -192,8 +192,8 @@ def run_with_deadline(fn, seconds: float = 20.0):
 # ---- 13. raw files: regular files only, one line each, fuzzed --------------------------------------------
 @pytest.fixture(scope="module")
 def dng_bytes() -> bytes:
-    from drivers.virtual.dng import DngInfo
-    from drivers.virtual.dng import dng_bytes as write_dng_bytes
+    from dualrgb.drivers.virtual.dng import DngInfo
+    from dualrgb.drivers.virtual.dng import dng_bytes as write_dng_bytes
 
     mosaic = np.random.default_rng(0).integers(600, 15000, size=(48, 64)).astype(np.uint16)
     return write_dng_bytes(mosaic, DngInfo(exposure_s=0.01, iso=100, aperture=8.0))
@@ -220,8 +220,8 @@ def _mutate(data: bytes, kind: str, where: float, bit: int) -> bytes:
 
 @pytest.mark.parametrize("kind,where,bit", _fuzz_cases())
 def test_fuzzed_dng_loads_or_gives_one_line(tmp_path, capfd, dng_bytes, kind, where, bit):
-    from app.commands.raw_info import raw_info
-    from drivers.raw import RawFileError, load_raw
+    from dualrgb.app.commands.raw_info import raw_info
+    from dualrgb.drivers.raw import RawFileError, load_raw
 
     path = tmp_path / "fuzz.DNG"
     path.write_bytes(_mutate(dng_bytes, kind, where, bit))
@@ -237,7 +237,7 @@ def test_fuzzed_dng_loads_or_gives_one_line(tmp_path, capfd, dng_bytes, kind, wh
 
 
 def test_fifo_named_nef_is_refused_without_blocking(tmp_path):
-    from drivers.raw import RawFileError, load_raw
+    from dualrgb.drivers.raw import RawFileError, load_raw
 
     fifo = tmp_path / "DSC_0001.NEF"
     os.mkfifo(fifo)
@@ -272,7 +272,7 @@ BAD_OPTIONS = [
 def test_bad_option_is_refused_while_parsing(tmp_path, capsys, command, option):
     """Refused by the parser itself: no command function runs, so no device can act (a bad --dark-frames
     used to cost 11 metering frames under the lights first)."""
-    from app import cli as cli_mod
+    from dualrgb.app import cli as cli_mod
 
     argv = [str(tmp_path / "out") if a == "OUT" else str(tmp_path / "none.csv") if a == "MISSING" else a
             for a in command.split()]
@@ -292,8 +292,8 @@ def _all_actions(parser: argparse.ArgumentParser):
 
 def test_every_numeric_option_uses_a_shared_validator():
     """No command parses a number with bare int/float: those accept inf, nan, 0 and negative counts."""
-    from app import cli as cli_mod
-    from app.commands import options
+    from dualrgb.app import cli as cli_mod
+    from dualrgb.app.commands import options
 
     shared = {f.__name__ for f in (options.frame_size, options.input_file, options.world, options.stand_dir,
                                    options.column_option, options.render_illuminant)} | {
@@ -308,10 +308,10 @@ def test_every_numeric_option_uses_a_shared_validator():
 # ---- 15. the GUI on a stale or incomplete display: one line, exit 1 -------------------------------------
 HIDDEN_LIBRARY = """
 import sys
-from app.gui import platform_check
+from dualrgb.app.gui import platform_check
 real = platform_check._dlopen
 platform_check._dlopen = lambda so: so != "libxcb-cursor.so.0" and real(so)
-from app.cli import main
+from dualrgb.app.cli import main
 sys.exit(main(["gui"]))
 """
 
@@ -327,7 +327,7 @@ def test_missing_xcb_library_gives_the_install_command():
 
 
 def test_install_command_names_every_package():
-    from app.gui import platform_check
+    from dualrgb.app.gui import platform_check
 
     both = platform_check.xcb_libraries_problem(lambda so: so != "libxcb-icccm.so.4", os_release={})
     assert "apt-get install" in both and "dnf install" in both and "xcb-util-wm" in both
@@ -344,14 +344,14 @@ def test_install_command_names_every_package():
                          ids=["stale X", "stale X over TCP", "stale Wayland", "stale both"])
 def test_gui_on_a_stale_display_is_one_line_exit_1(tmp_path, env):
     base = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    r = subprocess.run([sys.executable, "-m", "app.cli", "gui"], capture_output=True, text=True, cwd=ROOT,
+    r = subprocess.run([sys.executable, "-m", "dualrgb", "gui"], capture_output=True, text=True, cwd=ROOT,
                        env={**base, "QT_QPA_PLATFORM": "", "XDG_RUNTIME_DIR": str(tmp_path), **env}, timeout=120)
     one_line_error(r)
     assert "Aborted" not in r.stderr and "core dumped" not in r.stderr
 
 
 def test_display_probes_tell_stale_from_live(tmp_path):
-    from app.gui import platform_check
+    from dualrgb.app.gui import platform_check
 
     if platform_check._dlopen("libxcb.so.1"):
         assert "no X server answers" in platform_check.x_display_problem(":99")
@@ -366,7 +366,7 @@ def test_display_probes_tell_stale_from_live(tmp_path):
 # ---- 15. data that runs but cannot mean what was meant: a warning ----------------------------------------
 @pytest.mark.parametrize("what", ["zero LED", "zero camera channel", "identical training spectra"])
 def test_degenerate_spectra_warn(tmp_path, caplog, what):
-    from simulation.datasets import default_setup
+    from dualrgb.simulation.datasets import default_setup
 
     caplog.set_level(logging.WARNING)
     if what == "zero LED":

@@ -13,21 +13,21 @@ import textwrap
 import pytest
 from fault_rigs import ROOT
 
-from app.demo import DemoSettings
-from app.sequences.calibration import DarkSeries
-from app.sequences.shooter import SafetySettings, Shooter
-from app.session import capture_session as session_mod
-from app.session.capture_session import MANIFEST, CaptureSession
-from app.session.manifest import (
+from dualrgb.app.demo import DemoSettings
+from dualrgb.app.sequences.calibration import DarkSeries
+from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.session import capture_session as session_mod
+from dualrgb.app.session.capture_session import MANIFEST, CaptureSession
+from dualrgb.app.session.manifest import (
     DamagedFramesError,
     DefinitionMismatch,
     SessionEntry,
     SessionLockedError,
     light_definition,
 )
-from app.workflow.vocabulary import EventKind
-from common.atomic_files import InsufficientSpaceError
-from simulation.lightsource import LightSource
+from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.common.atomic_files import InsufficientSpaceError
+from dualrgb.simulation.lightsource import LightSource
 
 pytestmark = pytest.mark.fault("session integrity")
 
@@ -43,7 +43,7 @@ def shooter_for(session, rig) -> Shooter:
 
 def cli(*argv: str, timeout: float = 120) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONWARNINGS": "ignore"}
-    return subprocess.run([sys.executable, "-m", "app.cli", *argv], capture_output=True, text=True, env=env,
+    return subprocess.run([sys.executable, "-m", "dualrgb", *argv], capture_output=True, text=True, env=env,
                           cwd=ROOT, timeout=timeout)
 
 
@@ -99,7 +99,7 @@ def test_demo_resume_with_other_options_is_refused_before_anything_runs(tmp_path
 HOLDER = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, {root!r})
-    from app.session.capture_session import CaptureSession
+    from dualrgb.app.session.capture_session import CaptureSession
     s = CaptureSession.open({path!r})
     print("holding", flush=True)
     time.sleep(120)
@@ -202,7 +202,7 @@ def test_damaged_frame_refuses_processing_naming_the_file(tmp_path, rig, damage)
         victim.write_bytes(bytes(data[:500]))
     else:
         victim.unlink()
-    from app.workflow.session_processing import session_frames
+    from dualrgb.app.workflow.session_processing import session_frames
     with pytest.raises(DamagedFramesError) as info:
         session_frames(s)
     assert str(info.value).startswith(str(victim)) and "\n" not in str(info.value)
@@ -231,23 +231,26 @@ def test_resume_sets_damaged_frames_aside_and_shoots_them_again(tmp_path, rig):
 
 # ---- 9. atomic writes and the free-space check ---------------------------------------------------------
 WRITERS = {
-    "report.json": "from common.atomic_files import atomic_write; atomic_write(path, '{\"x\": 1}' * 400000)",
-    "preset": ("from simulation.presets import Preset, save_preset; from simulation.lightsource import "
-               "LightSource; save_preset(Preset('p' * 2000000, (LightSource((1,), (1.0,)),)), path)"),
-    "rgb tiff": ("import numpy as np; from app.processing.outputs import TiffMetadata, icc_profile, write_tiff; "
+    "report.json": "from dualrgb.common.atomic_files import atomic_write; atomic_write(path, '{\"x\": 1}' * 400000)",
+    "preset": ("from dualrgb.simulation.presets import Preset, save_preset; "
+               "from dualrgb.simulation.lightsource import LightSource; "
+               "save_preset(Preset('p' * 2000000, (LightSource((1,), (1.0,)),)), path)"),
+    "rgb tiff": ("import numpy as np; "
+                 "from dualrgb.app.processing.outputs import TiffMetadata, icc_profile, write_tiff; "
                  "write_tiff(path, np.ones((400, 400, 3), np.uint16), TiffMetadata('dualrgb'), photometric='rgb', "
                  "icc=icc_profile('sRGB'))"),
-    "channels tiff": ("import numpy as np; from app.processing.outputs import TiffMetadata, write_tiff; "
+    "channels tiff": ("import numpy as np; from dualrgb.app.processing.outputs import TiffMetadata, write_tiff; "
                       "write_tiff(path, np.ones((300, 300, 6), np.uint16), TiffMetadata('dualrgb'))"),
-    "patch csv": ("import numpy as np; from app.processing.outputs import write_patch_csv; n = 20000; "
+    "patch csv": ("import numpy as np; from dualrgb.app.processing.outputs import write_patch_csv; n = 20000; "
                   "write_patch_csv(path, [str(i) for i in range(n)], np.ones((n, 6)), list('abcdef'), "
                   "np.ones((n, 3)), {}, {})"),
-    "png figure": ("from app.processing.figure_files import new_figure, save_figure; fig = new_figure(6, 6); "
-                   "ax = fig.add_subplot(111); ax.imshow(__import__('numpy').random.rand(300, 300)); "
+    "png figure": ("from dualrgb.app.processing.figure_files import new_figure, save_figure; "
+                   "fig = new_figure(6, 6); ax = fig.add_subplot(111); "
+                   "ax.imshow(__import__('numpy').random.rand(300, 300)); "
                    "save_figure(fig, path)"),
-    "spectral csv": ("import numpy as np; from simulation.spectral_io import write_spectral_csv; "
+    "spectral csv": ("import numpy as np; from dualrgb.simulation.spectral_io import write_spectral_csv; "
                      "write_spectral_csv(path, np.arange(20000.), np.ones((20000, 8)), list('abcdefgh'), {})"),
-    "session settings": ("from app.session.capture_session import CaptureSession; "
+    "session settings": ("from dualrgb.app.session.capture_session import CaptureSession; "
                          "s = CaptureSession.open(path.parent); s.update_settings(notes='n' * 300000)"),
 }
 FULL_DISK = textwrap.dedent("""

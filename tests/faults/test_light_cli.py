@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import main
-from drivers.virtual.sphere_emulator import SphereEmulator
+from dualrgb.app.cli import main
+from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
 
 
 @pytest.fixture

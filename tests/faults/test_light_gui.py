@@ -24,7 +24,7 @@ CASES = {
 
 @pytest.fixture
 def window(qtbot, tmp_path):
-    from app.gui.main_window import MainWindow
+    from dualrgb.app.gui.main_window import MainWindow
 
     settings = QSettings(str(tmp_path / "dualrgb.ini"), QSettings.IniFormat)
     settings.setValue("paths/captures", str(tmp_path / "captures"))

@@ -14,12 +14,12 @@ from pathlib import Path
 import pytest
 from light_record import FAST, LS1, assert_dark_within, lit_spans, wait_dark
 
-from app.sequences.shooter import LightSafetyError, Shooter
-from app.session.capture_session import CaptureSession
-from drivers.camera.base import CameraError
-from drivers.led_sphere import LedSphere, SphereError
-from drivers.virtual.lab import VirtualLab
-from drivers.virtual.sphere_emulator import SphereEmulator
+from dualrgb.app.sequences.shooter import LightSafetyError, Shooter
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.drivers.camera.base import CameraError
+from dualrgb.drivers.led_sphere import LedSphere, SphereError
+from dualrgb.drivers.virtual.lab import VirtualLab
+from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
 
 ROOT = Path(__file__).resolve().parents[2]
 EXPOSURE_S = 1 / 60
@@ -122,8 +122,8 @@ def test_unconfirmed_switch_off_reports_both_errors_and_the_dose(lab, shooter, c
 
 DEAD_HOST = """
 import os, signal, sys
-from drivers.led_sphere import LedSphere
-from simulation.lightsource import LightSource
+from dualrgb.drivers.led_sphere import LedSphere
+from dualrgb.simulation.lightsource import LightSource
 sphere = LedSphere(sys.argv[1], timeout=1.0).open()
 sphere.apply(LightSource((1, 6, 8)))
 sphere.on(max_on_s=float(sys.argv[2]))

@@ -7,13 +7,13 @@ from __future__ import annotations
 import pytest
 from light_record import LS1, LS2, lit_spans
 
-from app.sequences.calibration import DarkSeries, FlatSeries, auto_exposure
-from app.sequences.capture import SubjectCapture
-from app.sequences.crf_sweep import CrfSweep
-from app.sequences.hdr import meter_and_plan
-from app.sequences.shooter import SafetySettings, Shooter
-from app.session.capture_session import CaptureSession
-from app.workflow.vocabulary import Subject
+from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, auto_exposure
+from dualrgb.app.sequences.capture import SubjectCapture
+from dualrgb.app.sequences.crf_sweep import CrfSweep
+from dualrgb.app.sequences.hdr import meter_and_plan
+from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.vocabulary import Subject
 
 SETTLE_S = 0.05
 SLACK_S = 0.2           # issue 9: per frame, light on at most exposure + settle + 0.2 s

@@ -10,10 +10,10 @@ import pytest
 from light_record import lit_spans
 from workflow_profiles import make_profile
 
-from app.session.capture_session import CaptureSession
-from app.workflow.copystand import CopyStand, StandSettings, capture_queue
-from app.workflow.delivery_folder import DeliveryFolderError
-from app.workflow.metadata import MetadataError, Original
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.copystand import CopyStand, StandSettings, capture_queue
+from dualrgb.app.workflow.delivery_folder import DeliveryFolderError
+from dualrgb.app.workflow.metadata import MetadataError, Original
 
 
 @pytest.fixture

@@ -24,7 +24,7 @@ def settings(tmp_path):
 @pytest.fixture
 def make_window(qtbot, settings):
     """Factory: a MainWindow on the temp settings (small virtual-lab frames); closed after the test."""
-    from app.gui.main_window import MainWindow
+    from dualrgb.app.gui.main_window import MainWindow
 
     made = []
 

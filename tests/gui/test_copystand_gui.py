@@ -7,8 +7,8 @@ from __future__ import annotations
 import pytest
 from PySide6.QtCore import Qt
 
-from app.workflow.day import OriginalState
-from simulation.lightsource import LightSource
+from dualrgb.app.workflow.day import OriginalState
+from dualrgb.simulation.lightsource import LightSource
 from tests.gui.conftest import wait_idle
 
 LONG = 120000

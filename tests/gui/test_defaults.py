@@ -10,13 +10,13 @@ from pathlib import Path
 import pytest
 from PySide6.QtCore import QSettings
 
-from app.cli import build_parser
-from app.commands import calibrate
-from app.session.capture_session import CaptureSession
-from app.workflow import defaults
-from app.workflow.preset_figures import preset_figures
-from app.workflow.vocabulary import lights_of
-from simulation.presets import load_preset
+from dualrgb.app.cli import build_parser
+from dualrgb.app.commands import calibrate
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow import defaults
+from dualrgb.app.workflow.preset_figures import preset_figures
+from dualrgb.app.workflow.vocabulary import lights_of
+from dualrgb.simulation.presets import load_preset
 from tests.gui.conftest import DEVICE_TIMEOUT_MS, click, connect_devices, wait_idle
 
 LONG = 120000
@@ -100,7 +100,7 @@ def test_changing_the_one_place_changes_the_window_and_the_cli(qtbot, make_windo
 
 
 def _old_captures(fresh):
-    from app.workflow.folders import legacy_captures_dir
+    from dualrgb.app.workflow.folders import legacy_captures_dir
 
     old = legacy_captures_dir(Path(fresh.fileName()).parent)
     CaptureSession.create(old / "session-20260101-090000", {}, definition={"mode": "reflective"}).close()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from PySide6.QtCore import Qt
 
-from app.demo import DemoSettings, run_demo
+from dualrgb.app.demo import DemoSettings, run_demo
 from tests.gui.conftest import wait_idle
 
 LONG = 120000

@@ -32,7 +32,7 @@ def test_no_camera_detected_gives_the_fix(qtbot, make_window):
 
 
 def test_camera_errors_show_their_advice(qtbot, make_window):
-    from drivers.camera.gphoto import GP_ERROR_CAMERA_BUSY, GP_ERROR_IO_USB_CLAIM, camera_error
+    from dualrgb.drivers.camera.gphoto import GP_ERROR_CAMERA_BUSY, GP_ERROR_IO_USB_CLAIM, camera_error
 
     class FakeGphotoError(Exception):
         def __init__(self, code):

@@ -10,11 +10,11 @@ import json
 import numpy as np
 import pytest
 
-from app.workflow.day import DayStep, OriginalState, StepState
+from dualrgb.app.workflow.day import DayStep, OriginalState, StepState
 from tests.gui.conftest import click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
 from xmp_check import read_xmp
-from app.workflow.vocabulary import EventKind
+from dualrgb.app.workflow.vocabulary import EventKind
 
 LONG = 180000
 STALL_LIMIT_S = 0.1

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from queue_rows import BAD, good_identifiers, write_queue_csv
 
-from app.gui.panels.originals import ADD_VALID, CANCEL
+from dualrgb.app.gui.panels.originals import ADD_VALID, CANCEL
 
 
 def test_import_lists_bad_rows_and_adds_the_valid_ones_on_request(qtbot, make_window, tmp_path):

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.gui.units import parse_exposure
+from dualrgb.app.gui.units import parse_exposure
 from tests.gui.conftest import click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
-from app.workflow.vocabulary import EventKind
+from dualrgb.app.workflow.vocabulary import EventKind
 
 LONG = 120000
 
@@ -136,7 +136,7 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     plots = res.plots
     image = plots.heat_item.image
     assert image.shape == (4, 6)
-    from app.gui.de_scale import SCALE_MAX
+    from dualrgb.app.gui.de_scale import SCALE_MAX
     assert tuple(plots.heat_item.levels) == (0.0, SCALE_MAX)                  # a fixed scale, not its own maximum
     names = res.views["test"].names
     assert len(plots.heat_texts) == 24 and plots.heat_texts[0].toPlainText().startswith(names[0].split()[0])

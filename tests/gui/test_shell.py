@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_no_display_prints_one_line_and_exits_1(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM")}
     env["HOME"] = str(tmp_path)
-    proc = subprocess.run([sys.executable, "-m", "app.cli", "gui"], cwd=ROOT, env=env, capture_output=True,
+    proc = subprocess.run([sys.executable, "-m", "dualrgb", "gui"], cwd=ROOT, env=env, capture_output=True,
                           text=True, timeout=120)
     assert proc.returncode == 1
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
@@ -26,7 +26,7 @@ def test_no_display_prints_one_line_and_exits_1(tmp_path):
 
 
 def test_display_problem_rules():
-    from app.gui.app import display_problem
+    from dualrgb.app.gui.app import display_problem
 
     assert display_problem({}) is not None
     assert display_problem({"QT_QPA_PLATFORM": "offscreen"}) is None
@@ -38,7 +38,7 @@ def test_display_problem_rules():
 
 
 def test_pyside_has_no_none_refcount_bug(qapp):
-    from app.gui.app import pyside_drops_none_references
+    from dualrgb.app.gui.app import pyside_drops_none_references
 
     assert not pyside_drops_none_references()
 
@@ -70,7 +70,7 @@ def test_settings_persist_between_windows(qtbot, make_window, settings):
 
 
 def test_light_spectrum_follows_sliders(make_window):
-    from simulation.lightsource import LightSource
+    from dualrgb.simulation.lightsource import LightSource
 
     w = make_window()
     panel = w.light
@@ -127,7 +127,7 @@ def test_simulate_defaults_are_the_default_optimiser_on_the_expected_captured_er
 
 
 def test_simulate_tiny_pso_and_save_preset(qtbot, make_window):
-    from simulation.presets import load_preset
+    from dualrgb.simulation.presets import load_preset
 
     w = make_window()
     sim = w.simulate
@@ -203,8 +203,7 @@ def test_simulate_other_methods(qtbot, make_window, method):
 def test_study_charts_listed(qtbot, make_window, user_data_dir):
     import shutil
 
-    import resources
-
+    from dualrgb import resources
     packaged = sorted(resources.path("figures").glob("*.png"))
     assert packaged, "the reference study charts are packaged (resources/figures)"
     mine = user_data_dir / "studies" / "parsimony"            # where 'dualrgb study parsimony' writes

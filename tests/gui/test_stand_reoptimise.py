@@ -9,11 +9,11 @@ from tests.gui.conftest import click, wait_idle
 
 @pytest.fixture
 def stand_profile(tmp_path):
-    from app.workflow.profile import load_profile
-    from app.workflow.stand_calibration import StandResult
-    from simulation.capture_model import CaptureModel
-    from simulation.stand_fit import fit_stand
-    from simulation.stand_model import StandModel
+    from dualrgb.app.workflow.profile import load_profile
+    from dualrgb.app.workflow.stand_calibration import StandResult
+    from dualrgb.simulation.capture_model import CaptureModel
+    from dualrgb.simulation.stand_fit import fit_stand
+    from dualrgb.simulation.stand_model import StandModel
     from tests.workflow_profiles import make_profile
     from tests.simulation.stand_data import hand_observations
 
@@ -25,7 +25,7 @@ def stand_profile(tmp_path):
 
 
 def test_reoptimise_for_the_loaded_calibrations_stand(qtbot, make_window, stand_profile):
-    from app.workflow.stand_reoptimise import assemble, reoptimise
+    from dualrgb.app.workflow.stand_reoptimise import assemble, reoptimise
 
     w = make_window()
     sim = w.simulate

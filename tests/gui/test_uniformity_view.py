@@ -7,8 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 from PySide6.QtGui import QImage, QPainter
 
-from app.gui.uniformity_view import CellLabels
-from app.workflow.frame_checks import UniformityMap
+from dualrgb.app.gui.uniformity_view import CellLabels
+from dualrgb.app.workflow.frame_checks import UniformityMap
 
 
 def _render(item: CellLabels, scale: float, size: tuple[int, int]) -> QImage:
@@ -35,7 +35,7 @@ def test_cell_labels_are_painted_at_each_cell_centre(qtbot):
 
 
 def test_the_view_labels_follow_the_map(qtbot):
-    from app.gui.uniformity_view import UniformityView
+    from dualrgb.app.gui.uniformity_view import UniformityView
 
     # only what the view reads at construction: the workspace's lights and their change signal
     ctx = SimpleNamespace(workspace=SimpleNamespace(lights=[], lightsChanged=SimpleNamespace(connect=lambda _s: None)))

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.gui.viewmodel import (
+from dualrgb.app.gui.viewmodel import (
     DoseFeed,
     format_duration,
     light_from_levels,
@@ -60,8 +60,8 @@ def test_format_duration():
 
 
 def test_units_for_people():
-    from app.gui.units import NBSP, dn, dose, level_pct, light_pct, parse_exposure, shutter
-    from simulation.lightsource import LightSource
+    from dualrgb.app.gui.units import NBSP, dn, dose, level_pct, light_pct, parse_exposure, shutter
+    from dualrgb.simulation.lightsource import LightSource
 
     assert level_pct(0.002242) == f"0.2242{NBSP}%" and level_pct(1) == f"100{NBSP}%"
     assert light_pct(LightSource((1, 6, 7), (0.002242, 0.4164, 1.0))) == \
@@ -78,8 +78,8 @@ def test_units_for_people():
 
 
 def test_de_bands_follow_the_grading_thresholds():
-    from app.gui.de_scale import SCALE_MAX, de_band, de_bands, lookup_table
-    from app.processing.quality import STANDARD_LIMITS
+    from dualrgb.app.gui.de_scale import SCALE_MAX, de_band, de_bands, lookup_table
+    from dualrgb.app.processing.quality import STANDARD_LIMITS
 
     bands = de_bands()
     edges = [b.high for b in bands[:-1]]
@@ -94,7 +94,7 @@ def test_de_bands_follow_the_grading_thresholds():
 
 
 def test_patch_names_fit_their_cells():
-    from app.gui.results_plots import cell_name, vector_pairs
+    from dualrgb.app.gui.results_plots import cell_name, vector_pairs
 
     assert cell_name("dark skin") == "dark skin"
     assert cell_name("neutral 6.5 (.44 D)") == "neutral\n6.5 (.44 …"              # two lines at most
@@ -106,10 +106,10 @@ def test_patch_names_fit_their_cells():
 def test_calibration_lines_name_what_matters():
     from types import SimpleNamespace
 
-    from app.gui.viewmodel import calibration_lines
-    from app.workflow.profile import CameraIdentity, ReuseCheck
-    from app.workflow.vocabulary import NamedLight
-    from simulation.lightsource import LightSource
+    from dualrgb.app.gui.viewmodel import calibration_lines
+    from dualrgb.app.workflow.profile import CameraIdentity, ReuseCheck
+    from dualrgb.app.workflow.vocabulary import NamedLight
+    from dualrgb.simulation.lightsource import LightSource
 
     prof = SimpleNamespace(id="cal-1", preset="p", mode="reflective", age_h=lambda: 1.25,
                            camera=CameraIdentity("Nikon D610", "123", "", 50, 8.0), test_mean=0.4,
@@ -124,8 +124,8 @@ def test_calibration_lines_name_what_matters():
 
 
 def test_convergence_tap_keeps_the_best_light_set():
-    from app.gui.viewmodel import ConvergenceTap
-    from simulation.datasets import default_setup
+    from dualrgb.app.gui.viewmodel import ConvergenceTap
+    from dualrgb.simulation.datasets import default_setup
 
     seen = []
     tap = ConvergenceTap.make(default_setup("reflective"), lambda n, best: seen.append((n, best)))

@@ -21,7 +21,7 @@ def xvfb_skip_reason() -> str:
         return "the xcb platform plugin is for Linux / X11"
     if shutil.which("Xvfb") is None:
         return "Xvfb is not installed (Debian/Ubuntu: apt-get install xvfb)"
-    from app.gui.platform_check import missing_xcb_libraries
+    from dualrgb.app.gui.platform_check import missing_xcb_libraries
 
     missing = missing_xcb_libraries()
     if missing:

@@ -122,7 +122,7 @@ def plan(w, report: dict) -> list:
 
 
 def main(out: Path) -> int:
-    from app.gui.app import application, display_problem, live_display_problem
+    from dualrgb.app.gui.app import application, display_problem, live_display_problem
 
     report: dict = {"done": [], "failed": "", "probe": display_problem() or live_display_problem()}
     if report["probe"]:
@@ -132,7 +132,7 @@ def main(out: Path) -> int:
     from PySide6.QtCore import QSettings, QTimer
     from PySide6.QtGui import QGuiApplication
 
-    from app.gui.main_window import MainWindow
+    from dualrgb.app.gui.main_window import MainWindow
 
     tmp = Path(tempfile.mkdtemp(prefix="dualrgb-xcb-"))
     settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.IniFormat)

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-import resources
-from simulation.datasets import default_setup
-from simulation.spectral_io import read_spectral_csv
-from simulation.stand_fit import StandObservations
+from dualrgb import resources
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.spectral_io import read_spectral_csv
+from dualrgb.simulation.stand_fit import StandObservations
 
 GRID = np.arange(410.0, 781.0, 10.0)
 LIGHTS = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 0.0, 0.0, 0.0],      # LEDs 6, 7

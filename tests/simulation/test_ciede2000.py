@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from numba import njit
 
-from simulation import fast_de
-from simulation.colorimetry import delta_e_2000, delta_e_2000_components
-from simulation.fast_de import de2000_lab
+from dualrgb.simulation import fast_de
+from dualrgb.simulation.colorimetry import delta_e_2000, delta_e_2000_components
+from dualrgb.simulation.fast_de import de2000_lab
 
 # (L1, a1, b1), (L2, a2, b2), dE00 -- Sharma, Wu & Dalal (2005), Table 1, pairs 1-34 in order
 SHARMA_2005 = [

@@ -4,8 +4,8 @@ import sys
 
 import pytest
 
-from app.cli import main
-from simulation.presets import PresetError, load_preset
+from dualrgb.app.cli import main
+from dualrgb.simulation.presets import PresetError, load_preset
 
 
 def test_simulate_json_schema_and_preset(tmp_path, capsys):
@@ -35,7 +35,7 @@ def test_three_channel_method(tmp_path):
 def test_bad_csv_is_one_line_error_without_traceback(tmp_path):
     bad = tmp_path / "cam.csv"
     bad.write_text("wavelength_nm,R,G,B\n400,1,2\n")
-    r = subprocess.run([sys.executable, "-m", "app.cli", "simulate", "--camera-csv", str(bad)],
+    r = subprocess.run([sys.executable, "-m", "dualrgb", "simulate", "--camera-csv", str(bad)],
                        capture_output=True, text=True)
     assert r.returncode == 1
     assert r.stderr.strip().count("\n") == 0 and "Traceback" not in r.stderr
@@ -55,14 +55,14 @@ def test_bad_presets(tmp_path, text, fragment):
 
 
 def test_cli_modes_and_methods_match_the_simulation():
-    from app.commands import simulate
-    from simulation.datasets import MODES
-    from simulation.runner import METHODS
+    from dualrgb.app.commands import simulate
+    from dualrgb.simulation.datasets import MODES
+    from dualrgb.simulation.runner import METHODS
     assert simulate.MODES == MODES and simulate.METHODS == METHODS
 
 
 def test_simulate_takes_its_default_grid_from_the_parsimony_study_per_mode(tmp_path, monkeypatch):
-    import simulation.defaults as defaults
+    import dualrgb.simulation.defaults as defaults
 
     chosen = {"reflective": (410.0, 20.0), "transmissive": (380.0, 5.0)}
 
@@ -98,6 +98,6 @@ def test_simulate_objectives_and_capture_options(tmp_path):
                  "--reference-sd", "0.01", "--pixels", "400", "--json", str(default)]) == 0
     d = json.loads(default.read_text())
     assert d["capture"]["reference_gain_sd"] == 0.01 and d["capture"]["camera"]["pixels_per_patch"] == 400
-    r = subprocess.run([sys.executable, "-m", "app.cli", "simulate", "--min-level", "2"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "dualrgb", "simulate", "--min-level", "2"], capture_output=True,
                        text=True)
     assert r.returncode != 0 and "--min-level" in r.stderr and "Traceback" not in r.stderr

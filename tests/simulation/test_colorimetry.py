@@ -2,9 +2,9 @@ import colour
 import numpy as np
 import pytest
 
-from simulation.colorimetry import delta_e_2000, delta_e_2000_components, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import default_setup
-from simulation.fast_de import de2000_lab, mean_de2000
+from dualrgb.simulation.colorimetry import delta_e_2000, delta_e_2000_components, tristimulus, white_point, xyz_to_lab
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.fast_de import de2000_lab, mean_de2000
 
 
 def _pairs(n=20000, seed=1):

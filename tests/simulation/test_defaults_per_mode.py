@@ -1,10 +1,10 @@
-"""simulation.defaults: one entry per target mode (format 2), old single-mode files still read, every reader
+"""dualrgb.simulation.defaults: one entry per target mode (format 2), old single-mode files still read, every reader
 asks for its mode."""
 import json
 
 import pytest
 
-from simulation.defaults import FALLBACK_DEFAULTS, FORMAT, FORMAT_V1, default_grid, load_defaults, save_defaults
+from dualrgb.simulation.defaults import FALLBACK_DEFAULTS, FORMAT, FORMAT_V1, default_grid, load_defaults, save_defaults
 
 
 def _v2(tmp_path, **modes):
@@ -57,8 +57,8 @@ def test_save_updates_one_mode_and_keeps_the_rest(tmp_path):
 
 
 def test_the_hdr_merge_default_follows_the_mode(tmp_path, monkeypatch):
-    import simulation.defaults as defaults
-    from simulation.hdr_estimators import default_method
+    import dualrgb.simulation.defaults as defaults
+    from dualrgb.simulation.hdr_estimators import default_method
 
     p = _v2(tmp_path, reflective={"hdr_merge": "variance"}, transmissive={"hdr_merge": "thesis"})
     monkeypatch.setattr(defaults.resources, "user_or_packaged", lambda *parts: p)

@@ -5,17 +5,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from simulation.capture_model import CameraNoise, CaptureModel
-from simulation.colorimetry import delta_e_2000
-from simulation.datasets import default_setup
-from simulation.expected_error import ExpectedErrorEvaluator, ExpectedErrorModel, de2000_metric, dense_weights
-from simulation.objective import Evaluator
-from simulation.presets import load_preset, packaged_presets
-from simulation.robust import RobustEvaluator, RobustSettings, plausible_worlds
-from simulation.search import group_arrays, light_pairs
-from simulation.sphere import PWM_MAX, SphereProperties, realisable_d65_mix
-from simulation.studies.noise import CameraNoise as StudyCamera
-from simulation.studies.noise import NoiseModel
+from dualrgb.simulation.capture_model import CameraNoise, CaptureModel
+from dualrgb.simulation.colorimetry import delta_e_2000
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.expected_error import ExpectedErrorEvaluator, ExpectedErrorModel, de2000_metric, dense_weights
+from dualrgb.simulation.objective import Evaluator
+from dualrgb.simulation.presets import load_preset, packaged_presets
+from dualrgb.simulation.robust import RobustEvaluator, RobustSettings, plausible_worlds
+from dualrgb.simulation.search import group_arrays, light_pairs
+from dualrgb.simulation.sphere import PWM_MAX, SphereProperties, realisable_d65_mix
+from dualrgb.simulation.studies.noise import CameraNoise as StudyCamera
+from dualrgb.simulation.studies.noise import NoiseModel
 
 COLLINEAR = ((2, 5, 9), (2, 6, 9))          # the transmissive exhaustive pair of issue 14: LEDs 2 and 9 shared
 WELL = ((1, 6, 8), (3, 5, 9))
@@ -39,7 +39,7 @@ def reflective():
 
 
 def test_sphere_properties_have_one_home_and_match_the_protocol():
-    from drivers.led_sphere import protocol
+    from dualrgb.drivers.led_sphere import protocol
 
     sphere = SphereProperties()
     assert sphere.pwm_max == PWM_MAX == protocol.PWM_MAX

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from simulation.cgats import CgatsError, read_cgats_emission, read_cgats_spectra, write_cgats_spectra
-from simulation.led_fit import band_output, fit_drift, fit_low_level, led_band, led_shape, min_stable_level
-from simulation.sphere import LowLevelResponse
+from dualrgb.simulation.cgats import CgatsError, read_cgats_emission, read_cgats_spectra, write_cgats_spectra
+from dualrgb.simulation.led_fit import band_output, fit_drift, fit_low_level, led_band, led_shape, min_stable_level
+from dualrgb.simulation.sphere import LowLevelResponse
 
 
 def _ohno_fwhm(half_width: float) -> float:

@@ -3,12 +3,12 @@ with the L-BFGS-B polish)."""
 import numpy as np
 import pytest
 
-from simulation.datasets import default_setup
-from simulation.halving import HalvingSettings, successive_halving
-from simulation.objective import Evaluator
-from simulation.pso import PsoSettings, pso
-from simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, METHODS, OBJECTIVES, run
-from simulation.search import light_pairs, refine_top
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.halving import HalvingSettings, successive_halving
+from dualrgb.simulation.objective import Evaluator
+from dualrgb.simulation.pso import PsoSettings, pso
+from dualrgb.simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, METHODS, OBJECTIVES, run
+from dualrgb.simulation.search import light_pairs, refine_top
 
 
 def rugged(w: np.ndarray, target: np.ndarray) -> np.ndarray:

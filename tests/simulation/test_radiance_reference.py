@@ -6,15 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drivers.virtual.monochromator_light import MonochromatorOptics
-from drivers.virtual.radiometers import VirtualPhotodiode, VirtualSpectroradiometer
-from simulation.radiance_reference import (
+from dualrgb.drivers.virtual.monochromator_light import MonochromatorOptics
+from dualrgb.drivers.virtual.radiometers import VirtualPhotodiode, VirtualSpectroradiometer
+from dualrgb.simulation.radiance_reference import (
     REDUCTION_METHODS,
     RadianceDataError,
     read_photodiode_reference,
     read_radiance_reference,
 )
-from simulation.spectral_io import SpectralDataError
+from dualrgb.simulation.spectral_io import SpectralDataError
 
 WL = np.arange(380, 781, 1.0)
 

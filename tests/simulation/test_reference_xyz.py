@@ -7,10 +7,10 @@ import colour
 import numpy as np
 import pytest
 
-from simulation.cgats import CgatsError, read_cgats, read_cgats_spectra
-from simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
-from simulation.datasets import default_setup, load_target, target_xyz
-from simulation.objective import PatchSet
+from dualrgb.simulation.cgats import CgatsError, read_cgats, read_cgats_spectra
+from dualrgb.simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
+from dualrgb.simulation.datasets import default_setup, load_target, target_xyz
+from dualrgb.simulation.objective import PatchSet
 
 XRITE = Path(colour.__file__).parent / "io" / "tests" / "resources" / "X-Rite_Digital_Colour_Checker.txt"
 

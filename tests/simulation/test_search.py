@@ -1,13 +1,13 @@
 import numpy as np
 import pytest
 
-from simulation.datasets import default_setup
-from simulation.ga import ga
-from simulation.lightsource import LightSource
-from simulation.matrix_fit import CharacterisationError, fit_matrix
-from simulation.objective import Evaluator, three_channel
-from simulation.pso import PsoSettings, enforce_constraints, pso
-from simulation.search import exhaustive, light_pairs, refine_top, triplets, unbinned_pairs
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.ga import ga
+from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.matrix_fit import CharacterisationError, fit_matrix
+from dualrgb.simulation.objective import Evaluator, three_channel
+from dualrgb.simulation.pso import PsoSettings, enforce_constraints, pso
+from dualrgb.simulation.search import exhaustive, light_pairs, refine_top, triplets, unbinned_pairs
 
 
 @pytest.fixture(scope="module")
@@ -130,7 +130,7 @@ def test_light_source_validation():
 
 
 def test_batched_normal_equations_agree_with_the_kernel_and_lstsq(reflective):
-    from simulation.matrix_fit import solve_normal_equations
+    from dualrgb.simulation.matrix_fit import solve_normal_equations
     rng = np.random.default_rng(5)
     W = np.zeros((4, 2, 10))
     W[:, 0, [0, 5, 7]] = rng.random((4, 3)) + 0.2

@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 
-import resources
-from simulation.datasets import default_setup
-from simulation.defaults import default_grid
-from simulation.objective import Evaluator
-from simulation.presets import load_preset
-from simulation.runner import run
-from simulation.search import add_incumbents, exhaustive, light_pairs
-from simulation.stand_model import StandModel
+from dualrgb import resources
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.defaults import default_grid
+from dualrgb.simulation.objective import Evaluator
+from dualrgb.simulation.presets import load_preset
+from dualrgb.simulation.runner import run
+from dualrgb.simulation.search import add_incumbents, exhaustive, light_pairs
+from dualrgb.simulation.stand_model import StandModel
 
 
 def test_an_incumbent_better_than_the_search_ranks_first_and_keeps_its_cost():

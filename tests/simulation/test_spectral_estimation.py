@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-import resources
-from simulation.camera_model import flat_fielded_sensitivities
-from simulation.datasets import default_setup
-from simulation.presets import load_preset
-from simulation.spectral_estimation import (
+from dualrgb import resources
+from dualrgb.simulation.camera_model import flat_fielded_sensitivities
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.presets import load_preset
+from dualrgb.simulation.spectral_estimation import (
     QUANTITIES,
     SPECTRAL_METHODS,
     SpectralEstimationError,
@@ -22,8 +22,8 @@ from simulation.spectral_estimation import (
     SpectralTraining,
     fit_spectral,
 )
-from simulation.spectral_metrics import seen_wavelengths, spectral_rmse
-from simulation.spectral_selection import candidates, cross_validate, select_estimator
+from dualrgb.simulation.spectral_metrics import seen_wavelengths, spectral_rmse
+from dualrgb.simulation.spectral_selection import candidates, cross_validate, select_estimator
 
 
 def _system(mode: str = "reflective", noise: float = 1e-6):

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from simulation.datasets import default_setup, load_camera, load_leds, load_target
-from simulation.spectral_io import SpectralDataError, read_spectral_csv, write_spectral_csv
+from dualrgb.simulation.datasets import default_setup, load_camera, load_leds, load_target
+from dualrgb.simulation.spectral_io import SpectralDataError, read_spectral_csv, write_spectral_csv
 
 GOOD = "# units: relative\n# source: test\nwavelength_nm,R,G,B\n400,0.1,0.2,0.3\n410,0.2,0.3,0.4\n420,0.3,0.4,0.5\n"
 
@@ -70,7 +70,7 @@ def test_user_csv_roundtrip_replaces_packaged_data(tmp_path):
 
 
 def test_packaged_resources_have_provenance_headers():
-    import resources
+    from dualrgb import resources
     for sub in ("leds", "cameras", "targets"):
         for f in resources.path(sub).glob("*.csv"):
             t = read_spectral_csv(f, allow_negative=False)
@@ -79,7 +79,7 @@ def test_packaged_resources_have_provenance_headers():
 
 @pytest.mark.parametrize("step,n", [(1, 371), (5, 75), (10, 38), (20, 19)])
 def test_every_grid_step_builds_a_consistent_setup(step, n):
-    from simulation.grid import SpectralGrid
+    from dualrgb.simulation.grid import SpectralGrid
     s = default_setup("reflective", SpectralGrid(410, 780, step))
     assert len(s.grid) == n and s.cmfs.shape == (n, 3) and s.illuminant.shape == (n,)
     assert s.leds.shape == (10, n) and s.camera.shape == (n, 3) and s.train.spectra.shape[1] == n

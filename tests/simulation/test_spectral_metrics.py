@@ -5,8 +5,8 @@ import colour
 import numpy as np
 import pytest
 
-from simulation.datasets import default_setup
-from simulation.spectral_metrics import (
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.spectral_metrics import (
     OTHER_LIGHTS,
     delta_e_under,
     gfc,

@@ -7,15 +7,15 @@ import json
 import numpy as np
 import pytest
 
-import resources
-from app.cli import main
-from simulation.camera_model import flat_fielded_sensitivities
-from simulation.capture_model import CaptureModel
-from simulation.datasets import default_setup
-from simulation.expected_error import ExpectedErrorModel
-from simulation.presets import load_preset
-from simulation.spectral_estimation import SpectralPrior, wiener_matrix
-from simulation.spectral_objective import SpectralEvaluator, SpectralModel
+from dualrgb import resources
+from dualrgb.app.cli import main
+from dualrgb.simulation.camera_model import flat_fielded_sensitivities
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.expected_error import ExpectedErrorModel
+from dualrgb.simulation.presets import load_preset
+from dualrgb.simulation.spectral_estimation import SpectralPrior, wiener_matrix
+from dualrgb.simulation.spectral_objective import SpectralEvaluator, SpectralModel
 
 
 @pytest.fixture(scope="module")

@@ -6,9 +6,9 @@ import json
 
 import pytest
 
-from app.cli import main
-from simulation.spectral_estimation import SPECTRAL_METHODS
-from simulation.studies.spectral import LIGHT_SETS
+from dualrgb.app.cli import main
+from dualrgb.simulation.spectral_estimation import SPECTRAL_METHODS
+from dualrgb.simulation.studies.spectral import LIGHT_SETS
 
 
 @pytest.fixture(scope="module")

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simulation.camera_model import led_responses
-from simulation.datasets import default_setup
-from simulation.led_shapes import shaped_led_spectra
-from simulation.objective import PatchSet
-from simulation.stand_fit import Priors, fit_stand, predict, r2_per_channel
-from simulation.stand_model import StandModel, StandParameters
+from dualrgb.simulation.camera_model import led_responses
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.led_shapes import shaped_led_spectra
+from dualrgb.simulation.objective import PatchSet
+from dualrgb.simulation.stand_fit import Priors, fit_stand, predict, r2_per_channel
+from dualrgb.simulation.stand_model import StandModel, StandParameters
 from tests.simulation.stand_data import LIGHTS, hand_observations
 
 SHIFT = np.array([2.0, 0.0, -3.0, 0.0, 3.0, -2.0, 1.5, 3.0, 2.5, 0.0])     # LEDs 2, 4, 10 are never lit

@@ -9,15 +9,15 @@ os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 import numpy as np
 import pytest
 
-from simulation.datasets import default_setup
-from simulation.pso import PsoSettings, pso
-from simulation.search import group_arrays, light_pairs, unbinned_pairs
-from simulation.studies import optimisers as opt
-from simulation.studies.common import SetupSpec, StudyOutput, TracedEvaluator, evaluator_for, pareto_front
-from simulation.studies.distributed import SerialRunner, open_runner
-from simulation.studies.models import MODELS, fit_model, model_errors, root_polynomial_terms
-from simulation.studies.noise import CameraNoise, NoiseAwareEvaluator, NoiseModel
-from simulation.studies.unbinned import pair_count, pair_group, unbinned_group_arrays, unbinned_search
+from dualrgb.simulation.datasets import default_setup
+from dualrgb.simulation.pso import PsoSettings, pso
+from dualrgb.simulation.search import group_arrays, light_pairs, unbinned_pairs
+from dualrgb.simulation.studies import optimisers as opt
+from dualrgb.simulation.studies.common import SetupSpec, StudyOutput, TracedEvaluator, evaluator_for, pareto_front
+from dualrgb.simulation.studies.distributed import SerialRunner, open_runner
+from dualrgb.simulation.studies.models import MODELS, fit_model, model_errors, root_polynomial_terms
+from dualrgb.simulation.studies.noise import CameraNoise, NoiseAwareEvaluator, NoiseModel
+from dualrgb.simulation.studies.unbinned import pair_count, pair_group, unbinned_group_arrays, unbinned_search
 
 SPEC = SetupSpec()
 
@@ -114,7 +114,7 @@ def test_pareto_front_is_monotone():
 
 # ---- speed vs accuracy -----------------------------------------------------------------------------------
 def test_speed_accuracy_tiny_writes_outputs(tmp_path):
-    from simulation.studies.speed_accuracy import configs, speed_accuracy, write_outputs
+    from dualrgb.simulation.studies.speed_accuracy import configs, speed_accuracy, write_outputs
 
     res = speed_accuracy(SPEC, seeds=2, budget="tiny", light_sets=6)
     out = StudyOutput(tmp_path / "sa")
@@ -140,7 +140,7 @@ def test_speed_accuracy_tiny_writes_outputs(tmp_path):
 
 
 def test_speed_accuracy_dask_equals_serial(dask_runner):
-    from simulation.studies.speed_accuracy import speed_accuracy
+    from dualrgb.simulation.studies.speed_accuracy import speed_accuracy
 
     serial = speed_accuracy(SPEC, seeds=1, budget="tiny", light_sets=4)
     dask = speed_accuracy(SPEC, seeds=1, budget="tiny", light_sets=4, runner=dask_runner)
@@ -152,7 +152,7 @@ def test_speed_accuracy_dask_equals_serial(dask_runner):
 
 
 def test_sweep_over_setups_through_dask(dask_runner, tmp_path):
-    from simulation.studies.sweep import sweep, write_outputs
+    from dualrgb.simulation.studies.sweep import sweep, write_outputs
 
     specs = [SetupSpec("reflective"), SetupSpec("transmissive")]
     res = sweep(specs, ("exhaustive", "pso"), budget="tiny", seeds=2, light_sets=4, runner=dask_runner)
@@ -231,7 +231,7 @@ def test_characterisation_models(ev):
 
 # ---- stability and parsimony at tiny budgets ---------------------------------------------------------
 def test_stability_tiny_writes_outputs(tmp_path):
-    from simulation.studies.stability import StabilityConfig, stability, write_outputs
+    from dualrgb.simulation.studies.stability import StabilityConfig, stability, write_outputs
 
     res = stability(SPEC, StabilityConfig.tiny())
     write_outputs(res, StudyOutput(tmp_path))
@@ -253,7 +253,7 @@ def test_stability_tiny_writes_outputs(tmp_path):
 def test_objectives_study_worked_example(tmp_path):
     """The transmissive noise-free exhaustive pick is the collinear (2,5,9)+(2,6,9); it is captured far worse than
     predicted noise-free, the expected-captured objective predicts it and picks another pair."""
-    from simulation.studies.objectives import ObjectivesConfig, objectives_study, write_outputs
+    from dualrgb.simulation.studies.objectives import ObjectivesConfig, objectives_study, write_outputs
 
     cfg = replace(ObjectivesConfig.tiny(), modes=("transmissive",), methods=("exhaustive",))
     res = objectives_study(SPEC, cfg)
@@ -270,9 +270,9 @@ def test_objectives_study_worked_example(tmp_path):
 
 
 def test_parsimony_tiny_picks_valid_options_per_mode_on_training_data(tmp_path):
-    from simulation.defaults import FORMAT, load_defaults
-    from simulation.studies.parsimony import ParsimonyConfig, parsimony
-    from simulation.studies.parsimony_report import write_outputs
+    from dualrgb.simulation.defaults import FORMAT, load_defaults
+    from dualrgb.simulation.studies.parsimony import ParsimonyConfig, parsimony
+    from dualrgb.simulation.studies.parsimony_report import write_outputs
 
     cfg = ParsimonyConfig.tiny()
     results = [parsimony(replace(SPEC, mode=m), cfg) for m in ("reflective", "transmissive")]
@@ -317,8 +317,8 @@ def test_captured_errors_cross_validation_never_sees_the_test_target(model):
 
 
 def test_packaged_parsimony_defaults_load_per_mode():
-    from simulation.defaults import FORMAT, default_grid, load_defaults
-    from simulation.hdr_estimators import HDR_MERGE_METHODS
+    from dualrgb.simulation.defaults import FORMAT, default_grid, load_defaults
+    from dualrgb.simulation.hdr_estimators import HDR_MERGE_METHODS
 
     data = json.loads(__import__("resources").path("parsimony.json").read_text())
     assert data["format"] == FORMAT
@@ -332,9 +332,9 @@ def test_packaged_parsimony_defaults_load_per_mode():
 
 
 def test_hdr_study_tiny_chooses_an_estimator_per_mode_and_keeps_other_defaults(tmp_path):
-    from simulation.defaults import FORMAT_V1, load_defaults
-    from simulation.hdr_estimators import HDR_MERGE_METHODS
-    from simulation.studies.hdr import HdrStudyConfig, hdr_study, write_defaults, write_outputs
+    from dualrgb.simulation.defaults import FORMAT_V1, load_defaults
+    from dualrgb.simulation.hdr_estimators import HDR_MERGE_METHODS
+    from dualrgb.simulation.studies.hdr import HdrStudyConfig, hdr_study, write_defaults, write_outputs
 
     cfg = HdrStudyConfig.tiny()
     res = hdr_study([replace(SPEC, mode=m) for m in ("reflective", "transmissive")], cfg)
@@ -367,7 +367,7 @@ def test_hdr_study_tiny_chooses_an_estimator_per_mode_and_keeps_other_defaults(t
 
 # ---- CLI ---------------------------------------------------------------------------------------------
 def test_cli_unbinned_serial_and_errors(tmp_path, capsys):
-    from app.cli import main
+    from dualrgb.app.cli import main
 
     out = tmp_path / "u"
     assert main(["study", "unbinned", "--scheduler", "serial", "--limit", "500", "--tasks", "2", "--top", "3",

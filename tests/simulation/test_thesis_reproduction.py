@@ -15,9 +15,9 @@ import colour
 import numpy as np
 import pytest
 
-import resources
-from simulation.studies.thesis import ThesisConfig, load_thesis_tables, reproduce
-from simulation.studies.thesis_report import (
+from dualrgb import resources
+from dualrgb.simulation.studies.thesis import ThesisConfig, load_thesis_tables, reproduce
+from dualrgb.simulation.studies.thesis_report import (
     README_END,
     README_START,
     build_rows,

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-import resources
-from simulation.versions import SOFTWARE, output_header, software_versions, stamped
+from dualrgb import resources
+from dualrgb.simulation.versions import SOFTWARE, output_header, software_versions, stamped
 
 
 def test_header_names_the_format_and_the_installed_versions():
@@ -29,8 +29,8 @@ def test_header_names_the_format_and_the_installed_versions():
 
 
 def test_simulate_json_and_preset_carry_the_header(tmp_path):
-    from app.cli import main
-    from simulation.presets import load_preset
+    from dualrgb.app.cli import main
+    from dualrgb.simulation.presets import load_preset
 
     out, preset = tmp_path / "r.json", tmp_path / "p.json"
     assert main(["simulate", "--method", "three-channel", "--json", str(out)]) == 0
@@ -42,7 +42,7 @@ def test_simulate_json_and_preset_carry_the_header(tmp_path):
 
 
 def test_simulate_json_to_stdout_is_only_json(capsys):
-    from app.cli import main
+    from dualrgb.app.cli import main
 
     assert main(["simulate", "--method", "three-channel", "--json", "-"]) == 0
     data = json.loads(capsys.readouterr().out)                # no table mixed in
@@ -50,7 +50,7 @@ def test_simulate_json_to_stdout_is_only_json(capsys):
 
 
 def test_study_output_json_keeps_its_own_format(tmp_path):
-    from simulation.studies.common import StudyOutput
+    from dualrgb.simulation.studies.common import StudyOutput
 
     out = StudyOutput(tmp_path)
     a = json.loads(out.write_json("speed_accuracy.json", {"runs": []}).read_text())
@@ -68,7 +68,7 @@ def test_user_path_follows_the_environment(user_data_dir, monkeypatch):
 
 
 def test_parsimony_defaults_user_copy_wins_packaged_is_the_fallback(user_data_dir):
-    from simulation.defaults import FORMAT, load_defaults
+    from dualrgb.simulation.defaults import FORMAT, load_defaults
 
     packaged = json.loads(resources.path("parsimony.json").read_text())
     for mode in ("reflective", "transmissive"):
@@ -84,9 +84,9 @@ def test_parsimony_defaults_user_copy_wins_packaged_is_the_fallback(user_data_di
 
 def test_study_parsimony_writes_defaults_and_charts_to_the_user_folder(user_data_dir, monkeypatch, capsys):
     """The CLI wiring only (the study itself is tested in test_studies): a stub result stands in, once per mode."""
-    import app.commands.study as study_cmd
-    import simulation.studies.parsimony as parsimony
-    import simulation.studies.parsimony_report as parsimony_report
+    import dualrgb.app.commands.study as study_cmd
+    import dualrgb.simulation.studies.parsimony as parsimony
+    import dualrgb.simulation.studies.parsimony_report as parsimony_report
 
     written = {}
 
@@ -105,7 +105,7 @@ def test_study_parsimony_writes_defaults_and_charts_to_the_user_folder(user_data
     monkeypatch.setattr(parsimony, "parsimony", lambda spec, cfg, progress=None: Result(spec.mode))
     monkeypatch.setattr(parsimony_report, "write_outputs", fake_write_outputs)
     monkeypatch.setattr(study_cmd, "_done", lambda out, lines: 0)
-    from app.cli import main
+    from dualrgb.app.cli import main
 
     assert main(["study", "parsimony", "--budget", "tiny", "--write-defaults"]) == 0
     assert written == {"folder": user_data_dir / "studies" / "parsimony",

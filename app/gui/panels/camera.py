@@ -19,13 +19,13 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.context import AppContext
-from app.gui.frame_preview import WARNING_STYLE, HistogramPlot
-from app.gui.viewmodel import RawView, preview_histogram, raw_view
-from app.gui.widgets import PathLabel, image_widget, side_by_side
-from app.session.capture_session import atomic_write
-from app.workflow.vocabulary import format_exposure as format_shutter
-from drivers.camera.base import CameraSettings
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.frame_preview import WARNING_STYLE, HistogramPlot
+from dualrgb.app.gui.viewmodel import RawView, preview_histogram, raw_view
+from dualrgb.app.gui.widgets import PathLabel, image_widget, side_by_side
+from dualrgb.app.session.capture_session import atomic_write
+from dualrgb.app.workflow.vocabulary import format_exposure as format_shutter
+from dualrgb.drivers.camera.base import CameraSettings
 
 log = logging.getLogger(__name__)
 

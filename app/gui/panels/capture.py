@@ -28,25 +28,25 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.calibration_box import CalibrationBox
-from app.gui.context import AppContext
-from app.gui.preset_chooser import PresetChooser
-from app.gui.sequence_view import SequenceView
-from app.gui.uniformity_view import UniformityView
-from app.gui.units import light_pct, parse_exposure, shutter
-from app.gui.widgets import PathLabel, side_by_side
-from app.sequences.base import Sequence
-from app.sequences.capture import SubjectCapture
-from app.sequences.shooter import SafetySettings, Shooter
-from app.session.capture_session import CaptureSession
-from app.workflow.copystand import StandSettings
-from app.workflow.defaults import workflow_defaults
-from app.workflow.folders import new_session as new_dated_session
-from app.workflow.metering import AutoExposure, HdrMetering
-from app.workflow.plans import build_sequence, next_take, planned_steps, steps_done
-from app.workflow.runs import StandRun
-from app.workflow.vocabulary import NamedLight, SequenceKind, Subject, lights_of
-from simulation.presets import Preset
+from dualrgb.app.gui.calibration_box import CalibrationBox
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.preset_chooser import PresetChooser
+from dualrgb.app.gui.sequence_view import SequenceView
+from dualrgb.app.gui.uniformity_view import UniformityView
+from dualrgb.app.gui.units import light_pct, parse_exposure, shutter
+from dualrgb.app.gui.widgets import PathLabel, side_by_side
+from dualrgb.app.sequences.base import Sequence
+from dualrgb.app.sequences.capture import SubjectCapture
+from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.copystand import StandSettings
+from dualrgb.app.workflow.defaults import workflow_defaults
+from dualrgb.app.workflow.folders import new_session as new_dated_session
+from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
+from dualrgb.app.workflow.plans import build_sequence, next_take, planned_steps, steps_done
+from dualrgb.app.workflow.runs import StandRun
+from dualrgb.app.workflow.vocabulary import NamedLight, SequenceKind, Subject, lights_of
+from dualrgb.simulation.presets import Preset
 
 log = logging.getLogger(__name__)
 
@@ -144,7 +144,7 @@ class CapturePanel(QWidget):
         self.latency.setValue(self.ctx.get("capture/latency_s", 0.0, float))
         self.latency.setToolTip("Time the camera needs beyond the exposure (trigger, shutter lag, reporting the "
                                 "shutter closed), kept lit. 'the camera's': what the camera reports (measure a "
-                                "real body: python -m drivers.camera.gphoto_latency).")
+                                "real body: python -m dualrgb.drivers.camera.gphoto_latency).")
         self.latency.valueChanged.connect(lambda v: (self.ctx.set("capture/latency_s", v), self.update_plan()))
         self.limit_label = QLabel(f"the light is on at most {SafetySettings().max_on_s:g}\u00a0s per frame "
                                   "(settle + exposure + camera latency; LEDs drift after 10\u00a0s, thesis 4.3.2)")

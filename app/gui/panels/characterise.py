@@ -22,16 +22,16 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.context import AppContext
-from app.gui.sequence_view import SequenceView
-from app.gui.units import dn, light_pct, shutter, shutters
-from app.gui.viewmodel import LINEAR_LIMIT_DN, light_from_levels
-from app.gui.widgets import plot_widget, side_by_side
-from app.workflow.vocabulary import EventKind
-from app.sequences.crf_sweep import CrfSweep
-from app.sequences.shooter import SafetySettings, Shooter
-from app.workflow.defaults import SETTLE_S
-from simulation.lightsource import LightSource
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.sequence_view import SequenceView
+from dualrgb.app.gui.units import dn, light_pct, shutter, shutters
+from dualrgb.app.gui.viewmodel import LINEAR_LIMIT_DN, light_from_levels
+from dualrgb.app.gui.widgets import plot_widget, side_by_side
+from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.app.sequences.crf_sweep import CrfSweep
+from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.workflow.defaults import SETTLE_S
+from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 

@@ -24,15 +24,15 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.context import AppContext
-from app.gui.units import dose, light_pct
-from app.gui.viewmodel import format_duration, light_from_levels, mixed_spectrum
-from app.gui.widgets import PathLabel, plot_widget, side_by_side
-from drivers.led_sphere.limits import DEFAULT_MAX_ON_S
-from simulation.datasets import led_spectra
-from simulation.grid import SpectralGrid
-from simulation.lightsource import N_SPHERE_LEDS, LightSource
-from simulation.presets import Preset, PresetError, load_preset, packaged_presets, save_preset
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.units import dose, light_pct
+from dualrgb.app.gui.viewmodel import format_duration, light_from_levels, mixed_spectrum
+from dualrgb.app.gui.widgets import PathLabel, plot_widget, side_by_side
+from dualrgb.drivers.led_sphere.limits import DEFAULT_MAX_ON_S
+from dualrgb.simulation.datasets import led_spectra
+from dualrgb.simulation.grid import SpectralGrid
+from dualrgb.simulation.lightsource import N_SPHERE_LEDS, LightSource
+from dualrgb.simulation.presets import Preset, PresetError, load_preset, packaged_presets, save_preset
 
 log = logging.getLogger(__name__)
 

@@ -36,18 +36,18 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.context import AppContext
-from app.gui.sequence_view import SequenceView
-from app.gui.spectra_view import DeliveredView
-from app.gui.widgets import side_by_side
-from app.sequences.base import PlannedFrame, ProgressEvent
-from app.workflow.copystand import CaptureReport, StandSettings, original_takes
-from app.workflow.day import OriginalsQueue, OriginalState, QueueRow
-from app.workflow.defaults import SETTLE_S
-from app.workflow.metadata import MODES, Original
-from app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
-from app.workflow.runs import RunHooks, StandRun
-from app.workflow.vocabulary import EventKind, Role
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.sequence_view import SequenceView
+from dualrgb.app.gui.spectra_view import DeliveredView
+from dualrgb.app.gui.widgets import side_by_side
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.workflow.copystand import CaptureReport, StandSettings, original_takes
+from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
+from dualrgb.app.workflow.defaults import SETTLE_S
+from dualrgb.app.workflow.metadata import MODES, Original
+from dualrgb.app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
+from dualrgb.app.workflow.runs import RunHooks, StandRun
+from dualrgb.app.workflow.vocabulary import EventKind, Role
 
 log = logging.getLogger(__name__)
 

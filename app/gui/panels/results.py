@@ -28,13 +28,13 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.context import AppContext
-from app.gui.results_plots import PatchSpectra, TargetPlots, TargetView
-from app.gui.units import with_unit
-from app.gui.widgets import PathLabel, side_by_side
-from app.gui.workers import TaskHandle
-from app.workflow.session_processing import light_sets, subject_entries
-from app.workflow.vocabulary import Subject, SubjectKind
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.results_plots import PatchSpectra, TargetPlots, TargetView
+from dualrgb.app.gui.units import with_unit
+from dualrgb.app.gui.widgets import PathLabel, side_by_side
+from dualrgb.app.gui.workers import TaskHandle
+from dualrgb.app.workflow.session_processing import light_sets, subject_entries
+from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
 
 log = logging.getLogger(__name__)
 
@@ -51,10 +51,10 @@ def process(lab, session, grids: dict, train_subject: str, test_subject: str | N
             ) -> tuple[object, dict[str, TargetView], Path]:
     """Worker: the TargetSpecs (app.workflow.targets: reference XYZ integrated by ``method``), the one processing
     path, the plot data."""
-    from app.processing.report import xyz_to_srgb8
-    from app.workflow.session_processing import process_session
-    from app.workflow.targets import reference_white, target_spec
-    from simulation.colorimetry import xyz_to_lab
+    from dualrgb.app.processing.report import xyz_to_srgb8
+    from dualrgb.app.workflow.session_processing import process_session
+    from dualrgb.app.workflow.targets import reference_white, target_spec
+    from dualrgb.simulation.colorimetry import xyz_to_lab
 
     mode = lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode
     specs = {label: target_spec(mode, Subject.parse(key), grids.get(key), lab=lab.virtual_lab, method=method)
@@ -82,7 +82,7 @@ def process(lab, session, grids: dict, train_subject: str, test_subject: str | N
 def patch_spectra(sc, target: str) -> PatchSpectra | None:
     """The estimated and reference spectra of ``target``'s patches (app.processing.spectral's
     SpectralCharacterisation; None without one)."""
-    from simulation.spectral_metrics import spectral_rmse
+    from dualrgb.simulation.spectral_metrics import spectral_rmse
 
     if sc is None or target not in sc.estimates:
         return None
@@ -276,7 +276,7 @@ class ResultsPanel(QWidget):
             on_result=self.show_result, on_error=self._failed, on_finished=self._finished)
 
     def _failed(self, exc: BaseException) -> None:
-        from common.progress import Cancelled
+        from dualrgb.common.progress import Cancelled
         if isinstance(exc, Cancelled):
             self.status.setText("processing cancelled")
             return

@@ -32,21 +32,21 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-import resources
-from app.gui.context import AppContext
-from app.gui.units import light_pct, time_left_s
-from app.gui.viewmodel import ConvergenceTap, format_duration
-from app.gui.widgets import plot_widget, side_by_side
-from app.gui.workers import TaskHandle
-from simulation.camera_model import channel_names, effective_sensitivities
-from simulation.datasets import MODES, default_setup
-from simulation.ga import GaSettings
-from simulation.presets import save_preset
-from common.progress import COMPILING, Cancelled
-from simulation.pso import PsoSettings
-from simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, METHODS, OBJECTIVES, RunResult, run
-from simulation.search import SearchOutcome
-from simulation.studies.common import study_charts
+from dualrgb import resources
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.units import light_pct, time_left_s
+from dualrgb.app.gui.viewmodel import ConvergenceTap, format_duration
+from dualrgb.app.gui.widgets import plot_widget, side_by_side
+from dualrgb.app.gui.workers import TaskHandle
+from dualrgb.simulation.camera_model import channel_names, effective_sensitivities
+from dualrgb.simulation.datasets import MODES, default_setup
+from dualrgb.simulation.ga import GaSettings
+from dualrgb.simulation.presets import save_preset
+from dualrgb.common.progress import COMPILING, Cancelled
+from dualrgb.simulation.pso import PsoSettings
+from dualrgb.simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, METHODS, OBJECTIVES, RunResult, run
+from dualrgb.simulation.search import SearchOutcome
+from dualrgb.simulation.studies.common import study_charts
 
 log = logging.getLogger(__name__)
 
@@ -77,8 +77,8 @@ def _stand_search(profile, mode: str, method: str, seed: int, top: int, objectiv
                   **settings) -> RunResult | None:
     """The search on a calibration's stand model (app.workflow.stand_reoptimise), with the live plot's tap; a
     cancelled search keeps its best so far, as the plain search does."""
-    from app.workflow.stand_reoptimise import assemble, calibration_lights, reoptimise
-    from simulation.runner import make_evaluator
+    from dualrgb.app.workflow.stand_reoptimise import assemble, calibration_lights, reoptimise
+    from dualrgb.simulation.runner import make_evaluator
 
     model, notes = assemble(profile)
     holder: dict = {}

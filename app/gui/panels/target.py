@@ -20,13 +20,13 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.context import AppContext
-from app.gui.viewmodel import display_rgb
-from app.gui.widgets import image_widget, side_by_side
-from app.processing.patches import PatchGrid, detect_cc24
-from app.processing.report import layout_for
-from app.workflow.session_processing import subject_entries
-from app.workflow.vocabulary import Subject, SubjectKind
+from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.viewmodel import display_rgb
+from dualrgb.app.gui.widgets import image_widget, side_by_side
+from dualrgb.app.processing.patches import PatchGrid, detect_cc24
+from dualrgb.app.processing.report import layout_for
+from dualrgb.app.workflow.session_processing import subject_entries
+from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
 
 log = logging.getLogger(__name__)
 
@@ -174,7 +174,7 @@ class TargetPanel(QWidget):
         vl = self.lab.virtual_lab
         if vl is not None and self.tag() in ("train", "test"):
             return vl.scene_for(self.tag()).layout
-        from simulation.datasets import default_setup
+        from dualrgb.simulation.datasets import default_setup
         if self.tag() in ("train", "test"):
             target = getattr(default_setup(self.lab.mode), self.tag())    # no virtual lab: the chosen mode
             return layout_for(len(target), target.layout)
@@ -190,7 +190,7 @@ class TargetPanel(QWidget):
         path = self.lab.session.file_path(entry)
 
         def work() -> np.ndarray:
-            from drivers.raw import load_raw, superpixel
+            from dualrgb.drivers.raw import load_raw, superpixel
             return superpixel(load_raw(path))
 
         self.ctx.runner.submit(work, pool="compute", name="load target frame", on_result=self.show_image,

@@ -1,4 +1,5 @@
-"""Rebuild every CSV under resources/ (run ``python -m resources.generate``; deterministic).
+"""Rebuild every CSV under resources/ (run ``python -m tools.generate_resources`` or
+``make resources``; deterministic).
 
 * LEDs: thesis Table 4.2 peaks and relative/absolute peak values, each shaped with colour-science's
   ``sd_single_led`` (Ohno 2005) at half spectral width 25 nm, 380-780 nm at 1 nm.
@@ -17,8 +18,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import qmc
 
-from resources import path
-from simulation.spectral_io import write_spectral_csv
+from dualrgb.resources import path
+from dualrgb.simulation.film_model import DYES, FILM_BASE_DENSITY, film_transmittance
+from dualrgb.simulation.spectral_io import write_spectral_csv
 
 log = logging.getLogger(__name__)
 
@@ -27,11 +29,8 @@ LED_RELATIVE_PEAKS = (0.88, 1.00, 0.663, 0.183, 0.198, 0.014, 0.003, 0.165, 0.30
 LED_ABSOLUTE_PEAKS = (0.0244621, 0.0275599, 0.0182769, 0.00504516, 0.0054696, 0.00037581, 0.0000795212,
                       0.00455702, 0.00827383, 0.0155592)  # W sr^-1 m^-2 (thesis Table 4.2)
 LED_HALF_SPECTRAL_WIDTH = 25.0
-FILM_BASE_DENSITY = 0.05
-# Dye density peaks and widths (nm): yellow absorbs blue, magenta green, cyan red.
-DYES = {"cyan": (660.0, 45.0), "magenta": (545.0, 35.0), "yellow": (445.0, 30.0)}
 FILM_SHAPE = colour.SpectralShape(380, 780, 5)
-SCRIPT = "resources/generate.py (python -m resources.generate)"
+SCRIPT = "tools/generate_resources.py (python -m tools.generate_resources)"
 
 
 def _led_csvs() -> None:
@@ -84,17 +83,6 @@ def _reflective_csvs() -> None:
                        {"title": "Reflective test target ColorChecker Classic 24", "units": "reflectance factor 0..1",
                         "source": "colour-science SDS_COLOURCHECKERS['BabelColor Average']", "layout": "4x6",
                         "generated_by": SCRIPT})
-
-
-def dye_densities(wavelengths: np.ndarray) -> np.ndarray:
-    """Unit dye density spectra, shape (n_wavelengths, 3) for cyan, magenta, yellow."""
-    return np.stack([np.exp(-0.5 * ((wavelengths - p) / w) ** 2) for p, w in DYES.values()], axis=1)
-
-
-def film_transmittance(amounts: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:
-    """Beer-Lambert film: amounts (n, 3) of c, m, y -> transmittance (n_wavelengths, n)."""
-    density = FILM_BASE_DENSITY + dye_densities(wavelengths) @ np.atleast_2d(amounts).T
-    return 10.0 ** (-density)
 
 
 def _lab_d65(values: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Convert camera spectral sensitivities of the rawtoaces data set to the project's spectral CSV.
 
-    python -m resources.import_rawtoaces nikon_d700_380_780_5.json sony_ilce-7rm2_380_780_5.json \
+    python -m tools.import_rawtoaces nikon_d700_380_780_5.json sony_ilce-7rm2_380_780_5.json \
         --commit <rawtoaces commit> --out resources/cameras
 
 The rawtoaces repository (AcademySoftwareFoundation/rawtoaces, Apache-2.0, ``data/camera/*.json``) publishes
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simulation.spectral_io import write_spectral_csv
+from dualrgb.simulation.spectral_io import write_spectral_csv
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +48,7 @@ def convert(source: Path, out_dir: Path, commit: str) -> Path:
         "licence": LICENCE,
         "conversion": "spectral_data.data.main rows unchanged (wavelength nm -> R, G, B as red, green, blue); "
                       "no resampling or renormalisation",
-        "generated_by": "resources/import_rawtoaces.py (python -m resources.import_rawtoaces)",
+        "generated_by": "tools/import_rawtoaces.py (python -m tools.import_rawtoaces)",
     }, fmt="%.10g")
     log.info("wrote %s (%d wavelengths)", out, len(wl))
     return out

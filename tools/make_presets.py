@@ -1,4 +1,4 @@
-"""Rebuild resources/presets/*.json from the simulation (``python -m resources.make_presets``; deterministic).
+"""Rebuild resources/presets/*.json from the simulation (``python -m tools.make_presets``; deterministic).
 
 For each mode: the exhaustive full-intensity best pair (thesis chapter 5 / 9.1.2) and the default optimiser's
 best pair (successive halving over the thesis PSO, chapter 6 / 9.1.3, seed 0; file ``<mode>_pso.json``), both
@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import logging
 
-from resources import path
-from simulation.capture_model import CaptureModel
-from simulation.datasets import MODES, default_setup
-from simulation.presets import Preset, save_preset
-from simulation.runner import DEFAULT_METHOD, run
-from simulation.sphere import realisable_d65_mix
+from dualrgb.resources import path
+from dualrgb.simulation.capture_model import CaptureModel
+from dualrgb.simulation.datasets import MODES, default_setup
+from dualrgb.simulation.presets import Preset, save_preset
+from dualrgb.simulation.runner import DEFAULT_METHOD, run
+from dualrgb.simulation.sphere import realisable_d65_mix
 
 log = logging.getLogger(__name__)
 

@@ -1,0 +1,1 @@
+"""Maintainer scripts (not shipped in the wheel): rebuild the packaged data under resources/."""
