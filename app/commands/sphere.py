@@ -164,7 +164,7 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
         info = sphere.identify()
         print(f"model {info['model']}, firmware {info['firmware']}, serial {info['serial']}")
     elif args.action == "status":
-        status = sphere.status()
+        status = sphere.status(adopt=False)     # this command exits: no limit of its own would be held
         if args.json:
             write_json(args.json, STATUS_FORMAT, status)
             if args.json == "-":
@@ -177,6 +177,9 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
             elif key == "levels":
                 value = " ".join(f"{v:.4f}" for v in value)
             print(f"{key}: {value}")
+        if status["light_on"]:
+            print(f"the light goes off at the latest in {status['off_in_s']:.1f} s (the sphere's watchdog, "
+                  "counted from this request; sooner if whoever switched it on set a shorter limit)")
     elif args.action == "set":
         taken = sphere.set_level(args.led, args.level)
         print(f"LED {args.led} level {taken:.4f}")
@@ -192,8 +195,8 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
             print(f"light on; this firmware has no on-time limit: its watchdog, set to {args.max_on:g} s, switches "
                   "it off that long after the last request")
     elif args.action == "off":
-        sphere.shutdown()
-        print("all LEDs off, light off")
+        sphere.shutdown()                   # read back: a sphere that does not confirm it is off is an error
+        print("all LEDs off, light off (read back)")
 
 
 def serve_emulator(args: argparse.Namespace) -> int:

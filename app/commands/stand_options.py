@@ -132,18 +132,23 @@ def real_camera(args: argparse.Namespace) -> Iterator[Any]:
 
 
 def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
-    from dualrgb.drivers.led_sphere import LedSphere
+    """The sphere on ``--port`` (switched off first) and the camera; whatever fails, the light is switched off on
+    the way out and the error carries a note saying what state it is in (read back, never assumed)."""
+    from dualrgb.drivers.led_sphere import LedSphere, SphereError
 
     sphere = LedSphere(args.port).open()
     try:
-        sphere.shutdown()
+        sphere.shutdown()                   # raises a SphereError whose message says the light's state
         with real_camera(args) as camera:
             yield Devices(camera, sphere, None, None)
+    except BaseException as exc:
+        if not (isinstance(exc, SphereError) and exc.light is not None):
+            exc.add_note(sphere.ensure_off().message)
+        raise
+    else:
+        sphere.shutdown()
     finally:
-        try:
-            sphere.shutdown()
-        finally:
-            sphere.close()
+        sphere.close(leave_on=True)         # switched off above
 
 
 def add_session_option(p: argparse.ArgumentParser) -> None:

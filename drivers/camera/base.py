@@ -20,6 +20,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from dualrgb.common.errors import ReportedError
+
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
@@ -28,7 +30,7 @@ GP_ERROR_TIMEOUT = -10          # libgphoto2's timeout code, also used for host-
 DEFAULT_LATENCY_S = 1.0         # a camera's latency allowance when it does not report its own
 
 
-class CameraError(RuntimeError):
+class CameraError(ReportedError, RuntimeError):
     """A camera problem, with a one-line message that says what to do about it.
 
     ``code`` is the libgphoto2 error code where there is one (e.g. -105 no camera, -53 USB claimed).
