@@ -18,6 +18,7 @@ def make_profile(tmp_path, **over) -> CalibrationProfile:
     lights = [NamedLight("P light 1", LightSource((1, 6, 7), (0.0, 0.42, 1.0), "P light 1"))]
     darks = MasterDark()
     darks.put(DarkFrame(0.01, np.full((8, 12), 600, np.float32), 5))
+    darks.put(DarkFrame(0.5, np.full((8, 12), 601, np.float32), 5))
     created = over.pop("created", datetime.now(UTC))
     prof = CalibrationProfile(
         id="cal-test", created_at=created.isoformat(timespec="seconds"), mode="reflective",
