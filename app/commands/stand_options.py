@@ -143,12 +143,19 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
             yield Devices(camera, sphere, None, None)
     except BaseException as exc:
         if not (isinstance(exc, SphereError) and exc.light is not None):
-            exc.add_note(sphere.ensure_off().message)
+            report = sphere.ensure_off()
+            if not report.off or not _says_light_off(str(exc)):
+                exc.add_note(report.message)
         raise
     else:
         sphere.shutdown()
     finally:
         sphere.close(leave_on=True)         # switched off above
+
+
+def _says_light_off(message: str) -> bool:
+    """Whether an error already says the light was switched off (app.sequences.shooter.restate)."""
+    return "switched off" in message
 
 
 def add_session_option(p: argparse.ArgumentParser) -> None:

@@ -133,8 +133,10 @@ class LedSphere(SwitchOff):
                     timeout=self.timeout, write_timeout=self.timeout)
             except (serial.SerialException, OSError, ValueError) as exc:
                 raise SphereError(f"cannot open LED sphere port {self._url}: {exc}; check the cable and the "
-                                  "port name (ls /dev/ttyACM* /dev/ttyUSB*) and that no other program uses it",
-                                  kind="port") from None
+                                  "port name (ls /dev/ttyACM* /dev/ttyUSB*) and that no other program uses it; "
+                                  "nothing was sent, so the light's state is unknown (a lit sphere switches off "
+                                  "by itself at its on-time limit, or when its watchdog hears no request)",
+                                  kind="port", light="unknown") from None
             self._configure(self._ser)
             log.info("opened LED sphere port %s", self._url)
         return self

@@ -72,8 +72,8 @@ class SwitchOff:
         self.exchange("set_light", state=0)
         unconfirmed = self._read_back()
         if unconfirmed is not None:
-            raise SphereError(f"LED sphere {self._url}: {NOT_CONFIRMED}: it answered LIGHT 0 but {unconfirmed}",
-                              kind="unconfirmed")
+            raise SphereError(f"LED sphere {self._url}: {NOT_CONFIRMED}: it answered LIGHT 0 but {unconfirmed}; "
+                              f"{self._guarantee()}", kind="unconfirmed", light="unknown")
         self._confirmed_off(asked)
 
     def _read_back(self) -> str | None:
