@@ -56,6 +56,15 @@ def read_spectral_csv(
     )
 
 
+def require_response(table: SpectralTable, n_columns: int, what: str) -> None:
+    """Each of the first ``n_columns`` data columns must be above 0 somewhere (a camera channel that responds
+    nowhere, read from an all-zero file, would only show as a division by zero or a black image much later)."""
+    for i, name in enumerate(table.columns[:n_columns]):
+        if not (table.values[:, i] > 0).any():
+            raise SpectralDataError(f"{table.source}: column {name!r} is 0 at every wavelength; a {what} must "
+                                    "respond somewhere (is it the right file?)")
+
+
 def read_text_file(path: Path, what: str, error: type, max_bytes: int) -> str:
     """The UTF-8 text of a user's file, or ``error`` with one line naming it: only regular files (a FIFO or
     a device would block), at most ``max_bytes``, no binary or UTF-16 content."""

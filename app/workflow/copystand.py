@@ -35,6 +35,13 @@ from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, d
 from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
 from dualrgb.app.workflow.metadata import MetadataError, check_original
 from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
+from dualrgb.app.workflow.preflight import (
+    capture_frames,
+    check_capture_space,
+    check_exposures,
+    check_lights,
+    deliverable_bytes,
+)
 from dualrgb.app.workflow.profile import (
     CalibrationProfile,
     CameraIdentity,
@@ -198,6 +205,7 @@ class CopyStand:
         """Auto-exposure, darks and flats at every planned exposure, training and test targets, characterisation:
         the calibration profile, saved in ``<session>/calibration/``. ``hdr_auto`` None: the day's default
         (app.workflow.defaults)."""
+        check_lights(lights_of(preset), f"preset {preset.name}")      # before anything is lit
         base = self.auto_expose(lights_of(preset))
         return self.calibrate_at(preset, base, hdr_auto=hdr_auto, grids=grids, report_dir=report_dir)
 
@@ -309,11 +317,26 @@ class CopyStand:
         check_illuminant(self.settings.render_illuminant)
         prepare(self.deliverables(out_dir), original)
 
+    def check_before_light(self, profile: CalibrationProfile, out_dir: Path | None = None, originals: int = 1) -> None:
+        """What the calibration and the stand decide before the light goes on (app.workflow.preflight): every
+        exposure within the light-on cap with this settle time and camera, and free space for the frames and the
+        deliverables of ``originals`` originals."""
+        check_lights(profile.lights, f"calibration {profile.id}")
+        check_exposures(self.shooter.safety, profile)
+        frame_bytes = getattr(self.camera, "frame_bytes", None)
+        per_frame = int(frame_bytes()) if callable(frame_bytes) else 0
+        frames = capture_frames(profile, self.settings.original_frames, self.hdr_exposures(profile.mode))
+        bands = profile.estimator.n_wavelengths if profile.estimator is not None else 0
+        check_capture_space(self.session.path, self.deliverables(out_dir), originals * frames * per_frame,
+                            originals * deliverable_bytes(profile, bands),
+                            f"{originals} original{'s' if originals > 1 else ''}")
+
     def capture(self, original: Original, profile: CalibrationProfile, *, reshoot: bool | None = None,
                 out_dir: Path | None = None) -> CaptureReport:
         """Check the original (:meth:`preflight`) and the calibration, meter, capture (HDR when metering asks),
         deliver; frames already in the session are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
         self.preflight(original, out_dir)
+        self.check_before_light(profile, out_dir)
         checked = self.check(profile)
         take = self._take(original, reshoot)
         exposures, warnings = self.meter(original, profile, take)
@@ -482,6 +505,7 @@ def capture_queue(stand: CopyStand, originals: Sequence[Original], profile: Cali
     session is kept and said so unless ``reshoot``."""
     for original in originals:
         stand.preflight(original, out_dir)
+    stand.check_before_light(profile, out_dir, len(originals))
     outcomes = []
     for original in originals:
         stand._check_cancel()
