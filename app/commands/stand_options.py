@@ -169,7 +169,7 @@ def open_session(folder: Path | None, definition: dict, camera: Any, meta: dict 
     (anything else is refused in one line naming the difference; app.session). One writer at a time. No
     ``folder``: a new dated session in the captures folder (app.workflow.folders), named on stderr."""
     from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.session.manifest import camera_definition
+    from dualrgb.app.session.manifest import camera_definition, image_area_definition
 
     if folder is None:
         from dualrgb.app.workflow.defaults import captures_dir
@@ -181,7 +181,7 @@ def open_session(folder: Path | None, definition: dict, camera: Any, meta: dict 
         session = CaptureSession.resume(Path(folder), definition, meta or {},
                                         hint="use the same options and camera, or another --session")
     try:
-        session.extend_definition(camera=camera_definition(camera))
+        session.extend_definition(camera=camera_definition(camera), **image_area_definition(camera))
     except BaseException:
         session.close()
         raise

@@ -39,6 +39,7 @@ from dualrgb.app.workflow.preflight import (
     capture_frames,
     check_capture_space,
     check_exposures,
+    check_frame_shape,
     check_lights,
     deliverable_bytes,
 )
@@ -322,6 +323,7 @@ class CopyStand:
         exposure within the light-on cap with this settle time and camera, and free space for the frames and the
         deliverables of ``originals`` originals."""
         check_lights(profile.lights, f"calibration {profile.id}")
+        check_frame_shape(self.camera, profile)
         check_exposures(self.shooter.safety, profile)
         frame_bytes = getattr(self.camera, "frame_bytes", None)
         per_frame = int(frame_bytes()) if callable(frame_bytes) else 0

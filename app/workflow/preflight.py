@@ -3,6 +3,7 @@ their inputs, run before any device acts (the GUI, the CLI and the demo go throu
 calls them).
 
 * :func:`check_lights`: every light of a preset can light a target (some LED above the sphere's smallest step);
+* :func:`check_frame_shape`: the camera's frames are the size the calibration was made at;
 * :func:`check_exposures`: every exposure a capture may use, with this session's settle time and this camera's
   latency, within the light-on cap (app.sequences.shooter.SafetySettings);
 * :func:`check_capture_space`: free space for an original's frames AND its deliverables (the frames in the
@@ -44,6 +45,18 @@ def check_exposures(safety: SafetySettings, profile: Any) -> None:
             except LightSafetyError as exc:
                 raise LightSafetyError(f"calibration {profile.id}, {name}: {exc}; refused before anything was lit "
                                        "(a shorter --settle, or calibrate again)") from None
+
+
+def check_frame_shape(camera: Any, profile: Any) -> None:
+    """ValueError (one line) when the camera's frames (Camera.frame_shape, where known before a frame) are not
+    the size the calibration's darks and flats were made at."""
+    shape = getattr(camera, "frame_shape", None)
+    have = shape() if callable(shape) else None
+    want = tuple(int(v) for v in profile.raw["shape"])
+    if have is not None and tuple(have) != want:
+        raise ValueError(f"the camera's frames are {have[1]}x{have[0]} px but calibration {profile.id} was made at "
+                         f"{want[1]}x{want[0]} px: set the same image size and area (--frame-size on the virtual "
+                         "lab), or calibrate again")
 
 
 def deliverable_bytes(profile: Any, spectral_bands: int) -> int:

@@ -176,6 +176,16 @@ class Camera(abc.ABC):
         about 30 MB; implementations that know better say so."""
         return 32 * 2**20
 
+    def image_area(self) -> str:
+        """What sets a frame's size and what part of the sensor it covers (image size, crop), as the camera says
+        it ('' when it does not): part of a session's definition, so frames of another size are never mixed in."""
+        return ""
+
+    def frame_shape(self) -> tuple[int, int] | None:
+        """(rows, columns) of the raw mosaic the next frame will have, when known before it is taken (None: known
+        only from a frame; a real camera)."""
+        return None
+
     def config_summary(self) -> dict[str, object]:
         """Named configuration values for display (implementations add what they know)."""
         s = self.settings()

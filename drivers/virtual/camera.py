@@ -363,6 +363,13 @@ class VirtualCamera(Camera):
         return RawCapture(data=data, filename=name, exposure_s=t, iso=int(s.iso), aperture=float(s.aperture),
                           camera=CAMERA_NAME, extra=info)
 
+    def frame_shape(self) -> tuple[int, int]:
+        return (self._scene.height, self._scene.width)
+
+    def image_area(self) -> str:
+        """The rendered frame's size (``--frame-size``)."""
+        return f"{self._scene.width}x{self._scene.height} px"
+
     def frame_bytes(self) -> int:
         """An uncompressed 16-bit DNG of the current scene's size plus its tags."""
         return 2 * self._scene.width * self._scene.height + 64 * 1024

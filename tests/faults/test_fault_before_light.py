@@ -19,6 +19,9 @@ from dualrgb.app.workflow.metadata import Original
 from dualrgb.common.atomic_files import InsufficientSpaceError
 
 
+LAB_SHAPE = (64, 96)            # the fault suite's virtual lab (tests/faults/conftest.py)
+
+
 @pytest.fixture
 def stand(lab, tmp_path):
     def make(**settings):
@@ -37,7 +40,7 @@ def stand(lab, tmp_path):
 
 @pytest.mark.fault("light safety")
 def test_an_exposure_plan_over_the_cap_with_the_settle_time_is_refused_before_metering(lab, stand, tmp_path):
-    profile = make_profile(tmp_path / "cal")                       # exposures 0.01 s and 0.5 s
+    profile = make_profile(tmp_path / "cal", shape=LAB_SHAPE)                       # exposures 0.01 s and 0.5 s
     copy_stand = stand(settle_s=8.7)              # 8.7 + 0.5 + the camera's 1 s latency > 10 s; 0.01 s fits
     since = lab.emulator.clock()
     with pytest.raises(LightSafetyError, match=r"calibration cal-test, P light 1: exposure 0.5 s would keep the "
@@ -49,7 +52,7 @@ def test_an_exposure_plan_over_the_cap_with_the_settle_time_is_refused_before_me
 @pytest.mark.fault("session integrity")
 @pytest.mark.parametrize("queue", [1, 3])
 def test_no_room_for_the_deliverables_is_refused_before_the_first_frame(lab, stand, tmp_path, monkeypatch, queue):
-    profile = make_profile(tmp_path / "cal")
+    profile = make_profile(tmp_path / "cal", shape=LAB_SHAPE)
     copy_stand = stand(settle_s=0.0)
     from dualrgb.app.workflow import preflight
 
@@ -133,3 +136,33 @@ def test_import_leds_refuses_readings_that_cannot_be_radiances(tmp_path, capsys,
     lines = err.strip().splitlines()
     assert rc == 1 and len(lines) == 1 and says in lines[0], err
     assert not (tmp_path / "stand").exists()
+
+
+@pytest.mark.fault("session integrity")
+def test_a_camera_at_another_frame_size_than_the_calibration_is_refused_before_metering(lab, stand, tmp_path):
+    profile = make_profile(tmp_path / "cal", shape=(160, 240))
+    copy_stand = stand(settle_s=0.0)
+    since = lab.emulator.clock()
+    with pytest.raises(ValueError, match="the camera's frames are 96x64 px but calibration cal-test was made at "
+                                         "240x160 px: set the same image size and area"):
+        copy_stand.capture(Original("ACC-1"), profile)
+    assert lit_spans(lab.emulator, since) == [] and copy_stand.session.entries() == []
+
+
+@pytest.mark.fault("session integrity")
+def test_a_session_resumed_at_another_frame_size_is_refused_at_once(tmp_path, capsys):
+    profile = make_profile(tmp_path / "cal", shape=LAB_SHAPE).path
+    session = tmp_path / "session"
+    args = ["capture", "--virtual-lab", "--calibration", str(profile), "--id", "ACC-1", "--session", str(session),
+            "--force", "--settle", "0"]
+    main([*args, "--frame-size", "96x64"])                          # shot (delivered or not: the frames stay)
+    capsys.readouterr()
+    shot = sorted(p.name for p in session.iterdir())
+    assert any(name.endswith(".DNG") for name in shot)
+    rc = main([*args, "--frame-size", "128x96"])
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert rc == 1 and len(lines) == 1, err
+    assert "the session was made with other settings: image_area: session '96x64 px', this run '128x96 px'" \
+        in lines[0], lines[0]
+    assert sorted(p.name for p in session.iterdir()) == shot              # nothing shot, nothing re-used
