@@ -18,7 +18,6 @@ from dualrgb.app.workflow.copystand import CopyStand, StandSettings, capture_que
 from dualrgb.app.workflow.metadata import Original
 from dualrgb.common.atomic_files import InsufficientSpaceError
 
-
 LAB_SHAPE = (64, 96)            # the fault suite's virtual lab (tests/faults/conftest.py)
 
 
