@@ -149,3 +149,29 @@ def test_what_the_product_writes_validates_and_a_nan_profile_is_never_written(tm
     with pytest.raises(ValueError, match=r"calibration cal-test \(not saved\): white_xyz\[1\] is nan"):
         prof.save(tmp_path / "bad")
     assert not (tmp_path / "bad").exists() or not list((tmp_path / "bad").iterdir())
+
+
+# ---- the QA of every delivery refuses an output that holds nothing (issue 28 item 2) --------------------------
+BLANK = {
+    "a NaN matrix cell": (lambda p, s: p.matrix.matrix.__setitem__((0, 1), np.nan),
+                          r"no pixel is a finite number \(calibration cal-test has a matrix or white point that is"),
+    "no finite pixel": (lambda p, s: s.data.__setitem__(slice(None), np.nan),
+                        r"no pixel is a finite number in the encoded images \(calibration cal-test"),
+    "a zero matrix": (lambda p, s: p.matrix.matrix.__setitem__(slice(None), 0.0),
+                      r"every pixel is 0 in the encoded images \(calibration cal-test"),
+    "black frames": (lambda p, s: s.data.__setitem__(slice(None), 0.0), "every pixel is 0 in the encoded images"),
+}
+
+
+@pytest.mark.parametrize("case", list(BLANK))
+def test_the_qa_refuses_an_output_that_holds_nothing(tmp_path, case):
+    from dualrgb.app.processing.pipeline import ChannelStack
+    from dualrgb.app.workflow.delivery import DeliveryQaError, LightDoseRecord, Original, deliver
+
+    prof = make_profile(tmp_path / "cal")
+    stack = ChannelStack(np.full((10, 14, 3), 0.5, np.float32), ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})
+    spoil, says = BLANK[case]
+    spoil(prof, stack)
+    with pytest.raises(DeliveryQaError, match=f"ACC-1: QA refused the delivery: {says}"):
+        deliver(stack, prof, Original("ACC-1"), tmp_path / "out", camera=prof.camera, dose=LightDoseRecord(1.0, 0.1))
+    assert not (tmp_path / "out" / "ACC-1").exists() and not list((tmp_path / "out").glob(".*"))
