@@ -1,13 +1,18 @@
 """``dualrgb process``: deliver a session's originals again, e.g. with a newer calibration.
 
     dualrgb process SESSION [--calibration FILE] [--out DIR] [--render-illuminant A] [--json J]
+
+Every original that can be is delivered; those that cannot (a missing or damaged frame, a folder holding another
+original's files, a refused QA) are listed one per line, and the command ends with exit 1.
 """
 from __future__ import annotations
 
 import argparse
 import logging
+import sys
 from pathlib import Path
 
+from dualrgb.app.cli import UserError
 from dualrgb.app.commands.options import add_render_option, number
 from dualrgb.app.commands.stand_options import progress_printer, write_json
 
@@ -42,15 +47,22 @@ def main(args: argparse.Namespace) -> int:
     from dualrgb.app.workflow.copystand import redeliver
     from dualrgb.app.workflow.profile import load_profile
 
-    session = CaptureSession.open(args.session, readonly=True)      # frames checked before use (session_frames)
+    session = CaptureSession.open(args.session, readonly=True)      # frames checked before use, per original
     profile = load_profile(args.calibration or newest_calibration(session))
-    deliveries = redeliver(session, profile, args.out or args.session / "deliverables", ppi=args.ppi,
-                           progress=progress_printer(), render_illuminant=args.render_illuminant)
-    if not deliveries:
+    deliveries, failed = redeliver(session, profile, args.out or args.session / "deliverables", ppi=args.ppi,
+                                   progress=progress_printer(), render_illuminant=args.render_illuminant)
+    if not deliveries and not failed:
         raise ValueError(f"{args.session}: no originals to process")
     for d in deliveries:
         print(d.qa.text())
+    for f in failed:
+        print(f"{f.identifier}: not delivered: {f.reason}", file=sys.stderr)
     write_json(args.json_path, {"calibration": profile.id, "originals": [
         {"identifier": d.original.identifier, "qa": d.qa.to_dict(), "files": {k: str(v) for k, v in d.files.items()},
-         "sidecar": str(d.sidecar)} for d in deliveries]})
+         "sidecar": str(d.sidecar)} for d in deliveries],
+        "not_delivered": [{"identifier": f.identifier, "reason": f.reason} for f in failed]})
+    if failed:
+        raise UserError(f"{len(failed)} of {len(failed) + len(deliveries)} originals not delivered (listed above: "
+                        f"{', '.join(f.identifier for f in failed[:5])}{' ...' if len(failed) > 5 else ''}); the "
+                        "others were delivered")
     return 0

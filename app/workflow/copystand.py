@@ -30,6 +30,7 @@ from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.session.manifest import DamagedFramesError
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
@@ -66,6 +67,7 @@ from dualrgb.app.workflow.vocabulary import (
     split_take,
     subject_of,
 )
+from dualrgb.common.errors import ReportedError, one_line
 from dualrgb.common.progress import Cancelled, CancelToken, ProgressCallback, report
 
 log = logging.getLogger(__name__)
@@ -431,33 +433,60 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
     return proc
 
 
+@dataclass
+class Undelivered:
+    """An original ``dualrgb process`` could not deliver, and why (one line)."""
+
+    identifier: str
+    reason: str
+
+
 def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: float | None = None,
               progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
-              render_illuminant: str = DEFAULT_RENDER_ILLUMINANT) -> list[Delivery]:
+              render_illuminant: str = DEFAULT_RENDER_ILLUMINANT) -> tuple[list[Delivery], list[Undelivered]]:
     """Deliver every original of a session again with ``profile`` (``dualrgb process``); each original's current
-    deliverables move to its ``previous/`` folder. Every folder is checked before the first is written. The
+    deliverables move to its ``previous/`` folder. Every original that can be is delivered; one whose frames are
+    missing or damaged, whose folder is another's or whose delivery fails is listed with its reason instead. The
     spectral rendering is seen under ``render_illuminant``."""
-    from dualrgb.app.workflow.session_processing import select_lights, session_frames
+    from dualrgb.app.workflow.session_processing import session_frames
 
-    frames = session_frames(session)
+    frames = session_frames(session, intact=False)
+    damaged = {e.file: problem for e, problem in session.damaged()}
     known = session.settings.get("originals", {})
-    names = [nl.name for nl in profile.lights]
-    originals = [(s, _known_original(session, known, s.name)) for s in frames.subjects if s.role is Role.ORIGINAL]
-    for _subject, original in originals:
-        prepare(Path(out_dir), original)
-    out = []
-    for i, (subject, original) in enumerate(originals):
+    done: list[Delivery] = []
+    failed: list[Undelivered] = []
+    subjects = [s for s in frames.subjects if s.role is Role.ORIGINAL]
+    for i, subject in enumerate(subjects):
         if cancel is not None:
             cancel.check()
-        light_frames = select_lights(frames.subject(subject), names)
-        stack = profile_processor(profile).stack(light_frames, cancel=cancel)
-        out.append(deliver(stack, profile, original, out_dir, camera=profile.camera, ppi=ppi,
-                           dose=original_dose(session, subject),
-                           exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
-                           extra={"session": str(session.path), "reprocessed": True},
-                           render_illuminant=render_illuminant))
-        report(progress, (i + 1) / len(originals), f"{original.identifier} delivered")
-    return out
+        try:
+            original = _known_original(session, known, subject.name)
+            done.append(_redeliver_one(session, profile, original, frames.subject(subject), damaged, out_dir,
+                                       ppi=ppi, render_illuminant=render_illuminant, cancel=cancel))
+        except (ValueError, OSError, ReportedError) as exc:
+            log.warning("%s: not delivered: %s", subject.name, exc)
+            failed.append(Undelivered(subject.name, one_line(exc)))
+        report(progress, (i + 1) / len(subjects), f"{subject.name} done")
+    return done, failed
+
+
+def _redeliver_one(session: Any, profile: CalibrationProfile, original: Original, frames: Any,
+                   damaged: dict[str, str], out_dir: Path, *, ppi: float | None, render_illuminant: str,
+                   cancel: CancelToken | None) -> Delivery:
+    from dualrgb.app.workflow.session_processing import select_lights
+
+    prepare(Path(out_dir), original)
+    light_frames = select_lights(frames, [nl.name for nl in profile.lights])
+    for refs in light_frames.values():
+        for ref in refs:
+            if ref.label in damaged:
+                raise DamagedFramesError(f"{session.path / ref.label}: {damaged[ref.label]}; resume the session to "
+                                         "shoot it again", [ref.label])
+    stack = profile_processor(profile).stack(light_frames, cancel=cancel)
+    return deliver(stack, profile, original, out_dir, camera=profile.camera, ppi=ppi,
+                   dose=original_dose(session, original.subject),
+                   exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
+                   extra={"session": str(session.path), "reprocessed": True}, render_illuminant=render_illuminant)
 
 
 def _known_original(session: Any, known: dict, identifier: str) -> Original:
