@@ -20,6 +20,7 @@ from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
 from dualrgb.simulation.colorimetry import white_point
 
 log = logging.getLogger(__name__)
+MAX_GRID_BYTES = 1 << 20          # a patch grid is a few hundred bytes; checked before reading
 
 
 @dataclass
@@ -136,9 +137,11 @@ def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any
 
 def load_grid(path: Path) -> PatchGrid:
     """A patch grid from JSON: {"corners": [[x, y] x4 (TL, TR, BR, BL, stack pixels)], "rows", "cols"[, "fraction"]}."""
+    from dualrgb.simulation.spectral_io import read_text_file
+
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(read_text_file(path, "patch grid JSON", ValueError, MAX_GRID_BYTES))
         return PatchGrid(np.asarray(data["corners"], float), int(data["rows"]), int(data["cols"]),
                          float(data.get("fraction", 0.5)))
     except (OSError, ValueError, KeyError, TypeError) as exc:

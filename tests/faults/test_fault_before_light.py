@@ -5,6 +5,7 @@ measurements: each is refused in one line and the sphere emulator's own record s
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -165,3 +166,43 @@ def test_a_session_resumed_at_another_frame_size_is_refused_at_once(tmp_path, ca
     assert "the session was made with other settings: image_area: session '96x64 px', this run '128x96 px'" \
         in lines[0], lines[0]
     assert sorted(p.name for p in session.iterdir()) == shot              # nothing shot, nothing re-used
+
+
+def _sparse(path: Path, size: int = 2 ** 30) -> Path:
+    """A file of ``size`` bytes that takes no disk (what a 1 GB export looks like to a reader)."""
+    path.touch()
+    os.truncate(path, size)
+    return path
+
+
+OVERSIZED = {
+    "queue CSV": (lambda tmp: ["capture", "--virtual-lab", "--calibration", str(make_profile(tmp / "cal").path),
+                               "--queue", str(_sparse(tmp / "q.csv")), "--session", str(tmp / "session")],
+                  "q.csv: 1024.0 MiB is not a day's queue (at most 16 MiB)"),
+    "patch grid JSON": (lambda tmp: ["calibrate", "--virtual-lab", "--train-grid", str(_sparse(tmp / "g.json")),
+                                     "--session", str(tmp / "session")],
+                        "g.json: 1024.0 MiB is too large for a patch grid JSON file (limit 1 MiB)"),
+    "CGATS readings": (lambda tmp: ["measure", "import-leds", str(_sparse(tmp / "r.ti3")), "--out",
+                                    str(tmp / "stand")], "r.ti3: 1024.0 MiB is too large"),
+    "CSV readings": (lambda tmp: ["measure", "import-leds", str(_sparse(tmp / "r.csv")), "--out",
+                                  str(tmp / "stand")], "r.csv: 1024.0 MiB is too large for a CSV file"),
+    "calibration JSON": (lambda tmp: ["calibration", "show", str(_sparse(tmp / "c.json"))],
+                         "c.json: 1024.0 MiB is not a calibration (at most 16 MiB)"),
+}
+
+
+@pytest.mark.fault("input")
+@pytest.mark.parametrize("case", list(OVERSIZED))
+def test_an_oversized_input_is_refused_before_it_is_read(tmp_path, capsys, monkeypatch, case):
+    args, says = OVERSIZED[case]
+    real = Path.read_bytes
+
+    def read_bytes(self: Path) -> bytes:
+        assert self.stat().st_size < 2 ** 29, f"{self} was read"
+        return real(self)
+    monkeypatch.setattr(Path, "read_bytes", read_bytes)
+    rc = main(args(tmp_path))
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert rc == 1 and len(lines) == 1 and says in lines[0], err
+    assert not (tmp_path / "session").exists()
