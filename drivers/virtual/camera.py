@@ -20,8 +20,9 @@ It renders what the real camera would record, with the same simulation the optim
 * file: an uncompressed 16-bit DNG (14-bit data; drivers.virtual.dng, tifffile) that rawpy reads back
   bit-exact.
 
-``expose()`` takes the light as it is at that moment (the exposure; with ``realtime=True`` it also lasts the
-exposure time) and ``fetch()`` renders and writes the DNG, so the light can be off during the "download" as on
+``expose()`` takes the light as it is at that moment and lasts the exposure time whenever the light is on (so the
+sphere's record of the lit period, the light dose, matches the exposure; with ``realtime=True`` unlit exposures
+last their time too) and ``fetch()`` renders and writes the DNG, so the light can be off during the "download" as on
 the real camera. Every exposure is logged in ``exposure_log`` on the camera's ``clock`` (the virtual lab gives it
 the sphere emulator's, so tests can set exposures against the emulator's record of lit periods). Faults for
 tests (:meth:`VirtualCamera.inject`): ``latency`` (the exposure starts ``delay_s`` late: shutter lag, a slow
@@ -331,13 +332,22 @@ class VirtualCamera(Camera):
         levels, drift = self._levels(self._light())
         snap = StaticLight(levels.copy(), np.array(drift))       # what the sensor saw, frozen
         scene = self._scene.at_exposure()                       # a field's light as it is now, frozen
-        if self.realtime:
-            time.sleep(t)
-        ended = self._clock()
         lit = bool(np.any(levels > 0)) or (scene.kind == "field" and scene.shown_field.emits())
+        if self.realtime or lit:
+            self._hold(t)
+        ended = self._clock()
         self.exposure_log.append(ExposureRecord(t_open, ended, t, lit))
         return Exposure(exposure_s=t, started=started, ended=ended, bulb=t > BULB_ABOVE_S,
                         handle=(snap, s, scene))
+
+    def _hold(self, seconds: float) -> None:
+        """Let the exposure last ``seconds`` on the camera's clock: skipped on a skippable clock (the virtual lab's
+        hour-long measurements), waited otherwise."""
+        skip = getattr(self._clock, "skip", None)
+        if callable(skip) and not self.realtime:
+            skip(seconds)
+        else:
+            time.sleep(seconds)
 
     def fetch(self, exposure: Exposure) -> RawCapture:
         self._require_open()
