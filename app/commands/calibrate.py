@@ -18,6 +18,7 @@ from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_session_option,
     ask_person,
+    check_device_options,
     open_devices,
     open_session,
     progress_printer,
@@ -109,6 +110,7 @@ def _stand_start(args: argparse.Namespace) -> Any:
 
 
 def main(args: argparse.Namespace) -> int:
+    check_device_options(args)                # before the heavy imports below
     from dualrgb.app.workflow.copystand import CopyStand, StandSettings
     from dualrgb.app.workflow.targets import load_grid
 

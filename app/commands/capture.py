@@ -18,12 +18,13 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from dualrgb.app.commands.options import add_render_option, column_option, count, input_file, number
+from dualrgb.app.commands.options import add_render_option, column_option, count, identifier, input_file, number
 from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
     add_session_option,
     ask_person,
+    check_device_options,
     open_devices,
     open_session,
     progress_printer,
@@ -44,7 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_session_option(p)
     p.add_argument("--calibration", type=input_file, required=True, help="calibration profile (.json)")
     what = p.add_mutually_exclusive_group(required=True)
-    what.add_argument("--id", dest="identifier", help="identifier / accession number (names the files)")
+    what.add_argument("--id", dest="identifier", type=identifier,
+                      help="identifier / accession number (names the files)")
     what.add_argument("--queue", type=input_file, metavar="CSV",
                       help="a day's originals from the collection database: a UTF-8 CSV with a header naming the "
                            "columns identifier, title, operator, notes, mode (others kept as extra metadata); "
@@ -92,8 +94,11 @@ def _originals(args: argparse.Namespace, mode: str, out_dir: Path | None) -> tup
     for line in bad:
         print(f"{Path(args.queue).name}: {line}", file=sys.stderr)
     if bad and not args.skip_invalid:
+        n = len(queue.entries)
+        rest = ("no row is valid" if n == 0 else
+                f"or --skip-invalid to shoot the other {n}" if n > 1 else "or --skip-invalid to shoot the other one")
         raise ValueError(f"{args.queue}: {len(bad)} bad row{'s' if len(bad) > 1 else ''} (listed above); nothing "
-                         f"was shot: fix them, or --skip-invalid to shoot the other {len(queue.entries)}")
+                         f"was shot: fix {'it' if len(bad) == 1 else 'them'}{'; ' if n == 0 else ', '}{rest}")
     if not queue.entries:
         raise ValueError(f"{args.queue}: no original to shoot")
     if bad:
@@ -104,6 +109,7 @@ def _originals(args: argparse.Namespace, mode: str, out_dir: Path | None) -> tup
 
 
 def main(args: argparse.Namespace) -> int:
+    check_device_options(args)                # before the heavy imports below
     from dualrgb.app.workflow.copystand import CopyStand, QueueOutcome, StandSettings, capture_queue
     from dualrgb.app.workflow.profile import load_profile
 

@@ -35,6 +35,22 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
 
 
+def check_device_options(args: argparse.Namespace) -> None:
+    """What the device options must say, answered before anything heavy is imported: the virtual lab, or the
+    sphere's port AND the camera (``ValueError``, one line)."""
+    if getattr(args, "virtual_lab", False):
+        return
+    port, camera = getattr(args, "port", None), getattr(args, "camera", None)
+    if port and not camera:
+        raise ValueError(f"--port {port} without --camera: name the camera too (--camera 'MODEL @ PORT' from "
+                         "`dualrgb devices`, or auto), or use --virtual-lab")
+    if camera and not port:
+        raise ValueError(f"--camera {camera!r} without --port: name the sphere's serial port too (e.g. --port "
+                         "/dev/ttyACM0), or use --virtual-lab")
+    if not port:
+        raise ValueError("name the devices: --port SERIAL_PORT --camera 'MODEL @ PORT' (or --virtual-lab)")
+
+
 def add_reuse_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="use a calibration that does not match, with a warning")
     p.add_argument("--max-age-h", type=number(0.0, 8760), default=8.0, help="warn when the calibration is older (8 h)")
@@ -108,8 +124,7 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
                 return lab.place(what, nd)
             yield Devices(lab.camera, lab.sphere, stand, lab)
         return
-    if not args.port or not args.camera:
-        raise ValueError("name the devices: --port SERIAL_PORT --camera 'MODEL @ PORT' (or --virtual-lab)")
+    check_device_options(args)
     yield from _real_devices(args)
 
 

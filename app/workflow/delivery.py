@@ -326,7 +326,7 @@ def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original
         doc = _sidecar(stack, profile, original, camera, now, ppi, exposures, dose, qa, written, spectral)
         atomic_write(folder / f"{stem}.json",
                      (json.dumps({**doc, **(extra or {})}, indent=2, ensure_ascii=False, default=str) + "\n"
-                      ).encode("utf-8"))
+                      ).encode("utf-8", "backslashreplace"))   # a path's undecodable byte: a JSON \udcXX escape
     log.info("delivered %s: %s", original.identifier, qa.text())
     return Delivery(original, {k: final / p.name for k, p in written.items()}, final / f"{stem}.json", qa)
 

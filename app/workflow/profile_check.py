@@ -11,7 +11,7 @@ the tests validate what the product writes), the value ranges that relate fields
   would only show after its frames); every exposure within the light-on cap (:data:`MAX_EXPOSURE_S`; the session's
   settle time and the camera's latency are checked again before the light goes on); black < linear limit <=
   white level; the darks cover every planned exposure.
-* **Digest**: ``digest`` holds the sha256 of the canonical JSON (keys sorted, no spaces, UTF-8) of every other
+* **Digest**: ``digest`` holds the sha256 of the canonical JSON (keys sorted, no spaces, ASCII) of every other
   top-level field and of all of them together. A profile is made by ``dualrgb calibrate``, never edited: a
   changed field is refused, naming it (calibrate again; ``--ppi`` sets the sampling of a capture without editing).
 * **Arrays**: the .npz is at most :func:`npz_cap` bytes (what its arrays need) and holds every array the JSON
@@ -181,8 +181,8 @@ def _check_created(created: str, refuse: Any) -> None:
 
 # ---------------------------------------------------------------------------------------------------- digest
 def canonical(value: Any) -> bytes:
-    """The canonical JSON of ``value``: keys sorted, no spaces, UTF-8, no NaN."""
-    return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False).encode()
+    """The canonical JSON of ``value``: keys sorted, no spaces, ASCII (other characters escaped), no NaN."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False).encode()
 
 
 def _digest_of(doc: dict[str, Any]) -> dict[str, Any]:

@@ -206,3 +206,51 @@ def test_an_oversized_input_is_refused_before_it_is_read(tmp_path, capsys, monke
     lines = err.strip().splitlines()
     assert rc == 1 and len(lines) == 1 and says in lines[0], err
     assert not (tmp_path / "session").exists()
+
+
+PARSE_TIME = {
+    "empty --id": (["capture", "--calibration", "{profile}", "--id", "  ", "--virtual-lab"], 2,
+                   "argument --id: '  ': expected the original's identifier"),
+    "--port without --camera": (["capture", "--calibration", "{profile}", "--id", "A", "--port", "/dev/ttyACM0"], 1,
+                                "--port /dev/ttyACM0 without --camera"),
+    "--camera without --port": (["calibrate", "--camera", "auto"], 1, "--camera 'auto' without --port"),
+    "no devices": (["calibration", "show", "{profile}", "--camera", "auto"], 1, "without --port"),
+}
+PROBE = """
+import sys
+from dualrgb.app.cli import main
+try:
+    rc = main({argv!r})
+except SystemExit as exc:
+    rc = exc.code
+print("RC", rc, "HEAVY", sorted(m for m in ("numpy", "colour", "rawpy", "numba", "scipy") if m in sys.modules))
+"""
+
+
+@pytest.mark.fault("input")
+@pytest.mark.parametrize("case", list(PARSE_TIME))
+def test_parse_time_errors_answer_before_the_heavy_imports(tmp_path, case):
+    import subprocess
+    import sys
+
+    from fault_rigs import ROOT
+
+    argv, code, says = PARSE_TIME[case]
+    argv = [a.replace("{profile}", str(tmp_path / "cal.json")) for a in argv]
+    (tmp_path / "cal.json").write_text("{}")
+    r = subprocess.run([sys.executable, "-c", PROBE.format(argv=argv)], capture_output=True, text=True, cwd=ROOT,
+                       timeout=120)
+    assert f"RC {code} HEAVY []" in r.stdout, (r.stdout, r.stderr[-2000:])
+    assert says in r.stderr.strip().splitlines()[-1]
+
+
+@pytest.mark.fault("input")
+@pytest.mark.parametrize("rows, says", [
+    (",bad\n", "1 bad row (listed above); nothing was shot: fix it; no row is valid"),
+    (",bad\nACC-1,good\n", "fix it, or --skip-invalid to shoot the other one")])
+def test_a_queue_with_bad_rows_says_what_is_left(tmp_path, capsys, rows, says):
+    queue = tmp_path / "q.csv"
+    queue.write_text("identifier,title\n" + rows)
+    rc = main(["capture", "--virtual-lab", "--calibration", str(make_profile(tmp_path / "cal").path), "--queue",
+               str(queue), "--session", str(tmp_path / "session")])
+    assert rc == 1 and says in capsys.readouterr().err.strip().splitlines()[-1]

@@ -49,3 +49,18 @@ def test_a_damaged_frame_stops_its_original_only(two_originals, capsys, tmp_path
     doc = json.loads((tmp_path / "p.json").read_text())
     assert [o["identifier"] for o in doc["originals"]] == ["ACC-2"]
     assert [o["identifier"] for o in doc["not_delivered"]] == ["ACC-1", "ACC-3"]
+
+
+def test_a_session_folder_whose_name_is_not_utf8_captures_and_processes(tmp_path, capsys):
+    """A folder named in another encoding (Latin-1 'u-umlaut'): was 'damaged raw data (UnicodeEncodeError)'."""
+    import os
+    from pathlib import Path
+
+    root = Path(tmp_path) / os.fsdecode(b"sitzung-\xfc")
+    profile = make_profile(root / "cal", shape=(64, 96)).path
+    args = ["--calibration", str(profile)]
+    assert main(["capture", "--virtual-lab", *args, "--id", "ACC-1", "--session", str(root / "s"), "--force",
+                 "--settle", "0", "--frame-size", "96x64"]) == 0
+    assert main(["process", str(root / "s"), *args]) == 0
+    sidecar = root / "s" / "deliverables" / "ACC-1" / "ACC-1.json"
+    assert json.loads(sidecar.read_bytes())["session"] == str(root / "s")         # the exact path, escaped
