@@ -20,10 +20,9 @@ It renders what the real camera would record, with the same simulation the optim
 * file: an uncompressed 16-bit DNG (14-bit data; drivers.virtual.dng, tifffile) that rawpy reads back
   bit-exact.
 
-``expose()`` takes the light as it is at that moment and lasts the exposure time whenever the light is on (so the
-sphere's record of the lit period, the light dose, matches the exposure; with ``realtime=True`` unlit exposures
-last their time too) and ``fetch()`` renders and writes the DNG, so the light can be off during the "download" as on
-the real camera. Every exposure is logged in ``exposure_log`` on the camera's ``clock`` (the virtual lab gives it
+``expose()`` takes the light as it is then and lasts the exposure time while lit (the dose matches the exposure;
+``realtime=True``: unlit too); ``fetch()`` renders and writes the DNG, so the light is off during the "download" as
+on the real camera. Every exposure is logged in ``exposure_log`` on the camera's ``clock`` (the virtual lab gives it
 the sphere emulator's, so tests can set exposures against the emulator's record of lit periods). Faults for
 tests (:meth:`VirtualCamera.inject`): ``latency`` (the exposure starts ``delay_s`` late: shutter lag, a slow
 USB), ``hang`` (``expose()`` blocks until the faults are cleared), ``slow_fetch`` (``delay_s``), ``error``
@@ -341,13 +340,9 @@ class VirtualCamera(Camera):
                         handle=(snap, s, scene))
 
     def _hold(self, seconds: float) -> None:
-        """Let the exposure last ``seconds`` on the camera's clock: skipped on a skippable clock (the virtual lab's
-        hour-long measurements), waited otherwise."""
+        """The exposure lasts ``seconds`` on the camera's clock: skipped on a skippable clock, else waited."""
         skip = getattr(self._clock, "skip", None)
-        if callable(skip) and not self.realtime:
-            skip(seconds)
-        else:
-            time.sleep(seconds)
+        skip(seconds) if callable(skip) and not self.realtime else time.sleep(seconds)
 
     def fetch(self, exposure: Exposure) -> RawCapture:
         self._require_open()
@@ -376,8 +371,7 @@ class VirtualCamera(Camera):
     def frame_shape(self) -> tuple[int, int]:
         return (self._scene.height, self._scene.width)
 
-    def image_area(self) -> str:
-        """The rendered frame's size (``--frame-size``)."""
+    def image_area(self) -> str:                # the rendered frame's size (--frame-size)
         return f"{self._scene.width}x{self._scene.height} px"
 
     def frame_bytes(self) -> int:
