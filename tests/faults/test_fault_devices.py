@@ -241,3 +241,24 @@ def test_measure_csrf_against_a_failing_or_hanging_camera(monkeypatch, tmp_path,
     finally:
         for bench in benches:
             bench.camera.inject(None)
+
+
+def test_status_after_sphere_on_says_the_limit_it_sent(capsys):
+    """Issue 28 item 7: after `sphere on --max-on 2`, status said 10 s; on a sphere lit by another program it
+    promised a limit nothing held (it stayed lit until the watchdog)."""
+    with sphere_peer("working") as peer:
+        assert main(["sphere", "--port", peer.port, "on", "--max-on", "2"]) == 0
+        assert main(["sphere", "--port", peer.port, "status"]) == 0
+        out = capsys.readouterr().out
+        assert "off_by: limit" in out and "max_on_s: 2.000" in out, out
+        left = float(out.split("the light goes off by itself in ")[1].split(" s")[0])
+        assert 0 < left <= 2.0 and "(the 2 s limit `dualrgb sphere on` sent with ON)" in out
+        deadline = time.monotonic() + 3.0                      # and it did go off by itself
+        while peer.emulator.snapshot().light_on:
+            assert time.monotonic() < deadline, "the 2 s limit did not switch the light off"
+            time.sleep(0.05)
+        for line in (b"LEVELS 65535 0 0 0 0 0 0 0 0 0", b"LIGHT 1"):      # now another program lights it
+            assert peer.emulator.handle(line).startswith(b"OK")
+        assert main(["sphere", "--port", peer.port, "status"]) == 0
+        out = capsys.readouterr().out
+        assert "off_by: watchdog" in out and "at the latest in 30.0 s (the sphere's watchdog" in out, out
