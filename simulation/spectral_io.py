@@ -7,12 +7,14 @@ Every problem raises :class:`SpectralDataError` with a one-line message naming f
 from __future__ import annotations
 
 import csv
+import json
 import logging
 import math
 import os
 import stat
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -63,6 +65,18 @@ def require_response(table: SpectralTable, n_columns: int, what: str) -> None:
         if not (table.values[:, i] > 0).any():
             raise SpectralDataError(f"{table.source}: column {name!r} is 0 at every wavelength; a {what} must "
                                     "respond somewhere (is it the right file?)")
+
+
+def read_json_file(path: Path, what: str, error: type, max_bytes: int) -> Any:
+    """The JSON value in a user's file (:func:`read_text_file`'s checks first), or ``error`` with one line naming
+    the file (and the line of a syntax error)."""
+    text = read_text_file(path, what, error, max_bytes)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise error(f"{path}:{exc.lineno}: not valid JSON ({exc.msg}); expected a {what} file") from None
+    except RecursionError:
+        raise error(f"{path}: JSON nested too deeply for a {what} file") from None
 
 
 def read_text_file(path: Path, what: str, error: type, max_bytes: int) -> str:

@@ -57,22 +57,9 @@ def schema() -> dict[str, Any]:
 
 def read_document(path: Path) -> dict[str, Any]:
     """The profile JSON at ``path`` as a dict, its size checked before it is read (:data:`MAX_JSON_BYTES`)."""
-    try:
-        size = path.stat().st_size
-        if size > MAX_JSON_BYTES:
-            raise ProfileError(f"{path}: {size / 2 ** 20:.1f} MiB is not a calibration (at most "
-                               f"{MAX_JSON_BYTES // 2 ** 20} MiB)")
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise ProfileError(f"{path}: cannot read the calibration ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise ProfileError(f"{path}: not a calibration (not UTF-8 at byte {exc.start})") from None
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ProfileError(f"{path}:{exc.lineno}: not a calibration (invalid JSON: {exc.msg})") from None
-    except RecursionError:
-        raise ProfileError(f"{path}: not a calibration (nested too deeply)") from None
+    from dualrgb.simulation.spectral_io import read_json_file
+
+    doc = read_json_file(path, "calibration JSON", ProfileError, MAX_JSON_BYTES)
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         found = doc.get("format") if isinstance(doc, dict) else None
         raise ProfileError(f"{path}: not a dualrgb calibration (format {found!r}, expected {FORMAT!r})")

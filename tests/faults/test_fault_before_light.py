@@ -187,7 +187,7 @@ OVERSIZED = {
     "CSV readings": (lambda tmp: ["measure", "import-leds", str(_sparse(tmp / "r.csv")), "--out",
                                   str(tmp / "stand")], "r.csv: 1024.0 MiB is too large for a CSV file"),
     "calibration JSON": (lambda tmp: ["calibration", "show", str(_sparse(tmp / "c.json"))],
-                         "c.json: 1024.0 MiB is not a calibration (at most 16 MiB)"),
+                         "c.json: 1024.0 MiB is too large for a calibration JSON file (limit 16 MiB)"),
 }
 
 

@@ -124,9 +124,10 @@ ARRAYS = {
     "npz missing": (lambda p: p.with_suffix(".npz").unlink(), "the calibration's arrays are missing"),
     "npz of 1 GB": (lambda p: os.truncate(p.with_suffix(".npz"), 2 ** 30), "more than the"),
     "npz holding objects": (_pickled_npz, "not a calibration's arrays"),
-    "JSON of 1 GB": (lambda p: os.truncate(p, 2 ** 30), f"is not a calibration (at most {MAX_JSON_BYTES >> 20} MiB)"),
-    "JSON cut short": (lambda p: p.write_bytes(p.read_bytes()[:200]), "not a calibration (invalid JSON"),
-    "JSON not UTF-8": (lambda p: p.write_bytes(b'{"format": "\xff"}'), "not a calibration (not UTF-8 at byte 12)"),
+    "JSON of 1 GB": (lambda p: os.truncate(p, 2 ** 30),
+                     f"is too large for a calibration JSON file (limit {MAX_JSON_BYTES >> 20} MiB)"),
+    "JSON cut short": (lambda p: p.write_bytes(p.read_bytes()[:200]), "not valid JSON ("),
+    "JSON not UTF-8": (lambda p: p.write_bytes(b'{"format": "\xff"}'), "binary or not UTF-8 (UTF-16?); expected a"),
 }
 
 
