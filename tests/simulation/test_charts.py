@@ -172,10 +172,18 @@ def test_the_reference_xyz_of_a_chart_file_matches_colour_science():
 @pytest.mark.parametrize("kwargs, says", [
     ({"layout": "3x5"}, "24 patches do not fit a 3x5 layout (15 cells)"),
     ({"leave_out": "A1,Z9"}, "cannot leave out 'Z9': no such patch"),
+    ({"mode": "transmissive"}, "cc24_test.cie: a reflective"),
 ])
 def test_a_chart_that_cannot_be_used_is_one_line(kwargs, says):
     options = {"role": "test", "mode": "reflective", **kwargs}
     grid = default_setup(options["mode"]).grid
+    if kwargs.get("mode") == "transmissive":
+        from dualrgb.app.workflow.targets import chart_of
+
+        chart = read_chart(CC24, GRID, role="test", mode="reflective")
+        with pytest.raises(ChartError, match=says):
+            chart_of("transmissive", "test", {"test": chart})
+        return
     with pytest.raises(ChartError) as info:
         read_chart(CC24, grid, **options)
     assert says in str(info.value) and "\n" not in str(info.value)
