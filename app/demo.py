@@ -17,7 +17,6 @@ report.json's ``original`` holds dE00 and spectral RMSE (mean, p90, per material
 """
 from __future__ import annotations
 
-import json
 import logging
 import time
 from dataclasses import dataclass, field
@@ -39,6 +38,7 @@ from dualrgb.app.workflow.session_processing import process_session
 from dualrgb.app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
 from dualrgb.app.workflow.vocabulary import NamedLight, Subject, lights_of
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report, scaled
+from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.drivers.virtual.lab import VirtualLab
 from dualrgb.drivers.virtual.world import load_world
 from dualrgb.simulation.camera_model import channel_responses
@@ -266,7 +266,7 @@ class DemoRun:
             "elapsed_s": round(time.perf_counter() - self.t0, 2),
             "session": str(session.path),
         }
-        atomic_write(s.out / "report.json", (json.dumps(report_data, indent=2, default=_json) + "\n").encode())
+        atomic_write(s.out / "report.json", (strict_dumps(report_data, indent=2, default=_json) + "\n").encode())
         report(self.progress, 1.0, f"report written: {s.out / 'report.json'}")
         return report_data
 

@@ -7,9 +7,7 @@ its format.
 from __future__ import annotations
 
 import argparse
-import json
 import logging
-import math
 import os
 import sys
 from collections.abc import Callable
@@ -33,24 +31,11 @@ def text_stream(dest: str | os.PathLike[str] | None) -> TextIO:
 
 
 def dumps(data: Any, default: Callable[[Any], Any] | None = None, **kw: Any) -> str:
-    """``json.dumps`` as every JSON the app writes is made: NaN and Infinity are refused (they are not JSON), a
-    ValueError naming the first key path that holds one."""
-    try:
-        return json.dumps(data, default=default, allow_nan=False, **kw)
-    except ValueError as exc:
-        raise ValueError(f"{exc}: at {non_finite_path(data) or '?'} (not JSON; a number must be finite)") from None
+    """``json.dumps`` as every JSON the app writes is made (common.strict_json): NaN and Infinity are refused
+    (they are not JSON), a ValueError naming the first key path that holds one."""
+    from dualrgb.common.strict_json import dumps as strict_dumps
 
-
-def non_finite_path(data: Any, path: str = "") -> str:
-    """The key path ('a.b[2]') of the first NaN or infinite float in ``data``; '' when there is none."""
-    if isinstance(data, float):
-        return "" if math.isfinite(data) else (path or "(top)")
-    items: Any = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, list | tuple) else ()
-    for k, v in items:
-        found = non_finite_path(v, f"{path}.{k}" if isinstance(k, str) else f"{path}[{k}]")
-        if found:
-            return found.lstrip(".")
-    return ""
+    return strict_dumps(data, default=default, **kw)
 
 
 def write_json(dest: str | os.PathLike[str] | None, fmt: str, data: dict,

@@ -45,6 +45,7 @@ from dualrgb.app.processing.calibration import DarkFrame, FlatField, MasterDark
 from dualrgb.app.session.capture_session import atomic_write
 from dualrgb.app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
 from dualrgb.app.workflow.vocabulary import NamedLight, exposure_key
+from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.simulation.defaults import default_grid
 from dualrgb.simulation.lightsource import LightSource
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
@@ -224,7 +225,7 @@ class CalibrationProfile:
         doc = {**self.to_dict(), "arrays": {"file": npz.name, "sha256": hashlib.sha256(data).hexdigest(),
                                             "darks": dark_index, "whites": white_index}}
         path = folder / f"{self.id}.json"
-        atomic_write(path, (json.dumps(doc, indent=2) + "\n").encode())
+        atomic_write(path, (strict_dumps(doc, indent=2) + "\n").encode())
         self.path = path
         log.info("calibration %s saved: %s (+ %s, %.0f MB)", self.id, path, npz.name, len(data) / 1e6)
         return path

@@ -149,10 +149,10 @@ def test_a_museum_export_with_long_provenance_and_54_columns_stops_nothing(tmp_p
     assert kept.startswith(long_text[:900]) and q.originals[0].extra["c36"] == "short"
     assert "c1" not in q.originals[5].extra and q.originals[4].extra["c1"] == "value 4-1"
     lines = q.column_lines()                                           # in header order
-    assert lines[::-1] == ["column 'c36' (extra metadata): 9 values over 1000 characters (longest 3565) kept truncated, "
-                     "marked '[… N characters, truncated]'",
-                     "column 'c1' (extra metadata): 1 value dropped (control character U+0001 at character 4 is not "
-                     "allowed)"]
+    assert lines[::-1] == ["column 'c36' (extra metadata): 9 values over 1000 characters (longest 3565) kept "
+                           "truncated, marked '[… N characters, truncated]'",
+                           "column 'c1' (extra metadata): 1 value dropped (control character U+0001 at character 4 "
+                           "is not allowed)"]
 
 
 def test_unnamed_and_unreadable_header_columns_are_left_out_with_one_line(tmp_path):
