@@ -7,35 +7,23 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from PySide6.QtCore import Qt
 
 from dualrgb.app.gui.panels.originals import ADD_VALID, LEAVE, OVERRIDE
 from dualrgb.app.workflow.charts import ChartChoice
 from dualrgb.app.workflow.day import OriginalState
 from dualrgb.app.workflow.vocabulary import Role, role_of
 from tests.gui.conftest import wait_idle
+from tests.gui.test_copystand_gui import click, start
 
 LONG = 180000
 ROOT = Path(__file__).resolve().parents[2]
 CHARTS = ROOT / "tests" / "data" / "charts"
 
 
-def click(qtbot, button):
-    assert button.isEnabled(), f"{button.text()!r} is disabled: {button.toolTip()}"
-    qtbot.mouseClick(button, Qt.LeftButton)
-
-
 @pytest.mark.timeout(600)
 def test_own_charts_plan_and_the_mode_rule_in_the_window(qtbot, make_window):
     w = make_window(frame_size=(240, 160))
-    w.lab.start_virtual_lab()
-    wait_idle(qtbot, w)
-    cap = w.capture
-    cap.new_session()
-    qtbot.waitUntil(lambda: w.lab.session is not None and len(cap.presets) > 0, timeout=LONG)
-    cap.choose_preset("dual-RGB reflective")
-    cap.settle.setValue(0.0)
-    box = cap.calibration
+    box = start(qtbot, w).calibration
     box.dark_frames.setValue(1)
     box.flat_frames.setValue(2)
     box.de_fit.setChecked(False)
