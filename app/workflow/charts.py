@@ -55,9 +55,11 @@ def load_charts(choices: dict[str, ChartChoice], mode: str) -> dict[str, Any]:
 
 
 def definition(charts: dict[str, Any]) -> dict[str, Any]:
-    """What a session records of the charts on the stand (a resume with other charts is refused): per target
-    the file name and sha256, the layout and the patches left out; {} with the packaged targets."""
-    if not charts:
-        return {}
-    return {"charts": {role: {"file": c.file.name, "sha256": c.file.sha256, "layout": list(c.layout),
-                              "left_out": list(c.leave_out)} for role, c in sorted(charts.items())}}
+    """What a session records of the charts on the stand (a resume with other charts is refused, so target frames
+    of one chart are never kept for another): per target the file name and sha256, the layout and the patches left
+    out, or ``"packaged"`` for the mode's packaged target."""
+    def of(role: str) -> Any:
+        c = charts.get(role)
+        return "packaged" if c is None else {"file": c.file.name, "sha256": c.file.sha256, "layout": list(c.layout),
+                                             "left_out": list(c.leave_out)}
+    return {"charts": {role: of(role) for role in ROLES}}

@@ -30,6 +30,7 @@ from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.workflow.charts import definition as chart_definition
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
@@ -211,6 +212,7 @@ class CopyStand:
         defaults = workflow_defaults(preset.mode)
         plan = self.exposure_plan(base, defaults.hdr_auto if hdr_auto is None else hdr_auto, preset.mode)
         specs = self.target_specs(preset.mode, grids)          # a chart that cannot be used: before any frame
+        self.session.extend_definition(**chart_definition(self.settings.charts or {}))   # other charts: refused
         for seq, lo, hi in self.calibration_sequences(lights, plan, base):
             self.run_sequence(seq, lo, hi)
         optimise = self.settings.optimise_matrix

@@ -276,3 +276,7 @@ def test_calibrated_with_the_stands_own_charts_and_delivering(own_charts):
     assert all(Path(f).is_file() for f in own["files"].values())
     assert json.loads(Path(own["sidecar"]).read_text())["calibration"]["id"] == cal["id"]
     assert Path(own["sidecar"]).parent.parent == root / "day" / "deliverables"
+    # the packaged targets on the same day's session: refused at once (its target frames are the SG's)
+    r = dualrgb("calibrate", "--session", str(root / "day"), "--virtual-lab", "--hdr", "off", "--dark-frames", "3",
+                "--flat-frames", "8", "--no-de-fit", *FRAME, ok=False)
+    assert r.returncode == 1 and "the session was made with other settings: charts" in r.stderr
