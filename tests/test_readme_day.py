@@ -63,7 +63,8 @@ def test_readme_copy_stand_day_runs_as_written(workdir):
     assert films == {"東博-F-7"}                                   # the film row: only in the film session
     check = ran[2]
     assert "5 to shoot, 0 kept, 1 refused" in check.stdout and "row 7: 東博-F-7: refused" in check.stdout
-    assert "row 7" in ran[3].stderr and "skipped 1 refused row: 7" in ran[3].stderr
+    assert "queue-example.csv: row 7: 東博-F-7: transmissive original, reflective calibration" in ran[3].stderr
+    assert "skipped 1 refused row: 7" in ran[3].stderr
     redelivered = {json.loads(p.read_text())["original"]["identifier"]
                    for p in (root / "redelivered").glob("*/*.json")}
     assert redelivered == delivered

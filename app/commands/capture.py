@@ -144,7 +144,7 @@ def _queue_originals(args: argparse.Namespace, plan) -> list:
         print(f"{name}: {line}", file=sys.stderr)
     refused = plan.of(REFUSED)
     for r in refused:
-        print(f"{name}: {r.line()}", file=sys.stderr)
+        print(f"{name}: {r.refusal()}", file=sys.stderr)
     shots = [r.original for r in plan.rows if r.state != REFUSED and r.original is not None]
     n = len(refused)
     if refused and not args.skip_invalid:

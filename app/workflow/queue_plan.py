@@ -30,9 +30,15 @@ class PlanRow:
     state: str                      # SHOOT | KEPT | REFUSED
     reason: str = ""                # why refused, why kept, or the override said when forced
     original: Original | None = None
+    bad: bool = False               # refused for a bad value (the reason names the column), not for its mode
 
     def line(self) -> str:
         return f"row {self.row}: {self.identifier or '?'}: {self.state}" + (f" ({self.reason})" if self.reason else "")
+
+    def refusal(self) -> str:
+        """The row's refusal as the CLI lists it: a bad row as queue_csv says it (``row 6, column 'Title': ...``),
+        an original of the other mode with its identifier (``row 7: F-1: transmissive original, ...``)."""
+        return f"row {self.row}, {self.reason}" if self.bad else f"row {self.row}: {self.identifier}: {self.reason}"
 
 
 @dataclass
@@ -59,7 +65,7 @@ class QueuePlan:
         return [self.summary(), *(r.line() for r in self.rows), *self.column_lines]
 
     def refused_lines(self) -> list[str]:
-        return [r.line() for r in self.of(REFUSED)]
+        return [r.refusal() for r in self.of(REFUSED)]
 
     def to_dict(self) -> dict[str, Any]:
         return {"queue": str(self.source), "calibration": self.calibration, "summary": self.summary(),
@@ -75,7 +81,7 @@ def plan_queue(queue: QueueImport, profile: Any, *, session: Any = None, force: 
     rows: list[PlanRow] = []
     bad = dict(zip(queue.bad_rows, queue.bad_lines(), strict=True))
     for row, line in bad.items():
-        rows.append(PlanRow(row, queue.bad_identifiers.get(row, ""), REFUSED, line.split(", ", 1)[1]))
+        rows.append(PlanRow(row, queue.bad_identifiers.get(row, ""), REFUSED, line.split(", ", 1)[1], bad=True))
     for entry in queue.entries:
         rows.append(_plan_row(entry.row, entry.original, profile, session, force, reshoot))
     plan.rows = sorted(rows, key=lambda r: r.row)
