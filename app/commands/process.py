@@ -1,9 +1,12 @@
 """``dualrgb process``: deliver a session's originals again, e.g. with a newer calibration.
 
-    dualrgb process SESSION [--calibration FILE] [--out DIR] [--render-illuminant A] [--json J]
+    dualrgb process SESSION [--calibration FILE] [--force] [--out DIR] [--render-illuminant A] [--json J]
 
-Every original that can be is delivered; those that cannot (a missing or damaged frame, a folder holding another
-original's files, a refused QA) are listed one per line, and the command ends with exit 1.
+The mode rule (app.workflow.mode_rule) as for ``capture``: without ``--calibration`` each original is delivered
+with the session's newest calibration of its own mode; with one, originals of the other mode are refused (listed,
+exit 1) unless ``--force``. Every original that can be is delivered; those that cannot (a missing or damaged
+frame, a folder holding another original's files, a refused QA) are listed one per line, and the command ends
+with exit 1 (issue 28).
 """
 from __future__ import annotations
 
@@ -14,9 +17,12 @@ from pathlib import Path
 
 from dualrgb.app.cli import UserError
 from dualrgb.app.commands.options import add_render_option, number
-from dualrgb.app.commands.stand_options import progress_printer, write_json
+from dualrgb.app.commands.stand_options import progress_printer
+from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 log = logging.getLogger(__name__)
+
+PROCESS_FORMAT = "dualrgb-process/1"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,19 +33,40 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--calibration", type=Path, help="calibration profile (.json); default: the session's newest")
     p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables)")
     p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
-    p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
+    p.add_argument("--force", action="store_true",
+                   help="with --calibration: deliver originals of the other mode with it too (said in the sidecar "
+                        "and QA line)")
+    add_json_option(p)
     add_render_option(p)
     p.set_defaults(func=main)
 
 
-def newest_calibration(session) -> Path:
-    """The session's own newest calibration, else the one its latest original was captured with."""
+def session_calibrations(session) -> list[Path]:
+    """The session's own calibrations, then those its originals were captured with (oldest first)."""
     found = sorted((session.path / "calibration").glob("cal-*.json"))
     used = [Path(o["calibration"]) for o in session.settings.get("originals", {}).values() if o.get("calibration")]
-    found += [p for p in used if p.exists()]
+    return found + [p for p in used if p.exists() and p not in found]
+
+
+def newest_calibration(session) -> Path:
+    """The session's own newest calibration, else the one its latest original was captured with."""
+    found = session_calibrations(session)
     if not found:
         raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
     return found[-1]
+
+
+def newest_by_mode(session) -> dict:
+    """Mode -> the newest calibration of that mode among :func:`session_calibrations` (loaded)."""
+    from dualrgb.app.workflow.profile import load_profile
+
+    out = {}
+    for path in session_calibrations(session):
+        profile = load_profile(path, arrays=False)
+        out[profile.mode] = path
+    if not out:
+        raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
+    return {mode: load_profile(path) for mode, path in out.items()}
 
 
 def main(args: argparse.Namespace) -> int:
@@ -48,21 +75,29 @@ def main(args: argparse.Namespace) -> int:
     from dualrgb.app.workflow.profile import load_profile
 
     session = CaptureSession.open(args.session, readonly=True)      # frames checked before use, per original
-    profile = load_profile(args.calibration or newest_calibration(session))
-    deliveries, failed = redeliver(session, profile, args.out or args.session / "deliverables", ppi=args.ppi,
-                                   progress=progress_printer(), render_illuminant=args.render_illuminant)
-    if not deliveries and not failed:
+    profiles = load_profile(args.calibration) if args.calibration else newest_by_mode(session)
+    refused: list[str] = []
+    deliveries, failed = redeliver(session, profiles, args.out or args.session / "deliverables", ppi=args.ppi,
+                                   progress=progress_printer(), render_illuminant=args.render_illuminant,
+                                   force=args.force, refused=refused)
+    for line in refused:
+        print(f"refused: {line}", file=sys.stderr)
+    if not deliveries and not refused and not failed:
         raise ValueError(f"{args.session}: no originals to process")
     for d in deliveries:
-        print(d.qa.text())
+        print(d.qa.text(), file=text_stream(args.json))
     for f in failed:
         print(f"{f.identifier}: not delivered: {f.reason}", file=sys.stderr)
-    write_json(args.json_path, {"calibration": profile.id, "originals": [
+    used = [profiles] if not isinstance(profiles, dict) else list(profiles.values())
+    write_json(args.json, PROCESS_FORMAT, {"calibration": used[0].id if len(used) == 1 else None,
+                                           "calibrations": {p.mode: p.id for p in used}, "refused": refused,
+                                           "not_delivered": [{"identifier": f.identifier, "reason": f.reason}
+                                                             for f in failed],
+                                           "originals": [
         {"identifier": d.original.identifier, "qa": d.qa.to_dict(), "files": {k: str(v) for k, v in d.files.items()},
-         "sidecar": str(d.sidecar)} for d in deliveries],
-        "not_delivered": [{"identifier": f.identifier, "reason": f.reason} for f in failed]})
+         "sidecar": str(d.sidecar)} for d in deliveries]}, default=str)
     if failed:
         raise UserError(f"{len(failed)} of {len(failed) + len(deliveries)} originals not delivered (listed above: "
                         f"{', '.join(f.identifier for f in failed[:5])}{' ...' if len(failed) > 5 else ''}); the "
                         "others were delivered")
-    return 0
+    return 1 if refused else 0

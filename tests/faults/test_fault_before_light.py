@@ -246,7 +246,7 @@ def test_parse_time_errors_answer_before_the_heavy_imports(tmp_path, case):
 
 @pytest.mark.fault("input")
 @pytest.mark.parametrize("rows, says", [
-    (",bad\n", "1 bad row (listed above); nothing was shot: fix it; no row is valid"),
+    (",bad\n", "1 refused row (listed above); nothing was shot: fix it; no row is valid"),
     (",bad\nACC-1,good\n", "fix it, or --skip-invalid to shoot the other one")])
 def test_a_queue_with_bad_rows_says_what_is_left(tmp_path, capsys, rows, says):
     queue = tmp_path / "q.csv"
