@@ -20,7 +20,7 @@ It renders what the real camera would record, with the same simulation the optim
 * file: an uncompressed 16-bit DNG (14-bit data; drivers.virtual.dng, tifffile) that rawpy reads back
   bit-exact.
 
-``expose()`` takes the light as it is then and lasts the exposure time while lit (the dose matches the exposure;
+``expose()`` takes the light as it is then and lasts the exposure time while the sphere is lit (dose = exposure;
 ``realtime=True``: unlit too); ``fetch()`` renders and writes the DNG, so the light is off during the "download" as
 on the real camera. Every exposure is logged in ``exposure_log`` on the camera's ``clock`` (the virtual lab gives it
 the sphere emulator's, so tests can set exposures against the emulator's record of lit periods). Faults for
@@ -332,7 +332,7 @@ class VirtualCamera(Camera):
         snap = StaticLight(levels.copy(), np.array(drift))       # what the sensor saw, frozen
         scene = self._scene.at_exposure()                       # a field's light as it is now, frozen
         lit = bool(np.any(levels > 0)) or (scene.kind == "field" and scene.shown_field.emits())
-        if self.realtime or lit:
+        if self.realtime or levels.any():                      # the sphere lights the stand: its dose is real
             self._hold(t)
         ended = self._clock()
         self.exposure_log.append(ExposureRecord(t_open, ended, t, lit))
