@@ -1,7 +1,12 @@
 """The ``dualrgb`` command line. Each subcommand lives in its own module under app/commands/ and exposes
 ``register(subparsers)``; the module list below is the one place that names them.
 
-Errors a user can cause (bad file, no device, bad value) print one line ``dualrgb: error: ...`` and exit 1.
+Errors a user can cause (bad file, no device, bad value) and every device error print one line
+``dualrgb: error: ...`` and exit 1: :class:`UserError`, ``ValueError``, ``OSError`` and every error marked
+:class:`common.errors.ReportedError` (the sphere's, the camera's, the monochromator's, the light-safety refusals),
+with the notes the devices added on the way out (what state the light was left in). Anything else is a bug: one
+line names it and the crash report holding its traceback (``<per-user data folder>/crash/``), exit 1. No traceback
+reaches the terminal (``-vv`` logs it as well).
 
 Start-up: building the parser imports every command module, so a command module imports at its top only what
 ``register`` needs (argparse, the standard library, simulation.choices); numpy, colour-science, numba, rawpy,
@@ -16,6 +21,7 @@ import logging
 import sys
 from collections.abc import Sequence
 
+from dualrgb.common.errors import ReportedError, one_line, write_crash_report
 from dualrgb.simulation.versions import dualrgb_version
 
 log = logging.getLogger(__name__)
@@ -60,7 +66,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _printable_streams() -> None:
+    """Paths with bytes that are not UTF-8 (a folder named in another encoding) print as escapes, never fail."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if callable(reconfigure):
+            try:
+                reconfigure(errors="backslashreplace")
+            except (ValueError, OSError) as exc:       # a stream that cannot change: leave it
+                log.debug("stream %r: %s", stream, exc)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    _printable_streams()
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
@@ -70,11 +88,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("dualrgb: interrupted", file=sys.stderr)
         return 130
-    except (UserError, OSError, ValueError) as exc:
+    except (UserError, ReportedError, OSError, ValueError) as exc:
         if args.verbose >= 2:
             log.exception("command failed")
-        print(f"dualrgb: error: {exc}", file=sys.stderr)
+        print(f"dualrgb: error: {one_line(exc)}", file=sys.stderr)
         return 1
+    except Exception as exc:  # noqa: BLE001 - the last resort: a bug, reported in one line and a crash file
+        return _crashed(exc, list(sys.argv if argv is None else ["dualrgb", *argv]), args.verbose)
+
+
+def _crashed(exc: Exception, argv: list[str], verbose: int) -> int:
+    """One line for a bug (an error no check foresaw), its traceback in a crash report; exit 1."""
+    from dualrgb import resources
+
+    if verbose >= 2:
+        log.error("command failed", exc_info=exc)
+    report = write_crash_report(exc, resources.user_path("crash"), argv)
+    where = f"the traceback is in {report}" if report is not None else "the traceback could not be written"
+    print(f"dualrgb: error: unexpected {type(exc).__name__}: {one_line(exc)} (a bug in dualrgb: {where}; please "
+          "report it with that file)", file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

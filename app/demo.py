@@ -33,7 +33,7 @@ from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.hdr import HdrPlan, meter_and_plan
 from dualrgb.app.session.capture_session import CaptureSession, atomic_write
 from dualrgb.app.session.log import SessionLog
-from dualrgb.app.session.manifest import camera_definition, light_definition
+from dualrgb.app.session.manifest import camera_definition, image_area_definition, light_definition
 from dualrgb.app.workflow.copystand import CopyStand, StandSettings
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS, workflow_defaults
 from dualrgb.app.workflow.session_processing import process_session
@@ -215,7 +215,7 @@ class DemoRun:
         conds, presets = make_conditions(s, self.progress)
         report(self.progress, 0.1, "starting the virtual lab")
         with VirtualLab(mode=s.mode, frame_size=s.frame_size, seed=s.seed, world=s.world) as lab:
-            session.extend_definition(camera=camera_definition(lab.camera),
+            session.extend_definition(camera=camera_definition(lab.camera), **image_area_definition(lab.camera),
                                       lights={c.name: [light_definition(nl.light, nl.name) for nl in c.lights]
                                               for c in conds})
             for role, chart in s.charts.items():                # the stand's own charts on the virtual stand

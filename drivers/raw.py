@@ -12,6 +12,7 @@ A file that is missing, empty, truncated, corrupt, not a raw file or not a 2x2 B
 from __future__ import annotations
 
 import contextlib
+import io
 import logging
 import os
 import stat
@@ -20,7 +21,7 @@ import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Union
+from typing import Any, Union
 
 import numpy as np
 
@@ -281,9 +282,20 @@ def _cfa_problem(pattern) -> str:
     return f"no 2x2 Bayer CFA pattern (found {shape}): a damaged file or a non-Bayer sensor"
 
 
+def libraw_source(p: Path) -> Any:
+    """The path as LibRaw takes it (UTF-8), or, for a path that is not UTF-8 (a folder name in another
+    encoding: its undecodable bytes cannot be passed on), the file's bytes in memory."""
+    name = os.fspath(p)
+    try:
+        name.encode("utf-8")
+    except UnicodeEncodeError:
+        return io.BytesIO(p.read_bytes())
+    return name
+
+
 def _load(p: Path, head: bytes, rawpy) -> RawFrame:
     try:
-        with _libraw_stderr(p), rawpy.imread(os.fspath(p)) as raw:
+        with _libraw_stderr(p), rawpy.imread(libraw_source(p)) as raw:
             if raw.raw_type != rawpy.RawType.Flat:
                 raise RawFileError(p, "not a Bayer mosaic (the file holds demosaiced/linear RGB data)")
             pattern = raw.raw_pattern
@@ -360,7 +372,7 @@ def linear_demosaic(frame: RawFrame, *, half_size: bool = False,
             raise ValueError(f"demosaic algorithm {algorithm!r} unknown; expected one of {names}") from None
     head = _read_head(frame.path)
     try:
-        with _libraw_stderr(frame.path), rawpy.imread(os.fspath(frame.path)) as raw:
+        with _libraw_stderr(frame.path), rawpy.imread(libraw_source(Path(frame.path))) as raw:
             return raw.postprocess(**args)
     except rawpy.LibRawError as exc:
         raise RawFileError(frame.path, _libraw_problem(exc, head)) from exc

@@ -42,9 +42,10 @@ from pathlib import Path
 import numpy as np
 
 from dualrgb.common.atomic_files import atomic_write
-from dualrgb.simulation.spectral_io import SpectralDataError, SpectralTable
+from dualrgb.simulation.spectral_io import MAX_CSV_BYTES, SpectralDataError, SpectralTable
 
 log = logging.getLogger(__name__)
+MAX_CGATS_BYTES = MAX_CSV_BYTES    # an instrument export of hundreds of readings is a few MB
 
 _SPECTRAL = re.compile(r"^(?:SPECTRAL_NM_?|SPECTRAL_|SPEC_|NM_?)(\d+(?:\.\d+)?)$", re.IGNORECASE)
 _NAME_FIELDS = ("SAMPLE_NAME", "SAMPLE_ID", "SAMPLEID", "SAMPLE_LOC")
@@ -191,6 +192,10 @@ def is_cgats(path: str | Path) -> bool:
 
 def _text(path: Path) -> str:
     try:
+        size = path.stat().st_size
+        if size > MAX_CGATS_BYTES:
+            raise CgatsError(f"{path}: {size / 2 ** 20:.1f} MiB is too large for a CGATS file (limit "
+                             f"{MAX_CGATS_BYTES // 2 ** 20} MiB)")
         data = path.read_bytes()
     except OSError as exc:
         raise CgatsError(f"{path}: cannot read file ({exc.strerror or exc})") from None

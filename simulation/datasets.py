@@ -19,7 +19,7 @@ from dualrgb import resources
 from dualrgb.simulation.choices import MODES
 from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid, resample
 from dualrgb.simulation.lightsource import N_SPHERE_LEDS
-from dualrgb.simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv
+from dualrgb.simulation.spectral_io import SpectralDataError, SpectralTable, read_spectral_csv, require_response
 
 log = logging.getLogger(__name__)
 
@@ -120,6 +120,7 @@ def load_camera(path: str | Path, grid: SpectralGrid = DEFAULT_GRID) -> np.ndarr
     if len(table.columns) != 3 and tuple(extra) != CAMERA_UNCERTAINTY_COLUMNS:
         raise SpectralDataError(f"{table.source}: expected 3 data columns (R, G, B; optionally followed by "
                                 f"{', '.join(CAMERA_UNCERTAINTY_COLUMNS)}), found {len(table.columns)}")
+    require_response(table, 3, "camera channel")
     _check_covers(table, grid)
     return resample(table.wavelengths, table.values[:, :3], grid)
 

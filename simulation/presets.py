@@ -22,7 +22,7 @@ from dualrgb import resources
 from dualrgb.common.atomic_files import atomic_write
 from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.simulation.lightsource import N_SPHERE_LEDS, LightSource
-from dualrgb.simulation.spectral_io import read_text_file
+from dualrgb.simulation.spectral_io import read_json_file
 from dualrgb.simulation.versions import output_header
 
 log = logging.getLogger(__name__)
@@ -108,13 +108,7 @@ def load_preset(path: str | Path, n_leds: int = N_SPHERE_LEDS) -> Preset:
     """Read a preset strictly (see :func:`_source`); any problem is one :class:`PresetError` line naming the
     file: unreadable, binary/UTF-16, over 1 MiB, invalid or too deeply nested JSON, a wrong field."""
     path = Path(path)
-    text = read_text_file(path, "preset JSON", PresetError, MAX_PRESET_BYTES)
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise PresetError(f"{path}:{exc.lineno}: not valid JSON ({exc.msg})") from None
-    except RecursionError:
-        raise PresetError(f"{path}: not a preset (JSON nested too deeply)") from None
+    data = read_json_file(path, "preset JSON", PresetError, MAX_PRESET_BYTES)
     if not isinstance(data, dict) or not isinstance(data.get("sources"), list) or not data["sources"]:
         raise PresetError(f"{path}: expected a JSON object with a non-empty 'sources' list")
     if len(data["sources"]) > n_leds:

@@ -7,12 +7,14 @@ Every problem raises :class:`SpectralDataError` with a one-line message naming f
 from __future__ import annotations
 
 import csv
+import json
 import logging
 import math
 import os
 import stat
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -55,6 +57,27 @@ def read_spectral_csv(
         text, name, expected_columns=expected_columns, allow_negative=allow_negative,
         max_value=max_value, wavelength_range=wavelength_range,
     )
+
+
+def require_response(table: SpectralTable, n_columns: int, what: str) -> None:
+    """Each of the first ``n_columns`` data columns must be above 0 somewhere (a camera channel that responds
+    nowhere, read from an all-zero file, would only show as a division by zero or a black image much later)."""
+    for i, name in enumerate(table.columns[:n_columns]):
+        if not (table.values[:, i] > 0).any():
+            raise SpectralDataError(f"{table.source}: column {name!r} is 0 at every wavelength; a {what} must "
+                                    "respond somewhere (is it the right file?)")
+
+
+def read_json_file(path: Path, what: str, error: type, max_bytes: int) -> Any:
+    """The JSON value in a user's file (:func:`read_text_file`'s checks first), or ``error`` with one line naming
+    the file (and the line of a syntax error)."""
+    text = read_text_file(path, what, error, max_bytes)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise error(f"{path}:{exc.lineno}: not valid JSON ({exc.msg}); expected a {what} file") from None
+    except RecursionError:
+        raise error(f"{path}: JSON nested too deeply for a {what} file") from None
 
 
 def read_text_file(path: Path, what: str, error: type, max_bytes: int) -> str:

@@ -35,7 +35,7 @@ from dualrgb.simulation.choices import N_SPHERE_LEDS
 from dualrgb.simulation.datasets import SimulationSetup, check_setup, default_setup
 from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid, resample
 from dualrgb.simulation.led_shapes import shaped_led_spectra
-from dualrgb.simulation.spectral_io import SpectralDataError, read_spectral_csv
+from dualrgb.simulation.spectral_io import SpectralDataError, read_spectral_csv, require_response
 from dualrgb.simulation.sphere import SphereProperties
 
 log = logging.getLogger(__name__)
@@ -105,6 +105,7 @@ def _read_table(path: str, what: str, stamp: int) -> tuple[np.ndarray, np.ndarra
         values = values[:3]
         if values.shape[0] != 3:
             raise SpectralDataError(f"{table.source}: a camera CSV needs red, green and blue columns")
+        require_response(table, 3, "camera channel")
     return table.wavelengths.copy(), values
 
 

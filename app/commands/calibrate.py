@@ -24,6 +24,7 @@ from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_session_option,
     ask_person,
+    check_device_options,
     open_devices,
     open_session,
     progress_printer,
@@ -97,22 +98,31 @@ def find_preset(name: str | None, mode: str | None):
 def resolve(args: argparse.Namespace) -> tuple[Any, str, int, int]:
     """What the options (or their defaults, app.workflow.defaults) ask for: (the preset, its mode set to the
     run's, the HDR plan 'auto' / 'off', dark frames, flat frames)."""
+    from dualrgb.app.workflow.preflight import check_lights
+    from dualrgb.app.workflow.vocabulary import lights_of
+
     preset = find_preset(args.preset, args.mode)
     preset.mode = args.mode or preset.mode
+    check_lights(lights_of(preset), f"preset {args.preset or preset.name}")     # before any device opens
     d = day.workflow_defaults(preset.mode)
     return preset, args.hdr or d.hdr, args.dark_frames or d.dark_frames, args.flat_frames or d.flat_frames
 
 
 def _stand_start(args: argparse.Namespace) -> Any:
-    """The measured curves the stand fit starts from (None: nominal)."""
+    """The measured curves the stand fit starts from (None: nominal), read and checked now, before any device acts
+    (finite, not negative, every camera channel responding: simulation.spectral_io)."""
     if not (args.camera_csv or args.stand_dir):
         return None
     from dualrgb.app.workflow.stand_reoptimise import Measurements, assemble
 
-    return assemble(None, Measurements.of(args.camera_csv, None, args.stand_dir))[0]
+    start = assemble(None, Measurements.of(args.camera_csv, None, args.stand_dir))[0]
+    start.camera_table()
+    start.led_table()
+    return start
 
 
 def main(args: argparse.Namespace) -> int:
+    check_device_options(args)                # before the heavy imports below
     from dualrgb.app.workflow import charts as day_charts
     from dualrgb.app.workflow.copystand import CopyStand, StandSettings
     from dualrgb.app.workflow.defaults import DAY_WORKFLOW

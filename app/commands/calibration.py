@@ -11,6 +11,7 @@ from pathlib import Path
 from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
+    check_device_options,
     open_devices,
     reuse_limits,
 )
@@ -33,6 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    if args.virtual_lab or args.port or args.camera:
+        check_device_options(args)            # before the heavy imports below
     from dualrgb.app.workflow.profile import CameraIdentity, SphereIdentity, check_reuse, describe, load_profile
 
     profile = load_profile(args.file)

@@ -21,12 +21,13 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from dualrgb.app.commands.options import add_render_option, column_option, count, input_file, number
+from dualrgb.app.commands.options import add_render_option, column_option, count, identifier, input_file, number
 from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
     add_session_option,
     ask_person,
+    check_device_options,
     open_devices,
     open_session,
     progress_printer,
@@ -50,7 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--calibration", type=input_file,
                    help="calibration profile (.json); default with --session: the session's newest (of --mode's)")
     what = p.add_mutually_exclusive_group(required=True)
-    what.add_argument("--id", dest="identifier", help="identifier / accession number (names the files)")
+    what.add_argument("--id", dest="identifier", type=identifier,
+                      help="identifier / accession number (names the files)")
     what.add_argument("--queue", type=input_file, metavar="CSV",
                       help="a day's originals from the collection database: a UTF-8 CSV with a header naming the "
                            "columns identifier, title, operator, notes, mode (others kept as extra metadata); "
@@ -148,8 +150,11 @@ def _queue_originals(args: argparse.Namespace, plan) -> list:
     shots = [r.original for r in plan.rows if r.state != REFUSED and r.original is not None]
     n = len(refused)
     if refused and not args.skip_invalid:
+        k = len(shots)
+        rest = ("no row is valid" if k == 0 else
+                f"or --skip-invalid to shoot the other {k}" if k > 1 else "or --skip-invalid to shoot the other one")
         raise ValueError(f"{args.queue}: {n} refused row{'s' if n > 1 else ''} (listed above); nothing was shot: "
-                         f"fix them, or --skip-invalid to shoot the other {len(shots)}")
+                         f"fix {'it' if n == 1 else 'them'}{'; ' if k == 0 else ', '}{rest}")
     if not shots:
         raise ValueError(f"{args.queue}: no original to shoot")
     if refused:
@@ -159,6 +164,8 @@ def _queue_originals(args: argparse.Namespace, plan) -> list:
 
 
 def main(args: argparse.Namespace) -> int:
+    if not args.check:
+        check_device_options(args)            # before the heavy imports below (--check opens no device)
     from dualrgb.app.workflow.copystand import CopyStand, QueueOutcome, StandSettings, capture_queue
     from dualrgb.app.workflow.profile import load_profile
 

@@ -117,6 +117,14 @@ def frame_size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def identifier(text: str) -> str:
+    """An original's identifier as given on the command line: something besides spaces (the full checks, on
+    every field, are app.workflow.metadata's, before a device opens)."""
+    if not text.strip():
+        raise _fail(text, "expected the original's identifier or accession number, e.g. ACC-123")
+    return text
+
+
 def input_file(text: str) -> str:
     """An existing regular file (a folder, a FIFO or a device would hang or fail later)."""
     try:

@@ -17,6 +17,7 @@ and, truthfully, what state the light is in (exit 2 for a wrong option, 1 otherw
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import os
 import signal
@@ -40,6 +41,7 @@ log = logging.getLogger(__name__)
 
 PORT_ENV = "DUALRGB_SPHERE_PORT"
 STATUS_FORMAT = "dualrgb-sphere-status/1"
+LIT_FORMAT = "dualrgb-sphere-lit/1"         # <data>/sphere/<port>.json: the limit `sphere on` sent
 
 
 class _SphereParser(argparse.ArgumentParser):
@@ -164,19 +166,7 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
         info = sphere.identify()
         print(f"model {info['model']}, firmware {info['firmware']}, serial {info['serial']}")
     elif args.action == "status":
-        status = sphere.status()
-        if args.json:
-            write_json(args.json, STATUS_FORMAT, status)
-            if args.json == "-":
-                return
-        for key, value in status.items():
-            if value is None:
-                value = "-"
-            elif isinstance(value, float):
-                value = f"{value:.3f}"
-            elif key == "levels":
-                value = " ".join(f"{v:.4f}" for v in value)
-            print(f"{key}: {value}")
+        _status(sphere, args)
     elif args.action == "set":
         taken = sphere.set_level(args.led, args.level)
         print(f"LED {args.led} level {taken:.4f}")
@@ -186,14 +176,75 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
         print(f"applied {light.name or 'light source'} {light.label()}: levels {levels}")
     elif args.action == "on":
         period = sphere.on(max_on_s=args.max_on)
+        _remember_lit(sphere.port, args.max_on if period.device_limit else None)
         if period.device_limit:
             print(f"light on for at most {args.max_on:g} s (the sphere switches it off by itself)")
         else:
             print(f"light on; this firmware has no on-time limit: its watchdog, set to {args.max_on:g} s, switches "
                   "it off that long after the last request")
     elif args.action == "off":
-        sphere.shutdown()
-        print("all LEDs off, light off")
+        sphere.shutdown()                   # read back: a sphere that does not confirm it is off is an error
+        _remember_lit(sphere.port, None)
+        print("all LEDs off, light off (read back)")
+
+
+def _status(sphere: LedSphere, args: argparse.Namespace) -> None:
+    """``status``: the sphere's state, and when a lit period ends at the latest: the limit `sphere on` sent with ON
+    when this lit period is the one it started (the sphere's on-time agrees), else the sphere's watchdog."""
+    status = sphere.status(adopt=False)         # this command exits: no limit of its own would be held
+    limit = _our_limit(sphere.port, status["device_on_time_s"]) if status["light_on"] else None
+    if limit is not None:
+        status["off_in_s"] = max(0.0, min(limit - status["device_on_time_s"], status["watchdog_s"]))
+        status["off_by"], status["max_on_s"] = "limit", limit
+    if args.json:
+        write_json(args.json, STATUS_FORMAT, status)
+        if args.json == "-":
+            return
+    for key, value in status.items():
+        if value is None:
+            value = "-"
+        elif isinstance(value, float):
+            value = f"{value:.3f}"
+        elif key == "levels":
+            value = " ".join(f"{v:.4f}" for v in value)
+        print(f"{key}: {value}")
+    if limit is not None:
+        print(f"the light goes off by itself in {status['off_in_s']:.1f} s (the {limit:g} s limit `dualrgb sphere "
+              "on` sent with ON)")
+    elif status["light_on"]:
+        print(f"the light goes off at the latest in {status['off_in_s']:.1f} s (the sphere's watchdog, counted from "
+              "this request; sooner if whoever switched it on set a shorter limit)")
+
+
+def _lit_file(port: str) -> Path:
+    from dualrgb import resources
+
+    return resources.user_path("sphere", "".join(c if c.isalnum() else "_" for c in port) + ".json")
+
+
+def _remember_lit(port: str, max_on_s: float | None) -> None:
+    """What `sphere on` switched on (the limit the sphere holds), for a later `sphere status`; None: forget it."""
+    from dualrgb.common.atomic_files import atomic_write, remove_quietly
+
+    path = _lit_file(port)
+    if max_on_s is None:
+        remove_quietly(path)
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    from dualrgb.simulation.versions import stamped
+
+    atomic_write(path, json.dumps(stamped(LIT_FORMAT, {"port": port, "max_on_s": max_on_s,
+                                                       "switched_on_at": time.time()})))
+
+
+def _our_limit(port: str, device_on_time_s: float) -> float | None:
+    """The limit `sphere on` sent, when the sphere's on-time says this is still that lit period (within 0.5 s)."""
+    try:
+        doc = json.loads(_lit_file(port).read_text(encoding="utf-8"))
+        elapsed, limit = time.time() - float(doc["switched_on_at"]), float(doc["max_on_s"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return limit if doc.get("format") == LIT_FORMAT and abs(elapsed - device_on_time_s) <= 0.5 else None
 
 
 def serve_emulator(args: argparse.Namespace) -> int:

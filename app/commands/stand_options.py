@@ -36,6 +36,22 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", metavar="PATH", dest="json_path", help=JSON_HELP)
 
 
+def check_device_options(args: argparse.Namespace) -> None:
+    """What the device options must say, answered before anything heavy is imported: the virtual lab, or the
+    sphere's port AND the camera (``ValueError``, one line)."""
+    if getattr(args, "virtual_lab", False):
+        return
+    port, camera = getattr(args, "port", None), getattr(args, "camera", None)
+    if port and not camera:
+        raise ValueError(f"--port {port} without --camera: name the camera too (--camera 'MODEL @ PORT' from "
+                         "`dualrgb devices`, or auto), or use --virtual-lab")
+    if camera and not port:
+        raise ValueError(f"--camera {camera!r} without --port: name the sphere's serial port too (e.g. --port "
+                         "/dev/ttyACM0), or use --virtual-lab")
+    if not port:
+        raise ValueError("name the devices: --port SERIAL_PORT --camera 'MODEL @ PORT' (or --virtual-lab)")
+
+
 def add_reuse_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="use a calibration that does not match, with a warning")
     p.add_argument("--max-age-h", type=number(0.0, 8760), default=8.0, help="warn when the calibration is older (8 h)")
@@ -100,8 +116,7 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
                 return lab.place(what, nd)
             yield Devices(lab.camera, lab.sphere, stand, lab)
         return
-    if not args.port or not args.camera:
-        raise ValueError("name the devices: --port SERIAL_PORT --camera 'MODEL @ PORT' (or --virtual-lab)")
+    check_device_options(args)
     yield from _real_devices(args)
 
 
@@ -124,18 +139,30 @@ def real_camera(args: argparse.Namespace) -> Iterator[Any]:
 
 
 def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
-    from dualrgb.drivers.led_sphere import LedSphere
+    """The sphere on ``--port`` (switched off first) and the camera; whatever fails, the light is switched off on
+    the way out and the error carries a note saying what state it is in (read back, never assumed)."""
+    from dualrgb.drivers.led_sphere import LedSphere, SphereError
 
     sphere = LedSphere(args.port).open()
     try:
-        sphere.shutdown()
+        sphere.shutdown()                   # raises a SphereError whose message says the light's state
         with real_camera(args) as camera:
             yield Devices(camera, sphere, None, None)
+    except BaseException as exc:
+        if not (isinstance(exc, SphereError) and exc.light is not None):
+            report = sphere.ensure_off()
+            if not report.off or not _says_light_off(str(exc)):
+                exc.add_note(report.message)
+        raise
+    else:
+        sphere.shutdown()
     finally:
-        try:
-            sphere.shutdown()
-        finally:
-            sphere.close()
+        sphere.close(leave_on=True)         # switched off above
+
+
+def _says_light_off(message: str) -> bool:
+    """Whether an error already says the light was switched off (app.sequences.shooter.restate)."""
+    return "switched off" in message
 
 
 def add_session_option(p: argparse.ArgumentParser) -> None:
@@ -149,7 +176,7 @@ def open_session(folder: Path | None, definition: dict, camera: Any, meta: dict 
     (anything else is refused in one line naming the difference; app.session). One writer at a time. No
     ``folder``: a new dated session in the captures folder (app.workflow.folders), named on stderr."""
     from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.session.manifest import camera_definition
+    from dualrgb.app.session.manifest import camera_definition, image_area_definition
     from dualrgb.app.workflow.defaults import DAY_WORKFLOW, day_workflow
 
     if folder is not None and definition.get("workflow") == DAY_WORKFLOW:     # an older session of the same day
@@ -166,7 +193,7 @@ def open_session(folder: Path | None, definition: dict, camera: Any, meta: dict 
         session = CaptureSession.resume(Path(folder), definition, meta or {},
                                         hint="use the same options and camera, or another --session")
     try:
-        session.extend_definition(camera=camera_definition(camera))
+        session.extend_definition(camera=camera_definition(camera), **image_area_definition(camera))
     except BaseException:
         session.close()
         raise

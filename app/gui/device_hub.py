@@ -346,7 +346,7 @@ class Lab(QObject):
     def session_definition(self) -> dict:
         """What defines the frames of a session made here (app.session: reopening with anything else is
         refused, naming the difference): the mode, the camera, and the virtual lab's frame size."""
-        from dualrgb.app.session.manifest import camera_definition
+        from dualrgb.app.session.manifest import camera_definition, image_area_definition
 
         vl = self.virtual_lab
         out: dict[str, Any] = {"mode": vl.mode if vl is not None else self.mode}
@@ -354,6 +354,7 @@ class Lab(QObject):
             out["frame_size"] = [vl.width, vl.height]
         if self.camera is not None:
             out["camera"] = camera_definition(self.camera)
+            out.update(image_area_definition(self.camera))
         return out
 
     def set_session(self, session: Any, note: str = "") -> None:

@@ -204,6 +204,7 @@ class DeliveryEncoder:
         self._scale = np.float32(LINEAR_ONE / white_y)
         self.invalid = 0
         self.over_white = 0
+        self.lit = False                # any encoded XYZ above 0 (an all-zero delivery is refused: app.workflow)
         self.threads = max(1, threads or numba.get_num_threads())
         self.chunks_per_thread = 4      # smaller pieces balance the threads when other processes take a core
         self._executor: ThreadPoolExecutor | None = None
@@ -226,6 +227,7 @@ class DeliveryEncoder:
             counts = list(self._pool().map(lambda k: _encode_rows(*args, cuts[k], cuts[k + 1]), range(len(cuts) - 1)))
         self.invalid += sum(int(b) for b, _ in counts)
         self.over_white += sum(int(o) for _, o in counts)
+        self.lit = self.lit or bool(xyz16.any())
 
     def _pool(self) -> ThreadPoolExecutor:
         if self._executor is None:

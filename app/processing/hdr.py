@@ -164,7 +164,9 @@ class HdrMerge:
         if self._sums is not None and raw.shape != self._sums.shape[1:]:
             raise ValueError(f"exposure {exposure_s:.6g} s has shape {raw.shape}, earlier ones {self._sums.shape[1:]}")
         if isinstance(dark, np.ndarray) and dark.shape != raw.shape:
-            raise ValueError(f"dark {dark.shape} and raw {raw.shape} differ in shape")
+            raise ValueError(f"a frame of {raw.shape[1]}x{raw.shape[0]} px against the calibration's master dark of "
+                             f"{dark.shape[1]}x{dark.shape[0]} px: the camera's image size or area changed since "
+                             "calibrating; set it back (--frame-size on the virtual lab) or calibrate again")
         if raw.dtype.kind not in "ui":
             raise ValueError(f"raw mosaic must hold integer DN, got {raw.dtype}")
         k, new = self._slot(float(exposure_s), raw.shape)

@@ -73,11 +73,11 @@ def open_raw(source: FrameLike) -> Iterator[Any]:
         return
     import rawpy
 
-    from dualrgb.drivers.raw import load_raw
+    from dualrgb.drivers.raw import libraw_source, load_raw
 
     path = Path(source)
     try:
-        raw = rawpy.imread(os.fspath(path))
+        raw = rawpy.imread(libraw_source(path))
     except (rawpy.LibRawError, OSError):
         load_raw(path)              # raises the descriptive RawFileError
         raise

@@ -93,8 +93,9 @@ class Sequence:
     def _steps(self) -> Iterator[ProgressEvent]:
         raise NotImplementedError
 
-    def _cleanup(self) -> None:
-        """Turn lights off etc.; called after completion, cancel and error."""
+    def _cleanup(self) -> Any:
+        """Turn lights off etc.; called after completion, cancel and error. It may return what is known about the
+        light afterwards (drivers.led_sphere.LightReport): an error that does not say it gets it as a note."""
 
     # ---- driver ----
     def checkpoint(self) -> None:
@@ -125,6 +126,7 @@ class Sequence:
     def run(self) -> Iterator[ProgressEvent]:
         self.check_free_space()
         self._t0 = time.monotonic()
+        failed: BaseException | None = None
         try:
             for event in self._steps():
                 if event.time_left_s is None:
@@ -134,8 +136,27 @@ class Sequence:
         except SequenceCancelled:
             log.info("%s cancelled", self.name)
             yield ProgressEvent(0, 0, f"{self.name} cancelled; lights off", kind=EventKind.CANCELLED)
+        except BaseException as exc:
+            failed = exc
+            raise
         finally:
-            try:
-                self._cleanup()
-            except Exception:  # cleanup must never mask the original error; it is logged loudly
-                log.exception("%s cleanup failed", self.name)
+            self._run_cleanup(failed)
+
+    def _run_cleanup(self, failed: BaseException | None) -> None:
+        """``_cleanup()``; an error being raised that does not say what state the light is in gets it as a note."""
+        try:
+            report = self._cleanup()
+        except Exception:  # cleanup must never mask the original error; it is logged loudly
+            log.exception("%s cleanup failed", self.name)
+            return
+        message = getattr(report, "message", None)
+        if failed is not None and message and not states_light(failed):
+            failed.add_note(message)
+
+
+def states_light(error: BaseException) -> bool:
+    """Whether an error's message already says what state the light (or the shutter) was left in."""
+    if getattr(error, "light", None) is not None or getattr(error, "shutter", None) is not None:
+        return True
+    text = str(error)
+    return any(words in text for words in ("switched off", "light's state", "did not confirm it is off", "shutter"))

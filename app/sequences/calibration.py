@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable, Iterator, Sequence
+from typing import Any
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
@@ -52,8 +53,8 @@ class DarkSeries(BaseSequence):
                 yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {t:g} s", kind=kind,
                                     data={"entry": entry.seq, "exposure_s": t})
 
-    def _cleanup(self) -> None:
-        self.shooter.lights_off()
+    def _cleanup(self) -> Any:
+        return self.shooter.lights_off()
 
 
 class FlatSeries(BaseSequence):
@@ -92,8 +93,8 @@ class FlatSeries(BaseSequence):
                     yield ProgressEvent(step, total, f"flat {nl.name} {i + 1}/{self.frames} at {t:g} s",
                                         kind=kind, data={"entry": entry.seq, "exposure_s": t})
 
-    def _cleanup(self) -> None:
-        self.shooter.lights_off()
+    def _cleanup(self) -> Any:
+        return self.shooter.lights_off()
 
 
 def snap_down(shutters: Sequence[float], t: float) -> float:

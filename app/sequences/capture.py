@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterator, Sequence
+from typing import Any
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
@@ -74,5 +75,5 @@ class SubjectCapture(BaseSequence):
             yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {t:g} s", kind=kind,
                                 data={"entry": entry.seq, "exposure_s": t, "light": nl.name})
 
-    def _cleanup(self) -> None:
-        self.shooter.lights_off()
+    def _cleanup(self) -> Any:
+        return self.shooter.lights_off()

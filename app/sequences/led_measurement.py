@@ -168,6 +168,7 @@ class LedMeasurement(BaseSequence):
             self.sphere.off()
         self.files += self.radiometer.save(readings, self.out_dir, f"warmup_LED{led}")
 
-    def _cleanup(self) -> None:
+    def _cleanup(self) -> Any:
         report = self.sphere.ensure_off()
         log.info("%s: %s", self.name, report.message)
+        return report

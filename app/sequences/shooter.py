@@ -26,6 +26,7 @@ from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.session.light_dose import LightDose
 from dualrgb.app.session.manifest import SessionEntry
 from dualrgb.app.workflow.defaults import SETTLE_S
+from dualrgb.common.errors import ReportedError
 from dualrgb.drivers.camera.base import DEFAULT_LATENCY_S, Camera, CameraError, Exposure, RawCapture, call_with_deadline
 from dualrgb.drivers.led_sphere import LightReport, SphereError
 from dualrgb.drivers.raw import RawFrame, load_raw
@@ -37,7 +38,7 @@ Stand = Callable[[str, bool], object]     # (what, nd) -> places 'train'/'test'/
 REJECTED_ROLE = "rejected"                # frames kept aside, never used (e.g. lit for less than the exposure)
 
 
-class LightSafetyError(RuntimeError):
+class LightSafetyError(ReportedError, RuntimeError):
     """A capture the light-on limit does not allow (refused before anything was switched on), or a frame whose
     light was cut at its limit before the shutter closed (kept aside as 'rejected')."""
 

@@ -87,6 +87,7 @@ from dualrgb.app.session.manifest import (
 )
 from dualrgb.common import atomic_files
 from dualrgb.common.atomic_files import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
+from dualrgb.common.debris import sweep
 from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.drivers.camera.base import RawCapture
 from dualrgb.simulation.versions import software_versions
@@ -214,8 +215,9 @@ class CaptureSession:
         """Open an existing session; unreadable manifest lines are skipped with a warning (never fatal).
 
         ``definition``: refuse (:class:`DefinitionMismatch`, ``hint`` appended) when the session was made
-        with another one. ``readonly``: no writer lock, no writes. ``clean_temp`` removes ``.tmp`` files left by
-        a process killed mid-write. A session killed between session.json and its manifest gets an empty one.
+        with another one. ``readonly``: no writer lock, no writes. ``clean_temp`` removes the temp files and
+        staging folders of processes killed mid-write (their owner named in them: common.debris). A session
+        killed between session.json and its manifest gets an empty one.
         """
         p = Path(path)
         settings_path = p / SETTINGS
@@ -240,9 +242,7 @@ class CaptureSession:
                 session.close()
                 raise
         if clean_temp and not readonly:
-            for tmp in p.glob(f".*{TMP_SUFFIX}"):
-                log.warning("removing incomplete file %s left by an interrupted write", tmp.name)
-                remove_quietly(tmp)
+            sweep(p)                # temp files and staging folders of writers that were killed (common.debris)
         log.info("opened capture session %s: %d files", p, len(session._entries))
         return session
 

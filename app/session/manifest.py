@@ -328,6 +328,15 @@ def light_definition(light: Any, name: str = "") -> dict:
             "levels": [float(v) for v in light.levels]}
 
 
+def image_area_definition(camera: Any) -> dict:
+    """``{"image_area": ...}``: the frame size and sensor area the camera reports (Camera.image_area), a top-level
+    item of every session's definition, so a resume with another frame size or crop is refused at once; ``{}``
+    for a camera that says nothing."""
+    area = getattr(camera, "image_area", None)
+    text = str(area()) if callable(area) else ""
+    return {"image_area": text} if text else {}
+
+
 def camera_definition(camera: Any) -> dict:
     """A camera's identity and the settings that change its frames (model, ISO, aperture, quality; a virtual
     camera's world: drivers.virtual.world)."""

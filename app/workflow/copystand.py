@@ -30,6 +30,7 @@ from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.session.manifest import DamagedFramesError
 from dualrgb.app.workflow.charts import definition as chart_definition
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
@@ -37,6 +38,14 @@ from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
 from dualrgb.app.workflow.metadata import MetadataError, check_original
 from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
 from dualrgb.app.workflow.mode_rule import check_mode
+from dualrgb.app.workflow.preflight import (
+    capture_frames,
+    check_capture_space,
+    check_exposures,
+    check_frame_shape,
+    check_lights,
+    deliverable_bytes,
+)
 from dualrgb.app.workflow.profile import (
     CalibrationProfile,
     CameraIdentity,
@@ -60,6 +69,7 @@ from dualrgb.app.workflow.vocabulary import (
     split_take,
     subject_of,
 )
+from dualrgb.common.errors import ReportedError, one_line
 from dualrgb.common.progress import Cancelled, CancelToken, ProgressCallback, report
 
 log = logging.getLogger(__name__)
@@ -202,6 +212,7 @@ class CopyStand:
         """Auto-exposure, darks and flats at every planned exposure, training and test targets, characterisation:
         the calibration profile, saved in ``<session>/calibration/``. ``hdr_auto`` None: the day's default
         (app.workflow.defaults)."""
+        check_lights(lights_of(preset), f"preset {preset.name}")      # before anything is lit
         base = self.auto_expose(lights_of(preset))
         return self.calibrate_at(preset, base, hdr_auto=hdr_auto, grids=grids, report_dir=report_dir)
 
@@ -329,11 +340,27 @@ class CopyStand:
         prepare(self.deliverables(out_dir), original)
         return override
 
+    def check_before_light(self, profile: CalibrationProfile, out_dir: Path | None = None, originals: int = 1) -> None:
+        """What the calibration and the stand decide before the light goes on (app.workflow.preflight): every
+        exposure within the light-on cap with this settle time and camera, and free space for the frames and the
+        deliverables of ``originals`` originals."""
+        check_lights(profile.lights, f"calibration {profile.id}")
+        check_frame_shape(self.camera, profile)
+        check_exposures(self.shooter.safety, profile)
+        frame_bytes = getattr(self.camera, "frame_bytes", None)
+        per_frame = int(frame_bytes()) if callable(frame_bytes) else 0
+        frames = capture_frames(profile, self.settings.original_frames, self.hdr_exposures(profile.mode))
+        bands = profile.estimator.n_wavelengths if profile.estimator is not None else 0
+        check_capture_space(self.session.path, self.deliverables(out_dir), originals * frames * per_frame,
+                            originals * deliverable_bytes(profile, bands),
+                            f"{originals} original{'s' if originals > 1 else ''}")
+
     def capture(self, original: Original, profile: CalibrationProfile, *, reshoot: bool | None = None,
                 out_dir: Path | None = None) -> CaptureReport:
         """Check the original (:meth:`preflight`) and the calibration, meter, capture (HDR when metering asks),
         deliver; frames already in the session are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
         override = self.preflight(original, out_dir, profile)
+        self.check_before_light(profile, out_dir)
         checked = self.check(profile)
         take = self._take(original, reshoot)
         exposures, warnings = self.meter(original, profile, take)
@@ -425,37 +452,48 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
     return proc
 
 
+@dataclass
+class Undelivered:
+    """An original ``dualrgb process`` could not deliver, and why (one line)."""
+
+    identifier: str
+    reason: str
+
+
 def redeliver(session: Any, profiles: CalibrationProfile | dict[str, CalibrationProfile], out_dir: Path, *,
               ppi: float | None = None, progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
               render_illuminant: str = DEFAULT_RENDER_ILLUMINANT, force: bool = False,
-              refused: list[str] | None = None) -> list[Delivery]:
+              refused: list[str] | None = None) -> tuple[list[Delivery], list[Undelivered]]:
     """Deliver every original of a session again (``dualrgb process``): with ``profiles`` (one calibration, or one
     per mode), the mode rule applied to each (app.workflow.mode_rule: an original without a calibration of its
     mode is left out, its line appended to ``refused``, unless ``force`` with one calibration); each original's
-    current deliverables move to its ``previous/`` folder. Every folder is checked before the first is written.
-    The spectral rendering is seen under ``render_illuminant``."""
+    current deliverables move to its ``previous/`` folder. Every original that can be is delivered; one whose
+    frames are missing or damaged, whose folder is another's or whose delivery fails is listed with its reason
+    (issue 28). The spectral rendering is seen under ``render_illuminant``."""
     from dualrgb.app.workflow.session_processing import session_frames
 
-    frames = session_frames(session)
+    frames = session_frames(session, intact=False)
+    damaged = {e.file: problem for e, problem in session.damaged()}
     known = session.settings.get("originals", {})
-    chosen = []
-    for subject in (s for s in frames.subjects if s.role is Role.ORIGINAL):
-        original = _known_original(session, known, subject.name)
-        profile, override = _profile_for(original, profiles, force)
-        if profile is None:
-            (refused if refused is not None else []).append(override)
-            continue
-        chosen.append((subject, original, profile, override))
-    for _subject, original, _profile, _override in chosen:
-        prepare(Path(out_dir), original)
-    out = []
-    for i, (subject, original, profile, override) in enumerate(chosen):
+    done: list[Delivery] = []
+    failed: list[Undelivered] = []
+    subjects = [s for s in frames.subjects if s.role is Role.ORIGINAL]
+    for i, subject in enumerate(subjects):
         if cancel is not None:
             cancel.check()
-        out.append(_redeliver_one(session, frames, subject, original, profile, out_dir, ppi, cancel,
-                                  render_illuminant, override))
-        report(progress, (i + 1) / len(chosen), f"{original.identifier} delivered")
-    return out
+        try:
+            original = _known_original(session, known, subject.name)
+            profile, override = _profile_for(original, profiles, force)
+            if profile is None:
+                (refused if refused is not None else []).append(override)
+                continue
+            done.append(_redeliver_one(session, frames, subject, original, profile, damaged, out_dir, ppi, cancel,
+                                       render_illuminant, override))
+        except (ValueError, OSError, ReportedError) as exc:
+            log.warning("%s: not delivered: %s", subject.name, exc)
+            failed.append(Undelivered(subject.name, one_line(exc)))
+        report(progress, (i + 1) / len(subjects), f"{subject.name} done")
+    return done, failed
 
 
 def _profile_for(original: Original, profiles: CalibrationProfile | dict[str, CalibrationProfile],
@@ -474,11 +512,17 @@ def _profile_for(original: Original, profiles: CalibrationProfile | dict[str, Ca
 
 
 def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Original, profile: CalibrationProfile,
-                   out_dir: Path, ppi: float | None, cancel: CancelToken | None, render_illuminant: str,
-                   override: str) -> Delivery:
+                   damaged: dict[str, str], out_dir: Path, ppi: float | None, cancel: CancelToken | None,
+                   render_illuminant: str, override: str) -> Delivery:
     from dualrgb.app.workflow.session_processing import select_lights
 
+    prepare(Path(out_dir), original)
     light_frames = select_lights(frames.subject(subject), [nl.name for nl in profile.lights])
+    for refs in light_frames.values():
+        for ref in refs:
+            if ref.label in damaged:
+                raise DamagedFramesError(f"{session.path / ref.label}: {damaged[ref.label]}; resume the session to "
+                                         "shoot it again", [ref.label])
     stack = profile_processor(profile).stack(light_frames, cancel=cancel)
     return deliver(stack, profile, original, out_dir, camera=profile.camera, ppi=ppi,
                    dose=original_dose(session, subject),
@@ -534,6 +578,7 @@ def capture_queue(stand: CopyStand, originals: Sequence[Original], profile: Cali
     session is kept and said so unless ``reshoot``."""
     for original in originals:
         stand.preflight(original, out_dir, profile)
+    stand.check_before_light(profile, out_dir, len(originals))
     outcomes = []
     for original in originals:
         stand._check_cancel()

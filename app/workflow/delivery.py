@@ -32,6 +32,8 @@ from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
+import numpy as np
+
 from dualrgb.app.json_output import dumps
 from dualrgb.app.processing.encode import LINEAR_ONE, DeliveryEncoder
 from dualrgb.app.processing.envi import DTYPE, IGNORE_VALUE, INTERLEAVE, SCALE_FACTOR, EnviHeader
@@ -217,6 +219,10 @@ def write_images(stack: ChannelStack, profile: CalibrationProfile, images: dict[
     the stack is held. The spectral cube and its rendering come from the same bands (``spectral``; its header
     is written by :func:`deliver`). Returns the files and the fraction of invalid (NaN) pixels."""
     H, W, _ = stack.data.shape
+    if not (np.isfinite(profile.matrix.matrix).all() and np.isfinite(profile.white_xyz).all()):
+        raise DeliveryQaError(f"QA refused the delivery: no pixel is a finite number (calibration {profile.id} has "
+                              "a matrix or white point that is not finite); nothing was delivered, the raw frames "
+                              "are kept in the session")
     streamed = {k: im for k, im in images.items() if im.source != "header"}
     rgb_keys = [k for k, im in streamed.items() if im.space and im.source == "stack"]
     est = spectral.estimator if spectral is not None else None
@@ -235,7 +241,24 @@ def write_images(stack: ChannelStack, profile: CalibrationProfile, images: dict[
             for o in out.values():
                 o.commit()
         invalid = enc.invalid_fraction
+        refuse_blank(invalid, enc.lit, profile)
     return {k: im.path for k, im in streamed.items()}, invalid
+
+
+class DeliveryQaError(ValueError):
+    """A delivery the QA refuses: its images hold nothing (no finite pixel, or every pixel 0); nothing is
+    delivered, the raw frames stay in the session."""
+
+
+def refuse_blank(invalid_fraction: float, lit: bool, profile: CalibrationProfile) -> None:
+    """Refuse an output with no finite pixel or with every pixel 0 (a matrix or white point that cannot be, a
+    black frame): on a real stand nothing else would show it."""
+    what = ("no pixel is a finite number" if invalid_fraction >= 1.0
+            else "every pixel is 0" if not lit else None)
+    if what is not None:
+        raise DeliveryQaError(f"QA refused the delivery: {what} in the encoded images (calibration {profile.id}: "
+                              "check its matrix and white point, and that the frames are lit); nothing was "
+                              "delivered, the raw frames are kept in the session")
 
 
 def cube_header(spectral: SpectralPlan, original: Original, profile: CalibrationProfile,
@@ -292,9 +315,12 @@ def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original
     final = Path(out_dir) / stem
     with staged(Path(out_dir), original) as folder:
         images = deliverable_files(folder, stem, stack.channels, spectral)
-        written, invalid = write_images(stack, profile, images,
-                                        lambda what: _tiff_meta(original, profile, camera, dose, ppi, what, now),
-                                        spectral=spectral)
+        try:
+            written, invalid = write_images(stack, profile, images,
+                                            lambda what: _tiff_meta(original, profile, camera, dose, ppi, what, now),
+                                            spectral=spectral)
+        except DeliveryQaError as exc:
+            raise DeliveryQaError(f"{original.identifier}: {exc}") from None
         if spectral is not None:
             header = images["spectral_header"].path
             cube_header(spectral, original, profile, stack.data.shape[:2]).write(header)
@@ -306,7 +332,7 @@ def deliver(stack: ChannelStack, profile: CalibrationProfile, original: Original
         doc = _sidecar(stack, profile, original, camera, now, ppi, exposures, dose, qa, written, spectral)
         atomic_write(folder / f"{stem}.json",
                      (dumps({**doc, **(extra or {})}, indent=2, ensure_ascii=False, default=str) + "\n"
-                      ).encode("utf-8"))
+                      ).encode("utf-8", "backslashreplace"))   # a path's undecodable byte: a JSON \udcXX escape
     log.info("delivered %s: %s", original.identifier, qa.text())
     return Delivery(original, {k: final / p.name for k, p in written.items()}, final / f"{stem}.json", qa)
 

@@ -6,7 +6,8 @@
 * :func:`check_folder` (run before the light goes on, and again just before a delivery lands) refuses in one line
   a folder whose sidecar names another identifier, a folder without a sidecar that holds files (not ours to
   write into), and a file where the folder should be.
-* :func:`staged` writes a delivery into a fresh hidden folder beside it (``.<stem>.<random>.new``); only when
+* :func:`staged` writes a delivery into a fresh hidden folder beside it (``.<stem>.<pid>.<random>.new``, named by
+  its writer: what a killed writer left is removed by the next one, common.debris); only when
   every file is complete is it swapped in with renames: the current set moves, whole, to
   ``<stem>/previous/<its creation time>/`` (older ones stay there too), then the new folder takes the name. A
   reader sees the old set or the new one, never a mix (for the instant between the two renames, neither); an
@@ -17,7 +18,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-import secrets
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -27,6 +27,7 @@ from typing import Any
 
 from dualrgb.app.workflow.metadata import Original
 from dualrgb.common.atomic_files import fsync_dir
+from dualrgb.common.debris import stage_name, sweep
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +110,8 @@ def staged(out_dir: Path, original: Original) -> Iterator[Path]:
         Path(out_dir).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise DeliveryFolderError(f"{out_dir}: cannot create the deliverables folder ({exc.strerror or exc})") from exc
-    stage = Path(out_dir) / f".{original.file_stem}.{secrets.token_hex(4)}.new"
+    sweep(Path(out_dir), depth=2)                   # what a killed delivery left (common.debris)
+    stage = Path(out_dir) / stage_name(original.file_stem)
     stage.mkdir()                                   # (not tempfile.mkdtemp: its 0700 would stay on the folder)
     try:
         yield stage

@@ -25,6 +25,8 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
+MAX_RADIANCE = 1e6              # no LED reads within six orders of this (W/(sr m^2 nm)); 1e308 is an edit
+NEGATIVE_NOISE = 0.05           # a reading may dip below 0 by this fraction of its peak (instrument noise)
 _ID = re.compile(r"^LED(\d{1,2})_(?:level(\d+(?:\.\d*)?(?:e-?\d+)?)|t(\d+(?:\.\d*)?))$", re.IGNORECASE)
 ID_EXAMPLES = "LED3_level0.05 (LED 3 at level 0.05) or LED3_t120 (LED 3 at full level, 120 s after it came on)"
 
@@ -103,6 +105,32 @@ def _read_table(path: Path):
     return read_spectral_csv(path, allow_negative=True)
 
 
+def check_spectrum(spectrum: np.ndarray, where: str) -> np.ndarray:
+    """A reading's spectrum if it can be one: finite and within :data:`MAX_RADIANCE`; ValueError otherwise."""
+    if not np.isfinite(spectrum).all():
+        raise ValueError(f"{where}: holds a value that is not a finite number")
+    peak, low = float(spectrum.max()), float(spectrum.min())
+    if max(abs(peak), abs(low)) > MAX_RADIANCE:
+        raise ValueError(f"{where}: value {peak if abs(peak) >= abs(low) else low:g} is not a radiance an LED gives "
+                         f"(at most {MAX_RADIANCE:g})")
+    return spectrum
+
+
+def check_leds(readings: LedReadings) -> None:
+    """Each LED's lit readings (level > 0, warm-up) rise above 0 somewhere, and no reading dips below 0 by more
+    than instrument noise (:data:`NEGATIVE_NOISE` of the LED's brightest reading); ValueError naming the LED."""
+    for led in readings.leds:
+        lit = [s for lv, s in readings.levels.get(led, []) if lv > 0] + [s for _, s in readings.warmup.get(led, [])]
+        peak = max((float(s.max()) for s in lit), default=0.0)
+        if lit and peak <= 0:
+            raise ValueError(f"LED {led}: every lit reading is 0 or below at every wavelength "
+                             f"({', '.join(readings.sources)}): are they the right readings?")
+        low = min(float(s.min()) for s in [*(s for _, s in readings.levels.get(led, [])), *lit])
+        if low < -NEGATIVE_NOISE * max(peak, 0.0) and low < 0:
+            raise ValueError(f"LED {led}: a reading reaches {low:g}, below the instrument noise ({NEGATIVE_NOISE:.0%} "
+                             f"of its brightest reading, {peak:g}); expected spectral radiances")
+
+
 def read_readings(paths: Iterable[str | Path], n_leds: int = 10) -> LedReadings:
     """Every reading in ``paths`` (module docstring), checked: one set of wavelengths, names in the grammar."""
     out: LedReadings | None = None
@@ -117,10 +145,12 @@ def read_readings(paths: Iterable[str | Path], n_leds: int = 10) -> LedReadings:
                              f"{out.wavelengths[0]:g}-{out.wavelengths[-1]:g} nm ({len(out.wavelengths)}); "
                              "export every reading with the same sampling")
         for j, name in enumerate(table.columns):
-            out.add(parse_reading_id(name, str(p), n_leds), table.values[:, j].copy())
+            out.add(parse_reading_id(name, str(p), n_leds),
+                    check_spectrum(table.values[:, j].copy(), f"{p}: reading {name!r}"))
         out.sources.append(str(p))
     if out is None:
         raise ValueError("no reading files given")
+    check_leds(out)
     out.sort()
     log.info("read %d files: levels of LEDs %s, warm-up of LEDs %s", len(out.sources), sorted(out.levels),
              sorted(out.warmup))

@@ -35,6 +35,7 @@ from dualrgb.app.workflow.led_readings import LedReadings
 from dualrgb.simulation.led_fit import STABLE_TOLERANCE, band_output, fit_drift, fit_low_level, led_band, led_shape
 
 log = logging.getLogger(__name__)
+MAX_STAND_BYTES = 4 << 20         # stand.json: a few kB; checked before reading
 
 STAND_FORMAT = "dualrgb-stand-measurement/1"
 STAND_JSON, LEDS_CSV, LEVELS_CSV = "stand.json", "leds.csv", "levels.csv"
@@ -195,11 +196,13 @@ def load_stand(folder: str | Path) -> StandFiles:
     """A stand folder written by :func:`write_stand` (``ValueError`` naming the file otherwise)."""
     folder = Path(folder)
     path = folder / STAND_JSON
+    from dualrgb.simulation.spectral_io import read_text_file
+
+    if not path.is_file():
+        raise ValueError(f"{path}: cannot read the stand measurement (no such file); expected a folder written by "
+                         "`dualrgb measure leds` or `measure import-leds`")
     try:
-        doc = json.loads(path.read_text())
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot read the stand measurement ({exc.strerror or exc}); expected a folder "
-                         "written by `dualrgb measure leds` or `measure import-leds`") from None
+        doc = json.loads(read_text_file(path, "stand measurement JSON", ValueError, MAX_STAND_BYTES))
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}:{exc.lineno}: not valid JSON ({exc.msg})") from None
     if not isinstance(doc, dict) or doc.get("format") != STAND_FORMAT:

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import hashlib
 import io
-import json
 import logging
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -43,6 +42,8 @@ import numpy as np
 
 from dualrgb.app.processing.calibration import DarkFrame, FlatField, MasterDark
 from dualrgb.app.session.capture_session import atomic_write
+from dualrgb.app.workflow import profile_check
+from dualrgb.app.workflow.profile_check import FORMAT, ProfileError
 from dualrgb.app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
 from dualrgb.app.workflow.vocabulary import NamedLight, exposure_key
 from dualrgb.common.strict_json import dumps as strict_dumps
@@ -55,12 +56,7 @@ from dualrgb.simulation.versions import dualrgb_version, software_versions
 
 log = logging.getLogger(__name__)
 
-FORMAT = "dualrgb-calibration/1"
 LEVEL_TOLERANCE = 1e-4          # the sphere quantises levels to 16-bit PWM
-
-
-class ProfileError(ValueError):
-    """A calibration profile is unreadable, damaged or does not fit the stand (one line)."""
 
 
 @dataclass
@@ -221,35 +217,30 @@ class CalibrationProfile:
         np.savez(buf, **arrays)
         data = buf.getbuffer()
         npz = folder / f"{self.id}.npz"
-        atomic_write(npz, data)
         doc = {**self.to_dict(), "arrays": {"file": npz.name, "sha256": hashlib.sha256(data).hexdigest(),
                                             "darks": dark_index, "whites": white_index}}
+        profile_check.check_document(doc, f"calibration {self.id} (not saved)", digest=False)
+        atomic_write(npz, data)
         path = folder / f"{self.id}.json"
-        atomic_write(path, (strict_dumps(doc, indent=2) + "\n").encode())
+        atomic_write(path, (strict_dumps(profile_check.seal(doc), indent=2) + "\n").encode())
         self.path = path
         log.info("calibration %s saved: %s (+ %s, %.0f MB)", self.id, path, npz.name, len(data) / 1e6)
         return path
 
 
 def load_profile(path: Path, *, arrays: bool = True) -> CalibrationProfile:
-    """Read a profile (and, with ``arrays``, its .npz, checked against the sha256 the JSON names)."""
+    """Read a profile, checked like a frame (app.workflow.profile_check: size, finite numbers, schema, value ranges,
+    digest) and, with ``arrays``, its .npz (size, sha256 the JSON names, every array present)."""
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text())
-    except OSError as exc:
-        raise ProfileError(f"{path}: cannot read the calibration ({exc.strerror or exc})") from None
-    except json.JSONDecodeError as exc:
-        raise ProfileError(f"{path}:{exc.lineno}: not a calibration (invalid JSON: {exc.msg})") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        found = doc.get("format") if isinstance(doc, dict) else None
-        raise ProfileError(f"{path}: not a dualrgb calibration (format {found!r}, expected {FORMAT!r})")
+    doc = profile_check.read_document(path)
+    profile_check.check_document(doc, path)
     try:
         prof = _from_dict(doc)
     except (KeyError, TypeError, ValueError) as exc:
         raise ProfileError(f"{path}: damaged calibration ({type(exc).__name__}: {exc})") from None
     prof.path = path
     if arrays:
-        _load_arrays(prof, path.parent, doc["arrays"])
+        _load_arrays(prof, path.parent, doc)
     return prof
 
 
@@ -279,28 +270,58 @@ def _spectral_of(doc: dict) -> dict:
     return {"estimator": estimator, "spectral": {k: v for k, v in section.items() if k != "estimator"}}
 
 
-def _load_arrays(prof: CalibrationProfile, folder: Path, index: dict) -> None:
+def _load_arrays(prof: CalibrationProfile, folder: Path, doc: dict) -> None:
+    index = doc["arrays"]
     npz = folder / index["file"]
     try:
+        size, cap = npz.stat().st_size, profile_check.npz_cap(doc)
+        if size > cap:
+            raise ProfileError(f"{npz}: {size / 2 ** 20:.0f} MiB, more than the {cap / 2 ** 20:.0f} MiB its arrays "
+                               f"need ({prof.id}.json); not read")
         digest = _sha256(npz)
     except OSError as exc:
         raise ProfileError(f"{npz}: the calibration's arrays are missing ({exc.strerror or exc})") from None
     if digest != index["sha256"]:
         raise ProfileError(f"{npz}: damaged (sha256 differs from the one {prof.id}.json names)")
-    arrays = np.load(npz)                    # each array read when first used, the file never whole in memory
+    try:
+        arrays = np.load(npz, allow_pickle=False)   # each array read when first used, never whole in memory
+    except (OSError, ValueError) as exc:
+        raise ProfileError(f"{npz}: not a calibration's arrays ({_short(exc)})") from None
+    profile_check.check_npz(doc, npz, list(arrays.files))
+    try:
+        _read_arrays(prof, arrays, index, tuple(doc["raw"]["shape"]))
+    except ValueError as exc:                 # an object array (never written by dualrgb), a bad shape
+        raise ProfileError(f"{npz}: not a calibration's arrays ({_short(exc)})") from None
+    if prof.stand:
+        prof.stand_observations = observations_from_arrays(arrays, float(prof.stand.get("dn_scale", 1.0)),
+                                                           default_grid(prof.mode))
+
+
+def _read_arrays(prof: CalibrationProfile, arrays: Any, index: dict, shape: tuple[int, ...]) -> None:
+    def read(name: str) -> np.ndarray:
+        a = arrays[name]
+        if a.shape != shape or a.dtype.kind != "f":
+            raise ValueError(f"{name} is {a.dtype} {a.shape}, expected floats of the raw frame's shape {shape}")
+        return a
+
     prof.darks = MasterDark()
     for d in index["darks"]:
         noise = d.get("noise_dn")
-        prof.darks.put(DarkFrame(float(d["exposure_s"]), arrays[d["array"]], int(d["n_frames"]),
+        prof.darks.put(DarkFrame(float(d["exposure_s"]), read(d["array"]), int(d["n_frames"]),
                                  noise_dn=float("nan") if noise is None else float(noise)))
     prof.whites = {}
     for w in index["whites"]:
         ff = FlatField.__new__(FlatField)          # the threshold was decided when it was made: keep it
-        ff.white, ff.threshold, ff.n_invalid = arrays[w["array"]], float(w["threshold"]), 0
+        ff.white, ff.threshold, ff.n_invalid = read(w["array"]), float(w["threshold"]), 0
         prof.whites[w["light"]] = ff
-    if prof.stand:
-        prof.stand_observations = observations_from_arrays(arrays, float(prof.stand.get("dn_scale", 1.0)),
-                                                           default_grid(prof.mode))
+
+
+def _short(exc: BaseException) -> str:
+    """numpy's message without its advice to load the file unsafely (allow_pickle), which is never right here."""
+    text = str(exc)
+    if "allow_pickle" in text:
+        return "it holds Python objects, which a calibration never does"
+    return text
 
 
 def _sha256(path: Path, chunk: int = 1 << 22) -> str:

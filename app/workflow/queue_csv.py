@@ -47,6 +47,7 @@ from dualrgb.app.workflow.metadata import (
 )
 
 log = logging.getLogger(__name__)
+MAX_QUEUE_BYTES = 16 * 2 ** 20     # checked before reading: 10 000 originals with long titles are ~2 MB
 
 FIELDS = ("identifier", "title", "operator", "notes", "mode")
 DELIMITERS = (",", ";", "\t")
@@ -172,6 +173,10 @@ def _letter(index: int) -> str:
 
 def _records(path: Path) -> list[list[str]]:
     try:
+        size = path.stat().st_size
+        if size > MAX_QUEUE_BYTES:
+            raise ValueError(f"{path}: {size / 2 ** 20:.1f} MiB is not a day's queue (at most "
+                             f"{MAX_QUEUE_BYTES // 2 ** 20} MiB); split it")
         raw = path.read_bytes()
     except OSError as exc:
         raise ValueError(f"{path}: cannot read the queue CSV ({exc.strerror or exc})") from exc

@@ -55,11 +55,13 @@ def _ref(session, e) -> ExposureRef:
     return ExposureRef(session.file_path(e), float(e.exposure_s), e.file)
 
 
-def session_frames(session) -> SessionFrames:
+def session_frames(session, *, intact: bool = True) -> SessionFrames:
     """Group the session's latest takes: darks, flats by light, subjects by light (recording order kept).
 
-    A missing or damaged frame is named (app.session.DamagedFramesError), never processed."""
-    session.require_intact()
+    A missing or damaged frame is named (app.session.DamagedFramesError), never processed; ``intact=False``: the
+    caller checks the frames it uses itself (``dualrgb process``: per original)."""
+    if intact:
+        session.require_intact()
     out = SessionFrames()
     for e in latest_takes(session.entries()):
         role = role_of(e)

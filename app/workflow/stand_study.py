@@ -77,12 +77,16 @@ def calibrate_in_world(cfg: StandStudyConfig, preset: Any, seed: int, folder: Pa
     """A calibration (``hdr off``) in the study's world with ``preset``'s lights, in session ``folder``."""
     from dualrgb.app.session.capture_session import CaptureSession
     from dualrgb.app.workflow.copystand import CopyStand, StandSettings
+    from dualrgb.drivers.virtual.clock import SkippableClock
     from dualrgb.drivers.virtual.lab import VirtualLab
     from dualrgb.drivers.virtual.world import load_world
 
     definition = {"workflow": "study stand", "preset": preset.name, "seed": seed, "mode": cfg.mode,
                   "frame_size": list(cfg.frame_size), "world": load_world(cfg.world).identity}
-    with VirtualLab(mode=cfg.mode, frame_size=cfg.frame_size, seed=seed, world=cfg.world) as lab:
+    # a skippable clock: a lit exposure's time passes on the lab's clock without being waited for (drivers.virtual
+    # .camera holds lit exposures; a study of a dozen calibrations has no artwork whose dose needs the wait)
+    with VirtualLab(mode=cfg.mode, frame_size=cfg.frame_size, seed=seed, world=cfg.world,
+                    clock=SkippableClock()) as lab:
         session = CaptureSession.resume(folder, definition, {"mode": cfg.mode})
         try:
             stand = CopyStand(lab.camera, lab.sphere, session, stand=lab.place, lab=lab,

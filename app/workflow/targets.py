@@ -22,6 +22,7 @@ from dualrgb.simulation.charts import Chart, ChartError, packaged_chart
 from dualrgb.simulation.colorimetry import white_point
 
 log = logging.getLogger(__name__)
+MAX_GRID_BYTES = 1 << 20          # a patch grid is a few hundred bytes; checked before reading
 
 
 @dataclass
@@ -167,10 +168,12 @@ def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any
 
 def load_grid(path: Path, layout: tuple[int, int] | None = None) -> PatchGrid:
     """A patch grid from JSON: {"corners": [[x, y] x4 (TL, TR, BR, BL, stack pixels)], "rows", "cols"[, "fraction"]};
-    "rows" / "cols" may be left out when ``layout`` (the chart's) gives them."""
+    "rows" / "cols" may be left out when ``layout`` (the chart's) gives them. At most :data:`MAX_GRID_BYTES`."""
+    from dualrgb.simulation.spectral_io import read_text_file
+
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(read_text_file(path, "patch grid JSON", ValueError, MAX_GRID_BYTES))
         rows, cols = (data["rows"], data["cols"]) if layout is None or "rows" in data else layout
         return PatchGrid(np.asarray(data["corners"], float), int(rows), int(cols), float(data.get("fraction", 0.5)))
     except (OSError, ValueError, KeyError, TypeError) as exc:

@@ -20,6 +20,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from dualrgb.common.errors import ReportedError
+
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
@@ -28,7 +30,7 @@ GP_ERROR_TIMEOUT = -10          # libgphoto2's timeout code, also used for host-
 DEFAULT_LATENCY_S = 1.0         # a camera's latency allowance when it does not report its own
 
 
-class CameraError(RuntimeError):
+class CameraError(ReportedError, RuntimeError):
     """A camera problem, with a one-line message that says what to do about it.
 
     ``code`` is the libgphoto2 error code where there is one (e.g. -105 no camera, -53 USB claimed).
@@ -173,6 +175,16 @@ class Camera(abc.ABC):
         """Estimated size of one raw file (for the free-space check before a sequence): a D610 14-bit NEF is
         about 30 MB; implementations that know better say so."""
         return 32 * 2**20
+
+    def image_area(self) -> str:
+        """What sets a frame's size and what part of the sensor it covers (image size, crop), as the camera says
+        it ('' when it does not): part of a session's definition, so frames of another size are never mixed in."""
+        return ""
+
+    def frame_shape(self) -> tuple[int, int] | None:
+        """(rows, columns) of the raw mosaic the next frame will have, when known before it is taken (None: known
+        only from a frame; a real camera)."""
+        return None
 
     def config_summary(self) -> dict[str, object]:
         """Named configuration values for display (implementations add what they know)."""

@@ -59,6 +59,9 @@ BULB_LIMIT_S = 30.0          # the D610's longest timed speed; longer exposures 
 SNAP_WARN_STOPS = 1.0 / 6.0  # warn when the offered speed/aperture is further than this from the request
 
 
+IMAGE_AREA_NAMES = ("imagesize", "imagearea", "dxcropmode", "autodxcrop")   # what sets a frame's size and crop
+
+
 @dataclass
 class ConfigEntry:
     """One leaf of the camera's configuration tree, for display and for setting values."""
@@ -205,6 +208,11 @@ class GPhotoSettings(GPhotoHost):
     def _shutter_options(entry: ConfigEntry) -> list[tuple[float, str]]:
         opts = [(parse_shutter(c), c) for c in entry.choices]
         return sorted((v, c) for v, c in opts if v is not None)
+
+    def image_area(self) -> str:
+        """The settings among :data:`IMAGE_AREA_NAMES` this body has, as 'name value' pairs (libgphoto2's names
+        for Nikon's image size and FX / DX crop)."""
+        return ", ".join(f"{n} {self._entry(n).value}" for n in IMAGE_AREA_NAMES if n in self._names)
 
     def shutter_speeds(self) -> list[float]:
         self._require_open()

@@ -11,8 +11,9 @@ with the switch-on (``ON <ms>``: the firmware switches off by itself at the limi
 arms an :class:`~drivers.led_sphere.supervisor.OnTimeSupervisor` that switches the light off at the limit from its
 own thread, whatever the caller is doing. One lock serialises the port between threads, and every wait for it
 is bounded. Used as a context manager the sphere is left with every LED at 0 and the light off on exit, also
-when an exception leaves the block (``close()`` switches off too). :meth:`LedSphere.ensure_off` switches off and
-says truthfully what is known afterwards (off, or unknown and what the firmware guarantees); it never raises.
+when an exception leaves the block (``close()`` switches off too). :meth:`LedSphere.ensure_off` switches off,
+reads the state back and says truthfully what is known afterwards (off, or unknown and what the firmware
+guarantees); it never raises (drivers/led_sphere/switch_off.py).
 Firmware 1.0 answers ``ON`` with ``ERR 1``: the driver then sets the watchdog to the limit before ``LIGHT 1``.
 """
 from __future__ import annotations
@@ -27,9 +28,10 @@ from typing import Any
 import serial
 
 from dualrgb.drivers.led_sphere import protocol as P
-from dualrgb.drivers.led_sphere.errors import LightReport, SphereError
+from dualrgb.drivers.led_sphere.errors import SphereError
 from dualrgb.drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
 from dualrgb.drivers.led_sphere.supervisor import LitPeriod, OnTimeSupervisor
+from dualrgb.drivers.led_sphere.switch_off import SwitchOff
 from dualrgb.simulation.lightsource import N_SPHERE_LEDS, LightSource
 
 log = logging.getLogger(__name__)
@@ -45,7 +47,7 @@ _IO_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, *_TE
 _MAX_LINES_PER_ATTEMPT = 8     # stale replies skipped per attempt before giving up (a chattering line)
 
 
-class LedSphere:
+class LedSphere(SwitchOff):
     """The LED sphere on ``port``: a pyserial URL (``/dev/ttyUSB0``, a pty path, ``loop://``) or an already
     open serial-like object (``write``, ``read_until``; optional ``reset_input_buffer``, ``flush``, ``close``).
 
@@ -60,6 +62,7 @@ class LedSphere:
                  clock=time.monotonic):
         self._timeout = DEFAULT_TIMEOUT_S
         self._ser: Any = None                # not yet: the timeout setter configures an open port
+        self._io_errors = _IO_ERRORS
         self.timeout = timeout
         self.channels = int(channels)
         self._clock = clock
@@ -130,8 +133,10 @@ class LedSphere:
                     timeout=self.timeout, write_timeout=self.timeout)
             except (serial.SerialException, OSError, ValueError) as exc:
                 raise SphereError(f"cannot open LED sphere port {self._url}: {exc}; check the cable and the "
-                                  "port name (ls /dev/ttyACM* /dev/ttyUSB*) and that no other program uses it",
-                                  kind="port") from None
+                                  "port name (ls /dev/ttyACM* /dev/ttyUSB*) and that no other program uses it; "
+                                  "nothing was sent, so the light's state is unknown (a lit sphere switches off "
+                                  "by itself at its on-time limit, or when its watchdog hears no request)",
+                                  kind="port", light="unknown") from None
             self._configure(self._ser)
             log.info("opened LED sphere port %s", self._url)
         return self
@@ -175,109 +180,6 @@ class LedSphere:
                 exc.add_note(f"and the LED sphere could not be switched off completely: {report.message}")
         finally:
             self.close(leave_on=True)           # ensure_off() was just tried
-
-    # ------------------------------------------------------------------------------------------- switching off
-    def shutdown(self) -> None:
-        """Every LED to 0, then the light off. Tries both even if the first fails; raises the first error, its
-        message saying truthfully what state the light is in."""
-        report = self._switch_off()
-        if report.error is not None:
-            raise SphereError(report.message, kind=report.error.kind, code=report.error.code,
-                              light="off" if report.off else "unknown")
-
-    def ensure_off(self) -> LightReport:
-        """Switch every LED and the light off and say what is known afterwards; never raises.
-
-        On a port that has never answered like a sphere (silent, or speaking garbage), ALLOFF and LIGHT 0 are
-        written without waiting for replies that would not come (so a wrong port is reported within one request's
-        two timeouts)."""
-        if self._ser is None:
-            return LightReport(False, f"the LED sphere port {self._url} is closed, so the light's state is unknown; "
-                                      f"{self._guarantee()}")
-        if self._answered is False:
-            sent = self._send_blind(("all_off", {}), ("set_light", {"state": 0}))
-            what = "ALLOFF and LIGHT 0 were sent without waiting for replies" if sent else \
-                "ALLOFF and LIGHT 0 could not even be sent"
-            return LightReport(False, f"the port never answered like an LED sphere, so the light's state is "
-                                      f"unknown ({what}); {self._guarantee()}")
-        return self._switch_off()
-
-    def _switch_off(self) -> LightReport:
-        """ALLOFF then LIGHT 0 (both tried); either answered means nothing emits (a level is emitted only while
-        the light is on, and ALLOFF zeroes every level)."""
-        failed: dict[str, SphereError] = {}
-        asked = time.monotonic()
-        for name, args in (("all_off", {}), ("set_light", {"state": 0})):
-            if failed and self._answered is False:
-                self._send_blind((name, args))
-                failed[name] = next(iter(failed.values()))
-                continue
-            try:
-                self.exchange(name, **args)
-            except SphereError as exc:
-                failed[name] = exc
-        first = next(iter(failed.values()), None)
-        if len(failed) < 2:
-            self._confirmed_off(asked)
-        if first is None:
-            log.info("LED sphere %s: all LEDs off, light off", self._url)
-            return LightReport(True, "all LEDs and the light were switched off")
-        if "set_light" not in failed:
-            return LightReport(True, f"the light was switched off (LIGHT 0 answered) but the LED levels were not "
-                                     f"zeroed: {first}", first)
-        if "all_off" not in failed:
-            return LightReport(True, f"every LED was set to 0 (ALLOFF answered), so nothing is lit, but the light "
-                                     f"switch did not answer: {first}", first)
-        if self._answered is False:
-            return LightReport(False, f"{first}; the port never answered like an LED sphere, so the light's state is "
-                                      f"unknown (LIGHT 0 was sent without waiting for a reply); {self._guarantee()}",
-                               first)
-        return LightReport(False, f"{first}; switching off was not confirmed, so the light's state is unknown: "
-                                  f"{self._guarantee()}", first)
-
-    def _confirmed_off(self, asked_at: float) -> None:
-        """The sphere answered that the light is off to a request sent at ``asked_at`` (monotonic)."""
-        self._light_on_since = None
-        self._supervisor.confirm_off(asked_at)
-
-    def _switch_off_at_limit(self) -> None:
-        """The supervisor's switch-off (its own thread): raises unless the sphere confirmed the light off."""
-        report = self.ensure_off()
-        if not report.off:
-            raise SphereError(report.message, kind=report.error.kind if report.error else "port", light="unknown")
-
-    def _guarantee(self) -> str:
-        """What switches a lit sphere off without this host (for messages where the light's state is unknown)."""
-        period = self._supervisor.current()
-        watchdog = f"its watchdog switches every LED off {self._watchdog_ms / 1000:g} s after the last request " \
-                   "it hears"
-        if period is None:
-            return f"if it is lit, {watchdog}"
-        left = period.deadline - time.monotonic()
-        when = f"at most {period.max_on_s:.3g} s after it came on" + (f" (in {left:.1f} s)" if left > 0 else "")
-        if self._device_limit:
-            return f"the sphere switches it off by itself {when}, the limit sent with ON; and {watchdog}"
-        if self._device_limit is None:
-            return f"if the sphere received ON, it switches it off by itself {when}; this program keeps trying to " \
-                   f"switch it off, and {watchdog}"
-        return f"this program keeps trying to switch it off ({when}), and {watchdog} (firmware without ON)"
-
-    def _send_blind(self, *requests: tuple[str, dict]) -> bool:
-        """Write requests without waiting for replies (a port that never answered); False if even that failed."""
-        if not self._lock.acquire(timeout=self._lock_wait_s()):
-            return False
-        try:
-            for name, args in requests:
-                self._ser.write(P.COMMANDS[name].encode(**args))
-            flush = getattr(self._ser, "flush", None)
-            if flush is not None:
-                flush()
-            return True
-        except _IO_ERRORS + (AttributeError,) as exc:
-            log.info("LED sphere %s: could not send the switch-off: %s", self._url, exc)
-            return False
-        finally:
-            self._lock.release()
 
     # ------------------------------------------------------------------------------------------- exchanges
     def exchange(self, name: str, **args: Any) -> Any:
@@ -501,12 +403,6 @@ class LedSphere:
         """The lit period not yet confirmed off, if any (its deadline: when the light goes off at the latest)."""
         return self._supervisor.current()
 
-    def off(self) -> None:
-        """Light off (master enable; levels are kept)."""
-        asked = time.monotonic()
-        self.exchange("set_light", state=0)
-        self._confirmed_off(asked)
-
     def light_on(self) -> bool:
         asked = time.monotonic()
         lit = bool(self.exchange("get_light"))
@@ -564,22 +460,29 @@ class LedSphere:
     def seconds_since_last_exchange(self) -> float | None:
         return None if self._last_exchange is None else self._clock() - self._last_exchange
 
-    def status(self) -> dict[str, Any]:
+    def status(self, adopt: bool = True) -> dict[str, Any]:
         """Light, levels, temperature, on-times (host: None when this object did not switch the light on; device),
-        watchdog, trip flag, faulty LEDs (2 exchanges)."""
+        watchdog, trip flag, faulty LEDs (2 exchanges), and when a lit period ends at the latest: ``off_in_s`` and
+        what ends it, ``off_by`` ("limit": this object's on-time limit, held by its supervisor and the limit sent
+        with ON; "watchdog": the sphere's watchdog, that long after this request, sooner if whoever switched it on
+        set a shorter limit; None while off).
+
+        ``adopt``: a light found on that this object did not switch on gets this object's limit (its supervisor
+        switches it off then: only true while this object stays open; a one-shot command passes False)."""
         asked = time.monotonic()
         s = self.exchange("status")
         self._watchdog_ms = s["wdog"]
         if not s["light"]:
             self._confirmed_off(asked)
-        elif self._supervisor.adopt(s["ontime"], self._max_on_s, asked) is not None:
+        elif adopt and self._supervisor.adopt(s["ontime"], self._max_on_s, asked) is not None:
             # lit, but not by this host (another program, a restart): the limit applies to it too
             log.warning("LED sphere %s is lit (%.1f s) and this program did not switch it on: it goes off at the "
                         "%g s limit", self._url, s["ontime"], self._max_on_s)
-        period = self._supervisor.current()
-        # the limit as of the STATUS reply (read before LEVELS? so its round trip does not age the figure)
-        off_in_s = None if period is None else max(0.0, period.deadline - time.monotonic())
-        levels = self.levels()
+        period = self._supervisor.current() if s["light"] else None
+        levels = self.levels()              # this request restarts the watchdog: its bound counts from here
+        off_by = None if not s["light"] else "limit" if period is not None else "watchdog"
+        off_in_s = (None if off_by is None else s["wdog"] / 1000 if period is None
+                    else max(0.0, period.deadline - time.monotonic()))
         return {
             "port": self.port,
             "light_on": bool(s["light"]),
@@ -591,7 +494,7 @@ class LedSphere:
             "watchdog_s": s["wdog"] / 1000,
             "watchdog_tripped": bool(s["trip"]),
             "faulty_leds": [i + 1 for i in range(P.MAX_CHANNELS) if s["fault"] >> i & 1],
-            # host-side limit of the lit period: seconds until it goes off at the latest (None while off)
-            "off_in_s": off_in_s,
+            "off_in_s": off_in_s,           # seconds until it goes off at the latest (None while off)
+            "off_by": off_by,
             "max_on_s": None if period is None else period.max_on_s,
         }

@@ -4,6 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from dualrgb.common.errors import ReportedError
+
 #: What went wrong, as ``SphereError.kind``.
 KINDS = (
     "argument",      # the caller passed an invalid LED number / level / time (nothing was sent)
@@ -13,10 +15,11 @@ KINDS = (
     "device",        # the sphere answered ERR <code> <message>
     "fault",         # the sphere reports an LED channel fault (open circuit) while lit
     "disconnected",  # the port went away (unplugged, emulator stopped)
+    "unconfirmed",   # the sphere answered a switch-off but reading its state back still shows light
 )
 
 
-class SphereError(RuntimeError):
+class SphereError(ReportedError, RuntimeError):
     """An LED sphere problem, with a one-line message: what happened and what to do about it.
 
     ``kind`` is one of :data:`KINDS`; ``code`` is the device's error code for ``kind == "device"``

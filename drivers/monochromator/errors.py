@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from dualrgb.common.errors import ReportedError
+
 #: What went wrong, as ``MonochromatorError.kind``.
 KINDS = (
     "argument",      # the caller passed an invalid wavelength / grating / filter (nothing was sent)
@@ -14,7 +16,7 @@ KINDS = (
 )
 
 
-class MonochromatorError(RuntimeError):
+class MonochromatorError(ReportedError, RuntimeError):
     """A monochromator problem, with a one-line message: what happened and what to do about it.
 
     ``kind`` is one of :data:`KINDS`; ``code`` is the device's error code (``kind == "device"``, see

@@ -20,9 +20,9 @@ It renders what the real camera would record, with the same simulation the optim
 * file: an uncompressed 16-bit DNG (14-bit data; drivers.virtual.dng, tifffile) that rawpy reads back
   bit-exact.
 
-``expose()`` takes the light as it is at that moment (the exposure; with ``realtime=True`` it also lasts the
-exposure time) and ``fetch()`` renders and writes the DNG, so the light can be off during the "download" as on
-the real camera. Every exposure is logged in ``exposure_log`` on the camera's ``clock`` (the virtual lab gives it
+``expose()`` takes the light as it is then and lasts the exposure time while the sphere is lit (dose = exposure;
+``realtime=True``: unlit too); ``fetch()`` renders and writes the DNG, so the light is off during the "download" as
+on the real camera. Every exposure is logged in ``exposure_log`` on the camera's ``clock`` (the virtual lab gives it
 the sphere emulator's, so tests can set exposures against the emulator's record of lit periods). Faults for
 tests (:meth:`VirtualCamera.inject`): ``latency`` (the exposure starts ``delay_s`` late: shutter lag, a slow
 USB), ``hang`` (``expose()`` blocks until the faults are cleared), ``slow_fetch`` (``delay_s``), ``error``
@@ -331,13 +331,18 @@ class VirtualCamera(Camera):
         levels, drift = self._levels(self._light())
         snap = StaticLight(levels.copy(), np.array(drift))       # what the sensor saw, frozen
         scene = self._scene.at_exposure()                       # a field's light as it is now, frozen
-        if self.realtime:
-            time.sleep(t)
-        ended = self._clock()
         lit = bool(np.any(levels > 0)) or (scene.kind == "field" and scene.shown_field.emits())
+        if self.realtime or levels.any():                      # the sphere lights the stand: its dose is real
+            self._hold(t)
+        ended = self._clock()
         self.exposure_log.append(ExposureRecord(t_open, ended, t, lit))
         return Exposure(exposure_s=t, started=started, ended=ended, bulb=t > BULB_ABOVE_S,
                         handle=(snap, s, scene))
+
+    def _hold(self, seconds: float) -> None:
+        """The exposure lasts ``seconds`` on the camera's clock: skipped on a skippable clock, else waited."""
+        skip = getattr(self._clock, "skip", None)
+        skip(seconds) if callable(skip) and not self.realtime else time.sleep(seconds)
 
     def fetch(self, exposure: Exposure) -> RawCapture:
         self._require_open()
@@ -362,6 +367,12 @@ class VirtualCamera(Camera):
                  " (bulb)" if t > BULB_ABOVE_S else "", s.iso, s.aperture, time.perf_counter() - t0)
         return RawCapture(data=data, filename=name, exposure_s=t, iso=int(s.iso), aperture=float(s.aperture),
                           camera=CAMERA_NAME, extra=info)
+
+    def frame_shape(self) -> tuple[int, int]:
+        return (self._scene.height, self._scene.width)
+
+    def image_area(self) -> str:                # the rendered frame's size (--frame-size)
+        return f"{self._scene.width}x{self._scene.height} px"
 
     def frame_bytes(self) -> int:
         """An uncompressed 16-bit DNG of the current scene's size plus its tags."""

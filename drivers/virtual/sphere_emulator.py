@@ -23,8 +23,9 @@ Physics is evaluated lazily against the injectable ``clock`` (exact, piecewise-c
 move a fake clock by an hour instead of sleeping. Wire delays (fault "slow") use real time.
 
 Faults (:meth:`inject`): ``no_reply`` (reply lost; ``execute=False``: firmware hung), ``ignore`` (requests
-neither executed nor answered), ``garbled`` (reply bytes corrupted), ``slow`` (reply after ``delay_s``); each of
-these four takes ``keywords=("ON", ...)`` to hit only those requests. ``disconnect`` (pty closed, as if unplugged;
+neither executed nor answered), ``disobey`` (answered as if done, not executed: a stuck relay, a firmware
+bug), ``garbled`` (reply bytes corrupted), ``slow`` (reply after ``delay_s``); each of
+these five takes ``keywords=("ON", ...)`` to hit only those requests. ``disconnect`` (pty closed, as if unplugged;
 the sphere keeps its own power, so its watchdog and on-time limit switch the LEDs off), ``led_fail`` (``led=N``,
 ``mode="dark"``: takes levels but emits nothing, FAULT? reports it while driven; ``mode="error"``: a non-zero
 level for it gets ERR 6).
@@ -59,8 +60,8 @@ from dualrgb.drivers.virtual.pty_link import PtyLineServer
 
 log = logging.getLogger(__name__)
 
-FAULTS = ("no_reply", "ignore", "garbled", "slow", "disconnect", "led_fail")
-_WIRE_FAULTS = ("no_reply", "ignore", "garbled", "slow")      # these take keywords=(...) to pick requests
+FAULTS = ("no_reply", "ignore", "disobey", "garbled", "slow", "disconnect", "led_fail")
+_WIRE_FAULTS = ("no_reply", "ignore", "disobey", "garbled", "slow")   # these take keywords=(...) to pick requests
 
 
 @dataclass
@@ -201,6 +202,8 @@ class SphereEmulator:
                 self._advance(self._clock())
                 self._last_rx = max(self._clock(), self._t)
             reply = P.render_error(P.ErrorCode.LINE_TOO_LONG, f"line longer than {P.MAX_REQUEST_BYTES} bytes")
+        elif "disobey" in faults:
+            reply = self._acknowledge(line)
         else:
             reply = self.handle(line)
         if "no_reply" in faults:
@@ -208,6 +211,19 @@ class SphereEmulator:
         if "garbled" in faults:
             reply = self._garble(reply)
         self._respond(reply, float(faults["slow"].get("delay_s", 1.0)) if "slow" in faults else 0.0)
+
+    def _acknowledge(self, line: bytes) -> bytes:
+        """The reply ``line`` would get, without doing what it asks (the request still restarts the watchdog)."""
+        with self._lock:
+            self._advance(self._clock())
+            self._last_rx = max(self._clock(), self._t)
+            self.requests.append(line)
+        try:
+            cmd, args = P.parse_request(line)
+            return cmd.render_reply(**args)
+        except (P.RequestError, KeyError) as exc:       # a query has no echo to fake: answer it truly
+            log.debug("emulator: cannot fake a reply to %r (%s)", line, exc)
+            return self.handle(line)
 
     def _garble(self, reply: bytes) -> bytes:
         body = bytearray(reply[:-1] or b"OK")

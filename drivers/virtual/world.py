@@ -240,14 +240,10 @@ def _check_camera(world: World) -> None:
 
 def read_world(path: str | Path) -> World:
     """Read and check a world JSON file."""
-    from dualrgb.simulation.spectral_io import read_text_file
+    from dualrgb.simulation.spectral_io import read_json_file
 
     path = Path(path)
-    text = read_text_file(path, "world JSON", WorldError, MAX_WORLD_BYTES)
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise WorldError(f"{path}:{exc.lineno}: not valid JSON ({exc.msg})") from None
+    doc = read_json_file(path, "world JSON", WorldError, MAX_WORLD_BYTES)
     return parse_world(doc, str(path), path.parent)
 
 

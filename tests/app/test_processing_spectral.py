@@ -12,6 +12,7 @@ from workflow_profiles import make_profile
 from dualrgb import resources
 from dualrgb.app.processing.spectral import SpectralInputs, characterise_spectra, fitted_gain, model_sensitivities
 from dualrgb.app.workflow.profile import ProfileError, describe, load_profile
+from dualrgb.app.workflow.profile_check import seal
 from dualrgb.simulation.datasets import default_setup
 from dualrgb.simulation.presets import load_preset
 from dualrgb.simulation.spectral_estimation import SpectralEstimator
@@ -90,6 +91,6 @@ def test_a_profile_whose_estimator_maps_other_channels_is_refused(tmp_path):
     prof = make_profile(tmp_path, estimator=_estimator(["R1", "G1", "B1"]))
     doc = json.loads(prof.path.read_text())
     doc["spectral"]["estimator"]["channels"] = ["R2", "G2", "B2"]
-    prof.path.write_text(json.dumps(doc))
+    prof.path.write_text(json.dumps(seal(doc)))          # as a writer would leave it (sealed: not an edit)
     with pytest.raises(ProfileError, match="spectral estimator maps R2, G2, B2 but the matrix R1, G1, B1"):
         load_profile(prof.path)

@@ -15,6 +15,7 @@ from dualrgb.app.commands.stand_options import virtual_world
 from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.session.manifest import DefinitionMismatch, camera_definition
 from dualrgb.app.workflow.profile import CameraIdentity, check_reuse, load_profile
+from dualrgb.app.workflow.profile_check import seal
 from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
 from dualrgb.drivers.virtual.world import load_world
 from tests.workflow_profiles import make_profile
@@ -52,7 +53,7 @@ def test_profile_without_a_world_still_loads(tmp_path):
     prof = make_profile(tmp_path)
     doc = json.loads(prof.path.read_text())
     doc["camera"].pop("world")
-    prof.path.write_text(json.dumps(doc))
+    prof.path.write_text(json.dumps(seal(doc)))          # as a dualrgb without worlds wrote it (with a digest)
     old = load_profile(prof.path, arrays=False)
     assert old.camera.world == ""
     assert check_reuse(old, replace(old.camera, world="nominal (x)"), old.sphere, old.lights).ok

@@ -16,6 +16,9 @@ from dualrgb.simulation.lightsource import LightSource
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "led-sphere-protocol.md"
 
+# every switch-off is read back (drivers/led_sphere/switch_off.py): LIGHT? must say the light is off
+READ_BACK_OFF = (b"LIGHT?\n", b"OK LIGHT 0\n")
+
 # (driver call, [(request bytes, reply bytes)], expected return value)
 EXCHANGES = [
     (lambda s: s.identify(), [(b"IDN?\n", b"OK IDN DRGB-SPHERE10 1.1.0 SN0001\n")],
@@ -44,7 +47,7 @@ EXCHANGES = [
       (b"LIGHT 1\n", b"OK LIGHT 1\n"), (b"FAULT?\n", b"OK FAULT 0\n"),
       (b"WDOG 2000\n", b"OK WDOG 2000\n"), (b"LIGHT 1\n", b"OK LIGHT 1\n"), (b"FAULT?\n", b"OK FAULT 0\n")],
      (False, False)),
-    (lambda s: s.off(), [(b"LIGHT 0\n", b"OK LIGHT 0\n")], None),
+    (lambda s: s.off(), [(b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF], None),
     (lambda s: s.light_on(), [(b"LIGHT?\n", b"OK LIGHT 1\n")], True),
     (lambda s: s.temperature_c(), [(b"TEMP?\n", b"OK TEMP 27.31\n")], 27.31),
     (lambda s: s.device_on_time_s(), [(b"ONTIME?\n", b"OK ONTIME 12.500\n")], 12.5),
@@ -54,14 +57,14 @@ EXCHANGES = [
     (lambda s: s.watchdog_s(), [(b"WDOG?\n", b"OK WDOG 5000\n")], 5.0),
     (lambda s: s.keepalive(), [(b"PING\n", b"OK PING\n")], None),
     (lambda s: s.faulty_leds(), [(b"FAULT?\n", b"OK FAULT 520\n")], [4, 10]),
-    (lambda s: s.shutdown(), [(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")], None),
+    (lambda s: s.shutdown(), [(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF], None),
     (lambda s: {k: v for k, v in s.status().items() if k != "port"},
      [(b"STATUS?\n", b"OK STATUS light=1 ontime=2.250 temp=25.10 wdog=30000 trip=0 fault=8\n"),
       (b"LEVELS?\n", b"OK LEVELS 0 0 0 65535 0 0 0 0 0 0\n")],
      {"light_on": True, "levels": [0, 0, 0, 1.0, 0, 0, 0, 0, 0, 0], "temperature_c": 25.1, "on_time_s": None,
       "device_on_time_s": 2.25, "watchdog_s": 30.0, "watchdog_tripped": False, "faulty_leds": [4],
       # lit by someone else 2.25 s ago: the host's 10 s limit applies to it too
-      "off_in_s": pytest.approx(7.75, abs=0.1), "max_on_s": 10.0}),
+      "off_in_s": pytest.approx(7.75, abs=0.1), "off_by": "limit", "max_on_s": 10.0}),
 ]
 
 
@@ -163,7 +166,7 @@ def test_device_error_codes_give_advice(code):
 
 def test_a_refused_on_switches_off_and_says_so():
     pairs = [(b"ON 10000\n", P.render_error(P.ErrorCode.OVER_TEMPERATURE, "temperature 46.2 C, light stays off")),
-             (b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")]
+             (b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF]
     with expected_protocol(pairs) as sphere:
         with pytest.raises(SphereError) as info:
             sphere.on()
@@ -182,7 +185,7 @@ def test_unknown_device_error_code():
 
 def test_fault_after_light_on_switches_off_and_raises():
     pairs = [(b"ON 10000\n", b"OK ON 10000\n"), (b"FAULT?\n", b"OK FAULT 8\n"),
-             (b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")]
+             (b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF]
     with expected_protocol(pairs) as sphere:
         with pytest.raises(SphereError, match="LED 4 reports a fault") as info:
             sphere.on()
@@ -261,7 +264,7 @@ def test_invalid_arguments_elsewhere_send_nothing():
 def test_context_manager_switches_off_on_exception():
     port = ScriptedSerial([(b"LEVEL 3 65535\n", b"OK LEVEL 3 65535\n"), (b"ON 10000\n", b"OK ON 10000\n"),
                            (b"FAULT?\n", b"OK FAULT 0\n"),
-                           (b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")])
+                           (b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF])
     with pytest.raises(KeyError):
         with LedSphere(port, timeout=0.05) as sphere:
             sphere.set_level(3, 1.0)
@@ -271,14 +274,14 @@ def test_context_manager_switches_off_on_exception():
 
 
 def test_context_manager_switches_off_on_normal_exit():
-    port = ScriptedSerial([(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")])
+    port = ScriptedSerial([(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF])
     with LedSphere(port, timeout=0.05):
         pass
     assert port.done
 
 
 def test_close_switches_off_unless_told_not_to():
-    port = ScriptedSerial([(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")])
+    port = ScriptedSerial([(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF])
     sphere = LedSphere(port, timeout=0.05)
     sphere.close()
     assert port.done and not sphere.is_open
@@ -292,7 +295,7 @@ def test_close_survives_a_dead_link():
 
 
 def test_off_failure_during_exception_is_noted_not_hidden():
-    port = ScriptedSerial([(b"ALLOFF\n", b"ERR 6 stuck\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")])
+    port = ScriptedSerial([(b"ALLOFF\n", b"ERR 6 stuck\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF])
     with pytest.raises(ValueError) as info:
         with LedSphere(port, timeout=0.05):
             raise ValueError("original")
@@ -302,7 +305,7 @@ def test_off_failure_during_exception_is_noted_not_hidden():
 
 def test_off_failure_on_normal_exit_raises_and_says_the_light_is_off():
     port = ScriptedSerial([(b"PING\n", b"OK PING\n"), (b"ALLOFF\n", None), (b"ALLOFF\n", None),
-                           (b"LIGHT 0\n", b"OK LIGHT 0\n")])
+                           (b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF])
     with pytest.raises(SphereError, match="the light was switched off .LIGHT 0 answered. but the LED levels were "
                                           "not zeroed") as info:
         with LedSphere(port, timeout=0.05) as sphere:
@@ -335,7 +338,8 @@ def test_a_port_that_never_answered_is_switched_off_without_waiting():
 
 def test_host_on_time_uses_the_clock():
     clock = FakeClock()
-    pairs = [(b"ON 10000\n", b"OK ON 10000\n"), (b"FAULT?\n", b"OK FAULT 0\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n")]
+    pairs = [(b"ON 10000\n", b"OK ON 10000\n"), (b"FAULT?\n", b"OK FAULT 0\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"),
+             READ_BACK_OFF]
     with expected_protocol(pairs, clock=clock) as sphere:
         assert sphere.on_time_s() == 0.0
         sphere.on()
@@ -414,3 +418,43 @@ def test_fuzz_random_replies_only_raise_sphere_error():
     assert port.next >= len(frames)
     assert outcomes["ok"] > 100 and outcomes["error"] > 1000, outcomes
     assert {"garbled", "device", "timeout"} <= kinds
+
+
+# ---------------------------------------------------------------------------------------------- read-back (issue 28)
+IGNORED_OFF = [(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"), (b"LIGHT?\n", b"OK LIGHT 1\n"),
+               (b"LEVELS?\n", b"OK LEVELS 65535 0 0 0 0 0 0 0 0 0\n")]
+
+
+def test_a_switch_off_the_sphere_acknowledges_but_ignores_is_not_called_off():
+    port = ScriptedSerial(IGNORED_OFF)
+    sphere = LedSphere(port, timeout=0.05)
+    report = sphere.ensure_off()
+    assert port.done and not report.off and report.error.kind == "unconfirmed"
+    assert "the sphere did not confirm it is off: it answered ALLOFF and LIGHT 0 but still reports the light on " \
+           "with LED 1 above 0" in report.message
+    with pytest.raises(SphereError, match="did not confirm it is off") as info:
+        LedSphere(ScriptedSerial(IGNORED_OFF), timeout=0.05).shutdown()
+    assert info.value.light == "unknown"
+    sphere.close(leave_on=True)
+
+
+def test_a_light_off_the_sphere_ignores_raises_and_a_dark_switch_on_is_off():
+    port = ScriptedSerial([(b"LIGHT 0\n", b"OK LIGHT 0\n"), (b"LIGHT?\n", b"OK LIGHT 1\n"),
+                           (b"LEVELS?\n", b"OK LEVELS 0 0 0 0 0 0 0 0 0 9\n")])
+    with pytest.raises(SphereError, match="it answered LIGHT 0 but still reports the light on with LED 10") as info:
+        LedSphere(port, timeout=0.05).off()
+    assert info.value.kind == "unconfirmed"
+    # the switch reads on but every level is 0: nothing emits, that is off
+    port = ScriptedSerial([(b"LIGHT 0\n", b"OK LIGHT 0\n"), (b"LIGHT?\n", b"OK LIGHT 1\n"),
+                           (b"LEVELS?\n", b"OK LEVELS 0 0 0 0 0 0 0 0 0 0\n")])
+    LedSphere(port, timeout=0.05).off()
+    assert port.done
+
+
+def test_status_of_a_sphere_someone_else_lit_names_the_watchdog_when_not_adopting():
+    pairs = [(b"STATUS?\n", b"OK STATUS light=1 ontime=2.250 temp=25.10 wdog=30000 trip=0 fault=0\n"),
+             (b"LEVELS?\n", b"OK LEVELS 0 0 0 65535 0 0 0 0 0 0\n")]
+    with expected_protocol(pairs) as sphere:
+        status = sphere.status(adopt=False)
+        assert sphere.lit_period is None                     # no limit claimed that nothing would hold
+    assert status["off_by"] == "watchdog" and status["off_in_s"] == 30.0 and status["max_on_s"] is None

@@ -142,3 +142,16 @@ def test_non_bayer_cfa(tmp_path):
 def test_raw_file_error_is_a_value_error(tmp_path):
     # the CLI turns ValueError into 'dualrgb: error: ...' and exit 1
     assert issubclass(RawFileError, ValueError)
+
+
+def test_a_folder_name_that_is_not_utf8_is_read(tmp_path):
+    """Issue 28: a session path with a byte that is not UTF-8 (a folder named in another encoding) was reported
+    as 'damaged raw data (UnicodeEncodeError)'."""
+    import os
+
+    folder = tmp_path / os.fsdecode(b"sitzung-\xfc")                 # Latin-1 'u-umlaut'
+    folder.mkdir()
+    mosaic = mosaic_14bit(40, 60)
+    path = write_dng(folder / "f.DNG", mosaic)
+    frame = load_raw(path)
+    assert np.array_equal(frame.mosaic, mosaic)

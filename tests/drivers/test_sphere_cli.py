@@ -60,7 +60,7 @@ def test_identify_status_set_on_off(emu, capsys):
     rc, out, _ = run(emu, "status", capsys=capsys)
     assert rc == 0 and "light_on: True" in out and "levels: 0.0000 0.0000 0.0000 0.5000" in out
     rc, out, _ = run(emu, "off", capsys=capsys)
-    assert rc == 0 and out == "all LEDs off, light off\n"
+    assert rc == 0 and out == "all LEDs off, light off (read back)\n"
     assert not emu.snapshot().light_on and emu.commanded_levels().sum() == 0
 
 

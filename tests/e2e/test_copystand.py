@@ -16,6 +16,8 @@ import pytest
 import tifffile
 from xmp_check import read_xmp
 
+from dualrgb.app.workflow.profile_check import seal
+
 FRAME = ["--frame-size", "240x160", "--settle", "0"]
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 PAINT_FRAMES = "8"      # frames averaged per exposure of the painting: per-pixel noise / sqrt(8)
@@ -197,7 +199,7 @@ def test_wrong_iso_or_serial_refused_in_one_line(day, tmp_path):
     doc = json.loads(Path(cal["calibration"]).read_text())
     doc["camera"]["serial"] = "3021999"                        # a calibration made on another body
     other = tmp_path / "other.json"
-    other.write_text(json.dumps(doc))
+    other.write_text(json.dumps(seal(doc)))                    # (as dualrgb writes it: sealed)
     (tmp_path / doc["arrays"]["file"]).symlink_to(Path(cal["calibration"]).with_suffix(".npz"))
     r = dualrgb(*args, "--session", str(tmp_path / "s2"), "--calibration", str(other), ok=False)
     assert r.returncode == 1 and "camera serial" in r.stderr.strip().splitlines()[-1]

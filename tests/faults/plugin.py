@@ -1,7 +1,8 @@
 """The fault-injection suite's pytest plugin (loaded by tests/conftest.py).
 
 * ``@pytest.mark.fault("<category>")`` marks one fault-injection case (parametrize for many cases):
-  "light safety", "session integrity", "input" (issue 9). The mark takes exactly one category string.
+  "light safety", "session integrity", "input" (issue 9), "camera", "device errors", "edited files" (issue 28).
+  The mark takes exactly one category string.
 * ``pytest -m fault --reliability-table README.md`` (``make reliability``) runs the cases and writes the table
   category | cases tried | clean between ``<!-- reliability:start -->`` and ``<!-- reliability:end -->``:
   a case is *tried* when it ran (setup and call; skips are not counted) and *clean* when it passed, i.e.
@@ -22,8 +23,12 @@ CLEAN_MEANS = (
     "unknown); session integrity (kill -9, resume with other options, full disk, torn manifests, damaged frames) "
     "with every frame intact and none mixed; input (bad values, fuzzed raw files and CSVs) with a one-line error; "
     "camera (libgphoto2 behaviours replayed by a scripted stand-in) with the right frame or a one-line error and the "
-    "light off.")
-CATEGORIES = ("light safety", "session integrity", "input", "camera")
+    "light off; device errors (every command that opens devices against a silent, garbage-speaking, disconnecting "
+    "or switch-off-ignoring sphere and a missing, failing or hanging camera) with one line naming the device and "
+    "the light off, or the line saying truthfully that it could not be confirmed off; edited files (calibration "
+    "profiles changed by hand or damaged, oversized inputs) refused in one line naming the field before any "
+    "device acts.")
+CATEGORIES = ("light safety", "session integrity", "input", "camera", "device errors", "edited files")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

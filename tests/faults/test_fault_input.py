@@ -296,7 +296,8 @@ def test_every_numeric_option_uses_a_shared_validator():
     from dualrgb.app.commands import options
 
     shared = {f.__name__ for f in (options.frame_size, options.input_file, options.world, options.stand_dir,
-                                   options.column_option, options.render_illuminant, options.layout)} | {
+                                   options.column_option, options.render_illuminant, options.layout,
+                                   options.identifier)} | {
         "number", "count", "numbers", "leds"}
     raw = [a.dest for a in _all_actions(cli_mod.build_parser()) if getattr(a, "type", None) in (int, float)]
     allowed_raw = {"led", "level"}               # `sphere set`: checked by LedSphere, with the light switched off
@@ -364,7 +365,18 @@ def test_display_probes_tell_stale_from_live(tmp_path):
 
 
 # ---- 15. data that runs but cannot mean what was meant: a warning ----------------------------------------
-@pytest.mark.parametrize("what", ["zero LED", "zero camera channel", "identical training spectra"])
+def test_a_camera_channel_that_responds_nowhere_is_an_error(tmp_path):
+    """Issue 28: refused where the file is read (it was a warning, then a division by zero after a whole
+    calibration)."""
+    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.spectral_io import SpectralDataError
+
+    path = spectral_csv(tmp_path / "c.csv", 3, lambda w, c: 0 if c == 1 else 0.5)
+    with pytest.raises(SpectralDataError, match="c.csv: column 'C2' is 0 at every wavelength; a camera channel"):
+        default_setup("reflective", camera_csv=str(path))
+
+
+@pytest.mark.parametrize("what", ["zero LED", "identical training spectra"])
 def test_degenerate_spectra_warn(tmp_path, caplog, what):
     from dualrgb.simulation.datasets import default_setup
 
@@ -372,9 +384,6 @@ def test_degenerate_spectra_warn(tmp_path, caplog, what):
     if what == "zero LED":
         kwargs = {"leds_csv": str(spectral_csv(tmp_path / "l.csv", 10, lambda w, c: 0 if c == 2 else 1))}
         expected = "LED 3 is zero"
-    elif what == "zero camera channel":
-        kwargs = {"camera_csv": str(spectral_csv(tmp_path / "c.csv", 3, lambda w, c: 0 if c == 1 else 0.5))}
-        expected = "channel G is zero"
     else:
         kwargs = {"train_csv": str(spectral_csv(tmp_path / "t.csv", 30, 0.5))}
         expected = "all 30 patches have identical spectra"
