@@ -58,7 +58,7 @@ def reference_prior(setup: SimulationSetup, model: ExpectedErrorModel) -> Spectr
     except (OSError, PresetError) as exc:
         log.info("no packaged %s preset to choose the spectral prior with (%s): default prior", setup.mode, exc)
         return SpectralPrior()
-    W = model.realise(np.stack([s.weights(setup.leds.shape[0]) for s in preset.sources]))
+    W = model.emitted(np.stack([s.weights(setup.leds.shape[0]) for s in preset.sources]))
     lights = W @ setup.leds
     S = flat_fielded_sensitivities(lights, setup.camera)
     V = model.values(W[None], "train")
@@ -228,7 +228,7 @@ class SpectralEvaluator(ExpectedErrorEvaluator):
         idx = np.ascontiguousarray(idx, dtype=np.int64)
         w = self.realise(w)
         check_kernel_batch(idx, w, self.n_leds)
-        rmse = self.spectral.pooled_rmse(dense_weights(idx, w, self.n_leds), "train")
+        rmse = self.spectral.pooled_rmse(dense_weights(idx, self.emitted_indexed(idx, w), self.n_leds), "train")
         if self.objective == "mixed":
             return super().cost_indexed(idx, w) + self.settings.spectral_weight * 100.0 * rmse
         self.evaluations += w.shape[0]
@@ -237,14 +237,14 @@ class SpectralEvaluator(ExpectedErrorEvaluator):
     def spectral_stats(self, W: np.ndarray) -> dict:
         """Float64 expected captured spectral figures of one light set W (L, K): per target ("train", "test")
         the pooled RMSE (the objective's figure) and the per-patch RMSE's mean / median / p90 / max."""
-        W = self.realise(np.asarray(W, dtype=float))[None]
+        W = self.model.emitted(np.asarray(W, dtype=float)[None])
         return {which: {"rmse": float(self.spectral.pooled_rmse(W, which)[0]),
                         "per_patch": ErrorStats.of(self.spectral.patch_rmse(W, which)[0]).to_dict()}
                 for which in ("train", "test")}
 
     def objective_value(self, W: np.ndarray) -> float:
         """The float64 figure this objective minimises for one light set W (L, K) (reports sort by it)."""
-        rmse = float(self.spectral.pooled_rmse(self.realise(np.asarray(W, dtype=float))[None], "train")[0])
+        rmse = float(self.spectral.pooled_rmse(self.model.emitted(np.asarray(W, dtype=float)[None]), "train")[0])
         if self.objective == "mixed":
             return self.expected_stats(W)[0].mean + self.settings.spectral_weight * 100.0 * rmse
         return rmse

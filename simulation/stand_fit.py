@@ -9,7 +9,9 @@ level there, so vignetting is out), are what the model must predict (:class:`Sta
     white_lc   = k g_c (1 + f) sum_lambda E_l(lambda) S_c(lambda)
     patch_jlc  = k g_c sum_lambda E_l(lambda) R_j(lambda) S_c(lambda) + f / (1 + f) F_lc
 
-with E_l = sum_i w_li o_i LED_i(lambda; shift_i) the light's spectrum, S_c the camera's curve (optionally shifted
+with E_l = sum_i e_i(w_li) o_i LED_i(lambda; shift_i) the light's spectrum (e_i: what LED i emits at its level
+w_li as set, relative to full output - the sphere's one level model, :meth:`simulation.sphere.SphereProperties.emitted`:
+its measured level -> output curve from a stand folder, else proportional), S_c the camera's curve (optionally shifted
 and stretched about its peak), g_c the channel's gain, f the veiling flare and F_lc the captured frame's mean
 (the flare adds f times the frame's true mean, which the capture shows times 1 + f). ``k`` converts relative
 units to DN per second as the virtual lab and the expected-captured objective do: the unperturbed model's open gate
@@ -183,7 +185,7 @@ def predict(model: StandModel, obs: StandObservations, k: float | None = None) -
     grid = obs.grid
     k = obs.dn_scale * (dn_per_unit_s(model, grid) if k is None else k)
     leds, cam, f = model.leds(grid), model.camera(grid), model.params.flare
-    levels = np.asarray(obs.levels, dtype=float)
+    levels = model.emitted(np.asarray(obs.levels, dtype=float))        # what the LEDs emitted at the levels set
     white = k * (1.0 + f) * (levels @ led_responses(leds, np.ones((1, len(grid))), cam)[:, 0])
 
     def patches(spectra: np.ndarray, frame: np.ndarray) -> np.ndarray:
@@ -353,10 +355,12 @@ def _finish(obs: StandObservations, start: StandModel, model: StandModel, parame
 def expected_de00(model: StandModel, mode: str, levels: np.ndarray, capture: CaptureModel | None = None
                   ) -> dict[str, float]:
     """Mean expected captured CIEDE2000 (least-squares matrix; simulation.expected_error) of the light set
-    ``levels`` (L, n_leds) on the training and test targets, as ``model`` predicts it under ``capture``."""
+    ``levels`` (L, n_leds) on the training and test targets, as ``model`` predicts it under ``capture``: the
+    levels as the sphere set them (a light captured, or to be captured as it is: nothing is rounded off below
+    the minimum stable level), each LED emitting what the model's level curve says."""
     from dualrgb.simulation.expected_error import ExpectedErrorModel
 
     setup = model.setup(mode)
     out = ExpectedErrorModel(setup, model.capture(capture or CaptureModel.virtual_lab(mode))).expected(
-        np.asarray(levels, dtype=float)[None])
+        np.asarray(levels, dtype=float)[None], captured=True)
     return {k: float(v[0]) for k, v in out.items()}

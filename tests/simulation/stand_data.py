@@ -11,9 +11,10 @@ from dualrgb.simulation.spectral_io import read_spectral_csv
 from dualrgb.simulation.stand_fit import StandObservations
 
 GRID = np.arange(410.0, 781.0, 10.0)
-LIGHTS = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 0.0, 0.0, 0.0],      # LEDs 6, 7
-                   [0.0, 0.0, 0.5, 0.0, 0.8, 0.0, 0.0, 0.0, 1.0, 0.0],      # LEDs 3, 5, 9
-                   [0.9, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]])     # LEDs 1, 8
+LIGHTS = np.round(np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 0.0, 0.0, 0.0],      # LEDs 6, 7
+                            [0.0, 0.0, 0.5, 0.0, 0.8, 0.0, 0.0, 0.0, 1.0, 0.0],      # LEDs 3, 5, 9
+                            [0.9, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]])     # LEDs 1, 8
+                  * 65535) / 65535                  # as the sphere holds them: 16-bit PWM steps
 
 
 def hand_camera(csv: str | None = None) -> np.ndarray:
