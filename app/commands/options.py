@@ -190,9 +190,12 @@ def add_render_option(p: argparse.ArgumentParser) -> None:
 def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """``--world NAME|FILE`` (default ``nominal``): what the virtual lab renders (a camera, LEDs, flare and
     reference error that may differ from the nominal model; README "Worlds"). ``args.world`` is the text."""
+    from dualrgb import resources
+
+    names = ", ".join(resources.world_names())
     parser.add_argument("--world", type=world, default="nominal", metavar="NAME|FILE",
-                        help="virtual lab: the world it renders, a packaged name (nominal, nikon-d700, "
-                             "sony-ilce-7rm2, mismatched-d700, aged-leds) or a world JSON file (default nominal)")
+                        help=f"virtual lab: the world it renders, a packaged name ({names}) or a world JSON file "
+                             "(default nominal)")
 
 
 __all__ = ["MAX_FRAME_SIDE", "add_render_option", "add_world_option", "column_option", "count", "frame_size",
