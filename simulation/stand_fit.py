@@ -28,6 +28,16 @@ Least squares (scipy ``least_squares``, trust region reflective) on relative res
 at the optimum: ``cov = (J_d^T J_d / s^2 + J_p^T J_p)^-1`` with ``s^2`` the data's reduced chi-square (at least
 1), i.e. the usual ``(J^T J)^-1 sigma^2`` with the data's scatter taken from the fit itself and the priors as stated.
 
+Identifiability (a fit's R^2 does not certify its parameters: several trade off against each other). For each
+parameter the posterior against the prior sd (``sd_ratio``: below :data:`DETERMINED_RATIO` the captures determine
+it, at or above :data:`PRIOR_RATIO` = 1/sqrt 2 the captures carry less than half of what is known about it, so it is
+determined mainly by its prior) and how far it moved in prior sd (``moved_sd``); every pair of parameters whose
+posterior correlation reaches :data:`CORRELATION_LIMIT` in magnitude; and the combinations of parameters the
+captures leave to the priors (``weak_directions``: eigenvectors of the posterior covariance in prior-sd units whose
+sd stays at or above :data:`PRIOR_RATIO` of the prior's - e.g. every LED output up and every channel gain down
+together, which changes no prediction). One warning line per parameter that moved more than :data:`MOVED_LIMIT`
+prior sd or is determined mainly by its prior.
+
 References
 ----------
 Thesis chapter 7 (Fig 7.4, Table 7.2: captured digital numbers against the simulation), eq 5.10, 4.3 (LED peaks and
@@ -126,9 +136,26 @@ class FittedParameter:
     bounds: tuple[float, float]
     at_bound: str = ""       # "lower" / "upper" when the fit ended on a bound
 
+    @property
+    def sd_ratio(self) -> float:
+        """Posterior over prior standard deviation (module docstring: identifiability)."""
+        return self.sd / self.prior_sd
+
+    @property
+    def moved_sd(self) -> float:
+        """How far the fit moved it from the starting model, in prior standard deviations (signed)."""
+        return (self.value - self.prior) / self.prior_sd
+
+    @property
+    def determined_by(self) -> str:
+        """'captures', 'partly' or 'prior' (module docstring: identifiability)."""
+        r = self.sd_ratio
+        return "captures" if r < DETERMINED_RATIO else "prior" if r >= PRIOR_RATIO else "partly"
+
     def to_dict(self) -> dict[str, Any]:
         return {"key": self.key, "label": self.label, "value": self.value, "sd": self.sd, "prior": self.prior,
-                "prior_sd": self.prior_sd, "bounds": list(self.bounds), "at_bound": self.at_bound or None}
+                "prior_sd": self.prior_sd, "bounds": list(self.bounds), "at_bound": self.at_bound or None,
+                "sd_ratio": self.sd_ratio, "moved_sd": self.moved_sd, "determined_by": self.determined_by}
 
 
 @dataclass
@@ -156,6 +183,8 @@ class StandFit:
     fitted: Prediction
     r2: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     priors: Priors = field(default_factory=Priors)
+    correlations: list[dict[str, Any]] = field(default_factory=list)    # {"a", "b": labels, "r"}, |r| descending
+    weak_directions: list[dict[str, Any]] = field(default_factory=list)  # {"sd_ratio", "combination": [[label, w]]}
 
     def min_r2(self, which: str = "fitted", target: str = "train") -> float:
         values = self.r2.get(which, {}).get(target) or [float("nan")]
@@ -165,7 +194,9 @@ class StandFit:
         return {"model": self.model.to_dict(), "start": self.start.to_dict(),
                 "parameters": [p.to_dict() for p in self.parameters], "warnings": list(self.warnings),
                 "chi2_scale": self.chi2_scale, "evaluations": self.evaluations, "priors": self.priors.to_dict(),
-                "r2": self.r2}
+                "r2": self.r2, "correlations": self.correlations, "weak_directions": self.weak_directions,
+                "identifiability": {"determined_ratio": DETERMINED_RATIO, "prior_ratio": PRIOR_RATIO,
+                                    "moved_limit": MOVED_LIMIT, "correlation_limit": CORRELATION_LIMIT}}
 
 
 # ---- the forward model ----------------------------------------------------------------------------------------
@@ -254,6 +285,10 @@ def _vector(start: StandParameters, used_leds: np.ndarray, priors: Priors, camer
 
 
 DARK_FLOOR = 0.01           # a patch's relative error is taken on at least this fraction of the open gate
+DETERMINED_RATIO = 0.5      # posterior sd below half the prior's: the captures determine the parameter
+PRIOR_RATIO = 2 ** -0.5     # posterior variance at least half the prior's: determined mainly by its prior
+MOVED_LIMIT = 3.0           # moved more than this many prior sd from the starting model: warned
+CORRELATION_LIMIT = 0.9     # |posterior correlation| reported from here
 
 
 def _data_sigma(obs: StandObservations, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
@@ -275,6 +310,43 @@ def _bound_warnings(vec: _Vector, x: np.ndarray) -> tuple[list[str], list[str]]:
             lines.append(f"stand fit: {label} = {v:.4g} is at its {side} bound {lo if side == 'lower' else hi:g}: "
                          "the model cannot follow the captures there (a measured curve may be needed)")
     return where, lines
+
+
+def _identifiability(parameters: list[FittedParameter], cov: np.ndarray) -> tuple[list[dict[str, Any]], list[str]]:
+    """The correlated pairs (|r| >= CORRELATION_LIMIT, largest first) and one warning line per parameter that moved
+    more than MOVED_LIMIT prior sd or is determined mainly by its prior (module docstring)."""
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    corr = cov / np.where(np.outer(sd, sd) > 0, np.outer(sd, sd), np.inf)
+    i, j = np.triu_indices(len(sd), 1)
+    strong = np.flatnonzero(np.abs(corr[i, j]) >= CORRELATION_LIMIT)
+    pairs = sorted(({"a": parameters[i[k]].label, "b": parameters[j[k]].label, "r": float(corr[i[k], j[k]])}
+                    for k in strong), key=lambda d: -abs(d["r"]))
+    lines = []
+    for p in parameters:
+        if abs(p.moved_sd) > MOVED_LIMIT:
+            lines.append(f"stand fit: {p.label} = {p.value:.4g} moved {p.moved_sd:+.1f} prior sd from {p.prior:.4g} "
+                         f"(prior sd {p.prior_sd:g}): the starting model is far off there, or another parameter's "
+                         "error is absorbed by it")
+        if p.determined_by == "prior":
+            lines.append(f"stand fit: {p.label} is determined mainly by its prior (posterior sd {p.sd:.3g} = "
+                         f"{p.sd_ratio:.2f} of the prior's {p.prior_sd:g}): these captures say little about it")
+    return pairs, lines
+
+
+def _weak_directions(parameters: list[FittedParameter], cov: np.ndarray) -> list[dict[str, Any]]:
+    """The parameter combinations the captures leave to the priors (module docstring), weakest first: each its
+    posterior sd over the prior's along it and its largest components (unit vector in prior-sd units, |w| >= 0.1)."""
+    prior_sd = np.array([p.prior_sd for p in parameters])
+    values, vectors = np.linalg.eigh(cov / np.outer(prior_sd, prior_sd))
+    out = []
+    for k in np.argsort(values)[::-1]:
+        ratio = float(np.sqrt(max(values[k], 0.0)))
+        if ratio < PRIOR_RATIO:
+            break
+        v = vectors[:, k] * np.sign(vectors[np.argmax(np.abs(vectors[:, k])), k])
+        top = [[parameters[i].label, round(float(v[i]), 3)] for i in np.argsort(-np.abs(v)) if abs(v[i]) >= 0.1]
+        out.append({"sd_ratio": ratio, "combination": top})
+    return out
 
 
 def _covariance(jac: np.ndarray, n_data: int, residuals: np.ndarray, prior_sd: np.ndarray) -> tuple[np.ndarray,
@@ -300,8 +372,10 @@ def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: P
 
     Returns
     -------
-    :class:`StandFit`: the fitted model, parameters with standard uncertainties, one warning per parameter that
-    ended on a bound, and R^2 of the start and fitted models on the training and (when given) test targets.
+    :class:`StandFit`: the fitted model, parameters with standard uncertainties and what determines them
+    (identifiability, module docstring), one warning per parameter that ended on a bound, moved more than 3 prior
+    sd or is determined mainly by its prior, and R^2 of the start and fitted models on the training and (when
+    given) test targets.
 
     References
     ----------
@@ -327,15 +401,19 @@ def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: P
     res = least_squares(residuals, x0, bounds=(vec.lo, vec.hi), x_scale=vec.prior_sd, method="trf")
     cov, s2 = _covariance(np.asarray(res.jac, dtype=float), n_data, res.fun, vec.prior_sd)
     where, warnings = _bound_warnings(vec, res.x)
-    for line in warnings:
-        log.warning("%s", line)
     sds = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     parameters = [FittedParameter(f"{n}[{i}]" if i is not None else n, lab, float(v), float(s), float(p), float(w),
                                   (float(lo), float(hi)), side)
                   for (n, i), lab, v, s, p, w, lo, hi, side in zip(vec.keys, vec.labels, res.x, sds, vec.prior,
                                                                    vec.prior_sd, vec.lo, vec.hi, where, strict=True)]
+    correlations, lines = _identifiability(parameters, cov)
+    warnings += lines
+    for line in warnings:
+        log.warning("%s", line)
     model = start.with_params(vec.params(start.params, res.x))
-    return _finish(obs, start, model, parameters, warnings, s2, int(res.nfev), priors, k)
+    fit = _finish(obs, start, model, parameters, warnings, s2, int(res.nfev), priors, k)
+    fit.correlations, fit.weak_directions = correlations, _weak_directions(parameters, cov)
+    return fit
 
 
 def _finish(obs: StandObservations, start: StandModel, model: StandModel, parameters: list[FittedParameter],
