@@ -12,7 +12,9 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study thesis         [--out DIR] [--budget full|small] [--json PATH] [--readme README.md]
   dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
                                [--seeds N] [--scheduler local|ADDRESS]
-  dualrgb study stand          [--out DIR] [--world W] [--seeds N] [--frame-size WxH]   (app.workflow.stand_study)
+  dualrgb study stand          [--out DIR] [--world W[,W...]|all] [--compare W,...|all|none] [--seeds N]
+                               [--frame-size WxH] [--readme README.md] [--from-json STAND.json]
+                               (app.workflow.stand_study)
 
 ``--out`` defaults to ``studies/<study>`` in the per-user data folder (resources.user_path), where the GUI lists
 the charts. ``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
@@ -27,8 +29,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from dualrgb import resources
 from dualrgb.app.commands import study_thesis
-from dualrgb.app.commands.options import add_world_option, count, frame_size, input_file, number, positive
+from dualrgb.app.commands.options import count, frame_size, input_file, number, positive, world
 from dualrgb.app.terminal_progress import TerminalProgress
 from dualrgb.simulation.choices import MODES
 
@@ -86,30 +89,75 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _stand_study(ss: argparse._SubParsersAction) -> None:
-    """stand: the stand model fitted to a calibration in a mismatched world, and the lights re-chosen on it."""
-    q = ss.add_parser("stand", help="the stand model fitted to calibration captures in a virtual-lab world: R^2, "
-                                    "predicted vs captured dE00, lights re-optimised on it vs the nominal preset "
-                                    "and the world's optimum")
+    """stand: the workflow's stand model against captures in virtual-lab worlds (app.workflow.stand_study)."""
+    q = ss.add_parser("stand", help="the stand model against calibration captures in virtual-lab worlds: the "
+                                    "measurement workflow's predicted vs captured dE00 (3 seeds), models' R^2, lights "
+                                    "re-optimised on them vs the nominal preset and the world's optimum")
     _out_option(q, "stand")
     q.add_argument("--mode", choices=MODES, default="reflective")
-    add_world_option(q)
-    q.set_defaults(world="mismatched-d700")
+    q.add_argument("--world", type=_worlds, default=("mismatched-d700",), metavar="W[,W...]|all",
+                   help="the virtual-lab worlds: packaged names or world JSON files, comma-separated, or 'all' (every "
+                        f"packaged world: {', '.join(resources.world_names())}); default mismatched-d700")
+    q.add_argument("--compare", type=_compared, default=None, metavar="W[,W...]|all|none",
+                   help="worlds where every other stand model is compared too, with lights re-optimised on each "
+                        "(about 3x longer per world); default: the world when only one is studied, else none")
     q.add_argument("--seeds", type=positive, default=3, help="capture seeds per light set (default 3)")
     q.add_argument("--frame-size", type=frame_size, default=(600, 400), help="virtual lab frames WxH (600x400)")
+    q.add_argument("--readme", metavar="README", help="write the workflow table into README between "
+                                                      "<!-- stand:start --> and <!-- stand:end -->")
+    q.add_argument("--from-json", type=input_file, metavar="STAND.json",
+                   help="make the tables, charts (and --readme) from a study's saved stand.json instead of running it")
     q.set_defaults(func=stand_main)
 
 
+def _worlds(text: str) -> tuple[str, ...]:
+    """``all`` (every packaged world) or comma-separated worlds, each as ``--world`` takes it."""
+    if text.strip() == "all":
+        return tuple(resources.world_names())
+    names = tuple(w.strip() for w in text.split(",") if w.strip())
+    if not names:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected world names or files, comma-separated, or 'all'")
+    return tuple(world(w) for w in names)
+
+
+_worlds.__name__ = "worlds"
+
+
+def _compared(text: str) -> tuple[str, ...]:
+    return () if text.strip() == "none" else _worlds(text)
+
+
+_compared.__name__ = "worlds"
+
+
 def stand_main(args: argparse.Namespace) -> int:
-    from dualrgb.app.workflow.stand_study import StandStudyConfig, stand_study, summary_lines, write_outputs
-    from dualrgb.simulation.studies.common import StudyOutput
+    from dualrgb.app.workflow.stand_study import StandStudyConfig, stand_study
+    from dualrgb.app.workflow.stand_study_report import (
+        load_study,
+        readme_section,
+        summary_lines,
+        workflow_table,
+        write_outputs,
+        write_readme,
+    )
+    from dualrgb.simulation.studies.common import StudyOutput, to_jsonable
 
     out = StudyOutput(_out(args))
-    cfg = StandStudyConfig(world=args.world, mode=args.mode, frame_size=args.frame_size,
-                           seeds=tuple(range(args.seeds)))
-    with _progress(args) as progress:
-        result = stand_study(cfg, out.folder / "work", progress=progress)
-    write_outputs(result, out)
-    return _done(out, summary_lines(result)[4:])
+    if args.from_json:
+        doc, source = load_study(args.from_json), str(args.from_json)
+    else:
+        compare = args.compare if args.compare is not None else args.world if len(args.world) == 1 else ()
+        cfg = StandStudyConfig(worlds=args.world, mode=args.mode, frame_size=args.frame_size,
+                               seeds=tuple(range(args.seeds)), compare=compare)
+        with _progress(args) as progress:
+            result = stand_study(cfg, out.folder / "work", progress=progress)
+        doc, source = to_jsonable(result.to_dict()), "stand.json"
+    write_outputs(doc, out, source)
+    if args.readme:
+        write_readme(args.readme, readme_section(doc, source if args.from_json else str(out.folder / "stand.json")))
+        print(f"wrote the workflow table into {args.readme}", file=sys.stderr)
+    lines = workflow_table(doc)
+    return _done(out, lines if args.from_json else summary_lines(doc)[2:])
 
 
 def _spectral_study(ss: argparse._SubParsersAction) -> None:
