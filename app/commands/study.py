@@ -133,14 +133,14 @@ _compared.__name__ = "worlds"
 def stand_main(args: argparse.Namespace) -> int:
     from dualrgb.app.workflow.stand_study import StandStudyConfig, stand_study
     from dualrgb.app.workflow.stand_study_report import (
+        SECTION,
         load_study,
         readme_section,
         summary_lines,
         workflow_table,
         write_outputs,
-        write_readme,
     )
-    from dualrgb.simulation.studies.common import StudyOutput, to_jsonable
+    from dualrgb.simulation.studies.common import StudyOutput, to_jsonable, write_marked
 
     out = StudyOutput(_out(args))
     if args.from_json:
@@ -154,7 +154,8 @@ def stand_main(args: argparse.Namespace) -> int:
         doc, source = to_jsonable(result.to_dict()), "stand.json"
     write_outputs(doc, out, source)
     if args.readme:
-        write_readme(args.readme, readme_section(doc, source if args.from_json else str(out.folder / "stand.json")))
+        write_marked(args.readme, readme_section(doc, source if args.from_json else str(out.folder / "stand.json")),
+                     SECTION)
         print(f"wrote the workflow table into {args.readme}", file=sys.stderr)
     lines = workflow_table(doc)
     return _done(out, lines if args.from_json else summary_lines(doc)[2:])
@@ -169,6 +170,8 @@ def _spectral_study(ss: argparse._SubParsersAction) -> None:
     q.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=10.0, help="spectral step in nm (10)")
     q.add_argument("--budget", choices=("tiny", "default"), default="default",
                    help="tiny: a short search for the spectral-chosen lights (a quick check)")
+    q.add_argument("--readme", metavar="README", help="write the tables into README between "
+                                                      "<!-- spectral:start --> and <!-- spectral:end -->")
     q.set_defaults(func=spectral_main)
 
 
@@ -415,6 +418,12 @@ def spectral_main(args: argparse.Namespace) -> int:
     with _progress(args) as progress:
         result = spectral_study(SetupSpec(cfg.modes[0], args.step), cfg, progress=progress)
     write_outputs(result, out)
+    if args.readme:
+        from dualrgb.simulation.studies.common import write_marked
+        from dualrgb.simulation.studies.spectral import readme_section
+
+        write_marked(args.readme, readme_section(result, out.folder / "spectral.json"), "spectral")
+        print(f"wrote the tables into {args.readme}", file=sys.stderr)
     return _done(out, [f"{r['mode']:<12} {r['lights']:<15} {r['method']:<8} RMSE {r['rmse']:.4f} (seen "
                        f"{r['rmse_seen']:.4f}), GFC {r['gfc']:.4f}, dE00 D65 {r['de00']['D65']:.3f} A "
                        f"{r['de00']['A']:.3f} FL11 {r['de00']['FL11']:.3f}" for r in result.rows])

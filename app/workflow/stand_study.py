@@ -93,8 +93,7 @@ class StandStudy:
 
 def world_model(world: Any) -> StandModel:
     """The stand model that is the world itself (drivers.virtual.world.World): its camera, LEDs, their level
-    response (sampled finely enough that interpolating it is the world's curve within 1e-5 of full output)
-    and flare."""
+    response (:func:`world_level_curves`) and flare."""
     return StandModel(camera_csv=str(world.camera_path),
                       params=StandParameters(led_output_scale=tuple(world.led_output_scale),
                                              led_peak_shift_nm=tuple(world.led_peak_shift_nm),
@@ -103,11 +102,13 @@ def world_model(world: Any) -> StandModel:
 
 
 def world_level_curves(world: Any) -> LevelCurves:
-    """The world's low-level response as a level curve per LED (none for an ideal driver)."""
+    """The world's low-level response as a level curve per LED (none for an ideal driver): 0.025 % steps up to the
+    knee, proportional above it."""
     response = world.led_low_level
     if response.identity:
         return ()
-    levels = np.unique(np.concatenate([np.arange(1, 2001) * 5e-5, np.linspace(0.1, 1.0, 10)]))
+    knee = max(response.knee, response.dead_band)
+    levels = np.unique(np.concatenate([np.arange(1, int(np.ceil(knee / 2.5e-4))) * 2.5e-4, [knee, 1.0]]))
     curve = LevelCurve(tuple(float(v) for v in levels), tuple(float(v) for v in response.output(levels)))
     return (curve,) * len(world.led_output_scale)
 

@@ -1,6 +1,7 @@
 """``dualrgb study stand``'s outputs (app/workflow/stand_study.py), made from its JSON document so that they can be
 made again from a saved ``stand.json`` (``study stand --from-json``) without running the study: the Markdown tables
-(SUMMARY.md, and README's generated section between :data:`README_START` and :data:`README_END`), the charts.
+(SUMMARY.md, and README's generated section between ``<!-- stand:start -->`` and ``<!-- stand:end -->``), the
+charts.
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-README_START, README_END = "<!-- stand:start -->", "<!-- stand:end -->"
+SECTION = "stand"                   # README's generated section: <!-- stand:start --> ... <!-- stand:end -->
 FORMATS = ("dualrgb-study-stand/2",)
 PRESET, WORKFLOW = "nominal preset", "fitted, measured camera and LEDs"
 REOPTIMISED = f"re-optimised: {WORKFLOW}"
@@ -105,24 +106,6 @@ def readme_section(doc: dict[str, Any], source: str) -> str:
     """README's generated section: the study's tables (:func:`summary_lines`) and where they came from."""
     return "\n".join([*summary_lines(doc, source), "",
                       f"Made by `dualrgb study stand --from-json {source} --readme README.md` from the study's JSON."])
-
-
-def replace_section(text: str, body: str, source: str = "README") -> str:
-    """``text`` with everything between README_START and README_END replaced by ``body``."""
-    if text.count(README_START) != 1 or text.count(README_END) != 1 or \
-            text.index(README_START) > text.index(README_END):
-        raise ValueError(f"{source}: needs one {README_START} line before one {README_END} line")
-    head, rest = text.split(README_START)
-    _, tail = rest.split(README_END)
-    return f"{head}{README_START}\n{body}\n{README_END}{tail}"
-
-
-def write_readme(path: str | Path, body: str) -> Path:
-    from dualrgb.common.atomic_files import atomic_write
-
-    p = Path(path)
-    atomic_write(p, replace_section(p.read_text(encoding="utf-8"), body, str(p)))
-    return p
 
 
 # ---- charts ---------------------------------------------------------------------------------------------------

@@ -41,6 +41,7 @@ class TargetSpec:
     nd_mask: np.ndarray | None = None     # patches under the ND filter (virtual lab)
     spectra: np.ndarray | None = None     # (n, n_wl) reference spectra on the simulation grid (ND included)
     mode: str = ""                        # the packaged data (grid, CMFs, LEDs, camera) the spectra belong to
+    measured_range: tuple[float, float] | None = None    # wavelengths the reference measured (spectral figures)
 
 
 def packaged_target(mode: str, name: str) -> Any:
@@ -110,7 +111,7 @@ def virtual_target_spec(lab: Any, subject: Subject, *, simulated: np.ndarray | N
     target = packaged_target(lab.mode, subject.name)
     return TargetSpec(subject, xyz, names, grid or scene_grid(scene), tuple(scene.layout), simulated,
                       label or f"{subject.name} ({target.name})", nd_mask,
-                      reference_spectra(lab.mode, subject.name, nd_scale), lab.mode)
+                      reference_spectra(lab.mode, subject.name, nd_scale), lab.mode, target.measured_range)
 
 
 def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any = None,
@@ -131,7 +132,7 @@ def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any
                          "patches; set rows and columns")
     return TargetSpec(subject, xyz, names, grid, layout_for(len(names), target.layout), None,
                       label or f"{subject.name} ({target.name})", spectra=reference_spectra(mode, subject.name),
-                      mode=mode)
+                      mode=mode, measured_range=target.measured_range)
 
 
 def load_grid(path: Path) -> PatchGrid:
