@@ -172,6 +172,8 @@ def _spectral_study(ss: argparse._SubParsersAction) -> None:
                    help="tiny: a short search for the spectral-chosen lights (a quick check)")
     q.add_argument("--readme", metavar="README", help="write the tables into README between "
                                                       "<!-- spectral:start --> and <!-- spectral:end -->")
+    q.add_argument("--from-json", type=input_file, metavar="SPECTRAL.json",
+                   help="with --readme: the tables from a study's saved spectral.json instead of running it")
     q.set_defaults(func=spectral_main)
 
 
@@ -409,9 +411,21 @@ def _modes(text: str) -> tuple[str, ...]:
 
 
 def spectral_main(args: argparse.Namespace) -> int:
-    from dualrgb.simulation.studies.common import SetupSpec, StudyOutput
-    from dualrgb.simulation.studies.spectral import SpectralStudyConfig, spectral_study, write_outputs
+    from dualrgb.simulation.studies.common import SetupSpec, StudyOutput, to_jsonable, write_marked
+    from dualrgb.simulation.studies.spectral import (
+        SpectralStudyConfig,
+        load_study,
+        readme_section,
+        spectral_study,
+        write_outputs,
+    )
 
+    if args.from_json:
+        if not args.readme:
+            raise ValueError("--from-json: give --readme README.md (the tables are written there)")
+        write_marked(args.readme, readme_section(load_study(args.from_json), args.from_json), "spectral")
+        print(f"wrote the tables into {args.readme}", file=sys.stderr)
+        return 0
     cfg = SpectralStudyConfig.tiny() if args.budget == "tiny" else SpectralStudyConfig()
     cfg = replace(cfg, modes=_modes(args.modes))
     out = StudyOutput(_out(args))
@@ -419,10 +433,8 @@ def spectral_main(args: argparse.Namespace) -> int:
         result = spectral_study(SetupSpec(cfg.modes[0], args.step), cfg, progress=progress)
     write_outputs(result, out)
     if args.readme:
-        from dualrgb.simulation.studies.common import write_marked
-        from dualrgb.simulation.studies.spectral import readme_section
-
-        write_marked(args.readme, readme_section(result, out.folder / "spectral.json"), "spectral")
+        doc = to_jsonable({"format": "dualrgb-study-spectral/1", **result.to_json()})
+        write_marked(args.readme, readme_section(doc, out.folder / "spectral.json"), "spectral")
         print(f"wrote the tables into {args.readme}", file=sys.stderr)
     return _done(out, [f"{r['mode']:<12} {r['lights']:<15} {r['method']:<8} RMSE {r['rmse']:.4f} (seen "
                        f"{r['rmse_seen']:.4f}), GFC {r['gfc']:.4f}, dE00 D65 {r['de00']['D65']:.3f} A "

@@ -320,19 +320,21 @@ def _nm(pair: list[float] | None) -> str:
     return "-" if not pair else f"{pair[0]:g}-{pair[1]:g} nm"
 
 
-def summary_lines(result: SpectralStudyResult) -> list[str]:
-    """The README's tables: method x lights x mode with RMSE, GFC and dE00 under every light; each light set's
-    linear bound; and, where the mode has one, the figures against the second test reference."""
+def summary_lines(modes: list[dict]) -> list[str]:
+    """The README's tables from the study's ``modes`` (SpectralStudyResult.modes, or its JSON's): method x lights x
+    mode with RMSE, GFC and dE00 under every light; each light set's linear bound; and, where the mode has one,
+    the figures against the second test reference."""
     lights = list(OTHER_LIGHTS)
+    rows = [r for m in modes for r in m["rows"]]
     lines = ["| Mode | Lights | Channels | Method (CV choice) | RMSE mean (where measured) | RMSE seen | GFC | "
              + " | ".join(f"dE00 {k}" for k in lights) + " |", "|---" * (7 + len(lights)) + "|"]
-    for r in result.rows:
+    for r in rows:
         lines.append(f"| {r['mode']} | {r['lights']} | {r['channels']} | {r['chosen']} | {r['rmse']:.4f} | "
                      f"{r['rmse_seen']:.4f} | {r['gfc']:.4f} | " + " | ".join(f"{r['de00'][k]:.3f}" for k in lights)
                      + " |")
     lines += ["", "| Mode | Lights | Test reference | RMSE and GFC over | RMSE seen over | linear bound (mean "
               "per-patch RMSE) | that map clipped | least squares |", "|---" * 8 + "|"]
-    for m in result.modes:
+    for m in modes:
         refs = [(m["rows"][0]["wavelengths"], m["linear_bound"], "packaged")]
         if m.get("second_test"):
             second = next(r["second_test"] for r in m["rows"])
@@ -341,12 +343,12 @@ def summary_lines(result: SpectralStudyResult) -> list[str]:
             for name, b in bounds.items():
                 lines.append(f"| {m['mode']} | {name} | {ref} | {_nm(where['measured'])} | {_nm(where.get('seen'))} "
                              f"| {b['bound']:.4f} | {b['bound_clipped']:.4f} | {b['least_squares']:.4f} |")
-    return lines + _second_lines(result)
+    return lines + _second_lines(rows)
 
 
-def _second_lines(result: SpectralStudyResult) -> list[str]:
+def _second_lines(rows: list[dict]) -> list[str]:
     """Each method's figures against the packaged test reference and the second one, side by side."""
-    rows = [r for r in result.rows if "second_test" in r]
+    rows = [r for r in rows if "second_test" in r]
     if not rows:
         return []
     name = rows[0]["second_test"]["target"]
@@ -359,12 +361,28 @@ def _second_lines(result: SpectralStudyResult) -> list[str]:
     return lines
 
 
-def readme_section(result: SpectralStudyResult, source: Any) -> str:
-    """README's generated section: the study's tables and where they came from."""
-    return "\n".join([f"Made by `dualrgb study spectral --readme README.md` ({result.spec.step:g} nm, "
-                      f"{result.elapsed_s:.0f} s; the JSON: `{source}`). Test targets: CC24 (BabelColor, measured "
-                      "380-730 nm) / CC24-on-film; RMSE and GFC over the measured wavelengths of the mode's grid; RMSE "
-                      "seen: over those the camera sees too.", "", *summary_lines(result)])
+def readme_section(doc: dict, source: Any) -> str:
+    """README's generated section from the study's JSON document (:meth:`SpectralStudyResult.to_json`): its
+    tables and where they came from."""
+    return "\n".join([f"Made by `dualrgb study spectral --from-json {source} --readme README.md` from the study's "
+                      f"JSON ({doc['setup']['step']:g} nm, {doc['elapsed_s']:.0f} s). Test targets: CC24 (BabelColor, "
+                      "measured 380-730 nm) / CC24-on-film; RMSE and GFC over the measured wavelengths of the mode's "
+                      "grid; RMSE seen: over those the camera sees too.", "", *summary_lines(doc["modes"])])
+
+
+def load_study(path: Any) -> dict:
+    """A saved ``spectral.json``; ValueError (one line) naming the file when it is not one."""
+    import json
+    from pathlib import Path
+
+    p = Path(path)
+    try:
+        doc = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{p}: cannot read a study spectral document ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("format") != "dualrgb-study-spectral/1" or "modes" not in doc:
+        raise ValueError(f"{p}: expected a study spectral document (dualrgb-study-spectral/1)")
+    return doc
 
 
 def write_outputs(result: SpectralStudyResult, out: StudyOutput) -> None:
@@ -376,5 +394,5 @@ def write_outputs(result: SpectralStudyResult, out: StudyOutput) -> None:
         lines += [f"- {m['mode']}: " + "; ".join(f"{k} {v['label']} (search {v['search_s']:.1f} s, linear bound "
                                                  f"{m['linear_bound'][k]['bound']:.4f})"
                                                  for k, v in m["lights"].items())]
-    lines += ["", *summary_lines(result)]
+    lines += ["", *summary_lines(result.modes)]
     out.write_summary("Spectral estimation: methods x lights", lines)

@@ -86,3 +86,24 @@ def test_a_file_that_is_not_a_stand_study_is_one_line(tmp_path, capsys):
     assert len(err) == 1 and "expected a study stand document" in err[0]
     with pytest.raises(ValueError, match="needs one <!-- stand:start --> line"):
         replace_marked("no markers", "body", "stand")
+
+
+def test_readmes_stand_section_is_the_one_made_from_the_committed_study():
+    from dualrgb import resources
+    from dualrgb.app.workflow.stand_study_report import SECTION, readme_section
+
+    root = resources.path().parent
+    readme, committed = root / "README.md", root / "docs" / "data" / "study_stand.json"
+    if not readme.is_file() or not committed.is_file():
+        pytest.skip("README.md and docs/data are not beside the package (installed wheel)")
+    text = readme.read_text(encoding="utf-8")
+    doc = load_study(committed)
+    assert replace_marked(text, readme_section(doc, "docs/data/study_stand.json"), SECTION) == text, \
+        "README's stand tables are not the ones `dualrgb study stand --from-json docs/data/study_stand.json " \
+        "--readme README.md` writes"
+    worlds = set(doc["worlds"])
+    assert {"nominal", "nikon-d700", "sony-ilce-7rm2", "mismatched-d700", "aged-leds", "worn-sphere"} <= worlds
+    for name in ("aged-leds", "worn-sphere"):                # Must show: within 10 % of each capture, 3 seeds
+        for which in ("preset", "re-optimised"):
+            misses = doc["worlds"][name]["workflow"][which]["miss"]["test_each"]
+            assert len(misses) == 3 and max(abs(m) for m in misses) <= 0.10

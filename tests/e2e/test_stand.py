@@ -78,7 +78,7 @@ def test_lights_reoptimised_on_the_fitted_model_are_captured_better(study):
 
 def test_the_study_writes_its_figures_and_the_calibration_its_stand_model(study, capsys):
     out, doc = study
-    assert (out / "study_stand.png").stat().st_size > 10_000 and "| fitted, measured camera |" in \
+    assert (out / "study_stand.png").stat().st_size > 10_000 and "| fitted, measured camera and LEDs |" in \
         (out / "SUMMARY.md").read_text()
     assert (out / "study_stand_models.png").stat().st_size > 10_000
     profile = load_profile(doc["files"]["calibration"])

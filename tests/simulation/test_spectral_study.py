@@ -74,3 +74,21 @@ def test_the_linear_bound_is_the_reported_metrics_minimum():
     assert all(metric(M + 1e-4 * rng.standard_normal(M.shape)) >= fun for _ in range(100))
     b = linear_bound(s, S)
     assert b["bound"] == pytest.approx(fun) and b["wavelengths"] == [410.0, 730.0]
+
+
+def test_readmes_spectral_section_is_the_one_made_from_the_committed_study():
+    from dualrgb import resources
+    from dualrgb.simulation.studies.common import replace_marked
+    from dualrgb.simulation.studies.spectral import load_study, readme_section
+
+    root = resources.path().parent
+    readme, committed = root / "README.md", root / "docs" / "data" / "study_spectral.json"
+    if not readme.is_file() or not committed.is_file():
+        pytest.skip("README.md and docs/data are not beside the package (installed wheel)")
+    text = readme.read_text(encoding="utf-8")
+    doc = load_study(committed)
+    assert replace_marked(text, readme_section(doc, "docs/data/study_spectral.json"), "spectral") == text, \
+        "README's spectral tables are not the ones `dualrgb study spectral --from-json docs/data/study_spectral.json " \
+        "--readme README.md` writes"
+    reflective = next(m for m in doc["modes"] if m["mode"] == "reflective")
+    assert all(r["wavelengths"]["measured"] == [410.0, 730.0] for r in reflective["rows"])
