@@ -13,6 +13,7 @@ from dualrgb.app.workflow import stand_study
 from dualrgb.app.workflow.stand_study_report import load_study, summary_lines, workflow_table
 from dualrgb.drivers.virtual.world import load_world
 from dualrgb.simulation.studies.common import replace_marked
+from tests.readme_sections import readme_and_run
 
 
 @pytest.mark.parametrize("name", ["aged-leds", "worn-sphere"])
@@ -89,14 +90,9 @@ def test_a_file_that_is_not_a_stand_study_is_one_line(tmp_path, capsys):
 
 
 def test_readmes_stand_section_is_the_one_made_from_the_committed_study():
-    from dualrgb import resources
     from dualrgb.app.workflow.stand_study_report import SECTION, readme_section
 
-    root = resources.path().parent
-    readme, committed = root / "README.md", root / "docs" / "data" / "study_stand.json"
-    if not readme.is_file() or not committed.is_file():
-        pytest.skip("README.md and docs/data are not beside the package (installed wheel)")
-    text = readme.read_text(encoding="utf-8")
+    text, committed = readme_and_run("study_stand.json")
     doc = load_study(committed)
     assert replace_marked(text, readme_section(doc, "docs/data/study_stand.json"), SECTION) == text, \
         "README's stand tables are not the ones `dualrgb study stand --from-json docs/data/study_stand.json " \

@@ -77,15 +77,11 @@ def test_the_linear_bound_is_the_reported_metrics_minimum():
 
 
 def test_readmes_spectral_section_is_the_one_made_from_the_committed_study():
-    from dualrgb import resources
     from dualrgb.simulation.studies.common import replace_marked
     from dualrgb.simulation.studies.spectral import load_study, readme_section
+    from tests.readme_sections import readme_and_run
 
-    root = resources.path().parent
-    readme, committed = root / "README.md", root / "docs" / "data" / "study_spectral.json"
-    if not readme.is_file() or not committed.is_file():
-        pytest.skip("README.md and docs/data are not beside the package (installed wheel)")
-    text = readme.read_text(encoding="utf-8")
+    text, committed = readme_and_run("study_spectral.json")
     doc = load_study(committed)
     assert replace_marked(text, readme_section(doc, "docs/data/study_spectral.json"), "spectral") == text, \
         "README's spectral tables are not the ones `dualrgb study spectral --from-json docs/data/study_spectral.json " \
