@@ -312,6 +312,15 @@ def _bound_warnings(vec: _Vector, x: np.ndarray) -> tuple[list[str], list[str]]:
     return where, lines
 
 
+def _fitted(vec: _Vector, x: np.ndarray, cov: np.ndarray, where: list[str]) -> list[FittedParameter]:
+    """The fitted parameters with their standard uncertainties (the covariance's diagonal) and bound sides."""
+    sds = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return [FittedParameter(f"{n}[{i}]" if i is not None else n, lab, float(v), float(s), float(p), float(w),
+                            (float(lo), float(hi)), side)
+            for (n, i), lab, v, s, p, w, lo, hi, side in zip(vec.keys, vec.labels, x, sds, vec.prior, vec.prior_sd,
+                                                             vec.lo, vec.hi, where, strict=True)]
+
+
 def _identifiability(parameters: list[FittedParameter], cov: np.ndarray) -> tuple[list[dict[str, Any]], list[str]]:
     """The correlated pairs (|r| >= CORRELATION_LIMIT, largest first) and one warning line per parameter that moved
     more than MOVED_LIMIT prior sd or is determined mainly by its prior (module docstring)."""
@@ -372,10 +381,9 @@ def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: P
 
     Returns
     -------
-    :class:`StandFit`: the fitted model, parameters with standard uncertainties and what determines them
-    (identifiability, module docstring), one warning per parameter that ended on a bound, moved more than 3 prior
-    sd or is determined mainly by its prior, and R^2 of the start and fitted models on the training and (when
-    given) test targets.
+    :class:`StandFit`: the fitted model, parameters with uncertainties and what determines them (identifiability,
+    module docstring), one warning per parameter that ended on a bound, moved more than 3 prior sd or is determined
+    mainly by its prior, and R^2 of the start and fitted models on the training and (given) test targets.
 
     References
     ----------
@@ -401,11 +409,7 @@ def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: P
     res = least_squares(residuals, x0, bounds=(vec.lo, vec.hi), x_scale=vec.prior_sd, method="trf")
     cov, s2 = _covariance(np.asarray(res.jac, dtype=float), n_data, res.fun, vec.prior_sd)
     where, warnings = _bound_warnings(vec, res.x)
-    sds = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    parameters = [FittedParameter(f"{n}[{i}]" if i is not None else n, lab, float(v), float(s), float(p), float(w),
-                                  (float(lo), float(hi)), side)
-                  for (n, i), lab, v, s, p, w, lo, hi, side in zip(vec.keys, vec.labels, res.x, sds, vec.prior,
-                                                                   vec.prior_sd, vec.lo, vec.hi, where, strict=True)]
+    parameters = _fitted(vec, res.x, cov, where)
     correlations, lines = _identifiability(parameters, cov)
     warnings += lines
     for line in warnings:

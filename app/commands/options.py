@@ -155,6 +155,21 @@ def world(text: str) -> str:
 world.__name__ = "world"
 
 
+def worlds(text: str) -> tuple[str, ...]:
+    """Worlds as ``--world`` takes each, comma-separated; ``all``: every packaged world; ``none``: no world."""
+    from dualrgb import resources
+
+    if text.strip() in ("all", "none"):
+        return tuple(resources.world_names()) if text.strip() == "all" else ()
+    names = tuple(w.strip() for w in text.split(",") if w.strip())
+    if not names:
+        raise _fail(text, "expected world names or files, comma-separated, 'all' or 'none'")
+    return tuple(world(w) for w in names)
+
+
+worlds.__name__ = "worlds"
+
+
 def column_option(text: str) -> tuple[str, str]:
     """``FIELD=NAME``: the queue CSV's column that holds an original's field (app.workflow.queue_csv)."""
     from dualrgb.app.workflow.queue_csv import column_option as parse
@@ -200,4 +215,4 @@ def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) 
 
 __all__ = ["MAX_FRAME_SIDE", "add_render_option", "add_world_option", "column_option", "count", "frame_size",
            "input_file", "leds", "number", "numbers", "positive", "render_illuminant", "seconds", "seed", "stand_dir",
-           "world"]
+           "world", "worlds"]

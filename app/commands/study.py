@@ -31,7 +31,7 @@ from pathlib import Path
 
 from dualrgb import resources
 from dualrgb.app.commands import study_thesis
-from dualrgb.app.commands.options import count, frame_size, input_file, number, positive, world
+from dualrgb.app.commands.options import count, frame_size, input_file, number, positive, worlds
 from dualrgb.app.terminal_progress import TerminalProgress
 from dualrgb.simulation.choices import MODES
 
@@ -95,10 +95,10 @@ def _stand_study(ss: argparse._SubParsersAction) -> None:
                                     "re-optimised on them vs the nominal preset and the world's optimum")
     _out_option(q, "stand")
     q.add_argument("--mode", choices=MODES, default="reflective")
-    q.add_argument("--world", type=_worlds, default=("mismatched-d700",), metavar="W[,W...]|all",
+    q.add_argument("--world", type=worlds, default=("mismatched-d700",), metavar="W[,W...]|all",
                    help="the virtual-lab worlds: packaged names or world JSON files, comma-separated, or 'all' (every "
                         f"packaged world: {', '.join(resources.world_names())}); default mismatched-d700")
-    q.add_argument("--compare", type=_compared, default=None, metavar="W[,W...]|all|none",
+    q.add_argument("--compare", type=worlds, default=None, metavar="W[,W...]|all|none",
                    help="worlds where every other stand model is compared too, with lights re-optimised on each "
                         "(about 3x longer per world); default: the world when only one is studied, else none")
     q.add_argument("--seeds", type=positive, default=3, help="capture seeds per light set (default 3)")
@@ -108,26 +108,6 @@ def _stand_study(ss: argparse._SubParsersAction) -> None:
     q.add_argument("--from-json", type=input_file, metavar="STAND.json",
                    help="make the tables, charts (and --readme) from a study's saved stand.json instead of running it")
     q.set_defaults(func=stand_main)
-
-
-def _worlds(text: str) -> tuple[str, ...]:
-    """``all`` (every packaged world) or comma-separated worlds, each as ``--world`` takes it."""
-    if text.strip() == "all":
-        return tuple(resources.world_names())
-    names = tuple(w.strip() for w in text.split(",") if w.strip())
-    if not names:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected world names or files, comma-separated, or 'all'")
-    return tuple(world(w) for w in names)
-
-
-_worlds.__name__ = "worlds"
-
-
-def _compared(text: str) -> tuple[str, ...]:
-    return () if text.strip() == "none" else _worlds(text)
-
-
-_compared.__name__ = "worlds"
 
 
 def stand_main(args: argparse.Namespace) -> int:
@@ -146,6 +126,8 @@ def stand_main(args: argparse.Namespace) -> int:
     if args.from_json:
         doc, source = load_study(args.from_json), str(args.from_json)
     else:
+        if not args.world:
+            raise ValueError("--world none: expected at least one world to study")
         compare = args.compare if args.compare is not None else args.world if len(args.world) == 1 else ()
         cfg = StandStudyConfig(worlds=args.world, mode=args.mode, frame_size=args.frame_size,
                                seeds=tuple(range(args.seeds)), compare=compare)
