@@ -1,6 +1,6 @@
 """The stand model fitted to the calibration captures, end to end on the virtual lab in the mismatched world
 (another measured camera, LED peaks +-3 nm, 0.5 % flare): ``dualrgb study stand`` once for the module (600x400
-frames, 3 capture seeds per light set, about 2-3 minutes on 2 cores), then its figures and files checked.
+frames, 3 capture seeds per light set, about 4 minutes on the shared 2 cores), then its figures and files checked.
 
 Must show: the fitted model predicts the captured patch DNs with R^2 >= 0.999 (training target, fitted; test target,
 checked) and the captured test dE00 within 10 %, the nominal model's misses beside; lights re-optimised on the fitted
@@ -26,7 +26,9 @@ from dualrgb.app.workflow.profile import load_profile
 from dualrgb.simulation.stand_fit import predict
 from dualrgb.simulation.stand_model import StandModel
 
-pytestmark = pytest.mark.slow
+# a hang guard far above the module fixture's normal time (the study: 4 min at load 2-3 on the shared 2-core
+# machine, over the suite's 300 s per test under load), not a speed check
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(1500)]
 MEASURED, NOMINAL_CAMERA, LEDS_ONLY = "fitted, measured camera and LEDs", "fitted, nominal camera", \
     "fitted, nominal camera, LEDs only"
 
