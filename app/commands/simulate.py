@@ -78,8 +78,8 @@ def _add_data_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
     p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
                    help="a stand folder from `dualrgb measure leds` / `measure import-leds`: its measured LED "
-                        "spectra (leds.csv) and minimum stable level replace the nominal ones (an explicit "
-                        "--leds-csv / --min-level wins)")
+                        "spectra (leds.csv), level -> output curves and minimum stable level replace the nominal ones "
+                        "(an explicit --leds-csv / --min-level wins)")
     p.add_argument("--stand", type=input_file, metavar="CAL.json",
                    help="re-optimise for the stand a calibration profile fitted (its stand model: the nominal "
                         "curves, the measurements given by --camera-csv / --leds-csv / --stand-dir / --min-level, and "
