@@ -94,3 +94,22 @@ def test_rmse_and_gfc_only_where_the_reference_was_measured():
     assert everywhere["rmse"]["mean"] > 5 * f["rmse"]["mean"]         # the held values would dominate the figure
     with pytest.raises(ValueError, match="measured at none"):
         spectral_figures(est, ref, s.grid, s.cmfs, seen, np.zeros(len(wl), bool))
+
+
+def test_a_stands_own_chart_keeps_its_measured_range_to_the_calibration():
+    """A chart file measured 380-730 nm (X-Rite style, tests/data/charts) keeps that range through the chart and
+    the calibration's TargetSpec, so the calibration's spectral figures count 410-730 nm only."""
+    from pathlib import Path
+
+    from dualrgb.app.workflow.targets import TargetSpec
+    from dualrgb.app.workflow.vocabulary import Subject
+    from dualrgb.simulation.charts import read_chart
+
+    s = default_setup("reflective")
+    path = Path(__file__).resolve().parents[1] / "data" / "charts" / "sg140_layout.txt"
+    chart = read_chart(path, s.grid, role="train", mode="reflective")
+    assert chart.target.measured_range == (380.0, 730.0) and chart.reference().measured_range == (380.0, 730.0)
+    spec = TargetSpec(Subject.target("train"), np.zeros((len(chart.used), 3)), list(chart.target.patch_names),
+                      chart=chart)
+    assert spec.measured_range == (380.0, 730.0)
+    assert TargetSpec(Subject.target("train"), np.zeros((1, 3)), ["x"]).measured_range is None
