@@ -37,3 +37,9 @@ def user_or_packaged(*parts: str) -> Path:
     """The user's copy of a data file when there is one, else the packaged file (which may be absent too)."""
     mine = user_path(*parts)
     return mine if mine.is_file() else path(*parts)
+
+
+def world_names() -> list[str]:
+    """The packaged virtual-lab worlds' names (worlds/*.json stems), ``nominal`` first (cheap: for option help)."""
+    names = sorted(p.stem for p in path("worlds").glob("*.json"))
+    return sorted(names, key=lambda n: n != "nominal")

@@ -43,9 +43,23 @@ class Target:
     source: str = ""
     measured: SpectralTable | None = None     # the spectra as read (own wavelengths), for ASTM E308 references
     extended: str = ""                        # how the grid was reached beyond the measured range ('' = not)
+    measured_range: tuple[float, float] | None = None   # first and last wavelength the reference file measured
 
     def __len__(self) -> int:
         return self.spectra.shape[0]
+
+    def measured_mask(self, wavelengths: np.ndarray) -> np.ndarray | None:
+        """Where on ``wavelengths`` the reference was measured (None: everywhere); outside it the spectra are the
+        file's end values held (grid.resample), fine for colorimetry, never a spectral figure's reference."""
+        return measured_mask(wavelengths, self.measured_range)
+
+
+def measured_mask(wavelengths: np.ndarray, measured_range: tuple[float, float] | None) -> np.ndarray | None:
+    """Boolean mask of ``wavelengths`` inside ``measured_range`` (None: no range known, everything counts)."""
+    if measured_range is None:
+        return None
+    wl = np.asarray(wavelengths, dtype=float)
+    return (wl >= measured_range[0] - 1e-9) & (wl <= measured_range[1] + 1e-9)
 
 
 @dataclass
@@ -97,7 +111,8 @@ def load_target(path: str | Path, grid: SpectralGrid = DEFAULT_GRID, name: str |
         raise SpectralDataError(f"{table.source}: value {table.values.max():g} exceeds 2 (reflectance factor)")
     extended = _check_covers(table, grid)
     return Target(name or table.meta.get("title", Path(path).stem), resample(table.wavelengths, table.values, grid).T,
-                  table.columns, _layout(table.meta), table.source, table, extended)
+                  table.columns, _layout(table.meta), table.source, table, extended,
+                  (float(table.wavelengths[0]), float(table.wavelengths[-1])))
 
 
 def read_reference_table(path: str | Path) -> SpectralTable:

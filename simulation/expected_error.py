@@ -10,7 +10,9 @@ A capture differs from the simulation by (settings: :class:`simulation.capture_m
   patch's pixel count (x 2 for G, x the trimmed mean's efficiency);
 * the target reference's uncertainty (relative, as a gain on a patch's XYZ and per tristimulus value);
 * the LEDs' peak drift between captures (first order in the shift, from the spectra's wavelength derivative);
-* the sphere's level grid: levels are realised (PWM steps, 0 or at least the minimum stable level) first.
+* the sphere's levels (simulation.sphere, one model): a search's levels are realised (PWM steps, 0 or at least
+  the minimum stable level) and a light already captured keeps its levels as set (``captured``); either way each
+  LED then emits what its level curve says (measured on the stand, else proportional).
 
 Propagation (first order, no Monte Carlo): noise in the regressors makes least squares behave like a ridge
 fit, E[V^T V] = V0^T V0 + D with D = diag(sum_j sigma_j^2) (errors-in-variables attenuation; this is what keeps
@@ -33,6 +35,8 @@ for CIEDE2000.
 """
 from __future__ import annotations
 
+import copy
+import dataclasses
 import logging
 from dataclasses import dataclass
 
@@ -148,8 +152,15 @@ class ExpectedErrorModel:
 
     # ---- the capture of a light set ----------------------------------------------------------------------
     def realise(self, W: np.ndarray) -> np.ndarray:
-        """Levels the sphere emits for W (PWM grid, 0 or at least the minimum stable level)."""
+        """Levels a search may set for W (PWM grid, 0 or at least the minimum stable level)."""
         return self.capture.sphere.realise(W)
+
+    def emitted(self, W: np.ndarray, captured: bool = False) -> np.ndarray:
+        """What the LEDs emit (relative to full output) for light sets W (..., L, K) of levels: the sphere's level
+        model (simulation.sphere) on W realised for a search, or on W as set for lights already ``captured``.
+        Every other method of this model takes these outputs."""
+        W = np.asarray(W, dtype=float)
+        return self.capture.sphere.emitted(W if captured else self.realise(W))
 
     def exposures(self, W: np.ndarray) -> np.ndarray:
         """Exposure time (s) of each light: W (..., L, K) -> (..., L); inf for a dark light."""
@@ -223,8 +234,9 @@ class ExpectedErrorModel:
         return s, var
 
     def train_errors(self, W: np.ndarray, fit: dict | None = None) -> Expected:
-        """Expected captured training dE00 per patch (fit and errors on the same captured target)."""
-        W = self.realise(np.asarray(W, dtype=float))
+        """Expected captured training dE00 per patch (fit and errors on the same captured target); W (B, L, K)
+        the LEDs' outputs (:meth:`emitted`)."""
+        W = np.asarray(W, dtype=float)
         f = fit or self.fit(W)
         tr = self.terms["train"]
         V, s2, A, Pinv = f["V"], f["s2"], f["A"], f["Pinv"]
@@ -242,8 +254,9 @@ class ExpectedErrorModel:
 
     def test_errors(self, W: np.ndarray, fit: dict | None = None) -> Expected:
         """Expected captured test dE00 per patch: the test target captured on its own, the fit from the
-        captured training target (its noise and drift reach the test predictions through the matrix)."""
-        W = self.realise(np.asarray(W, dtype=float))
+        captured training target (its noise and drift reach the test predictions through the matrix); W (B, L, K)
+        the LEDs' outputs (:meth:`emitted`)."""
+        W = np.asarray(W, dtype=float)
         f = fit or self.fit(W)
         tr, te = self.terms["train"], self.terms["test"]
         V, s2, A, Pinv = f["V"], f["s2"], f["A"], f["Pinv"]
@@ -271,9 +284,10 @@ class ExpectedErrorModel:
         s, var = self._spread(Sigma, pred - te.xyz, te)
         return Expected(expected_norm(m * m, s, var), m)
 
-    def expected(self, W: np.ndarray) -> dict[str, np.ndarray]:
-        """Mean expected captured dE00 of light sets W (B, L, K): {"train": (B,), "test": (B,)}."""
-        W = self.realise(np.asarray(W, dtype=float))
+    def expected(self, W: np.ndarray, captured: bool = False) -> dict[str, np.ndarray]:
+        """Mean expected captured dE00 of light sets W (B, L, K) of levels (realised for a search, as set when
+        ``captured``: :meth:`emitted`): {"train": (B,), "test": (B,)}."""
+        W = self.emitted(W, captured)
         f = self.fit(W)
         return {"train": self.train_errors(W, f).mean, "test": self.test_errors(W, f).mean}
 
@@ -296,10 +310,12 @@ class ExpectedErrorEvaluator(Evaluator):
     """The optimisers' objective (``cost_indexed``) as the expected captured training dE00, batched.
 
     Levels are realised on the sphere's grid first (:meth:`realise`), so a search never relies on a level the
-    sphere cannot hold. The float32 kernel (:mod:`simulation.fast_expected`) covers noise and reference
-    uncertainty; with LED drift (``drift_sd_nm`` > 0) the float64 model is used (its projection of every drift
-    direction costs ~20x more). Reports (:meth:`stats`) stay the noise-free float64 figures; the expected ones
-    come from :meth:`expected_stats`.
+    sphere cannot hold, and each LED emits what the sphere's level model says (:meth:`emitted_indexed`);
+    :meth:`for_captured` scores lights already captured at their levels as set (a re-optimisation's
+    incumbents). The float32 kernel (:mod:`simulation.fast_expected`) covers noise and reference uncertainty;
+    with LED drift (``drift_sd_nm`` > 0) the float64 model is used (its projection of every drift direction costs
+    ~20x more). Reports (:meth:`stats`) stay the noise-free float64 figures; the expected ones come from
+    :meth:`expected_stats`.
     """
 
     objective = "expected-captured"
@@ -319,7 +335,21 @@ class ExpectedErrorEvaluator(Evaluator):
         self._px = tr.pixels * np.array([1.0, self.capture.green_pixels, 1.0])
 
     def realise(self, w: np.ndarray) -> np.ndarray:
+        """Levels a search may set (simulation.sphere.SphereProperties.realise)."""
         return self.capture.sphere.realise(w)
+
+    def emitted_indexed(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """The LEDs' outputs for an indexed batch (idx, w) (P, L, m) of levels (realised, then the level model)."""
+        return self.capture.sphere.emitted(self.realise(w), idx)
+
+    def for_captured(self) -> ExpectedErrorEvaluator:
+        """This evaluator for lights already captured: their levels as the sphere set them, none forbidden (the
+        same precomputed terms, shared; only the sphere's rule differs)."""
+        twin = copy.copy(self)
+        twin.capture = dataclasses.replace(self.capture, sphere=self.capture.sphere.as_captured())
+        twin.model = copy.copy(self.model)
+        twin.model.capture = twin.capture
+        return twin
 
     def warm_up_kernels(self) -> float:
         """Compile or load this objective's kernels on a 4-particle batch (not counted); returns the seconds."""
@@ -333,7 +363,7 @@ class ExpectedErrorEvaluator(Evaluator):
 
     def cost_indexed(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
         idx = np.ascontiguousarray(idx, dtype=np.int64)
-        w = self.realise(w)
+        w = self.emitted_indexed(idx, w)
         check_kernel_batch(idx, w, self.n_leds)          # prepare_expected indexes the LED tables blindly
         self.evaluations += w.shape[0]
         if self.capture.drift_sd_nm > 0:
@@ -359,9 +389,13 @@ class ExpectedErrorEvaluator(Evaluator):
                              L1, a1, b1, self._xyz32, self._q6, self._r6, out)
         return out.astype(np.float64)
 
+    def stats(self, W: np.ndarray) -> tuple[ErrorStats, ErrorStats]:
+        """Float64 noise-free statistics (train, test) of one light set W (L, K) of levels, on what the LEDs emit."""
+        return super().stats(self.model.emitted(np.asarray(W, dtype=float)))
+
     def expected_stats(self, W: np.ndarray) -> tuple[ErrorStats, ErrorStats]:
         """Float64 expected captured per-patch statistics (train, test) of one light set W (L, K)."""
-        W = self.realise(np.asarray(W, dtype=float))[None]
+        W = self.model.emitted(np.asarray(W, dtype=float)[None])
         f = self.model.fit(W)
         return (ErrorStats.of(self.model.train_errors(W, f).expected[0]),
                 ErrorStats.of(self.model.test_errors(W, f).expected[0]))

@@ -93,5 +93,12 @@ class RobustEvaluator(ExpectedErrorEvaluator):
 
     def world_costs(self, W: np.ndarray) -> np.ndarray:
         """Float64 expected captured training error of one light set W (L, K) in every world."""
-        W = self.realise(np.asarray(W, dtype=float))[None]
+        W = self.model.emitted(np.asarray(W, dtype=float)[None])
         return np.array([ev.model.train_errors(W).mean[0] for ev in self.worlds])
+
+    def for_captured(self) -> RobustEvaluator:
+        """This ensemble for lights already captured (ExpectedErrorEvaluator.for_captured), every world's too."""
+        twin = super().for_captured()
+        assert isinstance(twin, RobustEvaluator)
+        twin.worlds = [twin] + [ev.for_captured() for ev in self.worlds[1:]]
+        return twin

@@ -127,7 +127,7 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
     evaluator = evaluator if evaluator is not None else make_evaluator(setup, objective, capture, robust,
                                                                        spectral_weight)
     objective = getattr(evaluator, "objective", objective)
-    capture = getattr(evaluator, "capture", None)
+    given, capture = capture, getattr(evaluator, "capture", None)
     base = getattr(evaluator, "base", evaluator)          # a GUI tap wraps the evaluator
     warm_s = warm_up(base, progress)            # the one-off kernel compile is not part of the run's time
     if hasattr(base, "warm_up_kernels"):
@@ -144,8 +144,8 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
     if incumbents:
         add_incumbents(evaluator, outcome, incumbents)
     expected = None
-    if capture is None:          # a noise-free search: report the expected captured figures too
-        capture = CaptureModel.virtual_lab(setup.mode)
+    if capture is None:          # a noise-free search: report the expected captured figures too (the sphere given)
+        capture = given or CaptureModel.virtual_lab(setup.mode)
         expected = ExpectedErrorEvaluator(setup, capture)
     refine_top(evaluator, outcome, max(top, 1), expected)
     return RunResult(setup.mode, method, outcome.seed, time.perf_counter() - t0 - warm_s, outcome.evaluations,

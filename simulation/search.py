@@ -11,6 +11,7 @@ import logging
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -76,6 +77,7 @@ class Candidate:
     expected_test: ErrorStats | None = None
     spectral: dict | None = None            # expected captured spectral RMSE (simulation.spectral_objective)
     objective_value: float | None = None    # float64 figure of a spectral objective (sorts the reported top K)
+    incumbent: bool = False                 # lights already in use: scored at their levels as set (add_incumbents)
 
     def weights(self, n_leds: int) -> np.ndarray:
         return np.stack([s.weights(n_leds) for s in self.sources])
@@ -114,6 +116,8 @@ class Candidate:
             d["expected_test_de00_mean"] = round(self.expected_test_errors.mean, 4)
             d["expected_train"] = {k: round(v, 4) for k, v in self.expected_train.to_dict().items()}
             d["expected_test"] = {k: round(v, 4) for k, v in self.expected_test_errors.to_dict().items()}
+        if self.incumbent:
+            d["in_use"] = True                  # the lights already in use, scored as the sphere sets them
         if self.spectral:
             d["expected_train_spectral_rmse"] = round(self.spectral["train"]["rmse"], 5)
             d["expected_test_spectral_rmse"] = round(self.spectral["test"]["rmse"], 5)
@@ -159,14 +163,24 @@ def candidates_from(groups: Sequence[Group], levels: np.ndarray, costs: np.ndarr
     return out
 
 
-def evaluate_candidate(evaluator: Evaluator, cand: Candidate, expected=None) -> Candidate:
+def as_captured(evaluator: Any) -> Any:
+    """``evaluator`` for lights already captured (its ``for_captured``: levels as set, none forbidden), or itself
+    when it has no sphere (the noise-free objective)."""
+    twin = getattr(evaluator, "for_captured", None)
+    return twin() if twin is not None else evaluator
+
+
+def evaluate_candidate(evaluator: Evaluator, cand: Candidate, expected: Any = None) -> Candidate:
     """Give ``cand`` its float64 reference train and test stats. An evaluator that realises levels on the sphere's
-    grid (``realise``) gets the candidate's levels replaced by the realised ones first; ``expected`` (an object
-    with ``expected_stats(W)``, e.g. :class:`simulation.expected_error.ExpectedErrorEvaluator`, default: the
+    grid (``realise``) gets the candidate's levels replaced by the realised ones first (not an incumbent's: lights
+    in use are scored as the sphere sets them, :func:`as_captured`); ``expected`` (an object with
+    ``expected_stats(W)``, e.g. :class:`simulation.expected_error.ExpectedErrorEvaluator`, default: the
     evaluator if it has one) adds the expected captured figures."""
+    if cand.incumbent:
+        evaluator, expected = as_captured(evaluator), None if expected is None else as_captured(expected)
     realise = getattr(evaluator, "realise", None)
     expected = expected if expected is not None else (evaluator if hasattr(evaluator, "expected_stats") else None)
-    if realise is not None:
+    if realise is not None and not cand.incumbent:
         cand.sources = tuple(LightSource(s.leds, tuple(float(v) for v in realise(np.array(s.levels))), s.name)
                              for s in cand.sources)
     W = cand.weights(evaluator.n_leds)
@@ -185,13 +199,16 @@ def add_incumbents(evaluator: Evaluator, outcome: SearchOutcome,
     """Light sets the user already has (a calibration's lights) costed by the search's own
     objective and ranked among its candidates, so a re-optimisation never reports lights its objective rates worse
     than those (a stochastic search can miss the basin they lie in: halving, seed 0, did on a film stand, 0.2985
-    where the preset scores 0.2629). A set with another number of lights than the search's is left out."""
+    where the preset scores 0.2629). They are costed at their levels as set (:func:`as_captured`): a level below
+    the minimum stable level that the search itself may not choose is what the sphere emits for them. A set with
+    another number of lights than the search's is left out."""
     n_lights = len(outcome.best.sources) if outcome.candidates else None
+    captured = as_captured(evaluator)
     for sources in incumbents:
         if n_lights is not None and len(sources) != n_lights:
             continue
-        cand = Candidate(tuple(sources), 0.0)
-        cand.train_cost = float(evaluator.cost(cand.weights(evaluator.n_leds)[None])[0])
+        cand = Candidate(tuple(sources), 0.0, incumbent=True)
+        cand.train_cost = float(captured.cost(cand.weights(evaluator.n_leds)[None])[0])
         outcome.candidates.append(cand)
     outcome.candidates.sort(key=lambda c: c.train_cost)
     return outcome

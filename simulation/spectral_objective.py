@@ -11,8 +11,10 @@ and the expected squared error of patch j, captured with noise n_j of variances 
 
 v_j = S^T r_j. Every term comes from per-LED Gram matrices computed once (E_k^T K E_k', E_k^T K^2 E_k',
 r_j^T K E_k, r_j^T E_k), so a batch never touches the wavelength axis. A patch's expected RMSE is the root of
-that over n_wl; the objective is its mean over the training patches (the clip to [0, 1] is left out: it only
-moves an estimate towards a reference inside [0, 1]). The prior is chosen once per setup by 5-fold
+that over n_wl, the error counted only where the target's reference was measured (a diagonal 0/1 weight P in the
+norm: M^T P M, r_j^T P M, |P r_j|^2; the packaged CC24 ends at 730 nm, the training target is measured
+throughout); the objective is its mean over the training patches (the clip to [0, 1] is left out: it only moves an
+estimate towards a reference inside [0, 1]). The prior is chosen once per setup by 5-fold
 cross-validation on the training target under the mode's packaged colour preset, then held fixed while the
 lights move (choosing it per candidate would cost ~250 fits per evaluation).
 
@@ -58,7 +60,7 @@ def reference_prior(setup: SimulationSetup, model: ExpectedErrorModel) -> Spectr
     except (OSError, PresetError) as exc:
         log.info("no packaged %s preset to choose the spectral prior with (%s): default prior", setup.mode, exc)
         return SpectralPrior()
-    W = model.realise(np.stack([s.weights(setup.leds.shape[0]) for s in preset.sources]))
+    W = model.emitted(np.stack([s.weights(setup.leds.shape[0]) for s in preset.sources]))
     lights = W @ setup.leds
     S = flat_fielded_sensitivities(lights, setup.camera)
     V = model.values(W[None], "train")
@@ -78,18 +80,23 @@ class _TargetGrams:
     """One target's per-LED Gram matrices for the pooled error and its per-patch responses for the per-patch one."""
 
     n: int
+    n_wl: int               # the wavelengths the error counts (where the reference was measured)
+    G2: np.ndarray          # (K, K, 3, 3) E_k^T K P K E_j (P: where measured)
     H1: np.ndarray          # (K, K, 3, 3) E_k^T (R^T R) E_j
-    H2: np.ndarray          # (K, K, 3, 3) E_k^T (R^T R) K E_j
+    H2: np.ndarray          # (K, K, 3, 3) E_k^T (R^T R) P K E_j
     rsum: np.ndarray        # (K, 3) (sum_j r_j)^T E_k, of the uncentred spectra (the noise's signal)
-    rr: np.ndarray          # (n,) |r_j|^2
+    rr: np.ndarray          # (n,) |P r_j|^2
     RE: np.ndarray          # (n, K, 3) r_j^T E_k
-    RKE: np.ndarray         # (n, K, 3) r_j^T K E_k
+    RKE: np.ndarray         # (n, K, 3) r_j^T P K E_k
     H1raw: np.ndarray       # H1 of the uncentred spectra (the noise's sum of v^2; H1 itself without a centre)
     REraw: np.ndarray       # RE of the uncentred spectra (the noise's values)
 
     @classmethod
-    def of(cls, R: np.ndarray, E: np.ndarray, KE: np.ndarray, mean: np.ndarray | None = None) -> _TargetGrams:
-        """``R`` (n, n_wl) spectra; ``mean``: the centre of an affine estimate (the bias terms use R - mean)."""
+    def of(cls, R: np.ndarray, E: np.ndarray, KE: np.ndarray, mean: np.ndarray | None = None,
+           measured: np.ndarray | None = None) -> _TargetGrams:
+        """``R`` (n, n_wl) spectra; ``mean``: the centre of an affine estimate (the bias terms use R - mean);
+        ``measured``: the wavelengths where the error counts (None: all)."""
+        P = np.ones(R.shape[1]) if measured is None else np.asarray(measured, dtype=float)
         Rc = R if mean is None else R - mean
         RtRE = np.einsum("nw,nv,kvc->kwc", Rc, Rc, E, optimize=True)
         H1 = np.einsum("kwc,jwd->kjcd", E, RtRE)
@@ -97,8 +104,10 @@ class _TargetGrams:
         H1raw, REraw = (H1, RE) if mean is None else (
             np.einsum("kwc,jwd->kjcd", E, np.einsum("nw,nv,kvc->kwc", R, R, E, optimize=True)),
             np.einsum("nw,kwc->nkc", R, E))
-        return cls(len(R), H1, np.einsum("kwc,jwd->kjcd", RtRE, KE), np.einsum("w,kwc->kc", R.sum(axis=0), E),
-                   np.sum(Rc * Rc, axis=1), RE, np.einsum("nw,kwc->nkc", Rc, KE), H1raw, REraw)
+        PKE = KE * P[None, :, None]
+        return cls(len(R), int(P.sum()), np.einsum("kwc,jwd->kjcd", PKE, KE), H1,
+                   np.einsum("kwc,jwd->kjcd", RtRE, PKE), np.einsum("w,kwc->kc", R.sum(axis=0), E),
+                   np.sum(P * Rc * Rc, axis=1), RE, np.einsum("nw,kwc->nkc", Rc, PKE), H1raw, REraw)
 
 
 class SpectralModel:
@@ -120,9 +129,8 @@ class SpectralModel:
         self.open = E.sum(axis=1)                                       # (K, 3): each LED's open gate
         KE = np.einsum("wv,kvc->kwc", K, E)
         self.G1 = np.einsum("kwc,jwd->kjcd", E, KE)                      # E_k^T K E_j
-        self.G2 = np.einsum("kwc,jwd->kjcd", KE, KE)                     # E_k^T K^2 E_j
-        self.n_wl = len(setup.grid.wavelengths)
-        self.targets = {which: _TargetGrams.of(np.asarray(t.spectra, dtype=float), E, KE, mean)
+        self.targets = {which: _TargetGrams.of(np.asarray(t.spectra, dtype=float), E, KE, mean,
+                                               t.measured_mask(setup.grid.wavelengths))
                         for which, t in (("train", setup.train), ("test", setup.test))}
         tr = self.targets["train"]
         n_leds = len(E)
@@ -132,7 +140,7 @@ class SpectralModel:
                                                  for g in ("H1 train", "H1"))
         # stack[j, (k, g, c, d)] = Gram g [k, j, c, d]: one GEMM with the levels contracts all of the grams over j
         self._stacks = {which: np.ascontiguousarray(np.stack(
-            [self.G1, self.G2, tr.H1, t.H1, t.H2] + ([tr.H1raw, t.H1raw] if self.affine else []), axis=2)
+            [self.G1, t.G2, tr.H1, t.H1, t.H2] + ([tr.H1raw, t.H1raw] if self.affine else []), axis=2)
             .transpose(1, 0, 2, 3, 4).reshape(n_leds, -1)) for which, t in self.targets.items()}
 
     def _inverse_gate(self, W: np.ndarray) -> np.ndarray:
@@ -181,7 +189,7 @@ class SpectralModel:
         bias = (np.einsum("bcd,bdc->b", MtM, grams[:, 3]) - 2 * np.einsum("bcd,bdc->b", grams[:, 4], X)
                 + t.rr.sum())
         noise = np.einsum("bc,bcc->b", self._noise_sums(W, inv, which, grams[:, self._noise_target]), MtM)
-        return np.sqrt(np.maximum(bias + noise, 0.0) / (t.n * self.n_wl))
+        return np.sqrt(np.maximum(bias + noise, 0.0) / (t.n * t.n_wl))
 
     def patch_rmse(self, W: np.ndarray, which: str = "train") -> np.ndarray:
         """Each patch's expected captured spectral RMSE (B, n) (float64; for reports and a few light sets)."""
@@ -196,7 +204,7 @@ class SpectralModel:
         noise = self.model.variances(Vraw, self.model.noise_coefficients(W, which))         # (B, n, 3L)
         mse = (np.einsum("bnc,bcd,bnd->bn", V, MtM, V) - 2 * np.einsum("bnc,bnc->bn", RM, V) + t.rr[None]
                + np.einsum("bnc,bcc->bn", noise, MtM))
-        return np.sqrt(np.maximum(mse, 0.0) / self.n_wl)
+        return np.sqrt(np.maximum(mse, 0.0) / t.n_wl)
 
 
 @dataclass(frozen=True)
@@ -228,7 +236,7 @@ class SpectralEvaluator(ExpectedErrorEvaluator):
         idx = np.ascontiguousarray(idx, dtype=np.int64)
         w = self.realise(w)
         check_kernel_batch(idx, w, self.n_leds)
-        rmse = self.spectral.pooled_rmse(dense_weights(idx, w, self.n_leds), "train")
+        rmse = self.spectral.pooled_rmse(dense_weights(idx, self.emitted_indexed(idx, w), self.n_leds), "train")
         if self.objective == "mixed":
             return super().cost_indexed(idx, w) + self.settings.spectral_weight * 100.0 * rmse
         self.evaluations += w.shape[0]
@@ -237,14 +245,14 @@ class SpectralEvaluator(ExpectedErrorEvaluator):
     def spectral_stats(self, W: np.ndarray) -> dict:
         """Float64 expected captured spectral figures of one light set W (L, K): per target ("train", "test")
         the pooled RMSE (the objective's figure) and the per-patch RMSE's mean / median / p90 / max."""
-        W = self.realise(np.asarray(W, dtype=float))[None]
+        W = self.model.emitted(np.asarray(W, dtype=float)[None])
         return {which: {"rmse": float(self.spectral.pooled_rmse(W, which)[0]),
                         "per_patch": ErrorStats.of(self.spectral.patch_rmse(W, which)[0]).to_dict()}
                 for which in ("train", "test")}
 
     def objective_value(self, W: np.ndarray) -> float:
         """The float64 figure this objective minimises for one light set W (L, K) (reports sort by it)."""
-        rmse = float(self.spectral.pooled_rmse(self.realise(np.asarray(W, dtype=float))[None], "train")[0])
+        rmse = float(self.spectral.pooled_rmse(self.model.emitted(np.asarray(W, dtype=float)[None]), "train")[0])
         if self.objective == "mixed":
             return self.expected_stats(W)[0].mean + self.settings.spectral_weight * 100.0 * rmse
         return rmse

@@ -9,7 +9,9 @@ level there, so vignetting is out), are what the model must predict (:class:`Sta
     white_lc   = k g_c (1 + f) sum_lambda E_l(lambda) S_c(lambda)
     patch_jlc  = k g_c sum_lambda E_l(lambda) R_j(lambda) S_c(lambda) + f / (1 + f) F_lc
 
-with E_l = sum_i w_li o_i LED_i(lambda; shift_i) the light's spectrum, S_c the camera's curve (optionally shifted
+with E_l = sum_i e_i(w_li) o_i LED_i(lambda; shift_i) the light's spectrum (e_i: what LED i emits at its level
+w_li as set, relative to full output - the sphere's one level model, :meth:`simulation.sphere.SphereProperties.emitted`:
+its measured level -> output curve from a stand folder, else proportional), S_c the camera's curve (optionally shifted
 and stretched about its peak), g_c the channel's gain, f the veiling flare and F_lc the captured frame's mean
 (the flare adds f times the frame's true mean, which the capture shows times 1 + f). ``k`` converts relative
 units to DN per second as the virtual lab and the expected-captured objective do: the unperturbed model's open gate
@@ -25,6 +27,16 @@ Least squares (scipy ``least_squares``, trust region reflective) on relative res
 ``(model - data) / sqrt(noise^2 + (model_error data)^2)`` plus the prior terms. Uncertainties from the Jacobian
 at the optimum: ``cov = (J_d^T J_d / s^2 + J_p^T J_p)^-1`` with ``s^2`` the data's reduced chi-square (at least
 1), i.e. the usual ``(J^T J)^-1 sigma^2`` with the data's scatter taken from the fit itself and the priors as stated.
+
+Identifiability (a fit's R^2 does not certify its parameters: several trade off against each other). For each
+parameter the posterior against the prior sd (``sd_ratio``: below :data:`DETERMINED_RATIO` the captures determine
+it, at or above :data:`PRIOR_RATIO` = 1/sqrt 2 the captures carry less than half of what is known about it, so it is
+determined mainly by its prior) and how far it moved in prior sd (``moved_sd``); every pair of parameters whose
+posterior correlation reaches :data:`CORRELATION_LIMIT` in magnitude; and the combinations of parameters the
+captures leave to the priors (``weak_directions``: eigenvectors of the posterior covariance in prior-sd units whose
+sd stays at or above :data:`PRIOR_RATIO` of the prior's - e.g. every LED output up and every channel gain down
+together, which changes no prediction). One warning line per parameter that moved more than :data:`MOVED_LIMIT`
+prior sd or is determined mainly by its prior.
 
 References
 ----------
@@ -124,9 +136,26 @@ class FittedParameter:
     bounds: tuple[float, float]
     at_bound: str = ""       # "lower" / "upper" when the fit ended on a bound
 
+    @property
+    def sd_ratio(self) -> float:
+        """Posterior over prior standard deviation (module docstring: identifiability)."""
+        return self.sd / self.prior_sd
+
+    @property
+    def moved_sd(self) -> float:
+        """How far the fit moved it from the starting model, in prior standard deviations (signed)."""
+        return (self.value - self.prior) / self.prior_sd
+
+    @property
+    def determined_by(self) -> str:
+        """'captures', 'partly' or 'prior' (module docstring: identifiability)."""
+        r = self.sd_ratio
+        return "captures" if r < DETERMINED_RATIO else "prior" if r >= PRIOR_RATIO else "partly"
+
     def to_dict(self) -> dict[str, Any]:
         return {"key": self.key, "label": self.label, "value": self.value, "sd": self.sd, "prior": self.prior,
-                "prior_sd": self.prior_sd, "bounds": list(self.bounds), "at_bound": self.at_bound or None}
+                "prior_sd": self.prior_sd, "bounds": list(self.bounds), "at_bound": self.at_bound or None,
+                "sd_ratio": self.sd_ratio, "moved_sd": self.moved_sd, "determined_by": self.determined_by}
 
 
 @dataclass
@@ -154,6 +183,8 @@ class StandFit:
     fitted: Prediction
     r2: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     priors: Priors = field(default_factory=Priors)
+    correlations: list[dict[str, Any]] = field(default_factory=list)    # {"a", "b": labels, "r"}, |r| descending
+    weak_directions: list[dict[str, Any]] = field(default_factory=list)  # {"sd_ratio", "combination": [[label, w]]}
 
     def min_r2(self, which: str = "fitted", target: str = "train") -> float:
         values = self.r2.get(which, {}).get(target) or [float("nan")]
@@ -163,7 +194,9 @@ class StandFit:
         return {"model": self.model.to_dict(), "start": self.start.to_dict(),
                 "parameters": [p.to_dict() for p in self.parameters], "warnings": list(self.warnings),
                 "chi2_scale": self.chi2_scale, "evaluations": self.evaluations, "priors": self.priors.to_dict(),
-                "r2": self.r2}
+                "r2": self.r2, "correlations": self.correlations, "weak_directions": self.weak_directions,
+                "identifiability": {"determined_ratio": DETERMINED_RATIO, "prior_ratio": PRIOR_RATIO,
+                                    "moved_limit": MOVED_LIMIT, "correlation_limit": CORRELATION_LIMIT}}
 
 
 # ---- the forward model ----------------------------------------------------------------------------------------
@@ -183,7 +216,7 @@ def predict(model: StandModel, obs: StandObservations, k: float | None = None) -
     grid = obs.grid
     k = obs.dn_scale * (dn_per_unit_s(model, grid) if k is None else k)
     leds, cam, f = model.leds(grid), model.camera(grid), model.params.flare
-    levels = np.asarray(obs.levels, dtype=float)
+    levels = model.emitted(np.asarray(obs.levels, dtype=float))        # what the LEDs emitted at the levels set
     white = k * (1.0 + f) * (levels @ led_responses(leds, np.ones((1, len(grid))), cam)[:, 0])
 
     def patches(spectra: np.ndarray, frame: np.ndarray) -> np.ndarray:
@@ -252,6 +285,10 @@ def _vector(start: StandParameters, used_leds: np.ndarray, priors: Priors, camer
 
 
 DARK_FLOOR = 0.01           # a patch's relative error is taken on at least this fraction of the open gate
+DETERMINED_RATIO = 0.5      # posterior sd below half the prior's: the captures determine the parameter
+PRIOR_RATIO = 2 ** -0.5     # posterior variance at least half the prior's: determined mainly by its prior
+MOVED_LIMIT = 3.0           # moved more than this many prior sd from the starting model: warned
+CORRELATION_LIMIT = 0.9     # |posterior correlation| reported from here
 
 
 def _data_sigma(obs: StandObservations, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
@@ -273,6 +310,52 @@ def _bound_warnings(vec: _Vector, x: np.ndarray) -> tuple[list[str], list[str]]:
             lines.append(f"stand fit: {label} = {v:.4g} is at its {side} bound {lo if side == 'lower' else hi:g}: "
                          "the model cannot follow the captures there (a measured curve may be needed)")
     return where, lines
+
+
+def _fitted(vec: _Vector, x: np.ndarray, cov: np.ndarray, where: list[str]) -> list[FittedParameter]:
+    """The fitted parameters with their standard uncertainties (the covariance's diagonal) and bound sides."""
+    sds = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return [FittedParameter(f"{n}[{i}]" if i is not None else n, lab, float(v), float(s), float(p), float(w),
+                            (float(lo), float(hi)), side)
+            for (n, i), lab, v, s, p, w, lo, hi, side in zip(vec.keys, vec.labels, x, sds, vec.prior, vec.prior_sd,
+                                                             vec.lo, vec.hi, where, strict=True)]
+
+
+def _identifiability(parameters: list[FittedParameter], cov: np.ndarray) -> tuple[list[dict[str, Any]], list[str]]:
+    """The correlated pairs (|r| >= CORRELATION_LIMIT, largest first) and one warning line per parameter that moved
+    more than MOVED_LIMIT prior sd or is determined mainly by its prior (module docstring)."""
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    corr = cov / np.where(np.outer(sd, sd) > 0, np.outer(sd, sd), np.inf)
+    i, j = np.triu_indices(len(sd), 1)
+    strong = np.flatnonzero(np.abs(corr[i, j]) >= CORRELATION_LIMIT)
+    pairs = sorted(({"a": parameters[i[k]].label, "b": parameters[j[k]].label, "r": float(corr[i[k], j[k]])}
+                    for k in strong), key=lambda d: -abs(d["r"]))
+    lines = []
+    for p in parameters:
+        if abs(p.moved_sd) > MOVED_LIMIT:
+            lines.append(f"stand fit: {p.label} = {p.value:.4g} moved {p.moved_sd:+.1f} prior sd from {p.prior:.4g} "
+                         f"(prior sd {p.prior_sd:g}): the starting model is far off there, or another parameter's "
+                         "error is absorbed by it")
+        if p.determined_by == "prior":
+            lines.append(f"stand fit: {p.label} is determined mainly by its prior (posterior sd {p.sd:.3g} = "
+                         f"{p.sd_ratio:.2f} of the prior's {p.prior_sd:g}): these captures say little about it")
+    return pairs, lines
+
+
+def _weak_directions(parameters: list[FittedParameter], cov: np.ndarray) -> list[dict[str, Any]]:
+    """The parameter combinations the captures leave to the priors (module docstring), weakest first: each its
+    posterior sd over the prior's along it and its largest components (unit vector in prior-sd units, |w| >= 0.1)."""
+    prior_sd = np.array([p.prior_sd for p in parameters])
+    values, vectors = np.linalg.eigh(cov / np.outer(prior_sd, prior_sd))
+    out = []
+    for k in np.argsort(values)[::-1]:
+        ratio = float(np.sqrt(max(values[k], 0.0)))
+        if ratio < PRIOR_RATIO:
+            break
+        v = vectors[:, k] * np.sign(vectors[np.argmax(np.abs(vectors[:, k])), k])
+        top = [[parameters[i].label, round(float(v[i]), 3)] for i in np.argsort(-np.abs(v)) if abs(v[i]) >= 0.1]
+        out.append({"sd_ratio": ratio, "combination": top})
+    return out
 
 
 def _covariance(jac: np.ndarray, n_data: int, residuals: np.ndarray, prior_sd: np.ndarray) -> tuple[np.ndarray,
@@ -298,8 +381,9 @@ def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: P
 
     Returns
     -------
-    :class:`StandFit`: the fitted model, parameters with standard uncertainties, one warning per parameter that
-    ended on a bound, and R^2 of the start and fitted models on the training and (when given) test targets.
+    :class:`StandFit`: the fitted model, parameters with uncertainties and what determines them (identifiability,
+    module docstring), one warning per parameter that ended on a bound, moved more than 3 prior sd or is determined
+    mainly by its prior, and R^2 of the start and fitted models on the training and (given) test targets.
 
     References
     ----------
@@ -325,15 +409,15 @@ def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: P
     res = least_squares(residuals, x0, bounds=(vec.lo, vec.hi), x_scale=vec.prior_sd, method="trf")
     cov, s2 = _covariance(np.asarray(res.jac, dtype=float), n_data, res.fun, vec.prior_sd)
     where, warnings = _bound_warnings(vec, res.x)
+    parameters = _fitted(vec, res.x, cov, where)
+    correlations, lines = _identifiability(parameters, cov)
+    warnings += lines
     for line in warnings:
         log.warning("%s", line)
-    sds = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    parameters = [FittedParameter(f"{n}[{i}]" if i is not None else n, lab, float(v), float(s), float(p), float(w),
-                                  (float(lo), float(hi)), side)
-                  for (n, i), lab, v, s, p, w, lo, hi, side in zip(vec.keys, vec.labels, res.x, sds, vec.prior,
-                                                                   vec.prior_sd, vec.lo, vec.hi, where, strict=True)]
     model = start.with_params(vec.params(start.params, res.x))
-    return _finish(obs, start, model, parameters, warnings, s2, int(res.nfev), priors, k)
+    fit = _finish(obs, start, model, parameters, warnings, s2, int(res.nfev), priors, k)
+    fit.correlations, fit.weak_directions = correlations, _weak_directions(parameters, cov)
+    return fit
 
 
 def _finish(obs: StandObservations, start: StandModel, model: StandModel, parameters: list[FittedParameter],
@@ -353,10 +437,12 @@ def _finish(obs: StandObservations, start: StandModel, model: StandModel, parame
 def expected_de00(model: StandModel, mode: str, levels: np.ndarray, capture: CaptureModel | None = None
                   ) -> dict[str, float]:
     """Mean expected captured CIEDE2000 (least-squares matrix; simulation.expected_error) of the light set
-    ``levels`` (L, n_leds) on the training and test targets, as ``model`` predicts it under ``capture``."""
+    ``levels`` (L, n_leds) on the training and test targets, as ``model`` predicts it under ``capture``: the
+    levels as the sphere set them (a light captured, or to be captured as it is: nothing is rounded off below
+    the minimum stable level), each LED emitting what the model's level curve says."""
     from dualrgb.simulation.expected_error import ExpectedErrorModel
 
     setup = model.setup(mode)
     out = ExpectedErrorModel(setup, model.capture(capture or CaptureModel.virtual_lab(mode))).expected(
-        np.asarray(levels, dtype=float)[None])
+        np.asarray(levels, dtype=float)[None], captured=True)
     return {k: float(v[0]) for k, v in out.items()}

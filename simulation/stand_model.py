@@ -6,7 +6,9 @@ Layers, each replacing the one before where given:
 * nominal: the LEDs of thesis Table 4.2 (resources/leds/sphere10_relative.csv, 1 nm), 'Nikon 5100 (NPL)' for the
   camera, an ideal LED driver with the assumed 1 % minimum stable level (:class:`simulation.sphere.SphereProperties`);
 * measurements: a measured camera CSV (``dualrgb measure csrf``), measured LED spectra (``dualrgb measure leds``:
-  the stand folder's leds.csv) and the measured minimum stable level (its stand.json);
+  the stand folder's leds.csv), the measured minimum stable level and each LED's measured level -> output curve
+  (its stand.json): :meth:`StandModel.sphere` is the sphere's one level model (simulation.sphere) that the fit,
+  the calibration's prediction and the optimiser all use;
 * fitted parameters (:class:`StandParameters`, simulation/stand_fit.py from a calibration's captures): per LED an
   output scale and a peak shift (and a width scale a world may set), per camera channel a gain, optionally a
   shift and width of its curve, and the veiling flare.
@@ -36,7 +38,7 @@ from dualrgb.simulation.datasets import SimulationSetup, check_setup, default_se
 from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid, resample
 from dualrgb.simulation.led_shapes import shaped_led_spectra
 from dualrgb.simulation.spectral_io import SpectralDataError, read_spectral_csv, require_response
-from dualrgb.simulation.sphere import SphereProperties
+from dualrgb.simulation.sphere import LevelCurves, SphereProperties, curves_from_dict, curves_to_dict
 
 log = logging.getLogger(__name__)
 
@@ -112,14 +114,16 @@ def _read_table(path: str, what: str, stamp: int) -> tuple[np.ndarray, np.ndarra
 @dataclass(frozen=True)
 class StandModel:
     """The stand's model (module docstring): ``camera_csv`` / ``leds_csv`` measured files (None: nominal),
-    ``min_stable_level`` measured (None: the sphere default), ``params`` fitted; ``sources`` says where each part
-    came from, for people."""
+    ``min_stable_level`` measured (None: the sphere default), ``level_curves`` each LED's measured level ->
+    output curve (empty: proportional), ``params`` fitted; ``sources`` says where each part came from, for
+    people."""
 
     camera_csv: str | None = None
     leds_csv: str | None = None
     min_stable_level: float | None = None
     params: StandParameters = field(default_factory=StandParameters)
     sources: dict[str, str] = field(default_factory=dict)
+    level_curves: LevelCurves = ()
 
     @property
     def camera_measured(self) -> bool:
@@ -167,11 +171,20 @@ class StandModel:
         check_setup(setup)
         return setup
 
+    def sphere(self, base: SphereProperties | None = None) -> SphereProperties:
+        """The sphere's level model of this stand: ``base`` (default the nominal sphere) with the measured minimum
+        stable level and level curves."""
+        return (base or SphereProperties()).measured(self.min_stable_level, self.level_curves)
+
+    def emitted(self, levels: np.ndarray) -> np.ndarray:
+        """(..., n_leds) each LED's output relative to its full output at ``levels`` as the sphere set them."""
+        return self.sphere().emitted(levels)
+
     def capture(self, capture: CaptureModel) -> CaptureModel:
-        """``capture`` with this stand's measured minimum stable level (unchanged without one)."""
-        if self.min_stable_level is None:
+        """``capture`` with this stand's measured minimum stable level and level curves (unchanged without)."""
+        if self.min_stable_level is None and not self.level_curves:
             return capture
-        return dataclasses.replace(capture, sphere=SphereProperties(capture.sphere.pwm_max, self.min_stable_level))
+        return dataclasses.replace(capture, sphere=self.sphere(capture.sphere))
 
     def describe_camera(self) -> str:
         name = Path(self.camera_csv).stem if self.camera_csv else "Nikon 5100 (NPL)"
@@ -179,7 +192,8 @@ class StandModel:
 
     def to_dict(self) -> dict[str, Any]:
         return {"camera_csv": self.camera_csv, "leds_csv": self.leds_csv, "min_stable_level": self.min_stable_level,
-                "params": self.params.to_dict(), "sources": dict(self.sources)}
+                "params": self.params.to_dict(), "sources": dict(self.sources),
+                **({"level_curves": curves_to_dict(self.level_curves)} if self.level_curves else {})}
 
     @classmethod
     def from_dict(cls, doc: dict[str, Any]) -> StandModel:
@@ -187,4 +201,5 @@ class StandModel:
         if level is not None and (not _finite(level) or not 0.0 <= level <= 1.0):
             raise ValueError(f"min_stable_level {level!r}: expected a level from 0 to 1")
         return cls(doc.get("camera_csv"), doc.get("leds_csv"), None if level is None else float(level),
-                   StandParameters.from_dict(doc.get("params") or {}), dict(doc.get("sources") or {}))
+                   StandParameters.from_dict(doc.get("params") or {}), dict(doc.get("sources") or {}),
+                   curves_from_dict(doc.get("level_curves"), N_SPHERE_LEDS))

@@ -4,7 +4,9 @@
 * LEDs: thesis Table 4.2 peaks and relative/absolute peak values, each shaped with colour-science's
   ``sd_single_led`` (Ohno 2005) at half spectral width 25 nm, 380-780 nm at 1 nm.
 * Camera: colour-science's 'Nikon 5100 (NPL)' sensitivities, a stand-in for the D610 (thesis 4.2).
-* Reflective targets: rawtoaces v1 training set (190 reflectances) and BabelColor Average ColorChecker (24).
+* Reflective targets: rawtoaces v1 training set (190 reflectances) and BabelColor Average ColorChecker (24,
+  measured 380-730 nm); the ColorChecker measured by Ohta (1997) to 780 nm, a second test reference for the
+  spectral figures beyond 730 nm (colour-science's 'ColorChecker N Ohta', the same data as ISO 17321-1).
 * Film targets: a three-dye Beer-Lambert film model, T = 10^-(base + c*Dc + m*Dm + y*Dy) with Gaussian dye
   densities; an IT8.7/1-like 288-patch training film (264 Sobol-sampled dye mixes + 24 neutral steps) and
   the ColorChecker 24 reproduced on film (dye amounts fitted per patch to the chart's D65 Lab).
@@ -83,6 +85,20 @@ def _reflective_csvs() -> None:
                        {"title": "Reflective test target ColorChecker Classic 24", "units": "reflectance factor 0..1",
                         "source": "colour-science SDS_COLOURCHECKERS['BabelColor Average']", "layout": "4x6",
                         "generated_by": SCRIPT})
+    _ohta_csv()
+
+
+def _ohta_csv() -> None:
+    cc = colour.SDS_COLOURCHECKERS["ColorChecker N Ohta"]
+    names = list(cc)
+    wl = next(iter(cc.values())).wavelengths
+    vals = np.stack([cc[n].values for n in names], axis=1)
+    write_spectral_csv(path("targets", "reflective_test_ohta_cc24.csv"), wl, vals, names,
+                       {"title": "Reflective test target ColorChecker Classic 24 (Ohta)",
+                        "units": "reflectance factor 0..1",
+                        "source": "colour-science SDS_COLOURCHECKERS['ColorChecker N Ohta'] (Ohta N., The basis of "
+                                  "color reproduction engineering, 1997; the same data as ISO 17321-1), 380-780 nm",
+                        "layout": "4x6", "generated_by": SCRIPT})
 
 
 def _lab_d65(values: np.ndarray, wavelengths: np.ndarray) -> np.ndarray:

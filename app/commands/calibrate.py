@@ -71,7 +71,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
                    help="a stand folder (`dualrgb measure leds`): warn when the preset sets an LED below the "
                         "measured minimum stable level, where its output is not proportional to the level; its LED "
-                        "spectra are the stand model's starting curves")
+                        "spectra and level -> output curves are the stand model's starting curves (the prediction "
+                        "uses what each LED emitted at its level)")
     p.add_argument("--camera-csv", type=input_file,
                    help="the camera's measured sensitivities (`dualrgb measure csrf`): the stand model fitted to the "
                         "captures starts from them instead of the nominal curves")

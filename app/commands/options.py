@@ -163,6 +163,21 @@ def world(text: str) -> str:
 world.__name__ = "world"
 
 
+def worlds(text: str) -> tuple[str, ...]:
+    """Worlds as ``--world`` takes each, comma-separated; ``all``: every packaged world; ``none``: no world."""
+    from dualrgb import resources
+
+    if text.strip() in ("all", "none"):
+        return tuple(resources.world_names()) if text.strip() == "all" else ()
+    names = tuple(w.strip() for w in text.split(",") if w.strip())
+    if not names:
+        raise _fail(text, "expected world names or files, comma-separated, 'all' or 'none'")
+    return tuple(world(w) for w in names)
+
+
+worlds.__name__ = "worlds"
+
+
 def column_option(text: str) -> tuple[str, str]:
     """``FIELD=NAME``: the queue CSV's column that holds an original's field (app.workflow.queue_csv)."""
     from dualrgb.app.workflow.queue_csv import column_option as parse
@@ -230,11 +245,14 @@ def chart_choices(args: argparse.Namespace) -> dict:
 def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """``--world NAME|FILE`` (default ``nominal``): what the virtual lab renders (a camera, LEDs, flare and
     reference error that may differ from the nominal model; README "Worlds"). ``args.world`` is the text."""
+    from dualrgb import resources
+
+    names = ", ".join(resources.world_names())
     parser.add_argument("--world", type=world, default="nominal", metavar="NAME|FILE",
-                        help="virtual lab: the world it renders, a packaged name (nominal, nikon-d700, "
-                             "sony-ilce-7rm2, mismatched-d700, aged-leds) or a world JSON file (default nominal)")
+                        help=f"virtual lab: the world it renders, a packaged name ({names}) or a world JSON file "
+                             "(default nominal)")
 
 
 __all__ = ["MAX_FRAME_SIDE", "add_chart_options", "add_render_option", "add_world_option", "chart_choices",
            "column_option", "count", "frame_size", "input_file", "layout", "leds", "number", "numbers", "positive",
-           "render_illuminant", "seconds", "seed", "stand_dir", "world"]
+           "render_illuminant", "seconds", "seed", "stand_dir", "world", "worlds"]

@@ -78,8 +78,8 @@ def _add_data_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--leds-csv", type=input_file, help="measured LED spectra (wavelength_nm,LED1..LED10)")
     p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
                    help="a stand folder from `dualrgb measure leds` / `measure import-leds`: its measured LED "
-                        "spectra (leds.csv) and minimum stable level replace the nominal ones (an explicit "
-                        "--leds-csv / --min-level wins)")
+                        "spectra (leds.csv), level -> output curves and minimum stable level replace the nominal ones "
+                        "(an explicit --leds-csv / --min-level wins)")
     p.add_argument("--stand", type=input_file, metavar="CAL.json",
                    help="re-optimise for the stand a calibration profile fitted (its stand model: the nominal "
                         "curves, the measurements given by --camera-csv / --leds-csv / --stand-dir / --min-level, and "
@@ -177,8 +177,10 @@ def _apply_stand(args: argparse.Namespace) -> None:
         args.leds_csv = str(stand.leds_csv)
     if args.min_level is None and stand.min_stable_level is not None:
         args.min_level = stand.min_stable_level
+    args.level_curves = stand.level_curves
     print(f"stand {stand.folder}: LED spectra {args.leds_csv or 'nominal'}, minimum stable level "
-          f"{args.min_level if args.min_level is not None else 'nominal'}", file=sys.stderr)
+          f"{args.min_level if args.min_level is not None else 'nominal'}, level -> output "
+          f"{'measured per LED' if stand.level_curves else 'proportional'}", file=sys.stderr)
 
 
 def _capture(args: argparse.Namespace):
@@ -189,8 +191,9 @@ def _capture(args: argparse.Namespace):
     from dualrgb.simulation.sphere import SphereProperties
 
     cap = CaptureModel.virtual_lab(args.mode, reference_gain_sd=args.reference_sd, drift_sd_nm=args.drift_nm)
-    if args.min_level is not None:
-        cap = replace(cap, sphere=SphereProperties(min_stable_level=args.min_level))
+    curves = getattr(args, "level_curves", ())                # a stand folder's (_apply_stand)
+    if args.min_level is not None or curves:
+        cap = replace(cap, sphere=SphereProperties().measured(args.min_level, curves))
     if args.pixels is not None:
         cap = replace(cap, camera=replace(cap.camera, pixels_per_patch=args.pixels))
     return cap

@@ -12,7 +12,9 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study thesis         [--out DIR] [--budget full|small] [--json PATH] [--readme README.md]
   dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
                                [--seeds N] [--scheduler local|ADDRESS]
-  dualrgb study stand          [--out DIR] [--world W] [--seeds N] [--frame-size WxH]   (app.workflow.stand_study)
+  dualrgb study stand          [--out DIR] [--world W[,W...]|all] [--compare W,...|all|none] [--seeds N]
+                               [--frame-size WxH] [--readme README.md] [--from-json STAND.json]
+                               (app.workflow.stand_study)
 
 ``--out`` defaults to ``studies/<study>`` in the per-user data folder (resources.user_path), where the GUI lists
 the charts. ``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
@@ -27,8 +29,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from dualrgb import resources
 from dualrgb.app.commands import study_thesis
-from dualrgb.app.commands.options import add_world_option, count, frame_size, input_file, number, positive
+from dualrgb.app.commands.options import count, frame_size, input_file, number, positive, worlds
 from dualrgb.app.terminal_progress import TerminalProgress
 from dualrgb.simulation.choices import MODES
 
@@ -86,30 +89,58 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _stand_study(ss: argparse._SubParsersAction) -> None:
-    """stand: the stand model fitted to a calibration in a mismatched world, and the lights re-chosen on it."""
-    q = ss.add_parser("stand", help="the stand model fitted to calibration captures in a virtual-lab world: R^2, "
-                                    "predicted vs captured dE00, lights re-optimised on it vs the nominal preset "
-                                    "and the world's optimum")
+    """stand: the workflow's stand model against captures in virtual-lab worlds (app.workflow.stand_study)."""
+    q = ss.add_parser("stand", help="the stand model against calibration captures in virtual-lab worlds: the "
+                                    "measurement workflow's predicted vs captured dE00 (3 seeds), models' R^2, lights "
+                                    "re-optimised on them vs the nominal preset and the world's optimum")
     _out_option(q, "stand")
     q.add_argument("--mode", choices=MODES, default="reflective")
-    add_world_option(q)
-    q.set_defaults(world="mismatched-d700")
+    q.add_argument("--world", type=worlds, default=("mismatched-d700",), metavar="W[,W...]|all",
+                   help="the virtual-lab worlds: packaged names or world JSON files, comma-separated, or 'all' (every "
+                        f"packaged world: {', '.join(resources.world_names())}); default mismatched-d700")
+    q.add_argument("--compare", type=worlds, default=None, metavar="W[,W...]|all|none",
+                   help="worlds where every other stand model is compared too, with lights re-optimised on each "
+                        "(about 3x longer per world); default: the world when only one is studied, else none")
     q.add_argument("--seeds", type=positive, default=3, help="capture seeds per light set (default 3)")
     q.add_argument("--frame-size", type=frame_size, default=(600, 400), help="virtual lab frames WxH (600x400)")
+    q.add_argument("--readme", metavar="README", help="write the workflow table into README between "
+                                                      "<!-- stand:start --> and <!-- stand:end -->")
+    q.add_argument("--from-json", type=input_file, metavar="STAND.json",
+                   help="make the tables, charts (and --readme) from a study's saved stand.json instead of running it")
     q.set_defaults(func=stand_main)
 
 
 def stand_main(args: argparse.Namespace) -> int:
-    from dualrgb.app.workflow.stand_study import StandStudyConfig, stand_study, summary_lines, write_outputs
-    from dualrgb.simulation.studies.common import StudyOutput
+    from dualrgb.app.workflow.stand_study import StandStudyConfig, stand_study
+    from dualrgb.app.workflow.stand_study_report import (
+        SECTION,
+        load_study,
+        readme_section,
+        summary_lines,
+        workflow_table,
+        write_outputs,
+    )
+    from dualrgb.simulation.studies.common import StudyOutput, to_jsonable, write_marked
 
     out = StudyOutput(_out(args))
-    cfg = StandStudyConfig(world=args.world, mode=args.mode, frame_size=args.frame_size,
-                           seeds=tuple(range(args.seeds)))
-    with _progress(args) as progress:
-        result = stand_study(cfg, out.folder / "work", progress=progress)
-    write_outputs(result, out)
-    return _done(out, summary_lines(result)[4:])
+    if args.from_json:
+        doc, source = load_study(args.from_json), str(args.from_json)
+    else:
+        if not args.world:
+            raise ValueError("--world none: expected at least one world to study")
+        compare = args.compare if args.compare is not None else args.world if len(args.world) == 1 else ()
+        cfg = StandStudyConfig(worlds=args.world, mode=args.mode, frame_size=args.frame_size,
+                               seeds=tuple(range(args.seeds)), compare=compare)
+        with _progress(args) as progress:
+            result = stand_study(cfg, out.folder / "work", progress=progress)
+        doc, source = to_jsonable(result.to_dict()), "stand.json"
+    write_outputs(doc, out, source)
+    if args.readme:
+        write_marked(args.readme, readme_section(doc, source if args.from_json else str(out.folder / "stand.json")),
+                     SECTION)
+        print(f"wrote the workflow table into {args.readme}", file=sys.stderr)
+    lines = workflow_table(doc)
+    return _done(out, lines if args.from_json else summary_lines(doc)[2:])
 
 
 def _spectral_study(ss: argparse._SubParsersAction) -> None:
@@ -121,6 +152,10 @@ def _spectral_study(ss: argparse._SubParsersAction) -> None:
     q.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=10.0, help="spectral step in nm (10)")
     q.add_argument("--budget", choices=("tiny", "default"), default="default",
                    help="tiny: a short search for the spectral-chosen lights (a quick check)")
+    q.add_argument("--readme", metavar="README", help="write the tables into README between "
+                                                      "<!-- spectral:start --> and <!-- spectral:end -->")
+    q.add_argument("--from-json", type=input_file, metavar="SPECTRAL.json",
+                   help="with --readme: the tables from a study's saved spectral.json instead of running it")
     q.set_defaults(func=spectral_main)
 
 
@@ -358,15 +393,31 @@ def _modes(text: str) -> tuple[str, ...]:
 
 
 def spectral_main(args: argparse.Namespace) -> int:
-    from dualrgb.simulation.studies.common import SetupSpec, StudyOutput
-    from dualrgb.simulation.studies.spectral import SpectralStudyConfig, spectral_study, write_outputs
+    from dualrgb.simulation.studies.common import SetupSpec, StudyOutput, to_jsonable, write_marked
+    from dualrgb.simulation.studies.spectral import (
+        SpectralStudyConfig,
+        load_study,
+        readme_section,
+        spectral_study,
+        write_outputs,
+    )
 
+    if args.from_json:
+        if not args.readme:
+            raise ValueError("--from-json: give --readme README.md (the tables are written there)")
+        write_marked(args.readme, readme_section(load_study(args.from_json), args.from_json), "spectral")
+        print(f"wrote the tables into {args.readme}", file=sys.stderr)
+        return 0
     cfg = SpectralStudyConfig.tiny() if args.budget == "tiny" else SpectralStudyConfig()
     cfg = replace(cfg, modes=_modes(args.modes))
     out = StudyOutput(_out(args))
     with _progress(args) as progress:
         result = spectral_study(SetupSpec(cfg.modes[0], args.step), cfg, progress=progress)
     write_outputs(result, out)
+    if args.readme:
+        doc = to_jsonable({"format": "dualrgb-study-spectral/1", **result.to_json()})
+        write_marked(args.readme, readme_section(doc, out.folder / "spectral.json"), "spectral")
+        print(f"wrote the tables into {args.readme}", file=sys.stderr)
     return _done(out, [f"{r['mode']:<12} {r['lights']:<15} {r['method']:<8} RMSE {r['rmse']:.4f} (seen "
                        f"{r['rmse_seen']:.4f}), GFC {r['gfc']:.4f}, dE00 D65 {r['de00']['D65']:.3f} A "
                        f"{r['de00']['A']:.3f} FL11 {r['de00']['FL11']:.3f}" for r in result.rows])

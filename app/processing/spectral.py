@@ -94,6 +94,7 @@ class SpectralInputs:
     test_spectra: np.ndarray | None = None
     xyz_matrix: np.ndarray | None = None
     lights: Sequence[LightSource] | None = None
+    measured_ranges: dict[str, tuple[float, float] | None] = field(default_factory=dict)   # "train" / "test"
 
 
 def training_data(inputs: SpectralInputs) -> tuple[SpectralTraining, np.ndarray | None]:
@@ -121,7 +122,7 @@ def training_data(inputs: SpectralInputs) -> tuple[SpectralTraining, np.ndarray 
 
 def characterise_spectra(inputs: SpectralInputs, cancel: CancelToken | None = None) -> SpectralCharacterisation:
     """Fit, choose (cross-validation on the training target) and evaluate the spectral estimate of a capture."""
-    from dualrgb.simulation.datasets import default_setup
+    from dualrgb.simulation.datasets import default_setup, measured_mask
     from dualrgb.simulation.spectral_metrics import seen_wavelengths, spectral_figures
     from dualrgb.simulation.spectral_selection import select_estimator
 
@@ -133,7 +134,9 @@ def characterise_spectra(inputs: SpectralInputs, cancel: CancelToken | None = No
     if inputs.test_values is not None and inputs.test_spectra is not None:
         targets["test"] = (np.asarray(inputs.test_values, dtype=float), np.asarray(inputs.test_spectra, dtype=float))
     estimates = {k: selection.estimator.apply(v) for k, (v, _) in targets.items()}
-    figures = {k: spectral_figures(estimates[k], ref, setup.grid, setup.cmfs, seen) for k, (_, ref) in targets.items()}
+    figures = {k: spectral_figures(estimates[k], ref, setup.grid, setup.cmfs, seen,
+                                   measured_mask(setup.grid.wavelengths, inputs.measured_ranges.get(k)))
+               for k, (_, ref) in targets.items()}
     out = SpectralCharacterisation(selection, setup.grid.wavelengths, figures["train"], figures.get("test"),
                                    estimates, {k: ref for k, (_, ref) in targets.items()},
                                    None if gain is None else [round(float(g), 6) for g in gain])

@@ -16,7 +16,9 @@ real instrument's files) and, per LED, finds (simulation/led_fit.py):
   noise clipped to 0); ``simulate --leds-csv`` or ``--stand-dir`` takes it;
 * ``levels.csv``: level, then each LED's relative output (empty where not measured);
 * ``stand.json`` (``dualrgb-stand-measurement/1``): everything above per LED, and ``min_stable_level``: the
-  largest of the LEDs' (the sphere holds one minimum for all, simulation.sphere.SphereProperties);
+  largest of the LEDs' (the sphere holds one minimum for all, simulation.sphere.SphereProperties); each LED's
+  measured ``levels.level`` / ``levels.relative_output`` is its level -> output curve, which the sphere's one
+  level model (simulation.sphere.LevelCurve) predicts with wherever the stand folder is given;
 * ``levels.png``, ``warmup.png``: the curves (thesis Fig 4.10 for the drift).
 
 :func:`load_stand` reads a stand folder back for ``simulate --stand-dir``.
@@ -32,7 +34,9 @@ from typing import Any
 import numpy as np
 
 from dualrgb.app.workflow.led_readings import LedReadings
+from dualrgb.simulation.choices import N_SPHERE_LEDS
 from dualrgb.simulation.led_fit import STABLE_TOLERANCE, band_output, fit_drift, fit_low_level, led_band, led_shape
+from dualrgb.simulation.sphere import LevelCurves, SphereProperties, curves_from_dict
 
 log = logging.getLogger(__name__)
 MAX_STAND_BYTES = 4 << 20         # stand.json: a few kB; checked before reading
@@ -185,11 +189,17 @@ def _figures(result: StandMeasurement, out: Path) -> list[Path]:
 
 @dataclass(frozen=True)
 class StandFiles:
-    """What ``simulate --stand-dir`` takes from a stand folder (None where it was not measured)."""
+    """What ``simulate --stand-dir`` and ``calibrate --stand-dir`` take from a stand folder (None or empty where
+    it was not measured): the LED spectra, the minimum stable level and each LED's level -> output curve."""
 
     folder: Path
     leds_csv: Path | None
     min_stable_level: float | None
+    level_curves: LevelCurves = ()
+
+    def sphere(self, base: SphereProperties | None = None) -> SphereProperties:
+        """The sphere's level model with this stand's measurements (simulation.sphere)."""
+        return (base or SphereProperties()).measured(self.min_stable_level, self.level_curves)
 
 
 def load_stand(folder: str | Path) -> StandFiles:
@@ -212,7 +222,22 @@ def load_stand(folder: str | Path) -> StandFiles:
     if level is not None and (not isinstance(level, (int, float)) or not 0.0 <= level <= 1.0):
         raise ValueError(f"{path}: min_stable_level {level!r}: expected a level from 0 to 1")
     leds = folder / LEDS_CSV
-    return StandFiles(folder, leds if leds.is_file() else None, None if level is None else float(level))
+    return StandFiles(folder, leds if leds.is_file() else None, None if level is None else float(level),
+                      _level_curves(path, doc.get("leds")))
+
+
+def _level_curves(path: Path, leds: Any) -> LevelCurves:
+    """Each LED's measured level -> output curve from stand.json's ``leds`` (an LED without a level series:
+    None, proportional); ValueError naming the file and the LED."""
+    if not isinstance(leds, dict):
+        return ()
+    curves: dict[str, Any] = {k: v["levels"] for k, v in leds.items()
+                              if isinstance(v, dict) and isinstance(v.get("levels"), dict)}
+    try:
+        return curves_from_dict({k: {"level": c.get("level"), "relative_output": c.get("relative_output")}
+                                 for k, c in curves.items()}, N_SPHERE_LEDS)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
 
 
 # ---- the two ways in: the virtual lab's sequence, and a real instrument's files ----------------------------

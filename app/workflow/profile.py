@@ -431,5 +431,7 @@ def spectral_line(prof: CalibrationProfile) -> str:
     if not f:
         return f"spectra: {chosen}"
     de = ", ".join(f"{k} {v['mean']:.2f}" for k, v in f.get("de00", {}).items())
-    return (f"spectra: {chosen}; {which} RMSE mean {f['rmse']['mean']:.4f} / p90 {f['rmse']['p90']:.4f}, GFC "
-            f"{f['gfc']['mean']:.4f}, mean dE00 under {de}")
+    measured = (f.get("wavelengths") or {}).get("measured")          # profiles made before issue 29 have none
+    where = f" ({measured[0]:g}-{measured[1]:g} nm, where measured)" if measured else ""
+    return (f"spectra: {chosen}; {which} RMSE{where} mean {f['rmse']['mean']:.4f} / p90 {f['rmse']['p90']:.4f}, "
+            f"GFC {f['gfc']['mean']:.4f}, mean dE00 under {de}")

@@ -267,10 +267,11 @@ def _spectral(session, train: TargetSpec, test: TargetSpec | None, values: tuple
         return None
     vt, st, vs = values
     with_test = test is not None and test.spectra is not None and vs is not None
+    ranges = {"train": train.measured_range, "test": test.measured_range if test is not None else None}
     return characterise_spectra(SpectralInputs(
         train.mode, list(channels), vt, train.spectra, st, vs if with_test else None,
         test.spectra if with_test and test is not None else None, xyz_matrix,
-        frame_lights(session, train.subject, names)), cancel)
+        frame_lights(session, train.subject, names), ranges), cancel)
 
 
 def fit_session_stand(session, frames: SessionFrames, proc: CaptureProcessor, names: Sequence[str], train: tuple,

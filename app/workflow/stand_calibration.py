@@ -285,9 +285,10 @@ def _start_label(start: StandModel) -> str:
     return f"measured {' and '.join(measured)}" if measured else "nominal"
 
 
-def describe_stand(section: dict) -> list[str]:
+def describe_stand(section: dict[str, Any]) -> list[str]:
     """Lines on a profile's stand model: what it started from, R^2 before and after, the captured test CIEDE2000
-    beside both predictions, the parameters with their standard uncertainties, warnings."""
+    beside both predictions, the parameters with their standard uncertainties, what determines them
+    (identifiability: posterior / prior sd, correlations, the combinations left to the priors), warnings."""
     if not section:
         return ["stand model: not fitted (calibration made before the stand fit, or without the targets' spectra)"]
     start = section.get("start") or {}
@@ -295,7 +296,8 @@ def describe_stand(section: dict) -> list[str]:
     r2, de = section.get("r2") or {}, section.get("de00") or {}
     label = _start_label(StandModel.from_dict(start)) if start else "nominal"
     lines = [f"stand model: fitted to the training target and flats from the {camera}"
-             + (f" and measured LEDs {Path(start['leds_csv']).name}" if start.get("leds_csv") else "")]
+             + (f" and measured LEDs {Path(start['leds_csv']).name}" if start.get("leds_csv") else "")
+             + (" with their measured level curves" if start.get("level_curves") else "")]
     for target in ("train", "test"):
         if target in r2.get("fitted", {}):
             lines.append(f"  R² {target} (worst channel): {label} {min(r2['start'][target]):.4f} -> fitted "
@@ -305,13 +307,47 @@ def describe_stand(section: dict) -> list[str]:
         lines.append(f"  test mean dE00 ({de.get('matrix', '?')}): captured {cap['test']:.3f}, predicted {label} "
                      f"{pred['start']['test']:.3f} ({_percent(miss['start']['test'])}), fitted "
                      f"{pred['fitted']['test']:.3f} ({_percent(miss['fitted']['test'])})")
+    params = section.get("parameters", [])
+    lines += [f"  {g}: {', '.join(items)}" for g, items in _grouped(params, lambda p: f"{p['value']:#.3g} ± "
+                                                                   f"{p['sd']:.2g}" + (" (at bound)" if
+                                                                                        p.get("at_bound") else ""))]
+    lines += describe_identifiability(section)
+    lines += [f"  warning: {w}" for w in section.get("warnings", [])]
+    return lines
+
+
+def _grouped(params: list[dict[str, Any]], text: Any) -> list[tuple[str, list[str]]]:
+    """Parameters grouped by kind ("LED 3 peak shift (nm)" -> group "LED peak shift (nm)", member "3"), each
+    member as ``text(parameter)``."""
     groups: dict[str, list[str]] = {}
-    for p in section.get("parameters", []):
+    for p in params:
         words = p["label"].split(" ", 2)          # "LED 3 peak shift (nm)", "gain R", "camera G width", "flare"
         group = f"{words[0]} {words[2]}" if len(words) == 3 else words[0]
         who = words[1] if len(words) > 1 else ""
-        groups.setdefault(group, []).append(f"{who} {p['value']:#.3g} ± {p['sd']:.2g}".strip()
-                                            + (" (at bound)" if p.get("at_bound") else ""))
-    lines += [f"  {group}: {', '.join(items)}" for group, items in groups.items()]
-    lines += [f"  warning: {w}" for w in section.get("warnings", [])]
+        groups.setdefault(group, []).append(f"{who} {text(p)}".strip())
+    return list(groups.items())
+
+
+SHOWN_PAIRS = 5
+
+
+def describe_identifiability(section: dict[str, Any]) -> list[str]:
+    """The stand fit's identifiability for people (simulation.stand_fit): posterior / prior sd per parameter,
+    the strongest correlations, the combinations left to the priors. Nothing for a profile fitted before."""
+    params = [p for p in section.get("parameters", []) if "sd_ratio" in p]
+    limits = section.get("identifiability") or {}
+    if not params or not limits:
+        return []
+    lines = [f"  determined by (posterior sd / prior sd; below {limits['determined_ratio']:.2g} the captures, from "
+             f"{limits['prior_ratio']:.2g} mainly the prior):"]
+    lines += [f"    {g}: {', '.join(items)}" for g, items in _grouped(params, lambda p: f"{p['sd_ratio']:.2f}" + (
+        " (prior)" if p["determined_by"] == "prior" else ""))]
+    pairs = section.get("correlations") or []
+    if pairs:
+        shown = ", ".join(f"{c['a']} ~ {c['b']} {c['r']:+.3f}" for c in pairs[:SHOWN_PAIRS])
+        more = f" (and {len(pairs) - SHOWN_PAIRS} more pairs)" if len(pairs) > SHOWN_PAIRS else ""
+        lines.append(f"  correlated (|r| >= {limits['correlation_limit']:g}): {shown}{more}")
+    for d in section.get("weak_directions") or []:
+        combo = " ".join(f"{w:+.2f} {name}" for name, w in d["combination"])
+        lines.append(f"  left to the priors (posterior sd {d['sd_ratio']:.2f} of the prior's along): {combo}")
     return lines

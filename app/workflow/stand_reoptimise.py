@@ -21,6 +21,7 @@ from dualrgb.app.workflow.profile import CalibrationProfile, ProfileError
 from dualrgb.common.progress import CancelToken, ProgressCallback
 from dualrgb.simulation.capture_model import CaptureModel
 from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.sphere import LevelCurves
 from dualrgb.simulation.stand_fit import fit_stand
 from dualrgb.simulation.stand_model import StandModel
 
@@ -33,23 +34,27 @@ NOMINAL_CAMERA_NOTE = ("the camera is the nominal one with its curves' shift and
 
 @dataclass(frozen=True)
 class Measurements:
-    """Measured curves that replace the nominal ones (None: nominal)."""
+    """Measured curves that replace the nominal ones (None or empty: nominal)."""
 
     camera_csv: str | None = None
     leds_csv: str | None = None
     min_stable_level: float | None = None
+    level_curves: LevelCurves = ()
 
     @classmethod
     def of(cls, camera_csv: str | Path | None = None, leds_csv: str | Path | None = None,
            stand_dir: str | Path | None = None, min_level: float | None = None) -> Measurements:
-        """From the options: an explicit LED CSV or minimum level wins over the stand folder's."""
+        """From the options: an explicit LED CSV or minimum level wins over the stand folder's; the level curves
+        come from the stand folder."""
+        curves: LevelCurves = ()
         if stand_dir is not None:
             from dualrgb.app.workflow.led_stand import load_stand
 
             stand = load_stand(stand_dir)
             leds_csv = leds_csv or stand.leds_csv
             min_level = stand.min_stable_level if min_level is None else min_level
-        return cls(_resolved(camera_csv), _resolved(leds_csv), min_level)
+            curves = stand.level_curves
+        return cls(_resolved(camera_csv), _resolved(leds_csv), min_level, curves)
 
 
 def _resolved(path: str | Path | None) -> str | None:
@@ -57,7 +62,9 @@ def _resolved(path: str | Path | None) -> str | None:
 
 
 def _same_curves(a: StandModel, b: StandModel) -> bool:
-    return (_resolved(a.camera_csv), _resolved(a.leds_csv)) == (_resolved(b.camera_csv), _resolved(b.leds_csv))
+    """Whether two models predict the captures from the same curves (camera, LED spectra, LED level curves)."""
+    return ((_resolved(a.camera_csv), _resolved(a.leds_csv), a.level_curves)
+            == (_resolved(b.camera_csv), _resolved(b.leds_csv), b.level_curves))
 
 
 def assemble(profile: CalibrationProfile | None, measured: Measurements = Measurements()
@@ -67,12 +74,15 @@ def assemble(profile: CalibrationProfile | None, measured: Measurements = Measur
     stored = _stored(profile)
     inherit = stored or StandModel()
     start = StandModel(measured.camera_csv or inherit.camera_csv, measured.leds_csv or inherit.leds_csv,
-                       inherit.min_stable_level if measured.min_stable_level is None else measured.min_stable_level)
+                       inherit.min_stable_level if measured.min_stable_level is None else measured.min_stable_level,
+                       level_curves=measured.level_curves or inherit.level_curves)
     start = dataclasses.replace(start, sources={"camera": start.camera_csv or "nominal",
-                                                "leds": start.leds_csv or "nominal"})
+                                                "leds": start.leds_csv or "nominal",
+                                                "level_curves": "measured" if start.level_curves else "proportional"})
     level = start.min_stable_level
     notes = [f"camera {start.camera_csv or 'nominal (Nikon 5100 NPL)'}, LEDs {start.leds_csv or 'nominal'}, "
-             f"minimum stable level {level if level is not None else 'nominal'}"]
+             f"minimum stable level {level if level is not None else 'nominal'}, level -> output "
+             f"{'measured per LED' if start.level_curves else 'proportional'}"]
     if profile is None or stored is None:
         return start, notes
     if _same_curves(stored, start):

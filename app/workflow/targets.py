@@ -50,6 +50,11 @@ class TargetSpec:
     def cell_indices(self) -> list[int]:
         return list(range(len(self.names))) if self.cells is None else list(self.cells)
 
+    @property
+    def measured_range(self) -> tuple[float, float] | None:
+        """The wavelengths the chart's reference file measured (spectral figures count only there; None: unknown)."""
+        return self.chart.target.measured_range if self.chart is not None else None
+
 
 def packaged_target(mode: str, name: str) -> Any:
     """The packaged training ('train') or test ('test') target of a mode (simulation.datasets)."""

@@ -249,8 +249,7 @@ def read_world(path: str | Path) -> World:
 
 def packaged_worlds() -> list[str]:
     """Names of the packaged worlds (resources/worlds/*.json), nominal first."""
-    names = sorted(p.stem for p in resources.path("worlds").glob("*.json"))
-    return sorted(names, key=lambda n: n != NOMINAL)
+    return resources.world_names()
 
 
 def load_world(spec: str | Path | World | None = None) -> World:

@@ -178,6 +178,29 @@ class StudyOutput:
         return path
 
 
+def markers(name: str) -> tuple[str, str]:
+    """The lines that bound a study's generated section in a Markdown file: ``<!-- name:start -->`` / end."""
+    return f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+
+
+def replace_marked(text: str, body: str, name: str, source: str = "README") -> str:
+    """``text`` with everything between the ``name`` section's markers replaced by ``body``; ValueError naming
+    ``source`` unless it has one start line before one end line."""
+    start, end = markers(name)
+    if text.count(start) != 1 or text.count(end) != 1 or text.index(start) > text.index(end):
+        raise ValueError(f"{source}: needs one {start} line before one {end} line")
+    head, rest = text.split(start)
+    _, tail = rest.split(end)
+    return f"{head}{start}\n{body}\n{end}{tail}"
+
+
+def write_marked(path: str | Path, body: str, name: str) -> Path:
+    """:func:`replace_marked` on the file ``path``, written atomically."""
+    p = Path(path)
+    atomic_write(p, replace_marked(p.read_text(encoding="utf-8"), body, name, str(p)))
+    return p
+
+
 def new_figure(width: float = 7.5, height: float = 4.8, ncols: int = 1):
     """A matplotlib Figure on the Agg canvas and its axes (one per column)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg

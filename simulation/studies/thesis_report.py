@@ -12,8 +12,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from dualrgb.common.atomic_files import atomic_write
 from dualrgb.simulation.lightsource import LightSource
+from dualrgb.simulation.studies.common import replace_marked, write_marked
 
 log = logging.getLogger(__name__)
 
@@ -199,18 +199,11 @@ def markdown(rows: list[dict], result: dict, tables: dict) -> str:
 
 def replace_between_markers(text: str, body: str, source: str) -> str:
     """``text`` with everything between README_START and README_END replaced by ``body``."""
-    if text.count(README_START) != 1 or text.count(README_END) != 1 or text.index(README_START) > text.index(
-            README_END):
-        raise ValueError(f"{source}: needs one {README_START} line before one {README_END} line")
-    head, rest = text.split(README_START)
-    _, tail = rest.split(README_END)
-    return f"{head}{README_START}\n{body}\n{README_END}{tail}"
+    return replace_marked(text, body, "thesis", source)
 
 
 def write_readme(path: str | Path, body: str) -> Path:
-    p = Path(path)
-    atomic_write(p, replace_between_markers(p.read_text(encoding="utf-8"), body, str(p)))
-    return p
+    return write_marked(path, body, "thesis")
 
 
 def report_json(result: dict, rows: list[dict], tables: dict) -> dict[str, Any]:

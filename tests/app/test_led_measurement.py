@@ -63,6 +63,26 @@ def test_level_series_recovers_the_worlds_low_level_response(aged):
     assert load_stand(_out).min_stable_level == 0.05
 
 
+def test_the_stand_folders_level_curves_are_what_the_leds_emit(aged):
+    """load_stand gives each measured LED's level -> output curve; the sphere's level model with them predicts the
+    world's own response (simulation.sphere.LevelCurve: the measured points interpolated) within the instrument's
+    noise (0.3 % of the output, 0.03 % of full output) over the whole range, and LED 1 at the shipped presets' 1 %
+    within 5 % (lit: a search's rounding would put it at 0); unmeasured LEDs stay proportional."""
+    out, _result, _files = aged
+    stand = load_stand(out)
+    truth = load_world("aged-leds").led_low_level
+    assert [c is not None for c in stand.level_curves] == [k in (1, 3, 7, 10) for k in range(1, 11)]
+    sphere = stand.sphere()
+    levels = np.round(np.linspace(0.0, 1.0, 4001) * 65535) / 65535
+    got = sphere.emitted(np.repeat(levels[:, None], 10, axis=1))
+    for led in (1, 3, 7, 10):
+        np.testing.assert_allclose(got[:, led - 1], truth.output(levels.copy()), rtol=3e-3, atol=3e-4)
+    assert np.array_equal(got[:, 1], levels)                              # LED 2 not measured: proportional
+    low = sphere.emitted(np.array([[0.010009918364232854] + [0.0] * 9]))[0, 0]
+    assert low == pytest.approx(float(truth.output(np.array([0.010009918364232854]))[0]), rel=0.05) and low > 0
+    assert sphere.min_stable_level == 0.05 and sphere.realise(np.array([0.0100099]))[0] == 0.0
+
+
 def test_level_series_in_the_nominal_world_is_proportional(tmp_path):
     result, _ = measure_virtual(tmp_path, None, LedMeasurementPlan(leds=(2, 7), warmup_leds=()))
     for led in (2, 7):
@@ -256,9 +276,11 @@ def test_simulate_takes_a_stand_folders_leds_and_minimum_level(aged, tmp_path, c
                 "--json", str(tmp_path / "sim.json")]) == 0
     err = capsys.readouterr().err
     assert f"LED spectra {full / 'leds.csv'}" in err and "minimum stable level 0.05" in err
+    assert "level -> output measured per LED" in err
     import json
     doc = json.loads((tmp_path / "sim.json").read_text())
     assert '"min_stable_level": 0.05' in json.dumps(doc)
+    assert set(doc["capture"]["sphere"]["level_curves"]) == {"1", "2", "3", "4", "5", "6", "7", "8", "9", "10"}
 
 
 def test_calibration_warns_below_the_measured_minimum_level(aged):

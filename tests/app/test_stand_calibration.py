@@ -3,6 +3,7 @@ app.workflow.stand_reoptimise, ``simulate --stand``), on captures computed by ha
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -59,6 +60,11 @@ def test_the_profile_keeps_the_stand_model_and_its_observations(profile_path, st
     assert "test mean dE00 (least-squares): captured 0.300, predicted nominal 0.270 (-10.0 %), fitted 0.310" in text
     assert any(line.startswith("  LED peak shift (nm): 1 ") for line in lines)
     assert any(line.startswith("  flare: 0.00") for line in lines)
+    # identifiability (issue 29): posterior / prior sd per parameter, correlations, what the priors decide
+    assert "  determined by (posterior sd / prior sd; below 0.5 the captures, from 0.71 mainly the prior):" in lines
+    assert any(line.startswith("    LED peak shift (nm): 1 0.") for line in lines)
+    assert any(line.startswith("  correlated (|r| >= 0.9): ") for line in lines)
+    assert any(line.startswith("  left to the priors (posterior sd 1.00 of the prior's along): ") for line in lines)
 
 
 def test_an_old_profile_loads_and_says_the_stand_was_not_fitted(tmp_path):
@@ -106,3 +112,38 @@ def test_simulate_stand_with_a_profile_without_a_stand_model_is_one_line(tmp_pat
     assert main(["simulate", "--stand", str(path), "--top", "1"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no stand model in it" in err[0], err
+
+
+def _stand_folder(folder: Path) -> Path:
+    """A stand folder as `dualrgb measure leds` writes it, by hand: LED 1's level curve (dead band 0.6 %, knee
+    4 %) and the minimum stable level."""
+    folder.mkdir()
+    levels = [0.0, 0.006, 0.01, 0.02, 0.04, 0.1, 1.0]
+    outputs = [0.0, 0.0, 0.002, 0.0104, 0.04, 0.1, 1.0]
+    (folder / "stand.json").write_text(json.dumps({"format": "dualrgb-stand-measurement/1", "min_stable_level": 0.04,
+                                                   "leds": {"1": {"levels": {"level": levels,
+                                                                             "relative_output": outputs}}}}))
+    return folder
+
+
+def test_a_stand_folders_level_curves_join_the_model_and_refit_it(profile_path, tmp_path):
+    prof = load_profile(profile_path)
+    model, notes = assemble(prof, Measurements.of(stand_dir=_stand_folder(tmp_path / "stand")))
+    assert "level -> output measured per LED" in notes[0] and "refitted" in notes[1]   # other curves: refitted
+    assert model.level_curves[0] is not None and model.level_curves[0].outputs[1] == 0.002
+    assert model.min_stable_level == 0.04 and StandModel.from_dict(model.to_dict()) == model
+    sphere = model.capture(CaptureModel.virtual_lab("reflective")).sphere
+    assert sphere.emitted(np.array([[0.01] + [0.0] * 9]))[0, 0] == pytest.approx(0.002, rel=2e-3)   # PWM 655
+    assert sphere.realise(np.array([0.01]))[0] == 0.0                      # new lights: not below the minimum
+
+
+@pytest.mark.fault("input")
+def test_a_bad_level_curve_in_a_stand_folder_is_one_line(tmp_path):
+    folder = _stand_folder(tmp_path / "stand")
+    doc = json.loads((folder / "stand.json").read_text())
+    doc["leds"]["1"]["levels"]["level"] = [0.0, 0.5, 0.1, 1.0, 0.2, 0.3, 0.4]
+    doc["leds"]["1"]["levels"]["relative_output"] = [0.0, 0.5, "x", 1.0, 0.2, 0.3, 0.4]
+    (folder / "stand.json").write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"stand\.json: LED 1: level curve: expected numbers") as err:
+        Measurements.of(stand_dir=folder)
+    assert "\n" not in str(err.value)

@@ -1,12 +1,13 @@
 """The stand model fitted to the calibration captures, end to end on the virtual lab in the mismatched world
 (another measured camera, LED peaks +-3 nm, 0.5 % flare): ``dualrgb study stand`` once for the module (600x400
-frames, 3 capture seeds per light set, about 2-3 minutes on 2 cores), then its figures and files checked.
+frames, 3 capture seeds per light set, about 4 minutes on the shared 2 cores), then its figures and files checked.
 
 Must show: the fitted model predicts the captured patch DNs with R^2 >= 0.999 (training target, fitted; test target,
 checked) and the captured test dE00 within 10 %, the nominal model's misses beside; lights re-optimised on the fitted
 model are captured at least as accurately as the nominal preset and within 5 % of the world's own optimum (lights
 optimised on the world's true camera and LEDs). Which combination meets it is stated, not hidden: the fit from the
-measured camera (the monochromator sweep in the same world) meets every target; from the nominal camera with its
+measured camera and LEDs (the monochromator sweep and the LED measurement in the same world: README's measurement
+workflow, whose predictions are also checked per seed) meets every target; from the nominal camera with its
 curves' shift and width fitted it meets the R^2 and dE00 prediction targets but its re-optimised lights are not
 better than the preset; LED and gain parameters alone cannot reach R^2 0.999 (a gain cannot fix a camera's shape).
 R^2 is recomputed here from the profile's stored observations (no line refitted: gain and offset errors count).
@@ -25,8 +26,10 @@ from dualrgb.app.workflow.profile import load_profile
 from dualrgb.simulation.stand_fit import predict
 from dualrgb.simulation.stand_model import StandModel
 
-pytestmark = pytest.mark.slow
-MEASURED, NOMINAL_CAMERA, LEDS_ONLY = "fitted, measured camera", "fitted, nominal camera", \
+# a hang guard far above the module fixture's normal time (the study: 4 min at load 2-3 on the shared 2-core
+# machine, over the suite's 300 s per test under load), not a speed check
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(1500)]
+MEASURED, NOMINAL_CAMERA, LEDS_ONLY = "fitted, measured camera and LEDs", "fitted, nominal camera", \
     "fitted, nominal camera, LEDs only"
 
 
@@ -34,8 +37,10 @@ MEASURED, NOMINAL_CAMERA, LEDS_ONLY = "fitted, measured camera", "fitted, nomina
 def study(tmp_path_factory):
     out = tmp_path_factory.mktemp("stand-study")
     assert main(["study", "stand", "--out", str(out), "--seeds", "3", "--frame-size", "600x400"]) == 0
-    doc = json.loads((out / "stand.json").read_text())
-    return out, doc
+    whole = json.loads((out / "stand.json").read_text())
+    assert whole["format"] == "dualrgb-study-stand/2" and "software" in whole and list(whole["worlds"]) == [
+        "mismatched-d700"]
+    return out, whole["worlds"]["mismatched-d700"]
 
 
 def r2(pred: np.ndarray, captured: np.ndarray) -> float:
@@ -75,9 +80,9 @@ def test_lights_reoptimised_on_the_fitted_model_are_captured_better(study):
 
 def test_the_study_writes_its_figures_and_the_calibration_its_stand_model(study, capsys):
     out, doc = study
-    assert (out / "study_stand.png").stat().st_size > 10_000 and "| fitted, measured camera |" in \
+    assert (out / "study_stand.png").stat().st_size > 10_000 and "| fitted, measured camera and LEDs |" in \
         (out / "SUMMARY.md").read_text()
-    assert doc["format"] == "dualrgb-study-stand/1" and "software" in doc
+    assert (out / "study_stand_models.png").stat().st_size > 10_000
     profile = load_profile(doc["files"]["calibration"])
     report = json.loads((profile.path.parent / "report" / "report.json").read_text())
     assert report["dn_validation"]["min_r2"] < 0.99 < report["stand_model"]["dn_validation"]["min_r2"]
@@ -86,3 +91,17 @@ def test_the_study_writes_its_figures_and_the_calibration_its_stand_model(study,
     shown = capsys.readouterr().out
     assert "stand model: fitted to the training target and flats from the nominal camera" in shown
     assert "  flare: 0.004" in shown or "  flare: 0.005" in shown
+
+
+def test_the_measurement_workflow_predicts_each_seeds_capture(study):
+    """README's workflow (measure the LEDs and the camera, calibrate with both, re-optimise, calibrate again):
+    each calibration's fit from the measured camera and LEDs predicts its own test dE00 within 10 %."""
+    _, doc = study
+    flow = doc["workflow"]
+    print("\n[stand] workflow test dE00 misses: preset " + ", ".join(f"{100 * m:+.1f} %" for m in
+                                                                     flow["preset"]["miss"]["test_each"])
+          + "; re-optimised " + ", ".join(f"{100 * m:+.1f} %" for m in flow["re-optimised"]["miss"]["test_each"]))
+    for which in ("preset", "re-optimised"):
+        assert len(flow[which]["miss"]["test_each"]) == 3
+        assert max(abs(m) for m in flow[which]["miss"]["test_each"]) <= 0.10
+    assert flow["start"]["level_curves"] and flow["start"]["leds_csv"].endswith("leds.csv")

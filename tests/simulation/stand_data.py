@@ -11,9 +11,10 @@ from dualrgb.simulation.spectral_io import read_spectral_csv
 from dualrgb.simulation.stand_fit import StandObservations
 
 GRID = np.arange(410.0, 781.0, 10.0)
-LIGHTS = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 0.0, 0.0, 0.0],      # LEDs 6, 7
-                   [0.0, 0.0, 0.5, 0.0, 0.8, 0.0, 0.0, 0.0, 1.0, 0.0],      # LEDs 3, 5, 9
-                   [0.9, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]])     # LEDs 1, 8
+LIGHTS = np.round(np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.6, 1.0, 0.0, 0.0, 0.0],      # LEDs 6, 7
+                            [0.0, 0.0, 0.5, 0.0, 0.8, 0.0, 0.0, 0.0, 1.0, 0.0],      # LEDs 3, 5, 9
+                            [0.9, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]])     # LEDs 1, 8
+                  * 65535) / 65535                  # as the sphere holds them: 16-bit PWM steps
 
 
 def hand_camera(csv: str | None = None) -> np.ndarray:
@@ -31,14 +32,15 @@ def hand_leds(shift=None, output=None) -> np.ndarray:
 
 
 def hand_observations(shift=None, output=None, gains=(1.0, 1.0, 1.0), flare=0.0, *, camera_csv=None,
-                      levels=LIGHTS, n_train=80, noise=0.0, seed=0) -> StandObservations:
-    """What a calibration of this stand would capture (DN / s at the centre), with relative ``noise``."""
+                      levels=LIGHTS, n_train=80, noise=0.0, seed=0, emitted=None) -> StandObservations:
+    """What a calibration of this stand would capture (DN / s at the centre), with relative ``noise``;
+    ``emitted``: what the LEDs emit at ``levels`` (a function of the levels array; default proportional)."""
     setup = default_setup("reflective")
     train, test = setup.train.spectra[:n_train], setup.test.spectra
     cam, nominal_cam = hand_camera(camera_csv), hand_camera(camera_csv)
     ref = hand_leds()[[0, 5, 7]].sum(axis=0)
     k = 9900.0 * 60.0 / max(float(np.sum(ref * nominal_cam[:, c])) for c in range(3))
-    E = levels @ hand_leds(shift, output)                                # (L, n_wl)
+    E = (levels if emitted is None else emitted(levels)) @ hand_leds(shift, output)      # (L, n_wl)
     g = np.asarray(gains, float)
     rng = np.random.default_rng(seed)
 

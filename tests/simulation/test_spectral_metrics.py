@@ -67,3 +67,49 @@ def test_figures_summarise_every_light_and_the_seen_range():
     assert f["gfc"]["very_good"] == 1.0 and f["rmse_seen"]["max"] <= f["rmse"]["max"] + 0.01
     seen = seen_wavelengths(s.camera)
     assert seen[0] and not seen[-1] and s.grid.wavelengths[seen].max() < 720      # the camera is blind in the NIR
+
+
+def test_rmse_and_gfc_only_where_the_reference_was_measured():
+    """The packaged CC24 (BabelColor) was measured to 730 nm; on the 410-780 nm grid its 740-780 nm values are the
+    730 nm value held. The figures judge an estimate on 410-730 nm only (RMSE and GFC by hand there), the
+    camera-seen RMSE on the measured wavelengths the camera sees; an error confined to 740-780 nm counts nowhere."""
+    s = default_setup("reflective")
+    wl = s.grid.wavelengths
+    assert s.test.measured_range == (380.0, 730.0) and s.train.measured_range == (380.0, 780.0)
+    keep = s.test.measured_mask(wl)
+    assert wl[keep][0] == 410 and wl[keep][-1] == 730 and keep.sum() == 33
+    ref = s.test.spectra
+    est = ref.copy()
+    est[:, wl > 730] = 0.0                                      # wrong only where nothing was measured
+    est[:, wl == 500] += 0.02
+    seen = seen_wavelengths(s.camera)
+    f = spectral_figures(est, ref, s.grid, s.cmfs, seen, keep)
+    assert f["rmse"]["mean"] == pytest.approx(np.sqrt(0.02 ** 2 / 33))
+    by_hand = [np.dot(e[keep], r[keep]) / np.sqrt(np.dot(e[keep], e[keep]) * np.dot(r[keep], r[keep]))
+               for e, r in zip(est, ref, strict=True)]
+    assert f["gfc"]["mean"] == pytest.approx(float(np.mean(by_hand)))
+    assert f["rmse_seen"]["mean"] == pytest.approx(np.sqrt(0.02 ** 2 / (keep & seen).sum()))
+    assert f["wavelengths"] == {"measured": [410.0, 730.0], "seen": [410.0, float(wl[keep & seen][-1])]}
+    everywhere = spectral_figures(est, ref, s.grid, s.cmfs, seen)
+    assert everywhere["rmse"]["mean"] > 5 * f["rmse"]["mean"]         # the held values would dominate the figure
+    with pytest.raises(ValueError, match="measured at none"):
+        spectral_figures(est, ref, s.grid, s.cmfs, seen, np.zeros(len(wl), bool))
+
+
+def test_a_stands_own_chart_keeps_its_measured_range_to_the_calibration():
+    """A chart file measured 380-730 nm (X-Rite style, tests/data/charts) keeps that range through the chart and
+    the calibration's TargetSpec, so the calibration's spectral figures count 410-730 nm only."""
+    from pathlib import Path
+
+    from dualrgb.app.workflow.targets import TargetSpec
+    from dualrgb.app.workflow.vocabulary import Subject
+    from dualrgb.simulation.charts import read_chart
+
+    s = default_setup("reflective")
+    path = Path(__file__).resolve().parents[1] / "data" / "charts" / "sg140_layout.txt"
+    chart = read_chart(path, s.grid, role="train", mode="reflective")
+    assert chart.target.measured_range == (380.0, 730.0) and chart.reference().measured_range == (380.0, 730.0)
+    spec = TargetSpec(Subject.target("train"), np.zeros((len(chart.used), 3)), list(chart.target.patch_names),
+                      chart=chart)
+    assert spec.measured_range == (380.0, 730.0)
+    assert TargetSpec(Subject.target("train"), np.zeros((1, 3)), ["x"]).measured_range is None

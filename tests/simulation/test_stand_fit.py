@@ -9,6 +9,7 @@ from dualrgb.simulation.camera_model import led_responses
 from dualrgb.simulation.datasets import default_setup
 from dualrgb.simulation.led_shapes import shaped_led_spectra
 from dualrgb.simulation.objective import PatchSet
+from dualrgb.simulation.sphere import LevelCurve
 from dualrgb.simulation.stand_fit import Priors, fit_stand, predict, r2_per_channel
 from dualrgb.simulation.stand_model import StandModel, StandParameters
 from tests.simulation.stand_data import LIGHTS, hand_observations
@@ -71,10 +72,11 @@ def test_uncertainties_cover_the_truth():
 def test_a_parameter_on_its_bound_is_one_warning_line(caplog):
     obs = hand_observations(flare=0.3)                                   # beyond the flare's upper bound 0.2
     fit = fit_stand(obs, StandModel(), Priors(flare_sd=1.0))
-    assert len(fit.warnings) == 1 and "\n" not in fit.warnings[0]
-    assert fit.warnings[0].startswith("stand fit: flare = 0.2 is at its upper bound 0.2")
+    bound = [w for w in fit.warnings if "bound" in w]                  # (identifiability lines come after)
+    assert len(bound) == 1 and all("\n" not in w for w in fit.warnings)
+    assert bound[0].startswith("stand fit: flare = 0.2 is at its upper bound 0.2") and fit.warnings[0] == bound[0]
     assert next(p for p in fit.parameters if p.key == "flare").at_bound == "upper"
-    assert fit.warnings[0] in caplog.text
+    assert bound[0] in caplog.text
 
 
 def test_a_nominal_camera_gets_its_curves_shift_and_width_fitted():
@@ -110,3 +112,49 @@ def test_lights_and_levels_shape_checked():
     obs = hand_observations()
     with pytest.raises(ValueError, match="white has shape"):
         type(obs)(LIGHTS, obs.white[:2], obs.train, obs.train_spectra, obs.train_frame)
+
+
+def test_a_measured_level_curve_lets_the_fit_see_a_dim_led_as_it_is(caplog):
+    """LED 1 set at 1 % in a sphere whose driver gives a fifth of that there (dead band 0.6 %, knee 4 %): with the
+    stand folder's measured curve the fit keeps LED 1's output at its spectra's (1), without it the fit folds the
+    curve into LED 1's output scale (about 0.2, many prior sd away: one warning line), as issue 29 found."""
+    levels = np.round(np.array([[0.01, 0.0, 0.0, 0.0, 0.0, 0.17, 1.0, 0.0, 0.0, 0.0],
+                                [0.0, 0.0, 0.3, 0.0, 0.19, 0.0, 0.0, 0.0, 1.0, 0.0]]) * 65535) / 65535
+    points = np.array([0.004, 0.006, 0.008, 0.01, 0.0125, 0.02, 0.04, 0.1, 1.0])
+    truth = np.where(points >= 0.04, points, 0.04 * np.clip((points - 0.006) / 0.034, 0, None) ** 1.4)
+
+    def by_hand(lv):
+        out = lv.copy()
+        out[:, 0] = np.interp(lv[:, 0], [0.0, *points], [0.0, *truth])
+        return out
+    obs = hand_observations(camera_csv=D700, levels=levels, noise=0.001, emitted=by_hand)
+    curves = (LevelCurve.measured(points, truth),) + (None,) * 9
+    with_curve = fit_stand(obs, StandModel(camera_csv=D700, level_curves=curves))
+    without = fit_stand(obs, StandModel(camera_csv=D700))
+    led1 = {name: next(p for p in f.parameters if p.key == "led_output_scale[0]")
+            for name, f in (("with", with_curve), ("without", without))}
+    assert abs(led1["with"].value - 1.0) < 3 * led1["with"].sd and led1["with"].sd < 0.15
+    assert led1["without"].value < 0.5 and led1["without"].moved_sd < -3
+    assert any(w.startswith("stand fit: LED 1 output = ") and "moved" in w for w in without.warnings)
+    assert not any("moved" in w for w in with_curve.warnings)
+    assert with_curve.min_r2() > 0.9999
+
+
+def test_identifiability_names_what_the_captures_leave_to_the_priors():
+    """Every LED output up and every channel gain down together changes no prediction: that combination is
+    reported as left to the priors (posterior sd = prior sd along it), its members as strongly correlated; the
+    peak shifts, which no other parameter imitates, are determined by the captures."""
+    obs = hand_observations(SHIFT, OUTPUT, GAINS, 0.004, camera_csv=D700, noise=0.001)
+    fit = fit_stand(obs, StandModel(camera_csv=D700))
+    weakest = fit.weak_directions[0]
+    assert weakest["sd_ratio"] == pytest.approx(1.0, abs=1e-3)
+    signs = {name.split(" ")[0]: np.sign(w) for name, w in weakest["combination"]}
+    assert signs["LED"] == -signs["gain"]
+    members = {name for name, _ in weakest["combination"]}
+    assert {f"LED {n} output" for n in (1, 3, 5, 6, 7, 8, 9)} <= members
+    assert all(abs(c["r"]) >= 0.9 for c in fit.correlations) and fit.correlations
+    assert fit.correlations == sorted(fit.correlations, key=lambda c: -abs(c["r"]))
+    shifts = [p for p in fit.parameters if p.key.startswith("led_peak_shift_nm")]
+    assert all(p.determined_by == "captures" for p in shifts)
+    doc = fit.to_dict()
+    assert doc["identifiability"]["moved_limit"] == 3.0 and "sd_ratio" in doc["parameters"][0]
