@@ -2,6 +2,7 @@
 
     dualrgb capture [--session DIR] --calibration FILE --id ACC-123 [--title ..] [--operator ..] [--notes ..]
                     [--mode reflective|transmissive] [--reshoot] [--force] [--render-illuminant A]
+                    [--resolution full|half]
                     (--virtual-lab | --port P --camera C)
     dualrgb capture --session DIR --calibration FILE --queue originals.csv [--column identifier="Accession No."]
                     [--skip-invalid] [--operator ..] [--reshoot] ...
@@ -18,7 +19,14 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from dualrgb.app.commands.options import add_render_option, column_option, count, input_file, number
+from dualrgb.app.commands.options import (
+    add_render_option,
+    add_resolution_option,
+    column_option,
+    count,
+    input_file,
+    number,
+)
 from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
@@ -68,6 +76,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="virtual lab: which virtual original stands in (default by mode: "
                         + ", ".join(f"{m}: {o}" for m, o in VIRTUAL_ORIGINALS.items()) + ")")
     add_render_option(p)
+    add_resolution_option(p)
     add_reuse_options(p)
     add_device_options(p)
     p.set_defaults(func=main)
@@ -111,7 +120,8 @@ def main(args: argparse.Namespace) -> int:
     out_dir = Path(args.out) if args.out else args.session / "deliverables" if args.session else None
     originals, bad = _originals(args, args.mode or profile.mode, out_dir)      # refused here: nothing is open yet
     settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
-                             original_frames=args.frames, render_illuminant=args.render_illuminant)
+                             original_frames=args.frames, render_illuminant=args.render_illuminant,
+                             resolution=args.resolution)
     with open_devices(args, args.mode or profile.mode, args.virtual_original) as dev, \
             open_session(args.session, {"workflow": "originals", **virtual_world(args)}, dev.camera) as session:
         out_dir = out_dir or session.path / "deliverables"

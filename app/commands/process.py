@@ -1,6 +1,7 @@
 """``dualrgb process``: deliver a session's originals again, e.g. with a newer calibration.
 
-    dualrgb process SESSION [--calibration FILE] [--out DIR] [--render-illuminant A] [--json J]
+    dualrgb process SESSION [--calibration FILE] [--out DIR] [--render-illuminant A] [--resolution full|half]
+                    [--json J]
 """
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from dualrgb.app.commands.options import add_render_option, number
+from dualrgb.app.commands.options import add_render_option, add_resolution_option, number
 from dualrgb.app.commands.stand_options import progress_printer, write_json
 
 log = logging.getLogger(__name__)
@@ -24,6 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
     p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
     add_render_option(p)
+    add_resolution_option(p)
     p.set_defaults(func=main)
 
 
@@ -45,7 +47,8 @@ def main(args: argparse.Namespace) -> int:
     session = CaptureSession.open(args.session, readonly=True)      # frames checked before use (session_frames)
     profile = load_profile(args.calibration or newest_calibration(session))
     deliveries = redeliver(session, profile, args.out or args.session / "deliverables", ppi=args.ppi,
-                           progress=progress_printer(), render_illuminant=args.render_illuminant)
+                           progress=progress_printer(), render_illuminant=args.render_illuminant,
+                           resolution=args.resolution)
     if not deliveries:
         raise ValueError(f"{args.session}: no originals to process")
     for d in deliveries:

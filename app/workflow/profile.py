@@ -43,6 +43,7 @@ import numpy as np
 
 from dualrgb.app.processing.calibration import DarkFrame, FlatField, MasterDark
 from dualrgb.app.session.capture_session import atomic_write
+from dualrgb.app.workflow.profile_arrays import ProfileArrays
 from dualrgb.app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
 from dualrgb.app.workflow.vocabulary import NamedLight, exposure_key
 from dualrgb.simulation.defaults import default_grid
@@ -284,7 +285,7 @@ def _load_arrays(prof: CalibrationProfile, folder: Path, index: dict) -> None:
         raise ProfileError(f"{npz}: the calibration's arrays are missing ({exc.strerror or exc})") from None
     if digest != index["sha256"]:
         raise ProfileError(f"{npz}: damaged (sha256 differs from the one {prof.id}.json names)")
-    arrays = np.load(npz)                    # each array read when first used, the file never whole in memory
+    arrays = ProfileArrays(npz)              # loaded, or mapped when large (app.workflow.profile_arrays)
     prof.darks = MasterDark()
     for d in index["darks"]:
         noise = d.get("noise_dn")

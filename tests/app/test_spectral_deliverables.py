@@ -152,7 +152,9 @@ def test_rendering_and_sidecar(tmp_path):
     assert sp["estimator"]["method"] == "wiener" and sp["estimator"]["calibration"] == "cal-test"
     assert sp["estimator"]["calibration_test"]["rmse_mean"] == 0.042
     assert sp["rendering"]["illuminant"] == "A" and sp["rendering"]["space"] == "ProPhoto RGB"
-    assert set(side["files"]) == {"prophoto", "srgb", "xyz", "channels", "spectral", "spectral_header", "render"}
+    assert set(side["files"]) == {"prophoto", "srgb", "xyz", "channels_1", "spectral",
+                                  "spectral_header", "render"}
+    assert set(side["fixity"]["files"]) == {p.name for p in d.files.values()}
     assert "spectral RMSE test 0.042" in d.qa.text() and d.qa.to_dict()["calibration_test_spectral_rmse"] == 0.042
     assert read_header(d.files["spectral_header"])["dualrgb calibration"] == "cal-test"
 
