@@ -14,10 +14,11 @@ from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 D65 = [95.047, 100.0, 108.883]
 
 
-def make_profile(tmp_path, **over) -> CalibrationProfile:
+def make_profile(tmp_path, shape: tuple[int, int] = (8, 12), **over) -> CalibrationProfile:
+    """The profile, its darks and white of ``shape`` (rows, columns)."""
     lights = [NamedLight("P light 1", LightSource((1, 6, 7), (0.0, 0.42, 1.0), "P light 1"))]
     darks = MasterDark()
-    darks.put(DarkFrame(0.01, np.full((8, 12), 600, np.float32), 5))
+    darks.put(DarkFrame(0.01, np.full(shape, 600, np.float32), 5))
     created = over.pop("created", datetime.now(UTC))
     prof = CalibrationProfile(
         id="cal-test", created_at=created.isoformat(timespec="seconds"), mode="reflective",
@@ -27,7 +28,7 @@ def make_profile(tmp_path, **over) -> CalibrationProfile:
         statistics={"best": "least-squares",
                     "methods": {"least-squares": {"train": {"mean": 0.4}, "test": {"mean": 0.3}}}},
         white_xyz=D65, raw={"white_level": 15520, "black_level": 600, "cfa": "RGGB", "linear_limit": 11000,
-                            "shape": [8, 12]}, sources={"0001_dark.dng": "ab" * 32}, ppi=300.0,
-        darks=darks, whites={"P light 1": FlatField(np.full((8, 12), 1000.0, np.float32))}, **over)
+                            "shape": list(shape)}, sources={"0001_dark.dng": "ab" * 32}, ppi=300.0,
+        darks=darks, whites={"P light 1": FlatField(np.full(shape, 1000.0, np.float32))}, **over)
     prof.save(tmp_path)
     return prof

@@ -161,7 +161,7 @@ class CaptureProcessor:
         if d is not None:
             return d
         black = getattr(frame, "black_levels", None)
-        level = float(np.mean(black)) if black else 0.0
+        level = float(np.mean(black)) if black else float(self.black_level or 0.0)    # a bare array: the given one
         log.warning("no dark frames for %.6g s: subtracting the file's black level (%.1f DN) instead", exposure_s,
                     level)
         return level

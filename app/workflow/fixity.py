@@ -7,6 +7,9 @@ wrong (missing, another size, another digest, not listed in its sidecar); a side
 (a delivery made before fixity was recorded) is one problem too, since nothing of it can be checked. The previous
 sets a re-delivery keeps (``<stem>/previous/...``) carry their own sidecars and are checked the same way.
 
+Each sidecar is also checked against its JSON Schema (resources/schemas/dualrgb-delivery-1.schema.json, with
+jsonschema): a sidecar that does not say what a delivery must say is a problem, one line per finding.
+
 The sidecar's ``fixity`` section::
 
     "fixity": {"algorithm": "sha256", "files": {"ACC-1_XYZ_16bit.tif": {"bytes": 146948096, "sha256": "9f..."}, ...}}
@@ -22,6 +25,7 @@ import json
 import logging
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 from dualrgb.app.workflow.delivery_folder import SIDECAR_FORMAT
@@ -91,6 +95,29 @@ def find_sidecars(where: Path) -> Iterator[Path]:
             yield path
 
 
+SCHEMA_FILE = "dualrgb-delivery-1.schema.json"
+
+
+@lru_cache(maxsize=1)
+def sidecar_schema() -> dict:
+    """The delivery sidecar's JSON Schema (packaged: dualrgb.resources, schemas/)."""
+    from dualrgb.resources import path
+
+    return json.loads(path("schemas", SCHEMA_FILE).read_text(encoding="utf-8"))
+
+
+def schema_problems(doc: object) -> list[str]:
+    """What in a sidecar's JSON does not follow the schema: '<where>: <message>' per finding."""
+    import jsonschema
+
+    validator = jsonschema.Draft202012Validator(sidecar_schema())
+    out = []
+    for err in sorted(validator.iter_errors(doc), key=lambda e: list(e.absolute_path)):
+        where = "/".join(str(p) for p in err.absolute_path) or "(top)"
+        out.append(f"{where}: {err.message}")
+    return out
+
+
 def on_demand(doc: dict, name: str) -> bool:
     """Whether a file named ``name`` beside a delivery is one ``dualrgb cube`` makes on demand for it (its cube,
     its header, a rendering): allowed there without fixity when the sidecar says the cube is made on demand."""
@@ -110,6 +137,7 @@ def verify_sidecar(sidecar: Path, report: VerifyReport) -> None:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         report.problems.append(f"{sidecar}: cannot read the sidecar ({exc})")
         return
+    report.problems.extend(f"{sidecar}: schema {SCHEMA_FILE}: {line}" for line in schema_problems(doc))
     section = doc.get("fixity") if isinstance(doc, dict) else None
     files = section.get("files") if isinstance(section, dict) else None
     if not isinstance(files, dict) or section.get("algorithm") != FIXITY_ALGORITHM:
