@@ -67,7 +67,7 @@ def open_channels(paths: Sequence[Path]) -> list[np.ndarray]:
     """The camera-RGB TIFFs as read-only maps of their pixels ((H, W, 3) uint16 each), all of one size."""
     import tifffile
 
-    arrays = []
+    arrays: list[np.ndarray] = []
     for p in paths:
         try:
             arr = tifffile.memmap(p, mode="r")

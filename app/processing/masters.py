@@ -45,6 +45,7 @@ log = logging.getLogger(__name__)
 
 FULL, HALF = "full", "half"
 RESOLUTIONS = (FULL, HALF)
+RESOLUTION_CHOICES = {FULL: "full resolution (the sensor's pixels)", HALF: "half resolution (2x2 Bayer cells)"}
 SLOT_RTOL = 1e-3               # exposure times this close share an HDR slot (app.processing.hdr.HdrMerge._slot)
 
 
@@ -67,7 +68,7 @@ def band_of(array: np.ndarray, y0: int, y1: int, buffers: dict, key: str) -> np.
         buf = buffers[key] = np.empty(shape, array.dtype)
     out = buf[: shape[0]]
     row_bytes = int(np.prod(array.shape[1:], dtype=np.int64)) * array.dtype.itemsize
-    view = memoryview(out.reshape(-1).view(np.uint8))
+    view = out.reshape(-1).view(np.uint8).data
     with open(array.filename, "rb", buffering=0) as fh:
         fh.seek(int(array.offset) + y0 * row_bytes)
         done = 0
@@ -141,15 +142,15 @@ class MasterFrames:
         dark = self.proc._dark_for(frame, ref.exposure_s, cancel)
         self._frames[light].append((float(ref.exposure_s), mosaic, dark))
 
-    def _light(self, name: str) -> _Light:
+    def _light(self, name: str, shape: tuple[int, int]) -> _Light:
         frames = sorted(self._frames[name], key=lambda f: f[0])
         exposures = [f[0] for f in frames]
         slots, first, times = _slots(exposures)
         order = np.argsort(np.asarray(times), kind="stable").astype(np.int64)
         ff = self.proc.white(name)
-        if ff.white.shape != self.shape:
+        if ff.white.shape != shape:
             raise ValueError(f"{name}: the calibration's white is {ff.white.shape[1]}x{ff.white.shape[0]}, the "
-                             f"original's frames {self.shape[1]}x{self.shape[0]}")
+                             f"original's frames {shape[1]}x{shape[0]}")
         return _Light(name, [f[1] for f in frames], exposures, [f[2] for f in frames], slots, first, order,
                       np.asarray(times, np.float32)[order], ff.white, float(ff.threshold))
 
@@ -159,9 +160,10 @@ class MasterFrames:
         if missing or self.shape is None:
             self.close()
             raise ValueError(f"no exposures of {', '.join(missing or self.lights)} were added")
+        shape = self.shape
+        lights = [self._light(n, shape) for n in self.lights]
         held, self._held = self._held, ExitStack()
-        return MasterStack(self.proc, [self._light(n) for n in self.lights], self.shape, self.min_signal_dn, held,
-                           threads)
+        return MasterStack(self.proc, lights, shape, self.min_signal_dn, held, threads)
 
     def close(self) -> None:
         """Release the held exposures (their LibRaw buffers)."""

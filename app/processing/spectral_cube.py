@@ -164,9 +164,10 @@ class SpectralEncoder:
         """Rows ``r0`` .. into ``cube`` (rows, n_wl, W) uint16 (band-interleaved by line; None: the cube is not
         kept, only rendered) and ``rgb`` (rows, W, 3) uint16 (needed when there is a rendering), each C-contiguous;
         from ``band`` (those rows, (rows, W, N) float32) when the encoder has no stack."""
-        if cube is None and rgb is None:
+        first = cube if cube is not None else rgb
+        if first is None:
             raise ValueError("neither a cube nor a rendering band to encode")
-        rows = (cube if cube is not None else rgb).shape[0]
+        rows = first.shape[0]
         H, W, B = self.shape
         if (r0 < 0 or r0 + rows > H or (cube is not None and cube.shape != (rows, B, W))
                 or (rgb is None) != (self.rendering is None) or (rgb is not None and rgb.shape != (rows, W, 3))):

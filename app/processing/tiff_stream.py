@@ -219,6 +219,8 @@ class TiffStream:
 
     def _write(self, data: memoryview, pos: int, hashed: int | None = None) -> None:
         """Write ``data`` at ``pos`` and add its first ``hashed`` bytes (all by default) to the digest."""
+        if self._out is None:
+            raise ValueError(f"{self.path}: not open for writing")
         self._out.pwrite(data, pos)
         if self._hash is not None:
             self._hash.update(data if hashed is None else data[:hashed])

@@ -140,7 +140,7 @@ def verify_sidecar(sidecar: Path, report: VerifyReport) -> None:
     report.problems.extend(f"{sidecar}: schema {SCHEMA_FILE}: {line}" for line in schema_problems(doc))
     section = doc.get("fixity") if isinstance(doc, dict) else None
     files = section.get("files") if isinstance(section, dict) else None
-    if not isinstance(files, dict) or section.get("algorithm") != FIXITY_ALGORITHM:
+    if not isinstance(section, dict) or not isinstance(files, dict) or section.get("algorithm") != FIXITY_ALGORITHM:
         report.problems.append(f"{sidecar}: no {FIXITY_ALGORITHM} fixity recorded (delivered before dualrgb "
                                "recorded it): its files cannot be checked")
         return

@@ -63,7 +63,9 @@ class ProfileArrays:
             start = info.header_offset + _LOCAL_HEADER.size + n_name + n_extra
             fh.seek(start)
             version = np.lib.format.read_magic(fh)
-            shape, fortran, dtype = np.lib.format._read_array_header(fh, version)
+            read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                    else np.lib.format.read_array_header_2_0)
+            shape, fortran, dtype = read(fh)
             offset = fh.tell()
         if len(shape) < 2 or dtype.hasobject:     # small or odd arrays (stand observations): read as they are
             return self._npz[name]

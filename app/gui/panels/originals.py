@@ -40,6 +40,7 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
 from dualrgb.app.gui.widgets import side_by_side
+from dualrgb.app.processing.masters import RESOLUTION_CHOICES
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.copystand import CaptureReport, StandSettings, original_takes
 from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
@@ -112,6 +113,16 @@ class OriginalsPanel(QWidget):
         self.frames = QSpinBox()
         self.frames.setRange(1, 32)
         self.frames.setToolTip("Frames averaged per exposure: noise / sqrt(N), light dose x N.")
+        self.resolution = QComboBox()
+        for key, label in RESOLUTION_CHOICES.items():
+            self.resolution.addItem(label, key)
+        self.resolution.setCurrentIndex(max(0, self.resolution.findData(self.ctx.get("originals/resolution", "full",
+                                                                                     str))))
+        self.resolution.setToolTip("Full: the sensor's pixels (each light's frames demosaiced, Malvar-He-Cutler, "
+                                   "linear). Half: one pixel per 2x2 Bayer cell, no interpolation (a quarter of the "
+                                   "pixels, as dualrgb capture --resolution half). Remembered.")
+        self.resolution.currentIndexChanged.connect(
+            lambda _i: self.ctx.set("originals/resolution", self.resolution.currentData()))
         self.add_button = QPushButton("Add to the queue")
         self.add_button.clicked.connect(self.add_original)
         form.addRow("Identifier *", self.identifier)
@@ -122,6 +133,7 @@ class OriginalsPanel(QWidget):
         self.stand_in_label = QLabel("Virtual stand-in")
         form.addRow(self.stand_in_label, self.stand_in)
         form.addRow("Frames per exposure", self.frames)
+        form.addRow("Deliver at", self.resolution)
         self._import_rows(form)
         return box
 
@@ -407,7 +419,8 @@ class OriginalsPanel(QWidget):
 
     def _start(self, row: QueueRow, reshoot: bool | None) -> None:
         profile, lab = self.ws.calibration, self.lab
-        settings = StandSettings(**self._stand_settings(), force=self.force.isChecked(), original_frames=row.frames)
+        settings = StandSettings(**self._stand_settings(), force=self.force.isChecked(), original_frames=row.frames,
+                                 resolution=str(self.resolution.currentData()))
 
         def work(hooks: RunHooks) -> CaptureReport:
             stand = lab.copy_stand(settings, hooks, stand_in=row.stand_in)
