@@ -27,7 +27,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numba
 import numpy as np
@@ -38,8 +38,28 @@ from dualrgb.common.progress import CancelToken, check
 from dualrgb.simulation.camera_model import CHANNELS
 from dualrgb.simulation.hdr_estimators import HDR_METHOD_CODES
 
-if TYPE_CHECKING:
-    from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+
+class Processor(Protocol):
+    """What the full-resolution path needs of app.processing.pipeline.CaptureProcessor (which makes it; a
+    protocol, so this module and the pipeline do not import each other)."""
+
+    cfa: str | None
+
+    def _prepare(self, frame: Any) -> None: ...
+
+    def _dark_for(self, frame: Any, exposure_s: float, cancel: CancelToken | None) -> np.ndarray | float: ...
+
+    def white(self, light: str) -> Any: ...
+
+    def new_merge(self) -> Any: ...
+
+
+class Exposure(Protocol):
+    """An exposure to add (app.processing.pipeline.ExposureRef)."""
+
+    source: Any
+    exposure_s: float
+    label: str
 
 log = logging.getLogger(__name__)
 
@@ -112,7 +132,7 @@ def _slots(exposures: list[float]) -> tuple[np.ndarray, np.ndarray, list[float]]
 class MasterFrames:
     """The exposures of one original, held as decoded until :meth:`result` (see the module docstring)."""
 
-    def __init__(self, proc: CaptureProcessor, lights: list[str], min_signal_dn: float):
+    def __init__(self, proc: Processor, lights: list[str], min_signal_dn: float):
         self.proc = proc
         self.lights = list(lights)
         self.min_signal_dn = float(min_signal_dn)
@@ -120,7 +140,7 @@ class MasterFrames:
         self._frames: dict[str, list[tuple[float, np.ndarray, np.ndarray | float]]] = {n: [] for n in self.lights}
         self.shape: tuple[int, int] | None = None
 
-    def add(self, light: str, ref: ExposureRef, cancel: CancelToken | None = None) -> None:
+    def add(self, light: str, ref: Exposure, cancel: CancelToken | None = None) -> None:
         """Decode ``ref`` and hold it for ``light`` (the file's LibRaw buffer, no copy)."""
         from dualrgb.app.processing.mosaic import open_raw
 
@@ -176,7 +196,7 @@ class MasterStack:
 
     resolution = FULL
 
-    def __init__(self, proc: CaptureProcessor, lights: list[_Light], shape: tuple[int, int], min_signal_dn: float,
+    def __init__(self, proc: Processor, lights: list[_Light], shape: tuple[int, int], min_signal_dn: float,
                  held: ExitStack, threads: int | None = None):
         self._lights = lights
         self.lights = [lt.name for lt in lights]

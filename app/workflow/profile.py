@@ -30,7 +30,6 @@ thesis saw no drift in.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import logging
 from collections.abc import Sequence
@@ -46,6 +45,7 @@ from dualrgb.app.session.capture_session import atomic_write
 from dualrgb.app.workflow.profile_arrays import ProfileArrays
 from dualrgb.app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
 from dualrgb.app.workflow.vocabulary import NamedLight, exposure_key
+from dualrgb.common.atomic_files import atomic_output
 from dualrgb.simulation.defaults import default_grid
 from dualrgb.simulation.lightsource import LightSource
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
@@ -215,17 +215,16 @@ class CalibrationProfile:
             white_index.append({"array": f"white_{i}", "light": name, "threshold": ff.threshold})
         if self.stand_observations is not None:
             arrays.update(observation_arrays(self.stand_observations))
-        buf = io.BytesIO()
-        np.savez(buf, **arrays)
-        data = buf.getbuffer()
         npz = folder / f"{self.id}.npz"
-        atomic_write(npz, data)
-        doc = {**self.to_dict(), "arrays": {"file": npz.name, "sha256": hashlib.sha256(data).hexdigest(),
+        with atomic_output(npz, "wb") as fh:         # streamed: a 150 MP calibration's 3.6 GB never copied whole
+            np.savez(fh, **arrays)
+        size = npz.stat().st_size
+        doc = {**self.to_dict(), "arrays": {"file": npz.name, "sha256": _sha256(npz),
                                             "darks": dark_index, "whites": white_index}}
         path = folder / f"{self.id}.json"
         atomic_write(path, (json.dumps(doc, indent=2) + "\n").encode())
         self.path = path
-        log.info("calibration %s saved: %s (+ %s, %.0f MB)", self.id, path, npz.name, len(data) / 1e6)
+        log.info("calibration %s saved: %s (+ %s, %.0f MB)", self.id, path, npz.name, size / 1e6)
         return path
 
 
