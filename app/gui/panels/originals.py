@@ -366,7 +366,9 @@ class OriginalsPanel(QWidget):
         delivered = [r for r in sel if r.state is OriginalState.DELIVERED]
         self.open_tiff_button.setEnabled(len(delivered) == 1)
         self.open_folder_button.setEnabled(len(delivered) == 1)
-        if len(delivered) == 1 and delivered[0].sidecar != self._shown and delivered[0].files.get("spectral"):
+        spectral = len(delivered) == 1 and ("spectral" in delivered[0].files          # the cube, or its channels
+                                            or "channels_1" in delivered[0].files)   # (full resolution: on demand)
+        if spectral and delivered[0].sidecar != self._shown:
             self.show_delivered(delivered[0])
         self.force.setEnabled(not running)
         why = self._why_not(running)
