@@ -290,17 +290,24 @@ def _storage_table() -> dict:
     return {k: {r: storage(w, h, 2, 38, r) for r in ("full", "half")} for k, (w, h) in sizes.items()}
 
 
-def bench_digitise(height: int = D610[1], width: int = D610[0], cache: str | None = None, repeats: int = 3,
-                   kinds: list[str] | None = None) -> dict:
+def _child_prepare(folder: str, height: int, width: int) -> dict:
+    """The set and its calibration, in a child of their own: Linux keeps a process's peak RSS across fork and exec,
+    so a parent that had built a 150 MP calibration (~6 GB) would hand its peak to every measured child."""
     from bench.processing_bench import make_set
 
+    if height * width > LARGE_PIXELS:
+        make_large_set(Path(folder), height, width, 2)
+    else:
+        make_set(Path(folder), height, width, 10)
+    make_profile(Path(folder), True)
+    return {}
+
+
+def bench_digitise(height: int = D610[1], width: int = D610[0], cache: str | None = None, repeats: int = 3,
+                   kinds: list[str] | None = None) -> dict:
     large = height * width > LARGE_PIXELS
     folder = Path(cache or Path(tempfile.gettempdir()) / f"dualrgb_bench_set_{width}x{height}")
-    if large:
-        make_large_set(folder, height, width, 2)
-    else:
-        make_set(folder, height, width, 10)
-    make_profile(folder, True)
+    run_in_child("bench.digitise_bench", "_child_prepare", str(folder), height, width)
     run_in_child("bench.digitise_bench", "_child_warm")
     kinds = kinds or (["decode", "full"] if large else ["decode", "full", "half", "libraw", "full_all_frames",
                                                        "cube_on_demand"])
