@@ -96,3 +96,77 @@ def flat_rows(raws, darks, dark_values, use_dark, slots, first_in_slot, n_slots,
             _weak_row(sums, counts, floor_dn, weak[i], first_light)
         _flat_row(merged, white[i], threshold, out[i])
     return clipped
+
+
+@njit(nogil=True, cache=True)
+def flat_rows_variance(raws, darks, dark_values, use_dark, ts, inv_gain, var_read, limit, white_level, white,
+                       threshold, floor_dn, out, weak, first_light, a, b, core_a, core_b):  # pragma: no cover
+    """:func:`flat_rows` for its common case, fused: the variance-optimal merge of exposures of distinct times
+    (one frame each, ``raws`` shortest first, ``ts`` their times). The same arithmetic, in the same order, as
+    store_row + kernels._merge_row (the tests check the two bit for bit), in one pass per exposure over loops that
+    vectorise, without the slots' counts: 2.5x faster."""
+    K = len(raws)
+    W = white.shape[1]
+    x = np.empty((K, W), np.float32)
+    u = np.empty((K, W), np.float32)
+    sx = np.empty(W, np.float32)
+    st = np.empty(W, np.float32)
+    num = np.empty(W, np.float32)
+    den = np.empty(W, np.float32)
+    best = np.empty(W, np.float32)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    nan = np.float32(np.nan)
+    clipped = 0
+    for i in range(a, b):
+        for j in range(W):
+            sx[j] = zero
+            st[j] = zero
+            num[j] = zero
+            den[j] = zero
+            best[j] = np.float32(-1e30)
+        for k in range(K):
+            r = raws[k][i]
+            d = darks[k][i] if use_dark[k] else darks[k][0]
+            dv = dark_values[k]
+            dk = use_dark[k]
+            t = ts[k]
+            xk = x[k]
+            uk = u[k]
+            for j in range(W):
+                v = r[j]
+                xk[j] = np.float32(v) - (d[j] if dk else dv)
+                ok = v <= limit and v < white_level
+                uk[j] = one if ok else zero
+                sx[j] += xk[j] if ok else zero
+                st[j] += t if ok else zero
+                best[j] = max(best[j], xk[j]) if ok else best[j]
+        for j in range(W):
+            sx[j] = max(sx[j] / st[j], zero) if st[j] > zero else zero
+        for k in range(K):
+            t = ts[k]
+            xk = x[k]
+            uk = u[k]
+            for j in range(W):
+                w = one / (sx[j] * t * inv_gain + var_read)
+                ok = uk[j] > zero
+                num[j] += (w * t * xk[j]) if ok else zero
+                den[j] += w * uk[j] * t * t
+        o = out[i]
+        wr = white[i]
+        inv_t0 = one / ts[0]
+        x0 = x[0]
+        for j in range(W):
+            e = num[j] / den[j] if den[j] > zero else x0[j] * inv_t0
+            wv = wr[j]
+            o[HALO + j] = e / wv if wv > threshold else nan
+        for h in range(1, HALO + 1):
+            o[HALO - h] = o[HALO + h]
+            o[HALO + W - 1 + h] = o[HALO + W - 1 - h]
+        if core_a <= i < core_b:
+            wk = weak[i]
+            for j in range(W):
+                clipped += 1 if st[j] == zero else 0
+                w8 = best[j] < floor_dn
+                wk[j] = w8 if first_light else (wk[j] and w8)
+    return clipped

@@ -214,6 +214,7 @@ class MasterStack:
         self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="master")
         self._buffers: dict[str, np.ndarray] = {}
         self._clipped = dict.fromkeys(self.lights, 0)
+        self._fused = True          # the fused variance kernel where it applies (False: always the general one)
         self._weak = 0
         self._rows_done = 0
 
@@ -245,7 +246,7 @@ class MasterStack:
                    weak: np.ndarray) -> None:
         """Light ``lt``'s flat-fielded mosaic for image rows y0 .. y1 (inside the frame) into ``out`` (y1 - y0,
         W + 2 HALO), mirrored at the columns; counts its clipped photosites in rows ``core`` (of the band)."""
-        from dualrgb.app.processing.master_kernels import flat_rows
+        from dualrgb.app.processing.master_kernels import flat_rows, flat_rows_variance
 
         raws = tuple(np.ascontiguousarray(m[y0:y1]) for m in lt.mosaics)
         placeholder = self._buffer("nodark", (1, self.width), np.float32)
@@ -255,12 +256,19 @@ class MasterStack:
         values = np.array([0.0 if isinstance(d, np.ndarray) else d for d in lt.darks], np.float32)
         white = np.ascontiguousarray(band_of(lt.white, y0, y1, self._buffers, f"white{li}"), np.float32)
         m = self._merge
-        args = (raws, darks, values, use, lt.slots, lt.first_in_slot, int(lt.slots.max()) + 1, lt.order, lt.ts,
-                (np.float32(1.0) / lt.ts).astype(np.float32), self._method,
-                np.float32(1.0 / (m.white_level - m.black_level)), np.float32(1.0 / m.noise.electrons_per_dn),
-                np.float32(m.noise.read_variance), np.float32(self._limit), np.float32(m.white_level), white,
-                np.float32(lt.threshold), self._floor, out, weak, li == 0)
-        done = self._pool.map(lambda ab: flat_rows(*args, ab[0], ab[1], core[0], core[1]), self._chunks(y1 - y0))
+        gain, var = np.float32(1.0 / m.noise.electrons_per_dn), np.float32(m.noise.read_variance)
+        limit, white_level, threshold = np.float32(self._limit), np.float32(m.white_level), np.float32(lt.threshold)
+        if self._fused and self._method == HDR_METHOD_CODES["variance"] and bool(lt.first_in_slot.all()):
+            fargs = (raws, darks, values, use, lt.ts, gain, var, limit, white_level, white, threshold, self._floor,
+                     out, weak, li == 0)
+            done = self._pool.map(lambda ab: flat_rows_variance(*fargs, ab[0], ab[1], core[0], core[1]),
+                                  self._chunks(y1 - y0))
+        else:
+            args = (raws, darks, values, use, lt.slots, lt.first_in_slot, int(lt.slots.max()) + 1, lt.order, lt.ts,
+                    (np.float32(1.0) / lt.ts).astype(np.float32), self._method,
+                    np.float32(1.0 / (m.white_level - m.black_level)), gain, var, limit, white_level, white,
+                    threshold, self._floor, out, weak, li == 0)
+            done = self._pool.map(lambda ab: flat_rows(*args, ab[0], ab[1], core[0], core[1]), self._chunks(y1 - y0))
         self._clipped[lt.name] += sum(int(c) for c in done)
 
     def band(self, r0: int, rows: int) -> np.ndarray:

@@ -95,6 +95,25 @@ def test_bands_equal_the_whole_frame_reference(scene, method, cfa, band_rows):
     assert under == 0.0
 
 
+def test_the_fused_variance_kernel_is_the_general_one_bit_for_bit(scene):
+    """Exposures of distinct times merged by variance take the fused kernel (master_kernels.flat_rows_variance):
+    the same bits as the general slots + kernels._merge_row path, clipped and under-exposed counts included."""
+    dark, frames, whites = scene
+    frames = {"a": [frames["a"][0], frames["a"][1]], "b": frames["b"]}          # one frame per exposure time
+    got = {}
+    for fused in (True, False):
+        builder = processor(dark, whites, "variance", "GRBG").begin_master(list(frames))
+        for light, fs in frames.items():
+            for m, t in fs:
+                builder.add(light, ExposureRef(m, t))
+        with builder.result() as stack:
+            stack._fused = fused
+            bands = np.concatenate([stack.band(r0, min(6, H - r0)).copy() for r0 in range(0, H, 6)])
+            got[fused] = (bands, stack.clipped_fraction, stack.underexposed_fraction)
+    assert np.array_equal(got[True][0], got[False][0], equal_nan=True)
+    assert got[True][1:] == got[False][1:] and got[True][1]["a"] > 0
+
+
 def test_calibration_arrays_mapped_from_a_file_give_the_same_bands(scene, tmp_path):
     """A large calibration's darks and whites are np.memmap views of the .npz (app.workflow.profile_arrays): the
     bands read from the file equal the bands of the arrays in memory."""
