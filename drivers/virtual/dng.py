@@ -96,7 +96,7 @@ def _cfa_codes(cfa: str) -> tuple[int, ...]:
     return tuple(CFA_CODES[c] for c in cfa.upper())
 
 
-TagValue = tuple[int, ...] | str | int     # numbers (rationals as numerator, denominator pairs), ASCII text
+TagValue = tuple[int, ...] | str | bytes | int    # numbers (rationals: numerator, denominator pairs), text, UNDEFINED
 
 
 def _entries(tags: list[tuple[tuple[int, int], TagValue]]) -> list[tuple[int, int, int, TagValue, bool]]:
