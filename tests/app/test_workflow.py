@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import tifffile
+from sidecar_schema import assert_valid_sidecar
 from workflow_profiles import make_profile as _profile
 from xmp_check import read_xmp
 
@@ -166,6 +167,7 @@ def test_deliverables_carry_their_metadata(tmp_path):
     with tifffile.TiffFile(d.files["channels_1"]) as t:
         assert t.pages[0].tags["PageName"].value == "P light 1: R1 G1 B1"
     side = read_sidecar(d.sidecar)
+    assert assert_valid_sidecar(d.sidecar) == side                     # the sidecar's JSON Schema
     assert set(side["software"]) >= {"dualrgb", "numpy", "colour-science", "rawpy", "libraw"}
     assert side["light_dose"]["lux_h"] == pytest.approx(0.01) and "lux.h" in d.qa.text()
 
