@@ -10,19 +10,12 @@ import argparse
 import logging
 from pathlib import Path
 
+from dualrgb.app.commands.options import key_value
 from dualrgb.app.json_output import add_json_option, write_json
 
 log = logging.getLogger(__name__)
 
 FORMAT = "dualrgb-bag/1"
-
-
-def key_value(text: str) -> tuple[str, str]:
-    """``Key=Value`` for a bag-info field (the key: letters, digits and dashes, as BagIt's are)."""
-    key, sep, value = text.partition("=")
-    if not sep or not key.strip() or not all(c.isalnum() or c == "-" for c in key.strip()):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected Key=Value, the key of letters, digits and dashes")
-    return key.strip(), value.strip()
 
 
 def register(sub: argparse._SubParsersAction) -> None:

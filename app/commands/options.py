@@ -188,6 +188,14 @@ def add_render_option(p: argparse.ArgumentParser) -> None:
                         f"{names}; default {default}")
 
 
+def key_value(text: str) -> tuple[str, str]:
+    """``Key=Value``, e.g. a BagIt bag-info field (the key: letters, digits and dashes, as BagIt's are)."""
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip() or not all(c.isalnum() or c == "-" for c in key.strip()):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected Key=Value, the key of letters, digits and dashes")
+    return key.strip(), value.strip()
+
+
 RESOLUTION_HELP = ("full: the sensor's pixels, each light's frames demosaiced (Malvar-He-Cutler, linear); half: one "
                    "pixel per 2x2 Bayer cell, no interpolation (a quarter of the pixels). Default full")
 

@@ -69,18 +69,29 @@ def make_cube(delivery: Path, out: Path | None = None, render: str | None = None
     lines, samples = materialise(channels, est, data, band_rows=band_rows, cancel=cancel,
                                  progress=scaled(progress, 0.0, 0.7 if light else 1.0))
     header = out / f"{stem}_spectral.hdr"
-    ident = str(doc["original"]["identifier"])
-    cal = str((doc.get("calibration") or {}).get("id", ""))
-    EnviHeader(lines, samples, est.n_wavelengths, [float(w) for w in est.wavelengths],
-               f"dualrgb spectral cube of {ident}, made on demand from {', '.join(p.name for p in channels)}",
-               extra={"dualrgb calibration": cal, "dualrgb method": est.method, "dualrgb quantity": est.quantity}
-               ).write(header)
+    _header(doc, est, lines, samples).write(header)
     rendered = None
     if light is not None:
         rendered = out / render_name(stem, light)
         _render(doc, channels, est, light, rendered, band_rows, scaled(progress, 0.7, 1.0), cancel)
-    log.info("cube of %s made on demand: %s", ident, data)
+    log.info("cube of %s made on demand: %s", doc["original"]["identifier"], data)
     return OnDemand(data, header, rendered, (lines, samples))
+
+
+def _header(doc: dict, est, lines: int, samples: int) -> EnviHeader:
+    """The ENVI header of the cube made on demand: the delivered cube's, in ASCII (ENVI headers are), saying so."""
+    from dualrgb.app.workflow.metadata import ascii_text
+    from dualrgb.simulation.versions import dualrgb_version
+
+    original = doc["original"]
+    ident, title = str(original["identifier"]), str(original.get("title") or "")
+    cal = str((doc.get("calibration") or {}).get("id", ""))
+    text = (f"dualrgb spectral cube of {ident}" + (f" - {title}" if title else "") + f"; {est.quantity} estimated by "
+            f"{est.method} from {est.n_channels} channels; calibration {cal}; made on demand from the camera-RGB files")
+    return EnviHeader(lines, samples, est.n_wavelengths, [float(w) for w in est.wavelengths], ascii_text(text),
+                      extra={"dualrgb identifier": ascii_text(ident), "dualrgb calibration": cal,
+                             "dualrgb method": est.method, "dualrgb quantity": est.quantity,
+                             "dualrgb software": f"dualrgb {dualrgb_version()}"})
 
 
 def _render(doc: dict, channels: list[Path], est, light: str, path: Path, band_rows: int,
