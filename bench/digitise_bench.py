@@ -19,6 +19,7 @@ darks). Each measurement runs in a fresh process (peak RSS = ru_maxrss):
                   the 4 frames: what LibRaw's own full-resolution demosaic costs, nothing written
   full_all_frames the full-resolution delivery from the 4 frames on disk (``dualrgb process``)
   cube_on_demand  ``dualrgb cube``: the full-resolution delivery's cube (ENVI) made from its camera-RGB TIFFs
+  full_stages     where the full-resolution delivery's CPU time goes, stage by stage, single-threaded
 
 Targets (issue 31): full <= 2.0 x decode at 24 MP; at 150 MP (``--size 14204x10652``) peak RSS <= 4 GB and time
 per pixel within 1.3 x of the 24 MP case. Loading the profile and the numba kernels happen before the capture
@@ -257,6 +258,45 @@ def _child_cube(folder: str) -> dict:
             "deflate_mb_s": mb_s}
 
 
+def _child_stages(folder: str) -> dict:
+    """Where the full-resolution delivery's processor time goes, stage by stage, single-threaded (CPU seconds): the
+    last frame's decode, the merge + flat field + demosaic of every band, the colour encodings of every band, and
+    the SHA-256 of as many bytes as the TIFFs hold."""
+    import hashlib
+
+    sys.path.insert(0, str(ROOT))
+    from dualrgb.app.processing.encode import DeliveryEncoder
+    from dualrgb.app.processing.pipeline import ExposureRef
+    from dualrgb.app.workflow.copystand import begin_channels, profile_processor
+
+    prof = _ready(Path(folder))
+    frames = _scene_frames(Path(folder))
+    builder = begin_channels(profile_processor(prof), [nl.name for nl in prof.lights], "full")
+    for light, path, t in frames[:-1]:
+        builder.add(light, ExposureRef(path, t, path.name))
+    c0 = cpu_s()
+    builder.add(frames[-1][0], ExposureRef(frames[-1][1], frames[-1][2], frames[-1][1].name))
+    out: dict = {"decode_last_frame": cpu_s() - c0}
+    stack = builder.result(threads=1)
+    H, W = stack.shape
+    enc = DeliveryEncoder((H, W, 6), prof.matrix.matrix, prof.white_xyz, ["ProPhoto RGB", "sRGB"], threads=1)
+    bands = [np.empty((64, W, 3), np.uint16) for _ in range(5)]
+    merge = encode = 0.0
+    for r0 in range(0, H, 64):
+        rows = min(64, H - r0)
+        c0 = cpu_s()
+        band = stack.band(r0, rows)
+        c1 = cpu_s()
+        enc.encode(r0, bands[0][:rows], [b[:rows] for b in bands[1:3]], [b[:rows] for b in bands[3:5]], band=band)
+        merge, encode = merge + c1 - c0, encode + cpu_s() - c1
+    stack.close()
+    data = np.zeros(5 * H * W * 3 * 2 // 8, np.uint64)
+    c0 = cpu_s()
+    hashlib.sha256(memoryview(data)).hexdigest()
+    out.update(merge_flat_demosaic=merge, colour_encodings=encode, sha256_of_the_tiffs_bytes=cpu_s() - c0)
+    return {"seconds": sum(out.values()), "cpu_s": sum(out.values()), "stages_cpu_s": out}
+
+
 def _child_warm() -> dict:
     """Compile the kernels into numba's on-disk cache once, so no measured run pays (or counts the memory of)
     LLVM compiling them."""
@@ -278,6 +318,8 @@ def _run_child(kind: str, folder: Path) -> dict:
         return run_in_child("bench.digitise_bench", f"_child_{kind}", str(folder))
     if kind == "cube_on_demand":
         return run_in_child("bench.digitise_bench", "_child_cube", str(folder))
+    if kind == "full_stages":
+        return run_in_child("bench.digitise_bench", "_child_stages", str(folder))
     resolution = "half" if kind == "half" else "full"
     return run_in_child("bench.digitise_bench", "_child_digitise", str(folder), resolution,
                         kind != "full_all_frames")
@@ -310,7 +352,7 @@ def bench_digitise(height: int = D610[1], width: int = D610[0], cache: str | Non
     run_in_child("bench.digitise_bench", "_child_prepare", str(folder), height, width)
     run_in_child("bench.digitise_bench", "_child_warm")
     kinds = kinds or (["decode", "full"] if large else ["decode", "full", "half", "libraw", "full_all_frames",
-                                                       "cube_on_demand"])
+                                                       "cube_on_demand", "full_stages"])
     runs: dict[str, list[dict]] = {k: [] for k in kinds}
     loads = [os.getloadavg()[0]]
     for _ in range(repeats):                      # interleaved, so load from other processes hits all alike
@@ -330,9 +372,9 @@ def _summary(runs: dict[str, list[dict]], width: int, height: int, repeats: int,
             continue
         entry = {"seconds": round(r["seconds"], 3), "vs_decode": round(r["seconds"] / dec, 2),
                  "cpu_s": round(r["cpu_s"], 3), "peak_rss_mb": round(max(x["peak_rss_mb"] for x in runs[kind]))}
-        for extra in ("deliverables_bytes", "phases_s", "cube_bytes", "deflate_ratio", "deflate_mb_s"):
+        for extra in ("deliverables_bytes", "phases_s", "cube_bytes", "deflate_ratio", "deflate_mb_s", "stages_cpu_s"):
             if extra in r:
-                entry[extra] = ({k: round(v, 3) for k, v in r[extra].items()} if extra == "phases_s"
+                entry[extra] = ({k: round(v, 3) for k, v in r[extra].items()} if extra in ("phases_s", "stages_cpu_s")
                                 else round(r[extra], 2) if isinstance(r[extra], float) else r[extra])
         if "delivered_pixels" in r:
             entry["ns_per_sensor_pixel"] = round(1e9 * r["seconds"] / (width * height), 2)
