@@ -19,12 +19,13 @@ resolution (the frames demosaiced: app.processing.masters), from the same frames
 """
 from __future__ import annotations
 
-import json
+import dataclasses
 import logging
 import time
 from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -42,6 +43,7 @@ from dualrgb.app.workflow.session_processing import process_session
 from dualrgb.app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
 from dualrgb.app.workflow.vocabulary import NamedLight, Subject, lights_of
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report, scaled
+from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.drivers.virtual.lab import VirtualLab
 from dualrgb.drivers.virtual.world import load_world
 from dualrgb.simulation.camera_model import channel_responses
@@ -81,13 +83,25 @@ class DemoSettings:
     conditions: tuple[str, ...] = CONDITIONS
     new_session: bool = False                # a session made with other settings: use a new one, not refuse
     world: str | None = None                 # what the virtual lab renders (drivers.virtual.world; None nominal)
+    charts: dict[str, Any] = field(default_factory=dict)   # the stand's own charts (app.workflow.charts.load_charts)
 
     def definition(self) -> dict:
         """What defines this run's frames (app.session: a resume with anything else is refused)."""
+        from dualrgb.app.workflow.charts import definition as chart_definition
+
         return {"workflow": "demo", "mode": self.mode, "frame_size": list(self.frame_size), "seed": self.seed,
                 "hdr": self.hdr, "dark_frames": self.dark_frames, "flat_frames": self.flat_frames,
                 "settle_s": self.settle_s, "conditions": list(self.conditions),
-                "world": load_world(self.world).identity}
+                "world": load_world(self.world).identity, **chart_definition(self.charts)}
+
+    def setup(self) -> Any:
+        """The packaged data of the mode with the charts' reference data as its training and test targets (what
+        the optimiser chooses the lights on and the virtual lab renders)."""
+        from dualrgb.simulation.datasets import default_setup
+
+        setup = default_setup(self.mode)
+        own = {role: chart.reference() for role, chart in self.charts.items()}
+        return dataclasses.replace(setup, **own) if own else setup
 
 
 @dataclass
@@ -107,13 +121,13 @@ def demo_capture_model(settings: DemoSettings):
 
     from dualrgb.drivers.virtual.scene import Scene
     from dualrgb.simulation.capture_model import CaptureModel
-    from dualrgb.simulation.datasets import default_setup
 
-    setup = default_setup(settings.mode)
+    setup = settings.setup()
     width, height = (int(v) // 2 * 2 for v in settings.frame_size)
     pixels = []
-    for target in (setup.train, setup.test):
-        scene = Scene.with_target(target, width=width, height=height)
+    for role, target in (("train", setup.train), ("test", setup.test)):
+        chart = settings.charts.get(role)
+        scene = Scene.with_target(chart.render_target() if chart is not None else target, width=width, height=height)
         counts = scene_grid(scene).sample(np.zeros((height // 2, width // 2, 1))).count[:scene.n_patches]
         pixels.append(max(1, int(np.median(counts))))
     cap = CaptureModel.virtual_lab(settings.mode)
@@ -124,11 +138,10 @@ def demo_capture_model(settings: DemoSettings):
 def make_conditions(settings: DemoSettings, progress: ProgressCallback | None = None) -> tuple[list[Condition], dict]:
     """Presets from the optimiser (#2) on the expected captured error of this demo's capture (#14), and what it
     predicts for them: expected captured errors per characterisation, with the noise-free ones beside them."""
-    from dualrgb.simulation.datasets import default_setup
     from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
     from dualrgb.simulation.runner import DEFAULT_METHOD
     from dualrgb.simulation.sphere import realisable_d65_mix
-    setup = default_setup(settings.mode)
+    setup = settings.setup()
     ev = ExpectedErrorEvaluator(setup, demo_capture_model(settings))
     presets = {}
     report(progress, 0.0, "optimiser: exhaustive search (expected captured error)")
@@ -208,9 +221,12 @@ class DemoRun:
             session.extend_definition(camera=camera_definition(lab.camera),
                                       lights={c.name: [light_definition(nl.light, nl.name) for nl in c.lights]
                                               for c in conds})
+            for role, chart in s.charts.items():                # the stand's own charts on the virtual stand
+                lab.use_chart(role, chart.render_target())
             stand = CopyStand(lab.camera, lab.sphere, session, stand=lab.place, lab=lab, cancel=self.cancel,
                               settings=StandSettings(settle_s=s.settle_s, dark_frames=s.dark_frames,
-                                                     flat_frames=s.flat_frames, optimise_matrix=s.optimise_matrix),
+                                                     flat_frames=s.flat_frames, optimise_matrix=s.optimise_matrix,
+                                                     charts=dict(s.charts)),
                               progress=lambda f, m: report(self.progress, 0.1 + 0.5 * f, m))
             self.lab, self.session = lab, session
             exposures = self.capture(stand, conds)
@@ -258,6 +274,7 @@ class DemoRun:
             **output_header(REPORT_FORMAT),
             "mode": s.mode, "frame_size": list(s.frame_size), "hdr": s.hdr,
             "world": {"identity": load_world(s.world).identity, **load_world(s.world).to_dict()},
+            "charts": {role: chart.record() for role, chart in s.charts.items()},   # {}: the packaged targets
             "conditions": [k for k in result if not k.startswith("original")],   # figures: top-level keys
             **result,
             "presets": presets,
@@ -269,7 +286,7 @@ class DemoRun:
             "elapsed_s": round(time.perf_counter() - self.t0, 2),
             "session": str(session.path),
         }
-        atomic_write(s.out / "report.json", (json.dumps(report_data, indent=2, default=_json) + "\n").encode())
+        atomic_write(s.out / "report.json", (strict_dumps(report_data, indent=2, default=_json) + "\n").encode())
         report(self.progress, 1.0, f"report written: {s.out / 'report.json'}")
         return report_data
 
@@ -321,8 +338,8 @@ class DemoRun:
                 "spectral_method": res.spectral.selection.chosen.label() if res.spectral is not None else None}
 
     def process_variant(self, c: Condition, label: str, nd: bool, ts: dict[str, list[float]]) -> dict:
-        specs = {t: virtual_target_spec(self.lab, Subject.target(t, nd), label=f"{t} ({label})")
-                 for t in ("train", "test")}
+        specs = {t: virtual_target_spec(self.lab, Subject.target(t, nd), label=f"{t} ({label})",
+                                        chart=self.s.charts.get(t)) for t in ("train", "test")}
         scene = self.lab.scene_for("train", nd=nd)
         specs["train"].simulated = self._simulated_values(
             c, nd_transmittance(specs["train"].nd_mask, scene.nd_transmittance, scene.n_patches))
@@ -352,7 +369,7 @@ class DemoRun:
 
     def _simulated_values(self, c: Condition, transmittance: np.ndarray) -> np.ndarray:
         """Simulated camera values of the training patches under the condition's lights (thesis Fig 7.4)."""
-        setup = self.lab.setup
+        setup = self.s.setup()
         lights = np.stack([nl.light.spectrum(setup.leds) for nl in c.lights])
         spectra = setup.train.spectra * transmittance[:, None]     # the scene's ND filter, per patch
         return channel_responses(lights, spectra, setup.camera)

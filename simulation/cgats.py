@@ -7,8 +7,12 @@ Why hand-written: colour-science's ``read_sds_from_xrite_file`` reads the X-Rite
 and, by its own description, is "absolutely not bullet-proof": a truncated row or a stray token gives a wrong
 spectrum or a Python exception, not a message a user can act on. This reader accepts every field spelling
 (``nm380``, ``SPECTRAL_NM380`` / ``SPECTRAL_NM_380``, ArgyllCMS's ``SPEC_380``), quoted names with spaces,
-comments, and checks the declared NUMBER_OF_FIELDS / NUMBER_OF_SETS; every problem is one line naming file,
-line and what was expected (tests check it against colour's reader on colour's own X-Rite test file).
+comments, and checks the declared NUMBER_OF_SETS; every problem is one line naming file, line and what was
+expected (tests check it against colour's reader on colour's own X-Rite test file). A NUMBER_OF_FIELDS that
+disagrees with the DATA_FORMAT list is a warning when the data rows match the list (vendors' files carry such
+mismatches; ArgyllCMS reads them, using only NUMBER_OF_SETS). Wavelengths come from ``SPECTRAL_START_NM`` /
+``SPECTRAL_END_NM`` (and ``SPECTRAL_BANDS``) when the file declares them: field names are rounded (a 3.33 nm
+file names ``SPEC_383`` what is 383.33 nm), so the names must only agree within half a step.
 
 Values are divided by the file's ``SPECTRAL_NORM`` keyword when it has one (ArgyllCMS: the stored values are
 value x norm). Reflectance (or transmittance) factors: a file whose spectral values still exceed 2 is taken to be
@@ -58,6 +62,7 @@ class CgatsTable:
     keywords: dict[str, str] = field(default_factory=dict)
     source: str = ""
     row_lines: list[int] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)    # one line each, also logged (file, what, how read)
 
     def spectral_fields(self) -> list[tuple[int, float]]:
         """(field index, wavelength nm) of the spectral fields, in file order."""
@@ -89,6 +94,7 @@ class CgatsTable:
             k = int(np.argmax(np.diff(wl) <= 0))
             raise CgatsError(f"{self.source}: spectral fields must increase in wavelength; {wl[k + 1]:g} nm "
                              f"follows {wl[k]:g} nm")
+        wl = self._declared_wavelengths(wl)
         values = np.empty((len(wl), len(self.rows)))
         for r, (row, line) in enumerate(zip(self.rows, self.row_lines, strict=True)):
             for c, (i, _wavelength) in enumerate(spec):
@@ -100,7 +106,6 @@ class CgatsTable:
         if not np.isfinite(values).all():
             c, r = np.argwhere(~np.isfinite(values))[0]
             raise CgatsError(f"{self.source}:{self.row_lines[r]}: {wl[c]:g} nm is not a finite number")
-        self._check_bands(wl)
         return wl, values / self._norm()
 
     def _norm(self) -> float:
@@ -113,19 +118,39 @@ class CgatsTable:
             raise CgatsError(f"{self.source}: SPECTRAL_NORM {text!r}: expected a positive number")
         return norm
 
-    def _check_bands(self, wl: np.ndarray) -> None:
-        """SPECTRAL_BANDS / SPECTRAL_START_NM / SPECTRAL_END_NM, where given, must match the fields."""
-        declared = {"SPECTRAL_BANDS": len(wl), "SPECTRAL_START_NM": wl[0], "SPECTRAL_END_NM": wl[-1]}
-        for key, actual in declared.items():
-            if key not in self.keywords:
-                continue
-            try:
-                ok = abs(float(self.keywords[key]) - float(actual)) < 1e-6
-            except ValueError:
-                ok = False
-            if not ok:
-                raise CgatsError(f"{self.source}: {key} {self.keywords[key]!r} does not match the spectral fields "
-                                 f"({len(wl)} bands, {wl[0]:g}-{wl[-1]:g} nm)")
+    def _keyword_number(self, key: str) -> float | None:
+        if key not in self.keywords:
+            return None
+        try:
+            value = float(self.keywords[key])
+        except ValueError:
+            value = float("nan")
+        if not np.isfinite(value):
+            raise CgatsError(f"{self.source}: {key} {self.keywords[key]!r}: expected a number")
+        return value
+
+    def _declared_wavelengths(self, named: np.ndarray) -> np.ndarray:
+        """The spectral fields' wavelengths: from SPECTRAL_START_NM / SPECTRAL_END_NM (evenly spaced over the
+        fields) when both are declared, else the field names; SPECTRAL_BANDS must count the fields, and the names
+        must agree with the declared wavelengths within half a step (names are rounded: ``SPEC_383`` for
+        383.33 nm)."""
+        bands = self._keyword_number("SPECTRAL_BANDS")
+        if bands is not None and int(bands) != len(named):
+            raise CgatsError(f"{self.source}: SPECTRAL_BANDS {self.keywords['SPECTRAL_BANDS']!r} does not match the "
+                             f"{len(named)} spectral fields ({named[0]:g}-{named[-1]:g} nm)")
+        start, end = self._keyword_number("SPECTRAL_START_NM"), self._keyword_number("SPECTRAL_END_NM")
+        if start is None or end is None:
+            declared = named.copy()
+            declared[0], declared[-1] = start if start is not None else named[0], end if end is not None else named[-1]
+        else:
+            declared = np.linspace(start, end, len(named))
+        half_step = 0.5 * float(np.min(np.diff(declared)))
+        worst = int(np.argmax(np.abs(declared - named)))
+        if not half_step > 0 or abs(declared[worst] - named[worst]) > half_step + 1e-6:
+            raise CgatsError(f"{self.source}: SPECTRAL_START_NM / SPECTRAL_END_NM ({declared[0]:g}-{declared[-1]:g} "
+                             f"nm over {len(named)} bands) put field {self.fields[self.spectral_fields()[worst][0]]} "
+                             f"at {declared[worst]:.4g} nm; expected the fields' wavelengths")
+        return declared
 
     def spectral_table(self) -> SpectralTable:
         """The measured reflectances (or transmittances), wavelengths (n_wl,) x patches (n_wl, n_patches)."""
@@ -142,7 +167,7 @@ class CgatsTable:
         np.maximum(values, 0.0, out=values)
         meta = {k.lower(): v for k, v in self.keywords.items()}
         meta.setdefault("title", Path(self.source).stem)
-        return SpectralTable(wl, values, self.names(), meta, self.source)
+        return SpectralTable(wl, values, self.names(), meta, self.source, list(self.warnings))
 
     def emission_table(self) -> SpectralTable:
         """Spectroradiometer readings (module docstring): wavelengths (n_wl,) x readings (n_wl, n_sets); a file
@@ -224,8 +249,10 @@ def read_cgats(path: str | Path) -> CgatsTable:
         raise CgatsError(f"{name}:{end_line}: no BEGIN_DATA_FORMAT ... END_DATA_FORMAT section: not a CGATS file")
     if not table.rows:
         raise CgatsError(f"{name}:{end_line}: no data rows between BEGIN_DATA and END_DATA")
-    if n_fields is not None and n_fields != len(table.fields):
-        raise CgatsError(f"{name}: NUMBER_OF_FIELDS says {n_fields} but the data format lists {len(table.fields)}")
+    if n_fields is not None and n_fields != len(table.fields):      # every row matched the format list above
+        table.warnings.append(f"{name}: NUMBER_OF_FIELDS says {n_fields} but the data format lists "
+                              f"{len(table.fields)} fields; the data rows match the list, read by it")
+        log.warning("%s", table.warnings[-1])
     if n_sets is not None and n_sets != len(table.rows):
         raise CgatsError(f"{name}: NUMBER_OF_SETS says {n_sets} but {len(table.rows)} data rows follow "
                          f"(truncated file?)")
@@ -244,7 +271,7 @@ def read_cgats_emission(path: str | Path) -> SpectralTable:
 
 def write_cgats_spectra(path: str | Path, wavelengths: np.ndarray, values: np.ndarray, names: list[str], *,
                         file_id: str = "CTI3", descriptor: str = "", keywords: dict[str, str] | None = None,
-                        fmt: str = "%.8g") -> Path:
+                        fmt: str = "%.8g", device_class: str = "EMISSION") -> Path:
     """Write spectra as a CGATS file with the ArgyllCMS spectral keywords (atomically).
 
     Parameters
@@ -255,6 +282,8 @@ def write_cgats_spectra(path: str | Path, wavelengths: np.ndarray, values: np.nd
     names : n SAMPLE_ID values.
     file_id : the file's first line (``CTI3``, ``SPECT`` ...).
     keywords : further keywords (e.g. MEAS_TYPE, DUALRGB_UNITS), declared with KEYWORD as ArgyllCMS does.
+    device_class : ArgyllCMS's DEVICE_CLASS (``spec2cie`` and ``colprof`` refuse a .ti3 without it): 'EMISSION'
+        for a light source's readings, 'OUTPUT' for reflective samples, 'INPUT' for a chart read by a camera.
 
     Returns
     -------
@@ -270,7 +299,7 @@ def write_cgats_spectra(path: str | Path, wavelengths: np.ndarray, values: np.nd
     declared = {"SPECTRAL_BANDS": str(len(wl)), "SPECTRAL_START_NM": f"{wl[0]:.6f}",
                 "SPECTRAL_END_NM": f"{wl[-1]:.6f}", "SPECTRAL_NORM": "1.000000", **(keywords or {})}
     lines = [file_id, "", f'DESCRIPTOR "{descriptor or "spectral data"}"', 'ORIGINATOR "dualrgb"',
-             f'CREATED "{time.strftime("%a %b %d %H:%M:%S %Y")}"']
+             f'CREATED "{time.strftime("%a %b %d %H:%M:%S %Y")}"', f'DEVICE_CLASS "{device_class}"']
     for key, value in declared.items():
         lines += [f'KEYWORD "{key}"', f'{key} "{value}"']
     fields = ["SAMPLE_ID", *(f"SPEC_{w:g}" for w in wl)]

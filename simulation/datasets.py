@@ -42,6 +42,7 @@ class Target:
     layout: tuple[int, int] | None = None
     source: str = ""
     measured: SpectralTable | None = None     # the spectra as read (own wavelengths), for ASTM E308 references
+    extended: str = ""                        # how the grid was reached beyond the measured range ('' = not)
 
     def __len__(self) -> int:
         return self.spectra.shape[0]
@@ -84,18 +85,27 @@ def _layout(meta: dict[str, str]) -> tuple[int, int] | None:
 def load_target(path: str | Path, grid: SpectralGrid = DEFAULT_GRID, name: str | None = None) -> Target:
     """A target's measured spectra (reflectance factor or transmittance, one column per patch), resampled to
     ``grid``: a spectral CSV, or a CGATS / X-Rite measurement file (simulation.cgats, recognised by its
-    BEGIN_DATA_FORMAT line).
+    BEGIN_DATA_FORMAT line). The one reader of reference spectra: ``simulate --train-csv``, the calibration's
+    charts (simulation.charts) and the packaged targets all come through here.
 
-    Values above 1 are accepted up to 2 (fluorescent samples have reflectance factors above 1).
+    Values above 1 are accepted up to 2 (fluorescent samples have reflectance factors above 1). Beyond the
+    measured range the grid is reached by holding the end values, at most :data:`MAX_EXTENSION_NM` at either end
+    (said in one warning line: :func:`extension_note`); farther is refused.
     """
-    from dualrgb.simulation.cgats import is_cgats, read_cgats_spectra
-
-    table = read_cgats_spectra(path) if is_cgats(path) else read_spectral_csv(path, max_value=2.0)
+    table = read_reference_table(path)
     if table.values.max() > 2.0 * (1 + 1e-9):
         raise SpectralDataError(f"{table.source}: value {table.values.max():g} exceeds 2 (reflectance factor)")
-    _check_covers(table, grid)
+    extended = _check_covers(table, grid)
     return Target(name or table.meta.get("title", Path(path).stem), resample(table.wavelengths, table.values, grid).T,
-                  table.columns, _layout(table.meta), table.source, table)
+                  table.columns, _layout(table.meta), table.source, table, extended)
+
+
+def read_reference_table(path: str | Path) -> SpectralTable:
+    """The spectra of a reference file as measured: a CGATS / X-Rite / ArgyllCMS file (``.cie``, ``.ti3``,
+    ``.txt``: recognised by its BEGIN_DATA_FORMAT line, simulation.cgats) or a spectral CSV."""
+    from dualrgb.simulation.cgats import is_cgats, read_cgats_spectra
+
+    return read_cgats_spectra(path) if is_cgats(path) else read_spectral_csv(path, max_value=2.0)
 
 
 #: The standard-uncertainty columns a measured camera CSV may carry after R, G, B (``dualrgb measure csrf``).
@@ -121,13 +131,36 @@ def load_leds(path: str | Path, grid: SpectralGrid = DEFAULT_GRID, expected: int
     return resample(table.wavelengths, table.values, grid).T
 
 
-def _check_covers(table: SpectralTable, grid: SpectralGrid, max_gap_nm: float = 60.0) -> None:
-    """Extrapolation is constant; refuse data that misses a large part of the grid."""
+#: How far beyond a file's measured range the grid may reach (by holding the end value), at either end: vendors'
+#: chart references and an i1Pro measure 380-730 nm, 50 nm short of the 780 nm the grids end at.
+MAX_EXTENSION_NM = 60.0
+
+
+def extension_note(table: SpectralTable, grid: SpectralGrid) -> str:
+    """How ``grid`` is reached beyond ``table``'s measured range ('' when it lies inside it), e.g.
+    '380-730 nm measured; 730-780 nm held at the 730 nm values'."""
+    lo, hi = float(table.wavelengths[0]), float(table.wavelengths[-1])
+    parts = [f"{grid.start:g}-{lo:g} nm held at the {lo:g} nm values"] if grid.start < lo - 1e-9 else []
+    if float(grid.wavelengths[-1]) > hi + 1e-9:
+        parts.append(f"{hi:g}-{float(grid.wavelengths[-1]):g} nm held at the {hi:g} nm values")
+    return f"{lo:g}-{hi:g} nm measured; {', '.join(parts)}" if parts else ""
+
+
+def _check_covers(table: SpectralTable, grid: SpectralGrid, max_gap_nm: float = MAX_EXTENSION_NM) -> str:
+    """Extrapolation holds the end values, at most ``max_gap_nm`` at either end (farther is refused); an
+    extension is said in one warning line (an info line for the packaged data, whose extension README states).
+    Returns the note ('' when the grid lies inside the measured range)."""
     lo, hi = table.wavelengths[0], table.wavelengths[-1]
     if lo - grid.start > max_gap_nm or grid.end - hi > max_gap_nm:
         raise SpectralDataError(
-            f"{table.source}: covers {lo:g}-{hi:g} nm but the simulation grid is {grid.label()}"
+            f"{table.source}: covers {lo:g}-{hi:g} nm but the simulation grid is {grid.label()}; at most "
+            f"{max_gap_nm:g} nm at either end is extended (by holding the end value)"
         )
+    note = extension_note(table, grid)
+    if note:
+        packaged = Path(table.source).resolve().is_relative_to(resources.path().resolve())
+        log.log(logging.INFO if packaged else logging.WARNING, "%s: %s (grid %s)", table.source, note, grid.label())
+    return note
 
 
 @lru_cache(maxsize=16)

@@ -26,6 +26,7 @@ from typing import Any
 
 from dualrgb import resources
 from dualrgb.common.atomic_files import atomic_write
+from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.simulation.choices import MODES
 from dualrgb.simulation.grid import SpectralGrid
 
@@ -113,5 +114,5 @@ def save_defaults(path: str | Path, mode: str, update: dict, header: dict | None
     ordered = {"format": FORMAT, **{k: v for k, v in data.items() if k not in ("format", "modes")},
                "modes": {m: modes[m] for m in MODES if m in modes}}
     p.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(p, json.dumps(ordered, indent=2) + "\n")
+    atomic_write(p, strict_dumps(ordered, indent=2) + "\n")
     return p

@@ -28,6 +28,7 @@ from scipy.integrate import trapezoid
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 
+from dualrgb.common.strict_json import finite_or_none
 from dualrgb.simulation.sphere import LowLevelResponse
 
 log = logging.getLogger(__name__)
@@ -47,8 +48,9 @@ class LedShape:
     peak_value: float
     integral: float
 
-    def to_dict(self) -> dict[str, float]:
-        return asdict(self)
+    def to_dict(self) -> dict[str, float | None]:
+        """As JSON: an unknown FWHM (a broadband reading that never falls to half its peak in range) is null."""
+        return {k: finite_or_none(v) for k, v in asdict(self).items()}
 
 
 def _fine(wavelengths: np.ndarray, spectrum: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

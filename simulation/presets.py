@@ -20,6 +20,7 @@ from pathlib import Path
 
 from dualrgb import resources
 from dualrgb.common.atomic_files import atomic_write
+from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.simulation.lightsource import N_SPHERE_LEDS, LightSource
 from dualrgb.simulation.spectral_io import read_text_file
 from dualrgb.simulation.versions import output_header
@@ -56,7 +57,7 @@ class Preset:
 def save_preset(preset: Preset, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, json.dumps(preset.to_dict(), indent=2) + "\n")
+    atomic_write(path, strict_dumps(preset.to_dict(), indent=2) + "\n")
     return path
 
 

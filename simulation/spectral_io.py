@@ -36,6 +36,7 @@ class SpectralTable:
     columns: list[str]
     meta: dict[str, str] = field(default_factory=dict)
     source: str = ""
+    warnings: list[str] = field(default_factory=list)    # the reader's warning lines (already logged)
 
 
 def read_spectral_csv(

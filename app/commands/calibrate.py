@@ -1,6 +1,12 @@
 """``dualrgb calibrate``: darks, flats, training and test targets, matrix -> a calibration profile (made once a day).
 
     dualrgb calibrate [--session DIR] [--preset P] [--hdr auto|off] (--virtual-lab | --port P --camera C) [--json J]
+                      [--train-target FILE [--train-layout ROWSxCOLS] [--train-leave-out NAMES]]
+                      [--test-target FILE [--test-layout ROWSxCOLS] [--test-leave-out NAMES]]
+
+The charts' reference files are read (app.workflow.charts) before any device opens; without them the mode's
+packaged targets are used. The session is the day's (app.workflow.defaults.DAY_WORKFLOW): `capture --session`
+the same folder takes the day's originals with this calibration.
 
 Every default (lights per mode, HDR plan, darks and flats, matrix, the session folder) is the GUI's too:
 app.workflow.defaults.
@@ -13,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dualrgb.app.commands.options import count, input_file, number, stand_dir
+from dualrgb.app.commands.options import add_chart_options, chart_choices, count, input_file, number, stand_dir
 from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_session_option,
@@ -22,11 +28,13 @@ from dualrgb.app.commands.stand_options import (
     open_session,
     progress_printer,
     virtual_world,
-    write_json,
 )
+from dualrgb.app.json_output import text_stream, write_json
 from dualrgb.app.workflow import defaults as day
 
 log = logging.getLogger(__name__)
+
+CALIBRATE_FORMAT = "dualrgb-calibration/1"        # --json: the profile (app.workflow.profile.FORMAT) and its path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -52,8 +60,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "deliverables carry half); default: from the test target's size")
     p.add_argument("--target-width-mm", type=number(above=0.0),
                    help="test target width (outer corners of its corner patches)")
-    p.add_argument("--train-grid", type=input_file, help="patch grid JSON of the training target (real stands)")
-    p.add_argument("--test-grid", type=input_file, help="patch grid JSON of the test target (real stands)")
+    p.add_argument("--train-grid", type=input_file,
+                   help="patch grid JSON of the training target (real stands): its four corners (and rows / cols, "
+                        "else the chart's layout)")
+    p.add_argument("--test-grid", type=input_file, help="patch grid JSON of the test target (real stands; automatic "
+                                                        "detection for a 24-patch ColorChecker Classic otherwise)")
+    add_chart_options(p)
     p.add_argument("--no-de-fit", action="store_true",
                    help="least squares only (default: also the ΔE00-optimised matrix when resources/parsimony.json "
                         "chose it)")
@@ -103,7 +115,9 @@ def _stand_start(args: argparse.Namespace) -> Any:
 
 
 def main(args: argparse.Namespace) -> int:
+    from dualrgb.app.workflow import charts as day_charts
     from dualrgb.app.workflow.copystand import CopyStand, StandSettings
+    from dualrgb.app.workflow.defaults import DAY_WORKFLOW
     from dualrgb.app.workflow.targets import load_grid
 
     preset, hdr, darks, flats = resolve(args)
@@ -113,12 +127,16 @@ def main(args: argparse.Namespace) -> int:
 
         for line in unstable_levels(preset.sources, load_stand(args.stand_dir)):
             print(f"warning: {line}", file=sys.stderr)
-    grids = {k: load_grid(v) for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
+    charts = day_charts.load_charts(chart_choices(args), mode)          # before any device opens
+    grids = {k: load_grid(v, charts[k].layout if k in charts else None)
+             for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
     settings = StandSettings(settle_s=args.settle, dark_frames=darks, flat_frames=flats,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
-                             target_width_mm=args.target_width_mm, stand_start=_stand_start(args))
-    definition = {"workflow": "calibrate", "mode": mode, "preset": preset.name, "hdr": hdr,
-                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle, **virtual_world(args)}
+                             target_width_mm=args.target_width_mm, stand_start=_stand_start(args), charts=charts)
+    definition = {"workflow": DAY_WORKFLOW, "mode": mode, "preset": preset.name, "hdr": hdr,
+                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle, **virtual_world(args),
+                  **day_charts.definition(charts)}
+    text = text_stream(args.json_path)
     with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person)
@@ -126,8 +144,8 @@ def main(args: argparse.Namespace) -> int:
     from dualrgb.app.workflow.profile import describe
 
     for line in describe(profile):
-        print(line)
-    print(f"calibration: {profile.path}")
-    write_json(args.json_path, {"calibration": str(profile.path), **profile.to_dict()})
+        print(line, file=text)
+    print(f"calibration: {profile.path}", file=text)
+    write_json(args.json_path, CALIBRATE_FORMAT, {"calibration": str(profile.path), **profile.to_dict()})
     print(f"dualrgb: calibration {profile.id} written", file=sys.stderr)
     return 0

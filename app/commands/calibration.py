@@ -13,10 +13,12 @@ from dualrgb.app.commands.stand_options import (
     add_reuse_options,
     open_devices,
     reuse_limits,
-    write_json,
 )
+from dualrgb.app.json_output import text_stream, write_json
 
 log = logging.getLogger(__name__)
+
+SHOW_FORMAT = "dualrgb-calibration/1"       # --json: the profile (app.workflow.profile.FORMAT), its age and checks
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -40,8 +42,9 @@ def main(args: argparse.Namespace) -> int:
             check = check_reuse(profile, CameraIdentity.of(dev.camera), SphereIdentity.of(dev.sphere),
                                 profile.lights, reuse_limits(args))
     for line in describe(profile, check):
-        print(line)
-    write_json(args.json_path, {**profile.to_dict(), "age_h": round(profile.age_h(), 3),
-                                "check": None if check is None else {"refusals": check.refusals,
-                                                                     "warnings": check.warnings}})
+        print(line, file=text_stream(args.json_path))
+    write_json(args.json_path, SHOW_FORMAT, {**profile.to_dict(), "age_h": round(profile.age_h(), 3),
+                                             "check": None if check is None else {"refusals": check.refusals,
+                                                                                  "warnings": check.warnings}},
+               default=str)
     return 1 if check is not None and not check.ok and not args.force else 0

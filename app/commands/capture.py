@@ -1,15 +1,18 @@
 """``dualrgb capture``: one original, or a day's queue from a CSV, with a saved calibration, to the deliverables.
 
-    dualrgb capture [--session DIR] --calibration FILE --id ACC-123 [--title ..] [--operator ..] [--notes ..]
+    dualrgb capture [--session DIR] [--calibration FILE] --id ACC-123 [--title ..] [--operator ..] [--notes ..]
                     [--mode reflective|transmissive] [--reshoot] [--force] [--render-illuminant A]
                     [--resolution full|half]
                     (--virtual-lab | --port P --camera C)
-    dualrgb capture --session DIR --calibration FILE --queue originals.csv [--column identifier="Accession No."]
-                    [--skip-invalid] [--operator ..] [--reshoot] ...
+    dualrgb capture --session DIR [--calibration FILE] --queue originals.csv [--column identifier="Accession No."]
+                    [--skip-invalid] [--operator ..] [--reshoot] [--check] ...
 
-Every original's metadata and deliverables folder are checked before a device opens (app.workflow.metadata,
-app.workflow.delivery_folder); a queue's bad rows are listed one per line and nothing is shot while one is bad,
-unless ``--skip-invalid``. An original of the queue already delivered in the session is kept and said so.
+``--calibration`` defaults to the session's newest (of the original's mode with ``--id --mode``): a session made by
+``dualrgb calibrate --session DIR`` takes the day's originals. Every original's metadata, mode (the mode rule:
+app.workflow.mode_rule) and deliverables folder are checked before a device opens (app.workflow.metadata,
+app.workflow.delivery_folder); a queue's refused rows are listed one per line and nothing is shot while one is
+refused, unless ``--skip-invalid``; ``--check`` prints the plan (rows to shoot, kept, refused) and opens no device.
+An original of the queue already delivered in the session is kept and said so.
 """
 from __future__ import annotations
 
@@ -37,11 +40,13 @@ from dualrgb.app.commands.stand_options import (
     progress_printer,
     reuse_limits,
     virtual_world,
-    write_json,
 )
-from dualrgb.app.workflow.defaults import MODES, VIRTUAL_ORIGINALS
+from dualrgb.app.json_output import text_stream, write_json
+from dualrgb.app.workflow.defaults import DAY_WORKFLOW, MODES, VIRTUAL_ORIGINALS
 
 log = logging.getLogger(__name__)
+
+CAPTURE_FORMAT = "dualrgb-capture/1"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -50,7 +55,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "sphere temperature, age), meters the original, captures it (an HDR bracket "
                                    "only when metering asks) and writes its deliverables.")
     add_session_option(p)
-    p.add_argument("--calibration", type=input_file, required=True, help="calibration profile (.json)")
+    p.add_argument("--calibration", type=input_file,
+                   help="calibration profile (.json); default with --session: the session's newest (of --mode's)")
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--id", dest="identifier", help="identifier / accession number (names the files)")
     what.add_argument("--queue", type=input_file, metavar="CSV",
@@ -60,7 +66,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--column", type=column_option, action="append", default=[], metavar="FIELD=NAME",
                    help="--queue: the CSV column holding FIELD, e.g. --column identifier='Accession No.'")
     p.add_argument("--skip-invalid", action="store_true",
-                   help="--queue: list the bad rows and shoot the others (default: shoot nothing while one is bad)")
+                   help="--queue: list the refused rows and shoot the others (default: shoot nothing while one is "
+                        "refused)")
+    p.add_argument("--check", action="store_true",
+                   help="validate and print the plan (rows to shoot, kept, refused with the reason) and stop: no "
+                        "device is opened, nothing is shot")
     p.add_argument("--title", default="")
     p.add_argument("--operator", default="", help="with --queue: for the rows that name none")
     p.add_argument("--notes", default="")
@@ -82,73 +92,144 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=main)
 
 
-def _originals(args: argparse.Namespace, mode: str, out_dir: Path | None) -> tuple[list, list[str]]:
-    """The originals to shoot, every one checked before a device opens, and the queue's bad-row lines
-    (``out_dir`` None: the deliverables folder of a session not made yet, which holds nothing to check)."""
+def _calibration(args: argparse.Namespace) -> Path:
+    """--calibration, else the session's newest calibration (of ``--mode``'s when given)."""
+    if args.calibration:
+        return Path(args.calibration)
+    if not args.session or not (Path(args.session) / "calibration").is_dir():
+        raise ValueError("name the calibration: --calibration FILE (or --session DAY holding one: `dualrgb calibrate "
+                         "--session DAY` makes it)")
+    from dualrgb.app.workflow.profile import load_profile
+
+    found = sorted((Path(args.session) / "calibration").glob("cal-*.json"))
+    if args.mode:
+        found = [f for f in found if load_profile(f, arrays=False).mode == args.mode] or found
+    if not found:
+        raise ValueError(f"{args.session}: no calibration in it yet (dualrgb calibrate --session {args.session}); or "
+                         "pass --calibration FILE")
+    print(f"dualrgb: calibration {found[-1]} (the session's newest)", file=sys.stderr)
+    return found[-1]
+
+
+def _single(args: argparse.Namespace, mode: str, out_dir: Path | None, profile) -> list:
     from dualrgb.app.workflow.delivery_folder import check_folder
     from dualrgb.app.workflow.metadata import Original
-    from dualrgb.app.workflow.queue_csv import read_queue_csv
+    from dualrgb.app.workflow.mode_rule import check_mode
 
-    if not args.queue:
-        original = Original(args.identifier, args.title, args.operator, args.notes, mode)
-        if out_dir is not None:
-            check_folder(out_dir, original)
-        return [original], []
+    original = Original(args.identifier, args.title, args.operator, args.notes, mode)
+    check_mode(original, profile, force=args.force)
+    if out_dir is not None:
+        check_folder(out_dir, original)
+    return [original]
+
+
+def _plan(args: argparse.Namespace, mode: str, out_dir: Path | None, profile):
+    """The queue's plan (app.workflow.queue_plan): every row checked before a device opens."""
+    from dualrgb.app.workflow.queue_csv import read_queue_csv
+    from dualrgb.app.workflow.queue_plan import plan_queue
+
     if args.title or args.notes:
         raise ValueError("--title and --notes name one original (--id); a queue's come from its CSV")
     queue = read_queue_csv(Path(args.queue), columns=dict(args.column), default_mode=mode, out_dir=out_dir)
-    bad = queue.bad_lines()
-    for line in bad:
-        print(f"{Path(args.queue).name}: {line}", file=sys.stderr)
-    if bad and not args.skip_invalid:
-        raise ValueError(f"{args.queue}: {len(bad)} bad row{'s' if len(bad) > 1 else ''} (listed above); nothing "
-                         f"was shot: fix them, or --skip-invalid to shoot the other {len(queue.entries)}")
-    if not queue.entries:
+    session = None
+    if args.session and (Path(args.session) / "session.json").is_file():
+        from dualrgb.app.session.capture_session import CaptureSession
+
+        session = CaptureSession.open(Path(args.session), readonly=True)
+    plan = plan_queue(queue, profile, session=session, force=args.force, reshoot=args.reshoot)
+    if args.operator:
+        plan.rows = [replace(r, original=replace(r.original, operator=args.operator))
+                     if r.original is not None and not r.original.operator else r for r in plan.rows]
+    return plan
+
+
+def _queue_originals(args: argparse.Namespace, plan) -> list:
+    """The originals of the plan to shoot (kept ones too: capture_queue says so); its refused rows listed, and
+    refused whole while one is unless --skip-invalid."""
+    from dualrgb.app.workflow.queue_plan import REFUSED
+
+    name = Path(args.queue).name
+    for line in plan.column_lines:
+        print(f"{name}: {line}", file=sys.stderr)
+    refused = plan.of(REFUSED)
+    for r in refused:
+        print(f"{name}: {r.refusal()}", file=sys.stderr)
+    shots = [r.original for r in plan.rows if r.state != REFUSED and r.original is not None]
+    n = len(refused)
+    if refused and not args.skip_invalid:
+        raise ValueError(f"{args.queue}: {n} refused row{'s' if n > 1 else ''} (listed above); nothing was shot: "
+                         f"fix them, or --skip-invalid to shoot the other {len(shots)}")
+    if not shots:
         raise ValueError(f"{args.queue}: no original to shoot")
-    if bad:
-        print(f"skipped {len(bad)} bad row{'s' if len(bad) > 1 else ''}: {', '.join(map(str, queue.bad_rows))}",
+    if refused:
+        print(f"skipped {n} refused row{'s' if n > 1 else ''}: {', '.join(str(r.row) for r in refused)}",
               file=sys.stderr)
-    fill = {"operator": args.operator} if args.operator else {}
-    return [replace(o, **fill) if fill and not o.operator else o for o in queue.originals], bad
+    return shots
 
 
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.workflow.copystand import CopyStand, QueueOutcome, StandSettings, capture_queue
     from dualrgb.app.workflow.profile import load_profile
 
-    profile = load_profile(args.calibration)
+    profile = load_profile(_calibration(args))
+    mode = args.mode or profile.mode
     out_dir = Path(args.out) if args.out else args.session / "deliverables" if args.session else None
-    originals, bad = _originals(args, args.mode or profile.mode, out_dir)      # refused here: nothing is open yet
+    plan = _plan(args, mode, out_dir, profile) if args.queue else None
+    if args.check:
+        return _check(args, plan, _single(args, mode, out_dir, profile) if plan is None else [], profile)
+    originals = _queue_originals(args, plan) if plan is not None else _single(args, mode, out_dir, profile)
     settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
                              original_frames=args.frames, render_illuminant=args.render_illuminant,
                              resolution=args.resolution)
-    with open_devices(args, args.mode or profile.mode, args.virtual_original) as dev, \
-            open_session(args.session, {"workflow": "originals", **virtual_world(args)}, dev.camera) as session:
+    definition = {"workflow": DAY_WORKFLOW, **virtual_world(args)}
+    with open_devices(args, mode, args.virtual_original) as dev, \
+            open_session(args.session, definition, dev.camera) as session:
         out_dir = out_dir or session.path / "deliverables"
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person, reshoot=lambda _o, _n: args.reshoot)
-        if not args.queue:                  # one original: shot, or its frames kept and delivered again
+        if plan is None:                    # one original: shot, or its frames kept and delivered again
             result = stand.capture(originals[0], profile, reshoot=args.reshoot, out_dir=out_dir)
-            _print_outcome(QueueOutcome(originals[0], report=result))
+            _print_outcome(QueueOutcome(originals[0], report=result), text_stream(args.json_path))
             return _single_json(args, result, profile)
         outcomes = capture_queue(stand, originals, profile, reshoot=args.reshoot, out_dir=out_dir,
-                                 on_outcome=_print_outcome)
-    write_json(args.json_path, {"queue": str(args.queue), "calibration": profile.id, "bad_rows": bad,
-                                "originals": [_outcome_json(o) for o in outcomes]})
+                                 on_outcome=lambda o: _print_outcome(o, text_stream(args.json_path)))
+    write_json(args.json_path, CAPTURE_FORMAT, {"queue": str(args.queue), "calibration": profile.id,
+                                                "bad_rows": plan.refused_lines(), "plan": plan.to_dict(),
+                                                "originals": [_outcome_json(o) for o in outcomes]}, default=str)
     return 0
 
 
-def _print_outcome(outcome) -> None:
+def _check(args: argparse.Namespace, plan, single: list, profile) -> int:
+    """``--check``: the plan printed (and with --json written), no device opened; exit 1 when the same command
+    without --check would shoot nothing (a refused row without --skip-invalid, or no row to shoot)."""
+    from dualrgb.app.workflow.queue_plan import PLAN_FORMAT, REFUSED
+
+    out = text_stream(args.json_path)
+    if plan is None:
+        line = f"{single[0].identifier}: shoot with calibration {profile.id}"
+        print(line, file=out)
+        write_json(args.json_path, PLAN_FORMAT, {"original": single[0].to_dict(), "calibration": profile.id,
+                                                 "summary": line})
+        return 0
+    for line in plan.lines():
+        print(line, file=out)
+    write_json(args.json_path, PLAN_FORMAT, plan.to_dict())
+    shots = [r for r in plan.rows if r.state != REFUSED]
+    return 1 if not shots or (plan.of(REFUSED) and not args.skip_invalid) else 0
+
+
+def _print_outcome(outcome, out=None) -> None:
+    out = out or sys.stdout
     result = outcome.report
     if result is None:
-        print(outcome.summary())
+        print(outcome.summary(), file=out)
         return
     for w in result.check.warnings + result.warnings:
-        print(f"warning: {w}")
-    print(result.summary())
+        print(f"warning: {w}", file=out)
+    print(result.summary(), file=out)
     for key, path in result.delivery.files.items():
-        print(f"  {key}: {path}")
-    print(f"  sidecar: {result.delivery.sidecar}")
+        print(f"  {key}: {path}", file=out)
+    print(f"  sidecar: {result.delivery.sidecar}", file=out)
 
 
 def _outcome_json(outcome) -> dict:
@@ -161,9 +242,9 @@ def _outcome_json(outcome) -> dict:
 
 
 def _single_json(args: argparse.Namespace, result, profile) -> int:
-    write_json(args.json_path, {"original": result.original.to_dict(), "new": result.new, "kept": result.kept,
-                                "exposures": result.exposures, "qa": result.delivery.qa.to_dict(),
-                                "files": {k: str(v) for k, v in result.delivery.files.items()},
-                                "sidecar": str(result.delivery.sidecar), "calibration": profile.id,
-                                "calibration_age_h": round(result.check.age_h, 3)})
+    write_json(args.json_path, CAPTURE_FORMAT, {
+        "original": result.original.to_dict(), "new": result.new, "kept": result.kept,
+        "exposures": result.exposures, "qa": result.delivery.qa.to_dict(),
+        "files": {k: str(v) for k, v in result.delivery.files.items()}, "sidecar": str(result.delivery.sidecar),
+        "calibration": profile.id, "calibration_age_h": round(result.check.age_h, 3)}, default=str)
     return 0

@@ -5,7 +5,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from dualrgb.app.commands.options import add_world_option, count, frame_size, seed
+from dualrgb.app.commands.options import add_chart_options, add_world_option, chart_choices, count, frame_size, seed
 from dualrgb.app.terminal_progress import TerminalProgress
 from dualrgb.app.workflow.defaults import DARK_FRAMES, DEFAULT_MODE, MODES, VIRTUAL_FRAME_SIZE
 
@@ -30,15 +30,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(default: refuse, naming the difference)")
     p.add_argument("--no-de-fit", action="store_true",
                    help="fit least squares only (default: as the parsimony study chose, resources/parsimony.json)")
+    add_chart_options(p)
     p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
+    from dualrgb.app.workflow.charts import load_charts
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
                             seed=args.seed, world=args.world, new_session=args.new_session,
-                            optimise_matrix=False if args.no_de_fit else None)
+                            optimise_matrix=False if args.no_de_fit else None,
+                            charts=load_charts(chart_choices(args), args.mode))
     if args.dark_frames is not None:
         settings.dark_frames = args.dark_frames
     with TerminalProgress("demo", lines=True) as progress:

@@ -22,7 +22,7 @@ from typing import Any
 
 from dualrgb.app.commands.options import add_world_option, count, frame_size, input_file, number, seconds, seed
 from dualrgb.app.commands.stand_options import ask_person, open_session, real_camera, virtual_world
-from dualrgb.app.json_output import add_json_option, write_json
+from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 log = logging.getLogger(__name__)
 
@@ -169,11 +169,12 @@ def _virtual_check(bench: Any, m: Any) -> dict[str, float] | None:
 
 def _report(args: argparse.Namespace, m: Any, rms: dict[str, float] | None) -> None:
     exposures = sorted(set(m.exposures.values()))
+    out = text_stream(args.json)                   # `--json -`: stdout carries the JSON alone
     print(f"camera CSV: {m.path} ({len(m.result.wavelengths)} wavelengths, exposures {exposures[0]:g}-"
-          f"{exposures[-1]:g} s, session {m.session})")
+          f"{exposures[-1]:g} s, session {m.session})", file=out)
     if rms is not None:
         print("virtual lab: RMS error against the rendering camera, % of each channel's peak: "
-              + ", ".join(f"{c} {v:.2f}" for c, v in rms.items()))
+              + ", ".join(f"{c} {v:.2f}" for c, v in rms.items()), file=out)
     if args.json:
         write_json(args.json, FORMAT, {"camera_csv": str(m.path), "session": str(m.session),
                                        "instrument": m.instrument, "result": m.result.to_dict(),

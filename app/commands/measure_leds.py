@@ -93,7 +93,7 @@ def _print(result, out: Path) -> None:
         drift = (r.warmup or {}).get("fit") or {}
 
         def cell(d: dict, key: str, w: int, fmt: str, scale: float = 1.0) -> str:
-            return f"{d[key] * scale:>{w}{fmt}}" if key in d else f"{'-':>{w}}"
+            return f"{d[key] * scale:>{w}{fmt}}" if d.get(key) is not None else f"{'-':>{w}}"
         print(f"{led:>3} {cell(shape, 'peak_nm', 8, '.2f')} {cell(shape, 'fwhm_nm', 8, '.2f')} "
               f"{cell(fit, 'dead_band', 9, '.4f')} {cell(fit, 'knee', 6, '.3f')} {cell(fit, 'exponent', 5, '.2f')} "
               f"{cell(fit, 'min_stable_level', 7, '.4f')} {cell(drift, 'shift_at_end_nm', 8, '.2f')} "

@@ -188,6 +188,38 @@ def add_render_option(p: argparse.ArgumentParser) -> None:
                         f"{names}; default {default}")
 
 
+def layout(text: str) -> str:
+    """A chart layout ``ROWSxCOLUMNS`` such as 10x14 (simulation.charts.parse_layout reads it again)."""
+    rows, sep, cols = text.lower().replace("×", "x").partition("x")
+    if not sep or not rows.strip().isdigit() or not cols.strip().isdigit() or min(int(rows), int(cols)) < 1:
+        raise _fail(text, "expected ROWSxCOLUMNS such as 10x14 (a ColorChecker Digital SG) or 4x6 (a Classic)")
+    return text
+
+
+def add_chart_options(p: argparse.ArgumentParser) -> None:
+    """``--train-target / --test-target FILE`` with ``--*-layout ROWSxCOLS`` and ``--*-leave-out NAMES``: the
+    stand's own charts (app.workflow.charts; README "Charts"); ``chart_choices(args)`` collects them."""
+    g = p.add_argument_group("charts (default: the mode's packaged targets)")
+    for role, what in (("train", "training"), ("test", "test")):
+        g.add_argument(f"--{role}-target", type=input_file, metavar="FILE",
+                       help=f"the {what} chart's reference spectra: spectral CGATS (X-Rite / BabelColor .txt, "
+                            "ArgyllCMS .cie / .ti3) or a spectral CSV, as its vendor or a spectrophotometer wrote it")
+        g.add_argument(f"--{role}-layout", type=layout, metavar="ROWSxCOLS",
+                       help=f"the {what} chart's rows x columns as it lies on the stand (default: the file's; a "
+                            "Digital SG is 10x14, its columns lettered A-N)")
+        g.add_argument(f"--{role}-leave-out", metavar="NAMES", default="",
+                       help=f"{what} chart patches the calibration does not use, comma-separated (e.g. an SG's "
+                            "repeated border greys)")
+
+
+def chart_choices(args: argparse.Namespace) -> dict:
+    """``{"train": ChartChoice, "test": ChartChoice}`` from :func:`add_chart_options`' options."""
+    from dualrgb.app.workflow.charts import ChartChoice
+
+    return {role: ChartChoice(getattr(args, f"{role}_target") or "", getattr(args, f"{role}_layout") or "",
+                              getattr(args, f"{role}_leave_out") or "") for role in ("train", "test")}
+
+
 def key_value(text: str) -> tuple[str, str]:
     """``Key=Value``, e.g. a BagIt bag-info field (the key: letters, digits and dashes, as BagIt's are)."""
     key, sep, value = text.partition("=")
@@ -213,6 +245,6 @@ def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) 
                              "sony-ilce-7rm2, mismatched-d700, aged-leds) or a world JSON file (default nominal)")
 
 
-__all__ = ["MAX_FRAME_SIDE", "add_render_option", "add_world_option", "column_option", "count", "frame_size",
-           "input_file", "leds", "number", "numbers", "positive", "render_illuminant", "seconds", "seed", "stand_dir",
-           "world"]
+__all__ = ["MAX_FRAME_SIDE", "add_chart_options", "add_render_option", "add_world_option", "chart_choices",
+           "column_option", "count", "frame_size", "input_file", "layout", "leds", "number", "numbers", "positive",
+           "render_illuminant", "seconds", "seed", "stand_dir", "world"]

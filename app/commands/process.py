@@ -1,7 +1,11 @@
 """``dualrgb process``: deliver a session's originals again, e.g. with a newer calibration.
 
-    dualrgb process SESSION [--calibration FILE] [--out DIR] [--render-illuminant A] [--resolution full|half]
-                    [--json J]
+    dualrgb process SESSION [--calibration FILE] [--force] [--out DIR] [--render-illuminant A]
+                    [--resolution full|half] [--json J]
+
+The mode rule (app.workflow.mode_rule) as for ``capture``: without ``--calibration`` each original is delivered
+with the session's newest calibration of its own mode; with one, originals of the other mode are refused (listed,
+exit 1) unless ``--force``.
 """
 from __future__ import annotations
 
@@ -10,9 +14,12 @@ import logging
 from pathlib import Path
 
 from dualrgb.app.commands.options import add_render_option, add_resolution_option, number
-from dualrgb.app.commands.stand_options import progress_printer, write_json
+from dualrgb.app.commands.stand_options import progress_printer
+from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 log = logging.getLogger(__name__)
+
+PROCESS_FORMAT = "dualrgb-process/1"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,37 +30,66 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--calibration", type=Path, help="calibration profile (.json); default: the session's newest")
     p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables)")
     p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
-    p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
+    p.add_argument("--force", action="store_true",
+                   help="with --calibration: deliver originals of the other mode with it too (said in the sidecar "
+                        "and QA line)")
+    add_json_option(p)
     add_render_option(p)
     add_resolution_option(p)
     p.set_defaults(func=main)
 
 
-def newest_calibration(session) -> Path:
-    """The session's own newest calibration, else the one its latest original was captured with."""
+def session_calibrations(session) -> list[Path]:
+    """The session's own calibrations, then those its originals were captured with (oldest first)."""
     found = sorted((session.path / "calibration").glob("cal-*.json"))
     used = [Path(o["calibration"]) for o in session.settings.get("originals", {}).values() if o.get("calibration")]
-    found += [p for p in used if p.exists()]
+    return found + [p for p in used if p.exists() and p not in found]
+
+
+def newest_calibration(session) -> Path:
+    """The session's own newest calibration, else the one its latest original was captured with."""
+    found = session_calibrations(session)
     if not found:
         raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
     return found[-1]
 
 
+def newest_by_mode(session) -> dict:
+    """Mode -> the newest calibration of that mode among :func:`session_calibrations` (loaded)."""
+    from dualrgb.app.workflow.profile import load_profile
+
+    out = {}
+    for path in session_calibrations(session):
+        profile = load_profile(path, arrays=False)
+        out[profile.mode] = path
+    if not out:
+        raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
+    return {mode: load_profile(path) for mode, path in out.items()}
+
+
 def main(args: argparse.Namespace) -> int:
+    import sys
+
     from dualrgb.app.session.capture_session import CaptureSession
     from dualrgb.app.workflow.copystand import redeliver
     from dualrgb.app.workflow.profile import load_profile
 
     session = CaptureSession.open(args.session, readonly=True)      # frames checked before use (session_frames)
-    profile = load_profile(args.calibration or newest_calibration(session))
-    deliveries = redeliver(session, profile, args.out or args.session / "deliverables", ppi=args.ppi,
-                           progress=progress_printer(), render_illuminant=args.render_illuminant,
-                           resolution=args.resolution)
-    if not deliveries:
+    profiles = load_profile(args.calibration) if args.calibration else newest_by_mode(session)
+    refused: list[str] = []
+    deliveries = redeliver(session, profiles, args.out or args.session / "deliverables", ppi=args.ppi,
+                           progress=progress_printer(), render_illuminant=args.render_illuminant, force=args.force,
+                           refused=refused, resolution=args.resolution)
+    for line in refused:
+        print(f"refused: {line}", file=sys.stderr)
+    if not deliveries and not refused:
         raise ValueError(f"{args.session}: no originals to process")
     for d in deliveries:
-        print(d.qa.text())
-    write_json(args.json_path, {"calibration": profile.id, "originals": [
+        print(d.qa.text(), file=text_stream(args.json))
+    used = [profiles] if not isinstance(profiles, dict) else list(profiles.values())
+    write_json(args.json, PROCESS_FORMAT, {"calibration": used[0].id if len(used) == 1 else None,
+                                           "calibrations": {p.mode: p.id for p in used}, "refused": refused,
+                                           "originals": [
         {"identifier": d.original.identifier, "qa": d.qa.to_dict(), "files": {k: str(v) for k, v in d.files.items()},
-         "sidecar": str(d.sidecar)} for d in deliveries]})
-    return 0
+         "sidecar": str(d.sidecar)} for d in deliveries]}, default=str)
+    return 1 if refused else 0

@@ -1,11 +1,11 @@
 """What ``dualrgb calibrate``, ``capture``, ``process`` and ``calibration show`` share: device options (the
-virtual lab or --port / --camera), progress on stderr, the JSON summary, the reuse limits. Not a command itself.
+virtual lab or --port / --camera), progress on stderr, the ``--json`` option (written by app.json_output, the
+one writer), the reuse limits. Not a command itself.
 """
 from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import logging
 import sys
 from collections.abc import Callable, Iterator
@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from dualrgb.app.commands.options import add_world_option, count, frame_size, number, seed
+from dualrgb.app.json_output import HELP as JSON_HELP
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
 
 log = logging.getLogger(__name__)
@@ -32,7 +33,7 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
     g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=SETTLE_S,
                    help=f"seconds between light on and shutter ({SETTLE_S:g})")
-    p.add_argument("--json", type=Path, dest="json_path", help="write a JSON summary here")
+    p.add_argument("--json", metavar="PATH", dest="json_path", help=JSON_HELP)
 
 
 def add_reuse_options(p: argparse.ArgumentParser) -> None:
@@ -59,15 +60,6 @@ def ask_person(message: str) -> None:
         raise ValueError(f"{message}: needs a person at the stand (run in a terminal, or use --virtual-lab)")
     print(f">>> {message} (Enter)", file=sys.stderr, flush=True)
     sys.stdin.readline()
-
-
-def write_json(path: Path | None, data: dict) -> None:
-    if path is None:
-        return
-    from dualrgb.app.session.capture_session import atomic_write
-
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(Path(path), (json.dumps(data, indent=2, default=str) + "\n").encode())
 
 
 @dataclass
@@ -158,7 +150,12 @@ def open_session(folder: Path | None, definition: dict, camera: Any, meta: dict 
     ``folder``: a new dated session in the captures folder (app.workflow.folders), named on stderr."""
     from dualrgb.app.session.capture_session import CaptureSession
     from dualrgb.app.session.manifest import camera_definition
+    from dualrgb.app.workflow.defaults import DAY_WORKFLOW, day_workflow
 
+    if folder is not None and definition.get("workflow") == DAY_WORKFLOW:     # an older session of the same day
+        from dualrgb.app.workflow.folders import stored_definition
+
+        definition = {**definition, "workflow": day_workflow(stored_definition(Path(folder)).get("workflow"))}
     if folder is None:
         from dualrgb.app.workflow.defaults import captures_dir
         from dualrgb.app.workflow.folders import new_session

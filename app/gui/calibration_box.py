@@ -23,12 +23,14 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from dualrgb.app.gui.charts_form import ChartsForm
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.viewmodel import calibration_lines
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.shooter import Shooter
+from dualrgb.app.workflow.charts import load_charts
 from dualrgb.app.workflow.copystand import StandSettings
 from dualrgb.app.workflow.defaults import workflow_defaults
 from dualrgb.app.workflow.metering import AutoExposure
@@ -106,6 +108,8 @@ class CalibrationBox(QGroupBox):
         row = QHBoxLayout()
         for w in (self.calibrate_button, self.save_button, self.load_button, self.check_button):
             row.addWidget(w)
+        self.charts = ChartsForm(self.ctx)
+        form.addRow(self.charts)
         form.addRow(self.hdr_auto)
         form.addRow("Darks per exposure", self.dark_frames)
         form.addRow("Flats per exposure", self.flat_frames)
@@ -134,16 +138,19 @@ class CalibrationBox(QGroupBox):
             plan = AutoExposure(self.plan_shooter(), list(ws.lights)).plan()
             if lab.camera is None or lab.sphere is None:
                 raise ValueError("connect the LED sphere and the camera in Devices first")
+            charts = load_charts(self.charts.choices(), ws.preset.mode)     # a chart file's problem: before the light
         except ValueError as exc:
             self.ctx.errors.report("Calibrate", exc)
             return
-        self.ctx.with_session(lambda: self._start(plan), "the calibration")
+        ws.set_charts(charts)
+        self.ctx.with_session(lambda: self._start(plan, charts), "the calibration")
 
-    def _start(self, plan: list) -> None:
+    def _start(self, plan: list, charts: dict | None = None) -> None:
         ws, lab = self.ws, self.ctx.lab
         settings = self.stand_settings()
         settings.dark_frames, settings.flat_frames = self.dark_frames.value(), self.flat_frames.value()
         settings.optimise_matrix = self.de_fit.isChecked()
+        settings.charts = dict(charts or {})
         preset, lights, hdr = ws.preset, list(ws.lights), self.hdr_auto.isChecked()
         grids = {n: ws.grids[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in ws.grids}
 
@@ -245,7 +252,7 @@ class CalibrationBox(QGroupBox):
 
     def set_locked(self, locked: bool) -> None:
         for w in (self.calibrate_button, self.load_button, self.check_button, self.hdr_auto, self.dark_frames,
-                  self.flat_frames, self.de_fit):
+                  self.flat_frames, self.de_fit, self.charts):
             w.setEnabled(not locked)
         if not locked:
             self.show_calibration()

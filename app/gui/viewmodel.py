@@ -221,6 +221,10 @@ def calibration_lines(profile, check=None) -> list[str]:
     if train is not None or profile.test_mean is not None:
         lines.append(f"target ΔE00 train {_num(train)} / test {_num(profile.test_mean)} "
                      f"({profile.matrix.method} matrix)")
+    for role, chart in (getattr(profile, "charts", None) or {}).items():
+        left = f", {len(chart['left_out'])} left out" if chart.get("left_out") else ""
+        lines.append(f"{'training' if role == 'train' else 'test'} chart {chart.get('file')}"
+                     f"{' (packaged)' if chart.get('packaged') else ''}: {chart.get('used')} patches{left}")
     if check is not None:
         lines += [f"does not match the stand: {r}" for r in check.refusals] + list(check.warnings)
         if check.ok:

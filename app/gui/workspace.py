@@ -42,6 +42,7 @@ class Workspace(QObject):
         self.run_plan: dict[str, list[float]] = {}        # a running calibration's plan
         self.calibration: CalibrationProfile | None = None
         self.calibration_check: ReuseCheck | None = None
+        self.charts: dict[str, Any] = {}                  # 'train' / 'test' -> the stand's own chart (charts)
         self.queue = OriginalsQueue()
         self.running = ""
         self.manual_levels = np.zeros(N_SPHERE_LEDS)
@@ -89,6 +90,13 @@ class Workspace(QObject):
                 if n in base or plan is self.run_plan:
                     base.setdefault(n, []).extend(ts)
         return calibration_exposures(session, base, {k: sorted(v) for k, v in self.hdr_brackets.items()})
+
+    # ---- charts ----
+    def set_charts(self, charts: dict[str, Any]) -> None:
+        """The stand's own charts the calibration uses (simulation.charts.Chart per target; {}: the packaged
+        targets): Target takes their layouts, Results their reference data."""
+        self.charts = dict(charts)
+        self.gridsChanged.emit("")
 
     # ---- calibration ----
     def set_calibration(self, profile: CalibrationProfile | None) -> None:

@@ -33,7 +33,6 @@ Published limits used (colour accuracy, CIEDE2000 of a reference target):
 """
 from __future__ import annotations
 
-import json
 import logging
 import math
 from collections.abc import Sequence
@@ -47,6 +46,8 @@ import numpy as np
 from dualrgb.app.processing.characterise import Characterisation
 from dualrgb.app.processing.figure_files import new_figure, save_figure, save_tight
 from dualrgb.common.atomic_files import atomic_write
+from dualrgb.common.strict_json import dumps as strict_dumps
+from dualrgb.common.strict_json import finite_or_none
 from dualrgb.simulation.colorimetry import xyz_to_lab
 from dualrgb.simulation.objective import ErrorStats
 from dualrgb.simulation.versions import output_header
@@ -112,8 +113,9 @@ class ChannelFit:
     z: list[float] = field(default_factory=list)
 
     def to_dict(self, names: Sequence[str] = ()) -> dict:
-        d = {"channel": self.channel, "slope": self.slope, "intercept": self.intercept, "r2": self.r2,
-             "r2_without_outliers": self.r2_clean, "outliers": self.outliers}
+        d = {"channel": self.channel, "slope": self.slope, "intercept": self.intercept,
+             "r2": finite_or_none(self.r2), "r2_without_outliers": finite_or_none(self.r2_clean),
+             "outliers": self.outliers}           # R² of a constant channel is undefined: null
         if names:
             d["outlier_patches"] = [names[i] for i in self.outliers]
         return d
@@ -351,7 +353,8 @@ def _dn_validation(out_dir: Path, c: Characterisation, simulated_train: np.ndarr
     union = sorted({i for f in fits for i in f.outliers})
     return ({"channels": [f.to_dict(train.names) for f in fits], "outlier_patches": union,
              "outlier_names": [train.names[i] for i in union],
-             "min_r2": min(f.r2 for f in fits), "min_r2_without_outliers": min(f.r2_clean for f in fits)}, figure)
+             "min_r2": finite_or_none(min(f.r2 for f in fits)),
+             "min_r2_without_outliers": finite_or_none(min(f.r2_clean for f in fits))}, figure)
 
 
 def _model_sections(out_dir: Path, c: Characterisation, train: TargetData, test: TargetData | None,
@@ -415,7 +418,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
         "figures": figures,
         **(extra or {}),
     }
-    atomic_write(out_dir / "report.json", json.dumps(report, indent=2))
+    atomic_write(out_dir / "report.json", strict_dumps(report, indent=2))
     log.info("report written to %s (%d figures); best %s: test mean dE00 %s", out_dir, len(figures), best,
              f"{report['test']['mean']:.3f}" if report["test"] else "n/a")
     return report

@@ -87,6 +87,7 @@ from dualrgb.app.session.manifest import (
 )
 from dualrgb.common import atomic_files
 from dualrgb.common.atomic_files import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
+from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.drivers.camera.base import RawCapture
 from dualrgb.simulation.versions import software_versions
 
@@ -133,7 +134,7 @@ def _session_error(exc: OSError, path: Path) -> SessionError:
 
 
 def _settings_bytes(settings: dict) -> bytes:
-    return (json.dumps(settings, indent=2, default=json_default) + "\n").encode()
+    return (strict_dumps(settings, indent=2, default=json_default) + "\n").encode()
 
 
 def _allowed_leftover(p: Path) -> bool:
@@ -408,7 +409,7 @@ class CaptureSession:
             settings=dict(settings or {}), captured_at=captured_at or str(raw.extra.get("captured_at", "")) or now(),
             recorded_at="", meta={**{k: v for k, v in raw.extra.items() if k != "captured_at"}, **meta})
         try:                                     # fail on unstorable meta before anything is written
-            json.dumps(entry.to_dict(), default=json_default)
+            strict_dumps(entry.to_dict(), default=json_default)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{name}: session metadata is not JSON-serialisable: {exc}") from exc
         # 1. the raw file, durable under its final name
@@ -454,7 +455,7 @@ class CaptureSession:
 
     @staticmethod
     def _line(obj: dict) -> bytes:
-        return (json.dumps(obj, default=json_default, separators=(",", ":")) + "\n").encode()
+        return (strict_dumps(obj, default=json_default, separators=(",", ":")) + "\n").encode()
 
     def _append_manifest(self, line: bytes) -> None:
         path = self.path / MANIFEST

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
+from dualrgb.common.strict_json import dumps as strict_dumps
+
 log = logging.getLogger(__name__)
 
 LOCK_NAME = ".session.lock"
@@ -96,7 +98,7 @@ def _write_holder(fd: int) -> None:
             "program": " ".join(os.path.basename(a) for a in sys.argv[:2])}
     os.ftruncate(fd, 0)
     os.lseek(fd, 0, os.SEEK_SET)
-    os.write(fd, json.dumps(info).encode() + b"\n")
+    os.write(fd, strict_dumps(info).encode() + b"\n")
 
 
 def acquire(folder: Path) -> str:

@@ -23,6 +23,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from dualrgb.common.strict_json import dumps as strict_dumps
+
 log = logging.getLogger(__name__)
 
 KIND_FRAME, KIND_DOSE, KIND_SET_ASIDE = "frame", "dose", "set_aside"
@@ -263,7 +265,7 @@ def json_default(obj: Any) -> Any:
 
 def normalise(value: Any) -> Any:
     """``value`` as it reads back from JSON (tuples to lists, dataclasses to dicts)."""
-    return json.loads(json.dumps(value, default=json_default))
+    return json.loads(strict_dumps(value, default=json_default))
 
 
 def read_manifest(path: Path) -> tuple[list, list[int]]:

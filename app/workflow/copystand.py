@@ -32,11 +32,13 @@ from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.workflow.charts import definition as chart_definition
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
 from dualrgb.app.workflow.metadata import MetadataError, check_original
 from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
+from dualrgb.app.workflow.mode_rule import check_mode
 from dualrgb.app.workflow.profile import (
     CalibrationProfile,
     CameraIdentity,
@@ -98,6 +100,8 @@ class StandSettings:
     resolution: str = FULL                    # originals' deliverables: the sensor's pixels (full) or 2x2 cells
     stand_start: Any = None                   # the stand model the fit starts from (simulation.stand_model; None:
                                               # nominal): measured camera / LEDs (calibrate --camera-csv, --stand-dir)
+    charts: dict[str, Any] = field(default_factory=dict)   # 'train' / 'test' -> the stand's own chart
+                                              # (simulation.charts.Chart); absent: the mode's packaged target
 
 
 @dataclass
@@ -211,10 +215,10 @@ class CopyStand:
         lights = lights_of(preset)
         defaults = workflow_defaults(preset.mode)
         plan = self.exposure_plan(base, defaults.hdr_auto if hdr_auto is None else hdr_auto, preset.mode)
+        specs = self.target_specs(preset.mode, grids)          # a chart that cannot be used: before any frame
+        self.session.extend_definition(**chart_definition(self.settings.charts or {}))   # other charts: refused
         for seq, lo, hi in self.calibration_sequences(lights, plan, base):
             self.run_sequence(seq, lo, hi)
-        specs = {name: target_spec(preset.mode, Subject.target(name), (grids or {}).get(name), lab=self.lab)
-                 for name in ("train", "test")}
         optimise = self.settings.optimise_matrix
         if optimise is None:
             optimise = defaults.optimise_matrix
@@ -225,9 +229,21 @@ class CopyStand:
                                  progress=lambda f, m: report(self.progress, 0.6 + 0.35 * f, m), cancel=self.cancel,
                                  mode=preset.mode, stand_start=self.settings.stand_start)
         profile = self._profile(preset, lights, plan, base, result, specs["test"])
+        profile.charts = {k: spec.chart.record() for k, spec in specs.items() if spec.chart is not None}
         profile.save(self.session.path / "calibration")
         report(self.progress, 1.0, f"calibration {profile.id} saved")
         return profile
+
+    def target_specs(self, mode: str, grids: dict[str, Any] | None = None) -> dict[str, TargetSpec]:
+        """The training and test targets' specs: the stand's own charts (``settings.charts``, put on the virtual
+        lab's stand too) or the mode's packaged targets, with the grids placed by hand (``grids``)."""
+        charts = self.settings.charts or {}
+        if self.lab is not None:
+            for name in ("train", "test"):
+                chart = charts.get(name)
+                self.lab.use_chart(name, chart.render_target() if chart is not None else None)
+        return {name: target_spec(mode, Subject.target(name), (grids or {}).get(name), lab=self.lab,
+                                  chart=charts.get(name)) for name in ("train", "test")}
 
     def _profile(self, preset: Any, lights: list[NamedLight], plan: dict[str, list[float]], base: dict[str, float],
                  result: SessionResult, test: TargetSpec) -> CalibrationProfile:
@@ -306,25 +322,27 @@ class CopyStand:
     def deliverables(self, out_dir: Path | None = None) -> Path:
         return Path(out_dir or self.session.path / "deliverables")
 
-    def preflight(self, original: Original, out_dir: Path | None = None) -> None:
-        """What must hold before the light goes on for ``original``: its metadata validate (app.workflow.metadata)
-        and its deliverables folder is creatable and not another original's (app.workflow.delivery_folder), and the
-        spectral rendering's light is known (app.processing.render)."""
+    def preflight(self, original: Original, out_dir: Path | None = None,
+                  profile: CalibrationProfile | None = None) -> str:
+        """What must hold before the light goes on for ``original``: its metadata validate (app.workflow.metadata),
+        its mode is the calibration's ``profile``'s unless ``settings.force`` (app.workflow.mode_rule; returns the
+        override said in the sidecar and QA line, '' when none), its deliverables folder is creatable and not
+        another original's (app.workflow.delivery_folder), and the spectral rendering's light is known."""
         check_original(original)
+        override = check_mode(original, profile, force=self.settings.force) if profile is not None else ""
         check_illuminant(self.settings.render_illuminant)
         check_resolution(self.settings.resolution)
         prepare(self.deliverables(out_dir), original)
+        return override
 
     def capture(self, original: Original, profile: CalibrationProfile, *, reshoot: bool | None = None,
                 out_dir: Path | None = None) -> CaptureReport:
         """Check the original (:meth:`preflight`) and the calibration, meter, capture (HDR when metering asks),
         deliver; frames already in the session are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
-        self.preflight(original, out_dir)
+        override = self.preflight(original, out_dir, profile)
         checked = self.check(profile)
         take = self._take(original, reshoot)
         exposures, warnings = self.meter(original, profile, take)
-        if profile.mode != original.mode:
-            warnings.append(f"calibrated {profile.mode}, original {original.mode}: colour not characterised for it")
         builder = begin_channels(profile_processor(profile), [nl.name for nl in profile.lights],
                                  self.settings.resolution)
         seq = SubjectCapture(self.shooter, profile.lights, exposures, original.subject, take,
@@ -349,7 +367,8 @@ class CopyStand:
                                camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
                                exposures=exposures, warnings=checked.warnings + warnings,
                                extra={"session": str(self.session.path), "take": take, "frames": seq.steps()},
-                               render_illuminant=self.settings.render_illuminant, truth=placed_truth(self.lab))
+                               render_illuminant=self.settings.render_illuminant, truth=placed_truth(self.lab),
+                               overrides=[override] if override else [])
         self._remember(original, dose, delivery, take, profile)
         report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
         return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)
@@ -435,33 +454,66 @@ def channels_of(proc: CaptureProcessor, light_frames: dict[str, list[ExposureRef
         builder.close()
 
 
-def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: float | None = None,
-              progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
-              render_illuminant: str = DEFAULT_RENDER_ILLUMINANT, resolution: str = FULL) -> list[Delivery]:
-    """Deliver every original of a session again with ``profile`` (``dualrgb process``) at ``resolution``; each
-    original's current deliverables move to its ``previous/`` folder. Every folder is checked before the first is
-    written. The spectral rendering is seen under ``render_illuminant``."""
-    from dualrgb.app.workflow.session_processing import select_lights, session_frames
+def redeliver(session: Any, profiles: CalibrationProfile | dict[str, CalibrationProfile], out_dir: Path, *,
+              ppi: float | None = None, progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
+              render_illuminant: str = DEFAULT_RENDER_ILLUMINANT, force: bool = False,
+              refused: list[str] | None = None, resolution: str = FULL) -> list[Delivery]:
+    """Deliver every original of a session again (``dualrgb process``) at ``resolution``: with ``profiles`` (one
+    calibration, or one per mode), the mode rule applied to each (app.workflow.mode_rule: an original without a
+    calibration of its mode is left out, its line appended to ``refused``, unless ``force`` with one calibration);
+    each original's current deliverables move to its ``previous/`` folder. Every folder is checked before the first
+    is written. The spectral rendering is seen under ``render_illuminant``."""
+    from dualrgb.app.workflow.session_processing import session_frames
 
     frames = session_frames(session)
     known = session.settings.get("originals", {})
-    names = [nl.name for nl in profile.lights]
-    originals = [(s, _known_original(session, known, s.name)) for s in frames.subjects if s.role is Role.ORIGINAL]
-    for _subject, original in originals:
+    chosen = []
+    for subject in (s for s in frames.subjects if s.role is Role.ORIGINAL):
+        original = _known_original(session, known, subject.name)
+        profile, override = _profile_for(original, profiles, force)
+        if profile is None:
+            (refused if refused is not None else []).append(override)
+            continue
+        chosen.append((subject, original, profile, override))
+    for _subject, original, _profile, _override in chosen:
         prepare(Path(out_dir), original)
     out = []
-    for i, (subject, original) in enumerate(originals):
+    for i, (subject, original, profile, override) in enumerate(chosen):
         if cancel is not None:
             cancel.check()
-        light_frames = select_lights(frames.subject(subject), names)
-        with closing(channels_of(profile_processor(profile), light_frames, resolution, cancel)) as source:
-            out.append(deliver(source, profile, original, out_dir, camera=profile.camera, ppi=ppi,
-                               dose=original_dose(session, subject),
-                               exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
-                               extra={"session": str(session.path), "reprocessed": True},
-                               render_illuminant=render_illuminant))
-        report(progress, (i + 1) / len(originals), f"{original.identifier} delivered")
+        out.append(_redeliver_one(session, frames, subject, original, profile, out_dir, ppi, cancel,
+                                  render_illuminant, override, resolution))
+        report(progress, (i + 1) / len(chosen), f"{original.identifier} delivered")
     return out
+
+
+def _profile_for(original: Original, profiles: CalibrationProfile | dict[str, CalibrationProfile],
+                 force: bool) -> tuple[CalibrationProfile | None, str]:
+    """(the calibration ``original`` is delivered with, the override text) or (None, why not) by the mode rule."""
+    if isinstance(profiles, dict):
+        if original.mode in profiles:
+            return profiles[original.mode], ""
+        have = ", ".join(sorted(profiles)) or "none"
+        return None, (f"{original.identifier}: {original.mode} original, and no {original.mode} calibration "
+                      f"(the session's: {have}); pass one with --calibration")
+    try:
+        return profiles, check_mode(original, profiles, force=force)
+    except ValueError as exc:
+        return None, str(exc)
+
+
+def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Original, profile: CalibrationProfile,
+                   out_dir: Path, ppi: float | None, cancel: CancelToken | None, render_illuminant: str,
+                   override: str, resolution: str = FULL) -> Delivery:
+    from dualrgb.app.workflow.session_processing import select_lights
+
+    light_frames = select_lights(frames.subject(subject), [nl.name for nl in profile.lights])
+    with closing(channels_of(profile_processor(profile), light_frames, resolution, cancel)) as source:
+        return deliver(source, profile, original, out_dir, camera=profile.camera, ppi=ppi,
+                       dose=original_dose(session, subject),
+                       exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
+                       extra={"session": str(session.path), "reprocessed": True}, render_illuminant=render_illuminant,
+                       overrides=[override] if override else [])
 
 
 def _known_original(session: Any, known: dict, identifier: str) -> Original:
@@ -510,7 +562,7 @@ def capture_queue(stand: CopyStand, originals: Sequence[Original], profile: Cali
     (:meth:`CopyStand.preflight`: nothing is lit while one cannot be delivered); one already delivered in the
     session is kept and said so unless ``reshoot``."""
     for original in originals:
-        stand.preflight(original, out_dir)
+        stand.preflight(original, out_dir, profile)
     outcomes = []
     for original in originals:
         stand._check_cancel()

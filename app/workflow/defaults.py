@@ -37,6 +37,17 @@ SETTLE_S = 0.2                                       # light on -> shutter (app.
 VIRTUAL_FRAME_SIZE = (600, 400)                      # the virtual lab's frames (the presets' patch sizes assume it)
 VIRTUAL_ORIGINALS = {"reflective": "painting", "transmissive": "film"}   # the virtual stand-in per mode
 CAPTURES = "captures"                                # under the per-user data folder
+# The session definition's workflow of the copy-stand day: `calibrate` and `capture` share it, so a session made
+# by `calibrate --session day1` takes that day's originals (`capture --session day1`). Sessions made before issue
+# 27 recorded 'calibrate' or 'originals'; either is read as this one (day_workflow).
+DAY_WORKFLOW = "copy-stand"
+LEGACY_DAY_WORKFLOWS = ("calibrate", "originals")
+
+
+def day_workflow(stored: object = None) -> str:
+    """The workflow a copy-stand run records in a session whose definition says ``stored``: the session's own
+    spelling when it is an older name of the same day (so it resumes), else :data:`DAY_WORKFLOW`."""
+    return str(stored) if stored in LEGACY_DAY_WORKFLOWS else DAY_WORKFLOW
 
 
 @dataclass(frozen=True)

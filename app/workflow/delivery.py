@@ -21,7 +21,6 @@ ASCII tags (ImageDescription, Make, Model, PageName) carry app.workflow.metadata
 """
 from __future__ import annotations
 
-import json
 import logging
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -30,6 +29,7 @@ from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
+from dualrgb.app.json_output import dumps
 from dualrgb.app.processing.cube_map import spectral_map
 from dualrgb.app.processing.demosaic import DEMOSAIC
 from dualrgb.app.processing.encode import LINEAR_ONE, DeliveryEncoder
@@ -89,13 +89,16 @@ class QaLine:
     warnings: list[str] = field(default_factory=list)
     spectral_rmse: float | None = None      # the calibration's spectral RMSE on its test target (None: no spectra)
     truth: dict | None = None               # virtual lab: the figures against the original's truth
+    overrides: list[str] = field(default_factory=list)   # rules the user overrode (--force), said first
 
     def text(self) -> str:
         def de(v: float | None) -> str:
             return "n/a" if v is None else f"{v:.2f}"
         spectral = "" if self.spectral_rmse is None else f", spectral RMSE test {self.spectral_rmse:.3f}"
-        return (f"{self.identifier}: clipped {self.clipped_pct:.2f} %, under-exposed {self.underexposed_pct:.2f} %, "
-                f"light dose {self.dose.lux_h:.3g} lux.h ({self.dose.lux_s:.3g} lux.s), calibration dE00 train "
+        forced = "".join(f"OVERRIDE: {o}; " for o in self.overrides)
+        return (f"{self.identifier}: {forced}clipped {self.clipped_pct:.2f} %, under-exposed "
+                f"{self.underexposed_pct:.2f} %, light dose {self.dose.lux_h:.3g} lux.h ({self.dose.lux_s:.3g} "
+                f"lux.s), calibration dE00 train "
                 f"{de(self.train_mean)} / test {de(self.test_mean)}{spectral}" + (", HDR" if self.hdr else "")
                 + (f"; {qa_text(self.truth)}" if self.truth else "") + "".join(f"; {w}" for w in self.warnings))
 
@@ -104,7 +107,8 @@ class QaLine:
                 "underexposed_pct": round(self.underexposed_pct, 4), "invalid_pct": round(self.invalid_pct, 4),
                 "light_dose": self.dose.to_dict(), "calibration_train_de00_mean": self.train_mean,
                 "calibration_test_de00_mean": self.test_mean, "calibration_test_spectral_rmse": self.spectral_rmse,
-                "hdr": self.hdr, "warnings": self.warnings, **({"virtual_truth": self.truth} if self.truth else {})}
+                "hdr": self.hdr, "warnings": self.warnings, "overrides": self.overrides,
+                **({"virtual_truth": self.truth} if self.truth else {})}
 
 
 @dataclass
@@ -272,13 +276,14 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
             camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
             exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
             extra: dict | None = None, render_illuminant: str = DEFAULT_RENDER_ILLUMINANT,
-            truth: OriginalTruth | None = None) -> Delivery:
+            truth: OriginalTruth | None = None, overrides: list[str] | None = None) -> Delivery:
     """Encode the channels of ``source`` (a full-resolution MasterStack or a half-resolution ChannelStack) with the
     calibration's matrix (and spectral estimator: the rendering under ``render_illuminant``, and the cube at half
     resolution) and write every deliverable of ``original``: into a fresh folder, swapped in whole when complete
     (a re-delivery keeps the previous set in ``<stem>/previous/``; a folder of another original is refused:
     app.workflow.delivery_folder). ``ppi``: the delivered files' sampling (None: the calibration's, at this
-    resolution). ``truth``: the virtual lab's, compared in the sidecar and QA line."""
+    resolution). ``truth``: the virtual lab's, compared in the sidecar and QA line. ``overrides``: rules the user
+    overrode for it (app.workflow.mode_rule), said in the sidecar and QA line."""
     warnings = list(warnings or [])
     resolution = source.resolution
     ppi = ppi or delivered_ppi(profile, resolution)
@@ -306,9 +311,10 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
         if truth is not None:
             qa.truth = assess(truth, files, float(profile.white_xyz[1]),
                               spectral.estimator if spectral is not None else None)
+        qa.overrides = list(overrides or [])
         doc = _sidecar(source, profile, original, camera, now, ppi, exposures, dose, qa, files, fixity, spectral)
         atomic_write(folder / f"{stem}.json",
-                     (json.dumps({**doc, **(extra or {})}, indent=2, ensure_ascii=False, default=str) + "\n"
+                     (dumps({**doc, **(extra or {})}, indent=2, ensure_ascii=False, default=str) + "\n"
                       ).encode("utf-8"))
     log.info("delivered %s: %s", original.identifier, qa.text())
     return Delivery(original, {k: final / p.name for k, p in files.items()}, final / f"{stem}.json", qa)
@@ -332,6 +338,7 @@ def _sidecar(source: ChannelSource, profile: CalibrationProfile, original: Origi
             "original": original.to_dict(), "file_stem": original.file_stem,
             "calibration": {"id": profile.id, "file": str(profile.path or ""), "created_at": profile.created_at,
                             "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean},
+            **({"overrides": qa.overrides} if qa.overrides else {}),
             "camera": asdict(camera), "ppi": ppi, "resolution": resolution_section(source, profile),
             "exposures": exposures or {}, "light_dose": dose.to_dict(),
             "qa": qa.to_dict(), "encoding": {"rgb": "display-encoded, white = 65535", "linear_one": LINEAR_ONE,

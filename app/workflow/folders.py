@@ -54,6 +54,15 @@ def new_session(root: Path, meta: dict | None = None, definition: dict | None = 
     raise SessionError(errno.EEXIST, f"{root}: no free session name")
 
 
+def stored_definition(folder: Path) -> dict:
+    """The definition a session folder records ({} when there is no session there, or it cannot be read: opening
+    it says why)."""
+    try:
+        return dict(CaptureSession._read_settings(Path(folder) / SETTINGS).get("definition") or {})
+    except (SessionError, OSError):
+        return {}
+
+
 def is_session(folder: Path) -> bool:
     return (Path(folder) / SETTINGS).is_file()
 

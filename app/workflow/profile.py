@@ -46,6 +46,7 @@ from dualrgb.app.workflow.profile_arrays import ProfileArrays
 from dualrgb.app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
 from dualrgb.app.workflow.vocabulary import NamedLight, exposure_key
 from dualrgb.common.atomic_files import atomic_output
+from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.simulation.defaults import default_grid
 from dualrgb.simulation.lightsource import LightSource
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
@@ -158,6 +159,7 @@ class CalibrationProfile:
     estimator: SpectralEstimator | None = None       # the spectral estimate; None: spectra unavailable
     stand: dict = field(default_factory=dict)        # the stand model section (app.workflow.stand_calibration)
     stand_observations: StandObservations | None = None   # what it was fitted to (from the .npz)
+    charts: dict = field(default_factory=dict)       # per target: its chart's file, sha256, patches, range (charts)
 
     # ---- derived ----
     @property
@@ -196,7 +198,8 @@ class CalibrationProfile:
                 "matrix": self.matrix.to_dict(), "statistics": self.statistics, "white_xyz": self.white_xyz,
                 "raw": self.raw, "ppi": self.ppi, "targets": self.targets, "sources": self.sources,
                 **({"spectral": {"estimator": self.estimator.to_dict(), **self.spectral}} if self.estimator else {}),
-                **({"stand_model": self.stand} if self.stand else {})}
+                **({"stand_model": self.stand} if self.stand else {}),
+                **({"charts": self.charts} if self.charts else {})}
 
     # ---- files ----
     def save(self, folder: Path) -> Path:
@@ -222,7 +225,7 @@ class CalibrationProfile:
         doc = {**self.to_dict(), "arrays": {"file": npz.name, "sha256": _sha256(npz),
                                             "darks": dark_index, "whites": white_index}}
         path = folder / f"{self.id}.json"
-        atomic_write(path, (json.dumps(doc, indent=2) + "\n").encode())
+        atomic_write(path, (strict_dumps(doc, indent=2) + "\n").encode())
         self.path = path
         log.info("calibration %s saved: %s (+ %s, %.0f MB)", self.id, path, npz.name, size / 1e6)
         return path
@@ -260,7 +263,7 @@ def _from_dict(doc: dict) -> CalibrationProfile:
         matrix=CharacterisationMatrix.from_dict(doc["matrix"]), statistics=doc["statistics"],
         white_xyz=[float(v) for v in doc["white_xyz"]], raw=doc["raw"], sources=doc["sources"], ppi=doc.get("ppi"),
         targets=doc.get("targets", {}), version=doc.get("version", ""), stand=dict(doc.get("stand_model") or {}),
-        **_spectral_of(doc))
+        charts=dict(doc.get("charts") or {}), **_spectral_of(doc))
 
 
 def _spectral_of(doc: dict) -> dict:
@@ -367,6 +370,7 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
     for nl in prof.lights:
         ts = ", ".join(exposure_key(t) for t in prof.exposures.get(nl.name, []))
         lines.append(f"  {nl.name}: {nl.light.label()}, exposures {ts} s")
+    lines += chart_lines(prof.charts)
     lines.append(f"matrix: {prof.matrix.method} ({len(prof.matrix.channels)} channels, of "
                  f"{', '.join(prof.statistics.get('methods', {}))}); train mean dE00 "
                  f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, "
@@ -380,6 +384,20 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
         lines += [f"REFUSED: {r}" for r in check.refusals] + [f"warning: {w}" for w in check.warnings]
         lines.append("checks: " + ("ok" if check.ok else f"{len(check.refusals)} mismatch(es)"))
     return lines
+
+
+def chart_lines(charts: dict) -> list[str]:
+    """One line per chart the calibration was made with (its file, patches, layout, wavelength range); none for a
+    profile made before charts were recorded."""
+    out = []
+    for role, c in charts.items():
+        lo, hi = (c.get("wavelength_range_nm") or [0, 0])[:2]
+        left = f", {len(c['left_out'])} left out" if c.get("left_out") else ""
+        what = f" (packaged: {c['stands_for']})" if c.get("packaged") and c.get("stands_for") else ""
+        out.append(f"{'training' if role == 'train' else role} chart: {c.get('file')}{what}, {c.get('used')} of "
+                   f"{c.get('patches')} patches{left}, {'x'.join(map(str, c.get('layout') or []))}, {lo:g}-{hi:g} nm"
+                   + (f" ({c['extended']})" if c.get("extended") else "") + f", sha256 {str(c.get('sha256'))[:12]}")
+    return out
 
 
 def spectral_line(prof: CalibrationProfile) -> str:

@@ -10,6 +10,13 @@ Format
     ``--column identifier="Accession No."``). Every other column is an extra field of the original, kept with its
     exact name (sidecar ``original.extra``; XMP ``dualrgb:Extra_<name>``: app.workflow.metadata.xmp_property).
 
+Unmapped columns never refuse a row (collection exports carry dozens nobody maps, and free text of thousands of
+characters): any number of them is read; a value up to :data:`EXTRA_RULE`'s 1000 characters is kept as it is, a
+longer one truncated with a marker (``[… 3565 characters, truncated]``), one holding a character no field may hold
+(a control character ...) dropped; a column whose header cannot name a field (no name, a control character, over
+100 characters) or a value beyond the header's last column is left out. Each such column gets one summary line
+(:meth:`QueueImport.column_lines`). The mapped fields keep their strict checks (a bad value refuses its row).
+
 Rows
     Numbered as a spreadsheet shows them: the header is row 1, a quoted field's line breaks stay within its row.
     Empty rows are skipped. Each field is normalised by app.workflow.metadata (the GUI's and the CLI's rules); an
@@ -20,6 +27,7 @@ Rows
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import logging
 from collections.abc import Mapping
@@ -31,7 +39,6 @@ from dualrgb.app.workflow.metadata import (
     COLUMN_RULE,
     EXTRA_RULE,
     FIELD_RULES,
-    MAX_EXTRA,
     MetadataError,
     Original,
     normalise,
@@ -43,6 +50,48 @@ log = logging.getLogger(__name__)
 
 FIELDS = ("identifier", "title", "operator", "notes", "mode")
 DELIMITERS = (",", ";", "\t")
+_UNBOUNDED_EXTRA = dataclasses.replace(EXTRA_RULE, max_chars=2**62)     # normalised first, then truncated
+
+
+@dataclass
+class ColumnNote:
+    """What became of an unmapped column's values: one summary line (:meth:`line`)."""
+
+    column: str                      # its header name, or its letter when it has none
+    truncated: int = 0               # values over EXTRA_RULE.max_chars, kept truncated with a marker
+    longest: int = 0
+    dropped: int = 0                 # values holding a character no field may hold
+    why: str = ""                    # the first dropped value's problem
+    whole: str = ""                  # the column left out whole: why
+    renamed: str = ""                # a repeated header name, kept under this column's name: what it said
+
+    def line(self) -> str:
+        if self.whole:
+            return f"column {self.column}: {self.whole}; its values are not kept"
+        parts = [f"the header repeats {self.renamed}: kept under this name"] if self.renamed else []
+        if self.truncated:
+            parts.append(f"{self.truncated} value{'s' if self.truncated > 1 else ''} over {EXTRA_RULE.max_chars} "
+                         f"characters (longest {self.longest}) kept truncated, marked '[… N characters, truncated]'")
+        if self.dropped:
+            parts.append(f"{self.dropped} value{'s' if self.dropped > 1 else ''} dropped ({self.why})")
+        return f"column {self.column!r} (extra metadata): " + "; ".join(parts)
+
+
+def extra_value(cell: str, column: str, note: ColumnNote) -> str | None:
+    """An unmapped column's value as kept (module docstring; None: dropped), counted in ``note``."""
+    try:
+        text = normalise(_UNBOUNDED_EXTRA, cell, column)
+    except MetadataError as exc:
+        note.dropped += 1
+        note.why = note.why or exc.problem
+        return None
+    limit = EXTRA_RULE.max_chars
+    if len(text) > limit:
+        note.truncated += 1
+        note.longest = max(note.longest, len(text))
+        marker = f" [… {len(text)} characters, truncated]"
+        text = text[:limit - len(marker)].rstrip() + marker
+    return text
 
 
 @dataclass(frozen=True)
@@ -67,6 +116,13 @@ class QueueImport:
     problems: list[RowProblem] = field(default_factory=list)
     columns: dict[str, str] = field(default_factory=dict)      # field -> the column it was read from
     extra_columns: list[str] = field(default_factory=list)
+    notes: dict[str, ColumnNote] = field(default_factory=dict)  # unmapped columns whose values were not all kept
+    bad_identifiers: dict[int, str] = field(default_factory=dict)  # a bad row's identifier cell as it is
+
+    def column_lines(self) -> list[str]:
+        """One line per unmapped column whose values were not all kept as they are (truncated, dropped, the
+        column left out or renamed)."""
+        return [n.line() for n in self.notes.values() if n.whole or n.truncated or n.dropped or n.renamed]
 
     @property
     def originals(self) -> list[Original]:
@@ -137,30 +193,39 @@ def _records(path: Path) -> list[list[str]]:
     return rows
 
 
-def _header(path: Path, cells: list[str]) -> list[str]:
-    names = []
+def _header(path: Path, cells: list[str], columns: Mapping[str, str], notes: dict[str, ColumnNote]
+            ) -> list[str | None]:
+    """The columns' names (None: a column left out, its reason in ``notes``); a name a field is read from must be
+    unique (one line otherwise), another repeated one is kept as ``name (letter)``."""
+    wanted = {str(v).casefold() for v in columns.values()} | set(FIELDS)
+    names: list[str | None] = []
     for i, cell in enumerate(cells):
         try:
-            names.append(normalise(COLUMN_RULE, cell, f"row 1, column {_letter(i)}"))
+            names.append(normalise(COLUMN_RULE, cell, f"row 1, column {_letter(i)}") or None)
         except MetadataError as exc:
-            raise ValueError(f"{path}: {exc}") from None
-    while names and not names[-1]:
+            names.append(None)
+            notes[_letter(i)] = ColumnNote(_letter(i), whole=f"header: {exc.problem}")
+    while names and names[-1] is None and _letter(len(names) - 1) not in notes:
         names.pop()
     for i, name in enumerate(names):
-        if not name:
-            raise ValueError(f"{path}: row 1, column {_letter(i)}: the header names no column here")
-        if name in names[:i]:
-            raise ValueError(f"{path}: row 1: column {name!r} appears twice ({_letter(names.index(name))} and "
-                             f"{_letter(i)})")
+        if name is None or name not in names[:i]:
+            continue
+        first = _letter(names.index(name))
+        if name.casefold() in wanted:
+            raise ValueError(f"{path}: row 1: column {name!r} appears twice ({first} and {_letter(i)})")
+        names[i] = f"{name} ({_letter(i)})"
+        notes[str(names[i])] = ColumnNote(str(names[i]), renamed=f"{name!r} (also column {first})")
+    if not any(names):
+        raise ValueError(f"{path}: no header row (row 1 names the columns: identifier, title, ...)")
     return names
 
 
-def _field_columns(path: Path, names: list[str], columns: Mapping[str, str]) -> dict[str, int]:
+def _field_columns(path: Path, names: list[str | None], columns: Mapping[str, str]) -> dict[str, int]:
     """Field -> index of its column in the header."""
     out: dict[str, int] = {}
     for name in FIELDS:
         wanted = normalise(COLUMN_RULE, columns.get(name, name), "--column").casefold()
-        hits = [i for i, n in enumerate(names) if n.casefold() == wanted]
+        hits = [i for i, n in enumerate(names) if n is not None and n.casefold() == wanted]
         if len(hits) > 1:
             raise ValueError(f"{path}: columns {', '.join(repr(names[i]) for i in hits)} all read as {name!r}; "
                              f"rename one, or choose with --column {name}=NAME")
@@ -170,9 +235,7 @@ def _field_columns(path: Path, names: list[str], columns: Mapping[str, str]) -> 
             out[name] = hits[0]
         elif name in columns or name == "identifier":
             raise ValueError(f"{path}: no column {columns.get(name, name)!r} for the {name} (the header has "
-                             f"{', '.join(map(repr, names))}); name it with --column {name}=NAME")
-    if len(names) - len(out) > MAX_EXTRA:
-        raise ValueError(f"{path}: {len(names) - len(out)} extra columns, at most {MAX_EXTRA}")
+                             f"{', '.join(repr(n) for n in names if n)}); name it with --column {name}=NAME")
     return out
 
 
@@ -184,20 +247,27 @@ def _value(name: str, cell: str, column: str, default_mode: str) -> str:
     return normalise(FIELD_RULES[name], cell, column)
 
 
-def _row(number: int, cells: list[str], names: list[str], index: dict[str, int],
-         default_mode: str) -> tuple[Original | None, list[RowProblem]]:
-    problems = []
-    if any(c.strip() for c in cells[len(names):]):
-        problems.append(RowProblem(number, _letter(len(names)), "a value beyond the last named column"))
+def _row(number: int, cells: list[str], names: list[str | None], index: dict[str, int], default_mode: str,
+         notes: dict[str, ColumnNote]) -> tuple[Original | None, list[RowProblem]]:
+    """A row's original, or its problems (mapped fields only: an unmapped column never refuses a row)."""
+    for i in range(len(names), len(cells)):                      # values beyond the header's last column
+        if cells[i].strip() and _letter(i) not in notes:
+            notes[_letter(i)] = ColumnNote(_letter(i), whole="beyond the header's last named column")
     cells = cells + [""] * (len(names) - len(cells))
-    values, extra = {}, {}
+    fields = {j: k for k, j in index.items()}
+    problems, values, extra = [], {}, {}
     for i, column in enumerate(names):
-        name = next((k for k, j in index.items() if j == i), None)
+        if column is None:
+            if cells[i].strip() and _letter(i) not in notes:
+                notes[_letter(i)] = ColumnNote(_letter(i), whole="no name in the header")
+            continue
         try:
-            if name is not None:
-                values[name] = _value(name, cells[i], column, default_mode)
-            else:
-                extra[column] = normalise(EXTRA_RULE, cells[i], column)
+            if i in fields:
+                values[fields[i]] = _value(fields[i], cells[i], column, default_mode)
+            elif cells[i].strip():
+                kept = extra_value(cells[i], column, notes.setdefault(column, ColumnNote(column)))
+                if kept:
+                    extra[column] = kept
         except MetadataError as exc:
             problems.append(RowProblem(number, column, exc.problem))
     if problems:
@@ -231,26 +301,31 @@ def read_queue_csv(path: Path, *, columns: Mapping[str, str] | None = None, defa
     """
     path = Path(path)
     records = _records(path)
-    names = _header(path, records[0])
+    notes: dict[str, ColumnNote] = {}
+    names = _header(path, records[0], dict(columns or {}), notes)
     index = _field_columns(path, names, dict(columns or {}))
     default_mode = normalise_mode(default_mode)
-    out = QueueImport(path, columns={k: names[i] for k, i in index.items()},
-                      extra_columns=[n for i, n in enumerate(names) if i not in index.values()])
+    out = QueueImport(path, columns={k: str(names[i]) for k, i in index.items()}, notes=notes,
+                      extra_columns=[n for i, n in enumerate(names) if n is not None and i not in index.values()])
     seen: dict[str, int] = {}
     stems: dict[str, int] = {}
-    id_column = names[index["identifier"]]
+    id_column = str(names[index["identifier"]])
     for number, cells in enumerate(records[1:], start=2):
         if not any(c.strip() for c in cells):
             continue
-        original, problems = _row(number, cells, names, index, default_mode)
+        original, problems = _row(number, cells, names, index, default_mode, notes)
         if original is not None:
             problems = _duplicate(number, original, seen, stems, id_column, out_dir)
         if original is None or problems:
             out.problems += problems
+            cell = cells[index["identifier"]] if index["identifier"] < len(cells) else ""
+            out.bad_identifiers[number] = " ".join(cell.split())[:100]
             continue
         seen[original.identifier] = stems[original.file_stem.casefold()] = number
         out.entries.append(QueueEntry(number, original))
     log.info("%s", out.summary())
+    for line in out.column_lines():
+        log.info("%s: %s", path.name, line)
     return out
 
 
@@ -269,4 +344,5 @@ def _duplicate(number: int, original: Original, seen: dict[str, int], stems: dic
     return []
 
 
-__all__ = ["FIELDS", "QueueEntry", "QueueImport", "RowProblem", "column_option", "column_options", "read_queue_csv"]
+__all__ = ["FIELDS", "ColumnNote", "QueueEntry", "QueueImport", "RowProblem", "column_option", "column_options",
+           "extra_value", "read_queue_csv"]

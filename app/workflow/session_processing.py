@@ -148,14 +148,20 @@ def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames,
     if grid is None:
         det = detect_cc24(stack.rgb(0)) if len(spec.names) == 24 else None
         if det is None:
-            raise ValueError(f"{spec.subject.label}: no patch grid given and no chart detected; place the grid")
+            raise ValueError(f"{spec.subject.label}: no patch grid given and no chart detected (automatic detection "
+                             "exists for the 24-patch ColorChecker Classic only); place the grid")
         grid = det.grid
-    # patches fill the grid row by row; a partly filled last row is fine (190 patches on 12 x 17 cells)
-    if not len(spec.names) <= grid.n_patches < len(spec.names) + grid.cols:
+    cells = spec.cell_indices()
+    # patches fill the grid row by row (a partly filled last row is fine: 190 patches on 12 x 17 cells), or each
+    # lies in the cell its chart names (simulation.charts)
+    fits = (len(spec.names) <= grid.n_patches < len(spec.names) + grid.cols if cells == list(range(len(cells)))
+            else (grid.rows, grid.cols) == tuple(spec.layout or ()) and max(cells) < grid.n_patches)
+    if not fits:
         raise ValueError(f"{spec.subject.label}: the grid has {grid.n_patches} cells ({grid.rows} x {grid.cols}) "
-                         f"but the target {len(spec.names)} patches")
+                         f"but the target {len(spec.names)} patches"
+                         + (f" on {spec.layout[0]} x {spec.layout[1]} cells" if spec.layout else ""))
     sampled = grid.sample(stack.data)
-    return sampled.mean[:len(spec.names)], sampled.std[:len(spec.names)], stack
+    return sampled.mean[cells], sampled.std[cells], stack
 
 
 def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec | None = None, *,

@@ -1,7 +1,9 @@
 """Colour targets of a capture: what each patch should measure (reference XYZ, eq 4.2) and where it lies.
 
-The reference XYZ of a target captured under the virtual lab's ND 2.0 filter (thesis 8.3) is the target's XYZ
-with the patches under the filter scaled by its transmittance: that is what the camera saw. Grids are in the
+The reference data are a chart's (simulation.charts): the stand's own chart files when the calibration names
+them (``calibrate --train-target / --test-target``, the GUI's calibration box), else the packaged targets of the
+mode. The reference XYZ of a target captured under the virtual lab's ND 2.0 filter (thesis 8.3) is the target's
+XYZ with the patches under the filter scaled by its transmittance: that is what the camera saw. Grids are in the
 processed stack's (superpixel, half-size) pixel coordinates.
 """
 from __future__ import annotations
@@ -15,8 +17,8 @@ from typing import Any
 import numpy as np
 
 from dualrgb.app.processing.patches import PatchGrid
-from dualrgb.app.processing.report import layout_for
 from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
+from dualrgb.simulation.charts import Chart, ChartError, packaged_chart
 from dualrgb.simulation.colorimetry import white_point
 
 log = logging.getLogger(__name__)
@@ -41,6 +43,11 @@ class TargetSpec:
     nd_mask: np.ndarray | None = None     # patches under the ND filter (virtual lab)
     spectra: np.ndarray | None = None     # (n, n_wl) reference spectra on the simulation grid (ND included)
     mode: str = ""                        # the packaged data (grid, CMFs, LEDs, camera) the spectra belong to
+    cells: list[int] | None = None        # the grid cell of each patch (None: the patches fill the cells in order)
+    chart: Chart | None = None            # the chart the reference data come from (the profile records it)
+
+    def cell_indices(self) -> list[int]:
+        return list(range(len(self.names))) if self.cells is None else list(self.cells)
 
 
 def packaged_target(mode: str, name: str) -> Any:
@@ -52,6 +59,20 @@ def packaged_target(mode: str, name: str) -> Any:
     return getattr(default_setup(mode), name)
 
 
+def chart_of(mode: str, name: str, charts: dict[str, Chart] | None = None) -> Chart:
+    """The chart whose reference data a target uses: the stand's own (``charts``), else the packaged one."""
+    from dualrgb.simulation.datasets import default_setup
+
+    if name not in ("train", "test"):
+        raise ValueError(f"target {name!r}: only the training and test targets have reference data")
+    chart = (charts or {}).get(name)
+    if chart is not None:
+        if chart.kind != mode:
+            raise ChartError(f"{chart.file.path}: a {chart.kind} chart for a {mode} calibration")
+        return chart
+    return packaged_chart(mode, name, default_setup(mode).grid)
+
+
 def nd_transmittance(nd_mask: np.ndarray | None, transmittance: float, n: int) -> np.ndarray:
     """Per patch: the ND filter's transmittance where it covers the patch, 1 elsewhere."""
     if nd_mask is None:
@@ -60,24 +81,25 @@ def nd_transmittance(nd_mask: np.ndarray | None, transmittance: float, n: int) -
 
 
 def reference_xyz(mode: str, name: str, nd_scale: np.ndarray | None = None,
-                  method: str | None = None) -> tuple[np.ndarray, list[str]]:
-    """Reference XYZ (D65, CIE 1931 2 deg, Y of a perfect white = 100) of a packaged target and its patch names;
-    ``nd_scale`` (per patch) multiplies the spectra (the ND filter's transmittance where it covers a patch).
-    ``method``: simulation.datasets.target_xyz's integration ('eq-4.2', the default, or 'astm-e308')."""
+                  method: str | None = None, chart: Chart | None = None) -> tuple[np.ndarray, list[str]]:
+    """Reference XYZ (D65, CIE 1931 2 deg, Y of a perfect white = 100) of a target's used patches and their names
+    (``chart``: the stand's own, else the packaged one); ``nd_scale`` (per patch) multiplies the spectra (the ND
+    filter's transmittance where it covers a patch). ``method``: simulation.datasets.target_xyz's integration
+    ('eq-4.2', the default, or 'astm-e308')."""
     from dualrgb.simulation.datasets import default_setup, target_xyz
 
-    setup = default_setup(mode)
-    target = getattr(setup, name)
-    xyz, _white = target_xyz(setup, target, method)
+    target = (chart or chart_of(mode, name)).reference()
+    xyz, _white = target_xyz(default_setup(mode), target, method)
     if nd_scale is not None:                         # XYZ is linear in the spectrum
         xyz = xyz * np.asarray(nd_scale, dtype=float)[:, None]
     return xyz, list(target.patch_names)
 
 
-def reference_spectra(mode: str, name: str, nd_scale: np.ndarray | None = None) -> np.ndarray:
-    """The reflectance (transmittance) factors (n, n_wl) of a packaged target on the simulation grid; ``nd_scale``
-    (per patch) multiplies them (the ND filter's transmittance where it covers a patch)."""
-    spectra = np.asarray(packaged_target(mode, name).spectra, dtype=float)
+def reference_spectra(mode: str, name: str, nd_scale: np.ndarray | None = None,
+                      chart: Chart | None = None) -> np.ndarray:
+    """The reflectance (transmittance) factors (n, n_wl) of a target's used patches on the simulation grid;
+    ``nd_scale`` (per patch) multiplies them (the ND filter's transmittance where it covers a patch)."""
+    spectra = np.asarray((chart or chart_of(mode, name)).reference().spectra, dtype=float)
     return spectra if nd_scale is None else spectra * np.asarray(nd_scale, dtype=float)[:, None]
 
 
@@ -99,48 +121,58 @@ def scene_grid(scene: Any, fraction: float = 0.5) -> PatchGrid:
 
 
 def virtual_target_spec(lab: Any, subject: Subject, *, simulated: np.ndarray | None = None,
-                        grid: PatchGrid | None = None, label: str = "", method: str | None = None) -> TargetSpec:
-    """A TargetSpec for a target captured in the virtual lab: its scene gives the grid and the ND patches."""
+                        grid: PatchGrid | None = None, label: str = "", method: str | None = None,
+                        chart: Chart | None = None) -> TargetSpec:
+    """A TargetSpec for a target captured in the virtual lab: its scene gives the grid and the ND patches; the
+    reference data are ``chart``'s (the lab renders the same chart: VirtualLab.use_chart), else the packaged."""
     if subject.kind is not SubjectKind.TARGET:
         raise ValueError(f"{subject.label}: not a colour target")
+    chart = chart_of(lab.mode, subject.name, {subject.name: chart} if chart is not None else None)
     scene = lab.scene_for(subject.name, nd=subject.nd)
-    nd_mask = scene.nd_patches()
-    nd_scale = nd_transmittance(nd_mask, scene.nd_transmittance, scene.n_patches)
-    xyz, names = reference_xyz(lab.mode, subject.name, nd_scale, method)
-    target = packaged_target(lab.mode, subject.name)
+    cells = chart.used_cells
+    nd_mask = scene.nd_patches()[cells]
+    nd_scale = nd_transmittance(nd_mask, scene.nd_transmittance, len(cells))
+    xyz, names = reference_xyz(lab.mode, subject.name, nd_scale, method, chart)
     return TargetSpec(subject, xyz, names, grid or scene_grid(scene), tuple(scene.layout), simulated,
-                      label or f"{subject.name} ({target.name})", nd_mask,
-                      reference_spectra(lab.mode, subject.name, nd_scale), lab.mode)
+                      label or f"{subject.name} ({chart.target.name})", nd_mask,
+                      reference_spectra(lab.mode, subject.name, nd_scale, chart), lab.mode, cells, chart)
 
 
 def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any = None,
-                label: str = "", method: str | None = None) -> TargetSpec:
+                label: str = "", method: str | None = None, chart: Chart | None = None) -> TargetSpec:
     """The TargetSpec the GUI and the CLI use: the virtual lab's scene when there is one (ND included), else the
-    packaged target of ``mode`` with the grid placed by hand (None: CC24 auto-detection). ``method``: how the
-    reference XYZ is integrated (simulation.datasets.target_xyz: 'eq-4.2' or 'astm-e308')."""
+    chart (``chart``: the stand's own; None: the packaged target of ``mode``) with the grid placed by hand (None:
+    automatic detection, which exists for the 24-patch ColorChecker Classic only). ``method``: how the reference
+    XYZ is integrated (simulation.datasets.target_xyz: 'eq-4.2' or 'astm-e308')."""
     if lab is not None:
-        return virtual_target_spec(lab, subject, grid=grid, label=label, method=method)
+        return virtual_target_spec(lab, subject, grid=grid, label=label, method=method, chart=chart)
     if subject.nd:
         raise ValueError(f"{subject.label}: the ND filter's coverage is known only in the virtual lab")
-    target = packaged_target(mode, subject.name)
-    xyz, names = reference_xyz(mode, subject.name, method=method)
-    if grid is None and len(names) != 24:
-        raise ValueError(f"{subject.label}: place the patch grid on it first ({len(names)} patches)")
-    if grid is not None and grid.n_patches < len(names):
+    chart = chart_of(mode, subject.name, {subject.name: chart} if chart is not None else None)
+    xyz, names = reference_xyz(mode, subject.name, method=method, chart=chart)
+    rows, cols = chart.layout
+    if grid is None and not (len(names) == 24 and (rows, cols) in ((4, 6), (6, 4))):
+        raise ValueError(f"{subject.label}: place the patch grid on it first ({chart.label()}; automatic "
+                         "detection exists for the 24-patch ColorChecker Classic only)")
+    if grid is not None and (grid.rows, grid.cols) != (rows, cols) and chart.cells != list(range(len(chart.cells))):
+        raise ValueError(f"{subject.label}: the grid has {grid.rows} x {grid.cols} cells but the chart's layout is "
+                         f"{rows} x {cols}; set rows and columns")
+    if grid is not None and grid.n_patches <= max(chart.used_cells):
         raise ValueError(f"{subject.label}: the grid has {grid.n_patches} cells but the target {len(names)} "
                          "patches; set rows and columns")
-    return TargetSpec(subject, xyz, names, grid, layout_for(len(names), target.layout), None,
-                      label or f"{subject.name} ({target.name})", spectra=reference_spectra(mode, subject.name),
-                      mode=mode)
+    return TargetSpec(subject, xyz, names, grid, (rows, cols), None, label or f"{subject.name} ({chart.target.name})",
+                      spectra=reference_spectra(mode, subject.name, chart=chart), mode=mode, cells=chart.used_cells,
+                      chart=chart)
 
 
-def load_grid(path: Path) -> PatchGrid:
-    """A patch grid from JSON: {"corners": [[x, y] x4 (TL, TR, BR, BL, stack pixels)], "rows", "cols"[, "fraction"]}."""
+def load_grid(path: Path, layout: tuple[int, int] | None = None) -> PatchGrid:
+    """A patch grid from JSON: {"corners": [[x, y] x4 (TL, TR, BR, BL, stack pixels)], "rows", "cols"[, "fraction"]};
+    "rows" / "cols" may be left out when ``layout`` (the chart's) gives them."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
-        return PatchGrid(np.asarray(data["corners"], float), int(data["rows"]), int(data["cols"]),
-                         float(data.get("fraction", 0.5)))
+        rows, cols = (data["rows"], data["cols"]) if layout is None or "rows" in data else layout
+        return PatchGrid(np.asarray(data["corners"], float), int(rows), int(cols), float(data.get("fraction", 0.5)))
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f"{path}: not a patch grid ({exc}); expected {{\"corners\": [[x, y], ...4], \"rows\": R, "
                          "\"cols\": C}") from None

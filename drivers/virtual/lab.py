@@ -49,6 +49,7 @@ class VirtualLab:
         self.sphere: LedSphere | None = None
         self.camera: VirtualCamera | None = None
         self.placed = ""
+        self.charts: dict[str, Target] = {}         # a stand's own charts on the stand (use_chart)
 
     # ---- lifecycle ----
     def start(self) -> VirtualLab:
@@ -88,8 +89,25 @@ class VirtualLab:
 
     # ---- the copy stand ----
     def target(self, which: str) -> Target:
-        """The packaged reference data of the training or test target (what the calibration computes with)."""
+        """The training or test chart on the stand: the one :meth:`use_chart` put there, else the packaged
+        reference data (what the calibration computes with)."""
+        if which in self.charts:
+            return self.charts[which]
         return {"train": self.setup.train, "test": self.setup.test}[which]
+
+    def use_chart(self, which: str, target: Target | None) -> None:
+        """Put a chart of the stand's own on it as the training ('train') or test ('test') target: ``target`` is
+        every cell of its layout with its spectra on this lab's grid (simulation.charts.Chart.render_target); the
+        world's reference error applies to it as to the packaged ones. None: the packaged target again."""
+        if which not in ("train", "test"):
+            raise ValueError(f"chart {which!r}: expected 'train' or 'test'")
+        if target is None:
+            self.charts.pop(which, None)
+            return
+        if np.asarray(target.spectra).shape[1] != len(self.setup.grid):
+            raise ValueError(f"chart {target.name}: {np.asarray(target.spectra).shape[1]} samples, the lab's grid "
+                             f"{self.setup.grid.label()} has {len(self.setup.grid)}")
+        self.charts[which] = target
 
     def true_target(self, which: str) -> Target:
         """The target as it lies on the stand in this world (its reference error applied; World.true_target)."""

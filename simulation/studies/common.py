@@ -8,7 +8,6 @@ changes the process-wide backend (the GUI runs Qt in the same process).
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 import math
 import time
@@ -20,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dualrgb.common.atomic_files import atomic_output, atomic_write
+from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.simulation.datasets import SimulationSetup, default_setup
 from dualrgb.simulation.grid import SpectralGrid
 from dualrgb.simulation.objective import Evaluator
@@ -157,7 +157,7 @@ class StudyOutput:
         """``data`` (a dict) behind the format tag (its own 'format', else dualrgb-study-<name>/1) and versions."""
         path = self.folder / name
         data = stamped(data.get("format") or f"dualrgb-study-{Path(name).stem.replace('_', '-')}/1", data)
-        atomic_write(path, json.dumps(to_jsonable(data), indent=2) + "\n")
+        atomic_write(path, strict_dumps(to_jsonable(data), indent=2) + "\n")
         self.files.append(path)
         return path
 

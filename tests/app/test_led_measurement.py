@@ -266,3 +266,24 @@ def test_calibration_warns_below_the_measured_minimum_level(aged):
     lines = unstable_levels([LightSource((1, 6), (1.0, 0.02), "LS1"), LightSource((3,), (0.5,), "LS2")],
                             load_stand(out))
     assert len(lines) == 1 and "LED 6 at level 0.02 is below the measured minimum stable level 0.05" in lines[0]
+
+
+@pytest.mark.fault("input")
+def test_import_leds_of_a_broadband_reading_writes_valid_json(tmp_path, capsys):
+    """Issue 27: a reading that never falls to half its peak (a broadband source) has no FWHM; stand.json says
+    null (it said NaN, which is not JSON)."""
+    import json
+
+    from dualrgb.simulation.cgats import write_cgats_spectra
+
+    wl = np.arange(380.0, 781.0, 5.0)
+    readings = np.stack([np.full(len(wl), 0.02), 0.05 * np.exp(-0.5 * ((wl - 520.0) / 12.0) ** 2)], axis=1)
+    path = write_cgats_spectra(tmp_path / "r.ti3", wl, readings, ["LED3_level1", "LED5_level1"])
+    assert cli(["measure", "import-leds", str(path), "--out", str(tmp_path / "stand")]) == 0
+
+    def refuse(token: str) -> float:
+        raise ValueError(f"{token} in stand.json")
+    doc = json.loads((tmp_path / "stand" / "stand.json").read_text(), parse_constant=refuse)
+    shapes = {k: v["shape"] for k, v in doc["leds"].items()}
+    assert shapes["3"]["fwhm_nm"] is None and 25 < shapes["5"]["fwhm_nm"] < 32
+    assert "  3   554.99        -" in capsys.readouterr().out

@@ -100,6 +100,24 @@ def test_the_cli_without_session_makes_a_dated_one_in_the_captures_folder(user_d
     assert f"new session {s.path}" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("made_by", ["copy-stand", "calibrate", "originals"])
+def test_a_day_session_takes_calibrate_and_capture_alike(tmp_path, made_by):
+    """Issue 27: `calibrate --session day1` then `capture --session day1` share the session (workflow
+    'copy-stand'); sessions made before by `calibrate` or `capture` ('calibrate' / 'originals') resume too."""
+    folder = tmp_path / "day1"
+    CaptureSession.create(folder, {}, definition={"workflow": made_by, "mode": "reflective"}).close()
+    for run in ({"workflow": defaults.DAY_WORKFLOW, "mode": "reflective", "preset": "p"},
+                {"workflow": defaults.DAY_WORKFLOW}):
+        with stand_options.open_session(folder, run, _Camera()) as s:
+            assert s.definition["workflow"] == made_by
+    demo = CaptureSession.create(tmp_path / "demo", {}, definition={"workflow": "demo"})
+    demo.close()
+    from dualrgb.app.session.manifest import DefinitionMismatch
+
+    with pytest.raises(DefinitionMismatch, match="workflow: session 'demo', this run 'copy-stand'"):
+        stand_options.open_session(tmp_path / "demo", {"workflow": defaults.DAY_WORKFLOW}, _Camera())
+
+
 def _old_session(folder: Path, name: str, delivered: str = "") -> Path:
     s = CaptureSession.create(folder / name, {"operator": "x"}, definition={"mode": "reflective"})
     if delivered:                          # a delivered original, as CopyStand records it (absolute sidecar)

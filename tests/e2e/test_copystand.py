@@ -2,7 +2,9 @@
 `dualrgb capture` of three originals with the saved calibration (full resolution, the default; the painting also at
 half resolution, and a film with its own calibration at half resolution), the deliverables read back against the
 virtual originals' truth, `dualrgb cube` and `dualrgb verify` on them, a mismatching stand refused, `dualrgb process`
-re-delivering."""
+re-delivering; the film under the reflective calibration only with --force (the mode rule, issue 27); and a day
+calibrated with the stand's own charts (a 140-patch SG-layout training reference and a 24-patch test reference,
+CGATS files in tests/data/charts) in the session its originals go to."""
 from __future__ import annotations
 
 import json
@@ -40,9 +42,10 @@ def day(tmp_path_factory):
                                                       ("FILM-1", "transmissive", "film", "1", "full"),
                                                       ("SHADOW-1", "reflective", "shadow", "1", "full"),
                                                       ("PAINT-H", "reflective", "painting", PAINT_FRAMES, "half")):
+        forced = ["--force"] if mode == "transmissive" else []       # the mode rule: a film, reflectively calibrated
         dualrgb("capture", "--session", str(root / ("originals" if resolution == "full" else "originals-half")),
                 "--calibration", cal["calibration"], "--id", ident, "--title", f"{ident} title", "--operator", "E2E",
-                "--mode", mode, "--virtual-lab", "--virtual-original", stand_in, "--frames", frames,
+                "--mode", mode, "--virtual-lab", *forced, "--virtual-original", stand_in, "--frames", frames,
                 "--resolution", resolution, "--json", str(root / f"{ident}.json"), *FRAME)
         captures[ident] = json.loads((root / f"{ident}.json").read_text())
     # the film with a calibration of its own mode (transmissive: the film targets), rendered under illuminant A
@@ -110,7 +113,11 @@ def test_originals_delivered_with_metadata(day):
     assert captures["PAINT-1"]["new"] == 2 * int(PAINT_FRAMES) and captures["FILM-1"]["new"] == 2
     assert all(len(ts) == 2 for ts in captures["SHADOW-1"]["exposures"].values())      # deep shadow: HDR bracket
     assert captures["SHADOW-1"]["qa"]["hdr"] and not captures["PAINT-1"]["qa"]["hdr"]
-    assert any("transmissive" in w for w in captures["FILM-1"]["qa"]["warnings"])
+    film = captures["FILM-1"]["qa"]
+    assert film["text"].startswith("FILM-1: OVERRIDE: mode overridden (--force): transmissive original with "
+                                   f"reflective calibration {cal['id']}")
+    assert json.loads(Path(captures["FILM-1"]["sidecar"]).read_text())["overrides"] == film["overrides"]
+    assert not captures["PAINT-1"]["qa"]["overrides"]
 
 
 def test_painting_xyz_against_ground_truth(day):
@@ -240,9 +247,71 @@ def test_reshoot_needs_asking_and_process_redelivers(day):
     assert f"PAINT-1: 0 new, {n} kept" in again.stdout
     shot = dualrgb(*base, "--reshoot")
     assert f"PAINT-1: {n} new, 0 kept" in shot.stdout
-    r = dualrgb("process", str(root / "originals"), "--out", str(root / "again"), "--json", str(root / "p.json"))
+    # the mode rule: no transmissive calibration for the film, so it is refused (listed, exit 1), the others done
+    r = dualrgb("process", str(root / "originals"), "--out", str(root / "again"), "--json", str(root / "p.json"),
+                ok=False)
     done = json.loads((root / "p.json").read_text())
-    assert {o["identifier"] for o in done["originals"]} == {"PAINT-1", "FILM-1", "SHADOW-1"}
-    assert r.returncode == 0
+    assert {o["identifier"] for o in done["originals"]} == {"PAINT-1", "SHADOW-1"} and r.returncode == 1
+    assert done["refused"] == ["FILM-1: transmissive original, and no transmissive calibration (the session's: "
+                               "reflective); pass one with --calibration"]
     assert read_xmp(root / "again" / "SHADOW-1" / "SHADOW-1_XYZ_16bit.tif").identifier == "SHADOW-1"
     assert dualrgb("verify", str(root / "again")).returncode == 0
+    r = dualrgb("process", str(root / "originals"), "--calibration", cal["calibration"], "--force", "--out",
+                str(root / "again"), "--json", str(root / "p2.json"))
+    done = {o["identifier"]: o for o in json.loads((root / "p2.json").read_text())["originals"]}
+    assert set(done) == {"PAINT-1", "FILM-1", "SHADOW-1"} and done["FILM-1"]["qa"]["overrides"]
+
+
+def test_a_film_under_a_reflective_calibration_is_refused_before_the_light(day, tmp_path):
+    """The mode rule: one line, exit 1, nothing shot (no session made), no deliverables."""
+    _root, cal, _ = day
+    r = dualrgb("capture", "--session", str(tmp_path / "s"), "--calibration", cal["calibration"], "--id", "F-9",
+                "--mode", "transmissive", "--virtual-lab", *FRAME, ok=False)
+    assert r.returncode == 1 and r.stderr.strip().splitlines()[-1] == (
+        f"dualrgb: error: F-9: transmissive original, reflective calibration {cal['id']}: capture it with a "
+        "transmissive calibration (dualrgb calibrate --mode transmissive), or --force to use this one")
+    assert not (tmp_path / "s").exists()
+
+
+# ---- the stand's own charts -----------------------------------------------------------------------------
+CHARTS = Path(__file__).resolve().parents[1] / "data" / "charts"
+SG_BORDER = [f"{c}{r}" for c in "ABCDEFGHIJKLMN" for r in range(1, 11) if c in "AN" or r in (1, 10)]
+
+
+@pytest.fixture(scope="module")
+def own_charts(tmp_path_factory):
+    """Calibrated with the SG-layout training reference (10 x 14, its repeated border greys but three left out)
+    and the CC24 test reference, then an original captured into the same session (`--session day` twice)."""
+    root = tmp_path_factory.mktemp("own-charts")
+    dualrgb("calibrate", "--session", str(root / "day"), "--virtual-lab", "--hdr", "off", "--dark-frames", "3",
+            "--flat-frames", "8", "--no-de-fit", "--train-target", str(CHARTS / "sg140_layout.txt"),
+            "--train-layout", "10x14", "--train-leave-out", ",".join(SG_BORDER[3:]),
+            "--test-target", str(CHARTS / "cc24_test.cie"), "--json", str(root / "cal.json"), *FRAME)
+    dualrgb("capture", "--session", str(root / "day"), "--id", "OWN-1", "--virtual-lab", "--json",
+            str(root / "own.json"), *FRAME)
+    return root, json.loads((root / "cal.json").read_text()), json.loads((root / "own.json").read_text())
+
+
+def test_calibrated_with_the_stands_own_charts_and_delivering(own_charts):
+    import hashlib
+
+    root, cal, own = own_charts
+    train, test = cal["charts"]["train"], cal["charts"]["test"]
+    assert (train["file"], train["patches"], train["used"], train["layout"]) == ("sg140_layout.txt", 140, 99, [10, 14])
+    assert (test["file"], test["patches"], test["used"], test["layout"]) == ("cc24_test.cie", 24, 24, [4, 6])
+    for chart, name in ((train, "sg140_layout.txt"), (test, "cc24_test.cie")):
+        assert chart["sha256"] == hashlib.sha256((CHARTS / name).read_bytes()).hexdigest() and not chart["packaged"]
+    assert train["wavelength_range_nm"] == [380.0, 730.0] and train["extended"].endswith("held at the 730 nm values")
+    assert "NUMBER_OF_FIELDS says 40" in train["warnings"][0] and test["wavelength_range_nm"] == [380.0, 780.0]
+    best = cal["statistics"]["methods"][cal["statistics"]["best"]]
+    print(f"own charts: train mean dE00 {best['train']['mean']:.3f}, test {best['test']['mean']:.3f}; "
+          f"spectral test RMSE {cal['spectral']['test']['rmse']['mean']:.4f}")
+    assert best["test"]["mean"] < 1.0 and best["train"]["mean"] < 1.0     # the lab rendered the files' spectra
+    assert own["calibration"] == cal["id"] and own["new"] > 0
+    assert all(Path(f).is_file() for f in own["files"].values())
+    assert json.loads(Path(own["sidecar"]).read_text())["calibration"]["id"] == cal["id"]
+    assert Path(own["sidecar"]).parent.parent == root / "day" / "deliverables"
+    # the packaged targets on the same day's session: refused at once (its target frames are the SG's)
+    r = dualrgb("calibrate", "--session", str(root / "day"), "--virtual-lab", "--hdr", "off", "--dark-frames", "3",
+                "--flat-frames", "8", "--no-de-fit", *FRAME, ok=False)
+    assert r.returncode == 1 and "the session was made with other settings: charts" in r.stderr

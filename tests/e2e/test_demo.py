@@ -117,3 +117,20 @@ def test_demo_resumes_after_kill_without_reshooting(tmp_path):
     doses = [entry["on_s"] for entry in lines if entry.get("kind") == "dose"]
     assert dosed_before and doses[:len(dosed_before)] == dosed_before     # the killed run's light is counted
     assert report["light_dose"]["on_s"] == pytest.approx(sum(doses), abs=2e-3)
+
+
+def test_demo_takes_the_stands_own_charts(tmp_path):
+    """Issue 27: `dualrgb demo --train-target / --test-target`: the optimiser chooses the lights on the chart's
+    spectra, the virtual lab renders them, the report names the files; the capture follows the prediction."""
+    from pathlib import Path
+
+    from dualrgb.app.workflow.charts import ChartChoice, load_charts
+
+    charts_dir = Path(__file__).resolve().parents[1] / "data" / "charts"
+    charts = load_charts({"train": ChartChoice(str(charts_dir / "sg140_layout.txt"), "10x14"),
+                          "test": ChartChoice(str(charts_dir / "cc24_test.cie"))}, "reflective")
+    data = run_demo(DemoSettings(out=tmp_path / "demo", frame_size=(240, 160), dark_frames=3, flat_frames=2,
+                                 settle_s=0.0, conditions=("dual_rgb_pso",), charts=charts))
+    assert data["charts"]["train"]["file"] == "sg140_layout.txt" and data["charts"]["test"]["patches"] == 24
+    pso = data["dual_rgb_pso"]
+    assert pso["test"]["mean"] < 1.0 and abs(pso["test"]["mean"] - pso["simulated"]["test"]) < 0.25

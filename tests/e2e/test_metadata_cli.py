@@ -112,7 +112,7 @@ def test_queue_csv_three_bad_rows_then_skip_invalid_then_resume(cal):
             "--column", "identifier=Inventarnummer", "--virtual-lab", "--operator", "E2E", *FRAME]
     r = dualrgb(*args, ok=False)
     lines = r.stderr.strip().splitlines()
-    assert r.returncode == 1 and lines[-1].startswith(f"dualrgb: error: {csv_path}: 3 bad rows (listed above); "
+    assert r.returncode == 1 and lines[-1].startswith(f"dualrgb: error: {csv_path}: 3 refused rows (listed above); "
                                                       "nothing was shot")
     assert lines[:3] == [f"originals.csv: row {row}, column {column!r}: {problem}"
                          for row, (column, problem) in sorted(BAD.items())]

@@ -296,7 +296,8 @@ def test_every_numeric_option_uses_a_shared_validator():
     from dualrgb.app.commands import options
 
     shared = {f.__name__ for f in (options.frame_size, options.input_file, options.world, options.stand_dir,
-                                   options.column_option, options.render_illuminant, options.key_value)} | {
+                                   options.column_option, options.render_illuminant, options.layout,
+                                   options.key_value)} | {
         "number", "count", "numbers", "leds"}
     raw = [a.dest for a in _all_actions(cli_mod.build_parser()) if getattr(a, "type", None) in (int, float)]
     allowed_raw = {"led", "level"}               # `sphere set`: checked by LedSphere, with the light switched off

@@ -86,7 +86,6 @@ def test_cgats17_spectra_in_percent_become_a_target(tmp_path):
 @pytest.mark.parametrize("edit,message", [
     (lambda t: t.replace('3 white 90.0 91.0', '3 white 90.0'), ":11: 7 values, expected 8"),
     (lambda t: t.replace("NUMBER_OF_SETS 3", "NUMBER_OF_SETS 4"), "NUMBER_OF_SETS says 4 but 3 data rows"),
-    (lambda t: t.replace("NUMBER_OF_FIELDS 8", "NUMBER_OF_FIELDS 9"), "NUMBER_OF_FIELDS says 9"),
     (lambda t: t.replace("20.0 30.0", "20.0 n/a"), ":10: field SPECTRAL_NM500 'n/a' is not a number"),
     (lambda t: t.replace("5.0 6.0", "-5.0 6.0"), ":9: negative value -0.05 at 400 nm"),
     (lambda t: t.replace("SPECTRAL_NM", "REFL_"), "no spectral fields"),

@@ -7,8 +7,10 @@ and its folder open from here, and the *Delivered* tab shows the selected origin
 light of choice, with the spectrum of a clicked pixel (app.gui.spectra_view). An original already in the
 session asks "re-shoot / keep" and reports "0 new, 2 kept". The calibration's check against the stand is shown
 above the Capture button, before anything is shot. *Import CSV...* adds a day's originals from the collection
-database through app.workflow.queue_csv.read_queue_csv (the CLI's ``--queue``): its bad rows are listed, one line
-each, and only added on request is the rest.
+database through app.workflow.queue_csv.read_queue_csv (the CLI's ``--queue``) and shows the plan ``capture --queue
+--check`` prints (app.workflow.queue_plan): its bad rows are listed, one line each, and only added on request is
+the rest. The mode rule (app.workflow.mode_rule): an original of another mode than the calibration's is marked and
+not shot unless the technician chooses "Capture anyway" (said in its sidecar and QA line).
 """
 from __future__ import annotations
 
@@ -46,7 +48,9 @@ from dualrgb.app.workflow.copystand import CaptureReport, StandSettings, origina
 from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
 from dualrgb.app.workflow.defaults import SETTLE_S
 from dualrgb.app.workflow.metadata import MODES, Original
+from dualrgb.app.workflow.mode_rule import mode_problem
 from dualrgb.app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
+from dualrgb.app.workflow.queue_plan import plan_queue
 from dualrgb.app.workflow.runs import RunHooks, StandRun
 from dualrgb.app.workflow.vocabulary import EventKind, Role
 
@@ -58,6 +62,7 @@ STATE_COLOURS = {OriginalState.WAITING: "#fafafa", OriginalState.CAPTURING: "#e3
                  OriginalState.FAILED: "#ffebee"}
 RESHOOT, KEEP = "Re-shoot", "Keep"
 ADD_VALID, CANCEL = "Add the valid rows", "Cancel"
+OVERRIDE, LEAVE = "Capture anyway", "Leave it"
 
 
 class OriginalsPanel(QWidget):
@@ -68,6 +73,7 @@ class OriginalsPanel(QWidget):
         self.ctx, self.lab, self.ws = ctx, ctx.lab, ctx.workspace
         self.current: QueueRow | None = None
         self.batch: list[str] = []                  # identifiers still to capture in this batch
+        self.mode_overrides: set[str] = set()        # originals the technician chose to capture in another mode
         self.run: StandRun | None = None
         self._brackets: dict[str, list[float]] = {}
         self.view = SequenceView(ctx)
@@ -259,7 +265,7 @@ class OriginalsPanel(QWidget):
         self.ctx.errors.clear("Import CSV")
         self.ctx.set("originals/csv_folder", str(Path(path).parent))
         bad = imported.bad_lines()
-        self.import_report.setText("\n".join([imported.summary()] + bad))
+        self.import_report.setText("\n".join(self._plan_lines(imported)))
         if not bad:
             self._add_imported(imported)
             return
@@ -269,14 +275,21 @@ class OriginalsPanel(QWidget):
                            lambda choice: self._add_imported(imported) if choice == ADD_VALID else None,
                            default=CANCEL)
 
+    def _plan_lines(self, imported: QueueImport) -> list[str]:
+        """What `dualrgb capture --queue --check` prints (app.workflow.queue_plan) under the current calibration;
+        without one, the rows read and the column lines."""
+        if self.ws.calibration is None:
+            return [imported.summary(), *imported.bad_lines(), *imported.column_lines()]
+        return plan_queue(imported, self.ws.calibration, session=self.lab.session).lines()
+
     def _add_imported(self, imported: QueueImport) -> None:
         operator = self.operator.text().strip()
         originals = [o if o.operator or not operator else replace(o, operator=operator) for o in imported.originals]
         left_out = self.ws.queue.add_many(originals, self.stand_in.currentText() if self.lab.is_virtual else "",
                                           self.frames.value())
         added = len(originals) - len(left_out)
-        self.import_report.setText("\n".join([f"{imported.summary()}; {added} added"] + imported.bad_lines()
-                                              + left_out))
+        lines = self._plan_lines(imported)
+        self.import_report.setText("\n".join([f"{lines[0]}; {added} added", *lines[1:], *left_out]))
         self.ws.queue_changed()
 
     def selected(self) -> list[str]:
@@ -406,12 +419,34 @@ class OriginalsPanel(QWidget):
                 row = self.ws.queue.row(ident)
             except KeyError:
                 continue
+            if self._refused_mode(row):
+                return
             takes = original_takes(self.lab.session, row.original)
             if takes:
                 self._ask_reshoot(row, takes)
             else:
                 self._start(row, None)
             return
+
+    def _refused_mode(self, row: QueueRow) -> bool:
+        """The mode rule (app.workflow.mode_rule): an original of another mode than the calibration's is marked and
+        not shot, unless the technician overrides it (said in its sidecar and QA line)."""
+        profile = self.ws.calibration
+        problem = mode_problem(row.original.mode, profile.mode, profile.id) if profile is not None else ""
+        if not problem or row.identifier in self.mode_overrides:
+            return False
+        row.state, row.qa = OriginalState.FAILED, f"not shot: {problem}"
+        self.ws.queue_changed()
+        text = (f"{row.identifier}: {problem.replace(', or --force to use this one', '')}.\n\nCapture it anyway with "
+                "this calibration (its sidecar and QA line will say so), or leave it for a calibration of its mode?")
+
+        def answer(choice: str) -> None:
+            if choice == OVERRIDE:
+                self.mode_overrides.add(row.identifier)
+                self.batch.insert(0, row.identifier)
+            self._next()
+        self.ctx.asker.ask("Another mode than the calibration's", text, (OVERRIDE, LEAVE), answer, default=LEAVE)
+        return True
 
     def _ask_reshoot(self, row: QueueRow, takes: list[int]) -> None:
         text = (f"{row.identifier} is already in the session ({len(takes)} frames, take {max(takes)}). Re-shoot it "
@@ -421,7 +456,8 @@ class OriginalsPanel(QWidget):
 
     def _start(self, row: QueueRow, reshoot: bool | None) -> None:
         profile, lab = self.ws.calibration, self.lab
-        settings = StandSettings(**self._stand_settings(), force=self.force.isChecked(), original_frames=row.frames,
+        forced = self.force.isChecked() or row.identifier in self.mode_overrides
+        settings = StandSettings(**self._stand_settings(), force=forced, original_frames=row.frames,
                                  resolution=str(self.resolution.currentData()))
 
         def work(hooks: RunHooks) -> CaptureReport:

@@ -47,18 +47,19 @@ METRIC_NAMES = {"colour_mean_de00": "colour mean", "colour_p90_de00": "colour p9
 
 
 def process(lab, session, grids: dict, train_subject: str, test_subject: str | None, optimise: bool,
-            progress, cancel, lights: list[str] | None = None, method: str | None = None
-            ) -> tuple[object, dict[str, TargetView], Path]:
-    """Worker: the TargetSpecs (app.workflow.targets: reference XYZ integrated by ``method``), the one processing
-    path, the plot data."""
+            progress, cancel, lights: list[str] | None = None, method: str | None = None,
+            charts: dict | None = None) -> tuple[object, dict[str, TargetView], Path]:
+    """Worker: the TargetSpecs (app.workflow.targets: reference XYZ integrated by ``method``; the stand's own
+    ``charts`` when the calibration box names them), the one processing path, the plot data."""
     from dualrgb.app.processing.report import xyz_to_srgb8
     from dualrgb.app.workflow.session_processing import process_session
     from dualrgb.app.workflow.targets import reference_white, target_spec
     from dualrgb.simulation.colorimetry import xyz_to_lab
 
     mode = lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode
-    specs = {label: target_spec(mode, Subject.parse(key), grids.get(key), lab=lab.virtual_lab, method=method)
-             for label, key in (("train", train_subject), ("test", test_subject)) if key}
+    keys = {label: key for label, key in (("train", train_subject), ("test", test_subject)) if key}
+    specs = {label: target_spec(mode, Subject.parse(key), grids.get(key), lab=lab.virtual_lab, method=method,
+                                chart=(charts or {}).get(Subject.parse(key).name)) for label, key in keys.items()}
     for label, spec in specs.items():
         spec.label = f"{label}: {spec.label}"                 # e.g. "train: test (CC24 on film)"
     out_dir = Path(session.path) / "results"
@@ -260,7 +261,7 @@ class ResultsPanel(QWidget):
         if not train:
             self.ctx.errors.report("Process", "no captured target to fit on: capture one in Calibrate & capture")
             return
-        grids = dict(self.ctx.workspace.grids)
+        grids, charts = dict(self.ctx.workspace.grids), dict(self.ctx.workspace.charts)
         optimise, method = self.optimise.isChecked(), self.reference.currentData()
         lights = self.light_sets.get(self.lights.currentText())
         lab = self.lab
@@ -270,7 +271,7 @@ class ResultsPanel(QWidget):
         self.progress.setValue(0)
         self.handle = self.ctx.runner.submit(
             lambda progress, cancel: process(lab, session, grids, train, test, optimise, progress, cancel, lights,
-                                             method),
+                                             method, charts),
             pool="compute", name="process session", pass_progress=True, pass_cancel=True,
             on_progress=lambda f, m: (self.progress.setValue(int(1000 * f)), self.status.setText(m)),
             on_result=self.show_result, on_error=self._failed, on_finished=self._finished)

@@ -172,6 +172,9 @@ class TargetPanel(QWidget):
 
     def reference_layout(self, n_default: int = 24) -> tuple[int, int]:
         vl = self.lab.virtual_lab
+        chart = self.ws.charts.get(self.tag())          # the stand's own chart (the calibration box's Charts)
+        if chart is not None:
+            return tuple(chart.layout)
         if vl is not None and self.tag() in ("train", "test"):
             return vl.scene_for(self.tag()).layout
         from dualrgb.simulation.datasets import default_setup

@@ -1,0 +1,83 @@
+"""README's commands run as written (issue 27): the copy-stand day and the own-charts block are parsed out of
+README.md and run literally with bash (tests/doc_blocks.py), on the virtual lab, the only addition being the
+--frame-size 240x160 README's text allows; then the deliverables the day promises are checked, and every JSON the
+day wrote is parsed strictly (no NaN or Infinity)."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+from doc_blocks import block_names, dualrgb_prelude, fenced_block, run_block
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+FRAME = "240x160"
+
+
+@pytest.fixture
+def workdir(tmp_path):
+    """A folder laid out like a checkout for the files README names (docs/, tests/data/)."""
+    (tmp_path / "docs").mkdir()
+    shutil.copy(ROOT / "docs" / "queue-example.csv", tmp_path / "docs")
+    shutil.copytree(ROOT / "tests" / "data", tmp_path / "tests" / "data")
+    env = {**os.environ, "DUALRGB_DATA_DIR": str(tmp_path / "data"), "PYTHONUNBUFFERED": "1"}
+    return tmp_path, env
+
+
+def strict_json_files(root: Path) -> list[Path]:
+    """Every .json / .jsonl under ``root`` parsed with NaN / Infinity refused; returns the files."""
+    def refuse(token: str) -> float:
+        raise AssertionError(f"{token} in a JSON file")
+    files = sorted(p for p in root.rglob("*") if p.suffix in (".json", ".jsonl") and p.is_file())
+    for path in files:
+        text = path.read_text(encoding="utf-8")
+        for line in (text.splitlines() if path.suffix == ".jsonl" else [text]):
+            if line.strip():
+                try:
+                    json.loads(line, parse_constant=refuse)
+                except AssertionError as exc:
+                    raise AssertionError(f"{path}: {exc}") from None
+    return files
+
+
+def test_readme_names_its_runnable_blocks():
+    assert {"copy-stand-day", "own-charts"} <= set(block_names(README))
+    assert "dualrgb calibrate --session day1 --virtual-lab" in fenced_block(README, "copy-stand-day")
+
+
+def test_readme_copy_stand_day_runs_as_written(workdir):
+    root, env = workdir
+    ran = run_block(README, "copy-stand-day", root, env=env, prelude=dualrgb_prelude(FRAME))
+    assert len(ran) == 8
+    day = root / "day1" / "deliverables"
+    for stem in ("ACC-123", "MBA-2003.4.1"):
+        assert (day / stem / f"{stem}_srgb_16bit.tif").is_file() and (day / stem / f"{stem}.json").is_file()
+    sidecars = sorted(day.glob("*/*.json"))
+    delivered = {json.loads(p.read_text())["original"]["identifier"] for p in sidecars}
+    assert delivered == {"ACC-123", "GM-1987/12", "GM-1987/13", "MBA-2003.4.1", "MBA-2003.4.2", "東博-A-1"}
+    films = {json.loads(p.read_text())["original"]["identifier"]
+             for p in (root / "films1" / "deliverables").glob("*/*.json")}
+    assert films == {"東博-F-7"}                                   # the film row: only in the film session
+    check = ran[2]
+    assert "5 to shoot, 0 kept, 1 refused" in check.stdout and "row 7: 東博-F-7: refused" in check.stdout
+    assert "queue-example.csv: row 7: 東博-F-7: transmissive original, reflective calibration" in ran[3].stderr
+    assert "skipped 1 refused row: 7" in ran[3].stderr
+    redelivered = {json.loads(p.read_text())["original"]["identifier"]
+                   for p in (root / "redelivered").glob("*/*.json")}
+    assert redelivered == delivered
+    assert "checks: ok" in ran[7].stdout
+    assert len(strict_json_files(root)) > 20
+
+
+def test_readme_own_charts_block_runs_as_written(workdir):
+    root, env = workdir
+    ran = run_block(README, "own-charts", root, env=env, prelude=dualrgb_prelude(FRAME))
+    assert len(ran) == 2
+    profile = json.loads(next((root / "day2" / "calibration").glob("cal-*.json")).read_text())
+    assert profile["charts"]["train"]["file"] == "sg140_layout.txt"
+    assert profile["charts"]["test"]["file"] == "cc24_test.cie"
+    assert (root / "day2" / "deliverables" / "ACC-200" / "ACC-200_prophoto_16bit.tif").is_file()
+    strict_json_files(root)
