@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export QT_QPA_PLATFORM ?= offscreen
 
-.PHONY: run test lint wheel-smoke bench demo venv resources clean reliability
+.PHONY: run test lint wheel-smoke bench demo venv resources clean reliability interop-tools
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -32,6 +32,10 @@ lint: $(STAMP)
 # the built wheel in a fresh venv, run from outside the checkout (.ci/wheel_smoke.sh says what it checks)
 wheel-smoke: $(STAMP)
 	PY=$(PY) .ci/wheel_smoke.sh
+
+# ArgyllCMS, LittleCMS, ImageMagick, GDAL and exiftool for the interop tests (apt-get; .ci/run calls it first)
+interop-tools:
+	.ci/interop-tools.sh
 
 # the fault-injection suite; writes README's reliability table (tests/faults/plugin.py)
 reliability: $(STAMP)

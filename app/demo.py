@@ -13,13 +13,16 @@ spectral estimate (app.processing.spectral: its test RMSE, GFC and dE00 under ot
 figures) -> report.json, and per condition a folder with its report.json, PNG figures and CSVs. The mode's
 virtual original (the painting, or the film) is captured too, under the default lights (dual-RGB-PSO), and its
 stack, mapped by that condition's matrix and spectral estimator, is compared per pixel with the original's truth:
-report.json's ``original`` holds dE00 and spectral RMSE (mean, p90, per material; app.workflow.virtual_truth).
+report.json's ``original`` holds dE00 and spectral RMSE (mean, p90, per material, over edges and flat regions;
+app.workflow.virtual_truth) at half resolution (2x2 cells), ``original_full`` the same at the sensor's full
+resolution (the frames demosaiced: app.processing.masters), from the same frames.
 """
 from __future__ import annotations
 
 import dataclasses
 import logging
 import time
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -272,7 +275,7 @@ class DemoRun:
             "mode": s.mode, "frame_size": list(s.frame_size), "hdr": s.hdr,
             "world": {"identity": load_world(s.world).identity, **load_world(s.world).to_dict()},
             "charts": {role: chart.record() for role, chart in s.charts.items()},   # {}: the packaged targets
-            "conditions": [k for k in result if k != "original"],   # each condition's figures are top-level keys
+            "conditions": [k for k in result if not k.startswith("original")],   # figures: top-level keys
             **result,
             "presets": presets,
             "exposures": exposures,
@@ -307,24 +310,30 @@ class DemoRun:
                 out[label] = self.process_variant(c, label, nd, ts)
         c = next(c for c in conds if c.name == ORIGINAL_CONDITION)
         out["original"] = self.assess_original(c, self.results[c.name])
+        out["original_full"] = self.assess_original(c, self.results[c.name], full=True)
         return out
 
-    def assess_original(self, c: Condition, res) -> dict:
-        """The virtual original's stack (captured under ``c``'s lights) through ``c``'s matrix and spectral
-        estimator, per pixel against the original's truth (app.workflow.virtual_truth)."""
+    def assess_original(self, c: Condition, res, full: bool = False) -> dict:
+        """The virtual original's channels (captured under ``c``'s lights; ``full``: at the sensor's resolution,
+        else on the 2x2 cells) through ``c``'s matrix and spectral estimator, per pixel against the original's truth
+        (app.workflow.virtual_truth)."""
+        from dualrgb.app.workflow.copystand import channels_of
         from dualrgb.app.workflow.session_processing import select_lights, session_frames
         from dualrgb.app.workflow.virtual_truth import compare, original_truth
 
         subject = self.original_subject()
         frames = session_frames(self.session).subject(subject)
-        stack = res.processor.stack(select_lights(frames, [nl.name for nl in c.lights]), cancel=self.cancel)
+        with closing(channels_of(res.processor, select_lights(frames, [nl.name for nl in c.lights]),
+                                 "full" if full else "half", self.cancel)) as source:
+            H, _ = source.shape
+            data = np.concatenate([source.band(r0, min(256, H - r0)).copy() for r0 in range(0, H, 256)])
         ch = res.characterisation
         truth = original_truth(subject.name, self.lab.height, self.lab.width, self.s.mode)
         spectra = None
         if res.spectral is not None:
-            spectra = res.spectral.estimator.apply(stack.data)
+            spectra = res.spectral.estimator.apply(data)
             truth = truth.on_wavelengths(res.spectral.estimator.wavelengths)
-        figures = compare(truth, ch.results[ch.best].matrix.apply(stack.data), spectra)
+        figures = compare(truth, ch.results[ch.best].matrix.apply(data), spectra)
         return {**figures, "condition": c.name, "matrix": ch.best, "frames_per_exposure": 1,
                 "spectral_method": res.spectral.selection.chosen.label() if res.spectral is not None else None}
 

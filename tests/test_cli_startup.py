@@ -25,7 +25,8 @@ print("HEAVY:" + " ".join(sorted(m for m in heavy if m in sys.modules)))
 
 @pytest.mark.parametrize("argv", [["--help"], ["sphere", "--help"], ["devices", "--help"], ["raw-info", "--help"],
                                   ["study", "parsimony", "--help"], ["simulate", "--help"],
-                                  ["measure", "csrf", "--help"], ["capture", "--help"], ["process", "--help"]])
+                                  ["measure", "csrf", "--help"], ["capture", "--help"], ["process", "--help"],
+                                  ["cube", "--help"], ["verify", "--help"], ["bag", "--help"]])
 def test_parser_imports_nothing_heavy(argv):
     code = PROBE.format(argv=argv, heavy=HEAVY)
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)

@@ -25,6 +25,8 @@ LONG_FUNCTIONS = {
     "simulation/fast_de.py::mean_de2000_mapped": _FUSED_KERNEL + " (map, XYZ -> Lab, CIEDE2000, mean)",
     "simulation/fast_expected.py::mean_expected_de2000": _FUSED_KERNEL + " (expected captured dE00 per item)",
     "app/processing/kernels.py::_merge_row": _FUSED_KERNEL + " (HDR merge of one row, both estimators)",
+    "app/processing/master_kernels.py::flat_rows_variance": _FUSED_KERNEL + " (dark, variance merge, flat field, "
+                                                            "QA counts of a row band)",
 }
 
 

@@ -15,7 +15,8 @@ D65 = [95.047, 100.0, 108.883]
 
 
 def make_profile(tmp_path, shape: tuple[int, int] = (8, 12), **over) -> CalibrationProfile:
-    """``shape``: the raw frames' (rows, columns), e.g. (64, 96) for the fault suite's virtual lab."""
+    """The profile, its darks and white of ``shape``: the raw frames' (rows, columns), e.g. (64, 96) for the fault
+    suite's virtual lab."""
     lights = [NamedLight("P light 1", LightSource((1, 6, 7), (0.0, 0.42, 1.0), "P light 1"))]
     darks = MasterDark()
     darks.put(DarkFrame(0.01, np.full(shape, 600, np.float32), 5))

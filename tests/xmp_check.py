@@ -33,6 +33,7 @@ class XmpFields:
     identifier: str | None
     title: str | None
     creator_tool: str | None
+    description: str | None = None
     dualrgb: dict[str, str] = field(default_factory=dict)
     columns: dict[str, str] = field(default_factory=dict)
 
@@ -57,7 +58,11 @@ def parse_xmp(packet: bytes) -> XmpFields:
     title = desc.find(f"{{{DC}}}title/{{{RDF}}}Alt/{{{RDF}}}li")
     if title is not None:
         assert title.get(XML_LANG) == "x-default"
-    out = XmpFields(_text(desc.find(f"{{{DC}}}identifier")), _text(title), _text(desc.find(f"{{{XMP}}}CreatorTool")))
+    description = desc.find(f"{{{DC}}}description/{{{RDF}}}Alt/{{{RDF}}}li")
+    if description is not None:
+        assert description.get(XML_LANG) == "x-default"
+    out = XmpFields(_text(desc.find(f"{{{DC}}}identifier")), _text(title), _text(desc.find(f"{{{XMP}}}CreatorTool")),
+                    _text(description))
     for child in desc:
         ns, _, name = child.tag[1:].partition("}")
         if ns != XMP_NAMESPACE:

@@ -56,7 +56,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"dark frames per exposure (default {day.DARK_FRAMES})")
     p.add_argument("--flat-frames", type=count(1, 200), default=None,
                    help=f"open-gate frames per light and exposure (default {day.FLAT_FRAMES})")
-    p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
+    p.add_argument("--ppi", type=number(above=0.0),
+                   help="sampling of the original at the sensor's full resolution (pixels per inch; half-resolution "
+                        "deliverables carry half); default: from the test target's size")
     p.add_argument("--target-width-mm", type=number(above=0.0),
                    help="test target width (outer corners of its corner patches)")
     p.add_argument("--train-grid", type=input_file,

@@ -2,6 +2,7 @@
 
     dualrgb capture [--session DIR] [--calibration FILE] --id ACC-123 [--title ..] [--operator ..] [--notes ..]
                     [--mode reflective|transmissive] [--reshoot] [--force] [--render-illuminant A]
+                    [--resolution full|half]
                     (--virtual-lab | --port P --camera C)
     dualrgb capture --session DIR [--calibration FILE] --queue originals.csv [--column identifier="Accession No."]
                     [--skip-invalid] [--operator ..] [--reshoot] [--check] ...
@@ -21,7 +22,15 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from dualrgb.app.commands.options import add_render_option, column_option, count, identifier, input_file, number
+from dualrgb.app.commands.options import (
+    add_render_option,
+    add_resolution_option,
+    column_option,
+    count,
+    identifier,
+    input_file,
+    number,
+)
 from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
@@ -80,6 +89,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="virtual lab: which virtual original stands in (default by mode: "
                         + ", ".join(f"{m}: {o}" for m, o in VIRTUAL_ORIGINALS.items()) + ")")
     add_render_option(p)
+    add_resolution_option(p)
     add_reuse_options(p)
     add_device_options(p)
     p.set_defaults(func=main)
@@ -177,7 +187,8 @@ def main(args: argparse.Namespace) -> int:
         return _check(args, plan, _single(args, mode, out_dir, profile) if plan is None else [], profile)
     originals = _queue_originals(args, plan) if plan is not None else _single(args, mode, out_dir, profile)
     settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
-                             original_frames=args.frames, render_illuminant=args.render_illuminant)
+                             original_frames=args.frames, render_illuminant=args.render_illuminant,
+                             resolution=args.resolution)
     definition = {"workflow": DAY_WORKFLOW, **virtual_world(args)}
     with open_devices(args, mode, args.virtual_original) as dev, \
             open_session(args.session, definition, dev.camera) as session:

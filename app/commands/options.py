@@ -206,7 +206,8 @@ def add_render_option(p: argparse.ArgumentParser) -> None:
     names = ", ".join(f"{k} ({v})" if k != v else k for k, v in light_keys().items())
     default = light_key(REFERENCE_LIGHT)
     p.add_argument("--render-illuminant", type=render_illuminant, default=default, metavar="LIGHT",
-                   help=f"the light the spectral cube is rendered under (<id>_under_<LIGHT>_prophoto_16bit.tif): "
+                   help=f"the light the spectral cube is rendered under (<id>_under_<LIGHT>_prophoto_16bit.tif, "
+                        f"delivered at half resolution; at full resolution named in the sidecar for dualrgb cube): "
                         f"{names}; default {default}")
 
 
@@ -240,6 +241,23 @@ def chart_choices(args: argparse.Namespace) -> dict:
 
     return {role: ChartChoice(getattr(args, f"{role}_target") or "", getattr(args, f"{role}_layout") or "",
                               getattr(args, f"{role}_leave_out") or "") for role in ("train", "test")}
+
+
+def key_value(text: str) -> tuple[str, str]:
+    """``Key=Value``, e.g. a BagIt bag-info field (the key: letters, digits and dashes, as BagIt's are)."""
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip() or not all(c.isalnum() or c == "-" for c in key.strip()):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected Key=Value, the key of letters, digits and dashes")
+    return key.strip(), value.strip()
+
+
+RESOLUTION_HELP = ("full: the sensor's pixels, each light's frames demosaiced (Malvar-He-Cutler, linear); half: one "
+                   "pixel per 2x2 Bayer cell, no interpolation (a quarter of the pixels). Default full")
+
+
+def add_resolution_option(p: argparse.ArgumentParser) -> None:
+    """``--resolution full|half``: the originals' deliverables at the sensor's resolution or on its 2x2 cells."""
+    p.add_argument("--resolution", choices=("full", "half"), default="full", help=RESOLUTION_HELP)
 
 
 def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:

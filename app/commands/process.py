@@ -1,6 +1,7 @@
 """``dualrgb process``: deliver a session's originals again, e.g. with a newer calibration.
 
-    dualrgb process SESSION [--calibration FILE] [--force] [--out DIR] [--render-illuminant A] [--json J]
+    dualrgb process SESSION [--calibration FILE] [--force] [--out DIR] [--render-illuminant A]
+                    [--resolution full|half] [--json J]
 
 The mode rule (app.workflow.mode_rule) as for ``capture``: without ``--calibration`` each original is delivered
 with the session's newest calibration of its own mode; with one, originals of the other mode are refused (listed,
@@ -16,7 +17,7 @@ import sys
 from pathlib import Path
 
 from dualrgb.app.cli import UserError
-from dualrgb.app.commands.options import add_render_option, number
+from dualrgb.app.commands.options import add_render_option, add_resolution_option, number
 from dualrgb.app.commands.stand_options import progress_printer
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
@@ -38,6 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "and QA line)")
     add_json_option(p)
     add_render_option(p)
+    add_resolution_option(p)
     p.set_defaults(func=main)
 
 
@@ -79,7 +81,7 @@ def main(args: argparse.Namespace) -> int:
     refused: list[str] = []
     deliveries, failed = redeliver(session, profiles, args.out or args.session / "deliverables", ppi=args.ppi,
                                    progress=progress_printer(), render_illuminant=args.render_illuminant,
-                                   force=args.force, refused=refused)
+                                   force=args.force, refused=refused, resolution=args.resolution)
     for line in refused:
         print(f"refused: {line}", file=sys.stderr)
     if not deliveries and not refused and not failed:

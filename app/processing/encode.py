@@ -57,15 +57,18 @@ class EncodedImages:
 
 
 @njit(nogil=True, cache=True)
-def _channels_row(s, out):  # pragma: no cover - compiled
-    """The N channels of one row, flattened (W * N): 16-bit, LINEAR_ONE = 1.0, NaN -> 0 (vectorises)."""
+def _channels_row(s, C, c0, out):  # pragma: no cover - compiled
+    """Channels ``c0`` .. ``c0 + 2`` of one row ``s`` (W * C, pixel-interleaved) into ``out`` (W * 3): 16-bit,
+    LINEAR_ONE = 1.0, NaN -> 0 (one light's camera RGB: three statements per pixel, which vectorise)."""
     zero = np.float32(0.0)
     half = np.float32(0.5)
-    for t in range(s.shape[0]):
-        v = s[t]
-        v = zero if v != v else v
-        q = v * np.float32(LINEAR_ONE) + half
-        out[t] = 0 if q <= half else (65535 if q >= 65535.0 else np.uint16(q))
+    one = np.float32(LINEAR_ONE)
+    for j in range(out.shape[0] // 3):
+        for c in range(3):
+            v = s[j * C + c0 + c]
+            v = zero if v != v else v
+            q = v * one + half
+            out[3 * j + c] = 0 if q <= half else (65535 if q >= 65535.0 else np.uint16(q))
 
 
 @njit(nogil=True, cache=True)
@@ -137,7 +140,8 @@ def rgb_row(x, y, z, m, lut, lin, idx, out):  # pragma: no cover - compiled
 @njit(nogil=True, cache=True)
 def _encode_rows(stack, r0, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi):  # pragma: no cover - compiled
     """Band rows ``lo`` .. ``hi`` (stack rows ``r0 + lo`` ..) into the row band ``xyz16`` (rows, W, 3), the tuple
-    ``rgb16`` of (rows, W, 3) arrays (one per space of ``M`` / ``luts``) and ``ch16`` (rows, W, N). Row by row
+    ``rgb16`` of (rows, W, 3) arrays (one per space of ``M`` / ``luts``) and the tuple ``ch16`` of (rows, W, 3)
+    arrays (one per light: channels 3 l .. 3 l + 2). Row by row
     in short loops over the pixels that LLVM vectorises (one loop per pixel with inner loops over runtime counts
     did not: 3x slower). Not ``parallel``: numba's parfors cannot take the tuples; DeliveryEncoder runs bands in
     threads (nogil). Returns (pixels with NaN, pixels whose Y clips)."""
@@ -152,7 +156,8 @@ def _encode_rows(stack, r0, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi): 
     over = 0
     for r in range(lo, hi):
         s = stack[r0 + r].reshape(W * C)
-        _channels_row(s, ch16[r].reshape(W * C))
+        for q in range(len(ch16)):
+            _channels_row(s, C, 3 * q, ch16[q][r].reshape(W * 3))
         bad += _xyz_row(s, A, x, y, z)
         over += _xyz16_row(x, y, z, scale_xyz, xyz16[r].reshape(W * 3))
         for q in range(len(rgb16)):
@@ -183,19 +188,48 @@ def weak_cells(sums, counts, floor_dn, so_far, first):  # pragma: no cover - com
             so_far[i, j] = weak if first else (so_far[i, j] and weak)
 
 
-class DeliveryEncoder:
-    """The delivery encodings of one (H, W, N) float32 stack with the (N, 3) characterisation matrix, row band by
-    row band (app.workflow.delivery streams each band to the files while the next one is encoded); the QA
-    counts add up over the bands."""
+def stack_or_shape(stack: np.ndarray | tuple[int, int, int]) -> tuple[np.ndarray | None, tuple[int, int, int]]:
+    """An encoder's image: a whole (H, W, N) float32 stack (contiguous), or only its shape when the bands come
+    with each ``encode`` call (a full-resolution original: app.processing.masters)."""
+    if isinstance(stack, tuple):
+        if len(stack) != 3:
+            raise ValueError(f"image shape {stack}: expected (H, W, N)")
+        return None, (int(stack[0]), int(stack[1]), int(stack[2]))
+    arr = np.ascontiguousarray(stack, dtype=np.float32)
+    if arr.ndim != 3:
+        raise ValueError(f"image {arr.shape}: expected (H, W, N)")
+    return arr, (int(arr.shape[0]), int(arr.shape[1]), int(arr.shape[2]))
 
-    def __init__(self, stack: np.ndarray, matrix: np.ndarray, white_xyz: Sequence[float],
+
+def band_source(stack: np.ndarray | None, r0: int, rows: int, band: np.ndarray | None, width: int,
+                channels: int) -> tuple[np.ndarray, int]:
+    """(array, its row offset) that an encoder's kernels read rows ``r0`` .. from: the whole stack, or the
+    (rows, W, N) ``band`` given with the call (offset -r0: its first row is row r0)."""
+    if band is None:
+        if stack is None:
+            raise ValueError("an encoder made from a shape needs the band with each call")
+        return stack, 0
+    if band.shape != (rows, width, channels) or band.dtype != np.float32 or not band.flags.c_contiguous:
+        raise ValueError(f"band {band.shape} {band.dtype}: expected a contiguous ({rows}, {width}, {channels}) "
+                         "float32 band")
+    return band, -r0
+
+
+class DeliveryEncoder:
+    """The delivery encodings of one (H, W, N) float32 image with the (N, 3) characterisation matrix, row band by
+    row band (app.workflow.delivery streams each band to the files while the next one is encoded); the QA
+    counts add up over the bands. ``stack``: the whole image, or its (H, W, N) shape when each ``encode`` call
+    brings its band."""
+
+    def __init__(self, stack: np.ndarray | tuple[int, int, int], matrix: np.ndarray, white_xyz: Sequence[float],
                  spaces: Sequence[str] = RGB_SPACES, threads: int | None = None):
         from dualrgb.app.processing.outputs import xyz_to_rgb_matrix
 
-        self.stack = np.ascontiguousarray(stack, dtype=np.float32)
+        self.stack, self._shape = stack_or_shape(stack)
         A = np.asarray(matrix, dtype=np.float32)
-        if self.stack.ndim != 3 or A.ndim != 2 or A.shape[1] != 3 or self.stack.shape[-1] != A.shape[0]:
-            raise ValueError(f"image {self.stack.shape} and matrix {A.shape}: expected (H, W, N) and (N, 3)")
+        if A.ndim != 2 or A.shape[1] != 3 or self._shape[2] != A.shape[0] or self._shape[2] % 3:
+            raise ValueError(f"image {self._shape} and matrix {A.shape}: expected (H, W, N) and (N, 3), N = 3 per "
+                             "light")
         self.spaces = tuple(spaces)
         white_y = float(white_xyz[1])
         self._A = tuple(tuple(np.float32(v) for v in row) for row in A)     # N: a compile-time constant
@@ -211,15 +245,19 @@ class DeliveryEncoder:
 
     @property
     def shape(self) -> tuple[int, int, int]:
-        return self.stack.shape
+        return self._shape
 
-    def encode(self, r0: int, xyz16: np.ndarray, rgb16: Sequence[np.ndarray], ch16: np.ndarray) -> None:
+    def encode(self, r0: int, xyz16: np.ndarray, rgb16: Sequence[np.ndarray], ch16: Sequence[np.ndarray], *,
+               band: np.ndarray | None = None) -> None:
         """Rows ``r0`` .. ``r0 + len(xyz16)`` into the uint16 bands ``xyz16`` (rows, W, 3), ``rgb16`` (one
-        (rows, W, 3) per space, in ``spaces`` order) and ``ch16`` (rows, W, N), each C-contiguous."""
+        (rows, W, 3) per space, in ``spaces`` order) and ``ch16`` (one (rows, W, 3) per light: its camera RGB),
+        each C-contiguous; from ``band`` (those rows, (rows, W, N) float32) when the encoder has no stack."""
         rows = xyz16.shape[0]
-        if r0 < 0 or r0 + rows > self.shape[0] or len(rgb16) != len(self.spaces):
-            raise ValueError(f"rows {r0}..{r0 + rows} of {self.shape[0]}, {len(rgb16)} RGB bands")
-        args = (self.stack, r0, self._A, self._M, self._luts, self._scale, xyz16, tuple(rgb16), ch16)
+        H, W, N = self.shape
+        if r0 < 0 or r0 + rows > H or len(rgb16) != len(self.spaces) or len(ch16) * 3 != N:
+            raise ValueError(f"rows {r0}..{r0 + rows} of {H}, {len(rgb16)} RGB bands, {len(ch16)} channel bands")
+        src, off = band_source(self.stack, r0, rows, band, W, N)
+        args = (src, r0 + off, self._A, self._M, self._luts, self._scale, xyz16, tuple(rgb16), tuple(ch16))
         cuts = np.linspace(0, rows, min(self.threads * self.chunks_per_thread, max(rows, 1)) + 1).astype(int)
         if len(cuts) <= 2:
             counts = [_encode_rows(*args, 0, rows)]
@@ -262,10 +300,10 @@ def encode_deliverables(stack: np.ndarray, matrix: np.ndarray, white_xyz: Sequen
         H, W, C = enc.shape
         xyz16 = np.empty((H, W, 3), np.uint16)
         rgb16 = np.empty((len(enc.spaces), H, W, 3), np.uint16)
-        ch16 = np.empty((H, W, C), np.uint16)
-        enc.encode(0, xyz16, list(rgb16), ch16)
-    return EncodedImages(xyz16, {s: rgb16[i] for i, s in enumerate(enc.spaces)}, ch16, enc.invalid_fraction,
-                         enc.over_white_fraction)
+        ch16 = np.empty((C // 3, H, W, 3), np.uint16)
+        enc.encode(0, xyz16, list(rgb16), list(ch16))
+    return EncodedImages(xyz16, {s: rgb16[i] for i, s in enumerate(enc.spaces)}, np.concatenate(list(ch16), axis=2),
+                         enc.invalid_fraction, enc.over_white_fraction)
 
 
 def warm_up() -> None:

@@ -2,16 +2,21 @@
 ImageDescription), embedded ICC profiles and XMP; CSVs of patch values and matrices. Every file is written
 through ``common.atomic_files.atomic_output`` (temp file, fsync, rename): a reader sees the old file or the new.
 
-ICC profiles
-    * sRGB: Pillow's ImageCms (LittleCMS' built-in sRGB, ``ImageCms.createProfile("sRGB")``).
-    * ProPhoto RGB (ROMM RGB): ImageCms cannot create it (createProfile knows only sRGB, LAB and XYZ), so
-      :func:`matrix_trc_icc` writes a minimal ICC v2.4 display profile itself: header, desc, cprt, wtpt,
-      r/g/bXYZ colorants (the colour space's RGB->XYZ matrix adapted to the ICC D50 PCS with Bradford) and
-      r/g/bTRC as a 4096-entry sampled curve of the space's decoding function (ROMM's linear toe + 1.8 gamma).
-      The tests check it through LittleCMS against colour-science's own conversion.
+ICC profiles (all version 2.4: ArgyllCMS 2.3 reads no v4 profile and SLUB's checkit_tiff flags v4 as outdated;
+LittleCMS' built-in sRGB that Pillow's ImageCms creates is v4.4, so none comes from there)
+    * sRGB and ProPhoto RGB (ROMM RGB): :func:`matrix_trc_icc` writes a minimal ICC v2.4 display profile:
+      header, desc, cprt, wtpt, r/g/bXYZ colorants (the colour space's RGB->XYZ matrix adapted to the ICC D50 PCS
+      with Bradford) and r/g/bTRC as a 4096-entry sampled curve of the space's decoding function (sRGB's IEC
+      61966-2-1 curve, ROMM's linear toe + 1.8 gamma). The tests check both through LittleCMS against
+      colour-science's own conversion, and ArgyllCMS' ``iccdump`` reads them.
+    * the linear XYZ master: :func:`xyz_icc`, the same kind of profile with X, Y, Z as its "R, G, B" (colorants
+      the Bradford adaptation of the reference white to D50, scaled for the file's 2x headroom; linear curves),
+      so an RGB TIFF of X, Y, Z is read by colour-managed software as the colours it holds.
 
 XMP
-    An XMP packet (tag 700) with Dublin Core ``dc:identifier`` / ``dc:title``, ``xmp:CreatorTool`` /
+    An XMP packet (tag 700) with Dublin Core ``dc:identifier`` / ``dc:title`` / ``dc:description`` (the exact
+    Unicode of the 7-bit ImageDescription: what MWG-style readers - exempi, ``exiftool -use MWG``, Lightroom -
+    show as the description), ``xmp:CreatorTool`` /
     ``xmp:CreateDate`` and the ``dualrgb:`` namespace (operator, calibration id, light dose, mode, ...), as
     exiftool and Adobe tools read it.
 
@@ -74,11 +79,7 @@ def xyz_to_rgb_matrix(space: str, white_xyz: Sequence[float]) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- ICC profiles
-def srgb_icc() -> bytes:
-    """LittleCMS' built-in sRGB profile via Pillow ImageCms."""
-    from PIL import ImageCms
-
-    return ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB")).tobytes()
+SRGB_DESCRIPTION = "sRGB IEC61966-2.1 (dualrgb v2 matrix/TRC)"
 
 
 def _s15(v: float) -> bytes:
@@ -113,8 +114,23 @@ def matrix_trc_icc(space: str, description: str | None = None, n_curve: int = 40
     M = _bradford(white, ICC_D50) @ cs.matrix_RGB_to_XYZ       # RGB -> XYZ (D50 PCS)
     x = np.linspace(0.0, 1.0, n_curve)
     trc = _curv_tag(np.asarray(cs.cctf_decoding(x), dtype=float))
+    return _matrix_trc_profile(M, trc, description or f"{space} (dualrgb matrix/TRC)")
+
+
+def xyz_icc(white_xyz: Sequence[float], linear_one: float) -> bytes:
+    """The ICC v2.4 profile of the linear XYZ master: R, G, B are X, Y, Z with ``linear_one`` (of 65535) = the
+    reference white's Y; the colorants adapt ``white_xyz`` to the D50 PCS (Bradford, relative colorimetric, as
+    the display profiles) and the curves are linear (gamma 1.0)."""
+    white = np.asarray(white_xyz, dtype=float) / float(white_xyz[1])
+    M = _bradford(white, ICC_D50) * (65535.0 / float(linear_one))
+    gamma = b"curv" + b"\0" * 4 + struct.pack(">IH", 1, 0x0100) + b"\0" * 2      # one entry: gamma 1.0 (u8.8)
+    return _matrix_trc_profile(M, gamma, "CIE XYZ, linear, 2x headroom (dualrgb)")
+
+
+def _matrix_trc_profile(M: np.ndarray, trc: bytes, description: str) -> bytes:
+    """An ICC v2.4 RGB display profile: colorants the columns of ``M`` (RGB -> PCS XYZ, D50), one ``trc`` curve."""
     tags = [
-        (b"desc", _desc_tag(description or f"{space} (dualrgb matrix/TRC)")),
+        (b"desc", _desc_tag(description)),
         (b"cprt", _text_tag("No copyright, use freely")),
         (b"wtpt", _xyz_tag(ICC_D50)),
         (b"rXYZ", _xyz_tag(M[:, 0])),
@@ -151,15 +167,15 @@ def matrix_trc_icc(space: str, description: str | None = None, n_curve: int = 40
 
 
 def icc_profile(space: str) -> bytes:
-    """The ICC profile embedded for ``space``: ImageCms for sRGB, :func:`matrix_trc_icc` otherwise."""
-    return srgb_icc() if space == "sRGB" else matrix_trc_icc(space)
+    """The ICC v2.4 profile embedded for the RGB colour space ``space`` (:func:`matrix_trc_icc`)."""
+    return matrix_trc_icc(space, SRGB_DESCRIPTION if space == "sRGB" else None)
 
 
 # ---------------------------------------------------------------- TIFF metadata
 @dataclass
 class TiffMetadata:
     """What every delivered TIFF carries in its tags: resolution (ppi), Make/Model, DateTime, Software,
-    ImageDescription and an XMP packet."""
+    ImageDescription, PageName (what the image holds, e.g. a light's camera channels) and an XMP packet."""
 
     software: str
     description: str = ""
@@ -168,11 +184,12 @@ class TiffMetadata:
     ppi: float | None = None
     datetime: str = ""                         # "YYYY:MM:DD HH:MM:SS" (TIFF); default: now
     xmp: bytes = b""
+    page_name: str = ""
 
     def tags(self) -> list[tuple]:
-        """tifffile ``extratags`` for Make (271), Model (272) and XMP (700)."""
+        """tifffile ``extratags`` for Make (271), Model (272), PageName (285) and XMP (700)."""
         out = []
-        for code, text in ((271, self.make), (272, self.model)):
+        for code, text in ((271, self.make), (272, self.model), (285, self.page_name)):
             if text:
                 out.append((code, "s", 0, text, True))
         if self.xmp:
@@ -205,8 +222,10 @@ def _xml_name(name: str) -> str:
 
 
 def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str = "", tool: str = "",
-               created: datetime | None = None, columns: Mapping[str, str] | None = None) -> bytes:
-    """An XMP packet (UTF-8): dc:identifier, dc:title, xmp:CreatorTool, xmp:CreateDate and ``dualrgb:<Key>`` fields.
+               created: datetime | None = None, columns: Mapping[str, str] | None = None,
+               description: str = "") -> bytes:
+    """An XMP packet (UTF-8): dc:identifier, dc:title, dc:description, xmp:CreatorTool, xmp:CreateDate and
+    ``dualrgb:<Key>`` fields.
 
     ``columns`` (property -> the exact column name it came from) adds a ``dualrgb:ExtraColumns`` bag of
     {``dualrgb:Property``, ``dualrgb:Column``} so the names of a queue CSV's extra columns survive exactly.
@@ -221,6 +240,9 @@ def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str
     if title:
         props.append(f'<dc:title><rdf:Alt><rdf:li xml:lang="x-default">{_xml_text("dc:title", title)}</rdf:li>'
                      '</rdf:Alt></dc:title>')
+    if description:
+        props.append(f'<dc:description><rdf:Alt><rdf:li xml:lang="x-default">'
+                     f'{_xml_text("dc:description", description)}</rdf:li></rdf:Alt></dc:description>')
     for key, value in fields.items():
         if value is not None and value != "":
             props.append(f"<dualrgb:{_xml_name(key)}>{_xml_text(key, value)}</dualrgb:{key}>")
@@ -253,12 +275,13 @@ def tiff_kwargs(meta: TiffMetadata, *, photometric: str = "minisblack", icc: byt
 
 def open_tiff(path: Path, shape: tuple[int, ...], meta: TiffMetadata, *, dtype=np.uint16,
               photometric: str = "minisblack", icc: bytes | None = None, band_rows: int = 64, executor=None,
-              direct: bool = True):
-    """A TIFF of ``shape`` to fill band by band (app.processing.tiff_stream.TiffStream), written atomically."""
+              direct: bool = True, digest: str | None = None):
+    """A TIFF of ``shape`` to fill band by band (app.processing.tiff_stream.TiffStream), written atomically
+    (``digest``: also the file's checksum, e.g. "sha256", computed as it is written)."""
     from dualrgb.app.processing.tiff_stream import TiffStream
 
     return TiffStream(path, shape, dtype, tiff_kwargs(meta, photometric=photometric, icc=icc),
-                      band_rows=band_rows, executor=executor, direct=direct)
+                      band_rows=band_rows, executor=executor, direct=direct, digest=digest)
 
 
 def write_tiff(path: Path, image: np.ndarray, meta: TiffMetadata, *, photometric: str = "minisblack",

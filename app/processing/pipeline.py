@@ -27,6 +27,7 @@ import logging
 from collections import OrderedDict, defaultdict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -35,6 +36,9 @@ from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN, HdrMerge, HdrResult
 from dualrgb.app.processing.mosaic import FrameLike, cfa_of, iter_open_raw, mosaic_of, white_level_of
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
 from dualrgb.simulation.camera_model import CHANNELS
+
+if TYPE_CHECKING:
+    from dualrgb.app.processing.masters import MasterFrames
 
 log = logging.getLogger(__name__)
 
@@ -52,18 +56,54 @@ class ExposureRef:
     label: str = ""
 
 
+class ChannelSource(Protocol):
+    """The channels of an original as delivery reads them, one row band at a time: a half-resolution
+    :class:`ChannelStack` (in memory) or a full-resolution app.processing.masters.MasterStack (computed per band).
+    The QA figures (``clipped_fraction``, ``underexposed_fraction``) are final once every band was read."""
+
+    resolution: str
+    channels: list[str]
+    lights: list[str]
+
+    @property
+    def shape(self) -> tuple[int, int]: ...
+
+    @property
+    def clipped_fraction(self) -> dict[str, float]: ...
+
+    @property
+    def underexposed_fraction(self) -> float: ...
+
+    def band(self, r0: int, rows: int) -> np.ndarray: ...
+
+    def close(self) -> None: ...
+
+
 @dataclass
 class ChannelStack:
-    """Flat-fielded HDR superpixel channels: ``data`` (H/2, W/2, C) float32, channel names R1, G1, B1, ..."""
+    """Flat-fielded HDR superpixel channels: ``data`` (H/2, W/2, C) float32, channel names R1, G1, B1, ...
+    (a half-resolution ChannelSource)."""
 
     data: np.ndarray
     channels: list[str]
     lights: list[str]
     clipped_fraction: dict[str, float] = field(default_factory=dict)        # per light: no usable exposure
     underexposed_fraction: float = 0.0      # superpixels whose every channel under every light stays < min signal
+    resolution: str = "half"
 
     def rgb(self, light_index: int = 0) -> np.ndarray:
         return self.data[..., 3 * light_index: 3 * light_index + 3]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return int(self.data.shape[0]), int(self.data.shape[1])
+
+    def band(self, r0: int, rows: int) -> np.ndarray:
+        """Rows ``r0`` .. ``r0 + rows`` (a view; float32, contiguous)."""
+        return np.ascontiguousarray(self.data[r0: r0 + rows], dtype=np.float32)
+
+    def close(self) -> None:
+        """Nothing to release (the full-resolution source releases its frames)."""
 
 
 def sub_progress(progress: ProgressCallback | None, lo: float, hi: float) -> ProgressCallback | None:
@@ -121,7 +161,7 @@ class CaptureProcessor:
         if d is not None:
             return d
         black = getattr(frame, "black_levels", None)
-        level = float(np.mean(black)) if black else 0.0
+        level = float(np.mean(black)) if black else float(self.black_level or 0.0)    # a bare array: the given one
         log.warning("no dark frames for %.6g s: subtracting the file's black level (%.1f DN) instead", exposure_s,
                     level)
         return level
@@ -176,6 +216,16 @@ class CaptureProcessor:
         if missing:
             raise ValueError(f"no white (flat) frames for {', '.join(missing)}: call set_white first")
         return StackBuilder(self, list(lights), min_signal_dn)
+
+    def begin_master(self, lights: Sequence[str], *, min_signal_dn: float = MIN_SIGNAL_DN) -> MasterFrames:
+        """The full-resolution counterpart of :meth:`begin_stack`: exposures are held as they land and merged,
+        flat-fielded and demosaiced band by band when delivered (app.processing.masters)."""
+        from dualrgb.app.processing.masters import MasterFrames
+
+        missing = [n for n in lights if n not in self._whites]
+        if missing:
+            raise ValueError(f"no white (flat) frames for {', '.join(missing)}: call set_white first")
+        return MasterFrames(self, list(lights), min_signal_dn)
 
     def stack(self, scenes: Mapping[str, Sequence[ExposureRef]], *, progress: ProgressCallback | None = None,
               cancel: CancelToken | None = None) -> ChannelStack:
@@ -258,6 +308,9 @@ class StackBuilder:
         n_clipped = merge.flat_superpixel(ff.white, ff.threshold, self.proc.cfa or "RGGB",
                                           self.out[..., 3 * li: 3 * li + 3])
         self.clipped[light] = n_clipped / (h * w)
+
+    def close(self) -> None:
+        """Nothing to release (the stack is in memory; the full-resolution builder releases its frames)."""
 
     def result(self) -> ChannelStack:
         for light in list(self._merges):

@@ -25,7 +25,7 @@ import numba
 import numpy as np
 from numba import njit
 
-from dualrgb.app.processing.encode import encoding_table, rgb_row
+from dualrgb.app.processing.encode import band_source, encoding_table, rgb_row, stack_or_shape
 from dualrgb.app.processing.envi import IGNORE_VALUE, SCALE_FACTOR
 from dualrgb.app.processing.render import Rendering
 
@@ -52,9 +52,10 @@ def _planes(s, planes, valid):  # pragma: no cover - compiled
 
 
 @njit(nogil=True, cache=True)
-def _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, cube):  # pragma: no cover
+def _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, cube, store):  # pragma: no cover
     """One row: per wavelength b the estimate off[b] + sum_c M[b, c] plane_c clipped to [lo, hi], stored x ``scale`` in
-    ``cube[b]`` (``ignore`` where not ``valid``) and added into x, y, z with the rendering weights ``wts[b]``."""
+    ``cube[b]`` (``ignore`` where not ``valid``; nothing stored unless ``store``) and added into x, y, z with the
+    rendering weights ``wts[b]``."""
     B, C = M.shape
     W = planes.shape[1]
     half = np.float32(0.5)
@@ -75,14 +76,17 @@ def _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, c
         wx = wts[b, 0]
         wy = wts[b, 1]
         wz = wts[b, 2]
-        out = cube[b]
         for j in range(W):
             v = min(max(acc[j], lo), hi)
+            acc[j] = v
             x[j] += wx * v
             y[j] += wy * v
             z[j] += wz * v
-            q = np.uint16(v * scale + half)
-            out[j] = q if valid[j] else ignore
+        if store:
+            out = cube[b]
+            for j in range(W):
+                q = np.uint16(acc[j] * scale + half)
+                out[j] = q if valid[j] else ignore
     for j in range(W):
         if not valid[j]:
             x[j] = zero
@@ -92,8 +96,8 @@ def _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, c
 
 @njit(nogil=True, cache=True)
 def _spectral_rows(stack, r0, M, off, lo, hi, scale, ignore, wts, m_rgb, lut, cube, rgb, a, b):  # pragma: no cover
-    """Band rows ``a`` .. ``b`` (stack rows ``r0 + a`` ..) into ``cube`` (rows, B, W) uint16 and, when it has rows,
-    ``rgb`` (rows, W, 3) uint16. Returns the invalid pixels."""
+    """Band rows ``a`` .. ``b`` (stack rows ``r0 + a`` ..) into ``cube`` (rows, B, W) uint16 and ``rgb`` (rows, W, 3)
+    uint16, each when it has rows (a cube made on demand: none at delivery). Returns the invalid pixels."""
     W = stack.shape[1]
     C = stack.shape[2]
     planes = np.empty((C, W), np.float32)
@@ -104,10 +108,12 @@ def _spectral_rows(stack, r0, M, off, lo, hi, scale, ignore, wts, m_rgb, lut, cu
     z = np.empty(W, np.float32)
     lin = np.empty(W, np.float64)
     idx = np.empty(W, np.int64)
+    none = np.empty((M.shape[0], 0), np.uint16)
+    store = cube.shape[0] > 0
     bad = 0
     for r in range(a, b):
         bad += _planes(stack[r0 + r].reshape(W * C), planes, valid)
-        _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, cube[r])
+        _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, cube[r] if store else none, store)
         if rgb.shape[0] > 0:
             rgb_row(x, y, z, m_rgb, lut, lin, idx, rgb[r].reshape(W * 3))
     return bad
@@ -120,13 +126,13 @@ class SpectralEncoder:
     ``matrix`` (n_wl, N), ``offset`` (n_wl,; None: none) and ``bounds``: the spectral estimator's map and clip;
     ``rendering``: the light and RGB space of the rendered image (None: the cube only)."""
 
-    def __init__(self, stack: np.ndarray, matrix: np.ndarray, bounds: Sequence[float],
+    def __init__(self, stack: np.ndarray | tuple[int, int, int], matrix: np.ndarray, bounds: Sequence[float],
                  rendering: Rendering | None = None, *, offset: np.ndarray | None = None, scale: float = SCALE_FACTOR,
                  ignore: int = IGNORE_VALUE, threads: int | None = None):
-        self.stack = np.ascontiguousarray(stack, dtype=np.float32)
+        self.stack, self._shape = stack_or_shape(stack)
         M = np.ascontiguousarray(matrix, dtype=np.float32)
-        if self.stack.ndim != 3 or M.ndim != 2 or M.shape[1] != self.stack.shape[2]:
-            raise ValueError(f"image {self.stack.shape} and spectral map {M.shape}: expected (H, W, N) and (n_wl, N)")
+        if M.ndim != 2 or M.shape[1] != self._shape[2]:
+            raise ValueError(f"image {self._shape} and spectral map {M.shape}: expected (H, W, N) and (n_wl, N)")
         lo, hi = (float(v) for v in bounds)
         if not (0.0 <= lo < hi and hi * scale + 0.5 < ignore):
             raise ValueError(f"spectral range {lo:g}..{hi:g} x scale {scale:g} does not fit below {ignore}")
@@ -151,19 +157,27 @@ class SpectralEncoder:
     @property
     def shape(self) -> tuple[int, int, int]:
         """(H, W, n_wl): the cube's lines, samples and bands."""
-        return self.stack.shape[0], self.stack.shape[1], self.M.shape[0]
+        return self._shape[0], self._shape[1], self.M.shape[0]
 
-    def encode(self, r0: int, cube: np.ndarray, rgb: np.ndarray | None = None) -> None:
-        """Rows ``r0`` .. ``r0 + len(cube)`` into ``cube`` (rows, n_wl, W) uint16 (band-interleaved by line) and
-        ``rgb`` (rows, W, 3) uint16 (needed when there is a rendering), each C-contiguous."""
-        rows = cube.shape[0]
+    def encode(self, r0: int, cube: np.ndarray | None, rgb: np.ndarray | None = None, *,
+               band: np.ndarray | None = None) -> None:
+        """Rows ``r0`` .. into ``cube`` (rows, n_wl, W) uint16 (band-interleaved by line; None: the cube is not
+        kept, only rendered) and ``rgb`` (rows, W, 3) uint16 (needed when there is a rendering), each C-contiguous;
+        from ``band`` (those rows, (rows, W, N) float32) when the encoder has no stack."""
+        first = cube if cube is not None else rgb
+        if first is None:
+            raise ValueError("neither a cube nor a rendering band to encode")
+        rows = first.shape[0]
         H, W, B = self.shape
-        if r0 < 0 or r0 + rows > H or cube.shape[1:] != (B, W) or (rgb is None) != (self.rendering is None):
-            raise ValueError(f"rows {r0}..{r0 + rows} of {H}, cube band {cube.shape}, rendering band "
-                             f"{None if rgb is None else rgb.shape}")
+        if (r0 < 0 or r0 + rows > H or (cube is not None and cube.shape != (rows, B, W))
+                or (rgb is None) != (self.rendering is None) or (rgb is not None and rgb.shape != (rows, W, 3))):
+            raise ValueError(f"rows {r0}..{r0 + rows} of {H}, cube band {None if cube is None else cube.shape}, "
+                             f"rendering band {None if rgb is None else rgb.shape}")
+        out_cube = cube if cube is not None else np.empty((0, B, W), np.uint16)
         out_rgb = rgb if rgb is not None else np.empty((0, W, 3), np.uint16)
-        args = (self.stack, r0, self.M, self.off, self.lo, self.hi, self.scale, self.ignore, self._wts, self._m_rgb,
-                self._lut, cube, out_rgb)
+        src, off = band_source(self.stack, r0, rows, band, W, self._shape[2])
+        args = (src, r0 + off, self.M, self.off, self.lo, self.hi, self.scale, self.ignore, self._wts, self._m_rgb,
+                self._lut, out_cube, out_rgb)
         cuts = np.linspace(0, rows, min(self.threads * self.chunks_per_thread, max(rows, 1)) + 1).astype(int)
         if len(cuts) <= 2:
             counts = [_spectral_rows(*args, 0, rows)]

@@ -19,6 +19,11 @@ page cache costs about as much CPU as the encoding itself (~1 GB/s on the 2-core
 :class:`RawStream` streams a headerless raw file the same way (the data file of an ENVI spectral cube:
 app.processing.envi_cube).
 
+Fixity: with ``digest="sha256"`` the file's SHA-256 is computed from the bytes as they are written (the header
+when tifffile has written it, then each write in file order: the writes of one file never overlap in time, each
+band waits for the one before), so the checksum costs no second read of the file; :attr:`TiffStream.sha256` and
+:attr:`TiffStream.size` give it after :meth:`TiffStream.close`.
+
 Atomic like every output (common.atomic_files): the file is written as ``.<name>.<pid>.tmp`` beside the
 target, fsynced once at the end, renamed over the target, the folder fsynced; any error removes the temp file,
 leaves the previous file intact and raises a FileWriteError naming the target.
@@ -26,6 +31,7 @@ leaves the previous file intact and raises a FileWriteError naming the target.
 from __future__ import annotations
 
 import errno
+import hashlib
 import logging
 import os
 import threading
@@ -127,8 +133,11 @@ class TiffStream:
     """
 
     def __init__(self, path: Path, shape: tuple[int, ...], dtype: Any, tifffile_kwargs: dict, *, band_rows: int,
-                 executor: Executor | None = None, direct: bool = True):
+                 executor: Executor | None = None, direct: bool = True, digest: str | None = None):
         self.path = Path(path)
+        self._hash = hashlib.new(digest) if digest else None
+        self.sha256: str | None = None            # the file's digest (hex) after close, when one was asked for
+        self.size = 0                             # the file's size in bytes after close
         self.shape = tuple(int(s) for s in shape)
         self.dtype = np.dtype(dtype)
         self.row_bytes = int(np.prod(self.shape[1:], dtype=np.int64)) * self.dtype.itemsize
@@ -171,6 +180,9 @@ class TiffStream:
                 raise ValueError(f"{self.path}: tifffile stores {nbytes} pixel bytes, expected "
                                  f"{self.shape[0] * self.row_bytes} contiguous ones")
             start = offset - offset % BLOCK
+            fh.seek(0)
+            if self._hash is not None:
+                self._hash.update(fh.read(start))       # the rest is hashed as it is written (_write)
             fh.seek(start)
             head = fh.read(offset - start)
             fh.truncate(offset)                     # tifffile's sparse end byte: the pixels will extend the file
@@ -205,12 +217,19 @@ class TiffStream:
         self._carry = end - whole
         self._current = nxt
 
+    def _write(self, data: memoryview, pos: int, hashed: int | None = None) -> None:
+        """Write ``data`` at ``pos`` and add its first ``hashed`` bytes (all by default) to the digest."""
+        if self._out is None:
+            raise ValueError(f"{self.path}: not open for writing")
+        self._out.pwrite(data, pos)
+        if self._hash is not None:
+            self._hash.update(data if hashed is None else data[:hashed])
+
     def _submit(self, slot: int, data: memoryview, pos: int) -> None:
-        out = self._out
         if self._executor is None:
-            self._guard(lambda: out.pwrite(data, pos))
+            self._guard(lambda: self._write(data, pos))
         else:
-            self._pending[slot] = self._executor.submit(out.pwrite, data, pos)
+            self._pending[slot] = self._executor.submit(self._write, data, pos)
 
     def _wait(self, slot: int) -> None:
         fut, self._pending[slot] = self._pending[slot], None
@@ -239,12 +258,14 @@ class TiffStream:
 
         def finish() -> None:
             if tail:
-                out.pwrite(memoryview(buf[:padded]), self._pos)
+                self._write(memoryview(buf[:padded]), self._pos, tail)
             out.finish(self._offset + self._nbytes)
             out.close()
             os.replace(self._tmp, self.path)
             fsync_dir(self.path.parent)
         self._guard(finish)
+        self.size = self._offset + self._nbytes
+        self.sha256 = self._hash.hexdigest() if self._hash is not None else None
         return self.path
 
     def abort(self) -> None:
@@ -277,8 +298,9 @@ class RawStream(TiffStream):
     file, whose header is a separate text file."""
 
     def __init__(self, path: Path, shape: tuple[int, ...], dtype: Any, *, band_rows: int,
-                 executor: Executor | None = None, direct: bool = True):
-        super().__init__(path, shape, dtype, {}, band_rows=band_rows, executor=executor, direct=direct)
+                 executor: Executor | None = None, direct: bool = True, digest: str | None = None):
+        super().__init__(path, shape, dtype, {}, band_rows=band_rows, executor=executor, direct=direct,
+                         digest=digest)
 
     def _write_header(self, kwargs: dict) -> tuple[int, int, bytes]:
         """No header: an empty temp file, the pixels from byte 0."""

@@ -49,7 +49,7 @@ class _Held:
 
 
 _registry: dict[str, _Held] = {}
-_registry_guard = threading.Lock()
+_registry_guard = threading.RLock()      # re-entrant: a session finalised by GC inside acquire releases
 
 
 def _try_lock(fd: int) -> bool:

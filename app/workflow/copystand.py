@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
+from contextlib import closing
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -23,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from dualrgb.app.processing.masters import FULL, check_resolution
 from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
 from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT, check_illuminant
 from dualrgb.app.sequences.base import ProgressEvent
@@ -99,11 +101,13 @@ class StandSettings:
     optimise_matrix: bool | None = None    # also the dE00-optimised matrix; None: resources/parsimony.json
     limits: ReuseLimits = field(default_factory=ReuseLimits)
     force: bool = False                       # reuse a mismatching calibration with a warning
-    ppi: float | None = None               # sampling set by the user (else from the target's size)
+    ppi: float | None = None               # sampling set by the user (else from the target's size): calibrate: the
+                                           # sensor's (full resolution); capture: the deliverables' as delivered
     target_width_mm: float | None = None   # test target's width (corner patches' outer corners) -> ppi
     meter_tiles: int = 12                     # metering regions across the frame (HDR decision for originals)
     original_frames: int = 1                  # frames averaged per exposure of an original (noise / sqrt(n))
     render_illuminant: str = DEFAULT_RENDER_ILLUMINANT   # the light the spectral rendering is seen under
+    resolution: str = FULL                    # originals' deliverables: the sensor's pixels (full) or 2x2 cells
     stand_start: Any = None                   # the stand model the fit starts from (simulation.stand_model; None:
                                               # nominal): measured camera / LEDs (calibrate --camera-csv, --stand-dir)
     charts: dict[str, Any] = field(default_factory=dict)   # 'train' / 'test' -> the stand's own chart
@@ -270,7 +274,7 @@ class CopyStand:
             base_exposures=base, matrix=c.matrix, statistics={**c.to_dict(), "report": str(result.files["report"])},
             white_xyz=[float(v) for v in c.white], sources=sources, ppi=self._ppi(test),
             raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
-                 "linear_limit": proc.linear_limit, "shape": list(first.white.shape)},
+                 "linear_limit": proc.linear_limit, "shape": list(first.white.shape), "ppi_grid": "sensor"},
             targets={"train": result.report.get("train"), "test": result.report.get("test")},
             darks=proc.darks, whites=dict(proc._whites), **_spectral_fields(result), **_stand_fields(result))
 
@@ -281,7 +285,8 @@ class CopyStand:
         if not width_mm or test.grid is None:
             return None
         tl, tr = np.asarray(test.grid.corners[0]), np.asarray(test.grid.corners[1])
-        return round(float(np.hypot(*(tr - tl))) / (width_mm / 25.4), 2)     # stack pixels per inch
+        # the target's corners are on the 2x2-cell grid of the charts' superpixels: the sensor has twice the pixels
+        return round(2.0 * float(np.hypot(*(tr - tl))) / (width_mm / 25.4), 2)
 
     # ------------------------------------------------------------------ originals
     def check(self, profile: CalibrationProfile, lights: Sequence[NamedLight] | None = None) -> ReuseCheck:
@@ -337,6 +342,7 @@ class CopyStand:
         check_original(original)
         override = check_mode(original, profile, force=self.settings.force) if profile is not None else ""
         check_illuminant(self.settings.render_illuminant)
+        check_resolution(self.settings.resolution)
         prepare(self.deliverables(out_dir), original)
         return override
 
@@ -364,12 +370,13 @@ class CopyStand:
         checked = self.check(profile)
         take = self._take(original, reshoot)
         exposures, warnings = self.meter(original, profile, take)
-        builder = profile_processor(profile).begin_stack([nl.name for nl in profile.lights])
+        builder = begin_channels(profile_processor(profile), [nl.name for nl in profile.lights],
+                                 self.settings.resolution)
         seq = SubjectCapture(self.shooter, profile.lights, exposures, original.subject, take,
                              meta={"title": original.title, "operator": original.operator, "mode": original.mode},
                              frames=self.settings.original_frames)
 
-        def landed(ev: ProgressEvent) -> None:            # merge each frame as soon as it is on disk
+        def landed(ev: ProgressEvent) -> None:            # each frame taken in as soon as it is on disk
             if ev.kind in (EventKind.FRAME, EventKind.KEPT):
                 e = next(x for x in self.session.entries() if x.seq == ev.data["entry"])
                 builder.add(ev.data["light"], ExposureRef(self.session.file_path(e), float(e.exposure_s), e.file),
@@ -377,15 +384,18 @@ class CopyStand:
         outer, self.on_event = self.on_event, _chain(self.on_event, landed)
         try:
             self.run_sequence(seq, 0.1, 0.8)
+            source = builder.result()
         finally:
             self.on_event = outer
+            builder.close()
         dose = original_dose(self.session, original.subject)
-        delivery = deliver(builder.result(), profile, original, self.deliverables(out_dir),
-                           camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
-                           exposures=exposures, warnings=checked.warnings + warnings,
-                           extra={"session": str(self.session.path), "take": take, "frames": seq.steps()},
-                           render_illuminant=self.settings.render_illuminant, truth=placed_truth(self.lab),
-                           overrides=[override] if override else [])
+        with closing(source):
+            delivery = deliver(source, profile, original, self.deliverables(out_dir),
+                               camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
+                               exposures=exposures, warnings=checked.warnings + warnings,
+                               extra={"session": str(self.session.path), "take": take, "frames": seq.steps()},
+                               render_illuminant=self.settings.render_illuminant, truth=placed_truth(self.lab),
+                               overrides=[override] if override else [])
         self._remember(original, dose, delivery, take, profile)
         report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
         return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)
@@ -460,16 +470,36 @@ class Undelivered:
     reason: str
 
 
+def begin_channels(proc: CaptureProcessor, lights: list[str], resolution: str) -> Any:
+    """What takes an original's frames in as they land: a full-resolution MasterFrames (held, merged and
+    demosaiced band by band at delivery) or a half-resolution StackBuilder (merged as they land)."""
+    return proc.begin_master(lights) if check_resolution(resolution) == FULL else proc.begin_stack(lights)
+
+
+def channels_of(proc: CaptureProcessor, light_frames: dict[str, list[ExposureRef]], resolution: str,
+                cancel: CancelToken | None = None) -> Any:
+    """The channels of an original from its frames on disk (a ChannelSource to close after delivery)."""
+    builder = begin_channels(proc, list(light_frames), resolution)
+    try:
+        for light, refs in light_frames.items():
+            for ref in refs:
+                builder.add(light, ref, cancel=cancel)
+        return builder.result()
+    finally:
+        builder.close()
+
+
 def redeliver(session: Any, profiles: CalibrationProfile | dict[str, CalibrationProfile], out_dir: Path, *,
               ppi: float | None = None, progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
               render_illuminant: str = DEFAULT_RENDER_ILLUMINANT, force: bool = False,
-              refused: list[str] | None = None) -> tuple[list[Delivery], list[Undelivered]]:
-    """Deliver every original of a session again (``dualrgb process``): with ``profiles`` (one calibration, or one
-    per mode), the mode rule applied to each (app.workflow.mode_rule: an original without a calibration of its
-    mode is left out, its line appended to ``refused``, unless ``force`` with one calibration); each original's
-    current deliverables move to its ``previous/`` folder. Every original that can be is delivered; one whose
-    frames are missing or damaged, whose folder is another's or whose delivery fails is listed with its reason
-    (issue 28). The spectral rendering is seen under ``render_illuminant``."""
+              refused: list[str] | None = None, resolution: str = FULL
+              ) -> tuple[list[Delivery], list[Undelivered]]:
+    """Deliver every original of a session again (``dualrgb process``) at ``resolution``: with ``profiles`` (one
+    calibration, or one per mode), the mode rule applied to each (app.workflow.mode_rule: an original without a
+    calibration of its mode is left out, its line appended to ``refused``, unless ``force`` with one calibration);
+    each original's current deliverables move to its ``previous/`` folder. Every original that can be is
+    delivered; one whose frames are missing or damaged, whose folder is another's or whose delivery fails is
+    listed with its reason (issue 28). The spectral rendering is seen under ``render_illuminant``."""
     from dualrgb.app.workflow.session_processing import session_frames
 
     frames = session_frames(session, intact=False)
@@ -488,7 +518,7 @@ def redeliver(session: Any, profiles: CalibrationProfile | dict[str, Calibration
                 (refused if refused is not None else []).append(override)
                 continue
             done.append(_redeliver_one(session, frames, subject, original, profile, damaged, out_dir, ppi, cancel,
-                                       render_illuminant, override))
+                                       render_illuminant, override, resolution))
         except (ValueError, OSError, ReportedError) as exc:
             log.warning("%s: not delivered: %s", subject.name, exc)
             failed.append(Undelivered(subject.name, one_line(exc)))
@@ -513,7 +543,7 @@ def _profile_for(original: Original, profiles: CalibrationProfile | dict[str, Ca
 
 def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Original, profile: CalibrationProfile,
                    damaged: dict[str, str], out_dir: Path, ppi: float | None, cancel: CancelToken | None,
-                   render_illuminant: str, override: str) -> Delivery:
+                   render_illuminant: str, override: str, resolution: str = FULL) -> Delivery:
     from dualrgb.app.workflow.session_processing import select_lights
 
     prepare(Path(out_dir), original)
@@ -523,12 +553,12 @@ def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Origin
             if ref.label in damaged:
                 raise DamagedFramesError(f"{session.path / ref.label}: {damaged[ref.label]}; resume the session to "
                                          "shoot it again", [ref.label])
-    stack = profile_processor(profile).stack(light_frames, cancel=cancel)
-    return deliver(stack, profile, original, out_dir, camera=profile.camera, ppi=ppi,
-                   dose=original_dose(session, subject),
-                   exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
-                   extra={"session": str(session.path), "reprocessed": True}, render_illuminant=render_illuminant,
-                   overrides=[override] if override else [])
+    with closing(channels_of(profile_processor(profile), light_frames, resolution, cancel)) as source:
+        return deliver(source, profile, original, out_dir, camera=profile.camera, ppi=ppi,
+                       dose=original_dose(session, subject),
+                       exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
+                       extra={"session": str(session.path), "reprocessed": True}, render_illuminant=render_illuminant,
+                       overrides=[override] if override else [])
 
 
 def _known_original(session: Any, known: dict, identifier: str) -> Original:

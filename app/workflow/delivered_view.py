@@ -1,5 +1,7 @@
 """What the GUI shows of a delivered original, Qt-free: a screen-sized rendering of its spectral cube under a
-chosen light, and the spectrum of any pixel, read from the delivered cube (app.processing.envi).
+chosen light, and the spectrum of any pixel, read from the delivered cube (app.processing.envi), or for a
+full-resolution delivery (its cube made on demand) computed from its camera-RGB TIFFs through the map its sidecar
+states (app.processing.cube_map.MappedCube).
 
     view = open_delivered(sidecar_path)               # reads the sidecar, memory-maps the cube, decimates it
     image = view.render("A")                          # (h, w, 3) uint8 sRGB for the screen, seen under A
@@ -18,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dualrgb.app.processing.cube_map import MappedCube, estimator_of_map
 from dualrgb.app.processing.envi import CubeFile, open_cube
 from dualrgb.app.processing.render import rendering
 
@@ -32,7 +35,7 @@ class DeliveredView:
     """A delivered original's cube, memory-mapped, with its decimated spectra for the preview."""
 
     identifier: str
-    cube: CubeFile
+    cube: CubeFile | MappedCube
     step: int
     spectra: np.ndarray           # (h, w, n_wl) float32 factors of the preview (NaN: no estimate)
     quantity: str
@@ -74,12 +77,20 @@ def open_delivered(sidecar: Path, max_side: int = PREVIEW_MAX_SIDE) -> Delivered
     if not sp:
         raise ValueError(f"{sidecar.name}: this delivery has no spectral cube (its calibration had no spectral "
                          "estimator)")
-    cube = open_cube(sidecar.parent / sp["cube"]["header"])
+    cube = cube_of(sidecar, sp)
     lines, samples, _ = cube.shape
     step = max(1, -(-max(lines, samples) // max_side))
     spectra = cube.rows(0, lines, step)
     return DeliveredView(str(doc["original"]["identifier"]), cube, step, spectra, sp["cube"]["quantity"],
                          sp["estimator"]["method"])
+
+
+def cube_of(sidecar: Path, spectral: dict) -> CubeFile | MappedCube:
+    """The delivered cube (ENVI) or, when the sidecar says it is made on demand, its map of the channel TIFFs."""
+    if spectral["cube"].get("delivery") == "on-demand":
+        section = spectral["map"]
+        return MappedCube([sidecar.parent / name for name in section["channel_files"]], estimator_of_map(section))
+    return open_cube(sidecar.parent / spectral["cube"]["header"])
 
 
 def render_lights() -> dict[str, str]:

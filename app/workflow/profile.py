@@ -30,7 +30,6 @@ thesis saw no drift in.
 from __future__ import annotations
 
 import hashlib
-import io
 import logging
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -43,9 +42,11 @@ import numpy as np
 from dualrgb.app.processing.calibration import DarkFrame, FlatField, MasterDark
 from dualrgb.app.session.capture_session import atomic_write
 from dualrgb.app.workflow import profile_check
+from dualrgb.app.workflow.profile_arrays import ProfileArrays
 from dualrgb.app.workflow.profile_check import FORMAT, ProfileError
 from dualrgb.app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
 from dualrgb.app.workflow.vocabulary import NamedLight, exposure_key
+from dualrgb.common.atomic_files import atomic_output
 from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.simulation.defaults import default_grid
 from dualrgb.simulation.lightsource import LightSource
@@ -213,18 +214,18 @@ class CalibrationProfile:
             white_index.append({"array": f"white_{i}", "light": name, "threshold": ff.threshold})
         if self.stand_observations is not None:
             arrays.update(observation_arrays(self.stand_observations))
-        buf = io.BytesIO()
-        np.savez(buf, **arrays)
-        data = buf.getbuffer()
         npz = folder / f"{self.id}.npz"
-        doc = {**self.to_dict(), "arrays": {"file": npz.name, "sha256": hashlib.sha256(data).hexdigest(),
+        doc = {**self.to_dict(), "arrays": {"file": npz.name, "sha256": "0" * 64,     # the npz's, once written
                                             "darks": dark_index, "whites": white_index}}
-        profile_check.check_document(doc, f"calibration {self.id} (not saved)", digest=False)
-        atomic_write(npz, data)
+        profile_check.check_document(doc, f"calibration {self.id} (not saved)", digest=False)   # before any write
+        with atomic_output(npz, "wb") as fh:         # streamed: a 150 MP calibration's 3.6 GB never copied whole
+            np.savez(fh, **arrays)
+        size = npz.stat().st_size
+        doc["arrays"]["sha256"] = _sha256(npz)
         path = folder / f"{self.id}.json"
         atomic_write(path, (strict_dumps(profile_check.seal(doc), indent=2) + "\n").encode())
         self.path = path
-        log.info("calibration %s saved: %s (+ %s, %.0f MB)", self.id, path, npz.name, len(data) / 1e6)
+        log.info("calibration %s saved: %s (+ %s, %.0f MB)", self.id, path, npz.name, size / 1e6)
         return path
 
 
@@ -284,10 +285,10 @@ def _load_arrays(prof: CalibrationProfile, folder: Path, doc: dict) -> None:
     if digest != index["sha256"]:
         raise ProfileError(f"{npz}: damaged (sha256 differs from the one {prof.id}.json names)")
     try:
-        arrays = np.load(npz, allow_pickle=False)   # each array read when first used, never whole in memory
-    except (OSError, ValueError) as exc:
+        arrays = ProfileArrays(npz)          # loaded, or mapped when large (app.workflow.profile_arrays)
+    except (OSError, ValueError, KeyError) as exc:
         raise ProfileError(f"{npz}: not a calibration's arrays ({_short(exc)})") from None
-    profile_check.check_npz(doc, npz, list(arrays.files))
+    profile_check.check_npz(doc, npz, arrays.files)
     try:
         _read_arrays(prof, arrays, index, tuple(doc["raw"]["shape"]))
     except ValueError as exc:                 # an object array (never written by dualrgb), a bad shape
@@ -297,7 +298,7 @@ def _load_arrays(prof: CalibrationProfile, folder: Path, doc: dict) -> None:
                                                            default_grid(prof.mode))
 
 
-def _read_arrays(prof: CalibrationProfile, arrays: Any, index: dict, shape: tuple[int, ...]) -> None:
+def _read_arrays(prof: CalibrationProfile, arrays: ProfileArrays, index: dict, shape: tuple[int, ...]) -> None:
     def read(name: str) -> np.ndarray:
         a = arrays[name]
         if a.shape != shape or a.dtype.kind != "f":

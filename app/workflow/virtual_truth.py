@@ -4,8 +4,11 @@ originals.py: measured spectra per class, each 2x2 Bayer cell one class).
 
 ``dualrgb capture --virtual-lab`` (and the GUI on the virtual lab) put the figures in the sidecar's
 ``virtual_truth`` section and on the QA line: per-pixel dE00 (app.processing.ground_truth) and per-pixel
-spectral RMSE (app.processing.spectral_truth), each with its per-material figure (noise averaged out). On a real
-stand there is no truth and nothing is added.
+spectral RMSE (app.processing.spectral_truth), each with its per-material figure (noise averaged out), at the
+delivery's resolution (full: per sensor pixel; half: per 2x2 cell), and each split into *edges* and *flat*
+regions: edges are the Bayer cells with another material among their 8 neighbours, i.e. every pixel whose 5x5
+demosaic support (app.processing.demosaic) reaches a boundary between materials; the same object areas at both
+resolutions, so the figures compare. On a real stand there is no truth and nothing is added.
 """
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ import numpy as np
 from dualrgb.app.processing.spectral_truth import SpectralTruth
 from dualrgb.simulation.defaults import default_grid
 from dualrgb.simulation.grid import SpectralGrid
+from dualrgb.simulation.spectral_estimation import SpectralEstimator
 
 log = logging.getLogger(__name__)
 
@@ -77,38 +81,97 @@ def placed_truth(lab: Any) -> OriginalTruth | None:
     return original_truth(original_name(placed), lab.height, lab.width, getattr(lab, "mode", "reflective"))
 
 
-def compare(truth: OriginalTruth, xyz: np.ndarray, spectra=None) -> dict:
-    """The ``virtual_truth`` figures of a delivered ``xyz`` image (H, W, 3, the white's scale) and, when given, its
-    ``spectra`` ((H, W, n_wl) or a function (r0, r1) -> those rows; app.processing.spectral_truth)."""
-    from dualrgb.app.processing.ground_truth import compare_to_ground_truth
-    from dualrgb.app.processing.spectral_truth import compare_spectra_to_ground_truth
+def edge_cells(cells: np.ndarray) -> np.ndarray:
+    """(h, w) bool: the cells of the class map ``cells`` with another class among their 8 neighbours."""
+    h, w = cells.shape
+    pad = np.pad(cells, 1, mode="edge")
+    edges = np.zeros((h, w), np.bool_)
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            edges |= pad[dy: dy + h, dx: dx + w] != cells
+    return edges
 
-    out: dict = {"original": truth.name, "xyz": compare_to_ground_truth(xyz, truth.xyz, truth.white).to_dict()}
-    if spectra is not None:
-        out["spectral"] = compare_spectra_to_ground_truth(spectra, truth.spectral).to_dict()
+
+def on_grid(truth: OriginalTruth, shape: tuple[int, int]) -> tuple[str, SpectralTruth, np.ndarray]:
+    """(resolution, the spectral truth, the edge mask) on a delivered grid of ``shape``: the cells' (half) or the
+    sensor's (full: each cell's class on its four pixels)."""
+    cells = truth.spectral.labels
+    edges = edge_cells(cells)
+    if tuple(shape) == cells.shape:
+        return "half", truth.spectral, edges
+    if tuple(shape) == (2 * cells.shape[0], 2 * cells.shape[1]):
+        full = np.repeat(np.repeat(cells, 2, axis=0), 2, axis=1)
+        spectral = SpectralTruth(full, truth.spectral.spectra, truth.spectral.wavelengths)
+        return "full", spectral, np.repeat(np.repeat(edges, 2, axis=0), 2, axis=1)
+    raise ValueError(f"delivered {shape[1]}x{shape[0]}: the truth is {2 * cells.shape[1]}x{2 * cells.shape[0]} "
+                     "(full) or half that")
+
+
+def regions(values: np.ndarray, edges: np.ndarray, prefix: str = "") -> dict:
+    """Mean and p90 of a per-pixel map (NaN left out) over the edges and over the flat regions."""
+    out = {}
+    for name, mask in (("edges", edges), ("flat", ~edges)):
+        v = values[mask & np.isfinite(values)].astype(np.float64)
+        out[name] = ({f"{prefix}mean": round(float(v.mean()), 5), f"{prefix}p90": round(float(np.percentile(v, 90)), 5),
+                      "n_pixels": int(v.size)} if v.size else {f"{prefix}mean": None, f"{prefix}p90": None,
+                                                              "n_pixels": 0})
     return out
 
 
-def assess(truth: OriginalTruth, files: dict[str, Path], white_y: float) -> dict:
-    """The sidecar's ``virtual_truth`` section: the delivered XYZ TIFF (``files['xyz']``) and, when delivered, the
-    ENVI cube (``files['spectral_header']``) against ``truth``; ``white_y``: the XYZ TIFF's white Y."""
+def compare(truth: OriginalTruth, xyz: np.ndarray, spectra=None) -> dict:
+    """The ``virtual_truth`` figures of a delivered ``xyz`` image (H, W, 3, the white's scale; the sensor's size or
+    half of it) and, when given, its ``spectra`` ((H, W, n_wl) or a function (r0, r1) -> those rows;
+    app.processing.spectral_truth), each also over the edges and the flat regions (:func:`regions`)."""
+    from dualrgb.app.processing.ground_truth import compare_to_ground_truth
+    from dualrgb.app.processing.spectral_truth import compare_spectra_to_ground_truth
+
+    resolution, spectral, edges = on_grid(truth, xyz.shape[:2])
+    de = compare_to_ground_truth(xyz, truth.xyz, truth.white)
+    out: dict = {"original": truth.name, "resolution": resolution, "xyz": {**de.to_dict(), **regions(de.de_map, edges)}}
+    if spectra is not None:
+        sp = compare_spectra_to_ground_truth(spectra, spectral)
+        out["spectral"] = {**sp.to_dict(), **regions(sp.rmse_map, edges, "rmse_")}
+    return out
+
+
+def delivered_spectra(files: dict[str, Path], estimator: SpectralEstimator | None):
+    """The delivered spectra as (wavelengths, a function (r0, r1) -> rows): the ENVI cube when it is a file,
+    else the cube made on demand from the camera-RGB TIFFs through ``estimator`` (app.processing.cube_map);
+    None when there are none."""
+    from dualrgb.app.processing.cube_map import MappedCube
+    from dualrgb.app.processing.envi import open_cube
+
+    if "spectral_header" in files:
+        cube = open_cube(files["spectral_header"])
+        return cube.wavelengths, cube.rows
+    if estimator is None:
+        return None
+    keys = sorted((k for k in files if k.startswith("channels_")), key=lambda k: int(k.split("_")[1]))
+    mapped = MappedCube([files[k] for k in keys], estimator)
+    return mapped.wavelengths, mapped.rows
+
+
+def assess(truth: OriginalTruth, files: dict[str, Path], white_y: float,
+           estimator: SpectralEstimator | None = None) -> dict:
+    """The sidecar's ``virtual_truth`` section: the delivered XYZ TIFF (``files['xyz']``) and the delivered spectra
+    (:func:`delivered_spectra`) against ``truth``; ``white_y``: the XYZ TIFF's white Y."""
     import tifffile
 
     from dualrgb.app.processing.encode import LINEAR_ONE
-    from dualrgb.app.processing.envi import open_cube
 
     xyz = tifffile.imread(files["xyz"]).astype(np.float64) / LINEAR_ONE * white_y
-    cube = open_cube(files["spectral_header"]) if "spectral_header" in files else None
-    if cube is not None:
-        truth = truth.on_wavelengths(cube.wavelengths)
-    return compare(truth, xyz, cube.rows if cube is not None else None)
+    spectra = delivered_spectra(files, estimator)
+    if spectra is not None:
+        truth = truth.on_wavelengths(spectra[0])
+    return compare(truth, xyz, spectra[1] if spectra is not None else None)
 
 
 def qa_text(section: dict) -> str:
-    """The QA line's part: ``virtual truth (painting): dE00 mean 0.54 / p90 0.90, spectral RMSE mean 0.046 /
+    """The QA line's part: ``virtual truth (painting, full): dE00 mean 0.54 / p90 0.90, spectral RMSE mean 0.046 /
     p90 0.071``."""
     xyz = section["xyz"]
-    text = f"virtual truth ({section['original']}): dE00 mean {xyz['mean']:.2f} / p90 {xyz['p90']:.2f}"
+    where = f"{section['original']}, {section['resolution']}" if section.get("resolution") else section["original"]
+    text = f"virtual truth ({where}): dE00 mean {xyz['mean']:.2f} / p90 {xyz['p90']:.2f}"
     sp = section.get("spectral")
     if sp:
         text += f", spectral RMSE mean {sp['rmse_mean']:.3f} / p90 {sp['rmse_p90']:.3f}"

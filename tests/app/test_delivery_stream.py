@@ -5,6 +5,7 @@ array), and a failed write leaves nothing half-written and names the file."""
 from __future__ import annotations
 
 import errno
+import hashlib
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from dualrgb.app.processing.outputs import (
     xyz_to_rgb_matrix,
 )
 from dualrgb.app.processing.pipeline import ChannelStack
+from dualrgb.app.workflow.deliverables import deliverable_files
 from dualrgb.common.atomic_files import FileWriteError
 
 D65 = [95.047, 100.0, 108.883]
@@ -68,16 +70,22 @@ def test_banded_encoding_is_bit_for_bit_the_numpy_formulation(channels):
     A = rng.uniform(0, 60, (channels, 3))
     ref = reference_encoding(stack, A, D65)
     whole = encode_deliverables(stack, A, D65)
-    with DeliveryEncoder(stack, A, D65, threads=2) as enc:          # bands of 5 rows, each split over 2 threads
-        got = {k: np.empty_like(v) for k, v in ref.items()}
-        for r0 in range(0, 37, 5):
-            r1 = min(r0 + 5, 37)
-            bands = {k: np.empty((r1 - r0,) + v.shape[1:], np.uint16) for k, v in ref.items()}
-            enc.encode(r0, bands["xyz"], [bands[s] for s in RGB_SPACES], bands["channels"])
-            for k in ref:
-                got[k][r0:r1] = bands[k]
-    for k in ref:
-        assert np.array_equal(got[k], ref[k]), k
+    lights = channels // 3
+    for given in ("stack", "bands"):        # the whole stack at construction, or each band with its call
+        source = stack if given == "stack" else stack.shape
+        with DeliveryEncoder(source, A, D65, threads=2) as enc:     # bands of 5 rows, each split over 2 threads
+            got = {k: np.empty_like(v) for k, v in ref.items()}
+            for r0 in range(0, 37, 5):
+                r1 = min(r0 + 5, 37)
+                bands = {k: np.empty((r1 - r0,) + v.shape[1:], np.uint16) for k, v in ref.items() if k != "channels"}
+                per_light = [np.empty((r1 - r0, 29, 3), np.uint16) for _ in range(lights)]   # one TIFF per light
+                enc.encode(r0, bands["xyz"], [bands[s] for s in RGB_SPACES], per_light,
+                           band=None if given == "stack" else np.ascontiguousarray(stack[r0:r1]))
+                bands["channels"] = np.concatenate(per_light, axis=2)
+                for k in ref:
+                    got[k][r0:r1] = bands[k]
+        for k in ref:
+            assert np.array_equal(got[k], ref[k]), (given, k)
     assert np.array_equal(whole.xyz, ref["xyz"]) and np.array_equal(whole.channels, ref["channels"])
     assert all(np.array_equal(whole.rgb[s], ref[s]) for s in RGB_SPACES)
     assert enc.invalid == np.isnan(stack).any(-1).sum() and whole.invalid_fraction == enc.invalid_fraction
@@ -87,9 +95,10 @@ def test_banded_encoding_is_bit_for_bit_the_numpy_formulation(channels):
 @pytest.mark.parametrize("shape, band_rows, space", [((61, 83, 3), 7, "ProPhoto RGB"), ((40, 33, 6), 1, None),
                                                       ((300, 517, 3), 64, "sRGB"), ((5, 3, 3), 64, None)])
 def test_streamed_tiff_is_byte_for_byte_tifffiles(tmp_path, direct, shape, band_rows, space):
+    """... and the SHA-256 computed while streaming is the written file's (hashlib over the file read back)."""
     img = np.random.default_rng(7).integers(0, 65536, shape, dtype=np.uint16)
     kw = dict(photometric="rgb" if space else "minisblack", icc=icc_profile(space) if space else None)
-    with open_tiff(tmp_path / "s.tif", shape, META, band_rows=band_rows, direct=direct, **kw) as out:
+    with open_tiff(tmp_path / "s.tif", shape, META, band_rows=band_rows, direct=direct, digest="sha256", **kw) as out:
         assert out.direct == (direct and bool(tiff_stream.O_DIRECT))
         for r0 in range(0, shape[0], out.band_rows):
             rows = min(out.band_rows, shape[0] - r0)
@@ -97,7 +106,9 @@ def test_streamed_tiff_is_byte_for_byte_tifffiles(tmp_path, direct, shape, band_
             out.commit()
     with open(tmp_path / "t.tif", "wb") as fh:
         tifffile.imwrite(fh, img, **tiff_kwargs(META, **kw))
-    assert (tmp_path / "s.tif").read_bytes() == (tmp_path / "t.tif").read_bytes()
+    written = (tmp_path / "s.tif").read_bytes()
+    assert written == (tmp_path / "t.tif").read_bytes()
+    assert out.sha256 == hashlib.sha256(written).hexdigest() and out.size == len(written)
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
 
 
@@ -106,25 +117,31 @@ def test_delivered_files_are_the_old_paths_byte_for_byte(tmp_path, monkeypatch):
     holds those arguments): same pixels, tags, XMP and ICC."""
     from dualrgb.app.workflow import delivery
 
-    iccs = {s: icc_profile(s) for s in RGB_SPACES}                  # the ProPhoto one carries its creation time
+    iccs = {s: icc_profile(s) for s in RGB_SPACES}                  # the profiles carry their creation time
     monkeypatch.setattr(delivery, "icc_profile", iccs.__getitem__)
     prof = _profile(tmp_path)
     rng = np.random.default_rng(11)
     data = rng.uniform(0, 1.3, (70, 45, 3)).astype(np.float32)
     data[3, 4, 1] = np.nan
+    xyz_icc = delivery.xyz_icc(prof.white_xyz, LINEAR_ONE)
+    monkeypatch.setattr(delivery, "xyz_icc", lambda *_: xyz_icc)
     stack = ChannelStack(data, ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})
-    images = delivery.deliverable_files(tmp_path / "out", "ACC-1", stack.channels)
+    images = deliverable_files(tmp_path / "out", "ACC-1", stack.channels)
     (tmp_path / "out").mkdir()
-    files, invalid = delivery.write_images(stack, prof, images, lambda what: META, band_rows=16)
+    written = delivery.write_images(stack, prof, images, lambda what, page: META, band_rows=16)
     enc = encode_deliverables(data, prof.matrix.matrix, prof.white_xyz)
-    arrays = {"prophoto": enc.rgb["ProPhoto RGB"], "srgb": enc.rgb["sRGB"], "xyz": enc.xyz, "channels": enc.channels}
+    arrays = {"prophoto": enc.rgb["ProPhoto RGB"], "srgb": enc.rgb["sRGB"], "xyz": enc.xyz,
+              "channels_1": enc.channels}
+    iccs["XYZ"] = xyz_icc
     for key, im in images.items():
         ref = tmp_path / f"ref_{key}.tif"
         with open(ref, "wb") as fh:
             tifffile.imwrite(fh, arrays[key], **tiff_kwargs(META, photometric=im.photometric,
-                                                           icc=iccs[im.space] if im.space else None))
-        assert files[key].read_bytes() == ref.read_bytes(), key
-    assert invalid == pytest.approx(1 / (70 * 45))
+                                                           icc=iccs[im.icc] if im.icc else None))
+        assert written.files[key].read_bytes() == ref.read_bytes(), key
+        data = ref.read_bytes()
+        assert written.fixity[key] == {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    assert written.invalid == pytest.approx(1 / (70 * 45))
 
 
 def _failing_pwrite(monkeypatch, after: int) -> None:

@@ -16,7 +16,13 @@ from workflow_profiles import make_profile
 from xmp_check import read_xmp
 
 from dualrgb.app.processing.pipeline import ChannelStack
-from dualrgb.app.workflow.delivery import LightDoseRecord, deliver, image_description, read_sidecar
+from dualrgb.app.workflow.delivery import (
+    LightDoseRecord,
+    deliver,
+    exact_description,
+    image_description,
+    read_sidecar,
+)
 from dualrgb.app.workflow.metadata import FIELD_RULES, MetadataError, Original
 
 NASTY = ["\x00", "\x01", "\t", "\n", "\r", "\r\n", "\x0b", "\x0c", "\x1f", "\x7f", "\x85", "\u00a0", "\u200b",
@@ -91,9 +97,10 @@ def test_random_unicode_is_delivered_exactly_or_refused_up_front(tmp_path_factor
     prof = make_profile(root / "cal")
     stack = ChannelStack(np.full((4, 6, 3), 0.5, np.float32), ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})
     d = deliver(stack, prof, original, root / "out", camera=prof.camera, dose=LightDoseRecord(1.0, 0.1))
-    for key in ("srgb", "channels"):
+    for key in ("srgb", "channels_1"):
         xmp = read_xmp(d.files[key])
         assert (xmp.identifier, xmp.title or "") == (original.identifier, original.title)
+        assert xmp.description == exact_description(original, xmp.dualrgb["Content"])   # dc:description: exact
         assert xmp.dualrgb.get("Operator", "") == original.operator and xmp.dualrgb.get("Notes", "") == original.notes
         assert xmp.extra == dict(original.extra)
         with tifffile.TiffFile(d.files[key]) as t:

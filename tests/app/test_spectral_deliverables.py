@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pytest
 import tifffile
+from sidecar_schema import assert_valid_sidecar
 from spectral_profiles import estimator, spectral_profile, stack
 from workflow_profiles import make_profile
 from xmp_check import read_xmp
@@ -145,14 +146,17 @@ def test_rendering_and_sidecar(tmp_path):
     assert xmp.identifier == "ACC-8" and xmp.dualrgb["Operator"] == "J. Doe"
     assert xmp.dualrgb["CalibrationID"] == "cal-test"
     assert "rendered under A" in xmp.dualrgb["Content"]
-    side = json.loads(d.sidecar.read_text())
+    side = assert_valid_sidecar(d.sidecar)                 # the sidecar's JSON Schema (resources/schemas)
     sp = side["spectral"]
     assert sp["cube"]["data"] == "ACC-8_spectral.img" and sp["cube"]["header"] == "ACC-8_spectral.hdr"
+    assert sp["cube"]["delivery"] == "file" and side["resolution"]["mode"] == "half"
     assert sp["cube"]["wavelengths_nm"] == [float(w) for w in WL] and sp["cube"]["reflectance_scale_factor"] == 10000
     assert sp["estimator"]["method"] == "wiener" and sp["estimator"]["calibration"] == "cal-test"
     assert sp["estimator"]["calibration_test"]["rmse_mean"] == 0.042
     assert sp["rendering"]["illuminant"] == "A" and sp["rendering"]["space"] == "ProPhoto RGB"
-    assert set(side["files"]) == {"prophoto", "srgb", "xyz", "channels", "spectral", "spectral_header", "render"}
+    assert set(side["files"]) == {"prophoto", "srgb", "xyz", "channels_1", "spectral",
+                                  "spectral_header", "render"}
+    assert set(side["fixity"]["files"]) == {p.name for p in d.files.values()}
     assert "spectral RMSE test 0.042" in d.qa.text() and d.qa.to_dict()["calibration_test_spectral_rmse"] == 0.042
     assert read_header(d.files["spectral_header"])["dualrgb calibration"] == "cal-test"
 

@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import tifffile
+from sidecar_schema import assert_valid_sidecar
 from workflow_profiles import make_profile as _profile
 from xmp_check import read_xmp
 
@@ -147,20 +148,26 @@ def test_deliverables_carry_their_metadata(tmp_path):
     stem = "ACC_12_3_" + hashlib.sha256(b"ACC 12/3").hexdigest()[:8]      # not a faithful name: hashed
     assert d.sidecar == tmp_path / "out" / stem / f"{stem}.json"
     assert {p.name for p in d.files.values()} == {f"{stem}_prophoto_16bit.tif", f"{stem}_srgb_16bit.tif",
-                                                  f"{stem}_XYZ_16bit.tif", f"{stem}_3ch_16bit.tif"}
+                                                  f"{stem}_XYZ_16bit.tif", f"{stem}_light1_cameraRGB_16bit.tif"}
     for key, path in d.files.items():
         with tifffile.TiffFile(path) as t:
             page = t.pages[0]
-            assert page.dtype == np.uint16
+            assert page.dtype == np.uint16 and page.shape == (10, 14, 3)
+            assert page.photometric == tifffile.PHOTOMETRIC.RGB and page.extrasamples == ()   # no alpha, not grey
             assert page.tags["XResolution"].value == (300, 1) and page.tags["ResolutionUnit"].value == 2
             assert page.tags["Software"].value.startswith("dualrgb ")
             assert page.tags["Make"].value == "Nikon" and page.tags["Model"].value == "D610"
-            assert "ACC 12/3" in page.tags["ImageDescription"].value
-            assert (34675 in page.tags) == (key in ("srgb", "prophoto"))
+            description = page.tags["ImageDescription"].value
+            assert "ACC 12/3" in description
+            assert (34675 in page.tags) == (key in ("srgb", "prophoto", "xyz"))        # ICC: not for camera RGB
         xmp = read_xmp(path)
         assert (xmp.identifier, xmp.title, xmp.dualrgb["Operator"]) == ("ACC 12/3", "Portrait", "J. Doe"), key
+        assert xmp.description == description                 # dc:description: the exact text (ASCII here)
         assert xmp.dualrgb["CalibrationID"] == "cal-test" and xmp.dualrgb["LightDoseLuxHours"] == "0.01"
+    with tifffile.TiffFile(d.files["channels_1"]) as t:
+        assert t.pages[0].tags["PageName"].value == "P light 1: R1 G1 B1"
     side = read_sidecar(d.sidecar)
+    assert assert_valid_sidecar(d.sidecar) == side                     # the sidecar's JSON Schema
     assert set(side["software"]) >= {"dualrgb", "numpy", "colour-science", "rawpy", "libraw"}
     assert side["light_dose"]["lux_h"] == pytest.approx(0.01) and "lux.h" in d.qa.text()
 

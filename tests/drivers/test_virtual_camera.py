@@ -100,6 +100,7 @@ def test_dng_stores_exposure_iso_aperture_and_camera_name(snap):
     cap = cam.capture(1 / 60)
     with tifffile.TiffFile(io.BytesIO(cap.data)) as tif:
         tags = {t.name: t.value for t in tif.pages[0].tags.values()}
+    tags.update(tags.pop("ExifTag"))                            # the shooting tags sit in the EXIF IFD
     assert tags["ExposureTime"] == (1, 60)
     assert tags["FNumber"] == (28, 5)
     assert tags["ISOSpeedRatings"] == 100                       # tag 34855 (PhotographicSensitivity)

@@ -65,6 +65,12 @@ def test_demo_reports_the_virtual_original_against_its_truth(hdr_report):
     sp, chart = o["spectral"], on_disk["dual_rgb_pso"]["spectral"]["rmse_mean"]
     assert sp["n_invalid"] == 0 and sp["rmse_p90"] >= sp["rmse_mean"] > 0
     assert abs(sp["material_rmse_mean"] - chart) < 0.02
+    full = on_disk["original_full"]                    # issue 31: the same frames at the sensor's resolution
+    assert (o["resolution"], full["resolution"]) == ("half", "full") and "original_full" not in on_disk["conditions"]
+    assert full["xyz"]["n_pixels"] == 4 * o["xyz"]["n_pixels"]
+    for section in (full["xyz"], full["spectral"], o["xyz"], o["spectral"]):
+        assert section["edges"]["n_pixels"] > 0 and section["flat"]["n_pixels"] > 0
+    assert abs(full["spectral"]["flat"]["rmse_mean"] - sp["flat"]["rmse_mean"]) < 0.01
 
 
 def test_hdr_lowers_the_error_of_nd_covered_patches(hdr_report):

@@ -58,6 +58,9 @@ def cases(port: str) -> dict[str, list[str]]:
         "calibrate": ["calibrate", *day, "--hdr", "off", "--dark-frames", "2", "--flat-frames", "2", "--no-de-fit"],
         "capture": ["capture", *day, "--id", "J-1"],
         "process": ["process", "day"],
+        "cube": ["cube", "day/deliverables/J-1"],
+        "verify": ["verify", "day"],
+        "bag": ["bag", "day/deliverables", "--out", "bag"],
         "calibration show": ["calibration", "show", "CAL", "--virtual-lab", *FRAME],
         "devices": ["devices"],
         "sphere status": ["sphere", "--port", port, "status"],
@@ -94,6 +97,7 @@ def test_json_to_stdout_in_every_command(stand):
     assert docs["calibrate"]["format"] == "dualrgb-calibration/1" and docs["calibrate"]["charts"]["train"]["packaged"]
     assert docs["capture"]["original"]["identifier"] == "J-1" and docs["process"]["originals"]
     assert docs["calibration show"]["check"]["refusals"] == []
+    assert docs["verify"]["ok"] and docs["bag"]["originals"] == ["J-1"] and docs["cube"]["samples"] == 160
 
 
 def test_queue_check_json_to_stdout(stand):

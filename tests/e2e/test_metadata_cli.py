@@ -66,7 +66,8 @@ def test_world_originals_deliver_exactly_and_process_keeps_the_previous_set(cal)
                 (ident, title, operator, "Zeile 1\nligne 2")
             with tifffile.TiffFile(path) as t:
                 assert t.pages[0].tags["ImageDescription"].value.startswith(WORLD[ident][2] + "; ")
-        header = read_header(Path(done["files"]["spectral_header"]))        # the cube: ASCII as the TIFF tags
+        dualrgb("cube", str(Path(done["sidecar"]).parent))                 # full resolution: the cube on demand
+        header = read_header(Path(done["sidecar"]).with_name(f"{side['file_stem']}_spectral.hdr"))   # ASCII too
         assert WORLD[ident][2] in header["description"] and header["description"].isascii()
         if EXIFTOOL is not None:
             assert exiftool_text(Path(done["files"]["srgb"]), "XMP-dc:Title") == title

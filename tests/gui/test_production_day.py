@@ -9,6 +9,7 @@ import json
 
 import numpy as np
 import pytest
+import tifffile
 
 from dualrgb.app.workflow.day import DayStep, OriginalState, StepState
 from tests.gui.conftest import click, connect_devices, wait_idle
@@ -124,7 +125,10 @@ def capture_originals(qtbot, w):
     assert [r.state for r in ws.queue.rows] == [OriginalState.DELIVERED] * 2, [r.qa for r in ws.queue.rows]
     for row in (paint, shadow):
         assert row.files and all(p.exists() and p.name.startswith(row.identifier) for p in row.files.values())
-        assert {"spectral", "spectral_header", "render"} <= set(row.files)          # the cube and its rendering
+        # full resolution by default: the sensor's pixels; the cube and its rendering are made on demand
+        assert set(row.files) == {"prophoto", "srgb", "xyz", "channels_1", "channels_2"}
+        lab = w.lab.virtual_lab
+        assert tifffile.imread(row.files["xyz"]).shape == (lab.height, lab.width, 3)
         for path in (p for p in row.files.values() if p.suffix == ".tif"):
             xmp = read_xmp(path)
             assert (xmp.identifier, xmp.title, xmp.dualrgb["Operator"]) == (row.identifier, f"{row.identifier} title",
@@ -145,7 +149,10 @@ def capture_originals(qtbot, w):
 
 
 def reshoot_asks(qtbot, w, paint):
+    """Keep: the frames delivered again, here at half resolution (the panel's "Deliver at"): the 2x2 cells, the cube
+    and its rendering as files."""
     org = w.originals
+    org.resolution.setCurrentIndex(org.resolution.findData("half"))
     w.asker.scripted = ["Keep"]
     org.select("PAINT-1")
     before = paint.qa
@@ -157,6 +164,10 @@ def reshoot_asks(qtbot, w, paint):
     assert title == "Already in the session" and "PAINT-1" in text
     assert "PAINT-1: 0 new, 2 kept" in paint.qa, paint.qa
     assert "0 new, 2 kept" in org.view.message.text()
+    lab = w.lab.virtual_lab
+    assert {"spectral", "spectral_header", "render"} <= set(paint.files)
+    assert tifffile.imread(paint.files["xyz"]).shape == (lab.height // 2, lab.width // 2, 3)
+    org.resolution.setCurrentIndex(org.resolution.findData("full"))
 
 
 def run_pso(qtbot, w):

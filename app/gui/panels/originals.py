@@ -42,6 +42,7 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
 from dualrgb.app.gui.widgets import side_by_side
+from dualrgb.app.processing.masters import RESOLUTION_CHOICES
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.copystand import CaptureReport, StandSettings, original_takes
 from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
@@ -118,6 +119,16 @@ class OriginalsPanel(QWidget):
         self.frames = QSpinBox()
         self.frames.setRange(1, 32)
         self.frames.setToolTip("Frames averaged per exposure: noise / sqrt(N), light dose x N.")
+        self.resolution = QComboBox()
+        for key, label in RESOLUTION_CHOICES.items():
+            self.resolution.addItem(label, key)
+        self.resolution.setCurrentIndex(max(0, self.resolution.findData(self.ctx.get("originals/resolution", "full",
+                                                                                     str))))
+        self.resolution.setToolTip("Full: the sensor's pixels (each light's frames demosaiced, Malvar-He-Cutler, "
+                                   "linear). Half: one pixel per 2x2 Bayer cell, no interpolation (a quarter of the "
+                                   "pixels, as dualrgb capture --resolution half). Remembered.")
+        self.resolution.currentIndexChanged.connect(
+            lambda _i: self.ctx.set("originals/resolution", self.resolution.currentData()))
         self.add_button = QPushButton("Add to the queue")
         self.add_button.clicked.connect(self.add_original)
         form.addRow("Identifier *", self.identifier)
@@ -128,6 +139,7 @@ class OriginalsPanel(QWidget):
         self.stand_in_label = QLabel("Virtual stand-in")
         form.addRow(self.stand_in_label, self.stand_in)
         form.addRow("Frames per exposure", self.frames)
+        form.addRow("Deliver at", self.resolution)
         self._import_rows(form)
         return box
 
@@ -367,7 +379,9 @@ class OriginalsPanel(QWidget):
         delivered = [r for r in sel if r.state is OriginalState.DELIVERED]
         self.open_tiff_button.setEnabled(len(delivered) == 1)
         self.open_folder_button.setEnabled(len(delivered) == 1)
-        if len(delivered) == 1 and delivered[0].sidecar != self._shown and delivered[0].files.get("spectral"):
+        spectral = len(delivered) == 1 and ("spectral" in delivered[0].files          # the cube, or its channels
+                                            or "channels_1" in delivered[0].files)   # (full resolution: on demand)
+        if spectral and delivered[0].sidecar != self._shown:
             self.show_delivered(delivered[0])
         self.force.setEnabled(not running)
         why = self._why_not(running)
@@ -443,7 +457,8 @@ class OriginalsPanel(QWidget):
     def _start(self, row: QueueRow, reshoot: bool | None) -> None:
         profile, lab = self.ws.calibration, self.lab
         forced = self.force.isChecked() or row.identifier in self.mode_overrides
-        settings = StandSettings(**self._stand_settings(), force=forced, original_frames=row.frames)
+        settings = StandSettings(**self._stand_settings(), force=forced, original_frames=row.frames,
+                                 resolution=str(self.resolution.currentData()))
 
         def work(hooks: RunHooks) -> CaptureReport:
             stand = lab.copy_stand(settings, hooks, stand_in=row.stand_in)

@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# The tools an archive reads the deliverables with, for the interop tests (tests/app/test_interop_tools.py,
+# tests/drivers/test_dng_writer.py; each skips when its tool is absent): ArgyllCMS (iccdump), LittleCMS (tificc),
+# ImageMagick, GDAL, exiftool. Installed with apt-get where there is one (Debian / Ubuntu CI runners; sudo when not
+# root); elsewhere the tests that need them skip and say which package to install.
+set -euo pipefail
+packages=(argyll liblcms2-utils imagemagick gdal-bin libimage-exiftool-perl)
+missing=()
+for tool in iccdump tificc identify gdalinfo exiftool; do
+    command -v "$tool" >/dev/null 2>&1 || missing+=("$tool")
+done
+if [[ ${#missing[@]} -eq 0 ]]; then
+    exit 0
+fi
+if ! command -v apt-get >/dev/null 2>&1; then
+    echo "interop-tools: no apt-get here; tests needing ${missing[*]} will skip" >&2
+    exit 0
+fi
+sudo=""
+[[ "$(id -u)" -eq 0 ]] || sudo="sudo -n"
+$sudo apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${packages[@]}" >/dev/null
