@@ -73,8 +73,8 @@ def newest_by_mode(session) -> dict:
 
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.workflow.copystand import redeliver
     from dualrgb.app.workflow.profile import load_profile
+    from dualrgb.app.workflow.redelivery import redeliver
 
     session = CaptureSession.open(args.session, readonly=True)      # frames checked before use, per original
     profiles = load_profile(args.calibration) if args.calibration else newest_by_mode(session)

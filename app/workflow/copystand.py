@@ -32,12 +32,11 @@ from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.shooter import SafetySettings, Shooter
-from dualrgb.app.session.manifest import DamagedFramesError
 from dualrgb.app.workflow.charts import definition as chart_definition
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
-from dualrgb.app.workflow.metadata import MetadataError, check_original
+from dualrgb.app.workflow.metadata import check_original
 from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
 from dualrgb.app.workflow.mode_rule import check_mode
 from dualrgb.app.workflow.preflight import (
@@ -71,7 +70,6 @@ from dualrgb.app.workflow.vocabulary import (
     split_take,
     subject_of,
 )
-from dualrgb.common.errors import ReportedError, one_line
 from dualrgb.common.progress import Cancelled, CancelToken, ProgressCallback, report
 
 log = logging.getLogger(__name__)
@@ -462,14 +460,6 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
     return proc
 
 
-@dataclass
-class Undelivered:
-    """An original ``dualrgb process`` could not deliver, and why (one line)."""
-
-    identifier: str
-    reason: str
-
-
 def begin_channels(proc: CaptureProcessor, lights: list[str], resolution: str) -> Any:
     """What takes an original's frames in as they land: a full-resolution MasterFrames (held, merged and
     demosaiced band by band at delivery) or a half-resolution StackBuilder (merged as they land)."""
@@ -489,88 +479,6 @@ def channels_of(proc: CaptureProcessor, light_frames: dict[str, list[ExposureRef
         builder.close()
 
 
-def redeliver(session: Any, profiles: CalibrationProfile | dict[str, CalibrationProfile], out_dir: Path, *,
-              ppi: float | None = None, progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
-              render_illuminant: str = DEFAULT_RENDER_ILLUMINANT, force: bool = False,
-              refused: list[str] | None = None, resolution: str = FULL
-              ) -> tuple[list[Delivery], list[Undelivered]]:
-    """Deliver every original of a session again (``dualrgb process``) at ``resolution``: with ``profiles`` (one
-    calibration, or one per mode), the mode rule applied to each (app.workflow.mode_rule: an original without a
-    calibration of its mode is left out, its line appended to ``refused``, unless ``force`` with one calibration);
-    each original's current deliverables move to its ``previous/`` folder. Every original that can be is
-    delivered; one whose frames are missing or damaged, whose folder is another's or whose delivery fails is
-    listed with its reason (issue 28). The spectral rendering is seen under ``render_illuminant``."""
-    from dualrgb.app.workflow.session_processing import session_frames
-
-    frames = session_frames(session, intact=False)
-    damaged = {e.file: problem for e, problem in session.damaged()}
-    known = session.settings.get("originals", {})
-    done: list[Delivery] = []
-    failed: list[Undelivered] = []
-    subjects = [s for s in frames.subjects if s.role is Role.ORIGINAL]
-    for i, subject in enumerate(subjects):
-        if cancel is not None:
-            cancel.check()
-        try:
-            original = _known_original(session, known, subject.name)
-            profile, override = _profile_for(original, profiles, force)
-            if profile is None:
-                (refused if refused is not None else []).append(override)
-                continue
-            done.append(_redeliver_one(session, frames, subject, original, profile, damaged, out_dir, ppi, cancel,
-                                       render_illuminant, override, resolution))
-        except (ValueError, OSError, ReportedError) as exc:
-            log.warning("%s: not delivered: %s", subject.name, exc)
-            failed.append(Undelivered(subject.name, one_line(exc)))
-        report(progress, (i + 1) / len(subjects), f"{subject.name} done")
-    return done, failed
-
-
-def _profile_for(original: Original, profiles: CalibrationProfile | dict[str, CalibrationProfile],
-                 force: bool) -> tuple[CalibrationProfile | None, str]:
-    """(the calibration ``original`` is delivered with, the override text) or (None, why not) by the mode rule."""
-    if isinstance(profiles, dict):
-        if original.mode in profiles:
-            return profiles[original.mode], ""
-        have = ", ".join(sorted(profiles)) or "none"
-        return None, (f"{original.identifier}: {original.mode} original, and no {original.mode} calibration "
-                      f"(the session's: {have}); pass one with --calibration")
-    try:
-        return profiles, check_mode(original, profiles, force=force)
-    except ValueError as exc:
-        return None, str(exc)
-
-
-def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Original, profile: CalibrationProfile,
-                   damaged: dict[str, str], out_dir: Path, ppi: float | None, cancel: CancelToken | None,
-                   render_illuminant: str, override: str, resolution: str = FULL) -> Delivery:
-    from dualrgb.app.workflow.session_processing import select_lights
-
-    prepare(Path(out_dir), original)
-    light_frames = select_lights(frames.subject(subject), [nl.name for nl in profile.lights])
-    for refs in light_frames.values():
-        for ref in refs:
-            if ref.label in damaged:
-                raise DamagedFramesError(f"{session.path / ref.label}: {damaged[ref.label]}; resume the session to "
-                                         "shoot it again", [ref.label])
-    with closing(channels_of(profile_processor(profile), light_frames, resolution, cancel)) as source:
-        return deliver(source, profile, original, out_dir, camera=profile.camera, ppi=ppi,
-                       dose=original_dose(session, subject),
-                       exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
-                       extra={"session": str(session.path), "reprocessed": True}, render_illuminant=render_illuminant,
-                       overrides=[override] if override else [])
-
-
-def _known_original(session: Any, known: dict, identifier: str) -> Original:
-    """An original as session.json remembers it, validated again (MetadataError naming the original)."""
-    try:
-        return Original.from_dict(known.get(identifier, {}), identifier=identifier)
-    except MetadataError as exc:
-        raise MetadataError(f"{session.path / 'session.json'}: original {identifier!r}: {exc.field}",
-                            exc.problem) from None
-
-
-# ---------------------------------------------------------------- a day's queue
 @dataclass
 class QueueOutcome:
     """One original of a queue: captured and delivered (``report``), or already delivered and kept (``kept``:

@@ -1,0 +1,120 @@
+"""``dualrgb process``: deliver every original of a session again, with one calibration or one per mode.
+
+Each original goes through the mode rule (app.workflow.mode_rule) and is delivered from its frames in the session
+(app.workflow.copystand's channel builders) at the chosen resolution; one that cannot be delivered (frames missing
+or damaged, a folder of another original, a refused delivery) is listed with its reason and the others go on.
+"""
+from __future__ import annotations
+
+import logging
+from contextlib import closing
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dualrgb.app.processing.masters import FULL
+from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT
+from dualrgb.app.session.manifest import DamagedFramesError
+from dualrgb.app.workflow.copystand import channels_of, original_dose, profile_processor
+from dualrgb.app.workflow.delivery import Delivery, Original, deliver
+from dualrgb.app.workflow.delivery_folder import prepare
+from dualrgb.app.workflow.metadata import MetadataError
+from dualrgb.app.workflow.mode_rule import check_mode
+from dualrgb.app.workflow.profile import CalibrationProfile
+from dualrgb.app.workflow.vocabulary import Role, Subject
+from dualrgb.common.errors import ReportedError, one_line
+from dualrgb.common.progress import CancelToken, ProgressCallback, report
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Undelivered:
+    """An original ``dualrgb process`` could not deliver, and why (one line)."""
+
+    identifier: str
+    reason: str
+
+
+def redeliver(session: Any, profiles: CalibrationProfile | dict[str, CalibrationProfile], out_dir: Path, *,
+              ppi: float | None = None, progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
+              render_illuminant: str = DEFAULT_RENDER_ILLUMINANT, force: bool = False,
+              refused: list[str] | None = None, resolution: str = FULL
+              ) -> tuple[list[Delivery], list[Undelivered]]:
+    """Deliver every original of a session again (``dualrgb process``) at ``resolution``: with ``profiles`` (one
+    calibration, or one per mode), the mode rule applied to each (app.workflow.mode_rule: an original without a
+    calibration of its mode is left out, its line appended to ``refused``, unless ``force`` with one calibration);
+    each original's current deliverables move to its ``previous/`` folder. Every original that can be is
+    delivered; one whose frames are missing or damaged, whose folder is another's or whose delivery fails is
+    listed with its reason (issue 28). The spectral rendering is seen under ``render_illuminant``."""
+    from dualrgb.app.workflow.session_processing import session_frames
+
+    frames = session_frames(session, intact=False)
+    damaged = {e.file: problem for e, problem in session.damaged()}
+    known = session.settings.get("originals", {})
+    done: list[Delivery] = []
+    failed: list[Undelivered] = []
+    subjects = [s for s in frames.subjects if s.role is Role.ORIGINAL]
+    for i, subject in enumerate(subjects):
+        if cancel is not None:
+            cancel.check()
+        try:
+            original = _known_original(session, known, subject.name)
+            profile, override = _profile_for(original, profiles, force)
+            if profile is None:
+                (refused if refused is not None else []).append(override)
+                continue
+            done.append(_redeliver_one(session, frames, subject, original, profile, damaged, out_dir, ppi, cancel,
+                                       render_illuminant, override, resolution))
+        except (ValueError, OSError, ReportedError) as exc:
+            log.warning("%s: not delivered: %s", subject.name, exc)
+            failed.append(Undelivered(subject.name, one_line(exc)))
+        report(progress, (i + 1) / len(subjects), f"{subject.name} done")
+    return done, failed
+
+
+def _profile_for(original: Original, profiles: CalibrationProfile | dict[str, CalibrationProfile],
+                 force: bool) -> tuple[CalibrationProfile | None, str]:
+    """(the calibration ``original`` is delivered with, the override text) or (None, why not) by the mode rule."""
+    if isinstance(profiles, dict):
+        if original.mode in profiles:
+            return profiles[original.mode], ""
+        have = ", ".join(sorted(profiles)) or "none"
+        return None, (f"{original.identifier}: {original.mode} original, and no {original.mode} calibration "
+                      f"(the session's: {have}); pass one with --calibration")
+    try:
+        return profiles, check_mode(original, profiles, force=force)
+    except ValueError as exc:
+        return None, str(exc)
+
+
+def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Original, profile: CalibrationProfile,
+                   damaged: dict[str, str], out_dir: Path, ppi: float | None, cancel: CancelToken | None,
+                   render_illuminant: str, override: str, resolution: str = FULL) -> Delivery:
+    from dualrgb.app.workflow.session_processing import select_lights
+
+    prepare(Path(out_dir), original)
+    light_frames = select_lights(frames.subject(subject), [nl.name for nl in profile.lights])
+    for refs in light_frames.values():
+        for ref in refs:
+            if ref.label in damaged:
+                raise DamagedFramesError(f"{session.path / ref.label}: {damaged[ref.label]}; resume the session to "
+                                         "shoot it again", [ref.label])
+    with closing(channels_of(profile_processor(profile), light_frames, resolution, cancel)) as source:
+        return deliver(source, profile, original, out_dir, camera=profile.camera, ppi=ppi,
+                       dose=original_dose(session, subject),
+                       exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
+                       extra={"session": str(session.path), "reprocessed": True}, render_illuminant=render_illuminant,
+                       overrides=[override] if override else [])
+
+
+def _known_original(session: Any, known: dict, identifier: str) -> Original:
+    """An original as session.json remembers it, validated again (MetadataError naming the original)."""
+    try:
+        return Original.from_dict(known.get(identifier, {}), identifier=identifier)
+    except MetadataError as exc:
+        raise MetadataError(f"{session.path / 'session.json'}: original {identifier!r}: {exc.field}",
+                            exc.problem) from None
+
+
+# ---------------------------------------------------------------- a day's queue
