@@ -7,9 +7,13 @@ from __future__ import annotations
 import argparse
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dualrgb.app.commands.options import add_render_option, number
 from dualrgb.app.commands.stand_options import progress_printer, write_json
+
+if TYPE_CHECKING:
+    from dualrgb.app.protocols import Session
 
 log = logging.getLogger(__name__)
 
@@ -27,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=main)
 
 
-def newest_calibration(session) -> Path:
+def newest_calibration(session: Session) -> Path:
     """The session's own newest calibration, else the one its latest original was captured with."""
     found = sorted((session.path / "calibration").glob("cal-*.json"))
     used = [Path(o["calibration"]) for o in session.settings.get("originals", {}).values() if o.get("calibration")]

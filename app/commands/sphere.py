@@ -180,7 +180,7 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
     elif args.action == "set":
         taken = sphere.set_level(args.led, args.level)
         print(f"LED {args.led} level {taken:.4f}")
-    elif args.action == "apply":
+    elif args.action == "apply" and light is not None:        # main() refused a light it could not load
         taken = sphere.apply(light)
         levels = " ".join(f"{v:.4f}" for v in taken)
         print(f"applied {light.name or 'light source'} {light.label()}: levels {levels}")

@@ -15,11 +15,11 @@ original already in the session is shot again (True: new frames under the next t
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,7 +29,7 @@ from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from dualrgb.app.sequences.capture import SubjectCapture
-from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.sequences.shooter import SafetySettings, Shooter, Stand
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
@@ -59,6 +59,14 @@ from dualrgb.app.workflow.vocabulary import (
     subject_of,
 )
 from dualrgb.common.progress import Cancelled, CancelToken, ProgressCallback, report
+
+if TYPE_CHECKING:
+    from dualrgb.app.processing.patches import PatchGrid
+    from dualrgb.app.protocols import Session, Sphere
+    from dualrgb.drivers.camera.base import Camera
+    from dualrgb.drivers.virtual.lab import VirtualLab
+    from dualrgb.simulation.presets import Preset
+    from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
@@ -92,7 +100,7 @@ class StandSettings:
     meter_tiles: int = 12                     # metering regions across the frame (HDR decision for originals)
     original_frames: int = 1                  # frames averaged per exposure of an original (noise / sqrt(n))
     render_illuminant: str = DEFAULT_RENDER_ILLUMINANT   # the light the spectral rendering is seen under
-    stand_start: Any = None                   # the stand model the fit starts from (simulation.stand_model; None:
+    stand_start: StandModel | None = None     # the stand model the fit starts from (simulation.stand_model; None:
                                               # nominal): measured camera / LEDs (calibrate --camera-csv, --stand-dir)
 
 
@@ -113,10 +121,11 @@ class CaptureReport:
 class CopyStand:
     """Devices + session + the rules of the copy-stand day (see the module docstring)."""
 
-    def __init__(self, camera: Any, sphere: Any, session: Any, *, stand: Callable[[str, bool], Any] | None = None,
-                 lab: Any = None, settings: StandSettings | None = None, progress: ProgressCallback | None = None,
-                 cancel: CancelToken | None = None, prompt: Prompt | None = None,
-                 reshoot: ReshootQuestion | None = None, on_event: EventCallback | None = None):
+    def __init__(self, camera: Camera, sphere: Sphere, session: Session, *, stand: Stand | None = None,
+                 lab: VirtualLab | None = None, settings: StandSettings | None = None,
+                 progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
+                 prompt: Prompt | None = None, reshoot: ReshootQuestion | None = None,
+                 on_event: EventCallback | None = None):
         self.camera, self.sphere, self.session, self.lab = camera, sphere, session, lab
         self.settings = settings or StandSettings()
         self.progress, self.cancel, self.prompt = progress, cancel, prompt
@@ -193,16 +202,18 @@ class CopyStand:
                         .5 + .05 * i, .55 + .05 * i))
         return out
 
-    def calibrate(self, preset: Any, *, hdr_auto: bool | None = None, grids: dict[str, Any] | None = None,
-                  report_dir: Path | None = None) -> CalibrationProfile:
+    def calibrate(self, preset: Preset, *, hdr_auto: bool | None = None,
+                  grids: Mapping[str, PatchGrid | None] | None = None, report_dir: Path | None = None
+                  ) -> CalibrationProfile:
         """Auto-exposure, darks and flats at every planned exposure, training and test targets, characterisation:
         the calibration profile, saved in ``<session>/calibration/``. ``hdr_auto`` None: the day's default
         (app.workflow.defaults)."""
         base = self.auto_expose(lights_of(preset))
         return self.calibrate_at(preset, base, hdr_auto=hdr_auto, grids=grids, report_dir=report_dir)
 
-    def calibrate_at(self, preset: Any, base: dict[str, float], *, hdr_auto: bool | None = None,
-                     grids: dict[str, Any | None] = None, report_dir: Path | None = None) -> CalibrationProfile:
+    def calibrate_at(self, preset: Preset, base: dict[str, float], *, hdr_auto: bool | None = None,
+                     grids: Mapping[str, PatchGrid | None] | None = None, report_dir: Path | None = None
+                     ) -> CalibrationProfile:
         """:meth:`calibrate` from known open-gate exposures ``base`` (light name -> seconds)."""
         lights = lights_of(preset)
         defaults = workflow_defaults(preset.mode)
@@ -225,7 +236,7 @@ class CopyStand:
         report(self.progress, 1.0, f"calibration {profile.id} saved")
         return profile
 
-    def _profile(self, preset: Any, lights: list[NamedLight], plan: dict[str, list[float]], base: dict[str, float],
+    def _profile(self, preset: Preset, lights: list[NamedLight], plan: dict[str, list[float]], base: dict[str, float],
                  result: SessionResult, test: TargetSpec) -> CalibrationProfile:
         proc = result.processor
         entries = [e for e in self.session.entries() if role_of(e) in (Role.DARK, Role.FLAT, Role.TARGET)]
@@ -269,8 +280,8 @@ class CopyStand:
             log.warning("%s", w)
         return result
 
-    def _take(self, original: Original, reshoot: bool | None) -> tuple[int, int]:
-        """(take to record, frames already in the session for this original)."""
+    def _take(self, original: Original, reshoot: bool | None) -> int:
+        """The take to record: 1 for a new original, the next one when it is shot again, else its last."""
         takes = original_takes(self.session, original)
         if not takes:
             return 1
@@ -327,7 +338,7 @@ class CopyStand:
         def landed(ev: ProgressEvent) -> None:            # merge each frame as soon as it is on disk
             if ev.kind in (EventKind.FRAME, EventKind.KEPT):
                 e = next(x for x in self.session.entries() if x.seq == ev.data["entry"])
-                builder.add(ev.data["light"], ExposureRef(self.session.file_path(e), float(e.exposure_s), e.file),
+                builder.add(ev.data["light"], ExposureRef(self.session.file_path(e), e.exposure(), e.file),
                             cancel=self.cancel)
         outer, self.on_event = self.on_event, _chain(self.on_event, landed)
         try:
@@ -368,7 +379,7 @@ def _stand_fields(result: SessionResult) -> dict:
     return {"stand": result.stand.summary(), "stand_observations": result.stand.observations}
 
 
-def original_takes(session: Any, original: Original) -> list[int]:
+def original_takes(session: Session, original: Original) -> list[int]:
     """The take of every frame of ``original`` already in ``session`` (empty: never shot). A front end asks
     "already in the session: re-shoot / keep" when it is not empty."""
     subject = original.subject
@@ -376,7 +387,7 @@ def original_takes(session: Any, original: Original) -> list[int]:
             if role_of(e) is Role.ORIGINAL and subject_of(e) == subject]
 
 
-def original_dose(session: Any, subject: Subject) -> LightDoseRecord:
+def original_dose(session: Session, subject: Subject) -> LightDoseRecord:
     """Every lit period of an original (metering, every take) from the session manifest's dose lines."""
     from dualrgb.app.session.light_dose import LightDose, light_from_record
 
@@ -406,7 +417,7 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
     return proc
 
 
-def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: float | None = None,
+def redeliver(session: Session, profile: CalibrationProfile, out_dir: Path, *, ppi: float | None = None,
               progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
               render_illuminant: str = DEFAULT_RENDER_ILLUMINANT) -> list[Delivery]:
     """Deliver every original of a session again with ``profile`` (``dualrgb process``); each original's current
@@ -435,7 +446,7 @@ def redeliver(session: Any, profile: CalibrationProfile, out_dir: Path, *, ppi: 
     return out
 
 
-def _known_original(session: Any, known: dict, identifier: str) -> Original:
+def _known_original(session: Session, known: dict, identifier: str) -> Original:
     """An original as session.json remembers it, validated again (MetadataError naming the original)."""
     try:
         return Original.from_dict(known.get(identifier, {}), identifier=identifier)
@@ -460,7 +471,7 @@ class QueueOutcome:
         return f"{self.original.identifier}: already delivered, kept"
 
 
-def delivered_sidecar(session: Any, original: Original) -> Path | None:
+def delivered_sidecar(session: Session, original: Original) -> Path | None:
     """The sidecar of ``original``'s delivery in ``session`` (session.json 'originals'), when it exists and names
     the same identifier; None otherwise."""
     meta = (session.settings.get("originals") or {}).get(original.identifier) or {}

@@ -214,12 +214,12 @@ def write_images(stack: ChannelStack, profile: CalibrationProfile, images: dict[
     is written by :func:`deliver`). Returns the files and the fraction of invalid (NaN) pixels."""
     H, W, _ = stack.data.shape
     streamed = {k: im for k, im in images.items() if im.source != "header"}
-    rgb_keys = [k for k, im in streamed.items() if im.space and im.source == "stack"]
-    est = spectral.estimator if spectral is not None else None
-    spec = (SpectralEncoder(stack.data, est.matrix, est.bounds, spectral.rendering, offset=est.offset)
-            if est is not None else nullcontext())
-    with DeliveryEncoder(stack.data, profile.matrix.matrix, profile.white_xyz,
-                         [images[k].space for k in rgb_keys]) as enc, spec as cube_enc, \
+    spaces = {k: im.space for k, im in streamed.items() if im.space and im.source == "stack"}
+    rgb_keys = list(spaces)
+    spec = (SpectralEncoder(stack.data, spectral.estimator.matrix, spectral.estimator.bounds, spectral.rendering,
+                            offset=spectral.estimator.offset) if spectral is not None else nullcontext())
+    with DeliveryEncoder(stack.data, profile.matrix.matrix, profile.white_xyz, list(spaces.values())) as enc, \
+            spec as cube_enc, \
             ThreadPoolExecutor(len(streamed), thread_name_prefix="deliver") as pool, ExitStack() as opened:
         out = {k: opened.enter_context(_open(im, H, W, meta, band_rows, pool, direct)) for k, im in streamed.items()}
         rgb = [out[k] for k in rgb_keys]

@@ -85,7 +85,7 @@ def calibrate_in_world(cfg: StandStudyConfig, preset: Any, seed: int, folder: Pa
     with VirtualLab(mode=cfg.mode, frame_size=cfg.frame_size, seed=seed, world=cfg.world) as lab:
         session = CaptureSession.resume(folder, definition, {"mode": cfg.mode})
         try:
-            stand = CopyStand(lab.camera, lab.sphere, session, stand=lab.place, lab=lab,
+            stand = CopyStand(*lab.devices(), session, stand=lab.place, lab=lab,
                               settings=StandSettings(settle_s=0.0, optimise_matrix=False))
             return stand.calibrate(preset, hdr_auto=False)
         finally:
@@ -108,6 +108,7 @@ def measure_camera(cfg: StandStudyConfig, folder: Path) -> Path:
             def radiance(wavelengths: list[float]) -> Any:
                 return read_radiance_reference(bench.spectroradiometer().write_csv(
                     session.path / "radiance-virtual.csv", wavelengths))
+            assert bench.camera is not None                 # made by start()
             m = measure_csrf(bench.camera, bench.monochromator, session, settings, radiance=radiance,
                              out=folder / "csrf.csv")
         finally:
@@ -135,7 +136,8 @@ def model_figures(models: dict[str, StandModel], obs: StandObservations, levels:
         pred = predict(model, obs)
         de = expected_de00(model, mode, levels, capture)
         out[name] = {"r2_train": min(r2_per_channel(pred.train, obs.train)),
-                     "r2_test": min(r2_per_channel(pred.test, obs.test)) if pred.test is not None else None,
+                     "r2_test": (min(r2_per_channel(pred.test, obs.test))
+                                     if pred.test is not None and obs.test is not None else None),
                      "predicted": de, "miss": {k: de[k] / captured[k] - 1.0 for k in ("train", "test")},
                      "model": model.to_dict()}
     return out
@@ -222,6 +224,8 @@ def stand_study(cfg: StandStudyConfig, folder: Path, progress: ProgressCallback 
                                                              calibration_lights(profile), scaled(progress, 0.1, 0.15))}
     captured = capture_lights(cfg, lights, folder, {"nominal preset": {cfg.seeds[0]: profile}},
                               scaled(progress, 0.15, 0.95), cancel)
+    if profile.stand_observations is None:
+        raise ValueError(f"{profile.path}: the calibration has no stand observations (its stand fit was not made)")
     study = StandStudy(cfg)
     study.models = model_figures(models, profile.stand_observations, levels, cfg.mode, capture,
                                  _captured_de(captured["nominal preset"]))

@@ -10,7 +10,7 @@ import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,6 +18,9 @@ from dualrgb.app.processing.patches import PatchGrid
 from dualrgb.app.processing.report import layout_for
 from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
 from dualrgb.simulation.colorimetry import white_point
+
+if TYPE_CHECKING:
+    from dualrgb.drivers.virtual.lab import VirtualLab
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +101,7 @@ def scene_grid(scene: Any, fraction: float = 0.5) -> PatchGrid:
     return PatchGrid(corners_rc[:, ::-1], rows, cols, fraction=fraction).scaled(0.5)   # (row, col) -> (x, y)
 
 
-def virtual_target_spec(lab: Any, subject: Subject, *, simulated: np.ndarray | None = None,
+def virtual_target_spec(lab: VirtualLab, subject: Subject, *, simulated: np.ndarray | None = None,
                         grid: PatchGrid | None = None, label: str = "", method: str | None = None) -> TargetSpec:
     """A TargetSpec for a target captured in the virtual lab: its scene gives the grid and the ND patches."""
     if subject.kind is not SubjectKind.TARGET:
@@ -108,12 +111,12 @@ def virtual_target_spec(lab: Any, subject: Subject, *, simulated: np.ndarray | N
     nd_scale = nd_transmittance(nd_mask, scene.nd_transmittance, scene.n_patches)
     xyz, names = reference_xyz(lab.mode, subject.name, nd_scale, method)
     target = packaged_target(lab.mode, subject.name)
-    return TargetSpec(subject, xyz, names, grid or scene_grid(scene), tuple(scene.layout), simulated,
+    return TargetSpec(subject, xyz, names, grid or scene_grid(scene), scene.layout, simulated,
                       label or f"{subject.name} ({target.name})", nd_mask,
                       reference_spectra(lab.mode, subject.name, nd_scale), lab.mode)
 
 
-def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any = None,
+def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: VirtualLab | None = None,
                 label: str = "", method: str | None = None) -> TargetSpec:
     """The TargetSpec the GUI and the CLI use: the virtual lab's scene when there is one (ND included), else the
     packaged target of ``mode`` with the grid placed by hand (None: CC24 auto-detection). ``method``: how the
