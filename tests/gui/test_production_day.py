@@ -9,12 +9,12 @@ import json
 
 import numpy as np
 import pytest
+from xmp_check import read_xmp
 
 from dualrgb.app.workflow.day import DayStep, OriginalState, StepState
+from dualrgb.app.workflow.vocabulary import EventKind
 from tests.gui.conftest import click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
-from xmp_check import read_xmp
-from dualrgb.app.workflow.vocabulary import EventKind
 
 LONG = 180000
 STALL_LIMIT_S = 0.1

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from dualrgb.app.gui.units import parse_exposure
+from dualrgb.app.workflow.vocabulary import EventKind
 from tests.gui.conftest import click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
-from dualrgb.app.workflow.vocabulary import EventKind
 
 LONG = 120000
 
@@ -68,11 +68,13 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     dev = w.devices
 
     # ---- connect both devices from the Devices panel ----
+    dog.phase = "connect both devices from the Devices panel"
     connect_devices(qtbot, w)
     assert dev.sphere_light.state in ("ok", "on") and dev.camera_light.state == "ok"
     assert w.ctx.settings.value("devices/sphere_port") == "virtual sphere (emulator)"
 
     # ---- apply a preset in one click ----
+    dog.phase = "apply a preset in one click"
     light = w.light
     item = next(i for i in light.preset_items() if i.preset.name == "dual-RGB reflective")
     light.presets.setCurrentItem(item)
@@ -82,11 +84,13 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert np.allclose(emu.commanded_levels(), item.preset.sources[0].weights(10), atol=1e-4)
 
     # ---- a single picture with its histogram ----
+    dog.phase = "a single picture with its histogram"
     click(qtbot, w.camera.capture_button)
     qtbot.waitUntil(lambda: w.camera.last_view is not None, timeout=LONG)
     assert "linear limit" in w.camera.hist_label.text()
 
     # ---- session, lights, exposures ----
+    dog.phase = "session, lights, exposures"
     cap = w.capture
     click(qtbot, cap.new_button)
     qtbot.waitUntil(lambda: w.lab.session is not None, timeout=LONG)
@@ -98,6 +102,7 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert len(exposures) == 2 and all(0 < t[0] < 1 for t in exposures.values())
 
     # ---- darks, flats, the two targets ----
+    dog.phase = "darks, flats, the two targets"
     run_sequence(qtbot, w, "Dark series", frames=4)
     run_sequence(qtbot, w, "Open-gate flats", frames=2)
     run_sequence(qtbot, w, "Dual-RGB capture", target=0)
@@ -108,6 +113,7 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert not emu.snapshot().light_on
 
     # ---- grid placement: drag a corner away and back ----
+    dog.phase = "grid placement: drag a corner away and back"
     tgt = w.target
     qtbot.waitUntil(lambda: tgt.subject.count() >= 2, timeout=LONG)
     labels = [tgt.subject.itemText(i) for i in range(tgt.subject.count())]
@@ -127,6 +133,7 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert np.allclose(w.ctx.workspace.grids["target:test"].corners, start, atol=0.01)
 
     # ---- results ----
+    dog.phase = "results"
     res = process(qtbot, w, "target:train", "target:test")
     rep = res.result.report
     assert rep["test"]["mean"] < 2.0                       # dual-RGB on the virtual lab: well under 2 dE00

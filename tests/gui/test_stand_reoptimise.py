@@ -14,8 +14,8 @@ def stand_profile(tmp_path):
     from dualrgb.simulation.capture_model import CaptureModel
     from dualrgb.simulation.stand_fit import fit_stand
     from dualrgb.simulation.stand_model import StandModel
-    from tests.workflow_profiles import make_profile
     from tests.simulation.stand_data import hand_observations
+    from tests.workflow_profiles import make_profile
 
     d700 = "resources/cameras/nikon_d700_rawtoaces.csv"
     obs = hand_observations([2, 0, -3, 0, 3, -2, 1.5, 3, 2.5, 0], flare=0.005, camera_csv=d700)
