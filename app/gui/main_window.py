@@ -10,6 +10,7 @@ from PySide6.QtCore import QByteArray, QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
 from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QScrollArea, QTabWidget, QWidget
 
+from dualrgb.app.gui import gc_thread
 from dualrgb.app.gui.context import AppContext, Bus, default_settings
 from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.guide import WorkflowGuide
@@ -43,6 +44,7 @@ class MainWindow(QMainWindow):
                  show_dialogs: bool = True, shutter_bumps: bool = False):
         super().__init__()
         self.setWindowTitle("dualrgb — dual-RGB copy stand")
+        gc_thread.start()                      # Qt objects are freed on the GUI thread only (app.gui.gc_thread)
         self.runner = TaskRunner(self)
         self.errors = ErrorReporter(self)
         self.errors.show_dialogs = show_dialogs
@@ -244,3 +246,4 @@ class MainWindow(QMainWindow):
         for box in list(self.asker.boxes):
             box.close()
         self.log_view.uninstall()
+        gc_thread.stop()
