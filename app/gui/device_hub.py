@@ -34,7 +34,8 @@ log = logging.getLogger(__name__)
 VIRTUAL_SPHERE = "virtual sphere (emulator)"
 VIRTUAL_CAMERA = "virtual camera (virtual lab)"
 NO_CAMERA_ADVICE = ("no camera found: connect the camera by USB, switch it on (mode dial to M) and press "
-                    "'Detect' again; on a desktop, close photo programs that grab it (gvfs)")
+                    "'Detect' again; on a desktop, close photo programs that grab it (gvfs on Linux, ptpcamerad on "
+                    "macOS)")
 
 
 def serial_ports() -> list[str]:
