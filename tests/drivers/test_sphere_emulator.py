@@ -317,9 +317,10 @@ def test_each_fault_gives_sphere_error_and_leds_end_off(lab, fault, params, kind
     err = info.value
     assert err.kind == kind, err
     assert "\n" not in str(err)
-    # the failing exchange: two attempts of TIMEOUT at most, then the exit's two off-requests (generous bound,
-    # not a benchmark: the point is that nothing hangs)
-    assert elapsed < 6 * TIMEOUT + 3.0
+    # nothing hangs: the failing exchange takes two attempts of TIMEOUT, then the exit's two off-requests (about
+    # 6 x TIMEOUT; a hang guard far above it, since a loaded machine stretches it; the attempts themselves are
+    # checked byte for byte in test_led_sphere_driver.py)
+    assert elapsed < 60.0
     if needs_watchdog:
         clock.advance(emu.watchdog_s + 1.0)
     snap = emu.snapshot()

@@ -25,7 +25,7 @@ from dualrgb.app.workflow.profile import load_profile
 from dualrgb.simulation.stand_fit import predict
 from dualrgb.simulation.stand_model import StandModel
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(3600)]     # a hang guard: ~3 min quiet, ~15 at load 8
 MEASURED, NOMINAL_CAMERA, LEDS_ONLY = "fitted, measured camera", "fitted, nominal camera", \
     "fitted, nominal camera, LEDs only"
 
