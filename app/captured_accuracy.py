@@ -107,7 +107,8 @@ def captured_errors(setup: SimulationSetup, W: np.ndarray, exposures_s: np.ndarr
     white = white_point(setup.illuminant, setup.cmfs)
     xyz = {k: tristimulus(t.spectra, setup.illuminant, setup.cmfs) for k, t in (("train", setup.train),
                                                                                ("test", setup.test))}
-    tr, te = [], []
+    tr: list[float] = []
+    te: list[float] = []
     for r in range(repeats):
         v = capture_patch_values(setup, W, exposures_s, width=width, height=height, dark_frames=dark_frames,
                                  seed=seed * 1000 + r)

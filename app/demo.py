@@ -85,6 +85,12 @@ class DemoSettings:
     world: str | None = None                 # what the virtual lab renders (drivers.virtual.world; None nominal)
     charts: dict[str, Any] = field(default_factory=dict)   # the stand's own charts (app.workflow.charts.load_charts)
 
+    def optimise(self) -> bool:
+        """Whether the dE00-optimised matrix is fitted too (``optimise_matrix``, else the mode's default)."""
+        if self.optimise_matrix is None:
+            return workflow_defaults(self.mode).optimise_matrix
+        return self.optimise_matrix
+
     def definition(self) -> dict:
         """What defines this run's frames (app.session: a resume with anything else is refused)."""
         from dualrgb.app.workflow.charts import definition as chart_definition
@@ -201,8 +207,7 @@ class DemoRun:
         if s.dark_frames < 1 or s.flat_frames < 1 or min(s.frame_size) < 64 or s.seed < 0:   # before any shot
             raise ValueError(f"demo settings: dark frames {s.dark_frames}, flat frames {s.flat_frames}, frame size "
                              f"{s.frame_size}, seed {s.seed}: expected >= 1, >= 1, >= 64 px, >= 0")
-        if s.optimise_matrix is None:
-            s.optimise_matrix = workflow_defaults(s.mode).optimise_matrix
+        s.optimise_matrix = s.optimise()
         s.out.mkdir(parents=True, exist_ok=True)
         session = CaptureSession.resume(s.out / "session", s.definition(), {"mode": s.mode, "demo": True},
                                         new_if_different=s.new_session,
@@ -218,12 +223,13 @@ class DemoRun:
         conds, presets = make_conditions(s, self.progress)
         report(self.progress, 0.1, "starting the virtual lab")
         with VirtualLab(mode=s.mode, frame_size=s.frame_size, seed=s.seed, world=s.world) as lab:
-            session.extend_definition(camera=camera_definition(lab.camera), **image_area_definition(lab.camera),
+            camera, sphere = lab.devices()
+            session.extend_definition(camera=camera_definition(camera), **image_area_definition(camera),
                                       lights={c.name: [light_definition(nl.light, nl.name) for nl in c.lights]
                                               for c in conds})
             for role, chart in s.charts.items():                # the stand's own charts on the virtual stand
                 lab.use_chart(role, chart.render_target())
-            stand = CopyStand(lab.camera, lab.sphere, session, stand=lab.place, lab=lab, cancel=self.cancel,
+            stand = CopyStand(camera, sphere, session, stand=lab.place, lab=lab, cancel=self.cancel,
                               settings=StandSettings(settle_s=s.settle_s, dark_frames=s.dark_frames,
                                                      flat_frames=s.flat_frames, optimise_matrix=s.optimise_matrix,
                                                      charts=dict(s.charts)),
@@ -267,7 +273,8 @@ class DemoRun:
         """The mode's virtual original (its name is its identifier: the lab places 'original:painting')."""
         return Subject.original(VIRTUAL_ORIGINALS[self.s.mode])
 
-    def write_report(self, session, conds, presets, exposures, result) -> dict:
+    def write_report(self, session: CaptureSession, conds: list[Condition], presets: dict, exposures: dict,
+                     result: dict) -> dict:
         s = self.s
         verify = session.verify()
         report_data = {
@@ -344,18 +351,18 @@ class DemoRun:
         specs["train"].simulated = self._simulated_values(
             c, nd_transmittance(specs["train"].nd_mask, scene.nd_transmittance, scene.n_patches))
         res = process_session(self.session, self.s.out / label, specs["train"], specs["test"],
-                              lights=[nl.name for nl in c.lights], exposures=ts, optimise=self.s.optimise_matrix,
+                              lights=[nl.name for nl in c.lights], exposures=ts, optimise=self.s.optimise(),
                               white_xyz=reference_white(self.s.mode), title=f"{label} ({self.s.mode}, virtual lab)",
                               cancel=self.cancel, mode=self.s.mode)
         self.results[label] = res
         ch = res.characterisation
         best = ch.results[ch.best]
         sim = c.simulated.get(ch.best, c.simulated[LEAST_SQUARES])      # the prediction for the delivered matrix
-        entry = {"train": best.train.to_dict(), "test": best.test.to_dict(),
+        entry = {"train": best.train.to_dict(), "test": best.stats("test").to_dict(),
                  "simulated": {**sim, "matrix": ch.best, "noise_free_train": c.simulated["noise_free"]["train"],
                                "noise_free_test": c.simulated["noise_free"]["test"], "per_matrix": c.simulated},
                  "matrix_method": ch.best,
-                 "methods": {k: {"train": v.train.mean, "test": v.test.mean} for k, v in ch.results.items()},
+                 "methods": {k: {"train": v.train.mean, "test": v.stats("test").mean} for k, v in ch.results.items()},
                  "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]} for nl in c.lights],
                  "report": str(res.files["report"]), "figures": res.report.get("figures", []),
                  "quality": quality_summary(res.report["quality"]),
@@ -363,7 +370,7 @@ class DemoRun:
         if nd:
             entry["nd_patches"] = {
                 "train": ErrorStats.of(best.train_errors[specs["train"].nd_mask]).to_dict(),
-                "test": ErrorStats.of(best.test_errors[specs["test"].nd_mask]).to_dict()}
+                "test": ErrorStats.of(best.errors("test")[specs["test"].nd_mask]).to_dict()}
             entry["hdr_plan"] = {n: p.to_dict() for n, p in c.hdr_plan.items()}
         return entry
 

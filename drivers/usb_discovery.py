@@ -17,6 +17,8 @@ from dataclasses import asdict, dataclass, field
 from functools import partial
 from typing import TypeVar
 
+from dualrgb.drivers.camera.gphoto_errors import CAMERA_DAEMONS, FREE_CAMERA_ADVICE
+
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
@@ -24,9 +26,7 @@ T = TypeVar("T")
 NIKON_VENDOR_ID = 0x04B0
 NIKON_PRODUCTS = {0x0434: "Nikon D610"}          # the copy stand's camera; other Nikon ids shown as numbers
 STILL_IMAGE_CLASS = 6                             # USB interface class of PTP cameras
-GVFS_MONITOR = "gvfs-gphoto2-volume-monitor"
-FREE_CAMERA_ADVICE = ("run `gio mount -s gphoto2` and `pkill -f gvfs-gphoto2-volume-monitor` "
-                      "(and close other photo programs)")
+
 
 
 @dataclass
@@ -232,22 +232,22 @@ def usb_device_holders(bus: int, address: int, time_budget_s: float = 1.0) -> li
     return found
 
 
-def gvfs_monitor_pids() -> list[int]:
-    """PIDs of the desktop's gvfs gphoto2 volume monitor, which claims PTP cameras as soon as they appear."""
+def camera_daemons() -> list[tuple[str, int]]:
+    """(name, pid) of the desktop daemons that claim PTP cameras as soon as they appear (gvfs's gphoto2 volume
+    monitor on Linux, ptpcamerad on macOS)."""
     try:
         import psutil
     except ImportError:
         return []
-    pids = []
+    found: list[tuple[str, int]] = []
     for proc in psutil.process_iter(["name", "cmdline"]):
         try:
             name = proc.info.get("name") or ""
             cmd = " ".join(proc.info.get("cmdline") or [])
         except (psutil.Error, OSError):
             continue
-        if GVFS_MONITOR in name or GVFS_MONITOR in cmd:
-            pids.append(proc.pid)
-    return pids
+        found += [(daemon, proc.pid) for daemon in CAMERA_DAEMONS if daemon in name or daemon in cmd]
+    return found
 
 
 def probe_camera(cam: CameraInfo) -> str:
@@ -281,10 +281,11 @@ def claimed_camera_hints(report: DeviceReport) -> list[str]:
             holders = usb_device_holders(*ba) if ba else []
             held = f" (held by {', '.join(holders)})" if holders else ""
             hints.append(f"{cam.model} on {cam.port} cannot be opened{held}: {cam.status}")
-    if (report.gphoto_cameras or report.usb_cameras) and not any("gvfs" in h for h in hints):
-        pids = gvfs_monitor_pids()
-        if pids:
-            hints.append(f"{GVFS_MONITOR} is running (pid {', '.join(map(str, pids))}) and may claim the camera: "
+    if (report.gphoto_cameras or report.usb_cameras) and not any(d in h for h in hints for d in CAMERA_DAEMONS):
+        running = camera_daemons()
+        for name in sorted({name for name, _ in running}):
+            pids = [pid for n, pid in running if n == name]
+            hints.append(f"{name} is running (pid {', '.join(map(str, pids))}) and may claim the camera: "
                          f"{FREE_CAMERA_ADVICE}")
     return hints
 

@@ -1,5 +1,5 @@
 """``dualrgb devices``: what is plugged in — cameras (gphoto2 and USB), serial ports, and why a camera that is
-on USB cannot be used (claimed by gvfs or another program)."""
+on USB cannot be used (claimed by gvfs on Linux, ptpcamerad on macOS, or another program)."""
 from __future__ import annotations
 
 import argparse

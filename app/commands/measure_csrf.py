@@ -16,13 +16,21 @@ import argparse
 import contextlib
 import logging
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dualrgb.app.commands.options import add_world_option, count, frame_size, input_file, number, seconds, seed
 from dualrgb.app.commands.stand_options import ask_person, open_session, real_camera, virtual_world
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
+
+if TYPE_CHECKING:                       # types only: the devices are imported when the command runs (fast --help)
+    from dualrgb.app.protocols import Monochromator
+    from dualrgb.app.sequences.base import ProgressEvent
+    from dualrgb.app.workflow.csrf import CsrfMeasurement
+    from dualrgb.drivers.camera.base import Camera
+    from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench
+    from dualrgb.simulation.radiance_reference import RadianceReference
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +99,7 @@ def _check_options(args: argparse.Namespace) -> None:
                              "--photodiode RESPONSIVITY --photocurrent FILE (README: the file formats)")
 
 
-def _reference(args: argparse.Namespace) -> Any:
+def _reference(args: argparse.Namespace) -> RadianceReference:
     from dualrgb.simulation.radiance_reference import read_photodiode_reference, read_radiance_reference
 
     if args.photodiode:
@@ -100,18 +108,20 @@ def _reference(args: argparse.Namespace) -> Any:
 
 
 @contextlib.contextmanager
-def _devices(args: argparse.Namespace) -> Iterator[tuple[Any, Any, Any]]:
+def _devices(args: argparse.Namespace) -> Iterator[tuple[Camera, Monochromator, MonochromatorBench | None]]:
     """(camera, monochromator, bench or None); the shutter closed and ports closed on the way out."""
     if args.virtual_lab:
         from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench
 
         with MonochromatorBench(frame_size=args.frame_size, seed=args.seed, world=args.world,
                                 timeout_s=args.timeout) as bench:
+            camera = bench.camera
+            assert camera is not None                           # made by start()
             if args.iso or args.aperture:
                 from dualrgb.drivers.camera.base import CameraSettings
 
-                bench.camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
-            yield bench.camera, bench.monochromator, bench
+                camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
+            yield camera, bench.monochromator, bench
         return
     from dualrgb.drivers.monochromator import Cornerstone, ManualMonochromator
 
@@ -121,7 +131,7 @@ def _devices(args: argparse.Namespace) -> Iterator[tuple[Any, Any, Any]]:
         yield stack.enter_context(real_camera(args)), mono, None
 
 
-def _printer(event: Any) -> None:
+def _printer(event: ProgressEvent) -> None:
     print(f"[{event.step:3d}/{event.total}] {event.message}", file=sys.stderr, flush=True)
 
 
@@ -149,17 +159,21 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _virtual_radiance(bench: Any, session_path: Path, args: argparse.Namespace) -> Any:
+def _virtual_radiance(bench: MonochromatorBench | None, session_path: Path, args: argparse.Namespace
+                      ) -> Callable[[list[float]], RadianceReference]:
     from dualrgb.simulation.radiance_reference import read_radiance_reference
 
-    def measure(wavelengths: list[float]) -> Any:
+    if bench is None:
+        raise ValueError("a real monochromator needs its radiance: --radiance FILE or --photodiode FILE")
+
+    def measure(wavelengths: list[float]) -> RadianceReference:
         path = bench.spectroradiometer().write_csv(session_path / "radiance-virtual.csv", wavelengths)
         print(f"virtual spectroradiometer: {path}", file=sys.stderr)
         return read_radiance_reference(path, method=args.radiance_method, window_nm=args.window)
     return measure
 
 
-def _virtual_check(bench: Any, m: Any) -> dict[str, float] | None:
+def _virtual_check(bench: MonochromatorBench | None, m: CsrfMeasurement) -> dict[str, float] | None:
     if bench is None:
         return None
     from dualrgb.app.processing.csrf import rms_error_percent
@@ -167,7 +181,7 @@ def _virtual_check(bench: Any, m: Any) -> dict[str, float] | None:
     return rms_error_percent(m.result, *bench.truth())
 
 
-def _report(args: argparse.Namespace, m: Any, rms: dict[str, float] | None) -> None:
+def _report(args: argparse.Namespace, m: CsrfMeasurement, rms: dict[str, float] | None) -> None:
     exposures = sorted(set(m.exposures.values()))
     out = text_stream(args.json)                   # `--json -`: stdout carries the JSON alone
     print(f"camera CSV: {m.path} ({len(m.result.wavelengths)} wavelengths, exposures {exposures[0]:g}-"

@@ -15,11 +15,15 @@ import argparse
 import logging
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dualrgb.app.cli import UserError
 from dualrgb.app.commands.options import add_render_option, add_resolution_option, number
 from dualrgb.app.commands.stand_options import progress_printer
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
+
+if TYPE_CHECKING:
+    from dualrgb.app.protocols import Session
 
 log = logging.getLogger(__name__)
 
@@ -43,14 +47,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=main)
 
 
-def session_calibrations(session) -> list[Path]:
+def session_calibrations(session: Session) -> list[Path]:
     """The session's own calibrations, then those its originals were captured with (oldest first)."""
     found = sorted((session.path / "calibration").glob("cal-*.json"))
     used = [Path(o["calibration"]) for o in session.settings.get("originals", {}).values() if o.get("calibration")]
     return found + [p for p in used if p.exists() and p not in found]
 
 
-def newest_calibration(session) -> Path:
+def newest_calibration(session: Session) -> Path:
     """The session's own newest calibration, else the one its latest original was captured with."""
     found = session_calibrations(session)
     if not found:

@@ -1,4 +1,4 @@
-"""``dualrgb sphere``: talk to the LED sphere over serial; ``dualrgb sphere-emulator``: serve a virtual one on a pty.
+"""``dualrgb sphere``: talk to the LED sphere over serial; ``dualrgb sphere-emulator``: serve a virtual one.
 
     dualrgb sphere --port /dev/ttyACM0 identify
     dualrgb sphere --port /dev/ttyACM0 status [--json PATH]
@@ -6,7 +6,7 @@
     dualrgb sphere --port /dev/ttyACM0 apply preset.json [--source 2]
     dualrgb sphere --port /dev/ttyACM0 on [--max-on 10]
     dualrgb sphere --port /dev/ttyACM0 off
-    dualrgb sphere-emulator [--watchdog 30]      # prints the pty path to use as --port
+    dualrgb sphere-emulator [--watchdog 30] [--transport pty|socket]   # prints the port to use as --port
 
 Each call opens the port, does its exchange(s), prints the result and closes the port (levels and the light
 switch stay as set; a light switched on goes off by itself after ``--max-on`` seconds, default 10). Every option
@@ -117,9 +117,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         child.root = p
     p.set_defaults(func=main)
 
-    e = sub.add_parser("sphere-emulator", help="serve a virtual LED sphere on a pseudo-terminal until Ctrl-C",
-                       description="Start the LED sphere emulator on a pty and print its path (use it as --port).")
+    e = sub.add_parser("sphere-emulator", help="serve a virtual LED sphere until Ctrl-C",
+                       description="Start the LED sphere emulator and print its port (use it as --port): a "
+                                   "pseudo-terminal path on Linux and macOS, socket://127.0.0.1:PORT on Windows.")
     e.add_argument("--watchdog", type=seconds(0.1, 3600), default=30.0, help="watchdog seconds, 0.1..3600 (default 30)")
+    e.add_argument("--transport", choices=("pty", "socket"), default=None,
+                   help="pty (where the OS has them) or socket (pyserial's socket://, every OS); default: pty where "
+                        "there is one, else socket, or $DUALRGB_VIRTUAL_TRANSPORT")
     e.set_defaults(func=serve_emulator)
 
 
@@ -170,7 +174,7 @@ def _run(sphere: LedSphere, args: argparse.Namespace, light: LightSource | None)
     elif args.action == "set":
         taken = sphere.set_level(args.led, args.level)
         print(f"LED {args.led} level {taken:.4f}")
-    elif args.action == "apply":
+    elif args.action == "apply" and light is not None:        # main() refused a light it could not load
         taken = sphere.apply(light)
         levels = " ".join(f"{v:.4f}" for v in taken)
         print(f"applied {light.name or 'light source'} {light.label()}: levels {levels}")
@@ -249,9 +253,14 @@ def _our_limit(port: str, device_on_time_s: float) -> float | None:
 
 def serve_emulator(args: argparse.Namespace) -> int:
     from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
+    from dualrgb.drivers.virtual.transport import chosen_transport
 
     try:
-        emulator = SphereEmulator(watchdog_s=args.watchdog)
+        transport = chosen_transport(args.transport)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    try:
+        emulator = SphereEmulator(watchdog_s=args.watchdog, transport=transport)
     except ValueError as exc:
         raise UserError(f"--watchdog {args.watchdog}: {exc}") from None
 
@@ -264,7 +273,7 @@ def serve_emulator(args: argparse.Namespace) -> int:
         print(emulator.start(), flush=True)
         while emulator.running:
             time.sleep(0.2)
-        print("dualrgb: the sphere emulator's pty closed", file=sys.stderr)
+        print("dualrgb: the sphere emulator's port closed", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return 0

@@ -11,11 +11,18 @@ import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dualrgb.app.commands.options import add_world_option, count, frame_size, number, seed
 from dualrgb.app.json_output import HELP as JSON_HELP
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
+
+if TYPE_CHECKING:                       # types only: a command imports its devices when it runs (fast --help)
+    from dualrgb.app.protocols import Sphere
+    from dualrgb.app.sequences.shooter import Stand
+    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.drivers.camera.base import Camera
+    from dualrgb.drivers.virtual.lab import VirtualLab
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +67,7 @@ def add_reuse_options(p: argparse.ArgumentParser) -> None:
 
 
 def progress_printer() -> Callable[[float, str], None]:
-    last = [None]
+    last: list[str | None] = [None]
 
     def progress(f: float, msg: str) -> None:
         line = f"[{int(100 * f):3d}%] {msg}"
@@ -80,13 +87,13 @@ def ask_person(message: str) -> None:
 
 @dataclass
 class Devices:
-    camera: Any
-    sphere: Any
-    stand: Callable[[str, bool], Any] | None
-    lab: Any = None
+    camera: Camera
+    sphere: Sphere
+    stand: Stand | None
+    lab: VirtualLab | None = None
 
 
-def _apply_settings(camera: Any, args: argparse.Namespace) -> None:
+def _apply_settings(camera: Camera, args: argparse.Namespace) -> None:
     from dualrgb.drivers.camera.base import CameraSettings
 
     if args.iso is not None or args.aperture is not None:
@@ -104,9 +111,10 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
         from dualrgb.drivers.virtual.lab import VirtualLab
 
         with VirtualLab(mode=mode, frame_size=args.frame_size, seed=args.seed, world=args.world) as lab:
-            _apply_settings(lab.camera, args)
+            camera, sphere = lab.devices()
+            _apply_settings(camera, args)
 
-            def stand(what: str, nd: bool = False) -> Any:
+            def stand(what: str, nd: bool = False) -> object:
                 if what.startswith("original:"):     # the virtual stand-in; a chart works too ('test', 'test+nd')
                     name = original or VIRTUAL_ORIGINALS[mode]
                     chart, plus, _ = name.partition("+nd")
@@ -114,14 +122,14 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
                         return lab.place(chart, bool(plus) or nd)
                     what = f"original:{name}"
                 return lab.place(what, nd)
-            yield Devices(lab.camera, lab.sphere, stand, lab)
+            yield Devices(camera, sphere, stand, lab)
         return
     check_device_options(args)
     yield from _real_devices(args)
 
 
 @contextlib.contextmanager
-def real_camera(args: argparse.Namespace) -> Iterator[Any]:
+def real_camera(args: argparse.Namespace) -> Iterator[Camera]:
     """The tethered camera ``args.camera`` ('MODEL @ PORT' or 'auto': the first found), ISO / aperture applied."""
     from dualrgb.drivers.camera.gphoto import GPhotoCamera
 
@@ -171,7 +179,7 @@ def add_session_option(p: argparse.ArgumentParser) -> None:
                         "the captures folder (<per-user data folder>/captures)")
 
 
-def open_session(folder: Path | None, definition: dict, camera: Any, meta: dict | None = None) -> Any:
+def open_session(folder: Path | None, definition: dict, camera: Camera, meta: dict | None = None) -> CaptureSession:
     """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
     (anything else is refused in one line naming the difference; app.session). One writer at a time. No
     ``folder``: a new dated session in the captures folder (app.workflow.folders), named on stderr."""

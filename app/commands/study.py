@@ -438,7 +438,8 @@ def unbinned_main(args: argparse.Namespace) -> int:
     lines = [f"{result.pairs} pairs in {result.seconds:.2f} s ({result.runner.get('runner')})"]
     for n, c in zip(result.numbers, result.candidates, strict=True):
         s1, s2 = (s.label() for s in c.sources)
-        lines.append(f"#{n:<7} {s1:<24} {s2:<34} train {c.train.mean:.4f} test {c.test.mean:.4f}")
+        train, test = (f"{e.mean:.4f}" if e is not None else "-" for e in (c.train, c.test))
+        lines.append(f"#{n:<7} {s1:<24} {s2:<34} train {train} test {test}")
     lines.append(f"binned best: {result.binned_best['source1']} + {result.binned_best['source2']} "
                  f"train {result.binned_best['train_de00_mean']:.4f}")
     return _done(out, lines)

@@ -104,7 +104,7 @@ def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
         from dualrgb.app.gui.screenshots import ScreenshotRun
 
         tmp = Path(tempfile.mkdtemp(prefix="dualrgb-screens-"))
-        settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.IniFormat)
+        settings = QSettings(str(tmp / "dualrgb.ini"), QSettings.Format.IniFormat)
         # the virtual D610's shutter bumps on, so the Characterise picture shows what the sweep flags
         window = MainWindow(settings, frame_size=(300, 200), show_dialogs=False, shutter_bumps=True)
         window.lab.world = world
@@ -137,7 +137,7 @@ def _close_on_signals(window) -> None:
         log.info("signal %d: closing the window", signum)
         window.close()
         from PySide6.QtWidgets import QApplication
-        QApplication.instance().quit()
+        QApplication.quit()
 
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, close)

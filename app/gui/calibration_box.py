@@ -62,7 +62,7 @@ class CalibrationBox(QGroupBox):
         self.run: StandRun | None = None
         self._build()
         self.ws.calibrationChanged.connect(self.show_calibration)
-        view.event.connect(self._run_event)
+        view.run_event.connect(self._run_event)
         view.finished.connect(self._run_finished)
         for sig in (ctx.lab.cameraChanged, ctx.lab.sphereChanged, ctx.bus.cameraSettingsChanged):
             sig.connect(self.check)
@@ -92,7 +92,7 @@ class CalibrationBox(QGroupBox):
         self.calibrate_button.clicked.connect(self.calibrate)
         self.summary = QLabel("no calibration yet")
         self.summary.setWordWrap(True)
-        self.summary.setTextFormat(Qt.RichText)
+        self.summary.setTextFormat(Qt.TextFormat.RichText)
         self.save_button = QPushButton("Save as…")
         self.save_button.setToolTip("Write the calibration (JSON + arrays) into a folder you choose, to reuse it "
                                     "on another day or in another session.")

@@ -15,6 +15,7 @@ from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.widgets import Asker, ErrorReporter
 from dualrgb.app.gui.workers import TaskRunner
 from dualrgb.app.gui.workspace import Workspace
+from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.workflow.defaults import captures_dir
 from dualrgb.app.workflow.folders import new_session
 
@@ -39,7 +40,7 @@ class Bus(QObject):
 
 
 def default_settings() -> QSettings:
-    return QSettings(QSettings.IniFormat, QSettings.UserScope, ORGANISATION, APPLICATION)
+    return QSettings(QSettings.Format.IniFormat, QSettings.Scope.UserScope, ORGANISATION, APPLICATION)
 
 
 @dataclass
@@ -77,9 +78,10 @@ class AppContext:
         """The settings file's folder (~/.config/dualrgb/ by default; a test's temp dir in tests): the window's
         own small files, never captures (:attr:`captures_dir`)."""
         name = self.settings.fileName()
-        if name and self.settings.format() == QSettings.IniFormat:
+        if name and self.settings.format() == QSettings.Format.IniFormat:
             return Path(name).parent
-        base = QStandardPaths.writableLocation(QStandardPaths.AppDataLocation) or str(Path.home() / ".dualrgb")
+        where = QStandardPaths.StandardLocation.AppDataLocation
+        base = QStandardPaths.writableLocation(where) or str(Path.home() / ".dualrgb")
         return Path(base)
 
     def path_setting(self, key: str, default: Path) -> Path:
@@ -119,7 +121,7 @@ class AppContext:
         root, meta = self.captures_dir, {"operator": self.get("originals/operator", "", str),
                                          "virtual_lab": lab.is_virtual}
 
-        def made(session: Any) -> None:
+        def made(session: CaptureSession) -> None:
             lab.set_session(session, note=f"made for {reason}")
             waiting, self._waiting_for_session[:] = list(self._waiting_for_session), []
             for call in waiting:

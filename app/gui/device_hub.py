@@ -9,7 +9,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
@@ -22,12 +22,20 @@ from dualrgb.drivers.led_sphere import LedSphere, SphereError
 from dualrgb.drivers.led_sphere.driver import DEFAULT_MAX_ON_S
 from dualrgb.simulation.lightsource import LightSource
 
+if TYPE_CHECKING:
+    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.drivers.virtual.lab import VirtualLab
+    from dualrgb.drivers.virtual.world import World
+
+Device = TypeVar("Device")
+
 log = logging.getLogger(__name__)
 
 VIRTUAL_SPHERE = "virtual sphere (emulator)"
 VIRTUAL_CAMERA = "virtual camera (virtual lab)"
 NO_CAMERA_ADVICE = ("no camera found: connect the camera by USB, switch it on (mode dial to M) and press "
-                    "'Detect' again; on a desktop, close photo programs that grab it (gvfs)")
+                    "'Detect' again; on a desktop, close photo programs that grab it (gvfs on Linux, ptpcamerad on "
+                    "macOS)")
 
 
 def serial_ports() -> list[str]:
@@ -66,13 +74,13 @@ class Lab(QObject):
         self.mode = mode
         self.seed = seed
         self.shutter_bumps = shutter_bumps         # virtual lab: the D610's exposure-time bumps (appendix A)
-        self.world: Any = None                     # virtual lab: its world (name, file or World; None nominal)
-        self.virtual_lab: Any = None
+        self.world: str | World | None = None      # virtual lab: its world (name, file or World; None nominal)
+        self.virtual_lab: VirtualLab | None = None
         self.sphere: LedSphere | None = None
         self.sphere_port: str = ""
         self.camera: Camera | None = None
         self.camera_name: str = ""
-        self.session: Any = None                  # app.session.CaptureSession
+        self.session: CaptureSession | None = None
         self.session_note = ""                    # why it was made ('made for the calibration'), '' by hand
         self.session_log: SessionLog | None = None   # its session.log while it is the current session
         self.last_status: dict = {}
@@ -125,7 +133,7 @@ class Lab(QObject):
     def is_virtual(self) -> bool:
         return self.virtual_lab is not None
 
-    def _ensure_virtual_lab(self) -> Any:      # devices thread
+    def _ensure_virtual_lab(self) -> VirtualLab:      # devices thread
         if self.virtual_lab is None:
             from dualrgb.drivers.virtual.lab import VirtualLab
             lab = VirtualLab(mode=self.mode, frame_size=self.frame_size, seed=self.seed, bumps=self.shutter_bumps,
@@ -158,15 +166,17 @@ class Lab(QObject):
             lab = self._ensure_virtual_lab()
             lab.place(what, nd=nd)
             return lab.placed
-        return self.device_call(work, "Place on the copy stand",
-                                on_result=lambda placed: (self.message.emit(f"on the copy stand: {placed}"),
-                                                          on_done() if on_done else None))
+        def placed(what_is_placed: str) -> None:
+            self.message.emit(f"on the copy stand: {what_is_placed}")
+            if on_done:
+                on_done()
+        return self.device_call(work, "Place on the copy stand", on_result=placed)
 
     # ------------------------------------------------------------------ sphere
     def connect_sphere(self, port: str, on_done: Callable[[bool], None] | None = None) -> TaskHandle:
         def work() -> LedSphere:
             if port == VIRTUAL_SPHERE:
-                return self._ensure_virtual_lab().sphere
+                return self._ensure_virtual_lab().devices()[1]
             sphere = LedSphere(port).open()
             try:
                 info = sphere.identify()
@@ -179,11 +189,11 @@ class Lab(QObject):
 
         return self._connect(work, "Connect the LED sphere", self._set_sphere, port, port == VIRTUAL_SPHERE, on_done)
 
-    def _connect(self, work: Callable[[], Any], what: str, install: Callable[[Any, str], None], name: str,
+    def _connect(self, work: Callable[[], Device], what: str, install: Callable[[Device, str], None], name: str,
                  virtual: bool, on_done: Callable[[bool], None] | None) -> TaskHandle:
         """Run ``work`` (it opens a device) as a device call; on success ``install(device, name)`` and tell
         ``on_done(True)`` (False on failure, which the device call reports)."""
-        def done(device: Any) -> None:
+        def done(device: Device) -> None:
             install(device, name)
             if virtual:
                 self.virtualLabChanged.emit()
@@ -281,7 +291,7 @@ class Lab(QObject):
     def connect_camera(self, choice: str, on_done: Callable[[bool], None] | None = None) -> TaskHandle:
         def work() -> Camera:
             if choice == VIRTUAL_CAMERA:
-                return self._ensure_virtual_lab().camera
+                return self._ensure_virtual_lab().devices()[0]
             from dualrgb.drivers.camera.gphoto import GPhotoCamera
             model, _, port = choice.partition(" @ ")
             if not port:
@@ -357,7 +367,7 @@ class Lab(QObject):
             out.update(image_area_definition(self.camera))
         return out
 
-    def set_session(self, session: Any, note: str = "") -> None:
+    def set_session(self, session: CaptureSession | None, note: str = "") -> None:
         """Make ``session`` the current one; ``note`` says why it was made when it was made for the technician
         (the status bar and the guide show it)."""
         if self.session_log is not None:

@@ -63,7 +63,7 @@ class FramePreview(QWidget):
         self.view: RawView | None = None
         self.warning = ""
         self._pending = False
-        self._queued: tuple[Path, str] | None = None
+        self._queued: tuple[Path, str, bool] | None = None      # path, role, a long exposure of a bracket
         self.thumb_widget, self.thumb, self.thumb_box = image_widget("The last frame saved (raw, brightened).")
         self.thumb_widget.setMinimumSize(160, 110)
         self.hist = HistogramPlot()

@@ -38,14 +38,14 @@ class StepCard(QFrame):
     def __init__(self, step: DayStep, on_click, parent: QWidget | None = None):
         super().__init__(parent)
         self.step = step
-        self.setFrameShape(QFrame.StyledPanel)
-        self.setCursor(Qt.PointingHandCursor)
+        self.setFrameShape(QFrame.Shape.StyledPanel)
+        self.setCursor(Qt.CursorShape.PointingHandCursor)
         self.setToolTip(STEP_TIPS[step] + "\nClick to open the panel.")
         self._on_click = on_click
         self.title = QLabel()
         self.detail = QLabel()
         self.detail.setWordWrap(True)
-        self.detail.setTextFormat(Qt.PlainText)
+        self.detail.setTextFormat(Qt.TextFormat.PlainText)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(6, 4, 6, 4)
         lay.addWidget(self.title)

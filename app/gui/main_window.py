@@ -10,6 +10,7 @@ from PySide6.QtCore import QByteArray, QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
 from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QScrollArea, QTabWidget, QWidget
 
+from dualrgb.app.gui import gc_thread
 from dualrgb.app.gui.context import AppContext, Bus, default_settings
 from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.guide import WorkflowGuide
@@ -43,6 +44,7 @@ class MainWindow(QMainWindow):
                  show_dialogs: bool = True, shutter_bumps: bool = False):
         super().__init__()
         self.setWindowTitle("dualrgb — dual-RGB copy stand")
+        gc_thread.start()                      # Qt objects are freed on the GUI thread only (app.gui.gc_thread)
         self.runner = TaskRunner(self)
         self.errors = ErrorReporter(self)
         self.errors.show_dialogs = show_dialogs
@@ -67,8 +69,8 @@ class MainWindow(QMainWindow):
         dock = QDockWidget("Log", self)
         dock.setObjectName("log_dock")
         dock.setWidget(self.log_view)
-        self.addDockWidget(Qt.BottomDockWidgetArea, dock)
-        self.resizeDocks([dock], [140], Qt.Vertical)
+        self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, dock)
+        self.resizeDocks([dock], [140], Qt.Orientation.Vertical)
         self.log_dock = dock
 
     def _build_panels(self) -> None:
@@ -94,9 +96,9 @@ class MainWindow(QMainWindow):
         dock = QDockWidget("Workflow", self)
         dock.setObjectName("guide_dock")
         dock.setWidget(scroll)
-        dock.setFeatures(QDockWidget.DockWidgetMovable)
+        dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable)
         dock.setMinimumWidth(250)
-        self.addDockWidget(Qt.LeftDockWidgetArea, dock)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dock)
         self.guide_dock = dock
 
     def _build_status_bar(self) -> None:
@@ -130,14 +132,14 @@ class MainWindow(QMainWindow):
                                        "or capture the selected originals (Originals).")
         self.capture_action.triggered.connect(self.capture_shortcut)
         self.cancel_action = QAction("Cancel", self)
-        self.cancel_action.setShortcuts([QKeySequence(Qt.Key_Escape), QKeySequence("Ctrl+.")])
+        self.cancel_action.setShortcuts([QKeySequence(Qt.Key.Key_Escape), QKeySequence("Ctrl+.")])
         self.cancel_action.setToolTip("Stop the running sequence or simulation (the lights go off).")
         self.cancel_action.triggered.connect(self.cancel_running)
         menu = self.menuBar().addMenu("&Capture")
         menu.addAction(self.capture_action)
         menu.addAction(self.cancel_action)
         for a in (self.capture_action, self.cancel_action):
-            a.setShortcutContext(Qt.ApplicationShortcut)
+            a.setShortcutContext(Qt.ShortcutContext.ApplicationShortcut)
             self.addAction(a)
 
     def _build_persistence(self) -> None:
@@ -180,11 +182,9 @@ class MainWindow(QMainWindow):
 
     # ------------------------------------------------------------------ shortcuts
     def capture_shortcut(self) -> None:
-        panel = self.tabs.currentWidget()
-        action: Callable[[], None] | None = getattr(panel, "capture_shortcut", None)
+        action: Callable[[], None] | None = getattr(self.tabs.currentWidget(), "capture_shortcut", None)
         if action is None:
-            panel = self.panels.get("camera")
-            action = getattr(panel, "capture_shortcut", None)
+            action = getattr(self.panels.get("camera"), "capture_shortcut", None)
         if action is not None:
             action()
 
@@ -246,3 +246,4 @@ class MainWindow(QMainWindow):
         for box in list(self.asker.boxes):
             box.close()
         self.log_view.uninstall()
+        gc_thread.stop()

@@ -211,9 +211,9 @@ class ScreenshotRun(QObject):
     def _grab(self, widget, name: str) -> None:
         path = self.out_dir / f"{name}.png"
         buffer = QBuffer()
-        buffer.open(QIODevice.WriteOnly)
+        buffer.open(QIODevice.OpenModeFlag.WriteOnly)
         widget.grab().save(buffer, "PNG")
-        atomic_write(path, bytes(buffer.data()))
+        atomic_write(path, bytes(buffer.data().data()))
         self.saved.append(path)
         log.info("saved %s", path)
 
@@ -223,7 +223,7 @@ class ScreenshotRun(QObject):
         self.exit_code = 1
         self._timer.stop()
         self.w.close()
-        QApplication.instance().quit()
+        QApplication.quit()
 
     def _finish(self) -> None:
         self._timer.stop()
@@ -234,4 +234,4 @@ class ScreenshotRun(QObject):
         if errors:
             self.exit_code = 1
         self.w.close()
-        QApplication.instance().quit()
+        QApplication.quit()

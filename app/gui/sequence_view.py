@@ -32,6 +32,7 @@ from dualrgb.app.gui.frame_preview import FramePreview
 from dualrgb.app.gui.units import shutter, time_left_s
 from dualrgb.app.gui.viewmodel import format_duration
 from dualrgb.app.gui.workers import TaskHandle
+from dualrgb.app.protocols import Sphere
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent, Sequence
 from dualrgb.app.workflow.runs import RUN_PROGRESS, StandRun
 from dualrgb.app.workflow.vocabulary import EventKind
@@ -50,7 +51,7 @@ def estimate_s(plan: list[PlannedFrame], settle_s: float, overhead_s: float) -> 
     return sum(f.exposure_s + (settle_s if f.light else 0.0) + overhead_s for f in plan)
 
 
-def drive(run: Run, emit: Callable[[ProgressEvent], None], sphere: Any = None) -> None:
+def drive(run: Run, emit: Callable[[ProgressEvent], None], sphere: Sphere | None = None) -> None:
     """Worker side: iterate a sequence (pausing it on a prompt before telling the GUI) or execute a StandRun.
     A run starts from dark: a light left on by hand ('Light ON') is switched off first, so the run's own lit
     periods are the only ones (the sphere never extends a lit period)."""
@@ -72,7 +73,7 @@ class SequenceView(QWidget):
 
     started = Signal(object)           # the run
     finished = Signal(object, str)     # the run, 'done' | 'cancelled' | 'failed'
-    event = Signal(object)             # every ProgressEvent
+    run_event = Signal(object)         # every ProgressEvent (not "event": QWidget.event() is a virtual)
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None, *, preview: bool = True):
         super().__init__(parent)
@@ -147,7 +148,7 @@ class SequenceView(QWidget):
         if self.preview is None:
             lay.addWidget(top)
             return
-        split = QSplitter(Qt.Vertical)
+        split = QSplitter(Qt.Orientation.Vertical)
         split.addWidget(top)
         split.addWidget(self.preview)
         split.setStretchFactor(0, 3)
@@ -162,7 +163,7 @@ class SequenceView(QWidget):
             texts = ("", f.role, shutter(f.exposure_s), self.ctx.workspace.light_text(f.light) or "off", f.note)
             for c, text in enumerate(texts):
                 item = QTableWidgetItem(text)
-                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
                 self.table.setItem(r, c, item)
             if r < len(done) and done[r]:
                 self.tick(r, "in the session")
@@ -202,7 +203,7 @@ class SequenceView(QWidget):
 
     def ticked_rows(self) -> list[int]:
         return [r for r in range(self.table.rowCount())
-                if self.table.item(r, 0) is not None and self.table.item(r, 0).text() == DONE_MARK]
+                if (item := self.table.item(r, 0)) is not None and item.text() == DONE_MARK]
 
     # ------------------------------------------------------------------ run
     @property
@@ -250,7 +251,7 @@ class SequenceView(QWidget):
             self._ticked += 1
             self.ctx.bus.frameSaved.emit()
         self._preview(ev)
-        self.event.emit(ev)
+        self.run_event.emit(ev)
 
     def _show_progress(self, ev: ProgressEvent) -> None:
         stand = getattr(self.seq, "progress_events", False)

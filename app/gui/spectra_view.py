@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pyqtgraph as pg
@@ -13,6 +14,9 @@ from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidg
 
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.widgets import image_widget, plot_widget
+
+if TYPE_CHECKING:                                   # imported where a cube is opened: the GUI starts fast
+    from dualrgb.app.workflow.delivered_view import DeliveredView as Cube
 
 log = logging.getLogger(__name__)
 
@@ -63,7 +67,7 @@ class DeliveredView(QWidget):
         from dualrgb.app.workflow.delivered_view import render_lights
 
         self.ctx = ctx
-        self.view = None                             # app.workflow.delivered_view.DeliveredView
+        self.view: Cube | None = None
         self.pixel: tuple[int, int] | None = None
         self.shown_light = ""                        # the light the image on screen is rendered under
         self.image_widget, self.image, self.box = image_widget(
@@ -74,7 +78,7 @@ class DeliveredView(QWidget):
             self.illuminant.addItem(key if key == name else f"{key} ({name})", key)
         self.illuminant.setToolTip("The light the cube is rendered under here (the delivered rendering's light is "
                                    "chosen with --render-illuminant / the default D65).")
-        self.illuminant.currentIndexChanged.connect(lambda _i: self.render())
+        self.illuminant.currentIndexChanged.connect(lambda _i: self.render_light())
         self.info = QLabel("no delivered original selected")
         self.info.setWordWrap(True)
         self.spectrum = SpectrumPlot("The clicked pixel's spectrum, read from the delivered cube.")
@@ -106,19 +110,20 @@ class DeliveredView(QWidget):
                                name="delivered preview", on_result=self._loaded,
                                on_error=lambda exc: self.info.setText(f"{Path(sidecar).name}: {exc}"))
 
-    def _loaded(self, payload) -> None:
-        self.view, image = payload
+    def _loaded(self, payload: tuple[Cube, tuple[np.ndarray, str]]) -> None:
+        view, image = payload
+        self.view = view
         self.pixel = None
         self._show_image(image)
         if self.shown_light != self.light:          # the light was changed while the cube loaded
-            self.render()
-        h, w = self.view.preview_shape
-        shown = "full resolution" if self.view.step == 1 else f"every {self.view.step}th pixel"
-        self.info.setText(f"{self.view.identifier}: {self.view.quantity} by {self.view.method}, {w} x {h} shown "
+            self.render_light()
+        h, w = view.preview_shape
+        shown = "full resolution" if view.step == 1 else f"every {view.step}th pixel"
+        self.info.setText(f"{view.identifier}: {view.quantity} by {view.method}, {w} x {h} shown "
                           f"({shown}); click a pixel for its spectrum")
         self.click_pixel(h // 2, w // 2)
 
-    def render(self) -> None:
+    def render_light(self) -> None:        # not render(): that is QWidget.render(target, ...)
         """Render the loaded cube under the chosen light (compute pool)."""
         view, light = self.view, self.light
         if view is None:

@@ -46,7 +46,7 @@ class CellLabels(pg.GraphicsObject):
         for r, row in enumerate(self.texts):
             for c, text in enumerate(row):
                 at = to_screen.map(QPointF(c + 0.5, r + 0.5))
-                painter.drawText(QRectF(at.x() - 40.0, at.y() - 12.0, 80.0, 24.0), Qt.AlignCenter, text)
+                painter.drawText(QRectF(at.x() - 40.0, at.y() - 12.0, 80.0, 24.0), Qt.AlignmentFlag.AlignCenter, text)
 
 
 class UniformityView(QWidget):

@@ -14,12 +14,12 @@ from typing import Any
 import numpy as np
 
 from dualrgb.app.gui.units import dn, light_pct, percent, shutters
-from dualrgb.app.session.light_dose import LightDose
 from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN  # the one linear limit (thesis 4.1), used everywhere
+from dualrgb.app.session.light_dose import LightDose
 from dualrgb.simulation.lightsource import LightSource
 
 
-def light_from_levels(levels: Sequence[float], name: str = "") -> LightSource:
+def light_from_levels(levels: Sequence[float] | np.ndarray, name: str = "") -> LightSource:
     """Ten slider levels -> a LightSource (LEDs at 0 are left out; an all-zero light lists LED 1 at 0)."""
     leds = tuple(i + 1 for i, v in enumerate(levels) if v > 0)
     if not leds:
@@ -27,7 +27,7 @@ def light_from_levels(levels: Sequence[float], name: str = "") -> LightSource:
     return LightSource(leds, tuple(float(levels[i - 1]) for i in leds), name)
 
 
-def mixed_spectrum(levels: Sequence[float], led_spectra: np.ndarray) -> np.ndarray:
+def mixed_spectrum(levels: Sequence[float] | np.ndarray, led_spectra: np.ndarray) -> np.ndarray:
     """The sphere's output for ``levels`` by superposition (thesis 3.1.2): (n_wl,)."""
     return light_from_levels(levels).spectrum(led_spectra)
 

@@ -9,6 +9,7 @@ from collections.abc import Callable, Sequence
 from PySide6.QtCore import QObject, Qt, QTimer, Signal, Slot
 from PySide6.QtGui import QFont
 from PySide6.QtWidgets import (
+    QAbstractButton,
     QHBoxLayout,
     QLabel,
     QMessageBox,
@@ -84,7 +85,7 @@ class LogView(QWidget):
         lay.setContentsMargins(2, 2, 2, 2)
         lay.addWidget(self.text)
         self.handler = QtLogHandler()
-        self.handler.bridge.record.connect(self.append, Qt.QueuedConnection)
+        self.handler.bridge.record.connect(self.append, Qt.ConnectionType.QueuedConnection)
         self.lines: deque[str] = deque(maxlen=200)
 
     @Slot(str, int)
@@ -144,10 +145,10 @@ class ErrorReporter(QObject):
         self.shown.emit(title, message)
         if not self.show_dialogs:
             return
-        box = QMessageBox(QMessageBox.Warning if level < logging.ERROR else QMessageBox.Critical,
-                          title, message, QMessageBox.Ok, self._parent)
-        box.setWindowModality(Qt.NonModal)
-        box.setAttribute(Qt.WA_DeleteOnClose)
+        box = QMessageBox(QMessageBox.Icon.Warning if level < logging.ERROR else QMessageBox.Icon.Critical,
+                          title, message, QMessageBox.StandardButton.Ok, self._parent)
+        box.setWindowModality(Qt.WindowModality.NonModal)
+        box.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
         box.finished.connect(lambda _=0, b=box: self.dialogs.remove(b) if b in self.dialogs else None)
         self.dialogs.append(box)
         box.show()
@@ -190,10 +191,10 @@ class Asker(QObject):
             answer = self.scripted.pop(0) if self.scripted else default
             QTimer.singleShot(0, lambda: on_answer(answer))
             return
-        box = QMessageBox(QMessageBox.Question, title, text, QMessageBox.NoButton, self._parent)
-        buttons = {box.addButton(c, QMessageBox.AcceptRole): c for c in choices}
-        box.setWindowModality(Qt.NonModal)
-        box.setAttribute(Qt.WA_DeleteOnClose)
+        box = QMessageBox(QMessageBox.Icon.Question, title, text, QMessageBox.StandardButton.NoButton, self._parent)
+        buttons: dict[QAbstractButton, str] = {box.addButton(c, QMessageBox.ButtonRole.AcceptRole): c for c in choices}
+        box.setWindowModality(Qt.WindowModality.NonModal)
+        box.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
 
         def finished(_result: int = 0) -> None:
             if box in self.boxes:
@@ -211,8 +212,8 @@ class PathLabel(QLabel):
     def __init__(self, text: str = "", parent: QWidget | None = None):
         super().__init__(parent)
         self._full = ""
-        self.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Preferred)
-        self.setTextInteractionFlags(Qt.TextSelectableByMouse)
+        self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         self.set_path(text)
 
     def set_path(self, text: str) -> None:
@@ -229,7 +230,7 @@ class PathLabel(QLabel):
 
     def _elide(self) -> None:
         width = max(self.width(), 80)
-        super().setText(self.fontMetrics().elidedText(self._full, Qt.ElideMiddle, width))
+        super().setText(self.fontMetrics().elidedText(self._full, Qt.TextElideMode.ElideMiddle, width))
 
 
 class DeLegend(QWidget):
@@ -284,7 +285,7 @@ def side_by_side(panel: QWidget, left: QWidget, right: QWidget, *, stretch: tupl
                  sizes: Sequence[int] | None = None) -> QSplitter:
     """Fill ``panel`` with ``left`` (its controls) beside ``right`` (what they show) in a splitter the user can
     drag; ``stretch``: how extra width is shared; ``sizes``: the starting widths in pixels."""
-    split = QSplitter(Qt.Horizontal)
+    split = QSplitter(Qt.Orientation.Horizontal)
     split.addWidget(left)
     split.addWidget(right)
     split.setStretchFactor(0, stretch[0])

@@ -33,7 +33,7 @@ class _Bridge(QObject):
     """Signals emitted from worker threads; connected (queued) to the runner's slots in the GUI thread."""
 
     progress = Signal(int, float, str)
-    event = Signal(int, object)
+    run_event = Signal(int, object)     # not "event": that would hide QObject.event()
     result = Signal(int, object)
     error = Signal(int, object, str)
     finished = Signal(int)
@@ -90,12 +90,12 @@ class _Job(QRunnable):
         if self._pass_cancel:
             kwargs["cancel"] = self._handle.cancel_token
         if self._pass_emit:
-            kwargs["emit"] = lambda item: self._bridge.event.emit(self._id, item)
+            kwargs["emit"] = lambda item: self._bridge.run_event.emit(self._id, item)
         try:
             out = self._fn(**kwargs)
             if self._iterate:
                 for item in out:                 # e.g. Sequence.run(): one event per step
-                    self._bridge.event.emit(self._id, item)
+                    self._bridge.run_event.emit(self._id, item)
                 out = None
             self._bridge.result.emit(self._id, out)
         except Exception as exc:  # noqa: BLE001 - delivered to the GUI as an actionable dialog, never swallowed
@@ -118,11 +118,11 @@ class TaskRunner(QObject):
             pool.setExpiryTimeout(-1)
             self._pools[name] = pool
         self._bridge = _Bridge()
-        self._bridge.progress.connect(self._on_progress, Qt.QueuedConnection)
-        self._bridge.event.connect(self._on_event, Qt.QueuedConnection)
-        self._bridge.result.connect(self._on_result, Qt.QueuedConnection)
-        self._bridge.error.connect(self._on_error, Qt.QueuedConnection)
-        self._bridge.finished.connect(self._on_finished, Qt.QueuedConnection)
+        self._bridge.progress.connect(self._on_progress, Qt.ConnectionType.QueuedConnection)
+        self._bridge.run_event.connect(self._on_event, Qt.ConnectionType.QueuedConnection)
+        self._bridge.result.connect(self._on_result, Qt.ConnectionType.QueuedConnection)
+        self._bridge.error.connect(self._on_error, Qt.ConnectionType.QueuedConnection)
+        self._bridge.finished.connect(self._on_finished, Qt.ConnectionType.QueuedConnection)
         self._ids = itertools.count(1)
         self._callbacks: dict[int, _Callbacks] = {}
         self._handles: dict[int, TaskHandle] = {}
@@ -195,8 +195,8 @@ class TaskRunner(QObject):
         cb = self._callbacks.get(task_id)
         handle = self._handles.get(task_id)
         log.debug("task %s failed:\n%s", handle.name if handle else task_id, tb)
-        if cb and cb.on_error:
-            cb.on_error(exc)  # type: ignore[arg-type]
+        if cb and cb.on_error and isinstance(exc, BaseException):     # _Job emits only exceptions
+            cb.on_error(exc)
         else:
             log.error("%s failed: %s", handle.name if handle else task_id, exc)
 

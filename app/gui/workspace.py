@@ -13,6 +13,7 @@ from PySide6.QtCore import QObject, Signal
 
 from dualrgb.app.gui.units import light_pct
 from dualrgb.app.processing.patches import PatchGrid
+from dualrgb.app.protocols import Session
 from dualrgb.app.workflow.day import OriginalsQueue
 from dualrgb.app.workflow.plans import calibration_exposures
 from dualrgb.app.workflow.profile import CalibrationProfile, ReuseCheck
@@ -79,7 +80,7 @@ class Workspace(QObject):
         self.run_plan = {}
         self.planChanged.emit()
 
-    def planned_exposures(self, session: Any) -> dict[str, list[float]]:
+    def planned_exposures(self, session: Session | None) -> dict[str, list[float]]:
         """Per light: every exposure the captures use (the base exposures, HDR brackets, a running calibration's
         plan, the current calibration's exposures for these lights, what the session holds): what darks and flats
         must cover (app.workflow.plans)."""

@@ -78,9 +78,11 @@ def combine_darks(frames: Iterable[FrameLike], *, reject_high: int = 1, reject_l
     ``work`` is an optional dict of scratch buffers reused between calls (same frame size)."""
     from dualrgb.app.processing.kernels import dark_accumulate, dark_finish
 
-    total = hi = lo = None
+    total: np.ndarray | None = None
+    hi: np.ndarray | None = None
+    lo: np.ndarray | None = None
     n = 0
-    shape = None
+    shape: tuple[int, ...] | None = None
     from dualrgb.app.processing.mosaic import iter_open_raw
 
     for f in iter_open_raw(list(frames)):
@@ -97,13 +99,14 @@ def combine_darks(frames: Iterable[FrameLike], *, reject_high: int = 1, reject_l
             lo = _buffer(work, "dark_lo", (reject_low,) + shape, kind)
         elif m.shape != shape:
             raise ValueError(f"dark frame {n + 1} has shape {m.shape}, the first had {shape}")
+        assert total is not None and hi is not None and lo is not None    # made with the first frame's shape
         if m.dtype != hi.dtype:
             m = m.astype(hi.dtype)
         dark_accumulate(np.ascontiguousarray(m), total, hi, lo, n == 0)
         n += 1
         if progress is not None:
             report(progress, n / n_expected if n_expected else 0.0, f"dark frame {n}")
-    if n == 0 or total is None:
+    if n == 0 or total is None or hi is None or lo is None or shape is None:
         raise ValueError("no dark frames given")
     k_hi, k_lo = reject_high, reject_low
     if n < k_hi + k_lo + 2:
@@ -199,7 +202,7 @@ def white_threshold(white: np.ndarray, min_fraction: float) -> float:
     top = float(np.percentile(finite, 99))
     if top <= 0:
         raise ValueError("the white (flat) image is not brighter than the dark: check the light and the darks")
-    return max(min_fraction * top, np.finfo(np.float32).tiny)
+    return max(min_fraction * top, float(np.finfo(np.float32).tiny))
 
 
 class FlatField:

@@ -98,7 +98,7 @@ def fit_de2000(values: np.ndarray, xyz: np.ndarray, white: np.ndarray, channels:
     c0 = cost(p0)
     it = [0]
 
-    def callback(*_args) -> None:
+    def callback(xk: np.ndarray) -> None:     # scipy passes the iterate (unused: only the count)
         it[0] += 1
         check(cancel)
         report(progress, min(it[0] / max_iter, 1.0), f"dE00 optimisation, iteration {it[0]}")
@@ -128,6 +128,17 @@ class MethodResult:
     @property
     def test(self) -> ErrorStats | None:
         return None if self.test_errors is None else ErrorStats.of(self.test_errors)
+
+    def errors(self, target: str) -> np.ndarray:
+        """dE00 per patch on ``target`` ('train' or 'test'); ``ValueError`` for a test target not evaluated."""
+        errors = self.train_errors if target == "train" else self.test_errors
+        if errors is None:
+            raise ValueError(f"no errors on the {target} target: it was not evaluated")
+        return errors
+
+    def stats(self, target: str) -> ErrorStats:
+        """The statistics of :meth:`errors`."""
+        return ErrorStats.of(self.errors(target))
 
     def to_dict(self) -> dict:
         return {"matrix": self.matrix.to_dict(), "train": self.train.to_dict(),

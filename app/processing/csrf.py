@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.protocols import Session
 from dualrgb.app.workflow.vocabulary import Role, exposure_key, format_exposure
 from dualrgb.drivers.raw import RawFrame, load_raw
 from dualrgb.simulation.datasets import CAMERA_UNCERTAINTY_COLUMNS
@@ -92,11 +92,11 @@ def _mean_and_u(stats: list[FrameStats]) -> tuple[np.ndarray, np.ndarray]:
     return means.mean(axis=0), np.maximum(pixel, repeat)
 
 
-def _stats(session: CaptureSession, entries: list, region: float) -> list[FrameStats]:
+def _stats(session: Session, entries: list, region: float) -> list[FrameStats]:
     return [frame_stats(load_raw(session.file_path(e)), region) for e in entries]
 
 
-def session_signals(session: CaptureSession, region: float = 0.3) -> list[WavelengthSignal]:
+def session_signals(session: Session, region: float = 0.3) -> list[WavelengthSignal]:
     """Every wavelength's signal rate in a CSRF session, in wavelength order (frames checked intact first)."""
     frames = session.entries(Role.CSRF.value)
     darks = session.entries(Role.DARK.value)
@@ -106,7 +106,7 @@ def session_signals(session: CaptureSession, region: float = 0.3) -> list[Wavele
     session.require_intact(frames + darks)
     by_exposure: dict[str, list] = defaultdict(list)
     for e in darks:
-        by_exposure[exposure_key(e.exposure_s)].append(e)
+        by_exposure[exposure_key(e.exposure())].append(e)
     by_wavelength: dict[float, list] = defaultdict(list)
     for e in frames:
         by_wavelength[float(e.meta["wavelength_nm"])].append(e)

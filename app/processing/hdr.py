@@ -65,6 +65,10 @@ log = logging.getLogger(__name__)
 LINEAR_LIMIT_DN = 11000.0   # thesis 4.1.2 / Fig 4.2: the D610 is linear up to ~11 000 DN
 MAX_EXPOSURE_TIMES = 16     # distinct exposure times per merge (one slot of float32 + uint8 per pixel each)
 MAX_FRAMES_PER_TIME = 15    # frames of one exposure time (a 4-bit count per pixel)
+# the merge kernels' leading arguments (kernels.hdr_merge): sums, counts, order, times, 1/times, method code,
+# 1/(white - black), 1/gain, read variance
+KernelArgs = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, np.float32, np.float32,
+                   np.float32]
 __all__ = ["HDR_MERGE_METHODS", "HdrMerge", "HdrNoise", "HdrResult", "LINEAR_LIMIT_DN", "exposure_weight",
            "triangle_weight"]
 
@@ -144,7 +148,7 @@ class HdrMerge:
             cap = 2 if self._sums is None else min(2 * self._sums.shape[0], MAX_EXPOSURE_TIMES)
             sums = _buffer(self._work, "hdr_sums", (cap,) + shape, np.float32)
             counts = _buffer(self._work, "hdr_counts", (cap,) + shape, np.uint8)
-            if self._sums is not None:              # grow: keep the slots filled so far
+            if self._sums is not None and self._counts is not None:     # grow: keep the slots filled so far
                 sums[:k], counts[:k] = self._sums[:k], self._counts[:k]
             self._sums, self._counts = sums, counts
         self._slot_times.append(float(exposure_s))
@@ -182,18 +186,21 @@ class HdrMerge:
     @property
     def slots(self) -> tuple[np.ndarray, np.ndarray]:
         """(sums, counts) of the exposure-time slots added so far (kernels.hdr_store), before the merge ends."""
-        self._require()
+        sums, counts = self._require()
         n = len(self._slot_times)
-        return self._sums[:n], self._counts[:n]
+        return sums[:n], counts[:n]
 
-    def _require(self) -> None:
-        if self._sums is None:
+    def _require(self) -> tuple[np.ndarray, np.ndarray]:
+        """(sums, counts) of the slots; ValueError before the first exposure."""
+        if self._sums is None or self._counts is None:
             raise ValueError("no exposures added")
+        return self._sums, self._counts
 
-    def _kernel_args(self) -> tuple:
+    def _kernel_args(self) -> KernelArgs:
+        sums, counts = self._require()
         order = np.argsort(np.asarray(self._slot_times), kind="stable").astype(np.int64)
         ts = np.asarray(self._slot_times, dtype=np.float32)[order]
-        return (self._sums, self._counts, order, ts, (np.float32(1.0) / ts).astype(np.float32),
+        return (sums, counts, order, ts, (np.float32(1.0) / ts).astype(np.float32),
                 HDR_METHOD_CODES[self.method], np.float32(1.0 / (self.white_level - self.black_level)),
                 np.float32(1.0 / self.noise.electrons_per_dn), np.float32(self.noise.read_variance))
 
@@ -210,8 +217,7 @@ class HdrMerge:
         from dualrgb.app.processing.calibration import _buffer
         from dualrgb.app.processing.kernels import hdr_merge
 
-        self._require()
-        shape = self._sums.shape[1:]
+        shape = self._require()[0].shape[1:]
         out = np.empty(shape, np.float32) if self._own_result else _buffer(self._work, "hdr_out", shape, np.float32)
         clipped = int(hdr_merge(*self._kernel_args(), out))
         self._warn_clipped(clipped, out.size)
@@ -224,9 +230,9 @@ class HdrMerge:
         from dualrgb.app.processing.kernels import hdr_merge_flat_superpixel
         from dualrgb.app.processing.mosaic import cfa_channel_index
 
-        self._require()
-        if white.shape != self._sums.shape[1:]:
-            raise ValueError(f"image {self._sums.shape[1:]} and white {white.shape} differ in size")
+        shape = self._require()[0].shape[1:]
+        if white.shape != shape:
+            raise ValueError(f"image {shape} and white {white.shape} differ in size")
         clipped = int(hdr_merge_flat_superpixel(*self._kernel_args(), white, np.float32(threshold),
                                                 cfa_channel_index(cfa), out))
         self._warn_clipped(clipped, out.shape[0] * out.shape[1] * 4)

@@ -112,16 +112,17 @@ def iter_open_raw(sources: Sequence[FrameLike], *, prefetch: bool = True) -> Ite
             with open_raw(src) as frame:
                 yield frame
         return
-    from concurrent.futures import ThreadPoolExecutor
+    from concurrent.futures import Future, ThreadPoolExecutor
 
     def enter(src):
         cm = open_raw(src)
         return cm, cm.__enter__()
 
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="raw-prefetch")
-    pending = pool.submit(enter, sources[0])
+    pending: Future[tuple[Any, Any]] | None = pool.submit(enter, sources[0])
     try:
         for i in range(len(sources)):
+            assert pending is not None                  # submitted for every source but the last's successor
             cm, frame = pending.result()
             pending = pool.submit(enter, sources[i + 1]) if i + 1 < len(sources) else None
             try:

@@ -65,7 +65,7 @@ def _bradford(src_xyz: np.ndarray, dst_xyz: np.ndarray) -> np.ndarray:
     return matrix_chromatic_adaptation_VonKries(np.asarray(src_xyz, float), np.asarray(dst_xyz, float), "Bradford")
 
 
-def xyz_to_rgb_matrix(space: str, white_xyz: Sequence[float]) -> np.ndarray:
+def xyz_to_rgb_matrix(space: str, white_xyz: Sequence[float] | np.ndarray) -> np.ndarray:
     """3x3 M with linear RGB = M @ (XYZ / white_Y), adapting ``white_xyz`` to the space's white."""
     import colour
 
@@ -86,7 +86,7 @@ def _s15(v: float) -> bytes:
     return struct.pack(">i", int(round(v * 65536.0)))
 
 
-def _xyz_tag(xyz: Sequence[float]) -> bytes:
+def _xyz_tag(xyz: Sequence[float] | np.ndarray) -> bytes:
     return b"XYZ " + b"\0" * 4 + b"".join(_s15(v) for v in xyz)
 
 
@@ -186,9 +186,9 @@ class TiffMetadata:
     xmp: bytes = b""
     page_name: str = ""
 
-    def tags(self) -> list[tuple]:
+    def tags(self) -> list[tuple[int, str, int, str | bytes, bool]]:
         """tifffile ``extratags`` for Make (271), Model (272), PageName (285) and XMP (700)."""
-        out = []
+        out: list[tuple[int, str, int, str | bytes, bool]] = []
         for code, text in ((271, self.make), (272, self.model), (285, self.page_name)):
             if text:
                 out.append((code, "s", 0, text, True))
@@ -327,5 +327,5 @@ def write_matrices_csv(path: Path, matrices: Mapping[str, CharacterisationMatrix
     rows: list[list[object]] = [["method", "channel", "X", "Y", "Z"]]
     for name, m in matrices.items():
         chans = m.channels or [f"ch{i + 1}" for i in range(m.matrix.shape[0])]
-        rows += [[name, ch] + [f"{v:.10g}" for v in row] for ch, row in zip(chans, m.matrix, strict=True)]
+        rows += [[name, ch, *(f"{v:.10g}" for v in row)] for ch, row in zip(chans, m.matrix, strict=True)]
     return _write_csv(path, rows)

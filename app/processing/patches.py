@@ -77,8 +77,8 @@ class PatchGrid:
 
         def cross(a: np.ndarray, b: np.ndarray) -> float:
             return float(a[0] * b[1] - a[1] * b[0])
-        cross = [cross(c[(i + 1) % 4] - c[i], c[(i + 2) % 4] - c[(i + 1) % 4]) for i in range(4)]
-        if not (all(x > 0 for x in cross) or all(x < 0 for x in cross)):
+        turns = [cross(c[(i + 1) % 4] - c[i], c[(i + 2) % 4] - c[(i + 1) % 4]) for i in range(4)]
+        if not (all(x > 0 for x in turns) or all(x < 0 for x in turns)):
             raise ValueError("patch grid corners do not form a convex quadrilateral in TL, TR, BR, BL order")
         self._h = homography(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float), c)
         self._h_inv = np.linalg.inv(self._h)

@@ -176,12 +176,11 @@ class CaptureProcessor:
             check(cancel)
             self._prepare(frame)
             if merge is None:
-                merge = HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level,
-                                 method=self.hdr_method, mode=self.mode, band_rows=self.band_rows, work=self._work,
-                                 own_result=own_result)
+                merge = self.new_merge(own_result=own_result)
             dark = self._dark_for(frame, ref.exposure_s, cancel)
             merge.add(mosaic_of(frame), ref.exposure_s, dark, cancel=cancel)
             report(progress, (i + 1) / len(refs), f"exposure {ref.exposure_s:.6g} s {ref.label}".strip())
+        assert merge is not None                    # refs is not empty
         return merge
 
     def hdr(self, refs: Sequence[ExposureRef], *, progress: ProgressCallback | None = None,
@@ -249,9 +248,13 @@ class CaptureProcessor:
             black = getattr(frame, "black_levels", None)
             self.black_level = float(np.mean(black)) if black else 0.0
 
-    def new_merge(self) -> HdrMerge:
+    def new_merge(self, *, own_result: bool = False) -> HdrMerge:
+        """An HDR merge with this processor's levels (known once a frame was prepared, or given)."""
+        if self.white_level is None or self.black_level is None:
+            raise ValueError("the raw white and black levels are unknown: no frame seen yet (pass white_level and "
+                             "black_level for bare arrays)")
         return HdrMerge(self.white_level, self.linear_limit, black_level=self.black_level, method=self.hdr_method,
-                        mode=self.mode, band_rows=self.band_rows, work=self._work, own_result=False)
+                        mode=self.mode, band_rows=self.band_rows, work=self._work, own_result=own_result)
 
 
 def _weak_cells(slots: tuple[np.ndarray, np.ndarray], floor_dn: float, so_far: np.ndarray | None) -> np.ndarray:
@@ -260,11 +263,9 @@ def _weak_cells(slots: tuple[np.ndarray, np.ndarray], floor_dn: float, so_far: n
     from dualrgb.app.processing.encode import weak_cells
 
     sums, counts = slots
-    first = so_far is None
-    if first:
-        so_far = np.empty((sums.shape[1] // 2, sums.shape[2] // 2), dtype=np.bool_)
-    weak_cells(sums, counts, np.float32(floor_dn), so_far, first)
-    return so_far
+    out = np.empty((sums.shape[1] // 2, sums.shape[2] // 2), dtype=np.bool_) if so_far is None else so_far
+    weak_cells(sums, counts, np.float32(floor_dn), out, so_far is None)
+    return out
 
 
 class StackBuilder:
@@ -316,8 +317,8 @@ class StackBuilder:
         for light in list(self._merges):
             self.finish_light(light)
         missing = [n for n in self.lights if n not in self.clipped]
-        if missing:
-            raise ValueError(f"no exposures of {', '.join(missing)} were added")
+        if missing or self.out is None:
+            raise ValueError(f"no exposures of {', '.join(missing) or 'any light'} were added")
         channels = [f"{c}{i + 1}" for i in range(len(self.lights)) for c in CHANNELS]
         under = float(self._weak.mean()) if self._weak is not None else 0.0
         return ChannelStack(self.out, channels, self.lights, self.clipped, under)

@@ -28,7 +28,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -97,11 +97,10 @@ def grade_metrics(measured: dict[str, float | None]) -> dict:
     for std, limits in STANDARD_LIMITS.items():
         rows = {}
         for metric, lim in limits.items():
-            v = measured.get(metric)
-            ok = metric in assessed
-            rows[metric] = {"value": round(float(v), 4) if ok else None, "limit": lim.value,
+            v = measured.get(metric) if metric in assessed else None
+            rows[metric] = {"value": None if v is None else round(float(v), 4), "limit": lim.value,
                             "comparison": "<" if lim.strict else "<=", "source": lim.source,
-                            "status": ("pass" if lim.passes(float(v)) else "fail") if ok else "not assessed"}
+                            "status": "not assessed" if v is None else ("pass" if lim.passes(float(v)) else "fail")}
         statuses = [r["status"] for r in rows.values()]
         colour_only = all(r["status"] == "not assessed" for m, r in rows.items() if m not in COLOUR_METRICS)
         out[std] = {"metrics": rows, "passed": statuses.count("pass"), "failed": statuses.count("fail"),
@@ -275,7 +274,7 @@ def sensor_noise(cal: CalibrationFrames, cfa_index: np.ndarray) -> dict:
         dark = cal.processor.master_dark(t)
         s = channel_means(a, dark if dark is not None else float(cal.processor.black_level or 0.0), cfa_index)
         n = temporal_noise(a, b, cfa_index)
-        row = {"exposure_s": t}
+        row: dict[str, Any] = {"exposure_s": t}
         for ch in s:
             shot = n[ch] ** 2 - (read[ch] ** 2 if read else 0.0)
             row[ch] = {"signal_dn": s[ch], "noise_dn": n[ch], "snr": s[ch] / n[ch] if n[ch] > 0 else None,

@@ -322,7 +322,7 @@ def _target_figures(out_dir: Path, c: Characterisation, label: str, data: Target
     """The chosen matrix on one target: dE00 heat map, Lab scatter and the patch mosaic (file names)."""
     best, white = c.best, c.white
     res = c.results[best]
-    errors = res.train_errors if label == "train" else res.test_errors
+    errors = res.errors(label)
     layout = layout_for(len(data.names), data.layout)
     name = data.label or label
     pred = res.matrix.apply(data.values)
@@ -339,9 +339,7 @@ def _targets_section(out_dir: Path, c: Characterisation, targets: list[tuple[str
     for label, data in targets:
         figures += _target_figures(out_dir, c, label, data)
         per_patch[label] = {"names": list(data.names),
-                            "de00": {m: [round(float(v), 4) for v in (r.train_errors if label == "train"
-                                                                         else r.test_errors)]
-                                     for m, r in c.results.items()}}
+                            "de00": {m: [round(float(v), 4) for v in r.errors(label)] for m, r in c.results.items()}}
     return figures, per_patch
 
 
@@ -392,8 +390,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
     sections, more = _model_sections(out_dir, c, train, test, simulated_train, spectral)
     figures += more
     graded_set = "test" if test is not None else "train"
-    graded = c.results[best].test if test is not None else c.results[best].train
-    graded_errors = c.results[best].test_errors if test is not None else c.results[best].train_errors
+    graded, graded_errors = c.results[best].stats(graded_set), c.results[best].errors(graded_set)
     quality, qfigs = quality_section(out_dir, c, test if test is not None else train, graded_errors, graded_set,
                                      calibration)
     figures += qfigs
@@ -407,7 +404,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
         "best_reason": c.selection.reason if c.selection else "the only matrix fitted",
         "model_selection": c.selection.to_dict() if c.selection else None,
         "train": c.results[best].train.to_dict(),
-        "test": c.results[best].test.to_dict() if test is not None else None,
+        "test": c.results[best].stats("test").to_dict() if test is not None else None,
         "methods": {m: r.to_dict() for m, r in c.results.items()},
         "standards": {"evaluated_on": graded_set, "method": best, "stats": graded.to_dict(),
                       "scope": "colour accuracy only (dE00 of the target); the other criteria: see 'quality'",

@@ -17,7 +17,7 @@ applies, so it is regularised for single pixels, not for patch means.
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -168,7 +168,7 @@ def spectra_figure(path: Path, sc: SpectralCharacterisation, names: Sequence[str
     return save_tight(fig, path)
 
 
-def spectral_section(out_dir: Path, sc: SpectralCharacterisation, names: dict[str, Sequence[str]]
+def spectral_section(out_dir: Path, sc: SpectralCharacterisation, names: Mapping[str, Sequence[str]]
                      ) -> tuple[dict, list[str]]:
     """The report's "spectral" section and its figure file names."""
     target = "test" if sc.test is not None else "train"

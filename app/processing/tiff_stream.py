@@ -35,6 +35,7 @@ import hashlib
 import logging
 import os
 import threading
+from collections.abc import Callable
 from concurrent.futures import Executor, Future
 from pathlib import Path
 from typing import Any
@@ -175,7 +176,10 @@ class TiffStream:
         import tifffile
 
         with open(self._tmp, "w+b") as fh:
-            offset, nbytes = tifffile.imwrite(fh, shape=self.shape, dtype=self.dtype, returnoffset=True, **kwargs)
+            written = tifffile.imwrite(fh, shape=self.shape, dtype=self.dtype, returnoffset=True, **kwargs)
+            if written is None:
+                raise ValueError(f"{self.path}: tifffile reported no pixel area (expected one contiguous strip)")
+            offset, nbytes = written
             if nbytes != self.shape[0] * self.row_bytes:
                 raise ValueError(f"{self.path}: tifffile stores {nbytes} pixel bytes, expected "
                                  f"{self.shape[0] * self.row_bytes} contiguous ones")
@@ -212,16 +216,19 @@ class TiffStream:
         self._wait(nxt)
         self._buffers[nxt][:end - whole] = self._buffers[cur][whole:end]
         if whole:
-            self._submit(cur, memoryview(self._buffers[cur][:whole]), self._pos)
+            self._submit(cur, self._buffers[cur][:whole].data, self._pos)
         self._pos += whole
         self._carry = end - whole
         self._current = nxt
 
+    def _output(self) -> _Output:
+        if self._out is None:                   # only after abort(): a closed stream takes no more rows
+            raise ValueError(f"{self.path}: the TIFF stream was aborted")
+        return self._out
+
     def _write(self, data: memoryview, pos: int, hashed: int | None = None) -> None:
         """Write ``data`` at ``pos`` and add its first ``hashed`` bytes (all by default) to the digest."""
-        if self._out is None:
-            raise ValueError(f"{self.path}: not open for writing")
-        self._out.pwrite(data, pos)
+        self._output().pwrite(data, pos)
         if self._hash is not None:
             self._hash.update(data if hashed is None else data[:hashed])
 
@@ -236,7 +243,7 @@ class TiffStream:
         if fut is not None:
             self._guard(fut.result)
 
-    def _guard(self, call) -> None:
+    def _guard(self, call: Callable[[], object]) -> None:
         try:
             call()
         except OSError as exc:
@@ -254,11 +261,11 @@ class TiffStream:
         buf = self._buffers[self._current]
         padded = -(-tail // BLOCK) * BLOCK
         buf[tail:padded] = 0
-        out = self._out
+        out = self._output()
 
         def finish() -> None:
             if tail:
-                self._write(memoryview(buf[:padded]), self._pos, tail)
+                self._write(buf[:padded].data, self._pos, tail)
             out.finish(self._offset + self._nbytes)
             out.close()
             os.replace(self._tmp, self.path)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -123,7 +123,7 @@ class Sequence:
         if session is not None and needed:
             require_free_space(session.path, needed, f"the {self.name} ({len(self.plan())} frames)")
 
-    def run(self) -> Iterator[ProgressEvent]:
+    def run(self) -> Generator[ProgressEvent, None, None]:
         self.check_free_space()
         self._t0 = time.monotonic()
         failed: BaseException | None = None

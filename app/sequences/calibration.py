@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
@@ -62,7 +62,7 @@ class FlatSeries(BaseSequence):
 
     name = "open-gate flats"
 
-    def __init__(self, shooter: Shooter, lights: Sequence[NamedLight], exposures: dict[str, Sequence[float]],
+    def __init__(self, shooter: Shooter, lights: Sequence[NamedLight], exposures: Mapping[str, Sequence[float]],
                  frames: int = 3):
         super().__init__()
         self.shooter = shooter

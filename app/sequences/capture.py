@@ -3,7 +3,7 @@ light (thesis 1.4, 7, 8)."""
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
@@ -23,7 +23,7 @@ class SubjectCapture(BaseSequence):
 
     name = "subject capture"
 
-    def __init__(self, shooter: Shooter, lights: Sequence[NamedLight], exposures: dict[str, Sequence[float]],
+    def __init__(self, shooter: Shooter, lights: Sequence[NamedLight], exposures: Mapping[str, Sequence[float]],
                  subject: Subject, take: int = 1, meta: dict | None = None, frames: int = 1):
         super().__init__()
         self.shooter = shooter

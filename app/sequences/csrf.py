@@ -19,15 +19,15 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from dualrgb.app.protocols import Monochromator, Session
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import LINEAR_LIMIT_DN, converge_exposure, snap_down
 from dualrgb.app.sequences.shooter import channel_levels
-from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.session.manifest import SessionEntry
 from dualrgb.app.workflow.vocabulary import EventKind, Role, format_exposure, monochromatic_light, step_id
 from dualrgb.drivers.camera.base import Camera, CameraError, Exposure, RawCapture, call_with_deadline
@@ -113,7 +113,7 @@ class MonoShooter:
     """One frame done safely under the monochromator: the shutter open only for the exposure, closed before the
     download, the frame written to the session first thing (resume: a step already there is not shot again)."""
 
-    def __init__(self, camera: Camera, monochromator: Any, session: CaptureSession, settings: CsrfSettings):
+    def __init__(self, camera: Camera, monochromator: Monochromator, session: Session, settings: CsrfSettings):
         self.camera = camera
         self.monochromator = monochromator
         self.session = session
@@ -182,7 +182,7 @@ class CsrfSweep(BaseSequence):
 
     name = "CSRF sweep"
 
-    def __init__(self, camera: Camera, monochromator: Any, session: CaptureSession, settings: CsrfSettings):
+    def __init__(self, camera: Camera, monochromator: Monochromator, session: Session, settings: CsrfSettings):
         super().__init__()
         self.settings = settings
         self.monochromator = monochromator
@@ -213,7 +213,7 @@ class CsrfSweep(BaseSequence):
         for i, nm in enumerate(wavelengths, start=1):
             done = self._done(nm)
             if len(done) >= self.settings.frames:
-                t = self.exposures[nm] = float(done[0].exposure_s)
+                t = self.exposures[nm] = done[0].exposure()
                 yield ProgressEvent(i, total, f"{nm:g} nm: kept ({len(done)} frames)", kind=EventKind.KEPT,
                                     data={"wavelength_nm": nm, "exposure_s": t})
                 continue
@@ -226,7 +226,8 @@ class CsrfSweep(BaseSequence):
                                           f"{len(set(self.exposures.values()))} exposures", kind=EventKind.DONE,
                             data={"exposures": dict(self.exposures)})
 
-    def _one_wavelength(self, i: int, total: int, nm: float, start_s: float) -> Iterator[ProgressEvent]:
+    def _one_wavelength(self, i: int, total: int, nm: float, start_s: float
+                        ) -> Generator[ProgressEvent, None, float]:
         reached = self.monochromator.goto(nm)
         light = monochromatic_light(nm)
         t = converge_exposure(lambda te: self._meter(nm, light, te), self.usable, start_s,

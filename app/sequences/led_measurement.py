@@ -24,12 +24,15 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.workflow.led_readings import level_id, warmup_id
 from dualrgb.app.workflow.vocabulary import EventKind
+
+if TYPE_CHECKING:
+    from dualrgb.app.protocols import Radiometer, Sphere
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +87,7 @@ class LedMeasurementPlan:
                 "and after any error")
 
 
-def sleeper(sphere: Any, skip: Callable[[float], None] | None = None) -> Callable[[float], None]:
+def sleeper(sphere: Sphere, skip: Callable[[float], None] | None = None) -> Callable[[float], None]:
     """``wait(seconds)``: ``skip`` (a virtual clock's) or real sleep, in steps of at most KEEPALIVE_S with a
     keepalive to the sphere after each."""
     def wait(seconds: float) -> None:
@@ -107,7 +110,7 @@ class LedMeasurement(BaseSequence):
 
     name = "LED measurement"
 
-    def __init__(self, sphere: Any, radiometer: Any, out_dir: Path, wait: Callable[[float], None],
+    def __init__(self, sphere: Sphere, radiometer: Radiometer[Any], out_dir: Path, wait: Callable[[float], None],
                  clock: Callable[[], float] = time.monotonic, settings: LedMeasurementPlan | None = None) -> None:
         super().__init__()
         self.sphere = sphere

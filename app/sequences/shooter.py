@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.protocols import Session, Sphere
 from dualrgb.app.session.light_dose import LightDose
 from dualrgb.app.session.manifest import SessionEntry
 from dualrgb.app.workflow.defaults import SETTLE_S
@@ -116,12 +116,16 @@ def restate(error: BaseException, light: LightReport) -> BaseException:
 
 
 class Shooter:
-    def __init__(self, camera: Camera, sphere, session: CaptureSession, stand: Stand | None = None,
-                 safety: SafetySettings = SafetySettings(), sleep: Callable[[float], None] = time.sleep,
-                 clock: Callable[[], float] = time.monotonic):
-        self.camera = camera
+    """Frames shot safely (module docstring) with ``camera`` and ``sphere`` into ``session``. A shooter made
+    without a camera or a session (a plan's, nothing shot) says so in one line when asked for them; without a
+    sphere it takes only unlit frames."""
+
+    def __init__(self, camera: Camera | None, sphere: Sphere | None, session: Session | None,
+                 stand: Stand | None = None, safety: SafetySettings = SafetySettings(),
+                 sleep: Callable[[float], None] = time.sleep, clock: Callable[[], float] = time.monotonic):
+        self._camera = camera
         self.sphere = sphere
-        self.session = session
+        self._session = session
         self.stand = stand
         self.safety = safety.for_camera(camera)
         self.dose = LightDose()
@@ -129,6 +133,23 @@ class Shooter:
         self._clock = clock
         self.placed: tuple[str, bool] | None = None
         self._frames: dict[int, RawFrame] = {}
+
+    @property
+    def camera(self) -> Camera:
+        if self._camera is None:
+            raise ValueError("no camera is connected (connect one: Devices, or --camera)")
+        return self._camera
+
+    @property
+    def session(self) -> Session:
+        if self._session is None:
+            raise ValueError("no capture session is open (a plan only: nothing can be shot)")
+        return self._session
+
+    def _lit_sphere(self) -> Sphere:
+        if self.sphere is None:
+            raise ValueError("no LED sphere is connected: a lit frame needs one (connect it: Devices, or --port)")
+        return self.sphere
 
     def place(self, what: str, nd: bool = False) -> bool:
         """Ask the stand to hold ``what``; returns False when a person must do it (no stand callback)."""
@@ -159,17 +180,17 @@ class Shooter:
         if self.session.has_step(step_id):
             log.info("step %s already in the session: not shot again", step_id)
             return self.session.entry(step_id)
-        lit = light is not None and not light.is_dark
+        lit = light if light is not None and not light.is_dark else None
         off: LightReport | None = None
-        if lit:
+        if lit is not None:
             self.check_light_time(exposure_s)
-            exposure, off, complete = self._lit_exposure(light, exposure_s, step_id)
+            exposure, off, complete = self._lit_exposure(lit, exposure_s, step_id)
             if not complete:
-                self._reject(exposure, light, step_id, off)
+                self._reject(exposure, lit, step_id, off)
         else:
             exposure = self._expose(exposure_s)
         raw = self._fetch(exposure, off)
-        entry = self._record(raw, role, step_id, light if lit else None, meta)
+        entry = self._record(raw, role, step_id, lit, meta)
         if off is not None and not off.off:
             raise SphereError(f"{step_id}: the frame was saved (#{entry.seq}); {off.message}",
                               kind=off.error.kind if off.error else "port", light="unknown")
@@ -180,12 +201,13 @@ class Shooter:
                       step_id: str) -> tuple[Exposure, LightReport, bool]:
         """Light on, settle, expose, light off: (the exposure, what is known about the light, whether the light
         stayed on all through the exposure). A failure is raised after the light was switched off, saying so."""
+        sphere = self._lit_sphere()
         try:
-            self.sphere.apply(light)
+            sphere.apply(light)
         except SphereError as exc:          # nothing was switched on by this shot; say what the light is now
-            raise (exc if exc.light is not None else restate(exc, self.sphere.ensure_off())) from None
+            raise (exc if exc.light is not None else restate(exc, sphere.ensure_off())) from None
         try:
-            period = self.sphere.on(max_on_s=self.safety.light_limit_s(exposure_s))
+            period = sphere.on(max_on_s=self.safety.light_limit_s(exposure_s))
         except SphereError as exc:          # it says what state the light is in; its lit period (if any) counts
             if exc.period is not None:
                 self._add_dose(light, exc.period.lit_s(), step_id)
@@ -196,23 +218,24 @@ class Shooter:
         try:
             self._sleep(self.safety.settle_s)
             exposure = self._expose(exposure_s)
-            complete = self.sphere.exposure_done(period)
+            complete = sphere.exposure_done(period)
         except BaseException as exc:  # noqa: BLE001 - any failure, Ctrl-C too: the light goes off first, then it is raised
             failure = exc
-        off = self._switch_off()
+        off = self._switch_off(sphere)
         self._add_dose(light, period.lit_s(), step_id)
         if failure is not None:
             raise restate(failure, off) from failure
+        assert exposure is not None                 # set whenever nothing was caught
         return exposure, off, complete
 
-    def _switch_off(self) -> LightReport:
+    def _switch_off(self, sphere: Sphere) -> LightReport:
         """The light off right after the exposure (one LIGHT 0); when that is not confirmed, ALLOFF + LIGHT 0 again,
         and what is known then."""
         try:
-            self.sphere.off()
+            sphere.off()
         except SphereError as exc:
             log.warning("switching the light off after the exposure: %s", exc)
-            return self.sphere.ensure_off()
+            return sphere.ensure_off()
         return LightReport(True, "the light was switched off")
 
     def _expose(self, exposure_s: float) -> Exposure:

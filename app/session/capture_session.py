@@ -6,7 +6,8 @@ Layout of a session folder::
     manifest.jsonl      append-only log, one JSON object per line, fsynced after every line
     0001_dark_DSC_0001.NEF, ...   the raw files exactly as downloaded (sha256 in the manifest)
     damaged/            frames found missing or damaged on resume, moved aside (never deleted)
-    .session.lock       the writer's OS lock and who holds it (app.session.lock)
+    .session.lock       the writer's OS lock (app.session.lock)
+    .session.holder     who holds it (pid, host, since, program)
 
 ``CaptureSession.record(raw, role, ...)`` writes the bytes of a :class:`drivers.camera.base.RawCapture` to a
 temp file in the same folder, flushes and fsyncs it, renames it to its final name (atomic on POSIX), fsyncs the
@@ -139,8 +140,9 @@ def _settings_bytes(settings: dict) -> bytes:
 
 
 def _allowed_leftover(p: Path) -> bool:
-    """What a create killed before session.json leaves: the lock file and temp files."""
-    return p.name == session_lock.LOCK_NAME or (p.name.startswith(".") and p.name.endswith(TMP_SUFFIX))
+    """What a create killed before session.json leaves: the lock, its holder file and temp files."""
+    return p.name in (session_lock.LOCK_NAME, session_lock.HOLDER_NAME) or (p.name.startswith(".")
+                                                                            and p.name.endswith(TMP_SUFFIX))
 
 
 def _lock(folder: Path) -> str:

@@ -18,10 +18,14 @@ import json
 import logging
 import math
 import re
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from dualrgb.drivers.camera.base import Camera
 
 from dualrgb.common.strict_json import dumps as strict_dumps
 
@@ -124,6 +128,13 @@ class SessionEntry:
     def light_name(self) -> str:
         return (self.light or {}).get("name", "") if self.light else ""
 
+    def exposure(self) -> float:
+        """The frame's exposure time (s); ``ValueError`` naming the file where the manifest line has none."""
+        if self.exposure_s is None:
+            raise ValueError(f"{self.file}: the manifest records no exposure time for this frame (expected "
+                             "'exposure_s' in seconds)")
+        return float(self.exposure_s)
+
 
 @dataclass
 class DoseRecord:
@@ -173,7 +184,8 @@ class SetAside:
 
 
 ManifestLine = SessionEntry | DoseRecord | SetAside
-_KINDS = {KIND_FRAME: SessionEntry, KIND_DOSE: DoseRecord, KIND_SET_ASIDE: SetAside}
+_KINDS: dict[str, Callable[[dict], ManifestLine]] = {
+    KIND_FRAME: SessionEntry.from_dict, KIND_DOSE: DoseRecord.from_dict, KIND_SET_ASIDE: SetAside.from_dict}
 
 
 def parse_line(data: Any) -> ManifestLine:
@@ -183,7 +195,7 @@ def parse_line(data: Any) -> ManifestLine:
     kind = data.get("kind", KIND_FRAME)
     if kind not in _KINDS:
         raise ValueError(f"unknown line kind {kind!r:.30}")
-    return _KINDS[kind].from_dict(data)
+    return _KINDS[kind](data)
 
 
 def json_preview(value: Any) -> str:
@@ -308,7 +320,8 @@ def _flatten(value: Any, prefix: str, out: dict) -> None:
 def definition_differences(stored: dict, wanted: dict) -> list[str]:
     """Human-readable differences between two session definitions, by dotted key, e.g.
     ``mode: session 'reflective', this run 'transmissive'``. Keys only one side has are differences too."""
-    a, b = {}, {}
+    a: dict[str, Any] = {}
+    b: dict[str, Any] = {}
     _flatten(stored, "", a)
     _flatten(wanted, "", b)
     out = []
@@ -328,7 +341,7 @@ def light_definition(light: Any, name: str = "") -> dict:
             "levels": [float(v) for v in light.levels]}
 
 
-def image_area_definition(camera: Any) -> dict:
+def image_area_definition(camera: Camera) -> dict:
     """``{"image_area": ...}``: the frame size and sensor area the camera reports (Camera.image_area), a top-level
     item of every session's definition, so a resume with another frame size or crop is refused at once; ``{}``
     for a camera that says nothing."""
@@ -337,7 +350,7 @@ def image_area_definition(camera: Any) -> dict:
     return {"image_area": text} if text else {}
 
 
-def camera_definition(camera: Any) -> dict:
+def camera_definition(camera: Camera) -> dict:
     """A camera's identity and the settings that change its frames (model, ISO, aperture, quality; a virtual
     camera's world: drivers.virtual.world)."""
     s = camera.settings()

@@ -15,12 +15,12 @@ original already in the session is shot again (True: new frames under the next t
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,7 +31,7 @@ from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from dualrgb.app.sequences.capture import SubjectCapture
-from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.sequences.shooter import SafetySettings, Shooter, Stand
 from dualrgb.app.workflow.charts import definition as chart_definition
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
@@ -72,6 +72,17 @@ from dualrgb.app.workflow.vocabulary import (
 )
 from dualrgb.common.progress import Cancelled, CancelToken, ProgressCallback, report
 
+if TYPE_CHECKING:
+    from dualrgb.app.processing.masters import MasterFrames
+    from dualrgb.app.processing.patches import PatchGrid
+    from dualrgb.app.processing.pipeline import ChannelSource, StackBuilder
+    from dualrgb.app.protocols import Session, Sphere
+    from dualrgb.drivers.camera.base import Camera
+    from dualrgb.drivers.virtual.lab import VirtualLab
+    from dualrgb.simulation.charts import Chart
+    from dualrgb.simulation.presets import Preset
+    from dualrgb.simulation.stand_model import StandModel
+
 log = logging.getLogger(__name__)
 
 Prompt = Callable[[str], None]
@@ -106,9 +117,9 @@ class StandSettings:
     original_frames: int = 1                  # frames averaged per exposure of an original (noise / sqrt(n))
     render_illuminant: str = DEFAULT_RENDER_ILLUMINANT   # the light the spectral rendering is seen under
     resolution: str = FULL                    # originals' deliverables: the sensor's pixels (full) or 2x2 cells
-    stand_start: Any = None                   # the stand model the fit starts from (simulation.stand_model; None:
+    stand_start: StandModel | None = None     # the stand model the fit starts from (simulation.stand_model; None:
                                               # nominal): measured camera / LEDs (calibrate --camera-csv, --stand-dir)
-    charts: dict[str, Any] = field(default_factory=dict)   # 'train' / 'test' -> the stand's own chart
+    charts: dict[str, Chart] = field(default_factory=dict)   # 'train' / 'test' -> the stand's own chart
                                               # (simulation.charts.Chart); absent: the mode's packaged target
 
 
@@ -129,10 +140,11 @@ class CaptureReport:
 class CopyStand:
     """Devices + session + the rules of the copy-stand day (see the module docstring)."""
 
-    def __init__(self, camera: Any, sphere: Any, session: Any, *, stand: Callable[[str, bool], Any] | None = None,
-                 lab: Any = None, settings: StandSettings | None = None, progress: ProgressCallback | None = None,
-                 cancel: CancelToken | None = None, prompt: Prompt | None = None,
-                 reshoot: ReshootQuestion | None = None, on_event: EventCallback | None = None):
+    def __init__(self, camera: Camera, sphere: Sphere, session: Session, *, stand: Stand | None = None,
+                 lab: VirtualLab | None = None, settings: StandSettings | None = None,
+                 progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
+                 prompt: Prompt | None = None, reshoot: ReshootQuestion | None = None,
+                 on_event: EventCallback | None = None):
         self.camera, self.sphere, self.session, self.lab = camera, sphere, session, lab
         self.settings = settings or StandSettings()
         self.progress, self.cancel, self.prompt = progress, cancel, prompt
@@ -209,8 +221,9 @@ class CopyStand:
                         .5 + .05 * i, .55 + .05 * i))
         return out
 
-    def calibrate(self, preset: Any, *, hdr_auto: bool | None = None, grids: dict[str, Any] | None = None,
-                  report_dir: Path | None = None) -> CalibrationProfile:
+    def calibrate(self, preset: Preset, *, hdr_auto: bool | None = None,
+                  grids: Mapping[str, PatchGrid | None] | None = None, report_dir: Path | None = None
+                  ) -> CalibrationProfile:
         """Auto-exposure, darks and flats at every planned exposure, training and test targets, characterisation:
         the calibration profile, saved in ``<session>/calibration/``. ``hdr_auto`` None: the day's default
         (app.workflow.defaults)."""
@@ -218,8 +231,9 @@ class CopyStand:
         base = self.auto_expose(lights_of(preset))
         return self.calibrate_at(preset, base, hdr_auto=hdr_auto, grids=grids, report_dir=report_dir)
 
-    def calibrate_at(self, preset: Any, base: dict[str, float], *, hdr_auto: bool | None = None,
-                     grids: dict[str, Any | None] = None, report_dir: Path | None = None) -> CalibrationProfile:
+    def calibrate_at(self, preset: Preset, base: dict[str, float], *, hdr_auto: bool | None = None,
+                     grids: Mapping[str, PatchGrid | None] | None = None, report_dir: Path | None = None
+                     ) -> CalibrationProfile:
         """:meth:`calibrate` from known open-gate exposures ``base`` (light name -> seconds)."""
         lights = lights_of(preset)
         defaults = workflow_defaults(preset.mode)
@@ -243,7 +257,7 @@ class CopyStand:
         report(self.progress, 1.0, f"calibration {profile.id} saved")
         return profile
 
-    def target_specs(self, mode: str, grids: dict[str, Any] | None = None) -> dict[str, TargetSpec]:
+    def target_specs(self, mode: str, grids: Mapping[str, PatchGrid | None] | None = None) -> dict[str, TargetSpec]:
         """The training and test targets' specs: the stand's own charts (``settings.charts``, put on the virtual
         lab's stand too) or the mode's packaged targets, with the grids placed by hand (``grids``)."""
         charts = self.settings.charts or {}
@@ -254,7 +268,7 @@ class CopyStand:
         return {name: target_spec(mode, Subject.target(name), (grids or {}).get(name), lab=self.lab,
                                   chart=charts.get(name)) for name in ("train", "test")}
 
-    def _profile(self, preset: Any, lights: list[NamedLight], plan: dict[str, list[float]], base: dict[str, float],
+    def _profile(self, preset: Preset, lights: list[NamedLight], plan: dict[str, list[float]], base: dict[str, float],
                  result: SessionResult, test: TargetSpec) -> CalibrationProfile:
         proc = result.processor
         entries = [e for e in self.session.entries() if role_of(e) in (Role.DARK, Role.FLAT, Role.TARGET)]
@@ -299,8 +313,8 @@ class CopyStand:
             log.warning("%s", w)
         return result
 
-    def _take(self, original: Original, reshoot: bool | None) -> tuple[int, int]:
-        """(take to record, frames already in the session for this original)."""
+    def _take(self, original: Original, reshoot: bool | None) -> int:
+        """The take to record: 1 for a new original, the next one when it is shot again, else its last."""
         takes = original_takes(self.session, original)
         if not takes:
             return 1
@@ -377,7 +391,7 @@ class CopyStand:
         def landed(ev: ProgressEvent) -> None:            # each frame taken in as soon as it is on disk
             if ev.kind in (EventKind.FRAME, EventKind.KEPT):
                 e = next(x for x in self.session.entries() if x.seq == ev.data["entry"])
-                builder.add(ev.data["light"], ExposureRef(self.session.file_path(e), float(e.exposure_s), e.file),
+                builder.add(ev.data["light"], ExposureRef(self.session.file_path(e), e.exposure(), e.file),
                             cancel=self.cancel)
         outer, self.on_event = self.on_event, _chain(self.on_event, landed)
         try:
@@ -422,7 +436,7 @@ def _stand_fields(result: SessionResult) -> dict:
     return {"stand": result.stand.summary(), "stand_observations": result.stand.observations}
 
 
-def original_takes(session: Any, original: Original) -> list[int]:
+def original_takes(session: Session, original: Original) -> list[int]:
     """The take of every frame of ``original`` already in ``session`` (empty: never shot). A front end asks
     "already in the session: re-shoot / keep" when it is not empty."""
     subject = original.subject
@@ -430,7 +444,7 @@ def original_takes(session: Any, original: Original) -> list[int]:
             if role_of(e) is Role.ORIGINAL and subject_of(e) == subject]
 
 
-def original_dose(session: Any, subject: Subject) -> LightDoseRecord:
+def original_dose(session: Session, subject: Subject) -> LightDoseRecord:
     """Every lit period of an original (metering, every take) from the session manifest's dose lines."""
     from dualrgb.app.session.light_dose import LightDose, light_from_record
 
@@ -460,14 +474,14 @@ def profile_processor(profile: CalibrationProfile) -> CaptureProcessor:
     return proc
 
 
-def begin_channels(proc: CaptureProcessor, lights: list[str], resolution: str) -> Any:
+def begin_channels(proc: CaptureProcessor, lights: list[str], resolution: str) -> MasterFrames | StackBuilder:
     """What takes an original's frames in as they land: a full-resolution MasterFrames (held, merged and
     demosaiced band by band at delivery) or a half-resolution StackBuilder (merged as they land)."""
     return proc.begin_master(lights) if check_resolution(resolution) == FULL else proc.begin_stack(lights)
 
 
 def channels_of(proc: CaptureProcessor, light_frames: dict[str, list[ExposureRef]], resolution: str,
-                cancel: CancelToken | None = None) -> Any:
+                cancel: CancelToken | None = None) -> ChannelSource:
     """The channels of an original from its frames on disk (a ChannelSource to close after delivery)."""
     builder = begin_channels(proc, list(light_frames), resolution)
     try:
@@ -494,7 +508,7 @@ class QueueOutcome:
         return f"{self.original.identifier}: already delivered, kept"
 
 
-def delivered_sidecar(session: Any, original: Original) -> Path | None:
+def delivered_sidecar(session: Session, original: Original) -> Path | None:
     """The sidecar of ``original``'s delivery in ``session`` (session.json 'originals'), when it exists and names
     the same identifier; None otherwise."""
     meta = (session.settings.get("originals") or {}).get(original.identifier) or {}

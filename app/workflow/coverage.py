@@ -6,9 +6,13 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from dualrgb.app.processing.calibration import EXPOSURE_RTOL
 from dualrgb.app.workflow.vocabulary import Role, latest_takes, light_of, role_of
+
+if TYPE_CHECKING:
+    from dualrgb.app.protocols import Session
 
 log = logging.getLogger(__name__)
 
@@ -42,7 +46,8 @@ class Coverage:
         return "; ".join(parts) or "nothing"
 
 
-def coverage(session, plan: Mapping[str, Sequence[float]], *, dark_frames: int = 1, flat_frames: int = 1) -> Coverage:
+def coverage(session: Session, plan: Mapping[str, Sequence[float]], *, dark_frames: int = 1,
+             flat_frames: int = 1) -> Coverage:
     """Coverage of ``plan`` (light name -> exposures) by the session's darks (>= ``dark_frames`` per time) and
     flats (>= ``flat_frames`` per light and time)."""
     darks: dict[float, int] = {}

@@ -17,15 +17,18 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dualrgb.app.processing.csrf import CsrfResult, compute_csrf, session_signals, write_camera_csv
 from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.csrf import CsrfSettings, CsrfSweep
-from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.common.progress import CancelToken
 from dualrgb.simulation.radiance_reference import RadianceReference
+
+if TYPE_CHECKING:
+    from dualrgb.app.protocols import Monochromator, Session
+    from dualrgb.drivers.camera.base import Camera
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +64,7 @@ def run_sweep(sweep: CsrfSweep, *, prompt: Callable[[str], None] | None,
     return True
 
 
-def provenance(sweep: CsrfSweep, session: CaptureSession, camera: Any) -> dict[str, str]:
+def provenance(sweep: CsrfSweep, session: Session, camera: Camera) -> dict[str, str]:
     """The camera CSV's header lines: instrument, camera, date, session."""
     summary = camera.config_summary() if hasattr(camera, "config_summary") else {}
     return {**{f"monochromator_{k}" if k != "instrument" else "monochromator": str(v)
@@ -72,7 +75,7 @@ def provenance(sweep: CsrfSweep, session: CaptureSession, camera: Any) -> dict[s
             "session": f"{session.path.name} (created {session.settings.get('created_at', '?')})"}
 
 
-def measure_csrf(camera: Any, monochromator: Any, session: CaptureSession, settings: CsrfSettings, *,
+def measure_csrf(camera: Camera, monochromator: Monochromator, session: Session, settings: CsrfSettings, *,
                  radiance: Radiance, out: str | Path, prompt: Callable[[str], None] | None = None,
                  on_event: Callable[[ProgressEvent], None] | None = None,
                  cancel: CancelToken | None = None) -> CsrfMeasurement | None:

@@ -18,12 +18,15 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from dualrgb.app.workflow.coverage import Coverage, coverage, plan_coverage
 from dualrgb.app.workflow.delivery import Original
 from dualrgb.app.workflow.profile import CalibrationProfile, ReuseCheck
 from dualrgb.app.workflow.vocabulary import Role, latest_takes, role_of, subject_of
+
+if TYPE_CHECKING:
+    from dualrgb.app.protocols import Session
 
 log = logging.getLogger(__name__)
 
@@ -104,7 +107,7 @@ class OriginalsQueue:
         return {s: sum(r.state is s for r in self.rows) for s in OriginalState}
 
     @classmethod
-    def from_session(cls, session: Any) -> OriginalsQueue:
+    def from_session(cls, session: Session) -> OriginalsQueue:
         """The originals already delivered in ``session`` (session.json 'originals', their sidecars)."""
         queue = cls()
         for ident, meta in (session.settings.get("originals") or {}).items():
@@ -117,7 +120,7 @@ class OriginalsQueue:
         return queue
 
 
-def _sidecar(session: Any, original: Original, recorded: str | None) -> Path:
+def _sidecar(session: Session, original: Original, recorded: str | None) -> Path:
     """The sidecar session.json names, or where delivery puts it in this session's folder when that path is gone
     (a session moved to another captures folder keeps its deliverables)."""
     path = Path(recorded or "")
@@ -178,7 +181,7 @@ class DayState:
 
     sphere: str = ""
     camera: str = ""
-    session: Any = None
+    session: Session | None = None
     plan: Mapping[str, Sequence[float]] = field(default_factory=dict)
     profile: CalibrationProfile | None = None
     check: ReuseCheck | None = None
@@ -214,7 +217,7 @@ def _session_line(st: DayState) -> str:
     return f"session: {Path(st.session.path).name} ({len(st.session.entries())} frames{note})"
 
 
-def targets_captured(session: Any) -> set[str]:
+def targets_captured(session: Session) -> set[str]:
     """'train' / 'test' when the session holds that target (without the ND filter)."""
     out = set()
     for e in latest_takes(session.entries()):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,6 +18,9 @@ from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN
 from dualrgb.app.sequences.shooter import channel_levels
 from dualrgb.app.workflow.vocabulary import Role, latest_takes, light_of, role_of
 from dualrgb.drivers.raw import RawFrame, load_raw
+
+if TYPE_CHECKING:
+    from dualrgb.app.protocols import Session
 
 log = logging.getLogger(__name__)
 
@@ -70,7 +73,7 @@ class UniformityMap:
     range_pct: float           # (max - min) / mean of the worst channel (FADGI's illuminance non-uniformity)
 
 
-def flat_uniformity(session: Any, light: str) -> UniformityMap:
+def flat_uniformity(session: Session, light: str) -> UniformityMap:
     """Uniformity of ``light``'s open-gate flats in ``session`` (the exposure with the most frames; dark level
     subtracted as the black level, which is what matters for a percent-of-mean map)."""
     from dualrgb.app.processing.mosaic import cfa_channel_index

@@ -29,7 +29,7 @@ import json
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,6 +37,12 @@ from dualrgb.app.workflow.led_readings import LedReadings
 from dualrgb.simulation.choices import N_SPHERE_LEDS
 from dualrgb.simulation.led_fit import STABLE_TOLERANCE, band_output, fit_drift, fit_low_level, led_band, led_shape
 from dualrgb.simulation.sphere import LevelCurves, SphereProperties, curves_from_dict
+
+if TYPE_CHECKING:
+    from dualrgb.app.sequences.led_measurement import LedMeasurementPlan
+    from dualrgb.common.progress import ProgressCallback
+    from dualrgb.drivers.virtual.spectroradiometer import RadiometerSettings
+    from dualrgb.drivers.virtual.world import World
 
 log = logging.getLogger(__name__)
 MAX_STAND_BYTES = 4 << 20         # stand.json: a few kB; checked before reading
@@ -51,7 +57,7 @@ class LedResult:
 
     led: int
     spectrum: np.ndarray | None = None
-    shape: dict[str, float] | None = None
+    shape: dict[str, float | None] | None = None   # fwhm_nm None for a broadband reading
     levels: dict[str, Any] | None = None
     warmup: dict[str, Any] | None = None
 
@@ -141,9 +147,9 @@ def write_stand(result: StandMeasurement, out_dir: str | Path, extra: dict[str, 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files: list[Path] = []
-    with_spectra = {k: r for k, r in sorted(result.leds.items()) if r.spectrum is not None}
+    with_spectra = {k: r.spectrum for k, r in sorted(result.leds.items()) if r.spectrum is not None}
     if with_spectra:
-        values = np.clip(np.stack([r.spectrum for r in with_spectra.values()], axis=1), 0.0, None)
+        values = np.clip(np.stack(list(with_spectra.values()), axis=1), 0.0, None)
         write_spectral_csv(out / LEDS_CSV, result.wavelengths, values, [f"LED{k}" for k in with_spectra], {
             "title": "LED spectra at full level, measured", "units": result.units or "as the readings",
             "source": "spectroradiometer readings: " + ", ".join(Path(s).name for s in result.sources),
@@ -241,8 +247,9 @@ def _level_curves(path: Path, leds: Any) -> LevelCurves:
 
 
 # ---- the two ways in: the virtual lab's sequence, and a real instrument's files ----------------------------
-def measure_virtual(out_dir: str | Path, world: Any = None, plan: Any = None, radiometer: Any = None,
-                    seed: int = 0, progress: Any = None) -> tuple[StandMeasurement, list[Path]]:
+def measure_virtual(out_dir: str | Path, world: str | Path | World | None = None,
+                    plan: LedMeasurementPlan | None = None, radiometer: RadiometerSettings | None = None,
+                    seed: int = 0, progress: ProgressCallback | None = None) -> tuple[StandMeasurement, list[Path]]:
     """Run the LED measurement (app.sequences.led_measurement) on the virtual lab in ``world`` with the virtual
     spectroradiometer (``radiometer``: its RadiometerSettings), on a skippable clock (an hour of warm-up takes
     moments), read the instrument's files back like a real instrument's, analyse, and write the stand folder

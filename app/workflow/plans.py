@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries
@@ -25,10 +25,13 @@ from dualrgb.app.workflow.vocabulary import (
     step_id,
 )
 
+if TYPE_CHECKING:
+    from dualrgb.app.protocols import Session
+
 log = logging.getLogger(__name__)
 
 
-def calibration_exposures(session: Any, base: Mapping[str, Sequence[float]],
+def calibration_exposures(session: Session | None, base: Mapping[str, Sequence[float]],
                           planned: Mapping[str, Sequence[float]] | None = None) -> dict[str, list[float]]:
     """Per light: every exposure the captures use (base, planned HDR brackets, targets and originals already in
     the session under that light): darks and flats need all of them."""
@@ -71,12 +74,12 @@ def planned_steps(seq: BaseSequence) -> list[str]:
     return []
 
 
-def steps_done(session: Any, steps: Sequence[str]) -> list[bool]:
+def steps_done(session: Session, steps: Sequence[str]) -> list[bool]:
     """Per step: is it already in the session (kept, not shot again, unless re-shot as a new take)?"""
     return [session.has_step(s) for s in steps]
 
 
-def next_take(session: Any, steps: Sequence[str]) -> int:
+def next_take(session: Session, steps: Sequence[str]) -> int:
     """The take a re-shoot of ``steps`` records: one more than the highest take any of them has."""
     bases = {split_take(s)[0] for s in steps}
     takes = [split_take(e.step_id or "")[1] for e in session.entries(include_superseded=True)

@@ -35,7 +35,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -55,6 +55,10 @@ from dualrgb.simulation.spectral_estimation import SpectralEstimator
 from dualrgb.simulation.stand_fit import StandObservations
 from dualrgb.simulation.versions import dualrgb_version, software_versions
 
+if TYPE_CHECKING:
+    from dualrgb.app.protocols import Sphere
+    from dualrgb.drivers.camera.base import Camera
+
 log = logging.getLogger(__name__)
 
 LEVEL_TOLERANCE = 1e-4          # the sphere quantises levels to 16-bit PWM
@@ -70,7 +74,7 @@ class CameraIdentity:
     world: str = ""                  # the virtual lab's world identity ('' for a real camera)
 
     @classmethod
-    def of(cls, camera: Any) -> CameraIdentity:
+    def of(cls, camera: Camera) -> CameraIdentity:
         """What the camera reports about itself (gphoto2: serialnumber / lensname config; virtual: its own)."""
         summary = camera.config_summary()
         settings = camera.settings()
@@ -101,7 +105,7 @@ class SphereIdentity:
     temperature_c: float | None = None
 
     @classmethod
-    def of(cls, sphere: Any) -> SphereIdentity:
+    def of(cls, sphere: Sphere) -> SphereIdentity:
         info = sphere.identify()
         return cls(str(info.get("model", "")), str(info.get("firmware", "")), str(info.get("serial", "")),
                    float(sphere.temperature_c()))
@@ -202,10 +206,10 @@ class CalibrationProfile:
         """``<folder>/<id>.npz`` then ``<folder>/<id>.json`` (atomic each; the JSON names the npz's sha256)."""
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)
-        arrays = {}
+        arrays: dict[str, np.ndarray] = {}
         dark_index, white_index = [], []
-        for i, t in enumerate(self.darks.exposures if self.darks else []):
-            f = self.darks.frame(t)
+        darks = [(t, self.darks.frame(t)) for t in self.darks.exposures] if self.darks is not None else []
+        for i, (t, f) in enumerate(darks):
             arrays[f"dark_{i}"] = f.mean
             dark_index.append({"array": f"dark_{i}", "exposure_s": t, "n_frames": f.n_frames,
                                "noise_dn": None if np.isnan(f.noise_dn) else f.noise_dn})
@@ -219,7 +223,7 @@ class CalibrationProfile:
                                             "darks": dark_index, "whites": white_index}}
         profile_check.check_document(doc, f"calibration {self.id} (not saved)", digest=False)   # before any write
         with atomic_output(npz, "wb") as fh:         # streamed: a 150 MP calibration's 3.6 GB never copied whole
-            np.savez(fh, **arrays)
+            np.savez(fh, **arrays)  # type: ignore[arg-type]  # numpy's stub fears a key 'allow_pickle': keys are ours
         size = npz.stat().st_size
         doc["arrays"]["sha256"] = _sha256(npz)
         path = folder / f"{self.id}.json"

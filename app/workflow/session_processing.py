@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -26,6 +26,8 @@ from dualrgb.simulation.lightsource import LightSource
 
 if TYPE_CHECKING:
     from dualrgb.app.processing.spectral import SpectralCharacterisation
+    from dualrgb.app.protocols import Session
+    from dualrgb.app.session.manifest import SessionEntry
     from dualrgb.app.workflow.stand_calibration import StandResult
     from dualrgb.simulation.stand_model import StandModel
 
@@ -49,13 +51,13 @@ class SessionFrames:
         return self.subjects[subject]
 
 
-def _ref(session, e) -> ExposureRef:
+def _ref(session: Session, e: SessionEntry) -> ExposureRef:
     if e.exposure_s is None:
         raise ValueError(f"{e.file}: no exposure time in the session manifest")
     return ExposureRef(session.file_path(e), float(e.exposure_s), e.file)
 
 
-def session_frames(session, *, intact: bool = True) -> SessionFrames:
+def session_frames(session: Session, *, intact: bool = True) -> SessionFrames:
     """Group the session's latest takes: darks, flats by light, subjects by light (recording order kept).
 
     A missing or damaged frame is named (app.session.DamagedFramesError), never processed; ``intact=False``: the
@@ -69,13 +71,12 @@ def session_frames(session, *, intact: bool = True) -> SessionFrames:
             out.darks.append(_ref(session, e))
         elif role is Role.FLAT:
             out.flats.setdefault(light_of(e), []).append(_ref(session, e))
-        elif role in (Role.TARGET, Role.ORIGINAL):
-            subject = subject_of(e)
+        elif role in (Role.TARGET, Role.ORIGINAL) and (subject := subject_of(e)) is not None:
             out.subjects.setdefault(subject, OrderedDict()).setdefault(light_of(e), []).append(_ref(session, e))
     return out
 
 
-def subject_entries(session) -> dict[str, dict[str, list]]:
+def subject_entries(session: Session) -> dict[str, dict[str, list]]:
     """Subject key -> light name -> manifest entries (latest takes): what the GUI lists."""
     out: dict[str, dict[str, list]] = {}
     for e in latest_takes(session.entries()):
@@ -95,7 +96,7 @@ def light_sets(light_names: Sequence[str]) -> dict[str, list[str]]:
 
 
 def select_lights(frames: LightFrames, lights: Sequence[str] | None = None,
-                  exposures: dict[str, Sequence[float]] | None = None) -> LightFrames:
+                  exposures: Mapping[str, Sequence[float]] | None = None) -> LightFrames:
     """The exposures of ``lights`` (default: every light, in recording order), only ``exposures`` when given."""
     names = list(lights) if lights is not None else list(frames)
     missing = [n for n in names if n not in frames]
@@ -166,8 +167,8 @@ def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames,
     return sampled.mean[cells], sampled.std[cells], stack
 
 
-def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec | None = None, *,
-                    lights: Sequence[str] | None = None, exposures: dict[str, Sequence[float]] | None = None,
+def process_session(session: Session, out_dir: Path, train: TargetSpec, test: TargetSpec | None = None, *,
+                    lights: Sequence[str] | None = None, exposures: Mapping[str, Sequence[float]] | None = None,
                     white_level: float | None = None, linear_limit: float | None = LINEAR_LIMIT_DN,
                     optimise: bool = True, white_xyz: np.ndarray | None = None, title: str = "dual-RGB capture",
                     progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
@@ -206,7 +207,7 @@ def process_session(session, out_dir: Path, train: TargetSpec, test: TargetSpec 
     stand = fit_session_stand(session, frames, proc, names, (train, vt, st, stack), (test, vs, stack_t), c, stand_start)
     files = _patch_files(out_dir, c, channels, ((train, vt), (test, vs)))
     data = [TargetData(s.names, s.xyz, v, s.layout, s.label or lbl, std=sd)
-            for s, v, sd, lbl in ((train, vt, st, "train"), (test, vs, ss, "test")) if s is not None]
+            for s, v, sd, lbl in ((train, vt, st, "train"), (test, vs, ss, "test")) if s is not None and v is not None]
     calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
     simulated, extra = _stand_report(stand, train, out_dir, channels)
     rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=simulated,
@@ -239,13 +240,13 @@ def _patch_files(out_dir: Path, c: Characterisation, channels: list[str],
     for label, (spec, values) in zip(("train", "test"), targets, strict=True):
         if spec is not None and values is not None:
             preds = {k: r.matrix.apply(values) for k, r in c.results.items()}
-            errs = {k: (r.train_errors if label == "train" else r.test_errors) for k, r in c.results.items()}
+            errs = {k: r.errors(label) for k, r in c.results.items()}
             files[f"patches_{label}"] = write_patch_csv(out_dir / f"patches_{label}.csv", spec.names, values,
                                                         channels, spec.xyz, preds, errs, target=label)
     return files
 
 
-def frame_lights(session, subject: Subject, names: Sequence[str]) -> list[LightSource] | None:
+def frame_lights(session: Session, subject: Subject, names: Sequence[str]) -> list[LightSource] | None:
     """The lights (LEDs, exact levels) the manifest recorded for ``subject``'s frames under ``names``, in that
     order; None when a light was not recorded."""
     from dualrgb.app.session.light_dose import light_from_record
@@ -257,7 +258,7 @@ def frame_lights(session, subject: Subject, names: Sequence[str]) -> list[LightS
     return [found[n] for n in names] if all(n in found for n in names) else None
 
 
-def _spectral(session, train: TargetSpec, test: TargetSpec | None, values: tuple, channels: list[str],
+def _spectral(session: Session, train: TargetSpec, test: TargetSpec | None, values: tuple, channels: list[str],
               xyz_matrix: np.ndarray, names: Sequence[str], cancel: CancelToken | None):
     """The spectral estimate (app.processing.spectral) when the training target's spectra are known, else None.
     ``values``: training means, training per-pixel spread, test means."""
@@ -274,8 +275,8 @@ def _spectral(session, train: TargetSpec, test: TargetSpec | None, values: tuple
         frame_lights(session, train.subject, names), ranges), cancel)
 
 
-def fit_session_stand(session, frames: SessionFrames, proc: CaptureProcessor, names: Sequence[str], train: tuple,
-                      test: tuple, c: Characterisation, start: StandModel | None) -> StandResult | None:
+def fit_session_stand(session: Session, frames: SessionFrames, proc: CaptureProcessor, names: Sequence[str],
+                      train: tuple, test: tuple, c: Characterisation, start: StandModel | None) -> StandResult | None:
     """The stand model fitted to the processed captures (app.workflow.stand_calibration) when the training
     target's spectra and the lights' levels are known, else None. ``train``: (spec, means, per-pixel sd, stack);
     ``test``: (spec or None, means, stack)."""

@@ -90,7 +90,8 @@ def frame_mean(stack_data: np.ndarray, max_samples: int = 250_000) -> np.ndarray
     about ``max_samples`` of them (a 24 MP frame's stack is not copied whole for one mean)."""
     h, w = stack_data.shape[:2]
     step = max(1, int(np.ceil(np.sqrt(h * w / max_samples))))
-    return np.nanmean(stack_data[::step, ::step].reshape(-1, stack_data.shape[-1]), axis=0, dtype=np.float64)
+    sample = stack_data[::step, ::step].reshape(-1, stack_data.shape[-1])
+    return np.asarray(np.nanmean(sample, axis=0, dtype=np.float64))
 
 
 def patch_counts(grid: Any, shape: tuple[int, ...], n: int) -> np.ndarray | None:

@@ -131,7 +131,7 @@ def calibrate_in_world(cfg: StandStudyConfig, world: str, preset: Preset, seed: 
                     clock=SkippableClock()) as lab:
         session = CaptureSession.resume(folder, definition, {"mode": cfg.mode})
         try:
-            stand = CopyStand(lab.camera, lab.sphere, session, stand=lab.place, lab=lab,
+            stand = CopyStand(*lab.devices(), session, stand=lab.place, lab=lab,
                               settings=StandSettings(settle_s=0.0, optimise_matrix=False))
             profile: CalibrationProfile = stand.calibrate(preset, hdr_auto=False)
             return profile
@@ -155,6 +155,7 @@ def measure_camera(cfg: StandStudyConfig, world: str, folder: Path) -> Path:
             def radiance(wavelengths: list[float]) -> Any:
                 return read_radiance_reference(bench.spectroradiometer().write_csv(
                     session.path / "radiance-virtual.csv", wavelengths))
+            assert bench.camera is not None                 # made by start()
             m = measure_csrf(bench.camera, bench.monochromator, session, settings, radiance=radiance,
                              out=folder / "csrf.csv")
         finally:

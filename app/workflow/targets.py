@@ -12,7 +12,7 @@ import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +20,9 @@ from dualrgb.app.processing.patches import PatchGrid
 from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
 from dualrgb.simulation.charts import Chart, ChartError, packaged_chart
 from dualrgb.simulation.colorimetry import white_point
+
+if TYPE_CHECKING:
+    from dualrgb.drivers.virtual.lab import VirtualLab
 
 log = logging.getLogger(__name__)
 MAX_GRID_BYTES = 1 << 20          # a patch grid is a few hundred bytes; checked before reading
@@ -126,7 +129,7 @@ def scene_grid(scene: Any, fraction: float = 0.5) -> PatchGrid:
     return PatchGrid(corners_rc[:, ::-1], rows, cols, fraction=fraction).scaled(0.5)   # (row, col) -> (x, y)
 
 
-def virtual_target_spec(lab: Any, subject: Subject, *, simulated: np.ndarray | None = None,
+def virtual_target_spec(lab: VirtualLab, subject: Subject, *, simulated: np.ndarray | None = None,
                         grid: PatchGrid | None = None, label: str = "", method: str | None = None,
                         chart: Chart | None = None) -> TargetSpec:
     """A TargetSpec for a target captured in the virtual lab: its scene gives the grid and the ND patches; the
@@ -139,12 +142,13 @@ def virtual_target_spec(lab: Any, subject: Subject, *, simulated: np.ndarray | N
     nd_mask = scene.nd_patches()[cells]
     nd_scale = nd_transmittance(nd_mask, scene.nd_transmittance, len(cells))
     xyz, names = reference_xyz(lab.mode, subject.name, nd_scale, method, chart)
-    return TargetSpec(subject, xyz, names, grid or scene_grid(scene), tuple(scene.layout), simulated,
+    layout = (int(scene.layout[0]), int(scene.layout[1]))
+    return TargetSpec(subject, xyz, names, grid or scene_grid(scene), layout, simulated,
                       label or f"{subject.name} ({chart.target.name})", nd_mask,
                       reference_spectra(lab.mode, subject.name, nd_scale, chart), lab.mode, cells, chart)
 
 
-def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Any = None,
+def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: VirtualLab | None = None,
                 label: str = "", method: str | None = None, chart: Chart | None = None) -> TargetSpec:
     """The TargetSpec the GUI and the CLI use: the virtual lab's scene when there is one (ND included), else the
     chart (``chart``: the stand's own; None: the packaged target of ``mode``) with the grid placed by hand (None:

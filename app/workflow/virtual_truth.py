@@ -15,7 +15,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,6 +23,9 @@ from dualrgb.app.processing.spectral_truth import SpectralTruth
 from dualrgb.simulation.defaults import default_grid
 from dualrgb.simulation.grid import SpectralGrid
 from dualrgb.simulation.spectral_estimation import SpectralEstimator
+
+if TYPE_CHECKING:
+    from dualrgb.drivers.virtual.lab import VirtualLab
 
 log = logging.getLogger(__name__)
 
@@ -41,7 +44,8 @@ class OriginalTruth:
         if np.array_equal(np.asarray(wavelengths, float), self.spectral.wavelengths):
             return self
         grid = grid_of(wavelengths)
-        return replace(self, spectral=_spectral_truth(self.name, *self.xyz.shape[:2], grid))
+        height, width = self.xyz.shape[:2]
+        return replace(self, spectral=_spectral_truth(self.name, height, width, grid))
 
 
 def grid_of(wavelengths: np.ndarray) -> SpectralGrid:
@@ -71,7 +75,7 @@ def original_truth(name: str, height: int, width: int, mode: str = "reflective")
     return OriginalTruth(name, ground_truth_xyz(name, height, width), spectral, reference_white(mode))
 
 
-def placed_truth(lab: Any) -> OriginalTruth | None:
+def placed_truth(lab: VirtualLab | None) -> OriginalTruth | None:
     """The truth of the virtual original the lab has on the stand now (None: a chart, or not a virtual lab)."""
     from dualrgb.drivers.virtual.originals import ORIGINAL_PREFIX, original_name
 

@@ -38,8 +38,13 @@ GP_ERROR_CANCEL = -112
 GP_ERROR_CAMERA_ERROR = -113
 GP_ERROR_NO_SPACE = -115
 
-GVFS_ADVICE = ("run `gio mount -s gphoto2` and `pkill -f gvfs-gphoto2-volume-monitor` "
-               "(and close other photo programs), then retry")
+# the desktop daemons that claim a PTP camera as soon as it appears: gvfs on Linux, ptpcamerad on macOS
+CAMERA_DAEMONS = ("gvfs-gphoto2-volume-monitor", "ptpcamerad")
+FREE_CAMERA_ADVICE = ("close photo programs and free the camera from the desktop: on Linux run "
+                      "`gio mount -s gphoto2` and `pkill -f gvfs-gphoto2-volume-monitor`; on macOS quit Photos and "
+                      "Image Capture and run `killall -9 ptpcamerad` (it restarts: run it just before opening the "
+                      "camera)")
+CLAIMED_ADVICE = FREE_CAMERA_ADVICE + ", then retry"
 UDEV_ADVICE = ("this user may not open the camera's USB device: install libgphoto2's udev rules "
                "(the `libgphoto2-6` package, or `print-udev-rules` from libgphoto2's utilities), add yourself to the "
                "`plugdev` group, log in again and re-plug the camera (docs/first-session-d610.md)")
@@ -49,9 +54,9 @@ ERROR_ADVICE: dict[int, str] = {
                "card, battery) and retry"),
     GP_ERROR_MODEL_NOT_FOUND: "no camera found: connect the camera by USB and switch it on",
     GP_ERROR_IO_USB_CLAIM: ("the camera's USB interface could not be claimed: usually the desktop's "
-                            "gvfs-gphoto2-volume-monitor holds it: " + GVFS_ADVICE + "; if that is not it, "
-                            + UDEV_ADVICE),
-    GP_ERROR_IO_LOCK: "another program holds the camera's USB device: " + GVFS_ADVICE,
+                            "gvfs-gphoto2-volume-monitor (Linux) or ptpcamerad (macOS) holds it: " + CLAIMED_ADVICE
+                            + "; if that is not it, " + UDEV_ADVICE),
+    GP_ERROR_IO_LOCK: "another program holds the camera's USB device: " + CLAIMED_ADVICE,
     GP_ERROR_CAMERA_BUSY: ("the camera is busy (I/O in progress): let it finish writing, leave its menus and "
                            "playback, then retry"),
     GP_ERROR_IO_USB_FIND: ("the camera is no longer on its USB port (unplugged, or re-enumerated after "
@@ -84,7 +89,7 @@ def _advice(code: int | None, detail: str, logged: str, opening_port: bool) -> s
     if code in (GP_ERROR_IO, GP_ERROR_IO_USB_CLAIM) and any(w in text for w in PERMISSION_WORDS):
         return UDEV_ADVICE
     if code == GP_ERROR_IO_USB_CLAIM and any(w in text for w in CLAIMED_WORDS):
-        return "another program holds the camera's USB interface: " + GVFS_ADVICE
+        return "another program holds the camera's USB interface: " + CLAIMED_ADVICE
     if code == GP_ERROR_FILE_NOT_FOUND and opening_port:
         return ("no camera detected at this port (nothing answered there, or not a camera libgphoto2 knows): "
                 "check that the camera is on and in PTP mode, run `dualrgb devices` and open the port it lists")

@@ -73,9 +73,13 @@ class VirtualLab:
         self.emulator.stop()
 
     def _started_camera(self) -> VirtualCamera:
-        if self.camera is None:
+        return self.devices()[0]
+
+    def devices(self) -> tuple[VirtualCamera, LedSphere]:
+        """The started lab's camera and sphere."""
+        if self.camera is None or self.sphere is None:
             raise RuntimeError("the virtual lab is not started: call start() (or use it in a with-block) first")
-        return self.camera
+        return self.camera, self.sphere
 
     def __enter__(self) -> VirtualLab:
         return self.start()

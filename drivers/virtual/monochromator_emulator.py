@@ -1,7 +1,8 @@
-"""MonochromatorEmulator: a Cornerstone 130 speaking drivers/monochromator/protocol.py on a real pseudo-terminal.
+"""MonochromatorEmulator: a Cornerstone 130 speaking drivers/monochromator/protocol.py on a real serial transport.
 
-``start()`` serves a pty (drivers.virtual.pty_link) and returns its path; the Cornerstone driver (or pyserial, or
-``screen``) opens it as if it were /dev/ttyUSB0. The emulator holds the instrument's state - wavelength (the drive
+``start()`` serves a port (drivers.virtual.line_server: a pseudo-terminal, or pyserial's ``socket://`` URL where
+there is none or when chosen) and returns it; the Cornerstone driver (or pyserial) opens it as if it were
+/dev/ttyUSB0. The emulator holds the instrument's state - wavelength (the drive
 stops on a motor step), grating, shutter, filter wheel, units, status byte and error code - echoes every statement
 as the RS-232 instrument does, answers queries, and sets the status byte and error code for what it refuses
 (unknown statement 1, bad parameter 2, a wavelength outside the grating's range 3, error 7 for a filter or grating
@@ -13,7 +14,7 @@ Faults (:meth:`inject`), like the sphere emulator's: ``no_reply`` (nothing comes
 ``execute=False``: the statement is not carried out either), ``ignore`` (the same as no_reply with
 execute=False), ``garbled`` (the echo and answer bytes corrupted), ``slow`` (everything comes ``delay_s`` late),
 ``error`` (the statement is echoed but refused with error ``code``); each takes ``keywords=("GOWAVE", ...)`` to
-hit only those statements. ``disconnect`` closes the pty (an unplugged cable; the instrument keeps its state).
+hit only those statements. ``disconnect`` closes the port (an unplugged cable; the instrument keeps its state).
 ``inject(None)`` clears them. ``motion_s_per_nm`` (default 0) makes the drive take time to slew: statements after a
 GOWAVE are answered when it has arrived.
 """
@@ -30,7 +31,7 @@ import numpy as np
 
 from dualrgb.drivers.monochromator import protocol as P
 from dualrgb.drivers.virtual.monochromator_light import MonochromatorOptics
-from dualrgb.drivers.virtual.pty_link import PtyLineServer
+from dualrgb.drivers.virtual.transport import line_server
 
 log = logging.getLogger(__name__)
 
@@ -53,7 +54,7 @@ class MonochromatorEmulator:
     """A Cornerstone 130 on a pty; see the module docstring."""
 
     def __init__(self, optics: MonochromatorOptics | None = None, *, clock: Callable[[], float] = time.monotonic,
-                 motion_s_per_nm: float = 0.0, seed: int = 0):
+                 motion_s_per_nm: float = 0.0, seed: int = 0, transport: str | None = None):
         self.optics = optics or MonochromatorOptics()
         self._clock = clock
         self.motion_s_per_nm = float(motion_s_per_nm)
@@ -69,12 +70,13 @@ class MonochromatorEmulator:
         self._faults: dict[str, dict[str, Any]] = {}
         self._busy_until = 0.0                     # real time when the drive stops (motion_s_per_nm > 0)
         self._rng = np.random.default_rng(seed)
-        self._server = PtyLineServer("monochromator-emulator", self._on_line, max_line=P.MAX_LINE_BYTES)
+        self._server = line_server("monochromator-emulator", self._on_line, max_line=P.MAX_LINE_BYTES,
+                                   transport=transport)
         self.statements: list[bytes] = []          # every statement received, for tests and logs
 
     # ------------------------------------------------------------------------------------------ serving
     def start(self) -> str:
-        """Serve the pty; returns the path a serial client opens."""
+        """Serve the port; returns what a serial client opens (a pty path or a ``socket://`` URL)."""
         port = self._server.start()
         log.info("monochromator emulator serving on %s", port)
         return port

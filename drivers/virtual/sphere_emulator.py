@@ -1,7 +1,9 @@
-"""SphereEmulator: the LED sphere's firmware, speaking drivers/led_sphere/protocol.py on a real pseudo-terminal.
+"""SphereEmulator: the LED sphere's firmware, speaking drivers/led_sphere/protocol.py on a real serial transport.
 
-``start()`` opens a pty (drivers.virtual.pty_link) and serves it from a background thread; any serial client (the
-LedSphere driver, pyserial, ``screen``) opens the returned slave path as if it were /dev/ttyACM0. The emulator keeps the
+``start()`` serves a port from a background thread (drivers.virtual.line_server: a pseudo-terminal on Linux and
+macOS, pyserial's ``socket://127.0.0.1:PORT`` on Windows or when ``transport='socket'`` /
+``DUALRGB_VIRTUAL_TRANSPORT=socket``); any serial client (the LedSphere driver, pyserial, ``screen`` on a pty) opens
+the returned port as if it were /dev/ttyACM0. The emulator keeps the
 physical state the virtual camera needs, readable at any time with the thread-safe :meth:`snapshot`:
 
 * levels (16-bit PWM per LED), the master switch, what each LED actually emits now;
@@ -25,7 +27,7 @@ move a fake clock by an hour instead of sleeping. Wire delays (fault "slow") use
 Faults (:meth:`inject`): ``no_reply`` (reply lost; ``execute=False``: firmware hung), ``ignore`` (requests
 neither executed nor answered), ``disobey`` (answered as if done, not executed: a stuck relay, a firmware
 bug), ``garbled`` (reply bytes corrupted), ``slow`` (reply after ``delay_s``); each of
-these five takes ``keywords=("ON", ...)`` to hit only those requests. ``disconnect`` (pty closed, as if unplugged;
+these five takes ``keywords=("ON", ...)`` to hit only those requests. ``disconnect`` (port closed, as if unplugged;
 the sphere keeps its own power, so its watchdog and on-time limit switch the LEDs off), ``led_fail`` (``led=N``,
 ``mode="dark"``: takes levels but emits nothing, FAULT? reports it while driven; ``mode="error"``: a non-zero
 level for it gets ERR 6).
@@ -56,7 +58,7 @@ from dualrgb.drivers.virtual.led_physics import (
     fade_factor,
     peak_shift_nm,
 )
-from dualrgb.drivers.virtual.pty_link import PtyLineServer
+from dualrgb.drivers.virtual.transport import line_server
 
 log = logging.getLogger(__name__)
 
@@ -97,13 +99,13 @@ def _cause_of(line: bytes) -> str:
 
 
 class SphereEmulator:
-    """The sphere's firmware on a pty; see the module docstring."""
+    """The sphere's firmware on a serial port (a pty or a socket); see the module docstring."""
 
     model = "DRGB-SPHERE10-EMU"
     serial = "EMU-0001"
 
     def __init__(self, n_leds: int = 10, watchdog_s: float = 30.0, clock: Callable[[], float] = time.monotonic,
-                 firmware: str = P.FIRMWARE_VERSION):
+                 firmware: str = P.FIRMWARE_VERSION, transport: str | None = None):
         if P.version_tuple(firmware) == (0,):
             raise ValueError(f"firmware {firmware!r}: expected a version such as 1.1.0")
         self.firmware = firmware
@@ -138,13 +140,14 @@ class SphereEmulator:
         self._faults: dict[str, dict[str, Any]] = {}
         self._failed: dict[int, str] = {}
         self._rng = np.random.default_rng(0)
-        self._server = PtyLineServer("sphere-emulator", self._on_line, max_line=P.MAX_REQUEST_BYTES,
-                                     on_tick=self._tick)
+        self._server = line_server("sphere-emulator", self._on_line, max_line=P.MAX_REQUEST_BYTES,
+                                   on_tick=self._tick, transport=transport)
         self.requests: collections.deque[bytes] = collections.deque(maxlen=1000)   # recent request lines (log)
 
     # ------------------------------------------------------------------------------------------ serving
     def start(self) -> str:
-        """Open a pty and serve it in a background thread; returns the path a serial client opens."""
+        """Serve the port in a background thread; returns what a serial client opens (a pty path or a
+        ``socket://`` URL: drivers.virtual.line_server)."""
         if self._server.running:
             return self._server.port
         with self._lock:
@@ -163,7 +166,7 @@ class SphereEmulator:
         return self._server.running
 
     def stop(self) -> None:
-        """Stop serving and close the pty; the sphere is powered off (every LED off, light off)."""
+        """Stop serving and close the port; the sphere is powered off (every LED off, light off)."""
         self._server.close()
         with self._lock:
             self._advance(self._clock())

@@ -22,8 +22,9 @@ def test_call_with_deadline_returns_raises_or_times_out():
     gate = threading.Event()
     started = time.monotonic()
     with pytest.raises(CameraTimeout, match=r"^capture: the camera did not answer within 0\.2 s; ") as info:
-        call_with_deadline(gate.wait, 0.2, "capture")
-    assert 0.2 <= time.monotonic() - started < 1.0 and info.value.code == -10 and info.value.worker.is_alive()
+        call_with_deadline(lambda: gate.wait(30), 0.2, "capture")
+    # it waited its deadline and no longer: the hung call is still inside (the gate opens only below)
+    assert time.monotonic() - started >= 0.2 and info.value.code == -10 and info.value.worker.is_alive()
     gate.set()
     info.value.worker.join(1)
 
@@ -50,11 +51,10 @@ def test_a_hung_gphoto_call_is_a_camera_error_and_the_camera_is_not_entered_twic
     cam, d610, _ = open_fake(capture_timeout_s=0.2)
     gate = threading.Event()
     real_trigger = d610.trigger_capture
-    d610.trigger_capture = lambda: gate.wait(10) and real_trigger()
-    started = time.monotonic()
+    d610.trigger_capture = lambda: gate.wait(30) and real_trigger()
     with pytest.raises(CameraError, match=r"^capture: the camera did not answer within 0\.7 s") as info:
         cam.expose(0.5)
-    assert time.monotonic() - started < 3.0 and "\n" not in str(info.value)
+    assert "\n" not in str(info.value)              # and it did not wait for the hung call: it is still inside
     with pytest.raises(CameraError, match="has not finished 'capture'"):
         cam.settings()                               # libgphoto2 is still inside capture: refused, not entered
     gate.set()

@@ -3,12 +3,12 @@ shape and width, nothing through a closed shutter, checked against hand computat
 end to end over a real pty, every injected fault included."""
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
 import pytest
 from colour.colorimetry import planck_law
+from transports import TRANSPORTS, assert_port
 
 from dualrgb.drivers.monochromator import protocol as P
 from dualrgb.drivers.monochromator.driver import Cornerstone
@@ -113,18 +113,18 @@ def test_filter_transmittance_and_blocked_position():
 
 
 # ---------------------------------------------------------------------------------------------- over the pty
-@pytest.fixture
-def served():
-    emu = MonochromatorEmulator()
+@pytest.fixture(params=TRANSPORTS)
+def served(request):
+    emu = MonochromatorEmulator(transport=request.param)
     port = emu.start()
+    assert_port(port, request.param)
     yield emu, port
     emu.inject(None)
     emu.stop()
 
 
-def test_real_pty_end_to_end(served):
+def test_end_to_end_over_the_serial_transport(served):
     emu, port = served
-    assert port.startswith("/dev/") and os.path.exists(port)
     with Cornerstone(port, timeout=1.0) as mono:
         assert mono.identify() == "CS130 VER 1.01 EMULATOR"
         mono.prepare()

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from sphere_fakes import FakeClock
+from transports import TRANSPORTS, assert_port
 
 from dualrgb.app.cli import main
 from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
@@ -135,15 +136,18 @@ def test_disconnected_emulator(emu, capsys):
     assert_one_line_error(rc, err)
 
 
-def test_subprocess_emulator_and_cli():
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_subprocess_emulator_and_cli(transport):
     """The real entry points: `dualrgb sphere-emulator` in one process, `dualrgb sphere` in another."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYTHONWARNINGS": "ignore"}
     cmd = [sys.executable, "-c", "import sys; from dualrgb.app.cli import main; sys.exit(main(sys.argv[1:]))"]
-    server = subprocess.Popen(cmd + ["sphere-emulator", "--watchdog", "5"], cwd=ROOT, env=env,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    server = subprocess.Popen(cmd + ["sphere-emulator", "--watchdog", "5", "--transport", transport], cwd=ROOT,
+                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         port = server.stdout.readline().strip()
-        assert port.startswith("/dev/"), (port, server.stderr.read() if server.poll() is not None else "")
+        if server.poll() is not None:
+            pytest.fail(f"the emulator exited: {server.stderr.read()}")
+        assert_port(port, transport)
         ok = subprocess.run(cmd + ["sphere", "--port", port, "--timeout", "1", "identify"], cwd=ROOT, env=env,
                             capture_output=True, text=True, timeout=60)
         assert ok.returncode == 0 and ok.stdout.startswith("model DRGB-SPHERE10-EMU"), ok

@@ -2,13 +2,13 @@
 temperature, dose), the watchdog, and the LedSphere driver end-to-end over a real pty including every fault."""
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import FrozenInstanceError
 
 import numpy as np
 import pytest
 from sphere_fakes import FakeClock
+from transports import TRANSPORTS, assert_port
 
 from dualrgb.drivers.led_sphere import LedSphere, SphereError
 from dualrgb.drivers.led_sphere import protocol as P
@@ -235,19 +235,20 @@ def test_watchdog_with_a_short_real_time():
         emu.stop()
 
 
-# ---------------------------------------------------------------------------------------------- over the pty
-@pytest.fixture
-def lab():
+# ------------------------------------------------------------------- over a serial transport (pty, socket://)
+@pytest.fixture(params=TRANSPORTS)
+def lab(request):
     clock = FakeClock()
-    emu = SphereEmulator(watchdog_s=30, clock=clock)
+    emu = SphereEmulator(watchdog_s=30, clock=clock, transport=request.param)
     port = emu.start()
+    assert_port(port, request.param)
     yield emu, clock, port
     emu.stop()
 
 
-def test_real_pty_end_to_end(lab):
+def test_end_to_end_over_the_serial_transport(lab):
     emu, clock, port = lab
-    assert port.startswith("/dev/") and os.path.exists(port) and emu.port == port
+    assert emu.port == port
     with LedSphere(port, timeout=OK_TIMEOUT) as sphere:
         assert sphere.identify()["model"] == "DRGB-SPHERE10-EMU"
         assert sphere.channel_count() == 10
@@ -275,7 +276,7 @@ def test_real_pty_end_to_end(lab):
     assert not snap.light_on and np.all(snap.levels == 0) and np.all(emu.commanded_levels() == 0)
 
 
-def test_context_manager_over_pty_leaves_leds_off_on_exception(lab):
+def test_context_manager_leaves_leds_off_on_exception(lab):
     emu, clock, port = lab
     with pytest.raises(ZeroDivisionError):
         with LedSphere(port, timeout=OK_TIMEOUT) as sphere:
@@ -316,9 +317,10 @@ def test_each_fault_gives_sphere_error_and_leds_end_off(lab, fault, params, kind
     err = info.value
     assert err.kind == kind, err
     assert "\n" not in str(err)
-    # the failing exchange: two attempts of TIMEOUT at most, then the exit's two off-requests (generous bound,
-    # not a benchmark: the point is that nothing hangs)
-    assert elapsed < 6 * TIMEOUT + 3.0
+    # nothing hangs: the failing exchange takes two attempts of TIMEOUT, then the exit's two off-requests (about
+    # 6 x TIMEOUT; a hang guard far above it, since a loaded machine stretches it; the attempts themselves are
+    # checked byte for byte in test_led_sphere_driver.py)
+    assert elapsed < 60.0
     if needs_watchdog:
         clock.advance(emu.watchdog_s + 1.0)
     snap = emu.snapshot()
@@ -341,7 +343,7 @@ def test_fault_cleared_works_again(lab):
         assert sphere.identify()["serial"] == "EMU-0001"
 
 
-def test_overlong_request_over_pty(lab):
+def test_overlong_request_over_the_transport(lab):
     emu, clock, port = lab
     import serial
     with serial.serial_for_url(port, baudrate=P.BAUDRATE, timeout=1.0) as raw:

@@ -69,9 +69,11 @@ def test_a_status_reply_that_raced_a_switch_on_neither_ends_nor_adopts_it():
     period.off_at = None
     sup.confirm_off(time.monotonic())
     assert sup.adopt(1.0, 10.0, asked) is None       # a period ended after that STATUS? was sent
+    before = time.monotonic()
     adopted = sup.adopt(1.0, 10.0, time.monotonic())
+    after = time.monotonic()
     assert adopted is not None and adopted.deadline == pytest.approx(adopted.t_on + 10.0)
-    assert time.monotonic() - adopted.t_on == pytest.approx(1.0, abs=0.05)
+    assert before - 1.0 <= adopted.t_on <= after - 1.0          # on for 1.0 s when adopted
     sup.stop()
 
 
@@ -90,7 +92,7 @@ def test_lit_seconds_for_the_dose():
 def test_a_second_thread_waits_for_the_port_a_bounded_time():
     class SlowSerial(ScriptedSerial):
         def write(self, data):
-            release.wait(5)                          # one exchange hangs inside the lock
+            release.wait(30)                         # one exchange hangs inside the lock (until released)
             return super().write(data)
     release = threading.Event()
     port = SlowSerial([(b"PING\n", b"OK PING\n"), (b"TEMP?\n", b"OK TEMP 25.00\n")])
@@ -98,10 +100,9 @@ def test_a_second_thread_waits_for_the_port_a_bounded_time():
     holder = threading.Thread(target=sphere.keepalive)
     holder.start()
     time.sleep(0.05)
-    started = time.monotonic()
     with pytest.raises(SphereError, match="the port stayed busy with another request") as info:
         sphere.temperature_c()
-    assert info.value.kind == "timeout" and time.monotonic() - started < 1.0
+    assert info.value.kind == "timeout" and holder.is_alive()   # it gave up while the other request still hangs
     release.set()
     holder.join(5)
     assert sphere.temperature_c() == 25.0

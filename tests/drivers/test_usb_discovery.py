@@ -20,7 +20,7 @@ LED_CONTROLLER = SerialPortInfo(device="/dev/ttyACM0", description="Arduino Uno"
 def probes(monkeypatch):
     """Replace the three hardware probes; tests fill in what each returns (or raises)."""
     state = SimpleNamespace(gphoto=[], usb=RuntimeError("pyusb has no libusb backend"), serial=[BUILTIN_UART],
-                            holders=[], gvfs=[], probe="ok")
+                            holders=[], daemons=[], probe="ok")
 
     def result(value):
         if isinstance(value, Exception):
@@ -31,7 +31,7 @@ def probes(monkeypatch):
     monkeypatch.setattr(ud, "usb_cameras", lambda: result(state.usb))
     monkeypatch.setattr(ud, "serial_ports", lambda: result(state.serial))
     monkeypatch.setattr(ud, "usb_device_holders", lambda bus, address: list(state.holders))
-    monkeypatch.setattr(ud, "gvfs_monitor_pids", lambda: list(state.gvfs))
+    monkeypatch.setattr(ud, "camera_daemons", lambda: list(state.daemons))
     monkeypatch.setattr(ud, "probe_camera", lambda cam: state.probe)
     return state
 
@@ -78,10 +78,19 @@ def test_camera_that_cannot_be_claimed(probes):
 
 def test_running_gvfs_monitor_is_mentioned(probes):
     probes.gphoto = [D610_PTP]
-    probes.gvfs = [31337]
+    probes.daemons = [("gvfs-gphoto2-volume-monitor", 31337)]
     report = discover()
     [hint] = report.hints
     assert "gvfs-gphoto2-volume-monitor is running (pid 31337)" in hint
+    assert "killall -9 ptpcamerad" in hint                      # the advice names macOS' daemon too
+
+
+def test_running_ptpcamerad_is_mentioned(probes):
+    """macOS: the ptpcamerad daemon claims PTP cameras the way gvfs does on Linux."""
+    probes.gphoto = [D610_PTP]
+    probes.daemons = [("ptpcamerad", 512)]
+    [hint] = discover().hints
+    assert hint.startswith("ptpcamerad is running (pid 512)") and "Image Capture" in hint
 
 
 def test_hung_probe_is_abandoned(probes, monkeypatch):

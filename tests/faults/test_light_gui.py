@@ -13,6 +13,7 @@ from light_record import LS1, assert_dark_within
 from PySide6.QtCore import QSettings, Qt
 
 MANUAL_LIMIT_S = 1.0
+HANG_GUARD_MS = 600_000        # waits are hang guards, far above a step's time at load 8 (tests/gui/conftest.py)
 
 CASES = {
     "ON replies lost": ([("no_reply", {"keywords": ["ON"]})], "all LEDs and the light were switched off"),
@@ -35,7 +36,7 @@ def window(qtbot, tmp_path):
     w.close()
 
 
-def idle(qtbot, w, timeout=30000):
+def idle(qtbot, w, timeout=HANG_GUARD_MS):
     qtbot.waitUntil(lambda: not w.runner.busy("devices"), timeout=timeout)
 
 
@@ -55,7 +56,7 @@ def test_light_on_with_lost_replies_ends_dark_and_says_so(qtbot, window, case):
         emulator.inject(fault, **params)
     t0 = emulator.clock()
     qtbot.mouseClick(w.light.on_button, Qt.LeftButton)
-    qtbot.waitUntil(lambda: any(t == "Switch the light" for t, _ in w.errors.history), timeout=30000)
+    qtbot.waitUntil(lambda: any(t == "Switch the light" for t, _ in w.errors.history), timeout=HANG_GUARD_MS)
     qtbot.wait(int((MANUAL_LIMIT_S + 1.0) * 1000))     # the GUI keeps polling STATUS? at 1 Hz meanwhile
     idle(qtbot, w)
     title, message = next((t, m) for t, m in w.errors.history if t == "Switch the light")

@@ -4,14 +4,13 @@ when the action succeeds; a session reopened with other settings is refused, and
 aside."""
 from __future__ import annotations
 
-import pytest
 from PySide6.QtCore import Qt
 
 from dualrgb.app.workflow.day import OriginalState
 from dualrgb.simulation.lightsource import LightSource
-from tests.gui.conftest import wait_idle
+from tests.gui.conftest import HANG_GUARD_MS, wait_idle
 
-LONG = 120000
+LONG = HANG_GUARD_MS
 
 
 def click(qtbot, button):
@@ -30,7 +29,6 @@ def start(qtbot, w):
     return cap
 
 
-@pytest.mark.timeout(300)
 def test_a_mismatching_calibration_is_shown_before_capture(qtbot, make_window):
     w = make_window(frame_size=(96, 64))
     cap = start(qtbot, w)
@@ -63,7 +61,6 @@ def test_a_mismatching_calibration_is_shown_before_capture(qtbot, make_window):
     assert [r.state for r in w.ctx.workspace.queue.rows] == [OriginalState.WAITING]        # nothing was shot
 
 
-@pytest.mark.timeout(120)
 def test_a_dark_test_shot_says_so(qtbot, make_window):
     w = make_window()
     w.lab.start_virtual_lab()
@@ -102,7 +99,6 @@ def test_a_stale_error_leaves_the_status_bar_on_success(qtbot, make_window):
     assert dev.sphere_light.state in ("ok", "on") and dev.sphere_message.text() == ""
 
 
-@pytest.mark.timeout(300)
 def test_reopened_session_checks_its_definition_and_sets_damaged_frames_aside(qtbot, make_window, tmp_path):
     w = make_window(frame_size=(96, 64))
     cap = start(qtbot, w)

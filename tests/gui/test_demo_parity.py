@@ -2,16 +2,14 @@
 app.workflow.session_processing.process_session (the demo holds no processing code of its own)."""
 from __future__ import annotations
 
-import pytest
 from PySide6.QtCore import Qt
 
 from dualrgb.app.demo import DemoSettings, run_demo
-from tests.gui.conftest import wait_idle
+from tests.gui.conftest import HANG_GUARD_MS, wait_idle
 
-LONG = 120000
+LONG = HANG_GUARD_MS
 
 
-@pytest.mark.timeout(600)
 def test_demo_and_gui_report_the_same_numbers(qtbot, make_window, tmp_path):
     data = run_demo(DemoSettings(out=tmp_path / "demo", frame_size=(240, 160), dark_frames=3, flat_frames=2,
                                  optimise_matrix=False, settle_s=0.0, conditions=("dual_rgb", "dual_rgb_pso")))

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from PySide6.QtCore import Qt
 
-from tests.gui.conftest import wait_idle
+from tests.gui.conftest import HANG_GUARD_MS, wait_idle
 
 
 def test_sphere_on_a_missing_port_says_what_to_check(qtbot, make_window):
@@ -69,7 +69,7 @@ def test_virtual_lab_start_and_keyboard_capture(qtbot, make_window):
     assert w.devices.virtual_label.text().startswith("running")
     w.tabs.setCurrentWidget(w.camera)
     w.capture_action.trigger()                              # Ctrl+Enter / F5
-    qtbot.waitUntil(lambda: w.camera.last_view is not None, timeout=60000)
+    qtbot.waitUntil(lambda: w.camera.last_view is not None, timeout=HANG_GUARD_MS)
     assert list((w.ctx.captures_dir / "test-shots").glob("*.DNG"))
 
 
@@ -80,8 +80,8 @@ def test_live_view_updates_picture_and_histogram(qtbot, make_window):
     w.lab.place("open-gate")
     cam = w.camera
     qtbot.mouseClick(cam.live_button, Qt.LeftButton)
-    qtbot.waitUntil(lambda: cam.view_title.text().startswith("live view"), timeout=30000)
-    qtbot.waitUntil(lambda: cam.hist_label.text().startswith("live view"), timeout=30000)
+    qtbot.waitUntil(lambda: cam.view_title.text().startswith("live view"), timeout=HANG_GUARD_MS)
+    qtbot.waitUntil(lambda: cam.hist_label.text().startswith("live view"), timeout=HANG_GUARD_MS)
     assert set(cam.hist_curves) == {"R", "G", "B"}
     qtbot.mouseClick(cam.live_button, Qt.LeftButton)
     assert not cam._live_timer.isActive()

@@ -8,16 +8,15 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 import tifffile
+from xmp_check import read_xmp
 
 from dualrgb.app.workflow.day import DayStep, OriginalState, StepState
-from tests.gui.conftest import click, connect_devices, wait_idle
-from tests.gui.watchdog import StallWatchdog
-from xmp_check import read_xmp
 from dualrgb.app.workflow.vocabulary import EventKind
+from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, wait_idle
+from tests.gui.watchdog import StallWatchdog
 
-LONG = 180000
+LONG = HANG_GUARD_MS
 STALL_LIMIT_S = 0.1
 
 
@@ -182,7 +181,6 @@ def run_pso(qtbot, w):
     assert sim.iter_curve.getData()[0] is not None and len(sim.iter_curve.getData()[0]) == 4
 
 
-@pytest.mark.timeout(900)
 def test_production_day_through_the_gui(qtbot, make_window, tmp_path):
     w = make_window(frame_size=(160, 108))
     dog = StallWatchdog()

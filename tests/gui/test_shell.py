@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.gui.conftest import wait_idle
+from tests.gui.conftest import HANG_GUARD_MS, wait_idle
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -99,7 +99,7 @@ def test_presets_listed_and_applied_to_the_emulated_sphere(qtbot, make_window):
     assert np.allclose(got, want, atol=1e-4)
     qtbot.mouseClick(w.light.on_button, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.LeftButton)
     wait_idle(qtbot, w)
-    qtbot.waitUntil(lambda: w.lab.last_status.get("light_on") is True, timeout=5000)
+    qtbot.waitUntil(lambda: w.lab.last_status.get("light_on") is True, timeout=HANG_GUARD_MS)
     qtbot.mouseClick(w.light.off_button, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.LeftButton)
     wait_idle(qtbot, w)
     assert not w.lab.virtual_lab.emulator.snapshot().light_on
@@ -115,7 +115,7 @@ def test_rename_packaged_preset_saves_a_copy(qtbot, make_window, tmp_path):
     saved = w.ctx.presets_dir / "my_renamed_preset.json"
     assert saved.is_file()
     qtbot.waitUntil(lambda: any(i.preset.name == "my renamed preset" and not i.packaged
-                                for i in w.light.preset_items()), timeout=5000)
+                                for i in w.light.preset_items()), timeout=HANG_GUARD_MS)
 
 
 def test_simulate_defaults_are_the_default_optimiser_on_the_expected_captured_error(make_window):
@@ -136,7 +136,7 @@ def test_simulate_tiny_pso_and_save_preset(qtbot, make_window):
     sim.iterations.setValue(2)
     sim.population.setValue(6)
     sim.start()
-    qtbot.waitUntil(lambda: sim.result is not None, timeout=120000)
+    qtbot.waitUntil(lambda: sim.result is not None, timeout=HANG_GUARD_MS)
     wait_idle(qtbot, w)
     assert len(sim.live) > 10                              # live convergence points arrived during the run
     bests = [b for _, b in sim.live]
@@ -148,7 +148,7 @@ def test_simulate_tiny_pso_and_save_preset(qtbot, make_window):
     wait_idle(qtbot, w)
     preset = load_preset(path)
     assert preset.method == "pso" and len(preset.sources) == 2
-    qtbot.waitUntil(lambda: any(i.preset.name == "gui tiny pso" for i in w.light.preset_items()), timeout=5000)
+    qtbot.waitUntil(lambda: any(i.preset.name == "gui tiny pso" for i in w.light.preset_items()), timeout=HANG_GUARD_MS)
 
 
 def test_simulation_cancel(qtbot, make_window):
@@ -158,7 +158,7 @@ def test_simulation_cancel(qtbot, make_window):
     sim.iterations.setValue(10)
     sim.population.setValue(200)
     sim.start()
-    qtbot.waitUntil(lambda: len(sim.live) > 0, timeout=60000)
+    qtbot.waitUntil(lambda: len(sim.live) > 0, timeout=HANG_GUARD_MS)
     w.cancel_action.trigger()
     wait_idle(qtbot, w)
     # the best light pair found so far is kept, labelled partial (issue 11 item 8)
@@ -182,7 +182,7 @@ def test_simulate_other_methods(qtbot, make_window, method):
     sim.iterations.setValue(2)
     sim.population.setValue(10)
     sim.start()
-    qtbot.waitUntil(lambda: sim.result is not None, timeout=120000)
+    qtbot.waitUntil(lambda: sim.result is not None, timeout=HANG_GUARD_MS)
     wait_idle(qtbot, w)
     assert sim.result.method == method
     assert "baseline" in sim.status.text()

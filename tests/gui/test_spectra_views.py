@@ -4,14 +4,13 @@ compute pool when the light changes) and a clicked pixel's spectrum read from th
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from PySide6.QtCore import QPointF, Qt
 from spectral_profiles import estimator, spectral_profile, stack
 
 from dualrgb.app.gui.results_plots import CELL, PatchSpectra, TargetPlots, TargetView
 from dualrgb.app.workflow.delivered_view import open_delivered
 from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
-from tests.gui.conftest import wait_idle
+from tests.gui.conftest import HANG_GUARD_MS, wait_idle
 
 WL = np.arange(410.0, 790.0, 10.0)
 
@@ -43,13 +42,13 @@ def test_a_clicked_patch_shows_its_estimated_and_reference_spectra(qtbot):
     assert plots.patch == int(np.argmax(view.errors))                    # the worst patch first
     qtbot.waitExposed(plots)
     click_image(qtbot, plots.mosaic_widget, plots.mosaic_item, 2 * CELL + CELL / 2, 1 * CELL + CELL / 2)
-    qtbot.waitUntil(lambda: plots.patch == 5, timeout=5000)               # row 1, column 2 of a 2 x 3 target
+    qtbot.waitUntil(lambda: plots.patch == 5, timeout=HANG_GUARD_MS)               # row 1, column 2 of a 2 x 3 target
     (label_r, ref, _, dashed_r), (label_e, est, _, dashed_e) = plots.spectra.curves
     assert np.array_equal(ref, view.spectra.reference[5]) and np.array_equal(est, view.spectra.estimate[5])
     assert not dashed_r and dashed_e and label_e == "estimate" and "wiener" in plots.spectra.title.text()
     assert f"spectral RMSE {view.spectra.rmse[5]:.4f}" in plots.spectra.title.text()
     click_image(qtbot, plots.heat_widget, plots.heat_item, 0.5, 0.5)    # the heat map: one unit per patch
-    qtbot.waitUntil(lambda: plots.patch == 0, timeout=5000)
+    qtbot.waitUntil(lambda: plots.patch == 0, timeout=HANG_GUARD_MS)
 
 
 def test_without_spectra_the_view_says_so(qtbot):
@@ -61,7 +60,6 @@ def test_without_spectra_the_view_says_so(qtbot):
     assert plots.spectra.curves == [] and "no spectral estimate" in plots.spectra.title.text()
 
 
-@pytest.mark.timeout(120)
 def test_the_delivered_view_renders_under_a_light_and_shows_a_pixel(qtbot, make_window, tmp_path):
     prof = spectral_profile(tmp_path)
     s = stack(40, 60)
@@ -69,17 +67,17 @@ def test_the_delivered_view_renders_under_a_light_and_shows_a_pixel(qtbot, make_
     w = make_window()
     dv = w.originals.delivered
     dv.show_delivery(d.sidecar)
-    qtbot.waitUntil(lambda: dv.view is not None, timeout=30000)
+    qtbot.waitUntil(lambda: dv.view is not None, timeout=HANG_GUARD_MS)
     wait_idle(qtbot, w)
     d65 = dv.image.image.copy()
     assert d65.shape == (40, 60, 3) and d65.dtype == np.uint8
     assert np.array_equal(d65, open_delivered(d.sidecar).render("D65"))    # the workflow's rendering
     dv.illuminant.setCurrentIndex(dv.illuminant.findData("A"))
-    qtbot.waitUntil(lambda: dv.shown_light == "A", timeout=30000)
+    qtbot.waitUntil(lambda: dv.shown_light == "A", timeout=HANG_GUARD_MS)
     assert np.array_equal(dv.image.image, open_delivered(d.sidecar).render("A"))
     qtbot.waitExposed(dv)
     click_image(qtbot, dv.image_widget, dv.image, 7.5, 3.5)
-    qtbot.waitUntil(lambda: dv.pixel == (3, 7), timeout=5000)
+    qtbot.waitUntil(lambda: dv.pixel == (3, 7), timeout=HANG_GUARD_MS)
     (_, values, _, _), = dv.spectrum.curves
     ref = estimator().apply(s.data[3, 7].astype(np.float64))
     assert np.allclose(values, ref, atol=1e-4) and "x 7, y 3" in dv.spectrum.title.text()

@@ -48,7 +48,6 @@ def xvfb_display():
 
 
 @pytest.mark.skipif(bool(xvfb_skip_reason()), reason=xvfb_skip_reason() or "runs")
-@pytest.mark.timeout(600)
 def test_gui_on_the_real_xcb_plugin(xvfb_display, tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("WAYLAND_DISPLAY", "QT_QPA_PLATFORM")}
     env.update(DISPLAY=xvfb_display, QT_QPA_PLATFORM="xcb", HOME=str(tmp_path), PYTHONUNBUFFERED="1")

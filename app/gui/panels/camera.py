@@ -28,6 +28,7 @@ from dualrgb.app.workflow.vocabulary import format_exposure as format_shutter
 from dualrgb.drivers.camera.base import CameraSettings
 
 log = logging.getLogger(__name__)
+CameraReading = tuple[CameraSettings, list[float], list[int]]     # settings, shutter speeds, ISO values
 
 COMMON_ISO = (50, 64, 80, 100, 125, 160, 200, 250, 320, 400, 500, 640, 800, 1000, 1250, 1600, 3200, 6400)
 COMMON_APERTURES = (2.8, 4.0, 5.6, 8.0, 11.0, 16.0, 22.0)
@@ -132,7 +133,7 @@ class CameraPanel(QWidget):
         self.hist_curves = self.histogram.curves
         self.hist_label = QLabel("")
         self.hist_label.setWordWrap(True)
-        right = QSplitter(Qt.Vertical)
+        right = QSplitter(Qt.Orientation.Vertical)
         top = QWidget()
         tl = QVBoxLayout(top)
         tl.setContentsMargins(0, 0, 0, 0)
@@ -177,13 +178,13 @@ class CameraPanel(QWidget):
         if cam is None:
             return
 
-        def work() -> tuple[CameraSettings, list[float], list[int]]:
+        def work() -> CameraReading:
             iso_values = getattr(cam, "iso_values", None)
             return cam.settings(), cam.shutter_speeds(), list(iso_values()) if iso_values else []
 
         self.lab.device_call(work, "Read the camera settings", on_result=self._show_settings)
 
-    def _show_settings(self, result) -> None:
+    def _show_settings(self, result: CameraReading) -> None:
         s, speeds, isos = result
         self.shutter.blockSignals(True)
         self.shutter.clear()
@@ -223,9 +224,14 @@ class CameraPanel(QWidget):
         if cam is None:
             return
         wanted = self.wanted_settings()
-        self.lab.device_call(lambda: (cam.apply(wanted), cam.settings(), cam.shutter_speeds(), [])[1:],
-                             "Apply the camera settings",
-                             on_result=lambda r: (self._show_settings(r), self.ctx.bus.cameraSettingsChanged.emit()))
+        def work() -> CameraReading:
+            cam.apply(wanted)
+            return cam.settings(), cam.shutter_speeds(), []
+
+        def applied(r: CameraReading) -> None:
+            self._show_settings(r)
+            self.ctx.bus.cameraSettingsChanged.emit()
+        self.lab.device_call(work, "Apply the camera settings", on_result=applied)
 
     # ------------------------------------------------------------------ capture
     def capture_shortcut(self) -> None:

@@ -66,7 +66,7 @@ class CapturePanel(QWidget):
         self.lights: list[NamedLight] = []
         self.hdr_plans: dict = {}
         self.hdr_key: tuple[str, bool] = ("", False)
-        self._last_session = None
+        self._last_session: CaptureSession | None = None
         self.view = SequenceView(ctx)
         self.view.start_button.clicked.connect(self.start)
         self.view.finished.connect(self._finished)
@@ -109,9 +109,9 @@ class CapturePanel(QWidget):
                                     "or type one.")
         self.light_table.verticalHeader().hide()
         header = self.light_table.horizontalHeader()
-        header.setSectionResizeMode(0, QHeaderView.ResizeToContents)
-        header.setSectionResizeMode(1, QHeaderView.Stretch)          # the levels wrap; the exposure shows whole
-        header.setSectionResizeMode(2, QHeaderView.ResizeToContents)
+        header.setSectionResizeMode(0, QHeaderView.ResizeMode.ResizeToContents)
+        header.setSectionResizeMode(1, QHeaderView.ResizeMode.Stretch)      # the levels wrap; the exposure shows whole
+        header.setSectionResizeMode(2, QHeaderView.ResizeMode.ResizeToContents)
         self.light_table.setMaximumHeight(130)
         self.light_table.setWordWrap(True)
         self.light_table.itemChanged.connect(lambda _item: self._exposures_edited())
@@ -134,7 +134,7 @@ class CapturePanel(QWidget):
         self.settle.setSuffix(" s")
         self.settle.setValue(self.ctx.get("capture/settle_s", SafetySettings().settle_s, float))
         self.settle.setToolTip("Wait after switching the light on before the shutter opens.")
-        self.settle.valueChanged.connect(lambda v: (self.ctx.set("capture/settle_s", v), self.update_plan()))
+        self.settle.valueChanged.connect(lambda v: self._setting("capture/settle_s", v))
         self.latency = QDoubleSpinBox()
         self.latency.setRange(0.0, 5.0)
         self.latency.setDecimals(2)
@@ -145,7 +145,7 @@ class CapturePanel(QWidget):
         self.latency.setToolTip("Time the camera needs beyond the exposure (trigger, shutter lag, reporting the "
                                 "shutter closed), kept lit. 'the camera's': what the camera reports (measure a "
                                 "real body: python -m dualrgb.drivers.camera.gphoto_latency).")
-        self.latency.valueChanged.connect(lambda v: (self.ctx.set("capture/latency_s", v), self.update_plan()))
+        self.latency.valueChanged.connect(lambda v: self._setting("capture/latency_s", v))
         self.limit_label = QLabel(f"the light is on at most {SafetySettings().max_on_s:g}\u00a0s per frame "
                                   "(settle + exposure + camera latency; LEDs drift after 10\u00a0s, thesis 4.3.2)")
         self.limit_label.setWordWrap(True)
@@ -287,7 +287,7 @@ class CapturePanel(QWidget):
         for r, nl in enumerate(self.lights):
             for c, text in enumerate((f"light {r + 1}", light_pct(nl.light))):
                 item = QTableWidgetItem(text)
-                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
                 self.light_table.setItem(r, c, item)
             self.light_table.setItem(r, 2, QTableWidgetItem(shutter(old.get(nl.name) or 1 / 60)))
         self.light_table.resizeRowsToContents()
@@ -315,8 +315,8 @@ class CapturePanel(QWidget):
 
     def set_exposure(self, name: str, t: float) -> None:
         for r, nl in enumerate(self.lights):
-            if nl.name == name:
-                self.light_table.item(r, 2).setText(shutter(t))
+            if nl.name == name and (cell := self.light_table.item(r, 2)) is not None:
+                cell.setText(shutter(t))
 
     def exposures(self) -> dict[str, list[float]]:
         have = self._table_exposures()
@@ -373,6 +373,11 @@ class CapturePanel(QWidget):
     def _done(self, seq: Sequence) -> list[bool]:
         session = self.lab.session
         return steps_done(session, planned_steps(seq)) if session is not None else []
+
+    def _setting(self, key: str, value: object) -> None:
+        """Remember a setting and show the plan it makes."""
+        self.ctx.set(key, value)
+        self.update_plan()
 
     def update_plan(self) -> None:
         self.view.settle_s = self.settle.value()
@@ -463,7 +468,8 @@ class CapturePanel(QWidget):
 
         def answer(choice: str) -> None:
             if choice == RESHOOT:
-                take = next_take(self.lab.session, planned_steps(seq))
+                session = self.lab.session
+                take = next_take(session, planned_steps(seq)) if session is not None else 1
                 self.view.start(self.build(self.shooter(), take=take))
             else:
                 self.view.start(seq, done)

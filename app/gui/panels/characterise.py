@@ -27,10 +27,10 @@ from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.units import dn, light_pct, shutter, shutters
 from dualrgb.app.gui.viewmodel import LINEAR_LIMIT_DN, light_from_levels
 from dualrgb.app.gui.widgets import plot_widget, side_by_side
-from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.app.sequences.crf_sweep import CrfSweep
 from dualrgb.app.sequences.shooter import SafetySettings, Shooter
 from dualrgb.app.workflow.defaults import SETTLE_S
+from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
@@ -62,10 +62,10 @@ class CharacterisePanel(QWidget):
         self.view = SequenceView(ctx, preview=False)            # the response plot is the live view
         self.view.start_button.clicked.connect(self.start)
         self.view.finished.connect(self._finished)
-        self.view.event.connect(self._event)
+        self.view.run_event.connect(self._event)
         self.result_label = QLabel("")
         self.result_label.setWordWrap(True)
-        self.result_label.setTextFormat(Qt.RichText)
+        self.result_label.setTextFormat(Qt.TextFormat.RichText)
         left = QWidget()
         ll = QVBoxLayout(left)
         ll.addWidget(self._settings_box())
@@ -94,8 +94,7 @@ class CharacterisePanel(QWidget):
         form.addRow("Levels (%)", self.levels)
         form.addRow("Shortest exposure", self.min_t)
         form.addRow("Longest exposure", self.max_t)
-        self.levels.editingFinished.connect(lambda: (self.ctx.set("crf/levels_pct", self.levels.text()),
-                                                     self.update_plan()))
+        self.levels.editingFinished.connect(lambda: self._setting("crf/levels_pct", self.levels.text()))
         self.light.currentIndexChanged.connect(lambda _i: self.update_plan())
         return box
 
@@ -106,8 +105,13 @@ class CharacterisePanel(QWidget):
         spin.setSuffix("\u00a0s")
         spin.setValue(self.ctx.get(key, default, float))
         spin.setToolTip(tip)
-        spin.valueChanged.connect(lambda v: (self.ctx.set(key, v), self.update_plan()))
+        spin.valueChanged.connect(lambda v: self._setting(key, v))
         return spin
+
+    def _setting(self, key: str, value: object) -> None:
+        """Remember a setting and show the plan it makes."""
+        self.ctx.set(key, value)
+        self.update_plan()
 
     def _plots(self) -> QSplitter:
         self.crf_plot = plot_widget("camera response", "exposure time", "mean green above black (DN)",
@@ -125,7 +129,7 @@ class CharacterisePanel(QWidget):
         for p in (self.crf_plot, self.res_plot):
             p.getAxis("bottom").setTicks(time_ticks())
         self.crf_plot.getAxis("left").setTicks(dn_ticks())
-        plots = QSplitter(Qt.Vertical)
+        plots = QSplitter(Qt.Orientation.Vertical)
         plots.addWidget(self.crf_plot)
         plots.addWidget(self.res_plot)
         return plots
@@ -233,7 +237,7 @@ class CharacterisePanel(QWidget):
         for i, (lv, res) in enumerate(seq.results.items()):
             self._residuals(res, lv, LEVEL_PENS[i % len(LEVEL_PENS)])
         self.crf_plot.addItem(pg.InfiniteLine(math.log10(LINEAR_LIMIT_DN), angle=0,
-                                              pen=pg.mkPen("#ef6c00", width=2, style=Qt.DashLine),
+                                              pen=pg.mkPen("#ef6c00", width=2, style=Qt.PenStyle.DashLine),
                                               label="linear limit", labelOpts={"position": 0.95, "color": "#ef6c00"}))
         knee = summary.get("linear_limit_dn")
         flagged = summary.get("flagged_exposures") or []
@@ -253,7 +257,7 @@ class CharacterisePanel(QWidget):
                            symbolBrush=pen, name=f"level {100 * lv:g} %")
         for cp in res.changepoints:                         # where the residuals change level (PELT)
             self.res_plot.addItem(pg.InfiniteLine(np.log10(cp), angle=90, pen=pg.mkPen(pen, width=1,
-                                                                                       style=Qt.DotLine)))
+                                                                                       style=Qt.PenStyle.DotLine)))
         flagged = np.isin(t, res.flagged)
         if flagged.any():
             ring = {"pen": None, "symbol": "o", "symbolSize": 12, "symbolBrush": None,

@@ -355,7 +355,7 @@ class DevicesPanel(QWidget):
         self.place_button.setEnabled(running)
         self.virtual_button.setEnabled(not running)
         self.mode_combo.setEnabled(not running)         # the lab's targets are chosen when it starts
-        if running:
+        if vl is not None:
             self.virtual_label.setText(f"running: sphere emulator on {vl.port}, {vl.width}x{vl.height} frames, "
                                        f"on the stand: {vl.placed or 'nothing'}")
         else:

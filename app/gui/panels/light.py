@@ -47,7 +47,8 @@ def _wavelength_colour(nm: float) -> tuple[int, int, int]:
     for (w0, c0), (w1, c1) in zip(stops, stops[1:], strict=False):
         if nm <= w1:
             t = max(0.0, min(1.0, (nm - w0) / (w1 - w0)))
-            return tuple(int(a + t * (b - a)) for a, b in zip(c0, c1, strict=True))  # type: ignore[return-value]
+            r, g, b = (int(a + t * (z - a)) for a, z in zip(c0, c1, strict=True))
+            return r, g, b
     return stops[-1][1]
 
 
@@ -55,7 +56,7 @@ class PresetItem(QListWidgetItem):
     def __init__(self, path: Path, preset: Preset, packaged: bool):
         super().__init__(preset.name)
         self.path, self.preset, self.packaged = path, preset, packaged
-        self.setFlags(self.flags() | Qt.ItemIsEditable)
+        self.setFlags(self.flags() | Qt.ItemFlag.ItemIsEditable)
         errs = preset.errors.get("test") or preset.errors.get("train") or {}
         sources = "  +  ".join(light_pct(s) for s in preset.sources)
         where = "packaged (renaming saves a copy in your presets folder)" if packaged else str(path)
@@ -81,7 +82,7 @@ class LightPanel(QWidget):
         ll = QVBoxLayout(left)
         ll.addWidget(self._levels_box())
         ll.addWidget(self._switch_box())
-        right = QSplitter(Qt.Vertical)
+        right = QSplitter(Qt.Orientation.Vertical)
         right.addWidget(self._spectrum_plot())
         right.addWidget(self._presets_box())
         side_by_side(self, left, right)
@@ -104,7 +105,7 @@ class LightPanel(QWidget):
         for i in range(N_SPHERE_LEDS):
             r, g, b = _wavelength_colour(self.peaks[i])
             name = QLabel(f"LED {i + 1}  <span style='color:rgb({r},{g},{b})'>■</span> {self.peaks[i]:.0f}\u00a0nm")
-            slider = QSlider(Qt.Horizontal)
+            slider = QSlider(Qt.Orientation.Horizontal)
             slider.setRange(0, SLIDER_STEPS)
             slider.setToolTip(f"Level of LED {i + 1} (peak near {self.peaks[i]:.0f} nm), 0 % = off, 100 % = full")
             spin = QDoubleSpinBox()
@@ -324,7 +325,7 @@ class LightPanel(QWidget):
         self.folder_label.set_path(f"your presets: {folder}")
 
         def work() -> list[tuple[Path, Preset | None, bool, str]]:
-            out = []
+            out: list[tuple[Path, Preset | None, bool, str]] = []
             user = sorted(folder.glob("*.json")) if folder.is_dir() else []
             for path, packaged in [(p, True) for p in packaged_presets()] + [(p, False) for p in user]:
                 try:
@@ -337,7 +338,8 @@ class LightPanel(QWidget):
                                on_error=lambda exc: self.ctx.errors.report("Presets", exc))
 
     def _fill_presets(self, rows) -> None:
-        current = self.presets.currentItem().path if isinstance(self.presets.currentItem(), PresetItem) else None
+        item = self.presets.currentItem()
+        current = item.path if isinstance(item, PresetItem) else None
         self.presets.blockSignals(True)
         self.presets.clear()
         for path, preset, packaged, problem in rows:
@@ -354,7 +356,7 @@ class LightPanel(QWidget):
         self._preset_selected(self.presets.currentItem())
 
     def preset_items(self) -> list[PresetItem]:
-        return [self.presets.item(i) for i in range(self.presets.count())]  # type: ignore[misc]
+        return [item for i in range(self.presets.count()) if isinstance(item := self.presets.item(i), PresetItem)]
 
     def _preset_selected(self, item, _previous=None) -> None:
         if not isinstance(item, PresetItem):
@@ -402,9 +404,11 @@ class LightPanel(QWidget):
         def work() -> Path:
             return save_preset(preset, target)
 
-        self.ctx.runner.submit(work, pool="compute", name="rename preset",
-                               on_result=lambda p: (log.info("preset saved as %s", p),
-                                                    self.ctx.bus.presetsChanged.emit()),
+        def saved(p: Path) -> None:
+            log.info("preset saved as %s", p)
+            self.ctx.bus.presetsChanged.emit()
+
+        self.ctx.runner.submit(work, pool="compute", name="rename preset", on_result=saved,
                                on_error=lambda exc: self.ctx.errors.report("Rename the preset", exc))
 
     def _save_current(self) -> None:

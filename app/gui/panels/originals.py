@@ -78,7 +78,7 @@ class OriginalsPanel(QWidget):
         self._brackets: dict[str, list[float]] = {}
         self.view = SequenceView(ctx)
         self.view.start_button.hide()
-        self.view.event.connect(self._run_event)
+        self.view.run_event.connect(self._run_event)
         self.view.finished.connect(self._run_finished)
         self.delivered = DeliveredView(ctx)
         self._shown: Path | None = None              # the sidecar the Delivered tab shows
@@ -163,7 +163,7 @@ class OriginalsPanel(QWidget):
         form.addRow("CSV columns", self.csv_columns)
         self.import_report = QLabel("")
         self.import_report.setWordWrap(True)
-        self.import_report.setTextInteractionFlags(Qt.TextSelectableByMouse)
+        self.import_report.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         self.import_report.setToolTip("The last CSV import: its bad rows, one line each (row, column, problem).")
         form.addRow(self.import_report)
 
@@ -172,7 +172,7 @@ class OriginalsPanel(QWidget):
         lay = QVBoxLayout(box)
         self.calibration_label = QLabel("")
         self.calibration_label.setWordWrap(True)
-        self.calibration_label.setTextFormat(Qt.RichText)
+        self.calibration_label.setTextFormat(Qt.TextFormat.RichText)
         self.force = QCheckBox("use it although it does not match the stand (the deliverables say so)")
         self.force.setToolTip("A calibration made with another camera, ISO, aperture or a sphere at another "
                               "temperature gives wrong colours; this records a warning in every deliverable.")
@@ -186,8 +186,8 @@ class OriginalsPanel(QWidget):
         lay = QVBoxLayout(box)
         self.table = QTableWidget(0, len(COLUMNS))
         self.table.setHorizontalHeaderLabels(list(COLUMNS))
-        self.table.setSelectionBehavior(QTableWidget.SelectRows)
-        self.table.setEditTriggers(QTableWidget.NoEditTriggers)
+        self.table.setSelectionBehavior(QTableWidget.SelectionBehavior.SelectRows)
+        self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
         self.table.horizontalHeader().setStretchLastSection(True)
         self.table.setWordWrap(True)
         self.table.itemSelectionChanged.connect(self._update_enabled)
@@ -361,7 +361,7 @@ class OriginalsPanel(QWidget):
         virtual = self.lab.is_virtual
         self.stand_in.setVisible(virtual)
         self.stand_in_label.setVisible(virtual)
-        if virtual:
+        if self.lab.virtual_lab is not None:
             self.mode.setCurrentText(self.lab.virtual_lab.mode)
 
     def _update_enabled(self) -> None:
@@ -421,7 +421,8 @@ class OriginalsPanel(QWidget):
                 continue
             if self._refused_mode(row):
                 return
-            takes = original_takes(self.lab.session, row.original)
+            session = self.lab.session
+            takes = original_takes(session, row.original) if session is not None else []
             if takes:
                 self._ask_reshoot(row, takes)
             else:
@@ -474,6 +475,8 @@ class OriginalsPanel(QWidget):
         """Metering, then the original under each light: its base exposure until metering has planned how many
         exposures it needs (the calibration's own exposures, as many as metering asks and it covers: CopyStand)."""
         profile = self.ws.calibration
+        if profile is None:
+            raise ValueError("no calibration is loaded: calibrate, or load a calibration, before capturing")
         plan = [PlannedFrame(Role.METERING.value, profile.base_exposures[nl.name], nl.light.label(),
                              f"metering {row.identifier}") for nl in profile.lights]
         for nl in profile.lights:
@@ -495,13 +498,14 @@ class OriginalsPanel(QWidget):
             return
         if "exposures" in ev.data and "light" in ev.data:        # metering planned this light's exposures
             self._brackets[ev.data["light"]] = list(ev.data["exposures"])
-            if len(self._brackets) == len(self.ws.calibration.lights):
+            calibration = self.ws.calibration
+            if calibration is not None and len(self._brackets) == len(calibration.lights):
                 self.view.replan(self._plan(row, self._brackets))
         if ev.kind in (EventKind.FRAME, EventKind.KEPT) and ev.total and ev.step >= ev.total:
             row.state = OriginalState.CAPTURED              # every frame is in the session; delivering
             self.ws.queue_changed()
 
-    def _run_finished(self, run, outcome: str) -> None:
+    def _run_finished(self, run: StandRun, outcome: str) -> None:
         row = self.current
         if run is not self.run or row is None:
             return

@@ -10,7 +10,7 @@ class NotAvailablePanel(QWidget):
         super().__init__(parent)
         self.title = title
         label = QLabel(f"{title}: not available yet ({what}).")
-        label.setAlignment(Qt.AlignCenter)
+        label.setAlignment(Qt.AlignmentFlag.AlignCenter)
         label.setWordWrap(True)
         lay = QVBoxLayout(self)
         lay.addWidget(label)

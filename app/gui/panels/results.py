@@ -29,12 +29,15 @@ from PySide6.QtWidgets import (
 )
 
 from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.results_plots import PatchSpectra, TargetPlots, TargetView
 from dualrgb.app.gui.units import with_unit
 from dualrgb.app.gui.widgets import PathLabel, side_by_side
 from dualrgb.app.gui.workers import TaskHandle
+from dualrgb.app.protocols import Session
 from dualrgb.app.workflow.session_processing import light_sets, subject_entries
 from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
+from dualrgb.common.progress import CancelToken, ProgressCallback
 
 log = logging.getLogger(__name__)
 
@@ -46,8 +49,8 @@ METRIC_NAMES = {"colour_mean_de00": "colour mean", "colour_p90_de00": "colour p9
                 "noise_max_lstar": "noise (L*)", "illuminance_nonuniformity_pct": "uniformity after flat field"}
 
 
-def process(lab, session, grids: dict, train_subject: str, test_subject: str | None, optimise: bool,
-            progress, cancel, lights: list[str] | None = None, method: str | None = None,
+def process(lab: Lab, session: Session, grids: dict, train_subject: str, test_subject: str | None, optimise: bool,
+            progress: ProgressCallback, cancel: CancelToken, lights: list[str] | None = None, method: str | None = None,
             charts: dict | None = None) -> tuple[object, dict[str, TargetView], Path]:
     """Worker: the TargetSpecs (app.workflow.targets: reference XYZ integrated by ``method``; the stand's own
     ``charts`` when the calibration box names them), the one processing path, the plot data."""
@@ -72,7 +75,7 @@ def process(lab, session, grids: dict, train_subject: str, test_subject: str | N
     views = {}
     for label, spec in specs.items():
         pred = best.matrix.apply(result.patch_values[label])
-        errors = best.train_errors if label == "train" else best.test_errors
+        errors = best.errors(label)
         views[label] = TargetView(spec.label, spec.names, np.asarray(errors), xyz_to_lab(spec.xyz, c.white),
                                   xyz_to_lab(pred, c.white), xyz_to_srgb8(spec.xyz, c.white),
                                   xyz_to_srgb8(pred, c.white), spec.layout or (1, len(spec.names)),
@@ -125,7 +128,7 @@ class ResultsPanel(QWidget):
         scroll = QScrollArea()
         scroll.setWidget(left)
         scroll.setWidgetResizable(True)
-        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarAlwaysOff)       # labels wrap instead
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)       # labels wrap instead
         left.setMinimumWidth(360)
         self.which = QComboBox()
         self.which.addItems(["test", "train"])
@@ -190,7 +193,7 @@ class ResultsPanel(QWidget):
         lay = QVBoxLayout(box)
         self.summary = QLabel("no results yet")
         self.summary.setWordWrap(True)
-        self.summary.setTextFormat(Qt.RichText)
+        self.summary.setTextFormat(Qt.TextFormat.RichText)
         self.badges = QGridLayout()
         self.quality = QLabel("")
         self.quality.setWordWrap(True)
@@ -273,8 +276,12 @@ class ResultsPanel(QWidget):
             lambda progress, cancel: process(lab, session, grids, train, test, optimise, progress, cancel, lights,
                                              method, charts),
             pool="compute", name="process session", pass_progress=True, pass_cancel=True,
-            on_progress=lambda f, m: (self.progress.setValue(int(1000 * f)), self.status.setText(m)),
+            on_progress=self._progress,
             on_result=self.show_result, on_error=self._failed, on_finished=self._finished)
+
+    def _progress(self, fraction: float, message: str) -> None:
+        self.progress.setValue(int(1000 * fraction))
+        self.status.setText(message)
 
     def _failed(self, exc: BaseException) -> None:
         from dualrgb.common.progress import Cancelled
@@ -326,8 +333,8 @@ class ResultsPanel(QWidget):
     def _badges(self, standards: dict) -> None:
         while self.badges.count():
             item = self.badges.takeAt(0)
-            if item.widget():
-                item.widget().deleteLater()
+            if item is not None and (badge := item.widget()) is not None:
+                badge.deleteLater()
         self.badge_labels = {}
         on = standards.get("evaluated_on", "test")
         for r, (std, res) in enumerate(standards["results"].items()):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pyqtgraph as pg
@@ -38,11 +39,12 @@ from dualrgb.app.gui.units import light_pct, time_left_s
 from dualrgb.app.gui.viewmodel import ConvergenceTap, format_duration
 from dualrgb.app.gui.widgets import plot_widget, side_by_side
 from dualrgb.app.gui.workers import TaskHandle
+from dualrgb.common.progress import COMPILING, Cancelled
 from dualrgb.simulation.camera_model import channel_names, effective_sensitivities
 from dualrgb.simulation.datasets import MODES, default_setup
 from dualrgb.simulation.ga import GaSettings
+from dualrgb.simulation.objective import Evaluator
 from dualrgb.simulation.presets import save_preset
-from dualrgb.common.progress import COMPILING, Cancelled
 from dualrgb.simulation.pso import PsoSettings
 from dualrgb.simulation.runner import DEFAULT_METHOD, DEFAULT_OBJECTIVE, METHODS, OBJECTIVES, RunResult, run
 from dualrgb.simulation.search import SearchOutcome
@@ -110,7 +112,7 @@ class SimulatePanel(QWidget):
         self.handle: TaskHandle | None = None
         self.live: list[tuple[int, float]] = []
         self._live_dirty = False
-        self._t_search: float | None = None
+        self._t_search: tuple[float, float] | None = None      # (time, fraction) when the search proper began
         left = QWidget()
         ll = QVBoxLayout(left)
         ll.addWidget(self._search_box())
@@ -170,8 +172,8 @@ class SimulatePanel(QWidget):
         self._load_settings()
         for w in (self.mode, self.method, self.objective):
             w.currentTextChanged.connect(self._save_settings)
-        for w in (self.seed, self.iterations, self.population, self.top):
-            w.valueChanged.connect(self._save_settings)
+        for spin in (self.seed, self.iterations, self.population, self.top):
+            spin.valueChanged.connect(self._save_settings)
         self.method.currentTextChanged.connect(self._method_changed)
         return box
 
@@ -214,9 +216,9 @@ class SimulatePanel(QWidget):
         self.table.setWordWrap(True)
         header = self.table.horizontalHeader()
         for col in (0, 1):                          # the lights wrap; the numbers always show whole
-            header.setSectionResizeMode(col, QHeaderView.Stretch)
+            header.setSectionResizeMode(col, QHeaderView.ResizeMode.Stretch)
         for col in (2, 3):
-            header.setSectionResizeMode(col, QHeaderView.ResizeToContents)
+            header.setSectionResizeMode(col, QHeaderView.ResizeMode.ResizeToContents)
         self.table.currentCellChanged.connect(lambda row, *_: self.show_candidate(row))
         return self.table
 
@@ -227,7 +229,7 @@ class SimulatePanel(QWidget):
         self.iter_plot = plot_widget("best per iteration", "iteration", "mean ΔE00 (train)",
                                      "After the search: the best training error over all light pairs after each "
                                      "iteration (PSO) or generation (GA).")
-        self.iter_curve = self.iter_plot.plot([], [], pen=pg.mkPen("#2e7d32", width=2, style=Qt.DashLine),
+        self.iter_curve = self.iter_plot.plot([], [], pen=pg.mkPen("#2e7d32", width=2, style=Qt.PenStyle.DashLine),
                                               symbol="o", symbolSize=5)
         self.lights_plot = plot_widget("chosen lights", "wavelength (nm)", "relative radiance",
                                        "The two lights of the selected pair (LED spectra times their levels).")
@@ -239,10 +241,10 @@ class SimulatePanel(QWidget):
         self.sens_plot.addLegend(offset=(-10, 10))
         plots = QWidget()
         grid = QVBoxLayout(plots)
-        top_row = QSplitter(Qt.Horizontal)
+        top_row = QSplitter(Qt.Orientation.Horizontal)
         top_row.addWidget(self.conv)
         top_row.addWidget(self.iter_plot)
-        bottom_row = QSplitter(Qt.Horizontal)
+        bottom_row = QSplitter(Qt.Orientation.Horizontal)
         bottom_row.addWidget(self.lights_plot)
         bottom_row.addWidget(self.sens_plot)
         grid.addWidget(top_row)
@@ -256,7 +258,7 @@ class SimulatePanel(QWidget):
         self.figure_combo.setToolTip("Charts of your 'dualrgb study' runs and the packaged reference runs.")
         self.figure_combo.currentIndexChanged.connect(self._show_figure)
         self.figure_label = QLabel("")
-        self.figure_label.setAlignment(Qt.AlignCenter)
+        self.figure_label.setAlignment(Qt.AlignmentFlag.AlignCenter)
         scroll = QScrollArea()
         scroll.setWidget(self.figure_label)
         scroll.setWidgetResizable(True)
@@ -338,13 +340,14 @@ class SimulatePanel(QWidget):
         self.cancel_button.setEnabled(True)
         self.save_button.setEnabled(False)
 
-        def work(progress, cancel, emit) -> RunResult:
+        def work(progress, cancel, emit) -> RunResult | None:
             if stand_profile is not None:
                 return _stand_search(stand_profile, mode, method, seed, top, objective, progress, cancel, emit,
                                      pso_settings=pso_settings, ga_settings=ga_settings)
             setup = default_setup(mode)
             tap = ConvergenceTap.make(setup, lambda n, best: emit((n, best)), objective)
-            evaluator = tap if method != "three-channel" else None
+            # a ConvergenceTap forwards everything but the cost batches to the Evaluator it wraps
+            evaluator = cast(Evaluator, tap) if method != "three-channel" else None
             t0 = time.perf_counter()
             try:
                 return run(setup, method, seed=seed, top=top, pso_settings=pso_settings, ga_settings=ga_settings,
@@ -442,7 +445,7 @@ class SimulatePanel(QWidget):
                       f"{_de(c.expected_test)} / {_de(c.test)}")
             for col, v in enumerate(values):
                 item = QTableWidgetItem(v + (" (partial)" if partial and col == 2 else ""))
-                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
                 item.setToolTip(f"{c.sources[col].label()} (levels 0..1)" if col < 2 else v)
                 self.table.setItem(r, col, item)
         self.table.resizeRowsToContents()
@@ -450,7 +453,7 @@ class SimulatePanel(QWidget):
     def _show_history(self, result: RunResult) -> None:
         """Best per iteration: only finite values (an iteration with no finite cost is left out); a method
         without iterations says so instead of an empty axis."""
-        hist = np.asarray(result.outcome.history or [], dtype=float)
+        hist = np.asarray((result.outcome.history if result.outcome else None) or [], dtype=float)
         keep = np.isfinite(hist)
         if not keep.any():
             self.iter_curve.setData([], [])
@@ -480,7 +483,7 @@ class SimulatePanel(QWidget):
             block /= block.max() or 1.0
         self.sens_plot.clear()
         for j, name in enumerate(channel_names(len(lights))):
-            style = Qt.SolidLine if name.endswith("1") else Qt.DashLine
+            style = Qt.PenStyle.SolidLine if name.endswith("1") else Qt.PenStyle.DashLine
             self.sens_plot.plot(wl, sens[:, j], pen=pg.mkPen(CHANNEL_COLOURS[name[0]], width=2, style=style),
                                 name=name)
 
@@ -503,10 +506,12 @@ class SimulatePanel(QWidget):
             preset.model["stand"] = self.result.extra["stand"]["model"]
         slug = "".join(c if c.isalnum() or c in "-_" else "_" for c in name).strip("_") or "preset"
         path = self.ctx.presets_dir / f"{slug}.json"
+
+        def saved(p: Path) -> None:
+            self.status.setText(f"preset saved: {p}")
+            self.ctx.bus.presetsChanged.emit()
         self.ctx.runner.submit(lambda: save_preset(preset, path), pool="compute", name="save preset",
-                               on_result=lambda p: (self.status.setText(f"preset saved: {p}"),
-                                                    self.ctx.bus.presetsChanged.emit()),
-                               on_error=lambda exc: self.ctx.errors.report("Save the preset", exc))
+                               on_result=saved, on_error=lambda exc: self.ctx.errors.report("Save the preset", exc))
         return path
 
     # ------------------------------------------------------------------ study charts

@@ -111,7 +111,7 @@ class TargetPanel(QWidget):
         self.view, self.image_item, self.viewbox = image_widget(
             "The target as captured (raw, one light, brightened). Yellow: the grid; green: what is measured.")
         self.cells = pg.PlotDataItem(pen=pg.mkPen("#00e676", width=1), connect="finite")
-        self.outline = pg.PlotDataItem(pen=pg.mkPen("#ffd600", width=1, style=Qt.DashLine), connect="finite")
+        self.outline = pg.PlotDataItem(pen=pg.mkPen("#ffd600", width=1, style=Qt.PenStyle.DashLine), connect="finite")
         self.labels: list[pg.TextItem] = []
         self.viewbox.addItem(self.outline)
         self.viewbox.addItem(self.cells)
@@ -189,8 +189,11 @@ class TargetPanel(QWidget):
         entries = self.subjects.get(key, {}).get(light, [])
         if not entries:
             return
+        session = self.lab.session
+        if session is None:
+            return
         entry = sorted(entries, key=lambda e: e.exposure_s or 0.0)[0]
-        path = self.lab.session.file_path(entry)
+        path = session.file_path(entry)
 
         def work() -> np.ndarray:
             from dualrgb.drivers.raw import load_raw, superpixel
@@ -245,6 +248,8 @@ class TargetPanel(QWidget):
 
     def move_handle(self, index: int, x: float, y: float) -> None:
         """What dragging handle ``index`` to image point (x, y) does (used by tests and the screenshot run)."""
+        if self.roi is None:                        # no image shown yet: nothing to drag
+            return
         handle = self.roi.getHandles()[index]
         self.roi.movePoint(handle, self.roi.mapFromParent(QPointF(x, y)))
 
