@@ -200,3 +200,21 @@ def test_cancel_in_processing_keeps_the_calibration_and_a_delivery(qtbot, make_w
     print(f"[cancel latency] delivery: {bands.after} bands encoded after the cancel")
     assert bands.after == 0 and ws.queue.row("PAINT-1").state is not OriginalState.DELIVERED
     assert not list(tmp_path.rglob("PAINT-1*.tif"))
+
+
+def test_cancel_during_the_compile_says_it_waits_for_it(make_window):
+    """Numba's one-off compile cannot be interrupted: a Cancel then says the search stops after it."""
+    from types import SimpleNamespace
+
+    from dualrgb.common.progress import COMPILING
+
+    sim = make_window().simulate
+    cancelled = []
+    sim.handle = SimpleNamespace(running=True, cancel=lambda: cancelled.append(True))
+    sim._progress(0.0, COMPILING)
+    sim.cancel_running()
+    assert cancelled and "after the kernels' one-off compile" in sim.status.text()
+    sim._progress(0.5, "PSO: 10/630 light sets")
+    sim.cancel_running()
+    assert sim.status.text() == "cancelling …"
+    sim.handle = None
