@@ -128,11 +128,12 @@ def camera_definition_of(camera: Camera) -> dict[str, Any]:
 
 
 def stand_definition(mode: str, camera: Camera | None = None, lab: VirtualLab | None = None) -> dict[str, Any]:
-    """A session's definition from the stand: the mode, the virtual lab's frame size, the camera
-    (:func:`camera_definition_of`)."""
+    """A session's definition from the stand: the mode, the virtual lab's frame size and world (as the CLI's
+    ``world``: a session shot in one world is never resumed in another), the camera (:func:`camera_definition_of`)."""
     out: dict[str, Any] = {"mode": lab.mode if lab is not None else mode}
     if lab is not None:
         out["frame_size"] = [lab.width, lab.height]
+        out["world"] = lab.world.identity
     if camera is not None:
         out.update(camera_definition_of(camera))
     return out

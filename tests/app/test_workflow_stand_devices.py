@@ -95,3 +95,17 @@ def test_a_sphere_that_fails_to_open_is_closed_and_says_the_light_state(monkeypa
     with pytest.raises(SphereError) as info:
         stand_devices.open_sphere("/dev/ttyX")
     assert made[0].closed is True and "switched off" in " ".join(info.value.__notes__)
+
+
+def test_a_virtual_session_records_the_world_as_the_cli_does():
+    """The GUI's session definition names the virtual lab's world under the key the CLI's uses (virtual_world),
+    so neither front end resumes a session of one world in another."""
+    from types import SimpleNamespace
+
+    from dualrgb.drivers.virtual.world import load_world
+
+    world = load_world(None)
+    lab = SimpleNamespace(mode="transmissive", width=96, height=64, world=world)
+    out = stand_devices.stand_definition("reflective", None, lab)          # type: ignore[arg-type]
+    assert out == {"mode": "transmissive", "frame_size": [96, 64], "world": world.identity}
+    assert stand_devices.stand_definition("reflective") == {"mode": "reflective"}
