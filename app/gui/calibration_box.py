@@ -29,11 +29,11 @@ from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.viewmodel import calibration_lines
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.sequences.base import ProgressEvent
-from dualrgb.app.sequences.shooter import Shooter
 from dualrgb.app.workflow.charts import load_charts
 from dualrgb.app.workflow.copystand import StandSettings
 from dualrgb.app.workflow.defaults import workflow_defaults
-from dualrgb.app.workflow.metering import AutoExposure
+from dualrgb.app.workflow.engine import Run, RunHooks
+from dualrgb.app.workflow.plans import StandPlanner
 from dualrgb.app.workflow.profile import (
     CalibrationProfile,
     CameraIdentity,
@@ -42,7 +42,6 @@ from dualrgb.app.workflow.profile import (
     check_reuse,
     load_profile,
 )
-from dualrgb.app.workflow.runs import RunHooks, StandRun
 from dualrgb.app.workflow.vocabulary import Subject
 
 log = logging.getLogger(__name__)
@@ -52,14 +51,14 @@ CALIBRATION_RUN = "calibration"
 
 class CalibrationBox(QGroupBox):
     def __init__(self, ctx: AppContext, view: SequenceView, stand_settings: Callable[[], StandSettings],
-                 plan_shooter: Callable[[], Shooter], parent: QWidget | None = None):
+                 plans: Callable[[], StandPlanner], parent: QWidget | None = None):
         super().__init__("Calibration (once a day, or when something changes)", parent)
         self.ctx = ctx
         self.ws = ctx.workspace
         self.view = view
         self.stand_settings = stand_settings
-        self.plan_shooter = plan_shooter
-        self.run: StandRun | None = None
+        self.plans = plans
+        self.run: Run | None = None
         self._build()
         self.ws.calibrationChanged.connect(self.show_calibration)
         view.run_event.connect(self._run_event)
@@ -135,7 +134,7 @@ class CalibrationBox(QGroupBox):
             self.ctx.errors.report("Calibrate", "choose the preset whose lights the day uses first")
             return
         try:
-            plan = AutoExposure(self.plan_shooter(), list(ws.lights)).plan()
+            plan = self.plans().auto_exposure(list(ws.lights)).plan()
             if lab.camera is None or lab.sphere is None:
                 raise ValueError("connect the LED sphere and the camera in Devices first")
             charts = load_charts(self.charts.choices(), ws.preset.mode)     # a chart file's problem: before the light
@@ -167,7 +166,7 @@ class CalibrationBox(QGroupBox):
         except ValueError as exc:
             self.ctx.errors.report("Calibrate", exc)
             return
-        self.run = StandRun(CALIBRATION_RUN, plan, work)
+        self.run = Run(CALIBRATION_RUN, plan, work)
         self.view.start(self.run)
 
     def _run_event(self, ev: ProgressEvent) -> None:

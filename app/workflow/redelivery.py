@@ -105,7 +105,7 @@ def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Origin
                        dose=original_dose(session, subject),
                        exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
                        extra={"session": str(session.path), "reprocessed": True}, render_illuminant=render_illuminant,
-                       overrides=[override] if override else [])
+                       overrides=[override] if override else [], cancel=cancel)
 
 
 def _known_original(session: Any, known: dict, identifier: str) -> Original:

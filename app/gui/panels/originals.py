@@ -47,11 +47,11 @@ from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.copystand import CaptureReport, StandSettings, original_takes
 from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
 from dualrgb.app.workflow.defaults import SETTLE_S
+from dualrgb.app.workflow.engine import Run, RunHooks
 from dualrgb.app.workflow.metadata import MODES, Original
 from dualrgb.app.workflow.mode_rule import mode_problem
 from dualrgb.app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
 from dualrgb.app.workflow.queue_plan import plan_queue
-from dualrgb.app.workflow.runs import RunHooks, StandRun
 from dualrgb.app.workflow.vocabulary import EventKind, Role
 
 log = logging.getLogger(__name__)
@@ -74,7 +74,7 @@ class OriginalsPanel(QWidget):
         self.current: QueueRow | None = None
         self.batch: list[str] = []                  # identifiers still to capture in this batch
         self.mode_overrides: set[str] = set()        # originals the technician chose to capture in another mode
-        self.run: StandRun | None = None
+        self.run: Run | None = None
         self._brackets: dict[str, list[float]] = {}
         self.view = SequenceView(ctx)
         self.view.start_button.hide()
@@ -468,7 +468,7 @@ class OriginalsPanel(QWidget):
         self._brackets = {}
         row.state, row.qa = OriginalState.CAPTURING, ""
         self.ws.queue_changed()
-        self.run = StandRun(row.identifier, self._plan(row, {}), work)
+        self.run = Run(row.identifier, self._plan(row, {}), work)
         self.view.start(self.run)
 
     def _plan(self, row: QueueRow, brackets: dict[str, list[float]]) -> list[PlannedFrame]:
@@ -505,7 +505,7 @@ class OriginalsPanel(QWidget):
             row.state = OriginalState.CAPTURED              # every frame is in the session; delivering
             self.ws.queue_changed()
 
-    def _run_finished(self, run: StandRun, outcome: str) -> None:
+    def _run_finished(self, run: Run, outcome: str) -> None:
         row = self.current
         if run is not self.run or row is None:
             return
