@@ -26,6 +26,7 @@ from PySide6.QtWidgets import (
 from dualrgb.app.gui.charts_form import ChartsForm
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
+from dualrgb.app.gui.stand_options import CalibrationSampling
 from dualrgb.app.gui.viewmodel import calibration_lines
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.sequences.base import ProgressEvent
@@ -114,6 +115,8 @@ class CalibrationBox(QGroupBox):
         form.addRow("Darks per exposure", self.dark_frames)
         form.addRow("Flats per exposure", self.flat_frames)
         form.addRow(self.de_fit)
+        self.sampling = CalibrationSampling(self.ctx)       # --target-width-mm, --ppi (app.gui.stand_options)
+        form.addRow(self.sampling)
         form.addRow(row)
         form.addRow(self.summary)
         self.path_label = PathLabel("")
@@ -150,6 +153,7 @@ class CalibrationBox(QGroupBox):
         settings = self.stand_settings()
         settings.dark_frames, settings.flat_frames = self.dark_frames.value(), self.flat_frames.value()
         settings.optimise_matrix = self.de_fit.isChecked()
+        settings.ppi, settings.target_width_mm = (self.sampling.stand_fields()[k] for k in ("ppi", "target_width_mm"))
         settings.charts = dict(charts or {})
         preset, lights, hdr = ws.preset, list(ws.lights), self.hdr_auto.isChecked()
         grids = {n: ws.grids[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in ws.grids}
