@@ -123,3 +123,154 @@ def test_redeliver_cancels_and_keeps_every_original_whole(qtbot, make_window, ca
         assert side["calibration"]["id"] in ("cal-test", "cal-other")
         assert all((session / "deliverables" / ident / name).exists() for name in side["files"].values())
     assert view.start_button.isEnabled() and not view.cancel_button.isEnabled()
+
+
+# ---------------------------------------------------------------- focus and framing
+def texture(h: int = 120, w: int = 160, seed: int = 1) -> np.ndarray:
+    """A painting-like test picture: random brush marks at several scales (uint8 RGB)."""
+    rng = np.random.default_rng(seed)
+    base = sum(ndimage.zoom(rng.uniform(0, 1, (h // s, w // s)), s, order=0)[:h, :w] for s in (1, 2, 4, 8))
+    grey = 40 + 180 * (base - base.min()) / np.ptp(base)
+    return np.repeat(grey[:, :, None], 3, axis=2).astype(np.uint8)
+
+
+def test_the_focus_measure_rises_as_the_view_gets_sharper():
+    sharp = texture().astype(float)
+    values = [tenengrad(ndimage.gaussian_filter(sharp, (s, s, 0))) for s in (4.0, 2.0, 1.0, 0.5)] + [tenengrad(sharp)]
+    assert all(a < b for a, b in zip(values, values[1:], strict=False)), values
+    assert tenengrad(sharp * 0.5) == pytest.approx(tenengrad(sharp))     # a dimmer light is not a focus change
+    assert tenengrad(np.full((20, 20, 3), 128.0)) == 0.0 and tenengrad(np.zeros((20, 20))) == 0.0
+
+
+def test_live_view_zoom_box_and_focus_plot(qtbot, make_window):
+    w = make_window()
+    connect_devices(qtbot, w)
+    cam = w.camera
+    w.show_panel("camera")
+    click(qtbot, cam.live_button)
+    qtbot.waitUntil(lambda: len(cam.focus.values) >= 2, timeout=LONG)
+    assert cam.focus.roi.isVisible()                          # the box is drawn where it measures
+    x, y, bw, bh = cam.focus.region(cam.image.image.shape)
+    assert cam.focus.zoom.pixmap().width() == bw and cam.focus.zoom.pixmap().height() == bh     # 100 %
+    click(qtbot, cam.live_button)                             # stop: frames from here on are ours
+    wait_idle(qtbot, w)
+    cam.focus.roi.setPos((0, 0))                              # as a drag ends: a new region, the plot starts over
+    assert len(cam.focus.values) == 0 and cam.focus.box[:2] == (0, 0)
+    sharp = texture(cam.image.image.shape[0], cam.image.image.shape[1])
+    blurred = ndimage.gaussian_filter(sharp, (2, 2, 0))
+    cam.live_button.setChecked(True)
+    wait_idle(qtbot, w)
+    for frame in (blurred, sharp):                            # the focus ring turned towards focus
+        cam._show_preview((frame, None))
+    assert cam.focus.values[-1] > cam.focus.values[-2] and cam.focus.best == cam.focus.values[-1]
+    assert "focus" in cam.focus.label.text()
+    cam.live_button.setChecked(False)
+
+
+def test_the_framing_light_stays_within_its_cap_and_is_renewed(qtbot, make_window):
+    w = make_window()
+    connect_devices(qtbot, w)
+    emulator = w.lab.virtual_lab.emulator
+    cap = 1.5
+    w.light.max_on.setValue(cap)                              # the manual light's cap: the framing light's too
+    cam = w.camera
+    w.show_panel("camera")
+    click(qtbot, cam.live_button)
+    qtbot.waitUntil(lambda: len(cam.focus.values) >= 1, timeout=LONG)
+    dark_view = float(np.mean(cam.image.image))               # the light off: what "black" is here
+    start = emulator.clock()
+    qtbot.mouseClick(cam.framing_box.check, Qt.LeftButton)
+    assert cam.framing.active and cam.framing_box.check.isChecked(), cam.framing_box.state.text()
+    qtbot.waitUntil(lambda: len(cam.framing.periods) >= 4, timeout=LONG)      # renewed three times
+    qtbot.waitUntil(lambda: emulator.snapshot().light_on, timeout=LONG)
+    qtbot.waitUntil(lambda: float(np.mean(cam.image.image)) > dark_view + 2.0, timeout=LONG)   # not black
+    # the GUI stops renewing (as if it hung or died): the light goes off at the cap by itself
+    cam.framing._renew.stop()
+    qtbot.waitUntil(lambda: not emulator.snapshot().light_on, timeout=LONG)
+    record = [i for i in emulator.light_record() if i.t_on >= start]
+    assert len(record) >= 4
+    for interval in record:
+        assert interval.t_off is not None and interval.duration_s <= cap + 0.05, interval
+        assert max(interval.levels) <= MAX_FRAMING_LEVEL + 1e-4, interval
+    assert sum(i.ended_by == "LIGHT 0" for i in record) >= 3          # renewed: switched off, then on again
+    assert all(p.max_on_s == cap for p in cam.framing.periods)
+    click(qtbot, cam.live_button)                             # live view off: the framing light goes too
+    wait_idle(qtbot, w)
+    assert not cam.framing.active and not cam.framing_box.check.isChecked()
+    assert "framing light off" in cam.framing_box.state.text() and "lit periods" in cam.framing_box.state.text()
+    assert not emulator.snapshot().light_on and np.allclose(emulator.snapshot().levels, 0)
+    dose = w.lab.last_status.get("dose")
+    assert dose is not None and dose.on_s > 0                 # counted in the light dose (the status polls)
+
+
+# ---------------------------------------------------------------- measuring the camera and the LEDs
+def test_measure_the_camera_on_the_virtual_lab(qtbot, make_window, tmp_path):
+    w = make_window()
+    view = w.tools.measure_camera
+    w.show_panel("tools")
+    w.tools.tabs.setCurrentWidget(view)
+    view.start_nm.setValue(500.0)
+    view.end_nm.setValue(600.0)
+    view.step_nm.setValue(50.0)
+    view.frames.setValue(1)
+    view.out.setText(str(tmp_path / "m" / "camera.csv"))
+    click(qtbot, view.start_button)
+    qtbot.waitUntil(lambda: view.view.outcome != "", timeout=LONG)
+    wait_idle(qtbot, w)
+    assert view.view.outcome == "done", (view.view.message.text(), w.errors.history)
+    csv = tmp_path / "m" / "camera.csv"
+    assert csv.exists() and view.files_label.full_text() == str(csv)
+    assert (tmp_path / "m" / "camera-session" / "radiance-virtual.csv").exists()
+    text = csv.read_text()
+    assert "500" in text and "600" in text
+    assert "RMS % of peak" in view.result_label.text()
+    assert len(view.plot.getPlotItem().listDataItems()) == 3                 # R, G, B
+
+
+def test_a_prompt_of_a_hand_set_monochromator_is_a_dialog(qtbot, make_window, tmp_path):
+    w = make_window()
+    connect_devices(qtbot, w)
+    radiance = tmp_path / "radiance.csv"
+    radiance.write_text("wavelength_nm,radiance\n500,1.0\n550,1.0\n600,1.0\n")
+    view = w.tools.measure_camera
+    view.bench.setCurrentIndex(view.bench.findData("manual"))
+    view.start_nm.setValue(500.0)
+    view.end_nm.setValue(600.0)
+    view.step_nm.setValue(50.0)
+    view.radiance.setText(str(radiance))
+    view.out.setText(str(tmp_path / "hand" / "camera.csv"))
+    w.asker.scripted = ["Cancel the measurement"]
+    click(qtbot, view.start_button)
+    qtbot.waitUntil(lambda: view.view.outcome != "", timeout=LONG)
+    wait_idle(qtbot, w)
+    assert w.asker.history and w.asker.history[0][1].startswith("Set the monochromator to 500 nm")
+    assert view.view.outcome == "cancelled" and not (tmp_path / "hand" / "camera.csv").exists()
+    assert "nothing written" in view.result_label.text()
+
+
+def test_measure_the_leds_on_the_virtual_lab(qtbot, make_window, tmp_path):
+    w = make_window()
+    view = w.tools.measure_leds
+    view.warmup_min.setValue(0.5)
+    view.out.setText(str(tmp_path / "stand"))
+    click(qtbot, view.start_button)
+    qtbot.waitUntil(lambda: view.view.outcome != "", timeout=LONG)
+    wait_idle(qtbot, w)
+    assert view.view.outcome == "done", (view.view.message.text(), w.errors.history)
+    names = {p.name for p in view.written}
+    assert {"leds.csv", "stand.json"} <= names and all(p.exists() for p in view.written)
+    assert len(view.plot.getPlotItem().listDataItems()) == 10                # a spectrum per LED
+    assert "10 LEDs measured" in view.result_label.text()
+
+
+def test_measuring_the_leds_cancels(qtbot, make_window, tmp_path):
+    w = make_window()
+    view = w.tools.measure_leds
+    view.out.setText(str(tmp_path / "stand"))
+    click(qtbot, view.start_button)
+    assert view.view.cancel_button.isEnabled()
+    w.cancel_action.trigger()                                 # Esc, as everywhere
+    qtbot.waitUntil(lambda: view.view.outcome != "", timeout=LONG)
+    wait_idle(qtbot, w)
+    assert view.view.outcome == "cancelled" and "nothing written" in view.result_label.text()
+    assert not (tmp_path / "stand" / "stand.json").exists()
