@@ -61,6 +61,7 @@ class CalibrationBox(QGroupBox):
         self.stand_settings = stand_settings
         self.plan_shooter = plan_shooter
         self.run: StandRun | None = None
+        self.sampling = CalibrationSampling(ctx)            # --target-width-mm, --ppi (app.gui.stand_options)
         self._build()
         self.ws.calibrationChanged.connect(self.show_calibration)
         view.run_event.connect(self._run_event)
@@ -115,7 +116,6 @@ class CalibrationBox(QGroupBox):
         form.addRow("Darks per exposure", self.dark_frames)
         form.addRow("Flats per exposure", self.flat_frames)
         form.addRow(self.de_fit)
-        self.sampling = CalibrationSampling(self.ctx)       # --target-width-mm, --ppi (app.gui.stand_options)
         form.addRow(self.sampling)
         form.addRow(row)
         form.addRow(self.summary)

@@ -71,7 +71,7 @@ def test_redeliver_with_another_calibration(qtbot, make_window, captured_session
         assert side["ppi"] == 600.0
         folder = session / "deliverables" / ident
         assert (folder / f"{ident}_under_A_prophoto_16bit.tif").exists()            # the rendering light chosen
-        previous = [p for p in (folder / "previous").rglob(f"{ident}.json")]
+        previous = list((folder / "previous").rglob(f"{ident}.json"))
         assert previous and json.loads(previous[0].read_text())["calibration"]["id"] == "cal-test"
     # the options are remembered in the window's settings (the same keys as the Originals panel's)
     assert w.ctx.get("options/render_illuminant", "", str) == "A"
@@ -274,3 +274,32 @@ def test_measuring_the_leds_cancels(qtbot, make_window, tmp_path):
     wait_idle(qtbot, w)
     assert view.view.outcome == "cancelled" and "nothing written" in view.result_label.text()
     assert not (tmp_path / "stand" / "stand.json").exists()
+
+
+# ---------------------------------------------------------------- the capture options reach the workflow
+def test_capture_options_reach_the_sidecar(qtbot, make_window, tmp_path):
+    """Originals' rendering light and ppi, remembered, go to the original's delivery through StandSettings."""
+    profile = make_profile(tmp_path / "cal", shape=(80, 120), estimator=estimator(), spectral=SPECTRAL)
+    w = make_window()
+    connect_devices(qtbot, w)
+    w.capture.calibration.load(profile.path)
+    qtbot.waitUntil(lambda: w.ctx.workspace.calibration_check is not None, timeout=LONG)
+    org = w.originals
+    w.show_panel("originals")
+    org.delivery_options.render_light.setCurrentIndex(org.delivery_options.render_light.findData("FL11"))
+    org.delivery_options.ppi.setValue(450.0)
+    org.resolution.setCurrentIndex(org.resolution.findData("half"))
+    org.identifier.setText("OPT-1")
+    click(qtbot, org.add_button)
+    org.force.setChecked(True)                                # the test calibration is another camera's
+    org.select("OPT-1")
+    click(qtbot, org.capture_button)
+    row = w.ctx.workspace.queue.row("OPT-1")
+    qtbot.waitUntil(lambda: row.state.value in ("delivered", "failed"), timeout=LONG)
+    wait_idle(qtbot, w)
+    assert row.state.value == "delivered", (row.qa, w.errors.history)
+    side = json.loads(row.sidecar.read_text())
+    assert side["ppi"] == 450.0 and side["resolution"]["mode"] == "half"
+    assert (row.sidecar.parent / "OPT-1_under_FL11_prophoto_16bit.tif").exists()
+    again = make_window()                                     # remembered in the window's settings
+    assert again.originals.delivery_options.stand_fields() == {"render_illuminant": "FL11", "ppi": 450.0}
