@@ -71,6 +71,14 @@ def given(spin: QDoubleSpinBox) -> float | None:
     return float(spin.value()) if spin.value() > 0 else None
 
 
+def rows(parent: QWidget, *pairs: tuple[str, QWidget]) -> None:
+    """``parent``'s layout: a form of (label, widget) rows without margins (they sit inside another form)."""
+    form = QFormLayout(parent)
+    form.setContentsMargins(0, 0, 0, 0)
+    for label, widget in pairs:
+        form.addRow(label, widget)
+
+
 class DeliveryOptions(QWidget):
     """Rows of the Originals form: the rendering light and the deliverables' ppi (``dualrgb capture``)."""
 
@@ -80,10 +88,7 @@ class DeliveryOptions(QWidget):
         self.ppi = number_spin(ctx, PPI_KEY, MAX_PPI, "\u00a0ppi", "the calibration's",
                                "Sampling written into the deliverables (dualrgb capture --ppi); leave at the "
                                "calibration's (from its test target) unless the stand's scale is known otherwise.")
-        form = QFormLayout(self)
-        form.setContentsMargins(0, 0, 0, 0)
-        form.addRow("Rendering light", self.render_light)
-        form.addRow("Sampling", self.ppi)
+        rows(self, ("Rendering light", self.render_light), ("Sampling", self.ppi))
 
     def stand_fields(self) -> dict[str, Any]:
         """The StandSettings fields these set, as ``dualrgb capture`` fills them."""
@@ -101,10 +106,7 @@ class CalibrationSampling(QWidget):
         self.ppi = number_spin(ctx, CAL_PPI_KEY, MAX_PPI, "\u00a0ppi", "from the target",
                                "The sensor's sampling at the object plane (dualrgb calibrate --ppi); it overrides "
                                "the target's width.")
-        form = QFormLayout(self)
-        form.setContentsMargins(0, 0, 0, 0)
-        form.addRow("Test target width", self.target_width)
-        form.addRow("Sampling", self.ppi)
+        rows(self, ("Test target width", self.target_width), ("Sampling", self.ppi))
 
     def stand_fields(self) -> dict[str, Any]:
         """The StandSettings fields these set, as ``dualrgb calibrate`` fills them."""

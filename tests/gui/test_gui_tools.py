@@ -193,6 +193,8 @@ def test_the_framing_light_stays_within_its_cap_and_is_renewed(qtbot, make_windo
         assert interval.t_off is not None and interval.duration_s <= cap + 0.05, interval
         assert max(interval.levels) <= MAX_FRAMING_LEVEL + 1e-4, interval
     assert sum(i.ended_by == "LIGHT 0" for i in record) >= 3          # renewed: switched off, then on again
+    gaps = [b.t_on - a.t_off for a, b in zip(record, record[1:], strict=False) if a.ended_by == "LIGHT 0"]
+    print(f"framing light: dark between renewed periods {1000 * min(gaps):.0f}-{1000 * max(gaps):.0f} ms")
     assert all(p.max_on_s == cap for p in cam.framing.periods)
     click(qtbot, cam.live_button)                             # live view off: the framing light goes too
     wait_idle(qtbot, w)
