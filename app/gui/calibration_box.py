@@ -45,6 +45,7 @@ from dualrgb.app.workflow.profile import (
 )
 from dualrgb.app.workflow.runs import RunHooks, StandRun
 from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
@@ -142,18 +143,20 @@ class CalibrationBox(QGroupBox):
             if lab.camera is None or lab.sphere is None:
                 raise ValueError("connect the LED sphere and the camera in Devices first")
             charts = load_charts(self.charts.choices(), ws.preset.mode)     # a chart file's problem: before the light
+            start = self.sampling.measured(ws.preset.sources)       # a measured curve's problem: before the light
         except ValueError as exc:
             self.ctx.errors.report("Calibrate", exc)
             return
         ws.set_charts(charts)
-        self.ctx.with_session(lambda: self._start(plan, charts), "the calibration")
+        self.ctx.with_session(lambda: self._start(plan, charts, start), "the calibration")
 
-    def _start(self, plan: list, charts: dict | None = None) -> None:
+    def _start(self, plan: list, charts: dict | None = None, stand_start: StandModel | None = None) -> None:
         ws, lab = self.ws, self.ctx.lab
         settings = self.stand_settings()
         settings.dark_frames, settings.flat_frames = self.dark_frames.value(), self.flat_frames.value()
         settings.optimise_matrix = self.de_fit.isChecked()
         settings.ppi, settings.target_width_mm = (self.sampling.stand_fields()[k] for k in ("ppi", "target_width_mm"))
+        settings.stand_start = stand_start
         settings.charts = dict(charts or {})
         preset, lights, hdr = ws.preset, list(ws.lights), self.hdr_auto.isChecked()
         grids = {n: ws.grids[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in ws.grids}

@@ -35,6 +35,7 @@ from PySide6.QtWidgets import (
 
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
+from dualrgb.app.gui.stand_options import CAMERA_CSV_KEY, STAND_DIR_KEY
 from dualrgb.app.gui.widgets import PathLabel, plot_widget
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.csrf import CsrfSettings
@@ -73,6 +74,7 @@ class MeasureView(QWidget):
     """What both measurements share: a form, a SequenceView for the run, a result line and a plot."""
 
     title = "measurement"
+    use_key = ""                       # the calibration's setting this measurement's result can be (stand_options)
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
@@ -86,6 +88,11 @@ class MeasureView(QWidget):
         self.result_label = QLabel("")
         self.result_label.setWordWrap(True)
         self.files_label = PathLabel("")
+        self.use_button = QPushButton("Use in the next calibration")
+        self.use_button.setToolTip("The calibration box's measured curves (dualrgb calibrate --camera-csv / "
+                                   "--stand-dir): the stand model fitted to the captures starts from them.")
+        self.use_button.setEnabled(False)
+        self.use_button.clicked.connect(self.use_result)
         self.plot = plot_widget(bottom="wavelength (nm)", left="relative")
         self.run: StandRun | None = None
         self.form = QFormLayout()
@@ -97,6 +104,7 @@ class MeasureView(QWidget):
         left.addWidget(self.start_button)
         left.addWidget(self.result_label)
         left.addWidget(self.files_label)
+        left.addWidget(self.use_button)
         left.addWidget(self.plot, 1)
         layout = QHBoxLayout(self)
         layout.addLayout(left, 2)
@@ -113,6 +121,7 @@ class MeasureView(QWidget):
             return
         self.result_label.setText("")
         self.files_label.set_path("")
+        self.use_button.setEnabled(False)
         self.run = StandRun(f"{self.title} measurement", plan, work)
         self.view.start(self.run)
 
@@ -139,6 +148,13 @@ class MeasureView(QWidget):
     def show_result(self, result: Any) -> None:
         raise NotImplementedError
 
+    def use_result(self) -> None:
+        """The result's file (camera CSV) or folder (stand) becomes the calibration's measured curves."""
+        path = self.files_label.full_text()
+        if path and self.use_key:
+            self.ctx.set(self.use_key, path)
+            self.ctx.lab.message.emit(f"the next calibration starts its stand model from {path}")
+
     def cancel_running(self) -> None:
         if self.view.running and self.view.seq is self.run:
             self.view.cancel()
@@ -151,6 +167,7 @@ class CameraMeasureView(MeasureView):
     """``dualrgb measure csrf``: the camera's spectral sensitivity -> a camera CSV."""
 
     title = "the camera"
+    use_key = CAMERA_CSV_KEY
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(ctx, parent)
@@ -244,6 +261,7 @@ class CameraMeasureView(MeasureView):
                      + ", ".join(f"{c} {v:.2f}" for c, v in result.rms_percent.items()))
         self.result_label.setText(line)
         self.files_label.set_path(str(m.path))
+        self.use_button.setEnabled(True)
         log.info("%s: %s", m.path, line)
 
 
@@ -251,6 +269,7 @@ class LedMeasureView(MeasureView):
     """``dualrgb measure leds --virtual-lab`` and ``dualrgb measure import-leds``: a stand folder."""
 
     title = "the LEDs"
+    use_key = STAND_DIR_KEY
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(ctx, parent)
@@ -317,6 +336,6 @@ class LedMeasureView(MeasureView):
         stable = f"minimum stable level {level:.4g}" if level is not None else "minimum stable level not measured"
         self.result_label.setText(f"{len(measurement.leds)} LEDs measured, {stable}; {len(files)} files written "
                                   "(simulate --stand-dir takes the folder)")
-        folder = files[0].parent if files else Path(self.out.text())
-        self.files_label.set_path(str(folder))
+        self.files_label.set_path(str(Path(self.out.text().strip()).expanduser()))
+        self.use_button.setEnabled(bool(files))
         self.written = files

@@ -11,12 +11,13 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from PySide6.QtWidgets import QComboBox, QDoubleSpinBox, QFormLayout, QWidget
+from PySide6.QtWidgets import QComboBox, QDoubleSpinBox, QFormLayout, QLineEdit, QWidget
 
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.processing.masters import RESOLUTION_CHOICES
 from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT
 from dualrgb.simulation.other_lights import light_keys
+from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
@@ -24,6 +25,8 @@ RENDER_KEY = "options/render_illuminant"
 PPI_KEY = "options/ppi"                          # the deliverables' (capture / process --ppi); 0: the calibration's
 CAL_PPI_KEY = "options/calibration_ppi"          # calibrate --ppi; 0: from the target's width or its grid
 TARGET_WIDTH_KEY = "options/target_width_mm"     # calibrate --target-width-mm; 0: not given
+CAMERA_CSV_KEY = "options/camera_csv"            # calibrate --camera-csv (Tools: Measure the camera); '': nominal
+STAND_DIR_KEY = "options/stand_dir"              # calibrate --stand-dir (Tools: Measure the LEDs); '': nominal
 RESOLUTION_KEY = "originals/resolution"          # the Originals panel's "Deliver at" (already remembered there)
 MAX_PPI = 20000.0
 MAX_TARGET_MM = 5000.0
@@ -66,6 +69,16 @@ def number_spin(ctx: AppContext, key: str, top: float, suffix: str, zero_text: s
     return spin
 
 
+def path_edit(ctx: AppContext, key: str, placeholder: str, tip: str) -> QLineEdit:
+    """A remembered file or folder path ('' : not given)."""
+    edit = QLineEdit(ctx.get(key, "", str))
+    edit.setPlaceholderText(placeholder)
+    edit.setToolTip(tip)
+    edit.setClearButtonEnabled(True)
+    edit.textChanged.connect(lambda t: ctx.set(key, t.strip()))
+    return edit
+
+
 def given(spin: QDoubleSpinBox) -> float | None:
     """The spin's value, or None where it shows its "not given" text (0)."""
     return float(spin.value()) if spin.value() > 0 else None
@@ -96,18 +109,48 @@ class DeliveryOptions(QWidget):
 
 
 class CalibrationSampling(QWidget):
-    """Rows of the calibration box: ``calibrate --ppi`` and ``--target-width-mm``."""
+    """Rows of the calibration box: ``calibrate --ppi``, ``--target-width-mm`` and the measured curves the stand
+    fit starts from (``--camera-csv``, ``--stand-dir``; the Tools panel's measurements offer theirs)."""
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
+        self.ctx = ctx
+        self.camera_csv = path_edit(ctx, CAMERA_CSV_KEY, "nominal curves (or a camera CSV: Tools > Measure the "
+                                    "camera)", "dualrgb calibrate --camera-csv: the stand model fitted to the "
+                                    "captures starts from the camera's measured sensitivities.")
+        self.stand_dir = path_edit(ctx, STAND_DIR_KEY, "nominal LEDs (or a stand folder: Tools > Measure the LEDs)",
+                                   "dualrgb calibrate --stand-dir: the LEDs' measured spectra and level curves are "
+                                   "the stand model's starting curves; an LED set below the measured minimum "
+                                   "stable level is warned about.")
         self.target_width = number_spin(ctx, TARGET_WIDTH_KEY, MAX_TARGET_MM, "\u00a0mm", "not measured",
                                         "The test target's width, outer corners of its corner patches (dualrgb "
                                         "calibrate --target-width-mm): the calibration's ppi follows from it.")
         self.ppi = number_spin(ctx, CAL_PPI_KEY, MAX_PPI, "\u00a0ppi", "from the target",
                                "The sensor's sampling at the object plane (dualrgb calibrate --ppi); it overrides "
                                "the target's width.")
-        rows(self, ("Test target width", self.target_width), ("Sampling", self.ppi))
+        rows(self, ("Test target width", self.target_width), ("Sampling", self.ppi),
+             ("Measured camera", self.camera_csv), ("Measured LEDs", self.stand_dir))
+
+    def showEvent(self, event: Any) -> None:
+        """What the Tools panel chose to use meanwhile (saved in the settings) shows when the box does."""
+        for edit, key in ((self.camera_csv, CAMERA_CSV_KEY), (self.stand_dir, STAND_DIR_KEY)):
+            edit.setText(self.ctx.get(key, "", str))
+        super().showEvent(event)
+
+    def measured(self, lights: Any = ()) -> StandModel | None:
+        """The stand model the fit starts from (None: nominal), read and checked now (ValueError naming the
+        file); LEDs of ``lights`` set below the stand folder's minimum stable level are logged as warnings."""
+        from dualrgb.app.workflow.stand_reoptimise import measured_start
+
+        camera, stand = self.camera_csv.text().strip(), self.stand_dir.text().strip()
+        if stand:
+            from dualrgb.app.workflow.led_stand import load_stand, unstable_levels
+
+            for line in unstable_levels(lights, load_stand(stand)):
+                log.warning("%s", line)
+        return measured_start(camera or None, stand or None)
 
     def stand_fields(self) -> dict[str, Any]:
-        """The StandSettings fields these set, as ``dualrgb calibrate`` fills them."""
+        """The StandSettings fields these set, as ``dualrgb calibrate`` fills them (the measured curves: see
+        :meth:`measured`)."""
         return {"ppi": given(self.ppi), "target_width_mm": given(self.target_width)}

@@ -227,6 +227,24 @@ def test_measure_the_camera_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert "500" in text and "600" in text
     assert "RMS % of peak" in view.result_label.text()
     assert len(view.plot.getPlotItem().listDataItems()) == 3                 # R, G, B
+    click(qtbot, view.use_button)                             # calibrate --camera-csv in the window
+    assert w.ctx.get("options/camera_csv", "", str) == str(csv)
+
+
+def test_a_bad_measured_curve_is_refused_before_the_light(qtbot, make_window, tmp_path):
+    w = make_window()
+    connect_devices(qtbot, w)
+    cap = w.capture
+    qtbot.waitUntil(lambda: len(cap.presets) > 0, timeout=LONG)
+    cap.choose_preset("dual-RGB reflective")
+    w.show_panel("capture")
+    cap.calibration.sampling.stand_dir.setText(str(tmp_path / "no-such-stand"))
+    lit_before = len(w.lab.virtual_lab.emulator.light_record())
+    click(qtbot, cap.calibration.calibrate_button)
+    wait_idle(qtbot, w)
+    title, message = w.errors.history[-1]
+    assert title == "Calibrate" and "no-such-stand" in message and "\n" not in message
+    assert len(w.lab.virtual_lab.emulator.light_record()) == lit_before and not cap.view.running
 
 
 def test_a_prompt_of_a_hand_set_monochromator_is_a_dialog(qtbot, make_window, tmp_path):
@@ -263,6 +281,13 @@ def test_measure_the_leds_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert {"leds.csv", "stand.json"} <= names and all(p.exists() for p in view.written)
     assert len(view.plot.getPlotItem().listDataItems()) == 10                # a spectrum per LED
     assert "10 LEDs measured" in view.result_label.text()
+    # the stand folder becomes the next calibration's starting curves (calibrate --stand-dir)
+    click(qtbot, view.use_button)
+    w.show_panel("capture")
+    sampling = w.capture.calibration.sampling
+    assert sampling.stand_dir.text() == str(tmp_path / "stand")
+    start = sampling.measured()
+    assert start is not None and start.led_table() is not None
 
 
 def test_measuring_the_leds_cancels(qtbot, make_window, tmp_path):
