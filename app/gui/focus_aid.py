@@ -57,6 +57,17 @@ def clamp_box(x: int, y: int, w: int, h: int, shape: tuple[int, ...]) -> tuple[i
     return x, y, w, h
 
 
+def brightened(frame: np.ndarray, most: float = 32.0) -> tuple[np.ndarray, float]:
+    """A dim uint8 live frame stretched for the screen (its 99.5th percentile to white, the gain at most
+    ``most``, never below 1): (frame, gain). For looking only: nothing measured comes from it (the focus measure
+    does not depend on the scale, the histogram is the camera's)."""
+    top = float(np.percentile(frame, 99.5)) if frame.size else 0.0
+    gain = min(max(255.0 / max(top, 1.0), 1.0), most)
+    if gain <= 1.0:
+        return frame, 1.0
+    return np.clip(frame.astype(np.float32) * gain + 0.5, 0, 255).astype(np.uint8), gain
+
+
 def to_pixmap(crop: np.ndarray) -> QPixmap:
     """A uint8 (H, W) or (H, W, 3) crop as a pixmap of the same size (nothing scaled)."""
     a = np.ascontiguousarray(np.clip(crop, 0, 255).astype(np.uint8))
@@ -130,8 +141,9 @@ class FocusAid(QWidget):
             return clamp_box((w - side) // 2, (h - side) // 2, side, side, shape)
         return clamp_box(*self.box, shape)
 
-    def feed(self, frame: np.ndarray) -> float:
-        """One live frame: show its zoom box at 100 %, add the box's focus value to the plot; returns it."""
+    def feed(self, frame: np.ndarray, shown: np.ndarray | None = None) -> float:
+        """One live frame: show its zoom box at 100 % (of ``shown``, the frame as displayed, when given), add the
+        box's focus value (of ``frame``) to the plot; returns it."""
         x, y, w, h = self.region(frame.shape)
         roi = getattr(self, "roi", None)
         if roi is not None and not roi.isVisible():               # first frame: show the box where it measures
@@ -140,7 +152,7 @@ class FocusAid(QWidget):
             roi.setVisible(True)
         crop = frame[y:y + h, x:x + w]
         value = tenengrad(crop)
-        self.zoom.setPixmap(to_pixmap(crop))
+        self.zoom.setPixmap(to_pixmap(crop if shown is None else shown[y:y + h, x:x + w]))
         self.values.append(value)
         self.times.append(time.monotonic() - self._t0)
         self.best = max(self.best, value)

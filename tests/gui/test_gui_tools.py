@@ -16,7 +16,7 @@ from spectral_profiles import SPECTRAL, estimator
 from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
-from dualrgb.app.gui.focus_aid import tenengrad
+from dualrgb.app.gui.focus_aid import brightened, tenengrad
 from dualrgb.app.gui.framing_light import MAX_FRAMING_LEVEL
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, wait_idle
@@ -140,6 +140,11 @@ def test_the_focus_measure_rises_as_the_view_gets_sharper():
     assert all(a < b for a, b in zip(values, values[1:], strict=False)), values
     assert tenengrad(sharp * 0.5) == pytest.approx(tenengrad(sharp))     # a dimmer light is not a focus change
     assert tenengrad(np.full((20, 20, 3), 128.0)) == 0.0 and tenengrad(np.zeros((20, 20))) == 0.0
+    dim = (texture() // 10).astype(np.uint8)                  # a framing light's live view
+    shown, gain = brightened(dim)
+    bright = np.full((20, 20, 3), 255, np.uint8)
+    assert gain > 5 and np.percentile(shown, 99.5) >= 250 and brightened(bright)[1] == 1.0
+    assert tenengrad(shown) == pytest.approx(tenengrad(dim), rel=0.05)        # the measure does not see it
 
 
 def test_live_view_zoom_box_and_focus_plot(qtbot, make_window):
@@ -184,6 +189,7 @@ def test_the_framing_light_stays_within_its_cap_and_is_renewed(qtbot, make_windo
     qtbot.waitUntil(lambda: len(cam.framing.periods) >= 4, timeout=LONG)      # renewed three times
     qtbot.waitUntil(lambda: emulator.snapshot().light_on, timeout=LONG)
     qtbot.waitUntil(lambda: float(np.mean(cam.image.image)) > dark_view + 2.0, timeout=LONG)   # not black
+    qtbot.waitUntil(lambda: "brightened" in cam.view_title.text(), timeout=LONG)   # shown brightened, said so
     # the GUI stops renewing (as if it hung or died): the light goes off at the cap by itself
     cam.framing._renew.stop()
     qtbot.waitUntil(lambda: not emulator.snapshot().light_on, timeout=LONG)

@@ -21,7 +21,7 @@ from PySide6.QtWidgets import (
 )
 
 from dualrgb.app.gui.context import AppContext
-from dualrgb.app.gui.focus_aid import FocusAid
+from dualrgb.app.gui.focus_aid import FocusAid, brightened
 from dualrgb.app.gui.frame_preview import WARNING_STYLE, HistogramPlot
 from dualrgb.app.gui.framing_light import FramingBox, FramingLight
 from dualrgb.app.gui.viewmodel import RawView, preview_histogram, raw_view
@@ -331,9 +331,11 @@ class CameraPanel(QWidget):
         frame, hist = result
         if not self.live_button.isChecked():
             return
-        self.image.setImage(frame, autoLevels=False, levels=(0, 255))
-        self.view_title.setText(f"live view {frame.shape[1]}x{frame.shape[0]}")
-        self.focus.feed(frame)
+        shown, gain = brightened(frame) if self.framing.active else (frame, 1.0)     # the low framing light
+        self.image.setImage(shown, autoLevels=False, levels=(0, 255))
+        self.view_title.setText(f"live view {frame.shape[1]}x{frame.shape[0]}"
+                                + (f", brightened x{gain:.2g} for the framing light" if gain > 1 else ""))
+        self.focus.feed(frame, shown)
         if hist is not None:
             self.show_histogram(hist, "live view (estimated from the preview)")
 
