@@ -95,6 +95,7 @@ class MeasureView(QWidget):
         self.use_button.clicked.connect(self.use_result)
         self.plot = plot_widget(bottom="wavelength (nm)", left="relative")
         self.run: StandRun | None = None
+        self.out = QLineEdit()                             # the file or folder written; '': default_out
         self.form = QFormLayout()
         ctx.workspace.runningChanged.connect(lambda name: self.start_button.setEnabled(not name))
 
@@ -124,9 +125,20 @@ class MeasureView(QWidget):
         self.use_button.setEnabled(False)
         self.run = StandRun(f"{self.title} measurement", plan, work)
         self.view.start(self.run)
+        self.view.summary.setText(self.plan_line())
+
+    default_out = ""                   # under the captures folder (as it is when the run starts)
+
+    def out_path(self) -> Path:
+        text = self.out.text().strip()
+        return Path(text).expanduser() if text else self.ctx.captures_dir / "measurements" / self.default_out
 
     def prepare(self) -> tuple[list[PlannedFrame], Any]:
         raise NotImplementedError
+
+    def plan_line(self) -> str:
+        """What the run does, for the plan's summary (the frame estimate of a capture does not fit it)."""
+        return ""
 
     def _run_event(self, ev: ProgressEvent) -> None:
         if ev.kind is EventKind.PROMPT and self.view.seq is self.run:
@@ -142,6 +154,7 @@ class MeasureView(QWidget):
     def _finished(self, run: StandRun, outcome: str) -> None:
         if run is self.run and outcome == "done" and run.result is not None:
             self.show_result(run.result)
+            self.view.message.setText(f"{self.title} measurement done")
         elif run is self.run:
             self.result_label.setText(f"{self.title} measurement {outcome}: nothing written")
 
@@ -168,6 +181,7 @@ class CameraMeasureView(MeasureView):
 
     title = "the camera"
     use_key = CAMERA_CSV_KEY
+    default_out = "camera_csrf.csv"
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(ctx, parent)
@@ -186,7 +200,7 @@ class CameraMeasureView(MeasureView):
         self.radiance.setPlaceholderText("spectroradiometer readings (CSV or CGATS); the virtual lab measures its own")
         browse = QPushButton("…")
         browse.clicked.connect(lambda: self._browse(self.radiance, "Radiance readings"))
-        self.out = QLineEdit(str(ctx.captures_dir / "measurements" / "camera_csrf.csv"))
+        self.out.setPlaceholderText("<captures folder>/measurements/camera_csrf.csv")
         self.form.addRow("Monochromator", self.bench)
         self.form.addRow("Serial port", self.port)
         self.form.addRow("World (virtual lab)", self.world)
@@ -231,7 +245,7 @@ class CameraMeasureView(MeasureView):
         if reference is None and kind != VIRTUAL:
             raise ValueError("a real measurement needs the monochromator's radiance: choose the spectroradiometer's "
                              "readings file")
-        out = Path(self.out.text().strip()).expanduser()
+        out = self.out_path()
         out.parent.mkdir(parents=True, exist_ok=True)
 
         def work(hooks: RunHooks) -> CsrfOutcome:
@@ -245,6 +259,11 @@ class CameraMeasureView(MeasureView):
         plan = [PlannedFrame(Role.CSRF.value, 0.0, f"{nm:g} nm", "metered, shutter open")
                 for nm in settings.wavelengths()]
         return plan, work
+
+    def plan_line(self) -> str:
+        s = self.settings()
+        return (f"{len(s.wavelengths())} wavelengths, {s.frames} frame(s) each at a metered exposure, then darks at "
+                "every exposure used; the sphere stays off (the monochromator lights the camera)")
 
     def show_result(self, result: CsrfOutcome) -> None:
         m = result.measurement
@@ -270,17 +289,19 @@ class LedMeasureView(MeasureView):
 
     title = "the LEDs"
     use_key = STAND_DIR_KEY
+    default_out = "leds"
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(ctx, parent)
         self.written: list[Path] = []
+        self._plan_line = ""
         self.world = world_combo(ctx)
         self.warmup_min = QDoubleSpinBox()
         self.warmup_min.setRange(0.1, 59.5)
         self.warmup_min.setValue(59.0)
         self.warmup_min.setSuffix("\u00a0min")
         self.warmup_min.setToolTip("Warm-up per LED at full level (the virtual lab's clock skips the waiting).")
-        self.out = QLineEdit(str(ctx.captures_dir / "measurements" / "leds"))
+        self.out.setPlaceholderText("<captures folder>/measurements/leds")
         self.import_button = QPushButton("Import a real instrument's readings…")
         self.import_button.setToolTip("dualrgb measure import-leds: spectroradiometer files (CGATS .ti3, .sp or "
                                       "CSV) named LED<n>_level<x> / LED<n>_t<seconds>, analysed into the folder.")
@@ -300,8 +321,8 @@ class LedMeasureView(MeasureView):
 
         warmup_s = 60.0 * self.warmup_min.value()
         plan = LedMeasurementPlan(warmup_s=warmup_s, interval_s=min(60.0, warmup_s))
-        out, world = Path(self.out.text().strip()).expanduser(), self.world.currentText()
-        self.result_label.setText(plan.light_mode())
+        out, world = self.out_path(), self.world.currentText()
+        self._plan_line = f"{plan.steps} readings; {plan.light_mode()}"
 
         def work(hooks: RunHooks) -> tuple[Any, list[Path]]:
             def progress(fraction: float, message: str) -> None:
@@ -311,6 +332,9 @@ class LedMeasureView(MeasureView):
         rows = [PlannedFrame("led", 0.0, f"LED {led}", "levels and warm-up") for led in plan.leds]
         return rows, work
 
+    def plan_line(self) -> str:
+        return self._plan_line
+
     def _ask_import(self) -> None:
         paths, _ = QFileDialog.getOpenFileNames(self, "Spectroradiometer readings", str(self.ctx.captures_dir))
         if paths:
@@ -319,7 +343,7 @@ class LedMeasureView(MeasureView):
     def import_readings(self, paths: list[Path]) -> None:
         from dualrgb.app.workflow.led_stand import import_readings
 
-        out = Path(self.out.text().strip()).expanduser()
+        out = self.out_path()
         self.ctx.runner.submit(lambda: import_readings(list(paths), out), name="import LED readings",
                                on_result=self.show_result,
                                on_error=lambda exc: self.ctx.errors.report("Import LED readings", exc))
@@ -336,6 +360,6 @@ class LedMeasureView(MeasureView):
         stable = f"minimum stable level {level:.4g}" if level is not None else "minimum stable level not measured"
         self.result_label.setText(f"{len(measurement.leds)} LEDs measured, {stable}; {len(files)} files written "
                                   "(simulate --stand-dir takes the folder)")
-        self.files_label.set_path(str(Path(self.out.text().strip()).expanduser()))
+        self.files_label.set_path(str(self.out_path()))
         self.use_button.setEnabled(bool(files))
         self.written = files

@@ -221,14 +221,14 @@ def test_measure_the_camera_on_the_virtual_lab(qtbot, make_window, tmp_path):
     view.end_nm.setValue(600.0)
     view.step_nm.setValue(50.0)
     view.frames.setValue(1)
-    view.out.setText(str(tmp_path / "m" / "camera.csv"))
-    click(qtbot, view.start_button)
+    click(qtbot, view.start_button)                           # written under the captures folder by default
+    assert "3 wavelengths" in view.view.summary.text() and "sphere stays off" in view.view.summary.text()
     qtbot.waitUntil(lambda: view.view.outcome != "", timeout=LONG)
     wait_idle(qtbot, w)
     assert view.view.outcome == "done", (view.view.message.text(), w.errors.history)
-    csv = tmp_path / "m" / "camera.csv"
+    csv = tmp_path / "captures" / "measurements" / "camera_csrf.csv"
     assert csv.exists() and view.files_label.full_text() == str(csv)
-    assert (tmp_path / "m" / "camera-session" / "radiance-virtual.csv").exists()
+    assert (csv.parent / "camera_csrf-session" / "radiance-virtual.csv").exists()
     text = csv.read_text()
     assert "500" in text and "600" in text
     assert "RMS % of peak" in view.result_label.text()
