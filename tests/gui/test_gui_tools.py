@@ -18,6 +18,7 @@ from workflow_profiles import make_profile
 from dualrgb.app.cli import main
 from dualrgb.app.gui.focus_aid import brightened, tenengrad
 from dualrgb.app.gui.framing_light import MAX_FRAMING_LEVEL
+from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, wait_idle
 
@@ -303,10 +304,26 @@ def test_measuring_the_leds_cancels(qtbot, make_window, tmp_path):
     click(qtbot, view.start_button)
     assert view.view.cancel_button.isEnabled()
     w.cancel_action.trigger()                                 # Esc, as everywhere
+    t0 = time.monotonic()
     qtbot.waitUntil(lambda: view.view.outcome != "", timeout=LONG)
+    print(f"LED measurement: cancelled {time.monotonic() - t0:.2f} s after Esc")     # reported, not asserted
     wait_idle(qtbot, w)
     assert view.view.outcome == "cancelled" and "nothing written" in view.result_label.text()
     assert not (tmp_path / "stand" / "stand.json").exists()
+
+
+def test_measuring_the_camera_cancels_mid_sweep(qtbot, make_window, tmp_path):
+    w = make_window()
+    view = w.tools.measure_camera
+    view.out.setText(str(tmp_path / "c" / "camera.csv"))
+    click(qtbot, view.start_button)
+    qtbot.waitUntil(lambda: any(e.kind is EventKind.FRAME for e in view.view.events), timeout=LONG)
+    click(qtbot, view.view.cancel_button)
+    t0 = time.monotonic()
+    qtbot.waitUntil(lambda: view.view.outcome != "", timeout=LONG)
+    print(f"camera measurement: cancelled {time.monotonic() - t0:.2f} s after Cancel")   # reported, not asserted
+    wait_idle(qtbot, w)
+    assert view.view.outcome == "cancelled" and not (tmp_path / "c" / "camera.csv").exists()
 
 
 # ---------------------------------------------------------------- the capture options reach the workflow
