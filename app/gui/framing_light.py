@@ -84,7 +84,7 @@ class FramingLight(QObject):
         self._stop_timer.setSingleShot(True)
         self._stop_timer.timeout.connect(lambda: self.stop(f"stopped after {MAX_FRAMING_S / 60:g} min of framing"))
         lab.sphereChanged.connect(lambda: self.stop("the sphere was disconnected") if lab.sphere is None else None)
-        workspace.runningChanged.connect(lambda name: self.stop(f"{name} took the devices") if name else None)
+        workspace.runningChanged.connect(lambda name: self.stop(f"{name} is running") if name else None)
 
     @property
     def cap_s(self) -> float:

@@ -42,6 +42,7 @@ log = logging.getLogger(__name__)
 NEWEST, CURRENT, FILE = "newest", "current", "file"
 COLUMNS = ("identifier", "result", "QA line / reason")
 DELIVERED, NOT_DELIVERED, REFUSED = "delivered", "not delivered", "refused (mode)"
+RUN_NAME = "re-delivery"
 
 
 @dataclass
@@ -219,7 +220,7 @@ class RedeliverView(QWidget):
         if self.handle is not None:
             return "re-delivering"
         if self.ws.running:
-            return f"{self.ws.running} is running: its frames are being written to the session"
+            return f"{self.ws.running} is running: it writes to the session"
         if self.session_path() is None:
             return "no session yet: open or make one, or choose one here"
         which = self.calibration.currentData()
@@ -257,6 +258,7 @@ class RedeliverView(QWidget):
             lambda progress, cancel: run_redelivery(request, current, progress, cancel), pool="compute",
             name="re-deliver", pass_progress=True, pass_cancel=True, on_result=self._done, on_error=self._failed,
             on_progress=self._progress, on_finished=self._finished)
+        self.ws.set_running(RUN_NAME)            # the session's deliverables are being written: sequences wait
         self._update()
 
     def _progress(self, fraction: float, message: str) -> None:
@@ -287,6 +289,8 @@ class RedeliverView(QWidget):
 
     def _finished(self) -> None:
         self.handle = None
+        if self.ws.running == RUN_NAME:
+            self.ws.set_running("")
         self._update()
         self.ctx.bus.sessionUpdated.emit()
 

@@ -111,8 +111,11 @@ def test_redeliver_cancels_and_keeps_every_original_whole(qtbot, make_window, ca
     view = w.tools.redeliver
     view.choose_session(session)
     view.choose_calibration_file(other)
+    assert w.capture.calibration.load_button.isEnabled()
     click(qtbot, view.start_button)
     assert view.cancel_button.isEnabled()
+    assert w.ctx.workspace.running == "re-delivery"           # no sequence writes to the session meanwhile
+    assert not w.capture.calibration.load_button.isEnabled()     # the calibration box is locked meanwhile
     click(qtbot, view.cancel_button)
     t0 = time.monotonic()
     qtbot.waitUntil(lambda: view.outcome != "", timeout=LONG)
@@ -123,7 +126,7 @@ def test_redeliver_cancels_and_keeps_every_original_whole(qtbot, make_window, ca
         side = sidecar(session, ident)
         assert side["calibration"]["id"] in ("cal-test", "cal-other")
         assert all((session / "deliverables" / ident / name).exists() for name in side["files"].values())
-    assert view.start_button.isEnabled() and not view.cancel_button.isEnabled()
+    assert view.start_button.isEnabled() and not view.cancel_button.isEnabled() and w.ctx.workspace.running == ""
 
 
 # ---------------------------------------------------------------- focus and framing
