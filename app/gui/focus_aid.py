@@ -97,7 +97,7 @@ class FocusAid(QWidget):
         scroll.setWidget(self.zoom)
         scroll.setWidgetResizable(True)
         scroll.setMinimumHeight(120)
-        self.plot = plot_widget(bottom="time (s)", left="focus (Tenengrad)",
+        self.plot = plot_widget(bottom="time (s)", left="focus",
                                 tooltip="Tenengrad of the zoom box (module app.gui.focus_aid): higher is sharper; "
                                         "turn the focus ring towards the peak.")
         self.curve = self.plot.plot(pen="#1565c0")

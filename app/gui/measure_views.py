@@ -45,6 +45,7 @@ from dualrgb.app.workflow.vocabulary import EventKind, Role
 
 log = logging.getLogger(__name__)
 
+WARMUP_READINGS = 10      # at least this many warm-up spectra per LED (the command: one a minute, --interval-s)
 CONTINUE, STOP = "Continue", "Cancel the measurement"
 CHANNEL_PENS = ("#c62828", "#2e7d32", "#1565c0")
 BENCHES = {VIRTUAL: "virtual lab (monochromator bench)", CORNERSTONE: "Cornerstone on a serial port",
@@ -320,7 +321,7 @@ class LedMeasureView(MeasureView):
         from dualrgb.app.workflow.led_stand import measure_virtual
 
         warmup_s = 60.0 * self.warmup_min.value()
-        plan = LedMeasurementPlan(warmup_s=warmup_s, interval_s=min(60.0, warmup_s))
+        plan = LedMeasurementPlan(warmup_s=warmup_s, interval_s=min(60.0, warmup_s / WARMUP_READINGS))
         out, world = self.out_path(), self.world.currentText()
         self._plan_line = f"{plan.steps} readings; {plan.light_mode()}"
 
