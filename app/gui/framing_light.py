@@ -85,6 +85,7 @@ class FramingLight(QObject):
         self._stop_timer.timeout.connect(lambda: self.stop(f"stopped after {MAX_FRAMING_S / 60:g} min of framing"))
         lab.sphereChanged.connect(lambda: self.stop("the sphere was disconnected") if lab.sphere is None else None)
         workspace.runningChanged.connect(lambda name: self.stop(f"{name} is running") if name else None)
+        lab.lightApplied.connect(lambda _light: self.stop("a light was set by hand"))    # (Light source panel)
 
     @property
     def cap_s(self) -> float:
@@ -98,7 +99,7 @@ class FramingLight(QObject):
     def set_level(self, level: float) -> None:
         self.level = min(max(float(level), 0.0), MAX_FRAMING_LEVEL)
         if self.active:
-            self._switch_on(apply=True)
+            self._switch_on()
 
     def start(self) -> bool:
         if self.active:
@@ -112,7 +113,7 @@ class FramingLight(QObject):
         self.active = True
         self._started = time.monotonic()
         self._stop_timer.start(int(MAX_FRAMING_S * 1000))
-        self._switch_on(apply=True)
+        self._switch_on()
         return True
 
     def stop(self, why: str = "") -> None:
@@ -130,19 +131,29 @@ class FramingLight(QObject):
         return f"{len(self.periods)} lit periods, {lit:.0f} s lit, {100 * self.level_seconds:.3g} %·s at most per LED"
 
     # ------------------------------------------------------------------ lit periods
-    def _switch_on(self, apply: bool) -> None:
+    def _switch_on(self, renewal: bool = False) -> None:
         sphere, light, cap = self.lab.sphere, self.light(), self.cap_s
         if sphere is None:
             self.stop("the sphere was disconnected")
             return
+        previous = self._open
         self._close_period()
+        # a renewal that finds the light off well before the previous period's cap: someone switched it off
+        off_by_hand_before = previous.t_on + previous.max_on_s - RENEW_MARGIN_S / 2 if renewal and previous else 0.0
 
-        def work() -> None:
-            if apply:
-                sphere.apply(light)
-            if sphere.lit_period is not None:
+        def work() -> bool:
+            lit = sphere.lit_period is not None
+            if renewal and not lit and time.monotonic() < off_by_hand_before:
+                return False
+            if lit:
                 sphere.off()                            # read back; the next period starts from dark
+            sphere.apply(light)                         # the framing levels, whatever was set meanwhile
             sphere.on(max_on_s=cap)
+            return True
+
+        def done(renewed: bool) -> None:
+            if not renewed:
+                self.stop("the light was switched off")
 
         def failed(_exc: BaseException) -> None:
             self.active = False
@@ -150,7 +161,7 @@ class FramingLight(QObject):
             self.changed.emit(False, "framing light off: the sphere refused (see the error)")
         self._open = FramingPeriod(time.monotonic(), cap, tuple(light.levels))
         self.periods.append(self._open)
-        self.lab.device_call(Lab.light_call(sphere, work), "Framing light", on_error=failed,
+        self.lab.device_call(Lab.light_call(sphere, work), "Framing light", on_result=done, on_error=failed,
                              on_finished=self.lab.poll_status)
         self._renew.start(int(max(cap - RENEW_MARGIN_S, 0.2) * 1000))
         self.changed.emit(True, f"framing light on at {100 * max(light.levels):.3g} % (each lit period at most "
@@ -158,7 +169,7 @@ class FramingLight(QObject):
 
     def _renew_period(self) -> None:
         if self.active:
-            self._switch_on(apply=False)
+            self._switch_on(renewal=True)
 
     def _close_period(self) -> None:
         p, self._open = self._open, None

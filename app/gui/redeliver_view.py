@@ -83,19 +83,19 @@ def run_redelivery(request: RedeliveryRequest, current: object, progress: Progre
     from dualrgb.app.workflow.profile import CalibrationProfile, load_profile
     from dualrgb.app.workflow.redelivery import newest_by_mode, redeliver
 
-    session = CaptureSession.open(request.session, readonly=True)
     profiles: CalibrationProfile | dict[str, CalibrationProfile]
-    if request.use_current:
-        if not isinstance(current, CalibrationProfile):
-            raise ValueError("no calibration is loaded in the window: calibrate, load one, or choose a file")
-        profiles = current
-    else:
-        profiles = load_profile(request.calibration) if request.calibration else newest_by_mode(session)
     out = RedeliveryResult()
-    out.delivered, out.undelivered = redeliver(
-        session, profiles, session.path / "deliverables", ppi=request.ppi, progress=progress, cancel=cancel,
-        render_illuminant=request.render_illuminant, force=request.force, refused=out.refused,
-        resolution=request.resolution)
+    with CaptureSession.open(request.session, readonly=True) as session:
+        if request.use_current:
+            if not isinstance(current, CalibrationProfile):
+                raise ValueError("no calibration is loaded in the window: calibrate, load one, or choose a file")
+            profiles = current
+        else:
+            profiles = load_profile(request.calibration) if request.calibration else newest_by_mode(session)
+        out.delivered, out.undelivered = redeliver(
+            session, profiles, session.path / "deliverables", ppi=request.ppi, progress=progress, cancel=cancel,
+            render_illuminant=request.render_illuminant, force=request.force, refused=out.refused,
+            resolution=request.resolution)
     if not (out.delivered or out.undelivered or out.refused):
         raise ValueError(f"{request.session}: no originals to deliver again")
     return out

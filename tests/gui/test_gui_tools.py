@@ -357,3 +357,32 @@ def test_capture_options_reach_the_sidecar(qtbot, make_window, tmp_path):
     assert (row.sidecar.parent / "OPT-1_under_FL11_prophoto_16bit.tif").exists()
     again = make_window()                                     # remembered in the window's settings
     assert again.originals.delivery_options.stand_fields() == {"render_illuminant": "FL11", "ppi": 450.0}
+
+
+def test_the_framing_light_yields_to_the_light_panel(qtbot, make_window):
+    """Light OFF in the Light source panel ends the framing light (it is not lit again at the next renewal);
+    a light applied by hand ends it too (its levels are not carried on in framing periods)."""
+    w = make_window()
+    connect_devices(qtbot, w)
+    emulator = w.lab.virtual_lab.emulator
+    w.light.max_on.setValue(2.0)
+    cam = w.camera
+    w.show_panel("camera")
+    click(qtbot, cam.live_button)
+    qtbot.mouseClick(cam.framing_box.check, Qt.LeftButton)
+    qtbot.waitUntil(lambda: emulator.snapshot().light_on, timeout=LONG)
+    w.show_panel("light")
+    click(qtbot, w.light.off_button)
+    qtbot.waitUntil(lambda: not cam.framing.active, timeout=LONG)
+    assert "the light was switched off" in cam.framing_box.state.text()
+    renewals = len(cam.framing.periods)
+    qtbot.wait(2500)                                          # past the cap: nothing lights it again
+    assert len(cam.framing.periods) == renewals and not emulator.snapshot().light_on
+    w.show_panel("camera")
+    qtbot.mouseClick(cam.framing_box.check, Qt.LeftButton)
+    assert cam.framing.active
+    w.show_panel("light")
+    click(qtbot, w.light.apply_button)                        # the panel's levels, set by hand
+    qtbot.waitUntil(lambda: not cam.framing.active, timeout=LONG)
+    assert "set by hand" in cam.framing_box.state.text()
+    wait_idle(qtbot, w)
