@@ -160,30 +160,14 @@ def add_session_option(p: argparse.ArgumentParser) -> None:
 
 def open_session(folder: Path | None, definition: dict, camera: Camera, meta: dict | None = None) -> CaptureSession:
     """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
-    (anything else is refused in one line naming the difference; app.session). One writer at a time. No
-    ``folder``: a new dated session in the captures folder (app.workflow.folders), named on stderr."""
-    from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.workflow.defaults import DAY_WORKFLOW, day_workflow
-    from dualrgb.app.workflow.stand_devices import camera_definition_of
+    (app.workflow.folders.open_session; anything else is refused in one line naming the difference). No
+    ``folder``: a new dated session in the captures folder, named on stderr."""
+    from dualrgb.app.workflow.folders import open_session as open_or_make
 
-    if folder is not None and definition.get("workflow") == DAY_WORKFLOW:     # an older session of the same day
-        from dualrgb.app.workflow.folders import stored_definition
-
-        definition = {**definition, "workflow": day_workflow(stored_definition(Path(folder)).get("workflow"))}
+    session = open_or_make(folder, definition, camera, meta,
+                           hint="use the same options and camera, or another --session")
     if folder is None:
-        from dualrgb.app.workflow.defaults import captures_dir
-        from dualrgb.app.workflow.folders import new_session
-
-        session = new_session(captures_dir(), meta or {}, definition)
         print(f"dualrgb: new session {session.path}", file=sys.stderr, flush=True)
-    else:
-        session = CaptureSession.resume(Path(folder), definition, meta or {},
-                                        hint="use the same options and camera, or another --session")
-    try:
-        session.extend_definition(**camera_definition_of(camera))
-    except BaseException:
-        session.close()
-        raise
     return session
 
 

@@ -26,6 +26,7 @@ from PySide6.QtWidgets import (
 from dualrgb.app.gui.charts_form import ChartsForm
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
+from dualrgb.app.gui.stand_options import CalibrationSampling
 from dualrgb.app.gui.viewmodel import calibration_lines
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.sequences.base import ProgressEvent
@@ -43,6 +44,7 @@ from dualrgb.app.workflow.profile import (
     load_profile,
 )
 from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +61,7 @@ class CalibrationBox(QGroupBox):
         self.stand_settings = stand_settings
         self.plans = plans
         self.run: Run | None = None
+        self.sampling = CalibrationSampling(ctx)            # --target-width-mm, --ppi (app.gui.stand_options)
         self._build()
         self.ws.calibrationChanged.connect(self.show_calibration)
         view.run_event.connect(self._run_event)
@@ -113,6 +116,7 @@ class CalibrationBox(QGroupBox):
         form.addRow("Darks per exposure", self.dark_frames)
         form.addRow("Flats per exposure", self.flat_frames)
         form.addRow(self.de_fit)
+        form.addRow(self.sampling)
         form.addRow(row)
         form.addRow(self.summary)
         self.path_label = PathLabel("")
@@ -138,17 +142,20 @@ class CalibrationBox(QGroupBox):
             if lab.camera is None or lab.sphere is None:
                 raise ValueError("connect the LED sphere and the camera in Devices first")
             charts = load_charts(self.charts.choices(), ws.preset.mode)     # a chart file's problem: before the light
+            start = self.sampling.measured(ws.preset.sources)       # a measured curve's problem: before the light
         except ValueError as exc:
             self.ctx.errors.report("Calibrate", exc)
             return
         ws.set_charts(charts)
-        self.ctx.with_session(lambda: self._start(plan, charts), "the calibration")
+        self.ctx.with_session(lambda: self._start(plan, charts, start), "the calibration")
 
-    def _start(self, plan: list, charts: dict | None = None) -> None:
+    def _start(self, plan: list, charts: dict | None = None, stand_start: StandModel | None = None) -> None:
         ws, lab = self.ws, self.ctx.lab
         settings = self.stand_settings()
         settings.dark_frames, settings.flat_frames = self.dark_frames.value(), self.flat_frames.value()
         settings.optimise_matrix = self.de_fit.isChecked()
+        settings.ppi, settings.target_width_mm = (self.sampling.stand_fields()[k] for k in ("ppi", "target_width_mm"))
+        settings.stand_start = stand_start
         settings.charts = dict(charts or {})
         preset, lights, hdr = ws.preset, list(ws.lights), self.hdr_auto.isChecked()
         grids = {n: ws.grids[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in ws.grids}

@@ -62,6 +62,8 @@ def run_sweep(sweep: CsrfSweep, *, prompt: Callable[[str], None] | None,
     try:
         RunEngine(sweep.name, control=RunControl(cancel), prompt=ask, on_event=forward).run_plan(sweep)
     except Cancelled:
+        if on_event is not None:                          # said as every cancelled plan says it
+            on_event(ProgressEvent(0, 0, f"{sweep.name} cancelled; the shutter closed", kind=EventKind.CANCELLED))
         return False
     return True
 

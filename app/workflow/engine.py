@@ -314,6 +314,8 @@ class Run(Controlled, Generic[T]):
             emit(ProgressEvent(int(round(1000 * fraction)), 1000, message, data={RUN_PROGRESS: True}))
 
         def on_event(ev: ProgressEvent) -> None:
+            if ev.kind is EventKind.CANCELLED:        # a plan inside stopped at the cancel and said so
+                self.outcome = "cancelled"
             if ev.kind is not EventKind.PROMPT:       # prompts are announced by ``prompt``
                 emit(ev)
                 self.control.wait()

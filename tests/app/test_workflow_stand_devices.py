@@ -25,7 +25,8 @@ def test_both_front_ends_set_up_through_the_workflow():
     gui = imported_names(ROOT / "app/gui/device_hub.py", "dualrgb.app.workflow.stand_devices")
     shared = {"virtual_lab", "virtual_stand", "open_sphere"}
     assert shared <= cli and shared <= gui, (cli, gui)
-    assert "open_camera" in gui and "camera_definition_of" in cli
+    sessions = imported_names(ROOT / "app/workflow/folders.py", "dualrgb.app.workflow.stand_devices")
+    assert "open_camera" in gui and "camera_definition_of" in sessions      # sessions: app.workflow.folders
 
 
 class Lab:

@@ -41,6 +41,7 @@ from PySide6.QtWidgets import (
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
+from dualrgb.app.gui.stand_options import DeliveryOptions
 from dualrgb.app.gui.widgets import side_by_side
 from dualrgb.app.processing.masters import RESOLUTION_CHOICES
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
@@ -140,6 +141,8 @@ class OriginalsPanel(QWidget):
         form.addRow(self.stand_in_label, self.stand_in)
         form.addRow("Frames per exposure", self.frames)
         form.addRow("Deliver at", self.resolution)
+        self.delivery_options = DeliveryOptions(self.ctx)      # --render-illuminant, --ppi (app.gui.stand_options)
+        form.addRow(self.delivery_options)
         self._import_rows(form)
         return box
 
@@ -459,7 +462,8 @@ class OriginalsPanel(QWidget):
         profile, lab = self.ws.calibration, self.lab
         forced = self.force.isChecked() or row.identifier in self.mode_overrides
         settings = StandSettings(**self._stand_settings(), force=forced, original_frames=row.frames,
-                                 resolution=str(self.resolution.currentData()))
+                                 resolution=str(self.resolution.currentData()),
+                                 **self.delivery_options.stand_fields())
 
         def work(hooks: RunHooks) -> CaptureReport:
             stand = lab.copy_stand(settings, hooks, stand_in=row.stand_in)
