@@ -19,9 +19,10 @@ gets the same filter as in the interior. NaN (no usable flat field) spreads to t
 holds it: their channels become NaN (invalid, 0 in the TIFFs, counted on the QA line), never a guess.
 
 Why hand-written: colour-demosaicing (the test reference) convolves the whole frame four times with scipy and
-selects with masks: ~30 full-frame float64 temporaries, 3 GB for 24 MP. One numba pass per row band computes
-each pixel's two missing channels from the band in cache and writes them straight into the interleaved
-N-channel rows the encoders read (:func:`demosaic_rows`); the tests check it against
+selects with masks: ~30 full-frame float64 temporaries, 3 GB for 24 MP. One numba pass per row computes each
+pixel's two missing channels from the band in cache into channel planes (:func:`mhc_planes`): the delivery
+encodes them while they are in the cache (app.processing.encode.DeliveryEncoder.encode_mosaic), and
+:func:`demosaic_rows` interleaves them into N-channel bands; the tests check both against
 ``colour_demosaicing.demosaicing_CFA_Bayer_Malvar2004`` over whole frames, borders included.
 
 References
@@ -69,7 +70,8 @@ def mhc_planes(P, p, even_green, here, S):  # pragma: no cover - compiled
     """One row into planes: padded band ``P`` (rows, W + 4), the pixel row at ``P[p]``; ``even_green``: the
     row's even columns are green; ``here``: the row's other colour (0 = R, 2 = B). Writes the row's R, G, B into
     ``S[0]``, ``S[1]``, ``S[2]`` (3, >= W). Planar rows (one contiguous store per channel, the CFA position a
-    select) let LLVM vectorise the loop; interleaved N-channel stores did not (scalar code, 2.5x slower)."""
+    select) let LLVM vectorise the loop; with the pixel-interleaved N-channel stores of before it stayed scalar
+    (both lights of a 24 MP frame: 0.085 CPU-s into planes, 0.23 into the interleaved band)."""
     W = P.shape[1] - 2 * HALO
     r0 = P[p - 2]
     r1 = P[p - 1]

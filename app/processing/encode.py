@@ -7,7 +7,10 @@ encoding, rounding, casting) is a separate pass with temporaries, and colour-sci
 took longer than decoding the raw files (bench/digitise_bench.py). One numba pass reads the stack once and writes
 each output once, a row at a time in short loops over the pixels that vectorise (0.15 CPU-s for 24 MP where a
 loop per pixel took 0.5 s; same bits), into row bands that app.workflow.delivery streams to the files while
-the next band is encoded (:class:`DeliveryEncoder`). The non-linear encodings come from 65 536-entry tables of
+the next band is encoded (:class:`DeliveryEncoder`). A full-resolution original's rows are demosaiced in the same
+pass (:meth:`DeliveryEncoder.encode_mosaic`): each row's channel planes are made and encoded while in the cache,
+so no N-channel float band is written and read (24 MP: the demosaic and encodings 0.51 CPU-s, against 0.23 +
+0.67 as two passes; docs/notes/issue-31.md). The non-linear encodings come from 65 536-entry tables of
 colour-science's own ``cctf_encoding`` with linear interpolation (error < 0.01 of a 16-bit code; checked in the
 tests against colour-science), so the colour maths stays colour-science's.
 
@@ -400,8 +403,15 @@ def encode_deliverables(stack: np.ndarray, matrix: np.ndarray, white_xyz: Sequen
 
 
 def warm_up() -> None:
-    """Compile (or load from the on-disk cache) the kernels on a tiny image (6 channels: dual-RGB; 3: one light)."""
+    """Compile (or load from the on-disk cache) the kernels on a tiny image (6 channels: dual-RGB; 3: one light),
+    the full-resolution one-pass encoding included."""
+    from dualrgb.app.processing.mosaic import cfa_channel_index
+
     for n in (6, 3):
         encode_deliverables(np.zeros((2, 2, n), np.float32), np.zeros((n, 3)), [95.047, 100.0, 108.883])
+        with DeliveryEncoder((2, 2, n), np.zeros((n, 3)), [95.047, 100.0, 108.883], threads=1) as enc:
+            out = [np.empty((2, 2, 3), np.uint16) for _ in range(3 + n // 3)]        # XYZ, 2 RGB, per light
+            enc.encode_mosaic(0, out[0], out[1:3], out[3:], mosaic=np.zeros((n // 3, 2 + 2 * HALO, 2 + 2 * HALO),
+                              np.float32), p0=HALO, cfa=cfa_channel_index("RGGB"))
     weak_cells(np.zeros((1, 4, 4), np.float32), np.ones((1, 4, 4), np.uint8), np.float32(100.0),
                np.zeros((2, 2), np.bool_), True)

@@ -18,7 +18,9 @@ as it lands instead).
 
 Each band of each light is computed with its HALO rows above and below (the demosaic's support; mirrored at the
 frame's edges), by the fused row kernel of app.processing.master_kernels in the threads of a pool (the kernels
-release the GIL).
+release the GIL). The delivery takes that flat-fielded mosaic band (:meth:`MasterStack.mosaic_band`) and
+demosaics each row as it encodes it (app.processing.encode.DeliveryEncoder.encode_mosaic: no N-channel float band,
+the same values as :meth:`MasterStack.band`).
 """
 from __future__ import annotations
 
