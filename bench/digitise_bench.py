@@ -188,13 +188,14 @@ def _child_libraw(folder: str) -> dict:
 
 
 def _ready(folder_p: Path, spectral: bool = True):
-    from dualrgb.app.processing import encode, kernels, spectral_cube
+    from dualrgb.app.processing import encode, kernels, master_kernels, spectral_cube
     from dualrgb.app.workflow.profile import load_profile
 
     prof = load_profile(make_profile(folder_p, spectral))
     kernels.warm_up()
     encode.warm_up()
     spectral_cube.warm_up()
+    master_kernels.warm_up((2,))                       # the full-resolution row kernels: 2 exposures per light
     return prof
 
 
@@ -328,12 +329,13 @@ def _child_warm() -> dict:
     sys.path.insert(0, str(ROOT))
     import numpy as _np
 
-    from dualrgb.app.processing import encode, kernels, spectral_cube
+    from dualrgb.app.processing import encode, kernels, master_kernels, spectral_cube
     from dualrgb.app.processing.demosaic import demosaic
 
     kernels.warm_up()
     encode.warm_up()
     spectral_cube.warm_up()
+    master_kernels.warm_up((2,))
     demosaic(_np.zeros((4, 4), _np.float32))
     return {}
 

@@ -170,3 +170,21 @@ def flat_rows_variance(raws, darks, dark_values, use_dark, ts, inv_gain, var_rea
                 w8 = best[j] < floor_dn
                 wk[j] = w8 if first_light else (wk[j] and w8)
     return clipped
+
+
+def warm_up(exposures: tuple[int, ...] = (1, 2, 3)) -> None:
+    """Load (or compile) the row kernels for lights of ``exposures`` frames each, on tiny arrays: a kernel's first
+    call in a process reads it from numba's cache (~0.25 CPU-s each), which would otherwise fall on the first
+    delivery."""
+    f32 = np.float32
+    for k in exposures:
+        raws = tuple(np.zeros((2, 4), np.uint16) for _ in range(k))
+        darks = tuple(np.zeros((2, 4), f32) for _ in range(k))
+        ts = np.arange(1, k + 1, dtype=f32)
+        out, weak, white = np.zeros((2, 4 + 2 * HALO), f32), np.zeros((2, 4), np.bool_), np.ones((2, 4), f32)
+        flat_rows_variance(raws, darks, np.zeros(k, f32), np.ones(k, np.bool_), ts, f32(1), f32(1), f32(1e4),
+                           f32(1.5e4), white, f32(0), f32(1), out, weak, True, 0, 2, 0, 2)
+        slots = np.arange(k, dtype=np.int64)
+        flat_rows(raws, darks, np.zeros(k, f32), np.ones(k, np.bool_), slots, np.ones(k, np.bool_), k, slots, ts,
+                  f32(1) / ts, 0, f32(1e-4), f32(1), f32(1), f32(1e4), f32(1.5e4), white, f32(0), f32(1), out, weak,
+                  True, 0, 2, 0, 2)
