@@ -178,6 +178,13 @@ def _encode_planes(S, A, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin
     return bad, over
 
 
+@njit(nogil=True, cache=True)
+def _row_scratch(C, W):  # pragma: no cover - compiled
+    """The encoders' rows: the channel planes (C, W), x, y, z, and rgb_row's lin, idx."""
+    return (np.empty((C, W), np.float32), np.empty(W, np.float32), np.empty(W, np.float32), np.empty(W, np.float32),
+            np.empty(W, np.float64), np.empty(W, np.int64))
+
+
 @njit(nogil=True, cache=True, error_model="numpy")
 def _encode_rows(stack, r0, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi):  # pragma: no cover - compiled
     """Band rows ``lo`` .. ``hi`` (stack rows ``r0 + lo`` ..) into the row band ``xyz16`` (rows, W, 3), the tuple
@@ -189,12 +196,7 @@ def _encode_rows(stack, r0, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi): 
     pixels whose Y clips)."""
     W = stack.shape[1]
     C = stack.shape[2]
-    S = np.empty((C, W), np.float32)
-    x = np.empty(W, np.float32)
-    y = np.empty(W, np.float32)
-    z = np.empty(W, np.float32)
-    lin = np.empty(W, np.float64)
-    idx = np.empty(W, np.int64)
+    S, x, y, z, lin, idx = _row_scratch(C, W)
     bad = 0
     over = 0
     for r in range(lo, hi):
@@ -216,13 +218,7 @@ def _encode_mosaic_rows(P, p0, y0, cfa, A, M, luts, scale_xyz, xyz16, rgb16, ch1
     indices of the image's top-left cell. Each row is demosaiced into the planes the encodings read (in cache),
     so no N-channel float band is written or read: the same arithmetic, the same bits."""
     L = P.shape[0]
-    W = P.shape[2] - 2 * HALO
-    S = np.empty((3 * L, W), np.float32)
-    x = np.empty(W, np.float32)
-    y = np.empty(W, np.float32)
-    z = np.empty(W, np.float32)
-    lin = np.empty(W, np.float64)
-    idx = np.empty(W, np.int64)
+    S, x, y, z, lin, idx = _row_scratch(3 * L, P.shape[2] - 2 * HALO)
     bad = 0
     over = 0
     for r in range(lo, hi):
