@@ -188,13 +188,14 @@ def _child_libraw(folder: str) -> dict:
 
 
 def _ready(folder_p: Path, spectral: bool = True):
-    from dualrgb.app.processing import encode, kernels, spectral_cube
+    from dualrgb.app.processing import encode, kernels, master_kernels, spectral_cube
     from dualrgb.app.workflow.profile import load_profile
 
     prof = load_profile(make_profile(folder_p, spectral))
     kernels.warm_up()
     encode.warm_up()
     spectral_cube.warm_up()
+    master_kernels.warm_up((2,))                       # the full-resolution row kernels: 2 exposures per light
     return prof
 
 
@@ -260,11 +261,13 @@ def _child_cube(folder: str) -> dict:
 
 def _child_stages(folder: str) -> dict:
     """Where the full-resolution delivery's processor time goes, stage by stage, single-threaded (CPU seconds): the
-    last frame's decode, the merge + flat field + demosaic of every band, the colour encodings of every band, and
-    the SHA-256 of as many bytes as the TIFFs hold."""
+    last frame's decode, the merge + flat field of every band, the demosaic and colour encodings of every band
+    (one pass, as the delivery runs them: DeliveryEncoder.encode_mosaic), and the SHA-256 of as many bytes as the
+    TIFFs hold."""
     import hashlib
 
     sys.path.insert(0, str(ROOT))
+    from dualrgb.app.processing.demosaic import HALO, demosaic_rows
     from dualrgb.app.processing.encode import DeliveryEncoder
     from dualrgb.app.processing.pipeline import ExposureRef
     from dualrgb.app.workflow.copystand import begin_channels, profile_processor
@@ -285,15 +288,19 @@ def _child_stages(folder: str) -> dict:
     for r0 in range(0, H, 64):
         rows = min(64, H - r0)
         c0 = cpu_s()
-        band = stack.band(r0, rows)
+        mosaic = stack.mosaic_band(r0, rows)
         c1 = cpu_s()
-        enc.encode(r0, bands[0][:rows], [b[:rows] for b in bands[1:3]], [b[:rows] for b in bands[3:5]], band=band)
+        enc.encode_mosaic(r0, bands[0][:rows], [b[:rows] for b in bands[1:3]], [b[:rows] for b in bands[3:5]],
+                          mosaic=mosaic, p0=HALO, cfa=stack.cfa_index)
         merge, encode = merge + c1 - c0, encode + cpu_s() - c1
+    band = np.empty((rows, W, 6), np.float32)                         # the last band's channels, for _render_cost
+    for li in range(2):
+        demosaic_rows(mosaic[li], HALO, r0, stack.cfa_index, band, 0, rows, 3 * li)
     stack.close()
     data = np.zeros(5 * H * W * 3 * 2 // 8, np.uint64)
     c0 = cpu_s()
     hashlib.sha256(memoryview(data)).hexdigest()
-    out.update(merge_flat_demosaic=merge, colour_encodings=encode, sha256_of_the_tiffs_bytes=cpu_s() - c0)
+    out.update(merge_flat=merge, demosaic_colour_encodings=encode, sha256_of_the_tiffs_bytes=cpu_s() - c0)
     total = sum(out.values())
     out["rendering_under_a_light_not_delivered"] = _render_cost(prof, H, W, band)
     return {"seconds": total, "cpu_s": total, "stages_cpu_s": out}
@@ -322,12 +329,13 @@ def _child_warm() -> dict:
     sys.path.insert(0, str(ROOT))
     import numpy as _np
 
-    from dualrgb.app.processing import encode, kernels, spectral_cube
+    from dualrgb.app.processing import encode, kernels, master_kernels, spectral_cube
     from dualrgb.app.processing.demosaic import demosaic
 
     kernels.warm_up()
     encode.warm_up()
     spectral_cube.warm_up()
+    master_kernels.warm_up((2,))
     demosaic(_np.zeros((4, 4), _np.float32))
     return {}
 

@@ -7,7 +7,10 @@ encoding, rounding, casting) is a separate pass with temporaries, and colour-sci
 took longer than decoding the raw files (bench/digitise_bench.py). One numba pass reads the stack once and writes
 each output once, a row at a time in short loops over the pixels that vectorise (0.15 CPU-s for 24 MP where a
 loop per pixel took 0.5 s; same bits), into row bands that app.workflow.delivery streams to the files while
-the next band is encoded (:class:`DeliveryEncoder`). The non-linear encodings come from 65 536-entry tables of
+the next band is encoded (:class:`DeliveryEncoder`). A full-resolution original's rows are demosaiced in the same
+pass (:meth:`DeliveryEncoder.encode_mosaic`): each row's channel planes are made and encoded while in the cache,
+so no N-channel float band is written and read (24 MP: the demosaic and encodings 0.51 CPU-s, against 0.23 +
+0.67 as two passes; docs/notes/issue-31.md). The non-linear encodings come from 65 536-entry tables of
 colour-science's own ``cctf_encoding`` with linear interpolation (error < 0.01 of a 16-bit code; checked in the
 tests against colour-science), so the colour maths stays colour-science's.
 
@@ -28,6 +31,8 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from dualrgb.app.processing.demosaic import HALO, mhc_planes, row_colours
+
 log = logging.getLogger(__name__)
 
 LINEAR_ONE = 32768.0          # 16-bit code of 1.0 in the linear XYZ and channel images
@@ -45,6 +50,19 @@ def encoding_table(space: str) -> np.ndarray:
     return (np.clip(enc, 0.0, 1.0) * 65535.0).astype(np.float32)
 
 
+@lru_cache(maxsize=4)
+def encoding_slopes(space: str) -> np.ndarray:
+    """(LUT_SIZE,) float32: the steps ``lut[i + 1] - lut[i]`` of :func:`encoding_table` (0 after the last), exact
+    in float32 (neighbouring entries are within a factor 2 of each other: Sterbenz), so the kernels' float64
+    interpolation gives the same value as from the two entries."""
+    lut = encoding_table(space)
+    steps = lut[1:].astype(np.float64) - lut[:-1]
+    out = np.append(steps.astype(np.float32), np.float32(0.0))
+    if not np.array_equal(out[:-1].astype(np.float64), steps):       # a guard: holds for every space's curve
+        raise ValueError(f"{space}: the encoding table's steps are not exact in float32")
+    return out
+
+
 @dataclass
 class EncodedImages:
     """The 16-bit deliverable arrays of one original and what the QA line needs."""
@@ -56,25 +74,33 @@ class EncodedImages:
     over_white_fraction: float    # pixels whose Y exceeds 2x the white (clipped in the XYZ image)
 
 
-@njit(nogil=True, cache=True)
-def _channels_row(s, C, c0, out):  # pragma: no cover - compiled
-    """Channels ``c0`` .. ``c0 + 2`` of one row ``s`` (W * C, pixel-interleaved) into ``out`` (W * 3): 16-bit,
-    LINEAR_ONE = 1.0, NaN -> 0 (one light's camera RGB: three statements per pixel, which vectorise)."""
+@njit(nogil=True, cache=True, error_model="numpy")
+def _channels_row(S, c0, out):  # pragma: no cover - compiled
+    """Planes ``c0`` .. ``c0 + 2`` of one row (``S`` (N, W): one plane per channel) into ``out`` (W * 3): one
+    light's camera RGB, 16-bit, LINEAR_ONE = 1.0, NaN -> 0 (three statements per pixel, which vectorise)."""
     zero = np.float32(0.0)
     half = np.float32(0.5)
     one = np.float32(LINEAR_ONE)
+    p0 = S[c0]
+    p1 = S[c0 + 1]
+    p2 = S[c0 + 2]
     for j in range(out.shape[0] // 3):
-        for c in range(3):
-            v = s[j * C + c0 + c]
-            v = zero if v != v else v
-            q = v * one + half
-            out[3 * j + c] = 0 if q <= half else (65535 if q >= 65535.0 else np.uint16(q))
+        v = p0[j]
+        q = (zero if v != v else v) * one + half
+        out[3 * j] = 0 if q <= half else (65535 if q >= 65535.0 else np.uint16(q))
+        v = p1[j]
+        q = (zero if v != v else v) * one + half
+        out[3 * j + 1] = 0 if q <= half else (65535 if q >= 65535.0 else np.uint16(q))
+        v = p2[j]
+        q = (zero if v != v else v) * one + half
+        out[3 * j + 2] = 0 if q <= half else (65535 if q >= 65535.0 else np.uint16(q))
 
 
-@njit(nogil=True, cache=True)
-def _xyz_row(s, A, x, y, z):  # pragma: no cover - compiled
-    """x, y, z of one row (``s`` flattened W * N; ``A`` the matrix as a tuple of N (X, Y, Z) rows, so that N is a
-    compile-time constant and the pixel loop vectorises); returns the pixels with a NaN channel (taken as 0)."""
+@njit(nogil=True, cache=True, error_model="numpy")
+def _xyz_row(S, A, x, y, z):  # pragma: no cover - compiled
+    """x, y, z of one row (``S`` (N, W): one plane per channel; ``A`` the matrix as a tuple of N (X, Y, Z) rows,
+    so that N is a compile-time constant and the pixel loop vectorises); returns the pixels with a NaN channel
+    (taken as 0)."""
     C = len(A)
     zero = np.float32(0.0)
     bad = 0
@@ -84,7 +110,7 @@ def _xyz_row(s, A, x, y, z):  # pragma: no cover - compiled
         za = zero
         nan = False
         for c in range(C):
-            v = s[j * C + c]
+            v = S[c, j]
             isnan = v != v
             v = zero if isnan else v
             nan |= isnan
@@ -98,7 +124,7 @@ def _xyz_row(s, A, x, y, z):  # pragma: no cover - compiled
     return bad
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def _xyz16_row(x, y, z, scale, out):  # pragma: no cover - compiled
     """The linear 16-bit XYZ of one row into ``out`` (W * 3); returns the pixels whose Y code clips at 65535."""
     half = np.float32(0.5)
@@ -114,10 +140,12 @@ def _xyz16_row(x, y, z, scale, out):  # pragma: no cover - compiled
     return over
 
 
-@njit(nogil=True, cache=True)
-def rgb_row(x, y, z, m, lut, lin, idx, out):  # pragma: no cover - compiled
+@njit(nogil=True, cache=True, error_model="numpy")
+def rgb_row(x, y, z, m, lut, slope, lin, idx, out):  # pragma: no cover - compiled
     """One display-encoded RGB space of one row into ``out`` (W * 3): linear RGB = ``m`` (3, 3) @ XYZ, clipped
-    to [0, 1], through ``lut`` with linear interpolation (``lin``, ``idx``: scratch rows)."""
+    to [0, 1], through ``lut`` with linear interpolation (``slope``: :func:`encoding_slopes`, the table's exact
+    steps, one gather less per value than ``lut[i + 1] - lut[i]``: the same bits, 1.3x faster; ``lin``, ``idx``:
+    scratch rows; the gathers in a loop of their own, so the first loop vectorises)."""
     zero = np.float32(0.0)
     half = np.float32(0.5)
     last = lut.shape[0] - 1
@@ -125,43 +153,81 @@ def rgb_row(x, y, z, m, lut, lin, idx, out):  # pragma: no cover - compiled
         m0 = m[k, 0]
         m1 = m[k, 1]
         m2 = m[k, 2]
-        for j in range(x.shape[0]):                      # vectorises: the gathers are in the next loop
+        for j in range(x.shape[0]):
             v = m0 * x[j] + m1 * y[j] + m2 * z[j]
             v = min(max(v, zero), np.float32(1.0)) * last
             lin[j] = v
             idx[j] = min(int(v), last - 1)
         for j in range(x.shape[0]):
             i0 = idx[j]
-            f = lin[j] - i0
-            e = lut[i0] + f * (lut[i0 + 1] - lut[i0])
+            e = lut[i0] + (lin[j] - i0) * slope[i0]
             out[3 * j + k] = np.uint16(e + half)
 
 
+@njit(nogil=True, cache=True, error_model="numpy")
+def _encode_planes(S, A, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin, idx):  # pragma: no cover
+    """Row ``r`` of the output bands from the row's channel planes ``S`` (N, W) (x, y, z, lin, idx: scratch
+    rows); returns (pixels with NaN, pixels whose Y clips)."""
+    W = S.shape[1]
+    for q in range(len(ch16)):
+        _channels_row(S, 3 * q, ch16[q][r].reshape(W * 3))
+    bad = _xyz_row(S, A, x, y, z)
+    over = _xyz16_row(x, y, z, scale_xyz, xyz16[r].reshape(W * 3))
+    for q in range(len(rgb16)):
+        rgb_row(x, y, z, M[q], luts[q, 0], luts[q, 1], lin, idx, rgb16[q][r].reshape(W * 3))
+    return bad, over
+
+
 @njit(nogil=True, cache=True)
+def _row_scratch(C, W):  # pragma: no cover - compiled
+    """The encoders' rows: the channel planes (C, W), x, y, z, and rgb_row's lin, idx."""
+    return (np.empty((C, W), np.float32), np.empty(W, np.float32), np.empty(W, np.float32), np.empty(W, np.float32),
+            np.empty(W, np.float64), np.empty(W, np.int64))
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
 def _encode_rows(stack, r0, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi):  # pragma: no cover - compiled
     """Band rows ``lo`` .. ``hi`` (stack rows ``r0 + lo`` ..) into the row band ``xyz16`` (rows, W, 3), the tuple
     ``rgb16`` of (rows, W, 3) arrays (one per space of ``M`` / ``luts``) and the tuple ``ch16`` of (rows, W, 3)
-    arrays (one per light: channels 3 l .. 3 l + 2). Row by row
-    in short loops over the pixels that LLVM vectorises (one loop per pixel with inner loops over runtime counts
-    did not: 3x slower). Not ``parallel``: numba's parfors cannot take the tuples; DeliveryEncoder runs bands in
-    threads (nogil). Returns (pixels with NaN, pixels whose Y clips)."""
+    arrays (one per light: channels 3 l .. 3 l + 2). Row by row: the row's channels into planes, then short loops
+    over the pixels that LLVM vectorises (one loop per pixel with inner loops over runtime counts did not: 3x
+    slower; reading the pixel-interleaved channels in those loops did not either). Not ``parallel``: numba's
+    parfors cannot take the tuples; DeliveryEncoder runs bands in threads (nogil). Returns (pixels with NaN,
+    pixels whose Y clips)."""
     W = stack.shape[1]
     C = stack.shape[2]
-    x = np.empty(W, np.float32)
-    y = np.empty(W, np.float32)
-    z = np.empty(W, np.float32)
-    lin = np.empty(W, np.float64)
-    idx = np.empty(W, np.int64)
+    S, x, y, z, lin, idx = _row_scratch(C, W)
     bad = 0
     over = 0
     for r in range(lo, hi):
-        s = stack[r0 + r].reshape(W * C)
-        for q in range(len(ch16)):
-            _channels_row(s, C, 3 * q, ch16[q][r].reshape(W * 3))
-        bad += _xyz_row(s, A, x, y, z)
-        over += _xyz16_row(x, y, z, scale_xyz, xyz16[r].reshape(W * 3))
-        for q in range(len(rgb16)):
-            rgb_row(x, y, z, M[q], luts[q], lin, idx, rgb16[q][r].reshape(W * 3))
+        s = stack[r0 + r]
+        for j in range(W):
+            for c in range(C):
+                S[c, j] = s[j, c]
+        b, o = _encode_planes(S, A, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin, idx)
+        bad += b
+        over += o
+    return bad, over
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def _encode_mosaic_rows(P, p0, y0, cfa, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi):  # pragma: no cover
+    """:func:`_encode_rows` fused with the demosaic: band rows ``lo`` .. ``hi`` (image rows ``y0 + lo`` ..) from
+    ``P`` (L, rows + 2 HALO, W + 2 HALO), each light's flat-fielded mosaic band with HALO mirrored rows and
+    columns around (app.processing.masters), whose row ``p0 + r`` holds band row r; ``cfa`` (2, 2) channel
+    indices of the image's top-left cell. Each row is demosaiced into the planes the encodings read (in cache),
+    so no N-channel float band is written or read: the same arithmetic, the same bits."""
+    L = P.shape[0]
+    S, x, y, z, lin, idx = _row_scratch(3 * L, P.shape[2] - 2 * HALO)
+    bad = 0
+    over = 0
+    for r in range(lo, hi):
+        even_green, here = row_colours(cfa, y0 + r)
+        for li in range(L):
+            mhc_planes(P[li], p0 + r, even_green, here, S[3 * li: 3 * li + 3])
+        b, o = _encode_planes(S, A, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin, idx)
+        bad += b
+        over += o
     return bad, over
 
 
@@ -234,7 +300,7 @@ class DeliveryEncoder:
         white_y = float(white_xyz[1])
         self._A = tuple(tuple(np.float32(v) for v in row) for row in A)     # N: a compile-time constant
         self._M = np.stack([xyz_to_rgb_matrix(s, white_xyz) / white_y for s in self.spaces]).astype(np.float32)
-        self._luts = np.stack([encoding_table(s) for s in self.spaces])
+        self._luts = np.stack([np.stack([encoding_table(s), encoding_slopes(s)]) for s in self.spaces])
         self._scale = np.float32(LINEAR_ONE / white_y)
         self.invalid = 0
         self.over_white = 0
@@ -253,19 +319,45 @@ class DeliveryEncoder:
         (rows, W, 3) per space, in ``spaces`` order) and ``ch16`` (one (rows, W, 3) per light: its camera RGB),
         each C-contiguous; from ``band`` (those rows, (rows, W, N) float32) when the encoder has no stack."""
         rows = xyz16.shape[0]
+        H, W, N = self._check(r0, rows, rgb16, ch16)
+        src, off = band_source(self.stack, r0, rows, band, W, N)
+        self._run(_encode_rows, (src, r0 + off, self._A, self._M, self._luts, self._scale, xyz16, tuple(rgb16),
+                                 tuple(ch16)), rows)
+        self.lit = self.lit or bool(xyz16.any())
+
+    def encode_mosaic(self, r0: int, xyz16: np.ndarray, rgb16: Sequence[np.ndarray], ch16: Sequence[np.ndarray], *,
+                      mosaic: np.ndarray, p0: int, cfa: np.ndarray) -> None:
+        """:meth:`encode` of rows ``r0`` .. demosaiced on the fly (Malvar-He-Cutler, app.processing.demosaic)
+        from ``mosaic`` (L, rows + 2 HALO, W + 2 HALO) float32: each light's flat-fielded mosaic band, its row
+        ``p0 + r`` image row ``r0 + r``, HALO mirrored rows and columns around (app.processing.masters.MasterStack
+        .mosaic_band); ``cfa`` (2, 2) channel indices of the image's top-left cell. The same values as
+        :meth:`encode` of the demosaiced band, without writing and reading it."""
+        rows = xyz16.shape[0]
+        H, W, N = self._check(r0, rows, rgb16, ch16)
+        if (mosaic.dtype != np.float32 or mosaic.ndim != 3 or mosaic.shape[0] * 3 != N
+                or mosaic.shape[2] != W + 2 * HALO or not 0 <= p0 - HALO <= mosaic.shape[1] - rows - 2 * HALO):
+            raise ValueError(f"mosaic band {mosaic.shape} {mosaic.dtype}, pixel rows from {p0}: expected "
+                             f"({N // 3}, >= {rows + 2 * HALO}, {W + 2 * HALO}) float32")
+        self._run(_encode_mosaic_rows, (mosaic, p0, r0, cfa, self._A, self._M, self._luts, self._scale, xyz16,
+                                        tuple(rgb16), tuple(ch16)), rows)
+        self.lit = self.lit or bool(xyz16.any())
+
+    def _check(self, r0: int, rows: int, rgb16: Sequence[np.ndarray], ch16: Sequence[np.ndarray]
+               ) -> tuple[int, int, int]:
         H, W, N = self.shape
         if r0 < 0 or r0 + rows > H or len(rgb16) != len(self.spaces) or len(ch16) * 3 != N:
             raise ValueError(f"rows {r0}..{r0 + rows} of {H}, {len(rgb16)} RGB bands, {len(ch16)} channel bands")
-        src, off = band_source(self.stack, r0, rows, band, W, N)
-        args = (src, r0 + off, self._A, self._M, self._luts, self._scale, xyz16, tuple(rgb16), tuple(ch16))
+        return H, W, N
+
+    def _run(self, kernel, args: tuple, rows: int) -> None:
+        """``kernel(*args, lo, hi)`` over the band's rows, in pieces on the threads; adds up the QA counts."""
         cuts = np.linspace(0, rows, min(self.threads * self.chunks_per_thread, max(rows, 1)) + 1).astype(int)
         if len(cuts) <= 2:
-            counts = [_encode_rows(*args, 0, rows)]
+            counts = [kernel(*args, 0, rows)]
         else:
-            counts = list(self._pool().map(lambda k: _encode_rows(*args, cuts[k], cuts[k + 1]), range(len(cuts) - 1)))
+            counts = list(self._pool().map(lambda k: kernel(*args, cuts[k], cuts[k + 1]), range(len(cuts) - 1)))
         self.invalid += sum(int(b) for b, _ in counts)
         self.over_white += sum(int(o) for _, o in counts)
-        self.lit = self.lit or bool(xyz16.any())
 
     def _pool(self) -> ThreadPoolExecutor:
         if self._executor is None:
@@ -307,8 +399,15 @@ def encode_deliverables(stack: np.ndarray, matrix: np.ndarray, white_xyz: Sequen
 
 
 def warm_up() -> None:
-    """Compile (or load from the on-disk cache) the kernels on a tiny image (6 channels: dual-RGB; 3: one light)."""
+    """Compile (or load from the on-disk cache) the kernels on a tiny image (6 channels: dual-RGB; 3: one light),
+    the full-resolution one-pass encoding included."""
+    from dualrgb.app.processing.mosaic import cfa_channel_index
+
     for n in (6, 3):
         encode_deliverables(np.zeros((2, 2, n), np.float32), np.zeros((n, 3)), [95.047, 100.0, 108.883])
+        with DeliveryEncoder((2, 2, n), np.zeros((n, 3)), [95.047, 100.0, 108.883], threads=1) as enc:
+            out = [np.empty((2, 2, 3), np.uint16) for _ in range(3 + n // 3)]        # XYZ, 2 RGB, per light
+            enc.encode_mosaic(0, out[0], out[1:3], out[3:], mosaic=np.zeros((n // 3, 2 + 2 * HALO, 2 + 2 * HALO),
+                              np.float32), p0=HALO, cfa=cfa_channel_index("RGGB"))
     weak_cells(np.zeros((1, 4, 4), np.float32), np.ones((1, 4, 4), np.uint8), np.float32(100.0),
                np.zeros((2, 2), np.bool_), True)

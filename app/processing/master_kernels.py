@@ -20,7 +20,7 @@ from dualrgb.app.processing.demosaic import HALO
 from dualrgb.app.processing.kernels import _merge_row
 
 
-@njit(nogil=True, cache=True, inline="always")
+@njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def store_row(raw, dark, dark_value, use_dark, limit, white, k, sums, counts, first):  # pragma: no cover
     """``kernels.hdr_store`` for one row: ``raw`` (W,) into slot ``k`` of ``sums`` / ``counts`` (K, 1, W)."""
     low = np.uint8(15)
@@ -43,7 +43,7 @@ def store_row(raw, dark, dark_value, use_dark, limit, white, k, sums, counts, fi
             counts[k, 0, j] = c + np.uint8(16) + u
 
 
-@njit(nogil=True, cache=True, inline="always")
+@njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _weak_row(sums, counts, floor_dn, weak, first):  # pragma: no cover - compiled
     """``weak`` (W,): no usable exposure time's mean signal reached ``floor_dn``, AND-ed with the lights before
     (``first``: initialise)."""
@@ -58,7 +58,7 @@ def _weak_row(sums, counts, floor_dn, weak, first):  # pragma: no cover - compil
         weak[j] = w if first else (weak[j] and w)
 
 
-@njit(nogil=True, cache=True, inline="always")
+@njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _flat_row(merged, white, threshold, out):  # pragma: no cover - compiled
     """``out`` (W + 2 HALO,) = merged / white (NaN where white <= threshold), mirrored at both ends."""
     W = merged.shape[0]
@@ -71,7 +71,7 @@ def _flat_row(merged, white, threshold, out):  # pragma: no cover - compiled
         out[HALO + W - 1 + h] = out[HALO + W - 1 - h]
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def flat_rows(raws, darks, dark_values, use_dark, slots, first_in_slot, n_slots, order, ts, inv_ts, method,
               inv_span, inv_gain, var_read, limit, white_level, white, threshold, floor_dn, out, weak, first_light,
               a, b, core_a, core_b):  # pragma: no cover - compiled
@@ -98,7 +98,7 @@ def flat_rows(raws, darks, dark_values, use_dark, slots, first_in_slot, n_slots,
     return clipped
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def flat_rows_variance(raws, darks, dark_values, use_dark, ts, inv_gain, var_read, limit, white_level, white,
                        threshold, floor_dn, out, weak, first_light, a, b, core_a, core_b):  # pragma: no cover
     """:func:`flat_rows` for its common case, fused: the variance-optimal merge of exposures of distinct times
@@ -170,3 +170,21 @@ def flat_rows_variance(raws, darks, dark_values, use_dark, ts, inv_gain, var_rea
                 w8 = best[j] < floor_dn
                 wk[j] = w8 if first_light else (wk[j] and w8)
     return clipped
+
+
+def warm_up(exposures: tuple[int, ...] = (1, 2, 3)) -> None:
+    """Load (or compile) the row kernels for lights of ``exposures`` frames each, on tiny arrays: a kernel's first
+    call in a process reads it from numba's cache (~0.25 CPU-s each), which would otherwise fall on the first
+    delivery."""
+    f32 = np.float32
+    for k in exposures:
+        raws = tuple(np.zeros((2, 4), np.uint16) for _ in range(k))
+        darks = tuple(np.zeros((2, 4), f32) for _ in range(k))
+        ts = np.arange(1, k + 1, dtype=f32)
+        out, weak, white = np.zeros((2, 4 + 2 * HALO), f32), np.zeros((2, 4), np.bool_), np.ones((2, 4), f32)
+        flat_rows_variance(raws, darks, np.zeros(k, f32), np.ones(k, np.bool_), ts, f32(1), f32(1), f32(1e4),
+                           f32(1.5e4), white, f32(0), f32(1), out, weak, True, 0, 2, 0, 2)
+        slots = np.arange(k, dtype=np.int64)
+        flat_rows(raws, darks, np.zeros(k, f32), np.ones(k, np.bool_), slots, np.ones(k, np.bool_), k, slots, ts,
+                  f32(1) / ts, 0, f32(1e-4), f32(1), f32(1), f32(1e4), f32(1.5e4), white, f32(0), f32(1), out, weak,
+                  True, 0, 2, 0, 2)

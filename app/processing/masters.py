@@ -18,7 +18,9 @@ as it lands instead).
 
 Each band of each light is computed with its HALO rows above and below (the demosaic's support; mirrored at the
 frame's edges), by the fused row kernel of app.processing.master_kernels in the threads of a pool (the kernels
-release the GIL).
+release the GIL). The delivery takes that flat-fielded mosaic band (:meth:`MasterStack.mosaic_band`) and
+demosaics each row as it encodes it (app.processing.encode.DeliveryEncoder.encode_mosaic: no N-channel float band,
+the same values as :meth:`MasterStack.band`).
 """
 from __future__ import annotations
 
@@ -271,25 +273,40 @@ class MasterStack:
             done = self._pool.map(lambda ab: flat_rows(*args, ab[0], ab[1], core[0], core[1]), self._chunks(y1 - y0))
         self._clipped[lt.name] += sum(int(c) for c in done)
 
-    def band(self, r0: int, rows: int) -> np.ndarray:
-        """Rows ``r0`` .. ``r0 + rows`` of the channels, (rows, W, N) float32 (valid until the next call); bands
-        come in order, each once (the QA counts add up over them)."""
+    def mosaic_band(self, r0: int, rows: int) -> np.ndarray:
+        """Rows ``r0`` .. ``r0 + rows`` of every light's flat-fielded mosaic before the demosaic: (L, rows + 2 HALO,
+        W + 2 HALO) float32, HALO mirrored rows and columns around (row HALO + r is image row r0 + r; valid until
+        the next call); bands come in order, each once (the QA counts add up over them). :meth:`band` demosaics
+        it; app.processing.encode.DeliveryEncoder.encode_mosaic demosaics and encodes it in one pass."""
         H, W = self.shape
         if r0 != self._rows_done or rows < 1 or r0 + rows > H:
             raise ValueError(f"band of rows {r0}..{r0 + rows} after {self._rows_done} of {H} (in order, each once)")
         top = r0 - HALO                                       # image row of the padded band's first row
         y0, y1 = max(top, 0), min(r0 + rows + HALO, H)        # the rows inside the frame
         weak = self._buffer("weak", (y1 - y0, W), np.bool_)
-        out = self._buffer("band", (rows, W, len(self.channels)), np.float32)
+        padded = self._buffer("padded", (len(self._lights), rows + 2 * HALO, W + 2 * HALO), np.float32)
         for li, lt in enumerate(self._lights):
-            padded = self._buffer(f"padded{li}", (rows + 2 * HALO, W + 2 * HALO), np.float32)
-            self._flat_band(li, lt, y0, y1, padded[y0 - top: y1 - top], (r0 - y0, r0 + rows - y0), weak)
+            p = padded[li]
+            self._flat_band(li, lt, y0, y1, p[y0 - top: y1 - top], (r0 - y0, r0 + rows - y0), weak)
             for y in [*range(top, 0), *range(H, r0 + rows + HALO)]:     # outside the frame: mirrored rows
-                padded[y - top] = padded[(-y if y < 0 else 2 * (H - 1) - y) - top]
-            list(self._pool.map(lambda ab, p=padded, b=3 * li: demosaic_rows(p, HALO, r0, self._cfa, out, ab[0],
-                                                                              ab[1], b), self._chunks(rows)))
+                p[y - top] = p[(-y if y < 0 else 2 * (H - 1) - y) - top]
         self._weak += int(np.count_nonzero(weak[r0 - y0: r0 - y0 + rows]))
         self._rows_done += rows
+        return padded
+
+    @property
+    def cfa_index(self) -> np.ndarray:
+        """(2, 2) channel indices (0 = R, 1 = G, 2 = B) of the frame's top-left cell."""
+        return self._cfa
+
+    def band(self, r0: int, rows: int) -> np.ndarray:
+        """Rows ``r0`` .. ``r0 + rows`` of the channels, (rows, W, N) float32 (valid until the next call); bands
+        come in order, each once (the QA counts add up over them)."""
+        padded = self.mosaic_band(r0, rows)
+        out = self._buffer("band", (rows, self.width, len(self.channels)), np.float32)
+        for li in range(len(self._lights)):
+            list(self._pool.map(lambda ab, p=padded[li], b=3 * li: demosaic_rows(p, HALO, r0, self._cfa, out, ab[0],
+                                                                                  ab[1], b), self._chunks(rows)))
         return out
 
     def close(self) -> None:

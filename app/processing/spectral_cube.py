@@ -25,7 +25,7 @@ import numba
 import numpy as np
 from numba import njit
 
-from dualrgb.app.processing.encode import band_source, encoding_table, rgb_row, stack_or_shape
+from dualrgb.app.processing.encode import band_source, encoding_slopes, encoding_table, rgb_row, stack_or_shape
 from dualrgb.app.processing.envi import IGNORE_VALUE, SCALE_FACTOR
 from dualrgb.app.processing.render import Rendering
 
@@ -115,7 +115,7 @@ def _spectral_rows(stack, r0, M, off, lo, hi, scale, ignore, wts, m_rgb, lut, cu
         bad += _planes(stack[r0 + r].reshape(W * C), planes, valid)
         _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, cube[r] if store else none, store)
         if rgb.shape[0] > 0:
-            rgb_row(x, y, z, m_rgb, lut, lin, idx, rgb[r].reshape(W * 3))
+            rgb_row(x, y, z, m_rgb, lut[0], lut[1], lin, idx, rgb[r].reshape(W * 3))
     return bad
 
 
@@ -148,7 +148,8 @@ class SpectralEncoder:
                      else np.ascontiguousarray(rendering.weights, dtype=np.float32))
         self._m_rgb = (np.eye(3, dtype=np.float32) if rendering is None
                        else np.ascontiguousarray(rendering.rgb_matrix, dtype=np.float32))
-        self._lut = encoding_table(rendering.space if rendering is not None else "sRGB")
+        space = rendering.space if rendering is not None else "sRGB"
+        self._lut = np.stack([encoding_table(space), encoding_slopes(space)])     # values, steps (rgb_row)
         self.invalid = 0
         self.threads = max(1, threads or numba.get_num_threads())
         self.chunks_per_thread = 4

@@ -33,10 +33,10 @@ import numpy as np
 
 from dualrgb.app.json_output import dumps
 from dualrgb.app.processing.cube_map import spectral_map
-from dualrgb.app.processing.demosaic import DEMOSAIC
+from dualrgb.app.processing.demosaic import DEMOSAIC, HALO
 from dualrgb.app.processing.encode import LINEAR_ONE, DeliveryEncoder
 from dualrgb.app.processing.envi import DTYPE, IGNORE_VALUE, INTERLEAVE, SCALE_FACTOR, EnviHeader
-from dualrgb.app.processing.masters import FULL
+from dualrgb.app.processing.masters import FULL, MasterStack
 from dualrgb.app.processing.outputs import (
     TiffMetadata,
     icc_profile,
@@ -228,11 +228,14 @@ def write_images(source: ChannelSource, profile: CalibrationProfile, images: dic
         for r0 in range(0, H, band_rows):
             check(cancel)
             rows = min(band_rows, H - r0)
-            band = source.band(r0, rows)
-            enc.encode(r0, out["xyz"].band(rows), [o.band(rows) for o in rgb], [o.band(rows) for o in chans],
-                       band=band)
-            if cube_enc is not None:
-                cube_enc.encode(r0, out["spectral"].band(rows), out["render"].band(rows), band=band)
+            bands = (out["xyz"].band(rows), [o.band(rows) for o in rgb], [o.band(rows) for o in chans])
+            if isinstance(source, MasterStack) and cube_enc is None:     # demosaiced as it is encoded: one pass
+                enc.encode_mosaic(r0, *bands, mosaic=source.mosaic_band(r0, rows), p0=HALO, cfa=source.cfa_index)
+            else:
+                band = source.band(r0, rows)
+                enc.encode(r0, *bands, band=band)
+                if cube_enc is not None:
+                    cube_enc.encode(r0, out["spectral"].band(rows), out["render"].band(rows), band=band)
             for o in out.values():
                 o.commit()
         invalid = enc.invalid_fraction

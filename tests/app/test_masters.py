@@ -114,6 +114,51 @@ def test_the_fused_variance_kernel_is_the_general_one_bit_for_bit(scene):
     assert got[True][1:] == got[False][1:] and got[True][1]["a"] > 0
 
 
+def _encoded(stack, enc, band_rows, fused):
+    """The five 16-bit images of ``stack`` encoded band by band: demosaiced as encoded (``fused``:
+    DeliveryEncoder.encode_mosaic) or from the demosaiced bands (DeliveryEncoder.encode)."""
+    from dualrgb.app.processing.demosaic import HALO
+
+    out = [np.empty((H, W, 3), np.uint16) for _ in range(5)]
+    for r0 in range(0, H, band_rows):
+        rows = min(band_rows, H - r0)
+        bands = (out[0][r0:r0 + rows], [o[r0:r0 + rows] for o in out[1:3]], [o[r0:r0 + rows] for o in out[3:]])
+        if fused:
+            enc.encode_mosaic(r0, *bands, mosaic=stack.mosaic_band(r0, rows), p0=HALO, cfa=stack.cfa_index)
+        else:
+            enc.encode(r0, *bands, band=np.ascontiguousarray(stack.band(r0, rows)))
+    return out
+
+
+@pytest.mark.parametrize("cfa, band_rows, threads", [("RGGB", 8, 2), ("GRBG", 1, 1), ("BGGR", 5, 3),
+                                                     ("GBRG", H, 2)])
+def test_demosaicing_while_encoding_is_the_banded_path_bit_for_bit(scene, cfa, band_rows, threads):
+    """The delivery of a full-resolution original demosaics each row as it encodes it (encode_mosaic: no N-channel
+    float band): the same bits as demosaicing the band first and encoding it, and within one code value of the
+    independent reference (HdrMerge + FlatField + colour-demosaicing, encoded whole), NaN pixels included."""
+    from dualrgb.app.processing.encode import RGB_SPACES, DeliveryEncoder, encode_deliverables
+
+    dark, frames, whites = scene
+    matrix = np.random.default_rng(5).uniform(0, 60, (6, 3))
+    white = [95.047, 100.0, 108.883]
+    got = {}
+    for fused in (True, False):
+        builder = processor(dark, whites, "variance", cfa).begin_master(list(frames))
+        for light, fs in frames.items():
+            for m, t in fs:
+                builder.add(light, ExposureRef(m, t))
+        with builder.result(threads=threads) as stack, \
+                DeliveryEncoder((H, W, 6), matrix, white, threads=threads) as enc:
+            got[fused] = (_encoded(stack, enc, band_rows, fused), enc.invalid, enc.over_white, enc.lit)
+    assert all(np.array_equal(a, b) for a, b in zip(got[True][0], got[False][0], strict=True))
+    assert got[True][1:] == got[False][1:] and got[True][1] > 0
+    ref = encode_deliverables(reference(dark, frames, whites, "variance", cfa).astype(np.float32), matrix, white)
+    expected = [ref.xyz, *(ref.rgb[s] for s in RGB_SPACES), ref.channels[..., :3], ref.channels[..., 3:]]
+    for image, want in zip(got[True][0], expected, strict=True):
+        assert np.abs(image.astype(np.int32) - want).max() <= 1
+    assert got[True][1] == round(ref.invalid_fraction * H * W)
+
+
 def test_calibration_arrays_mapped_from_a_file_give_the_same_bands(scene, tmp_path):
     """A large calibration's darks and whites are np.memmap views of the .npz (app.workflow.profile_arrays): the
     bands read from the file equal the bands of the arrays in memory."""
