@@ -141,8 +141,10 @@ def test_subprocess_emulator_and_cli(transport):
     """The real entry points: `dualrgb sphere-emulator` in one process, `dualrgb sphere` in another."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYTHONWARNINGS": "ignore"}
     cmd = [sys.executable, "-c", "import sys; from dualrgb.app.cli import main; sys.exit(main(sys.argv[1:]))"]
+    # Ctrl-C as in a terminal: a suite started in the background (`make test &`) hands its children SIGINT ignored
+    ctrl_c = (lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)) if os.name == "posix" else None
     server = subprocess.Popen(cmd + ["sphere-emulator", "--watchdog", "5", "--transport", transport], cwd=ROOT,
-                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c)
     try:
         port = server.stdout.readline().strip()
         if server.poll() is not None:
