@@ -28,6 +28,7 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.viewmodel import calibration_lines
 from dualrgb.app.gui.widgets import PathLabel
+from dualrgb.app.protocols import Session
 from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.shooter import Shooter
 from dualrgb.app.workflow.charts import load_charts
@@ -43,11 +44,17 @@ from dualrgb.app.workflow.profile import (
     load_profile,
 )
 from dualrgb.app.workflow.runs import RunHooks, StandRun
-from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.app.workflow.vocabulary import Role, Subject, role_of
 
 log = logging.getLogger(__name__)
 
 CALIBRATION_RUN = "calibration"
+RESHOOT, KEEP, CANCEL = "Re-shoot", "Keep", "Cancel"
+
+
+def calibration_frames(session: Session) -> list:
+    """The session's current darks, flats and target frames."""
+    return [e for e in session.entries() if role_of(e) in (Role.DARK, Role.FLAT, Role.TARGET)]
 
 
 class CalibrationBox(QGroupBox):
@@ -143,7 +150,31 @@ class CalibrationBox(QGroupBox):
             self.ctx.errors.report("Calibrate", exc)
             return
         ws.set_charts(charts)
+        if lab.session is not None and calibration_frames(lab.session):
+            self._ask_reshoot(plan, charts)
+            return
         self.ctx.with_session(lambda: self._start(plan, charts), "the calibration")
+
+    def _ask_reshoot(self, plan: list, charts: dict) -> None:
+        """The session holds calibration frames: re-shoot them (in a new dated session: this one keeps its frames
+        and delivered originals, the waiting ones move along), keep them (a calibration computed again from them,
+        nothing lit), or cancel."""
+        session = self.ctx.lab.session
+        n = len(calibration_frames(session)) if session is not None else 0
+        text = (f"This session already holds {n} calibration frames (darks, flats, targets). Re-shoot them in a new "
+                "session (this one keeps its frames and delivered originals; waiting originals move along), keep "
+                "them and compute the calibration again (nothing is lit), or cancel?")
+
+        def answer(choice: str) -> None:
+            if choice == RESHOOT:
+                old = self.ctx.lab.session
+                self.ctx.lab.set_session(None)
+                if old is not None:
+                    old.close()                      # its writer lock given back: it can be opened again
+                self.ctx.with_session(lambda: self._start(plan, charts), "the re-shot calibration")
+            elif choice == KEEP:
+                self._start(plan, charts)
+        self.ctx.asker.ask("Calibrate again?", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
     def _start(self, plan: list, charts: dict | None = None) -> None:
         ws, lab = self.ws, self.ctx.lab

@@ -12,6 +12,7 @@ from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QScrollArea, QTa
 
 from dualrgb.app.gui import gc_thread
 from dualrgb.app.gui.context import AppContext, Bus, default_settings
+from dualrgb.app.gui.day_keeper import DayKeeper
 from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.guide import WorkflowGuide
 from dualrgb.app.gui.panels.placeholder import NotAvailablePanel
@@ -62,6 +63,8 @@ class MainWindow(QMainWindow):
         self._build_status_bar()
         self._build_actions()
         self._build_persistence()
+        self.day = DayKeeper(self.ctx, self)       # the queue and calibration kept in the session; restored now
+        self.day.restore()
 
     def _build_log_dock(self) -> None:
         self.log_view = LogView()
@@ -224,6 +227,9 @@ class MainWindow(QMainWindow):
             self._save_timer.start()
 
     def closeEvent(self, event: QCloseEvent) -> None:
+        if not self._closing and not self.day.may_quit(self, self.errors.show_dialogs):
+            event.ignore()                         # work left: the technician chose to keep working
+            return
         if not self._closing:
             self._closing = True
             self.save_layout()
@@ -242,6 +248,7 @@ class MainWindow(QMainWindow):
                            on_error=lambda exc: log.error("closing the devices: %s", exc))
         if not self.runner.wait(20000):
             log.error("some work did not stop within 20 s")
+        self.day.shutdown()
         self.errors.close_all()
         for box in list(self.asker.boxes):
             box.close()

@@ -46,11 +46,12 @@ from dualrgb.app.processing.masters import RESOLUTION_CHOICES
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.copystand import CaptureReport, StandSettings, original_takes
 from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
+from dualrgb.app.workflow.day_file import restore_queue
 from dualrgb.app.workflow.defaults import SETTLE_S
 from dualrgb.app.workflow.metadata import MODES, Original
 from dualrgb.app.workflow.mode_rule import mode_problem
 from dualrgb.app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
-from dualrgb.app.workflow.queue_plan import plan_queue
+from dualrgb.app.workflow.queue_plan import KEPT, plan_queue
 from dualrgb.app.workflow.runs import RunHooks, StandRun
 from dualrgb.app.workflow.vocabulary import EventKind, Role
 
@@ -276,20 +277,29 @@ class OriginalsPanel(QWidget):
                            default=CANCEL)
 
     def _plan_lines(self, imported: QueueImport) -> list[str]:
-        """What `dualrgb capture --queue --check` prints (app.workflow.queue_plan) under the current calibration;
-        without one, the rows read and the column lines."""
-        if self.ws.calibration is None:
-            return [imported.summary(), *imported.bad_lines(), *imported.column_lines()]
-        return plan_queue(imported, self.ws.calibration, session=self.lab.session).lines()
+        """What `dualrgb capture --queue --check` prints (app.workflow.queue_plan) under the current calibration
+        (without one: the rows read, the bad rows, those delivered in the session already, the column lines)."""
+        plan = plan_queue(imported, self.ws.calibration, session=self.lab.session)
+        if self.ws.calibration is not None:
+            return plan.lines()
+        kept = plan.of(KEPT)
+        return [imported.summary() + (f", {len(kept)} delivered in the session already" if kept else ""),
+                *imported.bad_lines(), *(r.line() for r in kept), *imported.column_lines()]
 
     def _add_imported(self, imported: QueueImport) -> None:
+        """Add the valid rows; a row delivered in the session already is counted as delivered (the queue plan's
+        'kept'), not added again."""
         operator = self.operator.text().strip()
-        originals = [o if o.operator or not operator else replace(o, operator=operator) for o in imported.originals]
+        plan = plan_queue(imported, self.ws.calibration, session=self.lab.session)
+        kept = {r.identifier for r in plan.of(KEPT)}
+        originals = [o if o.operator or not operator else replace(o, operator=operator) for o in imported.originals
+                     if o.identifier not in kept]
         left_out = self.ws.queue.add_many(originals, self.stand_in.currentText() if self.lab.is_virtual else "",
                                           self.frames.value())
         added = len(originals) - len(left_out)
         lines = self._plan_lines(imported)
-        self.import_report.setText("\n".join([f"{lines[0]}; {added} added", *lines[1:], *left_out]))
+        done = f", {len(kept)} delivered already" if kept else ""
+        self.import_report.setText("\n".join([f"{lines[0]}; {added} added{done}", *lines[1:], *left_out]))
         self.ws.queue_changed()
 
     def selected(self) -> list[str]:
@@ -334,7 +344,8 @@ class OriginalsPanel(QWidget):
                     queue.rows.append(row)
             self.ws.queue = queue
             self.ws.queue_changed()
-        self.ctx.runner.submit(lambda: OriginalsQueue.from_session(session), pool="compute", name="list originals",
+        # the session's delivered originals and its saved queue (app.workflow.day_file)
+        self.ctx.runner.submit(lambda: restore_queue(session), pool="compute", name="list originals",
                                on_result=done, on_error=lambda exc: self.ctx.errors.report("Originals", exc))
 
     # ------------------------------------------------------------------ calibration and state
