@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
     QFormLayout,
     QGroupBox,
     QHBoxLayout,
+    QHeaderView,
     QLabel,
     QLineEdit,
     QPushButton,
@@ -57,12 +58,13 @@ from dualrgb.app.workflow.vocabulary import EventKind, Role
 
 log = logging.getLogger(__name__)
 
-COLUMNS = ("identifier", "title", "mode", "stand-in", "state", "QA")
+COLUMNS = ("identifier", "state", "mode", "stand-in", "title", "QA")
 STATE_COLOURS = {OriginalState.WAITING: "#fafafa", OriginalState.CAPTURING: "#e3f2fd",
                  OriginalState.CAPTURED: "#fff8e1", OriginalState.DELIVERED: "#e8f5e9",
                  OriginalState.FAILED: "#ffebee"}
-RESHOOT, KEEP = "Re-shoot", "Keep"
-ADD_VALID, CANCEL = "Add the valid rows", "Cancel"
+RESHOOT, KEEP, CANCEL = "Re-shoot", "Keep", "Cancel"
+QA_WIDTH = 220
+ADD_VALID = "Add the valid rows"
 OVERRIDE, LEAVE = "Capture anyway", "Leave it"
 
 
@@ -189,8 +191,13 @@ class OriginalsPanel(QWidget):
         self.table.setHorizontalHeaderLabels(list(COLUMNS))
         self.table.setSelectionBehavior(QTableWidget.SelectionBehavior.SelectRows)
         self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
-        self.table.horizontalHeader().setStretchLastSection(True)
-        self.table.setWordWrap(True)
+        header = self.table.horizontalHeader()          # readable at 1366 px: the title gives way, never the state
+        for c, name in enumerate(COLUMNS):
+            mode = QHeaderView.ResizeMode.Stretch if name == "title" else QHeaderView.ResizeMode.ResizeToContents
+            header.setSectionResizeMode(c, QHeaderView.ResizeMode.Interactive if name == "QA" else mode)
+        header.setStretchLastSection(False)
+        self.table.setTextElideMode(Qt.TextElideMode.ElideRight)
+        self.table.setWordWrap(False)
         self.table.itemSelectionChanged.connect(self._update_enabled)
         buttons = QHBoxLayout()
         self.capture_button = QPushButton("Capture selected")
@@ -322,13 +329,13 @@ class OriginalsPanel(QWidget):
         self.table.setRowCount(len(rows))
         for r, row in enumerate(rows):
             o = row.original
-            texts = (o.identifier, o.title, o.mode, row.stand_in or "—", row.state.value, row.qa)
+            texts = (o.identifier, row.state.value, o.mode, row.stand_in or "—", o.title, row.qa)
             for c, text in enumerate(texts):
                 item = QTableWidgetItem(text)
                 item.setToolTip(text if c != 5 else "\n".join([text] + row.warnings))
                 item.setBackground(QColor(STATE_COLOURS[row.state]))
                 self.table.setItem(r, c, item)
-        self.table.resizeColumnsToContents()
+        self.table.setColumnWidth(COLUMNS.index("QA"), QA_WIDTH)    # the whole line: its tooltip and under the table
         self.table.resizeRowsToContents()
         self._update_enabled()
 
@@ -462,9 +469,15 @@ class OriginalsPanel(QWidget):
 
     def _ask_reshoot(self, row: QueueRow, takes: list[int]) -> None:
         text = (f"{row.identifier} is already in the session ({len(takes)} frames, take {max(takes)}). Re-shoot it "
-                "(a new take; the old frames stay in the session) or keep its frames and deliver them again?")
-        self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP),
-                           lambda choice: self._start(row, choice == RESHOOT), default=KEEP)
+                "(a new take; the old frames stay in the session), keep its frames and deliver them again, or "
+                "cancel (nothing is lit)?")
+
+        def answer(choice: str) -> None:
+            if choice == CANCEL:
+                self.batch = []
+                return
+            self._start(row, choice == RESHOOT)
+        self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
     def _start(self, row: QueueRow, reshoot: bool | None) -> None:
         profile, lab = self.ws.calibration, self.lab
