@@ -37,6 +37,9 @@ class DayKeeper(QObject):
         self._timer.timeout.connect(self.save)
         for sig in (self.ws.queueChanged, self.ws.calibrationChanged, self.lab.sessionChanged):
             sig.connect(self._changed)
+        self._unchecked: CaptureSession | None = None      # restored before a camera said what the stand is
+        for sig in (self.lab.cameraChanged, self.lab.virtualLabChanged):
+            sig.connect(self._check_restored)
 
     # ------------------------------------------------------------------ saving
     def _changed(self) -> None:
@@ -95,12 +98,34 @@ class DayKeeper(QObject):
         if profile is not None:
             self.ws.set_calibration(profile)
         self._restoring = False
+        self._unchecked = session
+        self._check_restored()
         self.restored = restored_line(session.path.name, queue, profile.id if profile is not None else "")
         for note in notes:
             log.warning("restoring the day: %s", note)
         log.info("%s", self.restored)
         self.lab.message.emit(self.restored)
         self.save()
+
+    def _check_restored(self) -> None:
+        """Once the camera is connected, the restored session's definition (camera, frame size) is checked like a
+        session opened by hand; another stand's session is let go, said in one line."""
+        session = self._unchecked
+        if session is None or self.lab.camera is None:
+            return
+        self._unchecked = None
+        if self.lab.session is not session:
+            return
+        definition = self.lab.session_definition()
+
+        def refused(exc: BaseException) -> None:
+            if self.lab.session is session:
+                self.lab.set_session(None)
+                session.close()
+            self.ctx.errors.report("Restore the last session", exc)
+        self.ctx.runner.submit(lambda: session.check_definition(
+            definition, hint="this stand is not the one of the session restored; open another or start a new one"),
+            pool="devices", name="check the restored session", on_error=refused)
 
     def _not_restored(self, exc: BaseException) -> None:
         self._restoring = False
