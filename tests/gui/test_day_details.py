@@ -176,3 +176,22 @@ def test_the_target_tab_opens_on_a_target_not_an_original(qtbot, make_window):
 
     keys = [Subject.original("AAA-1").key, Subject.target("train").key, Subject.target("test").key]
     assert sorted(keys, key=target_first) == [keys[2], keys[1], keys[0]]
+
+
+def test_every_copy_stand_option_has_its_row_in_docs_gui():
+    """docs/gui.md's table names every option of `dualrgb calibrate`, `capture` and `process` (issue 30)."""
+    import argparse
+
+    from dualrgb.app.cli import build_parser
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "gui.md").read_text(encoding="utf-8")
+    section = text.split("## Every copy-stand option of the command line", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in section.splitlines() if line.startswith("| ") and "`--" in line]
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    missing = []
+    for command in ("calibrate", "capture", "process"):
+        for action in sub.choices[command]._actions:
+            for option in (o for o in action.option_strings if o.startswith("--") and o != "--help"):
+                if not any(f"`{option}`" in row.split("|")[2] and command in row.split("|")[1] for row in rows):
+                    missing.append(f"{command} {option}")
+    assert not missing, missing

@@ -327,9 +327,16 @@ class CapturePanel(QWidget):
         if profile.preset != current and profile.preset in [p.name for _, p in self.presets]:
             self.choose_preset(profile.preset)
         names = {nl.name for nl in self.lights}
-        if names and names <= set(profile.base_exposures):
-            for name in names:
-                self.set_exposure(name, profile.base_exposures[name])
+        if not names or not names <= set(profile.base_exposures):
+            return
+        self.light_table.blockSignals(True)              # one change, and a calibration run's ticked plan stays
+        for name in names:
+            self.set_exposure(name, profile.base_exposures[name])
+        self.light_table.blockSignals(False)
+        self.ws.set_base_exposures(self._table_exposures())
+        self.hdr_plans = {}
+        if not isinstance(self.view.seq, StandRun):
+            self.update_plan()
 
     def _table_exposures(self) -> dict[str, float]:
         out = {}
