@@ -14,7 +14,7 @@ from PySide6.QtWidgets import QApplication
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.workflow.day import DayStep, StepState
 from dualrgb.app.workflow.delivery import Original
-from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, wait_idle
+from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, quick_calibrate, wait_idle
 
 LONG = HANG_GUARD_MS
 
@@ -51,6 +51,16 @@ def test_menus_file_and_help(qtbot, make_window, tmp_path):
     acts["about"].trigger()
     assert w.asker.history[-1][0] == "About dualrgb" and "dual-RGB" in w.asker.history[-1][1]
     assert {"open_session", "documentation", "quit"} <= set(acts)
+
+
+def test_quitting_while_a_run_goes_on_asks_first(qtbot, make_window):
+    w = make_window()
+    assert w.day.quit_question() == ""                       # nothing left: quits without a question
+    w.ctx.workspace.set_running("calibration")
+    w.asker.scripted = ["Keep working"]
+    w.close()
+    assert w.isVisible() and "calibration is running: quitting cancels it" in w.asker.history[-1][1]
+    w.ctx.workspace.set_running("")
 
 
 def test_a_file_that_cannot_be_opened_is_said_in_the_window(qtbot, make_window, tmp_path, monkeypatch):
@@ -99,27 +109,13 @@ def test_measured_frame_times_make_the_estimate():
     assert frame_overhead_s(times[:3], 0.1) is None
 
 
-def calibrate(qtbot, w, *, de_fit=False):
-    cap = w.capture
-    qtbot.waitUntil(lambda: len(cap.presets) > 0, timeout=LONG)
-    cap.settle.setValue(0.0)
-    box = cap.calibration
-    box.dark_frames.setValue(1)
-    box.flat_frames.setValue(1)
-    box.de_fit.setChecked(de_fit)
-    box.hdr_auto.setChecked(False)
-    click(qtbot, box.calibrate_button)
-    qtbot.waitUntil(lambda: not cap.view.running and cap.view.outcome != "", timeout=LONG)
-    wait_idle(qtbot, w, LONG)
-
-
 def test_calibration_loaded_shows_its_exposures_and_calibrate_again_asks(qtbot, make_window, tmp_path):
     w = make_window()
     cap, ws, guide = w.capture, w.ctx.workspace, w.guide
     assert cap.view.message.text().startswith("needs ")
     connect_devices(qtbot, w)
     assert not cap.view.message.text().startswith("needs "), cap.view.message.text()   # connected: advice gone
-    calibrate(qtbot, w)
+    quick_calibrate(qtbot, w)
     profile = ws.calibration
     assert cap.view.outcome == "done" and profile is not None
     overhead = w.ctx.get("runs/frame_overhead_s", 0.0, float)
@@ -157,7 +153,7 @@ def test_calibration_loaded_shows_its_exposures_and_calibrate_again_asks(qtbot, 
 def test_results_grade_the_delivered_matrix(qtbot, make_window):
     w = make_window()
     connect_devices(qtbot, w)
-    calibrate(qtbot, w)                                     # least squares only: what the deliveries use
+    quick_calibrate(qtbot, w)                                     # least squares only: what the deliveries use
     res = w.results
     assert res.delivered_method() == "least-squares" and not res.optimise.isChecked()
     assert res.comparison_note("least-squares") == ""

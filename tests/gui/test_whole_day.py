@@ -11,7 +11,7 @@ from pathlib import Path
 from dualrgb.app.gui.day_keeper import QUIT, STAY
 from dualrgb.app.workflow.day import OriginalState
 from dualrgb.app.workflow.day_file import day_path
-from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, wait_idle
+from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, quick_calibrate, wait_idle
 
 LONG = HANG_GUARD_MS
 IDS = ("DAY-1", "DAY-2", "DAY-3", "DAY-4")
@@ -24,20 +24,9 @@ def write_queue(tmp_path: Path) -> Path:
 
 
 def calibrate(qtbot, w):
-    cap = w.capture
-    qtbot.waitUntil(lambda: len(cap.presets) > 0, timeout=LONG)
-    cap.settle.setValue(0.0)
-    box = cap.calibration
-    box.dark_frames.setValue(1)
-    box.flat_frames.setValue(1)
-    box.de_fit.setChecked(False)
-    box.hdr_auto.setChecked(False)
-    outcome_before = len(w.asker.history)
-    click(qtbot, box.calibrate_button)
-    qtbot.waitUntil(lambda: cap.view.outcome != "" and not cap.view.running, timeout=LONG)
-    wait_idle(qtbot, w, LONG)
-    assert cap.view.outcome == "done", (cap.view.message.text(), w.errors.history)
-    return w.asker.history[outcome_before:]
+    asked = quick_calibrate(qtbot, w)
+    assert w.capture.view.outcome == "done", (w.capture.view.message.text(), w.errors.history)
+    return asked
 
 
 def delivered(w, idents):

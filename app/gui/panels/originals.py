@@ -63,7 +63,7 @@ STATE_COLOURS = {OriginalState.WAITING: "#fafafa", OriginalState.CAPTURING: "#e3
                  OriginalState.CAPTURED: "#fff8e1", OriginalState.DELIVERED: "#e8f5e9",
                  OriginalState.FAILED: "#ffebee"}
 RESHOOT, KEEP, CANCEL = "Re-shoot", "Keep", "Cancel"
-QA_WIDTH = 220
+QA_WIDTH = 180
 ADD_VALID = "Add the valid rows"
 OVERRIDE, LEAVE = "Capture anyway", "Leave it"
 
@@ -196,6 +196,7 @@ class OriginalsPanel(QWidget):
             mode = QHeaderView.ResizeMode.Stretch if name == "title" else QHeaderView.ResizeMode.ResizeToContents
             header.setSectionResizeMode(c, QHeaderView.ResizeMode.Interactive if name == "QA" else mode)
         header.setStretchLastSection(False)
+        header.setMinimumSectionSize(70)                # the title shows its start even in a narrow panel
         self.table.setTextElideMode(Qt.TextElideMode.ElideRight)
         self.table.setWordWrap(False)
         self.table.itemSelectionChanged.connect(self._update_enabled)
