@@ -14,7 +14,7 @@ from PySide6.QtWidgets import QMessageBox, QWidget
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.workflow.day import OriginalsQueue
-from dualrgb.app.workflow.day_file import day_rows, restore_day, restored_line, write_day
+from dualrgb.app.workflow.day_file import day_path, day_rows, read_day, restore_day, restored_line, write_day
 from dualrgb.app.workflow.profile import CalibrationProfile, load_profile
 
 log = logging.getLogger(__name__)
@@ -47,14 +47,20 @@ class DayKeeper(QObject):
             self._timer.start()
 
     def save(self) -> None:
-        """Write the queue and the calibration's path into the current session (nothing without one)."""
+        """Write the queue and the calibration's path into the current session; before there is one, into the
+        settings folder (``<data>/day/queue.json``: originals queued before the first session are kept too)."""
         session = self.lab.session
-        if session is None or session.readonly:
+        if session is not None and session.readonly:
             return
         order, rows = day_rows(self.ws.queue)
         profile = self.ws.calibration
         calibration = Path(profile.path) if profile is not None and profile.path else None
-        self._pending = self._writer.submit(write_day, Path(session.path), order, rows, calibration)
+        unsessioned = self.ctx.data_dir()
+        if session is None:
+            self._pending = self._writer.submit(write_day, unsessioned, order, rows, calibration)
+        else:                                   # in the session now: the rows queued before it moved along
+            self._pending = self._writer.submit(_write_in_session, Path(session.path), order, rows, calibration,
+                                                unsessioned)
         self._pending.add_done_callback(_log_failure)
 
     def flush(self) -> None:
@@ -69,7 +75,10 @@ class DayKeeper(QObject):
     def restore(self) -> None:
         """Open the last session again with its queue and calibration (on the devices thread), unless one is open."""
         folder = self.ctx.get("capture/last_session", "", str)
-        if not folder or self.lab.session is not None or not (Path(folder) / "session.json").is_file():
+        if self.lab.session is not None:
+            return
+        if not folder or not (Path(folder) / "session.json").is_file():
+            self._restore_unsessioned()
             return
         definition = self.lab.session_definition()
         self._restoring = True
@@ -107,6 +116,30 @@ class DayKeeper(QObject):
         self.lab.message.emit(self.restored)
         self.save()
 
+    def _restore_unsessioned(self) -> None:
+        """The originals queued before any session (none was made yet when the window closed)."""
+        saved = read_day(self.ctx.data_dir())
+        for note in saved.notes:
+            log.warning("restoring the queue: %s", note)
+        calibration = saved.calibration if saved.calibration is not None and saved.calibration.is_file() else None
+        if not saved.rows and calibration is None:
+            return
+        self.ws.queue = OriginalsQueue()
+        self.ws.queue.rows = list(saved.rows)
+        self.ws.queue_changed()
+
+        def said(profile: CalibrationProfile | None) -> None:
+            if profile is not None:
+                self.ws.set_calibration(profile)
+            self.restored = restored_line("", self.ws.queue, profile.id if profile is not None else "")
+            log.info("%s", self.restored)
+            self.lab.message.emit(self.restored)
+        if calibration is None:
+            said(None)
+            return
+        self.ctx.runner.submit(lambda: load_profile(calibration), pool="compute", name="restore the calibration",
+                               on_result=said, on_error=self._not_restored)
+
     def _check_restored(self) -> None:
         """Once the camera is connected, the restored session's definition (camera, frame size) is checked like a
         session opened by hand; another stand's session is let go, said in one line."""
@@ -140,8 +173,8 @@ class DayKeeper(QObject):
                          "stay in the session)")
         waiting = len(self.ws.queue.waiting())
         if waiting:
-            parts.append(f"{waiting} original{'s' if waiting > 1 else ''} waiting in the queue (kept in the session: "
-                         "they come back when the window opens again)")
+            parts.append(f"{waiting} original{'s' if waiting > 1 else ''} waiting in the queue (kept: "
+                         f"{'they come' if waiting > 1 else 'it comes'} back when the window opens again)")
         return "; ".join(parts)
 
     def may_quit(self, parent: QWidget, show_dialogs: bool) -> bool:
@@ -167,6 +200,13 @@ class DayKeeper(QObject):
         self._writer.shutdown(wait=True)
         if self.lab.session is not None:
             self.lab.session.close()
+
+
+def _write_in_session(session: Path, order: list[str], rows: list[dict], calibration: Path | None,
+                      unsessioned: Path) -> Path:
+    path = write_day(session, order, rows, calibration)
+    day_path(unsessioned).unlink(missing_ok=True)
+    return path
 
 
 def _log_failure(future: Future) -> None:

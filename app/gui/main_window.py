@@ -213,8 +213,9 @@ class MainWindow(QMainWindow):
         geometry = self.ctx.settings.value("window/geometry")
         if isinstance(geometry, QByteArray):
             self.restoreGeometry(geometry)
-        else:
-            self.resize(1280, 860)
+        else:                                      # never taller or wider than the screen (a 1366x768 laptop)
+            room = self.screen().availableGeometry() if self.screen() is not None else None
+            self.resize(min(1280, room.width()) if room else 1280, min(860, room.height()) if room else 860)
         state = self.ctx.settings.value("window/state")
         if isinstance(state, QByteArray):
             self.restoreState(state)

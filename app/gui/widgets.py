@@ -192,7 +192,9 @@ class Asker(QObject):
             QTimer.singleShot(0, lambda: on_answer(answer))
             return
         box = QMessageBox(QMessageBox.Icon.Question, title, text, QMessageBox.StandardButton.NoButton, self._parent)
-        buttons: dict[QAbstractButton, str] = {box.addButton(c, QMessageBox.ButtonRole.AcceptRole): c for c in choices}
+        made = [(box.addButton(c, QMessageBox.ButtonRole.AcceptRole), c) for c in choices]
+        buttons: dict[QAbstractButton, str] = dict(made)
+        box.setDefaultButton(next(b for b, c in made if c == default))      # Enter answers the default
         box.setWindowModality(Qt.WindowModality.NonModal)
         box.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
 
@@ -206,7 +208,7 @@ class Asker(QObject):
 
 
 class PathLabel(QLabel):
-    """A file path on one line, its folders shortened from the start when the panel is narrow (never wrapped
+    """A file path on one line, shortened in the middle of its folders when the panel is narrow (never wrapped
     mid-name): the last name - the session's, the file's - stays whole; the whole path is the tooltip."""
 
     def __init__(self, text: str = "", parent: QWidget | None = None):
@@ -239,7 +241,7 @@ class PathLabel(QLabel):
         elif room <= fm.horizontalAdvance("…/"):                  # too narrow even for the name: its start
             text = fm.elidedText(tail, Qt.TextElideMode.ElideRight, width)
         else:
-            text = fm.elidedText(head, Qt.TextElideMode.ElideLeft, room) + tail
+            text = fm.elidedText(head, Qt.TextElideMode.ElideMiddle, room) + tail
         super().setText(text)
 
 

@@ -131,7 +131,8 @@ def restored_line(session_name: str, queue: OriginalsQueue, calibration: str) ->
     """The one line the window says on start: what came back."""
     counts = queue.counts()
     parts = ", ".join(f"{n} {s.value}" for s, n in counts.items() if n) or "empty"
-    return f"restored session {session_name}, calibration {calibration or 'none'}, queue: {parts}"
+    where = f"session {session_name}" if session_name else "(no session yet)"
+    return f"restored {where}, calibration {calibration or 'none'}, queue: {parts}"
 
 
 __all__ = ["DAY_FORMAT", "SavedDay", "day_path", "day_rows", "newest_calibration", "read_day", "restore_day",

@@ -53,6 +53,20 @@ def test_menus_file_and_help(qtbot, make_window, tmp_path):
     assert {"open_session", "documentation", "quit"} <= set(acts)
 
 
+def test_originals_queued_before_any_session_survive_a_restart(qtbot, make_window):
+    w = make_window()
+    org = w.originals
+    org.identifier.setText("EARLY-1")
+    org.title_edit.setText("Queued before the first session")
+    click(qtbot, org.add_button)
+    w.close()                                                # asked (1 waiting); unattended: Quit
+    assert w.asker.history[-1][0] == "Quit" and not w.isVisible()
+    w2 = make_window()
+    qtbot.waitUntil(lambda: w2.day.restored != "", timeout=LONG)
+    assert w2.day.restored == "restored (no session yet), calibration none, queue: 1 waiting"
+    assert w2.ctx.workspace.queue.row("EARLY-1").original.title == "Queued before the first session"
+
+
 def test_quitting_while_a_run_goes_on_asks_first(qtbot, make_window):
     w = make_window()
     assert w.day.quit_question() == ""                       # nothing left: quits without a question
@@ -81,9 +95,10 @@ def test_a_file_that_cannot_be_opened_is_said_in_the_window(qtbot, make_window, 
 def test_paths_keep_the_session_name_visible(qtbot):
     label = PathLabel("/home/technician/.local/share/dualrgb/captures/2026-11-27_3  (56 frames)")
     qtbot.addWidget(label)
-    label.resize(label.fontMetrics().horizontalAdvance("…/captures/2026-11-27_3  (56 frames)") + 4, 20)
+    label.resize(label.fontMetrics().horizontalAdvance("/home/…/captures/2026-11-27_3  (56 frames)") + 4, 20)
     label.show()
     assert label.text().endswith("2026-11-27_3  (56 frames)") and label.text() != label.full_text()
+    assert label.text().startswith("/")                      # the start stays too: shortened in the middle
 
 
 def test_the_queue_is_readable_at_1366_px(qtbot, make_window):
