@@ -123,6 +123,7 @@ class ResultsPanel(QWidget):
         self.out_dir: Path | None = None
         self.handle: TaskHandle | None = None
         self.light_sets: dict[str, list[str]] = {}
+        self._followed = ""                         # the calibration whose matrix family Results follows
         left = QWidget()
         ll = QVBoxLayout(left)
         for box in (self._process_box(), self._accuracy_box(), self._export_box()):
@@ -234,7 +235,8 @@ class ResultsPanel(QWidget):
         """Fit what the calibration fitted: the ΔE00-optimised matrix only when the calibration's choice was made
         among both (otherwise Results would grade a matrix nobody delivered)."""
         profile = self.ctx.workspace.calibration
-        if profile is not None:
+        if profile is not None and profile.id != self._followed:       # a new calibration, not a new check of it
+            self._followed = profile.id
             self.optimise.setChecked(DE2000 in (profile.statistics.get("methods") or {}))
 
     def comparison_note(self, shown: str) -> str:
