@@ -20,6 +20,7 @@ BENCHES = {
     "processing": ("bench.processing_bench", "bench_processing", {}),
     "digitise": ("bench.digitise_bench", "bench_digitise", {}),
     "unbinned": ("bench.studies", "bench_unbinned", {}),
+    "cancel_latency": ("bench.cancel_latency", "bench_cancel_latency", {}),
 }
 
 

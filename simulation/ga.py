@@ -19,7 +19,14 @@ import numpy as np
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
 from dualrgb.simulation.objective import Evaluator
 from dualrgb.simulation.pso import _rngs, enforce_constraints
-from dualrgb.simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
+from dualrgb.simulation.search import (
+    Group,
+    SearchOutcome,
+    candidates_from,
+    costs_checked,
+    group_arrays,
+    light_pairs,
+)
 
 log = logging.getLogger(__name__)
 
@@ -89,8 +96,8 @@ def ga(evaluator: Evaluator, groups: Sequence[Group] | None = None, settings: Ga
         mask = mask_all[lo:hi, None].astype(float)
         flat_mask = mask.reshape(g, 1, D)
         pop = enforce_constraints(np.stack([r.random((mu, L, m)) for r in rngs]), mask).reshape(g, mu, D)
-        fit = evaluator.cost_indexed(np.broadcast_to(idx_all[lo:hi, None], (g, mu, L, m)).reshape(-1, L, m),
-                                     pop.reshape(-1, L, m)).reshape(g, mu)
+        fit = costs_checked(evaluator, np.broadcast_to(idx_all[lo:hi, None], (g, mu, L, m)).reshape(-1, L, m),
+                            pop.reshape(-1, L, m), cancel).reshape(g, mu)
         history[lo:hi, 0] = fit.min(axis=1)
         for gen in range(1, settings.generations + 1):
             check(cancel)
@@ -102,7 +109,7 @@ def ga(evaluator: Evaluator, groups: Sequence[Group] | None = None, settings: Ga
             kid_fit = inherit.copy()
             if todo.any():
                 sel = np.nonzero(todo)
-                kid_fit[sel] = evaluator.cost_indexed(idx_all[lo:hi][sel[0]], kids[sel].reshape(-1, L, m))
+                kid_fit[sel] = costs_checked(evaluator, idx_all[lo:hi][sel[0]], kids[sel].reshape(-1, L, m), cancel)
             pop, fit = _best_of(pop, fit, kids, kid_fit, mu)
             history[lo:hi, gen] = fit[:, 0]
         best_x[lo:hi] = pop[:, 0].reshape(g, L, m) * flat_mask.reshape(g, L, m)

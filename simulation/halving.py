@@ -24,7 +24,7 @@ import numpy as np
 
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
 from dualrgb.simulation.pso import PsoSettings, enforce_constraints, swarm_bests
-from dualrgb.simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
+from dualrgb.simulation.search import Group, SearchOutcome, candidates_from, costs_checked, group_arrays, light_pairs
 
 log = logging.getLogger(__name__)
 
@@ -87,13 +87,15 @@ def successive_halving(evaluator, groups: Sequence[Group] | None = None,
                          settings={**asdict(settings), "rungs": rungs, "polished": polished, "light_sets": G})
 
 
-def set_cost(evaluator, idx_row: np.ndarray, mask_row: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """Objective of one light set's levels X (B, L*m) (padding masked out), one batch per call."""
+def set_cost(evaluator, idx_row: np.ndarray, mask_row: np.ndarray, cancel: CancelToken | None = None
+             ) -> Callable[[np.ndarray], np.ndarray]:
+    """Objective of one light set's levels X (B, L*m) (padding masked out), one batch per call; ``cancel`` is
+    checked before each (an L-BFGS-B polish stops within one gradient batch of a cancel)."""
     L, m = idx_row.shape
 
     def cost(X: np.ndarray) -> np.ndarray:
         X = np.atleast_2d(X).reshape(-1, L, m) * mask_row
-        return evaluator.cost_indexed(np.broadcast_to(idx_row, (X.shape[0], L, m)), X)
+        return costs_checked(evaluator, np.broadcast_to(idx_row, (X.shape[0], L, m)), X, cancel)
 
     return cost
 
@@ -127,7 +129,7 @@ def polish(evaluator, groups: Sequence[Group], best_x: np.ndarray, best_c: np.nd
         check(cancel)
         mask = mask_all[gi].astype(float)
         live = mask.reshape(-1) > 0
-        cost = set_cost(evaluator, idx_all[gi], mask)
+        cost = set_cost(evaluator, idx_all[gi], mask, cancel)
         D = int(live.sum())
         res = minimize(_central_difference(cost, live, h), best_x[gi].reshape(-1)[live], jac=True, method="L-BFGS-B",
                        bounds=[(0.0, 1.0)] * D, options={"maxiter": settings.polish_iterations, "ftol": 1e-7})

@@ -19,7 +19,14 @@ import numpy as np
 
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
 from dualrgb.simulation.objective import Evaluator
-from dualrgb.simulation.search import Group, SearchOutcome, candidates_from, group_arrays, light_pairs
+from dualrgb.simulation.search import (
+    Group,
+    SearchOutcome,
+    candidates_from,
+    costs_checked,
+    group_arrays,
+    light_pairs,
+)
 
 log = logging.getLogger(__name__)
 
@@ -90,7 +97,7 @@ def swarm_bests(evaluator: Evaluator, groups: Sequence[Group], settings: PsoSett
         x = np.stack([r.random((N, L, m)) for r in rngs])                # (g, N, L, m)
         enforce_constraints(x, mask)
         v = np.zeros_like(x)
-        c = evaluator.cost_indexed(idx, x.reshape(g * N, L, m)).reshape(g, N)
+        c = costs_checked(evaluator, idx, x.reshape(g * N, L, m), cancel).reshape(g, N)
         pbest_x, pbest_c = x.copy(), c.copy()
         gi = np.argmin(c, axis=1)
         gbest_x = x[np.arange(g), gi].copy()                            # (g, L, m)
@@ -102,7 +109,7 @@ def swarm_bests(evaluator: Evaluator, groups: Sequence[Group], settings: PsoSett
             r2 = np.stack([r.random((N, L, m)) for r in rngs])
             v = settings.c0 * v + settings.c1 * r1 * (pbest_x - x) + settings.c2 * r2 * (gbest_x[:, None] - x)
             x = enforce_constraints(x + v, mask)
-            c = evaluator.cost_indexed(idx, x.reshape(g * N, L, m)).reshape(g, N)
+            c = costs_checked(evaluator, idx, x.reshape(g * N, L, m), cancel).reshape(g, N)
             better = c < pbest_c
             pbest_c = np.where(better, c, pbest_c)
             pbest_x = np.where(better[..., None, None], x, pbest_x)

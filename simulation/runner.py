@@ -15,7 +15,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from dualrgb.common.progress import CancelToken, ProgressCallback
+from dualrgb.common.progress import CancelToken, ProgressCallback, check
 from dualrgb.simulation.capture_model import CaptureModel
 from dualrgb.simulation.choices import DEFAULT_SPECTRAL_WEIGHT, METHODS, OBJECTIVES, SPECTRAL_OBJECTIVES
 from dualrgb.simulation.datasets import SimulationSetup
@@ -141,13 +141,14 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
         outcome = ga(evaluator, groups, ga_settings, seed, progress=progress, cancel=cancel)
     else:
         outcome = successive_halving(evaluator, groups, halving_settings, seed, progress=progress, cancel=cancel)
+    check(cancel)
     if incumbents:
         add_incumbents(evaluator, outcome, incumbents)
     expected = None
     if capture is None:          # a noise-free search: report the expected captured figures too (the sphere given)
         capture = given or CaptureModel.virtual_lab(setup.mode)
         expected = ExpectedErrorEvaluator(setup, capture)
-    refine_top(evaluator, outcome, max(top, 1), expected)
+    refine_top(evaluator, outcome, max(top, 1), expected, cancel=cancel)
     return RunResult(setup.mode, method, outcome.seed, time.perf_counter() - t0 - warm_s, outcome.evaluations,
                      baseline, outcome, setup, top, extra={"kernel_warm_up_s": round(warm_s, 3),
                                                            **_spectral_settings(base)},

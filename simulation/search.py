@@ -19,6 +19,10 @@ from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
 from dualrgb.simulation.lightsource import LightSource
 from dualrgb.simulation.objective import ErrorStats, Evaluator
 
+# light sets costed between two checks of a search's cancel token: the unit a cancel waits for at most (the
+# Simulate panel's cancel latency is measured in these; bench/cancel_latency.py times one)
+CANCEL_SLICE = 512
+
 log = logging.getLogger(__name__)
 
 DEFAULT_BINS = (3, 3, 4)
@@ -214,10 +218,29 @@ def add_incumbents(evaluator: Evaluator, outcome: SearchOutcome,
     return outcome
 
 
-def refine_top(evaluator: Evaluator, outcome: SearchOutcome, top: int, expected=None) -> SearchOutcome:
-    """Re-evaluate the best ``top`` candidates (:func:`evaluate_candidate`) and sort them by the evaluator's
-    objective."""
+def costs_checked(evaluator: Evaluator, idx: np.ndarray, w: np.ndarray, cancel: CancelToken | None,
+                  slice_size: int | None = None) -> np.ndarray:
+    """``evaluator.cost_indexed(idx, w)`` in slices of at most ``slice_size`` (default :data:`CANCEL_SLICE`) light
+    sets with ``cancel`` checked before each: a search stops within one slice of a cancel (the costs are per light
+    set, so slicing changes no result)."""
+    n = len(w)
+    slice_size = slice_size or CANCEL_SLICE
+    if n <= slice_size:
+        check(cancel)
+        return evaluator.cost_indexed(idx, w)
+    out = np.empty(n)
+    for lo in range(0, n, slice_size):
+        check(cancel)
+        out[lo:lo + slice_size] = evaluator.cost_indexed(idx[lo:lo + slice_size], w[lo:lo + slice_size])
+    return out
+
+
+def refine_top(evaluator: Evaluator, outcome: SearchOutcome, top: int, expected=None,
+               cancel: CancelToken | None = None) -> SearchOutcome:
+    """Re-evaluate the best ``top`` candidates (:func:`evaluate_candidate`; ``cancel`` checked between them) and
+    sort them by the evaluator's objective."""
     for cand in outcome.candidates[:top]:
+        check(cancel)
         evaluate_candidate(evaluator, cand, expected)
     objective = getattr(evaluator, "objective", "noise-free")
     head = sorted(outcome.candidates[:top], key=lambda c: c.objective_mean(objective))
@@ -234,9 +257,8 @@ def exhaustive(evaluator: Evaluator, groups: Sequence[Group] | None = None, *, b
     costs = np.empty(len(groups))
     idx_all, mask_all = group_arrays(groups)
     for lo in range(0, len(groups), batch):
-        check(cancel)
         hi = min(len(groups), lo + batch)
-        costs[lo:hi] = evaluator.cost_indexed(idx_all[lo:hi], mask_all[lo:hi].astype(float))
+        costs[lo:hi] = costs_checked(evaluator, idx_all[lo:hi], mask_all[lo:hi].astype(float), cancel)
         report(progress, hi / len(groups), f"exhaustive: {hi}/{len(groups)} light sets")
     cands = candidates_from(groups, mask_all.astype(float), costs)
     return SearchOutcome("exhaustive", None, time.perf_counter() - t0, evaluator.evaluations - n0, cands,

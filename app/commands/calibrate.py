@@ -112,16 +112,10 @@ def resolve(args: argparse.Namespace) -> tuple[Any, str, int, int]:
 
 
 def _stand_start(args: argparse.Namespace) -> Any:
-    """The measured curves the stand fit starts from (None: nominal), read and checked now, before any device acts
-    (finite, not negative, every camera channel responding: simulation.spectral_io)."""
-    if not (args.camera_csv or args.stand_dir):
-        return None
-    from dualrgb.app.workflow.stand_reoptimise import Measurements, assemble
+    """The measured curves the stand fit starts from (app.workflow.stand_reoptimise.measured_start)."""
+    from dualrgb.app.workflow.stand_reoptimise import measured_start
 
-    start = assemble(None, Measurements.of(args.camera_csv, None, args.stand_dir))[0]
-    start.camera_table()
-    start.led_table()
-    return start
+    return measured_start(args.camera_csv, args.stand_dir)
 
 
 def main(args: argparse.Namespace) -> int:

@@ -16,12 +16,12 @@ import argparse
 import contextlib
 import logging
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dualrgb.app.commands.options import add_world_option, count, frame_size, input_file, number, seconds, seed
-from dualrgb.app.commands.stand_options import ask_person, open_session, real_camera, virtual_world
+from dualrgb.app.commands.stand_options import ask_person, real_camera
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 if TYPE_CHECKING:                       # types only: the devices are imported when the command runs (fast --help)
@@ -109,26 +109,21 @@ def _reference(args: argparse.Namespace) -> RadianceReference:
 
 @contextlib.contextmanager
 def _devices(args: argparse.Namespace) -> Iterator[tuple[Camera, Monochromator, MonochromatorBench | None]]:
-    """(camera, monochromator, bench or None); the shutter closed and ports closed on the way out."""
-    if args.virtual_lab:
-        from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench
+    """(camera, monochromator, bench or None) (app.workflow.csrf_bench.bench_devices); the virtual camera set to
+    --iso / --aperture; the shutter closed and ports closed on the way out."""
+    from dualrgb.app.workflow.csrf_bench import CORNERSTONE, MANUAL, VIRTUAL, CsrfBench, bench_devices
 
-        with MonochromatorBench(frame_size=args.frame_size, seed=args.seed, world=args.world,
-                                timeout_s=args.timeout) as bench:
-            camera = bench.camera
-            assert camera is not None                           # made by start()
-            if args.iso or args.aperture:
-                from dualrgb.drivers.camera.base import CameraSettings
-
-                camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
-            yield camera, bench.monochromator, bench
-        return
-    from dualrgb.drivers.monochromator import Cornerstone, ManualMonochromator
-
+    kind = VIRTUAL if args.virtual_lab else MANUAL if args.manual else CORNERSTONE
+    bench = CsrfBench(kind, port=args.monochromator or "", world=args.world, frame_size=args.frame_size,
+                      seed=args.seed, timeout_s=args.timeout)
     with contextlib.ExitStack() as stack:
-        mono = ManualMonochromator() if args.manual else stack.enter_context(
-            Cornerstone(args.monochromator, timeout=args.timeout))
-        yield stack.enter_context(real_camera(args)), mono, None
+        camera = None if args.virtual_lab else stack.enter_context(real_camera(args))
+        camera, mono, virtual = stack.enter_context(bench_devices(bench, camera))
+        if virtual is not None and (args.iso or args.aperture):
+            from dualrgb.drivers.camera.base import CameraSettings
+
+            camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
+        yield camera, mono, virtual
 
 
 def _printer(event: ProgressEvent) -> None:
@@ -137,48 +132,25 @@ def _printer(event: ProgressEvent) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.sequences.csrf import CsrfSettings
-    from dualrgb.app.workflow.csrf import measure_csrf
+    from dualrgb.app.workflow.csrf_bench import measure_on_bench
+    from dualrgb.simulation.radiance_reference import read_radiance_reference
 
     _check_options(args)
     settings = CsrfSettings(args.start, args.end, args.step, frames=args.frames, dark_frames=args.dark_frames,
                             target_fraction=args.target, max_exposure_s=args.max_exposure, region=args.region)
     reference = _reference(args) if (args.radiance or args.photodiode) else None     # bad files before any device
-    folder = args.session or args.out.with_name(f"{args.out.stem}-session")
     with _devices(args) as (camera, mono, bench):
-        definition = {**settings.definition(), "monochromator": "virtual" if bench else
-                      "manual" if args.manual else "cornerstone", **virtual_world(args)}
-        with open_session(folder, definition, camera, {"measurement": "csrf"}) as session:
-            radiance = reference if reference is not None else _virtual_radiance(bench, session.path, args)
-            m = measure_csrf(camera, mono, session, settings, radiance=radiance, out=args.out, prompt=ask_person,
-                             on_event=_printer)
-            rms = _virtual_check(bench, m) if m is not None else None
-    if m is None:
+        outcome = measure_on_bench(
+            camera, mono, bench, settings, args.out, args.session, reference=reference, prompt=ask_person,
+            read_radiance=lambda p: read_radiance_reference(p, method=args.radiance_method, window_nm=args.window),
+            on_event=_printer)
+    if outcome.radiance_file is not None:
+        print(f"virtual spectroradiometer: {outcome.radiance_file}", file=sys.stderr)
+    if outcome.measurement is None:
         print("dualrgb: measurement cancelled; the shutter is closed", file=sys.stderr)
         return 1
-    _report(args, m, rms)
+    _report(args, outcome.measurement, outcome.rms_percent)
     return 0
-
-
-def _virtual_radiance(bench: MonochromatorBench | None, session_path: Path, args: argparse.Namespace
-                      ) -> Callable[[list[float]], RadianceReference]:
-    from dualrgb.simulation.radiance_reference import read_radiance_reference
-
-    if bench is None:
-        raise ValueError("a real monochromator needs its radiance: --radiance FILE or --photodiode FILE")
-
-    def measure(wavelengths: list[float]) -> RadianceReference:
-        path = bench.spectroradiometer().write_csv(session_path / "radiance-virtual.csv", wavelengths)
-        print(f"virtual spectroradiometer: {path}", file=sys.stderr)
-        return read_radiance_reference(path, method=args.radiance_method, window_nm=args.window)
-    return measure
-
-
-def _virtual_check(bench: MonochromatorBench | None, m: CsrfMeasurement) -> dict[str, float] | None:
-    if bench is None:
-        return None
-    from dualrgb.app.processing.csrf import rms_error_percent
-
-    return rms_error_percent(m.result, *bench.truth())
 
 
 def _report(args: argparse.Namespace, m: CsrfMeasurement, rms: dict[str, float] | None) -> None:

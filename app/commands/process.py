@@ -15,15 +15,11 @@ import argparse
 import logging
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from dualrgb.app.cli import UserError
 from dualrgb.app.commands.options import add_render_option, add_resolution_option, number
 from dualrgb.app.commands.stand_options import progress_printer
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
-
-if TYPE_CHECKING:
-    from dualrgb.app.protocols import Session
 
 log = logging.getLogger(__name__)
 
@@ -47,38 +43,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=main)
 
 
-def session_calibrations(session: Session) -> list[Path]:
-    """The session's own calibrations, then those its originals were captured with (oldest first)."""
-    found = sorted((session.path / "calibration").glob("cal-*.json"))
-    used = [Path(o["calibration"]) for o in session.settings.get("originals", {}).values() if o.get("calibration")]
-    return found + [p for p in used if p.exists() and p not in found]
-
-
-def newest_calibration(session: Session) -> Path:
-    """The session's own newest calibration, else the one its latest original was captured with."""
-    found = session_calibrations(session)
-    if not found:
-        raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
-    return found[-1]
-
-
-def newest_by_mode(session) -> dict:
-    """Mode -> the newest calibration of that mode among :func:`session_calibrations` (loaded)."""
-    from dualrgb.app.workflow.profile import load_profile
-
-    out = {}
-    for path in session_calibrations(session):
-        profile = load_profile(path, arrays=False)
-        out[profile.mode] = path
-    if not out:
-        raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
-    return {mode: load_profile(path) for mode, path in out.items()}
-
-
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.session.capture_session import CaptureSession
     from dualrgb.app.workflow.profile import load_profile
-    from dualrgb.app.workflow.redelivery import redeliver
+    from dualrgb.app.workflow.redelivery import newest_by_mode, redeliver
 
     session = CaptureSession.open(args.session, readonly=True)      # frames checked before use, per original
     profiles = load_profile(args.calibration) if args.calibration else newest_by_mode(session)

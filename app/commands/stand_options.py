@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from dualrgb.app.commands.options import add_world_option, count, frame_size, number, seed
 from dualrgb.app.json_output import HELP as JSON_HELP
-from dualrgb.app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
+from dualrgb.app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE
 
 if TYPE_CHECKING:                       # types only: a command imports its devices when it runs (fast --help)
     from dualrgb.app.protocols import Sphere
@@ -93,36 +93,21 @@ class Devices:
     lab: VirtualLab | None = None
 
 
-def _apply_settings(camera: Camera, args: argparse.Namespace) -> None:
-    from dualrgb.drivers.camera.base import CameraSettings
-
-    if args.iso is not None or args.aperture is not None:
-        camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
-
-
 @contextlib.contextmanager
 def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: str | None = None
                  ) -> Iterator[Devices]:
-    """The virtual lab or the real sphere + camera; LEDs off and ports closed on the way out, whatever happens.
+    """The virtual lab or the real sphere + camera (app.workflow.stand_devices, shared with the GUI); LEDs off and
+    ports closed on the way out, whatever happens.
 
     In the virtual lab an original is placed as its virtual stand-in ``original`` (``--virtual-original``: a
     virtual original's name, or a chart: 'test', 'test+nd' with the ND 2.0 filter over half)."""
+    from dualrgb.app.workflow.stand_devices import apply_settings, virtual_lab, virtual_stand
+
     if args.virtual_lab:
-        from dualrgb.drivers.virtual.lab import VirtualLab
-
-        with VirtualLab(mode=mode, frame_size=args.frame_size, seed=args.seed, world=args.world) as lab:
+        with virtual_lab(mode, args.frame_size, args.seed, args.world) as lab:
             camera, sphere = lab.devices()
-            _apply_settings(camera, args)
-
-            def stand(what: str, nd: bool = False) -> object:
-                if what.startswith("original:"):     # the virtual stand-in; a chart works too ('test', 'test+nd')
-                    name = original or VIRTUAL_ORIGINALS[mode]
-                    chart, plus, _ = name.partition("+nd")
-                    if chart in ("train", "test"):
-                        return lab.place(chart, bool(plus) or nd)
-                    what = f"original:{name}"
-                return lab.place(what, nd)
-            yield Devices(camera, sphere, stand, lab)
+            apply_settings(camera, args.iso, args.aperture)
+            yield Devices(camera, sphere, virtual_stand(lab, original or ""), lab)
         return
     check_device_options(args)
     yield from _real_devices(args)
@@ -130,30 +115,24 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
 
 @contextlib.contextmanager
 def real_camera(args: argparse.Namespace) -> Iterator[Camera]:
-    """The tethered camera ``args.camera`` ('MODEL @ PORT' or 'auto': the first found), ISO / aperture applied."""
-    from dualrgb.drivers.camera.gphoto import GPhotoCamera
+    """The tethered camera ``args.camera`` ('MODEL @ PORT' or 'auto': the first found), ISO / aperture applied
+    (app.workflow.stand_devices.open_camera, as the GUI opens it)."""
+    from dualrgb.app.workflow.stand_devices import open_camera
 
-    model, _, port = args.camera.partition(" @ ")
-    if args.camera == "auto":
-        from dualrgb.drivers.usb_discovery import gphoto_cameras
-
-        found = gphoto_cameras()
-        if not found:
-            raise ValueError("--camera auto: no camera found (connect it by USB, switch it on; `dualrgb devices`)")
-        model, port = found[0].model, found[0].port
-    with GPhotoCamera(model=model or None, port=port or None) as camera:
-        _apply_settings(camera, args)
+    camera = open_camera(args.camera, args.iso, args.aperture)
+    with contextlib.closing(camera):
         yield camera
 
 
 def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
-    """The sphere on ``--port`` (switched off first) and the camera; whatever fails, the light is switched off on
-    the way out and the error carries a note saying what state it is in (read back, never assumed)."""
-    from dualrgb.drivers.led_sphere import LedSphere, SphereError
+    """The sphere on ``--port`` (identified and switched off first: app.workflow.stand_devices.open_sphere) and
+    the camera; whatever fails, the light is switched off on the way out and the error carries a note saying what
+    state it is in (read back, never assumed)."""
+    from dualrgb.app.workflow.stand_devices import open_sphere
+    from dualrgb.drivers.led_sphere import SphereError
 
-    sphere = LedSphere(args.port).open()
+    sphere = open_sphere(args.port)
     try:
-        sphere.shutdown()                   # raises a SphereError whose message says the light's state
         with real_camera(args) as camera:
             yield Devices(camera, sphere, None, None)
     except BaseException as exc:
@@ -181,30 +160,14 @@ def add_session_option(p: argparse.ArgumentParser) -> None:
 
 def open_session(folder: Path | None, definition: dict, camera: Camera, meta: dict | None = None) -> CaptureSession:
     """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
-    (anything else is refused in one line naming the difference; app.session). One writer at a time. No
-    ``folder``: a new dated session in the captures folder (app.workflow.folders), named on stderr."""
-    from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.session.manifest import camera_definition, image_area_definition
-    from dualrgb.app.workflow.defaults import DAY_WORKFLOW, day_workflow
+    (app.workflow.folders.open_session; anything else is refused in one line naming the difference). No
+    ``folder``: a new dated session in the captures folder, named on stderr."""
+    from dualrgb.app.workflow.folders import open_session as open_or_make
 
-    if folder is not None and definition.get("workflow") == DAY_WORKFLOW:     # an older session of the same day
-        from dualrgb.app.workflow.folders import stored_definition
-
-        definition = {**definition, "workflow": day_workflow(stored_definition(Path(folder)).get("workflow"))}
+    session = open_or_make(folder, definition, camera, meta,
+                           hint="use the same options and camera, or another --session")
     if folder is None:
-        from dualrgb.app.workflow.defaults import captures_dir
-        from dualrgb.app.workflow.folders import new_session
-
-        session = new_session(captures_dir(), meta or {}, definition)
         print(f"dualrgb: new session {session.path}", file=sys.stderr, flush=True)
-    else:
-        session = CaptureSession.resume(Path(folder), definition, meta or {},
-                                        hint="use the same options and camera, or another --session")
-    try:
-        session.extend_definition(camera=camera_definition(camera), **image_area_definition(camera))
-    except BaseException:
-        session.close()
-        raise
     return session
 
 

@@ -26,15 +26,16 @@ from PySide6.QtWidgets import (
 from dualrgb.app.gui.charts_form import ChartsForm
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
+from dualrgb.app.gui.stand_options import CalibrationSampling
 from dualrgb.app.gui.viewmodel import calibration_lines
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.protocols import Session
 from dualrgb.app.sequences.base import ProgressEvent
-from dualrgb.app.sequences.shooter import Shooter
 from dualrgb.app.workflow.charts import load_charts
 from dualrgb.app.workflow.copystand import StandSettings
 from dualrgb.app.workflow.defaults import workflow_defaults
-from dualrgb.app.workflow.metering import AutoExposure
+from dualrgb.app.workflow.engine import Run, RunHooks
+from dualrgb.app.workflow.plans import StandPlanner
 from dualrgb.app.workflow.profile import (
     CalibrationProfile,
     CameraIdentity,
@@ -43,8 +44,8 @@ from dualrgb.app.workflow.profile import (
     check_reuse,
     load_profile,
 )
-from dualrgb.app.workflow.runs import RunHooks, StandRun
 from dualrgb.app.workflow.vocabulary import Role, Subject, role_of
+from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
@@ -59,14 +60,15 @@ def calibration_frames(session: Session) -> list:
 
 class CalibrationBox(QGroupBox):
     def __init__(self, ctx: AppContext, view: SequenceView, stand_settings: Callable[[], StandSettings],
-                 plan_shooter: Callable[[], Shooter], parent: QWidget | None = None):
+                 plans: Callable[[], StandPlanner], parent: QWidget | None = None):
         super().__init__("Calibration (once a day, or when something changes)", parent)
         self.ctx = ctx
         self.ws = ctx.workspace
         self.view = view
         self.stand_settings = stand_settings
-        self.plan_shooter = plan_shooter
-        self.run: StandRun | None = None
+        self.plans = plans
+        self.run: Run | None = None
+        self.sampling = CalibrationSampling(ctx)            # --target-width-mm, --ppi (app.gui.stand_options)
         self._build()
         self.ws.calibrationChanged.connect(self.show_calibration)
         view.run_event.connect(self._run_event)
@@ -121,6 +123,7 @@ class CalibrationBox(QGroupBox):
         form.addRow("Darks per exposure", self.dark_frames)
         form.addRow("Flats per exposure", self.flat_frames)
         form.addRow(self.de_fit)
+        form.addRow(self.sampling)
         form.addRow(row)
         form.addRow(self.summary)
         self.path_label = PathLabel("")
@@ -142,20 +145,21 @@ class CalibrationBox(QGroupBox):
             self.ctx.errors.report("Calibrate", "choose the preset whose lights the day uses first")
             return
         try:
-            plan = AutoExposure(self.plan_shooter(), list(ws.lights)).plan()
+            plan = self.plans().auto_exposure(list(ws.lights)).plan()
             if lab.camera is None or lab.sphere is None:
                 raise ValueError("connect the LED sphere and the camera in Devices first")
             charts = load_charts(self.charts.choices(), ws.preset.mode)     # a chart file's problem: before the light
+            start = self.sampling.measured(ws.preset.sources)       # a measured curve's problem: before the light
         except ValueError as exc:
             self.ctx.errors.report("Calibrate", exc)
             return
         ws.set_charts(charts)
         if lab.session is not None and calibration_frames(lab.session):
-            self._ask_reshoot(plan, charts)
+            self._ask_reshoot(plan, charts, start)
             return
-        self.ctx.with_session(lambda: self._start(plan, charts), "the calibration")
+        self.ctx.with_session(lambda: self._start(plan, charts, start), "the calibration")
 
-    def _ask_reshoot(self, plan: list, charts: dict) -> None:
+    def _ask_reshoot(self, plan: list, charts: dict, start: StandModel | None) -> None:
         """The session holds calibration frames: re-shoot them (in a new dated session: this one keeps its frames
         and delivered originals, the waiting ones move along), keep them (a calibration computed again from them,
         nothing lit), or cancel."""
@@ -171,16 +175,18 @@ class CalibrationBox(QGroupBox):
                 self.ctx.lab.set_session(None)
                 if old is not None:
                     old.close()                      # its writer lock given back: it can be opened again
-                self.ctx.with_session(lambda: self._start(plan, charts), "the re-shot calibration")
+                self.ctx.with_session(lambda: self._start(plan, charts, start), "the re-shot calibration")
             elif choice == KEEP:
-                self._start(plan, charts)
+                self._start(plan, charts, start)
         self.ctx.asker.ask("Calibrate again?", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
-    def _start(self, plan: list, charts: dict | None = None) -> None:
+    def _start(self, plan: list, charts: dict | None = None, stand_start: StandModel | None = None) -> None:
         ws, lab = self.ws, self.ctx.lab
         settings = self.stand_settings()
         settings.dark_frames, settings.flat_frames = self.dark_frames.value(), self.flat_frames.value()
         settings.optimise_matrix = self.de_fit.isChecked()
+        settings.ppi, settings.target_width_mm = (self.sampling.stand_fields()[k] for k in ("ppi", "target_width_mm"))
+        settings.stand_start = stand_start
         settings.charts = dict(charts or {})
         preset, lights, hdr = ws.preset, list(ws.lights), self.hdr_auto.isChecked()
         grids = {n: ws.grids[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in ws.grids}
@@ -198,7 +204,7 @@ class CalibrationBox(QGroupBox):
         except ValueError as exc:
             self.ctx.errors.report("Calibrate", exc)
             return
-        self.run = StandRun(CALIBRATION_RUN, plan, work)
+        self.run = Run(CALIBRATION_RUN, plan, work)
         self.view.start(self.run)
 
     def _run_event(self, ev: ProgressEvent) -> None:

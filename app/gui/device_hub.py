@@ -16,7 +16,14 @@ from PySide6.QtCore import QObject, QTimer, Signal
 from dualrgb.app.gui.viewmodel import DoseFeed, light_from_levels
 from dualrgb.app.gui.workers import TaskHandle, TaskRunner
 from dualrgb.app.session.log import SessionLog
-from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS
+from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE
+from dualrgb.app.workflow.stand_devices import (
+    open_camera,
+    open_sphere,
+    stand_definition,
+    virtual_lab,
+    virtual_stand,
+)
 from dualrgb.drivers.camera.base import Camera, CameraError
 from dualrgb.drivers.led_sphere import LedSphere, SphereError
 from dualrgb.drivers.led_sphere.driver import DEFAULT_MAX_ON_S
@@ -33,9 +40,6 @@ log = logging.getLogger(__name__)
 
 VIRTUAL_SPHERE = "virtual sphere (emulator)"
 VIRTUAL_CAMERA = "virtual camera (virtual lab)"
-NO_CAMERA_ADVICE = ("no camera found: connect the camera by USB, switch it on (mode dial to M) and press "
-                    "'Detect' again; on a desktop, close photo programs that grab it (gvfs on Linux, ptpcamerad on "
-                    "macOS)")
 
 
 def serial_ports() -> list[str]:
@@ -135,10 +139,7 @@ class Lab(QObject):
 
     def _ensure_virtual_lab(self) -> VirtualLab:      # devices thread
         if self.virtual_lab is None:
-            from dualrgb.drivers.virtual.lab import VirtualLab
-            lab = VirtualLab(mode=self.mode, frame_size=self.frame_size, seed=self.seed, bumps=self.shutter_bumps,
-                             world=self.world)
-            lab.start()
+            lab = virtual_lab(self.mode, self.frame_size, self.seed, self.world, self.shutter_bumps).start()
             self.virtual_lab = lab
             log.info("virtual lab started: sphere emulator on %s, %dx%d frames", lab.port, *self.frame_size)
         return self.virtual_lab
@@ -177,15 +178,7 @@ class Lab(QObject):
         def work() -> LedSphere:
             if port == VIRTUAL_SPHERE:
                 return self._ensure_virtual_lab().devices()[1]
-            sphere = LedSphere(port).open()
-            try:
-                info = sphere.identify()
-                sphere.shutdown()               # start from a known state: every LED 0, light off
-            except SphereError:
-                sphere.close()
-                raise
-            log.info("LED sphere on %s: %s firmware %s", port, info.get("model"), info.get("firmware"))
-            return sphere
+            return open_sphere(port)            # identified, every LED 0, light off (read back)
 
         return self._connect(work, "Connect the LED sphere", self._set_sphere, port, port == VIRTUAL_SPHERE, on_done)
 
@@ -292,13 +285,7 @@ class Lab(QObject):
         def work() -> Camera:
             if choice == VIRTUAL_CAMERA:
                 return self._ensure_virtual_lab().devices()[0]
-            from dualrgb.drivers.camera.gphoto import GPhotoCamera
-            model, _, port = choice.partition(" @ ")
-            if not port:
-                raise CameraError(NO_CAMERA_ADVICE, -105)
-            cam = GPhotoCamera(model=model or None, port=port or None)
-            cam.open()
-            return cam
+            return open_camera(choice)
 
         return self._connect(work, "Connect the camera", self._set_camera, choice, choice == VIRTUAL_CAMERA, on_done)
 
@@ -322,21 +309,13 @@ class Lab(QObject):
     # ------------------------------------------------------------------ copy stand
     def stand(self, stand_in: str = "") -> Callable[[str, bool], Any] | None:
         """What places things on the stand: the virtual lab (an original is shown as its virtual stand-in, e.g.
-        'shadow'), or None on a real stand (the sequences then ask the technician)."""
-        vl = self.virtual_lab
-        if vl is None:
-            return None
-        default = VIRTUAL_ORIGINALS.get(vl.mode, VIRTUAL_ORIGINALS[DEFAULT_MODE])
-
-        def place(what: str, nd: bool = False) -> Any:
-            if what.startswith("original:"):
-                what = f"original:{stand_in or default}"
-            return vl.place(what, nd)
-        return place
+        'shadow'; app.workflow.stand_devices.virtual_stand, as the CLI), or None on a real stand (the sequences
+        then ask the technician)."""
+        return virtual_stand(self.virtual_lab, stand_in) if self.virtual_lab is not None else None
 
     def copy_stand(self, settings: Any, hooks: Any = None, stand_in: str = "") -> Any:
-        """An app.workflow.copystand.CopyStand on these devices and the current session (``hooks``: a StandRun's
-        callbacks: progress, cancel, prompts, events)."""
+        """An app.workflow.copystand.CopyStand on these devices and the current session (``hooks``: the
+        callbacks of an app.workflow.engine.Run: progress, cancel, prompts, events, its control)."""
         from dualrgb.app.workflow.copystand import CopyStand
 
         if self.camera is None or self.sphere is None:
@@ -355,17 +334,9 @@ class Lab(QObject):
     # ------------------------------------------------------------------ session
     def session_definition(self) -> dict:
         """What defines the frames of a session made here (app.session: reopening with anything else is
-        refused, naming the difference): the mode, the camera, and the virtual lab's frame size."""
-        from dualrgb.app.session.manifest import camera_definition, image_area_definition
-
-        vl = self.virtual_lab
-        out: dict[str, Any] = {"mode": vl.mode if vl is not None else self.mode}
-        if vl is not None:
-            out["frame_size"] = [vl.width, vl.height]
-        if self.camera is not None:
-            out["camera"] = camera_definition(self.camera)
-            out.update(image_area_definition(self.camera))
-        return out
+        refused, naming the difference): the mode, the camera, and the virtual lab's frame size
+        (app.workflow.stand_devices.stand_definition)."""
+        return stand_definition(self.mode, self.camera, self.virtual_lab)
 
     def set_session(self, session: CaptureSession | None, note: str = "") -> None:
         """Make ``session`` the current one; ``note`` says why it was made when it was made for the technician

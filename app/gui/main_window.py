@@ -36,10 +36,11 @@ PANELS = (
     ("results", "dualrgb.app.gui.panels.results", "ResultsPanel", "characterisation report (app.processing)"),
     ("simulate", "dualrgb.app.gui.panels.simulate", "SimulatePanel", "simulation runner"),
     ("characterise", "dualrgb.app.gui.panels.characterise", "CharacterisePanel", "CRF sweep sequence"),
+    ("tools", "dualrgb.app.gui.panels.tools", "ToolsPanel", "the copy-stand tools (app.workflow)"),
 )
 PANEL_TITLES = {"devices": "Devices", "light": "Light source", "camera": "Camera", "capture": "Calibrate && capture",
                 "originals": "Originals", "target": "Target", "results": "Results",
-                "simulate": "Simulate && optimise", "characterise": "Characterise"}
+                "simulate": "Simulate && optimise", "characterise": "Characterise", "tools": "Tools"}
 
 
 class MainWindow(QMainWindow):

@@ -16,6 +16,7 @@ from pathlib import Path
 from PySide6.QtCore import QBuffer, QIODevice, QObject, QTimer
 from PySide6.QtWidgets import QApplication
 
+from dualrgb.app.gui.screenshot_tools import tool_steps
 from dualrgb.app.workflow.day import OriginalState
 from dualrgb.common.atomic_files import atomic_write
 
@@ -69,6 +70,7 @@ class ScreenshotRun(QObject):
             ("delivered: the painting under A", self._delivered),
             ("screenshot delivered", lambda: self.shoot("originals", "delivered")),
             ("screenshot guide", lambda: self.shoot_widget(w.guide_dock, "guide")),
+            *tool_steps(self),                          # issue 30's panels (app.gui.screenshot_tools)
             ("list targets", self._list_targets),
             ("grid on the training target", lambda: self._place_grid("target:train")),
             ("grid on the test target", lambda: self._place_grid("target:test")),

@@ -1,15 +1,15 @@
-"""Running one capture sequence (app.sequences contract) or a whole CopyStand call (app.workflow.runs.StandRun) from
+"""Running one capture sequence (app.sequences contract) or a whole CopyStand call (app.workflow.engine.Run) from
 the GUI: its plan (frames and estimated time; frames already in the session ticked), a progress bar with time
 left, pause / resume, cancel, 'continue' for steps that need a person, and the last frame saved.
 
-The run is iterated in the runner's ``sequences`` thread; every ProgressEvent comes back as a queued signal. A
-'prompt' event pauses the run in the worker before it is shown, so the next step waits for Continue.
+The run is executed by the run engine (app.workflow.engine.Run.execute) in the runner's ``sequences`` thread; every
+ProgressEvent comes back as a queued signal. A 'prompt' event pauses the run in the worker before it is shown, so
+the next step waits for Continue. The engine starts the run from dark and ends it with the light off (read back).
 """
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
 from collections.abc import Sequence as Seq
 from typing import Any
 
@@ -32,9 +32,9 @@ from dualrgb.app.gui.frame_preview import FramePreview
 from dualrgb.app.gui.units import shutter, time_left_s
 from dualrgb.app.gui.viewmodel import format_duration
 from dualrgb.app.gui.workers import TaskHandle
-from dualrgb.app.protocols import Sphere
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent, Sequence
-from dualrgb.app.workflow.runs import RUN_PROGRESS, StandRun
+from dualrgb.app.workflow.engine import RUN_PROGRESS
+from dualrgb.app.workflow.engine import Run as EngineRun
 from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.simulation.lightsource import LightSource
 
@@ -42,7 +42,7 @@ log = logging.getLogger(__name__)
 
 DEFAULT_OVERHEAD_S = 1.5          # per frame beyond the exposure (download, write) until one has been measured
 OVERHEAD_KEY = "runs/frame_overhead_s"     # the last measured one, for every view and the next start
-Run = Sequence | StandRun
+Run = Sequence | EngineRun
 DONE_MARK = "✓"
 DONE_COLOUR = QColor("#e8f5e9")
 
@@ -60,23 +60,6 @@ def frame_overhead_s(times: list[tuple[float, float]], settle_s: float) -> float
 def estimate_s(plan: list[PlannedFrame], settle_s: float, overhead_s: float) -> float:
     """Rough time for a plan: every exposure, the light settling before lit frames, and a per-frame overhead."""
     return sum(f.exposure_s + (settle_s if f.light else 0.0) + overhead_s for f in plan)
-
-
-def drive(run: Run, emit: Callable[[ProgressEvent], None], sphere: Sphere | None = None) -> None:
-    """Worker side: iterate a sequence (pausing it on a prompt before telling the GUI) or execute a StandRun.
-    A run starts from dark: a light left on by hand ('Light ON') is switched off first, so the run's own lit
-    periods are the only ones (the sphere never extends a lit period)."""
-    if sphere is not None:
-        report = sphere.ensure_off()
-        if not report.off:
-            raise RuntimeError(f"{run.name} not started: {report.message}")
-    if isinstance(run, StandRun):
-        run.execute(emit)
-        return
-    for event in run.run():
-        if event.kind is EventKind.PROMPT:
-            run.pause()
-        emit(event)
 
 
 class SequenceView(QWidget):
@@ -242,7 +225,8 @@ class SequenceView(QWidget):
         self.ctx.workspace.set_running(seq.name)
         self.ctx.bus.sequenceStarted.emit(seq.name)
         sphere = self.ctx.lab.sphere
-        self.handle = self.ctx.runner.submit(lambda emit: drive(seq, emit, sphere), pool="sequences", name=seq.name,
+        job = seq if isinstance(seq, EngineRun) else EngineRun.of(seq)     # the one run engine, seq's control
+        self.handle = self.ctx.runner.submit(lambda emit: job.execute(emit, sphere), pool="sequences", name=seq.name,
                                              pass_emit=True, on_event=self._on_event, on_error=self._on_error,
                                              on_finished=self._on_finished, on_cancel=seq.cancel)
 
@@ -272,7 +256,7 @@ class SequenceView(QWidget):
     def _show_progress(self, ev: ProgressEvent) -> None:
         stand = getattr(self.seq, "progress_events", False)
         if stand and not ev.data.get(RUN_PROGRESS):
-            return                                  # a StandRun's inner events count their own sequence
+            return                                  # a CopyStand run's inner events count their own sequence
         if ev.total:
             self.progress.setValue(int(round(1000 * ev.fraction)))
         self.message.setText(ev.message)
@@ -329,7 +313,7 @@ class SequenceView(QWidget):
     # ------------------------------------------------------------------ controls
     def cancel(self) -> None:
         if self.running and self.seq is not None:
-            self.message.setText(f"cancelling {self.seq.name} after this frame …")
+            self.message.setText(f"cancelling {self.seq.name} …")
             self.seq.cancel()
             self.continue_button.hide()
 

@@ -1,5 +1,6 @@
-"""Capture sequences (Qt-free): plain objects whose ``run()`` generator yields progress events, checks a cancel
-flag between steps and can pause/resume. The CLI and the GUI both drive them."""
-from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent, Sequence, SequenceCancelled
+"""Capture sequences (Qt-free): the plans of the one run engine (app.workflow.engine). A sequence lists its frames
+before anything moves and yields one progress event per step; the engine checks cancel and pause between steps
+and switches the light off at the end. The CLI, the GUI and the demo all run them through the engine."""
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent, Sequence
 
-__all__ = ["PlannedFrame", "ProgressEvent", "Sequence", "SequenceCancelled"]
+__all__ = ["PlannedFrame", "ProgressEvent", "Sequence"]

@@ -5,9 +5,11 @@
     report = stand.capture(Original("ACC-123", title="Portrait"), profile)   # metering, HDR if needed, deliver
     print(report.qa.text())
 
-The GUI, the CLI and the demo drive the stand through this object. Long work reports through plain callbacks:
-``progress(fraction, message)`` and ``on_event(ProgressEvent)`` (every frame saved / kept, every prompt);
-``cancel`` (a common.progress.CancelToken) stops between frames with the LEDs off. Hooks for a person:
+The GUI, the CLI and the demo drive the stand through this object. Long work runs through the one run engine
+(app.workflow.engine.RunEngine, ``stand.engine``) and reports through plain callbacks: ``progress(fraction,
+message)`` and ``on_event(ProgressEvent)`` (every frame saved / kept, every prompt); ``cancel`` (a
+common.progress.CancelToken) or ``control`` (the run's RunControl: cancel and pause) stops between frames with
+the LEDs off and between the processing's work units, raising common.progress.Cancelled. Hooks for a person:
 ``prompt(message)`` returns when they have done what it asks (place the target, cap the lens; never called when
 a ``stand`` callback places things, as in the virtual lab) and ``reshoot(original, n_frames)`` answers whether an
 original already in the session is shot again (True: new frames under the next take) or kept (False).
@@ -36,9 +38,11 @@ from dualrgb.app.workflow.charts import definition as chart_definition
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
+from dualrgb.app.workflow.engine import RunControl, RunEngine
 from dualrgb.app.workflow.metadata import check_original
 from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
 from dualrgb.app.workflow.mode_rule import check_mode
+from dualrgb.app.workflow.plans import StandPlanner
 from dualrgb.app.workflow.preflight import (
     capture_frames,
     check_capture_space,
@@ -70,7 +74,7 @@ from dualrgb.app.workflow.vocabulary import (
     split_take,
     subject_of,
 )
-from dualrgb.common.progress import Cancelled, CancelToken, ProgressCallback, report
+from dualrgb.common.progress import CancelToken, ProgressCallback, report
 
 if TYPE_CHECKING:
     from dualrgb.app.processing.masters import MasterFrames
@@ -144,37 +148,29 @@ class CopyStand:
                  lab: VirtualLab | None = None, settings: StandSettings | None = None,
                  progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
                  prompt: Prompt | None = None, reshoot: ReshootQuestion | None = None,
-                 on_event: EventCallback | None = None):
+                 on_event: EventCallback | None = None, control: RunControl | None = None):
         self.camera, self.sphere, self.session, self.lab = camera, sphere, session, lab
         self.settings = settings or StandSettings()
-        self.progress, self.cancel, self.prompt = progress, cancel, prompt
+        self.engine = RunEngine("copy stand", control=control or RunControl(cancel), progress=progress,
+                                prompt=prompt, on_event=on_event)
+        self.progress, self.cancel, self.prompt = progress, self.engine.token, prompt
         self.reshoot, self.on_event = reshoot, on_event
-        s = self.settings
-        self.shooter = Shooter(camera, sphere, session, stand=stand,
-                               safety=SafetySettings(settle_s=s.settle_s, latency_s=s.latency_s, max_on_s=s.max_on_s))
+        self.shooter = Shooter(camera, sphere, session, stand=stand, safety=safety_of(self.settings))
+
+    def planner(self) -> StandPlanner:
+        """The single steps (darks, flats, a target, auto-exposure, HDR metering) on this stand, to run through
+        :meth:`run_sequence` or a front end's app.workflow.engine.Run."""
+        return StandPlanner(self.shooter)
 
     # ------------------------------------------------------------------ running sequences
     def run_sequence(self, seq: BaseSequence, lo: float = 0.0, hi: float = 1.0) -> list[ProgressEvent]:
-        """Drive a sequence: prompts go to ``prompt``, progress to ``progress``, cancel stops it (LEDs off)."""
-        events = []
-        for ev in seq.run():
-            if self.cancel is not None and self.cancel.cancelled:
-                seq.cancel()
-            if ev.kind is EventKind.CANCELLED:
-                raise Cancelled(ev.message)
-            if ev.kind is EventKind.PROMPT:
-                if self.prompt is None:
-                    raise ValueError(f"{ev.message}: a person must do this (no stand and no prompt)")
-                self.prompt(ev.message)
-            report(self.progress, lo + (hi - lo) * ev.fraction, ev.message)
-            if self.on_event is not None:
-                self.on_event(ev)
-            events.append(ev)
-        return events
+        """Run a plan through the run engine (app.workflow.engine): prompts go to ``prompt``, progress to
+        ``progress``, cancel stops it (LEDs off) and raises Cancelled."""
+        self.engine.progress, self.engine.on_event = self.progress, self.on_event
+        return self.engine.run_plan(seq, lo, hi)
 
     def _check_cancel(self) -> None:
-        if self.cancel is not None:
-            self.cancel.check()
+        self.engine.check()
 
     # ------------------------------------------------------------------ calibration
     def exposure_plan(self, base: dict[str, float], hdr_auto: bool, mode: str) -> dict[str, list[float]]:
@@ -253,6 +249,7 @@ class CopyStand:
                                  mode=preset.mode, stand_start=self.settings.stand_start)
         profile = self._profile(preset, lights, plan, base, result, specs["test"])
         profile.charts = {k: spec.chart.record() for k, spec in specs.items() if spec.chart is not None}
+        self._check_cancel()             # a cancel during the processing never makes (or replaces) a calibration
         profile.save(self.session.path / "calibration")
         report(self.progress, 1.0, f"calibration {profile.id} saved")
         return profile
@@ -407,7 +404,7 @@ class CopyStand:
                                exposures=exposures, warnings=checked.warnings + warnings,
                                extra={"session": str(self.session.path), "take": take, "frames": seq.steps()},
                                render_illuminant=self.settings.render_illuminant, truth=placed_truth(self.lab),
-                               overrides=[override] if override else [])
+                               overrides=[override] if override else [], cancel=self.cancel)
         self._remember(original, dose, delivery, take, profile)
         report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
         return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)
@@ -419,6 +416,16 @@ class CopyStand:
         originals[original.identifier] = {**original.to_dict(), "take": take, "light_dose": total.to_dict(),
                                           "sidecar": str(delivery.sidecar), "calibration": str(profile.path or "")}
         self.session.update_settings(originals=originals)
+
+
+def safety_of(settings: StandSettings) -> SafetySettings:
+    """The shooter's safety settings (light-on cap, settle time, the camera's latency allowance) of a stand."""
+    return SafetySettings(settle_s=settings.settle_s, latency_s=settings.latency_s, max_on_s=settings.max_on_s)
+
+
+def plans_only(camera: Camera | None, settings: StandSettings) -> StandPlanner:
+    """The single steps' plans on ``camera`` alone (nothing is touched: no sphere, no session)."""
+    return StandPlanner(Shooter(camera, None, None, safety=safety_of(settings)))
 
 
 def _spectral_fields(result: SessionResult) -> dict:

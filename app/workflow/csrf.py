@@ -11,7 +11,6 @@ closed and returns None; nothing is written.
 """
 from __future__ import annotations
 
-import contextlib
 import datetime
 import logging
 from collections.abc import Callable
@@ -22,8 +21,9 @@ from typing import TYPE_CHECKING
 from dualrgb.app.processing.csrf import CsrfResult, compute_csrf, session_signals, write_camera_csv
 from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.csrf import CsrfSettings, CsrfSweep
+from dualrgb.app.workflow.engine import RunControl, RunEngine
 from dualrgb.app.workflow.vocabulary import EventKind
-from dualrgb.common.progress import CancelToken
+from dualrgb.common.progress import Cancelled, CancelToken
 from dualrgb.simulation.radiance_reference import RadianceReference
 
 if TYPE_CHECKING:
@@ -48,19 +48,23 @@ class CsrfMeasurement:
 
 def run_sweep(sweep: CsrfSweep, *, prompt: Callable[[str], None] | None,
               on_event: Callable[[ProgressEvent], None] | None, cancel: CancelToken | None) -> bool:
-    """Run the sweep; False when it was cancelled. Prompts go to ``prompt`` (ValueError without one)."""
-    with contextlib.closing(sweep.run()) as events:       # an error in a callback still closes the shutter
-        for event in events:
-            if event.kind is EventKind.PROMPT:
-                if prompt is None:
-                    raise ValueError(f"{event.message}: this measurement needs a person at the monochromator")
-                prompt(event.message)
-            elif on_event is not None:
-                on_event(event)
-            if event.kind is EventKind.CANCELLED:
-                return False
-            if cancel is not None and cancel.cancelled:
-                sweep.cancel()
+    """Run the sweep through the run engine (app.workflow.engine, under ``cancel``); False when it was
+    cancelled. Prompts go to ``prompt`` (ValueError without one); an error in a callback still closes the
+    shutter (the engine's clean-up)."""
+    def ask(message: str) -> None:
+        if prompt is None:
+            raise ValueError(f"{message}: this measurement needs a person at the monochromator")
+        prompt(message)
+
+    def forward(event: ProgressEvent) -> None:
+        if on_event is not None and event.kind is not EventKind.PROMPT:
+            on_event(event)
+    try:
+        RunEngine(sweep.name, control=RunControl(cancel), prompt=ask, on_event=forward).run_plan(sweep)
+    except Cancelled:
+        if on_event is not None:                          # said as every cancelled plan says it
+            on_event(ProgressEvent(0, 0, f"{sweep.name} cancelled; the shutter closed", kind=EventKind.CANCELLED))
+        return False
     return True
 
 

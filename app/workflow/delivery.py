@@ -56,6 +56,7 @@ from dualrgb.app.workflow.fixity import FIXITY_ALGORITHM, file_fixity, fixity_se
 from dualrgb.app.workflow.metadata import MODES, Original, ascii_text, xmp_property
 from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity
 from dualrgb.app.workflow.virtual_truth import OriginalTruth, assess, qa_text
+from dualrgb.common.progress import CancelToken, check
 from dualrgb.simulation.versions import dualrgb_version, output_header
 
 log = logging.getLogger(__name__)
@@ -199,11 +200,12 @@ def open_deliverable(im: Deliverable, height: int, width: int, meta: Callable[[s
 
 def write_images(source: ChannelSource, profile: CalibrationProfile, images: dict[str, Deliverable],
                  meta: Callable[[str, str], TiffMetadata], *, spectral: SpectralPlan | None = None,
-                 band_rows: int = BAND_ROWS, direct: bool = True) -> Written:
+                 band_rows: int = BAND_ROWS, direct: bool = True, cancel: CancelToken | None = None) -> Written:
     """Encode the channels band by band straight into the open files (app.processing.tiff_stream): while one band
     is encoded (both cores, nogil), the writer threads put the previous one on disk and add it to the file's
     SHA-256; nothing image-sized is held but what ``source`` holds. The spectral cube (when it is a file) and the
-    rendering come from the same bands (``spectral``; the cube's header is written by :func:`deliver`). A matrix or
+    rendering come from the same bands (``spectral``; the cube's header is written by :func:`deliver`); ``cancel``
+    is checked before every band (common.progress.Cancelled: nothing is delivered). A matrix or
     white point that is not finite, or images that come out blank, are refused (:class:`DeliveryQaError`)."""
     H, W = source.shape
     N = len(source.channels)
@@ -224,6 +226,7 @@ def write_images(source: ChannelSource, profile: CalibrationProfile, images: dic
                for k, im in streamed.items()}
         rgb, chans = [out[k] for k in rgb_keys], [out[k] for k in ch_keys]
         for r0 in range(0, H, band_rows):
+            check(cancel)
             rows = min(band_rows, H - r0)
             band = source.band(r0, rows)
             enc.encode(r0, out["xyz"].band(rows), [o.band(rows) for o in rgb], [o.band(rows) for o in chans],
@@ -300,14 +303,15 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
             camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
             exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
             extra: dict | None = None, render_illuminant: str = DEFAULT_RENDER_ILLUMINANT,
-            truth: OriginalTruth | None = None, overrides: list[str] | None = None) -> Delivery:
+            truth: OriginalTruth | None = None, overrides: list[str] | None = None, cancel: CancelToken | None = None
+            ) -> Delivery:
     """Encode the channels of ``source`` (a full-resolution MasterStack or a half-resolution ChannelStack) with the
     calibration's matrix (and spectral estimator: the rendering under ``render_illuminant``, and the cube at half
     resolution) and write every deliverable of ``original``: into a fresh folder, swapped in whole when complete
     (a re-delivery keeps the previous set in ``<stem>/previous/``; a folder of another original is refused:
     app.workflow.delivery_folder). ``ppi``: the delivered files' sampling (None: the calibration's, at this
     resolution). ``truth``: the virtual lab's, compared in the sidecar and QA line. ``overrides``: rules the user
-    overrode for it (app.workflow.mode_rule), said in the sidecar and QA line."""
+    overrode for it (app.workflow.mode_rule), said in the sidecar and QA line. ``cancel``: checked per band."""
     warnings = list(warnings or [])
     resolution = source.resolution
     ppi = ppi or delivered_ppi(profile, resolution)
@@ -322,10 +326,8 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
     with staged(Path(out_dir), original) as folder:
         images = deliverable_files(folder, stem, source.channels, spectral, source.lights)
         try:
-            written = write_images(source, profile, images,
-                                   lambda what, page: tiff_meta(original, profile.id, camera, dose, ppi, what, now,
-                                                                page),
-                                   spectral=spectral)
+            written = write_images(source, profile, images, lambda what, page: tiff_meta(
+                original, profile.id, camera, dose, ppi, what, now, page), spectral=spectral, cancel=cancel)
         except DeliveryQaError as exc:
             raise DeliveryQaError(f"{original.identifier}: {exc}") from None
         files, fixity = written.files, written.fixity

@@ -20,10 +20,14 @@ import shutil
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dualrgb.app.session import lock as session_lock
 from dualrgb.app.session.capture_session import SETTINGS, CaptureSession, SessionError
 from dualrgb.app.workflow.defaults import CAPTURES
+
+if TYPE_CHECKING:
+    from dualrgb.drivers.camera.base import Camera
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +56,30 @@ def new_session(root: Path, meta: dict | None = None, definition: dict | None = 
                 raise
             log.info("%s was taken meanwhile; trying the next name", folder)
     raise SessionError(errno.EEXIST, f"{root}: no free session name")
+
+
+def open_session(folder: Path | None, definition: dict, camera: Camera, meta: dict | None = None,
+                 root: Path | None = None, hint: str = "use the same options and camera, or another session"
+                 ) -> CaptureSession:
+    """The session in ``folder`` for a run with ``camera``: new, or resumed when it was made with the same
+    ``definition`` and camera (anything else is refused in one line naming the difference; app.session). One
+    writer at a time. No ``folder``: a new dated session in ``root`` (default: the captures folder)."""
+    from dualrgb.app.workflow.defaults import DAY_WORKFLOW, captures_dir, day_workflow
+    from dualrgb.app.workflow.stand_devices import camera_definition_of
+
+    if folder is not None and definition.get("workflow") == DAY_WORKFLOW:     # an older session of the same day
+        definition = {**definition, "workflow": day_workflow(stored_definition(Path(folder)).get("workflow"))}
+    if folder is None:
+        session = new_session(root or captures_dir(), meta or {}, definition)
+    else:
+        session = CaptureSession.resume(Path(folder), definition, meta or {},
+                                        hint=hint)
+    try:
+        session.extend_definition(**camera_definition_of(camera))
+    except BaseException:
+        session.close()
+        raise
+    return session
 
 
 def stored_definition(folder: Path) -> dict:

@@ -1,6 +1,9 @@
 """Sequences built from a kind, and the exposures darks and flats must cover, for the GUI's calibrate & capture.
 
 ``build_sequence(SequenceKind.DARKS, ...)`` etc. make the same sequence objects the CLI and the demo run;
+:class:`StandPlanner` makes them on a CopyStand's shooter (``stand.planner()``: to run through the run engine)
+or on the camera alone (``app.workflow.copystand.plans_only``: plans, nothing touched), so a front end never
+builds a Shooter or a sequence itself;
 ``calibration_exposures`` is the rule for which exposures need darks and flats: every exposure a capture uses
 (the base exposures, every HDR bracket planned, and whatever the session already holds for those lights).
 """
@@ -13,6 +16,8 @@ from typing import TYPE_CHECKING, Any
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries
 from dualrgb.app.sequences.capture import SubjectCapture
+from dualrgb.app.sequences.crf_sweep import CrfSweep
+from dualrgb.app.workflow.metering import AutoExposure, Box, HdrMetering
 from dualrgb.app.workflow.vocabulary import (
     NamedLight,
     Role,
@@ -27,6 +32,7 @@ from dualrgb.app.workflow.vocabulary import (
 
 if TYPE_CHECKING:
     from dualrgb.app.protocols import Session
+    from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +65,33 @@ def build_sequence(kind: SequenceKind, shooter: Any, lights: Sequence[NamedLight
     if subject is None:
         raise ValueError(f"a {kind.value} sequence needs a subject (a target or an original)")
     return SubjectCapture(shooter, lights, {k: list(v) for k, v in exposures.items()}, subject, take=take)
+
+
+class StandPlanner:
+    """The plans a front end starts one by one (single steps), built on a CopyStand's shooter."""
+
+    def __init__(self, shooter: Any):
+        self.shooter = shooter
+
+    def sequence(self, kind: SequenceKind, lights: Sequence[NamedLight], *,
+                 exposures: Mapping[str, Sequence[float]], frames: int = 1, subject: Subject | None = None,
+                 take: int = 1) -> BaseSequence:
+        """:func:`build_sequence` on this stand."""
+        return build_sequence(kind, self.shooter, lights, exposures=exposures, frames=frames, subject=subject,
+                              take=take)
+
+    def auto_exposure(self, lights: Sequence[NamedLight]) -> AutoExposure:
+        return AutoExposure(self.shooter, lights)
+
+    def hdr_metering(self, lights: Sequence[NamedLight], base: dict[str, float], subject: Subject,
+                     boxes: Sequence[Box]) -> HdrMetering:
+        return HdrMetering(self.shooter, lights, base, subject, boxes)
+
+    def crf_sweep(self, light: LightSource, levels: Sequence[float], exposures: Sequence[float],
+                  min_exposure_s: float) -> CrfSweep:
+        """The camera response sweep (app.sequences.crf_sweep): ``light`` at ``levels`` x ``exposures``."""
+        return CrfSweep(self.shooter, light, levels=tuple(levels), exposures=list(exposures),
+                        min_exposure_s=min_exposure_s)
 
 
 def planned_steps(seq: BaseSequence) -> list[str]:

@@ -20,7 +20,7 @@ from dualrgb.app.workflow.delivery import Delivery, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare
 from dualrgb.app.workflow.metadata import MetadataError
 from dualrgb.app.workflow.mode_rule import check_mode
-from dualrgb.app.workflow.profile import CalibrationProfile
+from dualrgb.app.workflow.profile import CalibrationProfile, load_profile
 from dualrgb.app.workflow.vocabulary import Role, Subject
 from dualrgb.common.errors import ReportedError, one_line
 from dualrgb.common.progress import CancelToken, ProgressCallback, report
@@ -105,7 +105,7 @@ def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Origin
                        dose=original_dose(session, subject),
                        exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
                        extra={"session": str(session.path), "reprocessed": True}, render_illuminant=render_illuminant,
-                       overrides=[override] if override else [])
+                       overrides=[override] if override else [], cancel=cancel)
 
 
 def _known_original(session: Any, known: dict, identifier: str) -> Original:
@@ -117,4 +117,28 @@ def _known_original(session: Any, known: dict, identifier: str) -> Original:
                             exc.problem) from None
 
 
-# ---------------------------------------------------------------- a day's queue
+# ---------------------------------------------------------------- the session's calibrations (process, the GUI)
+def session_calibrations(session: Any) -> list[Path]:
+    """The session's own calibrations, then those its originals were captured with (oldest first)."""
+    found = sorted((session.path / "calibration").glob("cal-*.json"))
+    used = [Path(o["calibration"]) for o in session.settings.get("originals", {}).values() if o.get("calibration")]
+    return found + [p for p in used if p.exists() and p not in found]
+
+
+def newest_calibration(session: Any) -> Path:
+    """The session's own newest calibration, else the one its latest original was captured with."""
+    found = session_calibrations(session)
+    if not found:
+        raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
+    return found[-1]
+
+
+def newest_by_mode(session: Any) -> dict[str, CalibrationProfile]:
+    """Mode -> the newest calibration of that mode among :func:`session_calibrations` (loaded)."""
+    out = {}
+    for path in session_calibrations(session):
+        profile = load_profile(path, arrays=False)
+        out[profile.mode] = path
+    if not out:
+        raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
+    return {mode: load_profile(path) for mode, path in out.items()}

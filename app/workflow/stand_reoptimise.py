@@ -100,6 +100,18 @@ def assemble(profile: CalibrationProfile | None, measured: Measurements = Measur
     return dataclasses.replace(model, sources={**start.sources, "calibration": profile.id}), notes
 
 
+def measured_start(camera_csv: str | Path | None, stand_dir: str | Path | None) -> StandModel | None:
+    """The measured curves a calibration's stand fit starts from (``calibrate --camera-csv / --stand-dir``; None:
+    nominal), read and checked now, before any device acts (finite, not negative, every camera channel
+    responding: simulation.spectral_io; ValueError naming the file)."""
+    if not (camera_csv or stand_dir):
+        return None
+    start = assemble(None, Measurements.of(camera_csv or None, None, stand_dir or None))[0]
+    start.camera_table()
+    start.led_table()
+    return start
+
+
 def _stored(profile: CalibrationProfile | None) -> StandModel | None:
     """The calibration's fitted stand model (None without a calibration); ProfileError when it has none."""
     if profile is None:

@@ -15,8 +15,8 @@ from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.coverage import plan_coverage
 from dualrgb.app.workflow.day import DayState, DayStep, OriginalsQueue, OriginalState, StepState, day_checklist
 from dualrgb.app.workflow.delivery import Original
+from dualrgb.app.workflow.engine import RUN_PROGRESS, Run
 from dualrgb.app.workflow.frame_checks import DARK_FRACTION, check_frame
-from dualrgb.app.workflow.runs import RUN_PROGRESS, StandRun
 from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
 from dualrgb.common.progress import Cancelled
 from dualrgb.drivers.raw import RawFrame
@@ -84,7 +84,7 @@ def test_hdr_metering_plans_a_bracket_for_the_nd_target(stand):
         HdrMetering(shooter, LIGHTS, {}, subject, [])
 
 
-# ---------------------------------------------------------------- StandRun
+# ---------------------------------------------------------------- the run engine's Run
 def test_stand_run_pauses_between_frames_and_cancels():
     """``work`` sees a frame event; while paused it waits there; a cancel then ends with a 'cancelled' event."""
     seen, reached = [], threading.Event()
@@ -96,7 +96,7 @@ def test_stand_run_pauses_between_frames_and_cancels():
         hooks.cancel.check()
         return "finished"
 
-    run = StandRun("job", [PlannedFrame("dark", 0.1)], work)
+    run = Run("job", [PlannedFrame("dark", 0.1)], work)
     run.pause()
     t = threading.Thread(target=lambda: run.execute(seen.append))
     t.start()
@@ -115,7 +115,7 @@ def test_stand_run_prompt_waits_for_resume():
         hooks.prompt("Put the lens cap on")
         return 42
 
-    run = StandRun("job", [], work)
+    run = Run("job", [], work)
     t = threading.Thread(target=lambda: run.execute(seen.append))
     t.start()
     t.join(0.3)
@@ -130,13 +130,13 @@ def test_stand_run_errors_propagate():
         raise ValueError("no flats")
 
     with pytest.raises(ValueError, match="no flats"):
-        StandRun("job", [], work).execute(lambda ev: None)
+        Run("job", [], work).execute(lambda ev: None)
 
     def cancelled(_hooks):
         raise Cancelled("cancelled by the user")
 
     seen = []
-    assert StandRun("job", [], cancelled).execute(seen.append) is None and seen[-1].kind is EventKind.CANCELLED
+    assert Run("job", [], cancelled).execute(seen.append) is None and seen[-1].kind is EventKind.CANCELLED
 
 
 # ---------------------------------------------------------------- checklist and queue

@@ -47,7 +47,7 @@ def test_every_panel_is_there(make_window):
     w = make_window()
     titles = [w.tabs.tabText(i).replace("&&", "&") for i in range(w.tabs.count())]
     assert titles == ["Devices", "Light source", "Camera", "Calibrate & capture", "Originals", "Target", "Results",
-                      "Simulate & optimise", "Characterise"]
+                      "Simulate & optimise", "Characterise", "Tools"]
     for name in ("devices", "light", "camera", "originals", "simulate"):
         assert w.panels[name].isEnabled()
 

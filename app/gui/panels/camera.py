@@ -1,4 +1,5 @@
-"""Camera: ISO / shutter / aperture / RAW, single capture with a DN histogram, live view."""
+"""Camera: ISO / shutter / aperture / RAW, single capture with a DN histogram, live view with a zoom box at 100 %,
+a focus measure over time (app.gui.focus_aid) and a framing light (app.gui.framing_light)."""
 from __future__ import annotations
 
 import datetime as _dt
@@ -20,7 +21,9 @@ from PySide6.QtWidgets import (
 )
 
 from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.focus_aid import FocusAid, brightened
 from dualrgb.app.gui.frame_preview import WARNING_STYLE, HistogramPlot
+from dualrgb.app.gui.framing_light import FramingBox, FramingLight
 from dualrgb.app.gui.viewmodel import RawView, preview_histogram, raw_view
 from dualrgb.app.gui.widgets import PathLabel, image_widget, side_by_side
 from dualrgb.app.session.capture_session import atomic_write
@@ -52,6 +55,9 @@ class CameraPanel(QWidget):
         ll = QVBoxLayout(left)
         ll.addWidget(self._settings_box())
         ll.addWidget(self._capture_box())
+        self.framing = FramingLight(self.lab, ctx.workspace, self)
+        self.framing_box = FramingBox(self.framing, ctx.get, ctx.set)
+        ll.addWidget(self.framing_box)
         ll.addStretch(1)
         side_by_side(self, left, self._picture())
         self._live_timer = QTimer(self)
@@ -144,10 +150,14 @@ class CameraPanel(QWidget):
         bl.setContentsMargins(0, 0, 0, 0)
         bl.addWidget(self.hist, 1)
         bl.addWidget(self.hist_label)
+        self.focus = FocusAid()
+        self.focus.attach(self.viewbox)
         right.addWidget(top)
+        right.addWidget(self.focus)
         right.addWidget(bottom)
         right.setStretchFactor(0, 3)
         right.setStretchFactor(1, 2)
+        right.setStretchFactor(2, 2)
         return right
 
     # ------------------------------------------------------------------ state
@@ -294,6 +304,7 @@ class CameraPanel(QWidget):
             self._request_preview()
         else:
             self._live_timer.stop()
+            self.framing.stop("live view stopped")
             if self.live_button.isChecked():
                 self.live_button.setChecked(False)
 
@@ -320,10 +331,14 @@ class CameraPanel(QWidget):
         frame, hist = result
         if not self.live_button.isChecked():
             return
-        self.image.setImage(frame, autoLevels=False, levels=(0, 255))
-        self.view_title.setText(f"live view {frame.shape[1]}x{frame.shape[0]}")
+        shown, gain = brightened(frame) if self.framing.active else (frame, 1.0)     # the low framing light
+        self.image.setImage(shown, autoLevels=False, levels=(0, 255))
+        self.view_title.setText(f"live view {frame.shape[1]}x{frame.shape[0]}"
+                                + (f", brightened x{gain:.2g} for the framing light" if gain > 1 else ""))
+        self.focus.feed(frame, shown)
         if hist is not None:
             self.show_histogram(hist, "live view (estimated from the preview)")
 
     def shutdown(self) -> None:
         self._live_timer.stop()
+        self.framing.stop("the window closes")

@@ -37,14 +37,14 @@ from dualrgb.app.gui.units import light_pct, parse_exposure, shutter
 from dualrgb.app.gui.widgets import PathLabel, side_by_side
 from dualrgb.app.sequences.base import Sequence
 from dualrgb.app.sequences.capture import SubjectCapture
-from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.sequences.shooter import SafetySettings
 from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.copystand import StandSettings
+from dualrgb.app.workflow.copystand import StandSettings, plans_only
 from dualrgb.app.workflow.defaults import workflow_defaults
+from dualrgb.app.workflow.engine import Run
 from dualrgb.app.workflow.folders import new_session as new_dated_session
 from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
-from dualrgb.app.workflow.plans import build_sequence, next_take, planned_steps, steps_done
-from dualrgb.app.workflow.runs import StandRun
+from dualrgb.app.workflow.plans import StandPlanner, next_take, planned_steps, steps_done
 from dualrgb.app.workflow.vocabulary import NamedLight, SequenceKind, Subject, lights_of
 from dualrgb.simulation.presets import Preset
 
@@ -89,7 +89,7 @@ class CapturePanel(QWidget):
         self.view = SequenceView(ctx)
         self.view.start_button.clicked.connect(self.start)
         self.view.finished.connect(self._finished)
-        self.calibration = CalibrationBox(ctx, self.view, self.stand_settings, self.plan_shooter)
+        self.calibration = CalibrationBox(ctx, self.view, self.stand_settings, self.plans)
         boxes = (self._session_box(), self._lights_box(), self.calibration, self._sequence_box())
         self._layout(boxes)
         self._connect()
@@ -335,7 +335,7 @@ class CapturePanel(QWidget):
         self.light_table.blockSignals(False)
         self.ws.set_base_exposures(self._table_exposures())
         self.hdr_plans = {}
-        if not isinstance(self.view.seq, StandRun):
+        if not isinstance(self.view.seq, Run):
             self.update_plan()
 
     def _table_exposures(self) -> dict[str, float]:
@@ -383,16 +383,16 @@ class CapturePanel(QWidget):
         s = self.safety()
         return StandSettings(settle_s=s.settle_s, latency_s=s.latency_s, max_on_s=s.max_on_s)
 
-    def plan_shooter(self) -> Shooter:
-        """A Shooter for plans only (nothing is touched): the camera's latency allowance, as the real one."""
-        return Shooter(self.lab.camera, None, None, safety=self.safety())
+    def plans(self) -> StandPlanner:
+        """The single steps' plans only (nothing is touched): the camera's latency allowance, as the real one."""
+        return plans_only(self.lab.camera, self.stand_settings())
 
-    def shooter(self) -> Shooter:
+    def planner(self) -> StandPlanner:
+        """The single steps on the copy stand (app.workflow.copystand.CopyStand.planner), to run."""
         self._require_devices()
         if self.lab.session is None:
             raise ValueError("no session yet (one is made when a run starts)")
-        return Shooter(self.lab.camera, self.lab.sphere, self.lab.session, stand=self.lab.stand(),
-                       safety=self.safety())
+        return self.lab.copy_stand(self.stand_settings()).planner()
 
     def target_key(self) -> str:
         return TARGETS[self.target.currentIndex()][1]
@@ -400,19 +400,19 @@ class CapturePanel(QWidget):
     def subject(self) -> Subject:
         return Subject.target(self.target_key(), self.nd.isChecked())
 
-    def build(self, shooter: Shooter | None, take: int = 1) -> Sequence:
-        """The selected sequence (with ``shooter=None`` only for its plan), built by app.workflow.plans."""
+    def build(self, stand: StandPlanner | None, take: int = 1) -> Sequence:
+        """The selected sequence (with ``stand=None`` only for its plan), built by the workflow
+        (app.workflow.plans.StandPlanner)."""
         kind = SEQUENCE_KINDS[self.kind.currentText()]
-        sh = shooter or self.plan_shooter()
+        st = stand or self.plans()
         if kind in (SequenceKind.DARKS, SequenceKind.FLATS):
-            return build_sequence(kind, sh, self.lights, exposures=self.all_exposures(), frames=self.frames.value())
+            return st.sequence(kind, self.lights, exposures=self.all_exposures(), frames=self.frames.value())
         if kind is SequenceKind.TARGET:
-            return build_sequence(kind, sh, self.lights, exposures=self.exposures(), subject=self.subject(),
-                                  take=take)
+            return st.sequence(kind, self.lights, exposures=self.exposures(), subject=self.subject(), take=take)
         if self.hdr_key != (self.target_key(), self.nd.isChecked()) or not self.hdr_plans:
             raise ValueError("press 'Meter and plan HDR' for this target first")
-        return build_sequence(kind, sh, self.lights, exposures={n: p.exposures for n, p in self.hdr_plans.items()},
-                              subject=self.subject(), take=take)
+        return st.sequence(kind, self.lights, exposures={n: p.exposures for n, p in self.hdr_plans.items()},
+                           subject=self.subject(), take=take)
 
     def _done(self, seq: Sequence) -> list[bool]:
         session = self.lab.session
@@ -498,7 +498,7 @@ class CapturePanel(QWidget):
 
     def _start_now(self) -> None:
         try:
-            seq = self.build(self.shooter())
+            seq = self.build(self.planner())
         except ValueError as exc:
             self.ctx.errors.report(f"Start {self.kind.currentText().lower()}", exc)
             return
@@ -516,7 +516,7 @@ class CapturePanel(QWidget):
             if choice == RESHOOT:
                 session = self.lab.session
                 take = next_take(session, planned_steps(seq)) if session is not None else 1
-                self.view.start(self.build(self.shooter(), take=take))
+                self.view.start(self.build(self.planner(), take=take))
             elif choice == KEEP:
                 self.view.start(seq, done)
         self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
@@ -536,7 +536,7 @@ class CapturePanel(QWidget):
             self.hdr_label.setText(seq.summary())
         self._show_frames()
         self._update_enabled()
-        if not isinstance(seq, StandRun):       # a calibration run's ticked plan stays in view
+        if not isinstance(seq, Run):       # a calibration run's ticked plan stays in view
             self.update_plan()
         self.ctx.bus.sessionUpdated.emit()
         if outcome == "done" and getattr(seq, "name", "") == "open-gate flats":
@@ -551,7 +551,7 @@ class CapturePanel(QWidget):
 
         def now() -> None:
             try:
-                seq = AutoExposure(self.shooter(), self.lights)
+                seq = self.planner().auto_exposure(self.lights)
             except ValueError as exc:
                 self.ctx.errors.report("Auto-exposure", exc)
                 return
@@ -586,7 +586,7 @@ class CapturePanel(QWidget):
 
         def now() -> None:
             try:
-                seq = HdrMetering(self.shooter(), self.lights, base, subject, boxes)
+                seq = self.planner().hdr_metering(self.lights, base, subject, boxes)
             except ValueError as exc:
                 self.ctx.errors.report("Plan HDR", exc)
                 return

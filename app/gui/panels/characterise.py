@@ -28,8 +28,9 @@ from dualrgb.app.gui.units import dn, light_pct, shutter, shutters
 from dualrgb.app.gui.viewmodel import LINEAR_LIMIT_DN, light_from_levels
 from dualrgb.app.gui.widgets import plot_widget, side_by_side
 from dualrgb.app.sequences.crf_sweep import CrfSweep
-from dualrgb.app.sequences.shooter import SafetySettings, Shooter
+from dualrgb.app.workflow.copystand import StandSettings, plans_only
 from dualrgb.app.workflow.defaults import SETTLE_S
+from dualrgb.app.workflow.plans import StandPlanner
 from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.simulation.lightsource import LightSource
 
@@ -154,23 +155,23 @@ class CharacterisePanel(QWidget):
             return light
         return CRF_LIGHT
 
-    def safety(self) -> SafetySettings:
+    def stand_settings(self) -> StandSettings:
         latency = self.ctx.get("capture/latency_s", 0.0, float)
-        return SafetySettings(settle_s=self.ctx.get("capture/settle_s", SETTLE_S, float),
-                              latency_s=latency if latency > 0 else None)
+        return StandSettings(settle_s=self.ctx.get("capture/settle_s", SETTLE_S, float),
+                             latency_s=latency if latency > 0 else None)
 
-    def build(self, shooter: Shooter) -> CrfSweep:
+    def build(self, stand: StandPlanner) -> CrfSweep:
+        """The sweep, built by the workflow on ``stand`` (app.workflow.plans.StandPlanner)."""
         cam = self.lab.camera
         speeds = cam.shutter_speeds() if cam is not None else None
         exposures = [t for t in (speeds or _NIKON_THIRDS) if self.min_t.value() * 0.999 <= t <= self.max_t.value()]
-        return CrfSweep(shooter, self.chosen_light(), levels=self.level_values(), exposures=exposures,
-                        min_exposure_s=self.min_t.value())
+        return stand.crf_sweep(self.chosen_light(), self.level_values(), exposures, self.min_t.value())
 
     def update_plan(self) -> None:
         if self.view.running:
             return
-        try:                       # a Shooter for the plan only: the camera's latency allowance, as the real one
-            seq = self.build(Shooter(self.lab.camera, None, None, safety=self.safety()))
+        try:                       # the plan only: the camera's latency allowance, as the real one
+            seq = self.build(plans_only(self.lab.camera, self.stand_settings()))
         except ValueError as exc:
             self.view.clear_plan(str(exc))
             return
@@ -190,10 +191,8 @@ class CharacterisePanel(QWidget):
         self.ctx.with_session(self._start_now, "the CRF sweep")
 
     def _start_now(self) -> None:
-        lab = self.lab
         try:
-            self.sweep = self.build(Shooter(lab.camera, lab.sphere, lab.session, stand=lab.stand(),
-                                            safety=self.safety()))
+            self.sweep = self.build(self.lab.copy_stand(self.stand_settings()).planner())
         except ValueError as exc:
             self.ctx.errors.report("CRF sweep", exc)
             return

@@ -17,11 +17,12 @@ from PySide6.QtWidgets import (
 )
 
 from dualrgb.app.gui.context import AppContext
-from dualrgb.app.gui.device_hub import NO_CAMERA_ADVICE, VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
+from dualrgb.app.gui.device_hub import VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
 from dualrgb.app.gui.units import temperature
 from dualrgb.app.gui.widgets import PathLabel, StatusLight
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, MODES
 from dualrgb.app.workflow.folders import LegacyCaptures, folder_summary, legacy_captures, move_sessions
+from dualrgb.app.workflow.stand_devices import NO_CAMERA_ADVICE
 
 log = logging.getLogger(__name__)
 

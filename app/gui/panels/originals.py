@@ -42,6 +42,7 @@ from PySide6.QtWidgets import (
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
+from dualrgb.app.gui.stand_options import DeliveryOptions
 from dualrgb.app.gui.widgets import side_by_side
 from dualrgb.app.processing.masters import RESOLUTION_CHOICES
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
@@ -49,11 +50,11 @@ from dualrgb.app.workflow.copystand import CaptureReport, StandSettings, origina
 from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
 from dualrgb.app.workflow.day_file import restore_queue
 from dualrgb.app.workflow.defaults import SETTLE_S
+from dualrgb.app.workflow.engine import Run, RunHooks
 from dualrgb.app.workflow.metadata import MODES, Original
 from dualrgb.app.workflow.mode_rule import mode_problem
 from dualrgb.app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
 from dualrgb.app.workflow.queue_plan import KEPT, plan_queue
-from dualrgb.app.workflow.runs import RunHooks, StandRun
 from dualrgb.app.workflow.vocabulary import EventKind, Role
 
 log = logging.getLogger(__name__)
@@ -77,7 +78,7 @@ class OriginalsPanel(QWidget):
         self.current: QueueRow | None = None
         self.batch: list[str] = []                  # identifiers still to capture in this batch
         self.mode_overrides: set[str] = set()        # originals the technician chose to capture in another mode
-        self.run: StandRun | None = None
+        self.run: Run | None = None
         self._brackets: dict[str, list[float]] = {}
         self.view = SequenceView(ctx)
         self.view.start_button.hide()
@@ -143,6 +144,8 @@ class OriginalsPanel(QWidget):
         form.addRow(self.stand_in_label, self.stand_in)
         form.addRow("Frames per exposure", self.frames)
         form.addRow("Deliver at", self.resolution)
+        self.delivery_options = DeliveryOptions(self.ctx)      # --render-illuminant, --ppi (app.gui.stand_options)
+        form.addRow(self.delivery_options)
         self._import_rows(form)
         return box
 
@@ -484,7 +487,8 @@ class OriginalsPanel(QWidget):
         profile, lab = self.ws.calibration, self.lab
         forced = self.force.isChecked() or row.identifier in self.mode_overrides
         settings = StandSettings(**self._stand_settings(), force=forced, original_frames=row.frames,
-                                 resolution=str(self.resolution.currentData()))
+                                 resolution=str(self.resolution.currentData()),
+                                 **self.delivery_options.stand_fields())
 
         def work(hooks: RunHooks) -> CaptureReport:
             stand = lab.copy_stand(settings, hooks, stand_in=row.stand_in)
@@ -493,7 +497,7 @@ class OriginalsPanel(QWidget):
         self._brackets = {}
         row.state, row.qa = OriginalState.CAPTURING, ""
         self.ws.queue_changed()
-        self.run = StandRun(row.identifier, self._plan(row, {}), work)
+        self.run = Run(row.identifier, self._plan(row, {}), work)
         self.view.start(self.run)
 
     def _plan(self, row: QueueRow, brackets: dict[str, list[float]]) -> list[PlannedFrame]:
@@ -530,7 +534,7 @@ class OriginalsPanel(QWidget):
             row.state = OriginalState.CAPTURED              # every frame is in the session; delivering
             self.ws.queue_changed()
 
-    def _run_finished(self, run: StandRun, outcome: str) -> None:
+    def _run_finished(self, run: Run, outcome: str) -> None:
         row = self.current
         if run is not self.run or row is None:
             return

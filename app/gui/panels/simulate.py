@@ -401,8 +401,10 @@ class SimulatePanel(QWidget):
 
     def cancel_running(self) -> None:
         if self.handle is not None and self.handle.running:
-            self.handle.cancel()
-            self.status.setText("cancelling …")
+            self.handle.cancel()             # the search stops within one slice (simulation.search.CANCEL_SLICE)
+            compiling = self.status.text() == COMPILING       # numba's one-off compile cannot be interrupted
+            self.status.setText("cancelling after the kernels' one-off compile (first run only) …" if compiling
+                                else "cancelling …")
 
     def shutdown(self) -> None:
         self.cancel_running()
