@@ -2,7 +2,7 @@
 a queue, capture two, quit (asked first: originals are waiting), start again on the same settings - the session,
 the calibration and the queue come back, said in one line - re-import the CSV (the delivered rows count as
 delivered), capture the rest, calibrate again keeping the frames and re-deliver the day with that other
-calibration."""
+calibration from Tools → Re-deliver."""
 from __future__ import annotations
 
 import json
@@ -104,18 +104,25 @@ def test_the_day_survives_a_restart(qtbot, make_window, tmp_path):
 
 def redeliver_with_another_calibration(qtbot, w, first):
     """Calibrate again in the same session: asked re-shoot / keep / cancel; Keep computes another calibration from
-    the frames the session holds (nothing lit), and the day is delivered again with it.
-
-    ---- guitools (issue 30): the window's own re-delivery step replaces the direct workflow call below ----"""
-    from dualrgb.app.workflow.redelivery import redeliver
+    the frames the session holds (nothing lit), and Tools → Re-deliver delivers the day again with it (the window's
+    `dualrgb process`)."""
+    from dualrgb.app.gui.redeliver_view import CURRENT
 
     w.asker.scripted = ["Keep"]
     asked = calibrate(qtbot, w)
     assert [t for t, _ in asked] == ["Calibrate again?"] and "Re-shoot" in asked[0][1]
     second = w.ctx.workspace.calibration
     assert second.id != first.id and second.path.parent == first.path.parent
-    session = w.lab.session
-    done, failed = redeliver(session, second, session.path / "deliverables")
-    assert not failed and sorted(d.original.identifier for d in done) == sorted(IDS)
-    for d in done:
-        assert json.loads(d.sidecar.read_text())["calibration"]["id"] == second.id
+    view = w.tools.redeliver
+    w.show_panel("tools")
+    view.calibration.setCurrentIndex(view.calibration.findData(CURRENT))     # the calibration just made
+    click(qtbot, view.start_button)
+    qtbot.waitUntil(lambda: view.outcome != "", timeout=LONG)
+    wait_idle(qtbot, w, LONG)
+    assert view.outcome == "done", (view.message.text(), w.errors.history)
+    rows = sorted((view.table.item(r, 0).text(), view.table.item(r, 1).text()) for r in range(view.table.rowCount()))
+    assert rows == [(i, "delivered") for i in IDS]
+    session = w.lab.session.path
+    for ident in IDS:
+        side = json.loads((session / "deliverables" / ident / f"{ident}.json").read_text())
+        assert side["calibration"]["id"] == second.id and side["reprocessed"] is True
