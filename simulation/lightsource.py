@@ -5,19 +5,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dualrgb.common.formatting import SIGNIFICANT as LEVEL_DIGITS  # noqa: F401 - one formatting (common)
+from dualrgb.common.formatting import format_level
 from dualrgb.simulation.choices import N_SPHERE_LEDS
-
-LEVEL_DIGITS = 4      # significant digits printed: retyping printed levels reproduces the mean dE00 to < 1e-4
-
-
-def format_level(v: float) -> str:
-    """One LED level for people: 4 significant digits (0.002242, 0.4164, 1), never rounded to 0 when it is not.
-
-    Two decimals were not enough: the reflective PSO optimum needs LED 1 at 0.0022 and, printed as 0.00, the
-    retyped light gave 0.95 instead of 0.41 mean dE00. Measured on the PSO and GA optima of both modes, 4
-    significant digits reproduce the training error within 2e-5 (3 decimals: up to 0.44 off, 4 decimals:
-    5e-4). Preset files store the exact value."""
-    return f"{float(v):.{LEVEL_DIGITS}g}"
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.stand_options import CalibrationSampling
 from dualrgb.app.gui.viewmodel import calibration_lines
 from dualrgb.app.gui.widgets import PathLabel
+from dualrgb.app.protocols import Session
 from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.workflow.charts import load_charts
 from dualrgb.app.workflow.copystand import StandSettings
@@ -43,12 +44,18 @@ from dualrgb.app.workflow.profile import (
     check_reuse,
     load_profile,
 )
-from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.app.workflow.vocabulary import Role, Subject, role_of
 from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
 CALIBRATION_RUN = "calibration"
+RESHOOT, KEEP, CANCEL = "Re-shoot", "Keep", "Cancel"
+
+
+def calibration_frames(session: Session) -> list:
+    """The session's current darks, flats and target frames."""
+    return [e for e in session.entries() if role_of(e) in (Role.DARK, Role.FLAT, Role.TARGET)]
 
 
 class CalibrationBox(QGroupBox):
@@ -147,7 +154,31 @@ class CalibrationBox(QGroupBox):
             self.ctx.errors.report("Calibrate", exc)
             return
         ws.set_charts(charts)
+        if lab.session is not None and calibration_frames(lab.session):
+            self._ask_reshoot(plan, charts, start)
+            return
         self.ctx.with_session(lambda: self._start(plan, charts, start), "the calibration")
+
+    def _ask_reshoot(self, plan: list, charts: dict, start: StandModel | None) -> None:
+        """The session holds calibration frames: re-shoot them (in a new dated session: this one keeps its frames
+        and delivered originals, the waiting ones move along), keep them (a calibration computed again from them,
+        nothing lit), or cancel."""
+        session = self.ctx.lab.session
+        n = len(calibration_frames(session)) if session is not None else 0
+        text = (f"This session already holds {n} calibration frames (darks, flats, targets). Re-shoot them in a new "
+                "session (this one keeps its frames and delivered originals; waiting originals move along), keep "
+                "them and compute the calibration again (nothing is lit), or cancel?")
+
+        def answer(choice: str) -> None:
+            if choice == RESHOOT:
+                old = self.ctx.lab.session
+                self.ctx.lab.set_session(None)
+                if old is not None:
+                    old.close()                      # its writer lock given back: it can be opened again
+                self.ctx.with_session(lambda: self._start(plan, charts, start), "the re-shot calibration")
+            elif choice == KEEP:
+                self._start(plan, charts, start)
+        self.ctx.asker.ask("Calibrate again?", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
     def _start(self, plan: list, charts: dict | None = None, stand_start: StandModel | None = None) -> None:
         ws, lab = self.ws, self.ctx.lab

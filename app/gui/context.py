@@ -88,13 +88,28 @@ class AppContext:
         text = self.get(key, "", str)
         return Path(text) if text else default
 
-    def open_path(self, path: Path) -> None:
+    def open_path(self, path: Path) -> bool:
         """Show a file or folder in the desktop's viewer (a TIFF in the image viewer, a folder in the file
-        manager)."""
+        manager); a path that is gone or a desktop without a launcher is said in the window."""
         self.opened.append(Path(path))
         log.info("opening %s", path)
-        if self.open_externally:
-            QDesktopServices.openUrl(QUrl.fromLocalFile(str(path)))
+        if not Path(path).exists():
+            self.errors.report("Open", f"{path} does not exist (moved or deleted?)")
+            return False
+        return self.open_url(QUrl.fromLocalFile(str(path)), Path(path).name)
+
+    def open_url(self, url: QUrl, what: str) -> bool:
+        """Hand ``url`` to the desktop; when nothing opens it (no launcher such as xdg-open), say so visibly with
+        where it is."""
+        if not self.open_externally:
+            return True
+        if QDesktopServices.openUrl(url):
+            self.errors.clear("Open")
+            return True
+        where = url.toLocalFile() or url.toString()
+        self.errors.report("Open", f"no launcher on this desktop (such as xdg-open) opens {what}; open it "
+                           f"yourself: {where}")
+        return False
 
     @property
     def presets_dir(self) -> Path:

@@ -8,14 +8,17 @@ from collections.abc import Callable
 
 from PySide6.QtCore import QByteArray, QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
-from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QScrollArea, QTabWidget, QWidget
+from PySide6.QtWidgets import QDockWidget, QLabel, QMainWindow, QMenu, QScrollArea, QTabWidget, QWidget
 
 from dualrgb.app.gui import gc_thread
 from dualrgb.app.gui.context import AppContext, Bus, default_settings
+from dualrgb.app.gui.day_keeper import DayKeeper
 from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.guide import WorkflowGuide
 from dualrgb.app.gui.panels.placeholder import NotAvailablePanel
+from dualrgb.app.gui.units import temperature
 from dualrgb.app.gui.widgets import Asker, ErrorReporter, LogView
+from dualrgb.app.gui.window_menus import WheelGuard, build_menus
 from dualrgb.app.gui.workers import TaskRunner
 from dualrgb.app.gui.workspace import Workspace
 from dualrgb.app.workflow.defaults import VIRTUAL_FRAME_SIZE
@@ -63,6 +66,8 @@ class MainWindow(QMainWindow):
         self._build_status_bar()
         self._build_actions()
         self._build_persistence()
+        self.day = DayKeeper(self.ctx, self)       # the queue and calibration kept in the session; restored now
+        self.day.restore()
 
     def _build_log_dock(self) -> None:
         self.log_view = LogView()
@@ -136,9 +141,13 @@ class MainWindow(QMainWindow):
         self.cancel_action.setShortcuts([QKeySequence(Qt.Key.Key_Escape), QKeySequence("Ctrl+.")])
         self.cancel_action.setToolTip("Stop the running sequence or simulation (the lights go off).")
         self.cancel_action.triggered.connect(self.cancel_running)
-        menu = self.menuBar().addMenu("&Capture")
+        self.menu_actions = build_menus(self, self.ctx, self._open_session)     # File, then Capture, then Help
+        menu = QMenu("&Capture", self)
+        self.menuBar().insertMenu(self.menuBar().actions()[1], menu)
         menu.addAction(self.capture_action)
         menu.addAction(self.cancel_action)
+        self.wheel_guard = WheelGuard(self)
+        self.wheel_guard.guard(self)
         for a in (self.capture_action, self.cancel_action):
             a.setShortcutContext(Qt.ShortcutContext.ApplicationShortcut)
             self.addAction(a)
@@ -153,6 +162,11 @@ class MainWindow(QMainWindow):
         for dock in (self.log_dock, self.guide_dock):
             dock.dockLocationChanged.connect(lambda *_: self._save_timer.start())
             dock.visibilityChanged.connect(lambda *_: self._save_timer.start())
+
+    def _open_session(self, folder) -> None:
+        open_session = getattr(self.panels.get("capture"), "open_session", None)
+        if open_session is not None:
+            open_session(folder)
 
     def show_panel(self, name: str) -> None:
         panel = self.panels.get(name)
@@ -175,7 +189,7 @@ class MainWindow(QMainWindow):
 
     def _sphere_status(self, status: dict) -> None:
         on = "ON" if status.get("light_on") else "off"
-        self.sphere_state.setText(f"sphere: light {on}, {status.get('temperature_c', 0):.1f} °C")
+        self.sphere_state.setText(f"sphere: light {on}, {temperature(status.get('temperature_c'))}")
 
     def _busy_changed(self, pool: str, busy: bool) -> None:
         running = [h.name for h in self.runner.running() if h.pool != "devices"]
@@ -200,8 +214,9 @@ class MainWindow(QMainWindow):
         geometry = self.ctx.settings.value("window/geometry")
         if isinstance(geometry, QByteArray):
             self.restoreGeometry(geometry)
-        else:
-            self.resize(1280, 860)
+        else:                                      # never taller or wider than the screen (a 1366x768 laptop)
+            room = self.screen().availableGeometry() if self.screen() is not None else None
+            self.resize(min(1280, room.width()) if room else 1280, min(860, room.height()) if room else 860)
         state = self.ctx.settings.value("window/state")
         if isinstance(state, QByteArray):
             self.restoreState(state)
@@ -225,6 +240,9 @@ class MainWindow(QMainWindow):
             self._save_timer.start()
 
     def closeEvent(self, event: QCloseEvent) -> None:
+        if not self._closing and not self.day.may_quit(self, self.errors.show_dialogs):
+            event.ignore()                         # work left: the technician chose to keep working
+            return
         if not self._closing:
             self._closing = True
             self.save_layout()
@@ -243,6 +261,7 @@ class MainWindow(QMainWindow):
                            on_error=lambda exc: log.error("closing the devices: %s", exc))
         if not self.runner.wait(20000):
             log.error("some work did not stop within 20 s")
+        self.day.shutdown()
         self.errors.close_all()
         for box in list(self.asker.boxes):
             box.close()

@@ -41,9 +41,20 @@ from dualrgb.simulation.lightsource import LightSource
 log = logging.getLogger(__name__)
 
 DEFAULT_OVERHEAD_S = 1.5          # per frame beyond the exposure (download, write) until one has been measured
+OVERHEAD_KEY = "runs/frame_overhead_s"     # the last measured one, for every view and the next start
 Run = Sequence | EngineRun
 DONE_MARK = "✓"
 DONE_COLOUR = QColor("#e8f5e9")
+
+
+def frame_overhead_s(times: list[tuple[float, float]], settle_s: float) -> float | None:
+    """A frame's time beyond its exposure and settle, measured: the median over consecutive new frames of a run
+    (``times``: the start, then each frame's (monotonic time, exposure)); None under 3 frames. The median leaves
+    out the pauses between a run's parts (processing, a prompt)."""
+    if len(times) < 4:
+        return None
+    steps = sorted(t1 - t0 - exp - settle_s for (t0, _), (t1, exp) in zip(times, times[1:], strict=False))
+    return max(0.05, steps[len(steps) // 2])
 
 
 def estimate_s(plan: list[PlannedFrame], settle_s: float, overhead_s: float) -> float:
@@ -65,8 +76,9 @@ class SequenceView(QWidget):
         self.handle: TaskHandle | None = None
         self.events: list[ProgressEvent] = []
         self.outcome = ""
-        self.overhead_s = DEFAULT_OVERHEAD_S
+        self.overhead_s = ctx.get(OVERHEAD_KEY, DEFAULT_OVERHEAD_S, float)     # measured on the last run (any view)
         self.settle_s = 0.2
+        self._frame_times: list[tuple[float, float]] = []          # (monotonic time, exposure) of each new frame
         self.planned: list[PlannedFrame] = []
         self._t_start = 0.0
         self._ticked = 0
@@ -206,6 +218,8 @@ class SequenceView(QWidget):
         self.time_left.setText("")
         self.message.setText(f"{seq.name}: starting …")
         self._t_start = time.monotonic()
+        self._frame_times = [(self._t_start, 0.0)]
+        self.overhead_s = self.ctx.get(OVERHEAD_KEY, self.overhead_s, float)
         self._set_running(True)
         self.started.emit(seq)
         self.ctx.workspace.set_running(seq.name)
@@ -218,6 +232,8 @@ class SequenceView(QWidget):
 
     def _on_event(self, ev: ProgressEvent) -> None:
         self.events.append(ev)
+        if ev.kind is EventKind.FRAME:
+            self._frame_times.append((time.monotonic(), float(ev.data.get("exposure_s") or 0.0)))
         if ev.kind is EventKind.CANCELLED:
             self.outcome = "cancelled"
             self.message.setText(ev.message)
@@ -283,10 +299,10 @@ class SequenceView(QWidget):
         self.time_left.setText("")
         frames = [e for e in self.events if e.kind is EventKind.FRAME]
         kept = sum(e.kind is EventKind.KEPT for e in self.events)
-        if frames and seq is not None and not isinstance(seq, EngineRun):
-            spent = time.monotonic() - self._t_start
-            exposure = sum(float(e.data.get("exposure_s") or 0.0) for e in frames)
-            self.overhead_s = max(0.05, (spent - exposure) / len(frames) - self.settle_s)
+        measured = frame_overhead_s(self._frame_times, self.settle_s)
+        if measured is not None:                    # the next plans are estimated from this run's frames
+            self.overhead_s = measured
+            self.ctx.set(OVERHEAD_KEY, measured)
         name = seq.name if seq else "sequence"
         summary = getattr(seq, "summary", None)
         extra = summary() if callable(summary) else ""

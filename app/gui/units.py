@@ -7,7 +7,8 @@ import re
 from collections.abc import Sequence
 
 from dualrgb.app.workflow.vocabulary import format_exposure
-from dualrgb.simulation.lightsource import LightSource, format_level
+from dualrgb.common.formatting import format_level, format_temperature
+from dualrgb.simulation.lightsource import LightSource
 
 NBSP = "\u00a0"          # between a number and its unit: a wrapping label never splits "90 %"
 
@@ -32,6 +33,11 @@ def light_pct(light: LightSource) -> str:
 def shutter(seconds: float | None) -> str:
     """'1/80 s', '2 s' (the camera driver's notation) with a non-breaking space."""
     return format_exposure(seconds).replace(" ", NBSP)
+
+
+def temperature(celsius: float | None) -> str:
+    """'24 °C' (4 significant digits, common.formatting) with a non-breaking space."""
+    return format_temperature(celsius).replace(" ", NBSP)
 
 
 def shutters(times: Sequence[float]) -> str:

@@ -16,6 +16,7 @@ import numpy as np
 from dualrgb.app.gui.units import dn, light_pct, percent, shutters
 from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN  # the one linear limit (thesis 4.1), used everywhere
 from dualrgb.app.session.light_dose import LightDose
+from dualrgb.common.formatting import format_duration  # noqa: F401 - one formatting, shared with the CLI
 from dualrgb.simulation.lightsource import LightSource
 
 
@@ -85,19 +86,6 @@ class DoseFeed:
         self.dose = LightDose()
         self._last_t = None
         self._last_light = None
-
-
-def format_duration(seconds: float | None) -> str:
-    """'—' for unknown, '42 s', '3 min 05 s', '1 h 02 min'."""
-    if seconds is None or not math.isfinite(seconds):
-        return "—"
-    s = int(round(max(seconds, 0.0)))
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60:02d} s"
-    return f"{s // 3600} h {(s % 3600) // 60:02d} min"
-
 
 
 def display_rgb(linear: np.ndarray, full_scale: float | None = None, gamma: float = 2.2) -> np.ndarray:

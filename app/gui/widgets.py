@@ -192,7 +192,9 @@ class Asker(QObject):
             QTimer.singleShot(0, lambda: on_answer(answer))
             return
         box = QMessageBox(QMessageBox.Icon.Question, title, text, QMessageBox.StandardButton.NoButton, self._parent)
-        buttons: dict[QAbstractButton, str] = {box.addButton(c, QMessageBox.ButtonRole.AcceptRole): c for c in choices}
+        made = [(box.addButton(c, QMessageBox.ButtonRole.AcceptRole), c) for c in choices]
+        buttons: dict[QAbstractButton, str] = dict(made)
+        box.setDefaultButton(next(b for b, c in made if c == default))      # Enter answers the default
         box.setWindowModality(Qt.WindowModality.NonModal)
         box.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
 
@@ -206,8 +208,8 @@ class Asker(QObject):
 
 
 class PathLabel(QLabel):
-    """A file path on one line, shortened in the middle when the panel is narrow (never wrapped mid-name); the
-    whole path is the tooltip."""
+    """A file path on one line, shortened in the middle of its folders when the panel is narrow (never wrapped
+    mid-name): the last name - the session's, the file's - stays whole; the whole path is the tooltip."""
 
     def __init__(self, text: str = "", parent: QWidget | None = None):
         super().__init__(parent)
@@ -230,7 +232,17 @@ class PathLabel(QLabel):
 
     def _elide(self) -> None:
         width = max(self.width(), 80)
-        super().setText(self.fontMetrics().elidedText(self._full, Qt.TextElideMode.ElideMiddle, width))
+        fm, full = self.fontMetrics(), self._full
+        cut = max(full.rfind("/"), full.rfind("\\")) + 1           # the last name (session, file) is kept whole
+        head, tail = full[:cut], full[cut:]
+        room = width - fm.horizontalAdvance(tail)
+        if fm.horizontalAdvance(full) <= width:
+            text = full
+        elif room <= fm.horizontalAdvance("…/"):                  # too narrow even for the name: its start
+            text = fm.elidedText(tail, Qt.TextElideMode.ElideRight, width)
+        else:
+            text = fm.elidedText(head, Qt.TextElideMode.ElideMiddle, room) + tail
+        super().setText(text)
 
 
 class DeLegend(QWidget):

@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dualrgb.app.processing.mosaic import DEFAULT_BAND_ROWS, FrameLike, mosaic_of
+from dualrgb.common.formatting import format_exposure
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
 from dualrgb.simulation.hdr_estimators import (
     HDR_MERGE_METHODS,
@@ -61,6 +62,7 @@ from dualrgb.simulation.hdr_estimators import (
 )
 
 log = logging.getLogger(__name__)
+_CLIPPED_SAID: set[float] = set()                 # shortest exposures whose clipping was said (once each)
 
 LINEAR_LIMIT_DN = 11000.0   # thesis 4.1.2 / Fig 4.2: the D610 is linear up to ~11 000 DN
 MAX_EXPOSURE_TIMES = 16     # distinct exposure times per merge (one slot of float32 + uint8 per pixel each)
@@ -205,9 +207,17 @@ class HdrMerge:
                 np.float32(1.0 / self.noise.electrons_per_dn), np.float32(self.noise.read_variance))
 
     def _warn_clipped(self, clipped: int, size: int) -> None:
-        if clipped:
-            log.warning("HDR: %d pixels (%.3f %%) exceed the linear limit in every exposure (shortest %.6g s "
-                        "used); add a shorter exposure", clipped, 100.0 * clipped / size, min(self.exposures))
+        """Said once per shortest exposure (every merge of a day repeated it), with what to do; later merges
+        at that exposure log at debug level."""
+        if not clipped:
+            return
+        shortest = float(min(self.exposures))
+        level = logging.DEBUG if shortest in _CLIPPED_SAID else logging.WARNING
+        _CLIPPED_SAID.add(shortest)
+        log.log(level, "HDR: %d pixels (%.3f %%) exceed the linear limit in every exposure (shortest %s used): "
+                "give that light a shorter exposure (Calibrate & capture: type it in the lights table or run "
+                "Auto-exposure on the open gate; dualrgb calibrate meters it) and calibrate again; said once",
+                clipped, 100.0 * clipped / size, format_exposure(shortest))
 
     def _done(self) -> None:
         self._sums = self._counts = None

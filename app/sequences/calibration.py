@@ -17,6 +17,7 @@ from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.shooter import Shooter, channel_levels
 from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
+from dualrgb.common.formatting import format_exposure
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +51,7 @@ class DarkSeries(BaseSequence):
                 kind = EventKind.KEPT if self.shooter.session.has_step(step_) else EventKind.FRAME
                 entry = self.shooter.shoot(Role.DARK.value, None, t, step_, frame_index=i)
                 step += 1
-                yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {t:g} s", kind=kind,
+                yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {format_exposure(t)}", kind=kind,
                                     data={"entry": entry.seq, "exposure_s": t})
 
     def _cleanup(self) -> Any:
@@ -90,7 +91,7 @@ class FlatSeries(BaseSequence):
                     kind = EventKind.KEPT if self.shooter.session.has_step(step_) else EventKind.FRAME
                     entry = self.shooter.shoot(Role.FLAT.value, nl.light, t, step_, light_name=nl.name, frame_index=i)
                     step += 1
-                    yield ProgressEvent(step, total, f"flat {nl.name} {i + 1}/{self.frames} at {t:g} s",
+                    yield ProgressEvent(step, total, f"flat {nl.name} {i + 1}/{self.frames} at {format_exposure(t)}",
                                         kind=kind, data={"entry": entry.seq, "exposure_s": t})
 
     def _cleanup(self) -> Any:

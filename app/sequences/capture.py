@@ -10,6 +10,7 @@ from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.shooter import Shooter
 from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Subject, step_id
+from dualrgb.common.formatting import format_exposure
 
 log = logging.getLogger(__name__)
 
@@ -72,7 +73,7 @@ class SubjectCapture(BaseSequence):
                                        subject=self.subject.key, take=self.take, **self.meta)
             self.kept += kind is EventKind.KEPT
             self.new += kind is EventKind.FRAME
-            yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {t:g} s", kind=kind,
+            yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {format_exposure(t)}", kind=kind,
                                 data={"entry": entry.seq, "exposure_s": t, "light": nl.name})
 
     def _cleanup(self) -> Any:

@@ -86,6 +86,7 @@ from dualrgb.app.session.manifest import (
     now,
     read_manifest,
 )
+from dualrgb.app.workflow.metadata import frame_stem
 from dualrgb.common import atomic_files
 from dualrgb.common.atomic_files import TMP_SUFFIX, FileWriteError, fsync_dir, remove_quietly, write_all
 from dualrgb.common.debris import sweep
@@ -380,11 +381,15 @@ class CaptureSession:
     def _next_seq(self) -> int:
         return max((e.seq for e in self._entries), default=0) + 1
 
-    def _file_name(self, seq: int, role: str, camera_name: str) -> str:
-        name = f"{seq:04d}_{_safe(role)}_{_safe(Path(camera_name).name or 'capture.raw')}"
+    def _file_name(self, seq: int, role: str, camera_name: str, stem: str = "") -> str:
+        """``0062_original_VIRT_0062.DNG``; a frame of an original carries its file stem after the number
+        (``0062_ACC-1_original_VIRT_0062.DNG``: app.workflow.metadata.frame_stem). Names are only written: the
+        manifest names every file, so sessions with the older names read as before."""
+        middle = f"{_safe(stem)}_{_safe(role)}" if stem else _safe(role)
+        name = f"{seq:04d}_{middle}_{_safe(Path(camera_name).name or 'capture.raw')}"
         while (self.path / name).exists() or (self.path / DAMAGED_DIR / name).exists():
             seq += 100000                        # an orphan from a killed run may hold the name
-            name = f"{seq:04d}_{_safe(role)}_{_safe(Path(camera_name).name or 'capture.raw')}"
+            name = f"{seq:04d}_{middle}_{_safe(Path(camera_name).name or 'capture.raw')}"
         return name
 
     def record(self, raw: RawCapture, role: str, *, step_id: str | None = None, light: Any = None,
@@ -402,7 +407,7 @@ class CaptureSession:
         if not data:
             raise SessionError(errno.EINVAL, f"{raw.filename or 'capture'}: the camera returned an empty file")
         seq = self._next_seq()
-        name = self._file_name(seq, role, raw.filename)
+        name = self._file_name(seq, role, raw.filename, frame_stem(meta.get("subject")))
         final = self.path / name
         entry = SessionEntry(
             seq=seq, file=name, role=role, sha256=hashlib.sha256(data).hexdigest(), size=len(data),

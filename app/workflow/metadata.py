@@ -304,6 +304,20 @@ def _rendering(identifier: str) -> str:
     return text or "original"
 
 
+def frame_stem(subject_key: object) -> str:
+    """What a raw frame's file name carries of its subject: an original's file stem (the name of its deliverables:
+    ``0062_ACC-1_original_VIRT_0062.DNG``), '' for targets, darks and flats."""
+    from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
+
+    if not isinstance(subject_key, str):
+        return ""
+    try:
+        subject = Subject.parse(subject_key)
+        return file_stem(subject.name) if subject.kind is SubjectKind.ORIGINAL else ""
+    except ValueError:
+        return ""
+
+
 def file_stem(identifier: str) -> str:
     """The file-name stem of an original (its deliverables folder and every file in it); see the module docstring.
 
@@ -338,5 +352,5 @@ def xmp_property(column: str) -> str:
 
 
 __all__ = ["COLUMN_RULE", "EXTRA_RULE", "FIELD_RULES", "MAX_EXTRA", "MODES", "FieldRule", "MetadataError", "Original",
-           "Whitespace", "ascii_text", "check_original", "file_stem", "normalise", "normalise_extra",
+           "Whitespace", "ascii_text", "check_original", "file_stem", "frame_stem", "normalise", "normalise_extra",
            "normalise_identifier", "normalise_mode", "xmp_property"]

@@ -45,8 +45,9 @@ from dualrgb.app.workflow import profile_check
 from dualrgb.app.workflow.profile_arrays import ProfileArrays
 from dualrgb.app.workflow.profile_check import FORMAT, ProfileError
 from dualrgb.app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
-from dualrgb.app.workflow.vocabulary import NamedLight, exposure_key
+from dualrgb.app.workflow.vocabulary import NamedLight
 from dualrgb.common.atomic_files import atomic_output
+from dualrgb.common.formatting import format_exposure, format_temperature
 from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.simulation.defaults import default_grid
 from dualrgb.simulation.lightsource import LightSource
@@ -391,11 +392,12 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
              f"camera: {prof.camera.model} serial {prof.camera.serial or '?'}, ISO {prof.camera.iso}, "
              f"f/{prof.camera.aperture}" + (f", lens {prof.camera.lens}" if prof.camera.lens else "")
              + (f", virtual-lab world {prof.camera.world}" if prof.camera.world else ""),
-             f"sphere: {prof.sphere.model} serial {prof.sphere.serial or '?'}, {prof.sphere.temperature_c} C",
+             f"sphere: {prof.sphere.model} serial {prof.sphere.serial or '?'}, "
+             f"{format_temperature(prof.sphere.temperature_c)}",
              f"preset {prof.preset}:"]
     for nl in prof.lights:
-        ts = ", ".join(exposure_key(t) for t in prof.exposures.get(nl.name, []))
-        lines.append(f"  {nl.name}: {nl.light.label()}, exposures {ts} s")
+        ts = ", ".join(format_exposure(t) for t in prof.exposures.get(nl.name, []))
+        lines.append(f"  {nl.name}: {nl.light.label()}, exposures {ts}")
     lines += chart_lines(prof.charts)
     lines.append(f"matrix: {prof.matrix.method} ({len(prof.matrix.channels)} channels, of "
                  f"{', '.join(prof.statistics.get('methods', {}))}); train mean dE00 "

@@ -57,8 +57,9 @@ class QueuePlan:
 
     def summary(self) -> str:
         n = {s: len(self.of(s)) for s in (SHOOT, KEPT, REFUSED)}
-        return (f"{self.source.name}: {len(self.rows)} rows with calibration {self.calibration}: {n[SHOOT]} to shoot, "
-                f"{n[KEPT]} kept, {n[REFUSED]} refused")
+        under = f"with calibration {self.calibration}" if self.calibration else "(no calibration yet: modes unchecked)"
+        return (f"{self.source.name}: {len(self.rows)} rows {under}: {n[SHOOT]} to shoot, {n[KEPT]} kept, "
+                f"{n[REFUSED]} refused")
 
     def lines(self) -> list[str]:
         """The summary, one line per row, and one line per unmapped column whose values were not all kept."""
@@ -76,8 +77,9 @@ class QueuePlan:
 def plan_queue(queue: QueueImport, profile: Any, *, session: Any = None, force: bool = False,
                reshoot: bool = False) -> QueuePlan:
     """Each row of ``queue`` under calibration ``profile``: refused (a bad row; a mode other than the
-    calibration's unless ``force``), kept (delivered in ``session`` already, unless ``reshoot``) or to shoot."""
-    plan = QueuePlan(queue.path, profile.id, column_lines=queue.column_lines())
+    calibration's unless ``force``), kept (delivered in ``session`` already, unless ``reshoot``) or to shoot.
+    ``profile`` None (the GUI before a calibration): the mode rule waits for one; the rest is the same."""
+    plan = QueuePlan(queue.path, profile.id if profile is not None else "", column_lines=queue.column_lines())
     rows: list[PlanRow] = []
     bad = dict(zip(queue.bad_rows, queue.bad_lines(), strict=True))
     for row, line in bad.items():
@@ -89,7 +91,7 @@ def plan_queue(queue: QueueImport, profile: Any, *, session: Any = None, force: 
 
 
 def _plan_row(row: int, original: Original, profile: Any, session: Any, force: bool, reshoot: bool) -> PlanRow:
-    problem = mode_problem(original.mode, profile.mode, profile.id)
+    problem = mode_problem(original.mode, profile.mode, profile.id) if profile is not None else ""
     if problem and not force:
         return PlanRow(row, original.identifier, REFUSED, problem, original)
     if session is not None and not reshoot:
@@ -97,5 +99,5 @@ def _plan_row(row: int, original: Original, profile: Any, session: Any, force: b
 
         if delivered_sidecar(session, original) is not None:
             return PlanRow(row, original.identifier, KEPT, "already delivered in the session", original)
-    reason = override_text(original.mode, profile.mode, profile.id) if problem else ""
+    reason = override_text(original.mode, profile.mode, profile.id) if problem and profile is not None else ""
     return PlanRow(row, original.identifier, SHOOT, reason, original)

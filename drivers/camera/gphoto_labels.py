@@ -20,6 +20,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
+from dualrgb.common.formatting import format_exposure
+
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
@@ -103,12 +105,8 @@ def nearest_by_value(target: float, options: Sequence[tuple[float, T]]) -> tuple
 
 
 def format_shutter(seconds: float | None) -> str:
-    if seconds is None:
-        return "bulb"
-    if seconds >= 1 or seconds <= 0:
-        return f"{seconds:g} s"
-    inv = 1.0 / seconds
-    return f"1/{inv:.0f} s" if abs(inv - round(inv)) < 0.05 * inv else f"{seconds:.4g} s"
+    """'1/60 s', '0.7727 s', '8 s' (common.formatting: one notation for the command line and the window)."""
+    return format_exposure(seconds)
 
 
 # ---------------------------------------------------------------------------------------------- words

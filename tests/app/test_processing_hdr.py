@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from synthetic_frames import BLACK, WHITE, dark_frames, expose, mosaic_scene, patch_reflectance, vignette
 
+from dualrgb.app.processing import hdr as hdr_module
 from dualrgb.app.processing.hdr import HDR_MERGE_METHODS, HdrMerge, exposure_weight, triangle_weight
 from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
 from dualrgb.common.progress import Cancelled, CancelToken
@@ -70,6 +71,12 @@ def test_hdr_equals_single_exposure_when_scene_fits():
     assert np.allclose(res2.radiance, L, rtol=2e-3)
 
 
+@pytest.fixture(autouse=True)
+def _clipping_said_afresh():
+    """The clipping warning is said once per shortest exposure and process: each test starts as a new day."""
+    hdr_module._CLIPPED_SAID.clear()
+
+
 def test_pixels_clipped_in_every_exposure_use_the_shortest(caplog):
     L = np.full((4, 6), 1000.0)
     L[0, 0] = 1e6
@@ -77,7 +84,12 @@ def test_pixels_clipped_in_every_exposure_use_the_shortest(caplog):
     with caplog.at_level(logging.WARNING):
         res = HdrMerge.merge([expose(L, 0.1, d), expose(L, 1.0, d)], [0.1, 1.0], [d, d],
                              white_level=WHITE, black_level=BLACK)
-    assert res.clipped == 1 and "exceed the linear limit" in caplog.text
+    assert res.clipped == 1 and "exceed the linear limit" in caplog.text and "shorter exposure" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):          # said once: the next merge at that exposure does not repeat it
+        HdrMerge.merge([expose(L, 0.1, d), expose(L, 1.0, d)], [0.1, 1.0], [d, d], white_level=WHITE,
+                       black_level=BLACK)
+    assert "exceed the linear limit" not in caplog.text
     assert res.radiance[0, 0] == pytest.approx((WHITE - 600) / 0.1)
     assert np.allclose(res.radiance[1:], 1000.0, rtol=0.01)
 

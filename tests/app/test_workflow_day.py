@@ -249,3 +249,56 @@ def test_flat_uniformity_shows_the_vignetting(stand):
     assert centre > corner and m.range_pct > 1.0                 # the virtual lab's vignetting
     with pytest.raises(ValueError, match="no open-gate flats of nobody"):
         flat_uniformity(session, "nobody")
+
+
+# ---------------------------------------------------------------- the day kept in its session (issue 30)
+def test_the_day_file_keeps_waiting_rows_and_the_calibration(tmp_path):
+    from dualrgb.app.workflow.day_file import DAY_FORMAT, day_path, restore_day, restored_line, save_day
+
+    session_dir = tmp_path / "s"
+    (session_dir / "calibration").mkdir(parents=True)
+    old, cal = session_dir / "calibration" / "cal-1.json", session_dir / "calibration" / "cal-2.json"
+    old.write_text("{}")
+    cal.write_text("{}")
+    q = OriginalsQueue()
+    q.add(Original("W-1", title="Waiting", extra={"Inventory": "7"}), stand_in="painting", frames=2)
+    q.add(Original("C-1")).state = OriginalState.CAPTURING            # the window closed while it was shot
+    q.add(Original("F-1")).state, q.rows[-1].qa = OriginalState.FAILED, "not shot: transmissive"
+    d = q.add(Original("D-1"))
+    d.state = OriginalState.DELIVERED                                  # delivered: session.json has it, not the file
+    save_day(session_dir, q, old)
+    doc = json.loads(day_path(session_dir).read_text())
+    assert doc["format"] == DAY_FORMAT and "software" in doc and doc["calibration"] == str(old)
+    assert [r["original"]["identifier"] for r in doc["rows"]] == ["W-1", "C-1", "F-1"]
+    queue, calibration, notes = restore_day(fake_session(path=session_dir))
+    assert calibration == old and notes == []                          # the saved one, not the newest
+    w = queue.row("W-1")
+    assert (w.state, w.stand_in, w.frames, w.original.title, w.original.extra) == (
+        OriginalState.WAITING, "painting", 2, "Waiting", {"Inventory": "7"})
+    assert queue.row("C-1").state is OriginalState.WAITING and "interrupted" in queue.row("C-1").qa
+    assert queue.row("F-1").state is OriginalState.FAILED and [r.identifier for r in queue.rows] == ["W-1", "C-1",
+                                                                                                     "F-1"]
+    assert restored_line("s", queue, "cal-1") == "restored session s, calibration cal-1, queue: 2 waiting, 1 failed"
+    old.unlink()                                                       # gone: the session's newest, said
+    _queue, calibration, notes = restore_day(fake_session(path=session_dir))
+    assert calibration == cal and "gone" in notes[0]
+    day_path(session_dir).write_text("{not json")
+    queue, _cal, notes = restore_day(fake_session(path=session_dir))
+    assert queue.rows == [] and "not restored" in notes[0]
+
+
+def test_raw_frames_of_an_original_carry_its_file_stem(tmp_path):
+    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.vocabulary import Subject
+    from dualrgb.drivers.camera.base import RawCapture
+
+    with CaptureSession.create(tmp_path / "s", {}) as session:
+        raw = RawCapture(b"raw", "VIRT_0001.DNG", exposure_s=0.01)
+        original = session.record(raw, "original", step_id="o/1", subject=Subject.original("ACC 1").key)
+        target = session.record(raw, "target", step_id="t/1", subject=Subject.target("test").key)
+        dark = session.record(raw, "dark", step_id="d/1")
+    stem = Original("ACC 1").file_stem
+    assert original.file == f"0001_{stem}_original_VIRT_0001.DNG" and stem.startswith("ACC_1_")
+    assert (target.file, dark.file) == ("0002_target_VIRT_0001.DNG", "0003_dark_VIRT_0001.DNG")
+    reopened = CaptureSession.open(tmp_path / "s", readonly=True)          # names are read from the manifest
+    assert [e.file for e in reopened.entries()] == [original.file, target.file, dark.file]

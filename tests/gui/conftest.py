@@ -72,3 +72,21 @@ def connect_devices(qtbot, w):
     click(qtbot, dev.camera_button)
     qtbot.waitUntil(lambda: w.lab.camera is not None, timeout=DEVICE_TIMEOUT_MS)
     wait_idle(qtbot, w)
+
+
+def quick_calibrate(qtbot, w, *, de_fit=False):
+    """Calibrate from the calibration box with the fewest frames (1 dark, 1 flat, no HDR exposures, settle 0);
+    returns the questions asked meanwhile (title, text)."""
+    cap = w.capture
+    qtbot.waitUntil(lambda: len(cap.presets) > 0, timeout=HANG_GUARD_MS)
+    cap.settle.setValue(0.0)
+    box = cap.calibration
+    box.dark_frames.setValue(1)
+    box.flat_frames.setValue(1)
+    box.de_fit.setChecked(de_fit)
+    box.hdr_auto.setChecked(False)
+    asked = len(w.asker.history)
+    click(qtbot, box.calibrate_button)
+    qtbot.waitUntil(lambda: not cap.view.running and cap.view.outcome != "", timeout=HANG_GUARD_MS)
+    wait_idle(qtbot, w, HANG_GUARD_MS)
+    return w.asker.history[asked:]

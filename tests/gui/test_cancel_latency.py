@@ -164,6 +164,7 @@ def test_cancel_in_processing_keeps_the_calibration_and_a_delivery(qtbot, make_w
                 progress(f, m)
         return real(*args, progress=counted, cancel=cancel, **kwargs)
     monkeypatch.setattr(copystand, "process_session", processing)
+    w.asker.scripted = ["Keep"]                      # calibrate again: asked; keep the frames, compute it again
     click(qtbot, box.calibrate_button)
     qtbot.waitUntil(started.is_set, timeout=LONG)
     click(qtbot, cap.view.cancel_button)
@@ -180,6 +181,7 @@ def test_cancel_in_processing_keeps_the_calibration_and_a_delivery(qtbot, make_w
         wait_for_cancel(cancel)
         return result
     monkeypatch.setattr(copystand, "process_session", processed)
+    w.asker.scripted = ["Keep"]
     click(qtbot, box.calibrate_button)
     qtbot.waitUntil(done.is_set, timeout=LONG)
     click(qtbot, cap.view.cancel_button)

@@ -54,7 +54,26 @@ SEQUENCE_KINDS = {"Dark series": SequenceKind.DARKS, "Open-gate flats": Sequence
                   "Dual-RGB capture": SequenceKind.TARGET, "HDR capture": SequenceKind.HDR_TARGET}
 KINDS = tuple(SEQUENCE_KINDS)
 TARGETS = (("training target", "train"), ("test target (CC24)", "test"))
-RESHOOT, KEEP = "Re-shoot", "Keep"
+RESHOOT, KEEP, CANCEL = "Re-shoot", "Keep", "Cancel"
+
+
+EXACT = Qt.ItemDataRole.UserRole      # an exposure cell's exact seconds (its text has 4 significant digits)
+
+
+def exposure_item(seconds: float) -> QTableWidgetItem:
+    item = QTableWidgetItem(shutter(seconds))
+    item.setData(EXACT, float(seconds))
+    return item
+
+
+def item_exposure(item: QTableWidgetItem | None) -> float:
+    """The cell's exact exposure while its text is the one written for it, else what was typed (a calibration's
+    0.76923 s shown as 0.7692 s stays 0.76923 s: its darks and flats cover it)."""
+    text = item.text() if item is not None else ""
+    exact = item.data(EXACT) if item is not None else None
+    if isinstance(exact, float) and shutter(exact) == text:
+        return exact
+    return parse_exposure(text)
 
 
 class CapturePanel(QWidget):
@@ -211,6 +230,7 @@ class CapturePanel(QWidget):
         self.ws.runningChanged.connect(lambda _name: self._update_enabled())
         self.ctx.bus.presetsChanged.connect(self.chooser.load)
         self.ctx.bus.frameSaved.connect(self._show_frames)
+        self.ws.calibrationChanged.connect(self._calibration_changed)
 
     # ------------------------------------------------------------------ session
     def new_session(self, folder: Path | None = None, meta: dict | None = None) -> None:
@@ -279,7 +299,9 @@ class CapturePanel(QWidget):
         self.chooser.choose(name)
 
     def _preset_chosen(self, preset: Preset) -> None:
-        old = dict(self.ws.base_exposures)
+        cal = self.ws.calibration           # the calibration's exposures for its own lights, else those typed
+        old = {**self.ws.base_exposures, **(cal.base_exposures if cal is not None and cal.preset == preset.name
+                                            else {})}
         self.lights = lights_of(preset)
         self.hdr_plans = {}
         self.light_table.blockSignals(True)
@@ -289,18 +311,39 @@ class CapturePanel(QWidget):
                 item = QTableWidgetItem(text)
                 item.setFlags(item.flags() & ~Qt.ItemFlag.ItemIsEditable)
                 self.light_table.setItem(r, c, item)
-            self.light_table.setItem(r, 2, QTableWidgetItem(shutter(old.get(nl.name) or 1 / 60)))
+            self.light_table.setItem(r, 2, exposure_item(old.get(nl.name) or 1 / 60))
         self.light_table.resizeRowsToContents()
         self.light_table.blockSignals(False)
         self.ws.set_lights(preset, self.lights, self._table_exposures())
         self.update_plan()
+
+    def _calibration_changed(self) -> None:
+        """A calibration made or loaded: the lights table shows its preset and its open-gate exposures (the plan
+        is then the calibration's: no false "incomplete for the new HDR plan")."""
+        profile = self.ws.calibration
+        if profile is None or self.view.running or self.ws.running:
+            return
+        current = self.ws.preset.name if self.ws.preset is not None else ""
+        if profile.preset != current and profile.preset in [p.name for _, p in self.presets]:
+            self.choose_preset(profile.preset)
+        names = {nl.name for nl in self.lights}
+        if not names or not names <= set(profile.base_exposures):
+            return
+        self.light_table.blockSignals(True)              # one change, and a calibration run's ticked plan stays
+        for name in names:
+            self.set_exposure(name, profile.base_exposures[name])
+        self.light_table.blockSignals(False)
+        self.ws.set_base_exposures(self._table_exposures())
+        self.hdr_plans = {}
+        if not isinstance(self.view.seq, Run):
+            self.update_plan()
 
     def _table_exposures(self) -> dict[str, float]:
         out = {}
         for r, nl in enumerate(self.lights):
             item = self.light_table.item(r, 2)
             try:
-                out[nl.name] = parse_exposure(item.text() if item else "")
+                out[nl.name] = item_exposure(item)
             except ValueError:
                 continue
         return out
@@ -316,6 +359,7 @@ class CapturePanel(QWidget):
     def set_exposure(self, name: str, t: float) -> None:
         for r, nl in enumerate(self.lights):
             if nl.name == name and (cell := self.light_table.item(r, 2)) is not None:
+                cell.setData(EXACT, float(t))
                 cell.setText(shutter(t))
 
     def exposures(self) -> dict[str, list[float]]:
@@ -429,6 +473,8 @@ class CapturePanel(QWidget):
         if not self._ready() and not running:
             missing = [w for w, ok in (("the sphere", self.lab.sphere), ("the camera", self.lab.camera)) if ok is None]
             self.view.message.setText("needs " + " and ".join(missing) + " (Devices) before it can start")
+        elif self.view.message.text().startswith("needs "):      # connected now: the old advice goes
+            self.view.message.setText("")
 
     # ------------------------------------------------------------------ running
     def capture_shortcut(self) -> None:
@@ -464,16 +510,16 @@ class CapturePanel(QWidget):
 
     def _ask_reshoot(self, seq: SubjectCapture, done: list[bool]) -> None:
         text = (f"The {seq.subject.label} is already in the session ({sum(done)} of {len(done)} frames). "
-                "Re-shoot it (a new take; the old frames stay in the session) or keep the frames it has?")
+                "Re-shoot it (a new take; the old frames stay in the session), keep the frames it has, or cancel?")
 
         def answer(choice: str) -> None:
             if choice == RESHOOT:
                 session = self.lab.session
                 take = next_take(session, planned_steps(seq)) if session is not None else 1
                 self.view.start(self.build(self.planner(), take=take))
-            else:
+            elif choice == KEEP:
                 self.view.start(seq, done)
-        self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP), answer, default=KEEP)
+        self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
     def cancel_running(self) -> None:
         self.view.cancel()

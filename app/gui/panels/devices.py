@@ -18,6 +18,7 @@ from PySide6.QtWidgets import (
 
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.device_hub import VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
+from dualrgb.app.gui.units import temperature
 from dualrgb.app.gui.widgets import PathLabel, StatusLight
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, MODES
 from dualrgb.app.workflow.folders import LegacyCaptures, folder_summary, legacy_captures, move_sessions
@@ -211,7 +212,7 @@ class DevicesPanel(QWidget):
             self.sphere_light.set_state("on", f"connected on {status.get('port')}: light ON")
         else:
             self.sphere_light.set_state("ok", f"connected on {status.get('port')}: light off, "
-                                              f"{status.get('temperature_c', 0):.1f} °C")
+                                              f"{temperature(status.get('temperature_c'))}")
 
     # ------------------------------------------------------------------ camera
     def detect(self) -> None:

@@ -25,7 +25,7 @@ from PySide6.QtWidgets import (
 )
 
 from dualrgb.app.gui.context import AppContext
-from dualrgb.app.gui.units import dose, light_pct
+from dualrgb.app.gui.units import dose, light_pct, temperature
 from dualrgb.app.gui.viewmodel import format_duration, light_from_levels, mixed_spectrum
 from dualrgb.app.gui.widgets import PathLabel, plot_widget, side_by_side
 from dualrgb.drivers.led_sphere.limits import DEFAULT_MAX_ON_S
@@ -314,7 +314,7 @@ class LightPanel(QWidget):
         self.state_label.setStyleSheet("color:#b26a00; font-weight:bold" if on else "")
         self.on_time_label.setText(f"on-time: {format_duration(status.get('on_time_s')) if on else '—'}")
         t = status.get("temperature_c")
-        self.temp_label.setText(f"temperature: {t:.1f} °C" if t is not None else "temperature: —")
+        self.temp_label.setText(f"temperature: {temperature(t)}")
         given = status.get("dose")
         if given is not None:
             self.dose_label.setText(f"light dose: {dose(given.lux_s)}, on {format_duration(given.on_s)}")

@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
     QFormLayout,
     QGroupBox,
     QHBoxLayout,
+    QHeaderView,
     QLabel,
     QLineEdit,
     QPushButton,
@@ -47,22 +48,24 @@ from dualrgb.app.processing.masters import RESOLUTION_CHOICES
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.copystand import CaptureReport, StandSettings, original_takes
 from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
+from dualrgb.app.workflow.day_file import restore_queue
 from dualrgb.app.workflow.defaults import SETTLE_S
 from dualrgb.app.workflow.engine import Run, RunHooks
 from dualrgb.app.workflow.metadata import MODES, Original
 from dualrgb.app.workflow.mode_rule import mode_problem
 from dualrgb.app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
-from dualrgb.app.workflow.queue_plan import plan_queue
+from dualrgb.app.workflow.queue_plan import KEPT, plan_queue
 from dualrgb.app.workflow.vocabulary import EventKind, Role
 
 log = logging.getLogger(__name__)
 
-COLUMNS = ("identifier", "title", "mode", "stand-in", "state", "QA")
+COLUMNS = ("identifier", "state", "mode", "stand-in", "title", "QA")
 STATE_COLOURS = {OriginalState.WAITING: "#fafafa", OriginalState.CAPTURING: "#e3f2fd",
                  OriginalState.CAPTURED: "#fff8e1", OriginalState.DELIVERED: "#e8f5e9",
                  OriginalState.FAILED: "#ffebee"}
-RESHOOT, KEEP = "Re-shoot", "Keep"
-ADD_VALID, CANCEL = "Add the valid rows", "Cancel"
+RESHOOT, KEEP, CANCEL = "Re-shoot", "Keep", "Cancel"
+QA_WIDTH = 180
+ADD_VALID = "Add the valid rows"
 OVERRIDE, LEAVE = "Capture anyway", "Leave it"
 
 
@@ -191,8 +194,14 @@ class OriginalsPanel(QWidget):
         self.table.setHorizontalHeaderLabels(list(COLUMNS))
         self.table.setSelectionBehavior(QTableWidget.SelectionBehavior.SelectRows)
         self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
-        self.table.horizontalHeader().setStretchLastSection(True)
-        self.table.setWordWrap(True)
+        header = self.table.horizontalHeader()          # readable at 1366 px: the title gives way, never the state
+        for c, name in enumerate(COLUMNS):
+            mode = QHeaderView.ResizeMode.Stretch if name == "title" else QHeaderView.ResizeMode.ResizeToContents
+            header.setSectionResizeMode(c, QHeaderView.ResizeMode.Interactive if name == "QA" else mode)
+        header.setStretchLastSection(False)
+        header.setMinimumSectionSize(70)                # the title shows its start even in a narrow panel
+        self.table.setTextElideMode(Qt.TextElideMode.ElideRight)
+        self.table.setWordWrap(False)
         self.table.itemSelectionChanged.connect(self._update_enabled)
         buttons = QHBoxLayout()
         self.capture_button = QPushButton("Capture selected")
@@ -279,20 +288,29 @@ class OriginalsPanel(QWidget):
                            default=CANCEL)
 
     def _plan_lines(self, imported: QueueImport) -> list[str]:
-        """What `dualrgb capture --queue --check` prints (app.workflow.queue_plan) under the current calibration;
-        without one, the rows read and the column lines."""
-        if self.ws.calibration is None:
-            return [imported.summary(), *imported.bad_lines(), *imported.column_lines()]
-        return plan_queue(imported, self.ws.calibration, session=self.lab.session).lines()
+        """What `dualrgb capture --queue --check` prints (app.workflow.queue_plan) under the current calibration
+        (without one: the rows read, the bad rows, those delivered in the session already, the column lines)."""
+        plan = plan_queue(imported, self.ws.calibration, session=self.lab.session)
+        if self.ws.calibration is not None:
+            return plan.lines()
+        kept = plan.of(KEPT)
+        return [imported.summary() + (f", {len(kept)} delivered in the session already" if kept else ""),
+                *imported.bad_lines(), *(r.line() for r in kept), *imported.column_lines()]
 
     def _add_imported(self, imported: QueueImport) -> None:
+        """Add the valid rows; a row delivered in the session already is counted as delivered (the queue plan's
+        'kept'), not added again."""
         operator = self.operator.text().strip()
-        originals = [o if o.operator or not operator else replace(o, operator=operator) for o in imported.originals]
+        plan = plan_queue(imported, self.ws.calibration, session=self.lab.session)
+        kept = {r.identifier for r in plan.of(KEPT)}
+        originals = [o if o.operator or not operator else replace(o, operator=operator) for o in imported.originals
+                     if o.identifier not in kept]
         left_out = self.ws.queue.add_many(originals, self.stand_in.currentText() if self.lab.is_virtual else "",
                                           self.frames.value())
         added = len(originals) - len(left_out)
         lines = self._plan_lines(imported)
-        self.import_report.setText("\n".join([f"{lines[0]}; {added} added", *lines[1:], *left_out]))
+        done = f", {len(kept)} delivered already" if kept else ""
+        self.import_report.setText("\n".join([f"{lines[0]}; {added} added{done}", *lines[1:], *left_out]))
         self.ws.queue_changed()
 
     def selected(self) -> list[str]:
@@ -315,13 +333,13 @@ class OriginalsPanel(QWidget):
         self.table.setRowCount(len(rows))
         for r, row in enumerate(rows):
             o = row.original
-            texts = (o.identifier, o.title, o.mode, row.stand_in or "—", row.state.value, row.qa)
+            texts = (o.identifier, row.state.value, o.mode, row.stand_in or "—", o.title, row.qa)
             for c, text in enumerate(texts):
                 item = QTableWidgetItem(text)
                 item.setToolTip(text if c != 5 else "\n".join([text] + row.warnings))
                 item.setBackground(QColor(STATE_COLOURS[row.state]))
                 self.table.setItem(r, c, item)
-        self.table.resizeColumnsToContents()
+        self.table.setColumnWidth(COLUMNS.index("QA"), QA_WIDTH)    # the whole line: its tooltip and under the table
         self.table.resizeRowsToContents()
         self._update_enabled()
 
@@ -337,7 +355,8 @@ class OriginalsPanel(QWidget):
                     queue.rows.append(row)
             self.ws.queue = queue
             self.ws.queue_changed()
-        self.ctx.runner.submit(lambda: OriginalsQueue.from_session(session), pool="compute", name="list originals",
+        # the session's delivered originals and its saved queue (app.workflow.day_file)
+        self.ctx.runner.submit(lambda: restore_queue(session), pool="compute", name="list originals",
                                on_result=done, on_error=lambda exc: self.ctx.errors.report("Originals", exc))
 
     # ------------------------------------------------------------------ calibration and state
@@ -454,9 +473,15 @@ class OriginalsPanel(QWidget):
 
     def _ask_reshoot(self, row: QueueRow, takes: list[int]) -> None:
         text = (f"{row.identifier} is already in the session ({len(takes)} frames, take {max(takes)}). Re-shoot it "
-                "(a new take; the old frames stay in the session) or keep its frames and deliver them again?")
-        self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP),
-                           lambda choice: self._start(row, choice == RESHOOT), default=KEEP)
+                "(a new take; the old frames stay in the session), keep its frames and deliver them again, or "
+                "cancel (nothing is lit)?")
+
+        def answer(choice: str) -> None:
+            if choice == CANCEL:
+                self.batch = []
+                return
+            self._start(row, choice == RESHOOT)
+        self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
     def _start(self, row: QueueRow, reshoot: bool | None) -> None:
         profile, lab = self.ws.calibration, self.lab

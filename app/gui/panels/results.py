@@ -34,6 +34,7 @@ from dualrgb.app.gui.results_plots import PatchSpectra, TargetPlots, TargetView
 from dualrgb.app.gui.units import with_unit
 from dualrgb.app.gui.widgets import PathLabel, side_by_side
 from dualrgb.app.gui.workers import TaskHandle
+from dualrgb.app.processing.characterise import DE2000, LEAST_SQUARES
 from dualrgb.app.protocols import Session
 from dualrgb.app.workflow.session_processing import light_sets, subject_entries
 from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
@@ -44,6 +45,7 @@ log = logging.getLogger(__name__)
 BADGE_COLOURS = {True: "#2e7d32", False: "#c62828"}
 REFERENCE_METHODS = (("eq 4.2 (thesis: the sum the simulation uses)", "eq-4.2"),
                      ("ASTM E308 (measured spectra at their own wavelengths)", "astm-e308"))
+METHOD_NAMES = {LEAST_SQUARES: "least squares", DE2000: "the ΔE00-optimised matrix"}
 METRIC_NAMES = {"colour_mean_de00": "colour mean", "colour_p90_de00": "colour p90", "colour_max_de00": "colour max",
                 "tone_max_abs_dl": "tone (ΔL* of the greys)", "white_balance_max_de": "white balance",
                 "noise_max_lstar": "noise (L*)", "illuminance_nonuniformity_pct": "uniformity after flat field"}
@@ -51,9 +53,10 @@ METRIC_NAMES = {"colour_mean_de00": "colour mean", "colour_p90_de00": "colour p9
 
 def process(lab: Lab, session: Session, grids: dict, train_subject: str, test_subject: str | None, optimise: bool,
             progress: ProgressCallback, cancel: CancelToken, lights: list[str] | None = None, method: str | None = None,
-            charts: dict | None = None) -> tuple[object, dict[str, TargetView], Path]:
+            charts: dict | None = None, delivered: str = "") -> tuple[object, dict[str, TargetView], Path]:
     """Worker: the TargetSpecs (app.workflow.targets: reference XYZ integrated by ``method``; the stand's own
-    ``charts`` when the calibration box names them), the one processing path, the plot data."""
+    ``charts`` when the calibration box names them), the one processing path, the plot data of the ``delivered``
+    matrix family (the calibration's) when it was fitted, else of the one chosen here."""
     from dualrgb.app.processing.report import xyz_to_srgb8
     from dualrgb.app.workflow.session_processing import process_session
     from dualrgb.app.workflow.targets import reference_white, target_spec
@@ -71,7 +74,7 @@ def process(lab: Lab, session: Session, grids: dict, train_subject: str, test_su
                              title=f"dual-RGB capture, {Path(session.path).name}", progress=progress, cancel=cancel,
                              mode=mode)
     c = result.characterisation
-    best = c.results[c.best]
+    best = c.results[delivered if delivered in c.results else c.best]
     views = {}
     for label, spec in specs.items():
         pred = best.matrix.apply(result.patch_values[label])
@@ -120,6 +123,7 @@ class ResultsPanel(QWidget):
         self.out_dir: Path | None = None
         self.handle: TaskHandle | None = None
         self.light_sets: dict[str, list[str]] = {}
+        self._followed = ""                         # the calibration whose matrix family Results follows
         left = QWidget()
         ll = QVBoxLayout(left)
         for box in (self._process_box(), self._accuracy_box(), self._export_box()):
@@ -142,6 +146,7 @@ class ResultsPanel(QWidget):
         side_by_side(self, scroll, right, sizes=[420, 900])
         self.lab.sessionChanged.connect(self.reload)
         ctx.bus.sessionUpdated.connect(self.reload)
+        ctx.workspace.calibrationChanged.connect(self._follow_calibration)
         self.reload()
 
     # ------------------------------------------------------------------ builders
@@ -220,6 +225,28 @@ class ResultsPanel(QWidget):
         self.open_button.setEnabled(False)
         return box
 
+    # ------------------------------------------------------------------ the delivered matrix
+    def delivered_method(self) -> str:
+        """The matrix family the deliveries use: the current calibration's ('' without one)."""
+        profile = self.ctx.workspace.calibration
+        return str(profile.statistics.get("best", "")) if profile is not None else ""
+
+    def _follow_calibration(self) -> None:
+        """Fit what the calibration fitted: the ΔE00-optimised matrix only when the calibration's choice was made
+        among both (otherwise Results would grade a matrix nobody delivered)."""
+        profile = self.ctx.workspace.calibration
+        if profile is not None and profile.id != self._followed:       # a new calibration, not a new check of it
+            self._followed = profile.id
+            self.optimise.setChecked(DE2000 in (profile.statistics.get("methods") or {}))
+
+    def comparison_note(self, shown: str) -> str:
+        """'' when ``shown`` is the delivered family (or there is no calibration), else what labels it a
+        comparison."""
+        delivered = self.delivered_method()
+        if not delivered or shown == delivered:
+            return ""
+        return f"comparison only: the deliveries use {METHOD_NAMES.get(delivered, delivered)}"
+
     # ------------------------------------------------------------------ subjects
     def reload(self) -> None:
         session = self.lab.session
@@ -267,14 +294,14 @@ class ResultsPanel(QWidget):
         grids, charts = dict(self.ctx.workspace.grids), dict(self.ctx.workspace.charts)
         optimise, method = self.optimise.isChecked(), self.reference.currentData()
         lights = self.light_sets.get(self.lights.currentText())
-        lab = self.lab
+        lab, delivered = self.lab, self.delivered_method()
         self.process_button.setEnabled(False)
         self.cancel_button.setEnabled(True)
         self.status.setText("processing …")
         self.progress.setValue(0)
         self.handle = self.ctx.runner.submit(
             lambda progress, cancel: process(lab, session, grids, train, test, optimise, progress, cancel, lights,
-                                             method, charts),
+                                             method, charts, delivered),
             pool="compute", name="process session", pass_progress=True, pass_cancel=True,
             on_progress=self._progress,
             on_result=self.show_result, on_error=self._failed, on_finished=self._finished)
@@ -316,12 +343,16 @@ class ResultsPanel(QWidget):
                 return "—"
             return (f"mean <b>{d['mean']:.2f}</b>, median {d['median']:.2f}, {with_unit('90', '%')} "
                     f"{d['p90']:.2f}, max {d['max']:.2f}")
-        methods = ", ".join(f"{m}: test {v['test']['mean']:.2f}" if v.get("test") else f"{m}: train "
-                            f"{v['train']['mean']:.2f}" for m, v in rep["methods"].items())
-        self.summary.setText(f"{len(rep['channels'])} channels, matrix <b>{rep['best_method']}</b> "
+        delivered = self.delivered_method()
+        methods = ", ".join(f"{m}{' (delivered)' if m == delivered else ''}: test {v['test']['mean']:.2f}"
+                            if v.get("test") else f"{m}: train {v['train']['mean']:.2f}"
+                            for m, v in rep["methods"].items())
+        note = self.comparison_note(rep["best_method"])
+        label = f"<span style='color:#b26a00; font-weight:bold'>{note}</span><br>" if note else ""
+        self.summary.setText(f"{label}{len(rep['channels'])} channels, matrix <b>{rep['best_method']}</b> "
                              f"({html.escape(rep['best_reason'])})<br>training: {stats(rep['train'])}<br>"
                              f"test: {stats(rep['test'])}<br><small>{methods}</small>")
-        self._badges(rep["standards"])
+        self._badges(rep["standards"], "comparison, " if note else "")
         self.quality.setText("\n".join(quality_lines(rep)))
         self.files_label.set_path(f"{len(result.files)} files + {len(rep['figures'])} figures in {out_dir}")
         self.export_button.setEnabled(True)
@@ -330,7 +361,7 @@ class ResultsPanel(QWidget):
         self.show_view()
         self.ctx.bus.resultsReady.emit(rep)
 
-    def _badges(self, standards: dict) -> None:
+    def _badges(self, standards: dict, prefix: str = "") -> None:
         while self.badges.count():
             item = self.badges.takeAt(0)
             if item is not None and (badge := item.widget()) is not None:
@@ -339,7 +370,7 @@ class ResultsPanel(QWidget):
         on = standards.get("evaluated_on", "test")
         for r, (std, res) in enumerate(standards["results"].items()):
             level = res["level"]
-            badge = QLabel(f"{std}, colour accuracy only: {level if level else 'not met'}")
+            badge = QLabel(f"{prefix}{std}, colour accuracy only: {level if level else 'not met'}")
             badge.setWordWrap(True)
             badge.setStyleSheet(f"background:{BADGE_COLOURS[level is not None]}; color:white; border-radius:6px; "
                                 "padding:3px 8px; font-weight:bold")

@@ -30,6 +30,14 @@ from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
 
 log = logging.getLogger(__name__)
 
+def target_first(key: str) -> tuple[int, int, str]:
+    """Sort order of the shown subjects: the test target, the training target, then originals."""
+    subject = Subject.parse(key)
+    if subject.kind is SubjectKind.TARGET:
+        return (0, 0 if subject.name == "test" else 1, key)
+    return (1, 0, key)
+
+
 class TargetPanel(QWidget):
     title = "Target"
 
@@ -133,10 +141,12 @@ class TargetPanel(QWidget):
         self.subjects = subjects
         self.subject.blockSignals(True)
         self.subject.clear()
-        for key in sorted(subjects):
+        for key in sorted(subjects, key=target_first):
             self.subject.addItem(Subject.parse(key).label, key)      # people read labels, the data is the key
         if current in subjects:
             self.select_subject(current)
+        elif subjects:                                   # the test target first: never an original with a grid
+            self.subject.setCurrentIndex(0)
         self.subject.blockSignals(False)
         if subjects:
             self._subject_chosen()
@@ -254,6 +264,14 @@ class TargetPanel(QWidget):
         self.roi.movePoint(handle, self.roi.mapFromParent(QPointF(x, y)))
 
     def update_grid(self) -> None:
+        original = bool(self.key()) and not self.tag()
+        if self.roi is not None:
+            self.roi.setVisible(not original)
+        if original:                                    # an original: no patch grid over the painting
+            self.cells.setData([], [])
+            self.outline.setData([], [])
+            self.info.setText(f"{Subject.parse(self.key()).label}: shown as captured (no patch grid: not a target)")
+            return
         try:
             grid = PatchGrid(self.corners(), self.rows.value(), self.cols.value(), self.fraction.value())
         except ValueError as exc:
