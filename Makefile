@@ -18,11 +18,15 @@ venv: $(STAMP)
 run: $(STAMP)
 	QT_QPA_PLATFORM= $(BIN)/dualrgb gui --virtual-lab
 
+# pytest-xdist workers for make test (TEST_WORKERS=0: one process). --dist loadscope keeps each module's tests on
+# one worker, so a module fixture (a calibration, a study) runs once (docs/notes/issue-26-suite.md)
+TEST_WORKERS ?= 2
+
 # lint and type check first: a finding stops CI in seconds, before the slow tests
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/python -m tools.typecheck
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
 	$(MAKE) --no-print-directory wheel-smoke
 
 lint: $(STAMP)
