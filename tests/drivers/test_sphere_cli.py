@@ -159,7 +159,7 @@ def test_subprocess_emulator_and_cli(transport):
     finally:
         server.send_signal(signal.SIGINT)
         try:
-            rc = server.wait(timeout=20)
+            rc = server.wait(timeout=120)              # a hang guard: it exits in well under a second
         except subprocess.TimeoutExpired:
             server.kill()
             raise
