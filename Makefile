@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export QT_QPA_PLATFORM ?= offscreen
 
-.PHONY: run test lint wheel-smoke bench demo venv resources clean reliability interop-tools
+.PHONY: run test lint typecheck wheel-smoke bench demo venv resources clean reliability interop-tools
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -22,15 +22,18 @@ run: $(STAMP)
 # one worker, so a module fixture (a calibration, a study) runs once (docs/notes/issue-26-suite.md)
 TEST_WORKERS ?= 2
 
-# lint and type check first: a finding stops CI in seconds, before the slow tests
+# lint and type check first: a finding stops CI before the slow tests. The type check and the wheel smoke use one
+# core each, so they run side by side (-O: each one's output in one piece), then pytest takes both cores
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(BIN)/python -m tools.typecheck
+	$(MAKE) --no-print-directory -j2 -O typecheck wheel-smoke
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
-	$(MAKE) --no-print-directory wheel-smoke
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/python -m tools.typecheck
+
+typecheck: $(STAMP)
 	$(BIN)/python -m tools.typecheck
 
 # the built wheel in a fresh venv, run from outside the checkout (.ci/wheel_smoke.sh says what it checks)

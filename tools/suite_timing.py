@@ -1,14 +1,14 @@
 """Time ``make test``'s stages: ``python -m tools.suite_timing --out FILE.json [--workers N] [--load N] [--cold]``.
 
-Runs what ``make test`` runs (ruff, the type check, pytest with ``-n WORKERS --dist loadscope``, the wheel smoke),
-each as a child process, and writes per stage the wall time, the CPU time (user + system of the stage and every
-process it waited for: pytest's xdist workers and the CLI processes the tests start) and pytest's summary line,
-with the 1-minute load average sampled every 5 s. The CPU time is the proxy for a quiet machine's wall time when
-the machine measured on is shared (docs/notes/issue-26-suite.md).
+Runs what ``make test`` runs, in its order (ruff; the type check beside the wheel smoke; pytest with
+``-n WORKERS --dist loadscope``), each stage as a child process, and writes per stage the wall time, the CPU time
+(user + system of the stage and every process it waited for: pytest's xdist workers and the CLI processes the
+tests start) and its last output line, with the 1-minute load average sampled every 5 s. The CPU time is the
+proxy for a quiet machine's wall time when the machine measured on is shared (docs/notes/issue-26-suite.md).
 
 ``--load N`` keeps N busy-looping processes running during each stage (the load-8 check: ``--stages pytest
 --load 6``, six plus the two workers); ``--cold`` gives pytest an empty numba cache (``NUMBA_CACHE_DIR``), as on a
-fresh clone; ``--stages`` picks stages (default: all four). The JSON starts with "format" and "software"
+fresh clone; ``--stages`` picks stages (default: all three). The JSON starts with "format" and "software"
 (simulation.versions).
 """
 from __future__ import annotations
@@ -26,15 +26,14 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-STAGES = ("ruff", "typecheck", "pytest", "wheel-smoke")
+STAGES = ("ruff", "typecheck+wheel-smoke", "pytest")
 BUSY = "while True:\n    pass\n"
 
 
 def _command(stage: str, workers: int) -> list[str]:
     return {"ruff": [str(BIN / "ruff"), "check", "."],
-            "typecheck": [sys.executable, "-m", "tools.typecheck"],
-            "pytest": [sys.executable, "-m", "pytest", "-q", "-n", str(workers), "--dist", "loadscope"],
-            "wheel-smoke": ["make", "--no-print-directory", "wheel-smoke"]}[stage]
+            "typecheck+wheel-smoke": ["make", "--no-print-directory", "-j2", "-O", "typecheck", "wheel-smoke"],
+            "pytest": [sys.executable, "-m", "pytest", "-q", "-n", str(workers), "--dist", "loadscope"]}[stage]
 
 
 def _children_cpu() -> float:
