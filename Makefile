@@ -23,10 +23,10 @@ run: $(STAMP)
 TEST_WORKERS ?= 2
 
 # lint and type check first: a finding stops CI before the slow tests. The type check and the wheel smoke use one
-# core each, so they run side by side (-O: each one's output in one piece), then pytest takes both cores
+# core each, so they run side by side (make -j2; mypy prints at its end), then pytest takes both cores
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(MAKE) --no-print-directory -j2 -O typecheck wheel-smoke
+	$(MAKE) --no-print-directory -j2 typecheck wheel-smoke
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
 
 lint: $(STAMP)

@@ -32,7 +32,7 @@ BUSY = "while True:\n    pass\n"
 
 def _command(stage: str, workers: int) -> list[str]:
     return {"ruff": [str(BIN / "ruff"), "check", "."],
-            "typecheck+wheel-smoke": ["make", "--no-print-directory", "-j2", "-O", "typecheck", "wheel-smoke"],
+            "typecheck+wheel-smoke": ["make", "--no-print-directory", "-j2", "typecheck", "wheel-smoke"],
             "pytest": [sys.executable, "-m", "pytest", "-q", "-n", str(workers), "--dist", "loadscope"]}[stage]
 
 
