@@ -26,3 +26,16 @@ def user_data_dir(tmp_path, monkeypatch):
     folder = tmp_path / "user-data"
     monkeypatch.setenv("DUALRGB_DATA_DIR", str(folder))
     return folder
+
+
+# make test runs pytest-xdist with --dist loadscope: each module is one unit of work, handed to the workers in
+# collection order. The longest modules (their module fixtures: a study, a day of CLI processes) go first, so that
+# none starts last and runs alone on one core while the other waits (longest first); the rest keep their order.
+LONGEST_FIRST = ("e2e/test_stand.py", "e2e/test_copystand.py", "e2e/test_demo.py", "e2e/test_metadata_cli.py",
+                 "test_readme_day.py", "e2e/test_no_pty.py", "app/test_ground_truth.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    tests = os.path.dirname(__file__)
+    rank = {os.path.join(tests, *name.split("/")): i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(str(item.path), len(LONGEST_FIRST)))       # stable: the rest as collected

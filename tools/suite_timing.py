@@ -61,7 +61,8 @@ class LoadSampler(threading.Thread):
         return {"load_1min_mean": round(sum(s) / len(s), 2), "load_1min_max": round(max(s), 2)}
 
 
-def run_stage(stage: str, workers: int, env: dict[str, str], load: int) -> dict[str, object]:
+def run_stage(stage: str, workers: int, env: dict[str, str], load: int, log_dir: Path | None = None
+              ) -> dict[str, object]:
     """One stage, timed, with ``load`` busy processes beside it."""
     busy = [subprocess.Popen([sys.executable, "-c", BUSY]) for _ in range(load)]
     sampler = LoadSampler()
@@ -75,6 +76,9 @@ def run_stage(stage: str, workers: int, env: dict[str, str], load: int) -> dict[
             p.kill()
             p.wait()
     tail = (proc.stdout + proc.stderr).strip().splitlines()
+    if log_dir is not None:
+        log_dir.mkdir(parents=True, exist_ok=True)
+        (log_dir / f"{stage}.log").write_text(proc.stdout + proc.stderr)
     print(f"{stage}: exit {proc.returncode}, {wall:.0f} s wall, {cpu:.0f} s CPU; {tail[-1] if tail else ''}",
           file=sys.stderr)
     return {"command": " ".join(_command(stage, workers)), "exit": proc.returncode, "wall_s": round(wall, 3),
@@ -95,6 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2, help="pytest-xdist workers (0: one process; default 2)")
     ap.add_argument("--load", type=int, default=0, help="busy-looping processes during each stage (default 0)")
     ap.add_argument("--cold", action="store_true", help="pytest with an empty numba cache (a fresh clone's)")
+    ap.add_argument("--log-dir", type=Path, help="also write each stage's whole output there (STAGE.log)")
     ap.add_argument("--stages", default=",".join(STAGES), help=f"comma-separated, of {', '.join(STAGES)}")
     args = ap.parse_args(argv)
     env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
@@ -102,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.cold:
             env["NUMBA_CACHE_DIR"] = cold
         started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-        stages = {s: run_stage(s, args.workers, env, args.load) for s in args.stages.split(",")}
+        stages = {s: run_stage(s, args.workers, env, args.load, args.log_dir) for s in args.stages.split(",")}
     doc = stamped("dualrgb-suite-timing/1", {
         "started_utc": started, "cpus": os.cpu_count(), "workers": args.workers, "cold_numba_cache": args.cold,
         "stages": stages, "total_wall_s": round(sum(_seconds(s, "wall_s") for s in stages.values()), 3),
