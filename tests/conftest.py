@@ -5,7 +5,7 @@ from hypothesis import settings
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 # One BLAS thread per test process, and through the environment per CLI subprocess (set before anything loads
-# numpy: OpenBLAS reads it once, at load). OpenBLAS's threads make the small LAPACK calls of the fits 20-50x
+# numpy: OpenBLAS reads it once, at load). OpenBLAS's threads make the small LAPACK calls of the fits 40-60x
 # slower in CPU time on 2 busy cores (scipy.linalg.svd of the stand fit's 1190x22 Jacobian: 0.3 ms on one thread,
 # 13-20 ms on two at load 2-5: docs/notes/issue-26-suite.md), and pytest-xdist's workers would share the cores
 # with them. numba's parallel kernels keep their threads. A developer's own setting wins.
