@@ -4,6 +4,13 @@ import pytest
 from hypothesis import settings
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+# One BLAS thread per test process, and through the environment per CLI subprocess (set before anything loads
+# numpy: OpenBLAS reads it once, at load). OpenBLAS's threads make the small LAPACK calls of the fits 40-60x
+# slower in CPU time on 2 busy cores (scipy.linalg.svd of the stand fit's 1190x22 Jacobian: 0.3 ms on one thread,
+# 13-20 ms on two at load 2-5: docs/notes/issue-26-suite.md), and pytest-xdist's workers would share the cores
+# with them. numba's parallel kernels keep their threads. A developer's own setting wins.
+for _blas in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_blas, "1")
 
 # Property tests explore new random examples on every developer run (that is how they find bugs); under CI they
 # draw the same examples every time (derandomize), so a landing is judged on a reproducible run. A case found
@@ -19,3 +26,16 @@ def user_data_dir(tmp_path, monkeypatch):
     folder = tmp_path / "user-data"
     monkeypatch.setenv("DUALRGB_DATA_DIR", str(folder))
     return folder
+
+
+# make test runs pytest-xdist with --dist loadscope: each module is one unit of work, handed to the workers in
+# collection order. The longest modules (their module fixtures: a study, a day of CLI processes) go first, so that
+# none starts last and runs alone on one core while the other waits (longest first); the rest keep their order.
+LONGEST_FIRST = ("e2e/test_stand.py", "e2e/test_copystand.py", "e2e/test_demo.py", "e2e/test_metadata_cli.py",
+                 "test_readme_day.py", "e2e/test_no_pty.py", "app/test_ground_truth.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    tests = os.path.dirname(__file__)
+    rank = {os.path.join(tests, *name.split("/")): i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(str(item.path), len(LONGEST_FIRST)))       # stable: the rest as collected

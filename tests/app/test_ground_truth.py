@@ -16,6 +16,7 @@ from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
 from dualrgb.app.sequences.hdr import plan_hdr
 from dualrgb.drivers.raw import load_raw
 from dualrgb.drivers.virtual.camera import SHUTTER_SPEEDS, SensorModel, StaticLight, VirtualCamera
+from dualrgb.drivers.virtual.clock import SkippableClock
 from dualrgb.drivers.virtual.originals import ground_truth_xyz, original
 from dualrgb.drivers.virtual.scene import Scene, original_scene
 from dualrgb.simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
@@ -42,7 +43,9 @@ class Rig:
                       for t in NoiseModel(SETUP).exposures(self.W)]
         self.lights = [f"light {i + 1}" for i in range(len(self.W))]
         self.state = StaticLight(np.zeros(10))
-        self.cam = VirtualCamera(lambda: self.state, Scene.lens_cap(W, H), sensor=sensor, seed=seed)
+        # the virtual lab's clock: a lit exposure (up to 9 s here) passes at once instead of being waited out
+        self.cam = VirtualCamera(lambda: self.state, Scene.lens_cap(W, H), sensor=sensor, seed=seed,
+                                 clock=SkippableClock())
         self.cam.open()
         self.folder, self.n = folder, 0
 

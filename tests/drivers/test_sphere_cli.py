@@ -140,11 +140,12 @@ def test_disconnected_emulator(emu, capsys):
 def test_subprocess_emulator_and_cli(transport):
     """The real entry points: `dualrgb sphere-emulator` in one process, `dualrgb sphere` in another."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYTHONWARNINGS": "ignore"}
-    cmd = [sys.executable, "-c", "import sys; from dualrgb.app.cli import main; sys.exit(main(sys.argv[1:]))"]
-    # Ctrl-C as in a terminal: a suite started in the background (`make test &`) hands its children SIGINT ignored
-    ctrl_c = (lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)) if os.name == "posix" else None
+    # Ctrl-C's handler restored first: a test run started in the background of a non-interactive shell (nohup, `&`,
+    # some CI runners) ignores SIGINT, its children inherit that, and Python then installs no KeyboardInterrupt
+    cmd = [sys.executable, "-c", "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+                                 "from dualrgb.app.cli import main; sys.exit(main(sys.argv[1:]))"]
     server = subprocess.Popen(cmd + ["sphere-emulator", "--watchdog", "5", "--transport", transport], cwd=ROOT,
-                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c)
+                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         port = server.stdout.readline().strip()
         if server.poll() is not None:
@@ -161,7 +162,7 @@ def test_subprocess_emulator_and_cli(transport):
     finally:
         server.send_signal(signal.SIGINT)
         try:
-            rc = server.wait(timeout=20)
+            rc = server.wait(timeout=120)              # a hang guard: it exits in well under a second
         except subprocess.TimeoutExpired:
             server.kill()
             raise

@@ -11,6 +11,7 @@ import tifffile
 
 from dualrgb.drivers.camera.base import CameraError, CameraSettings
 from dualrgb.drivers.virtual.camera import CAMERA_NAME, SensorModel, VirtualCamera, parse_shutter
+from dualrgb.drivers.virtual.clock import SkippableClock
 from dualrgb.drivers.virtual.dng import DngInfo, dng_bytes
 from dualrgb.drivers.virtual.scene import Scene
 from dualrgb.simulation.camera_model import channel_responses
@@ -343,14 +344,17 @@ def test_apply_rejects_what_the_camera_cannot_do(snap, settings, message):
 
 
 def test_capture_metadata_and_bulb(snap):
-    cam = make_camera(snap, Scene.lens_cap(240, 160))
+    clock = SkippableClock()              # the virtual lab's clock: the lit 40 s exposures pass at once, not in 80 s
+    cam = make_camera(snap, Scene.lens_cap(240, 160), clock=clock)
     first, second = cam.capture(1 / 61), cam.capture(40.0)
+    assert clock.skipped_s == pytest.approx(1 / 60 + 40.0)               # each held for its shutter time
     assert (first.filename, second.filename) == ("VIRT_0001.DNG", "VIRT_0002.DNG")
     assert first.exposure_s == 1 / 60 and not first.extra["bulb"]
     assert second.exposure_s == 40.0 and second.extra["bulb"]
     assert first.camera == CAMERA_NAME and first.iso == 50 and first.aperture == 8.0
     assert first.extra["scene"] == "lens_cap" and first.extra["light_levels"][0] == 1.0
     assert cam.capture().exposure_s == 40.0                   # current setting when none is given
+    assert clock.skipped_s == pytest.approx(1 / 60 + 80.0)
 
 
 def test_closed_camera_refuses_to_capture(snap):

@@ -1,0 +1,121 @@
+"""Time ``make test``'s stages: ``python -m tools.suite_timing --out FILE.json [--workers N] [--load N] [--cold]``.
+
+Runs what ``make test`` runs, in its order (ruff; the type check beside the wheel smoke; pytest with
+``-n WORKERS --dist loadscope``), each stage as a child process, and writes per stage the wall time, the CPU time
+(user + system of the stage and every process it waited for: pytest's xdist workers and the CLI processes the
+tests start) and its last output line, with the 1-minute load average sampled every 5 s. The CPU time is the
+proxy for a quiet machine's wall time when the machine measured on is shared (docs/notes/issue-26-suite.md).
+
+``--load N`` keeps N busy-looping processes running during each stage (the load-8 check: ``--stages pytest
+--load 6``, six plus the two workers); ``--cold`` gives pytest an empty numba cache (``NUMBA_CACHE_DIR``), as on a
+fresh clone; ``--stages`` picks stages (default: all three). The JSON starts with "format" and "software"
+(simulation.versions).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+STAGES = ("ruff", "typecheck+wheel-smoke", "pytest")
+BUSY = "while True:\n    pass\n"
+
+
+def _command(stage: str, workers: int) -> list[str]:
+    return {"ruff": [str(BIN / "ruff"), "check", "."],
+            "typecheck+wheel-smoke": ["make", "--no-print-directory", "-j2", "typecheck", "wheel-smoke"],
+            "pytest": [sys.executable, "-m", "pytest", "-q", "-n", str(workers), "--dist", "loadscope"]}[stage]
+
+
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+class LoadSampler(threading.Thread):
+    """The 1-minute load average every ``every_s`` seconds until stopped."""
+
+    def __init__(self, every_s: float = 5.0) -> None:
+        super().__init__(daemon=True)
+        self.samples: list[float] = []
+        self._stop_event, self._every = threading.Event(), every_s
+
+    def run(self) -> None:
+        while not self._stop_event.is_set():
+            self.samples.append(os.getloadavg()[0])
+            self._stop_event.wait(self._every)
+
+    def stop(self) -> dict[str, float]:
+        self._stop_event.set()
+        self.join()
+        s = self.samples or [os.getloadavg()[0]]
+        return {"load_1min_mean": round(sum(s) / len(s), 2), "load_1min_max": round(max(s), 2)}
+
+
+def run_stage(stage: str, workers: int, env: dict[str, str], load: int, log_dir: Path | None = None
+              ) -> dict[str, object]:
+    """One stage, timed, with ``load`` busy processes beside it."""
+    busy = [subprocess.Popen([sys.executable, "-c", BUSY]) for _ in range(load)]
+    sampler = LoadSampler()
+    sampler.start()
+    cpu0, t0 = _children_cpu(), time.perf_counter()
+    try:
+        proc = subprocess.run(_command(stage, workers), cwd=ROOT, env=env, capture_output=True, text=True)
+    finally:
+        wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
+        for p in busy:
+            p.kill()
+            p.wait()
+    tail = (proc.stdout + proc.stderr).strip().splitlines()
+    if log_dir is not None:
+        log_dir.mkdir(parents=True, exist_ok=True)
+        (log_dir / f"{stage}.log").write_text(proc.stdout + proc.stderr)
+    print(f"{stage}: exit {proc.returncode}, {wall:.0f} s wall, {cpu:.0f} s CPU; {tail[-1] if tail else ''}",
+          file=sys.stderr)
+    return {"command": " ".join(_command(stage, workers)), "exit": proc.returncode, "wall_s": round(wall, 3),
+            "cpu_s": round(cpu, 3), **sampler.stop(), "busy_processes": len(busy),
+            "last_line": tail[-1] if tail else ""}
+
+
+def _seconds(stage: dict[str, object], key: str) -> float:
+    value = stage[key]
+    return float(value) if isinstance(value, (int, float)) else 0.0
+
+
+def main(argv: list[str] | None = None) -> int:
+    from dualrgb.simulation.versions import stamped
+
+    ap = argparse.ArgumentParser(prog="python -m tools.suite_timing", description=__doc__.split("\n")[0])
+    ap.add_argument("--out", required=True, type=Path, help="the JSON to write")
+    ap.add_argument("--workers", type=int, default=2, help="pytest-xdist workers (0: one process; default 2)")
+    ap.add_argument("--load", type=int, default=0, help="busy-looping processes during each stage (default 0)")
+    ap.add_argument("--cold", action="store_true", help="pytest with an empty numba cache (a fresh clone's)")
+    ap.add_argument("--log-dir", type=Path, help="also write each stage's whole output there (STAGE.log)")
+    ap.add_argument("--stages", default=",".join(STAGES), help=f"comma-separated, of {', '.join(STAGES)}")
+    args = ap.parse_args(argv)
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    with tempfile.TemporaryDirectory(prefix="numba-cold-") as cold:
+        if args.cold:
+            env["NUMBA_CACHE_DIR"] = cold
+        started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        stages = {s: run_stage(s, args.workers, env, args.load, args.log_dir) for s in args.stages.split(",")}
+    doc = stamped("dualrgb-suite-timing/1", {
+        "started_utc": started, "cpus": os.cpu_count(), "workers": args.workers, "cold_numba_cache": args.cold,
+        "stages": stages, "total_wall_s": round(sum(_seconds(s, "wall_s") for s in stages.values()), 3),
+        "total_cpu_s": round(sum(_seconds(s, "cpu_s") for s in stages.values()), 3)})
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(doc, indent=1) + "\n")
+    return 0 if all(s["exit"] == 0 for s in stages.values()) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
