@@ -9,6 +9,12 @@ The path is relative to the docs folder (docs/); after ``#`` a dotted path into 
 is a number); after ``|`` a Python format spec (default: the value as it is). A missing file, key or a value
 the format does not take is a build error (``make docs`` turns warnings into errors), naming the file and key.
 A page that uses a file is rebuilt when the file changes.
+
+The ``demo-table`` directive writes the condition table of a ``dualrgb demo`` report (``report.json``,
+``dualrgb-demo-report/1``): per condition its lights, matrix, captured, predicted and noise-free mean dE00::
+
+    ```{demo-table} data/demo-reflective-hdr.json
+    ```
 """
 from __future__ import annotations
 
@@ -17,9 +23,10 @@ from pathlib import Path
 from typing import Any
 
 from docutils import nodes
+from docutils.statemachine import StringList
 from sphinx.application import Sphinx
 from sphinx.util import logging
-from sphinx.util.docutils import SphinxRole
+from sphinx.util.docutils import SphinxDirective, SphinxRole
 
 logger = logging.getLogger(__name__)
 
@@ -60,6 +67,50 @@ class JsonRole(SphinxRole):
         return [nodes.Text(value)], []
 
 
+def _levels(light: dict[str, Any]) -> str:
+    leds = ", ".join(str(n) for n in light["leds"])
+    levels = light.get("levels") or []
+    if not levels or all(v == 1 for v in levels):
+        return f"({leds})"
+    return f"({leds}) @ ({', '.join(format(v, '.4g') for v in levels)})"
+
+
+def _cell(value: Any) -> str:
+    return "" if value is None else format(value, ".3f")
+
+
+def demo_rows(report: dict[str, Any]) -> list[str]:
+    """The Markdown table of a demo report's conditions (the report's own order)."""
+    rows = ["| Condition | Lights (LEDs @ levels) | Matrix | Train captured | Test captured | Train predicted | "
+            "Test predicted | Train noise-free | Test noise-free |", "| --- | --- | --- | ---: | ---: | ---: | ---: | "
+            "---: | ---: |"]
+    for name in report["conditions"]:
+        c = report[name]
+        sim = c.get("simulated") or {}
+        lights = " + ".join(_levels(light) for light in c.get("lights") or [])
+        rows.append(f"| {name} | {lights} | {c.get('matrix_method', '')} | {_cell(c['train']['mean'])} | "
+                    f"{_cell(c['test']['mean'])} | {_cell(sim.get('train'))} | {_cell(sim.get('test'))} | "
+                    f"{_cell(sim.get('noise_free_train'))} | {_cell(sim.get('noise_free_test'))} |")
+    return rows
+
+
+class DemoTable(SphinxDirective):
+    required_arguments = 1
+
+    def run(self) -> list[nodes.Node]:
+        path = (Path(self.env.srcdir) / self.arguments[0]).resolve()
+        try:
+            rows = demo_rows(json.loads(path.read_text(encoding="utf-8")))
+        except (OSError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+            logger.warning("demo-table: %s: %s", self.arguments[0], exc, location=self.get_location())
+            return []
+        self.env.note_dependency(str(path))
+        container = nodes.container()
+        self.state.nested_parse(StringList(rows, source=str(path)), self.content_offset, container)
+        return container.children
+
+
 def setup(app: Sphinx) -> dict[str, Any]:
     app.add_role("json", JsonRole())
+    app.add_directive("demo-table", DemoTable)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
