@@ -3,10 +3,11 @@
 The ``json`` role puts one value of a JSON file into the text at build time, so a page never holds a
 hand-copied number::
 
-    {json}`notes/issue-31/demo-reflective-report.json#original.xyz.mean|.2f`
+    {json}`notes/issue-31/demo-reflective-report.json#original.xyz.mean:.2f`
 
 The path is relative to the docs folder (docs/); after ``#`` a dotted path into the document (a list index
-is a number); after ``|`` a Python format spec (default: the value as it is). A missing file, key or a value
+is a number); after the path's first ``:`` a Python format spec (default: the value as it is). (Not ``|``: the
+role is used inside Markdown tables.) A missing file, key or a value
 the format does not take is a build error (``make docs`` turns warnings into errors), naming the file and key.
 A page that uses a file is rebuilt when the file changes.
 
@@ -46,8 +47,8 @@ def lookup(document: Any, dotted: str) -> Any:
 
 def render(text: str, docs_dir: Path) -> tuple[str, Path]:
     """The formatted value the role text names, and the file it came from (ValueError on any problem)."""
-    ref, _, spec = text.partition("|")
-    file, _, dotted = ref.strip().partition("#")
+    file, _, rest = text.strip().partition("#")
+    dotted, _, spec = rest.partition(":")
     path = (docs_dir / file).resolve()
     try:
         value = lookup(json.loads(path.read_text(encoding="utf-8")), dotted.strip())
@@ -58,12 +59,13 @@ def render(text: str, docs_dir: Path) -> tuple[str, Path]:
 
 class JsonRole(SphinxRole):
     def run(self) -> tuple[list[nodes.Node], list[nodes.system_message]]:
+        srcdir = Path(self.env.srcdir)
+        self.env.note_dependency(str((srcdir / self.text.partition("#")[0].strip()).resolve()))   # also when missing
         try:
-            value, path = render(self.text, Path(self.env.srcdir))
+            value, _ = render(self.text, srcdir)
         except ValueError as exc:
             logger.warning("json role: %s", exc, location=self.get_location())
             return [nodes.problematic(self.rawtext, self.rawtext)], []
-        self.env.note_dependency(str(path))
         return [nodes.Text(value)], []
 
 
@@ -80,13 +82,15 @@ def _cell(value: Any) -> str:
 
 
 def demo_rows(report: dict[str, Any]) -> list[str]:
-    """The Markdown table of a demo report's conditions (the report's own order)."""
+    """The Markdown table of a demo report's conditions (the report's own order); the predicted and noise-free
+    columns only for the plain charts the prediction is made for."""
     rows = ["| Condition | Lights (LEDs @ levels) | Matrix | Train captured | Test captured | Train predicted | "
             "Test predicted | Train noise-free | Test noise-free |", "| --- | --- | --- | ---: | ---: | ---: | ---: | "
             "---: | ---: |"]
     for name in report["conditions"]:
         c = report[name]
-        sim = c.get("simulated") or {}
+        # the ND-covered scene (hdr_*, single_*) has no prediction: its "simulated" is the lights' plain chart's
+        sim = {} if name.startswith(("hdr_", "single_")) else c.get("simulated") or {}
         lights = " + ".join(_levels(light) for light in c.get("lights") or [])
         rows.append(f"| {name} | {lights} | {c.get('matrix_method', '')} | {_cell(c['train']['mean'])} | "
                     f"{_cell(c['test']['mean'])} | {_cell(sim.get('train'))} | {_cell(sim.get('test'))} | "
@@ -99,12 +103,12 @@ class DemoTable(SphinxDirective):
 
     def run(self) -> list[nodes.Node]:
         path = (Path(self.env.srcdir) / self.arguments[0]).resolve()
+        self.env.note_dependency(str(path))                     # also when missing: rebuilt once it is there
         try:
             rows = demo_rows(json.loads(path.read_text(encoding="utf-8")))
         except (OSError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
             logger.warning("demo-table: %s: %s", self.arguments[0], exc, location=self.get_location())
             return []
-        self.env.note_dependency(str(path))
         container = nodes.container()
         self.state.nested_parse(StringList(rows, source=str(path)), self.content_offset, container)
         return container.children
