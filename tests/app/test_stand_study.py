@@ -1,5 +1,5 @@
 """``dualrgb study stand``'s parts that need no virtual lab (app.workflow.stand_study, stand_study_report): the world
-as a stand model, light sets that are the lights in use reuse their calibrations, the tables and README section
+as a stand model, light sets that are the lights in use reuse their calibrations, the tables and the docs page's section
 made from a saved document (the whole study runs in tests/e2e/test_stand.py)."""
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""``dualrgb study spectral`` at a tiny budget: outputs, every method under every light set, the invariants the
-README's figures rest on."""
+"""``dualrgb study spectral`` at a tiny budget: outputs, every method under every light set, the invariants
+the docs' figures rest on."""
 from __future__ import annotations
 
 import json
