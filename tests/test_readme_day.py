@@ -19,6 +19,8 @@ ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 TUTORIAL = ROOT / "docs" / "tutorial" / "first-day.md"
 OWN_CHARTS = ROOT / "docs" / "how-to" / "own-charts.md"
+REDELIVERY = ROOT / "docs" / "how-to" / "redelivery.md"
+VERIFY_BAG = ROOT / "docs" / "how-to" / "verify-bag.md"
 FRAME = "240x160"
 
 
@@ -50,6 +52,7 @@ def strict_json_files(root: Path) -> list[Path]:
 
 def test_the_pages_name_their_runnable_blocks():
     assert block_names(TUTORIAL) == ["copy-stand-day"] and block_names(OWN_CHARTS) == ["own-charts"]
+    assert block_names(REDELIVERY) == ["redelivery"] and block_names(VERIFY_BAG) == ["verify-and-bag"]
     assert "dualrgb calibrate --session day1 --virtual-lab" in fenced_block(TUTORIAL, "copy-stand-day")
 
 
@@ -88,6 +91,21 @@ def test_readme_copy_stand_day_runs_as_written(workdir):
     assert "checks: ok" in ran[9].stdout
     for session in ("day1", "films1"):                    # session.json as its JSON Schema says (reference page)
         assert session_problems(root / session) == [], session
+    _how_tos_run_on_the_day(root, env, delivered)
+
+
+def _how_tos_run_on_the_day(root: Path, env: dict[str, str], delivered: set[str]) -> None:
+    """The re-delivery and verify-and-bag how-tos' blocks, as written, on the tutorial's day (same folder)."""
+    run_block(REDELIVERY, "redelivery", root, env=env, prelude=dualrgb_prelude(FRAME))
+    half = [json.loads(p.read_text()) for p in (root / "day1-half").glob("*/*.json")]
+    assert {d["original"]["identifier"] for d in half} == delivered
+    assert {d["resolution"]["mode"] for d in half} == {"half"}
+    assert {p.parent.name for p in (root / "day1-recal").glob("*/*.json")} == \
+        {p.parent.name for p in (root / "day1" / "deliverables").glob("*/*.json")}
+    assert list((root / "day1" / "deliverables").glob("*/previous/*/*.json"))      # the in-place run kept them
+    ran = run_block(VERIFY_BAG, "verify-and-bag", root, env=env, prelude=dualrgb_prelude(FRAME))
+    assert ran[0].stdout.strip().endswith("all match") and ran[1].stdout.strip().endswith("all match")
+    assert "Contact-Name: J. Doe" in (root / "day1-archive" / "bag-info.txt").read_text(encoding="utf-8")
     assert len(strict_json_files(root)) > 20
 
 
