@@ -27,6 +27,8 @@ root_doc = "index"
 # the developers' notes are the material the pages were written from, not pages; docs/data holds study runs
 exclude_patterns = ["_build", "notes/**", "data/**", "screenshots/**", "figures/**"]
 suppress_warnings: list[str] = []
+# quotes and ellipses only: "--method" in a command's help text must stay two hyphens, not an en dash
+smartquotes_action = "qe"
 
 html_theme = "furo"
 html_title = f"dualrgb {release}"
