@@ -86,6 +86,7 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     cli = (html / "reference" / "cli.html").read_text(encoding="utf-8")
     for command in ("calibrate", "capture", "process", "verify", "bag", "study", "measure"):
         assert f">{command}<" in cli or f"dualrgb {command}" in cli, command        # every command documented
+    assert "--method pso --objective noise-free" in cli and "\u2013method" not in cli      # options keep their --
     for page in ("tutorial/first-day", "how-to/queue", "reference/schemas", "explanation/architecture", "gui"):
         assert (html / f"{page}.html").is_file(), page
     assert "dualrgb-session" in (html / "reference" / "schemas.html").read_text(encoding="utf-8")
