@@ -5,12 +5,12 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export QT_QPA_PLATFORM ?= offscreen
 
-.PHONY: run test lint typecheck wheel-smoke bench demo venv resources clean reliability interop-tools
+.PHONY: run test lint typecheck docs wheel-smoke bench demo venv resources clean reliability interop-tools
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e ".[test,studies]"
+	$(BIN)/pip install --quiet -e ".[test,studies,docs]"
 	touch $(STAMP)
 
 venv: $(STAMP)
@@ -27,6 +27,7 @@ TEST_WORKERS ?= 2
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(MAKE) --no-print-directory -j2 typecheck wheel-smoke
+	$(MAKE) --no-print-directory docs
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
 
 lint: $(STAMP)
@@ -36,6 +37,11 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/python -m tools.typecheck
 
+# the user docs site (docs/, Sphinx + MyST + furo) into build/docs; a warning (a broken link or reference, a page
+# left out of every table of contents) fails it
+docs: $(STAMP)
+	$(BIN)/sphinx-build -W --keep-going -q -b html docs build/docs
+
 # the built wheel in a fresh venv, run from outside the checkout (.ci/wheel_smoke.sh says what it checks)
 wheel-smoke: $(STAMP)
 	PY=$(PY) .ci/wheel_smoke.sh
@@ -44,9 +50,9 @@ wheel-smoke: $(STAMP)
 interop-tools:
 	.ci/interop-tools.sh
 
-# the fault-injection suite; writes README's reliability table (tests/faults/plugin.py)
+# the fault-injection suite; writes the reliability table of docs/explanation/reliability.md (tests/faults/plugin.py)
 reliability: $(STAMP)
-	$(BIN)/python -m pytest -q -p no:cacheprovider -m fault --reliability-table README.md
+	$(BIN)/python -m pytest -q -p no:cacheprovider -m fault --reliability-table docs/explanation/reliability.md
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.run

@@ -40,7 +40,7 @@ ROLES = ("train", "test")
 ROLE_NAMES = {"train": "training", "test": "test"}
 EMPTY_CELL_REFLECTANCE = 0.18          # a cell no patch of the file names (virtual lab: mid grey)
 MAX_CELLS = 2000                       # the largest layout accepted (an IT8.7/4 has 1617 patches)
-#: What each packaged target stands for (README's charts section says the same).
+#: What each packaged target stands for (docs/how-to/own-charts.md says the same).
 PACKAGED_STANDS_FOR = {
     ("reflective", "train"): "no physical chart: 190 reflectances of the rawtoaces training set",
     ("reflective", "test"): "a ColorChecker Classic (BabelColor's average of 30 charts, 380-730 nm)",

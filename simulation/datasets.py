@@ -164,7 +164,8 @@ def extension_note(table: SpectralTable, grid: SpectralGrid) -> str:
 
 def _check_covers(table: SpectralTable, grid: SpectralGrid, max_gap_nm: float = MAX_EXTENSION_NM) -> str:
     """Extrapolation holds the end values, at most ``max_gap_nm`` at either end (farther is refused); an
-    extension is said in one warning line (an info line for the packaged data, whose extension README states).
+    extension is said in one warning line (an info line for the packaged data, whose extension the docs state:
+    docs/how-to/own-charts.md).
     Returns the note ('' when the grid lies inside the measured range)."""
     lo, hi = table.wavelengths[0], table.wavelengths[-1]
     if lo - grid.start > max_gap_nm or grid.end - hi > max_gap_nm:

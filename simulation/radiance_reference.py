@@ -1,7 +1,7 @@
 """The radiance of a monochromator's output at each set wavelength: the reference a camera's spectral sensitivity
 is measured against (thesis 4.2, eq 4.1: CSRF = DN / L).
 
-Three kinds of file give it (README "Measuring the camera's spectral sensitivity" documents them):
+Three kinds of file give it (docs/how-to/measure-stand.md documents them):
 
 * **spectroradiometer readings**, one spectrum per set wavelength (a telespectroradiometer such as the Konica
   Minolta CS-2000 of the thesis, placed where the camera stands):

@@ -37,7 +37,7 @@ RIDGES = (0.0, 1e-4, 1e-3, 1e-2)
 # carries (packaged film, noise-free, PSO lights: test chart 0.057 -> 0.020, the virtual film's materials 0.073 ->
 # 0.016). Reflectances there have no common value: cross-validation on rawtoaces-190 prefers the affine map (0.103
 # against 0.109) but both held-out sets get worse (the virtual painting's measured materials 0.049 -> 0.055, the
-# CC24 0.042 -> 0.085), so reflective estimates stay linear (README "Spectral estimation").
+# CC24 0.042 -> 0.085), so reflective estimates stay linear (docs/explanation/spectral.md).
 OFFSETS = {QUANTITIES["transmissive"]: (False, True), QUANTITIES["reflective"]: (False,)}
 
 

@@ -1,7 +1,7 @@
 """Run the command blocks of the user docs as they are written: the docs are executed, not trusted.
 
-A block to run is a fenced code block that follows an HTML comment naming it, in any Markdown file (README.md
-now, the docs site's pages later):
+A block to run is a fenced code block that follows an HTML comment naming it, in any Markdown file (the docs site's
+pages: docs/tutorial/first-day.md, docs/how-to/own-charts.md):
 
     <!-- test: copy-stand-day -->
     ```sh

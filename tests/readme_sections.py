@@ -1,5 +1,6 @@
-"""README's generated sections and the committed study runs they come from (docs/data/), for the tests that check
-README holds what the generator writes."""
+"""The docs pages' generated sections and the committed study runs they come from (docs/data/), for the tests that
+check a page holds what its generator writes. (The sections lived in README.md before the docs site; the module
+keeps its name for the tests that import it.)"""
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,11 +10,11 @@ import pytest
 from dualrgb import resources
 
 
-def readme_and_run(name: str) -> tuple[str, Path]:
-    """README's text and the committed run ``docs/data/<name>``; skipped where they are not beside the package
-    (an installed wheel)."""
+def page_and_run(page: str, name: str) -> tuple[str, Path]:
+    """The text of the docs page ``page`` (a path from the checkout's root, e.g. docs/explanation/spectral.md) and
+    the committed run ``docs/data/<name>``; skipped where they are not beside the package (an installed wheel)."""
     root = resources.path().parent
-    readme, committed = root / "README.md", root / "docs" / "data" / name
-    if not readme.is_file() or not committed.is_file():
-        pytest.skip("README.md and docs/data are not beside the package (installed wheel)")
-    return readme.read_text(encoding="utf-8"), committed
+    doc, committed = root / page, root / "docs" / "data" / name
+    if not doc.is_file() or not committed.is_file():
+        pytest.skip(f"{page} and docs/data are not beside the package (installed wheel)")
+    return doc.read_text(encoding="utf-8"), committed

@@ -1,4 +1,5 @@
-"""The house's layers, enforced by an AST walk of every module (the rules of docs: ARCHITECTURE "layers").
+"""The house's layers, enforced by an AST walk of every module (the rules: docs/explanation/architecture.md,
+"The layers").
 
 common/ imports no other dualrgb package; simulation/, drivers/ and resources/ import neither app/ nor Qt; only
 app/gui imports Qt; a GUI panel imports no other panel and no concrete driver module (it goes through the Qt-free

@@ -1,19 +1,26 @@
-"""README's commands run as written (issue 27): the copy-stand day and the own-charts block are parsed out of
-README.md and run literally with bash (tests/doc_blocks.py), on the virtual lab, the only addition being the
---frame-size 240x160 README's text allows; then the deliverables the day promises are checked, and every JSON the
-day wrote is parsed strictly (no NaN or Infinity)."""
+"""The user docs' commands run as written: the tutorial's copy-stand day (docs/tutorial/first-day.md) and the
+how-to's own-charts block (docs/how-to/own-charts.md) are parsed out of the pages and run literally with bash
+(tests/doc_blocks.py), on the virtual lab, the only addition being the --frame-size 240x160 the pages' text
+allows; then the deliverables the day promises are checked, and every JSON the day wrote is parsed strictly (no NaN
+or Infinity). README's short first day is a part of the tutorial's: each of its commands is one of the block's."""
 from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 from pathlib import Path
 
 import pytest
 from doc_blocks import block_names, dualrgb_prelude, fenced_block, run_block
+from session_schema import session_problems
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
+TUTORIAL = ROOT / "docs" / "tutorial" / "first-day.md"
+OWN_CHARTS = ROOT / "docs" / "how-to" / "own-charts.md"
+REDELIVERY = ROOT / "docs" / "how-to" / "redelivery.md"
+VERIFY_BAG = ROOT / "docs" / "how-to" / "verify-bag.md"
 FRAME = "240x160"
 
 
@@ -43,15 +50,25 @@ def strict_json_files(root: Path) -> list[Path]:
     return files
 
 
-def test_readme_names_its_runnable_blocks():
-    assert {"copy-stand-day", "own-charts"} <= set(block_names(README))
-    assert "dualrgb calibrate --session day1 --virtual-lab" in fenced_block(README, "copy-stand-day")
+def test_the_pages_name_their_runnable_blocks():
+    assert block_names(TUTORIAL) == ["copy-stand-day"] and block_names(OWN_CHARTS) == ["own-charts"]
+    assert block_names(REDELIVERY) == ["redelivery"] and block_names(VERIFY_BAG) == ["verify-and-bag"]
+    assert "dualrgb calibrate --session day1 --virtual-lab" in fenced_block(TUTORIAL, "copy-stand-day")
+
+
+def test_readmes_first_day_is_the_tutorials():
+    """README's commands are run by the tutorial's test: every `dualrgb` line README shows is one of its lines."""
+    tutorial = {line.strip() for line in fenced_block(TUTORIAL, "copy-stand-day").splitlines()}
+    shown = [line.strip() for block in re.findall(r"```sh\n(.*?)```", README.read_text(encoding="utf-8"), re.S)
+             for line in block.splitlines() if line.startswith("dualrgb ")]
+    assert len(shown) >= 4
+    assert [line for line in shown if line not in tutorial] == []
 
 
 def test_readme_copy_stand_day_runs_as_written(workdir):
     root, env = workdir
-    ran = run_block(README, "copy-stand-day", root, env=env, prelude=dualrgb_prelude(FRAME))
-    assert len(ran) == 8
+    ran = run_block(TUTORIAL, "copy-stand-day", root, env=env, prelude=dualrgb_prelude(FRAME))
+    assert len(ran) == 10
     day = root / "day1" / "deliverables"
     for stem in ("ACC-123", "MBA-2003.4.1"):
         assert (day / stem / f"{stem}_srgb_16bit.tif").is_file() and (day / stem / f"{stem}.json").is_file()
@@ -68,13 +85,33 @@ def test_readme_copy_stand_day_runs_as_written(workdir):
     redelivered = {json.loads(p.read_text())["original"]["identifier"]
                    for p in (root / "redelivered").glob("*/*.json")}
     assert redelivered == delivered
-    assert "checks: ok" in ran[7].stdout
+    assert ran[7].stdout.strip().endswith("all match"), ran[7].stdout         # verify: exit 0 said so
+    bagged = {p.parent.name for p in (root / "day1-bag" / "data").glob("*/*.json")}
+    assert (root / "day1-bag" / "bagit.txt").is_file() and len(bagged) == len(delivered)
+    assert "checks: ok" in ran[9].stdout
+    for session in ("day1", "films1"):                    # session.json as its JSON Schema says (reference page)
+        assert session_problems(root / session) == [], session
+    _how_tos_run_on_the_day(root, env, delivered)
+
+
+def _how_tos_run_on_the_day(root: Path, env: dict[str, str], delivered: set[str]) -> None:
+    """The re-delivery and verify-and-bag how-tos' blocks, as written, on the tutorial's day (same folder)."""
+    run_block(REDELIVERY, "redelivery", root, env=env, prelude=dualrgb_prelude(FRAME))
+    half = [json.loads(p.read_text()) for p in (root / "day1-half").glob("*/*.json")]
+    assert {d["original"]["identifier"] for d in half} == delivered
+    assert {d["resolution"]["mode"] for d in half} == {"half"}
+    assert {p.parent.name for p in (root / "day1-recal").glob("*/*.json")} == \
+        {p.parent.name for p in (root / "day1" / "deliverables").glob("*/*.json")}
+    assert list((root / "day1" / "deliverables").glob("*/previous/*/*.json"))      # the in-place run kept them
+    ran = run_block(VERIFY_BAG, "verify-and-bag", root, env=env, prelude=dualrgb_prelude(FRAME))
+    assert ran[0].stdout.strip().endswith("all match") and ran[1].stdout.strip().endswith("all match")
+    assert "Contact-Name: J. Doe" in (root / "day1-archive" / "bag-info.txt").read_text(encoding="utf-8")
     assert len(strict_json_files(root)) > 20
 
 
 def test_readme_own_charts_block_runs_as_written(workdir):
     root, env = workdir
-    ran = run_block(README, "own-charts", root, env=env, prelude=dualrgb_prelude(FRAME))
+    ran = run_block(OWN_CHARTS, "own-charts", root, env=env, prelude=dualrgb_prelude(FRAME))
     assert len(ran) == 2
     profile = json.loads(next((root / "day2" / "calibration").glob("cal-*.json")).read_text())
     assert profile["charts"]["train"]["file"] == "sg140_layout.txt"

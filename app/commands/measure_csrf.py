@@ -54,7 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--step", type=number(above=0.0, unit=" nm"), default=10.0, help="step (10 nm)")
     p.add_argument("--out", type=Path, required=True, help="the camera CSV to write")
     p.add_argument("--session", type=Path, help="session folder (default: <out>-session beside it)")
-    r = p.add_argument_group("radiance reference (README: the file formats)")
+    r = p.add_argument_group("radiance reference (docs: how-to/measure-stand, the accepted files)")
     r.add_argument("--radiance", type=input_file, help="spectroradiometer readings (CSV or CGATS) or a radiance table")
     r.add_argument("--photodiode", type=input_file, metavar="RESPONSIVITY", help="photodiode responsivity CSV (A/W)")
     r.add_argument("--photocurrent", type=input_file, help="photocurrents at each wavelength CSV (A)")
@@ -96,7 +96,8 @@ def _check_options(args: argparse.Namespace) -> None:
             raise ValueError("name the camera: --camera 'MODEL @ PORT' or --camera auto (`dualrgb devices`)")
         if not (args.radiance or args.photodiode):
             raise ValueError("a real measurement needs the monochromator's radiance: --radiance FILE, or "
-                             "--photodiode RESPONSIVITY --photocurrent FILE (README: the file formats)")
+                             "--photodiode RESPONSIVITY --photocurrent FILE (docs: how-to/measure-stand, the "
+                             "accepted files)")
 
 
 def _reference(args: argparse.Namespace) -> RadianceReference:

@@ -9,11 +9,11 @@ summary into an output folder (logic in simulation.studies; this module only par
   dualrgb study hdr            [--out DIR] [--mode both|...] [--budget tiny|default] [--write-defaults [PATH]]
   dualrgb study spectral       [--out DIR] [--budget tiny|default] [--modes reflective,transmissive] [--step NM]
   dualrgb study unbinned       [--out DIR] [--scheduler local|serial|ADDRESS] [--tasks N] [--top N]
-  dualrgb study thesis         [--out DIR] [--budget full|small] [--json PATH] [--readme README.md]
+  dualrgb study thesis         [--out DIR] [--budget full|small] [--json PATH] [--doc PAGE]
   dualrgb study sweep          [--modes reflective,transmissive] [--camera-csv A.csv ...] [--methods ...]
                                [--seeds N] [--scheduler local|ADDRESS]
   dualrgb study stand          [--out DIR] [--world W[,W...]|all] [--compare W,...|all|none] [--seeds N]
-                               [--frame-size WxH] [--readme README.md] [--from-json STAND.json]
+                               [--frame-size WxH] [--doc PAGE] [--from-json STAND.json]
                                (app.workflow.stand_study)
 
 ``--out`` defaults to ``studies/<study>`` in the per-user data folder (resources.user_path), where the GUI lists
@@ -103,10 +103,11 @@ def _stand_study(ss: argparse._SubParsersAction) -> None:
                         "(about 3x longer per world); default: the world when only one is studied, else none")
     q.add_argument("--seeds", type=positive, default=3, help="capture seeds per light set (default 3)")
     q.add_argument("--frame-size", type=frame_size, default=(600, 400), help="virtual lab frames WxH (600x400)")
-    q.add_argument("--readme", metavar="README", help="write the workflow table into README between "
-                                                      "<!-- stand:start --> and <!-- stand:end -->")
+    q.add_argument("--doc", metavar="PAGE",
+                   help="write the workflow table into the docs page PAGE (docs/explanation/stand-model.md) between "
+                        "<!-- stand:start --> and <!-- stand:end -->")
     q.add_argument("--from-json", type=input_file, metavar="STAND.json",
-                   help="make the tables, charts (and --readme) from a study's saved stand.json instead of running it")
+                   help="make the tables, charts (and --doc) from a study's saved stand.json instead of running it")
     q.set_defaults(func=stand_main)
 
 
@@ -135,10 +136,10 @@ def stand_main(args: argparse.Namespace) -> int:
             result = stand_study(cfg, out.folder / "work", progress=progress)
         doc, source = to_jsonable(result.to_dict()), "stand.json"
     write_outputs(doc, out, source)
-    if args.readme:
-        write_marked(args.readme, readme_section(doc, source if args.from_json else str(out.folder / "stand.json")),
+    if args.doc:
+        write_marked(args.doc, readme_section(doc, source if args.from_json else str(out.folder / "stand.json")),
                      SECTION)
-        print(f"wrote the workflow table into {args.readme}", file=sys.stderr)
+        print(f"wrote the workflow table into {args.doc}", file=sys.stderr)
     lines = workflow_table(doc)
     return _done(out, lines if args.from_json else summary_lines(doc)[2:])
 
@@ -152,10 +153,11 @@ def _spectral_study(ss: argparse._SubParsersAction) -> None:
     q.add_argument("--step", type=number(1.0, 50.0, unit=" nm"), default=10.0, help="spectral step in nm (10)")
     q.add_argument("--budget", choices=("tiny", "default"), default="default",
                    help="tiny: a short search for the spectral-chosen lights (a quick check)")
-    q.add_argument("--readme", metavar="README", help="write the tables into README between "
-                                                      "<!-- spectral:start --> and <!-- spectral:end -->")
+    q.add_argument("--doc", metavar="PAGE",
+                   help="write the tables into the docs page PAGE (docs/explanation/spectral.md) between "
+                        "<!-- spectral:start --> and <!-- spectral:end -->")
     q.add_argument("--from-json", type=input_file, metavar="SPECTRAL.json",
-                   help="with --readme: the tables from a study's saved spectral.json instead of running it")
+                   help="with --doc: the tables from a study's saved spectral.json instead of running it")
     q.set_defaults(func=spectral_main)
 
 
@@ -403,10 +405,10 @@ def spectral_main(args: argparse.Namespace) -> int:
     )
 
     if args.from_json:
-        if not args.readme:
-            raise ValueError("--from-json: give --readme README.md (the tables are written there)")
-        write_marked(args.readme, readme_section(load_study(args.from_json), args.from_json), "spectral")
-        print(f"wrote the tables into {args.readme}", file=sys.stderr)
+        if not args.doc:
+            raise ValueError("--from-json: give --doc docs/explanation/spectral.md (the tables are written there)")
+        write_marked(args.doc, readme_section(load_study(args.from_json), args.from_json), "spectral")
+        print(f"wrote the tables into {args.doc}", file=sys.stderr)
         return 0
     cfg = SpectralStudyConfig.tiny() if args.budget == "tiny" else SpectralStudyConfig()
     cfg = replace(cfg, modes=_modes(args.modes))
@@ -414,10 +416,10 @@ def spectral_main(args: argparse.Namespace) -> int:
     with _progress(args) as progress:
         result = spectral_study(SetupSpec(cfg.modes[0], args.step), cfg, progress=progress)
     write_outputs(result, out)
-    if args.readme:
+    if args.doc:
         doc = to_jsonable({"format": "dualrgb-study-spectral/1", **result.to_json()})
-        write_marked(args.readme, readme_section(doc, out.folder / "spectral.json"), "spectral")
-        print(f"wrote the tables into {args.readme}", file=sys.stderr)
+        write_marked(args.doc, readme_section(doc, out.folder / "spectral.json"), "spectral")
+        print(f"wrote the tables into {args.doc}", file=sys.stderr)
     return _done(out, [f"{r['mode']:<12} {r['lights']:<15} {r['method']:<8} RMSE {r['rmse']:.4f} (seen "
                        f"{r['rmse_seen']:.4f}), GFC {r['gfc']:.4f}, dE00 D65 {r['de00']['D65']:.3f} A "
                        f"{r['de00']['A']:.3f} FL11 {r['de00']['FL11']:.3f}" for r in result.rows])

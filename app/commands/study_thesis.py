@@ -1,8 +1,8 @@
 """``dualrgb study thesis``: the thesis' tables beside the project's figures (simulation.studies.thesis), as JSON, a
-Markdown table (SUMMARY.md) and, with ``--readme``, README's generated section between
+Markdown table (SUMMARY.md) and, with ``--doc PAGE``, the docs page's generated section between
 ``<!-- thesis:start -->`` and ``<!-- thesis:end -->``.
 
-  dualrgb study thesis [--out DIR] [--budget full|small] [--json PATH] [--readme README.md] [--no-virtual-lab]
+  dualrgb study thesis [--out DIR] [--budget full|small] [--json PATH] [--doc PAGE] [--no-virtual-lab]
 
 ``full`` (default) runs the thesis' budgets (PSO 200 particles x 10 iterations on all 630 pairs, the GA of
 Algorithm 2) and captures Table 7.2's conditions in the virtual lab; ``small`` (what the tests run: a few seconds)
@@ -26,8 +26,9 @@ def register(ss: argparse._SubParsersAction, out_option) -> None:
     out_option(q, "thesis")
     q.add_argument("--budget", choices=("full", "small"), default="full",
                    help="full: the thesis' PSO / GA budgets and virtual-lab captures (default); small: seconds")
-    q.add_argument("--readme", metavar="README", help="write the Markdown table into README between "
-                                                     "<!-- thesis:start --> and <!-- thesis:end -->")
+    q.add_argument("--doc", metavar="PAGE",
+                   help="write the Markdown table into the docs page PAGE (docs/explanation/figures.md) between "
+                        "<!-- thesis:start --> and <!-- thesis:end -->")
     q.add_argument("--no-virtual-lab", action="store_true",
                    help="Table 7.2 from the pixel-level capture simulation instead of the virtual lab")
     add_json_option(q)
@@ -66,9 +67,9 @@ def main(args: argparse.Namespace) -> int:
     out.write_summary("The thesis' tables reproduced", table.splitlines())
     if args.json:
         write_json(args.json, FORMAT, data)
-    if args.readme:
-        write_readme(args.readme, table)
-        print(f"wrote the table into {args.readme}", file=sys.stderr)
+    if args.doc:
+        write_readme(args.doc, table)
+        print(f"wrote the table into {args.doc}", file=sys.stderr)
     if args.json != "-":
         print(table)
     print(f"wrote {len(out.files)} files to {out.folder}", file=sys.stderr)

@@ -47,7 +47,7 @@ class ChartsForm(QWidget):
     def _edit(self, role: str, field: str) -> QLineEdit:
         edit = QLineEdit(self.ctx.get(f"calibration/charts/{role}/{field}", "", str))
         edit.setPlaceholderText(PLACEHOLDERS[field])
-        edit.setToolTip("The stand's own chart (README: Charts); empty: the mode's packaged target.")
+        edit.setToolTip("The stand's own chart (docs: how-to, own charts); empty: the mode's packaged target.")
         edit.textChanged.connect(lambda text, r=role, f=field: self.ctx.set(f"calibration/charts/{r}/{f}", text))
         return edit
 

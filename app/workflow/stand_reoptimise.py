@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 
 NOMINAL_CAMERA_NOTE = ("the camera is the nominal one with its curves' shift and width fitted: in the virtual lab's "
                        "mismatched world lights re-optimised on such a model captured worse than the nominal preset "
-                       "(README: the stand model); measure the camera (`dualrgb measure csrf`) and give its CSV")
+                       "(docs: explanation/stand-model); measure the camera (`dualrgb measure csrf`) and give its CSV")
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """``dualrgb study stand``'s outputs (app/workflow/stand_study.py), made from its JSON document so that they can be
 made again from a saved ``stand.json`` (``study stand --from-json``) without running the study: the Markdown tables
-(SUMMARY.md, and README's generated section between ``<!-- stand:start -->`` and ``<!-- stand:end -->``), the
+(SUMMARY.md, and the docs page's generated section between ``<!-- stand:start -->`` and ``<!-- stand:end -->``), the
 charts.
 """
 from __future__ import annotations
@@ -14,7 +14,8 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-SECTION = "stand"                   # README's generated section: <!-- stand:start --> ... <!-- stand:end -->
+SECTION = "stand"                   # the page's generated section: <!-- stand:start --> ... <!-- stand:end -->
+DOC_PAGE = "docs/explanation/stand-model.md"      # the docs page that holds it (`--doc`)
 FORMATS = ("dualrgb-study-stand/2",)
 PRESET, WORKFLOW = "nominal preset", "fitted, measured camera and LEDs"
 REOPTIMISED = f"re-optimised: {WORKFLOW}"
@@ -103,9 +104,9 @@ def summary_lines(doc: dict[str, Any], source: str = "stand.json") -> list[str]:
 
 
 def readme_section(doc: dict[str, Any], source: str) -> str:
-    """README's generated section: the study's tables (:func:`summary_lines`) and where they came from."""
+    """The docs page's generated section: the study's tables (:func:`summary_lines`) and where they came from."""
     return "\n".join([*summary_lines(doc, source), "",
-                      f"Made by `dualrgb study stand --from-json {source} --readme README.md` from the study's JSON."])
+                      f"Made by `dualrgb study stand --from-json {source} --doc {DOC_PAGE}` from the study's JSON."])
 
 
 # ---- charts ---------------------------------------------------------------------------------------------------

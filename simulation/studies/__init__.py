@@ -8,7 +8,7 @@ short Markdown summary into an output folder.
   training data (:mod:`.parsimony_report` writes it); :mod:`.hdr` - the HDR merge per mode, its bias with
   standard errors;
 * :mod:`.spectral` - spectral estimation methods x lights chosen for colour or for spectra (and 3-channel);
-* :mod:`.thesis` - the thesis' tables beside the project's figures (:mod:`.thesis_report`: rows, README table);
+* :mod:`.thesis` - the thesis' tables beside the project's figures (:mod:`.thesis_report`: rows, the docs page's table);
 * :mod:`.unbinned` - the full-intensity search over all ~523 k unbinned pairs, serial or through Dask
   (:mod:`.distributed`).
 """

@@ -183,7 +183,7 @@ def markers(name: str) -> tuple[str, str]:
     return f"<!-- {name}:start -->", f"<!-- {name}:end -->"
 
 
-def replace_marked(text: str, body: str, name: str, source: str = "README") -> str:
+def replace_marked(text: str, body: str, name: str, source: str = "the page") -> str:
     """``text`` with everything between the ``name`` section's markers replaced by ``body``; ValueError naming
     ``source`` unless it has one start line before one end line."""
     start, end = markers(name)

@@ -52,6 +52,8 @@ from dualrgb.simulation.spectral_objective import SpectralEvaluator
 from dualrgb.simulation.spectral_selection import map_forms, select_estimator
 from dualrgb.simulation.studies.common import SetupSpec, StudyOutput
 
+DOC_PAGE = "docs/explanation/spectral.md"     # the docs page holding the generated tables (`--doc`)
+
 log = logging.getLogger(__name__)
 
 LIGHT_SETS = ("colour-chosen", "spectral-chosen", "mixed-chosen", "3-channel")
@@ -321,7 +323,7 @@ def _nm(pair: list[float] | None) -> str:
 
 
 def summary_lines(modes: list[dict]) -> list[str]:
-    """The README's tables from the study's ``modes`` (SpectralStudyResult.modes, or its JSON's): method x lights x
+    """The docs page's tables from the study's ``modes`` (SpectralStudyResult.modes, or its JSON's): method x lights x
     mode with RMSE, GFC and dE00 under every light; each light set's linear bound; and, where the mode has one,
     the figures against the second test reference."""
     lights = list(OTHER_LIGHTS)
@@ -362,9 +364,9 @@ def _second_lines(rows: list[dict]) -> list[str]:
 
 
 def readme_section(doc: dict, source: Any) -> str:
-    """README's generated section from the study's JSON document (:meth:`SpectralStudyResult.to_json`): its
-    tables and where they came from."""
-    return "\n".join([f"Made by `dualrgb study spectral --from-json {source} --readme README.md` from the study's "
+    """The docs page's generated section (DOC_PAGE) from the study's JSON document
+    (:meth:`SpectralStudyResult.to_json`): its tables and where they came from."""
+    return "\n".join([f"Made by `dualrgb study spectral --from-json {source} --doc {DOC_PAGE}` from the study's "
                       f"JSON ({doc['setup']['step']:g} nm, {doc['elapsed_s']:.0f} s). Test targets: CC24 (BabelColor, "
                       "measured 380-730 nm) / CC24-on-film; RMSE and GFC over the measured wavelengths of the mode's "
                       "grid; RMSE seen: over those the camera sees too.", "", *summary_lines(doc["modes"])])

@@ -18,7 +18,7 @@ values transcribed in ``resources/thesis_tables.json``), the figure the project 
   and with the mode's default merge.
 
 Each comparison row carries one line saying why the figures differ (data set, synthetic film, thesis
-inconsistency, capture against simulation) or that they agree within the thesis' rounding. Output and README
+inconsistency, capture against simulation) or that they agree within the thesis' rounding. Output and docs
 table: :mod:`.thesis_report`.
 """
 from __future__ import annotations

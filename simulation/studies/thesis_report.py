@@ -1,5 +1,5 @@
-"""The thesis comparison as rows, a Markdown table, JSON and README's generated section (``dualrgb study thesis``;
-the figures: :mod:`.thesis`).
+"""The thesis comparison as rows, a Markdown table, JSON and the docs page's generated section (DOC_PAGE;
+``dualrgb study thesis``; the figures: :mod:`.thesis`).
 
 Each row: the thesis table (and mode), what is compared, the thesis' value, the project's, and one line saying
 why they differ. Values agree when the light pair is the same and the error is within the thesis' rounding (two
@@ -19,6 +19,7 @@ log = logging.getLogger(__name__)
 
 FORMAT = "dualrgb-thesis-reproduction/1"
 README_START, README_END = "<!-- thesis:start -->", "<!-- thesis:end -->"
+DOC_PAGE = "docs/explanation/figures.md"      # the docs page holding the generated table (`--doc`)
 ROUNDING = 0.005                       # the thesis prints two decimals
 
 FILM = "synthetic three-dye film here, not the thesis' measured films (thesis 4.4)"

@@ -3,7 +3,7 @@ the level series recovers the world's low-level response, the warm-up series rec
 spectra recover the world's shifted peaks and widths; a real instrument's files (CSV, ArgyllCMS .sp) import to the
 same results; the light is off after every path.
 
-Tolerances (stated in README "Measuring the LEDs"): peaks within 0.1 nm of the world's (1 nm and 5 nm sampling),
+Tolerances (stated in docs/how-to/measure-stand.md): peaks within 0.1 nm of the world's (1 nm and 5 nm sampling),
 widths within 1.5 %, dead band within 0.05 % level, knee within 0.3 % level, exponent within 0.1, the fitted
 low-level curve within 0.1 % of full output up to 10 % level; the drift curve within 0.15 nm of the emulator's
 at every time of an hour's series."""

@@ -47,7 +47,7 @@ def xml_char(ch: str) -> bool:
 
 
 def refusable(field: str, ch: str) -> bool:
-    """What the stated policy refuses (README 'Metadata of an original'), written out independently."""
+    """What the stated policy refuses (docs/reference/metadata.md), written out independently."""
     o = ord(ch)
     if not xml_char(ch) or o == 0x7F or 0x80 <= o <= 0x9F or 0xFDD0 <= o <= 0xFDEF or (o & 0xFFFE) == 0xFFFE:
         return True

@@ -1,5 +1,5 @@
 """``dualrgb study stand``'s parts that need no virtual lab (app.workflow.stand_study, stand_study_report): the world
-as a stand model, light sets that are the lights in use reuse their calibrations, the tables and README section
+as a stand model, light sets that are the lights in use reuse their calibrations, the tables and the docs page's section
 made from a saved document (the whole study runs in tests/e2e/test_stand.py)."""
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from dualrgb.app.workflow import stand_study
 from dualrgb.app.workflow.stand_study_report import load_study, summary_lines, workflow_table
 from dualrgb.drivers.virtual.world import load_world
 from dualrgb.simulation.studies.common import replace_marked
-from tests.readme_sections import readme_and_run
+from tests.readme_sections import page_and_run
 
 
 @pytest.mark.parametrize("name", ["aged-leds", "worn-sphere"])
@@ -65,9 +65,9 @@ def test_the_workflow_table_from_a_saved_study(tmp_path, capsys):
     assert "seeds 0, 1; 2 min" in summary_lines(doc)[0]
     path = tmp_path / "stand.json"
     path.write_text(json.dumps(doc))
-    readme = tmp_path / "README.md"
+    readme = tmp_path / "page.md"
     readme.write_text("intro\n<!-- stand:start -->\nold\n<!-- stand:end -->\nrest\n")
-    assert main(["study", "stand", "--from-json", str(path), "--readme", str(readme), "--out",
+    assert main(["study", "stand", "--from-json", str(path), "--doc", str(readme), "--out",
                  str(tmp_path / "out")]) == 0
     text = readme.read_text()
     assert rows[2] in text and "old" not in text and text.endswith("<!-- stand:end -->\nrest\n")
@@ -89,14 +89,14 @@ def test_a_file_that_is_not_a_stand_study_is_one_line(tmp_path, capsys):
         replace_marked("no markers", "body", "stand")
 
 
-def test_readmes_stand_section_is_the_one_made_from_the_committed_study():
-    from dualrgb.app.workflow.stand_study_report import SECTION, readme_section
+def test_the_docs_stand_section_is_the_one_made_from_the_committed_study():
+    from dualrgb.app.workflow.stand_study_report import DOC_PAGE, SECTION, readme_section
 
-    text, committed = readme_and_run("study_stand.json")
+    text, committed = page_and_run(DOC_PAGE, "study_stand.json")
     doc = load_study(committed)
     assert replace_marked(text, readme_section(doc, "docs/data/study_stand.json"), SECTION) == text, \
-        "README's stand tables are not the ones `dualrgb study stand --from-json docs/data/study_stand.json " \
-        "--readme README.md` writes"
+        f"{DOC_PAGE}'s stand tables are not the ones `dualrgb study stand --from-json docs/data/study_stand.json " \
+        f"--doc {DOC_PAGE}` writes"
     worlds = set(doc["worlds"])
     assert {"nominal", "nikon-d700", "sony-ilce-7rm2", "mismatched-d700", "aged-leds", "worn-sphere"} <= worlds
     for name in ("aged-leds", "worn-sphere"):                # Must show: within 10 % of each capture, 3 seeds

@@ -7,6 +7,7 @@ import sys
 import time
 
 import pytest
+from session_schema import session_problems
 
 from dualrgb.app.demo import DemoSettings, run_demo
 
@@ -30,6 +31,7 @@ def test_demo_report_schema_and_dual_rgb_beats_three_channel(hdr_report):
     assert json.loads((out / "dual_rgb" / "report.json").read_text())["format"] == "dualrgb-report/1"
     log_text = (out / "session" / "session.log").read_text()               # the session's own log
     assert "session log" in log_text and "virtual capture" in log_text
+    assert session_problems(out / "session") == []                         # its JSON Schema (docs reference)
     assert on_disk["conditions"] == ["three_channel", "dual_rgb", "hdr_dual_rgb", "single_dual_rgb", "dual_rgb_pso",
                                      "hdr_dual_rgb_pso", "single_dual_rgb_pso"]
     assert (out / "dual_rgb" / "report.json").exists() and (out / "dual_rgb" / "dn_validation.png").exists()

@@ -6,7 +6,7 @@ Must show: the fitted model predicts the captured patch DNs with R^2 >= 0.999 (t
 checked) and the captured test dE00 within 10 %, the nominal model's misses beside; lights re-optimised on the fitted
 model are captured at least as accurately as the nominal preset and within 5 % of the world's own optimum (lights
 optimised on the world's true camera and LEDs). Which combination meets it is stated, not hidden: the fit from the
-measured camera and LEDs (the monochromator sweep and the LED measurement in the same world: README's measurement
+measured camera and LEDs (the monochromator sweep and the LED measurement in the same world: the docs' measurement
 workflow, whose predictions are also checked per seed) meets every target; from the nominal camera with its
 curves' shift and width fitted it meets the R^2 and dE00 prediction targets but its re-optimised lights are not
 better than the preset; LED and gain parameters alone cannot reach R^2 0.999 (a gain cannot fix a camera's shape).
@@ -92,8 +92,9 @@ def test_the_study_writes_its_figures_and_the_calibration_its_stand_model(study,
 
 
 def test_the_measurement_workflow_predicts_each_seeds_capture(study):
-    """README's workflow (measure the LEDs and the camera, calibrate with both, re-optimise, calibrate again):
-    each calibration's fit from the measured camera and LEDs predicts its own test dE00 within 10 %."""
+    """The docs' workflow (docs/how-to/measure-stand.md: measure the LEDs and the camera, calibrate with both,
+    re-optimise, calibrate again): each calibration's fit from the measured camera and LEDs predicts its own test
+    dE00 within 10 %."""
     _, doc = study
     flow = doc["workflow"]
     print("\n[stand] workflow test dE00 misses: preset " + ", ".join(f"{100 * m:+.1f} %" for m in

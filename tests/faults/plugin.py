@@ -3,8 +3,9 @@
 * ``@pytest.mark.fault("<category>")`` marks one fault-injection case (parametrize for many cases):
   "light safety", "session integrity", "input" (issue 9), "camera", "device errors", "edited files" (issue 28).
   The mark takes exactly one category string.
-* ``pytest -m fault --reliability-table README.md`` (``make reliability``) runs the cases and writes the table
-  category | cases tried | clean between ``<!-- reliability:start -->`` and ``<!-- reliability:end -->``:
+* ``pytest -m fault --reliability-table docs/explanation/reliability.md`` (``make reliability``) runs the cases and
+  writes the table category | cases tried | clean between ``<!-- reliability:start -->`` and
+  ``<!-- reliability:end -->``:
   a case is *tried* when it ran (setup and call; skips are not counted) and *clean* when it passed, i.e.
   the fault was handled the way the issue requires. The table is produced by the suite, never typed.
 """
@@ -16,6 +17,7 @@ from pathlib import Path
 import pytest
 
 START, END = "<!-- reliability:start -->", "<!-- reliability:end -->"
+PAGE = "docs/explanation/reliability.md"          # the docs page holding the table (make reliability)
 CLEAN_MEANS = (
     "a case is clean when its test passed, i.e. the injected fault was handled: light safety (lost or garbled "
     "replies, a slow or hung camera, a dead host, GUI errors) with the light off within its cap on the emulator's "
@@ -32,13 +34,13 @@ CATEGORIES = ("light safety", "session integrity", "input", "camera", "device er
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
-    parser.addoption("--reliability-table", metavar="README", default=None,
+    parser.addoption("--reliability-table", metavar="PAGE", default=None,
                      help="write the fault-injection table (category, cases tried, clean) into this file "
                           f"between {START} and {END}")
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    config.addinivalue_line("markers", "fault(category): a fault-injection case counted in README's reliability "
+    config.addinivalue_line("markers", "fault(category): a fault-injection case counted in the docs' reliability "
                                        f"table; category is one of {', '.join(CATEGORIES)}")
     config._fault_tried = Counter()      # type: ignore[attr-defined]
     config._fault_clean = Counter()      # type: ignore[attr-defined]
@@ -81,12 +83,12 @@ def render_table(tried: Counter, clean: Counter) -> str:
     return "\n".join(lines)
 
 
-def replace_between_markers(text: str, table: str, path: str = "README") -> str:
+def replace_between_markers(text: str, table: str, path: str = PAGE) -> str:
     if text.count(START) != 1 or text.count(END) != 1 or text.index(START) > text.index(END):
         raise pytest.UsageError(f"{path}: needs one {START} line before one {END} line")
     head, rest = text.split(START)
     _, tail = rest.split(END)
-    note = ("Produced by `make reliability` (`pytest -m fault --reliability-table README.md`): every "
+    note = (f"Produced by `make reliability` (`pytest -m fault --reliability-table {PAGE}`): every "
             "`@pytest.mark.fault` case in tests/; " + CLEAN_MEANS)
     return f"{head}{START}\n{table}\n\n{note}\n{END}{tail}"
 

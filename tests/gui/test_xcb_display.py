@@ -1,7 +1,7 @@
 """The GUI on Qt's real xcb platform plugin under Xvfb (issue 13, "The GUI on a real display"): the start-up probe
 (app/gui/platform_check.py) passes, the window opens on xcb, and real mouse clicks go connect -> capture ->
 results on the virtual lab. Skipped, saying why, where Xvfb or the xcb plugin's system libraries are missing
-(CI has no Xvfb; `apt-get install xvfb` and the libraries README names run it)."""
+(CI has no Xvfb; `apt-get install xvfb` and the libraries docs/how-to/install.md names run it)."""
 from __future__ import annotations
 
 import json
@@ -25,7 +25,7 @@ def xvfb_skip_reason() -> str:
 
     missing = missing_xcb_libraries()
     if missing:
-        return f"the xcb plugin's system libraries are missing ({', '.join(missing)}): see README"
+        return f"the xcb plugin's system libraries are missing ({', '.join(missing)}): see docs/how-to/install.md"
     return ""
 
 

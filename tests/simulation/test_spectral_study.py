@@ -1,5 +1,5 @@
-"""``dualrgb study spectral`` at a tiny budget: outputs, every method under every light set, the invariants the
-README's figures rest on."""
+"""``dualrgb study spectral`` at a tiny budget: outputs, every method under every light set, the invariants
+the docs' figures rest on."""
 from __future__ import annotations
 
 import json
@@ -76,15 +76,15 @@ def test_the_linear_bound_is_the_reported_metrics_minimum():
     assert b["bound"] == pytest.approx(fun) and b["wavelengths"] == [410.0, 730.0]
 
 
-def test_readmes_spectral_section_is_the_one_made_from_the_committed_study():
+def test_the_docs_spectral_section_is_the_one_made_from_the_committed_study():
     from dualrgb.simulation.studies.common import replace_marked
-    from dualrgb.simulation.studies.spectral import load_study, readme_section
-    from tests.readme_sections import readme_and_run
+    from dualrgb.simulation.studies.spectral import DOC_PAGE, load_study, readme_section
+    from tests.readme_sections import page_and_run
 
-    text, committed = readme_and_run("study_spectral.json")
+    text, committed = page_and_run(DOC_PAGE, "study_spectral.json")
     doc = load_study(committed)
     assert replace_marked(text, readme_section(doc, "docs/data/study_spectral.json"), "spectral") == text, \
-        "README's spectral tables are not the ones `dualrgb study spectral --from-json docs/data/study_spectral.json " \
-        "--readme README.md` writes"
+        f"{DOC_PAGE}'s spectral tables are not the ones `dualrgb study spectral --from-json " \
+        f"docs/data/study_spectral.json --doc {DOC_PAGE}` writes"
     reflective = next(m for m in doc["modes"] if m["mode"] == "reflective")
     assert all(r["wavelengths"]["measured"] == [410.0, 730.0] for r in reflective["rows"])

@@ -1,5 +1,5 @@
 """``dualrgb study thesis``: a small run (seconds) against the committed full run, an independent colour-science
-check of the committed figures, and README's generated table.
+check of the committed figures, and the docs page's generated table.
 
 Tolerances (stated here, not tuned to pass): the exhaustive search, the 3-channel baseline, the thesis' lights'
 exposures and the predicted errors of fixed lights are deterministic, so the small run must reproduce the full
@@ -18,6 +18,7 @@ import pytest
 from dualrgb import resources
 from dualrgb.simulation.studies.thesis import ThesisConfig, load_thesis_tables, reproduce
 from dualrgb.simulation.studies.thesis_report import (
+    DOC_PAGE,
     README_END,
     README_START,
     build_rows,
@@ -121,13 +122,14 @@ def test_committed_exhaustive_optimum_matches_an_independent_computation(committ
     assert best["train"] == pytest.approx(train, abs=1e-3) and best["test"] == pytest.approx(test, abs=1e-3)
 
 
-def test_readme_shows_the_table_generated_from_the_committed_run(committed):
+def test_the_docs_show_the_table_generated_from_the_committed_run(committed):
     tables = load_thesis_tables()["tables"]
     table = markdown(build_rows(tables, committed["figures"]), committed, tables)
-    readme = (resources.path().parent / "README.md")
-    if not readme.is_file():
-        pytest.skip("README.md is not beside the package (installed wheel)")
-    text = readme.read_text(encoding="utf-8")
-    assert replace_between_markers(text, table, "README.md") == text, \
-        "README's thesis table is not the one `dualrgb study thesis --readme README.md` writes from the committed run"
+    page = resources.path().parent / DOC_PAGE
+    if not page.is_file():
+        pytest.skip(f"{DOC_PAGE} is not beside the package (installed wheel)")
+    text = page.read_text(encoding="utf-8")
+    assert replace_between_markers(text, table, DOC_PAGE) == text, \
+        f"{DOC_PAGE}'s thesis table is not the one `dualrgb study thesis --doc {DOC_PAGE}` writes from the " \
+        "committed run"
     assert text.count(README_START) == 1 and text.count(README_END) == 1

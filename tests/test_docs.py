@@ -1,0 +1,92 @@
+"""The user docs: README stays short and links into the site, the site builds with warnings as errors (what
+`make docs` runs inside `make test`), and its figures come from the committed JSON through docs/_ext/jsonfigures.py.
+Skipped where the docs' tools are not installed (the wheel's venv): `make venv` installs the [docs] extra."""
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+README = ROOT / "README.md"
+
+
+@pytest.fixture
+def jsonfigures():
+    """docs/_ext/jsonfigures.py, the Sphinx extension itself (not a package; it imports Sphinx)."""
+    sys.path.insert(0, str(DOCS / "_ext"))
+    try:
+        return pytest.importorskip("jsonfigures", reason="the [docs] extra (Sphinx) is not installed")
+    finally:
+        sys.path.remove(str(DOCS / "_ext"))
+
+
+def _links(text: str) -> list[str]:
+    return re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", text)
+
+
+def test_readme_is_short_and_links_into_the_site():
+    text = README.read_text(encoding="utf-8")
+    lines = text.splitlines()
+    assert len(lines) <= 250
+    long = [i + 1 for i, line in enumerate(lines)
+            if len(line) > 120 and not line.startswith("|") and "://" not in line]
+    assert long == [], f"README lines over 120 characters (not a table or URL): {long}"
+    headings = [line for line in lines if line.startswith("#")]
+    assert not [h for h in headings if re.search(r"\bissue \d+", h, re.I)]
+    assert "make run" in text and "make test" in text
+    for link in _links(text):
+        if "://" not in link:
+            assert (ROOT / link).is_file(), f"README links to {link}, which does not exist"
+    pages = {str(p.relative_to(ROOT)) for p in DOCS.rglob("*.md") if "notes" not in p.parts}
+    assert {"docs/tutorial/first-day.md", "docs/reference/cli.md", "docs/explanation/architecture.md"} <= pages
+    assert "docs/tutorial/first-day.md" in _links(text)
+
+
+def test_the_layer_test_points_to_the_architecture_page():
+    doc = (ROOT / "tests" / "test_layers.py").read_text(encoding="utf-8").split('"""')[1]
+    assert "docs/explanation/architecture.md" in doc and (DOCS / "explanation" / "architecture.md").is_file()
+    assert "tests/test_layers.py" in (DOCS / "explanation" / "architecture.md").read_text(encoding="utf-8")
+
+
+def test_the_json_role_reads_the_value_and_names_what_is_missing(tmp_path, jsonfigures):
+    (tmp_path / "r.json").write_text(json.dumps({"a": {"b": [0.1234, {"c": 7}]}}))
+    assert jsonfigures.render("r.json#a.b.0:.2f", tmp_path)[0] == "0.12"
+    assert jsonfigures.render("r.json#a.b.1.c", tmp_path)[0] == "7"
+    for bad, said in (("r.json#a.x", "'x'"), ("nothere.json#a", "nothere.json"), ("r.json#a.b.0:d", "r.json#a.b.0")):
+        with pytest.raises(ValueError, match=re.escape(said)):
+            jsonfigures.render(bad, tmp_path)
+
+
+def test_the_demo_table_is_the_reports(jsonfigures):
+    report = json.loads((DOCS / "notes" / "issue-31" / "demo-reflective-report.json").read_text(encoding="utf-8"))
+    rows = jsonfigures.demo_rows(report)
+    assert len(rows) == 2 + len(report["conditions"])
+    pso = next(r for r in rows if r.startswith("| dual_rgb_pso |"))
+    assert f"| {report['dual_rgb_pso']['train']['mean']:.3f} |" in pso and "(1, 6, 7) @ (0.01001, 0.1685, 1)" in pso
+    assert f"| {report['dual_rgb_pso']['simulated']['train']:.3f} |" in pso
+    hdr = jsonfigures.demo_rows({"conditions": ["hdr_dual_rgb"], "hdr_dual_rgb": report["dual_rgb_pso"]})[2]
+    assert hdr.endswith("|  |  |  |  |")                  # no prediction for the ND-covered scene
+
+
+def test_the_site_builds_with_warnings_as_errors(tmp_path):
+    pytest.importorskip("sphinx")
+    pytest.importorskip("myst_parser")
+    pytest.importorskip("sphinxarg")
+    pytest.importorskip("furo")
+    r = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", str(DOCS),
+                        str(tmp_path / "html")], capture_output=True, text=True, timeout=1800)
+    assert r.returncode == 0, r.stderr[-4000:]
+    html = tmp_path / "html"
+    cli = (html / "reference" / "cli.html").read_text(encoding="utf-8")
+    for command in ("calibrate", "capture", "process", "verify", "bag", "study", "measure"):
+        assert f">{command}<" in cli or f"dualrgb {command}" in cli, command        # every command documented
+    assert "--method pso --objective noise-free" in cli and "\u2013method" not in cli      # options keep their --
+    for page in ("tutorial/first-day", "how-to/queue", "reference/schemas", "explanation/architecture", "gui"):
+        assert (html / f"{page}.html").is_file(), page
+    assert "dualrgb-session" in (html / "reference" / "schemas.html").read_text(encoding="utf-8")
