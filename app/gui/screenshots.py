@@ -174,7 +174,7 @@ class ScreenshotRun(QObject):
     def _tick(self) -> None:
         now = time.monotonic()
         if self._i >= 0:
-            busy = self.w.runner.busy() or (self._wait_for is not None and not self._wait_for())
+            busy = self._background_busy() or (self._wait_for is not None and not self._wait_for())
             if busy:
                 self._idle_since = None
                 if now - self._t_step > STEP_TIMEOUT_S:
@@ -199,6 +199,12 @@ class ScreenshotRun(QObject):
                 self._wait_for = None
         except Exception as exc:  # noqa: BLE001 - a broken step ends the run with its message, never a hang
             self._fail(f"step {name!r}: {exc}")
+
+    def _background_busy(self) -> bool:
+        """Work in flight; live view's back-to-back previews (devices pool) are left out while it is on, or a
+        step taken with live view on would never see the window idle."""
+        runner, live = self.w.runner, self.w.camera.live_button.isChecked()
+        return runner.busy("compute") or runner.busy("sequences") or (not live and runner.busy("devices"))
 
     def shoot(self, panel: str, name: str = "") -> Callable[[], bool]:
         """The whole window (the guide beside the panel) with ``panel`` in front, as ``<name or panel>.png``."""
