@@ -18,11 +18,18 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 from collections.abc import Sequence
 
 from dualrgb.common.errors import ReportedError, one_line, write_crash_report
 from dualrgb.simulation.versions import dualrgb_version
+
+# One BLAS thread unless the user set one (before numpy loads; the commands import it later): the product's linear
+# algebra is small (the stand fit's 1190 x 22 SVD: 0.31 ms on one thread, 13.5 ms on two busy cores,
+# docs/notes/issue-26-suite.md); the pixel work runs in its own numba threads.
+for _blas in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_blas, "1")
 
 log = logging.getLogger(__name__)
 
