@@ -31,6 +31,7 @@ from PySide6.QtWidgets import (
     QLabel,
     QLineEdit,
     QPushButton,
+    QScrollArea,
     QSpinBox,
     QTableWidget,
     QTableWidgetItem,
@@ -94,7 +95,12 @@ class OriginalsPanel(QWidget):
         lv.addWidget(self._form_box())
         lv.addWidget(self._calibration_box())
         lv.addWidget(self._queue_box(), 1)
-        side_by_side(self, left, self.tabs, stretch=(3, 2))
+        scroll = QScrollArea()                      # a short screen scrolls the column; no row is squeezed
+        scroll.setWidget(left)
+        scroll.setWidgetResizable(True)
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        scroll.setMinimumWidth(left.minimumSizeHint().width())
+        side_by_side(self, scroll, self.tabs, stretch=(3, 2), sizes=[560, 540])
         self._connect()
         self._virtual_changed()
         self.show_calibration()
@@ -147,6 +153,7 @@ class OriginalsPanel(QWidget):
         self.delivery_options = DeliveryOptions(self.ctx)      # --render-illuminant, --ppi (app.gui.stand_options)
         form.addRow(self.delivery_options)
         self._import_rows(form)
+        box.setMinimumHeight(box.sizeHint().height())       # on a short screen the queue gives way, not a row
         return box
 
     def _import_rows(self, form: QFormLayout) -> None:
