@@ -194,7 +194,8 @@ def test_cancel_in_processing_keeps_the_calibration_and_a_delivery(qtbot, make_w
     org.title_edit.setText("PAINT-1 title")
     org.stand_in.setCurrentText("painting")
     click(qtbot, org.add_button)
-    bands = BlockAtFirstCall(monkeypatch, DeliveryEncoder, "encode", lambda: org.run.control.token)
+    bands = BlockAtFirstCall(monkeypatch, DeliveryEncoder, "encode_mosaic",      # full resolution: a band each
+                            lambda: org.run.control.token)
     click(qtbot, org.capture_all_button)
     qtbot.waitUntil(bands.started.is_set, timeout=LONG)
     click(qtbot, org.view.cancel_button)
