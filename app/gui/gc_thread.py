@@ -49,6 +49,5 @@ def stop() -> None:
         _now.collector.timer.stop()
         _now.collector = None
         if _now.was_enabled:
-            gc.enable()
-        gc.collect()
-        log.debug("garbage collection back to automatic")
+            gc.enable()        # no gc.collect() here: inside closeEvent it freed wrappers of widgets mid-destruction
+        log.debug("garbage collection back to automatic")                      # (a segfault in tests/gui)
