@@ -54,6 +54,39 @@ def test_the_layer_test_points_to_the_architecture_page():
     assert "tests/test_layers.py" in (DOCS / "explanation" / "architecture.md").read_text(encoding="utf-8")
 
 
+CODE_REF = re.compile(r"`((?:dualrgb\.)?(?:app|drivers|simulation|common|resources)\.[A-Za-z_][\w.]*)")
+
+
+def _resolves(ref: str) -> bool:
+    """Whether ``ref`` (``app.workflow.engine.RunEngine``, with or without ``dualrgb.``) names a module of the
+    package or an attribute of one."""
+    import importlib
+
+    parts = ("dualrgb." + ref.removeprefix("dualrgb.")).rstrip(".").split(".")
+    for i in range(len(parts), 1, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for name in parts[i:]:
+            if not hasattr(obj, name):
+                return False
+            obj = getattr(obj, name)
+        return True
+    return False
+
+
+def test_the_code_the_docs_name_exists():
+    """Every module, class or function the user docs and README name in backticks (``app.workflow.engine``,
+    ``dualrgb.app.processing.encode.DeliveryEncoder``) is importable on main: a renamed or removed one is found
+    here, not by a reader (the developer notes under docs/notes are a record and are left out)."""
+    pages = [p for p in DOCS.rglob("*.md") if "notes" not in p.parts] + [README]
+    stale = sorted({f"{p.relative_to(ROOT)}: {m}" for p in pages for m in CODE_REF.findall(p.read_text("utf-8"))
+                    if not _resolves(m)})
+    assert stale == []
+    assert not _resolves("app.workflow.runs.StandRun") and _resolves("app.workflow.engine.RunEngine")
+
+
 def test_the_json_role_reads_the_value_and_names_what_is_missing(tmp_path, jsonfigures):
     (tmp_path / "r.json").write_text(json.dumps({"a": {"b": [0.1234, {"c": 7}]}}))
     assert jsonfigures.render("r.json#a.b.0:.2f", tmp_path)[0] == "0.12"
