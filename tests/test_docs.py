@@ -91,6 +91,10 @@ def test_the_json_role_reads_the_value_and_names_what_is_missing(tmp_path, jsonf
     (tmp_path / "r.json").write_text(json.dumps({"a": {"b": [0.1234, {"c": 7}]}}))
     assert jsonfigures.render("r.json#a.b.0:.2f", tmp_path)[0] == "0.12"
     assert jsonfigures.render("r.json#a.b.1.c", tmp_path)[0] == "7"
+    (tmp_path / "k.json").write_text(json.dumps({"re-optimised: world": {"t": 0.31234, "r": 0.0704}}))
+    assert jsonfigures.render("k.json#re-optimised: world.t:.3f", tmp_path)[0] == "0.312"   # a key with ':'
+    assert jsonfigures.render("k.json#re-optimised: world.r:+.1%", tmp_path)[0] == "+7.0%"
+    assert jsonfigures.render("k.json#re-optimised: world.t", tmp_path)[0] == "0.31234"
     for bad, said in (("r.json#a.x", "'x'"), ("nothere.json#a", "nothere.json"), ("r.json#a.b.0:d", "r.json#a.b.0")):
         with pytest.raises(ValueError, match=re.escape(said)):
             jsonfigures.render(bad, tmp_path)

@@ -105,7 +105,7 @@ def _stand_study(ss: argparse._SubParsersAction) -> None:
     q.add_argument("--frame-size", type=frame_size, default=(600, 400), help="virtual lab frames WxH (600x400)")
     q.add_argument("--doc", metavar="PAGE",
                    help="write the workflow table into the docs page PAGE (docs/explanation/stand-model.md) between "
-                        "<!-- stand:start --> and <!-- stand:end -->")
+                        "<!-- stand:start --> and <!-- stand:end --> (film: stand-transmissive)")
     q.add_argument("--from-json", type=input_file, metavar="STAND.json",
                    help="make the tables, charts (and --doc) from a study's saved stand.json instead of running it")
     q.set_defaults(func=stand_main)
@@ -114,9 +114,9 @@ def _stand_study(ss: argparse._SubParsersAction) -> None:
 def stand_main(args: argparse.Namespace) -> int:
     from dualrgb.app.workflow.stand_study import StandStudyConfig, stand_study
     from dualrgb.app.workflow.stand_study_report import (
-        SECTION,
         load_study,
         readme_section,
+        section_of,
         summary_lines,
         workflow_table,
         write_outputs,
@@ -138,7 +138,7 @@ def stand_main(args: argparse.Namespace) -> int:
     write_outputs(doc, out, source)
     if args.doc:
         write_marked(args.doc, readme_section(doc, source if args.from_json else str(out.folder / "stand.json")),
-                     SECTION)
+                     section_of(doc))
         print(f"wrote the workflow table into {args.doc}", file=sys.stderr)
     lines = workflow_table(doc)
     return _done(out, lines if args.from_json else summary_lines(doc)[2:])

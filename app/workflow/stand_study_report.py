@@ -15,6 +15,12 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 SECTION = "stand"                   # the page's generated section: <!-- stand:start --> ... <!-- stand:end -->
+
+
+def section_of(doc: dict[str, Any]) -> str:
+    """The page's generated section for a study's mode: ``stand`` (reflective), ``stand-transmissive`` (film)."""
+    mode = doc["config"]["mode"]
+    return SECTION if mode == "reflective" else f"{SECTION}-{mode}"
 DOC_PAGE = "docs/explanation/stand-model.md"      # the docs page that holds it (`--doc`)
 FORMATS = ("dualrgb-study-stand/2",)
 PRESET, WORKFLOW = "nominal preset", "fitted, measured camera and LEDs"

@@ -6,8 +6,9 @@ hand-copied number::
     {json}`notes/issue-31/demo-reflective-report.json#original.xyz.mean:.2f`
 
 The path is relative to the docs folder (docs/); after ``#`` a dotted path into the document (a list index
-is a number); after the path's first ``:`` a Python format spec (default: the value as it is). (Not ``|``: the
-role is used inside Markdown tables.) A missing file, key or a value
+is a number); after the last ``:`` a Python format spec (default: the value as it is; a key may hold ``:``, as
+``lights.re-optimised: world.captured.train:.4f`` does, when what follows the last ``:`` is no format spec).
+(Not ``|``: the role is used inside Markdown tables.) A missing file, key or a value
 the format does not take is a build error (``make docs`` turns warnings into errors), naming the file and key.
 A page that uses a file is rebuilt when the file changes.
 
@@ -20,6 +21,7 @@ The ``demo-table`` directive writes the condition table of a ``dualrgb demo`` re
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -45,10 +47,21 @@ def lookup(document: Any, dotted: str) -> Any:
     return value
 
 
+FORMAT_SPEC = re.compile(r"(.?[<>=^])?[+\- ]?z?#?0?\d*[,_]?(\.\d+)?[bcdeEfFgGnosxX%]?")
+
+
+def split_spec(rest: str) -> tuple[str, str]:
+    """(dotted path, format spec) of the text after ``#``: the spec follows the last ``:`` when it is one."""
+    dotted, colon, spec = rest.rpartition(":")
+    if colon and FORMAT_SPEC.fullmatch(spec.strip()):
+        return dotted, spec
+    return rest, ""
+
+
 def render(text: str, docs_dir: Path) -> tuple[str, Path]:
     """The formatted value the role text names, and the file it came from (ValueError on any problem)."""
     file, _, rest = text.strip().partition("#")
-    dotted, _, spec = rest.partition(":")
+    dotted, spec = split_spec(rest)
     path = (docs_dir / file).resolve()
     try:
         value = lookup(json.loads(path.read_text(encoding="utf-8")), dotted.strip())

@@ -103,3 +103,18 @@ def test_the_docs_stand_section_is_the_one_made_from_the_committed_study():
         for which in ("preset", "re-optimised"):
             misses = doc["worlds"][name]["workflow"][which]["miss"]["test_each"]
             assert len(misses) == 3 and max(abs(m) for m in misses) <= 0.10
+
+
+def test_the_docs_film_section_is_the_one_made_from_the_committed_film_study():
+    """The film tables of the page come from the committed transmissive run, in a section of their own (the
+    reflective one is not touched by writing them)."""
+    from dualrgb.app.workflow.stand_study_report import DOC_PAGE, SECTION, readme_section, section_of
+
+    text, committed = page_and_run(DOC_PAGE, "study_stand_transmissive.json")
+    doc = load_study(committed)
+    assert doc["config"]["mode"] == "transmissive" and section_of(doc) == "stand-transmissive"
+    body = readme_section(doc, "docs/data/study_stand_transmissive.json")
+    assert replace_marked(text, body, section_of(doc)) == text, \
+        f"{DOC_PAGE}'s film tables are not the ones `dualrgb study stand --from-json " \
+        f"docs/data/study_stand_transmissive.json --doc {DOC_PAGE}` writes"
+    assert replace_marked(text, body, SECTION) != text                  # the reflective section is another one
