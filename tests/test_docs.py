@@ -100,6 +100,18 @@ def test_the_json_role_reads_the_value_and_names_what_is_missing(tmp_path, jsonf
             jsonfigures.render(bad, tmp_path)
 
 
+def test_the_json_role_picks_a_list_element_by_its_fields(tmp_path, jsonfigures):
+    rows = [{"mode": "reflective", "method": "pso", "t": 1.0}, {"mode": "transmissive", "method": "pso", "t": 2.0},
+            {"mode": "transmissive", "method": "exhaustive", "t": 3.0}]
+    (tmp_path / "s.json").write_text(json.dumps({"rows": rows}))
+    assert jsonfigures.render("s.json#rows.mode=reflective.t:.1f", tmp_path)[0] == "1.0"
+    assert jsonfigures.render("s.json#rows.mode=transmissive&method=exhaustive.t", tmp_path)[0] == "3.0"
+    for bad, said in (("s.json#rows.mode=transmissive.t", "2 elements match"), ("s.json#rows.mode=film.t", "0 elem"),
+                      ("s.json#rows.nokey=pso.t", "0 elements")):
+        with pytest.raises(ValueError, match=said):
+            jsonfigures.render(bad, tmp_path)
+
+
 def test_the_demo_table_is_the_reports(jsonfigures):
     report = json.loads((DOCS / "notes" / "issue-31" / "demo-reflective-report.json").read_text(encoding="utf-8"))
     rows = jsonfigures.demo_rows(report)
