@@ -100,6 +100,68 @@ def test_the_json_role_reads_the_value_and_names_what_is_missing(tmp_path, jsonf
             jsonfigures.render(bad, tmp_path)
 
 
+def test_the_json_role_picks_a_list_element_by_its_fields(tmp_path, jsonfigures):
+    rows = [{"mode": "reflective", "method": "pso", "t": 1.0}, {"mode": "transmissive", "method": "pso", "t": 2.0},
+            {"mode": "transmissive", "method": "exhaustive", "t": 3.0}]
+    (tmp_path / "s.json").write_text(json.dumps({"rows": rows}))
+    assert jsonfigures.render("s.json#rows.mode=reflective.t:.1f", tmp_path)[0] == "1.0"
+    assert jsonfigures.render("s.json#rows.mode=transmissive&method=exhaustive.t", tmp_path)[0] == "3.0"
+    for bad, said in (("s.json#rows.mode=transmissive.t", "2 elements match"), ("s.json#rows.mode=film.t", "0 elem"),
+                      ("s.json#rows.nokey=pso.t", "0 elements")):
+        with pytest.raises(ValueError, match=said):
+            jsonfigures.render(bad, tmp_path)
+
+
+# The pages whose measured figures (dE00, RMSE, seconds, percentages a study or bench measured) come from committed
+# JSON, and per page the figures typed by hand that are not results: parameters, targets, equation and table numbers.
+FIGURE_PAGES = {
+    "studies.md": {"1 %", "-3 %", "8x", "1x", "100x", "1 s", "0.01 s", "0.01 %", "0.03", "0.05", "2.0", "8.9",
+                   "5.1", "6.1", "6.2", "7.1", "7.2", "8.1", "8.2", "9.1", "9.2"},
+    "explanation/spectral.md": {"1 %", "38 x", "240 x", "600 x", "1.5x", "0.01", "0.03", "2.0", "4.2"},
+}
+FIGURE = re.compile(r"(?<![\w.\-/])[+\-~]?\d+(?:\.\d+)?\s?(?:%|s\b|x\b|µs|us\b|MB|M\b|k\b)|(?<![\w.])\d+\.\d+")
+EARLIER_RUN = re.compile(r"\bcommit [0-9a-f]{7}\b")
+
+
+def hand_typed_figures(text: str, allowed: set[str]) -> list[str]:
+    """The figures of ``text`` typed by hand: outside {json} roles, generated sections and code blocks, not in
+    ``allowed``, and not in a paragraph that names the earlier run (a commit) they come from, nor in a table right
+    after one."""
+    text = re.sub(r"<!-- ([\w-]+):start -->.*?<!-- \1:end -->", "", text, flags=re.S)
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    text = re.sub(r"\{json\}`[^`]*`", "{json}", text)
+    found, named = [], False
+    for block in text.split("\n\n"):
+        table = block.lstrip().startswith("|")
+        named = bool(EARLIER_RUN.search(block)) or (table and named)
+        if not named:
+            found += [f for f in FIGURE.findall(block) if f.strip() not in allowed]
+    return found
+
+
+@pytest.mark.parametrize("page", sorted(FIGURE_PAGES))
+def test_the_figure_pages_type_no_result_by_hand(page):
+    assert hand_typed_figures((DOCS / page).read_text(encoding="utf-8"), FIGURE_PAGES[page]) == []
+
+
+def test_a_hand_typed_figure_is_found():
+    allowed = {"0.05"}
+    assert hand_typed_figures("reaches 0.399 in 1.8 s, 31 % off (tolerance 0.05)", allowed) == ["0.399", "1.8 s",
+                                                                                                  "31 %"]
+    assert hand_typed_figures("reaches {json}`d.json#a:.3f` in {json}`d.json#s` s", allowed) == []
+    assert hand_typed_figures("<!-- t:start -->\n| 0.399 |\n<!-- t:end -->", allowed) == []
+    assert hand_typed_figures("0.40 in the run of commit 0123abc:\n\n| 0.399 |\n\nthen 0.41", allowed) == ["0.41"]
+
+
+@pytest.mark.parametrize("page", sorted({*FIGURE_PAGES, "explanation/figures.md", "explanation/stand-model.md"}))
+def test_every_figure_role_of_a_page_resolves(page, jsonfigures):
+    """What `make docs` fails on, without Sphinx's build: each {json} role names a committed file, key and format."""
+    roles = re.findall(r"\{json\}`([^`]*)`", (DOCS / page).read_text(encoding="utf-8"))
+    assert roles
+    for role in roles:
+        jsonfigures.render(role, DOCS)                       # ValueError naming the file and key
+
+
 def test_the_demo_table_is_the_reports(jsonfigures):
     report = json.loads((DOCS / "notes" / "issue-31" / "demo-reflective-report.json").read_text(encoding="utf-8"))
     rows = jsonfigures.demo_rows(report)

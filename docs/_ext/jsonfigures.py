@@ -6,8 +6,10 @@ hand-copied number::
     {json}`notes/issue-31/demo-reflective-report.json#original.xyz.mean:.2f`
 
 The path is relative to the docs folder (docs/); after ``#`` a dotted path into the document (a list index
-is a number); after the last ``:`` a Python format spec (default: the value as it is; a key may hold ``:``, as
-``lights.re-optimised: world.captured.train:.4f`` does, when what follows the last ``:`` is no format spec).
+is a number, or ``key=value&key=value`` for the one element of a list of objects with those fields, e.g.
+``configurations.label=halving.train.median``; no ``.`` in such a value); after the last ``:`` a Python format
+spec (default: the value as it is; a key may hold ``:``, as ``lights.re-optimised: world.captured.train:.4f``
+does, when what follows the last ``:`` is no format spec).
 (Not ``|``: the role is used inside Markdown tables.) A missing file, key or a value
 the format does not take is a build error (``make docs`` turns warnings into errors), naming the file and key.
 A page that uses a file is rebuilt when the file changes.
@@ -34,12 +36,26 @@ from sphinx.util.docutils import SphinxDirective, SphinxRole
 logger = logging.getLogger(__name__)
 
 
+def _select(items: list[Any], part: str, dotted: str) -> Any:
+    """The one element of ``items`` (dicts) whose fields match ``part`` (``key=value&key=value``, compared as text);
+    KeyError when none or several do, so a list that gains a look-alike row is an error, not another figure."""
+    wanted = {key: text for key, _, text in (cond.partition("=") for cond in part.split("&"))}
+    found = [item for item in items if isinstance(item, dict)
+             and all(k in item and str(item[k]) == v for k, v in wanted.items())]
+    if len(found) != 1:
+        raise KeyError(f"{len(found)} elements match {part!r} (in {dotted!r}); expected exactly one")
+    return found[0]
+
+
 def lookup(document: Any, dotted: str) -> Any:
-    """The value at ``dotted`` (``a.b.0.c``) inside ``document``; KeyError naming the first missing part."""
+    """The value at ``dotted`` (``a.b.0.c``; in a list, ``key=value[&key=value]`` picks the one element with those
+    fields) inside ``document``; KeyError naming the first missing part."""
     value = document
     for part in dotted.split(".") if dotted else []:
         if isinstance(value, list) and part.lstrip("-").isdigit():
             value = value[int(part)]
+        elif isinstance(value, list) and "=" in part:
+            value = _select(value, part, dotted)
         elif isinstance(value, dict) and part in value:
             value = value[part]
         else:
