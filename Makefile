@@ -7,10 +7,13 @@ export QT_QPA_PLATFORM ?= offscreen
 
 .PHONY: run test lint typecheck docs wheel-smoke bench demo venv resources clean reliability interop-tools
 
+# after installing, numba's kernels are compiled into its on-disk cache once (about a minute), so the first run of
+# the window or the CLI loads them instead of compiling while the user waits (app/warm_kernels.py)
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e ".[test,studies,docs]"
+	$(BIN)/python -m dualrgb.app.warm_kernels
 	touch $(STAMP)
 
 venv: $(STAMP)
