@@ -18,6 +18,8 @@ darks). Each measurement runs in a fresh process (peak RSS = ru_maxrss):
   libraw          rawpy.imread + postprocess(LINEAR demosaic, gamma 1, no auto-brightening, 16-bit, camera RGB) of
                   the 4 frames: what LibRaw's own full-resolution demosaic costs, nothing written
   full_all_frames the full-resolution delivery from the 4 frames on disk (``dualrgb process``)
+  full_without_sha256  a diagnostic, not a product mode: ``full`` with the TIFFs' SHA-256 switched off (what the
+                  fixity costs in the pipelined delivery; the sidecar then holds no digests)
   cube_on_demand  ``dualrgb cube``: the full-resolution delivery's cube (ENVI) made from its camera-RGB TIFFs
   full_stages     where the full-resolution delivery's CPU time goes, stage by stage, single-threaded
 
@@ -199,8 +201,22 @@ def _ready(folder_p: Path, spectral: bool = True):
     return prof
 
 
-def _child_digitise(folder: str, resolution: str, streaming: bool = True, keep: str = "") -> dict:
+def _without_sha256() -> None:
+    """A diagnostic, not a product mode: the TIFF streams compute no digest (what the SHA-256 fixity costs)."""
+    from dualrgb.app.processing import tiff_stream
+
+    init = tiff_stream.TiffStream.__init__
+
+    def no_digest(self, *args, **kwargs) -> None:
+        init(self, *args, **{**kwargs, "digest": None})
+    tiff_stream.TiffStream.__init__ = no_digest  # type: ignore[method-assign]
+
+
+def _child_digitise(folder: str, resolution: str, streaming: bool = True, keep: str = "", sha256: bool = True
+                    ) -> dict:
     sys.path.insert(0, str(ROOT))
+    if not sha256:
+        _without_sha256()
     from dualrgb.app.processing.pipeline import ExposureRef
     from dualrgb.app.workflow.copystand import begin_channels, profile_processor
     from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
@@ -349,7 +365,7 @@ def _run_child(kind: str, folder: Path) -> dict:
         return run_in_child("bench.digitise_bench", "_child_stages", str(folder))
     resolution = "half" if kind == "half" else "full"
     return run_in_child("bench.digitise_bench", "_child_digitise", str(folder), resolution,
-                        kind != "full_all_frames")
+                        kind != "full_all_frames", "", kind != "full_without_sha256")
 
 
 def _storage_table() -> dict:
@@ -378,7 +394,8 @@ def bench_digitise(height: int = D610[1], width: int = D610[0], cache: str | Non
     folder = Path(cache or Path(tempfile.gettempdir()) / f"dualrgb_bench_set_{width}x{height}")
     run_in_child("bench.digitise_bench", "_child_prepare", str(folder), height, width)
     run_in_child("bench.digitise_bench", "_child_warm")
-    kinds = kinds or (["decode", "full"] if large else ["decode", "full", "half", "libraw", "full_all_frames",
+    kinds = kinds or (["decode", "full"] if large else ["decode", "full", "full_without_sha256", "half", "libraw",
+                                                       "full_all_frames",
                                                        "cube_on_demand", "full_stages"])
     runs: dict[str, list[dict]] = {k: [] for k in kinds}
     loads = [os.getloadavg()[0]]
