@@ -4,9 +4,10 @@ Runs what ``make test`` runs, in its order (ruff; then the type check, the wheel
 pytest with ``-n WORKERS --dist loadscope``: the Makefile's ``make -j4 test-typecheck test-wheel-smoke test-docs
 test-pytest``), each stage as a child process, and writes per stage the wall time, the CPU time (user + system of
 the stage and every process it waited for: pytest's xdist workers and the CLI processes the tests start), its last
-output line, pytest's summary line and the Makefile's one line per side target ("typecheck: passed in 95 s"), with
-the 1-minute load average sampled every 5 s. The CPU time is the proxy for a quiet machine's wall time when the
-machine measured on is shared (docs/notes/issue-26-suite.md).
+output line, pytest's summary line, the Makefile's one line per side target ("typecheck: passed in 95 s") and
+the longest test modules' times (``--durations=0``), with the 1-minute load average sampled every 5 s. The CPU
+time is the proxy for a quiet machine's wall time when the machine measured on is shared
+(docs/notes/issue-26-suite.md).
 
 Stages: ``ruff`` and ``checks+pytest`` (the default: what ``make test`` runs), ``pytest`` alone and
 ``typecheck+wheel-smoke`` (the type check beside the wheel smoke, as ``make test`` ran them before pytest until
@@ -35,6 +36,7 @@ STAGES = ("ruff", "checks+pytest", "pytest", "typecheck+wheel-smoke")
 DEFAULT_STAGES = ("ruff", "checks+pytest")              # make test's order
 BUSY = "while True:\n    pass\n"
 SUMMARY = re.compile(r"\b\d+ (passed|failed|errors?)\b.* in [\d.]+s\b")          # pytest's last line
+DURATION = re.compile(r"^([\d.]+)s (?:setup|call|teardown)\s+([^\s:]+)::", re.MULTILINE)   # --durations=0
 SIDE = re.compile(r"\b(typecheck|wheel-smoke|docs): (passed|FAILED).*")   # the Makefile's line per target
 
 
@@ -44,6 +46,15 @@ def makefile_workers() -> int:
     if found is None:
         raise ValueError("Makefile: no 'TEST_WORKERS ?= N' line")
     return int(found.group(1))
+
+
+def module_seconds(output: str, top: int = 12) -> dict[str, float]:
+    """The ``top`` longest test modules by the sum of their tests' setup, call and teardown times (pytest's
+    ``--durations=0`` lines in ``output``): with ``--dist loadscope`` one module's whole time on one worker."""
+    total: dict[str, float] = {}
+    for seconds, module in DURATION.findall(output):
+        total[module] = total.get(module, 0.0) + float(seconds)
+    return {m: round(t, 1) for m, t in sorted(total.items(), key=lambda kv: -kv[1])[:top]}
 
 
 def _command(stage: str, workers: int) -> list[str]:
@@ -93,7 +104,8 @@ def run_stage(stage: str, workers: int, env: dict[str, str], load: int, log_dir:
         for p in busy:
             p.kill()
             p.wait()
-    tail = (proc.stdout + proc.stderr).strip().splitlines()
+    output = proc.stdout + proc.stderr
+    tail = output.strip().splitlines()
     summary = [line.strip("= ") for line in tail if SUMMARY.search(line)]
     if log_dir is not None:
         log_dir.mkdir(parents=True, exist_ok=True)
@@ -103,7 +115,8 @@ def run_stage(stage: str, workers: int, env: dict[str, str], load: int, log_dir:
     return {"command": " ".join(_command(stage, workers)), "exit": proc.returncode, "wall_s": round(wall, 3),
             "cpu_s": round(cpu, 3), **sampler.stop(), "busy_processes": len(busy),
             "last_line": tail[-1] if tail else "", "pytest_summary": summary[-1] if summary else None,
-            "side_targets": [m.group(0) for m in map(SIDE.search, tail) if m]}    # (after pytest's dots)
+            "side_targets": [m.group(0) for m in map(SIDE.search, tail) if m],    # (after pytest's dots)
+            "module_seconds": module_seconds(output)}
 
 
 def _seconds(stage: dict[str, object], key: str) -> float:
@@ -124,7 +137,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--stages", default=",".join(DEFAULT_STAGES),
                     help=f"comma-separated, of {', '.join(STAGES)} (default: {','.join(DEFAULT_STAGES)})")
     args = ap.parse_args(argv)
-    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen",      # every test's time, for the modules' times
+           "PYTEST_ADDOPTS": f"{os.environ.get('PYTEST_ADDOPTS', '')} --durations=0".strip()}
     with tempfile.TemporaryDirectory(prefix="numba-cold-") as cold:
         if args.cold:
             env["NUMBA_CACHE_DIR"] = cold
