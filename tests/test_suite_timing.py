@@ -34,7 +34,7 @@ def test_module_seconds_sums_each_modules_tests():
 def test_xdist_keeps_the_longest_modules_first(request):
     """pytest-xdist's --loadscope-reorder (its default) would sort the modules by their number of tests and start
     the 4-test stand study last; tests/conftest.py turns it off so LONGEST_FIRST holds."""
-    import conftest
-
+    top = ROOT / "tests" / "conftest.py"          # (the module name conftest may be another folder's)
+    conftest = next(p for p in request.config.pluginmanager.get_plugins() if getattr(p, "__file__", None) == str(top))
     assert getattr(request.config.option, "loadscopereorder", False) is False
     assert conftest.LONGEST_FIRST[0] == "e2e/test_copystand.py" and "e2e/test_stand.py" in conftest.LONGEST_FIRST[:4]
