@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export QT_QPA_PLATFORM ?= offscreen
 
-.PHONY: run test lint typecheck docs wheel-smoke bench demo venv resources clean reliability interop-tools
+.PHONY: run test test-typecheck test-wheel-smoke test-docs test-pytest lint typecheck docs wheel-smoke bench demo venv resources clean reliability interop-tools
 
 # after installing, numba's kernels are compiled into its on-disk cache once (about a minute), so the first run of
 # the window or the CLI loads them instead of compiling while the user waits (app/warm_kernels.py)
@@ -22,15 +22,37 @@ run: $(STAMP)
 	QT_QPA_PLATFORM= $(BIN)/dualrgb gui --virtual-lab
 
 # pytest-xdist workers for make test (TEST_WORKERS=0: one process). --dist loadscope keeps each module's tests on
-# one worker, so a module fixture (a calibration, a study) runs once (docs/notes/issue-26-suite.md)
-TEST_WORKERS ?= 2
+# one worker, so a module fixture (a calibration, a study) runs once. More workers than the 2 cores: the run mostly
+# waits (the virtual lab's CLI processes wait out lit exposures, fault tests wait on device timeouts), not computes
+# (docs/notes/issue-26-suite.md)
+TEST_WORKERS ?= 4
+TEST_LOGS := build/test-logs
 
-# lint and type check first: a finding stops CI before the slow tests. The type check and the wheel smoke use one
-# core each, so they run side by side (make -j2; mypy prints at its end), then pytest takes both cores
+# ruff first: a finding stops CI at once. Then the type check, the wheel smoke and the docs build run BESIDE pytest
+# (make -j4): pytest waits most of its time, and their CPU (mypy about 100 s of one core) fits in that. Their output
+# goes to build/test-logs/NAME.log: one line when they pass, the whole log when they fail; pytest prints as usual.
+# make lets all four finish and fails if any failed.
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(MAKE) --no-print-directory -j2 typecheck wheel-smoke
-	$(MAKE) --no-print-directory docs
+	$(MAKE) --no-print-directory -j4 test-typecheck test-wheel-smoke test-docs test-pytest
+
+# $(call logged,NAME,COMMAND): COMMAND with its output in $(TEST_LOGS)/NAME.log; a line when it passes, the log if not
+logged = mkdir -p $(TEST_LOGS); start=$$(date +%s); \
+	if $(2) > $(TEST_LOGS)/$(1).log 2>&1; then \
+		echo "$(1): passed in $$(($$(date +%s) - start)) s ($(TEST_LOGS)/$(1).log)"; \
+	else status=$$?; cat $(TEST_LOGS)/$(1).log; echo "$(1): FAILED, exit $$status ($(TEST_LOGS)/$(1).log)"; \
+		exit 1; fi
+
+test-typecheck: $(STAMP)
+	@$(call logged,typecheck,$(BIN)/python -m tools.typecheck)
+
+test-wheel-smoke: $(STAMP)
+	@$(call logged,wheel-smoke,env PY=$(PY) .ci/wheel_smoke.sh)
+
+test-docs: $(STAMP)
+	@$(call logged,docs,$(BIN)/sphinx-build -W --keep-going -q -b html docs build/docs)
+
+test-pytest: $(STAMP)
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
 
 lint: $(STAMP)

@@ -30,9 +30,19 @@ def user_data_dir(tmp_path, monkeypatch):
 
 # make test runs pytest-xdist with --dist loadscope: each module is one unit of work, handed to the workers in
 # collection order. The longest modules (their module fixtures: a study, a day of CLI processes) go first, so that
-# none starts last and runs alone on one core while the other waits (longest first); the rest keep their order.
-LONGEST_FIRST = ("e2e/test_stand.py", "e2e/test_copystand.py", "e2e/test_demo.py", "e2e/test_metadata_cli.py",
-                 "test_readme_day.py", "e2e/test_no_pty.py", "app/test_ground_truth.py")
+# none starts last and runs alone on one core while the others wait (longest first); the rest keep their order.
+# The order: each module's whole time with 4 workers (module_seconds of docs/notes/issue-26/suite-after-2.json).
+LONGEST_FIRST = ("e2e/test_copystand.py", "test_readme_day.py", "e2e/test_stand.py", "faults/test_fault_devices.py",
+                 "e2e/test_demo.py", "e2e/test_metadata_cli.py", "e2e/test_json_stdout.py", "e2e/test_no_pty.py",
+                 "app/test_ground_truth.py")
+
+
+def pytest_configure(config):
+    """pytest-xdist 3.7+ reorders loadscope's modules by their number of tests (``--loadscope-reorder``, its
+    default), which put the stand study (4 tests, the longest module) near the end, alone on one core for minutes:
+    the order above is kept instead."""
+    if getattr(config.option, "loadscopereorder", None) is not None:
+        config.option.loadscopereorder = False
 
 
 def pytest_collection_modifyitems(config, items):

@@ -1,21 +1,27 @@
 """Time ``make test``'s stages: ``python -m tools.suite_timing --out FILE.json [--workers N] [--load N] [--cold]``.
 
-Runs what ``make test`` runs, in its order (ruff; the type check beside the wheel smoke; pytest with
-``-n WORKERS --dist loadscope``), each stage as a child process, and writes per stage the wall time, the CPU time
-(user + system of the stage and every process it waited for: pytest's xdist workers and the CLI processes the
-tests start) and its last output line, with the 1-minute load average sampled every 5 s. The CPU time is the
-proxy for a quiet machine's wall time when the machine measured on is shared (docs/notes/issue-26-suite.md).
+Runs what ``make test`` runs, in its order (ruff; then the type check, the wheel smoke and the docs build beside
+pytest with ``-n WORKERS --dist loadscope``: the Makefile's ``make -j4 test-typecheck test-wheel-smoke test-docs
+test-pytest``), each stage as a child process, and writes per stage the wall time, the CPU time (user + system of
+the stage and every process it waited for: pytest's xdist workers and the CLI processes the tests start), its last
+output line, pytest's summary line, the Makefile's one line per side target ("typecheck: passed in 95 s") and
+the longest test modules' times (``--durations=0``), with the 1-minute load average sampled every 5 s. The CPU
+time is the proxy for a quiet machine's wall time when the machine measured on is shared
+(docs/notes/issue-26-suite.md).
 
-``--load N`` keeps N busy-looping processes running during each stage (the load-8 check: ``--stages pytest
---load 6``, six plus the two workers); ``--cold`` gives pytest an empty numba cache (``NUMBA_CACHE_DIR``), as on a
-fresh clone; ``--stages`` picks stages (default: all three). The JSON starts with "format" and "software"
-(simulation.versions).
+Stages: ``ruff`` and ``checks+pytest`` (the default: what ``make test`` runs), ``pytest`` alone and
+``typecheck+wheel-smoke`` (the type check beside the wheel smoke, as ``make test`` ran them before pytest until
+issue 26). ``--workers`` defaults to the Makefile's ``TEST_WORKERS``. ``--load N`` keeps N busy-looping processes
+running during each stage (the load-8 check: ``--stages pytest --load 6``, six plus the workers); ``--cold`` gives
+pytest an empty numba cache (``NUMBA_CACHE_DIR``), as on a fresh clone. The JSON starts with "format" and
+"software" (simulation.versions).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -26,12 +32,35 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-STAGES = ("ruff", "typecheck+wheel-smoke", "pytest")
+STAGES = ("ruff", "checks+pytest", "pytest", "typecheck+wheel-smoke")
+DEFAULT_STAGES = ("ruff", "checks+pytest")              # make test's order
 BUSY = "while True:\n    pass\n"
+SUMMARY = re.compile(r"\b\d+ (passed|failed|errors?)\b.* in [\d.]+s\b")          # pytest's last line
+DURATION = re.compile(r"^([\d.]+)s (?:setup|call|teardown)\s+([^\s:]+)::", re.MULTILINE)   # --durations=0
+SIDE = re.compile(r"\b(typecheck|wheel-smoke|docs): (passed|FAILED).*")   # the Makefile's line per target
+
+
+def makefile_workers() -> int:
+    """The Makefile's ``TEST_WORKERS ?= N``: the workers ``make test`` runs pytest with."""
+    found = re.search(r"^TEST_WORKERS \?= (\d+)$", (ROOT / "Makefile").read_text(), re.MULTILINE)
+    if found is None:
+        raise ValueError("Makefile: no 'TEST_WORKERS ?= N' line")
+    return int(found.group(1))
+
+
+def module_seconds(output: str, top: int = 12) -> dict[str, float]:
+    """The ``top`` longest test modules by the sum of their tests' setup, call and teardown times (pytest's
+    ``--durations=0`` lines in ``output``): with ``--dist loadscope`` one module's whole time on one worker."""
+    total: dict[str, float] = {}
+    for seconds, module in DURATION.findall(output):
+        total[module] = total.get(module, 0.0) + float(seconds)
+    return {m: round(t, 1) for m, t in sorted(total.items(), key=lambda kv: -kv[1])[:top]}
 
 
 def _command(stage: str, workers: int) -> list[str]:
     return {"ruff": [str(BIN / "ruff"), "check", "."],
+            "checks+pytest": ["make", "--no-print-directory", "-j4", "test-typecheck", "test-wheel-smoke",
+                              "test-docs", "test-pytest", f"TEST_WORKERS={workers}"],
             "typecheck+wheel-smoke": ["make", "--no-print-directory", "-j2", "typecheck", "wheel-smoke"],
             "pytest": [sys.executable, "-m", "pytest", "-q", "-n", str(workers), "--dist", "loadscope"]}[stage]
 
@@ -75,7 +104,9 @@ def run_stage(stage: str, workers: int, env: dict[str, str], load: int, log_dir:
         for p in busy:
             p.kill()
             p.wait()
-    tail = (proc.stdout + proc.stderr).strip().splitlines()
+    output = proc.stdout + proc.stderr
+    tail = output.strip().splitlines()
+    summary = [line.strip("= ") for line in tail if SUMMARY.search(line)]
     if log_dir is not None:
         log_dir.mkdir(parents=True, exist_ok=True)
         (log_dir / f"{stage}.log").write_text(proc.stdout + proc.stderr)
@@ -83,7 +114,9 @@ def run_stage(stage: str, workers: int, env: dict[str, str], load: int, log_dir:
           file=sys.stderr)
     return {"command": " ".join(_command(stage, workers)), "exit": proc.returncode, "wall_s": round(wall, 3),
             "cpu_s": round(cpu, 3), **sampler.stop(), "busy_processes": len(busy),
-            "last_line": tail[-1] if tail else ""}
+            "last_line": tail[-1] if tail else "", "pytest_summary": summary[-1] if summary else None,
+            "side_targets": [m.group(0) for m in map(SIDE.search, tail) if m],    # (after pytest's dots)
+            "module_seconds": module_seconds(output)}
 
 
 def _seconds(stage: dict[str, object], key: str) -> float:
@@ -96,13 +129,16 @@ def main(argv: list[str] | None = None) -> int:
 
     ap = argparse.ArgumentParser(prog="python -m tools.suite_timing", description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True, type=Path, help="the JSON to write")
-    ap.add_argument("--workers", type=int, default=2, help="pytest-xdist workers (0: one process; default 2)")
+    ap.add_argument("--workers", type=int, default=makefile_workers(),
+                    help="pytest-xdist workers (0: one process; default: the Makefile's TEST_WORKERS)")
     ap.add_argument("--load", type=int, default=0, help="busy-looping processes during each stage (default 0)")
     ap.add_argument("--cold", action="store_true", help="pytest with an empty numba cache (a fresh clone's)")
     ap.add_argument("--log-dir", type=Path, help="also write each stage's whole output there (STAGE.log)")
-    ap.add_argument("--stages", default=",".join(STAGES), help=f"comma-separated, of {', '.join(STAGES)}")
+    ap.add_argument("--stages", default=",".join(DEFAULT_STAGES),
+                    help=f"comma-separated, of {', '.join(STAGES)} (default: {','.join(DEFAULT_STAGES)})")
     args = ap.parse_args(argv)
-    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen",      # every test's time, for the modules' times
+           "PYTEST_ADDOPTS": f"{os.environ.get('PYTEST_ADDOPTS', '')} --durations=0".strip()}
     with tempfile.TemporaryDirectory(prefix="numba-cold-") as cold:
         if args.cold:
             env["NUMBA_CACHE_DIR"] = cold
