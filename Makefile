@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export QT_QPA_PLATFORM ?= offscreen
 
-.PHONY: run test test-typecheck test-wheel-smoke test-docs test-pytest lint typecheck docs wheel-smoke bench demo venv resources clean reliability interop-tools
+.PHONY: run test test-parts test-typecheck test-wheel-smoke test-docs test-pytest lint typecheck docs wheel-smoke bench demo venv resources clean reliability interop-tools
 
 # after installing, numba's kernels are compiled into its on-disk cache once (about a minute), so the first run of
 # the window or the CLI loads them instead of compiling while the user waits (app/warm_kernels.py)
@@ -34,7 +34,10 @@ TEST_LOGS := build/test-logs
 # make lets all four finish and fails if any failed.
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(MAKE) --no-print-directory -j4 test-typecheck test-wheel-smoke test-docs test-pytest
+	$(MAKE) --no-print-directory -j4 test-parts
+
+# what make test runs side by side after ruff (tools/suite_timing.py times this target)
+test-parts: test-typecheck test-wheel-smoke test-docs test-pytest
 
 # $(call logged,NAME,COMMAND): COMMAND with its output in $(TEST_LOGS)/NAME.log; a line when it passes, the log if not
 logged = mkdir -p $(TEST_LOGS); start=$$(date +%s); \
@@ -44,13 +47,13 @@ logged = mkdir -p $(TEST_LOGS); start=$$(date +%s); \
 		exit 1; fi
 
 test-typecheck: $(STAMP)
-	@$(call logged,typecheck,$(BIN)/python -m tools.typecheck)
+	@$(call logged,typecheck,$(MAKE) --no-print-directory typecheck)
 
 test-wheel-smoke: $(STAMP)
-	@$(call logged,wheel-smoke,env PY=$(PY) .ci/wheel_smoke.sh)
+	@$(call logged,wheel-smoke,$(MAKE) --no-print-directory wheel-smoke)
 
 test-docs: $(STAMP)
-	@$(call logged,docs,$(BIN)/sphinx-build -W --keep-going -q -b html docs build/docs)
+	@$(call logged,docs,$(MAKE) --no-print-directory docs)
 
 test-pytest: $(STAMP)
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope

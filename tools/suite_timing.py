@@ -1,13 +1,12 @@
 """Time ``make test``'s stages: ``python -m tools.suite_timing --out FILE.json [--workers N] [--load N] [--cold]``.
 
 Runs what ``make test`` runs, in its order (ruff; then the type check, the wheel smoke and the docs build beside
-pytest with ``-n WORKERS --dist loadscope``: the Makefile's ``make -j4 test-typecheck test-wheel-smoke test-docs
-test-pytest``), each stage as a child process, and writes per stage the wall time, the CPU time (user + system of
-the stage and every process it waited for: pytest's xdist workers and the CLI processes the tests start), its last
-output line, pytest's summary line, the Makefile's one line per side target ("typecheck: passed in 95 s") and
-the longest test modules' times (``--durations=0``), with the 1-minute load average sampled every 5 s. The CPU
-time is the proxy for a quiet machine's wall time when the machine measured on is shared
-(docs/notes/issue-26-suite.md).
+pytest with ``-n WORKERS --dist loadscope``: the Makefile's ``make -j4 test-parts``), each stage as a child
+process, and writes per stage the wall time, the CPU time (user + system of the stage and every process it waited
+for: pytest's xdist workers and the CLI processes the tests start), its last output line, pytest's summary line,
+the Makefile's one line per side target ("typecheck: passed in 95 s") and the longest test modules' times
+(``--durations=0``), with the 1-minute load average sampled every 5 s. The CPU time is the proxy for a quiet
+machine's wall time when the machine measured on is shared (docs/notes/issue-26-suite.md).
 
 Stages: ``ruff`` and ``checks+pytest`` (the default: what ``make test`` runs), ``pytest`` alone and
 ``typecheck+wheel-smoke`` (the type check beside the wheel smoke, as ``make test`` ran them before pytest until
@@ -59,8 +58,7 @@ def module_seconds(output: str, top: int = 12) -> dict[str, float]:
 
 def _command(stage: str, workers: int) -> list[str]:
     return {"ruff": [str(BIN / "ruff"), "check", "."],
-            "checks+pytest": ["make", "--no-print-directory", "-j4", "test-typecheck", "test-wheel-smoke",
-                              "test-docs", "test-pytest", f"TEST_WORKERS={workers}"],
+            "checks+pytest": ["make", "--no-print-directory", "-j4", "test-parts", f"TEST_WORKERS={workers}"],
             "typecheck+wheel-smoke": ["make", "--no-print-directory", "-j2", "typecheck", "wheel-smoke"],
             "pytest": [sys.executable, "-m", "pytest", "-q", "-n", str(workers), "--dist", "loadscope"]}[stage]
 
