@@ -22,19 +22,22 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 
-def _processing() -> None:
+def warm_processing() -> None:
+    """The half-resolution processing kernels (darks, HDR merge, flat field + superpixel)."""
     from dualrgb.app.processing import kernels
 
     kernels.warm_up()
 
 
-def _delivery() -> None:
+def warm_delivery(exposures: tuple[int, ...] = (1, 2, 3)) -> None:
+    """The delivery's kernels: encodings, spectral cube, the full-resolution row kernels for lights of
+    ``exposures`` frames each, the demosaic."""
     from dualrgb.app.processing import encode, master_kernels, spectral_cube
     from dualrgb.app.processing.demosaic import demosaic
 
     encode.warm_up()
     spectral_cube.warm_up()
-    master_kernels.warm_up((1, 2, 3))
+    master_kernels.warm_up(exposures)
     demosaic(np.zeros((4, 4), np.float32))
 
 
@@ -50,8 +53,8 @@ def _optimisers() -> None:
 
 
 GROUPS: dict[str, Callable[[], None]] = {
-    "processing (darks, HDR merge, flat field)": _processing,
-    "delivery (full-resolution rows, demosaic, encodings, spectral cube)": _delivery,
+    "processing (darks, HDR merge, flat field)": warm_processing,
+    "delivery (full-resolution rows, demosaic, encodings, spectral cube)": warm_delivery,
     "optimisers (noise-free and expected-captured objectives)": _optimisers,
 }
 

@@ -190,14 +190,12 @@ def _child_libraw(folder: str) -> dict:
 
 
 def _ready(folder_p: Path, spectral: bool = True):
-    from dualrgb.app.processing import encode, kernels, master_kernels, spectral_cube
+    from dualrgb.app.warm_kernels import warm_delivery, warm_processing
     from dualrgb.app.workflow.profile import load_profile
 
     prof = load_profile(make_profile(folder_p, spectral))
-    kernels.warm_up()
-    encode.warm_up()
-    spectral_cube.warm_up()
-    master_kernels.warm_up((2,))                       # the full-resolution row kernels: 2 exposures per light
+    warm_processing()
+    warm_delivery((2,))                                # the full-resolution row kernels: 2 exposures per light
     return prof
 
 
@@ -343,16 +341,10 @@ def _child_warm() -> dict:
     """Compile the kernels into numba's on-disk cache once, so no measured run pays (or counts the memory of)
     LLVM compiling them."""
     sys.path.insert(0, str(ROOT))
-    import numpy as _np
+    from dualrgb.app.warm_kernels import warm_delivery, warm_processing
 
-    from dualrgb.app.processing import encode, kernels, master_kernels, spectral_cube
-    from dualrgb.app.processing.demosaic import demosaic
-
-    kernels.warm_up()
-    encode.warm_up()
-    spectral_cube.warm_up()
-    master_kernels.warm_up((2,))
-    demosaic(_np.zeros((4, 4), _np.float32))
+    warm_processing()
+    warm_delivery((2,))
     return {}
 
 
