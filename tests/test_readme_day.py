@@ -5,13 +5,17 @@ allows; then the deliverables the day promises are checked, and every JSON the d
 or Infinity). README's short first day is a part of the tutorial's: each of its commands is one of the block's."""
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
+import shlex
 import shutil
+import sys
 from pathlib import Path
 
 import pytest
+from dask_procs import stop_dask_on_port
 from doc_blocks import block_names, dualrgb_prelude, fenced_block, run_block
 from session_schema import session_problems
 
@@ -52,7 +56,8 @@ def strict_json_files(root: Path) -> list[Path]:
 
 def test_the_pages_name_their_runnable_blocks():
     assert block_names(TUTORIAL) == ["copy-stand-day"] and block_names(OWN_CHARTS) == ["own-charts"]
-    assert block_names(REDELIVERY) == ["redelivery"] and block_names(VERIFY_BAG) == ["verify-and-bag"]
+    assert block_names(REDELIVERY) == ["redelivery", "redelivery-cluster"]
+    assert block_names(VERIFY_BAG) == ["verify-and-bag"]
     assert "dualrgb calibrate --session day1 --virtual-lab" in fenced_block(TUTORIAL, "copy-stand-day")
 
 
@@ -103,6 +108,7 @@ def _how_tos_run_on_the_day(root: Path, env: dict[str, str], delivered: set[str]
     assert {p.parent.name for p in (root / "day1-recal").glob("*/*.json")} == \
         {p.parent.name for p in (root / "day1" / "deliverables").glob("*/*.json")}
     assert list((root / "day1" / "deliverables").glob("*/previous/*/*.json"))      # the in-place run kept them
+    _cluster_block_runs(root, env)
     ran = run_block(VERIFY_BAG, "verify-and-bag", root, env=env, prelude=dualrgb_prelude(FRAME))
     assert ran[0].stdout.strip().endswith("all match") and ran[1].stdout.strip().endswith("all match")
     assert "Contact-Name: J. Doe" in (root / "day1-archive" / "bag-info.txt").read_text(encoding="utf-8")
@@ -118,3 +124,22 @@ def test_readme_own_charts_block_runs_as_written(workdir):
     assert profile["charts"]["test"]["file"] == "cc24_test.cie"
     assert (root / "day2" / "deliverables" / "ACC-200" / "ACC-200_prophoto_16bit.tif").is_file()
     strict_json_files(root)
+
+
+def _cluster_block_runs(root: Path, env: dict[str, str]) -> None:
+    """The re-delivery how-to's cluster block, as written: --jobs 2 and a real Dask cluster (scheduler and two
+    workers started in the background by the block) deliver the same files as each other."""
+    prelude = f"export PATH={shlex.quote(str(Path(sys.executable).parent))}:$PATH\n" + dualrgb_prelude(FRAME)
+    try:
+        run_block(REDELIVERY, "redelivery-cluster", root, env={**env, "SOURCE_DATE_EPOCH": "1767225600"},
+                  prelude=prelude)
+    finally:
+        stop_dask_on_port(8786)
+    local, cluster = root / "recal-local", root / "recal-cluster"
+    assert {p.name for p in local.iterdir()} == {"day1", "films1"}
+    assert _digests(local) == _digests(cluster) and len(_digests(local)) > 20
+
+
+def _digests(folder: Path) -> dict[str, str]:
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}

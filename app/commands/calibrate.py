@@ -120,6 +120,7 @@ def _stand_start(args: argparse.Namespace) -> Any:
 
 def main(args: argparse.Namespace) -> int:
     check_device_options(args)                # before the heavy imports below
+    from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
     from dualrgb.app.workflow import charts as day_charts
     from dualrgb.app.workflow.copystand import CopyStand, StandSettings
     from dualrgb.app.workflow.defaults import DAY_WORKFLOW
@@ -142,6 +143,7 @@ def main(args: argparse.Namespace) -> int:
                   "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle, **virtual_world(args),
                   **day_charts.definition(charts)}
     text = text_stream(args.json_path)
+    ensure_kernels()                          # first run: compiled here, before any device opens
     with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person)

@@ -176,6 +176,7 @@ def _queue_originals(args: argparse.Namespace, plan) -> list:
 def main(args: argparse.Namespace) -> int:
     if not args.check:
         check_device_options(args)            # before the heavy imports below (--check opens no device)
+    from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
     from dualrgb.app.workflow.copystand import CopyStand, QueueOutcome, StandSettings, capture_queue
     from dualrgb.app.workflow.profile import load_profile
 
@@ -190,6 +191,7 @@ def main(args: argparse.Namespace) -> int:
                              original_frames=args.frames, render_illuminant=args.render_illuminant,
                              resolution=args.resolution)
     definition = {"workflow": DAY_WORKFLOW, **virtual_world(args)}
+    ensure_kernels()                          # first run: compiled here, before any device opens
     with open_devices(args, mode, args.virtual_original) as dev, \
             open_session(args.session, definition, dev.camera) as session:
         out_dir = out_dir or session.path / "deliverables"

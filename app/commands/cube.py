@@ -33,8 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.terminal_progress import TerminalProgress
+    from dualrgb.app.warm_kernels import ensure_ready
     from dualrgb.app.workflow.spectral_on_demand import make_cube
 
+    ensure_ready()                                      # first run: compiled once here, said in one line
     with TerminalProgress("cube") as progress:
         made = make_cube(args.delivery, args.out, args.render, progress=progress)
     files = {"cube": str(made.cube), "header": str(made.header), **({"render": str(made.render)} if made.render

@@ -36,6 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
+    from dualrgb.app.warm_kernels import ensure_ready
     from dualrgb.app.workflow.charts import load_charts
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
@@ -44,6 +45,7 @@ def main(args: argparse.Namespace) -> int:
                             charts=load_charts(chart_choices(args), args.mode))
     if args.dark_frames is not None:
         settings.dark_frames = args.dark_frames
+    ensure_ready()                                      # first run: compiled once here, said in one line
     with TerminalProgress("demo", lines=True) as progress:
         data = run_demo(settings, progress)
     print(f"{'condition':<22} {'train mean':>10} {'test mean':>10} {'sim train':>10} {'sim test':>10} "

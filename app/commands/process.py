@@ -1,13 +1,15 @@
-"""``dualrgb process``: deliver a session's originals again, e.g. with a newer calibration.
+"""``dualrgb process``: deliver sessions' originals again, e.g. with a newer calibration, on one machine or many.
 
-    dualrgb process SESSION [--calibration FILE] [--force] [--out DIR] [--render-illuminant A]
-                    [--resolution full|half] [--json J]
+    dualrgb process SESSION [SESSION ...] [--calibration FILE] [--force] [--out DIR] [--render-illuminant A]
+                    [--resolution full|half] [--jobs N | --scheduler ADDRESS] [--json J]
 
 The mode rule (app.workflow.mode_rule) as for ``capture``: without ``--calibration`` each original is delivered
-with the session's newest calibration of its own mode; with one, originals of the other mode are refused (listed,
-exit 1) unless ``--force``. Every original that can be is delivered; those that cannot (a missing or damaged
-frame, a folder holding another original's files, a refused QA) are listed one per line, and the command ends
-with exit 1 (issue 28).
+with its session's newest calibration of its own mode; with one, originals of the other mode are refused (listed,
+exit 1) unless ``--force``. Every original is one task (app.workflow.redelivery_jobs): in this process, on ``--jobs
+N`` local worker processes or on a Dask cluster (``--scheduler``); a line per original as it ends. Every original
+that can be is delivered; those that cannot (a missing or damaged frame, a folder holding another original's
+files, a refused QA) are listed one per line, and the command ends with exit 1 (issue 28). Re-running a killed run
+keeps what it finished (the sidecar records each task's key) and does the rest.
 """
 from __future__ import annotations
 
@@ -15,11 +17,14 @@ import argparse
 import logging
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dualrgb.app.cli import UserError
-from dualrgb.app.commands.options import add_render_option, add_resolution_option, number
-from dualrgb.app.commands.stand_options import progress_printer
+from dualrgb.app.commands.options import add_render_option, add_resolution_option, count, number
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
+
+if TYPE_CHECKING:
+    from dualrgb.app.workflow.redelivery_jobs import Executor, TaskResult
 
 log = logging.getLogger(__name__)
 
@@ -27,16 +32,23 @@ PROCESS_FORMAT = "dualrgb-process/1"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("process", help="re-process a session's originals (optionally with another calibration)",
-                       description="Delivers every original in SESSION again from its raw frames (latest takes), "
-                                   "with --calibration or the session's newest calibration.")
-    p.add_argument("session", type=Path)
-    p.add_argument("--calibration", type=Path, help="calibration profile (.json); default: the session's newest")
-    p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables)")
+    p = sub.add_parser("process", help="re-process sessions' originals (optionally with another calibration)",
+                       description="Delivers every original in each SESSION again from its raw frames (latest takes), "
+                                   "with --calibration or each session's newest calibration.")
+    p.add_argument("sessions", type=Path, nargs="+", metavar="SESSION")
+    p.add_argument("--calibration", type=Path, help="calibration profile (.json); default: each session's newest")
+    p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables; with several "
+                                             "sessions, one folder per session below it)")
     p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
     p.add_argument("--force", action="store_true",
                    help="with --calibration: deliver originals of the other mode with it too (said in the sidecar "
                         "and QA line)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--jobs", type=count(1, 512), metavar="N",
+                       help="deliver N originals at once on worker processes of this machine (default 1: here)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="send the originals to a Dask distributed scheduler (e.g. tcp://10.0.0.5:8786) whose "
+                            "workers see the same files (pip install 'dualrgb[cluster]')")
     add_json_option(p)
     add_render_option(p)
     add_resolution_option(p)
@@ -44,34 +56,60 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.workflow.profile import load_profile
-    from dualrgb.app.workflow.redelivery import newest_by_mode, redeliver
+    from dualrgb.app.warm_kernels import ensure_ready
+    from dualrgb.app.workflow.redelivery_jobs import RedeliveryOptions, plan_tasks, run_tasks, run_time
 
-    session = CaptureSession.open(args.session, readonly=True)      # frames checked before use, per original
-    profiles = load_profile(args.calibration) if args.calibration else newest_by_mode(session)
-    refused: list[str] = []
-    deliveries, failed = redeliver(session, profiles, args.out or args.session / "deliverables", ppi=args.ppi,
-                                   progress=progress_printer(), render_illuminant=args.render_illuminant,
-                                   force=args.force, refused=refused, resolution=args.resolution)
-    for line in refused:
-        print(f"refused: {line}", file=sys.stderr)
-    if not deliveries and not refused and not failed:
-        raise ValueError(f"{args.session}: no originals to process")
-    for d in deliveries:
-        print(d.qa.text(), file=text_stream(args.json))
-    for f in failed:
-        print(f"{f.identifier}: not delivered: {f.reason}", file=sys.stderr)
-    used = [profiles] if not isinstance(profiles, dict) else list(profiles.values())
-    write_json(args.json, PROCESS_FORMAT, {"calibration": used[0].id if len(used) == 1 else None,
-                                           "calibrations": {p.mode: p.id for p in used}, "refused": refused,
-                                           "not_delivered": [{"identifier": f.identifier, "reason": f.reason}
-                                                             for f in failed],
-                                           "originals": [
-        {"identifier": d.original.identifier, "qa": d.qa.to_dict(), "files": {k: str(v) for k, v in d.files.items()},
-         "sidecar": str(d.sidecar)} for d in deliveries]}, default=str)
+    options = RedeliveryOptions(
+        calibration=str(args.calibration) if args.calibration else None, out=str(args.out) if args.out else None,
+        ppi=args.ppi, render_illuminant=args.render_illuminant, resolution=args.resolution, force=args.force,
+        delivered_at=run_time(), out_per_session=len(args.sessions) > 1)
+    tasks = plan_tasks(args.sessions, options)          # every session read and checked before any delivery
+    if not (args.scheduler or (args.jobs or 1) > 1):
+        ensure_ready()                                  # first run: compiled once here (workers warm up their own)
+    executor = _executor(args)
+    out = text_stream(args.json)
+
+    def said(result: TaskResult) -> None:          # a line per original as it ends: the run's progress
+        print(result.line(len(args.sessions)), file=sys.stderr if result.status in ("refused", "failed") else out,
+              flush=True)
+
+    log.info("process: %d originals of %d sessions on %s", len(tasks), len(args.sessions), executor.name)
+    results = run_tasks(tasks, executor, on_result=said)
+    write_json(args.json, PROCESS_FORMAT, _document(results), default=str)
+    return _exit_code(results, len(args.sessions))
+
+
+def _executor(args: argparse.Namespace) -> Executor:
+    from dualrgb.app.workflow.redelivery_jobs import DaskCluster, LocalProcesses, Serial
+
+    if args.scheduler:
+        return DaskCluster(args.scheduler)
+    if args.jobs and args.jobs > 1:
+        return LocalProcesses(args.jobs)
+    return Serial()
+
+
+def _document(results: list[TaskResult]) -> dict:
+    used = {r.mode: r.calibration for r in results if r.calibration}
+    ids = set(used.values())
+    return {"calibration": next(iter(ids)) if len(ids) == 1 else None, "calibrations": used,
+            "refused": [r.reason for r in results if r.status == "refused"],
+            "not_delivered": [{"session": r.task.session, "identifier": r.task.identifier, "reason": r.reason}
+                              for r in results if r.status == "failed"],
+            "kept": [{"session": r.task.session, "identifier": r.task.identifier, "sidecar": r.sidecar}
+                     for r in results if r.status == "kept"],
+            "originals": [{"session": r.task.session, "identifier": r.task.identifier, "qa": r.qa_record,
+                           "files": r.files, "sidecar": r.sidecar, "sha256": r.sha256, "seconds": r.seconds,
+                           "cpu_s": r.cpu_s, "worker": r.worker, "attempts": r.attempts}
+                          for r in results if r.status == "delivered"]}
+
+
+def _exit_code(results: list[TaskResult], sessions: int) -> int:
+    failed = [r for r in results if r.status == "failed"]
     if failed:
-        raise UserError(f"{len(failed)} of {len(failed) + len(deliveries)} originals not delivered (listed above: "
-                        f"{', '.join(f.identifier for f in failed[:5])}{' ...' if len(failed) > 5 else ''}); the "
+        delivered = sum(r.status == "delivered" for r in results)
+        names = [r.task.label if sessions > 1 else r.task.identifier for r in failed[:5]]
+        raise UserError(f"{len(failed)} of {len(failed) + delivered} originals not delivered (listed above: "
+                        f"{', '.join(names)}{' ...' if len(failed) > 5 else ''}); the "
                         "others were delivered")
-    return 1 if refused else 0
+    return 1 if any(r.status == "refused" for r in results) else 0

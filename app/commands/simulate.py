@@ -97,6 +97,7 @@ def main(args: argparse.Namespace) -> int:
     # imported here so that other subcommands start without loading colour-science and numba
     from dataclasses import replace
 
+    from dualrgb.app.warm_kernels import OPTIMISERS, ensure_ready
     from dualrgb.simulation.datasets import default_setup
     from dualrgb.simulation.defaults import default_grid
     from dualrgb.simulation.runner import run
@@ -112,6 +113,7 @@ def main(args: argparse.Namespace) -> int:
     setup = default_setup(args.mode, grid, camera_csv=args.camera_csv,
                           leds_csv=args.leds_csv, train_csv=args.train_csv, test_csv=args.test_csv,
                           reference_xyz=args.reference_xyz)
+    ensure_ready([OPTIMISERS])                         # first run: compiled once here, said in one line
     with TerminalProgress(f"simulate {args.method}") as progress:
         result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, objective=args.objective,
                      capture=_capture(args), progress=progress, spectral_weight=args.spectral_weight)

@@ -32,13 +32,14 @@ import re
 import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from datetime import UTC, datetime
+from datetime import datetime
 from pathlib import Path
 from xml.sax.saxutils import escape
 
 import numpy as np
 
 from dualrgb.common.atomic_files import atomic_output
+from dualrgb.common.clock import output_time
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 
 log = logging.getLogger(__name__)
@@ -156,7 +157,7 @@ def _matrix_trc_profile(M: np.ndarray, trc: bytes, description: str) -> bytes:
         data += body
     data += b"\0" * ((-len(data)) % 4)
     size = 128 + len(table) + len(data)
-    now = datetime.now(UTC)
+    now = output_time()                          # SOURCE_DATE_EPOCH when set: reproducible bytes
     header = (struct.pack(">I", size) + b"none" + bytes([2, 0x40, 0, 0]) + b"mntr" + b"RGB " + b"XYZ "
               + struct.pack(">6H", now.year, now.month, now.day, now.hour, now.minute, now.second)
               + b"acsp" + b"APPL" + struct.pack(">I", 0) + b"none" + b"\0" * 4 + b"\0" * 8
@@ -231,7 +232,7 @@ def xmp_packet(fields: Mapping[str, object], *, identifier: str = "", title: str
     {``dualrgb:Property``, ``dualrgb:Column``} so the names of a queue CSV's extra columns survive exactly.
     Text that XML 1.0 cannot carry raises ValueError naming the property (the workflow refuses it earlier).
     """
-    created = created or datetime.now(UTC)
+    created = created or output_time()
     props = [f"<xmp:CreateDate>{created.isoformat(timespec='seconds')}</xmp:CreateDate>"]
     if tool:
         props.append(f"<xmp:CreatorTool>{_xml_text('CreatorTool', tool)}</xmp:CreatorTool>")

@@ -26,7 +26,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, nullcontext
 from dataclasses import asdict, dataclass, field
-from datetime import UTC, datetime
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +56,7 @@ from dualrgb.app.workflow.fixity import FIXITY_ALGORITHM, file_fixity, fixity_se
 from dualrgb.app.workflow.metadata import MODES, Original, ascii_text, xmp_property
 from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity
 from dualrgb.app.workflow.virtual_truth import OriginalTruth, assess, qa_text
+from dualrgb.common.clock import output_time
 from dualrgb.common.progress import CancelToken, check
 from dualrgb.simulation.versions import dualrgb_version, output_header
 
@@ -306,15 +307,16 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
             camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
             exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
             extra: dict | None = None, render_illuminant: str = DEFAULT_RENDER_ILLUMINANT,
-            truth: OriginalTruth | None = None, overrides: list[str] | None = None, cancel: CancelToken | None = None
-            ) -> Delivery:
+            truth: OriginalTruth | None = None, overrides: list[str] | None = None, cancel: CancelToken | None = None,
+            now: datetime | None = None) -> Delivery:
     """Encode the channels of ``source`` (a full-resolution MasterStack or a half-resolution ChannelStack) with the
     calibration's matrix (and spectral estimator: the rendering under ``render_illuminant``, and the cube at half
     resolution) and write every deliverable of ``original``: into a fresh folder, swapped in whole when complete
     (a re-delivery keeps the previous set in ``<stem>/previous/``; a folder of another original is refused:
     app.workflow.delivery_folder). ``ppi``: the delivered files' sampling (None: the calibration's, at this
     resolution). ``truth``: the virtual lab's, compared in the sidecar and QA line. ``overrides``: rules the user
-    overrode for it (app.workflow.mode_rule), said in the sidecar and QA line. ``cancel``: checked per band."""
+    overrode for it (app.workflow.mode_rule), said in the sidecar and QA line. ``cancel``: checked per band.
+    ``now``: the time written into every file (default: the clock; a re-delivery run passes its one time)."""
     warnings = list(warnings or [])
     resolution = source.resolution
     ppi = ppi or delivered_ppi(profile, resolution)
@@ -323,7 +325,7 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
     spectral = SpectralPlan.of(profile, render_illuminant, resolution)
     if spectral is None:
         warnings.append(f"no spectral cube: calibration {profile.id} has no spectral estimator (calibrate again)")
-    now = datetime.now(UTC)
+    now = now or output_time()
     stem = original.file_stem
     final = Path(out_dir) / stem
     with staged(Path(out_dir), original) as folder:

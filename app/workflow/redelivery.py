@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 from contextlib import closing
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -90,7 +91,8 @@ def _profile_for(original: Original, profiles: CalibrationProfile | dict[str, Ca
 
 def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Original, profile: CalibrationProfile,
                    damaged: dict[str, str], out_dir: Path, ppi: float | None, cancel: CancelToken | None,
-                   render_illuminant: str, override: str, resolution: str = FULL) -> Delivery:
+                   render_illuminant: str, override: str, resolution: str = FULL, *, extra: dict | None = None,
+                   now: datetime | None = None) -> Delivery:
     from dualrgb.app.workflow.session_processing import select_lights
 
     prepare(Path(out_dir), original)
@@ -104,8 +106,9 @@ def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Origin
         return deliver(source, profile, original, out_dir, camera=profile.camera, ppi=ppi,
                        dose=original_dose(session, subject),
                        exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
-                       extra={"session": str(session.path), "reprocessed": True}, render_illuminant=render_illuminant,
-                       overrides=[override] if override else [], cancel=cancel)
+                       extra={"session": str(session.path), "reprocessed": True, **(extra or {})},
+                       render_illuminant=render_illuminant, overrides=[override] if override else [], cancel=cancel,
+                       now=now)
 
 
 def _known_original(session: Any, known: dict, identifier: str) -> Original:
