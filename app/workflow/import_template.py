@@ -5,13 +5,15 @@ How it guesses, from each file's metadata and its signal (the mosaic's mean abov
 range up to white; a subsample):
 
 * a frame whose signal is under :data:`DARK_SIGNAL` is a dark (lens capped: its exposure is what matters);
-* the lit frames form groups: a new group starts after a dark, after a pause longer than :data:`GAP_S` (the
-  technician changed what lies on the stand) or where the signal jumps by more than :data:`JUMP` times at the same
-  exposure (another subject under the same light);
-* the first group is the flats (open gate), the next two the training and the test target, every later one an
-  original (``ORIGINAL-1``, ``ORIGINAL-2``, ... to be replaced by its identifier);
-* within a group the lights follow in order (the copy stand shoots every frame under light 1, then light 2): the
-  group is cut into as many equal runs as there are lights.
+* each light has its own exposure (auto-exposure on the open gate): the lit exposures, in the order they first
+  appear, are lights 1, 2, ... (an HDR bracket's longer exposures are not told apart: check them);
+* at one exposure the open gate is the brightest thing on the stand: a lit frame within :data:`FLAT_SHARE` of the
+  brightest frame at its exposure is a flat;
+* the other lit frames are subjects, one after the other: a new one starts after a pause longer than
+  :data:`GAP_S` (something else was put on the stand) or when the lights start again from an earlier one (every
+  subject is shot under light 1, then light 2, ...); the first subject is the training target, the second the
+  test target, every later one an original (``ORIGINAL-1``, ``ORIGINAL-2``, ... to be replaced by its
+  identifier).
 
 The ``guess`` column says why; ``exposure_s``, ``captured_at`` and ``camera`` show what the file says (all four are
 information: an import reads the files again and ignores them). A file that cannot be imported (not a Bayer raw)
@@ -34,8 +36,8 @@ RAW_SUFFIXES = frozenset({".nef", ".nrw", ".cr2", ".cr3", ".crw", ".arw", ".srf"
                           ".rw2", ".pef", ".raf", ".3fr", ".fff", ".erf", ".kdc", ".mos", ".mef", ".srw", ".rwl",
                           ".x3f"})
 DARK_SIGNAL = 0.01          # of the range black..white: a capped lens
+FLAT_SHARE = 0.8            # of the brightest frame at the same exposure: the open gate
 GAP_S = 20.0                # a pause that means something else was put on the stand
-JUMP = 1.5                  # the signal at one exposure changing this many times: another subject
 HEADER = [*COLUMNS, "title", *INFORMATION]
 
 
@@ -86,39 +88,50 @@ def read_guesses(folder: Path) -> list[Guess]:
     return good + bad
 
 
-def _new_group(prev: Guess | None, g: Guess) -> bool:
-    if prev is None or prev.role == Role.DARK.value:
-        return True
-    if prev.seconds is not None and g.seconds is not None and g.seconds - prev.seconds > GAP_S:
-        return True
-    same_t = prev.exposure_s is not None and g.exposure_s == prev.exposure_s
-    if same_t and prev.signal and g.signal:
-        return max(prev.signal, g.signal) / max(min(prev.signal, g.signal), 1e-9) > JUMP
-    return False
+def _lights(lit: Sequence[Guess], n_lights: int) -> dict[float | None, int]:
+    """Exposure -> light number: the lit exposures in the order they first appear (capped at ``n_lights``)."""
+    order = list(dict.fromkeys(g.exposure_s for g in lit))
+    return {t: min(i + 1, n_lights) for i, t in enumerate(order)}
+
+
+def _subjects(frames: Sequence[Guess], light: dict[float | None, int]) -> list[list[Guess]]:
+    """The subjects' frames: a new subject after a pause or when the lights start again from an earlier one."""
+    out: list[list[Guess]] = []
+    prev: Guess | None = None
+    for g in frames:
+        paused = (prev is not None and prev.seconds is not None and g.seconds is not None
+                  and g.seconds - prev.seconds > GAP_S)
+        if prev is None or paused or light[g.exposure_s] < light[prev.exposure_s]:
+            out.append([g])
+        else:
+            out[-1].append(g)
+        prev = g
+    return out
 
 
 def guess_roles(guesses: Sequence[Guess], n_lights: int = 2) -> list[Guess]:
     """Roles, lights and identifiers guessed (module docstring) in place; returns ``guesses``."""
-    groups: list[list[Guess]] = []
-    prev: Guess | None = None
-    for g in guesses:
-        if g.why.startswith("not importable"):
-            continue
+    usable = [g for g in guesses if not g.why.startswith("not importable")]
+    for g in usable:
         if g.signal is not None and g.signal < DARK_SIGNAL:
             g.role, g.why = Role.DARK.value, f"dark: signal {100 * g.signal:.2f} % of white"
-        elif _new_group(prev, g):
-            groups.append([g])
-        else:
-            groups[-1].append(g)
-        prev = g
-    names = [(Role.FLAT.value, ""), (Role.TARGET.value, "train"), (Role.TARGET.value, "test")]
-    for i, group in enumerate(groups):
+    lit = [g for g in usable if not g.role]
+    light = _lights(lit, n_lights)
+    brightest: dict[float | None, float] = {}
+    for g in lit:
+        brightest[g.exposure_s] = max(brightest.get(g.exposure_s, 0.0), g.signal or 0.0)
+    for g in lit:
+        g.light = str(light[g.exposure_s])
+        if (g.signal or 0.0) >= FLAT_SHARE * brightest[g.exposure_s]:
+            g.role = Role.FLAT.value
+            g.why = f"flat: the brightest at its exposure ({100 * (g.signal or 0):.1f} % of white)"
+    names = [(Role.TARGET.value, "train"), (Role.TARGET.value, "test")]
+    for i, subject in enumerate(_subjects([g for g in lit if not g.role], light)):
         role, ident = names[i] if i < len(names) else (Role.ORIGINAL.value, f"ORIGINAL-{i - len(names) + 1}")
-        per = max(1, math.ceil(len(group) / n_lights))
-        for j, g in enumerate(group):
-            g.role, g.identifier, g.light = role, ident, str(min(n_lights, j // per + 1))
-            g.why = (f"group {i + 1} ({len(group)} frames): {role}{' ' + ident if ident else ''}, light by order; "
-                     f"signal {100 * (g.signal or 0):.1f} % of white")
+        for g in subject:
+            g.role, g.identifier = role, ident
+            g.why = (f"subject {i + 1} ({len(subject)} frames): {role} {ident}; signal {100 * (g.signal or 0):.1f} % "
+                     "of white")
     return list(guesses)
 
 
@@ -131,5 +144,5 @@ def write_template(folder: Path, out: Path, n_lights: int = 2) -> list[Guess]:
     return guesses
 
 
-__all__ = ["DARK_SIGNAL", "GAP_S", "HEADER", "JUMP", "RAW_SUFFIXES", "Guess", "guess_roles", "raw_files",
+__all__ = ["DARK_SIGNAL", "FLAT_SHARE", "GAP_S", "HEADER", "RAW_SUFFIXES", "Guess", "guess_roles", "raw_files",
            "read_guesses", "write_template"]
