@@ -50,7 +50,6 @@ log = logging.getLogger(__name__)
 EXIFTOOL_TAGS = ("Make", "Model", "SerialNumber", "InternalSerialNumber", "ExposureTime", "ISO", "FNumber",
                  "DateTimeOriginal", "SubSecTimeOriginal")
 EXIFTOOL_TIMEOUT_S = 600.0          # a hang guard for a folder of hundreds of files, far above normal
-SIGNAL_STEP = 8                     # every 8th row and column: the frame's mean signal (dark or lit) at a glance
 _SERIAL_TAGS = (50735, 42033)       # DNG CameraSerialNumber (IFD0), EXIF BodySerialNumber (EXIF IFD)
 
 
@@ -119,7 +118,7 @@ def _libraw_fields(p: Path, head: bytes) -> dict[str, Any]:
             pattern, color_desc = bayer_pattern(raw, p)
             other, sizes = raw.other, raw.sizes
             black, white = float(np.mean(raw.black_level_per_channel)), float(raw.white_level)
-            sample = raw.raw_image_visible[::SIGNAL_STEP, ::SIGNAL_STEP]
+            sample = raw.raw_image_visible
             signal = (float(sample.mean(dtype=np.float64)) - black) / max(white - black, 1.0) if sample.size else 0.0
             stamp = other.timestamp if isinstance(other.timestamp, datetime) else None
             return {"cfa": "".join(_letter(color_desc, int(i)) for i in pattern.ravel()),

@@ -112,7 +112,8 @@ def _light(cell: str, role: Role) -> int | None:
             raise ValueError(f"light {text!r}: a dark frame is shot with the light off (leave it empty)")
         return None
     if not text:
-        raise ValueError(f"a {role.value} frame needs its light's number in the preset (1, 2, ...)")
+        raise ValueError(f"{'an' if role is Role.ORIGINAL else 'a'} {role.value} frame needs its light's number in "
+                         "the preset (1, 2, ...)")
     if not text.isdigit() or not 1 <= int(text) <= MAX_LIGHTS:
         raise ValueError(f"light {text!r}: expected the light's number in the preset, 1 to {MAX_LIGHTS}")
     return int(text)
@@ -148,7 +149,7 @@ def _row(number: int, cells: list[str], index: dict[str, int]) -> RoleRow:
     except ValueError:
         role = None
     if role not in ROLES:
-        raise ValueError(f"role {text!r}: expected {', '.join(r.value for r in ROLES)}")
+        raise ValueError(f"role {text!r}: expected {', '.join(r.value for r in ROLES[:-1])} or {ROLES[-1].value}")
     assert role is not None
     return RoleRow(number, file, role, _light(cell("light"), role), _identifier(cell("identifier"), role))
 

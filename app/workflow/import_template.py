@@ -2,7 +2,7 @@
 edited): every raw file of a folder in capture order, with a role and a light guessed for the technician to check.
 
 How it guesses, from each file's metadata and its signal (the mosaic's mean above black, as a fraction of the
-range up to white; a subsample):
+range up to white):
 
 * a frame whose signal is under :data:`DARK_SIGNAL` is a dark (lens capped: its exposure is what matters);
 * each light has its own exposure (auto-exposure on the open gate): the lit exposures, in the order they first
