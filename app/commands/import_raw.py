@@ -40,19 +40,16 @@ IMPORT_FORMAT = "dualrgb-import/1"
 
 def corners(text: str) -> tuple[str, tuple[float, ...]]:
     """``train=X,Y,X,Y,X,Y,X,Y`` (the target's four corners in the raw file's pixels) -> (name, 8 numbers)."""
-    import math
+    from dualrgb.app.workflow.import_checks import parse_corners
 
     name, sep, rest = text.partition("=")
     name = name.strip().lower()
+    if not sep or name not in ("train", "test"):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected train=X,Y,X,Y,X,Y,X,Y or test=...")
     try:
-        values = tuple(float(v) for v in rest.replace(";", ",").split(","))
-    except ValueError:
-        values = ()
-    if not sep or name not in ("train", "test") or len(values) != 8 or not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected train=X,Y,X,Y,X,Y,X,Y or test=...: the chart's "
-                                         "top-left, top-right, bottom-right, bottom-left corners in the raw file's "
-                                         "pixels")
-    return name, values
+        return name, parse_corners(rest)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -262,8 +262,24 @@ def mode_problems(roles: RolesTable, mode: str) -> list[str]:
 
 
 __all__ = ["DOSE_UNKNOWN", "ImportFrame", "ImportRefused", "ImportSettings", "UNKNOWN_PRESET", "capture_order",
-           "corner_grid", "dark_problems", "import_lights", "imported_warnings", "light_problems", "lights_known",
+           "corner_grid", "dark_problems",
+           "parse_corners", "import_lights", "imported_warnings", "light_problems", "lights_known",
            "mode_problems", "read_frames", "sha256_of", "shot_problems", "target_specs"]
+
+
+def parse_corners(text: str) -> tuple[float, ...]:
+    """``X,Y,X,Y,X,Y,X,Y`` (commas, semicolons or spaces between) -> the 8 numbers, or ValueError (one line)."""
+    import math
+
+    parts = [p for p in text.replace(";", ",").replace(" ", ",").split(",") if p.strip()]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 8 or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"corners {text!r}: expected X,Y,X,Y,X,Y,X,Y: the chart's top-left, top-right, "
+                         "bottom-right and bottom-left corners in the raw file's pixels")
+    return values
 
 
 def corner_grid(mode: str, name: str, corners: Sequence[float], charts: dict[str, Chart] | None = None

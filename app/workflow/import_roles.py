@@ -228,6 +228,21 @@ def _read_originals(table: RolesTable, header: list[str], first: dict[str, tuple
             table.rows = [r for r in table.rows if not (r.role is Role.ORIGINAL and r.identifier == row.identifier)]
 
 
+def roles_from_table(header: Sequence[str], rows: Sequence[Sequence[str]], *, default_mode: str = "reflective",
+                     out_dir: Path | None = None, source: str = "the table") -> RolesTable:
+    """:func:`read_roles` of a table as the window holds it (``header`` and ``rows`` of cells): the same rules and
+    lines, the rows named ``<source> row N``."""
+    with tempfile.TemporaryDirectory(prefix="dualrgb-roles-") as tmp:
+        table = read_roles(write_roles(Path(tmp) / "roles.csv", header, rows), default_mode=default_mode,
+                           out_dir=out_dir)
+    named = source
+    table.problems = [p.replace(f"{table.source} row", f"{named} row", 1).replace(f"{table.source}:", f"{named}:", 1)
+                      for p in table.problems]
+    table.notes = [n.replace(table.source, named, 1) for n in table.notes]
+    table.source = named
+    return table
+
+
 def write_roles(path: Path, header: Sequence[str], rows: Sequence[Sequence[str]]) -> Path:
     """A roles file with ``header`` and ``rows`` (UTF-8, comma-separated): the template, the window's table."""
     out = io.StringIO()
@@ -238,4 +253,5 @@ def write_roles(path: Path, header: Sequence[str], rows: Sequence[Sequence[str]]
     return Path(path)
 
 
-__all__ = ["COLUMNS", "INFORMATION", "ROLES", "RoleRow", "RolesTable", "read_records", "read_roles", "write_roles"]
+__all__ = ["COLUMNS", "INFORMATION", "ROLES", "RoleRow", "RolesTable", "read_records", "read_roles",
+           "roles_from_table", "write_roles"]

@@ -135,6 +135,14 @@ def guess_roles(guesses: Sequence[Guess], n_lights: int = 2) -> list[Guess]:
     return list(guesses)
 
 
+def template_table(folder: Path, n_lights: int = 2) -> tuple[list[str], list[list[str]]]:
+    """The template's header and rows for ``folder`` (what :func:`write_template` writes; the window's table)."""
+    guesses = guess_roles(read_guesses(folder), n_lights)
+    if not guesses:
+        raise ValueError(f"{folder}: no raw files ({', '.join(sorted(RAW_SUFFIXES))})")
+    return list(HEADER), [g.cells() for g in guesses]
+
+
 def write_template(folder: Path, out: Path, n_lights: int = 2) -> list[Guess]:
     """Write the roles template of ``folder`` to ``out`` (module docstring); returns its rows."""
     guesses = guess_roles(read_guesses(folder), n_lights)
@@ -145,4 +153,4 @@ def write_template(folder: Path, out: Path, n_lights: int = 2) -> list[Guess]:
 
 
 __all__ = ["DARK_SIGNAL", "FLAT_SHARE", "GAP_S", "HEADER", "RAW_SUFFIXES", "Guess", "guess_roles", "raw_files",
-           "read_guesses", "write_template"]
+           "read_guesses", "template_table", "write_template"]

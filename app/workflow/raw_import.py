@@ -24,6 +24,7 @@ says so instead of counting zero.
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,7 +51,7 @@ from dualrgb.app.workflow.import_checks import (
     shot_problems,
     target_specs,
 )
-from dualrgb.app.workflow.import_roles import RolesTable
+from dualrgb.app.workflow.import_roles import RolesTable, roles_from_table
 from dualrgb.app.workflow.import_session import (
     ImportPlan,
     camera_of,
@@ -124,6 +125,14 @@ def plan_import(folder: Path, roles: RolesTable, settings: ImportSettings,
     if problems:
         raise ImportRefused(problems)
     return plan
+
+
+def plan_table(folder: Path, header: Sequence[str], rows: Sequence[Sequence[str]], settings: ImportSettings,
+               progress: ProgressCallback | None = None) -> ImportPlan:
+    """:func:`plan_import` of a roles table as the window holds it (app.workflow.import_roles.roles_from_table)."""
+    out_dir = settings.out_dir or (settings.session / "deliverables" if settings.session else None)
+    roles = roles_from_table(header, rows, default_mode=settings.mode, out_dir=out_dir)
+    return plan_import(folder, roles, settings, progress)
 
 
 def linear_limit(white_level: float) -> float:
@@ -230,5 +239,5 @@ def remember(session: CaptureSession, original: Original, delivery: Delivery, pr
 
 
 __all__ = ["DOSE_UNKNOWN", "ImportOptions", "ImportPlan", "ImportRefused", "ImportResult", "ImportSettings",
-           "calibrate_imported", "deliver_imported", "linear_limit", "plan_import", "run_import",
+           "calibrate_imported", "deliver_imported", "linear_limit", "plan_import", "plan_table", "run_import",
            "sha256_of"]
