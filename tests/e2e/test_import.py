@@ -22,12 +22,14 @@ import colour
 import numpy as np
 import pytest
 import tifffile
+from doc_blocks import block_names, dualrgb_prelude, run_block
 from import_folders import tree
 from sidecar_schema import assert_valid_sidecar
 
 FRAME = ["--frame-size", "240x160", "--settle", "0"]
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 RAW = Path(__file__).resolve().parents[1] / "data" / "raw"
+HOWTO = Path(__file__).resolve().parents[2] / "docs" / "how-to" / "raw-import.md"
 
 
 def dualrgb(*args: str, cwd: Path | None = None, ok: bool = True) -> subprocess.CompletedProcess:
@@ -196,3 +198,20 @@ def test_the_roles_template_guesses_the_captured_roles(day, tmp_path):
     guessed = [r[:4] for r in csv.reader((tmp_path / "T.csv").read_text().splitlines())]
     real = [r[:4] for r in csv.reader((root / "ROLES.csv").read_text().splitlines())]
     assert [[c.replace("ORIGINAL-1", "PAINT-1") for c in r] for r in guessed] == real
+
+
+def test_the_how_to_runs_as_written(day, tmp_path):
+    """docs/how-to/raw-import.md's block, run as written where raw/ holds the day's frames and ROLES.csv their roles
+    (the corners in it are the virtual lab's targets at 240x160, as the technician would read them off the frame)."""
+    root, cal, *_ = day
+    shutil.copytree(root / "raw", tmp_path / "raw")
+    shutil.copyfile(root / "ROLES.csv", tmp_path / "ROLES.csv")
+    assert block_names(HOWTO) == ["raw-import"]
+    run_block(HOWTO, "raw-import", tmp_path, env=ENV, prelude=dualrgb_prelude())
+    guess = list(csv.reader((tmp_path / "ROLES-guess.csv").read_text().splitlines()))
+    assert [r[1] for r in guess[1:]] == [r[1] for r in csv.reader((root / "ROLES.csv").read_text().splitlines())][1:]
+    profile = json.loads(next((tmp_path / "day3" / "calibration").glob("cal-*.json")).read_text())
+    best = profile["statistics"]["best"]
+    assert profile["statistics"]["methods"][best]["test"]["mean"] == pytest.approx(
+        cal["statistics"]["methods"][best]["test"]["mean"], rel=0.10)
+    assert (tmp_path / "day3" / "deliverables" / "PAINT-1" / "previous").is_dir()          # process ran after it
