@@ -192,8 +192,10 @@ def copy_frames(session: CaptureSession, plan: ImportPlan, progress: ProgressCal
             meta["light_name"] = nl.name
         if subject is not None:
             meta["subject"] = subject.key
+        shot = {"serial": f.meta.serial, "format": f.meta.format, "iso": f.meta.iso, "aperture": f.meta.aperture}
         session.record(raw, f.row.role.value, step_id=step, light=nl.light if nl and nl.light.leds else None,
-                       captured_at=f.meta.captured_at.isoformat() if f.meta.captured_at else None, **meta)
+                       captured_at=f.meta.captured_at.isoformat() if f.meta.captured_at else None,
+                       settings={k: v for k, v in shot.items() if v}, **meta)
         copied += 1
         report(progress, (i + 1) / len(plan.frames), f"copied {f.row.file}")
     return copied, kept

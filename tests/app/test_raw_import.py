@@ -38,6 +38,10 @@ def test_an_import_makes_a_session_and_runs_again_into_it(tmp_path):
     assert (again.copied, again.kept) == (0, 14)              # resumed: what the session holds is kept
     manifest = (tmp_path / "session" / "manifest.jsonl").read_text().splitlines()
     assert len(manifest) == 14
+    first = json.loads(manifest[0])
+    assert first["camera_filename"] == "Capture_0001.dng" and first["camera"] == "Nikon D610"
+    assert first["settings"] == {"serial": "3012345", "format": "DNG", "iso": 100, "aperture": 8.0}
+    assert first["captured_at"].startswith("2026-05-04T10:00") and first["exposure_s"] == 0.5
     assert (tmp_path / "session" / "deliverables" / "ACC-1" / "previous").is_dir()
 
     from dualrgb.simulation.presets import load_preset, packaged_presets
