@@ -49,7 +49,7 @@ class ImportDialog(QDialog):
         self.ctx = ctx
         self.handle: TaskHandle | None = None
         self.plan = None                       # the last checked plan (app.workflow.raw_import.ImportPlan)
-        self.result = None                     # the last import's ImportResult
+        self.imported = None                   # the last import's ImportResult
         self.header: list[str] = []
         self._build()
         self._update()
@@ -147,8 +147,10 @@ class ImportDialog(QDialog):
         self._edited()
 
     def cells(self) -> list[list[str]]:
-        return [[(self.table.item(r, c).text() if self.table.item(r, c) else "") for c in range(len(self.header))]
-                for r in range(self.table.rowCount())]
+        def text(r: int, c: int) -> str:
+            item = self.table.item(r, c)
+            return item.text() if item is not None else ""
+        return [[text(r, c) for c in range(len(self.header))] for r in range(self.table.rowCount())]
 
     def open_roles(self, path: Path) -> None:
         from dualrgb.app.workflow.import_roles import read_records
@@ -234,7 +236,7 @@ class ImportDialog(QDialog):
         self.message.setText(message)
 
     def _done(self, result) -> None:
-        self.result = result
+        self.imported = result
         self.message.setText(f"imported into {result.session}: calibration {result.profile.id}; "
                              + "; ".join(d.qa.text() for d in result.deliveries))
         self.ctx.errors.clear(TITLE)

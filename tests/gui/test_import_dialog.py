@@ -44,9 +44,9 @@ def test_import_raw_files_from_the_window(qtbot, make_window, tmp_path):
     assert tree(tmp_path) == before
 
     click(qtbot, dialog.import_button)
-    qtbot.waitUntil(lambda: dialog.result is not None and dialog.handle is None, timeout=HANG_GUARD_MS)
-    (delivery,) = dialog.result.deliveries
+    qtbot.waitUntil(lambda: dialog.imported is not None and dialog.handle is None, timeout=HANG_GUARD_MS)
+    (delivery,) = dialog.imported.deliveries
     assert delivery.original.identifier == "ACC-1" and delivery.original.title == "A painting"
     assert delivery.sidecar.is_file() and "lights unknown" in delivery.qa.text()
-    assert dialog.result.profile.preset == "unknown" and dialog.result.copied == 14
+    assert dialog.imported.profile.preset == "unknown" and dialog.imported.copied == 14
     assert tree(folder) == source                             # copied, never moved or changed
