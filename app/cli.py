@@ -43,6 +43,7 @@ COMMAND_MODULES = (
     "dualrgb.app.commands.calibrate",
     "dualrgb.app.commands.capture",
     "dualrgb.app.commands.process",
+    "dualrgb.app.commands.import_raw",
     "dualrgb.app.commands.cube",
     "dualrgb.app.commands.verify",
     "dualrgb.app.commands.bag",

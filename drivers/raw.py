@@ -293,19 +293,28 @@ def libraw_source(p: Path) -> Any:
     return name
 
 
+def bayer_pattern(raw: Any, p: Path) -> tuple[np.ndarray, str]:
+    """The (2, 2) CFA pattern and LibRaw's colour names of an open rawpy file, or RawFileError (one line naming
+    ``p``) for a file that is not a 2x2 RGB Bayer mosaic (a film scanner's RGB NEF, a linear DNG, X-Trans)."""
+    import rawpy
+
+    if raw.raw_type != rawpy.RawType.Flat:
+        raise RawFileError(p, "not a Bayer mosaic (the file holds demosaiced/linear RGB data)")
+    pattern = raw.raw_pattern
+    color_desc = raw.color_desc.decode("ascii", errors="replace")
+    if pattern is None or np.asarray(pattern).shape != (2, 2):
+        raise RawFileError(p, _cfa_problem(pattern))
+    pattern = np.array(pattern, dtype=np.uint8)
+    letters = sorted(_letter(color_desc, int(i)) for i in pattern.ravel())
+    if letters != ["B", "G", "G", "R"]:
+        raise RawFileError(p, f"not an RGB Bayer sensor (CFA colours {''.join(letters)}), or a damaged file")
+    return pattern, color_desc
+
+
 def _load(p: Path, head: bytes, rawpy) -> RawFrame:
     try:
         with _libraw_stderr(p), rawpy.imread(libraw_source(p)) as raw:
-            if raw.raw_type != rawpy.RawType.Flat:
-                raise RawFileError(p, "not a Bayer mosaic (the file holds demosaiced/linear RGB data)")
-            pattern = raw.raw_pattern
-            color_desc = raw.color_desc.decode("ascii", errors="replace")
-            if pattern is None or np.asarray(pattern).shape != (2, 2):
-                raise RawFileError(p, _cfa_problem(pattern))
-            pattern = np.array(pattern, dtype=np.uint8)
-            letters = sorted(_letter(color_desc, int(i)) for i in pattern.ravel())
-            if letters != ["B", "G", "G", "R"]:
-                raise RawFileError(p, f"not an RGB Bayer sensor (CFA colours {''.join(letters)}), or a damaged file")
+            pattern, color_desc = bayer_pattern(raw, p)
             mosaic = np.array(raw.raw_image_visible, dtype=np.uint16, copy=True)
             black = tuple(int(b) for b in raw.black_level_per_channel)
             white = int(raw.white_level)

@@ -1,6 +1,7 @@
-"""What the window adds around its panels: the File and Help menus (open a session, open the deliverables,
-the documentation, about, quit) and the wheel guard (a mouse wheel turned over a drop-down list or a number field
-changes it only when it has the keyboard focus: scrolling the left panel never silently changes a choice)."""
+"""What the window adds around its panels: the File and Help menus (open a session, open the deliverables, import
+raw files, the documentation, about, quit) and the wheel guard (a mouse wheel turned over a drop-down list or a
+number field changes it only when it has the keyboard focus: scrolling the left panel never silently changes a
+choice)."""
 from __future__ import annotations
 
 import logging
@@ -51,6 +52,7 @@ def build_menus(window: QMainWindow, ctx: AppContext, open_session) -> dict[str,
     actions = {
         "open_session": QAction("&Open session…", window),
         "open_deliverables": QAction("Open &deliverables", window),
+        "import_raw": QAction("&Import raw files…", window),
         "quit": QAction("&Quit", window),
         "documentation": QAction("&Documentation", window),
         "about": QAction("&About dualrgb", window),
@@ -61,7 +63,9 @@ def build_menus(window: QMainWindow, ctx: AppContext, open_session) -> dict[str,
     actions["open_deliverables"].triggered.connect(lambda: open_deliverables(ctx))
     actions["quit"].setShortcut(QKeySequence.StandardKey.Quit)
     actions["quit"].triggered.connect(window.close)          # asks first when work is left (closeEvent)
-    for name in ("open_session", "open_deliverables"):
+    actions["import_raw"].setToolTip("Calibrate and deliver raw files another program shot (dualrgb import).")
+    actions["import_raw"].triggered.connect(lambda: import_raw_files(window, ctx))
+    for name in ("open_session", "open_deliverables", "import_raw"):
         file_menu.addAction(actions[name])
     file_menu.addSeparator()
     file_menu.addAction(actions["quit"])
@@ -97,6 +101,18 @@ def open_deliverables(ctx: AppContext) -> None:
         ctx.errors.report("Open deliverables", "no session yet: calibrate or capture first, or File > Open session")
         return
     ctx.open_path(Path(session.path) / "deliverables")
+
+
+def import_raw_files(window: QMainWindow, ctx: AppContext) -> QWidget:
+    """*File -> Import raw files...*: the import dialog (app.gui.import_dialog), one per window, shown again."""
+    from dualrgb.app.gui.import_dialog import ImportDialog
+
+    dialog = window.findChild(ImportDialog)
+    if dialog is None:
+        dialog = ImportDialog(ctx, window)
+    dialog.show()
+    dialog.raise_()
+    return dialog
 
 
 def about_text() -> str:

@@ -317,7 +317,7 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
     resolution). ``truth``: the virtual lab's, compared in the sidecar and QA line. ``overrides``: rules the user
     overrode for it (app.workflow.mode_rule), said in the sidecar and QA line. ``cancel``: checked per band.
     ``now``: the time written into every file (default: the clock; a re-delivery run passes its one time)."""
-    warnings = list(warnings or [])
+    warnings = list(warnings or []) + ([] if all(nl.light.leds for nl in profile.lights) else [LIGHTS_UNKNOWN])
     resolution = source.resolution
     ppi = ppi or delivered_ppi(profile, resolution)
     if not ppi:
@@ -355,6 +355,19 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
     return Delivery(original, {k: final / p.name for k, p in files.items()}, final / f"{stem}.json", qa)
 
 
+LIGHTS_UNKNOWN = ("lights unknown (raw files imported without a preset): no stand-model prediction, no model-based "
+                  "spectra")
+
+
+def lights_section(profile: CalibrationProfile) -> dict:
+    """The sidecar's word on the calibration's lights: the preset and each light's LEDs and levels, or "unknown"
+    (raw files imported without a preset), and what the calibration cannot give (``unavailable``)."""
+    known = all(nl.light.leds for nl in profile.lights)
+    lights = ({nl.name: nl.light.label() for nl in profile.lights} if known else "unknown")
+    return {"preset": profile.preset, "lights": lights,
+            **({"unavailable": dict(profile.unavailable)} if profile.unavailable else {})}
+
+
 def resolution_section(source: ChannelSource, profile: CalibrationProfile) -> dict:
     """The sidecar's ``resolution``: full or half, the delivered pixels, the sensor's, and how the channels were
     made from the mosaic."""
@@ -372,7 +385,8 @@ def _sidecar(source: ChannelSource, profile: CalibrationProfile, original: Origi
     return {**output_header(SIDECAR_FORMAT), "created_at": now.isoformat(timespec="seconds"),
             "original": original.to_dict(), "file_stem": original.file_stem,
             "calibration": {"id": profile.id, "file": str(profile.path or ""), "created_at": profile.created_at,
-                            "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean},
+                            "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean,
+                            **lights_section(profile)},
             **({"overrides": qa.overrides} if qa.overrides else {}),
             "camera": asdict(camera), "ppi": ppi, "resolution": resolution_section(source, profile),
             "exposures": exposures or {}, "light_dose": dose.to_dict(),

@@ -161,6 +161,7 @@ class CalibrationProfile:
     stand: dict = field(default_factory=dict)        # the stand model section (app.workflow.stand_calibration)
     stand_observations: StandObservations | None = None   # what it was fitted to (from the .npz)
     charts: dict = field(default_factory=dict)       # per target: its chart's file, sha256, patches, range (charts)
+    unavailable: dict = field(default_factory=dict)  # what this calibration cannot give, and why (e.g. lights unknown)
 
     # ---- derived ----
     @property
@@ -200,7 +201,8 @@ class CalibrationProfile:
                 "raw": self.raw, "ppi": self.ppi, "targets": self.targets, "sources": self.sources,
                 **({"spectral": {"estimator": self.estimator.to_dict(), **self.spectral}} if self.estimator else {}),
                 **({"stand_model": self.stand} if self.stand else {}),
-                **({"charts": self.charts} if self.charts else {})}
+                **({"charts": self.charts} if self.charts else {}),
+                **({"unavailable": self.unavailable} if self.unavailable else {})}
 
     # ---- files ----
     def save(self, folder: Path) -> Path:
@@ -260,7 +262,7 @@ def _from_dict(doc: dict) -> CalibrationProfile:
         matrix=CharacterisationMatrix.from_dict(doc["matrix"]), statistics=doc["statistics"],
         white_xyz=[float(v) for v in doc["white_xyz"]], raw=doc["raw"], sources=doc["sources"], ppi=doc.get("ppi"),
         targets=doc.get("targets", {}), version=doc.get("version", ""), stand=dict(doc.get("stand_model") or {}),
-        charts=dict(doc.get("charts") or {}), **_spectral_of(doc))
+        charts=dict(doc.get("charts") or {}), unavailable=dict(doc.get("unavailable") or {}), **_spectral_of(doc))
 
 
 def _spectral_of(doc: dict) -> dict:
@@ -397,14 +399,15 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
              f"preset {prof.preset}:"]
     for nl in prof.lights:
         ts = ", ".join(format_exposure(t) for t in prof.exposures.get(nl.name, []))
-        lines.append(f"  {nl.name}: {nl.light.label()}, exposures {ts}")
+        lines.append(f"  {nl.name}: {nl.light.label() if nl.light.leds else 'LEDs and levels unknown'}, exposures {ts}")
     lines += chart_lines(prof.charts)
     lines.append(f"matrix: {prof.matrix.method} ({len(prof.matrix.channels)} channels, of "
                  f"{', '.join(prof.statistics.get('methods', {}))}); train mean dE00 "
                  f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, "
                  f"test mean {prof.test_mean or float('nan'):.3f}")
     lines.append(spectral_line(prof))
-    lines += describe_stand(prof.stand)
+    lines += describe_stand(prof.stand) if "stand_model" not in prof.unavailable else []
+    lines += [f"unavailable: {what}: {why}" for what, why in prof.unavailable.items()]
     lines.append(f"darks {len(prof.darks.exposures) if prof.darks else '?'} exposures, whites "
                  f"{len(prof.whites) or '?'} lights, {len(prof.sources)} source frames, "
                  f"ppi {prof.ppi if prof.ppi else 'not set'}")

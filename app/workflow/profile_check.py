@@ -124,7 +124,7 @@ def _check_ranges(doc: dict[str, Any], where: str | Path) -> None:
     for i, light in enumerate(doc["lights"]):
         if len(light["levels"]) != len(light["leds"]):
             refuse(f"lights[{i}].levels", f"{len(light['levels'])} levels for {len(light['leds'])} LEDs")
-        if not any(level > 0 for level in light["levels"]):
+        if light["leds"] and not any(level > 0 for level in light["levels"]):    # no LEDs: unknown (imported)
             refuse(f"lights[{i}].levels", f"every level of {light['name']} is 0: it lights nothing")
     _check_plan(doc, names, refuse)
     raw = doc["raw"]

@@ -19,6 +19,7 @@ from dualrgb.app.session.manifest import DamagedFramesError
 from dualrgb.app.workflow.copystand import channels_of, original_dose, profile_processor
 from dualrgb.app.workflow.delivery import Delivery, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare
+from dualrgb.app.workflow.import_checks import imported_warnings
 from dualrgb.app.workflow.metadata import MetadataError
 from dualrgb.app.workflow.mode_rule import check_mode
 from dualrgb.app.workflow.profile import CalibrationProfile, load_profile
@@ -107,8 +108,8 @@ def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Origin
                        dose=original_dose(session, subject),
                        exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
                        extra={"session": str(session.path), "reprocessed": True, **(extra or {})},
-                       render_illuminant=render_illuminant, overrides=[override] if override else [], cancel=cancel,
-                       now=now)
+                       warnings=imported_warnings(session.settings), render_illuminant=render_illuminant,
+                       overrides=[override] if override else [], cancel=cancel, now=now)
 
 
 def _known_original(session: Any, known: dict, identifier: str) -> Original:

@@ -358,7 +358,7 @@ class VirtualCamera(Camera):
             neutral = self._neutral(snap)
         finally:
             self._settings, self._scene = now_settings, now_scene
-        data = dng_bytes(mosaic, DngInfo(exposure_s=t, iso=int(s.iso), aperture=float(s.aperture),
+        data = dng_bytes(mosaic, DngInfo(exposure_s=t, iso=int(s.iso), aperture=float(s.aperture), serial=self.serial,
                                          black_level=self.sensor.black_level, white_level=self.sensor.white_level,
                                          color_matrix=self._cm, as_shot_neutral=neutral, model=CAMERA_NAME))
         self._counter += 1

@@ -3,7 +3,8 @@
 The file is a single-IFD TIFF (``NewSubfileType`` 0, one strip, ``BitsPerSample`` 16, no compression) with
 ``PhotometricInterpretation`` CFA and the DNG tags as tifffile ``extratags``: what LibRaw (rawpy) needs to read
 it back bit-exact, and what the processing pipeline reads from a real NEF: black and white levels, CFA
-pattern, exposure time, ISO, f-number, make and model, ColorMatrix1 and AsShotNeutral. The shooting tags
+pattern, exposure time, ISO, f-number, make and model, the body's CameraSerialNumber, ColorMatrix1 and
+AsShotNeutral. The shooting tags
 (ExposureTime, FNumber, ISOSpeedRatings, DateTimeOriginal, with ExifVersion) sit in an EXIF IFD that IFD0's
 ExifIFD tag (34665) points to, as a camera writes them: ``exiftool -validate`` wants them there, and LibRaw reads
 ISO and the capture time only from there (in IFD0 it reported ISO 0 and a 1970 timestamp). tifffile writes no
@@ -52,6 +53,7 @@ _DNG_VERSION, _DNG_BACKWARD_VERSION, _UNIQUE_CAMERA_MODEL = (50706, 1), (50707, 
 _BLACK_LEVEL_REPEAT_DIM, _BLACK_LEVEL, _WHITE_LEVEL = (50713, 3), (50714, 4), (50717, 4)
 _COLOR_MATRIX_1, _AS_SHOT_NEUTRAL, _BASELINE_EXPOSURE = (50721, 10), (50728, 5), (50730, 10)
 _CALIBRATION_ILLUMINANT_1 = (50778, 3)
+_CAMERA_SERIAL_NUMBER = (50735, 2)
 
 
 @dataclass
@@ -74,6 +76,7 @@ class DngInfo:
     color_matrix: np.ndarray | None = None
     as_shot_neutral: np.ndarray | None = None
     captured_at: float | None = field(default=None)   # epoch seconds for DateTimeOriginal; None: now
+    serial: str = ""                                   # CameraSerialNumber (the body's serial); '': not written
 
     def make_and_model(self) -> tuple[str, str]:
         if self.make:
@@ -131,6 +134,7 @@ def dng_tags(info: DngInfo) -> list[tuple[int, int, int, TagValue, bool]]:
         (_WHITE_LEVEL, (int(info.white_level),)),
         (_COLOR_MATRIX_1, _rationals(cm.reshape(-1), 10000)), (_CALIBRATION_ILLUMINANT_1, D65_ILLUMINANT),
         (_AS_SHOT_NEUTRAL, _rationals(neutral, 10000)), (_BASELINE_EXPOSURE, (0, 1)),
+        *([(_CAMERA_SERIAL_NUMBER, info.serial)] if info.serial else []),
     ])
 
 
