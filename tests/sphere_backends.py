@@ -216,14 +216,15 @@ class FirmwareBackend(SphereBackend):
         assert cycle is not None, "the chip never took a request"
         return cycle / fw.F_CPU
 
-    def host_gone(self) -> float | None:
-        """When a host last closed the port (or vanished), on the chip's clock."""
-        cycle = self.sim.pins().last("H", self.sim.cycles())
-        return None if cycle is None else cycle / fw.F_CPU
+    def host_gone(self, after: float) -> float | None:
+        """When the host closed the port (or vanished) first after ``after``, on the chip's clock."""
+        until = self.sim.cycles()
+        cycles = [c for k, c, _ in self.sim.pins().events if k == "H" and after * fw.F_CPU <= c <= until]
+        return min(cycles) / fw.F_CPU if cycles else None
 
     def set_temperature(self, celsius: float) -> None:
         self.sim.command(f"temp {celsius:.2f}")
-        self.wait(0.02)                             # the firmware reads the mean of 16 conversions, 1 a ms
+        self.wait(0.05)                             # a reading is the mean of 16 conversions, 1 a ms: 2 of them
 
     def fail_led(self, led: int, mode: str) -> None:
         self.sim.command(f"led {led} {mode}")

@@ -6,7 +6,8 @@
  *
  * Host bytes go to the chip a line at a time (a line longer than LINE_MAX goes as it is, in pieces), so that a
  * wire fault can pick requests by keyword, as the emulator's inject(..., keywords=...) does; each line that
- * reaches the chip queues what happens to its reply (exactly one reply line per request line). */
+ * reaches the chip queues what happens to its reply (exactly one reply line per request line). The harness takes
+ * the bytes as fast as the chip's receiver does (to_chip returns 0 until it has room). */
 #define _GNU_SOURCE
 #include <errno.h>
 #include <fcntl.h>
@@ -205,8 +206,6 @@ static void feed_chip(bridge_t *b)
             return;                             /* the chip's FIFO is full: the rest waits */
         b->feed_head = (uint16_t)((b->feed_head + 1) % FEED_MAX);
         b->feed_n--;
-        if (byte == '\n')
-            b->event(b->ctx, 'R');
     }
 }
 

@@ -15,8 +15,8 @@ enum wire_fault {
 
 typedef struct bridge bridge_t;
 
-/* Callbacks into the harness: a byte for the chip's receiver (returns 0 when the chip's FIFO is full: try later),
- * and events for the pin log ('R' a request line went in, 'H' the host closed the port, 'C' it opened it). */
+/* Callbacks into the harness: a byte for the chip's receiver (returns 0 while it has no room: try later), and
+ * events for the pin log ('H' the host closed the port or vanished, 'C' a host opened it). */
 typedef int (*bridge_to_chip_fn)(void *ctx, uint8_t byte);
 typedef void (*bridge_event_fn)(void *ctx, char kind);
 

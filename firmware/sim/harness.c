@@ -17,7 +17,7 @@
  *
  * PINLOG, one event a line, times in clock cycles (the harness flushes it at least every simulated ms):
  *   P CYCLE LED LEVEL      a PWM pin's level changed (LED 1..10, 0/1; an input pin reads 0: the pull-down)
- *   R CYCLE                a request line from the host went into the chip's receiver
+ *   R CYCLE                the chip's receiver took a request line's "\n" (the firmware's watchdog restarts)
  *   C CYCLE / H CYCLE      a host opened / closed (or vanished from) the port
  *   E CYCLE TEXT           a harness event (reset, temperature, LED state, unplug)
  *
@@ -52,7 +52,8 @@
 #define SERVICE_CYCLES (F_CPU / 1000)   /* host, commands, sensors: at least once a simulated millisecond */
 #define AHEAD_NS 2000000u
 #define UCSR0B_ADDR 0xC1                /* ATmega2560 data address of UCSR0B, and its RXEN0 bit */
-#define RXEN0_BIT 0x10           /* a running (not sleeping) chip waits when it is this far ahead */
+#define RXEN0_BIT 0x10
+#define LOST_BYTE_CYCLES (4 * 1360u)        /* four byte times at 115200 baud (U2X, UBRR 16) */           /* a running (not sleeping) chip waits when it is this far ahead */
 
 typedef struct {
     char port;
@@ -85,7 +86,9 @@ typedef struct {
     avr_cycle_count_t last_high[N_LEDS];
     enum led_state led[N_LEDS];
     uint32_t temp_mv;
-    int xoff;
+    int rx_idle;                            /* the chip's receiver holds no byte of ours */
+    int newline_in_flight;
+    avr_cycle_count_t fed_at;
     int io_ready;
     char ctl[512];
     size_t ctl_n;
@@ -177,11 +180,18 @@ static void drive_sensors(int force)
 }
 
 /* -------------------------------------------------------------------------------- the UART */
+/* One byte at a time, each when the chip's receiver has taken the one before (its interrupt read UDR0: simavr
+ * raises XON), so the moment the chip takes a line's "\n" is known: the 'R' event, when the firmware restarts its
+ * watchdog. A byte the receiver never takes (the firmware has not enabled it yet, a reset) counts as lost after
+ * a few byte times, as on a real UART. */
 static int to_chip(void *ctx, uint8_t byte)
 {
     (void)ctx;
-    if (sim.xoff)
+    if (!sim.rx_idle && sim.avr->cycle - sim.fed_at < LOST_BYTE_CYCLES)
         return 0;
+    sim.rx_idle = 0;
+    sim.newline_in_flight = byte == '\n';
+    sim.fed_at = sim.avr->cycle;
     avr_raise_irq(sim.uart_in, byte);
     return 1;
 }
@@ -203,18 +213,14 @@ static void uart_xon(struct avr_irq_t *irq, uint32_t value, void *param)
 {
     (void)irq;
     (void)param;
-    if (value) {
-        sim.xoff = 0;
-        sim.io_ready = 1;                   /* room in the receiver: feed it now */
+    if (!value || sim.rx_idle)
+        return;
+    sim.rx_idle = 1;                        /* the receiver is empty: the chip took the byte */
+    sim.io_ready = 1;                       /* feed the next one now */
+    if (sim.newline_in_flight) {
+        sim.newline_in_flight = 0;
+        log_event('R', NULL);
     }
-}
-
-static void uart_xoff(struct avr_irq_t *irq, uint32_t value, void *param)
-{
-    (void)irq;
-    (void)param;
-    if (value)
-        sim.xoff = 1;
 }
 
 /* -------------------------------------------------------------------------------- pacing */
@@ -271,6 +277,8 @@ static void reset_chip(const char *cause)
     }
     avr_reset(avr);                         /* every I/O register to 0: the PWM pins are inputs, pulled down */
     avr_regbit_set(avr, flag);
+    sim.rx_idle = 1;                        /* a byte on its way is lost with the receiver's FIFO */
+    sim.newline_in_flight = 0;
     char text[64];
     snprintf(text, sizeof text, "reset %s", cause);
     log_event('E', text);
@@ -417,7 +425,6 @@ static void connect_chip(void)
     avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), uart_output, NULL);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XON), uart_xon, NULL);
-    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), uart_xoff, NULL);
     for (int i = 0; i < N_LEDS; i++)
         sim.sense_out[i] = sim.fault_out[i] = -1;
     sim.adc_out = -1;
@@ -457,6 +464,7 @@ static int start(const char *elf, const char *log_path)
     }
     fprintf(sim.log, "# sphere-sim pin log: %s, f_cpu %u\n", elf, F_CPU);
     sim.temp_mv = 250;                      /* 25.0 C */
+    sim.rx_idle = 1;
     sim.bridge = bridge_open(to_chip, bridge_event, NULL);
     if (!sim.bridge) {
         fprintf(stderr, "sphere-sim: cannot open a pseudo-terminal: %s\n", strerror(errno));
