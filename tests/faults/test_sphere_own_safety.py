@@ -320,3 +320,31 @@ def test_a_reset_darkens_the_pins_at_once_and_says_so(sphere_backend, cause, tri
     assert backend.exchange(b"LEVELS?") == b"OK LEVELS 0 0 0 0 0 0 0 0 0 0\n"
     time.sleep(0.05)
     assert backend.spans(t0)[-1].t_off is not None                  # and it stays dark
+
+
+@PINS
+def test_the_sphere_command_switches_on_for_its_limit_and_off_on_any_error(sphere_backend, capsys):
+    """`dualrgb sphere` as a technician types it: `on --max-on` ends by the sphere's own limit after the command
+    exited; `off` reads the light back; a bad value refused while parsing still leaves the lit sphere dark."""
+    from dualrgb.app.cli import main
+
+    backend = sphere_backend
+    port = ["sphere", "--port", backend.port, "--timeout", str(OK_TIMEOUT)]
+    assert main([*port, "set", "2", "1.0"]) == 0
+    t0 = backend.clock()
+    assert main([*port, "on", "--max-on", "0.5"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == \
+        "light on for at most 0.5 s (the sphere switches it off by itself)"
+    (span,) = backend.wait_dark(t0)
+    assert 0.5 - 2 * TICK_S <= span.duration(0) <= 0.5 + EPS and _status(backend)["trip"] == "1"
+    assert main([*port, "on"]) == 0
+    assert main([*port, "off"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == "all LEDs off, light off (read back)"
+    assert main([*port, "on"]) == 0
+    t1 = backend.clock()
+    with pytest.raises(SystemExit) as info:
+        main([*port, "set", "11", "0.5"])
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert info.value.code == 2 and last.endswith("; all LEDs and the light were switched off"), last
+    assert backend.wait_dark(t1 - 1.0)[-1].t_off is not None
+    assert backend.exchange(b"LEVELS?") == b"OK LEVELS 0 0 0 0 0 0 0 0 0 0\n"
