@@ -42,13 +42,23 @@ def missing_toolchain() -> str | None:
     return f"the AVR toolchain and simavr are not installed (Debian packages {PACKAGES})"
 
 
+def _lock() -> FileLock:
+    """Held while the image is built and while a harness loads it: test processes (xdist workers, make
+    firmware-check beside make reliability) never load an image another one is writing."""
+    BUILD.mkdir(parents=True, exist_ok=True)
+    return FileLock(str(BUILD.parent / "firmware.lock"))
+
+
+def _make() -> None:
+    subprocess.run(["make", "--no-print-directory", "-s", "-C", str(FIRMWARE)], check=True, capture_output=True,
+                   text=True, timeout=600)
+
+
 def build() -> None:
     """``make -C firmware`` (incremental; one build at a time across test processes); CalledProcessError on
     failure, with the compiler's output."""
-    BUILD.mkdir(parents=True, exist_ok=True)
-    with FileLock(str(BUILD.parent / "firmware.lock")):
-        subprocess.run(["make", "--no-print-directory", "-s", "-C", str(FIRMWARE)], check=True,
-                       capture_output=True, text=True, timeout=600)
+    with _lock():
+        _make()
 
 
 @dataclass
@@ -137,12 +147,13 @@ class FirmwareSphere:
         self.returncode: int | None = None      # the harness's exit status once stopped
 
     def start(self) -> str:
-        build()
-        self._proc = subprocess.Popen([str(HARNESS), str(ELF), str(self.log_path)], stdin=subprocess.PIPE,
-                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1,
-                                      cwd=ROOT)
-        threading.Thread(target=self._read, name="sphere-sim stdout", daemon=True).start()
-        first = self._next_line(START_TIMEOUT_S).split()
+        with _lock():                           # the harness has read the image once it names its port
+            _make()
+            self._proc = subprocess.Popen([str(HARNESS), str(ELF), str(self.log_path)], stdin=subprocess.PIPE,
+                                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1,
+                                          cwd=ROOT)
+            threading.Thread(target=self._read, name="sphere-sim stdout", daemon=True).start()
+            first = self._next_line(START_TIMEOUT_S).split()
         if len(first) < 2 or first[0] != "port":
             raise RuntimeError(f"sphere-sim did not start: {first} {self._stderr()}")
         self.port = first[1]
