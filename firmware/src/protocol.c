@@ -352,23 +352,51 @@ static uint8_t query(const proto_command_t *cmd, uint8_t id, const uint32_t *v)
         return DONE;
     sphere_status(&s);
     ok(cmd);
-    put_c(' ');
     switch (id) {
     case CMD_IDENTIFY:
-        put_s(SPHERE_MODEL " " PROTO_FIRMWARE_VERSION " ");
+        put_s(" " SPHERE_MODEL " " PROTO_FIRMWARE_VERSION " ");
         put_s(serial_number);
         break;
-    case CMD_CHANNELS: put_u(N_LEDS); break;
-    case CMD_GET_LEVEL: put_u(v[0]); put_c(' '); put_u(s.pwm[v[0] - 1]); break;
-    case CMD_GET_LEVELS: out_len--; put_levels(s.pwm); break;
-    case CMD_GET_LIGHT: put_u(s.light); break;
-    case CMD_TEMPERATURE: put_centi(s.temp_centi, 2); break;
-    case CMD_ON_TIME: put_ms_as_s(s.ontime_ms); break;
-    case CMD_LED_ON_TIME: put_u(v[0]); put_c(' '); put_ms_as_s(sphere_led_on_time((uint8_t)(v[0] - 1))); break;
-    case CMD_GET_WATCHDOG: put_u(s.wdog_ms); break;
-    case CMD_PING: out_len--; break;
-    case CMD_FAULTS: put_u((uint32_t)mask); break;
-    }
+    case CMD_CHANNELS:
+        put_c(' ');
+        put_u(N_LEDS);
+        break;
+    case CMD_GET_LEVEL:
+        put_c(' ');
+        put_u(v[0]);
+        put_c(' ');
+        put_u(s.pwm[v[0] - 1]);
+        break;
+    case CMD_GET_LEVELS:
+        put_levels(s.pwm);
+        break;
+    case CMD_GET_LIGHT:
+        put_c(' ');
+        put_u(s.light);
+        break;
+    case CMD_TEMPERATURE:
+        put_c(' ');
+        put_centi(s.temp_centi, 2);
+        break;
+    case CMD_ON_TIME:
+        put_c(' ');
+        put_ms_as_s(s.ontime_ms);
+        break;
+    case CMD_LED_ON_TIME:
+        put_c(' ');
+        put_u(v[0]);
+        put_c(' ');
+        put_ms_as_s(sphere_led_on_time((uint8_t)(v[0] - 1)));
+        break;
+    case CMD_GET_WATCHDOG:
+        put_c(' ');
+        put_u(s.wdog_ms);
+        break;
+    case CMD_FAULTS:
+        put_c(' ');
+        put_u((uint32_t)mask);
+        break;
+    }                                       /* CMD_PING: the keyword alone */
     return DONE;
 }
 
