@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export QT_QPA_PLATFORM ?= offscreen
 
-.PHONY: run test test-parts test-typecheck test-wheel-smoke test-docs test-pytest lint typecheck docs wheel-smoke bench demo venv resources clean reliability interop-tools
+.PHONY: run test test-parts test-typecheck test-wheel-smoke test-docs test-pytest test-firmware lint typecheck docs wheel-smoke bench demo venv resources clean reliability interop-tools firmware-check
 
 # after installing, numba's kernels are compiled into its on-disk cache once (about a minute), so the first run of
 # the window or the CLI loads them instead of compiling while the user waits (app/warm_kernels.py)
@@ -37,7 +37,7 @@ test: $(STAMP)
 	$(MAKE) --no-print-directory -j4 test-parts
 
 # what make test runs side by side after ruff (tools/suite_timing.py times this target)
-test-parts: test-typecheck test-wheel-smoke test-docs test-pytest
+test-parts: test-typecheck test-wheel-smoke test-docs test-pytest test-firmware
 
 # $(call logged,NAME,COMMAND): COMMAND with its output in $(TEST_LOGS)/NAME.log; a line when it passes, the log if not
 logged = mkdir -p $(TEST_LOGS); start=$$(date +%s); \
@@ -55,8 +55,13 @@ test-wheel-smoke: $(STAMP)
 test-docs: $(STAMP)
 	@$(call logged,docs,$(MAKE) --no-print-directory docs)
 
+# the firmware cases run once, in test-firmware
 test-pytest: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope -m "not firmware"
+
+test-firmware: $(STAMP)
+	@if $(FIRMWARE_TOOLCHAIN); then $(call logged,firmware,$(MAKE) --no-print-directory firmware-check); \
+	else echo "$(FIRMWARE_SKIPPED)"; fi
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
@@ -74,7 +79,22 @@ docs: $(STAMP)
 wheel-smoke: $(STAMP)
 	PY=$(PY) .ci/wheel_smoke.sh
 
-# ArgyllCMS, LittleCMS, ImageMagick, GDAL and exiftool for the interop tests (apt-get; .ci/run calls it first)
+# the LED sphere's reference firmware (firmware/README.md): built with avr-gcc, run instruction by instruction on a
+# simulated ATmega2560 (simavr) against the sphere protocol suite's firmware cases; their results and the light-off
+# times measured at the PWM pins go to build/firmware-check.json. One line where the toolchain is not installed.
+FIRMWARE_PACKAGES := gcc-avr avr-libc simavr libsimavr-dev libsimavrparts1
+FIRMWARE_TOOLCHAIN := command -v avr-gcc >/dev/null 2>&1 && test -f /usr/include/simavr/sim_avr.h
+FIRMWARE_SKIPPED := firmware-check: skipped, the AVR toolchain is not installed (Debian packages $(FIRMWARE_PACKAGES))
+FIRMWARE_TESTS := tests/drivers/test_sphere_protocol.py tests/faults/test_sphere_own_safety.py
+firmware-check: $(STAMP)
+	@if $(FIRMWARE_TOOLCHAIN); then \
+		$(MAKE) --no-print-directory -s -C firmware && \
+		$(BIN)/python -m pytest -q -p no:cacheprovider -m firmware --firmware-check build/firmware-check.json \
+			$(FIRMWARE_TESTS); \
+	else echo "$(FIRMWARE_SKIPPED)"; fi
+
+# ArgyllCMS, LittleCMS, ImageMagick, GDAL, exiftool and the AVR toolchain + simavr for the interop and firmware
+# tests (apt-get; .ci/run calls it first)
 interop-tools:
 	.ci/interop-tools.sh
 

@@ -12,6 +12,10 @@ os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 for _blas in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_blas, "1")
 
+# the sphere_backend fixture (emulator | firmware on a simulated chip), the firmware mark, --firmware-check;
+# pytest loads it after this module ran, so after the BLAS setting above
+pytest_plugins = ("sphere_backends",)
+
 # Property tests explore new random examples on every developer run (that is how they find bugs); under CI they
 # draw the same examples every time (derandomize), so a landing is judged on a reproducible run. A case found
 # locally is pinned with @example beside its test.

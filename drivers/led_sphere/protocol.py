@@ -91,6 +91,12 @@ class DeviceReply(Exception):
 
 
 # --------------------------------------------------------------------------------------------------- fields
+def _number_text(value: float | None) -> str:
+    if value is None:
+        return ""
+    return str(int(value)) if float(value).is_integer() else f"{value:g}"
+
+
 _PATTERNS = {
     "int": r"\d{1,7}",
     "float": r"-?\d{1,7}(?:\.\d{1,4})?",
@@ -122,9 +128,9 @@ class Field:
         return f"{prefix}(?P<{self.name}>{_PATTERNS[self.kind]})"
 
     def _range_text(self) -> str:
-        lo = "" if self.lo is None else f"{self.lo:g}"
-        hi = "" if self.hi is None else f"{self.hi:g}"
-        return f"{lo}..{hi}"
+        """``lo..hi`` as the ERR 4 message and the docs write it: whole numbers in full (``100..3600000``, not
+        ``3.6e+06``: the reference firmware prints the same text, firmware/src/protocol_table.h)."""
+        return f"{_number_text(self.lo)}..{_number_text(self.hi)}"
 
     def _check_number(self, v: float) -> None:
         if isinstance(v, float) and not math.isfinite(v):

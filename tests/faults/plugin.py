@@ -1,7 +1,8 @@
 """The fault-injection suite's pytest plugin (loaded by tests/conftest.py).
 
 * ``@pytest.mark.fault("<category>")`` marks one fault-injection case (parametrize for many cases):
-  "light safety", "session integrity", "input" (issue 9), "camera", "device errors", "edited files" (issue 28).
+  "light safety", "session integrity", "input" (issue 9), "camera", "device errors", "edited files" (issue 28),
+  "firmware" (issue 38: the reference firmware on a simulated ATmega2560, tests/sphere_backends.py).
   The mark takes exactly one category string.
 * ``pytest -m fault --reliability-table docs/explanation/reliability.md`` (``make reliability``) runs the cases and
   writes the table category | cases tried | clean between ``<!-- reliability:start -->`` and
@@ -29,8 +30,10 @@ CLEAN_MEANS = (
     "or switch-off-ignoring sphere and a missing, failing or hanging camera) with one line naming the device and "
     "the light off, or the line saying truthfully that it could not be confirmed off; edited files (calibration "
     "profiles changed by hand or damaged, oversized inputs) refused in one line naming the field before any "
-    "device acts.")
-CATEGORIES = ("light safety", "session integrity", "input", "camera", "device errors", "edited files")
+    "device acts; firmware (the reference firmware run on a simulated ATmega2560: the emulator's light-safety "
+    "cases, cable faults, LED faults, over-temperature, a killed host, resets and brown-out) with the light off at "
+    "the PWM pins within its limit on the chip's clock.")
+CATEGORIES = ("light safety", "session integrity", "input", "camera", "device errors", "edited files", "firmware")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
