@@ -220,6 +220,18 @@ def _not_utf8(path: Path) -> ValueError:
     return ValueError(f"{path}: not UTF-8 text; export the CSV as UTF-8")       # changed while read
 
 
+def _opened(path: Path) -> tuple[list[str], Iterator[list[str]]]:
+    """The queue's header and its other records as a stream, once its size and its number of originals are
+    checked (:data:`MAX_QUEUE_BYTES`, :data:`MAX_QUEUE_ROWS`)."""
+    _check_size(path)
+    _check_row_count(path)
+    records = _records(path)
+    header = next(records, None)
+    if header is None or not any(c.strip() for c in header):
+        raise ValueError(f"{path}: no header row (row 1 names the columns: identifier, title, ...)")
+    return header, records
+
+
 def _check_row_count(path: Path) -> None:
     """Refuse a queue of more than :data:`MAX_QUEUE_ROWS` originals before any row is checked: the records are
     counted as a stream, and the count stops at the first one over the maximum."""
@@ -339,12 +351,7 @@ def read_queue_csv(path: Path, *, columns: Mapping[str, str] | None = None, defa
         A file that is not a readable queue (not UTF-8, not CSV, no identifier column) raises ValueError, one line.
     """
     path = Path(path)
-    _check_size(path)
-    _check_row_count(path)
-    records = _records(path)
-    header = next(records, None)
-    if header is None or not any(c.strip() for c in header):
-        raise ValueError(f"{path}: no header row (row 1 names the columns: identifier, title, ...)")
+    header, records = _opened(path)
     notes: dict[str, ColumnNote] = {}
     names = _header(path, header, dict(columns or {}), notes)
     index = _field_columns(path, names, dict(columns or {}))
