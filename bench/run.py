@@ -21,6 +21,7 @@ BENCHES = {
     "digitise": ("bench.digitise_bench", "bench_digitise", {}),
     "unbinned": ("bench.studies", "bench_unbinned", {}),
     "cancel_latency": ("bench.cancel_latency", "bench_cancel_latency", {}),
+    "input_bounds": ("bench.input_bounds", "bench_input_bounds", {}),
 }
 
 
