@@ -258,8 +258,8 @@ def _check_patches(table: SpectralTable, leave_out: tuple[str, ...], source: str
     names = [table.columns[i] for i in used]
     for name, spectrum in zip(names, spectra, strict=True):
         if not spectrum.any():
-            raise ChartError(f"{source}: patch {name!r} is 0 at every wavelength: no surface reflects or transmits "
-                             "nothing; a missing measurement? measure it again, or leave it out")
+            raise ChartError(f"{source}: patch {name!r} is 0 at every wavelength, which no real surface is (a "
+                             "missing measurement?); measure it again, or leave it out")
     distinct, count = np.unique(spectra, axis=0, return_counts=True)
     rank = int(np.linalg.matrix_rank(spectra, tol=RANK_RTOL * float(np.linalg.norm(spectra, 2))))
     if len(distinct) < MIN_DISTINCT or rank < MIN_DISTINCT:
