@@ -16,12 +16,14 @@ matplotlib and Qt are imported inside the functions that run the command. ``--he
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
 import os
 import sys
 from collections.abc import Sequence
 
+from dualrgb.app import interrupts
 from dualrgb.common.errors import ReportedError, one_line, write_crash_report
 from dualrgb.simulation.versions import dualrgb_version
 
@@ -90,22 +92,32 @@ def _printable_streams() -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     _printable_streams()
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
-                        format="%(levelname)s %(name)s: %(message)s")
-    try:
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt:
-        print("dualrgb: interrupted", file=sys.stderr)
-        return 130
-    except (UserError, ReportedError, OSError, ValueError) as exc:
-        if args.verbose >= 2:
-            log.exception("command failed")
-        print(f"dualrgb: error: {one_line(exc)}", file=sys.stderr)
-        return 1
-    except Exception as exc:  # noqa: BLE001 - the last resort: a bug, reported in one line and a crash file
-        return _crashed(exc, list(sys.argv if argv is None else ["dualrgb", *argv]), args.verbose)
+    with interrupts.handled():          # SIGINT, SIGTERM, SIGHUP: every open sphere off, read back (app.interrupts)
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
+                            format="%(levelname)s %(name)s: %(message)s")
+        try:
+            return int(args.func(args) or 0)
+        except KeyboardInterrupt as exc:
+            return _signalled(exc if isinstance(exc, interrupts.Interrupted) else None)
+        except (UserError, ReportedError, OSError, ValueError) as exc:
+            if args.verbose >= 2:
+                log.exception("command failed")
+            print(f"dualrgb: error: {one_line(exc)}", file=sys.stderr)
+            return _signalled(interrupts.received(), 1)
+        except Exception as exc:  # noqa: BLE001 - the last resort: a bug, reported in one line and a crash file
+            rc = _crashed(exc, list(sys.argv if argv is None else ["dualrgb", *argv]), args.verbose)
+            return _signalled(interrupts.received(), rc)
+
+
+def _signalled(exc: interrupts.Interrupted | None, rc: int | None = None) -> int:
+    """After a signal (or Ctrl-C), the last line: the light's state as read back and how to resume."""
+    if rc is not None and exc is None:
+        return rc
+    with contextlib.suppress(OSError):             # SIGHUP: the terminal may be gone
+        print(interrupts.interrupted_line(exc), file=sys.stderr, flush=True)
+    return interrupts.exit_code(exc) if exc is not None else 130
 
 
 def _crashed(exc: Exception, argv: list[str], verbose: int) -> int:

@@ -22,6 +22,7 @@ BENCHES = {
     "unbinned": ("bench.studies", "bench_unbinned", {}),
     "cancel_latency": ("bench.cancel_latency", "bench_cancel_latency", {}),
     "process": ("bench.process_bench", "bench_process", {}),
+    "input_bounds": ("bench.input_bounds", "bench_input_bounds", {}),
 }
 
 

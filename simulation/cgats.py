@@ -15,8 +15,12 @@ mismatches; ArgyllCMS reads them, using only NUMBER_OF_SETS). Wavelengths come f
 file names ``SPEC_383`` what is 383.33 nm), so the names must only agree within half a step.
 
 Values are divided by the file's ``SPECTRAL_NORM`` keyword when it has one (ArgyllCMS: the stored values are
-value x norm). Reflectance (or transmittance) factors: a file whose spectral values still exceed 2 is taken to be
-in percent (ArgyllCMS writes 0-100) and divided by 100; values down to -0.005 (instrument noise at the ends of the
+value x norm). Reflectance (or transmittance) factors: the unit is decided from the whole file, patch by patch: a
+file where no value exceeds 2 holds factors (0-1; up to 2 for fluorescent samples); one where most patches reach
+above 2 holds percent (ArgyllCMS writes 0-100), said in a warning line (naming any patches that stay below 2 %),
+and is divided by 100; a file where as many patches or more stay within 0-2 as reach above it holds values on both
+scales (a typed 5.0 among factors would otherwise turn every value into percent) and is refused in one line naming
+the row and value. Values down to -0.005 (instrument noise at the ends of the
 spectrum) are set to 0, more negative ones are an error. Colorimetric fields (XYZ_*, LAB_*) are kept in
 ``CgatsTable.rows`` but not used: they are for the instrument's illuminant and observer (often D50), while the
 reference XYZ here is computed from the spectra (eq 4.2 or ASTM E308, ``simulation.datasets.target_xyz``).
@@ -50,6 +54,8 @@ MAX_CGATS_BYTES = MAX_CSV_BYTES    # an instrument export of hundreds of reading
 _SPECTRAL = re.compile(r"^(?:SPECTRAL_NM_?|SPECTRAL_|SPEC_|NM_?)(\d+(?:\.\d+)?)$", re.IGNORECASE)
 _NAME_FIELDS = ("SAMPLE_NAME", "SAMPLE_ID", "SAMPLEID", "SAMPLE_LOC")
 NEGATIVE_TOLERANCE = 0.005
+FRACTION_MAX = 2.0      # reflectance factors reach up to 2 (fluorescent samples); above that a value is percent
+PERCENT_MAX = 200.0
 
 
 class CgatsError(SpectralDataError):
@@ -155,13 +161,7 @@ class CgatsTable:
 
     def spectral_table(self) -> SpectralTable:
         """The measured reflectances (or transmittances), wavelengths (n_wl,) x patches (n_wl, n_patches)."""
-        wl, values = self.spectral_values()
-        if values.max() > 2.0:
-            if values.max() > 200.0:
-                raise CgatsError(f"{self.source}: spectral values up to {values.max():g}: neither factors (0-1) nor "
-                                 f"percent (0-100)")
-            log.info("%s: spectral values up to %.3g, read as percent", self.source, values.max())
-            values = values / 100.0
+        wl, values = self._factors(*self.spectral_values())
         if values.min() < -NEGATIVE_TOLERANCE:
             c, r = map(int, np.unravel_index(int(np.argmin(values)), values.shape))
             raise CgatsError(f"{self.source}:{self.row_lines[r]}: negative value {values[c, r]:g} at {wl[c]:g} nm")
@@ -169,6 +169,36 @@ class CgatsTable:
         meta = {k.lower(): v for k, v in self.keywords.items()}
         meta.setdefault("title", Path(self.source).stem)
         return SpectralTable(wl, values, self.names(), meta, self.source, list(self.warnings))
+
+    def _factors(self, wl: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Reflectance (transmittance) factors: the file's unit decided from every patch (module docstring), a
+        percent file said in a warning line, a file with patches on both scales refused."""
+        top = float(values.max())
+        if top <= FRACTION_MAX:
+            log.info("%s: spectral values up to %.3g, read as factors (0-1)", self.source, top)
+            return wl, values
+        if top > PERCENT_MAX:
+            raise CgatsError(f"{self.source}: spectral values up to {top:g}: neither factors (0-1) nor percent "
+                             "(0-100)")
+        peaks = values.max(axis=0)
+        names = self.names()
+        high = [i for i in range(len(peaks)) if peaks[i] > FRACTION_MAX]
+        low = [i for i in range(len(peaks)) if peaks[i] <= FRACTION_MAX]
+        if len(high) <= len(low):
+            c, r = map(int, np.unravel_index(int(np.argmax(values)), values.shape))
+            raise CgatsError(f"{self.source}:{self.row_lines[r]}: values on both scales: patch {names[r]} reaches "
+                             f"{values[c, r]:g} at {wl[c]:g} nm ({len(high)} patch{'es' if len(high) > 1 else ''} "
+                             f"above {FRACTION_MAX:g}, as percent) while {len(low)} of {len(peaks)} stay within "
+                             f"0-{FRACTION_MAX:g} (as factors); give every value in one unit (0-1, or 0-100)")
+        said = (f"{self.source}: spectral values read as percent (0-100) and divided by 100: {len(high)} of "
+                f"{len(peaks)} patches reach above {FRACTION_MAX:g} (largest {top:g})")
+        if low:
+            shown = ", ".join(names[i] for i in low[:5]) + (" ..." if len(low) > 5 else "")
+            said += (f"; {len(low)} stay below {FRACTION_MAX:g} % ({shown}): very dark patches, or values given as "
+                     "factors? check them")
+        self.warnings.append(said)
+        log.warning("%s", said)
+        return wl, values / 100.0
 
     def emission_table(self) -> SpectralTable:
         """Spectroradiometer readings (module docstring): wavelengths (n_wl,) x readings (n_wl, n_sets); a file

@@ -12,6 +12,11 @@ other names fill the cells in file order. A cell no patch of the file names is l
 rendered a mid grey in the virtual lab. Patches left out (``leave_out``, e.g. an SG's repeated border greys)
 stay on the chart (the virtual lab renders them) but are not used by the calibration.
 
+Patches: every patch used must be a measurement a calibration can use, else the chart is refused in one line
+before anything is lit: none 0 at every wavelength, at least three independent spectra (a chart of 24 identical
+patches is refused), and no coloured spectrum found twice (charts repeat only neutral patches; a coloured repeat
+is a row copied over another). The unit of a CGATS file's values is decided from the whole file (simulation.cgats).
+
 Kind: a file that says it holds transmittances (a CSV's ``# units:`` line, a CGATS keyword value naming
 transmission) is a film chart; one that says reflectance a reflective one; one that says neither is the
 calibration's mode. A chart of the other kind is refused.
@@ -40,6 +45,9 @@ ROLES = ("train", "test")
 ROLE_NAMES = {"train": "training", "test": "test"}
 EMPTY_CELL_REFLECTANCE = 0.18          # a cell no patch of the file names (virtual lab: mid grey)
 MAX_CELLS = 2000                       # the largest layout accepted (an IT8.7/4 has 1617 patches)
+MIN_DISTINCT = 3                       # independent spectra a chart must hold (XYZ has three dimensions)
+RANK_RTOL = 1e-2                       # below 1 % of the largest singular value a spectrum adds no dimension
+NEUTRAL_SPREAD = 0.15                  # (max - min) / mean over 420-700 nm at most this: a neutral patch
 #: What each packaged target stands for (docs/how-to/own-charts.md says the same).
 PACKAGED_STANDS_FOR = {
     ("reflective", "train"): "no physical chart: 190 reflectances of the rawtoaces training set",
@@ -239,6 +247,37 @@ def _check_leave_out(names: list[str], leave_out: tuple[str, ...], source: str) 
         raise ChartError(f"{source}: {len(names) - len(set(leave_out))} patches left to use; a chart needs at least 3")
 
 
+def _check_patches(table: SpectralTable, leave_out: tuple[str, ...], source: str) -> None:
+    """The used patches (every patch not left out) must be measurements a calibration can use: none 0 at every
+    wavelength, at least :data:`MIN_DISTINCT` different spectra spanning as many independent ones, and no coloured
+    patch repeated (charts repeat only their neutral patches, e.g. an SG's border of white, grey and black: a
+    coloured spectrum found twice is a row copied over another)."""
+    skip = set(leave_out)
+    used = [i for i, name in enumerate(table.columns) if name not in skip]
+    spectra = np.asarray(table.values, dtype=float)[:, used].T            # (patches, wavelengths) as measured
+    names = [table.columns[i] for i in used]
+    for name, spectrum in zip(names, spectra, strict=True):
+        if not spectrum.any():
+            raise ChartError(f"{source}: patch {name!r} is 0 at every wavelength, which no real surface is (a "
+                             "missing measurement?); measure it again, or leave it out")
+    distinct, count = np.unique(spectra, axis=0, return_counts=True)
+    rank = int(np.linalg.matrix_rank(spectra, tol=RANK_RTOL * float(np.linalg.norm(spectra, 2))))
+    if len(distinct) < MIN_DISTINCT or rank < MIN_DISTINCT:
+        what = (f"{len(distinct)} different spectr{'um' if len(distinct) == 1 else 'a'}" if len(distinct) <
+                MIN_DISTINCT else f"spectra spanning only {rank} independent ones")
+        raise ChartError(f"{source}: its {len(names)} patches used hold {what}; a calibration needs at least "
+                         f"{MIN_DISTINCT} independent colours (is this the right file?)")
+    band = (table.wavelengths >= 420) & (table.wavelengths <= 700)
+    for k in np.flatnonzero(count > 1):
+        twice = [names[i] for i in np.flatnonzero((spectra == distinct[k]).all(axis=1))]
+        s = distinct[k][band] if band.any() else distinct[k]
+        if (s.max() - s.min()) > NEUTRAL_SPREAD * max(float(s.mean()), 1e-12):
+            raise ChartError(f"{source}: patches {', '.join(map(repr, twice[:4]))} hold the same coloured spectrum; "
+                             "a chart repeats only its neutral patches: a row copied over another? fix the file, or "
+                             f"leave the copies out ({','.join(twice[1:4])})")
+        log.debug("%s: neutral patch repeated %d times (%s)", source, count[k], ", ".join(twice[:4]))
+
+
 def _check_kind(kind: str, mode: str, source: str, role: str) -> str:
     if mode not in MODES:
         raise ValueError(f"mode {mode!r}: expected one of {', '.join(MODES)}")
@@ -277,8 +316,10 @@ def read_chart(path: str | Path, grid: SpectralGrid, *, role: str, mode: str,
     info = ChartFile(path.name, str(path), _sha256(path), "CGATS" if is_cgats(path) else "CSV", len(names),
                      (float(table.wavelengths[0]), float(table.wavelengths[-1])), target.extended,
                      tuple(table.warnings))
-    return Chart(role, target, shape, cells, _check_kind(_kind_of(table), mode, str(path), role), info, leave,
-                 packaged, PACKAGED_STANDS_FOR.get((mode, role), "") if packaged else "")
+    kind = _check_kind(_kind_of(table), mode, str(path), role)
+    _check_patches(table, leave, str(path))
+    return Chart(role, target, shape, cells, kind, info, leave, packaged,
+                 PACKAGED_STANDS_FOR.get((mode, role), "") if packaged else "")
 
 
 def packaged_chart(mode: str, role: str, grid: SpectralGrid) -> Chart:

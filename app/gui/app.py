@@ -127,8 +127,8 @@ def run(virtual_lab: bool = False, screenshot_dir: Path | None = None,
 
 
 def _close_on_signals(window) -> None:
-    """Ctrl-C / SIGTERM in the terminal close the window the normal way (LEDs off, ports closed). Python runs
-    signal handlers only when it gets control, so a timer hands it control a few times a second."""
+    """Ctrl-C / SIGTERM / SIGHUP (the terminal closed) close the window the normal way (LEDs off, ports closed).
+    Python runs signal handlers only when it gets control, so a timer hands it control a few times a second."""
     import signal
 
     from PySide6.QtCore import QTimer
@@ -139,7 +139,7 @@ def _close_on_signals(window) -> None:
         from PySide6.QtWidgets import QApplication
         QApplication.quit()
 
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, close)
     timer = QTimer(window)
     timer.setInterval(250)

@@ -34,6 +34,7 @@ from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.shooter import SafetySettings, Shooter, Stand
+from dualrgb.app.session.paths import deliverable, record
 from dualrgb.app.workflow.charts import definition as chart_definition
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
@@ -413,8 +414,10 @@ class CopyStand:
                   profile: CalibrationProfile) -> None:
         """The original's metadata and total dose in session.json (``dualrgb process`` re-delivers from it)."""
         originals = dict(self.session.settings.get("originals", {}))
+        here = Path(self.session.path)
         originals[original.identifier] = {**original.to_dict(), "take": take, "light_dose": total.to_dict(),
-                                          "sidecar": str(delivery.sidecar), "calibration": str(profile.path or "")}
+                                          "sidecar": record(here, delivery.sidecar),
+                                          "calibration": record(here, profile.path or "")}
         self.session.update_settings(originals=originals)
 
 
@@ -519,8 +522,8 @@ def delivered_sidecar(session: Session, original: Original) -> Path | None:
     """The sidecar of ``original``'s delivery in ``session`` (session.json 'originals'), when it exists and names
     the same identifier; None otherwise."""
     meta = (session.settings.get("originals") or {}).get(original.identifier) or {}
-    sidecar = Path(meta.get("sidecar") or "")
-    if not meta.get("sidecar") or not sidecar.is_file():
+    sidecar = deliverable(Path(session.path), meta.get("sidecar"))
+    if sidecar is None or not sidecar.is_file():
         return None
     try:
         return sidecar if sidecar_identifier(sidecar) == original.identifier else None

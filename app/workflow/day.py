@@ -123,11 +123,13 @@ class OriginalsQueue:
 def _sidecar(session: Session, original: Original, recorded: str | None) -> Path:
     """The sidecar session.json names, or where delivery puts it in this session's folder when that path is gone
     (a session moved to another captures folder keeps its deliverables)."""
-    path = Path(recorded or "")
-    if recorded and path.is_file():
+    from dualrgb.app.session.paths import deliverable
+
+    path = deliverable(Path(session.path), recorded)       # never another session's (app.session.paths)
+    if path is not None and path.is_file():
         return path
     moved = Path(session.path) / "deliverables" / original.file_stem / f"{original.file_stem}.json"
-    return moved if moved.is_file() else path
+    return moved if moved.is_file() or path is None else path
 
 
 def _read_delivery(row: QueueRow, sidecar: Path) -> None:

@@ -62,8 +62,10 @@ def write_day(session_path: Path, order: list[str], rows: list[dict[str, Any]], 
     """Write :func:`day_rows` and the calibration's path (stamped: format and software first)."""
     path = day_path(session_path)
     path.parent.mkdir(exist_ok=True)
-    doc = stamped(DAY_FORMAT, {"calibration": str(calibration) if calibration else None, "order": order,
-                               "rows": rows})
+    from dualrgb.app.session.paths import record
+
+    doc = stamped(DAY_FORMAT, {"calibration": record(session_path, calibration) if calibration else None,
+                               "order": order, "rows": rows})
     return atomic_write(path, strict_dumps(doc, indent=1) + "\n")
 
 
@@ -86,7 +88,7 @@ def read_day(session_path: Path) -> SavedDay:
             raise ValueError(f"expected format {DAY_FORMAT}")
     except (OSError, ValueError) as exc:
         return SavedDay(notes=[f"{path}: not restored ({exc})"])
-    day = SavedDay(Path(doc["calibration"]) if doc.get("calibration") else None, order=list(doc.get("order") or []))
+    day = SavedDay(_calibration(session_path, doc.get("calibration")), order=list(doc.get("order") or []))
     for item in doc.get("rows") or []:
         try:
             row = QueueRow(Original.from_dict(item["original"]), str(item.get("stand_in", "")),
@@ -97,6 +99,18 @@ def read_day(session_path: Path) -> SavedDay:
             continue
         day.rows.append(row)
     return day
+
+
+def _calibration(session_path: Path, recorded: object) -> Path | None:
+    """The saved calibration: a path relative to the session folder stays in it (app.session.paths); an absolute one
+    (a calibration of another folder, chosen in the GUI) as it was saved."""
+    if not recorded or not isinstance(recorded, str):
+        return None
+    if Path(recorded).is_absolute():
+        return Path(recorded)
+    from dualrgb.app.session.paths import inside
+
+    return inside(session_path, recorded)
 
 
 def restore_queue(session: Session, saved: SavedDay | None = None) -> OriginalsQueue:

@@ -77,11 +77,17 @@ def check_document(doc: dict[str, Any], where: str | Path, *, digest: bool = Tru
         check_digest(doc, where)
 
 
+@cache
+def _validator() -> Any:
+    import jsonschema
+
+    return jsonschema.Draft202012Validator(schema())
+
+
 def _check_schema(doc: dict[str, Any], where: str | Path) -> None:
     import jsonschema
 
-    validator = jsonschema.Draft202012Validator(schema())
-    error = jsonschema.exceptions.best_match(validator.iter_errors(doc))
+    error = jsonschema.exceptions.best_match(_validator().iter_errors(doc))
     if error is not None:
         field = field_name(error.absolute_path) or "the calibration"
         raise ProfileError(f"{where}: {field}: {_short(error.message)} (resources/schemas/{SCHEMA_FILE})")
@@ -127,6 +133,7 @@ def _check_ranges(doc: dict[str, Any], where: str | Path) -> None:
         if light["leds"] and not any(level > 0 for level in light["levels"]):    # no LEDs: unknown (imported)
             refuse(f"lights[{i}].levels", f"every level of {light['name']} is 0: it lights nothing")
     _check_plan(doc, names, refuse)
+    _check_sections(doc, refuse)
     raw = doc["raw"]
     if not raw["black_level"] < raw["linear_limit"] <= raw["white_level"]:
         refuse("raw", f"expected black level < linear limit <= white level, got {raw['black_level']:g}, "
@@ -152,6 +159,70 @@ def _check_plan(doc: dict[str, Any], names: list[str], refuse: Any) -> None:
                      if not any(abs(d - t) <= DARK_RTOL * max(d, t) for d in darks))
     if missing:
         refuse("arrays.darks", f"no master dark at {', '.join(f'{t:g}' for t in missing)} s")
+
+
+def _check_sections(doc: dict[str, Any], refuse: Any) -> None:
+    """What relates the fields of the figures' sections (the schema types each field): the matrix's channels
+    three per light, the statistics' best method among its methods, the spectral estimator's matrix of one row
+    per wavelength and one column per channel (the matrix's), the stand model's R^2 per channel alike before and
+    after the fit, a chart's used patches among its patches."""
+    channels, lights = doc["matrix"]["channels"], doc["lights"]
+    if len(channels) != 3 * len(lights):
+        refuse("matrix.channels", f"{len(channels)} channels for {len(lights)} light(s): expected 3 per light "
+                                  f"(R, G, B under each)")
+    _check_statistics(doc["statistics"], channels, refuse)
+    gain = (doc.get("spectral") or {}).get("model_gain")
+    if gain is not None and len(gain) != len(channels):
+        refuse("spectral.model_gain", f"{len(gain)} values for {len(channels)} channels")
+    estimator = (doc.get("spectral") or {}).get("estimator")
+    if estimator is not None:
+        _check_estimator(estimator, channels, refuse)
+    r2 = [(f"stand_model.r2.{stage}.{target}", values) for stage, by_target in
+          ((doc.get("stand_model") or {}).get("r2") or {}).items() for target, values in by_target.items()]
+    for field, values in r2[1:]:
+        if len(values) != len(r2[0][1]):
+            refuse(field, f"{len(values)} channels, {r2[0][0]} has {len(r2[0][1])}")
+    for role, chart in (doc.get("charts") or {}).items():
+        if chart["used"] > chart["patches"]:
+            refuse(f"charts.{role}.used", f"{chart['used']} of {chart['patches']} patches")
+        low, high = chart.get("wavelength_range_nm") or (0, 1)
+        if not low < high:
+            refuse(f"charts.{role}.wavelength_range_nm", f"{low:g}-{high:g} nm is no range")
+
+
+def _check_statistics(stats: dict[str, Any], channels: list[str], refuse: Any) -> None:
+    if stats["best"] not in stats["methods"]:
+        refuse("statistics.best", f"{stats['best']!r} is not one of its methods ({', '.join(stats['methods'])})")
+    if "channels" in stats and stats["channels"] != channels:
+        refuse("statistics.channels", f"{', '.join(stats['channels'])}, the matrix {', '.join(channels)}")
+    for name, method in stats["methods"].items():
+        fitted = method.get("matrix")
+        if fitted is not None and len(fitted["matrix"]) != len(fitted.get("channels", channels)):
+            refuse(f"statistics.methods.{name}.matrix", f"{len(fitted['matrix'])} rows for "
+                                                        f"{len(fitted.get('channels', channels))} channels")
+        if fitted is not None and len(fitted["matrix"]) != len(channels):
+            refuse(f"statistics.methods.{name}.matrix", f"{len(fitted['matrix'])} rows, the matrix "
+                                                        f"{len(channels)} channels")
+
+
+def _check_estimator(estimator: dict[str, Any], channels: list[str], refuse: Any) -> None:
+    where = "spectral.estimator"
+    if estimator["channels"] != channels:
+        refuse(f"{where}.channels", f"the spectral estimator maps {', '.join(estimator['channels'])} but the matrix "
+                                    f"{', '.join(channels)}")
+    rows, n_wl = estimator["matrix"], len(estimator["wavelengths_nm"])
+    if len(rows) != n_wl or any(len(row) != len(channels) for row in rows):
+        refuse(f"{where}.matrix", f"expected {n_wl} rows (one per wavelength) of {len(channels)} (one per channel)")
+    wl = estimator["wavelengths_nm"]
+    if any(b <= a for a, b in zip(wl, wl[1:], strict=False)):
+        refuse(f"{where}.wavelengths_nm", "the wavelengths must increase")
+    low, high = estimator.get("bounds", (0.0, 1.0))
+    if not low < high:
+        refuse(f"{where}.bounds", f"{low:g}..{high:g} is no range")
+    for key, n in (("offset", n_wl), ("noise_var", len(channels))):
+        values = estimator.get(key) if key == "offset" else (estimator.get("settings") or {}).get(key)
+        if values is not None and len(values) != n:
+            refuse(f"{where}.{'settings.' if key == 'noise_var' else ''}{key}", f"{len(values)} values, expected {n}")
 
 
 def _check_created(created: str, refuse: Any) -> None:

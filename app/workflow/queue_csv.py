@@ -23,14 +23,18 @@ Rows
     empty mode is the calibration's. A bad row is one line naming the row, the column and the problem
     (``row 5, column 'Title': control character U+0001 at character 4 is not allowed``); a repeated identifier is
     a bad row (the later one), as is a row whose deliverables folder holds another original's files.
+
+Bounds
+    The file is at most :data:`MAX_QUEUE_BYTES` (checked before it is read) and holds at most
+    :data:`MAX_QUEUE_ROWS` originals: its records are read as a stream and counted first, a longer queue refused in
+    one line before any row is checked (a 1e6-row export answers at once, holding a few rows in memory).
 """
 from __future__ import annotations
 
 import csv
 import dataclasses
-import io
 import logging
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,6 +52,9 @@ from dualrgb.app.workflow.metadata import (
 
 log = logging.getLogger(__name__)
 MAX_QUEUE_BYTES = 16 * 2 ** 20     # checked before reading: 10 000 originals with long titles are ~2 MB
+#: The most originals a queue may hold (a copy stand shoots a few hundred a day): a longer file is refused in one
+#: line before any row is checked, so memory and time stay bounded whatever the file holds.
+MAX_QUEUE_ROWS = 10_000
 
 FIELDS = ("identifier", "title", "operator", "notes", "mode")
 DELIMITERS = (",", ";", "\t")
@@ -171,31 +178,70 @@ def _letter(index: int) -> str:
     return out
 
 
-def _records(path: Path) -> list[list[str]]:
+def _check_size(path: Path) -> None:
+    """The queue's size, checked before it is read (:data:`MAX_QUEUE_BYTES`)."""
     try:
         size = path.stat().st_size
-        if size > MAX_QUEUE_BYTES:
-            raise ValueError(f"{path}: {size / 2 ** 20:.1f} MiB is not a day's queue (at most "
-                             f"{MAX_QUEUE_BYTES // 2 ** 20} MiB); split it")
-        raw = path.read_bytes()
     except OSError as exc:
         raise ValueError(f"{path}: cannot read the queue CSV ({exc.strerror or exc})") from exc
+    if size > MAX_QUEUE_BYTES:
+        raise ValueError(f"{path}: {size / 2 ** 20:.1f} MiB is not a day's queue (at most "
+                         f"{MAX_QUEUE_BYTES // 2 ** 20} MiB); split it")
+
+
+def _records(path: Path) -> Iterator[list[str]]:
+    """The CSV's records one at a time, read from the file as a stream (nothing kept here); one line for a file
+    that is not UTF-8 or a record that is not CSV."""
+    read = 0
     try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02X} at offset {exc.start}); export the "
-                         "CSV as UTF-8") from None
-    first = text.split("\n", 1)[0]
-    delimiter = max(DELIMITERS, key=first.count)
-    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter, strict=True)
-    rows: list[list[str]] = []
-    try:
-        rows.extend(reader)
+        with open(path, encoding="utf-8-sig", newline="") as fh:
+            first = fh.readline()
+            delimiter = max(DELIMITERS, key=first.count)
+            fh.seek(0)
+            for record in csv.reader(fh, delimiter=delimiter, strict=True):
+                read += 1
+                yield record
     except csv.Error as exc:
-        raise ValueError(f"{path}: row {len(rows) + 1}: not CSV ({exc})") from None
-    if not rows or not any(c.strip() for c in rows[0]):
+        raise ValueError(f"{path}: row {read + 1}: not CSV ({exc})") from None
+    except UnicodeDecodeError:
+        raise _not_utf8(path) from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the queue CSV ({exc.strerror or exc})") from exc
+
+
+def _not_utf8(path: Path) -> ValueError:
+    """Where the file stops being UTF-8 (its size was checked: reading it whole is bounded)."""
+    raw = path.read_bytes()
+    try:
+        raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        return ValueError(f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02X} at offset {exc.start}); export the "
+                          "CSV as UTF-8")
+    return ValueError(f"{path}: not UTF-8 text; export the CSV as UTF-8")       # changed while read
+
+
+def _opened(path: Path) -> tuple[list[str], Iterator[list[str]]]:
+    """The queue's header and its other records as a stream, once its size and its number of originals are
+    checked (:data:`MAX_QUEUE_BYTES`, :data:`MAX_QUEUE_ROWS`)."""
+    _check_size(path)
+    _check_row_count(path)
+    records = _records(path)
+    header = next(records, None)
+    if header is None or not any(c.strip() for c in header):
         raise ValueError(f"{path}: no header row (row 1 names the columns: identifier, title, ...)")
-    return rows
+    return header, records
+
+
+def _check_row_count(path: Path) -> None:
+    """Refuse a queue of more than :data:`MAX_QUEUE_ROWS` originals before any row is checked: the records are
+    counted as a stream, and the count stops at the first one over the maximum."""
+    rows = 0
+    for number, cells in enumerate(_records(path), start=1):
+        if number > 1 and any(c.strip() for c in cells):
+            rows += 1
+            if rows > MAX_QUEUE_ROWS:
+                raise ValueError(f"{path}: more than {MAX_QUEUE_ROWS} originals (row {number} is the "
+                                 f"{MAX_QUEUE_ROWS + 1}th): a day's queue holds at most {MAX_QUEUE_ROWS}; split it")
 
 
 def _header(path: Path, cells: list[str], columns: Mapping[str, str], notes: dict[str, ColumnNote]
@@ -305,9 +351,9 @@ def read_queue_csv(path: Path, *, columns: Mapping[str, str] | None = None, defa
         A file that is not a readable queue (not UTF-8, not CSV, no identifier column) raises ValueError, one line.
     """
     path = Path(path)
-    records = _records(path)
+    header, records = _opened(path)
     notes: dict[str, ColumnNote] = {}
-    names = _header(path, records[0], dict(columns or {}), notes)
+    names = _header(path, header, dict(columns or {}), notes)
     index = _field_columns(path, names, dict(columns or {}))
     default_mode = normalise_mode(default_mode)
     out = QueueImport(path, columns={k: str(names[i]) for k, i in index.items()}, notes=notes,
@@ -315,7 +361,7 @@ def read_queue_csv(path: Path, *, columns: Mapping[str, str] | None = None, defa
     seen: dict[str, int] = {}
     stems: dict[str, int] = {}
     id_column = str(names[index["identifier"]])
-    for number, cells in enumerate(records[1:], start=2):
+    for number, cells in enumerate(records, start=2):
         if not any(c.strip() for c in cells):
             continue
         original, problems = _row(number, cells, names, index, default_mode, notes)

@@ -16,6 +16,7 @@ from typing import Any
 from dualrgb.app.processing.masters import FULL
 from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT
 from dualrgb.app.session.manifest import DamagedFramesError
+from dualrgb.app.session.paths import inside
 from dualrgb.app.workflow.copystand import channels_of, original_dose, profile_processor
 from dualrgb.app.workflow.delivery import Delivery, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare
@@ -123,17 +124,34 @@ def _known_original(session: Any, known: dict, identifier: str) -> Original:
 
 # ---------------------------------------------------------------- the session's calibrations (process, the GUI)
 def session_calibrations(session: Any) -> list[Path]:
-    """The session's own calibrations, then those its originals were captured with (oldest first)."""
+    """The session's own calibrations, then those its originals were captured with that lie in its folder (oldest
+    first): a calibration outside the session folder is never taken from session.json (app.session.paths: in a
+    copied session it would be the original session's), it is passed with ``--calibration``."""
     found = sorted((session.path / "calibration").glob("cal-*.json"))
-    used = [Path(o["calibration"]) for o in session.settings.get("originals", {}).values() if o.get("calibration")]
-    return found + [p for p in used if p.exists() and p not in found]
+    named = [inside(session.path, o.get("calibration")) for o in _originals(session)]
+    return found + [p for p in named if p is not None and p.exists() and p not in found]
+
+
+def _originals(session: Any) -> list[dict]:
+    return [o for o in (session.settings.get("originals") or {}).values() if isinstance(o, dict)]
+
+
+def _outside(session: Any) -> str:
+    """The calibrations the session's originals name outside its folder (for the refusal's advice)."""
+    named = sorted({str(o["calibration"]) for o in _originals(session)
+                    if o.get("calibration") and inside(session.path, o["calibration"]) is None})
+    if not named:
+        return ""
+    return (f" (its originals were captured with {', '.join(named[:3])}{' ...' if len(named) > 3 else ''}, outside "
+            "the session folder: never used from session.json)")
 
 
 def newest_calibration(session: Any) -> Path:
     """The session's own newest calibration, else the one its latest original was captured with."""
     found = session_calibrations(session)
     if not found:
-        raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
+        raise ValueError(f"{session.path}: no calibration in it or named by its originals{_outside(session)}; pass "
+                         "--calibration FILE")
     return found[-1]
 
 
@@ -144,5 +162,6 @@ def newest_by_mode(session: Any) -> dict[str, CalibrationProfile]:
         profile = load_profile(path, arrays=False)
         out[profile.mode] = path
     if not out:
-        raise ValueError(f"{session.path}: no calibration in it or named by its originals; pass --calibration FILE")
+        raise ValueError(f"{session.path}: no calibration in it or named by its originals{_outside(session)}; pass "
+                         "--calibration FILE")
     return {mode: load_profile(path) for mode, path in out.items()}

@@ -27,6 +27,7 @@ from typing import Any
 
 import serial
 
+from dualrgb.drivers.led_sphere import open_spheres
 from dualrgb.drivers.led_sphere import protocol as P
 from dualrgb.drivers.led_sphere.errors import SphereError
 from dualrgb.drivers.led_sphere.limits import DEFAULT_MAX_ON_S, DEFAULT_TIMEOUT_S, MAX_ON_RANGE_S
@@ -79,6 +80,7 @@ class LedSphere(SwitchOff):
         self._supervisor = OnTimeSupervisor(self._switch_off_at_limit, name=f"LED sphere {self._url} on-time limit")
         if self._ser is not None:
             self._configure(self._ser)
+            open_spheres.register(self)
 
     # ------------------------------------------------------------------------------------------- port
     @property
@@ -139,6 +141,7 @@ class LedSphere(SwitchOff):
                                   kind="port", light="unknown") from None
             self._configure(self._ser)
             log.info("opened LED sphere port %s", self._url)
+        open_spheres.register(self)             # what a signal switches off (app.interrupts)
         return self
 
     def _configure(self, ser: Any) -> None:
@@ -160,6 +163,7 @@ class LedSphere(SwitchOff):
                 log.warning("closing LED sphere %s: %s", self._url, report.message)
         self._supervisor.stop()
         ser, self._ser = self._ser, None
+        open_spheres.unregister(self)
         if ser is not None and self._owns_port:
             try:
                 ser.close()

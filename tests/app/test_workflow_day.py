@@ -268,7 +268,7 @@ def test_the_day_file_keeps_waiting_rows_and_the_calibration(tmp_path):
     d.state = OriginalState.DELIVERED                                  # delivered: session.json has it, not the file
     save_day(session_dir, q, old)
     doc = json.loads(day_path(session_dir).read_text())
-    assert doc["format"] == DAY_FORMAT and "software" in doc and doc["calibration"] == str(old)
+    assert doc["format"] == DAY_FORMAT and "software" in doc and doc["calibration"] == "calibration/cal-1.json"
     assert [r["original"]["identifier"] for r in doc["rows"]] == ["W-1", "C-1", "F-1"]
     queue, calibration, notes = restore_day(fake_session(path=session_dir))
     assert calibration == old and notes == []                          # the saved one, not the newest

@@ -73,7 +73,7 @@ def test_world_originals_deliver_exactly_and_process_keeps_the_previous_set(cal)
             assert exiftool_text(Path(done["files"]["srgb"]), "XMP-dc:Title") == title
     folders = sorted((session / "deliverables").iterdir())
     before = {f.name: digests(f) for f in folders}
-    dualrgb("process", str(session))
+    dualrgb("process", str(session), "--calibration", calibration)      # made in another session: named (issue 38)
     for f in folders:
         kept = sorted((f / "previous").iterdir())
         assert len(kept) == 1 and digests(kept[0]) == before[f.name]         # the first delivery, byte for byte

@@ -54,7 +54,8 @@ def first_half(qtbot, w, csv):
     capture(qtbot, w, IDS[:2])
     w.day.flush()
     saved = json.loads(day_path(w.lab.session.path).read_text())
-    assert saved["format"].startswith("dualrgb-day/") and saved["calibration"] == str(profile.path)
+    assert saved["format"].startswith("dualrgb-day/")
+    assert saved["calibration"] == f"calibration/{profile.path.name}"        # relative to the session (issue 38)
     assert [r["original"]["identifier"] for r in saved["rows"]] == list(IDS[2:])       # saved as it changed
     return profile, w.lab.session.path
 

@@ -148,7 +148,8 @@ def test_the_sg_layout_chart_reads_with_its_layout_and_left_out_patches():
 def test_a_chart_placed_out_of_file_order_renders_empty_cells_grey(tmp_path):
     wl = np.arange(380.0, 781.0, 10.0)
     path = tmp_path / "c.csv"
-    write_spectral_csv(path, wl, np.stack([np.full(len(wl), v) for v in (0.1, 0.5, 0.9)], axis=1),
+    x = np.maximum(wl - GRID.wavelengths[0], 0.0) / 400.0      # independent: 0.1, 0.5, 0.9 at the grid start
+    write_spectral_csv(path, wl, np.stack([0.1 + 0.3 * x, 0.5 + 0.3 * x ** 2, 0.9 - 0.4 * x], axis=1),
                        ["B2", "A1", "A2"], {"units": "reflectance factor"})
     chart = read_chart(path, GRID, role="test", mode="reflective", layout="2x2")
     assert chart.cells == [3, 0, 1]
@@ -193,7 +194,9 @@ def test_a_chart_that_cannot_be_used_is_one_line(kwargs, says):
 def test_a_transmittance_file_is_refused_for_a_reflective_calibration(tmp_path):
     wl = np.arange(380.0, 781.0, 10.0)
     path = tmp_path / "film.csv"
-    write_spectral_csv(path, wl, np.full((len(wl), 3), 0.5), ["a", "b", "c"], {"units": "transmittance 0..1"})
+    x = (wl - wl[0]) / 400.0
+    write_spectral_csv(path, wl, np.stack([0.2 + 0.3 * x, 0.5 + 0.3 * x ** 2, 0.8 - 0.4 * x], axis=1), ["a", "b", "c"],
+                       {"units": "transmittance 0..1"})
     with pytest.raises(ChartError, match="holds transmittances .film., but this is a reflective calibration"):
         read_chart(path, GRID, role="train", mode="reflective")
     assert read_chart(path, default_setup("transmissive").grid, role="train", mode="transmissive").kind == \
