@@ -101,25 +101,16 @@ def _render(doc: dict, channels: list[Path], est, light: str, path: Path, band_r
     from dualrgb.app.processing.render import rendering
     from dualrgb.app.processing.spectral_cube import SpectralEncoder
     from dualrgb.app.workflow.deliverables import spectral_files
-    from dualrgb.app.workflow.delivery import LightDoseRecord, open_deliverable, tiff_meta
-    from dualrgb.app.workflow.metadata import Original
-    from dualrgb.app.workflow.profile import CameraIdentity
+    from dualrgb.app.workflow.delivery import open_deliverable
     from dualrgb.common.progress import check, report
 
     r = rendering(light, est.wavelengths)
     im = spectral_files(path.parent, str(doc["file_stem"]), est, r)["render"]
-    original = Original.from_dict(doc["original"])
-    dose = LightDoseRecord(float(doc["light_dose"]["lux_s"]), float(doc["light_dose"]["on_s"]))
-    camera = CameraIdentity(**doc["camera"])
-    now = datetime.now(UTC)
-    cal = str((doc.get("calibration") or {}).get("id", ""))
     arrays = open_channels(channels)
     H, W, _ = arrays[0].shape
     band = None
     with SpectralEncoder((H, W, est.n_channels), est.matrix, est.bounds, r, offset=est.offset) as enc, \
-            open_deliverable(im, H, W, lambda what, page: tiff_meta(original, cal, camera, dose, doc.get("ppi"),
-                                                                    what, now, page),
-                             band_rows, None, True, []) as out:
+            open_deliverable(im, H, W, context_of(doc), band_rows, None, True) as out:
         for r0 in range(0, H, out.band_rows):
             check(cancel)
             r1 = min(r0 + out.band_rows, H)
@@ -127,3 +118,20 @@ def _render(doc: dict, channels: list[Path], est, light: str, path: Path, band_r
             enc.encode(r0, None, out.band(r1 - r0), band=band)
             out.commit()
             report(progress, r1 / H, f"rendering rows {r1} of {H}")
+
+
+def context_of(doc: dict):
+    """What a delivery's files say about it (app.workflow.master_metadata.MasterContext), from its sidecar: for a
+    file made later for the same delivery."""
+    from dualrgb.app.workflow.delivery_settings import load
+    from dualrgb.app.workflow.master_metadata import MasterContext
+    from dualrgb.app.workflow.metadata import Original
+    from dualrgb.app.workflow.profile import CameraIdentity
+
+    now = datetime.now(UTC)
+    captured = datetime.fromisoformat(str(doc.get("captured_at") or doc.get("created_at") or now.isoformat()))
+    exposures = {str(k): [float(t) for t in v] for k, v in (doc.get("exposures") or {}).items()}
+    cal = doc.get("calibration") or {}
+    return MasterContext(Original.from_dict(doc["original"]), str(cal.get("id", "")), CameraIdentity(**doc["camera"]),
+                         float(doc["light_dose"]["lux_s"]), doc.get("ppi"), now, captured, exposures, list(exposures),
+                         load(), f"made on demand from the camera-RGB files (calibration {cal.get('id', '')})")
