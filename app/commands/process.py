@@ -1,7 +1,7 @@
 """``dualrgb process``: deliver a session's originals again, e.g. with a newer calibration.
 
-    dualrgb process SESSION [--calibration FILE] [--force] [--out DIR] [--render-illuminant A]
-                    [--resolution full|half] [--json J]
+    dualrgb process SESSION [--calibration FILE] [--force] [--out DIR] [--spectral] [--render-illuminant A]
+                    [--resolution full|half] [--delivery-settings FILE] [--json J]
 
 The mode rule (app.workflow.mode_rule) as for ``capture``: without ``--calibration`` each original is delivered
 with the session's newest calibration of its own mode; with one, originals of the other mode are refused (listed,
@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 from dualrgb.app.cli import UserError
-from dualrgb.app.commands.options import add_render_option, add_resolution_option, number
+from dualrgb.app.commands.options import add_render_option, add_resolution_option, delivery_request, number
 from dualrgb.app.commands.stand_options import progress_printer
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
@@ -50,10 +50,12 @@ def main(args: argparse.Namespace) -> int:
 
     session = CaptureSession.open(args.session, readonly=True)      # frames checked before use, per original
     profiles = load_profile(args.calibration) if args.calibration else newest_by_mode(session)
+    delivery = delivery_request(args, profiles)
     refused: list[str] = []
     deliveries, failed = redeliver(session, profiles, args.out or args.session / "deliverables", ppi=args.ppi,
                                    progress=progress_printer(), render_illuminant=args.render_illuminant,
-                                   force=args.force, refused=refused, resolution=args.resolution)
+                                   force=args.force, refused=refused, resolution=args.resolution,
+                                   settings=delivery)
     for line in refused:
         print(f"refused: {line}", file=sys.stderr)
     if not deliveries and not refused and not failed:

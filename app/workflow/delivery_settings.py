@@ -120,7 +120,8 @@ def _parse(doc: dict, path: Path) -> DeliverySettings:
             illuminant = check_illuminant(illuminant)
         except ValueError as exc:
             raise ValueError(f"{path}: [delivery] render_illuminant: {exc}") from None
-    return DeliverySettings(None if spectral == "auto" else spectral, illuminant, _choices(path, "masters", d.get("masters", []), MASTERS),
+    return DeliverySettings(None if spectral == "auto" else spectral, illuminant,
+                            _choices(path, "masters", d.get("masters", []), MASTERS),
                             _choices(path, "access", d.get("access", []), ACCESS),
                             tuple(_texts(path, "institution", "creator", inst.get("creator", []))),
                             _text(path, "institution", "rights", inst.get("rights", "")), bag, str(path))
