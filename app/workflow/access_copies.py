@@ -29,7 +29,6 @@ from dualrgb.common.atomic_files import atomic_output
 log = logging.getLogger(__name__)
 
 TILE = 256
-JP2_TILE = 512
 JPEG_QUALITY = 90
 
 
@@ -63,9 +62,9 @@ def _jp2(path: Path, image: np.ndarray) -> Path:
 
     h, w = image.shape[:2]
     resolutions = min(levels_below(h, w, TILE) + 1, 8)
-    tile = (JP2_TILE, JP2_TILE) if min(h, w) > JP2_TILE else None
-    data = imagecodecs.jpeg2k_encode(np.ascontiguousarray(image), level=0, codecformat="jp2", colorspace="srgb",
-                                     reversible=True, resolutions=resolutions, tile=tile, numthreads=2)
+    data = imagecodecs.jpeg2k_encode(np.ascontiguousarray(image), level=0, codecformat="jp2",
+                                     colorspace=imagecodecs.JPEG2K.CLRSPC.SRGB, reversible=True,
+                                     resolutions=resolutions, numthreads=2)
     with atomic_output(path, "wb") as fh:
         fh.write(data)
     return path
@@ -95,7 +94,8 @@ def _pyramid(im: Deliverable, image: np.ndarray, ctx: MasterContext) -> Path:
         n = levels_below(*level.shape[:2], TILE)
         for i in range(n + 1):
             first = i == 0
-            tif.write(level, photometric="rgb", tile=(TILE, TILE), compression=("jpeg", JPEG_QUALITY),
+            tif.write(level, photometric="rgb", tile=(TILE, TILE), compression="jpeg",
+                      compressionargs={"level": JPEG_QUALITY, "outcolorspace": "rgb"},
                       subfiletype=0 if first else 1, metadata=None, software=meta.software,
                       description=meta.description if first else None,
                       iccprofile=icc_profile("sRGB") if first else None,

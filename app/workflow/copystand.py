@@ -28,6 +28,7 @@ import numpy as np
 
 from dualrgb.app.processing.masters import FULL, check_resolution
 from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+from dualrgb.app.processing.quality import grading_summary
 from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT, check_illuminant
 from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
@@ -283,7 +284,8 @@ class CopyStand:
         return CalibrationProfile(
             id=new_profile_id(created, sources), created_at=created.isoformat(timespec="seconds"), mode=preset.mode,
             camera=CameraIdentity.of(self.camera), sphere=sphere, preset=preset.name, lights=lights, exposures=plan,
-            base_exposures=base, matrix=c.matrix, statistics={**c.to_dict(), "report": str(result.files["report"])},
+            base_exposures=base, matrix=c.matrix, statistics={**c.to_dict(), "report": str(result.files["report"]),
+                                                              "quality": grading_summary(result.report["quality"])},
             white_xyz=[float(v) for v in c.white], sources=sources, ppi=self._ppi(test),
             raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
                  "linear_limit": proc.linear_limit, "shape": list(first.white.shape), "ppi_grid": "sensor"},

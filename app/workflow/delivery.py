@@ -314,6 +314,7 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
         qa.overrides = list(overrides or [])
         doc = _sidecar(source, profile, original, camera, now, ppi, exposures, dose, qa, files, fixity, spectral)
         doc.update(captured_at=ctx.captured.isoformat(timespec="seconds"), delivery_settings=settings.describe())
+        doc["qa"]["grading"] = calibration_grades(profile)
         atomic_write(folder / f"{stem}.json",
                      (dumps({**doc, **(extra or {})}, indent=2, ensure_ascii=False, default=str) + "\n"
                       ).encode("utf-8", "backslashreplace"))   # a path's undecodable byte: a JSON \udcXX escape
@@ -338,6 +339,17 @@ def _finish_files(images: dict[str, Deliverable], files: dict[str, Path], fixity
             make_access_copy(im, files["srgb"], ctx)
             files[key] = im.path
             fixity[key] = file_fixity(im.path)
+
+
+def calibration_grades(profile: CalibrationProfile) -> dict:
+    """The sidecar's ``qa.grading``: the FADGI / ISO 19264 / Metamorfoze verdicts of the calibration the original
+    was delivered with (its test target; app.processing.quality), or why there are none."""
+    summary = profile.statistics.get("quality") or {}
+    if not summary.get("grading"):
+        return {"basis": f"calibration {profile.id} recorded no grading (made before it was)", "standards": {}}
+    return {"basis": f"calibration {profile.id}, its test target (colour criteria; the rest not assessed)",
+            "standards": {std: {"verdict": g["verdict"], "passed": g["passed"], "failed": g["failed"],
+                                "metrics": g["metrics"]} for std, g in summary["grading"].items()}}
 
 
 PPI_BASELINE = (300.0, 4000.0)      # SLUB's TIFF baseline (checkit_tiff cit_tiff6_baseline_SLUB.cfg) XResolution
