@@ -27,6 +27,7 @@ COLOUR_SPACE_SRGB = 1
 COLOUR_SPACE_UNCALIBRATED = 0xFFFF
 _TYPES = {"B": 1, "s": 2, "H": 3, "I": 4, "R": 5, "U": 7}
 _FOCAL = re.compile(r"(\d+(?:\.\d+)?)\s*mm", re.IGNORECASE)
+Value = float | int | str | bytes
 
 
 def focal_length_mm(lens: str) -> float | None:
@@ -60,13 +61,13 @@ class CaptureExif:
     lens: str = ""
     colour_space: int = COLOUR_SPACE_UNCALIBRATED
 
-    def entries(self) -> list[tuple[int, str, object]]:
+    def entries(self) -> list[tuple[int, str, Value]]:
         """(tag, type, value) in ascending tag order; rationals as floats, text as str, UNDEFINED as bytes."""
         local = self.captured.astimezone() if self.captured.tzinfo is None else self.captured
         when = local.strftime("%Y:%m:%d %H:%M:%S")
         offset = local.strftime("%z")
         offset = f"{offset[:3]}:{offset[3:]}" if offset else "+00:00"
-        out: list[tuple[int, str, object]] = []
+        out: list[tuple[int, str, Value]] = []
         if self.exposure_s:
             out.append((33434, "R", float(self.exposure_s)))
         if self.f_number:
@@ -105,16 +106,15 @@ class CaptureExif:
         return head + struct.pack(byteorder + "I", 0) + values
 
 
-def _encode(kind: str, value: object, byteorder: str) -> tuple[bytes, int]:
-    if kind == "R":
-        num, den = _rational(float(value))                       # type: ignore[arg-type] - a float by entries()
+def _encode(kind: str, value: Value, byteorder: str) -> tuple[bytes, int]:
+    if kind == "R" and isinstance(value, float | int):
+        num, den = _rational(float(value))
         return struct.pack(byteorder + "II", num, den), 1
-    if kind == "H":
-        return struct.pack(byteorder + "H", int(value)), 1     # type: ignore[call-overload] - an int by entries()
-    if kind == "s":
-        data = _ascii(str(value))
-        return data, len(data)
-    data = bytes(value)                                          # type: ignore[call-overload] - bytes by entries()
+    if kind == "H" and isinstance(value, int):
+        return struct.pack(byteorder + "H", value), 1
+    data = _ascii(value) if isinstance(value, str) else value if isinstance(value, bytes) else None
+    if data is None or kind not in ("s", "U"):
+        raise ValueError(f"EXIF value {value!r} of type {kind}")
     return data, len(data)
 
 

@@ -89,9 +89,9 @@ def _pyramid(im: Deliverable, image: np.ndarray, ctx: MasterContext) -> Path:
         band = image[r0: r0 + 256].astype(np.uint32)
         level[r0: r0 + 256] = ((band + 128) // 257).astype(np.uint8)
     meta = ctx.meta(im)
-    ppi = float(ctx.ppi or 0.0)
+    ppi = float(ctx.ppi or 1.0)                  # no sampling known: 1 pixel per inch, as TIFF's default says
     with atomic_output(im.path, "wb") as fh, tifffile.TiffWriter(fh) as tif:
-        n = levels_below(*level.shape[:2], TILE)
+        n = levels_below(int(level.shape[0]), int(level.shape[1]), TILE)
         for i in range(n + 1):
             first = i == 0
             tif.write(level, photometric="rgb", tile=(TILE, TILE), compression="jpeg",
@@ -100,8 +100,7 @@ def _pyramid(im: Deliverable, image: np.ndarray, ctx: MasterContext) -> Path:
                       description=meta.description if first else None,
                       iccprofile=icc_profile("sRGB") if first else None,
                       extratags=[(700, "B", len(meta.xmp), meta.xmp, True)] if first else None,
-                      **({"resolution": (ppi / 2 ** i, ppi / 2 ** i), "resolutionunit": RESOLUTION_UNIT_INCH}
-                         if ppi else {}))
+                      resolution=(ppi / 2 ** i, ppi / 2 ** i), resolutionunit=RESOLUTION_UNIT_INCH)
             if i < n:
                 level = halve(level)
     return im.path

@@ -87,7 +87,7 @@ def load(path: Path | None = None) -> DeliverySettings:
     """The settings of ``path`` (None: the per-user file when there is one, else the defaults); ValueError (one
     line naming the file and key) for anything that is not understood."""
     explicit = path is not None
-    path = Path(path) if explicit else default_path()
+    path = default_path() if path is None else Path(path)
     if not path.is_file():
         if explicit:
             raise ValueError(f"{path}: no such delivery settings file")
