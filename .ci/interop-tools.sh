@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # The tools an archive reads the deliverables with, for the interop tests (tests/app/test_interop_tools.py,
 # tests/drivers/test_dng_writer.py; each skips when its tool is absent): ArgyllCMS (iccdump), LittleCMS (tificc),
-# ImageMagick, GDAL, exiftool. Installed with apt-get where there is one (Debian / Ubuntu CI runners; sudo when not
+# ImageMagick, GDAL, exiftool, SLUB's checkit_tiff (tests/app/test_archival_masters.py). Installed with apt-get where there is one (Debian / Ubuntu CI runners; sudo when not
 # root); elsewhere the tests that need them skip and say which package to install.
 set -euo pipefail
-packages=(argyll liblcms2-utils imagemagick gdal-bin libimage-exiftool-perl)
+packages=(argyll liblcms2-utils imagemagick gdal-bin libimage-exiftool-perl checkit-tiff)
 missing=()
-for tool in iccdump tificc identify gdalinfo exiftool; do
+for tool in iccdump tificc identify gdalinfo exiftool checkit_tiff; do
     command -v "$tool" >/dev/null 2>&1 || missing+=("$tool")
 done
 if [[ ${#missing[@]} -eq 0 ]]; then

@@ -1,5 +1,6 @@
 """Output files: 16-bit TIFFs with real TIFF metadata (resolution, Make/Model, DateTime, Software,
-ImageDescription), embedded ICC profiles and XMP; CSVs of patch values and matrices. Every file is written
+ImageDescription, DocumentName, Copyright; an EXIF IFD: app.processing.exif), embedded ICC profiles and XMP;
+CSVs of patch values and matrices. Every file is written
 through ``common.atomic_files.atomic_output`` (temp file, fsync, rename): a reader sees the old file or the new.
 
 ICC profiles (all version 2.4: ArgyllCMS 2.3 reads no v4 profile and SLUB's checkit_tiff flags v4 as outdated;
@@ -9,14 +10,17 @@ LittleCMS' built-in sRGB that Pillow's ImageCms creates is v4.4, so none comes f
       with Bradford) and r/g/bTRC as a 4096-entry sampled curve of the space's decoding function (sRGB's IEC
       61966-2-1 curve, ROMM's linear toe + 1.8 gamma). The tests check both through LittleCMS against
       colour-science's own conversion, and ArgyllCMS' ``iccdump`` reads them.
-    * the linear XYZ master: :func:`xyz_icc`, the same kind of profile with X, Y, Z as its "R, G, B" (colorants
-      the Bradford adaptation of the reference white to D50, scaled for the file's 2x headroom; linear curves),
-      so an RGB TIFF of X, Y, Z is read by colour-managed software as the colours it holds.
+    * eciRGB v2 (L* curve) and Adobe RGB (1998)-compatible (gamma 563/256) the same way;
+    * the linear XYZ master: :func:`xyz_icc`, the same kind of profile with X/Xn, Y/Yn, Z/Zn as its "R, G, B"
+      (colorants the Bradford adaptation of the reference white to D50; linear curves), so an RGB TIFF of XYZ is
+      read by colour-managed software as the colours it holds - in LittleCMS's default path too;
+    * the camera-RGB masters: :func:`camera_icc`, a linear input profile (app.workflow.camera_profiles).
 
 XMP
     An XMP packet (tag 700) with Dublin Core ``dc:identifier`` / ``dc:title`` / ``dc:description`` (the exact
     Unicode of the 7-bit ImageDescription: what MWG-style readers - exempi, ``exiftool -use MWG``, Lightroom -
-    show as the description), ``xmp:CreatorTool`` /
+    show as the description), ``dc:creator`` / ``dc:rights`` / ``dc:date`` / ``dc:format`` and
+    ``xmpMM:History`` (:class:`DublinCore`), ``xmp:CreatorTool`` /
     ``xmp:CreateDate`` and the ``dualrgb:`` namespace (operator, calibration id, light dose, mode, ...), as
     exiftool and Adobe tools read it.
 

@@ -90,8 +90,9 @@ def _pyramid(im: Deliverable, image: np.ndarray, ctx: MasterContext) -> Path:
         level[r0: r0 + 256] = ((band + 128) // 257).astype(np.uint8)
     meta = ctx.meta(im)
     ppi = float(ctx.ppi or 1.0)                  # no sampling known: 1 pixel per inch, as TIFF's default says
+    height, width = int(image.shape[0]), int(image.shape[1])
     with atomic_output(im.path, "wb") as fh, tifffile.TiffWriter(fh) as tif:
-        n = levels_below(int(level.shape[0]), int(level.shape[1]), TILE)
+        n = levels_below(height, width, TILE)
         for i in range(n + 1):
             first = i == 0
             tif.write(level, photometric="rgb", tile=(TILE, TILE), compression="jpeg",

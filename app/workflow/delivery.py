@@ -14,10 +14,11 @@ the virtual lab the figures against the virtual original's truth (app.workflow.v
 resources/schemas/dualrgb-delivery-1.schema.json.
 
 Every TIFF carries resolution (ppi), Make/Model, DateTime, Software with the dualrgb version, an
-ImageDescription, a PageName and XMP (identifier, title, description, operator, notes, extra fields, calibration
-id, light dose); see app.processing.outputs. Text policy: the XMP packet (UTF-8) and the sidecar (UTF-8 JSON) carry
-every field exactly as normalised (the XMP's ``dc:description`` the exact text of the ImageDescription); TIFF's
-ASCII tags (ImageDescription, Make, Model, PageName) carry app.workflow.metadata.ascii_text of it.
+ImageDescription, a DocumentName, Copyright, an EXIF IFD, an ICC profile and XMP (app.workflow.master_metadata
+says what each holds; app.processing.outputs writes them). Text policy: the XMP packet (UTF-8) and the sidecar
+(UTF-8 JSON) carry every field exactly as normalised (the XMP's ``dc:description`` the exact text of the
+ImageDescription); TIFF's ASCII tags (ImageDescription, Make, Model, DocumentName, Copyright) carry
+app.workflow.metadata.ascii_text of it.
 """
 from __future__ import annotations
 
