@@ -282,11 +282,7 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
     lab's, compared in the sidecar and QA line. ``overrides``: rules the user overrode for it
     (app.workflow.mode_rule), said in the sidecar and QA line. ``captured_at``: when the original was captured
     (EXIF DateTimeOriginal; default now). ``cancel``: checked per band."""
-    from dualrgb.app.workflow.delivery_settings import load
-
-    settings = settings if settings is not None else load()
-    check_spectral_request(profile, settings.spectral is True)
-    illuminant = render_illuminant or settings.render_illuminant or DEFAULT_RENDER_ILLUMINANT
+    settings, illuminant = _request(profile, settings, render_illuminant)
     warnings = list(warnings or [])
     ppi = ppi or delivered_ppi(profile, source.resolution)
     warnings += ppi_warnings(ppi)
@@ -316,12 +312,27 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
         doc = _sidecar(source, profile, original, camera, now, ppi, exposures, dose, qa, files, fixity, spectral)
         doc.update(captured_at=ctx.captured.isoformat(timespec="seconds"), delivery_settings=settings.describe())
         doc["qa"]["grading"] = calibration_grades(profile)
-        atomic_write(folder / f"{stem}.json",
-                     (dumps({**doc, **(extra or {})}, indent=2, ensure_ascii=False, default=str) + "\n"
-                      ).encode("utf-8", "backslashreplace"))   # a path's undecodable byte: a JSON \udcXX escape
+        write_sidecar(folder / f"{stem}.json", {**doc, **(extra or {})})
     log.info("delivered %s: %s", original.identifier, qa.text())
     final = Path(out_dir) / stem
     return Delivery(original, {k: final / p.name for k, p in files.items()}, final / f"{stem}.json", qa)
+
+
+def _request(profile: CalibrationProfile, settings: DeliverySettings | None, render_illuminant: str | None
+             ) -> tuple[DeliverySettings, str]:
+    """The delivery settings (None: the settings file's) checked against the calibration, and the rendering's
+    light (the argument's, else the settings', else the default)."""
+    from dualrgb.app.workflow.delivery_settings import load
+
+    settings = settings if settings is not None else load()
+    check_spectral_request(profile, settings.spectral is True)
+    return settings, render_illuminant or settings.render_illuminant or DEFAULT_RENDER_ILLUMINANT
+
+
+def write_sidecar(path: Path, doc: dict) -> None:
+    """A delivery's sidecar, atomically (a path's undecodable byte becomes a JSON \\udcXX escape)."""
+    atomic_write(path, (dumps(doc, indent=2, ensure_ascii=False, default=str) + "\n"
+                        ).encode("utf-8", "backslashreplace"))
 
 
 def _finish_files(images: dict[str, Deliverable], files: dict[str, Path], fixity: dict[str, dict],

@@ -104,8 +104,7 @@ def check_inputs(sidecar: Path, doc: dict, files: list[Path]) -> None:
 def record(sidecar: Path, doc: dict, made: dict[str, Path]) -> None:
     """The files made for the delivery into its sidecar: listed in ``files`` and in ``fixity`` (so ``dualrgb
     verify`` checks them and ``dualrgb bag`` packs them), the cube marked as made; written atomically."""
-    from dualrgb.app.json_output import dumps
-    from dualrgb.app.session.capture_session import atomic_write
+    from dualrgb.app.workflow.delivery import write_sidecar
     from dualrgb.app.workflow.fixity import file_fixity, fixity_section
 
     doc["files"] = {**doc.get("files", {}), **{k: p.name for k, p in made.items()}}
@@ -114,8 +113,7 @@ def record(sidecar: Path, doc: dict, made: dict[str, Path]) -> None:
     doc["fixity"] = fixity_section(listed)
     doc["spectral"]["cube"]["made_on_demand"] = {"data": made["spectral"].name, "header": made["spectral_header"].name,
                                                  "made_at": datetime.now(UTC).isoformat(timespec="seconds")}
-    atomic_write(sidecar, (dumps(doc, indent=2, ensure_ascii=False, default=str) + "\n"
-                           ).encode("utf-8", "backslashreplace"))
+    write_sidecar(sidecar, doc)
 
 
 def _header(doc: dict, est, lines: int, samples: int) -> EnviHeader:
