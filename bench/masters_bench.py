@@ -84,6 +84,7 @@ def bench_size(width: int, height: int, work: Path) -> dict:
         sizes = {k: p.stat().st_size for k, p in d.files.items()}
         out["sets"][name] = {"deliver_s": round(wall, 3), "bytes": sizes, "total_bytes": sum(sizes.values())}
         if name == "access":
+            out["access_copy_s"] = _access_times(d, prof, work)
             t = time.perf_counter()
             bag = make_day_bag(folder, work / "bag")
             out["bag"] = {"s": round(time.perf_counter() - t, 3), "bytes": bag.bytes, "files": bag.files,
@@ -97,6 +98,26 @@ def bench_size(width: int, height: int, work: Path) -> dict:
     acc = out["sets"]["access"]["bytes"]
     out["access_copies"] = {"jp2_bytes": acc["access_jp2"], "pyramid_bytes": acc["access_pyramid"],
                             "jp2_ratio_to_srgb": round(acc["access_jp2"] / acc["srgb"], 3)}
+    return out
+
+
+def _access_times(d, prof, work: Path) -> dict:
+    """Each access copy made again on its own from the delivered sRGB master (seconds)."""
+    from datetime import UTC, datetime
+
+    from dualrgb.app.workflow.access_copies import make_access_copy
+    from dualrgb.app.workflow.deliverables import ACCESS_NAMES, Deliverable
+    from dualrgb.app.workflow.master_metadata import MasterContext
+
+    now = datetime.now(UTC)
+    ctx = MasterContext(d.original, prof.id, prof.camera, 1.0, 300.0, now, now, white_xyz=list(prof.white_xyz))
+    out = {}
+    for key in ("jp2", "pyramid"):
+        im = Deliverable(work / f"again_{ACCESS_NAMES[key]}", 3, "access", space=key, what=key)
+        t = time.perf_counter()
+        make_access_copy(im, d.files["srgb"], ctx)
+        out[key] = round(time.perf_counter() - t, 3)
+        im.path.unlink()
     return out
 
 

@@ -17,6 +17,7 @@ encoder, 8 bits for the pyramid) and get their fixity like every other file.
 from __future__ import annotations
 
 import logging
+import os
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +65,7 @@ def _jp2(path: Path, image: np.ndarray) -> Path:
     resolutions = min(levels_below(h, w, TILE) + 1, 8)
     data = imagecodecs.jpeg2k_encode(np.ascontiguousarray(image), level=0, codecformat="jp2",
                                      colorspace=imagecodecs.JPEG2K.CLRSPC.SRGB, reversible=True,
-                                     resolutions=resolutions, numthreads=2)
+                                     resolutions=resolutions, numthreads=min(os.cpu_count() or 1, 8))
     with atomic_output(path, "wb") as fh:
         fh.write(data)
     return path

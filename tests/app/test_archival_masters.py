@@ -215,3 +215,25 @@ def test_delivery_settings_are_checked_naming_file_and_key(tmp_path):
     f.write_text("[delivery]\nspectrall = true\n")
     with pytest.raises(ValueError, match="spectrall: unknown key"):
         load(f)
+
+
+@pytest.mark.fault("input")
+def test_process_render_illuminant_at_full_resolution_is_refused_then_honoured(tmp_path, capsys):
+    """`process --render-illuminant A` at full resolution wrote no A rendering and said nothing: now one line
+    before anything is delivered; with --spectral the cube and the A rendering are written and in the fixity."""
+    prof = make_profile(tmp_path / "cal", shape=(64, 96), estimator=estimator())
+    session = tmp_path / "session"
+    assert main(["capture", "--virtual-lab", "--calibration", str(prof.path), "--id", "ACC-1", "--session",
+                 str(session), "--force", "--settle", "0", "--frame-size", "96x64"]) == 0
+    sidecar = session / "deliverables" / "ACC-1" / "ACC-1.json"
+    before = sidecar.read_bytes()
+    capsys.readouterr()
+    assert main(["process", str(session), "--calibration", str(prof.path), "--render-illuminant", "A"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--render-illuminant A: no rendering would be written" in err[0]
+    assert sidecar.read_bytes() == before                                    # nothing delivered again
+    assert main(["process", str(session), "--calibration", str(prof.path), "--render-illuminant", "A",
+                 "--spectral"]) == 0
+    doc = json.loads(sidecar.read_text())
+    assert doc["spectral"]["cube"]["delivery"] == "file" and doc["resolution"]["mode"] == "full"
+    assert {"ACC-1_spectral.img", "ACC-1_under_A_prophoto_16bit.tif"} <= set(doc["fixity"]["files"])

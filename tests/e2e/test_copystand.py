@@ -328,10 +328,11 @@ def test_checkit_tiff_passes_every_tiff_of_a_virtual_lab_delivery(day, ident, tm
 
     _, _, captures = day
     sidecar = Path(captures[ident]["sidecar"])
-    qa = json.loads(sidecar.read_text())["qa"]["text"]
-    config = slub_config(tmp_path, "SLUB's TIFF baseline" in qa)
+    doc = json.loads(sidecar.read_text())
+    config = slub_config(tmp_path, "SLUB's TIFF baseline" in doc["qa"]["text"])
     tiffs = tiffs_of(sidecar.parent)
-    assert len(tiffs) == (6 if ident == "PAINT-1" else 5)   # 3 masters + channel files (+ rendering for the film)
+    assert {p.name for p in tiffs} == {n for n in doc["fixity"]["files"] if n.endswith(".tif")}
+    assert len(tiffs) == (5 if ident == "PAINT-1" else 6)      # 3 masters, 2 lights' channels (+ the film's render)
     for path in tiffs:
         ok, report = checkit(config, path)
         assert ok, f"{path.name}:\n{report}"
