@@ -21,6 +21,7 @@ BENCHES = {
     "digitise": ("bench.digitise_bench", "bench_digitise", {}),
     "unbinned": ("bench.studies", "bench_unbinned", {}),
     "cancel_latency": ("bench.cancel_latency", "bench_cancel_latency", {}),
+    "masters": ("bench.masters_bench", "bench_masters", {}),
 }
 
 
