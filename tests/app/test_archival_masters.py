@@ -240,3 +240,18 @@ def test_process_render_illuminant_at_full_resolution_is_refused_then_honoured(t
     doc = json.loads(sidecar.read_text())
     assert doc["spectral"]["cube"]["delivery"] == "file" and doc["resolution"]["mode"] == "full"
     assert {"ACC-1_spectral.img", "ACC-1_under_A_prophoto_16bit.tif"} <= set(doc["fixity"]["files"])
+
+
+def test_the_grading_kept_in_the_profile_and_printed():
+    """What `dualrgb calibrate` / `calibration show` print (`grade ...` lines) and the profile keeps, from the
+    report's full grading (app.processing.quality.grade_metrics)."""
+    from dualrgb.app.processing.quality import grade_metrics, grading_lines, grading_summary
+
+    measured = {"colour_mean_de00": 1.2, "colour_p90_de00": 2.0, "colour_max_de00": 8.0, "tone_max_abs_dl": 0.5,
+                "white_balance_max_de": 1.0}
+    summary = grading_summary({"measured": measured, "grading": grade_metrics(measured)})
+    lines = grading_lines(summary)
+    assert lines[0].startswith("FADGI 4-star: pass (measured criteria)") and "colour_mean_de00 pass" in lines[0]
+    assert any(line.startswith("Metamorfoze 2.0 Full: fail") and "colour_max_de00 fail" in line for line in lines)
+    assert json.loads(json.dumps(summary)) == summary                 # JSON as the profile stores it
+    assert grading_lines(None) == ["grading: not recorded in this calibration (calibrate again)"]

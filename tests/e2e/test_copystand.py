@@ -340,7 +340,9 @@ def test_checkit_tiff_passes_every_tiff_of_a_virtual_lab_delivery(day, ident, tm
 
 
 def test_report_of_a_virtual_lab_session(day, capsys):
-    root, _, _ = day
+    root, cal, _ = day
+    assert set(cal["statistics"]["quality"]["grading"]) == {"FADGI 4-star", "ISO 19264-1:2021 A",
+                                                            "Metamorfoze 2.0 Full"}     # kept in the profile
     r = dualrgb("report", str(root / "originals"))
     page = (root / "originals" / "report.html").read_text(encoding="utf-8")
     for ident in ("PAINT-1", "FILM-1", "SHADOW-1"):
