@@ -34,7 +34,7 @@ import numpy as np
 from dualrgb.app.json_output import dumps
 from dualrgb.app.processing.cube_map import spectral_map
 from dualrgb.app.processing.demosaic import DEMOSAIC, HALO
-from dualrgb.app.processing.encode import LINEAR_ONE, DeliveryEncoder
+from dualrgb.app.processing.encode import LINEAR_ONE, XYZ_ONE, DeliveryEncoder
 from dualrgb.app.processing.envi import DTYPE, IGNORE_VALUE, INTERLEAVE, SCALE_FACTOR, EnviHeader
 from dualrgb.app.processing.masters import FULL, MasterStack
 from dualrgb.app.processing.outputs import open_tiff
@@ -408,7 +408,9 @@ def _sidecar(source: ChannelSource, profile: CalibrationProfile, original: Origi
             "camera": asdict(camera), "ppi": ppi, "resolution": resolution_section(source, profile),
             "exposures": exposures or {}, "light_dose": dose.to_dict(),
             "qa": qa.to_dict(), "encoding": {"rgb": "display-encoded, white = 65535", "linear_one": LINEAR_ONE,
-                                             "channels": source.channels},
+                                             "channels": source.channels, "xyz": "X/Xn, Y/Yn, Z/Zn; XYZ = code / "
+                                             "xyz_one * white_xyz", "xyz_one": XYZ_ONE,
+                                             "white_xyz": [float(v) for v in profile.white_xyz]},
             **({"spectral": spectral_section(spectral, profile, files)} if spectral is not None else {}),
             **({"virtual_truth": qa.truth} if qa.truth else {}),
             "files": {k: p.name for k, p in files.items()},
