@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
 # The tools an archive reads the deliverables with, for the interop tests (tests/app/test_interop_tools.py,
 # tests/drivers/test_dng_writer.py; each skips when its tool is absent): ArgyllCMS (iccdump), LittleCMS (tificc),
-# ImageMagick, GDAL, exiftool; and the AVR toolchain and simavr for the LED sphere's reference firmware (make
-# firmware-check: gcc-avr, avr-libc, simavr, libsimavr-dev, libsimavrparts1). Installed with apt-get where there is
-# one (Debian / Ubuntu CI runners; sudo when not root); elsewhere the tests that need them skip and say which
-# package to install.
+# ImageMagick, GDAL, exiftool, SLUB's checkit_tiff (tests/app/test_archival_masters.py); and the AVR toolchain and
+# simavr for the LED sphere's reference firmware (make firmware-check: gcc-avr, avr-libc, simavr, libsimavr-dev,
+# libsimavrparts1). Installed with apt-get where there is one (Debian / Ubuntu CI runners; sudo when not root);
+# elsewhere the tests that need them skip and say which package to install.
 set -euo pipefail
-packages=(argyll liblcms2-utils imagemagick gdal-bin libimage-exiftool-perl
+packages=(argyll liblcms2-utils imagemagick gdal-bin libimage-exiftool-perl checkit-tiff
           gcc-avr avr-libc simavr libsimavr-dev libsimavrparts1)
 missing=()
-for tool in iccdump tificc identify gdalinfo exiftool avr-gcc simavr; do
+for tool in iccdump tificc identify gdalinfo exiftool checkit_tiff avr-gcc simavr; do
     command -v "$tool" >/dev/null 2>&1 || missing+=("$tool")
 done
 [[ -f /usr/include/simavr/sim_avr.h ]] || missing+=("libsimavr-dev")

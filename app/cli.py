@@ -49,6 +49,7 @@ COMMAND_MODULES = (
     "dualrgb.app.commands.cube",
     "dualrgb.app.commands.verify",
     "dualrgb.app.commands.bag",
+    "dualrgb.app.commands.report",
     "dualrgb.app.commands.calibration",
     "dualrgb.app.commands.study",
     "dualrgb.app.commands.measure",

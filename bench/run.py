@@ -23,6 +23,7 @@ BENCHES = {
     "cancel_latency": ("bench.cancel_latency", "bench_cancel_latency", {}),
     "process": ("bench.process_bench", "bench_process", {}),
     "input_bounds": ("bench.input_bounds", "bench_input_bounds", {}),
+    "masters": ("bench.masters_bench", "bench_masters", {}),
 }
 
 

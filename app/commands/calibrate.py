@@ -148,10 +148,13 @@ def main(args: argparse.Namespace) -> int:
         stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
                           progress=progress_printer(), prompt=ask_person)
         profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
+    from dualrgb.app.processing.quality import grading_lines
     from dualrgb.app.workflow.profile import describe
 
     for line in describe(profile):
         print(line, file=text)
+    for line in grading_lines(profile.statistics.get("quality")):
+        print(f"grade {line}", file=text)
     print(f"calibration: {profile.path}", file=text)
     write_json(args.json_path, CALIBRATE_FORMAT, {"calibration": str(profile.path), **profile.to_dict()})
     print(f"dualrgb: calibration {profile.id} written", file=sys.stderr)

@@ -44,7 +44,9 @@ def main(args: argparse.Namespace) -> int:
         with open_devices(args, profile.mode) as dev:
             check = check_reuse(profile, CameraIdentity.of(dev.camera), SphereIdentity.of(dev.sphere),
                                 profile.lights, reuse_limits(args))
-    for line in describe(profile, check):
+    from dualrgb.app.processing.quality import grading_lines
+
+    for line in describe(profile, check) + [f"grade {g}" for g in grading_lines(profile.statistics.get("quality"))]:
         print(line, file=text_stream(args.json_path))
     write_json(args.json_path, SHOW_FORMAT, {**profile.to_dict(), "age_h": round(profile.age_h(), 3),
                                              "check": None if check is None else {"refusals": check.refusals,

@@ -27,6 +27,7 @@ from dualrgb.app.commands.options import (
     add_resolution_option,
     column_option,
     count,
+    delivery_request,
     identifier,
     input_file,
     number,
@@ -176,11 +177,13 @@ def _queue_originals(args: argparse.Namespace, plan) -> list:
 def main(args: argparse.Namespace) -> int:
     if not args.check:
         check_device_options(args)            # before the heavy imports below (--check opens no device)
+    from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT
     from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
     from dualrgb.app.workflow.copystand import CopyStand, QueueOutcome, StandSettings, capture_queue
     from dualrgb.app.workflow.profile import load_profile
 
     profile = load_profile(_calibration(args))
+    delivery = delivery_request(args, profile)          # before any device opens: refused in one line
     mode = args.mode or profile.mode
     out_dir = Path(args.out) if args.out else args.session / "deliverables" if args.session else None
     plan = _plan(args, mode, out_dir, profile) if args.queue else None
@@ -188,8 +191,9 @@ def main(args: argparse.Namespace) -> int:
         return _check(args, plan, _single(args, mode, out_dir, profile) if plan is None else [], profile)
     originals = _queue_originals(args, plan) if plan is not None else _single(args, mode, out_dir, profile)
     settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
-                             original_frames=args.frames, render_illuminant=args.render_illuminant,
-                             resolution=args.resolution)
+                             original_frames=args.frames, resolution=args.resolution, delivery=delivery,
+                             render_illuminant=args.render_illuminant or delivery.render_illuminant
+                             or DEFAULT_RENDER_ILLUMINANT)
     definition = {"workflow": DAY_WORKFLOW, **virtual_world(args)}
     ensure_kernels()                          # first run: compiled here, before any device opens
     with open_devices(args, mode, args.virtual_original) as dev, \

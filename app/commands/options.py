@@ -17,6 +17,7 @@ import math
 import os
 import stat
 from collections.abc import Callable
+from pathlib import Path
 
 # the virtual camera renders the whole frame in memory; the D610's own raw is 6080 x 4028
 MIN_FRAME_SIDE, MAX_FRAME_SIDE = 64, 8192
@@ -205,10 +206,30 @@ def add_render_option(p: argparse.ArgumentParser) -> None:
 
     names = ", ".join(f"{k} ({v})" if k != v else k for k, v in light_keys().items())
     default = light_key(REFERENCE_LIGHT)
-    p.add_argument("--render-illuminant", type=render_illuminant, default=default, metavar="LIGHT",
+    p.add_argument("--render-illuminant", type=render_illuminant, default=None, metavar="LIGHT",
                    help=f"the light the spectral cube is rendered under (<id>_under_<LIGHT>_prophoto_16bit.tif, "
-                        f"delivered at half resolution; at full resolution named in the sidecar for dualrgb cube): "
-                        f"{names}; default {default}")
+                        f"written with the cube: --spectral, or at half resolution; asking for it where no cube is "
+                        f"written is refused before the light): {names}; default {default}")
+    p.add_argument("--spectral", action=argparse.BooleanOptionalAction, default=None,
+                   help="write the spectral cube and its rendering with the masters at any resolution "
+                        "(--no-spectral: never; default: the delivery settings', else at half resolution only)")
+    p.add_argument("--delivery-settings", type=Path, metavar="FILE",
+                   help="the delivery settings (TOML: spectral products, other working spaces, access copies, "
+                        "creator, rights, bag-info; default <per-user data folder>/delivery.toml when it exists)")
+
+
+def delivery_request(args: argparse.Namespace, profiles: object = None):
+    """The delivery settings the options ask for (app.workflow.delivery_settings), checked before any device opens
+    or light goes on: a rendering asked for where none is written, or a cube from a calibration without a
+    spectral estimator (``profiles``: one calibration or a dict of them), is one line."""
+    from dualrgb.app.workflow.deliverables import check_spectral_request
+    from dualrgb.app.workflow.delivery_settings import check_render_request, load
+
+    settings = load(args.delivery_settings).with_spectral(args.spectral)
+    check_render_request(settings, args.resolution, args.render_illuminant)
+    for profile in profiles.values() if isinstance(profiles, dict) else [profiles]:
+        check_spectral_request(profile, settings.spectral is True)
+    return settings
 
 
 def layout(text: str) -> str:

@@ -1,7 +1,8 @@
 """``dualrgb process``: deliver sessions' originals again, e.g. with a newer calibration, on one machine or many.
 
-    dualrgb process SESSION [SESSION ...] [--calibration FILE] [--force] [--out DIR] [--render-illuminant A]
-                    [--resolution full|half] [--jobs N | --scheduler ADDRESS] [--json J]
+    dualrgb process SESSION [SESSION ...] [--calibration FILE] [--force] [--out DIR] [--spectral]
+                    [--render-illuminant A] [--resolution full|half] [--delivery-settings FILE]
+                    [--jobs N | --scheduler ADDRESS] [--json J]
 
 The mode rule (app.workflow.mode_rule) as for ``capture``: without ``--calibration`` each original is delivered
 with its session's newest calibration of its own mode; with one, originals of the other mode are refused (listed,
@@ -16,11 +17,12 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dualrgb.app.cli import UserError
-from dualrgb.app.commands.options import add_render_option, add_resolution_option, count, number
+from dualrgb.app.commands.options import add_render_option, add_resolution_option, count, delivery_request, number
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 if TYPE_CHECKING:
@@ -63,7 +65,9 @@ def main(args: argparse.Namespace) -> int:
         calibration=str(args.calibration) if args.calibration else None, out=str(args.out) if args.out else None,
         ppi=args.ppi, render_illuminant=args.render_illuminant, resolution=args.resolution, force=args.force,
         delivered_at=run_time(), out_per_session=len(args.sessions) > 1)
-    tasks = plan_tasks(args.sessions, options)          # every session read and checked before any delivery
+    tasks, profiles = plan_tasks(args.sessions, options)   # every session read and checked before any delivery
+    delivery = delivery_request(args, dict(enumerate(profiles)))     # what is asked for, checked before too
+    tasks = [replace(t, options=replace(options, delivery=delivery)) for t in tasks]
     if not (args.scheduler or (args.jobs or 1) > 1):
         ensure_ready()                                  # first run: compiled once here (workers warm up their own)
     executor = _executor(args)

@@ -5,7 +5,9 @@ recorded when they were written (app.workflow.fixity).
     dualrgb verify SESSION                          every delivery of a session, previous sets included
 
 One line per problem (a missing file, another size, another digest, a file the sidecar does not list, a delivery
-without recorded fixity), then a summary; exit 1 on any problem, 0 when every file matches.
+without recorded fixity), a ``note:`` line per file another program left beside a delivery (GDAL's
+``.aux.xml``, ``.DS_Store``, ``Thumbs.db``: named as such, not a problem), then a summary; exit 1 on any problem,
+0 when every file matches.
 """
 from __future__ import annotations
 
@@ -38,6 +40,8 @@ def main(args: argparse.Namespace) -> int:
     out = sys.stderr if quiet else sys.stdout
     for line in report.problems:
         print(line, file=out)
+    for line in report.notes():
+        print(f"note: {line}", file=out)
     print(report.summary(), file=out)
     if args.json:
         write_json(args.json, FORMAT, report.to_dict())

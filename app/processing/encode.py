@@ -15,9 +15,11 @@ colour-science's own ``cctf_encoding`` with linear interpolation (error < 0.01 o
 tests against colour-science), so the colour maths stays colour-science's.
 
 Scales. RGB: a perfect white (the reference white's XYZ) encodes to 65535 in every channel, values outside
-[0, 1] are clipped. XYZ and the N channels are linear with ``LINEAR_ONE`` (32768) for 1.0: XYZ relative to the
-reference white's Y (Y = 100 -> 32768), channels as flat-fielded (1.0 = the white / open gate), so both keep a
-2x headroom above white. NaN (no usable flat field) becomes 0.
+[0, 1] are clipped. XYZ is X / Xn, Y / Yn, Z / Zn (the reference white's Xn, Yn, Zn; CIELAB's normalisation)
+with ``XYZ_ONE`` (65535) for 1.0, so its ICC profile is one LittleCMS keeps exact (app.processing.outputs.xyz_icc
+says why); values above the white clip, as in the RGB masters. The N channels are linear with ``LINEAR_ONE``
+(32768) for 1.0, as flat-fielded (1.0 = the white / open gate): a 2x headroom above white, so the camera-RGB
+masters keep what the others clip. NaN (no usable flat field) becomes 0.
 """
 from __future__ import annotations
 
@@ -35,7 +37,8 @@ from dualrgb.app.processing.demosaic import HALO, mhc_planes, row_colours
 
 log = logging.getLogger(__name__)
 
-LINEAR_ONE = 32768.0          # 16-bit code of 1.0 in the linear XYZ and channel images
+LINEAR_ONE = 32768.0          # 16-bit code of 1.0 in the linear channel images (2x headroom)
+XYZ_ONE = 65535.0             # 16-bit code of X / Xn = Y / Yn = Z / Zn = 1 in the XYZ image
 LUT_SIZE = 65536
 RGB_SPACES = ("sRGB", "ProPhoto RGB")
 
@@ -63,15 +66,20 @@ def encoding_slopes(space: str) -> np.ndarray:
     return out
 
 
+def xyz_from_codes(codes: np.ndarray, white_xyz: Sequence[float]) -> np.ndarray:
+    """The XYZ (on the reference white's scale) of the XYZ master's 16-bit codes."""
+    return np.asarray(codes, dtype=np.float64) / XYZ_ONE * np.asarray(white_xyz, dtype=np.float64)
+
+
 @dataclass
 class EncodedImages:
     """The 16-bit deliverable arrays of one original and what the QA line needs."""
 
-    xyz: np.ndarray               # (H, W, 3) uint16, linear, LINEAR_ONE = reference white's Y
+    xyz: np.ndarray               # (H, W, 3) uint16, linear, X / Xn, Y / Yn, Z / Zn, XYZ_ONE = 1
     rgb: dict[str, np.ndarray]    # space -> (H, W, 3) uint16 display-encoded
     channels: np.ndarray          # (H, W, N) uint16, linear, LINEAR_ONE = 1.0
     invalid_fraction: float       # pixels with NaN (no usable flat field)
-    over_white_fraction: float    # pixels whose Y exceeds 2x the white (clipped in the XYZ image)
+    over_white_fraction: float    # pixels whose Y reaches the white's or more (clipped in the XYZ image)
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
@@ -297,11 +305,15 @@ class DeliveryEncoder:
             raise ValueError(f"image {self._shape} and matrix {A.shape}: expected (H, W, N) and (N, 3), N = 3 per "
                              "light")
         self.spaces = tuple(spaces)
-        white_y = float(white_xyz[1])
-        self._A = tuple(tuple(np.float32(v) for v in row) for row in A)     # N: a compile-time constant
-        self._M = np.stack([xyz_to_rgb_matrix(s, white_xyz) / white_y for s in self.spaces]).astype(np.float32)
+        white = np.asarray(white_xyz, dtype=np.float64)
+        # the kernels' x, y, z are X / Xn, Y / Yn, Z / Zn: the matrix's columns divided by the white, and the RGB
+        # matrices (of XYZ / Yn) multiplied by it, so the RGB values are the same
+        self._A = tuple(tuple(np.float32(v) for v in row)                           # N: a compile-time constant
+                        for row in np.asarray(matrix, dtype=np.float64) / white)
+        self._M = np.stack([xyz_to_rgb_matrix(s, white_xyz) * (white / white[1]) for s in self.spaces]
+                           ).astype(np.float32)
         self._luts = np.stack([np.stack([encoding_table(s), encoding_slopes(s)]) for s in self.spaces])
-        self._scale = np.float32(LINEAR_ONE / white_y)
+        self._scale = np.float32(XYZ_ONE)
         self.invalid = 0
         self.over_white = 0
         self.lit = False                # any encoded XYZ above 0 (an all-zero delivery is refused: app.workflow)

@@ -349,3 +349,26 @@ def quality_summary(quality: dict) -> dict:
             "grading": {std: {"verdict": g["verdict"], "scope": g["scope"], "passed": g["passed"],
                               "failed": g["failed"], "not_assessed": g["not_assessed"]}
                         for std, g in quality["grading"].items()}}
+
+
+def grading_summary(quality: dict) -> dict:
+    """What the calibration profile and each original's sidecar keep of the grading: the measured values, and
+    per standard its verdict, scope, counts and each criterion's status (the limits and sources stay in the
+    report)."""
+    return {"measured": dict(quality.get("measured") or {}),
+            "grading": {std: {"verdict": g["verdict"], "scope": g["scope"], "passed": g["passed"],
+                              "failed": g["failed"],
+                              "metrics": {m: r["status"] for m, r in g["metrics"].items()}}
+                        for std, g in (quality.get("grading") or {}).items()}}
+
+
+def grading_lines(summary: dict | None) -> list[str]:
+    """One line per standard: ``FADGI 4-star: pass (measured criteria; colour accuracy only): colour_mean_de00
+    pass, ...`` (none without a grading: a calibration made before it was recorded)."""
+    if not summary or not summary.get("grading"):
+        return ["grading: not recorded in this calibration (calibrate again)"]
+    out = []
+    for std, g in summary["grading"].items():
+        crit = ", ".join(f"{m} {s}" for m, s in g["metrics"].items() if s != "not assessed")
+        out.append(f"{std}: {g['verdict']} ({g['scope']}; {g['passed']} passed, {g['failed']} failed): {crit}")
+    return out

@@ -134,8 +134,11 @@ class TiffStream:
     """
 
     def __init__(self, path: Path, shape: tuple[int, ...], dtype: Any, tifffile_kwargs: dict, *, band_rows: int,
-                 executor: Executor | None = None, direct: bool = True, digest: str | None = None):
+                 executor: Executor | None = None, direct: bool = True, digest: str | None = None,
+                 exif: Callable[[int], bytes] | None = None):
         self.path = Path(path)
+        self._exif = exif                         # the EXIF IFD at an offset (app.processing.exif), after the pixels
+        self._trailer = b""                       # what follows the pixels: padding and the EXIF IFD
         self._hash = hashlib.new(digest) if digest else None
         self.sha256: str | None = None            # the file's digest (hex) after close, when one was asked for
         self.size = 0                             # the file's size in bytes after close
@@ -185,12 +188,28 @@ class TiffStream:
                                  f"{self.shape[0] * self.row_bytes} contiguous ones")
             start = offset - offset % BLOCK
             fh.seek(0)
+            header = bytearray(fh.read(offset))
+            if self._exif is not None:
+                self._link_exif(header, offset + nbytes)
             if self._hash is not None:
-                self._hash.update(fh.read(start))       # the rest is hashed as it is written (_write)
-            fh.seek(start)
-            head = fh.read(offset - start)
+                self._hash.update(header[:start])       # the rest is hashed as it is written (_write)
+            head = bytes(header[start:])
+            if self._exif is not None:
+                fh.seek(0)
+                fh.write(header[:start])                # the linked IFD0 (the rest goes with the pixels)
             fh.truncate(offset)                     # tifffile's sparse end byte: the pixels will extend the file
         return offset, nbytes, head
+
+    def _link_exif(self, header: bytearray, end: int) -> None:
+        """Point IFD0's placeholder at the EXIF IFD that will follow the pixels (``end``: their end), and keep
+        that IFD (word-aligned) as the file's trailer (app.processing.exif)."""
+        from dualrgb.app.processing.exif import patch_placeholder
+
+        assert self._exif is not None
+        at = end + end % 2
+        if not patch_placeholder(header, at):
+            raise ValueError(f"{self.path}: no EXIF placeholder in the TIFF's first IFD")
+        self._trailer = b"\0" * (at - end) + self._exif(at)
 
     def band(self, rows: int) -> np.ndarray:
         """The next ``rows`` rows to fill (a view valid until :meth:`commit`)."""
@@ -257,21 +276,26 @@ class TiffStream:
             raise ValueError(f"{self.path}: {self._rows_done} of {self.shape[0]} rows written")
         for slot in (0, 1):
             self._wait(slot)
-        tail = self._carry
+        tail = self._carry + len(self._trailer)
         buf = self._buffers[self._current]
+        if tail + BLOCK > len(buf):                     # a trailer longer than the buffer's spare block
+            buf = aligned_empty(tail)
+            buf[:self._carry] = self._buffers[self._current][:self._carry]
+        buf[self._carry:tail] = np.frombuffer(self._trailer, np.uint8)
         padded = -(-tail // BLOCK) * BLOCK
         buf[tail:padded] = 0
         out = self._output()
+        size = self._offset + self._nbytes + len(self._trailer)
 
         def finish() -> None:
             if tail:
                 self._write(buf[:padded].data, self._pos, tail)
-            out.finish(self._offset + self._nbytes)
+            out.finish(size)
             out.close()
             os.replace(self._tmp, self.path)
             fsync_dir(self.path.parent)
         self._guard(finish)
-        self.size = self._offset + self._nbytes
+        self.size = size
         self.sha256 = self._hash.hexdigest() if self._hash is not None else None
         return self.path
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from dualrgb.app.processing.masters import FULL, check_resolution
 from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+from dualrgb.app.processing.quality import grading_summary
 from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT, check_illuminant
 from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
@@ -37,8 +38,10 @@ from dualrgb.app.sequences.shooter import SafetySettings, Shooter, Stand
 from dualrgb.app.session.paths import deliverable, record
 from dualrgb.app.workflow.charts import definition as chart_definition
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
+from dualrgb.app.workflow.deliverables import check_spectral_request
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
+from dualrgb.app.workflow.delivery_settings import DeliverySettings
 from dualrgb.app.workflow.engine import RunControl, RunEngine
 from dualrgb.app.workflow.metadata import check_original
 from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
@@ -126,6 +129,7 @@ class StandSettings:
                                               # nominal): measured camera / LEDs (calibrate --camera-csv, --stand-dir)
     charts: dict[str, Chart] = field(default_factory=dict)   # 'train' / 'test' -> the stand's own chart
                                               # (simulation.charts.Chart); absent: the mode's packaged target
+    delivery: DeliverySettings | None = None  # what a delivery holds (app.workflow.delivery_settings; None: the file's)
 
 
 @dataclass
@@ -281,7 +285,8 @@ class CopyStand:
         return CalibrationProfile(
             id=new_profile_id(created, sources), created_at=created.isoformat(timespec="seconds"), mode=preset.mode,
             camera=CameraIdentity.of(self.camera), sphere=sphere, preset=preset.name, lights=lights, exposures=plan,
-            base_exposures=base, matrix=c.matrix, statistics={**c.to_dict(), "report": str(result.files["report"])},
+            base_exposures=base, matrix=c.matrix, statistics={**c.to_dict(), "report": str(result.files["report"]),
+                                                              "quality": grading_summary(result.report["quality"])},
             white_xyz=[float(v) for v in c.white], sources=sources, ppi=self._ppi(test),
             raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
                  "linear_limit": proc.linear_limit, "shape": list(first.white.shape), "ppi_grid": "sensor"},
@@ -352,6 +357,7 @@ class CopyStand:
         check_original(original)
         override = check_mode(original, profile, force=self.settings.force) if profile is not None else ""
         check_illuminant(self.settings.render_illuminant)
+        check_spectral_request(profile, self.settings.delivery is not None and self.settings.delivery.spectral is True)
         check_resolution(self.settings.resolution)
         prepare(self.deliverables(out_dir), original)
         return override
@@ -405,7 +411,8 @@ class CopyStand:
                                exposures=exposures, warnings=checked.warnings + warnings,
                                extra={"session": str(self.session.path), "take": take, "frames": seq.steps()},
                                render_illuminant=self.settings.render_illuminant, truth=placed_truth(self.lab),
-                               overrides=[override] if override else [], cancel=self.cancel)
+                               overrides=[override] if override else [], cancel=self.cancel,
+                               settings=self.settings.delivery)
         self._remember(original, dose, delivery, take, profile)
         report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
         return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)

@@ -11,19 +11,24 @@ sensor's pixels, demosaiced; ``half``: one pixel per 2x2 Bayer cell):
                                              R, G, B are X, Y, Z, with the ICC v2.4 profile that says so
                                              (app.processing.outputs.xyz_icc)
 ``<id>_light<n>_cameraRGB_16bit.tif``        per light n: the camera's flat-fielded R, G, B under it (channels
-                                             R<n> G<n> B<n>), linear, 32768 = the white; an RGB TIFF without ICC
-``<id>_spectral.img`` / ``.hdr``             the spectral cube (ENVI, BIL, 16-bit x 10000)
+                                             R<n> G<n> B<n>), linear, 32768 = the white; a linear input ICC
+                                             profile fitted to the calibration (app.workflow.camera_profiles)
+``<id>_ecirgb_v2_16bit.tif``,                other working spaces when the delivery settings ask for them
+``<id>_adobergb_16bit.tif``                  (app.workflow.delivery_settings): 16-bit, display-encoded, ICC v2.4
+``<id>_spectral.img`` / ``.hdr``             the spectral cube (ENVI, BIL, 16-bit x 10000), when asked for
 ``<id>_under_<light>_prophoto_16bit.tif``    the estimated spectra rendered under a chosen light, ProPhoto, ICC
+``<id>_access.jp2``                          access copy: JPEG 2000, lossless, 16-bit sRGB (when asked for)
+``<id>_access_pyramid.tif``                  access copy: tiled pyramidal TIFF, 8-bit sRGB (when asked for)
 ``<id>.json``                                the sidecar (app.workflow.delivery): fixity of every file above
 ===========================================  ==================================================================
 
-The spectral products (the cube and its rendering) are files at half resolution, as before full-resolution
-masters. At full resolution they are made on demand (``dualrgb cube``, app.processing.cube_map) from the
-camera-RGB TIFFs through the map the sidecar states: the cube is the channels through one affine map and a clip,
-so six 16-bit channels hold all of its information, and a 38-band cube would be 6.3x their size (1.86 GB per
-24 MP original, 11.5 GB at 150 MP, :func:`storage`); its rendering costs more processor time than all the other
-deliverables' encoding together (0.9 CPU-s at 24 MP: every pixel's 38-band estimate and clip) and fixes one
-light at capture time, where on demand any light can be chosen later. docs/notes/issue-31.md has the figures.
+The spectral products (the cube and its rendering) are written when the delivery settings or ``--spectral`` ask
+for them, at either resolution; otherwise the sidecar states them and ``dualrgb cube`` makes them later
+(app.processing.cube_map) from the camera-RGB TIFFs through the map the sidecar states: the cube is the channels
+through one affine map and a clip, so six 16-bit channels hold all of its information, and a 38-band cube is 6.3x
+their size (1.86 GB per 24 MP original, 11.5 GB at 150 MP, :func:`storage`); its rendering costs more processor
+time than all the other deliverables' encoding together (0.9 CPU-s at 24 MP) and fixes one light at capture time.
+docs/notes/issue-31.md has the figures.
 
 Why the camera channels are one RGB TIFF per light, not one 6-sample TIFF. TIFF has no photometric for six
 colour channels: a 6-sample file is MinIsBlack or RGB with "extra samples", and readers then take the second or
@@ -42,8 +47,9 @@ from pathlib import Path
 
 from dualrgb.app.processing.encode import LINEAR_ONE
 from dualrgb.app.processing.envi import INTERLEAVE, SCALE_FACTOR
-from dualrgb.app.processing.masters import FULL, HALF, check_resolution
+from dualrgb.app.processing.masters import FULL, check_resolution
 from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT, Rendering, rendering
+from dualrgb.app.workflow.delivery_settings import ACCESS, MASTERS
 from dualrgb.simulation.spectral_estimation import SpectralEstimator
 
 log = logging.getLogger(__name__)
@@ -55,9 +61,9 @@ TIFF_OVERHEAD_BYTES = 16_384          # tags, ICC, XMP of one deliverable TIFF (
 @dataclass
 class Deliverable:
     """One deliverable file: its path, samples per pixel (the cube: wavelengths), ``kind`` (``rgb``: display-encoded
-    in ``space``; ``xyz``; ``channels``: light ``light``'s camera RGB; ``cube``, ``cube_header``, ``render``),
-    TIFF photometric, the ICC profile it embeds (a space name, "XYZ" or None), what it holds, and the TIFF's
-    PageName."""
+    in ``space``; ``xyz``; ``channels``: light ``light``'s camera RGB, named ``light_name``; ``cube``,
+    ``cube_header``, ``render``; ``access``: an access copy made from the sRGB master, ``space`` its format key),
+    TIFF photometric, the ICC profile it embeds (a space name, "XYZ", "camera" or None) and what it holds."""
 
     path: Path
     samples: int
@@ -67,7 +73,12 @@ class Deliverable:
     icc: str | None = None
     what: str = ""
     light: int = 0
-    page_name: str = ""
+    light_name: str = ""
+
+    @property
+    def streamed(self) -> bool:
+        """Written band by band while the channels are encoded (the others: the cube's header, access copies)."""
+        return self.kind not in ("cube_header", "access")
 
     @property
     def spectral(self) -> bool:
@@ -85,19 +96,26 @@ class SpectralPlan:
     cube: str = CUBE_FILE
 
     @classmethod
-    def of(cls, profile, illuminant: str = DEFAULT_RENDER_ILLUMINANT, resolution: str = HALF) -> SpectralPlan | None:
+    def of(cls, profile, illuminant: str = DEFAULT_RENDER_ILLUMINANT, written: bool = False) -> SpectralPlan | None:
         """The plan for ``profile`` (None: it has no spectral estimator) rendering under ``illuminant``; the cube
-        is a file at half resolution and made on demand at full resolution (:func:`cube_delivery`)."""
+        and its rendering are files when ``written`` (asked for), else made on demand (:func:`cube_delivery`)."""
         if profile.estimator is None:
             return None
         est = profile.spectral_estimator()
-        return cls(est, rendering(illuminant, est.wavelengths), cube_delivery(resolution))
+        return cls(est, rendering(illuminant, est.wavelengths), cube_delivery(written))
 
 
-def cube_delivery(resolution: str) -> str:
-    """How the spectral cube and its rendering are delivered at ``resolution``: files at half resolution, on
-    demand at full resolution (the module docstring says why)."""
-    return CUBE_ON_DEMAND if check_resolution(resolution) == FULL else CUBE_FILE
+def cube_delivery(written: bool) -> str:
+    """How the spectral cube and its rendering are delivered: files when asked for, else on demand."""
+    return CUBE_FILE if written else CUBE_ON_DEMAND
+
+
+def check_spectral_request(profile, spectral: bool) -> None:
+    """Before the light: spectral products asked for need a calibration with a spectral estimator."""
+    if spectral and profile is not None and profile.estimator is None:
+        raise ValueError(f"the spectral cube was asked for (--spectral or the delivery settings), and calibration "
+                         f"{profile.id} has no spectral estimator (its charts had no spectra): calibrate again with "
+                         "spectral references, or deliver without --spectral")
 
 
 def channel_groups(channels: list[str]) -> list[list[str]]:
@@ -108,27 +126,38 @@ def channel_groups(channels: list[str]) -> list[list[str]]:
 
 
 def deliverable_files(folder: Path, stem: str, channels: list[str], spectral: SpectralPlan | None = None,
-                      lights: list[str] | None = None) -> dict[str, Deliverable]:
+                      lights: list[str] | None = None, masters: tuple[str, ...] = (),
+                      access: tuple[str, ...] = ()) -> dict[str, Deliverable]:
     """Every file of an original named ``stem`` with the stack's ``channels`` (and the spectral ones of
-    ``spectral``) but the sidecar, by key (the sidecar's); ``lights``: the lights' names for the channel TIFFs'
-    page names."""
+    ``spectral``, the extra ``masters`` and ``access`` copies of app.workflow.delivery_settings) but the sidecar,
+    by key (the sidecar's); ``lights``: the lights' names."""
     files = {
         "prophoto": Deliverable(folder / f"{stem}_prophoto_16bit.tif", 3, "rgb", space="ProPhoto RGB",
                                 icc="ProPhoto RGB", what="ProPhoto RGB (ROMM), 16-bit, ICC embedded"),
         "srgb": Deliverable(folder / f"{stem}_srgb_16bit.tif", 3, "rgb", space="sRGB", icc="sRGB",
                             what="sRGB, 16-bit, ICC embedded"),
-        "xyz": Deliverable(folder / f"{stem}_XYZ_16bit.tif", 3, "xyz", icc="XYZ", page_name="CIE XYZ",
-                           what=f"CIE XYZ (2 deg) as R, G, B, linear, {LINEAR_ONE:g} = reference white Y"),
+        "xyz": Deliverable(folder / f"{stem}_XYZ_16bit.tif", 3, "xyz", icc="XYZ",
+                           what="CIE XYZ (2 deg) as R, G, B: X/Xn, Y/Yn, Z/Zn, linear, 65535 = the reference white"),
     }
+    for name in masters:
+        space, key, part = MASTERS[name]
+        files[key] = Deliverable(folder / f"{stem}_{part}_16bit.tif", 3, "rgb", space=space, icc=space,
+                                 what=f"{name}, 16-bit, ICC embedded")
     for n, group in enumerate(channel_groups(channels), start=1):
         name = (lights or [])[n - 1] if lights and len(lights) >= n else f"light {n}"
         files[f"channels_{n}"] = Deliverable(
-            folder / f"{stem}_light{n}_cameraRGB_16bit.tif", 3, "channels", light=n - 1,
-            page_name=f"{name}: {' '.join(group)}",
-            what=f"camera {' '.join(group)} under {name}, flat-fielded, linear, {LINEAR_ONE:g} = white")
+            folder / f"{stem}_light{n}_cameraRGB_16bit.tif", 3, "channels", icc="camera", light=n - 1,
+            light_name=name, what=f"camera {' '.join(group)} under {name}, flat-fielded, linear, "
+                                  f"{LINEAR_ONE:g} = white")
     if spectral is not None and spectral.cube == CUBE_FILE:
         files.update(spectral_files(folder, stem, spectral.estimator, spectral.rendering))
+    for key in access:
+        files[f"access_{key}"] = Deliverable(folder / f"{stem}_{ACCESS_NAMES[key]}", 3, "access", space=key,
+                                             what=ACCESS[key])
     return files
+
+
+ACCESS_NAMES = {"jp2": "access.jp2", "pyramid": "access_pyramid.tif"}
 
 
 def spectral_files(folder: Path, stem: str, est: SpectralEstimator, r: Rendering | None) -> dict[str, Deliverable]:
@@ -151,18 +180,18 @@ def render_name(stem: str, illuminant: str) -> str:
 
 
 def storage(width: int, height: int, n_lights: int = 2, n_wavelengths: int | None = 38,
-            resolution: str = FULL) -> dict[str, int]:
+            resolution: str = FULL, spectral: bool = False) -> dict[str, int]:
     """Bytes on disk of each deliverable of one original from a ``width`` x ``height`` sensor (16-bit samples
     plus :data:`TIFF_OVERHEAD_BYTES` per TIFF; the sidecar's few kB left out): what a day's storage is planned
-    with. ``n_wavelengths`` None: no spectral estimator. The cube's key is there only when it is a file at
-    ``resolution``; else ``spectral_on_demand`` / ``render_on_demand`` say what ``dualrgb cube`` writes."""
+    with. ``n_wavelengths`` None: no spectral estimator. The cube's key is there only when it is written
+    (``spectral``); else ``spectral_on_demand`` / ``render_on_demand`` say what ``dualrgb cube`` writes."""
     w, h = (width, height) if check_resolution(resolution) == FULL else (width // 2, height // 2)
     tiff = w * h * 3 * 2 + TIFF_OVERHEAD_BYTES
     out = {"prophoto": tiff, "srgb": tiff, "xyz": tiff}
     out.update({f"channels_{n}": tiff for n in range(1, n_lights + 1)})
     if n_wavelengths:
         cube = w * h * n_wavelengths * 2
-        if cube_delivery(resolution) == CUBE_FILE:
+        if cube_delivery(spectral) == CUBE_FILE:
             out.update(spectral=cube, render=tiff)
         else:
             out.update(spectral_on_demand=cube, render_on_demand=tiff)

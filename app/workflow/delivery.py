@@ -14,15 +14,15 @@ the virtual lab the figures against the virtual original's truth (app.workflow.v
 resources/schemas/dualrgb-delivery-1.schema.json.
 
 Every TIFF carries resolution (ppi), Make/Model, DateTime, Software with the dualrgb version, an
-ImageDescription, a PageName and XMP (identifier, title, description, operator, notes, extra fields, calibration
-id, light dose); see app.processing.outputs. Text policy: the XMP packet (UTF-8) and the sidecar (UTF-8 JSON) carry
-every field exactly as normalised (the XMP's ``dc:description`` the exact text of the ImageDescription); TIFF's
-ASCII tags (ImageDescription, Make, Model, PageName) carry app.workflow.metadata.ascii_text of it.
+ImageDescription, a DocumentName, Copyright, an EXIF IFD, an ICC profile and XMP (app.workflow.master_metadata
+says what each holds; app.processing.outputs writes them). Text policy: the XMP packet (UTF-8) and the sidecar
+(UTF-8 JSON) carry every field exactly as normalised (the XMP's ``dc:description`` the exact text of the
+ImageDescription); TIFF's ASCII tags (ImageDescription, Make, Model, DocumentName, Copyright) carry
+app.workflow.metadata.ascii_text of it.
 """
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, nullcontext
 from dataclasses import asdict, dataclass, field
@@ -34,26 +34,27 @@ import numpy as np
 from dualrgb.app.json_output import dumps
 from dualrgb.app.processing.cube_map import spectral_map
 from dualrgb.app.processing.demosaic import DEMOSAIC, HALO
-from dualrgb.app.processing.encode import LINEAR_ONE, DeliveryEncoder
+from dualrgb.app.processing.encode import LINEAR_ONE, XYZ_ONE, DeliveryEncoder
 from dualrgb.app.processing.envi import DTYPE, IGNORE_VALUE, INTERLEAVE, SCALE_FACTOR, EnviHeader
 from dualrgb.app.processing.masters import FULL, MasterStack
-from dualrgb.app.processing.outputs import (
-    TiffMetadata,
-    icc_profile,
-    open_tiff,
-    tiff_datetime,
-    xmp_packet,
-    xyz_icc,
-)
+from dualrgb.app.processing.outputs import open_tiff
 from dualrgb.app.processing.pipeline import ChannelSource
 from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT
 from dualrgb.app.processing.spectral_cube import SpectralEncoder
 from dualrgb.app.processing.tiff_stream import RawStream, TiffStream
 from dualrgb.app.session.capture_session import atomic_write
-from dualrgb.app.workflow.deliverables import CUBE_FILE, Deliverable, SpectralPlan, deliverable_files
+from dualrgb.app.workflow.deliverables import (
+    CUBE_FILE,
+    Deliverable,
+    SpectralPlan,
+    check_spectral_request,
+    deliverable_files,
+)
 from dualrgb.app.workflow.delivery_folder import SIDECAR_FORMAT, read_sidecar, staged
+from dualrgb.app.workflow.delivery_settings import DeliverySettings
 from dualrgb.app.workflow.fixity import FIXITY_ALGORITHM, file_fixity, fixity_section
-from dualrgb.app.workflow.metadata import MODES, Original, ascii_text, xmp_property
+from dualrgb.app.workflow.master_metadata import MasterContext, exact_description, image_description
+from dualrgb.app.workflow.metadata import MODES, Original, ascii_text
 from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity
 from dualrgb.app.workflow.virtual_truth import OriginalTruth, assess, qa_text
 from dualrgb.common.clock import output_time
@@ -133,35 +134,6 @@ def _qa(stack: ChannelSource, invalid: float, profile: CalibrationProfile, origi
                   (best.get("train") or {}).get("mean"), profile.test_mean, hdr, list(warnings), rmse)
 
 
-def tiff_meta(original: Original, calibration_id: str, camera: CameraIdentity, dose: LightDoseRecord,
-              ppi: float | None, what: str, now: datetime, page_name: str = "") -> TiffMetadata:
-    """The tags and XMP of one of ``original``'s TIFFs holding ``what`` (app.processing.outputs.TiffMetadata)."""
-    software = f"dualrgb {dualrgb_version()}"
-    extra = {xmp_property(name): value for name, value in original.extra.items()}
-    xmp = xmp_packet({"Operator": original.operator, "CalibrationID": calibration_id, "Mode": original.mode,
-                      "LightDoseLuxHours": f"{dose.lux_h:.6g}", "LightDoseLuxSeconds": f"{dose.lux_s:.6g}",
-                      "Content": what, "Notes": original.notes, **extra},
-                     identifier=original.identifier, title=original.title, tool=software, created=now,
-                     columns={xmp_property(name): name for name in original.extra},
-                     description=exact_description(original, what))
-    make, _, model = (camera.model or "").partition(" ")
-    return TiffMetadata(software, image_description(original, what), ascii_text(make or camera.model),
-                        ascii_text(model or camera.model), ppi, tiff_datetime(now.astimezone()), xmp,
-                        ascii_text(page_name).strip())
-
-
-def exact_description(original: Original, what: str) -> str:
-    """``<identifier> - <title>; <what>`` exactly (the XMP's dc:description)."""
-    return original.identifier + (f" - {original.title}" if original.title else "") + f"; {what}"
-
-
-def image_description(original: Original, what: str) -> str:
-    """TIFF ImageDescription (7-bit ASCII): :func:`exact_description` transliterated
-    (app.workflow.metadata.ascii_text) without surrounding spaces (a spacing accent such as '¯' transliterates to
-    one, and TIFF readers, tifffile among them, strip it); the exact text is in the XMP packet."""
-    return ascii_text(exact_description(original, what)).strip()
-
-
 def delivered_ppi(profile: CalibrationProfile, resolution: str) -> float | None:
     """The deliverables' sampling from the calibration (None: unknown): the profile's ppi is the sensor's (full
     resolution; profiles made before full-resolution masters stated the half-resolution grid's, ``raw.ppi_grid``
@@ -181,26 +153,19 @@ class Written:
     invalid: float
 
 
-def _icc(im: Deliverable, white_xyz: list[float]) -> bytes | None:
-    if im.icc == "XYZ":
-        return xyz_icc(white_xyz, LINEAR_ONE)
-    return icc_profile(im.icc) if im.icc else None
-
-
-def open_deliverable(im: Deliverable, height: int, width: int, meta: Callable[[str, str], TiffMetadata],
-                     band_rows: int, pool: ThreadPoolExecutor | None, direct: bool, white_xyz: list[float]
-                     ) -> TiffStream:
-    """The streamed file of deliverable ``im`` (its SHA-256 computed as it is written)."""
+def open_deliverable(im: Deliverable, height: int, width: int, ctx: MasterContext, band_rows: int,
+                     pool: ThreadPoolExecutor | None, direct: bool) -> TiffStream:
+    """The streamed file of deliverable ``im`` (its SHA-256 computed as it is written; tags, XMP, EXIF and ICC from
+    ``ctx``)."""
     if im.kind == "cube":                                     # the cube's data: band-interleaved by line
         return RawStream(im.path, (height, im.samples, width), DTYPE, band_rows=band_rows, executor=pool,
                          direct=direct, digest=FIXITY_ALGORITHM)
-    return open_tiff(im.path, (height, width, im.samples), meta(im.what, im.page_name), photometric=im.photometric,
-                     icc=_icc(im, white_xyz), band_rows=band_rows, executor=pool, direct=direct,
-                     digest=FIXITY_ALGORITHM)
+    return open_tiff(im.path, (height, width, im.samples), ctx.meta(im), photometric=im.photometric,
+                     icc=ctx.icc(im), band_rows=band_rows, executor=pool, direct=direct, digest=FIXITY_ALGORITHM)
 
 
 def write_images(source: ChannelSource, profile: CalibrationProfile, images: dict[str, Deliverable],
-                 meta: Callable[[str, str], TiffMetadata], *, spectral: SpectralPlan | None = None,
+                 ctx: MasterContext, *, spectral: SpectralPlan | None = None,
                  band_rows: int = BAND_ROWS, direct: bool = True, cancel: CancelToken | None = None) -> Written:
     """Encode the channels band by band straight into the open files (app.processing.tiff_stream): while one band
     is encoded (both cores, nogil), the writer threads put the previous one on disk and add it to the file's
@@ -214,7 +179,7 @@ def write_images(source: ChannelSource, profile: CalibrationProfile, images: dic
         raise DeliveryQaError(f"QA refused the delivery: no pixel is a finite number (calibration {profile.id} has "
                               "a matrix or white point that is not finite); nothing was delivered, the raw frames "
                               "are kept in the session")
-    streamed = {k: im for k, im in images.items() if im.kind != "cube_header"}
+    streamed = {k: im for k, im in images.items() if im.streamed}
     rgb_keys = [k for k, im in streamed.items() if im.kind == "rgb"]
     ch_keys = sorted((k for k, im in streamed.items() if im.kind == "channels"), key=lambda k: streamed[k].light)
     est = spectral.estimator if spectral is not None and "spectral" in streamed else None
@@ -223,7 +188,7 @@ def write_images(source: ChannelSource, profile: CalibrationProfile, images: dic
     with DeliveryEncoder((H, W, N), profile.matrix.matrix, profile.white_xyz,
                          [images[k].space or "" for k in rgb_keys]) as enc, spec as cube_enc, \
             ThreadPoolExecutor(len(streamed), thread_name_prefix="deliver") as pool, ExitStack() as opened:
-        out = {k: opened.enter_context(open_deliverable(im, H, W, meta, band_rows, pool, direct, profile.white_xyz))
+        out = {k: opened.enter_context(open_deliverable(im, H, W, ctx, band_rows, pool, direct))
                for k, im in streamed.items()}
         rgb, chans = [out[k] for k in rgb_keys], [out[k] for k in ch_keys]
         for r0 in range(0, H, band_rows):
@@ -306,52 +271,53 @@ def spectral_section(spectral: SpectralPlan, profile: CalibrationProfile, files:
 def deliver(source: ChannelSource, profile: CalibrationProfile, original: Original, out_dir: Path, *,
             camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
             exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
-            extra: dict | None = None, render_illuminant: str = DEFAULT_RENDER_ILLUMINANT,
+            extra: dict | None = None, render_illuminant: str | None = None,
             truth: OriginalTruth | None = None, overrides: list[str] | None = None, cancel: CancelToken | None = None,
+            settings: DeliverySettings | None = None, captured_at: datetime | None = None,
             now: datetime | None = None) -> Delivery:
     """Encode the channels of ``source`` (a full-resolution MasterStack or a half-resolution ChannelStack) with the
-    calibration's matrix (and spectral estimator: the rendering under ``render_illuminant``, and the cube at half
-    resolution) and write every deliverable of ``original``: into a fresh folder, swapped in whole when complete
-    (a re-delivery keeps the previous set in ``<stem>/previous/``; a folder of another original is refused:
-    app.workflow.delivery_folder). ``ppi``: the delivered files' sampling (None: the calibration's, at this
-    resolution). ``truth``: the virtual lab's, compared in the sidecar and QA line. ``overrides``: rules the user
-    overrode for it (app.workflow.mode_rule), said in the sidecar and QA line. ``cancel``: checked per band.
-    ``now``: the time written into every file (default: the clock; a re-delivery run passes its one time)."""
+    calibration's matrix (and spectral estimator: the cube and its rendering under ``render_illuminant`` when the
+    delivery ``settings`` ask for them; None: the settings file's, app.workflow.delivery_settings) and write every
+    deliverable of ``original``: into a fresh folder, swapped in whole when complete (a re-delivery keeps the
+    previous set in ``<stem>/previous/``; a folder of another original is refused: app.workflow.delivery_folder).
+    ``ppi``: the delivered files' sampling (None: the calibration's, at this resolution). ``truth``: the virtual
+    lab's, compared in the sidecar and QA line. ``overrides``: rules the user overrode for it
+    (app.workflow.mode_rule), said in the sidecar and QA line. ``captured_at``: when the original was captured
+    (EXIF DateTimeOriginal; default now). ``cancel``: checked per band. ``now``: the time written into every file
+    (default: the clock or SOURCE_DATE_EPOCH; a re-delivery run passes its one time)."""
+    settings, illuminant = _request(profile, settings, render_illuminant)
     warnings = list(warnings or []) + ([] if all(nl.light.leds for nl in profile.lights) else [LIGHTS_UNKNOWN])
-    resolution = source.resolution
-    ppi = ppi or delivered_ppi(profile, resolution)
-    if not ppi:
-        warnings.append("no resolution: set the sampling (ppi) or calibrate with the target's size")
-    spectral = SpectralPlan.of(profile, render_illuminant, resolution)
+    ppi = ppi or delivered_ppi(profile, source.resolution)
+    warnings += ppi_warnings(ppi)
+    spectral = SpectralPlan.of(profile, illuminant, settings.writes_spectral(source.resolution))
     if spectral is None:
         warnings.append(f"no spectral cube: calibration {profile.id} has no spectral estimator (calibrate again)")
     now = now or output_time()
+    ctx = MasterContext(original, profile.id, camera, dose.lux_s, ppi, now, (captured_at or now).astimezone(),
+                        dict(exposures or {}), list(source.lights), settings, _processing(profile, source),
+                        list(profile.white_xyz), profile)
     stem = original.file_stem
-    final = Path(out_dir) / stem
     with staged(Path(out_dir), original) as folder:
-        images = deliverable_files(folder, stem, source.channels, spectral, source.lights)
+        images = deliverable_files(folder, stem, source.channels, spectral, source.lights, settings.masters,
+                                   settings.access)
         try:
-            written = write_images(source, profile, images, lambda what, page: tiff_meta(
-                original, profile.id, camera, dose, ppi, what, now, page), spectral=spectral, cancel=cancel)
+            written = write_images(source, profile, images, ctx, spectral=spectral, cancel=cancel)
         except DeliveryQaError as exc:
             raise DeliveryQaError(f"{original.identifier}: {exc}") from None
         files, fixity = written.files, written.fixity
-        if spectral is not None and spectral.cube == CUBE_FILE:
-            header = images["spectral_header"].path
-            cube_header(spectral, original, profile, source.shape).write(header)
-            files["spectral_header"] = header
-            fixity["spectral_header"] = file_fixity(header)
+        _finish_files(images, files, fixity, spectral, original, profile, source, ctx)
         qa = _qa(source, written.invalid, profile, original, dose,
                  any(len(v) > 1 for v in (exposures or {}).values()), warnings)
         if truth is not None:
-            qa.truth = assess(truth, files, float(profile.white_xyz[1]),
+            qa.truth = assess(truth, files, list(profile.white_xyz),
                               spectral.estimator if spectral is not None else None)
         qa.overrides = list(overrides or [])
         doc = _sidecar(source, profile, original, camera, now, ppi, exposures, dose, qa, files, fixity, spectral)
-        atomic_write(folder / f"{stem}.json",
-                     (dumps({**doc, **(extra or {})}, indent=2, ensure_ascii=False, default=str) + "\n"
-                      ).encode("utf-8", "backslashreplace"))   # a path's undecodable byte: a JSON \udcXX escape
+        doc.update(captured_at=ctx.captured.isoformat(timespec="seconds"), delivery_settings=settings.describe())
+        doc["qa"]["grading"] = calibration_grades(profile)
+        write_sidecar(folder / f"{stem}.json", {**doc, **(extra or {})})
     log.info("delivered %s: %s", original.identifier, qa.text())
+    final = Path(out_dir) / stem
     return Delivery(original, {k: final / p.name for k, p in files.items()}, final / f"{stem}.json", qa)
 
 
@@ -366,6 +332,74 @@ def lights_section(profile: CalibrationProfile) -> dict:
     lights = ({nl.name: nl.light.label() for nl in profile.lights} if known else "unknown")
     return {"preset": profile.preset, "lights": lights,
             **({"unavailable": dict(profile.unavailable)} if profile.unavailable else {})}
+
+
+def _request(profile: CalibrationProfile, settings: DeliverySettings | None, render_illuminant: str | None
+             ) -> tuple[DeliverySettings, str]:
+    """The delivery settings (None: the settings file's) checked against the calibration, and the rendering's
+    light (the argument's, else the settings', else the default)."""
+    from dualrgb.app.workflow.delivery_settings import load
+
+    settings = settings if settings is not None else load()
+    check_spectral_request(profile, settings.spectral is True)
+    return settings, render_illuminant or settings.render_illuminant or DEFAULT_RENDER_ILLUMINANT
+
+
+def write_sidecar(path: Path, doc: dict) -> None:
+    """A delivery's sidecar, atomically (a path's undecodable byte becomes a JSON \\udcXX escape)."""
+    atomic_write(path, (dumps(doc, indent=2, ensure_ascii=False, default=str) + "\n"
+                        ).encode("utf-8", "backslashreplace"))
+
+
+def _finish_files(images: dict[str, Deliverable], files: dict[str, Path], fixity: dict[str, dict],
+                  spectral: SpectralPlan | None, original: Original, profile: CalibrationProfile,
+                  source: ChannelSource, ctx: MasterContext) -> None:
+    """The files made after the bands: the cube's header and the access copies (from the sRGB master)."""
+    if spectral is not None and spectral.cube == CUBE_FILE:
+        header = images["spectral_header"].path
+        cube_header(spectral, original, profile, source.shape).write(header)
+        files["spectral_header"] = header
+        fixity["spectral_header"] = file_fixity(header)
+    for key, im in images.items():
+        if im.kind == "access":
+            from dualrgb.app.workflow.access_copies import make_access_copy
+
+            make_access_copy(im, files["srgb"], ctx)
+            files[key] = im.path
+            fixity[key] = file_fixity(im.path)
+
+
+def calibration_grades(profile: CalibrationProfile) -> dict:
+    """The sidecar's ``qa.grading``: the FADGI / ISO 19264 / Metamorfoze verdicts of the calibration the original
+    was delivered with (its test target; app.processing.quality), or why there are none."""
+    summary = profile.statistics.get("quality") or {}
+    if not summary.get("grading"):
+        return {"basis": f"calibration {profile.id} recorded no grading (made before it was)", "standards": {}}
+    return {"basis": f"calibration {profile.id}, its test target (colour criteria; the rest not assessed)",
+            "standards": {std: {"verdict": g["verdict"], "passed": g["passed"], "failed": g["failed"],
+                                "metrics": g["metrics"]} for std, g in summary["grading"].items()}}
+
+
+PPI_BASELINE = (300.0, 4000.0)      # SLUB's TIFF baseline (checkit_tiff cit_tiff6_baseline_SLUB.cfg) XResolution
+
+
+def ppi_warnings(ppi: float | None) -> list[str]:
+    """The QA line's words about the sampling: none known, or outside what SLUB's TIFF baseline accepts."""
+    if not ppi:
+        return ["no resolution: set the sampling (ppi) or calibrate with the target's size"]
+    lo, hi = PPI_BASELINE
+    if not lo <= ppi <= hi:
+        return [f"{ppi:.0f} ppi: the stand's sampling is outside the {lo:.0f}-{hi:.0f} ppi of SLUB's TIFF baseline "
+                "(checkit_tiff reports only that rule)"]
+    return []
+
+
+def _processing(profile: CalibrationProfile, source: ChannelSource) -> str:
+    """The conversion's parameters for the XMP history."""
+    how = DEMOSAIC if source.resolution == FULL else "2x2 Bayer cells"
+    return (f"calibration {profile.id} ({profile.matrix.method} matrix, test dE00 "
+            f"{'n/a' if profile.test_mean is None else f'{profile.test_mean:.2f}'}); dark, flat field, HDR merge; "
+            f"{source.resolution} resolution ({how})")
 
 
 def resolution_section(source: ChannelSource, profile: CalibrationProfile) -> dict:
@@ -391,7 +425,9 @@ def _sidecar(source: ChannelSource, profile: CalibrationProfile, original: Origi
             "camera": asdict(camera), "ppi": ppi, "resolution": resolution_section(source, profile),
             "exposures": exposures or {}, "light_dose": dose.to_dict(),
             "qa": qa.to_dict(), "encoding": {"rgb": "display-encoded, white = 65535", "linear_one": LINEAR_ONE,
-                                             "channels": source.channels},
+                                             "channels": source.channels, "xyz": "X/Xn, Y/Yn, Z/Zn; XYZ = code / "
+                                             "xyz_one * white_xyz", "xyz_one": XYZ_ONE,
+                                             "white_xyz": [float(v) for v in profile.white_xyz]},
             **({"spectral": spectral_section(spectral, profile, files)} if spectral is not None else {}),
             **({"virtual_truth": qa.truth} if qa.truth else {}),
             "files": {k: p.name for k, p in files.items()},

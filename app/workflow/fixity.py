@@ -57,6 +57,12 @@ class VerifyReport:
     sidecars: list[Path] = field(default_factory=list)
     files_ok: int = 0
     problems: list[str] = field(default_factory=list)
+    debris: list[Path] = field(default_factory=list)      # files other tools leave beside a delivery (not problems)
+
+    def notes(self) -> list[str]:
+        """One line per debris file: what left it, and that it is not part of the delivery."""
+        return [f"{p}: {debris_kind(p.name)}, not part of the delivery (dualrgb bag leaves it out)"
+                for p in self.debris]
 
     @property
     def ok(self) -> bool:
@@ -69,7 +75,24 @@ class VerifyReport:
 
     def to_dict(self) -> dict:
         return {"ok": self.ok, "sidecars": [str(p) for p in self.sidecars], "files_ok": self.files_ok,
-                "problems": list(self.problems)}
+                "problems": list(self.problems), "debris": [str(p) for p in self.debris]}
+
+
+# files that other programs leave beside the files they open (name or suffix -> what leaves it)
+DEBRIS = {".aux.xml": "left by GDAL (its statistics and metadata, e.g. after gdalinfo -stats or QGIS)",
+          ".DS_Store": "left by the macOS Finder (folder view settings)",
+          "Thumbs.db": "left by Windows Explorer (thumbnail cache)",
+          "desktop.ini": "left by Windows Explorer (folder settings)",
+          "._": "left by macOS on a non-Mac file system (AppleDouble resource fork)"}
+
+
+def debris_kind(name: str) -> str | None:
+    """What left a file named ``name`` beside a delivery, when it is one of :data:`DEBRIS`'s; else None."""
+    for key, what in DEBRIS.items():
+        if name == key or (key.startswith(".") and len(name) > len(key) and name.endswith(key)) or \
+                (key == "._" and name.startswith(key)):
+            return what
+    return None
 
 
 def _is_sidecar(path: Path) -> bool:
@@ -120,7 +143,7 @@ def schema_problems(doc: object) -> list[str]:
 
 def on_demand(doc: dict, name: str) -> bool:
     """Whether a file named ``name`` beside a delivery is one ``dualrgb cube`` makes on demand for it (its cube,
-    its header, a rendering): allowed there without fixity when the sidecar says the cube is made on demand."""
+    its header, a rendering)."""
     cube = ((doc.get("spectral") or {}).get("cube") or {})
     if cube.get("delivery") != "on-demand":
         return False
@@ -146,15 +169,24 @@ def verify_sidecar(sidecar: Path, report: VerifyReport) -> None:
         return
     folder = sidecar.parent
     for name, want in files.items():
-        _check_file(folder / name, want, report)
+        check_file(folder / name, want, report)
     listed = set(files) | {sidecar.name}
     for path in sorted(folder.iterdir()):
-        extra = path.is_file() and path.name not in listed and not path.name.startswith(".")
-        if extra and not on_demand(doc, path.name):
+        if not path.is_file() or path.name in listed:
+            continue
+        if debris_kind(path.name):
+            report.debris.append(path)
+        elif path.name.startswith("."):
+            continue                                    # a writer's temp file, hidden
+        elif on_demand(doc, path.name):
+            report.problems.append(f"{path}: made by dualrgb cube but not in the sidecar {sidecar.name}'s fixity "
+                                   "(made by an older dualrgb: run dualrgb cube again to record it)")
+        else:
             report.problems.append(f"{path}: not listed in the sidecar {sidecar.name}")
 
 
-def _check_file(path: Path, want: dict, report: VerifyReport) -> None:
+def check_file(path: Path, want: dict, report: VerifyReport) -> None:
+    """One file against its recorded size and digest (a problem line, or one more match, into ``report``)."""
     if not path.is_file():
         report.problems.append(f"{path}: missing")
         return

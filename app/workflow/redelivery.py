@@ -14,12 +14,12 @@ from pathlib import Path
 from typing import Any
 
 from dualrgb.app.processing.masters import FULL
-from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT
 from dualrgb.app.session.manifest import DamagedFramesError
 from dualrgb.app.session.paths import inside
 from dualrgb.app.workflow.copystand import channels_of, original_dose, profile_processor
 from dualrgb.app.workflow.delivery import Delivery, Original, deliver
 from dualrgb.app.workflow.delivery_folder import prepare
+from dualrgb.app.workflow.delivery_settings import DeliverySettings
 from dualrgb.app.workflow.import_checks import imported_warnings
 from dualrgb.app.workflow.metadata import MetadataError
 from dualrgb.app.workflow.mode_rule import check_mode
@@ -41,15 +41,16 @@ class Undelivered:
 
 def redeliver(session: Any, profiles: CalibrationProfile | dict[str, CalibrationProfile], out_dir: Path, *,
               ppi: float | None = None, progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
-              render_illuminant: str = DEFAULT_RENDER_ILLUMINANT, force: bool = False,
-              refused: list[str] | None = None, resolution: str = FULL
+              render_illuminant: str | None = None, force: bool = False,
+              refused: list[str] | None = None, resolution: str = FULL, settings: DeliverySettings | None = None
               ) -> tuple[list[Delivery], list[Undelivered]]:
     """Deliver every original of a session again (``dualrgb process``) at ``resolution``: with ``profiles`` (one
     calibration, or one per mode), the mode rule applied to each (app.workflow.mode_rule: an original without a
     calibration of its mode is left out, its line appended to ``refused``, unless ``force`` with one calibration);
     each original's current deliverables move to its ``previous/`` folder. Every original that can be is
     delivered; one whose frames are missing or damaged, whose folder is another's or whose delivery fails is
-    listed with its reason (issue 28). The spectral rendering is seen under ``render_illuminant``."""
+    listed with its reason (issue 28). The spectral rendering is seen under ``render_illuminant``; ``settings``:
+    the delivery settings (None: the settings file's, app.workflow.delivery_settings)."""
     from dualrgb.app.workflow.session_processing import session_frames
 
     frames = session_frames(session, intact=False)
@@ -68,7 +69,7 @@ def redeliver(session: Any, profiles: CalibrationProfile | dict[str, Calibration
                 (refused if refused is not None else []).append(override)
                 continue
             done.append(_redeliver_one(session, frames, subject, original, profile, damaged, out_dir, ppi, cancel,
-                                       render_illuminant, override, resolution))
+                                       render_illuminant, override, resolution, settings))
         except (ValueError, OSError, ReportedError) as exc:
             log.warning("%s: not delivered: %s", subject.name, exc)
             failed.append(Undelivered(subject.name, one_line(exc)))
@@ -93,7 +94,8 @@ def _profile_for(original: Original, profiles: CalibrationProfile | dict[str, Ca
 
 def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Original, profile: CalibrationProfile,
                    damaged: dict[str, str], out_dir: Path, ppi: float | None, cancel: CancelToken | None,
-                   render_illuminant: str, override: str, resolution: str = FULL, *, extra: dict | None = None,
+                   render_illuminant: str | None, override: str, resolution: str = FULL,
+                   settings: DeliverySettings | None = None, *, extra: dict | None = None,
                    now: datetime | None = None) -> Delivery:
     from dualrgb.app.workflow.session_processing import select_lights
 
@@ -110,7 +112,18 @@ def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Origin
                        exposures={n: sorted(r.exposure_s for r in refs) for n, refs in light_frames.items()},
                        extra={"session": str(session.path), "reprocessed": True, **(extra or {})},
                        warnings=imported_warnings(session.settings), render_illuminant=render_illuminant,
-                       overrides=[override] if override else [], cancel=cancel, now=now)
+                       overrides=[override] if override else [], cancel=cancel, settings=settings, now=now,
+                       captured_at=captured_at(session, light_frames))
+
+
+def captured_at(session: Any, light_frames: dict) -> datetime | None:
+    """When the frames of an original were captured: the first of them (the manifest's captured_at)."""
+    labels = {ref.label for refs in light_frames.values() for ref in refs}
+    times = sorted(e.captured_at for e in session.entries() if e.file in labels and e.captured_at)
+    try:
+        return datetime.fromisoformat(times[0]) if times else None
+    except ValueError:
+        return None
 
 
 def _known_original(session: Any, known: dict, identifier: str) -> Original:

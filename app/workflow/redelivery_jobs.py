@@ -46,11 +46,12 @@ class RedeliveryOptions:
     calibration: str | None = None        # a profile's path; None: each session's newest of the original's mode
     out: str | None = None                # deliverables root; None: each session's own deliverables/
     ppi: float | None = None
-    render_illuminant: str = "D65"
+    render_illuminant: str | None = None  # None: the delivery settings', else the default light
     resolution: str = "full"
     force: bool = False
     delivered_at: str = ""                # ISO time written into every file of the run (run_time())
     out_per_session: bool = False         # several sessions: <out>/<session folder name>/<original>/
+    delivery: Any = None                  # app.workflow.delivery_settings.DeliverySettings (None: the file's)
 
 
 @dataclass(frozen=True)
@@ -109,17 +110,16 @@ def run_time() -> str:
 
 
 # ---------------------------------------------------------------------------------------------- planning
-def plan_tasks(sessions: Sequence[Path], options: RedeliveryOptions) -> list[RedeliveryTask]:
-    """One task per original of each session (in the session's order); a session that cannot be read is refused
-    in one line naming it, before any task runs."""
+def plan_tasks(sessions: Sequence[Path], options: RedeliveryOptions) -> tuple[list[RedeliveryTask], list[Any]]:
+    """One task per original of each session (in the session's order), and the calibrations they will use; a
+    session or calibration that cannot be read is refused in one line naming it, before any task runs."""
     from dualrgb.app.session.capture_session import CaptureSession
     from dualrgb.app.workflow.profile import load_profile
-    from dualrgb.app.workflow.redelivery import session_calibrations
+    from dualrgb.app.workflow.redelivery import newest_by_mode
     from dualrgb.app.workflow.session_processing import session_frames
     from dualrgb.app.workflow.vocabulary import Role
 
-    if options.calibration:
-        load_profile(Path(options.calibration))          # checked once here: a bad file refuses the run at once
+    profiles = [load_profile(Path(options.calibration))] if options.calibration else []   # a bad one: refused now
     tasks: list[RedeliveryTask] = []
     seen: set[Path] = set()
     for path in sessions:
@@ -128,13 +128,13 @@ def plan_tasks(sessions: Sequence[Path], options: RedeliveryOptions) -> list[Red
             raise ValueError(f"{path}: named twice")
         seen.add(resolved)
         session = CaptureSession.open(path, readonly=True)
-        if not options.calibration and not session_calibrations(session):
-            raise ValueError(f"{path}: no calibration in it or named by its originals; pass --calibration FILE")
+        if not options.calibration:
+            profiles += newest_by_mode(session).values()    # loaded and checked here: refused before any delivery
         subjects = [s for s in session_frames(session, intact=False).subjects if s.role is Role.ORIGINAL]
         if not subjects:
             raise ValueError(f"{path}: no originals to process")
         tasks += [RedeliveryTask(str(path), s.name, options) for s in subjects]
-    return tasks
+    return tasks, profiles
 
 
 # ---------------------------------------------------------------------------------------------- one task
@@ -220,7 +220,7 @@ def _deliver_task(task: RedeliveryTask) -> TaskResult:
     delivery = _redeliver_one(session, frames, subject, original, profile, damaged, out_folder(task),
                               task.options.ppi, None,
                               task.options.render_illuminant, override, task.options.resolution,
-                              extra={KEY_FIELD: key},
+                              task.options.delivery, extra={KEY_FIELD: key},
                               now=datetime.fromisoformat(task.options.delivered_at) if task.options.delivered_at
                               else None)
     return TaskResult(task, "delivered", qa=delivery.qa.text(), sidecar=str(delivery.sidecar),

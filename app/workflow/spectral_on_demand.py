@@ -4,9 +4,11 @@ delivered camera-RGB TIFFs through the map its sidecar states (app.processing.cu
 A full-resolution delivery states its cube instead of writing it (app.workflow.deliverables says why); this
 writes it, streamed in row bands, memory bounded by the band: ``<stem>_spectral.img`` / ``.hdr`` (ENVI, BIL,
 16-bit x 10000, as a half-resolution delivery's) and with ``render`` ``<stem>_under_<light>_prophoto_16bit.tif``.
-By default into the delivery's folder (``dualrgb verify`` expects these names there and leaves them out of the
-fixity check, the sidecar's ``fixity`` covering the delivered files only); a delivery whose cube is a delivered
-file is not written over (another ``out`` folder is needed).
+Nothing unverified is used: the channel files are checked against the sidecar's size and SHA-256 first (a
+changed byte stops it, naming the file). By default into the delivery's folder, and then the files it made are
+added to the sidecar's ``files`` and ``fixity`` (``dualrgb verify`` checks them, ``dualrgb bag`` packs them); a
+delivery whose cube is a delivered file is not written over (another ``out`` folder is needed, and a cube made
+there is not part of the delivery).
 """
 from __future__ import annotations
 
@@ -64,6 +66,7 @@ def make_cube(delivery: Path, out: Path | None = None, render: str | None = None
     stem = str(doc["file_stem"])
     est = estimator_of_map(sp["map"])
     channels = [folder / name for name in sp["map"]["channel_files"]]
+    check_inputs(sidecar, doc, channels)
     out.mkdir(parents=True, exist_ok=True)
     data = out / f"{stem}_spectral.img"
     lines, samples = materialise(channels, est, data, band_rows=band_rows, cancel=cancel,
@@ -74,8 +77,43 @@ def make_cube(delivery: Path, out: Path | None = None, render: str | None = None
     if light is not None:
         rendered = out / render_name(stem, light)
         _render(doc, channels, est, light, rendered, band_rows, scaled(progress, 0.7, 1.0), cancel)
+    if out.resolve() == folder.resolve():
+        record(sidecar, doc, {"spectral": data, "spectral_header": header,
+                              **({f"render_{light}": rendered} if rendered is not None else {})})
     log.info("cube of %s made on demand: %s", doc["original"]["identifier"], data)
     return OnDemand(data, header, rendered, (lines, samples))
+
+
+def check_inputs(sidecar: Path, doc: dict, files: list[Path]) -> None:
+    """Nothing unverified is used: each input file against the size and SHA-256 its sidecar recorded (one line
+    naming the first that differs, the cube not made)."""
+    from dualrgb.app.workflow.fixity import FIXITY_ALGORITHM, VerifyReport, check_file
+
+    listed = ((doc.get("fixity") or {}).get("files") or {}) if doc.get("fixity", {}).get("algorithm") == \
+        FIXITY_ALGORITHM else {}
+    report = VerifyReport()
+    for path in files:
+        if path.name not in listed:
+            report.problems.append(f"{path}: not in the fixity of {sidecar.name}: it cannot be checked")
+            continue
+        check_file(path, listed[path.name], report)
+    if report.problems:
+        raise ValueError(f"not made: {report.problems[0]} (dualrgb verify {sidecar.parent} lists every problem)")
+
+
+def record(sidecar: Path, doc: dict, made: dict[str, Path]) -> None:
+    """The files made for the delivery into its sidecar: listed in ``files`` and in ``fixity`` (so ``dualrgb
+    verify`` checks them and ``dualrgb bag`` packs them), the cube marked as made; written atomically."""
+    from dualrgb.app.workflow.delivery import write_sidecar
+    from dualrgb.app.workflow.fixity import file_fixity, fixity_section
+
+    doc["files"] = {**doc.get("files", {}), **{k: p.name for k, p in made.items()}}
+    listed = dict((doc.get("fixity") or {}).get("files") or {})
+    listed.update({p.name: file_fixity(p) for p in made.values()})
+    doc["fixity"] = fixity_section(listed)
+    doc["spectral"]["cube"]["made_on_demand"] = {"data": made["spectral"].name, "header": made["spectral_header"].name,
+                                                 "made_at": datetime.now(UTC).isoformat(timespec="seconds")}
+    write_sidecar(sidecar, doc)
 
 
 def _header(doc: dict, est, lines: int, samples: int) -> EnviHeader:
@@ -101,25 +139,16 @@ def _render(doc: dict, channels: list[Path], est, light: str, path: Path, band_r
     from dualrgb.app.processing.render import rendering
     from dualrgb.app.processing.spectral_cube import SpectralEncoder
     from dualrgb.app.workflow.deliverables import spectral_files
-    from dualrgb.app.workflow.delivery import LightDoseRecord, open_deliverable, tiff_meta
-    from dualrgb.app.workflow.metadata import Original
-    from dualrgb.app.workflow.profile import CameraIdentity
+    from dualrgb.app.workflow.delivery import open_deliverable
     from dualrgb.common.progress import check, report
 
     r = rendering(light, est.wavelengths)
     im = spectral_files(path.parent, str(doc["file_stem"]), est, r)["render"]
-    original = Original.from_dict(doc["original"])
-    dose = LightDoseRecord(float(doc["light_dose"]["lux_s"]), float(doc["light_dose"]["on_s"]))
-    camera = CameraIdentity(**doc["camera"])
-    now = datetime.now(UTC)
-    cal = str((doc.get("calibration") or {}).get("id", ""))
     arrays = open_channels(channels)
     H, W, _ = arrays[0].shape
     band = None
     with SpectralEncoder((H, W, est.n_channels), est.matrix, est.bounds, r, offset=est.offset) as enc, \
-            open_deliverable(im, H, W, lambda what, page: tiff_meta(original, cal, camera, dose, doc.get("ppi"),
-                                                                    what, now, page),
-                             band_rows, None, True, []) as out:
+            open_deliverable(im, H, W, context_of(doc), band_rows, None, True) as out:
         for r0 in range(0, H, out.band_rows):
             check(cancel)
             r1 = min(r0 + out.band_rows, H)
@@ -127,3 +156,20 @@ def _render(doc: dict, channels: list[Path], est, light: str, path: Path, band_r
             enc.encode(r0, None, out.band(r1 - r0), band=band)
             out.commit()
             report(progress, r1 / H, f"rendering rows {r1} of {H}")
+
+
+def context_of(doc: dict):
+    """What a delivery's files say about it (app.workflow.master_metadata.MasterContext), from its sidecar: for a
+    file made later for the same delivery."""
+    from dualrgb.app.workflow.delivery_settings import load
+    from dualrgb.app.workflow.master_metadata import MasterContext
+    from dualrgb.app.workflow.metadata import Original
+    from dualrgb.app.workflow.profile import CameraIdentity
+
+    now = datetime.now(UTC)
+    captured = datetime.fromisoformat(str(doc.get("captured_at") or doc.get("created_at") or now.isoformat()))
+    exposures = {str(k): [float(t) for t in v] for k, v in (doc.get("exposures") or {}).items()}
+    cal = doc.get("calibration") or {}
+    return MasterContext(Original.from_dict(doc["original"]), str(cal.get("id", "")), CameraIdentity(**doc["camera"]),
+                         float(doc["light_dose"]["lux_s"]), doc.get("ppi"), now, captured, exposures, list(exposures),
+                         load(), f"made on demand from the camera-RGB files (calibration {cal.get('id', '')})")

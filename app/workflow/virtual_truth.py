@@ -155,15 +155,15 @@ def delivered_spectra(files: dict[str, Path], estimator: SpectralEstimator | Non
     return mapped.wavelengths, mapped.rows
 
 
-def assess(truth: OriginalTruth, files: dict[str, Path], white_y: float,
+def assess(truth: OriginalTruth, files: dict[str, Path], white_xyz: list[float],
            estimator: SpectralEstimator | None = None) -> dict:
     """The sidecar's ``virtual_truth`` section: the delivered XYZ TIFF (``files['xyz']``) and the delivered spectra
-    (:func:`delivered_spectra`) against ``truth``; ``white_y``: the XYZ TIFF's white Y."""
+    (:func:`delivered_spectra`) against ``truth``; ``white_xyz``: the XYZ TIFF's white."""
     import tifffile
 
-    from dualrgb.app.processing.encode import LINEAR_ONE
+    from dualrgb.app.processing.encode import xyz_from_codes
 
-    xyz = tifffile.imread(files["xyz"]).astype(np.float64) / LINEAR_ONE * white_y
+    xyz = xyz_from_codes(tifffile.imread(files["xyz"]), white_xyz)
     spectra = delivered_spectra(files, estimator)
     if spectra is not None:
         truth = truth.on_wavelengths(spectra[0])

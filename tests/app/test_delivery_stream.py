@@ -18,8 +18,10 @@ from dualrgb.app.processing.outputs import (
     TiffMetadata,
     icc_profile,
     open_tiff,
+    rows_per_strip,
     tiff_kwargs,
     write_tiff,
+    xyz_icc,
     xyz_to_rgb_matrix,
 )
 from dualrgb.app.processing.pipeline import ChannelStack
@@ -39,16 +41,17 @@ def reference_encoding(stack: np.ndarray, matrix: np.ndarray, white: list[float]
     in float64): an independent formulation that must agree bit for bit."""
     nan = np.isnan(stack)
     v = np.where(nan, np.float32(0), stack).astype(np.float32)
-    A = np.asarray(matrix, np.float32)
+    w = np.asarray(white, np.float64)
+    A = (np.asarray(matrix, np.float64) / w).astype(np.float32)          # x, y, z: X / Xn, Y / Yn, Z / Zn
     xyz = [np.zeros(stack.shape[:2], np.float32) for _ in range(3)]
     for c in range(stack.shape[2]):
         for k in range(3):
             xyz[k] = xyz[k] + v[..., c] * A[c, k]
-    scale = np.float32(LINEAR_ONE / white[1])
+    scale = np.float32(65535.0)
     out = {"channels": _to16(v * np.float32(LINEAR_ONE) + np.float32(0.5)),
            "xyz": np.stack([_to16(x * scale + np.float32(0.5)) for x in xyz], -1)}
     for space in RGB_SPACES:
-        M = (xyz_to_rgb_matrix(space, white) / white[1]).astype(np.float32)
+        M = (xyz_to_rgb_matrix(space, white) * (w / w[1])).astype(np.float32)
         lut = encoding_table(space)
         last = lut.size - 1
         planes = []
@@ -105,39 +108,44 @@ def test_streamed_tiff_is_byte_for_byte_tifffiles(tmp_path, direct, shape, band_
             out.band(rows)[...] = img[r0:r0 + rows]
             out.commit()
     with open(tmp_path / "t.tif", "wb") as fh:
-        tifffile.imwrite(fh, img, **tiff_kwargs(META, **kw))
+        tifffile.imwrite(fh, img, **tiff_kwargs(META, rowsperstrip=rows_per_strip(shape, 2), **kw))
     written = (tmp_path / "s.tif").read_bytes()
     assert written == (tmp_path / "t.tif").read_bytes()
     assert out.sha256 == hashlib.sha256(written).hexdigest() and out.size == len(written)
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
 
 
-def test_delivered_files_are_the_old_paths_byte_for_byte(tmp_path, monkeypatch):
+def test_delivered_files_are_the_old_paths_byte_for_byte(tmp_path):
     """Before streaming, deliver encoded whole arrays and wrote each with tifffile.imwrite (outputs.tiff_kwargs
-    holds those arguments): same pixels, tags, XMP and ICC."""
+    holds those arguments): same pixels, tags, XMP and ICC (no EXIF here: it follows the pixels, tested apart)."""
     from dualrgb.app.workflow import delivery
+    from dualrgb.app.workflow.camera_profiles import camera_rgb_icc
 
-    iccs = {s: icc_profile(s) for s in RGB_SPACES}                  # the profiles carry their creation time
-    monkeypatch.setattr(delivery, "icc_profile", iccs.__getitem__)
     prof = _profile(tmp_path)
+    iccs = {s: icc_profile(s) for s in RGB_SPACES}                  # the profiles carry their creation time
+    iccs.update(XYZ=xyz_icc(prof.white_xyz), camera=camera_rgb_icc(prof, 0, "P light 1"))
+
+    class Context:                          # what app.workflow.master_metadata.MasterContext gives the writer
+        def meta(self, im):
+            return META
+
+        def icc(self, im):
+            return iccs[im.icc]
     rng = np.random.default_rng(11)
     data = rng.uniform(0, 1.3, (70, 45, 3)).astype(np.float32)
     data[3, 4, 1] = np.nan
-    xyz_icc = delivery.xyz_icc(prof.white_xyz, LINEAR_ONE)
-    monkeypatch.setattr(delivery, "xyz_icc", lambda *_: xyz_icc)
     stack = ChannelStack(data, ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})
     images = deliverable_files(tmp_path / "out", "ACC-1", stack.channels)
     (tmp_path / "out").mkdir()
-    written = delivery.write_images(stack, prof, images, lambda what, page: META, band_rows=16)
+    written = delivery.write_images(stack, prof, images, Context(), band_rows=16)
     enc = encode_deliverables(data, prof.matrix.matrix, prof.white_xyz)
     arrays = {"prophoto": enc.rgb["ProPhoto RGB"], "srgb": enc.rgb["sRGB"], "xyz": enc.xyz,
               "channels_1": enc.channels}
-    iccs["XYZ"] = xyz_icc
     for key, im in images.items():
         ref = tmp_path / f"ref_{key}.tif"
         with open(ref, "wb") as fh:
-            tifffile.imwrite(fh, arrays[key], **tiff_kwargs(META, photometric=im.photometric,
-                                                           icc=iccs[im.icc] if im.icc else None))
+            tifffile.imwrite(fh, arrays[key], **tiff_kwargs(META, photometric=im.photometric, icc=iccs[im.icc],
+                                                           rowsperstrip=rows_per_strip(arrays[key].shape, 2)))
         assert written.files[key].read_bytes() == ref.read_bytes(), key
         data = ref.read_bytes()
         assert written.fixity[key] == {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}

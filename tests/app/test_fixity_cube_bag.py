@@ -23,6 +23,7 @@ from spectral_profiles import spectral_profile, stack
 
 from dualrgb.app.cli import main
 from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+from dualrgb.app.workflow.delivery_settings import DeliverySettings
 
 
 def full(s):
@@ -58,7 +59,7 @@ def test_verify_passes_a_delivery_and_names_each_problem(delivered, capsys):
     assert "1 delivery, 4 files match their sidecars; all match" in capsys.readouterr().out
     xyz = d.files["xyz"]
     data = bytearray(xyz.read_bytes())
-    data[-7] ^= 0x01                                              # one bit of one pixel
+    data[len(data) // 2] ^= 0x01                                  # one bit of one pixel
     xyz.write_bytes(bytes(data))
     d.files["channels_1"].unlink()
     (folder / "notes.txt").write_text("left here by hand")
@@ -105,7 +106,8 @@ def test_cube_on_demand_is_the_stated_map_to_one_code(delivered, tmp_path, capsy
     assert img.shape == (23, 31, 38) and np.allclose(img.bands.centers, doc["spectral"]["map"]["wavelengths_nm"])
     cube = np.fromfile(made, "<u2").reshape(23, 38, 31)
     assert np.abs(cube.astype(int) - numpy_cube(doc, folder)).max() <= 1
-    half = deliver(stack(), prof, Original("ACC-1H"), tmp_path / "half", camera=prof.camera, dose=LightDoseRecord())
+    half = deliver(stack(), prof, Original("ACC-1H"), tmp_path / "half", camera=prof.camera, dose=LightDoseRecord(),
+                   settings=DeliverySettings(spectral=True))
     delivered_cube = np.fromfile(half.files["spectral"], "<u2").reshape(23, 38, 31)
     data = stack().data                  # where the 16-bit channels hold the float ones (not NaN, in [0, 2))
     valid = ((data >= 0) & (data < 65535 / 32768)).all(-1)
@@ -114,8 +116,13 @@ def test_cube_on_demand_is_the_stated_map_to_one_code(delivered, tmp_path, capsy
     with tifffile.TiffFile(render) as t:
         assert t.pages[0].shape == (23, 31, 3) and 34675 in t.pages[0].tags
         assert t.pages[0].tags["ImageDescription"].value.startswith("ACC-1 - Stillleben; rendered under A")
-    assert main(["verify", str(folder)]) == 0                    # the cube made on demand is allowed beside
-    capsys.readouterr()
+    assert main(["verify", str(folder)]) == 0                    # the cube made on demand: in the fixity now
+    assert "1 delivery, 7 files match their sidecars; all match" in capsys.readouterr().out
+    side = assert_valid_sidecar(d.sidecar)
+    for name in ("ACC-1_spectral.img", "ACC-1_spectral.hdr", "ACC-1_under_A_prophoto_16bit.tif"):
+        data = (folder / name).read_bytes()
+        assert side["fixity"]["files"][name] == {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    assert side["spectral"]["cube"]["made_on_demand"]["data"] == "ACC-1_spectral.img"
     with pytest.raises(SystemExit):
         main(["cube", str(folder), "--render", "candle"])
     assert main(["cube", str(half.sidecar.parent)]) == 1           # a delivered cube is not written over
@@ -141,8 +148,89 @@ def test_bag_of_a_days_deliveries(tmp_path, capsys):
         for name, fix in doc["fixity"]["files"].items():
             assert bag.entries[f"data/{ident}/{name}"]["sha256"] == fix["sha256"]
     xyz = out / "ACC-1" / "ACC-1_XYZ_16bit.tif"
-    xyz.write_bytes(xyz.read_bytes()[:-1] + b"\x00")
+    data = bytearray(xyz.read_bytes())
+    data[len(data) // 2] ^= 0x01                                   # a pixel's bit (the file ends with its EXIF)
+    xyz.write_bytes(bytes(data))
     assert main(["bag", str(out), "--out", str(tmp_path / "bag2")]) == 1
     err = capsys.readouterr().err
     assert "not bagged" in err and "ACC-1_XYZ_16bit.tif" in err and not (tmp_path / "bag2").exists()
     assert main(["bag", str(out / "ACC-2"), "--out", str(tmp_path / "bag")]) == 1        # not an empty folder
+
+
+@pytest.mark.fault("input")
+def test_cube_refuses_a_tampered_channel_file_naming_it(delivered, capsys):
+    """Issue 38: a changed byte in a channel TIFF: dualrgb cube exits 1 naming the file; nothing is made."""
+    _, d = delivered
+    folder = d.sidecar.parent
+    ch = d.files["channels_1"]
+    data = bytearray(ch.read_bytes())
+    data[len(data) // 2] ^= 0x40
+    ch.write_bytes(bytes(data))
+    assert main(["cube", str(folder)]) == 1
+    err = capsys.readouterr().err
+    assert "not made" in err and str(ch) in err and "differs from the sidecar's" in err
+    assert not (folder / "ACC-1_spectral.img").exists()
+
+
+def test_verify_names_debris_and_bag_leaves_it_out(delivered, tmp_path, capsys):
+    """Issue 39: files GDAL, the Finder and Explorer leave beside a delivery are named as such, not problems; the
+    bag leaves them out with a line."""
+    _, d = delivered
+    folder = d.sidecar.parent
+    for name in ("ACC-1_XYZ_16bit.tif.aux.xml", ".DS_Store", "Thumbs.db"):
+        (folder / name).write_text("left by another program")
+    assert main(["verify", str(folder)]) == 0
+    out = capsys.readouterr().out
+    assert "ACC-1_XYZ_16bit.tif.aux.xml: left by GDAL" in out and ".DS_Store: left by the macOS Finder" in out
+    assert "Thumbs.db: left by Windows Explorer" in out and "all match" in out
+    assert main(["bag", str(folder.parent), "--out", str(tmp_path / "bag")]) == 0
+    assert capsys.readouterr().err.count("left out ") == 3
+    assert not list((tmp_path / "bag").rglob("*.aux.xml")) and not list((tmp_path / "bag").rglob("Thumbs.db"))
+
+
+def test_a_bag_is_its_own_copy_and_bagit_1_0(delivered, tmp_path, capsys):
+    """Issue 39: an edit inside the bag leaves the session's delivery as it was (dualrgb verify passes); the bag
+    says BagIt-Version 1.0, has tag manifests, and bag-info takes the delivery settings' fields."""
+    bagit = pytest.importorskip("bagit")
+    _, d = delivered
+    settings = tmp_path / "delivery.toml"
+    settings.write_text('[bag-info]\nSource-Organization = "Museum Y"\nContact-Email = "imaging@example.org"\n')
+    assert main(["bag", str(d.sidecar.parent.parent), "--out", str(tmp_path / "bag"),
+                 "--delivery-settings", str(settings)]) == 0
+    assert "BagIt 1.0 bag of 1 original" in capsys.readouterr().out
+    root = tmp_path / "bag"
+    assert (root / "bagit.txt").read_text().startswith("BagIt-Version: 1.0\n")
+    assert (root / "tagmanifest-sha256.txt").is_file() and (root / "manifest-sha256.txt").is_file()
+    bag = bagit.Bag(str(root))
+    bag.validate()
+    assert bag.version_info == (1, 0) and bag.info["Source-Organization"] == "Museum Y"
+    assert bag.info["Contact-Email"] == "imaging@example.org"
+    inside = root / "data" / "ACC-1" / "ACC-1_XYZ_16bit.tif"
+    assert inside.stat().st_ino != d.files["xyz"].stat().st_ino             # not a hard link
+    with open(inside, "r+b") as fh:                                         # an edit inside the bag
+        fh.seek(100)
+        fh.write(b"rights metadata")
+    assert main(["verify", str(d.sidecar.parent)]) == 0
+
+
+@pytest.mark.fault("session integrity")
+def test_a_full_disk_while_bagging_leaves_nothing_and_says_so(delivered, tmp_path, capsys, monkeypatch):
+    """Issue 38: ENOSPC in the middle of the copies: exit 1, one line, no bag and no partial folder."""
+    import errno
+
+    from dualrgb.app.workflow import bagging
+
+    _, d = delivered
+    calls = {"n": 0}
+    real = bagging.place
+
+    def place(src, dst, link=False):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise OSError(errno.ENOSPC, "No space left on device", str(dst))
+        return real(src, dst, link)
+    monkeypatch.setattr(bagging, "place", place)
+    assert main(["bag", str(d.sidecar.parent.parent), "--out", str(tmp_path / "bag")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no space left on the device" in err[0] and "nothing was left" in err[0]
+    assert not (tmp_path / "bag").exists() and [p.name for p in tmp_path.iterdir() if "partial" in p.name] == []

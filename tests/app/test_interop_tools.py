@@ -49,7 +49,7 @@ def delivered(tmp_path_factory):
 
 @pytest.mark.parametrize("which", ["sRGB", "ProPhoto RGB", "XYZ"])
 def test_icc_profiles_are_v2_and_argyll_reads_them(tmp_path, which):
-    data = xyz_icc([95.047, 100.0, 108.883], 32768) if which == "XYZ" else icc_profile(which)
+    data = xyz_icc([95.047, 100.0, 108.883]) if which == "XYZ" else icc_profile(which)
     assert data[8:10] == b"\x02\x40" and data[36:40] == b"acsp"          # version 2.4, an ICC profile
     path = tmp_path / "p.icc"
     path.write_bytes(data)

@@ -133,10 +133,11 @@ def test_encoding_matches_colour_science():
         # within 10 of 65535 (0.015 %): float32, and the white normalised to exactly 1 (outputs.xyz_to_rgb_matrix;
         # the published matrices map it to 1 +- 1e-4)
         assert np.abs(enc.rgb[space].astype(float) - ref16).max() <= 10, space
-    assert np.abs(enc.xyz - np.clip(np.round(xyz / 100 * LINEAR_ONE), 0, 65535)).max() <= 1
+    # the XYZ master: X / Xn, Y / Yn, Z / Zn with 65535 = 1 (app.processing.outputs.xyz_icc says why)
+    assert np.abs(enc.xyz - np.clip(np.round(xyz / np.array(D65) * 65535), 0, 65535)).max() <= 1
     white = encode_deliverables(np.ones((1, 1, 3), np.float32), np.diag(D65), D65)
     assert (white.rgb["sRGB"] == 65535).all() and (white.rgb["ProPhoto RGB"] == 65535).all()
-    assert white.xyz[0, 0, 1] == LINEAR_ONE and white.channels[0, 0, 0] == LINEAR_ONE
+    assert (white.xyz[0, 0] == 65535).all() and white.channels[0, 0, 0] == LINEAR_ONE
     assert enc.invalid_fraction == pytest.approx(1 / 42)
 
 
@@ -159,13 +160,13 @@ def test_deliverables_carry_their_metadata(tmp_path):
             assert page.tags["Make"].value == "Nikon" and page.tags["Model"].value == "D610"
             description = page.tags["ImageDescription"].value
             assert "ACC 12/3" in description
-            assert (34675 in page.tags) == (key in ("srgb", "prophoto", "xyz"))        # ICC: not for camera RGB
+            assert 34675 in page.tags and 285 not in page.tags          # an ICC profile in every TIFF, no PageName
+            assert page.tags["DocumentName"].value == "ACC 12/3 - Portrait"
         xmp = read_xmp(path)
         assert (xmp.identifier, xmp.title, xmp.dualrgb["Operator"]) == ("ACC 12/3", "Portrait", "J. Doe"), key
         assert xmp.description == description                 # dc:description: the exact text (ASCII here)
         assert xmp.dualrgb["CalibrationID"] == "cal-test" and xmp.dualrgb["LightDoseLuxHours"] == "0.01"
-    with tifffile.TiffFile(d.files["channels_1"]) as t:
-        assert t.pages[0].tags["PageName"].value == "P light 1: R1 G1 B1"
+    assert read_xmp(d.files["channels_1"]).dualrgb["Content"].startswith("camera R1 G1 B1 under P light 1")
     side = read_sidecar(d.sidecar)
     assert assert_valid_sidecar(d.sidecar) == side                     # the sidecar's JSON Schema
     assert set(side["software"]) >= {"dualrgb", "numpy", "colour-science", "rawpy", "libraw"}

@@ -129,7 +129,7 @@ def test_painting_xyz_against_ground_truth(day):
     means are), the mean dE00 is within 0.3 of the calibration's test-target mean. At full resolution the same holds
     in the flat regions; at the edges between materials the demosaic mixes neighbours (the virtual painting has no
     optical blur: a 2-pixel line is a worst case for any demosaic), which the sidecar reports apart."""
-    from dualrgb.app.processing.encode import LINEAR_ONE
+    from dualrgb.app.processing.encode import xyz_from_codes
     from dualrgb.app.processing.ground_truth import compare_to_ground_truth, write_de_map_png
     from dualrgb.app.workflow.targets import reference_white
     from dualrgb.drivers.virtual.originals import ground_truth_xyz
@@ -141,7 +141,7 @@ def test_painting_xyz_against_ground_truth(day):
     assert full["resolution"] == "full" and full["xyz"]["n_pixels"] == 160 * 240
     assert abs(full["xyz"]["flat"]["mean"] - test_mean) < 0.3 and full["xyz"]["flat"]["n_pixels"] > 0
     assert full["xyz"]["edges"]["mean"] > full["xyz"]["flat"]["mean"]
-    xyz = tifffile.imread(captures["PAINT-H"]["files"]["xyz"]).astype(np.float64) / LINEAR_ONE * 100.0
+    xyz = xyz_from_codes(tifffile.imread(captures["PAINT-H"]["files"]["xyz"]), cal["white_xyz"])
     truth = ground_truth_xyz("painting", 160, 240)
     result = compare_to_ground_truth(xyz, truth, reference_white())
     write_de_map_png(root / "painting_de00.png", result.de_map, title="PAINT-H")
@@ -317,3 +317,34 @@ def test_calibrated_with_the_stands_own_charts_and_delivering(own_charts):
     r = dualrgb("calibrate", "--session", str(root / "day"), "--virtual-lab", "--hdr", "off", "--dark-frames", "3",
                 "--flat-frames", "8", "--no-de-fit", *FRAME, ok=False)
     assert r.returncode == 1 and "the session was made with other settings: charts" in r.stderr
+
+
+@pytest.mark.parametrize("ident", ["PAINT-1", "FILM-2"])
+def test_checkit_tiff_passes_every_tiff_of_a_virtual_lab_delivery(day, ident, tmp_path):
+    """Issue 39: a reflective (full resolution) and a film delivery (half resolution, with its cube's rendering)
+    of the virtual lab: every TIFF passes SLUB's checkit_tiff baseline - with only its 300-4000 ppi rule relaxed
+    where the QA line says the stand's sampling is outside it - and exiftool -validate."""
+    from archive_tools import checkit, exiftool_validate, slub_config, tiffs_of
+
+    _, _, captures = day
+    sidecar = Path(captures[ident]["sidecar"])
+    doc = json.loads(sidecar.read_text())
+    config = slub_config(tmp_path, "SLUB's TIFF baseline" in doc["qa"]["text"])
+    tiffs = tiffs_of(sidecar.parent)
+    assert {p.name for p in tiffs} == {n for n in doc["fixity"]["files"] if n.endswith(".tif")}
+    assert len(tiffs) == (5 if ident == "PAINT-1" else 6)      # 3 masters, 2 lights' channels (+ the film's render)
+    for path in tiffs:
+        ok, report = checkit(config, path)
+        assert ok, f"{path.name}:\n{report}"
+        assert exiftool_validate(path).endswith(": OK"), path.name
+
+
+def test_report_of_a_virtual_lab_session(day, capsys):
+    root, cal, _ = day
+    assert set(cal["statistics"]["quality"]["grading"]) == {"FADGI 4-star", "ISO 19264-1:2021 A",
+                                                            "Metamorfoze 2.0 Full"}     # kept in the profile
+    r = dualrgb("report", str(root / "originals"))
+    page = (root / "originals" / "report.html").read_text(encoding="utf-8")
+    for ident in ("PAINT-1", "FILM-1", "SHADOW-1"):
+        assert f'alt="{ident}"' in page
+    assert "FADGI 4-star" in page and "ISO 19264-1:2021 A" in page and "3 original(s), 0 with problems" in r.stdout

@@ -61,6 +61,7 @@ def cases(port: str) -> dict[str, list[str]]:
         "cube": ["cube", "day/deliverables/J-1"],
         "verify": ["verify", "day"],
         "bag": ["bag", "day/deliverables", "--out", "bag"],
+        "report": ["report", "day"],
         "calibration show": ["calibration", "show", "CAL", "--virtual-lab", *FRAME],
         "devices": ["devices"],
         "sphere status": ["sphere", "--port", port, "status"],
@@ -98,6 +99,7 @@ def test_json_to_stdout_in_every_command(stand):
     assert docs["capture"]["original"]["identifier"] == "J-1" and docs["process"]["originals"]
     assert docs["calibration show"]["check"]["refusals"] == []
     assert docs["verify"]["ok"] and docs["bag"]["originals"] == ["J-1"] and docs["cube"]["samples"] == 160
+    assert docs["report"]["originals"][0]["identifier"] == "J-1" and docs["report"]["originals"][0]["problems"] == []
 
 
 def test_queue_check_json_to_stdout(stand):
