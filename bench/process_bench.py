@@ -41,8 +41,9 @@ def _cli(*args: str, check: bool = True) -> subprocess.CompletedProcess:
     return r
 
 
-def make_sessions(root: Path, sessions: int, originals: int, frame: str) -> list[Path]:
-    """``sessions`` sessions of ``originals`` originals each, the first calibrated, the others using it."""
+def make_sessions(root: Path, sessions: int, originals: int, frame: str) -> tuple[list[Path], str]:
+    """``sessions`` sessions of ``originals`` originals each, the first calibrated, all captured with that
+    calibration (passed to ``process`` with --calibration: it lies outside the other sessions); and its path."""
     first = root / "s1"
     _cli("calibrate", "--session", str(first), "--virtual-lab", "--frame-size", frame, "--settle", "0",
          "--json", str(root / "cal.json"))
@@ -54,7 +55,7 @@ def make_sessions(root: Path, sessions: int, originals: int, frame: str) -> list
             _cli("capture", "--session", str(session), "--calibration", cal, "--id", f"S{s + 1}-{o + 1}",
                  "--virtual-lab", "--frame-size", frame, "--settle", "0")
         out.append(session)
-    return out
+    return out, cal
 
 
 def _children_cpu() -> float:
@@ -70,10 +71,11 @@ def _digests(folder: Path) -> str:
     return h.hexdigest()
 
 
-def _timed_process(sessions: list[Path], out: Path, *extra: str) -> dict:
+def _timed_process(sessions: list[Path], cal: str, out: Path, *extra: str) -> dict:
     shutil.rmtree(out, ignore_errors=True)
     c0, t0, load0 = _children_cpu(), time.perf_counter(), os.getloadavg()[0]
-    _cli("process", *map(str, sessions), "--out", str(out), "--json", str(out.with_suffix(".json")), *extra)
+    _cli("process", *map(str, sessions), "--calibration", cal, "--out", str(out),
+         "--json", str(out.with_suffix(".json")), *extra)
     wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
     doc = json.loads(out.with_suffix(".json").read_text())
     per = [o["cpu_s"] for o in doc["originals"]]
@@ -160,14 +162,14 @@ def bench_process(sessions: int = 3, originals: int = 4, frame: str = "600x400")
     root = Path(tempfile.mkdtemp(prefix="dualrgb_bench_process_"))
     try:
         t0 = time.perf_counter()
-        made = make_sessions(root, sessions, originals, frame)
+        made, cal = make_sessions(root, sessions, originals, frame)
         prepare_s = time.perf_counter() - t0
-        serial = _timed_process(made, root / "serial")
-        jobs = _timed_process(made, root / "jobs2", "--jobs", "2")
+        serial = _timed_process(made, cal, root / "serial")
+        jobs = _timed_process(made, cal, root / "jobs2", "--jobs", "2")
         address, procs, start_s = _dask_cluster(2)
         try:
             c0 = _children_cpu()
-            dask = _timed_process(made, root / "dask", "--scheduler", address)
+            dask = _timed_process(made, cal, root / "dask", "--scheduler", address)
         finally:
             _stop(procs)
         dask["cpu_s_with_workers"] = round(_children_cpu() - c0, 2)    # the workers' CPU, counted once they exit

@@ -45,8 +45,9 @@ def digests(folder: Path) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def sessions(tmp_path_factory):
-    """Two sessions of two originals each; the second has no calibration of its own (its originals name the
-    first's), and a serial re-delivery of both as the reference."""
+    """Two sessions of two originals each, both captured with the first's calibration (passed with --calibration:
+    the second's session.json names a calibration outside its folder, never used from there), and a serial
+    re-delivery of both as the reference."""
     root = tmp_path_factory.mktemp("jobs")
     s1, s2 = root / "s1", root / "s2"
     dualrgb("calibrate", "--session", str(s1), "--virtual-lab", "--dark-frames", "1", "--flat-frames", "1",
@@ -56,8 +57,13 @@ def sessions(tmp_path_factory):
         for ident in ids:
             dualrgb("capture", "--session", str(session), "--calibration", cal, "--id", ident, "--virtual-lab",
                     *FRAME)
-    dualrgb("process", str(s1), str(s2), "--out", str(root / "serial"), "--json", str(root / "serial.json"))
+    dualrgb("process", str(s1), str(s2), *calibrated(root), "--out", str(root / "serial"),
+            "--json", str(root / "serial.json"))
     return root, s1, s2
+
+
+def calibrated(root: Path) -> list[str]:
+    return ["--calibration", json.loads((root / "cal.json").read_text())["calibration"]]
 
 
 def test_serial_run_delivers_every_original_of_every_session(sessions):
@@ -71,7 +77,7 @@ def test_serial_run_delivers_every_original_of_every_session(sessions):
 
 def test_jobs_2_delivers_the_serial_bytes(sessions):
     root, s1, s2 = sessions
-    r = dualrgb("process", str(s1), str(s2), "--out", str(root / "jobs2"), "--jobs", "2",
+    r = dualrgb("process", str(s1), str(s2), *calibrated(root), "--out", str(root / "jobs2"), "--jobs", "2",
                 "--json", str(root / "jobs2.json"))
     assert digests(root / "jobs2") == digests(root / "serial")
     workers = {o["worker"] for o in json.loads((root / "jobs2.json").read_text())["originals"]}
@@ -116,7 +122,7 @@ def dask_cluster():
 
 def test_dask_cluster_delivers_the_serial_bytes(sessions, dask_cluster):
     root, s1, s2 = sessions
-    dualrgb("process", str(s1), str(s2), "--out", str(root / "dask"), "--scheduler", dask_cluster,
+    dualrgb("process", str(s1), str(s2), *calibrated(root), "--out", str(root / "dask"), "--scheduler", dask_cluster,
             "--json", str(root / "dask.json"))
     assert digests(root / "dask") == digests(root / "serial")
     workers = {o["worker"] for o in json.loads((root / "dask.json").read_text())["originals"]}
@@ -126,14 +132,16 @@ def test_dask_cluster_delivers_the_serial_bytes(sessions, dask_cluster):
 def test_a_killed_run_resumes_with_what_is_left(sessions):
     root, s1, s2 = sessions
     out = root / "killed"
-    proc = subprocess.Popen([sys.executable, "-m", "dualrgb", "process", str(s1), str(s2), "--out", str(out)],
+    proc = subprocess.Popen([sys.executable, "-m", "dualrgb", "process", str(s1), str(s2), *calibrated(root),
+                             "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=ENV)
     assert proc.stdout is not None
     first = proc.stdout.readline()                            # the first original's result line
     proc.kill()
     proc.wait(timeout=60)
     assert re.match(r"s1: A-1: ", first), first
-    r = dualrgb("process", str(s1), str(s2), "--out", str(out), "--json", str(root / "resumed.json"))
+    r = dualrgb("process", str(s1), str(s2), *calibrated(root), "--out", str(out), "--json",
+                str(root / "resumed.json"))
     doc = json.loads((root / "resumed.json").read_text())
     assert [k["identifier"] for k in doc["kept"]] == ["A-1"]
     assert sorted(o["identifier"] for o in doc["originals"]) == ["A-2", "B-1", "B-2"]
@@ -149,7 +157,7 @@ def test_a_changed_file_is_delivered_again_not_kept(sessions):
     data = bytearray(tif.read_bytes())
     data[-10] ^= 0xFF
     tif.write_bytes(bytes(data))
-    dualrgb("process", str(s1), str(s2), "--out", str(out), "--json", str(root / "changed.json"))
+    dualrgb("process", str(s1), str(s2), *calibrated(root), "--out", str(out), "--json", str(root / "changed.json"))
     changed = json.loads(next(tif.parent.glob("*.json")).read_text(encoding="utf-8"))["original"]["identifier"]
     doc = json.loads((root / "changed.json").read_text())
     assert [o["identifier"] for o in doc["originals"]] == [changed]
@@ -159,7 +167,8 @@ def test_a_changed_file_is_delivered_again_not_kept(sessions):
 
 def test_a_session_without_frames_is_refused_before_any_delivery(sessions, tmp_path):
     root, s1, _ = sessions
-    r = dualrgb("process", str(s1), str(tmp_path / "nowhere"), "--out", str(tmp_path / "out"), ok=False)
+    r = dualrgb("process", str(s1), str(tmp_path / "nowhere"), *calibrated(root), "--out", str(tmp_path / "out"),
+                ok=False)
     assert r.returncode != 0 and "nowhere" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "out").exists()
 
@@ -194,3 +203,10 @@ def test_a_transient_failure_is_tried_once_more_and_an_own_failure_reported():
     assert by["B"].status == "delivered" and by["B"].attempts == 2
     assert by["C"].status == "failed" and by["C"].attempts == 1
     assert sorted(seen) == ["A", "B", "C"]
+
+
+def test_a_session_whose_calibration_lies_outside_it_is_refused_naming_it(sessions, tmp_path):
+    root, s1, s2 = sessions
+    r = dualrgb("process", str(s2), "--out", str(tmp_path / "out"), ok=False)
+    assert r.returncode != 0 and "outside the session folder" in r.stderr and "--calibration" in r.stderr
+    assert not (tmp_path / "out").exists()
