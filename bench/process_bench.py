@@ -82,6 +82,7 @@ def _timed_process(sessions: list[Path], cal: str, out: Path, *extra: str) -> di
     return {"wall_s": round(wall, 2), "cpu_s": round(cpu, 2), "originals": len(doc["originals"]),
             "task_cpu_s_mean": round(sum(per) / len(per), 3), "task_s_mean":
             round(sum(o["seconds"] for o in doc["originals"]) / len(per), 3),
+            "task_s_sum": round(sum(o["seconds"] for o in doc["originals"]), 2),
             "workers": len({o["worker"] for o in doc["originals"]}), "digest": _digests(out),
             "load_1min": [round(load0, 2), round(os.getloadavg()[0], 2)]}
 
@@ -158,6 +159,22 @@ def _bytes_per_original(out: Path, sessions: list[Path], originals: int) -> int:
     return int((written + read) / originals)
 
 
+DIGITISE_24MP = Path(__file__).resolve().parents[1] / "docs" / "notes" / "issue-31" / "digitise-24mp-quiet.json"
+D610_FRAME_BYTES = 6080 * 4028 * 2            # one 14-bit frame stored in 16 bits (the session's raw file)
+
+
+def _paper_model_24mp() -> dict:
+    """The paper model for D610 originals: the CPU of re-delivering one 24 MP original from its 4 frames on disk
+    (bench/digitise_bench.py's full_all_frames, the committed quiet run) and its bytes (4 frames read, the five
+    masters written)."""
+    doc = json.loads(DIGITISE_24MP.read_text())
+    run = doc["full_all_frames"]
+    moved = 4 * D610_FRAME_BYTES + sum(run["deliverables_bytes"].values())
+    return {"source": str(DIGITISE_24MP.relative_to(DIGITISE_24MP.parents[3])), "task_cpu_s": run["cpu_s"],
+            "bytes_per_original": moved, "originals": 100_000, "cores_per_machine": CORES_PER_MACHINE,
+            "rows": paper_model(run["cpu_s"], moved)}
+
+
 def bench_process(sessions: int = 3, originals: int = 4, frame: str = "600x400") -> dict:
     root = Path(tempfile.mkdtemp(prefix="dualrgb_bench_process_"))
     try:
@@ -180,12 +197,16 @@ def bench_process(sessions: int = 3, originals: int = 4, frame: str = "600x400")
             run["speed_up"] = round(serial["wall_s"] / run["wall_s"], 2)
             run["efficiency"] = round(serial["wall_s"] / (run["wall_s"] * workers), 2)
             run["same_bytes_as_serial"] = run["digest"] == serial["digest"]
+            # the tasks alone (start-up and hand-overs left out): serial task time over the parallel tasks' time
+            run["task_efficiency"] = round(serial["task_s_sum"] / run["task_s_sum"], 2)
+            run["start_up_and_overhead_s"] = round(run["wall_s"] - run["task_s_sum"] / workers, 2)
         return {"sessions": sessions, "originals_per_session": originals, "frame": frame, "prepare_s":
                 round(prepare_s, 1), "serial": serial, "jobs_2": jobs, "dask_2_workers": dask,
                 "bytes_per_original": per_original_bytes, "local_disk_gb_s": _disk_gb_s(root),
                 "paper_model": {"originals": 100_000, "cores_per_machine": CORES_PER_MACHINE,
                                 "task_cpu_s": serial["task_cpu_s_mean"],
                                 "rows": paper_model(serial["task_cpu_s_mean"], per_original_bytes)},
+                "paper_model_24mp": _paper_model_24mp(),
                 "cpus": os.cpu_count()}
     finally:
         shutil.rmtree(root, ignore_errors=True)

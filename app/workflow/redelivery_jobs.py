@@ -285,11 +285,12 @@ class Serial:
 
 
 def _worker_start() -> None:
-    """Each worker's start-up, paid once per worker: the delivery's modules and kernels loaded."""
-    from dualrgb.app.warm_kernels import warm_delivery, warm_processing
+    """Each worker's start-up, paid once per worker (not per session or original): the delivery's modules
+    imported, and on a machine whose numba cache is cold (a new cluster node) the kernels compiled once, here."""
+    from dualrgb.app.warm_kernels import ensure_ready
+    from dualrgb.app.workflow import redelivery  # noqa: F401 - imported once per worker, not per task
 
-    warm_processing()
-    warm_delivery()
+    ensure_ready(say=lambda line: log.warning("%s", line))
 
 
 class LocalProcesses:
