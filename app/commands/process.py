@@ -44,11 +44,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.folders import open_session
     from dualrgb.app.workflow.profile import load_profile
     from dualrgb.app.workflow.redelivery import newest_by_mode, redeliver
 
-    session = CaptureSession.open(args.session, readonly=True)      # frames checked before use, per original
+    session = open_session(args.session, readonly=True)      # frames checked before use, per original
     profiles = load_profile(args.calibration) if args.calibration else newest_by_mode(session)
     refused: list[str] = []
     deliveries, failed = redeliver(session, profiles, args.out or args.session / "deliverables", ppi=args.ppi,

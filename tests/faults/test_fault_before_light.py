@@ -15,7 +15,8 @@ from workflow_profiles import make_profile
 from dualrgb.app.cli import main
 from dualrgb.app.sequences.shooter import LightSafetyError
 from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.copystand import CopyStand, StandSettings, capture_queue
+from dualrgb.app.workflow.copystand import CopyStand, StandSettings
+from dualrgb.app.workflow.queue_run import capture_queue
 from dualrgb.app.workflow.metadata import Original
 from dualrgb.common.atomic_files import InsufficientSpaceError
 
