@@ -70,7 +70,7 @@ def states_light(error: BaseException) -> bool:
     """Whether an error's message already says what state the light (or the shutter) was left in."""
     if getattr(error, "light", None) is not None or getattr(error, "shutter", None) is not None:
         return True
-    text = str(error)
+    text = " ".join([str(error), *getattr(error, "__notes__", ())])      # a note already added says it too
     return any(words in text for words in ("switched off", "light's state", "did not confirm it is off", "shutter"))
 
 
@@ -231,9 +231,10 @@ class RunEngine:
         """Run a Sequence under this run's control (its free space checked first): prompts to ``prompt``,
         progress to ``lo``..``hi`` of the run, every event to ``on_event``; a cancel raises Cancelled after the
         clean-up (LEDs off, read back). Returns its events."""
+        seq.control = self.control
+        self.actions.check_free_space(len(seq.plan()), seq.name)      # before the run touches a device
+
         def job() -> list[ProgressEvent]:
-            seq.control = self.control
-            self.actions.check_free_space(len(seq.plan()), seq.name)
             events: list[ProgressEvent] = []
             self._drive(seq._steps(), seq.name, lo, hi, events)
             return events
@@ -249,8 +250,8 @@ class RunEngine:
         seq.control = self.control
 
         def events() -> Iterator[ProgressEvent]:
+            self.actions.check_free_space(len(seq.plan()), seq.name)
             with self._one_run():
-                self.actions.check_free_space(len(seq.plan()), seq.name)
                 try:
                     yield from self._events(seq._steps(), seq.name, lo, hi)
                 except Cancelled:
