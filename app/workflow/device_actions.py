@@ -249,7 +249,8 @@ class DeviceActions:
             self.ask(prompt, {"wavelength_nm": msg.wavelength_nm})
         return mono.goto(msg.wavelength_nm)
 
-    def _shutter_shot(self, msg: M.ShutterShot) -> M.Taken:
+    def shutter_shooter(self) -> ShutterShooter:
+        """The frame action under the monochromator (made on first use, with the run's camera timeouts)."""
         if self._shutter is None:
             from dualrgb.app.workflow.shutter_shooter import ShutterShooter
 
@@ -257,8 +258,12 @@ class DeviceActions:
             safety = self.shooter.safety
             self._shutter = ShutterShooter(camera, self._mono(), session, expose_timeout_s=safety.expose_timeout_s,
                                            fetch_timeout_s=safety.fetch_timeout_s)
-        kept = self._shutter.session.has_step(msg.step_id)
-        return M.Taken(self._shutter.shoot(msg.role, msg.step_id, msg.exposure_s, lit=msg.lit, **dict(msg.meta)), kept)
+        return self._shutter
+
+    def _shutter_shot(self, msg: M.ShutterShot) -> M.Taken:
+        shooter = self.shutter_shooter()
+        kept = shooter.session.has_step(msg.step_id)
+        return M.Taken(shooter.shoot(msg.role, msg.step_id, msg.exposure_s, lit=msg.lit, **dict(msg.meta)), kept)
 
     def _close_shutter(self) -> None:
         mono = self._mono()
