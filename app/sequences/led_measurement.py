@@ -30,7 +30,15 @@ from pathlib import Path
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.workflow.led_readings import level_id, warmup_id
-from dualrgb.app.workflow.messages import LightOff, LightOn, Measure, PlanSteps, SaveReadings, SetLight, Wait
+from dualrgb.app.workflow.messages import (
+    LightOff,
+    LightOn,
+    Measure,
+    PlanSteps,
+    SaveReadings,
+    SetLight,
+    Wait,
+)
 from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.simulation.lightsource import LightSource
 

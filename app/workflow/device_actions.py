@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 
 Place = Callable[[str, bool], object]      # the stand as a device: (what, nd) -> places it
 Ask = Callable[[str, dict], None]         # a person asked to do something; returns when done
-KEEPALIVE_S = 10.0          # the sphere's watchdog (30 s by default) hears from the host at least this often
+KEEPALIVE_S = M.KEEPALIVE_S
 
 
 @dataclass

@@ -55,6 +55,8 @@ if TYPE_CHECKING:
     from dualrgb.app.session.manifest import SessionEntry
     from dualrgb.simulation.lightsource import LightSource
 
+KEEPALIVE_S = 10.0          # during a Wait the sphere's watchdog (30 s by default) hears from the host this often
+
 
 @dataclass
 class PlannedFrame:
