@@ -226,7 +226,7 @@ class SequenceView(QWidget):
         self.ctx.workspace.set_running(seq.name)
         self.ctx.bus.sequenceStarted.emit(seq.name)
         self.ctx.lab.stop_light()               # the light held by hand ends (dark, read back) before the run
-        self.handle = self.ctx.runner.submit(lambda emit: seq.execute(emit), pool="sequences", name=seq.name,
+        self.handle = self.ctx.runner.submit(seq.execute, pool="sequences", name=seq.name,
                                              pass_emit=True, on_event=self._on_event, on_error=self._on_error,
                                              on_finished=self._on_finished, on_cancel=seq.cancel)
 
