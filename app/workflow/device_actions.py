@@ -12,18 +12,17 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from dualrgb.app.workflow import messages as M
 from dualrgb.app.workflow.light_safety import SafetySettings, StandFacts, restate
 from dualrgb.app.workflow.shooter import Notice, Shooter
 from dualrgb.common.atomic_files import require_free_space
-from dualrgb.common.progress import Cancelled
+from dualrgb.common.progress import Cancelled, CancelToken
 from dualrgb.drivers.led_sphere.errors import LightReport, SphereError
 
 if TYPE_CHECKING:
     from dualrgb.app.protocols import Monochromator, Radiometer, Session, Sphere
-    from dualrgb.app.workflow.engine import RunControl
     from dualrgb.app.workflow.shutter_shooter import ShutterShooter
     from dualrgb.drivers.camera.base import Camera
     from dualrgb.drivers.led_sphere.supervisor import LitPeriod
@@ -34,6 +33,15 @@ log = logging.getLogger(__name__)
 Place = Callable[[str, bool], object]      # the stand as a device: (what, nd) -> places it
 Ask = Callable[[str, dict], None]         # a person asked to do something; returns when done
 KEEPALIVE_S = M.KEEPALIVE_S
+
+
+class Control(Protocol):
+    """What the actions need of the run's control (app.workflow.engine.RunControl): its cancel, to wake a Wait."""
+
+    token: CancelToken
+
+    @property
+    def cancelled(self) -> bool: ...
 
 
 @dataclass
@@ -70,7 +78,7 @@ class _Lit:
 class DeviceActions:
     """Applies messages to ``devices`` for one engine (module docstring)."""
 
-    def __init__(self, devices: StandDevices, safety: SafetySettings, control: RunControl, ask: Ask,
+    def __init__(self, devices: StandDevices, safety: SafetySettings, control: Control, ask: Ask,
                  notice: Notice):
         self.devices = devices
         self.control = control
