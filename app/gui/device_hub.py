@@ -21,7 +21,7 @@ from dualrgb.app.gui.workers import TaskHandle, TaskRunner
 from dualrgb.app.sequences.base import Sequence
 from dualrgb.app.session.log import SessionLog
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE
-from dualrgb.app.workflow.engine import Run, RunEngine, StandDevices
+from dualrgb.app.workflow.engine import Run, RunEngine, StandDevices, owning
 from dualrgb.app.workflow.light_plans import Dark, HeldLight
 from dualrgb.app.workflow.stand_devices import (
     close_camera,
@@ -206,11 +206,11 @@ class Lab(QObject):
         if sphere is None:
             return None
         self._set_sphere(None, "")
-
         self.stop_light()
 
         def work() -> None:
-            report = close_sphere(sphere, keep_open=port == VIRTUAL_SPHERE)   # the virtual lab keeps its port
+            with owning(StandDevices(sphere=sphere), "disconnect"):     # after a run on it has ended
+                report = close_sphere(sphere, keep_open=port == VIRTUAL_SPHERE)   # the virtual lab keeps its port
             if not report.off:
                 raise SphereError(f"disconnected; {report.message}", kind="port", light="unknown")
         return self.device_call(work, "Disconnect the LED sphere",
@@ -274,7 +274,8 @@ class Lab(QObject):
             if on_error is not None:
                 on_error(exc)
             self.failed.emit(title, exc)
-        return self.runner.submit(work, pool="light", name=title, on_error=failed, on_finished=finished)
+        return self.runner.submit(work, pool="light", name=title, on_error=failed, on_finished=finished,
+                                  on_cancel=plan.cancel)
 
     def stop_light(self) -> None:
         """End every light held by hand (the manual and the framing light): their runs end dark, read back."""
@@ -324,6 +325,7 @@ class Lab(QObject):
         except ValueError as exc:
             self.failed.emit("Switch the light", ValueError(f"{exc} (Light source: Apply)"))
             return None
+        self.stop_light()                       # the framing light, if on, ends first (its run ends dark)
         return self.run_light(plan, "Switch the light")
 
     def plan_run(self, seq: Sequence, settings: Any) -> Run:
@@ -426,7 +428,8 @@ class Lab(QObject):
         self.sphere = self.camera = None
         self.virtual_lab = None
         if sphere is not None:
-            report = close_sphere(sphere, keep_open=lab is not None and sphere is lab.sphere)
+            with owning(StandDevices(sphere=sphere), "shutdown"):       # after the light held by hand has ended
+                report = close_sphere(sphere, keep_open=lab is not None and sphere is lab.sphere)
             if not report.off:
                 log.error("switching the sphere off at exit: %s", report.message)
         if cam is not None and (lab is None or cam is not lab.camera):

@@ -63,7 +63,7 @@ Prompter = Callable[[str], None]
 Emit = Callable[[ProgressEvent], None]
 
 __all__ = ["RUN_PROGRESS", "Controlled", "Plan", "PlannedFrame", "ProgressEvent", "Run", "RunControl", "RunEngine",
-           "RunHooks", "StandDevices", "facts_of", "states_light"]
+           "RunHooks", "StandDevices", "facts_of", "owning", "states_light"]
 
 
 def states_light(error: BaseException) -> bool:
@@ -151,7 +151,7 @@ _OWNERS_LOCK = threading.Lock()
 
 
 @contextlib.contextmanager
-def _owning(devices: StandDevices, name: str) -> Iterator[None]:
+def owning(devices: StandDevices, name: str) -> Iterator[None]:
     """Hold every device of a run: one run at a time acts on a device (another run on it waits here)."""
     present = sorted((d for d in (devices.sphere, devices.camera, devices.monochromator) if d is not None), key=id)
     with _OWNERS_LOCK:
@@ -214,7 +214,7 @@ class RunEngine:
         if self._depth:
             yield
             return
-        with _owning(self.devices, self.name):
+        with owning(self.devices, self.name):
             self._start_dark()
             self._depth = 1
             failed: BaseException | None = None

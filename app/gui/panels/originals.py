@@ -448,23 +448,24 @@ class OriginalsPanel(QWidget):
         self.ctx.with_session(self._ask_next, "the originals")      # makes one when there is none
 
     def _ask_next(self) -> None:
-        """One question at a time (the asker answers on the GUI thread); the run starts once all are answered."""
+        """One question at a time (answered later); an original asked about returns to the batch when it is shot."""
         session = self.lab.session
         while self.batch:
+            ident = self.batch.pop(0)
             try:
-                row = self.ws.queue.row(self.batch[0])
+                row = self.ws.queue.row(ident)
             except KeyError:
-                self.batch.pop(0)
                 continue
             if self._refused_mode(row):
                 return
             takes = original_takes(session, row.original) if session is not None else []
-            if takes and row.identifier not in self._reshoot:
+            if takes and ident not in self._reshoot:
                 self._ask_reshoot(row, takes)
                 return
-            self._chosen.append(self.batch.pop(0))
-        if self._chosen:
-            self._start([self.ws.queue.row(i) for i in self._chosen])
+            self._chosen.append(ident)
+        chosen, self._chosen = self._chosen, []
+        if chosen:
+            self._start([self.ws.queue.row(i) for i in chosen])
 
     def _refused_mode(self, row: QueueRow) -> bool:
         """The mode rule (app.workflow.mode_rule): an original of another mode than the calibration's is marked and
@@ -481,8 +482,7 @@ class OriginalsPanel(QWidget):
         def answer(choice: str) -> None:
             if choice == OVERRIDE:
                 self.mode_overrides.add(row.identifier)
-            elif self.batch and self.batch[0] == row.identifier:
-                self.batch.pop(0)
+                self.batch.insert(0, row.identifier)
             self._ask_next()
         self.ctx.asker.ask("Another mode than the calibration's", text, (OVERRIDE, LEAVE), answer, default=LEAVE)
         return True
@@ -497,6 +497,7 @@ class OriginalsPanel(QWidget):
                 self.batch, self._chosen = [], []
                 return
             self._reshoot[row.identifier] = choice == RESHOOT
+            self.batch.insert(0, row.identifier)
             self._ask_next()
         self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
