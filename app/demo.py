@@ -33,12 +33,14 @@ from dualrgb.app.processing.characterise import LEAST_SQUARES
 from dualrgb.app.processing.quality import quality_summary
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries
 from dualrgb.app.sequences.capture import SubjectCapture
-from dualrgb.app.sequences.hdr import HdrPlan, meter_and_plan
+from dualrgb.app.sequences.hdr import HdrPlan
 from dualrgb.app.session.capture_session import CaptureSession, atomic_write
 from dualrgb.app.session.log import SessionLog
 from dualrgb.app.session.manifest import camera_definition, image_area_definition, light_definition
 from dualrgb.app.workflow.copystand import CopyStand, StandSettings
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS, workflow_defaults
+from dualrgb.app.workflow.folders import open_session
+from dualrgb.app.workflow.metering import HdrMetering
 from dualrgb.app.workflow.session_processing import process_session
 from dualrgb.app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
 from dualrgb.app.workflow.vocabulary import NamedLight, Subject, lights_of
@@ -209,9 +211,9 @@ class DemoRun:
                              f"{s.frame_size}, seed {s.seed}: expected >= 1, >= 1, >= 64 px, >= 0")
         s.optimise_matrix = s.optimise()
         s.out.mkdir(parents=True, exist_ok=True)
-        session = CaptureSession.resume(s.out / "session", s.definition(), {"mode": s.mode, "demo": True},
-                                        new_if_different=s.new_session,
-                                        hint="resume with the same options, or pass --new-session or another --out")
+        session = open_session(s.out / "session", s.definition(), meta={"mode": s.mode, "demo": True},
+                               new_if_different=s.new_session,
+                               hint="resume with the same options, or pass --new-session or another --out")
         try:
             with SessionLog(session.path):           # the session folder's session.log
                 return self._run(session)
@@ -235,37 +237,40 @@ class DemoRun:
                                                      charts=dict(s.charts)),
                               progress=lambda f, m: report(self.progress, 0.1 + 0.5 * f, m))
             self.lab, self.session = lab, session
-            exposures = self.capture(stand, conds)
+            exposures = stand.engine.run(lambda: self.capture(stand, conds))      # one run: dark to dark
             report(self.progress, 0.6, "captures done; processing")
             session.require_intact()             # a damaged frame is named, never processed
             result = self.process(conds)
         return self.write_report(session, conds, presets, exposures, result)
 
     def capture(self, stand: CopyStand, conds: list[Condition]) -> dict[str, list[float]]:
-        """Auto-exposure, HDR plans on the ND-covered training target, darks, flats, train and test targets."""
-        lab, s = self.lab, self.s
+        """Auto-exposure, HDR plans on the ND-covered training target, darks, flats, train and test targets: every
+        plan through the stand's run engine."""
+        lab, s, facts = self.lab, self.s, stand.facts
         for c in conds:
             c.exposure = stand.auto_expose(c.lights)
             if s.hdr and c.name != "three_channel":
-                c.hdr_plan = meter_and_plan(stand.shooter, c.lights, c.exposure, Subject.target("train", nd=True),
-                                            lab.scene_for("train", nd=True).patch_boxes(), cancel=self.cancel)
+                metering = HdrMetering(facts, c.lights, c.exposure, Subject.target("train", nd=True),
+                                       lab.scene_for("train", nd=True).patch_boxes())
+                stand.run_sequence(metering, 0.1, 0.2)
+                c.hdr_plan = metering.plans
         exposures = {nl.name: sorted({c.exposure[nl.name], *(c.hdr_plan[nl.name].exposures if c.hdr_plan else [])})
                      for c in conds for nl in c.lights}
         self.session.extend_definition(exposures=exposures)
         all_lights = [nl for c in conds for nl in c.lights]
-        stand.run_sequence(DarkSeries(stand.shooter, sorted({t for ts in exposures.values() for t in ts}),
+        stand.run_sequence(DarkSeries(facts, sorted({t for ts in exposures.values() for t in ts}),
                                       frames=s.dark_frames), 0.2, 0.4)
-        stand.run_sequence(FlatSeries(stand.shooter, all_lights, exposures, frames=s.flat_frames), 0.4, 0.6)
+        stand.run_sequence(FlatSeries(facts, all_lights, exposures, frames=s.flat_frames), 0.4, 0.6)
         for c in conds:
             for target in ("train", "test"):
-                stand.run_sequence(SubjectCapture(stand.shooter, c.lights, {n: [t] for n, t in c.exposure.items()},
+                stand.run_sequence(SubjectCapture(facts, c.lights, {n: [t] for n, t in c.exposure.items()},
                                                   Subject.target(target)), 0.6, 0.8)
                 if c.hdr_plan:
-                    stand.run_sequence(SubjectCapture(stand.shooter, c.lights, {n: p.exposures for n, p in
+                    stand.run_sequence(SubjectCapture(facts, c.lights, {n: p.exposures for n, p in
                                                                                 c.hdr_plan.items()},
                                                       Subject.target(target, nd=True)), 0.8, 1.0)
             if c.name == ORIGINAL_CONDITION:
-                stand.run_sequence(SubjectCapture(stand.shooter, c.lights, {n: [t] for n, t in c.exposure.items()},
+                stand.run_sequence(SubjectCapture(facts, c.lights, {n: [t] for n, t in c.exposure.items()},
                                                   self.original_subject()), 0.8, 1.0)
         return exposures
 

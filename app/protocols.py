@@ -52,6 +52,11 @@ class Sphere(Protocol):
         """Whether the light stayed on through ``period`` up to now (not cut at its cap)."""
         ...
 
+    def tripped(self) -> bool:
+        """Whether the sphere switched its light off by itself (its ``ON <ms>`` limit or its watchdog: ``trip=1``)
+        since it was last switched on."""
+        ...
+
     def temperature_c(self) -> float: ...
 
     def identify(self) -> dict[str, str]:

@@ -137,9 +137,9 @@ def _plan(args: argparse.Namespace, mode: str, out_dir: Path | None, profile):
     queue = read_queue_csv(Path(args.queue), columns=dict(args.column), default_mode=mode, out_dir=out_dir)
     session = None
     if args.session and (Path(args.session) / "session.json").is_file():
-        from dualrgb.app.session.capture_session import CaptureSession
+        from dualrgb.app.workflow.folders import open_session
 
-        session = CaptureSession.open(Path(args.session), readonly=True)
+        session = open_session(Path(args.session), readonly=True)
     plan = plan_queue(queue, profile, session=session, force=args.force, reshoot=args.reshoot)
     if args.operator:
         plan.rows = [replace(r, original=replace(r.original, operator=args.operator))
@@ -179,8 +179,9 @@ def main(args: argparse.Namespace) -> int:
         check_device_options(args)            # before the heavy imports below (--check opens no device)
     from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT
     from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
-    from dualrgb.app.workflow.copystand import CopyStand, QueueOutcome, StandSettings, capture_queue
+    from dualrgb.app.workflow.copystand import CopyStand, StandSettings
     from dualrgb.app.workflow.profile import load_profile
+    from dualrgb.app.workflow.queue_run import QueueOutcome, capture_queue
 
     profile = load_profile(_calibration(args))
     delivery = delivery_request(args, profile)          # before any device opens: refused in one line

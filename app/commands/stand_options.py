@@ -19,8 +19,8 @@ from dualrgb.app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_
 
 if TYPE_CHECKING:                       # types only: a command imports its devices when it runs (fast --help)
     from dualrgb.app.protocols import Sphere
-    from dualrgb.app.sequences.shooter import Stand
     from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.device_actions import Place as Stand
     from dualrgb.drivers.camera.base import Camera
     from dualrgb.drivers.virtual.lab import VirtualLab
 
@@ -117,18 +117,20 @@ def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: s
 def real_camera(args: argparse.Namespace) -> Iterator[Camera]:
     """The tethered camera ``args.camera`` ('MODEL @ PORT' or 'auto': the first found), ISO / aperture applied
     (app.workflow.stand_devices.open_camera, as the GUI opens it)."""
-    from dualrgb.app.workflow.stand_devices import open_camera
+    from dualrgb.app.workflow.stand_devices import close_camera, open_camera
 
     camera = open_camera(args.camera, args.iso, args.aperture)
-    with contextlib.closing(camera):
+    try:
         yield camera
+    finally:
+        close_camera(camera)
 
 
 def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
     """The sphere on ``--port`` (identified and switched off first: app.workflow.stand_devices.open_sphere) and
-    the camera; whatever fails, the light is switched off on the way out and the error carries a note saying what
-    state it is in (read back, never assumed)."""
-    from dualrgb.app.workflow.stand_devices import open_sphere
+    the camera; whatever fails, the light is switched off on the way out (close_sphere) and the error carries a
+    note saying what state it is in (read back, never assumed)."""
+    from dualrgb.app.workflow.stand_devices import close_sphere, open_sphere
     from dualrgb.drivers.led_sphere import SphereError
 
     sphere = open_sphere(args.port)
@@ -136,19 +138,18 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
         with real_camera(args) as camera:
             yield Devices(camera, sphere, None, None)
     except BaseException as exc:
-        if not (isinstance(exc, SphereError) and exc.light is not None):
-            report = sphere.ensure_off()
-            if not report.off or not _says_light_off(str(exc)):
-                exc.add_note(report.message)
+        report = close_sphere(sphere)
+        if not (isinstance(exc, SphereError) and exc.light is not None) and (
+                not report.off or not _says_light_off(str(exc))):
+            exc.add_note(report.message)
         raise
-    else:
-        sphere.shutdown()
-    finally:
-        sphere.close(leave_on=True)         # switched off above
+    report = close_sphere(sphere)           # every LED 0, light off, read back
+    if not report.off:
+        raise SphereError(f"closing the devices: {report.message}", kind="unconfirmed", light="unknown")
 
 
 def _says_light_off(message: str) -> bool:
-    """Whether an error already says the light was switched off (app.sequences.shooter.restate)."""
+    """Whether an error already says the light was switched off (app.workflow.light_safety.restate)."""
     return "switched off" in message
 
 

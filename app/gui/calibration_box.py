@@ -188,17 +188,11 @@ class CalibrationBox(QGroupBox):
         settings.ppi, settings.target_width_mm = (self.sampling.stand_fields()[k] for k in ("ppi", "target_width_mm"))
         settings.stand_start = stand_start
         settings.charts = dict(charts or {})
-        preset, lights, hdr = ws.preset, list(ws.lights), self.hdr_auto.isChecked()
+        preset, hdr = ws.preset, self.hdr_auto.isChecked()
         grids = {n: ws.grids[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in ws.grids}
 
-        def work(hooks: RunHooks) -> CalibrationProfile:
-            stand = lab.copy_stand(settings, hooks)
-            base = stand.auto_expose(lights)
-            plan = stand.exposure_plan(base, hdr, preset.mode)
-            frames = [f for seq, _lo, _hi in stand.calibration_sequences(lights, plan, base) for f in seq.plan()]
-            hooks.on_event(ProgressEvent(0, 0, "auto-exposure done: darks, flats and the targets next",
-                                         data={"plan": frames, "base": base, "exposures": plan}))
-            return stand.calibrate_at(preset, base, hdr_auto=hdr, grids=grids)
+        def work(hooks: RunHooks) -> CalibrationProfile:      # one run (its plans' event: 'plan', 'base', ...)
+            return lab.copy_stand(settings, hooks).calibrate(preset, hdr_auto=hdr, grids=grids)
         try:
             lab.copy_stand(settings)                                # refuses early: devices, session
         except ValueError as exc:

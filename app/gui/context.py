@@ -17,7 +17,7 @@ from dualrgb.app.gui.workers import TaskRunner
 from dualrgb.app.gui.workspace import Workspace
 from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.workflow.defaults import captures_dir
-from dualrgb.app.workflow.folders import new_session
+from dualrgb.app.workflow.folders import open_session
 
 log = logging.getLogger(__name__)
 
@@ -124,7 +124,7 @@ class AppContext:
     # ---- the session rule: starting without one makes one ----
     def with_session(self, then: Callable[[], None], reason: str) -> None:
         """Call ``then`` once there is a session: the current one, or a new dated one made in the captures folder
-        first (app.workflow.folders.new_session, on the devices thread; the status bar and the guide say so).
+        first (app.workflow.folders.open_session, on the devices thread; the status bar and the guide say so).
         Calls arriving while it is being made wait for it."""
         lab = self.lab
         if lab.session is not None:
@@ -145,5 +145,5 @@ class AppContext:
         def failed(exc: BaseException) -> None:
             self._waiting_for_session.clear()
             self.errors.report("New session", exc)
-        self.runner.submit(lambda: new_session(root, meta, lab.session_definition()), pool="devices",
+        self.runner.submit(lambda: open_session(None, lab.session_definition(), meta=meta, root=root), pool="devices",
                            name="new session", on_result=made, on_error=failed)

@@ -15,6 +15,7 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.workflow.day import OriginalsQueue
 from dualrgb.app.workflow.day_file import day_path, day_rows, read_day, restore_day, restored_line, write_day
+from dualrgb.app.workflow.folders import open_session
 from dualrgb.app.workflow.profile import CalibrationProfile, load_profile
 
 log = logging.getLogger(__name__)
@@ -84,8 +85,8 @@ class DayKeeper(QObject):
         self._restoring = True
 
         def work() -> Restored:
-            session = CaptureSession.open(folder, definition=definition,
-                                          hint="connect the same camera and mode, or start a new session")
+            session = open_session(Path(folder), definition, existing=True,
+                                   hint="connect the same camera and mode, or start a new session")
             notes = [f"{len(aside)} missing or damaged frame(s) set aside"] if (aside := session.set_aside_damaged()) \
                 else []
             queue, calibration, more = restore_day(session)

@@ -1,30 +1,39 @@
 """The devices and the capture session the window works with, behind one QObject.
 
 Every device call is submitted to the runner's ``devices`` pool (one thread, in order); results and errors come
-back on the GUI thread as signals. The virtual lab (drivers.virtual.lab.VirtualLab: the sphere emulator on a pty,
-the LedSphere driver over it, the virtual camera) is started on first use of a virtual device.
+back on the GUI thread as signals. The light is switched only by plans of the run engine (app.workflow.engine):
+a sequence's run (app.gui.sequence_view), and the light held by hand - the manual light and the framing light
+(app.workflow.light_plans) - run here in the runner's ``light`` pool (``run_light``). The virtual lab
+(drivers.virtual.lab.VirtualLab: the sphere emulator on a pty, the LedSphere driver over it, the virtual camera)
+is started on first use of a virtual device.
 """
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
 from dualrgb.app.gui.viewmodel import DoseFeed, light_from_levels
 from dualrgb.app.gui.workers import TaskHandle, TaskRunner
+from dualrgb.app.sequences.base import Sequence
 from dualrgb.app.session.log import SessionLog
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE
+from dualrgb.app.workflow.engine import Run, RunEngine, StandDevices, owning
+from dualrgb.app.workflow.light_plans import Dark, HeldLight
 from dualrgb.app.workflow.stand_devices import (
+    close_camera,
+    close_sphere,
     open_camera,
     open_sphere,
     stand_definition,
     virtual_lab,
     virtual_stand,
 )
-from dualrgb.drivers.camera.base import Camera, CameraError
+from dualrgb.common.progress import Cancelled
+from dualrgb.drivers.camera.base import Camera
 from dualrgb.drivers.led_sphere import LedSphere, SphereError
 from dualrgb.drivers.led_sphere.driver import DEFAULT_MAX_ON_S
 from dualrgb.simulation.lightsource import LightSource
@@ -90,6 +99,8 @@ class Lab(QObject):
         self.last_status: dict = {}
         self.dose = DoseFeed()
         self.manual_max_on_s = DEFAULT_MAX_ON_S   # 'Light ON' lights the sphere for at most this long
+        self.manual_light: LightSource | None = None   # the levels last applied ('Light ON' lights them)
+        self._light_plans: list[Sequence] = []         # the light plans running or waiting (run_light)
         self._poll_pending = False
         self._status_timer = QTimer(self)
         self._status_timer.setInterval(1000)
@@ -113,20 +124,6 @@ class Lab(QObject):
         return self.runner.submit(fn, pool="devices", name=title, on_result=worked, on_error=failed,
                                   on_finished=on_finished)
 
-    @staticmethod
-    def light_call(sphere: LedSphere, fn: Callable[[], Any]) -> Callable[[], Any]:
-        """``fn`` (on the devices thread) such that a failure ends with the light switched off and the error says
-        truthfully in what state the light is (the driver's own errors after a switch-on already do)."""
-        def run() -> Any:
-            try:
-                return fn()
-            except SphereError as exc:
-                if exc.light is not None:
-                    raise
-                report = sphere.ensure_off()
-                raise SphereError(f"{exc}; {report.message}", kind=exc.kind, code=exc.code,
-                                  light="off" if report.off else "unknown") from None
-        return run
 
     def set_mode(self, mode: str) -> None:
         if mode != self.mode:
@@ -209,11 +206,11 @@ class Lab(QObject):
         if sphere is None:
             return None
         self._set_sphere(None, "")
+        self.stop_light()
 
         def work() -> None:
-            report = sphere.ensure_off()
-            if port != VIRTUAL_SPHERE:          # the virtual lab keeps its own port open for the camera
-                sphere.close(leave_on=True)
+            with owning(StandDevices(sphere=sphere), "disconnect"):     # after a run on it has ended
+                report = close_sphere(sphere, keep_open=port == VIRTUAL_SPHERE)   # the virtual lab keeps its port
             if not report.off:
                 raise SphereError(f"disconnected; {report.message}", kind="port", light="unknown")
         return self.device_call(work, "Disconnect the LED sphere",
@@ -244,37 +241,97 @@ class Lab(QObject):
         self.runner.submit(work, pool="devices", name="sphere status", on_result=done, on_error=failed,
                            on_finished=lambda: setattr(self, "_poll_pending", False))
 
-    def apply_light(self, light: LightSource, switch_on: bool | None = None,
-                    on_done: Callable[[], None] | None = None) -> TaskHandle | None:
+    # ------------------------------------------------------------------ the light, by hand
+    def run_light(self, plan: Sequence, title: str, *, on_finished: Callable[[str], None] | None = None,
+                  on_error: Callable[[BaseException], None] | None = None) -> TaskHandle | None:
+        """Run a light plan (app.workflow.light_plans) through the run engine on the sphere, in the ``light`` pool;
+        ``on_finished(outcome)`` ('done', 'cancelled' or 'failed') on the GUI thread; an error is a dialog titled
+        ``title``. :meth:`stop_light` cancels it (within one tick)."""
         sphere = self.sphere
         if sphere is None:
+            self.failed.emit(title, SphereError("the LED sphere is not connected: connect it in Devices first",
+                                                kind="port"))
+            return None
+        engine = RunEngine(plan.name, StandDevices(sphere=sphere, session=self.session), control=plan.control)
+        self._light_plans.append(plan)
+        outcome = ["failed"]
+
+        def work() -> None:
+            try:
+                engine.run_plan(plan)
+                outcome[0] = "done"
+            except Cancelled:
+                outcome[0] = "cancelled"
+
+        def finished() -> None:
+            if plan in self._light_plans:
+                self._light_plans.remove(plan)
+            self.poll_status()
+            if on_finished is not None:
+                on_finished(outcome[0])
+
+        def failed(exc: BaseException) -> None:
+            if on_error is not None:
+                on_error(exc)
+            self.failed.emit(title, exc)
+        return self.runner.submit(work, pool="light", name=title, on_error=failed, on_finished=finished,
+                                  on_cancel=plan.cancel)
+
+    def stop_light(self) -> None:
+        """End every light held by hand (the manual and the framing light): their runs end dark, read back."""
+        for plan in list(self._light_plans):
+            plan.cancel()
+
+    def held_light(self) -> HeldLight | None:
+        return next((p for p in self._light_plans if isinstance(p, HeldLight) and not p.cancelled), None)
+
+    def apply_light(self, light: LightSource, switch_on: bool | None = None,
+                    on_done: Callable[[], None] | None = None) -> TaskHandle | None:
+        """The manual light's levels: kept for 'Light ON'; while the manual light is on, its levels change (the
+        same lit period); ``switch_on`` True / False switches it on (capped) / off as well."""
+        if self.sphere is None:
             self.failed.emit("Apply the light", SphereError(
                 "the LED sphere is not connected: connect it in Devices first", kind="port"))
             return None
-
-        def work() -> list[float]:
-            taken = sphere.apply(light)
-            if switch_on is True:
-                sphere.on(max_on_s=self.manual_max_on_s)
-            elif switch_on is False:
-                sphere.off()
-            return taken
-
-        def done(_taken: list[float]) -> None:
-            self.lightApplied.emit(light)
-            self.poll_status()
-            if on_done:
-                on_done()
-        return self.device_call(self.light_call(sphere, work), "Apply the light", on_result=done)
+        self.manual_light = light
+        held = self.held_light()
+        self.lightApplied.emit(light)
+        handle = None
+        if switch_on is False:
+            handle = self.set_light_on(False)
+        elif held is not None:
+            held.change(light)
+        elif switch_on is True:
+            handle = self.set_light_on(True)
+        if on_done:
+            on_done()
+        return handle
 
     def set_light_on(self, on: bool) -> TaskHandle | None:
-        sphere = self.sphere
-        if sphere is None:
+        """'Light ON': the levels last applied for at most ``manual_max_on_s`` (a HeldLight plan; on already: the
+        same lit period, never extended). 'Light OFF': every light held by hand ends, and the run reads the light
+        back off."""
+        if self.sphere is None:
             self.failed.emit("Switch the light", SphereError(
                 "the LED sphere is not connected: connect it in Devices first", kind="port"))
             return None
-        work = (lambda: sphere.on(max_on_s=self.manual_max_on_s)) if on else sphere.shutdown
-        return self.device_call(self.light_call(sphere, work), "Switch the light", on_finished=self.poll_status)
+        if not on:
+            self.stop_light()
+            return self.run_light(Dark(), "Switch the light")
+        if self.held_light() is not None:
+            return None
+        try:
+            plan = HeldLight(self.manual_light or LightSource((), (), "none"), self.manual_max_on_s)
+        except ValueError as exc:
+            self.failed.emit("Switch the light", ValueError(f"{exc} (Light source: Apply)"))
+            return None
+        self.stop_light()                       # the framing light, if on, ends first (its run ends dark)
+        return self.run_light(plan, "Switch the light")
+
+    def plan_run(self, seq: Sequence, settings: Any) -> Run:
+        """A run of one plan on the copy stand's run engine (these devices, the current session; ``settings``: an
+        app.workflow.copystand.StandSettings)."""
+        return Run.of(seq, lambda hooks: self.copy_stand(settings, hooks).engine)
 
     # ------------------------------------------------------------------ camera
     def detect_cameras(self, on_result: Callable[[tuple[list[str], list[str]]], None],
@@ -303,17 +360,26 @@ class Lab(QObject):
         self._set_camera(None, "")
         if name == VIRTUAL_CAMERA:
             return None                          # the virtual lab owns it
-        return self.device_call(cam.close, "Disconnect the camera",
+        return self.device_call(lambda: close_camera(cam), "Disconnect the camera",
                                 on_finished=lambda: self.message.emit("camera disconnected"))
 
     # ------------------------------------------------------------------ copy stand
-    def stand(self, stand_in: str = "") -> Callable[[str, bool], Any] | None:
+    def stand(self, stand_in: str | Mapping[str, str] = "") -> Callable[[str, bool], Any] | None:
         """What places things on the stand: the virtual lab (an original is shown as its virtual stand-in, e.g.
-        'shadow'; app.workflow.stand_devices.virtual_stand, as the CLI), or None on a real stand (the sequences
-        then ask the technician)."""
-        return virtual_stand(self.virtual_lab, stand_in) if self.virtual_lab is not None else None
+        'shadow', or per original identifier; app.workflow.stand_devices.virtual_stand, as the CLI), or None on a
+        real stand (the run engine then asks the technician)."""
+        lab = self.virtual_lab
+        if lab is None:
+            return None
+        if isinstance(stand_in, str):
+            return virtual_stand(lab, stand_in)
+        stand_ins = dict(stand_in)
 
-    def copy_stand(self, settings: Any, hooks: Any = None, stand_in: str = "") -> Any:
+        def place(what: str, nd: bool = False) -> Any:
+            return virtual_stand(lab, stand_ins.get(what.removeprefix("original:"), ""))(what, nd)
+        return place
+
+    def copy_stand(self, settings: Any, hooks: Any = None, stand_in: str | Mapping[str, str] = "") -> Any:
         """An app.workflow.copystand.CopyStand on these devices and the current session (``hooks``: the
         callbacks of an app.workflow.engine.Run: progress, cancel, prompts, events, its control)."""
         from dualrgb.app.workflow.copystand import CopyStand
@@ -357,20 +423,17 @@ class Lab(QObject):
 
     def shutdown(self) -> None:
         """Window closing: LEDs off, ports closed, the virtual lab stopped (on the devices thread)."""
+        self.stop_light()
         sphere, lab, cam = self.sphere, self.virtual_lab, self.camera
         self.sphere = self.camera = None
         self.virtual_lab = None
         if sphere is not None:
-            report = sphere.ensure_off()
+            with owning(StandDevices(sphere=sphere), "shutdown"):       # after the light held by hand has ended
+                report = close_sphere(sphere, keep_open=lab is not None and sphere is lab.sphere)
             if not report.off:
                 log.error("switching the sphere off at exit: %s", report.message)
-            if lab is None or sphere is not lab.sphere:
-                sphere.close(leave_on=True)
         if cam is not None and (lab is None or cam is not lab.camera):
-            try:
-                cam.close()
-            except CameraError as exc:
-                log.warning("closing the camera: %s", exc)
+            close_camera(cam)
         if lab is not None:
             lab.stop()
         if self.session_log is not None:

@@ -79,13 +79,13 @@ def run_redelivery(request: RedeliveryRequest, current: object, progress: Progre
                    cancel: CancelToken | None) -> RedeliveryResult:
     """The work ``dualrgb process`` does (app.commands.process.main without the printing); on the compute
     thread. ``current``: the window's calibration (a CalibrationProfile) when ``request.use_current``."""
-    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.folders import open_session
     from dualrgb.app.workflow.profile import CalibrationProfile, load_profile
     from dualrgb.app.workflow.redelivery import newest_by_mode, redeliver
 
     profiles: CalibrationProfile | dict[str, CalibrationProfile]
     out = RedeliveryResult()
-    with CaptureSession.open(request.session, readonly=True) as session:
+    with open_session(request.session, readonly=True) as session:
         if request.use_current:
             if not isinstance(current, CalibrationProfile):
                 raise ValueError("no calibration is loaded in the window: calibrate, load one, or choose a file")

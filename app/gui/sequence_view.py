@@ -4,7 +4,8 @@ left, pause / resume, cancel, 'continue' for steps that need a person, and the l
 
 The run is executed by the run engine (app.workflow.engine.Run.execute) in the runner's ``sequences`` thread; every
 ProgressEvent comes back as a queued signal. A 'prompt' event pauses the run in the worker before it is shown, so
-the next step waits for Continue. The engine starts the run from dark and ends it with the light off (read back).
+the next step waits for Continue. Starting a run ends the light held by hand (the manual and the framing light);
+the engine starts the run from dark and ends it with the light off (read back).
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ from dualrgb.app.gui.frame_preview import FramePreview
 from dualrgb.app.gui.units import shutter, time_left_s
 from dualrgb.app.gui.viewmodel import format_duration
 from dualrgb.app.gui.workers import TaskHandle
-from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent, Sequence
+from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.engine import RUN_PROGRESS
 from dualrgb.app.workflow.engine import Run as EngineRun
 from dualrgb.app.workflow.vocabulary import EventKind
@@ -42,7 +43,7 @@ log = logging.getLogger(__name__)
 
 DEFAULT_OVERHEAD_S = 1.5          # per frame beyond the exposure (download, write) until one has been measured
 OVERHEAD_KEY = "runs/frame_overhead_s"     # the last measured one, for every view and the next start
-Run = Sequence | EngineRun
+Run = EngineRun
 DONE_MARK = "✓"
 DONE_COLOUR = QColor("#e8f5e9")
 
@@ -224,9 +225,8 @@ class SequenceView(QWidget):
         self.started.emit(seq)
         self.ctx.workspace.set_running(seq.name)
         self.ctx.bus.sequenceStarted.emit(seq.name)
-        sphere = self.ctx.lab.sphere
-        job = seq if isinstance(seq, EngineRun) else EngineRun.of(seq)     # the one run engine, seq's control
-        self.handle = self.ctx.runner.submit(lambda emit: job.execute(emit, sphere), pool="sequences", name=seq.name,
+        self.ctx.lab.stop_light()               # the light held by hand ends (dark, read back) before the run
+        self.handle = self.ctx.runner.submit(seq.execute, pool="sequences", name=seq.name,
                                              pass_emit=True, on_event=self._on_event, on_error=self._on_error,
                                              on_finished=self._on_finished, on_cancel=seq.cancel)
 
@@ -304,9 +304,7 @@ class SequenceView(QWidget):
             self.overhead_s = measured
             self.ctx.set(OVERHEAD_KEY, measured)
         name = seq.name if seq else "sequence"
-        summary = getattr(seq, "summary", None)
-        extra = summary() if callable(summary) else ""
-        extra = extra if isinstance(extra, str) else ""             # a sequence's own one-line summary only
+        extra = seq.summary() if seq else ""                        # a one-plan run's own one-line summary
         self.message.setText(f"{name} done: {len(frames)} new, {kept} kept" + (f"; {extra}" if extra else ""))
         self.ctx.errors.clear(f"{name[:1].upper()}{name[1:]} stopped")
 

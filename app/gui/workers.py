@@ -5,10 +5,14 @@ delivers its result, error, progress and generator events back on the GUI thread
 (the receiving slots belong to a QObject that lives in the GUI thread, so Qt posts them as events; no
 ``processEvents()`` loops anywhere).
 
-Three pools keep the work apart:
-* ``devices``   one thread: every sphere / camera call from the panels, in order (gphoto2 is not re-entrant);
+Four pools keep the work apart:
+* ``devices``   one thread: every device call from the panels that is not a run (connect, status, camera
+                settings, live view), in order (gphoto2 is not re-entrant);
 * ``compute``   one thread: simulations, processing, figure data;
-* ``sequences`` one thread: the capture sequences (``Sequence.run()`` generators), one at a time.
+* ``sequences`` one thread: the runs of the run engine (app.workflow.engine.Run.execute), one at a time;
+* ``light``     one thread: the light held by hand (app.workflow.light_plans: the manual and the framing light),
+                a run of the engine too; a state more than work: ``busy()`` without a pool leaves it out. The
+                engine lets one run at a time act on a device, so a sequence starting waits for it to end.
 """
 from __future__ import annotations
 
@@ -26,7 +30,8 @@ from dualrgb.common.progress import CancelToken
 
 log = logging.getLogger(__name__)
 
-POOLS = ("devices", "compute", "sequences")
+POOLS = ("devices", "compute", "sequences", "light")
+STATE_POOLS = ("light",)          # held lights: not counted by busy() unless asked by name
 
 
 class _Bridge(QObject):
@@ -155,7 +160,9 @@ class TaskRunner(QObject):
         return handle
 
     def busy(self, pool: str | None = None) -> bool:
-        return any(not h.done and (pool is None or h.pool == pool) for h in self._handles.values())
+        """Whether a task runs in ``pool`` (None: in any pool but the held light's)."""
+        return any(not h.done and (h.pool == pool if pool is not None else h.pool not in STATE_POOLS)
+                   for h in self._handles.values())
 
     def running(self, pool: str | None = None) -> list[TaskHandle]:
         return [h for h in self._handles.values() if not h.done and (pool is None or h.pool == pool)]

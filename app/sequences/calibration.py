@@ -10,52 +10,62 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
-from dualrgb.app.sequences.shooter import Shooter, channel_levels
-from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
+from dualrgb.app.workflow.light_safety import StandFacts
+from dualrgb.app.workflow.messages import Place, PlanSteps, ReadBack, ReadFrame, Shot
+from dualrgb.app.workflow.vocabulary import NamedLight, Role, step_id
 from dualrgb.common.formatting import format_exposure
+from dualrgb.drivers.raw import RawFrame
 
 log = logging.getLogger(__name__)
 
 LINEAR_LIMIT_DN = 11000.0
+OPEN_GATE = "Remove the target: open gate, then continue"
+
+
+def channel_levels(frame: RawFrame, percentile: float = 99.5, region: float = 0.6) -> np.ndarray:
+    """Per-CFA-channel bright level above black (DN) in the central ``region`` of the frame."""
+    h, w = frame.mosaic.shape
+    r0, r1 = int(h * (1 - region) / 2) // 2 * 2, int(h * (1 + region) / 2) // 2 * 2
+    c0, c1 = int(w * (1 - region) / 2) // 2 * 2, int(w * (1 + region) / 2) // 2 * 2
+    out = []
+    for _name, (r, c), idx in frame.channels():
+        plane = frame.mosaic[r0 + r:r1:2, c0 + c:c1:2].astype(np.float32) - frame.black_levels[idx]
+        out.append(float(np.percentile(plane, percentile)))
+    return np.array(out)
 
 
 class DarkSeries(BaseSequence):
     name = "dark series"
 
-    def __init__(self, shooter: Shooter, exposures: Sequence[float], frames: int = 10):
+    def __init__(self, facts: StandFacts, exposures: Sequence[float], frames: int = 10):
         super().__init__()
         if frames < 1:
             raise ValueError(f"dark frames {frames}: expected at least 1")
-        self.shooter = shooter
+        self.facts = facts
         self.exposures = sorted({float(t) for t in exposures})
         self.frames = frames
 
     def plan(self) -> list[PlannedFrame]:
         return [PlannedFrame(Role.DARK.value, t, "", "lens cap on") for t in self.exposures for _ in range(self.frames)]
 
-    def _steps(self) -> Iterator[ProgressEvent]:
+    def _steps(self) -> PlanSteps:
         total = len(self.exposures) * self.frames
-        if not self.shooter.place("lens-cap"):
-            yield ProgressEvent(0, total, "Put the lens cap on, then continue", kind=EventKind.PROMPT,
-                                data={"place": "lens-cap"})
-        self.shooter.lights_off()
+        yield Place("lens-cap", ask="Put the lens cap on, then continue")
+        yield ReadBack()
         step = 0
         for t in self.exposures:
             for i in range(self.frames):
-                step_ = step_id(Role.DARK, exposure_s=t, frame=i)
-                kind = EventKind.KEPT if self.shooter.session.has_step(step_) else EventKind.FRAME
-                entry = self.shooter.shoot(Role.DARK.value, None, t, step_, frame_index=i)
+                entry = yield Shot(Role.DARK.value, None, t, step_id(Role.DARK, exposure_s=t, frame=i),
+                                   {"frame_index": i})
                 step += 1
-                yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {format_exposure(t)}", kind=kind,
-                                    data={"entry": entry.seq, "exposure_s": t})
-
-    def _cleanup(self) -> Any:
-        return self.shooter.lights_off()
+                yield ProgressEvent(step, total, f"dark {i + 1}/{self.frames} at {format_exposure(t)}",
+                                    kind=entry.kind, data={"entry": entry.seq, "exposure_s": t})
 
 
 class FlatSeries(BaseSequence):
@@ -63,39 +73,34 @@ class FlatSeries(BaseSequence):
 
     name = "open-gate flats"
 
-    def __init__(self, shooter: Shooter, lights: Sequence[NamedLight], exposures: Mapping[str, Sequence[float]],
+    def __init__(self, facts: StandFacts, lights: Sequence[NamedLight], exposures: Mapping[str, Sequence[float]],
                  frames: int = 3):
         super().__init__()
-        self.shooter = shooter
+        self.facts = facts
         self.lights = list(lights)
         self.exposures = {k: sorted({float(t) for t in v}) for k, v in exposures.items()}
         self.frames = frames
         for nl in self.lights:
             for t in self.exposures.get(nl.name, []):
-                shooter.check_light_time(t)
+                facts.check_light_time(t)
 
     def plan(self) -> list[PlannedFrame]:
         return [PlannedFrame(Role.FLAT.value, t, nl.light.label(), "open gate") for nl in self.lights
                 for t in self.exposures.get(nl.name, []) for _ in range(self.frames)]
 
-    def _steps(self) -> Iterator[ProgressEvent]:
+    def _steps(self) -> PlanSteps:
         total = len(self.plan())
-        if not self.shooter.place("open-gate"):
-            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind=EventKind.PROMPT,
-                                data={"place": "open-gate"})
+        yield Place("open-gate", ask=OPEN_GATE)
         step = 0
         for nl in self.lights:
             for t in self.exposures.get(nl.name, []):
                 for i in range(self.frames):
-                    step_ = step_id(Role.FLAT, light=nl.name, exposure_s=t, frame=i)
-                    kind = EventKind.KEPT if self.shooter.session.has_step(step_) else EventKind.FRAME
-                    entry = self.shooter.shoot(Role.FLAT.value, nl.light, t, step_, light_name=nl.name, frame_index=i)
+                    entry = yield Shot(Role.FLAT.value, nl.light, t, step_id(Role.FLAT, light=nl.name, exposure_s=t,
+                                                                              frame=i),
+                                       {"light_name": nl.name, "frame_index": i})
                     step += 1
                     yield ProgressEvent(step, total, f"flat {nl.name} {i + 1}/{self.frames} at {format_exposure(t)}",
-                                        kind=kind, data={"entry": entry.seq, "exposure_s": t})
-
-    def _cleanup(self) -> Any:
-        return self.shooter.lights_off()
+                                        kind=entry.kind, data={"entry": entry.seq, "exposure_s": t})
 
 
 def snap_down(shutters: Sequence[float], t: float) -> float:
@@ -104,20 +109,21 @@ def snap_down(shutters: Sequence[float], t: float) -> float:
     return max(ok) if ok else min(shutters)
 
 
-Meter = Callable[[float], tuple[float, float]]     # exposure_s -> (brightest level above black, headroom), DN
+Meter = Callable[[float], PlanSteps]     # exposure_s -> a plan answering (brightest level above black, headroom), DN
 
 
 def converge_exposure(meter: Meter, usable: Sequence[float], start_s: float, goal_dn: float, *,
-                      max_tries: int = 5, what: str = "") -> float:
-    """The offered exposure (``usable``) putting the brightest level at ``goal_dn`` (snapped down: at or below it).
+                      max_tries: int = 5, what: str = "") -> PlanSteps:
+    """A plan answering the offered exposure (``usable``) putting the brightest level at ``goal_dn`` (snapped
+    down: at or below it).
 
-    ``meter(t)`` takes a frame at ``t`` and returns its brightest level and the headroom (white - black). A
-    clipped frame (level >= 97 % of the headroom) cannot be scaled from: the next try is 3 stops shorter. Stops
-    when the next exposure is the same or within a third of a stop of the last one (or after ``max_tries``).
+    ``meter(t)`` is a plan that takes a frame at ``t`` and answers its brightest level and the headroom (white -
+    black). A clipped frame (level >= 97 % of the headroom) cannot be scaled from: the next try is 3 stops shorter.
+    Stops when the next exposure is the same or within a third of a stop of the last one (or after ``max_tries``).
     """
     t = snap_down(usable, start_s)
     for _ in range(max_tries):
-        level, headroom = meter(t)
+        level, headroom = yield from meter(t)
         if level >= 0.97 * headroom:                 # clipped: cannot scale from it, step down 3 stops
             new_t = snap_down(usable, t / 8)
         else:
@@ -129,25 +135,27 @@ def converge_exposure(meter: Meter, usable: Sequence[float], start_s: float, goa
     return t
 
 
-def auto_exposure(shooter: Shooter, nl: NamedLight, *, start_s: float = 1 / 60, target_fraction: float = 0.8,
-                  linear_limit: float = LINEAR_LIMIT_DN, max_tries: int = 5) -> tuple[float, list[int]]:
-    """Exposure putting the open gate's brightest channel at ``target_fraction`` of the linear limit.
+def metered_level(frame: RawFrame) -> tuple[float, float]:
+    """A metering frame's brightest channel level above black and its headroom (white - black), DN."""
+    return float(channel_levels(frame).max()), float(frame.white_level - max(frame.black_levels))
 
-    The metering frames are kept in the session (role 'metering'); returns (exposure_s, their entry seqs).
-    """
-    shutters = shooter.camera.shutter_speeds()
-    usable = [s for s in shutters if s <= shooter.safety.max_exposure_s]
+
+def auto_exposure(facts: StandFacts, nl: NamedLight, *, start_s: float = 1 / 60, target_fraction: float = 0.8,
+                  linear_limit: float = LINEAR_LIMIT_DN, max_tries: int = 5) -> PlanSteps:
+    """A plan answering the exposure putting the open gate's brightest channel at ``target_fraction`` of the
+    linear limit, and the entry seqs of its metering frames (kept in the session, role 'metering')."""
+    usable = [s for s in facts.shutter_speeds() if s <= facts.max_exposure_s]
     if not usable:
-        raise ValueError(f"no shutter speed fits the {shooter.safety.max_on_s:g} s light-on limit")
-    shooter.place("open-gate")
+        raise ValueError(f"no shutter speed fits the {facts.safety.max_on_s:g} s light-on limit")
+    yield Place("open-gate", ask=OPEN_GATE)
     seqs: list[int] = []
 
-    def meter(t: float) -> tuple[float, float]:
-        entry = shooter.shoot(Role.METERING.value, nl.light, t, step_id(Role.METERING, light=nl.name, exposure_s=t),
-                              light_name=nl.name)
+    def meter(t: float) -> PlanSteps:
+        entry = yield Shot(Role.METERING.value, nl.light, t, step_id(Role.METERING, light=nl.name, exposure_s=t),
+                           {"light_name": nl.name})
         seqs.append(entry.seq)
-        frame = shooter.frame(entry)
-        return float(channel_levels(frame).max()), float(frame.white_level - max(frame.black_levels))
+        return metered_level((yield ReadFrame(entry.entry)))
 
-    t = converge_exposure(meter, usable, start_s, target_fraction * linear_limit, max_tries=max_tries, what=nl.name)
+    t = yield from converge_exposure(meter, usable, start_s, target_fraction * linear_limit, max_tries=max_tries,
+                                     what=nl.name)
     return t, seqs

@@ -3,12 +3,12 @@ light (thesis 1.4, 7, 8)."""
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, Mapping, Sequence
-from typing import Any
+from collections.abc import Mapping, Sequence
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
-from dualrgb.app.sequences.shooter import Shooter
+from dualrgb.app.workflow.light_safety import StandFacts
+from dualrgb.app.workflow.messages import Place, PlanSteps, Shot
 from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Subject, step_id
 from dualrgb.common.formatting import format_exposure
 
@@ -18,16 +18,16 @@ log = logging.getLogger(__name__)
 class SubjectCapture(BaseSequence):
     """One frame per light and exposure of ``subject`` (an HDR bracket when a light has several exposures).
 
-    ``exposures`` maps each light name to its exposure times. Steps already in the session are kept (resume)
+    ``exposures`` maps each light name to its exposure times. PlanSteps already in the session are kept (resume)
     unless ``take`` > 1, a re-shoot, which records new frames under the next take of the same steps.
     """
 
     name = "subject capture"
 
-    def __init__(self, shooter: Shooter, lights: Sequence[NamedLight], exposures: Mapping[str, Sequence[float]],
+    def __init__(self, facts: StandFacts, lights: Sequence[NamedLight], exposures: Mapping[str, Sequence[float]],
                  subject: Subject, take: int = 1, meta: dict | None = None, frames: int = 1):
         super().__init__()
-        self.shooter = shooter
+        self.facts = facts
         self.lights = list(lights)
         self.exposures = {k: sorted({float(t) for t in v}) for k, v in exposures.items()}
         self.subject = subject
@@ -42,7 +42,7 @@ class SubjectCapture(BaseSequence):
             raise ValueError(f"no exposure time for {', '.join(missing)}")
         for nl in self.lights:
             for t in self.exposures[nl.name]:
-                shooter.check_light_time(t)
+                facts.check_light_time(t)
         self.name = f"{subject.label} capture"
 
     def plan(self) -> list[PlannedFrame]:
@@ -61,20 +61,13 @@ class SubjectCapture(BaseSequence):
         """The step ids this capture records (the take included)."""
         return [self._step(nl, t, i) for nl, t, i in self._shots()]
 
-    def _steps(self) -> Iterator[ProgressEvent]:
+    def _steps(self) -> PlanSteps:
         total = len(self.plan())
-        if not self.shooter.place(self.subject.place, self.subject.nd):
-            yield ProgressEvent(0, total, f"Place the {self.subject.label}, then continue",
-                                kind=EventKind.PROMPT, data={"place": self.subject.place, "nd": self.subject.nd})
+        yield Place(self.subject.place, self.subject.nd, f"Place the {self.subject.label}, then continue")
         for step, (nl, t, i) in enumerate(self._shots(), start=1):
-            sid = self._step(nl, t, i)
-            kind = EventKind.KEPT if self.shooter.session.has_step(sid) else EventKind.FRAME
-            entry = self.shooter.shoot(self.subject.role.value, nl.light, t, sid, light_name=nl.name,
-                                       subject=self.subject.key, take=self.take, **self.meta)
-            self.kept += kind is EventKind.KEPT
-            self.new += kind is EventKind.FRAME
-            yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {format_exposure(t)}", kind=kind,
-                                data={"entry": entry.seq, "exposure_s": t, "light": nl.name})
-
-    def _cleanup(self) -> Any:
-        return self.shooter.lights_off()
+            taken = yield Shot(self.subject.role.value, nl.light, t, self._step(nl, t, i),
+                               {"light_name": nl.name, "subject": self.subject.key, "take": self.take, **self.meta})
+            self.kept += taken.kind is EventKind.KEPT
+            self.new += taken.kind is EventKind.FRAME
+            yield ProgressEvent(step, total, f"{self.subject.label} under {nl.name} at {format_exposure(t)}",
+                                kind=taken.kind, data={"entry": taken.seq, "exposure_s": t, "light": nl.name})

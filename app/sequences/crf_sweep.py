@@ -8,14 +8,15 @@ Several light levels give every exposure time a sample inside the linear range (
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 from dualrgb.app.processing.crf_analysis import CrfResult, analyse_crf
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
-from dualrgb.app.sequences.shooter import Shooter
+from dualrgb.app.workflow.light_safety import StandFacts
+from dualrgb.app.workflow.messages import Place, PlanSteps, ReadFrame, Shot
 from dualrgb.app.workflow.vocabulary import EventKind, exposure_key
 from dualrgb.simulation.lightsource import LightSource
 
@@ -36,14 +37,14 @@ def green_mean(frame, region: float = 0.3) -> float:
 class CrfSweep(BaseSequence):
     name = "CRF sweep"
 
-    def __init__(self, shooter: Shooter, light: LightSource, levels: Sequence[float] = (1.0, 0.25, 0.0625),
+    def __init__(self, facts: StandFacts, light: LightSource, levels: Sequence[float] = (1.0, 0.25, 0.0625),
                  exposures: Sequence[float] | None = None, min_exposure_s: float = 1 / 4000):
         super().__init__()
-        self.shooter = shooter
+        self.facts = facts
         self.light = light
         self.levels = list(levels)
-        limit = shooter.safety.max_exposure_s
-        offered = exposures or shooter.camera.shutter_speeds()
+        limit = facts.max_exposure_s
+        offered = exposures or facts.shutter_speeds()
         self.exposures = [t for t in sorted(offered) if min_exposure_s <= t <= limit]
         self.samples: dict[float, list[tuple[float, float]]] = {}
         self.results: dict[float, CrfResult] = {}
@@ -55,22 +56,19 @@ class CrfSweep(BaseSequence):
     def _scaled(self, level: float) -> LightSource:
         return LightSource(self.light.leds, tuple(v * level for v in self.light.levels), f"CRF x{level:g}")
 
-    def _steps(self) -> Iterator[ProgressEvent]:
+    def _steps(self) -> PlanSteps:
         total = len(self.levels) * len(self.exposures)
-        if not self.shooter.place("open-gate"):
-            yield ProgressEvent(0, total, "Open gate (no target), then continue", kind=EventKind.PROMPT,
-                                data={"place": "open-gate"})
+        yield Place("open-gate", ask="Open gate (no target), then continue")
         step = 0
         for lv in self.levels:
             light = self._scaled(lv)
             pts: list[tuple[float, float]] = []
             clipped = 0
             for t in self.exposures:
-                entry = self.shooter.shoot("crf", light, t, f"crf/{lv:g}/{exposure_key(t)}", crf_level=lv)
-                frame = self.shooter.frame(entry)
+                taken = yield Shot("crf", light, t, f"crf/{lv:g}/{exposure_key(t)}", {"crf_level": lv})
+                frame = yield ReadFrame(taken.entry, keep=False)
                 g = green_mean(frame)
                 pts.append((t, g))
-                self.shooter.forget()
                 step += 1
                 yield ProgressEvent(step, total, f"CRF x{lv:g}: {t:g} s -> {g:.0f} DN", kind=EventKind.FRAME,
                                     data={"exposure_s": t, "signal_dn": g, "level": lv})
@@ -91,6 +89,3 @@ class CrfSweep(BaseSequence):
         return {"levels": {f"{lv:g}": r.to_dict() for lv, r in self.results.items()},
                 "linear_limit_dn": float(np.median(limits)) if limits else None,
                 "flagged_exposures": flagged}
-
-    def _cleanup(self) -> None:
-        self.shooter.lights_off()

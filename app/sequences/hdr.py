@@ -17,7 +17,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dualrgb.app.sequences.calibration import LINEAR_LIMIT_DN, snap_down
-from dualrgb.app.workflow.vocabulary import Role, Subject, step_id
+from dualrgb.app.workflow.light_safety import StandFacts
+from dualrgb.app.workflow.messages import Checkpoint, Place, PlanSteps, ProgressEvent, ReadFrame, Shot
+from dualrgb.app.workflow.vocabulary import NamedLight, Role, Subject, step_id
 from dualrgb.drivers.raw import RawFrame
 
 log = logging.getLogger(__name__)
@@ -84,26 +86,31 @@ def plan_hdr(first: RawFrame, first_exposure_s: float, boxes: Sequence[tuple[int
     return plan
 
 
-def meter_and_plan(shooter, lights, base_exposures: dict[str, float], subject: Subject,
-                   boxes: Sequence[tuple[int, int, int, int]], progress=None, cancel=None, *, take: int = 1,
-                   max_frames: int = 5) -> dict[str, HdrPlan]:
-    """One metering frame per light at its open-gate exposure (kept in the session, role 'metering'), then
-    ``plan_hdr`` for each; the lights end off. Darks and flats can then be taken at the planned exposures
-    before the bracket itself is shot with app.sequences.capture.SubjectCapture."""
+def meter_light(facts: StandFacts, nl: NamedLight, base_s: float, subject: Subject,
+                boxes: Sequence[tuple[int, int, int, int]], *, take: int = 1, max_frames: int = 5) -> PlanSteps:
+    """A plan answering ``nl``'s HDR plan (``plan_hdr``) and its metering frame (Taken): one frame of ``subject``
+    at the light's open-gate exposure ``base_s``, kept in the session (role 'metering')."""
+    sid = step_id(Role.METERING, subject=subject, light=nl.name, exposure_s=base_s, take=take)
+    taken = yield Shot(Role.METERING.value, nl.light, base_s, sid, {"light_name": nl.name, "subject": subject.key})
+    frame = yield ReadFrame(taken.entry)
+    plan = plan_hdr(frame, base_s, boxes, facts.shutter_speeds(), max_exposure_s=facts.max_exposure_s,
+                    max_frames=max_frames)
+    return plan, taken
+
+
+def meter_and_plan(facts: StandFacts, lights: Sequence[NamedLight], base_exposures: dict[str, float],
+                   subject: Subject, boxes: Sequence[tuple[int, int, int, int]], *, take: int = 1,
+                   max_frames: int = 5) -> PlanSteps:
+    """A plan answering each light's HDR plan: one metering frame per light at its open-gate exposure (kept in the
+    session, role 'metering'), then ``plan_hdr`` for each; checkpoints between lights (the engine switches the
+    light off after the plan). Darks and flats can then be taken at the planned exposures before the bracket itself
+    is shot with app.sequences.capture.SubjectCapture (app.workflow.metering.HdrMetering wraps this as a plan)."""
     plans: dict[str, HdrPlan] = {}
-    try:
-        shooter.place(subject.place, subject.nd)
-        limit = shooter.safety.max_exposure_s
-        for i, nl in enumerate(lights):
-            if cancel is not None:
-                cancel.check()
-            t0 = base_exposures[nl.name]
-            if progress is not None:
-                progress(i / len(lights), f"HDR metering frame under {nl.name} at {t0:g} s")
-            sid = step_id(Role.METERING, subject=subject, light=nl.name, exposure_s=t0, take=take)
-            entry = shooter.shoot(Role.METERING.value, nl.light, t0, sid, light_name=nl.name, subject=subject.key)
-            plans[nl.name] = plan_hdr(shooter.frame(entry), t0, boxes, shooter.camera.shutter_speeds(),
-                                      max_exposure_s=limit, max_frames=max_frames)
-    finally:
-        shooter.lights_off()
+    yield Place(subject.place, subject.nd, f"Place the {subject.label}, then continue")
+    for i, nl in enumerate(lights):
+        yield Checkpoint()
+        t0 = base_exposures[nl.name]
+        yield ProgressEvent(i, len(lights), f"HDR metering frame under {nl.name} at {t0:g} s")
+        plans[nl.name], _taken = yield from meter_light(facts, nl, t0, subject, boxes, take=take,
+                                                        max_frames=max_frames)
     return plans

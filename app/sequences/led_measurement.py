@@ -12,34 +12,41 @@ apply is stated before anything is switched on (the first event) and holds on ev
 * the light is off between readings and LEDs, and every LED is set to 0 and the light off after completion,
   cancel or any error (``_cleanup``: the driver's ``ensure_off``).
 
-Time passes through ``wait(seconds)``: on the virtual lab it moves the emulator's clock (its drift model on its
-own clock, never a wall-clock wait); on a real stand it sleeps. Either way the sphere hears from the host at
-least every ``KEEPALIVE_S`` (its watchdog). Each LED's readings are written by the instrument as one series
+The plan holds no device: it yields messages (SetLight, LightOn with its cap, Wait, Measure, LightOff,
+SaveReadings) and the run engine (app.workflow.engine) applies them. Time passes through Wait: on the virtual lab
+the engine moves the emulator's clock (its ``sleep`` is the clock's skip: the drift model on its own clock, never
+a wall-clock wait); on a real stand it sleeps. Either way the sphere hears from the host at least every
+``KEEPALIVE_S`` (its watchdog). Each LED's readings are written by the instrument as one series
 (``levels_LED<n>`` / ``warmup_LED<n>``, a spectral CSV and a CGATS .ti3; app.workflow.led_readings names them).
 """
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.workflow.led_readings import level_id, warmup_id
+from dualrgb.app.workflow.messages import (
+    LightOff,
+    LightOn,
+    Measure,
+    PlanSteps,
+    SaveReadings,
+    SetLight,
+    Wait,
+)
 from dualrgb.app.workflow.vocabulary import EventKind
-
-if TYPE_CHECKING:
-    from dualrgb.app.protocols import Radiometer, Sphere
+from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
 # finely at the low end (0.2 %..5 %, where drivers drop out), coarser above
 DEFAULT_LEVELS = (0.0, 0.002, 0.004, 0.006, 0.008, 0.01, 0.0125, 0.015, 0.0175, 0.02, 0.025, 0.03, 0.035, 0.04,
                   0.045, 0.05, 0.06, 0.08, 0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1.0)
-KEEPALIVE_S = 10.0          # the sphere's watchdog (30 s by default) hears from the host at least this often
 WARMUP_MARGIN_S = 30.0      # the warm-up's lit-period limit beyond its last reading
 MAX_WARMUP_S = 3600.0 - WARMUP_MARGIN_S     # the sphere's longest lit period is one hour (ON <ms>)
 
@@ -87,36 +94,20 @@ class LedMeasurementPlan:
                 "and after any error")
 
 
-def sleeper(sphere: Sphere, skip: Callable[[float], None] | None = None) -> Callable[[float], None]:
-    """``wait(seconds)``: ``skip`` (a virtual clock's) or real sleep, in steps of at most KEEPALIVE_S with a
-    keepalive to the sphere after each."""
-    def wait(seconds: float) -> None:
-        left = float(seconds)
-        while left > 1e-9:
-            step = min(left, KEEPALIVE_S)
-            (skip or time.sleep)(step)
-            sphere.keepalive()
-            left -= step
-    return wait
-
-
-def _one_led(led: int, level: float, n: int = 10) -> list[float]:
-    return [level if i == led - 1 else 0.0 for i in range(n)]
+def _one_led(led: int, level: float) -> LightSource:
+    return LightSource((led,), (level,), f"LED {led} at {level:g}")
 
 
 class LedMeasurement(BaseSequence):
-    """The sequence (module docstring); ``radiometer`` has ``measure(sample_id)`` and ``save(readings, folder,
-    stem)``; ``clock`` is the one ``wait`` moves (the emulator's on the virtual lab)."""
+    """The sequence (module docstring): the readings are written by the run's spectroradiometer into
+    ``out_dir``; ``clock`` is the one the engine's Wait moves (the emulator's on the virtual lab)."""
 
     name = "LED measurement"
 
-    def __init__(self, sphere: Sphere, radiometer: Radiometer[Any], out_dir: Path, wait: Callable[[float], None],
-                 clock: Callable[[], float] = time.monotonic, settings: LedMeasurementPlan | None = None) -> None:
+    def __init__(self, out_dir: Path, clock: Callable[[], float] = time.monotonic,
+                 settings: LedMeasurementPlan | None = None) -> None:
         super().__init__()
-        self.sphere = sphere
-        self.radiometer = radiometer
         self.out_dir = Path(out_dir)
-        self.wait = wait
         self.clock = clock
         self.settings = settings or LedMeasurementPlan()
         self.files: list[Path] = []
@@ -127,7 +118,7 @@ class LedMeasurement(BaseSequence):
                 + [PlannedFrame("reading", 0.0, f"LED {n}", f"warm-up {t:g} s") for n in p.warmup_leds
                    for t in p.warmup_times])
 
-    def _steps(self) -> Iterator[ProgressEvent]:
+    def _steps(self) -> PlanSteps:
         p = self.settings
         total = p.steps
         log.info("%s", p.light_mode())
@@ -136,42 +127,37 @@ class LedMeasurement(BaseSequence):
         for led in p.leds:
             readings = []
             for lv in p.levels:
-                readings.append(self._level_reading(led, lv))
+                readings.append((yield from self._level_reading(led, lv)))
                 step += 1
                 yield ProgressEvent(step, total, f"LED {led} at level {lv:g}", kind=EventKind.FRAME)
-            self.files += self.radiometer.save(readings, self.out_dir, f"levels_LED{led}")
+            self.files += yield SaveReadings(readings, self.out_dir, f"levels_LED{led}")
         for led in p.warmup_leds:
-            for event in self._warmup(led, step, total):
-                step = event.step
-                yield event
+            step = yield from self._warmup(led, step, total)
         yield ProgressEvent(total, total, f"LED measurement done: {len(self.files)} files", kind=EventKind.DONE)
 
-    def _level_reading(self, led: int, level: float) -> Any:
-        self.sphere.set_levels(_one_led(led, level, self.sphere.channels))
-        self.sphere.on(max_on_s=self.settings.reading_cap_s)
-        try:
-            self.wait(self.settings.settle_s)
-            return self.radiometer.measure(level_id(led, level))
-        finally:
-            self.sphere.off()
+    def _level_reading(self, led: int, level: float) -> PlanSteps:
+        """One reading lit at most ``reading_cap_s``; the engine switches off after an error."""
+        yield SetLight(_one_led(led, level))
+        if level <= 0:                            # nothing to switch on: the dark reading
+            reading = yield Measure(level_id(led, level))
+            return reading
+        yield LightOn(self.settings.reading_cap_s, what="LED measurement")
+        yield Wait(self.settings.settle_s)
+        reading = yield Measure(level_id(led, level))
+        yield LightOff()
+        return reading
 
-    def _warmup(self, led: int, step: int, total: int) -> Iterator[ProgressEvent]:
+    def _warmup(self, led: int, step: int, total: int) -> PlanSteps:
         p = self.settings
-        self.sphere.set_levels(_one_led(led, 1.0, self.sphere.channels))
+        yield SetLight(_one_led(led, 1.0))
         readings = []
-        self.sphere.on(max_on_s=p.warmup_s + WARMUP_MARGIN_S)
+        yield LightOn(p.warmup_s + WARMUP_MARGIN_S, what="LED measurement")
         t_on = self.clock()
-        try:
-            for t in p.warmup_times:
-                self.wait(max(0.0, t - (self.clock() - t_on)))
-                readings.append(self.radiometer.measure(warmup_id(led, self.clock() - t_on)))
-                step += 1
-                yield ProgressEvent(step, total, f"LED {led} warm-up: {t / 60:.1f} min on", kind=EventKind.FRAME)
-        finally:
-            self.sphere.off()
-        self.files += self.radiometer.save(readings, self.out_dir, f"warmup_LED{led}")
-
-    def _cleanup(self) -> Any:
-        report = self.sphere.ensure_off()
-        log.info("%s: %s", self.name, report.message)
-        return report
+        for t in p.warmup_times:
+            yield Wait(max(0.0, t - (self.clock() - t_on)))
+            readings.append((yield Measure(warmup_id(led, self.clock() - t_on))))
+            step += 1
+            yield ProgressEvent(step, total, f"LED {led} warm-up: {t / 60:.1f} min on", kind=EventKind.FRAME)
+        yield LightOff()
+        self.files += yield SaveReadings(readings, self.out_dir, f"warmup_LED{led}")
+        return step

@@ -5,8 +5,9 @@
     report = stand.capture(Original("ACC-123", title="Portrait"), profile)   # metering, HDR if needed, deliver
     print(report.qa.text())
 
-The GUI, the CLI and the demo drive the stand through this object. Long work runs through the one run engine
-(app.workflow.engine.RunEngine, ``stand.engine``) and reports through plain callbacks: ``progress(fraction,
+The GUI, the CLI and the demo drive the stand through this object. Every device action runs through the one run
+engine (app.workflow.engine.RunEngine, ``stand.engine``: its plans yield messages, the engine alone applies them;
+each public call is one run, from dark to dark, read back) and reports through plain callbacks: ``progress(fraction,
 message)`` and ``on_event(ProgressEvent)`` (every frame saved / kept, every prompt); ``cancel`` (a
 common.progress.CancelToken) or ``control`` (the run's RunControl: cancel and pause) stops between frames with
 the LEDs off and between the processing's work units, raising common.progress.Cancelled. Hooks for a person:
@@ -34,15 +35,16 @@ from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, snap_down
 from dualrgb.app.sequences.capture import SubjectCapture
-from dualrgb.app.sequences.shooter import SafetySettings, Shooter, Stand
-from dualrgb.app.session.paths import deliverable, record
+from dualrgb.app.session.paths import record
 from dualrgb.app.workflow.charts import definition as chart_definition
 from dualrgb.app.workflow.defaults import study_defaults, workflow_defaults
 from dualrgb.app.workflow.deliverables import check_spectral_request
 from dualrgb.app.workflow.delivery import Delivery, LightDoseRecord, Original, deliver
-from dualrgb.app.workflow.delivery_folder import prepare, sidecar_identifier
+from dualrgb.app.workflow.delivery_folder import prepare
 from dualrgb.app.workflow.delivery_settings import DeliverySettings
-from dualrgb.app.workflow.engine import RunControl, RunEngine
+from dualrgb.app.workflow.device_actions import Place, StandDevices
+from dualrgb.app.workflow.engine import RunControl, RunEngine, facts_of
+from dualrgb.app.workflow.light_safety import SafetySettings, StandFacts
 from dualrgb.app.workflow.metadata import check_original
 from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
 from dualrgb.app.workflow.mode_rule import check_mode
@@ -118,6 +120,7 @@ class StandSettings:
     optimise_matrix: bool | None = None    # also the dE00-optimised matrix; None: resources/parsimony.json
     limits: ReuseLimits = field(default_factory=ReuseLimits)
     force: bool = False                       # reuse a mismatching calibration with a warning
+    mode_overrides: frozenset[str] = frozenset()   # originals shot in another mode than the calibration's, asked
     ppi: float | None = None               # sampling set by the user (else from the target's size): calibrate: the
                                            # sensor's (full resolution); capture: the deliverables' as delivered
     target_width_mm: float | None = None   # test target's width (corner patches' outer corners) -> ppi
@@ -149,28 +152,33 @@ class CaptureReport:
 class CopyStand:
     """Devices + session + the rules of the copy-stand day (see the module docstring)."""
 
-    def __init__(self, camera: Camera, sphere: Sphere, session: Session, *, stand: Stand | None = None,
+    def __init__(self, camera: Camera, sphere: Sphere, session: Session, *, stand: Place | None = None,
                  lab: VirtualLab | None = None, settings: StandSettings | None = None,
                  progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
                  prompt: Prompt | None = None, reshoot: ReshootQuestion | None = None,
                  on_event: EventCallback | None = None, control: RunControl | None = None):
         self.camera, self.sphere, self.session, self.lab = camera, sphere, session, lab
         self.settings = settings or StandSettings()
-        self.engine = RunEngine("copy stand", control=control or RunControl(cancel), progress=progress,
-                                prompt=prompt, on_event=on_event)
+        self.engine = RunEngine("copy stand", StandDevices(camera, sphere, session, stand),
+                                safety=safety_of(self.settings), control=control or RunControl(cancel),
+                                progress=progress, prompt=prompt, on_event=on_event)
         self.progress, self.cancel, self.prompt = progress, self.engine.token, prompt
         self.reshoot, self.on_event = reshoot, on_event
-        self.shooter = Shooter(camera, sphere, session, stand=stand, safety=safety_of(self.settings))
+
+    @property
+    def facts(self) -> StandFacts:
+        """What plans know of this stand (the camera's shutter speeds, the light-on rule): the engine's."""
+        return self.engine.facts
 
     def planner(self) -> StandPlanner:
         """The single steps (darks, flats, a target, auto-exposure, HDR metering) on this stand, to run through
         :meth:`run_sequence` or a front end's app.workflow.engine.Run."""
-        return StandPlanner(self.shooter)
+        return StandPlanner(self.facts)
 
     # ------------------------------------------------------------------ running sequences
     def run_sequence(self, seq: BaseSequence, lo: float = 0.0, hi: float = 1.0) -> list[ProgressEvent]:
         """Run a plan through the run engine (app.workflow.engine): prompts go to ``prompt``, progress to
-        ``progress``, cancel stops it (LEDs off) and raises Cancelled."""
+        ``progress``, cancel stops it (LEDs off, read back) and raises Cancelled."""
         self.engine.progress, self.engine.on_event = self.progress, self.on_event
         return self.engine.run_plan(seq, lo, hi)
 
@@ -185,8 +193,8 @@ class CopyStand:
         from dualrgb.app.sequences.hdr import LINEAR_LIMIT_DN
 
         n = self.hdr_exposures(mode) if hdr_auto else 1
-        limit = self.shooter.safety.max_exposure_s
-        usable = [s for s in self.camera.shutter_speeds() if s <= limit]
+        limit = self.facts.max_exposure_s
+        usable = [s for s in self.facts.shutter_speeds() if s <= limit]
         step = 0.8 * LINEAR_LIMIT_DN / 100.0                 # app.sequences.hdr.plan_hdr's overlap factor
         plan = {}
         for name, t in base.items():
@@ -204,7 +212,7 @@ class CopyStand:
 
     def auto_expose(self, lights: Sequence[NamedLight]) -> dict[str, float]:
         """Per light, the open-gate exposure (app.workflow.metering.AutoExposure: cancellable between lights)."""
-        seq = AutoExposure(self.shooter, lights)
+        seq = AutoExposure(self.facts, lights)
         self.run_sequence(seq, 0.0, 0.1)
         return dict(seq.exposures)
 
@@ -213,12 +221,12 @@ class CopyStand:
         """The frames of a calibration, in order, with the share of the progress each fills: darks at every
         planned exposure (thesis 8.2.1), flats per light at its planned exposures (8.2.2), the training and test
         targets at the base exposures."""
-        shooter, s = self.shooter, self.settings
+        facts, s = self.facts, self.settings
         out: list[tuple[BaseSequence, float, float]] = [
-            (DarkSeries(shooter, sorted({t for ts in plan.values() for t in ts}), s.dark_frames), .1, .35),
-            (FlatSeries(shooter, lights, plan, s.flat_frames), .35, .5)]
+            (DarkSeries(facts, sorted({t for ts in plan.values() for t in ts}), s.dark_frames), .1, .35),
+            (FlatSeries(facts, lights, plan, s.flat_frames), .35, .5)]
         for i, name in enumerate(("train", "test")):
-            out.append((SubjectCapture(shooter, lights, {n: [t] for n, t in base.items()}, Subject.target(name)),
+            out.append((SubjectCapture(facts, lights, {n: [t] for n, t in base.items()}, Subject.target(name)),
                         .5 + .05 * i, .55 + .05 * i))
         return out
 
@@ -229,19 +237,32 @@ class CopyStand:
         the calibration profile, saved in ``<session>/calibration/``. ``hdr_auto`` None: the day's default
         (app.workflow.defaults)."""
         check_lights(lights_of(preset), f"preset {preset.name}")      # before anything is lit
-        base = self.auto_expose(lights_of(preset))
-        return self.calibrate_at(preset, base, hdr_auto=hdr_auto, grids=grids, report_dir=report_dir)
+
+        def calibration() -> CalibrationProfile:
+            base = self.auto_expose(lights_of(preset))
+            return self.calibrate_at(preset, base, hdr_auto=hdr_auto, grids=grids, report_dir=report_dir)
+        return self.engine.run(calibration)
 
     def calibrate_at(self, preset: Preset, base: dict[str, float], *, hdr_auto: bool | None = None,
                      grids: Mapping[str, PatchGrid | None] | None = None, report_dir: Path | None = None
                      ) -> CalibrationProfile:
-        """:meth:`calibrate` from known open-gate exposures ``base`` (light name -> seconds)."""
+        """:meth:`calibrate` from known open-gate exposures ``base`` (light name -> seconds). Once the exposures
+        are planned, an event says so (``data``: 'plan', the frames; 'base'; 'exposures', per light)."""
+        return self.engine.run(lambda: self._calibrate_at(preset, base, hdr_auto, grids, report_dir))
+
+    def _calibrate_at(self, preset: Preset, base: dict[str, float], hdr_auto: bool | None,
+                      grids: Mapping[str, PatchGrid | None] | None, report_dir: Path | None) -> CalibrationProfile:
         lights = lights_of(preset)
         defaults = workflow_defaults(preset.mode)
         plan = self.exposure_plan(base, defaults.hdr_auto if hdr_auto is None else hdr_auto, preset.mode)
         specs = self.target_specs(preset.mode, grids)          # a chart that cannot be used: before any frame
         self.session.extend_definition(**chart_definition(self.settings.charts or {}))   # other charts: refused
-        for seq, lo, hi in self.calibration_sequences(lights, plan, base):
+        sequences = self.calibration_sequences(lights, plan, base)
+        if self.on_event is not None:
+            self.on_event(ProgressEvent(0, 0, "auto-exposure done: darks, flats and the targets next",
+                                        data={"plan": [f for seq, _lo, _hi in sequences for f in seq.plan()],
+                                              "base": dict(base), "exposures": plan}))
+        for seq, lo, hi in sequences:
             self.run_sequence(seq, lo, hi)
         optimise = self.settings.optimise_matrix
         if optimise is None:
@@ -331,7 +352,7 @@ class CopyStand:
         n = self.settings.meter_tiles
         rows, cols = np.linspace(0, h, n + 1).astype(int), np.linspace(0, w, n + 1).astype(int)
         tiles = [(rows[i], rows[i + 1], cols[j], cols[j + 1]) for i in range(n) for j in range(n)]
-        seq = HdrMetering(self.shooter, profile.lights, profile.base_exposures, original.subject, tiles, take=take,
+        seq = HdrMetering(self.facts, profile.lights, profile.base_exposures, original.subject, tiles, take=take,
                           max_frames=self.hdr_exposures(profile.mode))
         self.run_sequence(seq, 0.0, 0.1)
         plans = seq.plans
@@ -355,7 +376,8 @@ class CopyStand:
         override said in the sidecar and QA line, '' when none), its deliverables folder is creatable and not
         another original's (app.workflow.delivery_folder), and the spectral rendering's light is known."""
         check_original(original)
-        override = check_mode(original, profile, force=self.settings.force) if profile is not None else ""
+        forced = self.settings.force or original.identifier in self.settings.mode_overrides
+        override = check_mode(original, profile, force=forced) if profile is not None else ""
         check_illuminant(self.settings.render_illuminant)
         check_spectral_request(profile, self.settings.delivery is not None and self.settings.delivery.spectral is True)
         check_resolution(self.settings.resolution)
@@ -368,7 +390,7 @@ class CopyStand:
         deliverables of ``originals`` originals."""
         check_lights(profile.lights, f"calibration {profile.id}")
         check_frame_shape(self.camera, profile)
-        check_exposures(self.shooter.safety, profile)
+        check_exposures(self.facts.safety, profile)
         frame_bytes = getattr(self.camera, "frame_bytes", None)
         per_frame = int(frame_bytes()) if callable(frame_bytes) else 0
         frames = capture_frames(profile, self.settings.original_frames, self.hdr_exposures(profile.mode))
@@ -378,9 +400,14 @@ class CopyStand:
                             f"{originals} original{'s' if originals > 1 else ''}")
 
     def capture(self, original: Original, profile: CalibrationProfile, *, reshoot: bool | None = None,
-                out_dir: Path | None = None) -> CaptureReport:
+                out_dir: Path | None = None, frames: int | None = None) -> CaptureReport:
         """Check the original (:meth:`preflight`) and the calibration, meter, capture (HDR when metering asks),
-        deliver; frames already in the session are kept unless re-shot (``reshoot`` or the ``reshoot`` hook)."""
+        deliver (one run); frames already in the session are kept unless re-shot (``reshoot`` or the ``reshoot``
+        hook); ``frames`` per exposure (else ``settings.original_frames``)."""
+        return self.engine.run(lambda: self._capture(original, profile, reshoot, out_dir, frames))
+
+    def _capture(self, original: Original, profile: CalibrationProfile, reshoot: bool | None,
+                 out_dir: Path | None, frames: int | None) -> CaptureReport:
         override = self.preflight(original, out_dir, profile)
         self.check_before_light(profile, out_dir)
         checked = self.check(profile)
@@ -388,9 +415,9 @@ class CopyStand:
         exposures, warnings = self.meter(original, profile, take)
         builder = begin_channels(profile_processor(profile), [nl.name for nl in profile.lights],
                                  self.settings.resolution)
-        seq = SubjectCapture(self.shooter, profile.lights, exposures, original.subject, take,
+        seq = SubjectCapture(self.facts, profile.lights, exposures, original.subject, take,
                              meta={"title": original.title, "operator": original.operator, "mode": original.mode},
-                             frames=self.settings.original_frames)
+                             frames=frames or self.settings.original_frames)
 
         def landed(ev: ProgressEvent) -> None:            # each frame taken in as soon as it is on disk
             if ev.kind in (EventKind.FRAME, EventKind.KEPT):
@@ -429,13 +456,13 @@ class CopyStand:
 
 
 def safety_of(settings: StandSettings) -> SafetySettings:
-    """The shooter's safety settings (light-on cap, settle time, the camera's latency allowance) of a stand."""
+    """The light-on rule (light-on cap, settle time, the camera's latency allowance) of a stand."""
     return SafetySettings(settle_s=settings.settle_s, latency_s=settings.latency_s, max_on_s=settings.max_on_s)
 
 
 def plans_only(camera: Camera | None, settings: StandSettings) -> StandPlanner:
     """The single steps' plans on ``camera`` alone (nothing is touched: no sphere, no session)."""
-    return StandPlanner(Shooter(camera, None, None, safety=safety_of(settings)))
+    return StandPlanner(facts_of(camera, safety_of(settings)))
 
 
 def _spectral_fields(result: SessionResult) -> dict:
@@ -508,54 +535,3 @@ def channels_of(proc: CaptureProcessor, light_frames: dict[str, list[ExposureRef
         return builder.result()
     finally:
         builder.close()
-
-
-@dataclass
-class QueueOutcome:
-    """One original of a queue: captured and delivered (``report``), or already delivered and kept (``kept``:
-    its sidecar)."""
-
-    original: Original
-    report: CaptureReport | None = None
-    kept: Path | None = None
-
-    def summary(self) -> str:
-        if self.report is not None:
-            return self.report.summary()
-        return f"{self.original.identifier}: already delivered, kept"
-
-
-def delivered_sidecar(session: Session, original: Original) -> Path | None:
-    """The sidecar of ``original``'s delivery in ``session`` (session.json 'originals'), when it exists and names
-    the same identifier; None otherwise."""
-    meta = (session.settings.get("originals") or {}).get(original.identifier) or {}
-    sidecar = deliverable(Path(session.path), meta.get("sidecar"))
-    if sidecar is None or not sidecar.is_file():
-        return None
-    try:
-        return sidecar if sidecar_identifier(sidecar) == original.identifier else None
-    except ValueError as exc:
-        log.warning("%s: %s", original.identifier, exc)
-        return None
-
-
-def capture_queue(stand: CopyStand, originals: Sequence[Original], profile: CalibrationProfile, *,
-                  reshoot: bool = False, out_dir: Path | None = None,
-                  on_outcome: Callable[[QueueOutcome], None] | None = None) -> list[QueueOutcome]:
-    """Capture and deliver ``originals`` in order (``dualrgb capture --queue``). Every original is checked first
-    (:meth:`CopyStand.preflight`: nothing is lit while one cannot be delivered); one already delivered in the
-    session is kept and said so unless ``reshoot``."""
-    for original in originals:
-        stand.preflight(original, out_dir, profile)
-    stand.check_before_light(profile, out_dir, len(originals))
-    outcomes = []
-    for original in originals:
-        stand._check_cancel()
-        kept = None if reshoot else delivered_sidecar(stand.session, original)
-        outcome = (QueueOutcome(original, kept=kept) if kept is not None
-                   else QueueOutcome(original, report=stand.capture(original, profile, reshoot=reshoot,
-                                                                    out_dir=out_dir)))
-        outcomes.append(outcome)
-        if on_outcome is not None:
-            on_outcome(outcome)
-    return outcomes

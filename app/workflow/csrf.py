@@ -3,8 +3,9 @@
     result = measure_csrf(camera, monochromator, session, CsrfSettings(380, 780, 10), radiance=reference,
                           out=Path("d610_csrf.csv"), prompt=ask_person, on_event=show)
 
-runs the sweep (app.sequences.csrf.CsrfSweep: prompts go to ``prompt``, which returns when the person has done
-it; every other event to ``on_event``), then the processing (app.processing.csrf) against the radiance reference,
+runs the sweep (app.sequences.csrf.CsrfSweep, a plan of the run engine, which alone acts on the camera and the
+monochromator: prompts go to ``prompt``, which returns when the person has done it; every other event to
+``on_event``), then the processing (app.processing.csrf) against the radiance reference,
 and writes the camera CSV. ``radiance`` may be a callable, called after the sweep (the virtual lab's
 spectroradiometer measures then). A cancel (``cancel`` token, checked between steps) ends with the shutter
 closed and returns None; nothing is written.
@@ -21,7 +22,9 @@ from typing import TYPE_CHECKING
 from dualrgb.app.processing.csrf import CsrfResult, compute_csrf, session_signals, write_camera_csv
 from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.csrf import CsrfSettings, CsrfSweep
+from dualrgb.app.workflow.device_actions import StandDevices
 from dualrgb.app.workflow.engine import RunControl, RunEngine
+from dualrgb.app.workflow.light_safety import SafetySettings
 from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.common.progress import Cancelled, CancelToken
 from dualrgb.simulation.radiance_reference import RadianceReference
@@ -46,11 +49,11 @@ class CsrfMeasurement:
     instrument: dict[str, str]
 
 
-def run_sweep(sweep: CsrfSweep, *, prompt: Callable[[str], None] | None,
-              on_event: Callable[[ProgressEvent], None] | None, cancel: CancelToken | None) -> bool:
-    """Run the sweep through the run engine (app.workflow.engine, under ``cancel``); False when it was
-    cancelled. Prompts go to ``prompt`` (ValueError without one); an error in a callback still closes the
-    shutter (the engine's clean-up)."""
+def sweep_engine(camera: Camera, monochromator: Monochromator, session: Session, settings: CsrfSettings, *,
+                 prompt: Callable[[str], None] | None = None, on_event: Callable[[ProgressEvent], None] | None = None,
+                 cancel: CancelToken | None = None) -> RunEngine:
+    """The run engine of a sweep (under ``cancel``): the camera, the monochromator, the session; prompts go to
+    ``prompt`` (ValueError without one), every other event to ``on_event``."""
     def ask(message: str) -> None:
         if prompt is None:
             raise ValueError(f"{message}: this measurement needs a person at the monochromator")
@@ -59,11 +62,20 @@ def run_sweep(sweep: CsrfSweep, *, prompt: Callable[[str], None] | None,
     def forward(event: ProgressEvent) -> None:
         if on_event is not None and event.kind is not EventKind.PROMPT:
             on_event(event)
+    safety = SafetySettings(expose_timeout_s=settings.expose_timeout_s, fetch_timeout_s=settings.fetch_timeout_s)
+    return RunEngine("CSRF sweep", StandDevices(camera=camera, session=session, monochromator=monochromator),
+                     safety=safety, control=RunControl(cancel), prompt=ask, on_event=forward)
+
+
+def run_sweep(engine: RunEngine, sweep: CsrfSweep) -> bool:
+    """Run the sweep through ``engine``; False when it was cancelled. An error in a callback still closes the
+    shutter (the engine's clean-up)."""
     try:
-        RunEngine(sweep.name, control=RunControl(cancel), prompt=ask, on_event=forward).run_plan(sweep)
+        engine.run_plan(sweep)
     except Cancelled:
-        if on_event is not None:                          # said as every cancelled plan says it
-            on_event(ProgressEvent(0, 0, f"{sweep.name} cancelled; the shutter closed", kind=EventKind.CANCELLED))
+        if engine.on_event is not None:                   # said as every cancelled plan says it
+            engine.on_event(ProgressEvent(0, 0, f"{sweep.name} cancelled; the shutter closed",
+                                          kind=EventKind.CANCELLED))
         return False
     return True
 
@@ -84,8 +96,9 @@ def measure_csrf(camera: Camera, monochromator: Monochromator, session: Session,
                  on_event: Callable[[ProgressEvent], None] | None = None,
                  cancel: CancelToken | None = None) -> CsrfMeasurement | None:
     """Sweep, process, write the camera CSV to ``out`` (module docstring); None when cancelled."""
-    sweep = CsrfSweep(camera, monochromator, session, settings)
-    if not run_sweep(sweep, prompt=prompt, on_event=on_event, cancel=cancel):
+    engine = sweep_engine(camera, monochromator, session, settings, prompt=prompt, on_event=on_event, cancel=cancel)
+    sweep = CsrfSweep(engine.facts, settings)
+    if not run_sweep(engine, sweep):
         return None
     reference = radiance(settings.wavelengths()) if callable(radiance) else radiance
     result = compute_csrf(session_signals(session, settings.region), reference)

@@ -18,7 +18,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from dualrgb.app.workflow.coverage import Coverage, coverage, plan_coverage
 from dualrgb.app.workflow.delivery import Original
@@ -64,6 +64,13 @@ class QueueRow:
     @property
     def folder(self) -> Path | None:
         return self.sidecar.parent if self.sidecar is not None else None
+
+    def delivered(self, report: Any) -> None:
+        """It was captured and delivered (``report``: app.workflow.copystand.CaptureReport)."""
+        d = report.delivery
+        self.state, self.qa = OriginalState.DELIVERED, report.summary()
+        self.files, self.sidecar = dict(d.files), d.sidecar
+        self.warnings = list(report.check.warnings) + list(report.warnings)
 
 
 class OriginalsQueue:

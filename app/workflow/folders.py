@@ -1,5 +1,6 @@
 """Where sessions go, and the session rule (Qt-free; the GUI and the CLI call it):
 
+    session = open_session(folder, definition, camera)   # the one way a session is opened (or made)
     session = new_session(root, meta, definition)    # a dated session: <root>/2026-11-24_1, then _2, ...
     old = legacy_captures(settings_dir, root)        # sessions left in the old default beside the settings file
     report = move_sessions(old.folder, root)         # moved, or kept where they are with the reason
@@ -20,7 +21,7 @@ import shutil
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from dualrgb.app.session import lock as session_lock
 from dualrgb.app.session.capture_session import SETTINGS, CaptureSession, SessionError
@@ -58,24 +59,40 @@ def new_session(root: Path, meta: dict | None = None, definition: dict | None = 
     raise SessionError(errno.EEXIST, f"{root}: no free session name")
 
 
-def open_session(folder: Path | None, definition: dict, camera: Camera, meta: dict | None = None,
-                 root: Path | None = None, hint: str = "use the same options and camera, or another session"
-                 ) -> CaptureSession:
-    """The session in ``folder`` for a run with ``camera``: new, or resumed when it was made with the same
-    ``definition`` and camera (anything else is refused in one line naming the difference; app.session). One
-    writer at a time. No ``folder``: a new dated session in ``root`` (default: the captures folder)."""
+def open_session(folder: Path | None, definition: dict | None = None, camera: Camera | None = None,
+                 meta: dict | None = None, *, root: Path | None = None,
+                 hint: str = "use the same options and camera, or another session", existing: bool = False,
+                 readonly: bool = False, new_if_different: bool = False) -> CaptureSession:
+    """The one way a session is opened or made (the CLI, the window, the demo, the studies, the measurements).
+
+    * ``folder`` None: a new dated session in ``root`` (default: the captures folder);
+    * ``readonly``: the session in ``folder``, read only (no writer lock, no writes: plans, re-delivery);
+    * ``existing``: the session in ``folder`` (refused when there is none), checked against ``definition`` (the
+      caller sets its missing or damaged frames aside: ``set_aside_damaged()``, and says how many);
+    * else: a new session in ``folder``, or the one there resumed when it was made with the same ``definition``
+      (``new_if_different``: a sibling ``<folder>-2``, ... instead of refusing).
+
+    A mismatching definition is refused in one line naming the difference (``hint`` appended); a writable session
+    resumed has its missing or damaged frames set aside (their steps are shot again). With ``camera``: its identity
+    and image area join the definition (a session is resumed only with the same camera). One writer at a time."""
     from dualrgb.app.workflow.defaults import DAY_WORKFLOW, captures_dir, day_workflow
     from dualrgb.app.workflow.stand_devices import camera_definition_of
 
+    if readonly:
+        return CaptureSession.open(Path(cast(Path, folder)), readonly=True)
+    definition = dict(definition or {})
     if folder is not None and definition.get("workflow") == DAY_WORKFLOW:     # an older session of the same day
         definition = {**definition, "workflow": day_workflow(stored_definition(Path(folder)).get("workflow"))}
     if folder is None:
         session = new_session(root or captures_dir(), meta or {}, definition)
+    elif existing:
+        session = CaptureSession.open(Path(folder), definition=definition, hint=hint)
     else:
-        session = CaptureSession.resume(Path(folder), definition, meta or {},
-                                        hint=hint)
+        session = CaptureSession.resume(Path(folder), definition, meta or {}, hint=hint,
+                                        new_if_different=new_if_different)
     try:
-        session.extend_definition(**camera_definition_of(camera))
+        if camera is not None:
+            session.extend_definition(**camera_definition_of(camera))
     except BaseException:
         session.close()
         raise

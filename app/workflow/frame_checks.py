@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN
-from dualrgb.app.sequences.shooter import channel_levels
+from dualrgb.app.sequences.calibration import channel_levels
 from dualrgb.app.workflow.vocabulary import Role, latest_takes, light_of, role_of
 from dualrgb.drivers.raw import RawFrame, load_raw
 

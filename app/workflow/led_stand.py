@@ -254,8 +254,8 @@ def measure_virtual(out_dir: str | Path, world: str | Path | World | None = None
     spectroradiometer (``radiometer``: its RadiometerSettings), on a skippable clock (an hour of warm-up takes
     moments), read the instrument's files back like a real instrument's, analyse, and write the stand folder
     ``out_dir`` (instrument files under ``readings/``)."""
-    from dualrgb.app.sequences.led_measurement import LedMeasurement, sleeper
-    from dualrgb.app.workflow.engine import RunEngine
+    from dualrgb.app.sequences.led_measurement import LedMeasurement
+    from dualrgb.app.workflow.engine import RunEngine, StandDevices
     from dualrgb.app.workflow.led_readings import read_readings
     from dualrgb.common.progress import report
     from dualrgb.drivers.virtual.clock import SkippableClock
@@ -268,8 +268,9 @@ def measure_virtual(out_dir: str | Path, world: str | Path | World | None = None
         assert lab.sphere is not None and lab.camera is not None
         instrument = VirtualSpectroradiometer(lab.emulator.snapshot, lab.camera.sphere_light, radiometer, seed,
                                               clock)
-        seq = LedMeasurement(lab.sphere, instrument, out / "readings", sleeper(lab.sphere, clock.skip), clock, plan)
-        RunEngine(seq.name, progress=progress).run_plan(seq, 0.0, 0.9)      # the one run engine: LEDs off after
+        seq = LedMeasurement(out / "readings", clock, plan)
+        devices = StandDevices(sphere=lab.sphere, radiometer=instrument, sleep=clock.skip)   # the emulator's clock
+        RunEngine(seq.name, devices, progress=progress).run_plan(seq, 0.0, 0.9)   # the one run engine: LEDs off after
         world_doc = lab.world.to_dict()
     readings = read_readings([f for f in seq.files if f.suffix == ".ti3"])
     result = analyse(readings)

@@ -1,25 +1,26 @@
 """Auto-exposure and HDR metering as sequences: planned, paused between lights, cancelled with the LEDs off.
 
-Both used to be plain functions (app.sequences.calibration.auto_exposure, app.sequences.hdr.meter_and_plan) that a
-front end could neither pause nor cancel. Wrapped as :class:`app.sequences.base.Sequence` they run like every
-other sequence: the GUI's sequence view shows their plan, progress and time left, Esc cancels between lights, and
-the LEDs are off after completion, cancel or error (``_cleanup``). :class:`app.workflow.copystand.CopyStand` runs
-them too, so the CLI, the demo and the GUI meter the same way.
+The generator plans app.sequences.calibration.auto_exposure and app.sequences.hdr.meter_light wrapped as
+:class:`app.sequences.base.Sequence` s: the GUI's sequence view shows their plan, progress and time left, Esc
+cancels between lights, and the engine switches the LEDs off (read back) after completion, cancel or error.
+:class:`app.workflow.copystand.CopyStand` runs them too, so the CLI, the demo and the GUI meter the same way.
 
-    seq = AutoExposure(shooter, lights)
-    for event in seq.run(): ...
+    seq = AutoExposure(engine.facts, lights)
+    engine.run_plan(seq)     # app.workflow.engine
     seq.exposures            # light name -> open-gate exposure (80 % of the linear limit, thesis 4.1)
 """
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
-from dualrgb.app.sequences.calibration import auto_exposure
-from dualrgb.app.sequences.hdr import HdrPlan, meter_and_plan
-from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Role, Subject, format_exposure, step_id
+from dualrgb.app.sequences.calibration import OPEN_GATE, auto_exposure
+from dualrgb.app.sequences.hdr import HdrPlan, meter_light
+from dualrgb.app.workflow.light_safety import StandFacts
+from dualrgb.app.workflow.messages import Checkpoint, Place, PlanSteps
+from dualrgb.app.workflow.vocabulary import NamedLight, Role, Subject, format_exposure
 
 log = logging.getLogger(__name__)
 
@@ -35,9 +36,9 @@ class AutoExposure(BaseSequence):
 
     name = "auto-exposure"
 
-    def __init__(self, shooter, lights: Sequence[NamedLight]):
+    def __init__(self, facts: StandFacts, lights: Sequence[NamedLight]):
         super().__init__()
-        self.shooter = shooter
+        self.facts = facts
         self.lights = list(lights)
         self.exposures: dict[str, float] = {}
 
@@ -45,21 +46,15 @@ class AutoExposure(BaseSequence):
         return [PlannedFrame(Role.METERING.value, AUTO_EXPOSURE_START_S, nl.light.label(),
                              "open gate; metering, up to 5 frames") for nl in self.lights]
 
-    def _steps(self) -> Iterator[ProgressEvent]:
+    def _steps(self) -> PlanSteps:
         total = len(self.lights)
-        if not self.shooter.place("open-gate"):
-            yield ProgressEvent(0, total, "Remove the target: open gate, then continue", kind=EventKind.PROMPT,
-                                data={"place": "open-gate"})
-            self.shooter.placed = ("open-gate", False)        # the person did it: not asked again
+        yield Place("open-gate", ask=OPEN_GATE)
         for i, nl in enumerate(self.lights, start=1):
-            self.checkpoint()
-            t, seqs = auto_exposure(self.shooter, nl)
+            yield Checkpoint()
+            t, seqs = yield from auto_exposure(self.facts, nl)
             self.exposures[nl.name] = t
             yield ProgressEvent(i, total, f"auto-exposure: {nl.name} {format_exposure(t)}",
                                 data={"entry": seqs[-1], "light": nl.name, "exposure_s": t, "role": "metering"})
-
-    def _cleanup(self) -> None:
-        self.shooter.lights_off()
 
     def summary(self) -> str:
         return "auto-exposure: " + ", ".join(f"{n} {format_exposure(t)}" for n, t in self.exposures.items())
@@ -71,13 +66,13 @@ class HdrMetering(BaseSequence):
 
     name = "HDR metering"
 
-    def __init__(self, shooter, lights: Sequence[NamedLight], base_exposures: dict[str, float], subject: Subject,
-                 boxes: Sequence[Box], *, take: int = 1, max_frames: int = 5):
+    def __init__(self, facts: StandFacts, lights: Sequence[NamedLight], base_exposures: dict[str, float],
+                 subject: Subject, boxes: Sequence[Box], *, take: int = 1, max_frames: int = 5):
         super().__init__()
         missing = [nl.name for nl in lights if nl.name not in base_exposures]
         if missing:
             raise ValueError(f"no base exposure for {', '.join(missing)}: run auto-exposure first")
-        self.shooter = shooter
+        self.facts = facts
         self.lights = list(lights)
         self.base = {k: float(v) for k, v in base_exposures.items()}
         self.subject = subject
@@ -90,26 +85,17 @@ class HdrMetering(BaseSequence):
         return [PlannedFrame(Role.METERING.value, self.base[nl.name], nl.light.label(),
                              f"metering {self.subject.label}") for nl in self.lights]
 
-    def _steps(self) -> Iterator[ProgressEvent]:
+    def _steps(self) -> PlanSteps:
         total = len(self.lights)
-        if not self.shooter.place(self.subject.place, self.subject.nd):
-            yield ProgressEvent(0, total, f"Place the {self.subject.label}, then continue",
-                                kind=EventKind.PROMPT, data={"place": self.subject.place})
-            self.shooter.placed = (self.subject.place, self.subject.nd)
+        yield Place(self.subject.place, self.subject.nd, f"Place the {self.subject.label}, then continue")
         for i, nl in enumerate(self.lights, start=1):
-            self.checkpoint()
-            plan = meter_and_plan(self.shooter, [nl], {nl.name: self.base[nl.name]}, self.subject, self.boxes,
-                                  take=self.take, max_frames=self.max_frames)[nl.name]
+            yield Checkpoint()
+            plan, taken = yield from meter_light(self.facts, nl, self.base[nl.name], self.subject, self.boxes,
+                                                 take=self.take, max_frames=self.max_frames)
             self.plans[nl.name] = plan
-            sid = step_id(Role.METERING, subject=self.subject, light=nl.name, exposure_s=self.base[nl.name],
-                          take=self.take)
-            entry = self.shooter.session.entry(sid)
             yield ProgressEvent(i, total, f"HDR metering {nl.name}: {len(plan.exposures)} exposure(s)",
-                                data={"entry": entry.seq, "light": nl.name, "exposures": list(plan.exposures),
+                                data={"entry": taken.seq, "light": nl.name, "exposures": list(plan.exposures),
                                       "role": "metering"})
-
-    def _cleanup(self) -> None:
-        self.shooter.lights_off()
 
     def summary(self) -> str:
         return "; ".join(f"{n}: {', '.join(format_exposure(t) for t in p.exposures)} (range {p.dynamic_range:.0f}:1"

@@ -1,9 +1,9 @@
 """Sequences built from a kind, and the exposures darks and flats must cover, for the GUI's calibrate & capture.
 
 ``build_sequence(SequenceKind.DARKS, ...)`` etc. make the same sequence objects the CLI and the demo run;
-:class:`StandPlanner` makes them on a CopyStand's shooter (``stand.planner()``: to run through the run engine)
-or on the camera alone (``app.workflow.copystand.plans_only``: plans, nothing touched), so a front end never
-builds a Shooter or a sequence itself;
+:class:`StandPlanner` makes them with what a CopyStand's run engine knows of the stand (``stand.planner()``: to
+run through that engine) or what the camera alone says (``app.workflow.copystand.plans_only``: plans, nothing
+touched), so a front end never builds a sequence itself;
 ``calibration_exposures`` is the rule for which exposures need darks and flats: every exposure a capture uses
 (the base exposures, every HDR bracket planned, and whatever the session already holds for those lights).
 """
@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.crf_sweep import CrfSweep
+from dualrgb.app.workflow.light_safety import StandFacts
 from dualrgb.app.workflow.metering import AutoExposure, Box, HdrMetering
 from dualrgb.app.workflow.vocabulary import (
     NamedLight,
@@ -52,45 +53,45 @@ def calibration_exposures(session: Session | None, base: Mapping[str, Sequence[f
     return {name: sorted(ts) for name, ts in out.items()}
 
 
-def build_sequence(kind: SequenceKind, shooter: Any, lights: Sequence[NamedLight], *,
+def build_sequence(kind: SequenceKind, facts: StandFacts, lights: Sequence[NamedLight], *,
                    exposures: Mapping[str, Sequence[float]], frames: int = 1, subject: Subject | None = None,
                    take: int = 1) -> BaseSequence:
     """The sequence of ``kind``: darks at every exposure in ``exposures``, flats per light at its exposures,
     or ``subject`` under each light at its exposures (TARGET / HDR_TARGET / ORIGINAL)."""
     kind = SequenceKind(kind)
     if kind is SequenceKind.DARKS:
-        return DarkSeries(shooter, sorted({t for ts in exposures.values() for t in ts}), frames=frames)
+        return DarkSeries(facts, sorted({t for ts in exposures.values() for t in ts}), frames=frames)
     if kind is SequenceKind.FLATS:
-        return FlatSeries(shooter, lights, {k: list(v) for k, v in exposures.items()}, frames=frames)
+        return FlatSeries(facts, lights, {k: list(v) for k, v in exposures.items()}, frames=frames)
     if subject is None:
         raise ValueError(f"a {kind.value} sequence needs a subject (a target or an original)")
-    return SubjectCapture(shooter, lights, {k: list(v) for k, v in exposures.items()}, subject, take=take)
+    return SubjectCapture(facts, lights, {k: list(v) for k, v in exposures.items()}, subject, take=take)
 
 
 class StandPlanner:
-    """The plans a front end starts one by one (single steps), built on a CopyStand's shooter."""
+    """The plans a front end starts one by one (single steps), built with what is known of the stand."""
 
-    def __init__(self, shooter: Any):
-        self.shooter = shooter
+    def __init__(self, facts: StandFacts):
+        self.facts = facts
 
     def sequence(self, kind: SequenceKind, lights: Sequence[NamedLight], *,
                  exposures: Mapping[str, Sequence[float]], frames: int = 1, subject: Subject | None = None,
                  take: int = 1) -> BaseSequence:
         """:func:`build_sequence` on this stand."""
-        return build_sequence(kind, self.shooter, lights, exposures=exposures, frames=frames, subject=subject,
+        return build_sequence(kind, self.facts, lights, exposures=exposures, frames=frames, subject=subject,
                               take=take)
 
     def auto_exposure(self, lights: Sequence[NamedLight]) -> AutoExposure:
-        return AutoExposure(self.shooter, lights)
+        return AutoExposure(self.facts, lights)
 
     def hdr_metering(self, lights: Sequence[NamedLight], base: dict[str, float], subject: Subject,
                      boxes: Sequence[Box]) -> HdrMetering:
-        return HdrMetering(self.shooter, lights, base, subject, boxes)
+        return HdrMetering(self.facts, lights, base, subject, boxes)
 
     def crf_sweep(self, light: LightSource, levels: Sequence[float], exposures: Sequence[float],
                   min_exposure_s: float) -> CrfSweep:
         """The camera response sweep (app.sequences.crf_sweep): ``light`` at ``levels`` x ``exposures``."""
-        return CrfSweep(self.shooter, light, levels=tuple(levels), exposures=list(exposures),
+        return CrfSweep(self.facts, light, levels=tuple(levels), exposures=list(exposures),
                         min_exposure_s=min_exposure_s)
 
 

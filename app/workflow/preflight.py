@@ -5,7 +5,7 @@ calls them).
 * :func:`check_lights`: every light of a preset can light a target (some LED above the sphere's smallest step);
 * :func:`check_frame_shape`: the camera's frames are the size the calibration was made at;
 * :func:`check_exposures`: every exposure a capture may use, with this session's settle time and this camera's
-  latency, within the light-on cap (app.sequences.shooter.SafetySettings);
+  latency, within the light-on cap (app.workflow.light_safety.SafetySettings);
 * :func:`check_capture_space`: free space for an original's frames AND its deliverables (the frames in the
   session folder, the deliverables in their folder; one requirement when both are on the same disk).
 """
@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from dualrgb.app.sequences.shooter import LightSafetyError, SafetySettings
+from dualrgb.app.workflow.light_safety import LightSafetyError, SafetySettings
 from dualrgb.app.workflow.vocabulary import NamedLight
 from dualrgb.common.atomic_files import require_free_space
 

@@ -95,7 +95,7 @@ def _plan_row(row: int, original: Original, profile: Any, session: Any, force: b
     if problem and not force:
         return PlanRow(row, original.identifier, REFUSED, problem, original)
     if session is not None and not reshoot:
-        from dualrgb.app.workflow.copystand import delivered_sidecar
+        from dualrgb.app.workflow.queue_run import delivered_sidecar
 
         if delivered_sidecar(session, original) is not None:
             return PlanRow(row, original.identifier, KEPT, "already delivered in the session", original)

@@ -113,7 +113,7 @@ def run_time() -> str:
 def plan_tasks(sessions: Sequence[Path], options: RedeliveryOptions) -> tuple[list[RedeliveryTask], list[Any]]:
     """One task per original of each session (in the session's order), and the calibrations they will use; a
     session or calibration that cannot be read is refused in one line naming it, before any task runs."""
-    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.folders import open_session
     from dualrgb.app.workflow.profile import load_profile
     from dualrgb.app.workflow.redelivery import newest_by_mode
     from dualrgb.app.workflow.session_processing import session_frames
@@ -127,7 +127,7 @@ def plan_tasks(sessions: Sequence[Path], options: RedeliveryOptions) -> tuple[li
         if resolved in seen:
             raise ValueError(f"{path}: named twice")
         seen.add(resolved)
-        session = CaptureSession.open(path, readonly=True)
+        session = open_session(path, readonly=True)
         if not options.calibration:
             profiles += newest_by_mode(session).values()    # loaded and checked here: refused before any delivery
         subjects = [s for s in session_frames(session, intact=False).subjects if s.role is Role.ORIGINAL]
@@ -153,11 +153,11 @@ def _profiles(task: RedeliveryTask) -> Any:
     if task.options.calibration:
         path = Path(task.options.calibration)
         return _profile(str(path), path.stat().st_mtime_ns)
-    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.folders import open_session
     from dualrgb.app.workflow.profile import load_profile
 
     newest: dict[str, Path] = {}
-    for path in session_calibrations(CaptureSession.open(task.session, readonly=True)):
+    for path in session_calibrations(open_session(Path(task.session), readonly=True)):
         newest[load_profile(path, arrays=False).mode] = path
     if not newest:
         raise ValueError(f"{task.session}: no calibration in it or named by its originals; pass --calibration FILE")
@@ -197,12 +197,12 @@ def _transient(exc: BaseException) -> bool:
 
 
 def _deliver_task(task: RedeliveryTask) -> TaskResult:
-    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.folders import open_session
     from dualrgb.app.workflow.redelivery import _known_original, _profile_for, _redeliver_one
     from dualrgb.app.workflow.session_processing import select_lights, session_frames
     from dualrgb.app.workflow.vocabulary import Subject
 
-    session = CaptureSession.open(task.session, readonly=True)
+    session = open_session(Path(task.session), readonly=True)
     original = _known_original(session, session.settings.get("originals", {}), task.identifier)
     profile, override = _profile_for(original, _profiles(task), task.options.force)
     if profile is None:

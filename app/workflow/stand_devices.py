@@ -5,11 +5,15 @@
     place = virtual_stand(lab, "shadow")          # what puts targets, the open gate and the original's stand-in
     sphere = open_sphere("/dev/ttyACM0")          # identified, every LED off (read back), closed on failure
     camera = open_camera("Nikon DSC D610 @ usb:001,004", iso=100)      # or 'auto': the first camera found
+    close_sphere(sphere)                          # every LED off (read back), then the port closed
+    close_camera(camera)
     session.extend_definition(**camera_definition_of(camera))          # what a resumed session must match
 
-Both front ends thus start from the same state: a real sphere is switched off (and its answer read) before
-anything else, a camera named without its port is refused with the same advice, the virtual original stands in
-for an original, and a session records the same camera identity and image area.
+These are the only ways the front ends open and close a device; everything in between - every light switched, every
+frame - is the run engine's (app.workflow.engine). Both front ends thus start from the same state: a real sphere is
+switched off (and its answer read) before anything else, a camera named without its port is refused with the same
+advice, the virtual original stands in for an original, and a session records the same camera identity and image
+area.
 """
 from __future__ import annotations
 
@@ -22,7 +26,7 @@ from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_ORIGINALS
 
 if TYPE_CHECKING:
     from dualrgb.drivers.camera.base import Camera
-    from dualrgb.drivers.led_sphere import LedSphere
+    from dualrgb.drivers.led_sphere import LedSphere, LightReport
     from dualrgb.drivers.virtual.lab import VirtualLab
     from dualrgb.drivers.virtual.world import World
 
@@ -76,6 +80,27 @@ def open_sphere(port: str) -> LedSphere:
         raise
     log.info("LED sphere on %s: %s firmware %s", port, info.get("model"), info.get("firmware"))
     return sphere
+
+
+def close_sphere(sphere: LedSphere, keep_open: bool = False) -> LightReport:
+    """Every LED 0 and the light off, read back, then the port closed (``keep_open``: left open, e.g. the virtual
+    lab's, which its camera reads); never raises: what is known about the light (logged when not off)."""
+    report = sphere.ensure_off()
+    if not report.off:
+        log.error("closing the LED sphere: %s", report.message)
+    if not keep_open:
+        sphere.close(leave_on=True)         # switched off just above, as far as the sphere answered
+    return report
+
+
+def close_camera(camera: Camera) -> None:
+    """Close the camera's port; a failure is logged (nothing of it is lost: frames are in the session)."""
+    from dualrgb.drivers.camera.base import CameraError
+
+    try:
+        camera.close()
+    except CameraError as exc:
+        log.warning("closing the camera: %s", exc)
 
 
 def camera_choice(choice: str) -> tuple[str | None, str | None]:

@@ -117,8 +117,8 @@ def world_level_curves(world: Any) -> LevelCurves:
 def calibrate_in_world(cfg: StandStudyConfig, world: str, preset: Preset, seed: int,
                        folder: Path) -> CalibrationProfile:
     """A calibration (``hdr off``) in ``world`` with ``preset``'s lights, in session ``folder``."""
-    from dualrgb.app.session.capture_session import CaptureSession
     from dualrgb.app.workflow.copystand import CopyStand, StandSettings
+    from dualrgb.app.workflow.folders import open_session
     from dualrgb.drivers.virtual.clock import SkippableClock
     from dualrgb.drivers.virtual.lab import VirtualLab
     from dualrgb.drivers.virtual.world import load_world
@@ -129,7 +129,7 @@ def calibrate_in_world(cfg: StandStudyConfig, world: str, preset: Preset, seed: 
     # .camera holds lit exposures; a study of a dozen calibrations has no artwork whose dose needs the wait)
     with VirtualLab(mode=cfg.mode, frame_size=cfg.frame_size, seed=seed, world=world,
                     clock=SkippableClock()) as lab:
-        session = CaptureSession.resume(folder, definition, {"mode": cfg.mode})
+        session = open_session(folder, definition, meta={"mode": cfg.mode})
         try:
             stand = CopyStand(*lab.devices(), session, stand=lab.place, lab=lab,
                               settings=StandSettings(settle_s=0.0, optimise_matrix=False))
@@ -142,15 +142,15 @@ def calibrate_in_world(cfg: StandStudyConfig, world: str, preset: Preset, seed: 
 def measure_camera(cfg: StandStudyConfig, world: str, folder: Path) -> Path:
     """The camera CSV the monochromator sweep measures in ``world`` (thesis 4.2)."""
     from dualrgb.app.sequences.csrf import CsrfSettings
-    from dualrgb.app.session.capture_session import CaptureSession
     from dualrgb.app.workflow.csrf import measure_csrf
+    from dualrgb.app.workflow.folders import open_session
     from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench
     from dualrgb.simulation.radiance_reference import read_radiance_reference
 
     settings = CsrfSettings(380.0, 780.0, cfg.csrf_step_nm)
     with MonochromatorBench(frame_size=cfg.csrf_frame_size, world=world) as bench:
-        session = CaptureSession.resume(folder / "csrf-session", {**settings.definition(), "world": world},
-                                        {"measurement": "csrf"})
+        session = open_session(folder / "csrf-session", {**settings.definition(), "world": world},
+                               meta={"measurement": "csrf"})
         try:
             def radiance(wavelengths: list[float]) -> Any:
                 return read_radiance_reference(bench.spectroradiometer().write_csv(

@@ -44,7 +44,7 @@ class Role(StrEnum):
     ORIGINAL = "original"      # the artwork or film being digitised
     CRF = "crf"                # camera response / exposure-time linearity series
     METERING = "metering"      # auto-exposure and HDR metering frames (kept, never processed)
-    REJECTED = "rejected"      # lit for less than its exposure (app.sequences.shooter): kept aside, never processed
+    REJECTED = "rejected"      # lit for less than its exposure (app.workflow.shooter): kept aside, never processed
     CSRF = "csrf"              # a monochromatic frame measuring the camera's spectral sensitivity (thesis 4.2)
 
 
@@ -64,11 +64,12 @@ class SequenceKind(StrEnum):
 
 
 class EventKind(StrEnum):
-    """The ``kind`` of an :class:`app.sequences.base.ProgressEvent`."""
+    """The ``kind`` of an :class:`app.workflow.messages.ProgressEvent`."""
 
     PROGRESS = "progress"
     FRAME = "frame"            # a frame was saved in the session
     KEPT = "kept"              # a frame was already in the session and was kept (not shot again)
+    REJECTED = "rejected"      # a frame not lit all through was set aside (never used) and its step shot again
     PROMPT = "prompt"          # a person must do something (place the target, cap the lens) and continue
     DONE = "done"
     CANCELLED = "cancelled"

@@ -402,6 +402,15 @@ class LedSphere(SwitchOff):
         (the frame was not lit all through)."""
         return self._supervisor.exposure_done(period)
 
+    def tripped(self) -> bool:
+        """Whether the sphere switched its light off by itself - its ``ON <ms>`` limit or its watchdog - since the
+        light was last switched on (``STATUS?``'s ``trip``, cleared by every switch-on); one exchange."""
+        asked = time.monotonic()
+        s = self.exchange("status")
+        if not s["light"]:
+            self._confirmed_off(asked)
+        return bool(s["trip"])
+
     @property
     def lit_period(self) -> LitPeriod | None:
         """The lit period not yet confirmed off, if any (its deadline: when the light goes off at the latest)."""

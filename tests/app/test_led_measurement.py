@@ -16,7 +16,8 @@ import pytest
 from scipy.optimize import brentq
 
 from dualrgb.app.cli import main as cli
-from dualrgb.app.sequences.led_measurement import LedMeasurement, LedMeasurementPlan, sleeper
+from dualrgb.app.sequences.led_measurement import LedMeasurement, LedMeasurementPlan
+from dualrgb.app.workflow.engine import RunEngine, StandDevices
 from dualrgb.app.workflow.led_readings import parse_reading_id, read_readings
 from dualrgb.app.workflow.led_stand import import_readings, load_stand, measure_virtual, unstable_levels
 from dualrgb.drivers.virtual.clock import SkippableClock
@@ -206,11 +207,10 @@ def test_light_is_off_after_an_instrument_error(tmp_path, after):
     clock = SkippableClock()
     plan = LedMeasurementPlan(leds=(2,), levels=(0.5, 1.0) * 5, warmup_leds=(2,), warmup_s=1200, interval_s=60)
     with VirtualLab(frame_size=(64, 64), clock=clock) as lab:
-        seq = LedMeasurement(lab.sphere, _BrokenInstrument(after), tmp_path, sleeper(lab.sphere, clock.skip),
-                             clock, plan)
+        seq = LedMeasurement(tmp_path, clock, plan)
+        devices = StandDevices(sphere=lab.sphere, radiometer=_BrokenInstrument(after), sleep=clock.skip)
         with pytest.raises(OSError, match="USB transfer failed"):
-            for _ in seq.run():
-                pass
+            RunEngine(seq.name, devices).run_plan(seq)
         snap = lab.emulator.snapshot()
         assert not snap.light_on and not snap.levels.any() and not lab.emulator.commanded_levels().any()
         record = lab.emulator.light_record()

@@ -30,24 +30,25 @@ LIGHTS = [NamedLight("p light 1", LightSource((1, 6, 8), name="p light 1")),
 # ---------------------------------------------------------------- metering sequences on the virtual lab
 @pytest.fixture
 def stand(tmp_path):
-    from dualrgb.app.sequences.shooter import SafetySettings, Shooter
     from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.app.workflow.engine import RunEngine, StandDevices
+    from dualrgb.app.workflow.light_safety import SafetySettings
     from dualrgb.drivers.virtual.lab import VirtualLab
 
     with VirtualLab(frame_size=FRAME) as lab:
         session = CaptureSession.create(tmp_path / "s", {})
-        yield lab, session, Shooter(lab.camera, lab.sphere, session, stand=lab.place,
-                                    safety=SafetySettings(settle_s=0.0))
+        yield lab, session, RunEngine("test", StandDevices(lab.camera, lab.sphere, session, lab.place),
+                                      safety=SafetySettings(settle_s=0.0))
         session.close()
 
 
 def test_auto_exposure_sequence_meters_each_light(stand):
     from dualrgb.app.workflow.metering import AutoExposure
 
-    lab, session, shooter = stand
-    seq = AutoExposure(shooter, LIGHTS)
+    lab, session, engine = stand
+    seq = AutoExposure(engine.facts, LIGHTS)
     assert [f.role for f in seq.plan()] == ["metering", "metering"]
-    events = list(seq.run())
+    events = engine.run_plan(seq)
     assert set(seq.exposures) == {nl.name for nl in LIGHTS} and all(0 < t < 1 for t in seq.exposures.values())
     assert [e.data["light"] for e in events] == [nl.name for nl in LIGHTS]
     assert all(session.entries()[-1].role == "metering" for _ in events)
@@ -57,10 +58,10 @@ def test_auto_exposure_sequence_meters_each_light(stand):
 def test_metering_cancelled_between_lights_ends_dark(stand):
     from dualrgb.app.workflow.metering import AutoExposure
 
-    lab, _session, shooter = stand
-    seq = AutoExposure(shooter, LIGHTS)
+    lab, _session, engine = stand
+    seq = AutoExposure(engine.facts, LIGHTS)
     events = []
-    for ev in seq.run():
+    for ev in engine.steps(seq):
         events.append(ev)
         seq.cancel()                                     # after the first light
     assert events[-1].kind is EventKind.CANCELLED and list(seq.exposures) == [LIGHTS[0].name]
@@ -71,17 +72,17 @@ def test_hdr_metering_plans_a_bracket_for_the_nd_target(stand):
     from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
     from dualrgb.app.workflow.vocabulary import Subject
 
-    lab, session, shooter = stand
-    auto = AutoExposure(shooter, LIGHTS)
-    list(auto.run())
+    lab, session, engine = stand
+    auto = AutoExposure(engine.facts, LIGHTS)
+    engine.run_plan(auto)
     subject = Subject.target("test", nd=True)
-    seq = HdrMetering(shooter, LIGHTS, auto.exposures, subject, lab.scene_for("test", nd=True).patch_boxes())
-    events = list(seq.run())
+    seq = HdrMetering(engine.facts, LIGHTS, auto.exposures, subject, lab.scene_for("test", nd=True).patch_boxes())
+    events = engine.run_plan(seq)
     assert all(len(p.exposures) >= 2 for p in seq.plans.values())        # ND 2.0: 100x darker half
     entry = next(e for e in session.entries() if e.seq == events[0].data["entry"])
     assert entry.role == "metering" and entry.meta.get("subject") == subject.key
     with pytest.raises(ValueError, match="run auto-exposure first"):
-        HdrMetering(shooter, LIGHTS, {}, subject, [])
+        HdrMetering(engine.facts, LIGHTS, {}, subject, [])
 
 
 # ---------------------------------------------------------------- the run engine's Run
@@ -205,7 +206,7 @@ def test_plan_coverage_against_a_calibration():
 def test_planned_steps_done_and_next_take():
     from dualrgb.app.sequences.calibration import DarkSeries
     from dualrgb.app.sequences.capture import SubjectCapture
-    from dualrgb.app.sequences.shooter import Shooter
+    from dualrgb.app.workflow.light_safety import StandFacts
     from dualrgb.app.workflow.plans import next_take, planned_steps, steps_done
     from dualrgb.app.workflow.vocabulary import Subject
 
@@ -214,7 +215,7 @@ def test_planned_steps_done_and_next_take():
     assert steps == [step_id(Role.DARK, exposure_s=t, frame=i) for t in (0.01, 0.5) for i in range(2)]
     session = fake_session([entry(1, "dark", steps[0], 0.01), entry(2, "dark", steps[3], 0.5)])
     assert steps_done(session, steps) == [True, False, False, True]
-    cap = SubjectCapture(Shooter(None, None, None), LIGHTS, {nl.name: [0.01] for nl in LIGHTS}, Subject.target("test"))
+    cap = SubjectCapture(StandFacts(), LIGHTS, {nl.name: [0.01] for nl in LIGHTS}, Subject.target("test"))
     taken = [entry(3, "target", s, 0.01) for s in cap.steps()] + [entry(4, "target", cap.steps()[0] + "#take2", 0.01)]
     assert next_take(fake_session(taken), cap.steps()) == 3
 
@@ -239,8 +240,8 @@ def test_flat_uniformity_shows_the_vignetting(stand):
     from dualrgb.app.sequences.calibration import FlatSeries
     from dualrgb.app.workflow.frame_checks import flat_uniformity
 
-    lab, session, shooter = stand
-    list(FlatSeries(shooter, LIGHTS[:1], {LIGHTS[0].name: [0.01]}, frames=2).run())
+    lab, session, engine = stand
+    engine.run_plan(FlatSeries(engine.facts, LIGHTS[:1], {LIGHTS[0].name: [0.01]}, frames=2))
     m = flat_uniformity(session, LIGHTS[0].name)
     assert m.frames == 2 and m.exposure_s == pytest.approx(0.01)
     assert np.nanmean(m.percent) == pytest.approx(100.0, abs=0.5)

@@ -58,6 +58,11 @@ EXCHANGES = [
     (lambda s: s.keepalive(), [(b"PING\n", b"OK PING\n")], None),
     (lambda s: s.faulty_leds(), [(b"FAULT?\n", b"OK FAULT 520\n")], [4, 10]),
     (lambda s: s.shutdown(), [(b"ALLOFF\n", b"OK ALLOFF\n"), (b"LIGHT 0\n", b"OK LIGHT 0\n"), READ_BACK_OFF], None),
+    # trip=1: the sphere switched its light off by itself (its ON limit or its watchdog) since it was switched on
+    (lambda s: s.tripped(), [(b"STATUS?\n", b"OK STATUS light=0 ontime=0.000 temp=25.10 wdog=150 trip=1 fault=0\n")],
+     True),
+    (lambda s: s.tripped(), [(b"STATUS?\n", b"OK STATUS light=1 ontime=0.500 temp=25.10 wdog=30000 trip=0 fault=0\n")],
+     False),
     (lambda s: {k: v for k, v in s.status().items() if k != "port"},
      [(b"STATUS?\n", b"OK STATUS light=1 ontime=2.250 temp=25.10 wdog=30000 trip=0 fault=8\n"),
       (b"LEVELS?\n", b"OK LEVELS 0 0 0 65535 0 0 0 0 0 0\n")],

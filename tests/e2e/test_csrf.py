@@ -19,7 +19,7 @@ import pytest
 
 from dualrgb.app.sequences.csrf import CsrfSettings, CsrfSweep
 from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.csrf import measure_csrf, run_sweep
+from dualrgb.app.workflow.csrf import measure_csrf, run_sweep, sweep_engine
 from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.drivers.camera.base import CameraError
 from dualrgb.drivers.monochromator.errors import MonochromatorError
@@ -163,8 +163,8 @@ def test_a_crash_resumes_without_shooting_again(tmp_path):
         first = CaptureSession.open(tmp_path / "s", readonly=True).entries()
         resumed_session = CaptureSession.open(tmp_path / "s", definition=settings.definition())
         events = []
-        sweep = CsrfSweep(bench.camera, bench.monochromator, resumed_session, settings)
-        assert run_sweep(sweep, prompt=None, on_event=events.append, cancel=None)
+        engine = sweep_engine(bench.camera, bench.monochromator, resumed_session, settings, on_event=events.append)
+        assert run_sweep(engine, CsrfSweep(engine.facts, settings))
         resumed_session.close()
         m, clean = measure(bench, tmp_path, settings, name="clean")
     after = CaptureSession.open(tmp_path / "s", readonly=True).entries()
@@ -189,9 +189,11 @@ def test_the_shutter_is_open_only_while_a_frame_is_exposed(tmp_path):
 
 def sweep_with(bench, tmp_path, settings, on_event):
     session = CaptureSession.create(tmp_path / "f", definition=settings.definition())
-    sweep = CsrfSweep(bench.camera, bench.monochromator, session, settings)
+    engine = sweep_engine(bench.camera, bench.monochromator, session, settings,
+                          on_event=lambda ev: on_event(engine, sweep, ev))
+    sweep = CsrfSweep(engine.facts, settings)
     try:
-        return sweep, run_sweep(sweep, prompt=None, on_event=lambda ev: on_event(sweep, ev), cancel=None)
+        return sweep, run_sweep(engine, sweep)
     finally:
         session.close()
 
@@ -199,7 +201,7 @@ def sweep_with(bench, tmp_path, settings, on_event):
 @pytest.mark.fault("light safety")
 def test_cancel_closes_the_shutter(tmp_path):
     with MonochromatorBench(frame_size=FRAME) as bench:
-        def cancel_at_3(sweep, event):
+        def cancel_at_3(_engine, sweep, event):
             if event.step == 3:
                 bench.emulator.set_by_hand(shutter_open=True)       # even if something had left it open
                 sweep.cancel()
@@ -211,13 +213,13 @@ def test_cancel_closes_the_shutter(tmp_path):
 @pytest.mark.parametrize("fault", ["camera error", "camera timeout"])
 def test_a_camera_failure_closes_the_shutter_and_says_so(tmp_path, fault):
     with MonochromatorBench(frame_size=FRAME) as bench:
-        def break_camera(sweep, event):
+        def break_camera(engine, _sweep, event):
             if event.step == 2:
                 if fault == "camera error":
                     bench.camera.inject("error", message="capture: PTP I/O error (injected)")
                 else:
                     bench.camera.inject("hang")
-                    sweep.settings = sweep.shooter.settings = CsrfSettings(500, 600, 10, expose_timeout_s=0.3)
+                    engine.actions.shutter_shooter().expose_timeout_s = 0.3
         with pytest.raises(CameraError) as info:
             sweep_with(bench, tmp_path, CsrfSettings(500, 600, 10), break_camera)
         bench.camera.inject(None)
@@ -231,7 +233,7 @@ def test_a_camera_failure_closes_the_shutter_and_says_so(tmp_path, fault):
                                           ("no_reply", {"keywords": ("WAVE?",)})])
 def test_a_monochromator_fault_ends_the_sweep_with_the_shutter_closed(tmp_path, fault, params):
     with MonochromatorBench(frame_size=FRAME, timeout_s=0.2) as bench:
-        def break_it(sweep, event):
+        def break_it(_engine, _sweep, event):
             if event.step == 2:
                 bench.emulator.inject(fault, **params)
         with pytest.raises(MonochromatorError) as info:

@@ -6,8 +6,8 @@ import pytest
 from fault_rigs import CountingCamera, CountingSphere
 from light_record import FAST
 
-from dualrgb.app.sequences.shooter import Shooter
 from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.shooter import Shooter
 from dualrgb.drivers.virtual.lab import VirtualLab
 
 
@@ -27,4 +27,4 @@ def lab():
 @pytest.fixture()
 def shooter(lab, tmp_path):
     session = CaptureSession.create(tmp_path / "session", {"test": "light safety"})
-    return Shooter(lab.camera, lab.sphere, session, stand=lab.place, safety=FAST)
+    return Shooter(lab.camera, lab.sphere, session, safety=FAST)

@@ -65,6 +65,9 @@ class CountingSphere:
         period.exposure_done_at = time.monotonic()
         return True
 
+    def tripped(self) -> bool:
+        return False
+
     def off(self) -> None:
         self.calls.append(("off",))
         self.lit = False

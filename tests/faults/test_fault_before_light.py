@@ -13,10 +13,11 @@ from light_record import lit_spans
 from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
-from dualrgb.app.sequences.shooter import LightSafetyError
 from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.copystand import CopyStand, StandSettings, capture_queue
+from dualrgb.app.workflow.copystand import CopyStand, StandSettings
+from dualrgb.app.workflow.light_safety import LightSafetyError
 from dualrgb.app.workflow.metadata import Original
+from dualrgb.app.workflow.queue_run import capture_queue
 from dualrgb.common.atomic_files import InsufficientSpaceError
 
 LAB_SHAPE = (64, 96)            # the fault suite's virtual lab (tests/faults/conftest.py)

@@ -15,7 +15,6 @@ from fault_rigs import ROOT
 
 from dualrgb.app.demo import DemoSettings
 from dualrgb.app.sequences.calibration import DarkSeries
-from dualrgb.app.sequences.shooter import SafetySettings, Shooter
 from dualrgb.app.session import capture_session as session_mod
 from dualrgb.app.session.capture_session import MANIFEST, CaptureSession
 from dualrgb.app.session.manifest import (
@@ -25,6 +24,9 @@ from dualrgb.app.session.manifest import (
     SessionLockedError,
     light_definition,
 )
+from dualrgb.app.workflow.engine import RunEngine, StandDevices
+from dualrgb.app.workflow.light_safety import SafetySettings
+from dualrgb.app.workflow.shooter import Shooter
 from dualrgb.app.workflow.vocabulary import EventKind
 from dualrgb.common.atomic_files import InsufficientSpaceError
 from dualrgb.simulation.lightsource import LightSource
@@ -37,8 +39,15 @@ DEFINITION = {"mode": "reflective", "frame_size": [600, 400], "seed": 0,
 
 
 def shooter_for(session, rig) -> Shooter:
+    """The run engine's frame action (app.workflow.shooter) on the counting rig."""
     camera, sphere = rig
     return Shooter(camera, sphere, session, safety=SafetySettings(settle_s=0.0))
+
+
+def engine_for(session, rig) -> RunEngine:
+    camera, sphere = rig
+    return RunEngine("test", StandDevices(camera, sphere, session, stand=lambda _what, _nd: None),
+                     safety=SafetySettings(settle_s=0.0))
 
 
 def cli(*argv: str, timeout: float = 120) -> subprocess.CompletedProcess:
@@ -313,12 +322,14 @@ def test_sequence_larger_than_the_free_space_is_refused_before_any_shot(tmp_path
     camera.frame_size_bytes = 30 * 2**20
     usage = namedtuple("usage", "total used free")
     monkeypatch.setattr(shutil, "disk_usage", lambda _p: usage(2**40, 2**40 - 200 * 2**20, 200 * 2**20))
-    seq = DarkSeries(shooter_for(s, rig), [1 / 60, 1 / 125], frames=10)      # 20 x 30 MiB > 200 MiB
+    engine = engine_for(s, rig)
+    seq = DarkSeries(engine.facts, [1 / 60, 1 / 125], frames=10)      # 20 x 30 MiB > 200 MiB
     with pytest.raises(InsufficientSpaceError, match="dark series .*20 frames.* needs about") as info:
-        list(seq.run())
+        engine.run_plan(seq)
     assert str(s.path) in str(info.value) and camera.captures == 0 and sphere.calls == []
     camera.frame_size_bytes = 1 * 2**20
-    assert len([e for e in DarkSeries(shooter_for(s, rig), [1 / 60], frames=3).run() if e.kind is EventKind.FRAME]) == 3
+    events = engine.run_plan(DarkSeries(engine.facts, [1 / 60], frames=3))
+    assert len([e for e in events if e.kind is EventKind.FRAME]) == 3
 
 
 # ---- 10. strange manifest lines, interrupted creation ------------------------------------------------

@@ -6,16 +6,16 @@ from __future__ import annotations
 import pytest
 from light_record import LS1, lit_spans
 
-from dualrgb.app.sequences.shooter import SafetySettings, Shooter
 from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.light_safety import SafetySettings
+from dualrgb.app.workflow.shooter import Shooter
 
 
 @pytest.mark.fault("light safety")
 @pytest.mark.parametrize("exposure_s", [0.25, 1.0])
 def test_a_lit_exposure_lasts_its_time_on_the_emulators_clock(lab, tmp_path, exposure_s):
     session = CaptureSession.create(tmp_path / "s", {"test": "dose"})
-    shooter = Shooter(lab.camera, lab.sphere, session, stand=lab.place,
-                      safety=SafetySettings(settle_s=0.05, latency_s=0.5))
+    shooter = Shooter(lab.camera, lab.sphere, session, safety=SafetySettings(settle_s=0.05, latency_s=0.5))
     since = lab.emulator.clock()
     shooter.shoot("target", LS1.light, exposure_s, "dose/1")
     spans = lit_spans(lab.emulator, since)

@@ -1,7 +1,7 @@
 """The normal path, guarded (issue 9, "Must show"): over every sequence on the virtual lab (dark series, flats,
 auto-exposure, target capture, HDR metering + bracket, CRF sweep) the sphere emulator's own record shows light
 only while a frame is exposed (per frame at most exposure + settle + 0.2 s), dark between frames and at the end.
-Deleting the switch-off after each shot (app/sequences/shooter.py) makes this test fail."""
+Deleting the switch-off after each shot (app/workflow/shooter.py) makes this test fail."""
 from __future__ import annotations
 
 import pytest
@@ -11,33 +11,36 @@ from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, auto_expos
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.crf_sweep import CrfSweep
 from dualrgb.app.sequences.hdr import meter_and_plan
-from dualrgb.app.sequences.shooter import SafetySettings, Shooter
 from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.app.workflow.engine import RunEngine, StandDevices
+from dualrgb.app.workflow.light_safety import SafetySettings
 from dualrgb.app.workflow.vocabulary import Subject
 
 SETTLE_S = 0.05
 SLACK_S = 0.2           # issue 9: per frame, light on at most exposure + settle + 0.2 s
 
 
-def run_every_sequence(lab, shooter: Shooter) -> None:
-    list(DarkSeries(shooter, [1 / 60], frames=2).run())
-    exposures = {nl.name: auto_exposure(shooter, nl)[0] for nl in (LS1, LS2)}
-    list(FlatSeries(shooter, [LS1, LS2], {k: [t] for k, t in exposures.items()}, frames=1).run())
-    list(SubjectCapture(shooter, [LS1, LS2], {k: [t] for k, t in exposures.items()}, Subject.target("test")).run())
+def run_every_sequence(lab, engine: RunEngine) -> None:
+    facts = engine.facts
+    engine.run_plan(DarkSeries(facts, [1 / 60], frames=2))
+    exposures = {nl.name: engine.drive(auto_exposure(facts, nl))[0] for nl in (LS1, LS2)}
+    engine.run_plan(FlatSeries(facts, [LS1, LS2], {k: [t] for k, t in exposures.items()}, frames=1))
+    engine.run_plan(SubjectCapture(facts, [LS1, LS2], {k: [t] for k, t in exposures.items()}, Subject.target("test")))
     boxes = lab.scene_for("test", nd=True).patch_boxes()
-    plans = meter_and_plan(shooter, [LS1, LS2], exposures, Subject.target("test", nd=True), boxes)
-    list(SubjectCapture(shooter, [LS1, LS2], {k: p.exposures for k, p in plans.items()},
-                        Subject.target("test", nd=True)).run())
-    list(CrfSweep(shooter, LS1.light, levels=(1.0,), exposures=[1 / 500, 1 / 125, 1 / 30]).run())
+    plans = engine.drive(meter_and_plan(facts, [LS1, LS2], exposures, Subject.target("test", nd=True), boxes))
+    engine.run_plan(SubjectCapture(facts, [LS1, LS2], {k: p.exposures for k, p in plans.items()},
+                                   Subject.target("test", nd=True)))
+    engine.run_plan(CrfSweep(facts, LS1.light, levels=(1.0,), exposures=[1 / 500, 1 / 125, 1 / 30]))
 
 
 @pytest.mark.fault("light safety")
 def test_light_only_while_a_frame_is_exposed_over_every_sequence(lab, tmp_path):
     session = CaptureSession.create(tmp_path / "s", {"test": "normal path"})
-    shooter = Shooter(lab.camera, lab.sphere, session, stand=lab.place, safety=SafetySettings(settle_s=SETTLE_S))
+    engine = RunEngine("test", StandDevices(lab.camera, lab.sphere, session, lab.place),
+                       safety=SafetySettings(settle_s=SETTLE_S))
     t0 = lab.emulator.clock()
     first = len(lab.camera.exposure_log)
-    run_every_sequence(lab, shooter)
+    run_every_sequence(lab, engine)
     spans = lit_spans(lab.emulator, t0)
     exposures = lab.camera.exposure_log[first:]
     lit = [e for e in exposures if e.lit]

@@ -194,22 +194,26 @@ def test_the_framing_light_stays_within_its_cap_and_is_renewed(qtbot, make_windo
     qtbot.waitUntil(lambda: emulator.snapshot().light_on, timeout=LONG)
     qtbot.waitUntil(lambda: float(np.mean(cam.image.image)) > dark_view + 2.0, timeout=LONG)   # not black
     qtbot.waitUntil(lambda: "brightened" in cam.view_title.text(), timeout=LONG)   # shown brightened, said so
-    # the GUI stops renewing (as if it hung or died): the light goes off at the cap by itself
-    cam.framing._renew.stop()
+    # the host can no longer switch it off (its switch-offs unanswered, as if it hung or died): the light goes
+    # off at the cap by itself (the sphere's own ON <ms>), and the framing light stops, saying so
+    emulator.inject("ignore", keywords=["ALLOFF", "LIGHT"])
+    qtbot.waitUntil(lambda: not cam.framing.active, timeout=LONG)
     qtbot.waitUntil(lambda: not emulator.snapshot().light_on, timeout=LONG)
+    emulator.inject(None)
     record = [i for i in emulator.light_record() if i.t_on >= start]
     assert len(record) >= 4
     for interval in record:
         assert interval.t_off is not None and interval.duration_s <= cap + 0.05, interval
         assert max(interval.levels) <= MAX_FRAMING_LEVEL + 1e-4, interval
     assert sum(i.ended_by == "LIGHT 0" for i in record) >= 3          # renewed: switched off, then on again
+    assert record[-1].ended_by == "on-time limit"                      # the last one: by the sphere itself
     gaps = [b.t_on - a.t_off for a, b in zip(record, record[1:], strict=False) if a.ended_by == "LIGHT 0"]
     print(f"framing light: dark between renewed periods {1000 * min(gaps):.0f}-{1000 * max(gaps):.0f} ms")
     assert all(p.max_on_s == cap for p in cam.framing.periods)
-    click(qtbot, cam.live_button)                             # live view off: the framing light goes too
-    wait_idle(qtbot, w)
     assert not cam.framing.active and not cam.framing_box.check.isChecked()
     assert "framing light off" in cam.framing_box.state.text() and "lit periods" in cam.framing_box.state.text()
+    click(qtbot, cam.live_button)                             # live view off
+    wait_idle(qtbot, w)
     assert not emulator.snapshot().light_on and np.allclose(emulator.snapshot().levels, 0)
     dose = w.lab.last_status.get("dose")
     assert dose is not None and dose.on_s > 0                 # counted in the light dose (the status polls)

@@ -79,7 +79,9 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     click(qtbot, light.apply1)
     wait_idle(qtbot, w)
     emu = w.lab.virtual_lab.emulator
-    assert np.allclose(emu.commanded_levels(), item.preset.sources[0].weights(10), atol=1e-4)
+    assert w.lab.manual_light is not None                      # the levels 'Light ON' lights (a run of the engine)
+    assert np.allclose(w.lab.manual_light.weights(10), item.preset.sources[0].weights(10), atol=1e-4)
+    assert not emu.snapshot().light_on                         # applied, not lit
 
     # ---- a single picture with its histogram ----
     dog.phase = "a single picture with its histogram"

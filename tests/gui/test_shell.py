@@ -95,13 +95,14 @@ def test_presets_listed_and_applied_to_the_emulated_sphere(qtbot, make_window):
     qtbot.mouseClick(w.light.apply2, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.LeftButton)
     wait_idle(qtbot, w)
     want = item.preset.sources[1].weights(10)
-    got = w.lab.virtual_lab.emulator.commanded_levels()
-    assert np.allclose(got, want, atol=1e-4)
+    assert np.allclose(w.lab.manual_light.weights(10), want, atol=1e-4)       # the manual light's levels
     qtbot.mouseClick(w.light.on_button, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.LeftButton)
     wait_idle(qtbot, w)
     qtbot.waitUntil(lambda: w.lab.last_status.get("light_on") is True, timeout=HANG_GUARD_MS)
+    assert np.allclose(w.lab.virtual_lab.emulator.commanded_levels(), want, atol=1e-4)   # lit with them
     qtbot.mouseClick(w.light.off_button, __import__("PySide6.QtCore", fromlist=["Qt"]).Qt.LeftButton)
     wait_idle(qtbot, w)
+    qtbot.waitUntil(lambda: not w.runner.busy("light"), timeout=HANG_GUARD_MS)     # the light held by hand ends
     assert not w.lab.virtual_lab.emulator.snapshot().light_on
     assert w.errors.history == []
 

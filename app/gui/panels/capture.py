@@ -37,12 +37,12 @@ from dualrgb.app.gui.units import light_pct, parse_exposure, shutter
 from dualrgb.app.gui.widgets import PathLabel, side_by_side
 from dualrgb.app.sequences.base import Sequence
 from dualrgb.app.sequences.capture import SubjectCapture
-from dualrgb.app.sequences.shooter import SafetySettings
 from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.workflow.copystand import StandSettings, plans_only
 from dualrgb.app.workflow.defaults import workflow_defaults
 from dualrgb.app.workflow.engine import Run
-from dualrgb.app.workflow.folders import new_session as new_dated_session
+from dualrgb.app.workflow.folders import open_session
+from dualrgb.app.workflow.light_safety import SafetySettings
 from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
 from dualrgb.app.workflow.plans import StandPlanner, next_take, planned_steps, steps_done
 from dualrgb.app.workflow.vocabulary import NamedLight, SequenceKind, Subject, lights_of
@@ -240,10 +240,8 @@ class CapturePanel(QWidget):
                 **(meta or {})}
         lab = self.lab
 
-        def work() -> CaptureSession:
-            if folder is None:
-                return new_dated_session(root, info, lab.session_definition())
-            return CaptureSession.create(folder, info, definition=lab.session_definition())
+        def work() -> CaptureSession:            # app.workflow.folders.open_session: the one way
+            return open_session(folder, lab.session_definition(), meta=info, root=root)
         self.ctx.runner.submit(work, pool="devices", name="new session", on_result=self.lab.set_session,
                                on_error=lambda exc: self.ctx.errors.report("New session", exc))
 
@@ -253,8 +251,8 @@ class CapturePanel(QWidget):
         lab = self.lab
 
         def work() -> tuple[CaptureSession, int]:
-            session = CaptureSession.open(folder, definition=lab.session_definition(),
-                                          hint="connect the same camera and mode, or start a new session")
+            session = open_session(folder, lab.session_definition(), existing=True,
+                                   hint="connect the same camera and mode, or start a new session")
             return session, len(session.set_aside_damaged())
 
         def done(result: tuple[CaptureSession, int]) -> None:
@@ -335,7 +333,7 @@ class CapturePanel(QWidget):
         self.light_table.blockSignals(False)
         self.ws.set_base_exposures(self._table_exposures())
         self.hdr_plans = {}
-        if not isinstance(self.view.seq, Run):
+        if self.view.seq is None or self.view.seq.source is not None:
             self.update_plan()
 
     def _table_exposures(self) -> dict[str, float]:
@@ -375,13 +373,9 @@ class CapturePanel(QWidget):
         return self.ws.planned_exposures(self.lab.session)
 
     # ------------------------------------------------------------------ building sequences
-    def safety(self) -> SafetySettings:
-        latency = self.latency.value()
-        return SafetySettings(settle_s=self.settle.value(), latency_s=latency if latency > 0 else None)
-
     def stand_settings(self) -> StandSettings:
-        s = self.safety()
-        return StandSettings(settle_s=s.settle_s, latency_s=s.latency_s, max_on_s=s.max_on_s)
+        latency = self.latency.value()
+        return StandSettings(settle_s=self.settle.value(), latency_s=latency if latency > 0 else None)
 
     def plans(self) -> StandPlanner:
         """The single steps' plans only (nothing is touched): the camera's latency allowance, as the real one."""
@@ -506,7 +500,11 @@ class CapturePanel(QWidget):
         if isinstance(seq, SubjectCapture) and any(done):
             self._ask_reshoot(seq, done)
             return
-        self.view.start(seq, done)
+        self._run(seq, done)
+
+    def _run(self, seq: Sequence, done: list[bool] | None = None) -> None:
+        """Run one plan on the copy stand's run engine (app.gui.device_hub.Lab.plan_run)."""
+        self.view.start(self.lab.plan_run(seq, self.stand_settings()), done or [])
 
     def _ask_reshoot(self, seq: SubjectCapture, done: list[bool]) -> None:
         text = (f"The {seq.subject.label} is already in the session ({sum(done)} of {len(done)} frames). "
@@ -516,15 +514,16 @@ class CapturePanel(QWidget):
             if choice == RESHOOT:
                 session = self.lab.session
                 take = next_take(session, planned_steps(seq)) if session is not None else 1
-                self.view.start(self.build(self.planner(), take=take))
+                self._run(self.build(self.planner(), take=take))
             elif choice == KEEP:
-                self.view.start(seq, done)
+                self._run(seq, done)
         self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
     def cancel_running(self) -> None:
         self.view.cancel()
 
-    def _finished(self, seq, outcome: str) -> None:
+    def _finished(self, run: Run, outcome: str) -> None:
+        seq = run.source if run is not None else None         # the plan of a one-plan run; None: a calibration
         if isinstance(seq, AutoExposure) and seq.exposures:
             for name, t in seq.exposures.items():
                 self.set_exposure(name, t)
@@ -536,7 +535,7 @@ class CapturePanel(QWidget):
             self.hdr_label.setText(seq.summary())
         self._show_frames()
         self._update_enabled()
-        if not isinstance(seq, Run):       # a calibration run's ticked plan stays in view
+        if seq is not None:                # a calibration run's ticked plan stays in view
             self.update_plan()
         self.ctx.bus.sessionUpdated.emit()
         if outcome == "done" and getattr(seq, "name", "") == "open-gate flats":
@@ -555,7 +554,7 @@ class CapturePanel(QWidget):
             except ValueError as exc:
                 self.ctx.errors.report("Auto-exposure", exc)
                 return
-            self.view.start(seq)
+            self._run(seq)
         self.ctx.with_session(now, "the auto-exposure")
 
     def patch_boxes(self, target: str, nd: bool) -> list[tuple[int, int, int, int]]:
@@ -590,7 +589,7 @@ class CapturePanel(QWidget):
             except ValueError as exc:
                 self.ctx.errors.report("Plan HDR", exc)
                 return
-            self.view.start(seq)
+            self._run(seq)
         self.ctx.with_session(now, "the HDR metering")
 
     def shutdown(self) -> None:

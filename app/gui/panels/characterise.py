@@ -162,8 +162,7 @@ class CharacterisePanel(QWidget):
 
     def build(self, stand: StandPlanner) -> CrfSweep:
         """The sweep, built by the workflow on ``stand`` (app.workflow.plans.StandPlanner)."""
-        cam = self.lab.camera
-        speeds = cam.shutter_speeds() if cam is not None else None
+        speeds = stand.facts.shutters                      # the camera's, as the run engine read them
         exposures = [t for t in (speeds or _NIKON_THIRDS) if self.min_t.value() * 0.999 <= t <= self.max_t.value()]
         return stand.crf_sweep(self.chosen_light(), self.level_values(), exposures, self.min_t.value())
 
@@ -201,7 +200,7 @@ class CharacterisePanel(QWidget):
         self.crf_plot.clear()
         self.res_plot.clear()
         self.result_label.setText("")
-        self.view.start(self.sweep)
+        self.view.start(self.lab.plan_run(self.sweep, self.stand_settings()))
 
     def cancel_running(self) -> None:
         self.view.cancel()
@@ -222,7 +221,8 @@ class CharacterisePanel(QWidget):
         else:
             self._live_curves[lv].setData(t, s)
 
-    def _finished(self, seq, outcome: str) -> None:
+    def _finished(self, run, outcome: str) -> None:
+        seq = run.source if run is not None else None
         self.update_plan()
         if outcome != "done" or not isinstance(seq, CrfSweep):
             return

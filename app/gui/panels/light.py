@@ -123,7 +123,8 @@ class LightPanel(QWidget):
             self.spins.append(spin)
         buttons = QHBoxLayout()
         self.apply_button = QPushButton("Apply to sphere")
-        self.apply_button.setToolTip("Send these ten levels to the sphere (the light switch stays as it is).")
+        self.apply_button.setToolTip("These ten levels for the manual light: sent to the sphere at once while it is "
+                                     "on (the same lit period), else when you switch it on.")
         self.apply_button.clicked.connect(self.apply_levels)
         self.zero_button = QPushButton("All to 0")
         self.zero_button.setToolTip("Set every slider to 0 (press Apply to send).")
@@ -213,11 +214,11 @@ class LightPanel(QWidget):
         self.preset_info.setWordWrap(True)
         pb = QHBoxLayout()
         self.apply1 = QPushButton("Apply light 1")
-        self.apply1.setToolTip("Set the sphere to the preset's first light source (light stays off until you "
-                               "switch it on).")
+        self.apply1.setToolTip("The preset's first light source for the manual light (the light stays off until "
+                               "you switch it on).")
         self.apply1.clicked.connect(lambda: self.apply_preset(self.presets.currentItem(), 0))
         self.apply2 = QPushButton("Apply light 2")
-        self.apply2.setToolTip("Set the sphere to the preset's second light source.")
+        self.apply2.setToolTip("The preset's second light source for the manual light.")
         self.apply2.clicked.connect(lambda: self.apply_preset(self.presets.currentItem(), 1))
         self.save_button = QPushButton("Save levels as preset…")
         self.save_button.setToolTip("Save the current slider levels as a one-light preset in your presets folder.")

@@ -1,6 +1,6 @@
-"""Originals: the day's queue of artworks, prints and films, each captured with the current calibration and
-delivered at once (app.workflow.copystand.CopyStand.capture: metering, an HDR bracket only when metering asks,
-the archival TIFFs, sidecar and QA line).
+"""Originals: the day's queue of artworks, prints and films, captured with the current calibration and delivered
+in one run of the workflow's queue loop (app.workflow.queue_run.capture_queue, as ``capture --queue``: per
+original metering, an HDR bracket only when metering asks, the archival TIFFs, sidecar and QA line).
 
 Each row shows its state (waiting / capturing / captured / delivered / failed) and QA line; the delivered TIFF
 and its folder open from here, and the *Delivered* tab shows the selected original's spectral cube seen under a
@@ -47,7 +47,7 @@ from dualrgb.app.gui.stand_options import DeliveryOptions
 from dualrgb.app.gui.widgets import side_by_side
 from dualrgb.app.processing.masters import RESOLUTION_CHOICES
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
-from dualrgb.app.workflow.copystand import CaptureReport, StandSettings, original_takes
+from dualrgb.app.workflow.copystand import StandSettings, original_takes
 from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
 from dualrgb.app.workflow.day_file import restore_queue
 from dualrgb.app.workflow.defaults import SETTLE_S
@@ -56,7 +56,8 @@ from dualrgb.app.workflow.metadata import MODES, Original
 from dualrgb.app.workflow.mode_rule import mode_problem
 from dualrgb.app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
 from dualrgb.app.workflow.queue_plan import KEPT, plan_queue
-from dualrgb.app.workflow.vocabulary import EventKind, Role
+from dualrgb.app.workflow.queue_run import QUEUE_EVENT, QueueOutcome, capture_queue, original_plan
+from dualrgb.app.workflow.vocabulary import EventKind
 
 log = logging.getLogger(__name__)
 
@@ -77,10 +78,13 @@ class OriginalsPanel(QWidget):
         super().__init__(parent)
         self.ctx, self.lab, self.ws = ctx, ctx.lab, ctx.workspace
         self.current: QueueRow | None = None
-        self.batch: list[str] = []                  # identifiers still to capture in this batch
+        self.batch: list[str] = []                  # identifiers still to ask about before the run starts
+        self._chosen: list[str] = []                 # ... and those to capture in it
+        self._reshoot: dict[str, bool] = {}          # the technician's answers: re-shoot (True) or keep (False)
+        self._rows: list[QueueRow] = []              # the run's originals
         self.mode_overrides: set[str] = set()        # originals the technician chose to capture in another mode
         self.run: Run | None = None
-        self._brackets: dict[str, list[float]] = {}
+        self._brackets: dict[str, dict[str, list[float]]] = {}    # per original: each light's metered bracket
         self.view = SequenceView(ctx)
         self.view.start_button.hide()
         self.view.run_event.connect(self._run_event)
@@ -434,14 +438,18 @@ class OriginalsPanel(QWidget):
             self.capture(self.selected())
 
     def capture(self, identifiers: list[str]) -> None:
+        """Ask what must be decided before anything is lit (another mode, already in the session), then capture
+        and deliver the chosen originals in one run of the workflow's queue (app.workflow.queue_run)."""
         why = self._why_not(bool(self.ws.running))
         if why:
             self.ctx.errors.report("Capture originals", why)
             return
-        self.batch = list(identifiers)
-        self.ctx.with_session(self._next, "the originals")      # makes one when there is none
+        self.batch, self._chosen, self._reshoot = list(identifiers), [], {}
+        self.ctx.with_session(self._ask_next, "the originals")      # makes one when there is none
 
-    def _next(self) -> None:
+    def _ask_next(self) -> None:
+        """One question at a time (answered later); an original asked about returns to the batch when it is shot."""
+        session = self.lab.session
         while self.batch:
             ident = self.batch.pop(0)
             try:
@@ -450,13 +458,14 @@ class OriginalsPanel(QWidget):
                 continue
             if self._refused_mode(row):
                 return
-            session = self.lab.session
             takes = original_takes(session, row.original) if session is not None else []
-            if takes:
+            if takes and ident not in self._reshoot:
                 self._ask_reshoot(row, takes)
-            else:
-                self._start(row, None)
-            return
+                return
+            self._chosen.append(ident)
+        chosen, self._chosen = self._chosen, []
+        if chosen:
+            self._start([self.ws.queue.row(i) for i in chosen])
 
     def _refused_mode(self, row: QueueRow) -> bool:
         """The mode rule (app.workflow.mode_rule): an original of another mode than the calibration's is marked and
@@ -474,7 +483,7 @@ class OriginalsPanel(QWidget):
             if choice == OVERRIDE:
                 self.mode_overrides.add(row.identifier)
                 self.batch.insert(0, row.identifier)
-            self._next()
+            self._ask_next()
         self.ctx.asker.ask("Another mode than the calibration's", text, (OVERRIDE, LEAVE), answer, default=LEAVE)
         return True
 
@@ -485,84 +494,88 @@ class OriginalsPanel(QWidget):
 
         def answer(choice: str) -> None:
             if choice == CANCEL:
-                self.batch = []
+                self.batch, self._chosen = [], []
                 return
-            self._start(row, choice == RESHOOT)
+            self._reshoot[row.identifier] = choice == RESHOOT
+            self.batch.insert(0, row.identifier)
+            self._ask_next()
         self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
-    def _start(self, row: QueueRow, reshoot: bool | None) -> None:
+    def _start(self, rows: list[QueueRow]) -> None:
+        """One run: the workflow's queue loop (app.workflow.queue_run.capture_queue) on the copy stand."""
         profile, lab = self.ws.calibration, self.lab
-        forced = self.force.isChecked() or row.identifier in self.mode_overrides
-        settings = StandSettings(**self._stand_settings(), force=forced, original_frames=row.frames,
-                                 resolution=str(self.resolution.currentData()),
-                                 **self.delivery_options.stand_fields())
+        if profile is None:
+            self.ctx.errors.report("Capture originals", "no calibration is loaded: calibrate, or load one")
+            return
+        latency = self.ctx.get("capture/latency_s", 0.0, float)
+        settings = StandSettings(self.ctx.get("capture/settle_s", SETTLE_S, float), latency if latency > 0 else None,
+                                 force=self.force.isChecked(), mode_overrides=frozenset(self.mode_overrides),
+                                 resolution=str(self.resolution.currentData()), **self.delivery_options.stand_fields())
+        originals, reshoot = [r.original for r in rows], dict(self._reshoot)
+        frames, stand_ins = {r.identifier: r.frames for r in rows}, {r.identifier: r.stand_in for r in rows}
 
-        def work(hooks: RunHooks) -> CaptureReport:
-            stand = lab.copy_stand(settings, hooks, stand_in=row.stand_in)
-            return stand.capture(row.original, profile, reshoot=reshoot)
-        self.current = row
-        self._brackets = {}
-        row.state, row.qa = OriginalState.CAPTURING, ""
-        self.ws.queue_changed()
-        self.run = Run(row.identifier, self._plan(row, {}), work)
+        def work(hooks: RunHooks) -> list[QueueOutcome]:
+            stand = lab.copy_stand(settings, hooks, stand_in=stand_ins)
+            return capture_queue(stand, originals, profile, reshoot=reshoot, frames=frames)
+        self.current, self._rows, self._brackets = None, rows, {}
+        name = rows[0].identifier if len(rows) == 1 else f"{len(rows)} originals"
+        self.run = Run(name, self._plan(), work)
         self.view.start(self.run)
 
-    def _plan(self, row: QueueRow, brackets: dict[str, list[float]]) -> list[PlannedFrame]:
-        """Metering, then the original under each light: its base exposure until metering has planned how many
-        exposures it needs (the calibration's own exposures, as many as metering asks and it covers: CopyStand)."""
+    def _plan(self) -> list[PlannedFrame]:
+        """The queue's frames: each original's (app.workflow.queue_run.original_plan), with its HDR bracket once
+        metered."""
         profile = self.ws.calibration
         if profile is None:
-            raise ValueError("no calibration is loaded: calibrate, or load a calibration, before capturing")
-        plan = [PlannedFrame(Role.METERING.value, profile.base_exposures[nl.name], nl.light.label(),
-                             f"metering {row.identifier}") for nl in profile.lights]
-        for nl in profile.lights:
-            have = profile.exposures.get(nl.name, [])
-            times = have[:len(brackets[nl.name])] if nl.name in brackets else [profile.base_exposures[nl.name]]
-            note = row.identifier + ("" if brackets else " (more exposures when metering asks for HDR)")
-            plan += [PlannedFrame(Role.ORIGINAL.value, t, nl.light.label(), note)
-                     for t in times for _ in range(row.frames)]
-        return plan
-
-    def _stand_settings(self) -> dict:
-        g = self.ctx.get
-        latency = g("capture/latency_s", 0.0, float)
-        return {"settle_s": g("capture/settle_s", SETTLE_S, float), "latency_s": latency if latency > 0 else None}
+            return []
+        return [f for r in self._rows for f in original_plan(profile, r.identifier, r.frames,
+                                                             self._brackets.get(r.identifier))]
 
     def _run_event(self, ev: ProgressEvent) -> None:
+        if self.view.seq is not self.run or self.run is None:
+            return
+        what = ev.data.get(QUEUE_EVENT)
+        if what is not None:
+            self._queue_event(what, ev)
+            return
         row = self.current
-        if row is None or self.view.seq is not self.run:
+        if row is None:
             return
         if "exposures" in ev.data and "light" in ev.data:        # metering planned this light's exposures
-            self._brackets[ev.data["light"]] = list(ev.data["exposures"])
+            brackets = self._brackets.setdefault(row.identifier, {})
+            brackets[ev.data["light"]] = list(ev.data["exposures"])
             calibration = self.ws.calibration
-            if calibration is not None and len(self._brackets) == len(calibration.lights):
-                self.view.replan(self._plan(row, self._brackets))
+            if calibration is not None and len(brackets) == len(calibration.lights):
+                self.view.replan(self._plan())
         if ev.kind in (EventKind.FRAME, EventKind.KEPT) and ev.total and ev.step >= ev.total:
             row.state = OriginalState.CAPTURED              # every frame is in the session; delivering
             self.ws.queue_changed()
 
-    def _run_finished(self, run: Run, outcome: str) -> None:
-        row = self.current
-        if run is not self.run or row is None:
-            return
-        self.current = None
-        if outcome == "done" and run.result is not None:
-            report: CaptureReport = run.result
-            d = report.delivery
-            row.state, row.qa = OriginalState.DELIVERED, report.summary()
-            row.files, row.sidecar = dict(d.files), d.sidecar
-            row.warnings = list(report.check.warnings) + list(report.warnings)
-            self.view.message.setText(report.summary())
-        elif outcome == "cancelled":
-            row.state, row.qa = OriginalState.WAITING, "cancelled: its frames so far stay in the session"
-            self.batch = []
-        else:
-            row.state = OriginalState.FAILED
-            row.qa = self.ctx.errors.current[1] if self.ctx.errors.current else "failed"
+    def _queue_event(self, what: str, ev: ProgressEvent) -> None:
+        """The queue's own events (app.workflow.queue_run): an original starts, or it is delivered."""
+        row = self.ws.queue.row(ev.data["original"])
+        if what == "start":
+            self.current, row.state, row.qa = row, OriginalState.CAPTURING, ""
+        elif ev.data.get("outcome") is not None and ev.data["outcome"].report is not None:
+            row.delivered(ev.data["outcome"].report)
+            self.view.message.setText(row.qa)
+            self.current = None
         self.ws.queue_changed()
         self.ctx.bus.sessionUpdated.emit()
-        if outcome == "done":
-            self._next()
+
+    def _run_finished(self, run: Run, outcome: str) -> None:
+        if run is not self.run:
+            return
+        row, self.current = self.current, None
+        if row is not None and outcome == "cancelled":
+            row.state, row.qa = OriginalState.WAITING, "cancelled: its frames so far stay in the session"
+        elif row is not None and outcome != "done":
+            row.state = OriginalState.FAILED
+            row.qa = self.ctx.errors.current[1] if self.ctx.errors.current else "failed"
+        elif outcome == "done" and self._rows:
+            self.view.message.setText(self._rows[-1].qa)
+        self.ws.queue_changed()
+        self.ctx.bus.sessionUpdated.emit()
 
     def show_delivered(self, row: QueueRow) -> None:
         """The Delivered tab: ``row``'s cube under the chosen light (loaded in the compute pool)."""
