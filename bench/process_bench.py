@@ -30,8 +30,8 @@ EPOCH = "1767225600"
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1", "SOURCE_DATE_EPOCH": EPOCH}
 MACHINES = (10, 100)
 CORES_PER_MACHINE = 8                   # the paper model's assumed archive worker
-FS_GB_S = (0.5, 2.0)                    # a shared file system's aggregate read+write bandwidth: NFS on 10 GbE, a
-                                        # parallel file system (assumed; the local disk's measured figure is beside)
+FS_MB_S = (500, 2000)                   # a shared file system's aggregate read+write bandwidth, MB/s: NFS on 10 GbE,
+                                        # a parallel file system (assumed; the local disk's measured figure is beside)
 
 
 def _cli(*args: str, check: bool = True) -> subprocess.CompletedProcess:
@@ -143,10 +143,10 @@ def paper_model(task_cpu_s: float, bytes_per_original: int, n_originals: int = 1
     (CPU-s per original / all cores) and the I/O time (bytes read and written / the file system's bandwidth)."""
     rows = []
     for machines in MACHINES:
-        for gb_s in FS_GB_S:
+        for mb_s in FS_MB_S:
             compute = n_originals * task_cpu_s / (machines * CORES_PER_MACHINE)
-            io = n_originals * bytes_per_original / (gb_s * 1e9)
-            rows.append({"machines": machines, "cores": machines * CORES_PER_MACHINE, "fs_gb_s": gb_s,
+            io = n_originals * bytes_per_original / (mb_s * 1e6)
+            rows.append({"machines": machines, "cores": machines * CORES_PER_MACHINE, "fs_mb_s": mb_s,
                          "compute_h": round(compute / 3600, 2), "io_h": round(io / 3600, 2),
                          "hours": round(max(compute, io) / 3600, 2),
                          "bound_by": "file system" if io > compute else "compute"})

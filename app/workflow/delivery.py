@@ -282,9 +282,8 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
     previous set in ``<stem>/previous/``; a folder of another original is refused: app.workflow.delivery_folder).
     ``ppi``: the delivered files' sampling (None: the calibration's, at this resolution). ``truth``: the virtual
     lab's, compared in the sidecar and QA line. ``overrides``: rules the user overrode for it
-    (app.workflow.mode_rule), said in the sidecar and QA line. ``captured_at``: when the original was captured
-    (EXIF DateTimeOriginal; default now). ``cancel``: checked per band. ``now``: the time written into every file
-    (default: the clock or SOURCE_DATE_EPOCH; a re-delivery run passes its one time)."""
+    (app.workflow.mode_rule), said in the sidecar and QA line. ``captured_at``: the capture's time (EXIF; default
+    ``now``: the time written into every file, default common.clock's). ``cancel``: checked per band."""
     settings, illuminant = _request(profile, settings, render_illuminant)
     warnings = list(warnings or []) + ([] if all(nl.light.leds for nl in profile.lights) else [LIGHTS_UNKNOWN])
     ppi = ppi or delivered_ppi(profile, source.resolution)
@@ -292,8 +291,8 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
     spectral = SpectralPlan.of(profile, illuminant, settings.writes_spectral(source.resolution))
     if spectral is None:
         warnings.append(f"no spectral cube: calibration {profile.id} has no spectral estimator (calibrate again)")
-    now = now or output_time()
-    ctx = MasterContext(original, profile.id, camera, dose.lux_s, ppi, now, (captured_at or now).astimezone(),
+    ctx = MasterContext(original, profile.id, camera, dose.lux_s, ppi, (now := now or output_time()),
+                        (captured_at or now).astimezone(),
                         dict(exposures or {}), list(source.lights), settings, _processing(profile, source),
                         list(profile.white_xyz), profile)
     stem = original.file_stem

@@ -249,13 +249,16 @@ def test_reshoot_needs_asking_and_process_redelivers(day):
     assert f"PAINT-1: 0 new, {n} kept" in again.stdout
     shot = dualrgb(*base, "--reshoot")
     assert f"PAINT-1: {n} new, 0 kept" in shot.stdout
-    # the mode rule: no transmissive calibration for the film, so it is refused (listed, exit 1), the others done
-    r = dualrgb("process", str(root / "originals"), "--out", str(root / "again"), "--json", str(root / "p.json"),
-                ok=False)
+    # the calibration lies outside the session: never taken from its session.json, passed with --calibration
+    r = dualrgb("process", str(root / "originals"), "--out", str(root / "again"), ok=False)
+    assert r.returncode == 1 and "outside the session folder" in r.stderr and not (root / "again").exists()
+    # the mode rule: the reflective calibration does not take the film (refused, listed, exit 1), the others done
+    r = dualrgb("process", str(root / "originals"), "--calibration", cal["calibration"], "--out",
+                str(root / "again"), "--json", str(root / "p.json"), ok=False)
     done = json.loads((root / "p.json").read_text())
     assert {o["identifier"] for o in done["originals"]} == {"PAINT-1", "SHADOW-1"} and r.returncode == 1
-    assert done["refused"] == ["FILM-1: transmissive original, and no transmissive calibration (the session's: "
-                               "reflective); pass one with --calibration"]
+    assert len(done["refused"]) == 1 and done["refused"][0].startswith(
+        f"FILM-1: transmissive original, reflective calibration {cal['id']}: ")
     assert read_xmp(root / "again" / "SHADOW-1" / "SHADOW-1_XYZ_16bit.tif").identifier == "SHADOW-1"
     assert dualrgb("verify", str(root / "again")).returncode == 0
     r = dualrgb("process", str(root / "originals"), "--calibration", cal["calibration"], "--force", "--out",

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from import_folders import PATCHED, corners, make_folder
 
 from dualrgb.app.cli import build_parser
 
@@ -45,6 +46,7 @@ def stand(tmp_path_factory):
 
     root = tmp_path_factory.mktemp("json")
     (root / "queue.csv").write_text(QUEUE, encoding="utf-8")
+    make_folder(root / "shot", shape=PATCHED)                   # raw files "shot by another program" (import)
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "DUALRGB_DATA_DIR": str(root / "data")}
     emulator = SphereEmulator(watchdog_s=30)
     emulator.start()
@@ -62,6 +64,8 @@ def cases(port: str) -> dict[str, list[str]]:
         "verify": ["verify", "day"],
         "bag": ["bag", "day/deliverables", "--out", "bag"],
         "report": ["report", "day"],
+        "import": ["import", "shot/raw", "--roles", "shot/ROLES.csv", "--session", "imported", "--target-corners",
+                   f"train={corners(PATCHED)}", "--target-corners", f"test={corners(PATCHED)}"],
         "calibration show": ["calibration", "show", "CAL", "--virtual-lab", *FRAME],
         "devices": ["devices"],
         "sphere status": ["sphere", "--port", port, "status"],
@@ -100,6 +104,7 @@ def test_json_to_stdout_in_every_command(stand):
     assert docs["calibration show"]["check"]["refusals"] == []
     assert docs["verify"]["ok"] and docs["bag"]["originals"] == ["J-1"] and docs["cube"]["samples"] == 160
     assert docs["report"]["originals"][0]["identifier"] == "J-1" and docs["report"]["originals"][0]["problems"] == []
+    assert docs["import"]["originals"][0]["identifier"] == "ACC-1" and docs["import"]["copied"] == 14
 
 
 def test_queue_check_json_to_stdout(stand):
