@@ -25,6 +25,9 @@ OUTSIDE = {       # what still acts on a device outside the engine, and why
     "app/commands/sphere.py": "`dualrgb sphere`, the sphere's own device tool (set, apply, on with its cap, off): "
                               "its effect must outlast the command, so it is no run",
     "app/gui/panels/camera.py": "the Camera panel: settings, an unlit test shot and live view (the camera only)",
+    "app/interrupts.py": "the signal handler's safety net (issue 38): on SIGINT / SIGTERM / SIGHUP every open sphere "
+                         "is switched off and read back at once, whatever run is in progress, before the engine's "
+                         "own clean-up; it only ever switches off",
 }
 # method -> the words one of which the receiver's text must hold for the call to act on a device
 ACTIONS = {

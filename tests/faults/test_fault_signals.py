@@ -33,7 +33,7 @@ LINE = "dualrgb: interrupted; light off (read back); run the same command again 
 HARNESS = r"""
 import json, signal, subprocess, sys
 from dualrgb.app.cli import main
-from dualrgb.app.sequences.shooter import Shooter
+from dualrgb.app.workflow.shooter import Shooter
 from dualrgb.drivers.led_sphere.driver import LedSphere
 from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
 
