@@ -219,8 +219,8 @@ def write_images(source: ChannelSource, profile: CalibrationProfile, images: dic
     est = spectral.estimator if spectral is not None and "spectral" in streamed else None
     spec = (SpectralEncoder((H, W, N), est.matrix, est.bounds, spectral.rendering, offset=est.offset)
             if spectral is not None and est is not None else nullcontext())
-    with DeliveryEncoder((H, W, N), profile.matrix.matrix, profile.white_xyz,
-                         [images[k].space or "" for k in rgb_keys]) as enc, spec as cube_enc, \
+    with DeliveryEncoder((H, W, N), profile.matrix.matrix, profile.white_xyz, [images[k].space or "" for k in rgb_keys],
+                         degree=profile.matrix.degree) as enc, spec as cube_enc, \
             ThreadPoolExecutor(len(streamed), thread_name_prefix="deliver") as pool, ExitStack() as opened:
         out = {k: opened.enter_context(open_deliverable(im, H, W, meta, band_rows, pool, direct, profile.white_xyz))
                for k, im in streamed.items()}
