@@ -162,8 +162,10 @@ class MethodResult:
         """The statistics of :meth:`errors`."""
         return ErrorStats.of(self.errors(target))
 
-    def noise_gain(self) -> dict[str, float]:
-        return {k: round(float(v), 4) for k, v in zip("XYZ", self.matrix.noise_gain(), strict=True)}
+    def noise_gain(self) -> dict[str, float | str]:
+        """(X, Y, Z) noise gain at the white; 'inf' for an output the white does not reach (strict JSON)."""
+        return {k: round(float(v), 4) if np.isfinite(v) else "inf"
+                for k, v in zip("XYZ", self.matrix.noise_gain(), strict=True)}
 
     def to_dict(self) -> dict:
         return {"matrix": self.matrix.to_dict(), "train": self.train.to_dict(),
