@@ -329,12 +329,11 @@ def _evaluate(fits: dict[str, CharacterisationMatrix], train: tuple[np.ndarray, 
               test: tuple[np.ndarray | None, np.ndarray | None], white: np.ndarray,
               pixels: Mapping[str, Sequence[np.ndarray]] | None) -> dict[str, MethodResult]:
     """Every model's patch errors on train (and test), and per pixel where ``pixels`` has the target's."""
-    refs = {"train": train[1], "test": test[1]}
+    refs = {k: v for k, v in (("train", train[1]), ("test", test[1])) if v is not None}
     results = {}
     for name, m in fits.items():
         te = None if test[0] is None or test[1] is None else patch_errors(m, test[0], test[1], white)
-        px = {k: pixel_errors(m.apply, p, refs[k], white) for k, p in (pixels or {}).items()
-              if refs.get(k) is not None}
+        px = {k: pixel_errors(m.apply, p, refs[k], white) for k, p in (pixels or {}).items() if k in refs}
         results[name] = MethodResult(m, patch_errors(m, train[0], train[1], white), te, px)
     return results
 

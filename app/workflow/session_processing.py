@@ -205,15 +205,11 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     names = list(train_frames)
     proc = build_processor(frames, names, white_level=white_level, linear_limit=linear_limit,
                            progress=sub_progress(progress, 0.0, 0.15), cancel=cancel, mode=mode)
-    pixels: dict[str, list[np.ndarray]] = {"train": [], "test": []}
-    vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel,
-                                  pixels["train"])
+    pixels: dict[str, list[np.ndarray]] = {"train": [], "test": []}     # each patch's, for the per-pixel dE00
+    vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel, pixels["train"])
     channels = stack.channels
-    vs = ss = stack_t = None
-    if test is not None:
-        test_frames = select_lights(frames.subject(test.subject), names, exposures)
-        vs, ss, stack_t = sample_target(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel,
-                                        pixels["test"])
+    vs, ss, stack_t = _sample_test(proc, frames, test, names, exposures, sub_progress(progress, 0.4, 0.55), cancel,
+                                   pixels["test"])
     white = reference_white() if white_xyz is None else np.asarray(white_xyz, dtype=float)
     c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
                      optimise=optimise, pixels={k: v for k, v in pixels.items() if v},
@@ -233,6 +229,16 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names,
                          spectral, stand)
+
+
+def _sample_test(proc: CaptureProcessor, frames: SessionFrames, test: TargetSpec | None, names: Sequence[str],
+                 exposures: Mapping[str, Sequence[float]] | None, progress: ProgressCallback | None,
+                 cancel: CancelToken | None, pixels: list[np.ndarray]) -> tuple:
+    """The test target's (means, per-pixel sd, stack), or three None without one; ``pixels`` gets its patches'."""
+    if test is None:
+        return None, None, None
+    test_frames = select_lights(frames.subject(test.subject), names, exposures)
+    return sample_target(proc, test, test_frames, progress, cancel, pixels)
 
 
 def _stand_report(stand: StandResult | None, train: TargetSpec, out_dir: Path, channels: list[str]

@@ -299,7 +299,7 @@ def summary_lines(result: ObjectivesResult) -> list[str]:
 
     def pct(key: str) -> str:
         v, m = s.get(f"{key}_relative_error"), s.get(f"{key}_max_relative_error")
-        return "n/a" if v is None else f"{100 * v:.0f} % (max {100 * m:.0f} %)"
+        return "n/a" if v is None or m is None else f"{100 * v:.0f} % (max {100 * m:.0f} %)"
     lines += ["", f"Mean |predicted - captured| / captured ({result.capture}): training, noise-free "
                   f"{pct('noise_free_train')}, expected captured {pct('expected_train')}; per pixel, training "
                   f"{pct('per_pixel_train')}, test {pct('per_pixel_test')}."]
