@@ -68,8 +68,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                                         "detection for a 24-patch ColorChecker Classic otherwise)")
     add_chart_options(p)
     p.add_argument("--no-de-fit", action="store_true",
-                   help="least squares only (default: also the ΔE00-optimised matrix when resources/parsimony.json "
-                        "chose it)")
+                   help="leave the ΔE00-optimised matrix out (default: every model the processing delivers - least "
+                        "squares, ΔE00-optimised, root-polynomial 2 and 3 - 5-fold cross-validation on the training "
+                        "chart choosing with the one-standard-error rule)")
     p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
                    help="a stand folder (`dualrgb measure leds`): warn when the preset sets an LED below the "
                         "measured minimum stable level, where its output is not proportional to the level; its LED "

@@ -181,4 +181,7 @@ def test_preset_figures_are_what_simulate_reports_for_those_lights(mode, tmp_pat
                                                          best["expected_test_de00_mean"])
     recommended = preset_figures(load_preset(defaults.default_preset_path(mode)))
     assert recommended.train < fig.train and recommended.test < fig.test   # the default is the better choice
-    assert recommended.text() == f"expected ΔE00 {recommended.train:.2f} / {recommended.test:.2f}"
+    assert recommended.text() == (f"expected ΔE00 {recommended.train:.2f} / {recommended.test:.2f}, per pixel "
+                                  f"{recommended.pixel_test:.2f}")
+    assert fig.pixel_test is not None and round(fig.pixel_test, 4) == best["per_pixel_test_de00_mean"]
+    assert recommended.pixel_test is not None and recommended.pixel_test < fig.pixel_test    # per pixel too

@@ -104,8 +104,11 @@ def test_json_to_stdout_in_every_command(stand):
     assert models["root-polynomial-2"]["terms"] == 21 and models["root-polynomial-2"]["per_pixel_de00_mean"] > 0
     assert 1 < stats["condition_number"] < 1e3 and 1 < stats["condition_number_planned"] < 1e3
     assert docs["calibration show"]["statistics"]["models"] == stats["models"]
-    assert docs["capture"]["calibration"]["per_pixel_de00"]["test"] == stats["per_pixel_de00"]["test"]
     assert docs["capture"]["qa"]["calibration_test_per_pixel_de00"] == stats["per_pixel_de00"]["test"]
+    assert f"per pixel test {stats['per_pixel_de00']['test']['mean']:.2f}" in docs["capture"]["qa"]["text"]
+    sidecar = json.loads((root / docs["capture"]["sidecar"]).read_text(encoding="utf-8"))
+    assert sidecar["calibration"]["per_pixel_de00"] == {k: stats["per_pixel_de00"][k] for k in ("train", "test")}
+    assert sidecar["calibration"]["model"]["method"] == stats["best"] and sidecar["calibration"]["noise_gain"]
     assert docs["capture"]["original"]["identifier"] == "J-1" and docs["process"]["originals"]
     assert docs["calibration show"]["check"]["refusals"] == []
     assert docs["verify"]["ok"] and docs["bag"]["originals"] == ["J-1"] and docs["cube"]["samples"] == 160
