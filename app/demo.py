@@ -205,6 +205,14 @@ def _predictions(ev, W: np.ndarray, de_matrix: bool | None) -> dict:
     return out
 
 
+def _planned_condition(lights: list, mode: str) -> float | str:
+    """The lights' condition number from the camera model (app.workflow.preflight), as the plan checks it."""
+    from dualrgb.app.workflow.preflight import light_set_conditioning
+
+    cond, _ = light_set_conditioning(lights, mode)
+    return round(cond, 2) if np.isfinite(cond) else "inf"
+
+
 class DemoRun:
     """State of one demo run; ``run()`` returns the report dict. Capture and processing go through the copy-stand
     workflow (app.workflow): the same sequences, subjects and ``process_session`` as the GUI and the CLI."""
@@ -378,7 +386,9 @@ class DemoRun:
                  "matrix_method": ch.best,
                  "methods": {k: {"train": v.train.mean, "test": v.stats("test").mean} for k, v in ch.results.items()},
                  "per_pixel": {k: {"mean": v.mean, "p90": v.p90} for k, v in best.pixels.items()},
-                 "models": ch.model_table(),
+                 "models": ch.model_table(), "noise_gain": best.noise_gain(),
+                 "condition_number": ch.to_dict()["condition_number"],
+                 "condition_number_planned": _planned_condition(c.lights, self.s.mode),
                  "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]} for nl in c.lights],
                  "report": str(res.files["report"]), "figures": res.report.get("figures", []),
                  "quality": quality_summary(res.report["quality"]),
