@@ -6,7 +6,8 @@ needs (simulation.studies.noise: open gate's brightest channel at 80 % of the li
 camera's shutter speeds); app.processing.pipeline.CaptureProcessor subtracts the darks, flat-fields (eq 7.1)
 and stacks the lights' superpixel RGBs; app.processing.patches.PatchGrid takes trimmed patch means at the
 scene's patch positions; a least-squares characterisation is fitted on the captured training target and
-evaluated (float64 CIEDE2000) on the captured training and test targets.
+evaluated (float64 CIEDE2000) on the captured training and test targets, as patch means and per pixel (the matrix
+applied to each superpixel of each patch, simulation.pixel_error).
 
 Used by ``dualrgb study stability`` to check which objective predicts the captured error (it lives in app/
 because it drives drivers/ and app.processing, which simulation/ must not import).
@@ -24,13 +25,16 @@ from dualrgb.drivers.virtual.scene import Scene
 from dualrgb.simulation.colorimetry import delta_e_2000, tristimulus, white_point, xyz_to_lab
 from dualrgb.simulation.datasets import SimulationSetup
 from dualrgb.simulation.matrix_fit import fit_matrix
+from dualrgb.simulation.pixel_error import pixel_errors
 
 log = logging.getLogger(__name__)
 
 
 def capture_patch_values(setup: SimulationSetup, W: np.ndarray, exposures_s: np.ndarray, *, width: int = 600,
-                         height: int = 400, dark_frames: int = 4, seed: int = 0) -> dict[str, np.ndarray]:
-    """Flat-fielded patch means (n, 3L) of the training and test targets under light set W (L, K)."""
+                         height: int = 400, dark_frames: int = 4, seed: int = 0,
+                         pixels: dict[str, list[np.ndarray]] | None = None) -> dict[str, np.ndarray]:
+    """Flat-fielded patch means (n, 3L) of the training and test targets under light set W (L, K); ``pixels``,
+    when given, gets each target's per-patch (m, 3L) superpixels."""
     state = StaticLight(np.zeros(W.shape[1]))
     cam = VirtualCamera(lambda: state, Scene.lens_cap(width, height), mode=setup.mode, grid=setup.grid, seed=seed)
     cam.open()
@@ -57,7 +61,7 @@ def capture_patch_values(setup: SimulationSetup, W: np.ndarray, exposures_s: np.
     level = hdr_log.level
     hdr_log.setLevel(logging.ERROR)       # hot pixels in long exposures trigger its "exceed the linear limit"
     try:
-        return _process(setup, lights, darks, whites, frames, scenes, sensor)
+        return _process(setup, lights, darks, whites, frames, scenes, sensor, pixels)
     finally:
         hdr_log.setLevel(level)
 
@@ -89,7 +93,7 @@ def _patch_grid(scene: Scene) -> PatchGrid:
     return PatchGrid(corners, rows, cols, GRID_FRACTION)
 
 
-def _process(setup, lights, darks, whites, frames, scenes, sensor) -> dict[str, np.ndarray]:
+def _process(setup, lights, darks, whites, frames, scenes, sensor, pixels=None) -> dict[str, np.ndarray]:
     proc = CaptureProcessor(dark_frames=darks, white_level=sensor.white_level, black_level=sensor.black_level,
                             cfa="RGGB", mode=setup.mode)
     for name in lights:
@@ -97,24 +101,35 @@ def _process(setup, lights, darks, whites, frames, scenes, sensor) -> dict[str, 
     out = {}
     for key, scene in scenes.items():
         stack = proc.stack(frames[key])
-        out[key] = _patch_grid(scene).sample(stack.data).mean[:scene.n_patches]
+        grid = _patch_grid(scene)
+        out[key] = grid.sample(stack.data).mean[:scene.n_patches]
+        if pixels is not None:
+            from dualrgb.app.workflow.session_processing import patch_pixels
+
+            pixels[key] = patch_pixels(grid, stack.data, range(scene.n_patches))
     return out
 
 
 def captured_errors(setup: SimulationSetup, W: np.ndarray, exposures_s: np.ndarray, *, repeats: int = 2,
                     width: int = 600, height: int = 400, dark_frames: int = 4, seed: int = 0) -> dict:
-    """Mean dE00 of ``repeats`` virtual-lab captures (fit on the captured training target)."""
+    """Mean dE00 of ``repeats`` virtual-lab captures (fit on the captured training target), as patch means and
+    per pixel (``per_pixel_*``: the matrix on each superpixel; mean, and the test chart's p90)."""
     white = white_point(setup.illuminant, setup.cmfs)
     xyz = {k: tristimulus(t.spectra, setup.illuminant, setup.cmfs) for k, t in (("train", setup.train),
                                                                                ("test", setup.test))}
-    tr: list[float] = []
-    te: list[float] = []
+    acc: dict[str, list[float]] = {k: [] for k in ("train", "test", "per_pixel_train", "per_pixel_test",
+                                                     "per_pixel_test_p90")}
     for r in range(repeats):
+        pixels: dict[str, list[np.ndarray]] = {}
         v = capture_patch_values(setup, W, exposures_s, width=width, height=height, dark_frames=dark_frames,
-                                 seed=seed * 1000 + r)
+                                 seed=seed * 1000 + r, pixels=pixels)
         A = fit_matrix(v["train"], xyz["train"])
-        for key, acc in (("train", tr), ("test", te)):
-            acc.append(float(delta_e_2000(xyz_to_lab(xyz[key], white), xyz_to_lab(A.apply(v[key]), white)).mean()))
-    return {"train": float(np.mean(tr)), "test": float(np.mean(te)), "train_sd": float(np.std(tr)),
-            "test_sd": float(np.std(te)), "repeats": repeats, "frame": [width, height],
+        for key in ("train", "test"):
+            acc[key].append(float(delta_e_2000(xyz_to_lab(xyz[key], white), xyz_to_lab(A.apply(v[key]), white)).mean()))
+            px = pixel_errors(A.apply, pixels[key], xyz[key], white)
+            acc[f"per_pixel_{key}"].append(px.mean)
+            if key == "test":
+                acc["per_pixel_test_p90"].append(px.p90)
+    return {**{k: float(np.mean(v)) for k, v in acc.items()}, "train_sd": float(np.std(acc["train"])),
+            "test_sd": float(np.std(acc["test"])), "repeats": repeats, "frame": [width, height],
             "dark_frames": dark_frames}

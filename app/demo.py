@@ -174,23 +174,45 @@ def make_conditions(settings: DemoSettings, progress: ProgressCallback | None = 
 
 def _predictions(ev, W: np.ndarray, de_matrix: bool | None) -> dict:
     """What the optimiser predicts for a light set, per characterisation the processing may deliver: the
-    expected captured error of the least-squares matrix (the objective) and, with the dE00-optimised matrix,
-    that minus the matrix's noise-free gain (fitted on the noise-free simulated training values); and the
-    noise-free figures beside them."""
-    from dualrgb.app.processing.characterise import DE2000, LEAST_SQUARES, fit_de2000
+    expected captured error of the least-squares matrix (the objective) and, for the dE00-optimised matrix and the
+    root-polynomials, that minus the model's noise-free gain over least squares (fitted on the noise-free simulated
+    training values); the noise-free figures beside them, and the least-squares matrix per pixel (``per_pixel``:
+    mean and p90 of one pixel of each patch, simulation.expected_error)."""
+    from dualrgb.app.processing.characterise import (
+        DE2000,
+        LEAST_SQUARES,
+        ROOT_POLYNOMIAL_2,
+        ROOT_POLYNOMIAL_3,
+        fit_de2000,
+    )
     from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
+    from dualrgb.simulation.matrix_fit import fit_root_polynomial
 
     tr, te = ev.stats(W)
     etr, ete = ev.expected_stats(W)
+    px = ev.pixel_stats(W)
     out = {LEAST_SQUARES: {"train": round(etr.mean, 4), "test": round(ete.mean, 4)},
-           "noise_free": {"train": round(tr.mean, 4), "test": round(te.mean, 4)}}
+           "noise_free": {"train": round(tr.mean, 4), "test": round(te.mean, 4)},
+           "per_pixel": {k: {"mean": px[k]["mean"], "p90": px[k]["p90"]} for k in ("train", "test")}}
+    values = {k: ps.camera_values(W) for k, ps in (("train", ev.train), ("test", ev.test))}
+    fits = {ROOT_POLYNOMIAL_2: lambda: fit_root_polynomial(values["train"], ev.train.xyz, 2),
+            ROOT_POLYNOMIAL_3: lambda: fit_root_polynomial(values["train"], ev.train.xyz, 3)}
     if de_matrix is not False:
-        values = {k: ps.camera_values(W) for k, ps in (("train", ev.train), ("test", ev.test))}
-        A = fit_de2000(values["train"], ev.train.xyz, ev.train.white).matrix
-        gain = {k: float(e.mean) - float(delta_e_2000(ps.lab, xyz_to_lab(values[k] @ A, ps.white)).mean())
+        fits[DE2000] = lambda: fit_de2000(values["train"], ev.train.xyz, ev.train.white)
+    for name, fit in fits.items():
+        model = fit()
+        gain = {k: float(e.mean) - float(delta_e_2000(ps.lab, xyz_to_lab(model.apply(values[k]), ps.white)).mean())
                 for k, e, ps in (("train", tr, ev.train), ("test", te, ev.test))}
-        out[DE2000] = {"train": round(etr.mean - gain["train"], 4), "test": round(ete.mean - gain["test"], 4)}
+        out[name] = {"train": round(etr.mean - gain["train"], 4), "test": round(ete.mean - gain["test"], 4)}
     return out
+
+
+def _planned_condition(lights: list, mode: str) -> float | str:
+    """The lights' condition number from the camera model (app.workflow.preflight), as the plan checks it."""
+    from dualrgb.app.workflow.preflight import light_set_conditioning
+
+    cond, _ = light_set_conditioning(lights, mode)
+    return round(cond, 2) if np.isfinite(cond) else "inf"
 
 
 class DemoRun:
@@ -368,6 +390,10 @@ class DemoRun:
                                "noise_free_test": c.simulated["noise_free"]["test"], "per_matrix": c.simulated},
                  "matrix_method": ch.best,
                  "methods": {k: {"train": v.train.mean, "test": v.stats("test").mean} for k, v in ch.results.items()},
+                 "per_pixel": {k: {"mean": v.mean, "p90": v.p90} for k, v in best.pixels.items()},
+                 "models": ch.model_table(), "noise_gain": best.noise_gain(),
+                 "condition_number": ch.to_dict()["condition_number"],
+                 "condition_number_planned": _planned_condition(c.lights, self.s.mode),
                  "lights": [{"name": nl.name, **nl.light.to_dict(), "exposures_s": ts[nl.name]} for nl in c.lights],
                  "report": str(res.files["report"]), "figures": res.report.get("figures", []),
                  "quality": quality_summary(res.report["quality"]),

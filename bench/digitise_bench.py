@@ -22,6 +22,10 @@ darks). Each measurement runs in a fresh process (peak RSS = ru_maxrss):
                   fixity costs in the pipelined delivery; the sidecar then holds no digests)
   cube_on_demand  ``dualrgb cube``: the full-resolution delivery's cube (ENVI) made from its camera-RGB TIFFs
   full_stages     where the full-resolution delivery's CPU time goes, stage by stage, single-threaded
+  models          the demosaic + colour encodings of every band (DeliveryEncoder.encode_mosaic), single-threaded,
+                  with each characterisation model the calibration may deliver: the linear matrix (least squares
+                  or dE00-optimised), root-polynomial degree 2 (21 terms) and 3 (71 terms) (issue 40): CPU seconds
+                  and ns per delivered pixel, and what each adds over the linear matrix
 
 Targets (issue 31): full <= 2.0 x decode at 24 MP; at 150 MP (``--size 14204x10652``) peak RSS <= 4 GB and time
 per pixel within 1.3 x of the 24 MP case. Loading the profile and the numba kernels happen before the capture
@@ -320,6 +324,48 @@ def _child_stages(folder: str) -> dict:
     return {"seconds": total, "cpu_s": total, "stages_cpu_s": out}
 
 
+def _child_models(folder: str) -> dict:
+    """CPU seconds of the one-pass demosaic + colour encodings of a full-resolution original, single-threaded, with
+    each delivered model (the bench profile's linear matrix, and root-polynomials of degree 2 and 3 whose linear
+    rows are that matrix): the per-pixel cost of each model."""
+    sys.path.insert(0, str(ROOT))
+    from dualrgb.app.processing.demosaic import HALO
+    from dualrgb.app.processing.encode import DeliveryEncoder
+    from dualrgb.app.processing.pipeline import ExposureRef
+    from dualrgb.app.workflow.copystand import begin_channels, profile_processor
+    from dualrgb.simulation.colour_models import n_terms
+
+    prof = _ready(Path(folder))
+    builder = begin_channels(profile_processor(prof), [nl.name for nl in prof.lights], "full")
+    for light, path, t in _scene_frames(Path(folder)):
+        builder.add(light, ExposureRef(path, t, path.name))
+    stack = builder.result(threads=1)
+    H, W = stack.shape
+    mosaics = [stack.mosaic_band(r0, min(64, H - r0)).copy() for r0 in range(0, H, 64)]   # read once (streamed)
+    cfa = stack.cfa_index
+    stack.close()
+    bands = [np.empty((64, W, 3), np.uint16) for _ in range(5)]
+    out: dict = {}
+    for name, degree in (("linear", 1), ("root-polynomial-2", 2), ("root-polynomial-3", 3)):
+        A = np.zeros((n_terms(6, degree), 3))
+        A[:6] = prof.matrix.matrix[:6] if prof.matrix.degree == 1 else 0.0
+        A[6:] = 0.01 * A[:6].mean()                      # the cost does not depend on the values
+        enc = DeliveryEncoder((H, W, 6), A, prof.white_xyz, ["ProPhoto RGB", "sRGB"], threads=1, degree=degree)
+        spent = 0.0
+        for r0, mosaic in zip(range(0, H, 64), mosaics, strict=True):
+            rows = min(64, H - r0)
+            c0 = cpu_s()
+            enc.encode_mosaic(r0, bands[0][:rows], [b[:rows] for b in bands[1:3]], [b[:rows] for b in bands[3:5]],
+                              mosaic=mosaic, p0=HALO, cfa=cfa)
+            spent += cpu_s() - c0
+        enc.close()
+        out[name] = {"cpu_s": spent, "ns_per_pixel": 1e9 * spent / (H * W), "terms": int(A.shape[0])}
+    for row in out.values():
+        row["over_linear_ns_per_pixel"] = row["ns_per_pixel"] - out["linear"]["ns_per_pixel"]
+    total = sum(r["cpu_s"] for r in out.values())
+    return {"seconds": total, "cpu_s": total, "models_cpu": out, "delivered_pixels": H * W}
+
+
 def _render_cost(prof, H: int, W: int, band: np.ndarray) -> float:
     """CPU seconds of the spectral rendering under A for every band of an H x W image (a delivered band's values):
     what a full-resolution delivery would add with its rendering as a file."""
@@ -355,6 +401,8 @@ def _run_child(kind: str, folder: Path) -> dict:
         return run_in_child("bench.digitise_bench", "_child_cube", str(folder))
     if kind == "full_stages":
         return run_in_child("bench.digitise_bench", "_child_stages", str(folder))
+    if kind == "models":
+        return run_in_child("bench.digitise_bench", "_child_models", str(folder))
     resolution = "half" if kind == "half" else "full"
     return run_in_child("bench.digitise_bench", "_child_digitise", str(folder), resolution,
                         kind != "full_all_frames", "", kind != "full_without_sha256")
@@ -388,7 +436,7 @@ def bench_digitise(height: int = D610[1], width: int = D610[0], cache: str | Non
     run_in_child("bench.digitise_bench", "_child_warm")
     kinds = kinds or (["decode", "full"] if large else ["decode", "full", "full_without_sha256", "half", "libraw",
                                                        "full_all_frames",
-                                                       "cube_on_demand", "full_stages"])
+                                                       "cube_on_demand", "full_stages", "models"])
     runs: dict[str, list[dict]] = {k: [] for k in kinds}
     loads = [os.getloadavg()[0]]
     for _ in range(repeats):                      # interleaved, so load from other processes hits all alike
@@ -408,6 +456,8 @@ def _summary(runs: dict[str, list[dict]], width: int, height: int, repeats: int,
             continue
         entry = {"seconds": round(r["seconds"], 3), "vs_decode": round(r["seconds"] / dec, 2),
                  "cpu_s": round(r["cpu_s"], 3), "peak_rss_mb": round(max(x["peak_rss_mb"] for x in runs[kind]))}
+        if "models_cpu" in r:
+            entry["models_cpu"] = {k: {m: round(v, 3) for m, v in row.items()} for k, row in r["models_cpu"].items()}
         for extra in ("deliverables_bytes", "phases_s", "cube_bytes", "deflate_ratio", "deflate_mb_s", "stages_cpu_s"):
             if extra in r:
                 entry[extra] = ({k: round(v, 3) for k, v in r[extra].items()} if extra in ("phases_s", "stages_cpu_s")

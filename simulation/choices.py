@@ -5,7 +5,7 @@ from __future__ import annotations
 
 MODES = ("reflective", "transmissive")                     # reflective targets or film (transmissive), thesis 5.2
 METHODS = ("halving", "exhaustive", "pso", "ga", "three-channel")   # simulation.runner.run; first = default
-COLOUR_OBJECTIVES = ("expected-captured", "noise-free", "robust")  # mean dE00 objectives; first = default
+COLOUR_OBJECTIVES = ("expected-captured", "noise-free", "robust", "expected-per-pixel")   # mean dE00; first = default
 SPECTRAL_OBJECTIVES = ("spectral", "mixed")                        # expected spectral RMSE, dE00 + weight x RMSE
 OBJECTIVES = COLOUR_OBJECTIVES + SPECTRAL_OBJECTIVES               # simulation.runner.make_evaluator
 DEFAULT_SPECTRAL_WEIGHT = 0.1    # mixed: mean dE00 + weight x 100 x RMSE (1 % RMSE costs as much as 0.1 dE00)

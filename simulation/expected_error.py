@@ -49,10 +49,12 @@ from dualrgb.simulation.datasets import SimulationSetup, Target, target_xyz
 from dualrgb.simulation.fast_expected import mean_expected_de2000, prepare_expected
 from dualrgb.simulation.matrix_fit import solve_normal_equations
 from dualrgb.simulation.objective import ErrorStats, Evaluator, check_kernel_batch, kernel_threads
+from dualrgb.simulation.pixel_error import PixelErrors, pixel_errors
 
 log = logging.getLogger(__name__)
 
 _DELTA = 6.0 / 29.0
+PIXEL_SAMPLES = 512           # pixels drawn per patch for the per-pixel figures (p90 within ~0.02 dE00)
 
 
 def lab_jacobian(xyz: np.ndarray, white: np.ndarray) -> np.ndarray:
@@ -233,35 +235,53 @@ class ExpectedErrorModel:
         var = 2 * np.einsum("Bnab,Bnba->Bn", QS, QS) + 4 * np.einsum("Bna,Bnab,nbc,Bnc->Bn", b, QS, terms.Q, b)
         return s, var
 
-    def train_errors(self, W: np.ndarray, fit: dict | None = None) -> Expected:
+    def train_errors(self, W: np.ndarray, fit: dict | None = None, *, pixel: bool = False) -> Expected:
         """Expected captured training dE00 per patch (fit and errors on the same captured target); W (B, L, K)
-        the LEDs' outputs (:meth:`emitted`)."""
+        the LEDs' outputs (:meth:`emitted`); ``pixel``: of one pixel of each patch (the fit still on the patch
+        means), as a delivered image is judged."""
+        pred, m, Sigma = self.train_distribution(W, fit, pixel=pixel)
+        tr = self.terms["train"]
+        s, var = self._spread(Sigma, pred - tr.xyz, tr)
+        return Expected(expected_norm(m * m, s, var), m)
+
+    def train_distribution(self, W: np.ndarray, fit: dict | None = None, *, pixel: bool = False
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The captured training prediction per patch: its mean XYZ (B, n, 3), that mean's dE00 (B, n) and the
+        covariance of its error (B, n, 3, 3), of a patch mean or (``pixel``) of one pixel."""
         W = np.asarray(W, dtype=float)
         f = fit or self.fit(W)
         tr = self.terms["train"]
         V, s2, A, Pinv = f["V"], f["s2"], f["A"], f["Pinv"]
         pred = np.einsum("bnc,bca->bna", V, A)
         m = delta_e_2000(tr.lab, xyz_to_lab(pred, self.white))
-        Sigma = np.einsum("bnc,bca,bcd->bnad", s2, A, A) + tr.ref_cov
+        one = tr.pixels if pixel else 1.0             # a pixel's variance: the patch mean's times its pixels
+        Sigma = np.einsum("bnc,bca,bcd->bnad", s2 * one, A, A) + tr.ref_cov
         if self.capture.drift_sd_nm > 0:
             dV = self._drift_directions(W, "train")                                      # (B, L, K, n, p)
             dVA = np.einsum("blknc,bca->blkna", dV, A)
             U = np.einsum("bcd,bnd,blkna->blkca", Pinv, V, dVA)                          # (V^T V + D)^-1 V^T dV A
             e = dVA - np.einsum("bnc,blkca->blkna", V, U)
             Sigma = Sigma + self.capture.drift_sd_nm**2 * np.einsum("blkna,blknd->bnad", e, e)
-        s, var = self._spread(Sigma, pred - tr.xyz, tr)
-        return Expected(expected_norm(m * m, s, var), m)
+        return pred, m, Sigma
 
-    def test_errors(self, W: np.ndarray, fit: dict | None = None) -> Expected:
+    def test_errors(self, W: np.ndarray, fit: dict | None = None, *, pixel: bool = False) -> Expected:
         """Expected captured test dE00 per patch: the test target captured on its own, the fit from the
         captured training target (its noise and drift reach the test predictions through the matrix); W (B, L, K)
-        the LEDs' outputs (:meth:`emitted`)."""
+        the LEDs' outputs (:meth:`emitted`); ``pixel``: of one pixel of each test patch."""
+        pred, m, Sigma = self.test_distribution(W, fit, pixel=pixel)
+        te = self.terms["test"]
+        s, var = self._spread(Sigma, pred - te.xyz, te)
+        return Expected(expected_norm(m * m, s, var), m)
+
+    def test_distribution(self, W: np.ndarray, fit: dict | None = None, *, pixel: bool = False
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As :meth:`train_distribution`, for the test target (:meth:`test_errors`)."""
         W = np.asarray(W, dtype=float)
         f = fit or self.fit(W)
         tr, te = self.terms["train"], self.terms["test"]
         V, s2, A, Pinv = f["V"], f["s2"], f["A"], f["Pinv"]
         Vt = self.values(W, "test")
-        s2t = self.variances(Vt, self.noise_coefficients(W, "test"))
+        s2t = self.variances(Vt, self.noise_coefficients(W, "test")) * (te.pixels if pixel else 1.0)
         pred = np.einsum("bnc,bca->bna", Vt, A)
         m = delta_e_2000(te.lab, xyz_to_lab(pred, self.white))
         g = np.einsum("bnc,bcd->bnd", Vt, Pinv)                                  # (B, n_test, p)
@@ -281,8 +301,21 @@ class ExpectedErrorModel:
             f_ = np.einsum("bnc,blkca->blkna", Vt, U)
             Sigma = Sigma + self.capture.drift_sd_nm**2 * (np.einsum("blkna,blknd->bnad", dVA_t, dVA_t)
                                                           + np.einsum("blkna,blknd->bnad", f_, f_))
-        s, var = self._spread(Sigma, pred - te.xyz, te)
-        return Expected(expected_norm(m * m, s, var), m)
+        return pred, m, Sigma
+
+    def pixel_errors(self, W: np.ndarray, captured: bool = False, samples: int = PIXEL_SAMPLES,
+                     seed: int = 0) -> dict[str, PixelErrors]:
+        """Per-pixel dE00 of one light set W (L, K) of levels (as :meth:`expected`) on both targets: per patch the
+        mean and 90th percentile over ``samples`` pixels drawn from the one-pixel prediction's Gaussian
+        (:meth:`train_distribution`) through the exact CIEDE2000 (simulation.pixel_error)."""
+        We = self.emitted(np.asarray(W, dtype=float)[None], captured)
+        f = self.fit(We)
+        rng = np.random.default_rng(seed)
+        out = {}
+        for which, dist in (("train", self.train_distribution), ("test", self.test_distribution)):
+            pred, _, Sigma = dist(We, f, pixel=True)
+            out[which] = sampled_pixel_errors(pred[0], Sigma[0], self.terms[which].xyz, self.white, rng, samples)
+        return out
 
     def expected(self, W: np.ndarray, captured: bool = False) -> dict[str, np.ndarray]:
         """Mean expected captured dE00 of light sets W (B, L, K) of levels (realised for a search, as set when
@@ -290,6 +323,17 @@ class ExpectedErrorModel:
         W = self.emitted(W, captured)
         f = self.fit(W)
         return {"train": self.train_errors(W, f).mean, "test": self.test_errors(W, f).mean}
+
+
+def sampled_pixel_errors(pred: np.ndarray, Sigma: np.ndarray, xyz: np.ndarray, white: np.ndarray,
+                         rng: np.random.Generator, samples: int = PIXEL_SAMPLES) -> PixelErrors:
+    """Per patch, ``samples`` draws of N(pred, Sigma) (n, 3), (n, 3, 3) as the pixels of the patch whose reference
+    is ``xyz``: their dE00's mean and 90th percentile (simulation.pixel_error.pixel_errors)."""
+    # a symmetric square root (eigen): Sigma is positive semi-definite, possibly singular (no Cholesky)
+    vals, vecs = np.linalg.eigh(Sigma)
+    root = np.einsum("nab,nb,ncb->nac", vecs, np.sqrt(np.clip(vals, 0.0, None)), vecs)
+    draws = pred[:, None, :] + np.einsum("nab,nkb->nka", root, rng.standard_normal((len(pred), samples, 3)))
+    return pixel_errors(lambda x: x, list(draws), xyz, white)
 
 
 def dense_weights(idx: np.ndarray, w: np.ndarray, n_leds: int) -> np.ndarray:
@@ -321,11 +365,15 @@ class ExpectedErrorEvaluator(Evaluator):
     objective = "expected-captured"
 
     def __init__(self, setup: SimulationSetup, capture: CaptureModel | None = None,
-                 reference: SimulationSetup | None = None) -> None:
+                 reference: SimulationSetup | None = None, *, per_pixel: bool = False) -> None:
         super().__init__(setup, reference)
         self.model = ExpectedErrorModel(setup, capture, reference)
         self.capture = self.model.capture
         tr = self.model.terms["train"]
+        self.per_pixel = per_pixel
+        if per_pixel:
+            self.objective = "expected-per-pixel"
+        self._spread_scale = float(tr.pixels) if per_pixel else 1.0    # a pixel's noise: the patch mean's x pixels
         self._open = self.model.open / self.scale                            # same units as the responses
         self._rsum = self.train.R.sum(axis=1)                                # (K, 3)
         self._gdiag = np.ascontiguousarray(np.einsum("acbc->abc", self._G))   # (K, K, 3): sum_j R_a,c R_b,c
@@ -368,7 +416,8 @@ class ExpectedErrorEvaluator(Evaluator):
         self.evaluations += w.shape[0]
         if self.capture.drift_sd_nm > 0:
             W = dense_weights(idx, w, self.n_leds)
-            return np.concatenate([self.model.train_errors(W[lo:lo + 64]).mean for lo in range(0, len(W), 64)])
+            return np.concatenate([self.model.train_errors(W[lo:lo + 64], pixel=self.per_pixel).mean
+                                   for lo in range(0, len(W), 64)])
         with kernel_threads(len(w)):
             return self._fast(idx, w)
 
@@ -386,12 +435,22 @@ class ExpectedErrorEvaluator(Evaluator):
         out = np.empty(P, dtype=np.float32)
         L1, a1, b1 = self.train._lab32
         mean_expected_de2000(M, Cm, np.ascontiguousarray(A.transpose(1, 2, 0)), coef, self._RT, self.train.white,
-                             L1, a1, b1, self._xyz32, self._q6, self._r6, out)
+                             L1, a1, b1, self._xyz32, self._q6, self._r6, self._spread_scale, out)
         return out.astype(np.float64)
 
     def stats(self, W: np.ndarray) -> tuple[ErrorStats, ErrorStats]:
         """Float64 noise-free statistics (train, test) of one light set W (L, K) of levels, on what the LEDs emit."""
         return super().stats(self.model.emitted(np.asarray(W, dtype=float)))
+
+    def pixel_stats(self, W: np.ndarray) -> dict:
+        """Per-pixel dE00 of one light set W (L, K) of levels: {"train", "test"} (ExpectedErrorModel.pixel_errors,
+        a Monte Carlo over one-pixel predictions: mean and p90) and "expected_train_mean" (the per-pixel objective's
+        float64 figure)."""
+        W = np.asarray(W, dtype=float)
+        px = self.model.pixel_errors(W)
+        We = self.model.emitted(W[None])
+        return {"train": px["train"].to_dict(), "test": px["test"].to_dict(),
+                "expected_train_mean": float(self.model.train_errors(We, pixel=True).mean[0])}
 
     def expected_stats(self, W: np.ndarray) -> tuple[ErrorStats, ErrorStats]:
         """Float64 expected captured per-patch statistics (train, test) of one light set W (L, K)."""

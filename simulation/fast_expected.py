@@ -40,14 +40,16 @@ def _active_rows(Mb, rows):
 
 
 @njit(fastmath=_FASTMATH, error_model="numpy", parallel=True, cache=True)
-def mean_expected_de2000(M, Cm, A, coef, RT, white, L1, a1, b1, xyz_ref, Qm, Rc, out):
+def mean_expected_de2000(M, Cm, A, coef, RT, white, L1, a1, b1, xyz_ref, Qm, Rc, spread, out):
     """out[p] = mean_j E|dE00| of particle p's captured training prediction of patch j.
 
     M (3, R, P): per-particle maps from the R per-LED responses to predicted X, Y, Z (the attenuated fit);
     Cm (C, R, P): the same for the C camera channels' values; A (C, 3, P): the fitted matrix (channel -> XYZ);
     coef (3, C, P): channel variance sigma^2 = c0 + c1 v + c2 v^2; RT (R, n): per-LED responses of the patches;
     L1, a1, b1 (n,): reference Lab; xyz_ref (3, n); Qm (6, n): the dE00 metric in XYZ (00, 01, 02, 11, 12, 22);
-    Rc (6, n): the reference XYZ covariance, same order.
+    Rc (6, n): the reference XYZ covariance, same order; ``spread``: the camera noise's variance in the
+    prediction relative to that of the fit's (1: a patch mean; the patch's pixels: one pixel of it, the fit
+    still on the patch means).
     """
     R, n = RT.shape
     C = Cm.shape[0]
@@ -56,6 +58,7 @@ def mean_expected_de2000(M, Cm, A, coef, RT, white, L1, a1, b1, xyz_ref, Qm, Rc,
     wx = f32(1.0 / white[0])
     wy = f32(1.0 / white[1])
     wz = f32(1.0 / white[2])
+    sp = f32(spread)
     for blk in prange(nblocks):
         lo = blk * _BLOCK
         hi = min(P, lo + _BLOCK)
@@ -102,7 +105,7 @@ def mean_expected_de2000(M, Cm, A, coef, RT, white, L1, a1, b1, xyz_ref, Qm, Rc,
                     S[k, i] = rk
             for c in range(C):
                 for i in range(B):
-                    s2 = cb[0, c, i] + V[c, i] * (cb[1, c, i] + cb[2, c, i] * V[c, i])
+                    s2 = (cb[0, c, i] + V[c, i] * (cb[1, c, i] + cb[2, c, i] * V[c, i])) * sp
                     ax = Ab[c, 0, i]
                     ay = Ab[c, 1, i]
                     az = Ab[c, 2, i]

@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dualrgb.simulation.colour_models import expand, expansion_jacobian, n_terms, noise_gain
+
 log = logging.getLogger(__name__)
 
 RIDGE = 1e-12  # relative to the equilibrated diagonal (= 1): regularises only singular values below ~1e-6
@@ -24,25 +26,44 @@ class CharacterisationError(ValueError):
 
 @dataclass
 class CharacterisationMatrix:
-    """XYZ = values @ matrix; ``matrix`` has shape (n_channels, 3)."""
+    """XYZ = terms(values) @ matrix: ``degree`` 1 (linear) maps the channels themselves, ``matrix`` (n_channels, 3);
+    a root-polynomial of ``degree`` 2 or 3 (simulation.colour_models) maps its terms, ``matrix`` (n_terms, 3)."""
 
     matrix: np.ndarray
     channels: list[str] = field(default_factory=list)
     method: str = "least-squares"
+    degree: int = 1
+
+    @property
+    def n_channels(self) -> int:
+        """Camera channels the model takes (the matrix's rows for a linear model)."""
+        return len(self.channels) if self.channels else self.matrix.shape[0]
 
     def apply(self, values: np.ndarray) -> np.ndarray:
         values = np.asarray(values, dtype=float)
-        if values.shape[-1] != self.matrix.shape[0]:
-            raise ValueError(f"characterisation expects {self.matrix.shape[0]} channels, got {values.shape[-1]}")
-        return values @ self.matrix
+        if values.shape[-1] != self.n_channels:
+            raise ValueError(f"characterisation expects {self.n_channels} channels, got {values.shape[-1]}")
+        return expand(values, self.degree) @ self.matrix
+
+    def jacobian(self, values: np.ndarray) -> np.ndarray:
+        """d XYZ / d channels at ``values`` (..., C) -> (..., C, 3)."""
+        v = np.asarray(values, dtype=float)
+        if self.degree == 1:
+            return np.broadcast_to(self.matrix, v.shape[:-1] + self.matrix.shape).copy()
+        return np.einsum("...tc,ta->...ca", expansion_jacobian(v, self.degree), self.matrix)
+
+    def noise_gain(self) -> np.ndarray:
+        """(X, Y, Z) noise gain at the flat-fielded white (simulation.colour_models.noise_gain)."""
+        return noise_gain(self.jacobian(np.ones(self.n_channels)))
 
     def to_dict(self) -> dict:
-        return {"matrix": self.matrix.round(10).tolist(), "channels": self.channels, "method": self.method}
+        return {"matrix": self.matrix.round(10).tolist(), "channels": self.channels, "method": self.method,
+                "degree": self.degree}
 
     @classmethod
     def from_dict(cls, data: dict) -> CharacterisationMatrix:
         return cls(np.asarray(data["matrix"], dtype=float), list(data.get("channels", [])),
-                   data.get("method", "least-squares"))
+                   data.get("method", "least-squares"), int(data.get("degree", 1)))
 
 
 def _check_patches(n_patches: int, n_channels: int) -> None:
@@ -80,3 +101,16 @@ def fit_matrix(values: np.ndarray, xyz: np.ndarray, channels: list[str] | None =
     # an all-zero channel, so rank deficiency is safe here too
     A = np.linalg.lstsq(values, xyz, rcond=None)[0]
     return CharacterisationMatrix(A, channels or [f"ch{i + 1}" for i in range(values.shape[1])])
+
+
+def fit_root_polynomial(values: np.ndarray, xyz: np.ndarray, degree: int, channels: list[str] | None = None
+                        ) -> CharacterisationMatrix:
+    """Least squares on the root-polynomial terms of ``degree`` (simulation.colour_models; Finlayson et al. 2015),
+    rank-safe as :func:`fit_matrix`."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim != 2:
+        raise ValueError(f"values {values.shape}: expected (n_patches, n_channels)")
+    _check_patches(values.shape[0], n_terms(values.shape[1], degree))
+    m = fit_matrix(expand(values, degree), xyz)
+    return CharacterisationMatrix(m.matrix, channels or [f"ch{i + 1}" for i in range(values.shape[1])],
+                                  f"root-polynomial-{degree}", degree)

@@ -6,7 +6,9 @@ gain and a smooth spectral error). A world draws all of these; the camera sees t
 and true spectra, while the reference XYZ stay the nominal (measured) ones and the characterisation is fitted
 on the world's capture, as in the lab. The robust cost of a light set is the mean (or a quantile) of its
 expected captured training error over the worlds (the nominal world first), so a preset is chosen to survive
-what the simulation gets wrong, at ``worlds`` times the cost of one evaluation.
+what the simulation gets wrong, at ``worlds`` times the cost of one evaluation. ``per_pixel``: each world's figure
+is that of one pixel of each patch (the fit still on the patch means; simulation.expected_error), as a delivered
+master is judged.
 """
 from __future__ import annotations
 
@@ -77,10 +79,11 @@ class RobustEvaluator(ExpectedErrorEvaluator):
     objective = "robust"
 
     def __init__(self, setup: SimulationSetup, capture: CaptureModel | None = None,
-                 settings: RobustSettings = RobustSettings()) -> None:
-        super().__init__(setup, capture)
+                 settings: RobustSettings = RobustSettings(), *, per_pixel: bool = False) -> None:
+        super().__init__(setup, capture, per_pixel=per_pixel)
+        self.objective = "robust-per-pixel" if per_pixel else "robust"
         self.settings = settings
-        self.worlds = [self] + [ExpectedErrorEvaluator(w, self.capture, reference=setup)
+        self.worlds = [self] + [ExpectedErrorEvaluator(w, self.capture, reference=setup, per_pixel=per_pixel)
                                 for w in plausible_worlds(setup, settings)[1:]]
 
     def cost_indexed(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -94,7 +97,7 @@ class RobustEvaluator(ExpectedErrorEvaluator):
     def world_costs(self, W: np.ndarray) -> np.ndarray:
         """Float64 expected captured training error of one light set W (L, K) in every world."""
         W = self.model.emitted(np.asarray(W, dtype=float)[None])
-        return np.array([ev.model.train_errors(W).mean[0] for ev in self.worlds])
+        return np.array([ev.model.train_errors(W, pixel=self.per_pixel).mean[0] for ev in self.worlds])
 
     def for_captured(self) -> RobustEvaluator:
         """This ensemble for lights already captured (ExpectedErrorEvaluator.for_captured), every world's too."""

@@ -38,22 +38,24 @@ DEFAULT_OBJECTIVE = OBJECTIVES[0]           # "expected-captured"
 
 def make_evaluator(setup: SimulationSetup, objective: str = DEFAULT_OBJECTIVE,
                    capture: CaptureModel | None = None, robust: RobustSettings = RobustSettings(),
-                   spectral_weight: float = DEFAULT_SPECTRAL_WEIGHT) -> Evaluator:
+                   spectral_weight: float = DEFAULT_SPECTRAL_WEIGHT, per_pixel: bool = False) -> Evaluator:
     """The evaluator of ``objective``; ``capture`` defaults to the virtual lab's capture in the setup's mode;
-    ``spectral_weight``: the mixed objective's weight (simulation.spectral_objective)."""
+    ``spectral_weight``: the mixed objective's weight (simulation.spectral_objective); ``per_pixel``: the
+    expected-captured and robust objectives score one pixel of each patch instead of the patch mean (the
+    objective 'expected-per-pixel' is expected-captured with it)."""
     if objective not in OBJECTIVES:
         raise ValueError(f"objective {objective!r}: expected one of {', '.join(OBJECTIVES)}")
     if objective == "noise-free":
         return Evaluator(setup)
     capture = capture or CaptureModel.virtual_lab(setup.mode)
     if objective == "robust":
-        return RobustEvaluator(setup, capture, robust)
+        return RobustEvaluator(setup, capture, robust, per_pixel=per_pixel)
     if objective in SPECTRAL_OBJECTIVES:
         from dualrgb.simulation.spectral_objective import SpectralEvaluator, SpectralObjectiveSettings
 
         return SpectralEvaluator(setup, capture, SpectralObjectiveSettings(spectral_weight=spectral_weight),
                                  mixed=objective == "mixed")
-    return ExpectedErrorEvaluator(setup, capture)
+    return ExpectedErrorEvaluator(setup, capture, per_pixel=per_pixel or objective == "expected-per-pixel")
 
 
 @dataclass
@@ -89,6 +91,8 @@ class RunResult:
         if cand.expected_train is not None:
             errors["expected_captured"] = {"train": cand.expected_train.to_dict(),
                                            "test": cand.expected_test_errors.to_dict()}
+        if cand.per_pixel is not None:
+            errors["per_pixel"] = {k: cand.per_pixel[k] for k in ("train", "test")}
         if cand.spectral is not None:
             errors["expected_spectral_rmse"] = cand.spectral
         model = {"grid": self.setup.grid.label(), "camera": self.setup.camera_name, "observer": "CIE 1931 2°",
@@ -111,7 +115,7 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
         evaluator: Evaluator | None = None, objective: str = DEFAULT_OBJECTIVE,
         capture: CaptureModel | None = None, robust: RobustSettings = RobustSettings(),
         spectral_weight: float = DEFAULT_SPECTRAL_WEIGHT,
-        incumbents: Sequence[Sequence[LightSource]] = ()) -> RunResult:
+        incumbents: Sequence[Sequence[LightSource]] = (), per_pixel: bool = False) -> RunResult:
     """``evaluator``: one built on ``setup`` for ``objective`` (make_evaluator) to use instead of a new one (the
     GUI passes one that reports the best cost so far for its live convergence plot). ``elapsed_s`` excludes the
     kernels' one-off compile (``extra["kernel_warm_up_s"]``; simulation.warmup). ``incumbents``: light sets
@@ -125,7 +129,7 @@ def run(setup: SimulationSetup, method: str = DEFAULT_METHOD, seed: int = 0, top
         return RunResult(setup.mode, method, None, time.perf_counter() - t0, 1, baseline, None, setup, top,
                          objective="noise-free")
     evaluator = evaluator if evaluator is not None else make_evaluator(setup, objective, capture, robust,
-                                                                       spectral_weight)
+                                                                       spectral_weight, per_pixel)
     objective = getattr(evaluator, "objective", objective)
     given, capture = capture, getattr(evaluator, "capture", None)
     base = getattr(evaluator, "base", evaluator)          # a GUI tap wraps the evaluator
@@ -183,16 +187,23 @@ def format_table(result: RunResult) -> str:
         w1 = max([len("light source 1")] + [len(r[0][0]) for r in rows])
         w2 = max([len("light source 2")] + [len(r[0][-1]) for r in rows])
         spectral = any(c.spectral for _, c in rows)
+        pixel = any(c.per_pixel for _, c in rows)
         lines.append(f"{'#':>3}  {'light source 1':<{w1}} {'light source 2':<{w2}} {'train':>7} {'test':>7}"
-                     f" {'exp.tr':>7} {'exp.te':>7}" + (f" {'sp.tr':>7} {'sp.te':>7}" if spectral else ""))
+                     f" {'exp.tr':>7} {'exp.te':>7}" + (f" {'px.tr':>7} {'px.te':>7} {'px.p90':>7}" if pixel else "")
+                     + (f" {'sp.tr':>7} {'sp.te':>7}" if spectral else ""))
         for i, ((s1, *rest), c) in enumerate(rows, start=1):
             s2 = rest[0] if rest else ""
             exp = (f" {c.expected_train.mean:>7.3f} {c.expected_test_errors.mean:>7.3f}" if c.expected_train else "")
+            if c.per_pixel:
+                exp += (f" {c.per_pixel['train']['mean']:>7.3f} {c.per_pixel['test']['mean']:>7.3f}"
+                        f" {c.per_pixel['test']['p90']:>7.3f}")
             if c.spectral:
                 exp += f" {c.spectral['train']['rmse']:>7.4f} {c.spectral['test']['rmse']:>7.4f}"
             lines.append(f"{i:>3}  {s1:<{w1}} {s2:<{w2}} {c.train_errors.mean:>7.3f} {c.test_errors.mean:>7.3f}{exp}")
         lines.append("train/test: noise-free simulation; exp.tr/exp.te: expected captured ("
-                     + (result.capture.label() if result.capture else "") + ")")
+                     + (result.capture.label() if result.capture else "") + "), patch means"
+                     + ("; px.tr/px.te/px.p90: per pixel (the matrix on single pixels: mean, test 90th percentile)"
+                        if pixel else ""))
         if spectral:
             lines.append(SPECTRAL_LEGEND)
     return "\n".join(lines)

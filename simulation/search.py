@@ -81,6 +81,7 @@ class Candidate:
     expected_test: ErrorStats | None = None
     spectral: dict | None = None            # expected captured spectral RMSE (simulation.spectral_objective)
     objective_value: float | None = None    # float64 figure of a spectral objective (sorts the reported top K)
+    per_pixel: dict | None = None           # per-pixel dE00 {train, test: {mean, p90, ...}, expected_train_mean}
     incumbent: bool = False                 # lights already in use: scored at their levels as set (add_incumbents)
 
     def weights(self, n_leds: int) -> np.ndarray:
@@ -120,6 +121,10 @@ class Candidate:
             d["expected_test_de00_mean"] = round(self.expected_test_errors.mean, 4)
             d["expected_train"] = {k: round(v, 4) for k, v in self.expected_train.to_dict().items()}
             d["expected_test"] = {k: round(v, 4) for k, v in self.expected_test_errors.to_dict().items()}
+        if self.per_pixel:
+            d["per_pixel_train_de00_mean"] = self.per_pixel["train"]["mean"]
+            d["per_pixel_test_de00_mean"] = self.per_pixel["test"]["mean"]
+            d["per_pixel"] = {k: self.per_pixel[k] for k in ("train", "test")}
         if self.incumbent:
             d["in_use"] = True                  # the lights already in use, scored as the sphere sets them
         if self.spectral:
@@ -133,8 +138,10 @@ class Candidate:
         objective's own figure)."""
         if self.objective_value is not None:
             return self.objective_value
-        if objective == "robust":
+        if objective.startswith("robust"):
             return self.train_cost               # the ensemble's figure (only the search computes it)
+        if objective == "expected-per-pixel" and self.per_pixel is not None:
+            return float(self.per_pixel["expected_train_mean"])
         if objective != "noise-free" and self.expected_train is not None:
             return self.expected_train.mean
         return self.train.mean if self.train else self.train_cost
@@ -179,7 +186,7 @@ def evaluate_candidate(evaluator: Evaluator, cand: Candidate, expected: Any = No
     grid (``realise``) gets the candidate's levels replaced by the realised ones first (not an incumbent's: lights
     in use are scored as the sphere sets them, :func:`as_captured`); ``expected`` (an object with
     ``expected_stats(W)``, e.g. :class:`simulation.expected_error.ExpectedErrorEvaluator`, default: the
-    evaluator if it has one) adds the expected captured figures."""
+    evaluator if it has one) adds the expected captured figures, patch means and per pixel (``pixel_stats``)."""
     if cand.incumbent:
         evaluator, expected = as_captured(evaluator), None if expected is None else as_captured(expected)
     realise = getattr(evaluator, "realise", None)
@@ -191,6 +198,8 @@ def evaluate_candidate(evaluator: Evaluator, cand: Candidate, expected: Any = No
     cand.train, cand.test = evaluator.stats(W)
     if expected is not None:
         cand.expected_train, cand.expected_test = expected.expected_stats(W)
+        if hasattr(expected, "pixel_stats"):
+            cand.per_pixel = expected.pixel_stats(W)
     spectral, value = getattr(evaluator, "spectral_stats", None), getattr(evaluator, "objective_value", None)
     if spectral is not None and value is not None:        # a spectral objective (simulation.spectral_objective)
         cand.spectral = spectral(W)

@@ -1,8 +1,9 @@
 """Rebuild every CSV under resources/ (run ``python -m tools.generate_resources`` or
 ``make resources``; deterministic).
 
-* LEDs: thesis Table 4.2 peaks and relative/absolute peak values, each shaped with colour-science's
-  ``sd_single_led`` (Ohno 2005) at half spectral width 25 nm, 380-780 nm at 1 nm.
+* LEDs: thesis Table 4.2 peaks and relative peak values, each shaped with colour-science's ``sd_single_led``
+  (Ohno 2005) at half spectral width 25 nm, 380-780 nm at 1 nm; the absolute table derived from it
+  (tools/derive_leds.py).
 * Camera: colour-science's 'Nikon 5100 (NPL)' sensitivities, a stand-in for the D610 (thesis 4.2).
 * Reflective targets: rawtoaces v1 training set (190 reflectances) and BabelColor Average ColorChecker (24,
   measured 380-730 nm); the ColorChecker measured by Ohta (1997) to 780 nm, a second test reference for the
@@ -23,13 +24,14 @@ from scipy.stats import qmc
 from dualrgb.resources import path
 from dualrgb.simulation.film_model import DYES, FILM_BASE_DENSITY, film_transmittance
 from dualrgb.simulation.spectral_io import write_spectral_csv
+from tools.derive_leds import derive
 
 log = logging.getLogger(__name__)
 
 LED_PEAKS_NM = (416, 448, 467, 491, 520, 545, 572, 597, 626, 680)
 LED_RELATIVE_PEAKS = (0.88, 1.00, 0.663, 0.183, 0.198, 0.014, 0.003, 0.165, 0.300, 0.565)
-LED_ABSOLUTE_PEAKS = (0.0244621, 0.0275599, 0.0182769, 0.00504516, 0.0054696, 0.00037581, 0.0000795212,
-                      0.00455702, 0.00827383, 0.0155592)  # W sr^-1 m^-2 (thesis Table 4.2)
+# thesis Table 4.2's absolute column (W sr^-1 m^-2) is not used: its ratios differ from the relative column by up
+# to 3.8 % (LED 7); the absolute table is the relative one x LED 2's absolute peak (tools/derive_leds.py)
 LED_HALF_SPECTRAL_WIDTH = 25.0
 FILM_SHAPE = colour.SpectralShape(380, 780, 5)
 SCRIPT = "tools/generate_resources.py (python -m tools.generate_resources)"
@@ -51,9 +53,7 @@ def _led_csvs() -> None:
     write_spectral_csv(path("leds", "sphere10_relative.csv"), wl, base * np.array(LED_RELATIVE_PEAKS), names,
                        {"title": "10-LED sphere spectra, relative", "units": "relative radiance (LED 2 peak = 1)",
                         **common})
-    write_spectral_csv(path("leds", "sphere10_absolute.csv"), wl, base * np.array(LED_ABSOLUTE_PEAKS), names,
-                       {"title": "10-LED sphere spectra, absolute", "units": "spectral radiance W sr^-1 m^-2 nm^-1",
-                        **common})
+    derive(path("leds", "sphere10_relative.csv"), path("leds", "sphere10_absolute.csv"))   # one source (issue 40)
 
 
 def _camera_csv() -> None:

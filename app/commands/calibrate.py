@@ -68,8 +68,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                                         "detection for a 24-patch ColorChecker Classic otherwise)")
     add_chart_options(p)
     p.add_argument("--no-de-fit", action="store_true",
-                   help="least squares only (default: also the ΔE00-optimised matrix when resources/parsimony.json "
-                        "chose it)")
+                   help="leave the ΔE00-optimised matrix out (default: every model the processing delivers - least "
+                        "squares, ΔE00-optimised, root-polynomial 2 and 3 - 5-fold cross-validation on the training "
+                        "chart choosing with the one-standard-error rule)")
     p.add_argument("--stand-dir", type=stand_dir, metavar="DIR",
                    help="a stand folder (`dualrgb measure leds`): warn when the preset sets an LED below the "
                         "measured minimum stable level, where its output is not proportional to the level; its LED "
@@ -111,6 +112,17 @@ def resolve(args: argparse.Namespace) -> tuple[Any, str, int, int]:
     return preset, args.hdr or d.hdr, args.dark_frames or d.dark_frames, args.flat_frames or d.flat_frames
 
 
+def conditioning(preset: Any, stand: Any) -> None:
+    """The preset's lights with the camera model (app.workflow.preflight.check_conditioning): refused above the
+    limit (ConditioningError, one line), a warning on stderr in the band below it."""
+    from dualrgb.app.workflow.preflight import check_conditioning
+    from dualrgb.app.workflow.vocabulary import lights_of
+
+    _, warning = check_conditioning(lights_of(preset), preset.mode, f"preset {preset.name}", stand)
+    if warning:
+        print(f"warning: {warning}", file=sys.stderr)
+
+
 def _stand_start(args: argparse.Namespace) -> Any:
     """The measured curves the stand fit starts from (app.workflow.stand_reoptimise.measured_start)."""
     from dualrgb.app.workflow.stand_reoptimise import measured_start
@@ -128,6 +140,8 @@ def main(args: argparse.Namespace) -> int:
 
     preset, hdr, darks, flats = resolve(args)
     mode = preset.mode
+    stand_start = _stand_start(args)
+    conditioning(preset, stand_start)                                     # before any device opens
     if args.stand_dir:
         from dualrgb.app.workflow.led_stand import load_stand, unstable_levels
 
@@ -138,7 +152,7 @@ def main(args: argparse.Namespace) -> int:
              for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
     settings = StandSettings(settle_s=args.settle, dark_frames=darks, flat_frames=flats,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
-                             target_width_mm=args.target_width_mm, stand_start=_stand_start(args), charts=charts)
+                             target_width_mm=args.target_width_mm, stand_start=stand_start, charts=charts)
     definition = {"workflow": DAY_WORKFLOW, "mode": mode, "preset": preset.name, "hdr": hdr,
                   "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle, **virtual_world(args),
                   **day_charts.definition(charts)}

@@ -29,7 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="when --out holds a session made with other options, start a new one beside it "
                         "(default: refuse, naming the difference)")
     p.add_argument("--no-de-fit", action="store_true",
-                   help="fit least squares only (default: as the parsimony study chose, resources/parsimony.json)")
+                   help="leave the ΔE00-optimised matrix out (default: every model the processing delivers - least "
+                        "squares, ΔE00-optimised, root-polynomial 2 and 3 - cross-validation choosing)")
     add_chart_options(p)
     p.set_defaults(func=main)
 

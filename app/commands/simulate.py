@@ -41,10 +41,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--objective", choices=OBJECTIVES, default="expected-captured",
                    help="expected-captured (default: expected captured mean dE00 of the training target), "
                         "noise-free (the thesis' cost), robust (mean over plausible worlds: LEDs, camera and "
-                        "reference off by a few nm / %%), spectral (for spectra: the expected captured RMSE of the "
+                        "reference off by a few nm / %%), expected-per-pixel (the expected captured mean dE00 of "
+                        "one pixel of each training patch, the matrix fitted on the patch means: as a master is "
+                        "judged), spectral (for spectra: the expected captured RMSE of the "
                         "training target's spectra estimated by the Wiener method, reflectance or transmittance "
                         "factor pooled over patches and the mode's grid, 0.01 = 1 %%) or mixed (mean dE00 + "
                         "--spectral-weight x 100 x that RMSE)")
+    p.add_argument("--per-pixel", action="store_true",
+                   help="--objective expected-captured or robust: score one pixel of each patch instead of the "
+                        "patch mean (every reported light set carries both figures either way)")
     p.add_argument("--spectral-weight", type=number(0.0, 100.0), default=DEFAULT_SPECTRAL_WEIGHT,
                    help=f"--objective mixed: the weight of the spectral RMSE in %% against mean dE00 (default "
                         f"{DEFAULT_SPECTRAL_WEIGHT:g}: 1 %% RMSE costs as much as {DEFAULT_SPECTRAL_WEIGHT:g} dE00)")
@@ -116,7 +121,8 @@ def main(args: argparse.Namespace) -> int:
     ensure_ready([OPTIMISERS])                         # first run: compiled once here, said in one line
     with TerminalProgress(f"simulate {args.method}") as progress:
         result = run(setup, args.method, seed=args.seed, top=args.top, bins=args.bins, objective=args.objective,
-                     capture=_capture(args), progress=progress, spectral_weight=args.spectral_weight)
+                     capture=_capture(args), progress=progress, spectral_weight=args.spectral_weight,
+                     per_pixel=args.per_pixel)
     return _write(args, result, result.preset() if args.preset_out else None)
 
 

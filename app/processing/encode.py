@@ -33,6 +33,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from dualrgb.app.processing.colour_kernels import expansion_scratch, root_polynomial_xyz_row, terms_for
 from dualrgb.app.processing.demosaic import HALO, mhc_planes, row_colours
 
 log = logging.getLogger(__name__)
@@ -173,13 +174,18 @@ def rgb_row(x, y, z, m, lut, slope, lin, idx, out):  # pragma: no cover - compil
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def _encode_planes(S, A, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin, idx):  # pragma: no cover
+def _encode_planes(S, A, rp, ex, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin, idx):  # pragma: no cover
     """Row ``r`` of the output bands from the row's channel planes ``S`` (N, W) (x, y, z, lin, idx: scratch
-    rows); returns (pixels with NaN, pixels whose Y clips)."""
+    rows); the model: the linear matrix ``A`` (a tuple of N rows), or, when ``rp`` = (terms (T, 3), matrix
+    (T, 3) float32) has terms, that root-polynomial (app.processing.colour_kernels, in ``ex``: its scratch rows);
+    returns (pixels with NaN, pixels whose Y clips)."""
     W = S.shape[1]
     for q in range(len(ch16)):
         _channels_row(S, 3 * q, ch16[q][r].reshape(W * 3))
-    bad = _xyz_row(S, A, x, y, z)
+    if rp[0].shape[0] == 0:
+        bad = _xyz_row(S, A, x, y, z)
+    else:
+        bad = root_polynomial_xyz_row(S, rp[0], rp[1], ex, x, y, z)
     over = _xyz16_row(x, y, z, scale_xyz, xyz16[r].reshape(W * 3))
     for q in range(len(rgb16)):
         rgb_row(x, y, z, M[q], luts[q, 0], luts[q, 1], lin, idx, rgb16[q][r].reshape(W * 3))
@@ -194,7 +200,7 @@ def _row_scratch(C, W):  # pragma: no cover - compiled
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def _encode_rows(stack, r0, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi):  # pragma: no cover - compiled
+def _encode_rows(stack, r0, A, rp, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi):  # pragma: no cover
     """Band rows ``lo`` .. ``hi`` (stack rows ``r0 + lo`` ..) into the row band ``xyz16`` (rows, W, 3), the tuple
     ``rgb16`` of (rows, W, 3) arrays (one per space of ``M`` / ``luts``) and the tuple ``ch16`` of (rows, W, 3)
     arrays (one per light: channels 3 l .. 3 l + 2). Row by row: the row's channels into planes, then short loops
@@ -205,6 +211,7 @@ def _encode_rows(stack, r0, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi): 
     W = stack.shape[1]
     C = stack.shape[2]
     S, x, y, z, lin, idx = _row_scratch(C, W)
+    ex = expansion_scratch(rp[0], C, W)
     bad = 0
     over = 0
     for r in range(lo, hi):
@@ -212,14 +219,14 @@ def _encode_rows(stack, r0, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi): 
         for j in range(W):
             for c in range(C):
                 S[c, j] = s[j, c]
-        b, o = _encode_planes(S, A, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin, idx)
+        b, o = _encode_planes(S, A, rp, ex, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin, idx)
         bad += b
         over += o
     return bad, over
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def _encode_mosaic_rows(P, p0, y0, cfa, A, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi):  # pragma: no cover
+def _encode_mosaic_rows(P, p0, y0, cfa, A, rp, M, luts, scale_xyz, xyz16, rgb16, ch16, lo, hi):  # pragma: no cover
     """:func:`_encode_rows` fused with the demosaic: band rows ``lo`` .. ``hi`` (image rows ``y0 + lo`` ..) from
     ``P`` (L, rows + 2 HALO, W + 2 HALO), each light's flat-fielded mosaic band with HALO mirrored rows and
     columns around (app.processing.masters), whose row ``p0 + r`` holds band row r; ``cfa`` (2, 2) channel
@@ -227,13 +234,14 @@ def _encode_mosaic_rows(P, p0, y0, cfa, A, M, luts, scale_xyz, xyz16, rgb16, ch1
     so no N-channel float band is written or read: the same arithmetic, the same bits."""
     L = P.shape[0]
     S, x, y, z, lin, idx = _row_scratch(3 * L, P.shape[2] - 2 * HALO)
+    ex = expansion_scratch(rp[0], 3 * L, P.shape[2] - 2 * HALO)
     bad = 0
     over = 0
     for r in range(lo, hi):
         even_green, here = row_colours(cfa, y0 + r)
         for li in range(L):
             mhc_planes(P[li], p0 + r, even_green, here, S[3 * li: 3 * li + 3])
-        b, o = _encode_planes(S, A, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin, idx)
+        b, o = _encode_planes(S, A, rp, ex, M, luts, scale_xyz, r, xyz16, rgb16, ch16, x, y, z, lin, idx)
         bad += b
         over += o
     return bad, over
@@ -290,20 +298,28 @@ def band_source(stack: np.ndarray | None, r0: int, rows: int, band: np.ndarray |
 
 
 class DeliveryEncoder:
-    """The delivery encodings of one (H, W, N) float32 image with the (N, 3) characterisation matrix, row band by
-    row band (app.workflow.delivery streams each band to the files while the next one is encoded); the QA
-    counts add up over the bands. ``stack``: the whole image, or its (H, W, N) shape when each ``encode`` call
-    brings its band."""
+    """The delivery encodings of one (H, W, N) float32 image with the characterisation model, row band by row
+    band (app.workflow.delivery streams each band to the files while the next one is encoded); the QA counts add
+    up over the bands. ``stack``: the whole image, or its (H, W, N) shape when each ``encode`` call brings its
+    band. ``matrix``: (N, 3) for a linear model (``degree`` 1), (T, 3) for the T root-polynomial terms of
+    ``degree`` 2 or 3 (simulation.colour_models), applied to every pixel."""
 
     def __init__(self, stack: np.ndarray | tuple[int, int, int], matrix: np.ndarray, white_xyz: Sequence[float],
-                 spaces: Sequence[str] = RGB_SPACES, threads: int | None = None):
+                 spaces: Sequence[str] = RGB_SPACES, threads: int | None = None, degree: int = 1):
         from dualrgb.app.processing.outputs import xyz_to_rgb_matrix
 
         self.stack, self._shape = stack_or_shape(stack)
         A = np.asarray(matrix, dtype=np.float32)
-        if A.ndim != 2 or A.shape[1] != 3 or self._shape[2] != A.shape[0] or self._shape[2] % 3:
-            raise ValueError(f"image {self._shape} and matrix {A.shape}: expected (H, W, N) and (N, 3), N = 3 per "
-                             "light")
+        N = self._shape[2]
+        terms = terms_for(N, degree) if N else terms_for(1, 1)
+        rows = len(terms) or N
+        if A.ndim != 2 or A.shape[1] != 3 or rows != A.shape[0] or N % 3:
+            raise ValueError(f"image {self._shape} and matrix {A.shape} of degree {degree}: expected (H, W, N) and "
+                             f"({rows}, 3), N = 3 per light")
+        # a root-polynomial goes in as arrays (rp), the linear matrix as a tuple of N rows: the kernels' types are the
+        # same for every model of N channels (one compile), the linear pixel loop keeps N a compile-time constant
+        self._rp = (terms, np.ascontiguousarray(A if len(terms) else np.zeros((0, 3), np.float32)))
+        A = A if not len(terms) else np.zeros((N, 3), np.float32)
         self.spaces = tuple(spaces)
         white = np.asarray(white_xyz, dtype=np.float64)
         # the kernels' x, y, z are X / Xn, Y / Yn, Z / Zn: the matrix's columns divided by the white, and the RGB
@@ -333,8 +349,8 @@ class DeliveryEncoder:
         rows = xyz16.shape[0]
         H, W, N = self._check(r0, rows, rgb16, ch16)
         src, off = band_source(self.stack, r0, rows, band, W, N)
-        self._run(_encode_rows, (src, r0 + off, self._A, self._M, self._luts, self._scale, xyz16, tuple(rgb16),
-                                 tuple(ch16)), rows)
+        self._run(_encode_rows, (src, r0 + off, self._A, self._rp, self._M, self._luts, self._scale, xyz16,
+                                 tuple(rgb16), tuple(ch16)), rows)
         self.lit = self.lit or bool(xyz16.any())
 
     def encode_mosaic(self, r0: int, xyz16: np.ndarray, rgb16: Sequence[np.ndarray], ch16: Sequence[np.ndarray], *,
@@ -350,8 +366,8 @@ class DeliveryEncoder:
                 or mosaic.shape[2] != W + 2 * HALO or not 0 <= p0 - HALO <= mosaic.shape[1] - rows - 2 * HALO):
             raise ValueError(f"mosaic band {mosaic.shape} {mosaic.dtype}, pixel rows from {p0}: expected "
                              f"({N // 3}, >= {rows + 2 * HALO}, {W + 2 * HALO}) float32")
-        self._run(_encode_mosaic_rows, (mosaic, p0, r0, cfa, self._A, self._M, self._luts, self._scale, xyz16,
-                                        tuple(rgb16), tuple(ch16)), rows)
+        self._run(_encode_mosaic_rows, (mosaic, p0, r0, cfa, self._A, self._rp, self._M, self._luts,
+                                        self._scale, xyz16, tuple(rgb16), tuple(ch16)), rows)
         self.lit = self.lit or bool(xyz16.any())
 
     def _check(self, r0: int, rows: int, rgb16: Sequence[np.ndarray], ch16: Sequence[np.ndarray]
@@ -397,10 +413,10 @@ class DeliveryEncoder:
 
 
 def encode_deliverables(stack: np.ndarray, matrix: np.ndarray, white_xyz: Sequence[float],
-                        spaces: Sequence[str] = RGB_SPACES) -> EncodedImages:
-    """All 16-bit deliverable arrays of a (H, W, N) float32 stack with the (N, 3) characterisation matrix, in
-    memory (delivery streams them instead: :class:`DeliveryEncoder`)."""
-    with DeliveryEncoder(stack, matrix, white_xyz, spaces) as enc:
+                        spaces: Sequence[str] = RGB_SPACES, degree: int = 1) -> EncodedImages:
+    """All 16-bit deliverable arrays of a (H, W, N) float32 stack with the characterisation model (``matrix`` of
+    ``degree``: :class:`DeliveryEncoder`), in memory (delivery streams them instead)."""
+    with DeliveryEncoder(stack, matrix, white_xyz, spaces, degree=degree) as enc:
         H, W, C = enc.shape
         xyz16 = np.empty((H, W, 3), np.uint16)
         rgb16 = np.empty((len(enc.spaces), H, W, 3), np.uint16)
@@ -411,13 +427,15 @@ def encode_deliverables(stack: np.ndarray, matrix: np.ndarray, white_xyz: Sequen
 
 
 def warm_up() -> None:
-    """Compile (or load from the on-disk cache) the kernels on a tiny image (6 channels: dual-RGB; 3: one light),
-    the full-resolution one-pass encoding included."""
+    """Compile (or load from the on-disk cache) the kernels on a tiny image (6 channels: dual-RGB, linear and the
+    root-polynomials of degree 2 and 3; 3: one light), the full-resolution one-pass encoding included."""
     from dualrgb.app.processing.mosaic import cfa_channel_index
+    from dualrgb.simulation.colour_models import n_terms
 
-    for n in (6, 3):
-        encode_deliverables(np.zeros((2, 2, n), np.float32), np.zeros((n, 3)), [95.047, 100.0, 108.883])
-        with DeliveryEncoder((2, 2, n), np.zeros((n, 3)), [95.047, 100.0, 108.883], threads=1) as enc:
+    for n, degree in ((6, 1), (3, 1), (6, 3)):     # a root-polynomial: the same kernels, its own branch
+        A = np.zeros((n_terms(n, degree), 3))
+        encode_deliverables(np.zeros((2, 2, n), np.float32), A, [95.047, 100.0, 108.883], degree=degree)
+        with DeliveryEncoder((2, 2, n), A, [95.047, 100.0, 108.883], threads=1, degree=degree) as enc:
             out = [np.empty((2, 2, 3), np.uint16) for _ in range(3 + n // 3)]        # XYZ, 2 RGB, per light
             enc.encode_mosaic(0, out[0], out[1:3], out[3:], mosaic=np.zeros((n // 3, 2 + 2 * HALO, 2 + 2 * HALO),
                               np.float32), p0=HALO, cfa=cfa_channel_index("RGGB"))

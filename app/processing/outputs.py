@@ -430,9 +430,13 @@ def write_patch_csv(path: Path, names: Sequence[str], values: np.ndarray, channe
 
 
 def write_matrices_csv(path: Path, matrices: Mapping[str, CharacterisationMatrix]) -> Path:
-    """Rows ``method, channel, X, Y, Z``: XYZ = sum over channels of value * row."""
+    """Rows ``method, term, X, Y, Z``: XYZ = sum over the terms of term value * row (a linear model's terms are
+    its channels; a root-polynomial's are named like 'sqrt(R1*G2)', simulation.colour_models.term_names)."""
+    from dualrgb.simulation.colour_models import term_names
+
     rows: list[list[object]] = [["method", "channel", "X", "Y", "Z"]]
     for name, m in matrices.items():
-        chans = m.channels or [f"ch{i + 1}" for i in range(m.matrix.shape[0])]
-        rows += [[name, ch, *(f"{v:.10g}" for v in row)] for ch, row in zip(chans, m.matrix, strict=True)]
+        chans = m.channels or [f"ch{i + 1}" for i in range(m.n_channels)]
+        terms = term_names(list(chans), m.degree) if m.degree > 1 else chans
+        rows += [[name, t, *(f"{v:.10g}" for v in row)] for t, row in zip(terms, m.matrix, strict=True)]
     return _write_csv(path, rows)

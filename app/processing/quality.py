@@ -154,10 +154,13 @@ def tone_and_white_balance(lab_ref: np.ndarray, lab_cap: np.ndarray, idx: np.nda
 def lightness_noise(values: np.ndarray, std: np.ndarray, matrix: np.ndarray, white: np.ndarray,
                     idx: np.ndarray) -> list[float]:
     """L* RMS noise of each patch in ``idx``: per-channel standard deviations ``std`` (n, C) through the Y row
-    of ``matrix`` (C, 3) (independent channels) and dL*/dY at the patch's predicted Y."""
+    of ``matrix`` (C, 3), or of each patch's own (n, C, 3) (a non-linear model's Jacobian at the patch),
+    (independent channels) and dL*/dY at the patch's Y (values through that map: exactly the model's Y, every
+    delivered model being homogeneous of degree 1, Euler's theorem)."""
     A = np.asarray(matrix, dtype=float)
-    y = np.asarray(values, float)[idx] @ A[:, 1]
-    sy = np.sqrt((np.asarray(std, float)[idx] ** 2 * A[None, :, 1] ** 2).sum(axis=1))
+    A = A[idx] if A.ndim == 3 else np.broadcast_to(A, (len(idx),) + A.shape)
+    y = np.einsum("nc,nc->n", np.asarray(values, float)[idx], A[:, :, 1])
+    sy = np.sqrt((np.asarray(std, float)[idx] ** 2 * A[:, :, 1] ** 2).sum(axis=1))
     t = np.maximum(y / white[1], 1e-12)
     d = 6.0 / 29.0
     slope = np.where(t > d ** 3, (116.0 / 3.0) * np.cbrt(t) ** -2, 116.0 / (3 * d * d))    # dL*/d(Y/Yn)

@@ -304,8 +304,8 @@ def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors
     m = c.results[c.best].matrix
     lab_ref = xyz_to_lab(data.xyz, c.white)
     lab_cap = xyz_to_lab(m.apply(data.values), c.white)
-    q = assess(lab_ref, lab_cap, data.names, errors, values=data.values, std=data.std, matrix=m.matrix,
-               white=c.white, calibration=calibration)
+    q = assess(lab_ref, lab_cap, data.names, errors, values=data.values, std=data.std,
+               matrix=m.matrix if m.degree == 1 else m.jacobian(data.values), white=c.white, calibration=calibration)
     name = data.label or label
     comp = q["lab_differences"]["per_patch"]
     figures = [lab_components_figure(out_dir / f"lab_components_{label}.png", data.names, comp, name).name]
@@ -406,6 +406,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
         "train": c.results[best].train.to_dict(),
         "test": c.results[best].stats("test").to_dict() if test is not None else None,
         "methods": {m: r.to_dict() for m, r in c.results.items()},
+        **{k: v for k, v in c.to_dict().items() if k in ("models", "per_pixel_de00", "noise_gain", "condition_number")},
         "standards": {"evaluated_on": graded_set, "method": best, "stats": graded.to_dict(),
                       "scope": "colour accuracy only (dE00 of the target); the other criteria: see 'quality'",
                       "results": grade(graded)},

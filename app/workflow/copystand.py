@@ -52,6 +52,7 @@ from dualrgb.app.workflow.plans import StandPlanner
 from dualrgb.app.workflow.preflight import (
     capture_frames,
     check_capture_space,
+    check_conditioning,
     check_exposures,
     check_frame_shape,
     check_lights,
@@ -164,6 +165,7 @@ class CopyStand:
                                 progress=progress, prompt=prompt, on_event=on_event)
         self.progress, self.cancel, self.prompt = progress, self.engine.token, prompt
         self.reshoot, self.on_event = reshoot, on_event
+        self.planned_condition: float | None = None     # the light set's, checked before the light (calibrate)
 
     @property
     def facts(self) -> StandFacts:
@@ -237,6 +239,8 @@ class CopyStand:
         the calibration profile, saved in ``<session>/calibration/``. ``hdr_auto`` None: the day's default
         (app.workflow.defaults)."""
         check_lights(lights_of(preset), f"preset {preset.name}")      # before anything is lit
+        self.planned_condition, _ = check_conditioning(lights_of(preset), preset.mode, f"preset {preset.name}",
+                                                       self.settings.stand_start)
 
         def calibration() -> CalibrationProfile:
             base = self.auto_expose(lights_of(preset))
@@ -307,12 +311,21 @@ class CopyStand:
             id=new_profile_id(created, sources), created_at=created.isoformat(timespec="seconds"), mode=preset.mode,
             camera=CameraIdentity.of(self.camera), sphere=sphere, preset=preset.name, lights=lights, exposures=plan,
             base_exposures=base, matrix=c.matrix, statistics={**c.to_dict(), "report": str(result.files["report"]),
-                                                              "quality": grading_summary(result.report["quality"])},
+                                                              "quality": grading_summary(result.report["quality"]),
+                                                              **self._planned()},
             white_xyz=[float(v) for v in c.white], sources=sources, ppi=self._ppi(test),
             raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
                  "linear_limit": proc.linear_limit, "shape": list(first.white.shape), "ppi_grid": "sensor"},
             targets={"train": result.report.get("train"), "test": result.report.get("test")},
             darks=proc.darks, whites=dict(proc._whites), **_spectral_fields(result), **_stand_fields(result))
+
+    def _planned(self) -> dict:
+        """The light set's condition number the plan checked from the camera model (check_conditioning), beside
+        the one the calibration measured from the captures (statistics.condition_number)."""
+        cond = self.planned_condition
+        if cond is None or cond != cond:               # not checked (calibrate_at alone) or one light
+            return {}
+        return {"condition_number_planned": round(cond, 2) if np.isfinite(cond) else "inf"}
 
     def _ppi(self, test: TargetSpec) -> float | None:
         if self.settings.ppi:

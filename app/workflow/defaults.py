@@ -8,7 +8,8 @@ exposure plan, frame counts, matrix and folders as ``dualrgb calibrate``:
   worth it), so a dark original can be captured without recalibrating;
 * **darks and flats** per exposure: the capture protocol the presets' expected figures assume
   (``simulation.choices``);
-* **matrix**: also the ΔE00-optimised one when the parsimony study chose it;
+* **matrix**: every model the processing delivers (least squares, ΔE00-optimised, root-polynomial 2 and 3) in both
+  modes, the calibration's cross-validation choosing (issue 40);
 * **folders**: sessions and their deliverables under ``<per-user data folder>/captures`` (``resources.user_path``:
   ``~/.local/share/dualrgb/captures`` on Linux; ``DUALRGB_DATA_DIR`` moves it), never beside the settings file;
 * the study-chosen defaults (spectral step, characterisation model, HDR exposures, HDR merge) come from
@@ -111,7 +112,10 @@ def workflow_defaults(mode: str | None = None) -> WorkflowDefaults:
     return WorkflowDefaults(
         mode=mode, preset=default_preset_name(mode), hdr_auto=HDR_AUTO, hdr_exposures=int(study["hdr_exposures"]),
         dark_frames=DARK_FRAMES, flat_frames=FLAT_FRAMES,
-        optimise_matrix=study["characterisation_model"] != "linear",
+        # every model the processing delivers is a candidate in both modes: the calibration's own 5-fold
+        # cross-validation with the one-standard-error rule chooses (issue 40); the parsimony study's
+        # characterisation_model is the evidence it was checked with, no longer a restriction
+        optimise_matrix=True,
         spectral_grid=(float(study["spectral_start_nm"]), float(study["spectral_end_nm"]),
                        float(study["spectral_step_nm"])),
         settle_s=SETTLE_S, captures=captures_dir(),

@@ -95,16 +95,20 @@ class QaLine:
     spectral_rmse: float | None = None      # the calibration's spectral RMSE on its test target (None: no spectra)
     truth: dict | None = None               # virtual lab: the figures against the original's truth
     overrides: list[str] = field(default_factory=list)   # rules the user overrode (--force), said first
+    per_pixel: dict | None = None           # the calibration's per-pixel test dE00 {mean, p90} (None: not measured)
+    noise_gain: float | str | None = None   # the delivered model's noise gain (Y) at the white
 
     def text(self) -> str:
         def de(v: float | None) -> str:
             return "n/a" if v is None else f"{v:.2f}"
         spectral = "" if self.spectral_rmse is None else f", spectral RMSE test {self.spectral_rmse:.3f}"
         forced = "".join(f"OVERRIDE: {o}; " for o in self.overrides)
+        pixel = "" if not self.per_pixel else (f", per pixel test {de(self.per_pixel.get('mean'))} / p90 "
+                                               f"{de(self.per_pixel.get('p90'))} (noise gain {self.noise_gain})")
         return (f"{self.identifier}: {forced}clipped {self.clipped_pct:.2f} %, under-exposed "
                 f"{self.underexposed_pct:.2f} %, light dose {self.dose.lux_h:.3g} lux.h ({self.dose.lux_s:.3g} "
                 f"lux.s), calibration dE00 train "
-                f"{de(self.train_mean)} / test {de(self.test_mean)}{spectral}" + (", HDR" if self.hdr else "")
+                f"{de(self.train_mean)} / test {de(self.test_mean)}{pixel}{spectral}" + (", HDR" if self.hdr else "")
                 + (f"; {qa_text(self.truth)}" if self.truth else "") + "".join(f"; {w}" for w in self.warnings))
 
     def to_dict(self) -> dict:
@@ -112,6 +116,7 @@ class QaLine:
                 "underexposed_pct": round(self.underexposed_pct, 4), "invalid_pct": round(self.invalid_pct, 4),
                 "light_dose": self.dose.to_dict(), "calibration_train_de00_mean": self.train_mean,
                 "calibration_test_de00_mean": self.test_mean, "calibration_test_spectral_rmse": self.spectral_rmse,
+                "calibration_test_per_pixel_de00": self.per_pixel, "calibration_noise_gain_y": self.noise_gain,
                 "hdr": self.hdr, "warnings": self.warnings, "overrides": self.overrides,
                 **({"virtual_truth": self.truth} if self.truth else {})}
 
@@ -130,8 +135,11 @@ def _qa(stack: ChannelSource, invalid: float, profile: CalibrationProfile, origi
     clipped = max(stack.clipped_fraction.values(), default=0.0)
     under = stack.underexposed_fraction
     rmse = ((profile.spectral.get("test") or {}).get("rmse") or {}).get("mean") if profile.estimator else None
+    stats = profile.statistics
     return QaLine(original.identifier, 100 * clipped, 100 * under, 100 * invalid, dose,
-                  (best.get("train") or {}).get("mean"), profile.test_mean, hdr, list(warnings), rmse)
+                  (best.get("train") or {}).get("mean"), profile.test_mean, hdr, list(warnings), rmse,
+                  per_pixel=(stats.get("per_pixel_de00") or {}).get("test"),
+                  noise_gain=(stats.get("noise_gain") or {}).get("Y"))
 
 
 def delivered_ppi(profile: CalibrationProfile, resolution: str) -> float | None:
@@ -185,8 +193,8 @@ def write_images(source: ChannelSource, profile: CalibrationProfile, images: dic
     est = spectral.estimator if spectral is not None and "spectral" in streamed else None
     spec = (SpectralEncoder((H, W, N), est.matrix, est.bounds, spectral.rendering, offset=est.offset)
             if spectral is not None and est is not None else nullcontext())
-    with DeliveryEncoder((H, W, N), profile.matrix.matrix, profile.white_xyz,
-                         [images[k].space or "" for k in rgb_keys]) as enc, spec as cube_enc, \
+    with DeliveryEncoder((H, W, N), profile.matrix.matrix, profile.white_xyz, [images[k].space or "" for k in rgb_keys],
+                         degree=profile.matrix.degree) as enc, spec as cube_enc, \
             ThreadPoolExecutor(len(streamed), thread_name_prefix="deliver") as pool, ExitStack() as opened:
         out = {k: opened.enter_context(open_deliverable(im, H, W, ctx, band_rows, pool, direct))
                for k, im in streamed.items()}
@@ -401,6 +409,17 @@ def _processing(profile: CalibrationProfile, source: ChannelSource) -> str:
             f"{source.resolution} resolution ({how})")
 
 
+def colour_section(profile: CalibrationProfile) -> dict:
+    """The sidecar's colour figures of the calibration beside its patch means (issue 40): the delivered model, its
+    per-pixel dE00 on the charts, its noise gain and the light set's condition number (what it has of them)."""
+    m, stats = profile.matrix, profile.statistics
+    out: dict = {"model": {"method": m.method, "degree": m.degree, "terms": int(m.matrix.shape[0])}}
+    for key in ("per_pixel_de00", "noise_gain", "condition_number"):
+        if stats.get(key) is not None:
+            out[key] = stats[key]
+    return out
+
+
 def resolution_section(source: ChannelSource, profile: CalibrationProfile) -> dict:
     """The sidecar's ``resolution``: full or half, the delivered pixels, the sensor's, and how the channels were
     made from the mosaic."""
@@ -419,7 +438,7 @@ def _sidecar(source: ChannelSource, profile: CalibrationProfile, original: Origi
             "original": original.to_dict(), "file_stem": original.file_stem,
             "calibration": {"id": profile.id, "file": str(profile.path or ""), "created_at": profile.created_at,
                             "matrix": profile.matrix.method, "test_de00_mean": profile.test_mean,
-                            **lights_section(profile)},
+                            **lights_section(profile), **colour_section(profile)},
             **({"overrides": qa.overrides} if qa.overrides else {}),
             "camera": asdict(camera), "ppi": ppi, "resolution": resolution_section(source, profile),
             "exposures": exposures or {}, "light_dose": dose.to_dict(),

@@ -1,7 +1,8 @@
 """Each preset's expected captured error, as ``dualrgb simulate`` reports it for those lights, so that choosing
 lights other than the recommended ones is an informed choice (the GUI shows it beside each preset's name).
 
-The figure is the float64 expected captured mean ΔE00 on the training and test targets of the preset's mode
+The figure is the float64 expected captured mean ΔE00 on the training and test targets of the preset's mode, and
+per pixel on the test target (the matrix fitted on the patch means applied to one pixel of each patch)
 (simulation.search.evaluate_candidate with simulation.expected_error.ExpectedErrorEvaluator) under the setup
 and capture model ``dualrgb simulate`` uses by default: the packaged data on the parsimony study's spectral step
 and the virtual lab's capture (simulation.capture_model.CaptureModel.virtual_lab). Every preset is judged by
@@ -29,9 +30,11 @@ class PresetFigures:
     mode: str
     train: float
     test: float
+    pixel_test: float | None = None          # per pixel (the matrix on one pixel of each test patch), issue 40
 
     def text(self) -> str:
-        return f"expected ΔE00 {self.train:.2f} / {self.test:.2f}"
+        pixel = "" if self.pixel_test is None else f", per pixel {self.pixel_test:.2f}"
+        return f"expected ΔE00 {self.train:.2f} / {self.test:.2f}{pixel}"
 
 
 @lru_cache(maxsize=4)
@@ -53,7 +56,8 @@ def _figures(mode: str, grid: tuple[float, float, float], lights: tuple[tuple[tu
 
     cand = Candidate(tuple(LightSource(leds, levels) for leds, levels in lights), 0.0)
     evaluate_candidate(_evaluator(mode, grid), cand)
-    return PresetFigures(mode, float(cand.expected_train_errors.mean), float(cand.expected_test_errors.mean))
+    pixel = cand.per_pixel["test"]["mean"] if cand.per_pixel else None
+    return PresetFigures(mode, float(cand.expected_train_errors.mean), float(cand.expected_test_errors.mean), pixel)
 
 
 def preset_figures(preset: Any) -> PresetFigures:

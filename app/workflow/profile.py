@@ -44,6 +44,7 @@ from dualrgb.app.session.capture_session import atomic_write
 from dualrgb.app.workflow import profile_check
 from dualrgb.app.workflow.profile_arrays import ProfileArrays
 from dualrgb.app.workflow.profile_check import FORMAT, ProfileError
+from dualrgb.app.workflow.profile_colour import colour_lines
 from dualrgb.app.workflow.stand_calibration import describe_stand, observation_arrays, observations_from_arrays
 from dualrgb.app.workflow.vocabulary import NamedLight
 from dualrgb.common.atomic_files import atomic_output
@@ -388,7 +389,6 @@ def new_profile_id(created: datetime, sources: dict[str, str]) -> str:
 
 def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[str]:
     """Human-readable lines for ``dualrgb calibration show``."""
-    stats = prof.statistics.get("methods", {}).get(prof.statistics.get("best", ""), {})
     lines = [f"calibration {prof.id} ({FORMAT}, dualrgb {prof.version}), made {prof.created_at} "
              f"({prof.age_h():.1f} h ago), {prof.mode}",
              f"camera: {prof.camera.model} serial {prof.camera.serial or '?'}, ISO {prof.camera.iso}, "
@@ -401,10 +401,7 @@ def describe(prof: CalibrationProfile, check: ReuseCheck | None = None) -> list[
         ts = ", ".join(format_exposure(t) for t in prof.exposures.get(nl.name, []))
         lines.append(f"  {nl.name}: {nl.light.label() if nl.light.leds else 'LEDs and levels unknown'}, exposures {ts}")
     lines += chart_lines(prof.charts)
-    lines.append(f"matrix: {prof.matrix.method} ({len(prof.matrix.channels)} channels, of "
-                 f"{', '.join(prof.statistics.get('methods', {}))}); train mean dE00 "
-                 f"{(stats.get('train') or {}).get('mean', float('nan')):.3f}, "
-                 f"test mean {prof.test_mean or float('nan'):.3f}")
+    lines += colour_lines(prof.statistics, prof.matrix.method, prof.matrix.n_channels)
     lines.append(spectral_line(prof))
     lines += describe_stand(prof.stand) if "stand_model" not in prof.unavailable else []
     lines += [f"unavailable: {what}: {why}" for what, why in prof.unavailable.items()]

@@ -30,6 +30,8 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from dualrgb.simulation.colour_models import n_terms
+
 log = logging.getLogger(__name__)
 
 FORMAT = "dualrgb-calibration/1"
@@ -122,8 +124,11 @@ def _check_ranges(doc: dict[str, Any], where: str | Path) -> None:
         raise ProfileError(f"{where}: {field}: {problem}")
 
     rows, channels = doc["matrix"]["matrix"], doc["matrix"]["channels"]
-    if len(rows) != len(channels):
-        refuse("matrix.matrix", f"{len(rows)} rows for {len(channels)} channels ({', '.join(channels)})")
+    degree = doc["matrix"].get("degree", 1)
+    want = n_terms(len(channels), degree)             # a root-polynomial: one row per term (simulation.colour_models)
+    if len(rows) != want:
+        refuse("matrix.matrix", f"{len(rows)} rows for {len(channels)} channels ({', '.join(channels)})"
+                                + (f" of degree {degree} ({want} terms)" if degree != 1 else ""))
     names = [light["name"] for light in doc["lights"]]
     if len(set(names)) != len(names):
         refuse("lights", f"two lights are named alike ({', '.join(names)})")

@@ -141,9 +141,11 @@ class SessionResult:
     stand: StandResult | None = None                        # the stand model fitted to the captures
 
 
-def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None
-                  ) -> tuple[np.ndarray, np.ndarray, ChannelStack]:
-    """Patch values (n, C), their standard deviations (n, C) and the stack of a captured target."""
+def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None,
+                  pixels: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, ChannelStack]:
+    """Patch values (n, C), their standard deviations (n, C) and the stack of a captured target; ``pixels``, when
+    given, gets each patch's (m, C) pixel values (at most simulation.pixel_error.MAX_PIXELS_PER_PATCH, a regular
+    subsample) for the per-pixel colour error."""
     from dualrgb.app.processing.patches import detect_cc24
 
     stack = proc.stack(frames, progress=progress, cancel=cancel)
@@ -164,7 +166,17 @@ def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames,
                          f"but the target {len(spec.names)} patches"
                          + (f" on {spec.layout[0]} x {spec.layout[1]} cells" if spec.layout else ""))
     sampled = grid.sample(stack.data)
+    if pixels is not None:
+        pixels.extend(patch_pixels(grid, stack.data, cells))
     return sampled.mean[cells], sampled.std[cells], stack
+
+
+def patch_pixels(grid, image: np.ndarray, cells: Sequence[int]) -> list[np.ndarray]:
+    """Each of ``cells``' (m, C) pixels inside the grid's sampled area (the pixels its patch mean is made of)."""
+    from dualrgb.simulation.pixel_error import subsample
+
+    masks = grid.masks(image.shape[:2])
+    return [subsample(image[rs, cs][mask].astype(np.float64)) for rs, cs, mask in (masks[k] for k in cells)]
 
 
 def process_session(session: Session, out_dir: Path, train: TargetSpec, test: TargetSpec | None = None, *,
@@ -193,17 +205,17 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     names = list(train_frames)
     proc = build_processor(frames, names, white_level=white_level, linear_limit=linear_limit,
                            progress=sub_progress(progress, 0.0, 0.15), cancel=cancel, mode=mode)
-    vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel)
+    pixels: dict[str, list[np.ndarray]] = {"train": [], "test": []}     # each patch's, for the per-pixel dE00
+    vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel, pixels["train"])
     channels = stack.channels
-    vs = ss = stack_t = None
-    if test is not None:
-        test_frames = select_lights(frames.subject(test.subject), names, exposures)
-        vs, ss, stack_t = sample_target(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel)
+    vs, ss, stack_t = _sample_test(proc, frames, test, names, exposures, sub_progress(progress, 0.4, 0.55), cancel,
+                                   pixels["test"])
     white = reference_white() if white_xyz is None else np.asarray(white_xyz, dtype=float)
     c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
-                     optimise=optimise, progress=sub_progress(progress, 0.55, 0.8), cancel=cancel)
+                     optimise=optimise, pixels={k: v for k, v in pixels.items() if v},
+                     progress=sub_progress(progress, 0.55, 0.8), cancel=cancel)
     check(cancel)
-    spectral = _spectral(session, train, test, (vt, st, vs), channels, c.matrix.matrix, names, cancel)
+    spectral = _spectral(session, train, test, (vt, st, vs), channels, c.linear_matrix.matrix, names, cancel)
     stand = fit_session_stand(session, frames, proc, names, (train, vt, st, stack), (test, vs, stack_t), c, stand_start)
     files = _patch_files(out_dir, c, channels, ((train, vt), (test, vs)))
     data = [TargetData(s.names, s.xyz, v, s.layout, s.label or lbl, std=sd)
@@ -217,6 +229,16 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names,
                          spectral, stand)
+
+
+def _sample_test(proc: CaptureProcessor, frames: SessionFrames, test: TargetSpec | None, names: Sequence[str],
+                 exposures: Mapping[str, Sequence[float]] | None, progress: ProgressCallback | None,
+                 cancel: CancelToken | None, pixels: list[np.ndarray]) -> tuple:
+    """The test target's (means, per-pixel sd, stack), or three None without one; ``pixels`` gets its patches'."""
+    if test is None:
+        return None, None, None
+    test_frames = select_lights(frames.subject(test.subject), names, exposures)
+    return sample_target(proc, test, test_frames, progress, cancel, pixels)
 
 
 def _stand_report(stand: StandResult | None, train: TargetSpec, out_dir: Path, channels: list[str]

@@ -110,12 +110,17 @@ def _cell(value: Any) -> str:
     return "" if value is None else format(value, ".3f")
 
 
+def _pixel(figures: dict[str, Any] | None) -> str:
+    """Per-pixel mean (p90), issue 40; empty for a report made before."""
+    return "" if not figures else f"{figures['mean']:.3f} ({figures['p90']:.3f})"
+
+
 def demo_rows(report: dict[str, Any]) -> list[str]:
     """The Markdown table of a demo report's conditions (the report's own order); the predicted and noise-free
     columns only for the plain charts the prediction is made for."""
     rows = ["| Condition | Lights (LEDs @ levels) | Matrix | Train captured | Test captured | Train predicted | "
-            "Test predicted | Train noise-free | Test noise-free |", "| --- | --- | --- | ---: | ---: | ---: | ---: | "
-            "---: | ---: |"]
+            "Test predicted | Train noise-free | Test noise-free | Test per pixel captured (p90) | Test per pixel "
+            "predicted (p90) |", "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for name in report["conditions"]:
         c = report[name]
         # the ND-covered scene (hdr_*, single_*) has no prediction: its "simulated" is the lights' plain chart's
@@ -123,7 +128,9 @@ def demo_rows(report: dict[str, Any]) -> list[str]:
         lights = " + ".join(_levels(light) for light in c.get("lights") or [])
         rows.append(f"| {name} | {lights} | {c.get('matrix_method', '')} | {_cell(c['train']['mean'])} | "
                     f"{_cell(c['test']['mean'])} | {_cell(sim.get('train'))} | {_cell(sim.get('test'))} | "
-                    f"{_cell(sim.get('noise_free_train'))} | {_cell(sim.get('noise_free_test'))} |")
+                    f"{_cell(sim.get('noise_free_train'))} | {_cell(sim.get('noise_free_test'))} | "
+                    f"{_pixel((c.get('per_pixel') or {}).get('test'))} | "
+                    f"{_pixel(((sim.get('per_matrix') or {}).get('per_pixel') or {}).get('test'))} |")
     return rows
 
 

@@ -201,14 +201,14 @@ def write_marked(path: str | Path, body: str, name: str) -> Path:
     return p
 
 
-def new_figure(width: float = 7.5, height: float = 4.8, ncols: int = 1):
-    """A matplotlib Figure on the Agg canvas and its axes (one per column)."""
+def new_figure(width: float = 7.5, height: float = 4.8, ncols: int = 1, nrows: int = 1):
+    """A matplotlib Figure on the Agg canvas and its axes (one per column; rows x columns when ``nrows`` > 1)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(width, height), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(1, ncols)
+    axes = fig.subplots(nrows, ncols)
     return fig, axes
 
 

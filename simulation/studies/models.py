@@ -2,8 +2,8 @@
 
 * ``linear``: the thesis' least-squares matrix (N x 3), rank-safe (simulation.matrix_fit.fit_matrix);
 * ``root-polynomial``: Finlayson, Mackiewicz & Hurlbert 2015, degree 2: the N channels and the square roots
-  of all their pairwise products (6 + 15 = 21 terms for 6 channels), least squares. colour-science's
-  ``polynomial_expansion_Finlayson2015`` only expands 3 channels, hence this expansion;
+  of all their pairwise products (6 + 15 = 21 terms for 6 channels), least squares: simulation.colour_models'
+  expansion, the one the processing fits and the delivery applies (degree 3 too);
 * ``de-optimised``: the N x 3 matrix minimising the mean CIEDE2000 on the training target, started from
   least squares (L-BFGS-B, forward-difference gradient evaluated as one batch); kept only if it improves.
 
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dualrgb.simulation.colorimetry import delta_e_2000, xyz_to_lab
+from dualrgb.simulation.colour_models import expand
 from dualrgb.simulation.matrix_fit import fit_matrix
 
 log = logging.getLogger(__name__)
@@ -28,10 +29,7 @@ MODEL_TERMS = {"linear": lambda n: n, "de-optimised": lambda n: n, "root-polynom
 
 def root_polynomial_terms(values: np.ndarray) -> np.ndarray:
     """(n, N) -> (n, N + N(N-1)/2): the channels, then sqrt(c_i c_j) for i < j (negatives clipped to 0)."""
-    v = np.asarray(values, dtype=float)
-    pos = np.clip(v, 0.0, None)
-    i, j = np.triu_indices(v.shape[1], k=1)
-    return np.concatenate([v, np.sqrt(pos[:, i] * pos[:, j])], axis=1)
+    return expand(values, 2)
 
 
 @dataclass

@@ -1,21 +1,30 @@
 """Speed against accuracy of every optimiser on the binned light sets (``dualrgb study speed-accuracy``).
 
-Each configuration (a method with its settings) runs once per seed on the same evaluator. A run records its
-wall time, its evaluations, the best training dE00 it found (float64 re-evaluation, as reports do), that
-light set's test dE00, and its anytime curve (lowest cost evaluated so far against evaluations and seconds,
-in the order the method spends them: PSO and GA work through the light sets 16 at a time, successive halving
-visits every set first). Results are summarised per configuration as median and min-max over seeds.
+Each configuration (a method with its settings) runs once per seed on the same evaluator (the thesis' noise-free
+cost). A run records its cost on axes that do not move with the machine's load - the CPU seconds of the process
+that ran it (``time.process_time``: every thread of that process, numba's included; a Dask worker measures its
+own) and the objective evaluations - and beside them its wall time with the load average at its start and end;
+the best training dE00 it found (float64 re-evaluation, as reports do), that light set's test dE00, and what the
+light set is worth under capture: its expected captured figures (simulation.expected_error, the virtual lab's
+capture) and per pixel (the matrix on one pixel of each patch, mean and test p90), at the levels the sphere
+holds (a requested level between 0 and the sphere's minimum stable level is 0 there: such a point is marked); and
+its anytime curve (lowest cost evaluated so far against evaluations and seconds, in the order the method spends
+them: PSO and GA work through the light sets 16 at a time, successive halving visits every set first). Results
+are summarised per configuration as median and min-max over seeds.
 
-Outputs: ``speed_accuracy.json``, ``pareto.png`` (median time vs median best error, train and test, with the
-Pareto front), ``convergence.png`` (best-so-far error vs evaluations, median and spread over seeds) and
-``SUMMARY.md``.
+Outputs: ``speed_accuracy.json``, ``pareto.png`` (median CPU seconds vs median best error: training patch means
+noise-free and expected captured, and per pixel, with the Pareto front of the noise-free medians and the points
+below the sphere's minimum level marked), ``convergence.png`` (best-so-far error vs evaluations, median and spread
+over seeds) and ``SUMMARY.md``.
 """
 from __future__ import annotations
 
 import logging
+import os
 import time
 import warnings
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -103,8 +112,36 @@ class RunTask:
     light_sets: int | None = None
 
 
+@lru_cache(maxsize=4)
+def captured_judge(spec: SetupSpec) -> Any:
+    """The expected-captured evaluator of the virtual lab's capture in the spec's mode (one per process): what a
+    run's best light set is worth when captured, patch means and per pixel."""
+    from dualrgb.simulation.capture_model import CaptureModel
+    from dualrgb.simulation.expected_error import ExpectedErrorEvaluator
+
+    return ExpectedErrorEvaluator(spec.build(), CaptureModel.virtual_lab(spec.mode))
+
+
+def captured_figures(spec: SetupSpec, levels: list[list[float]], leds: list[list[int]]) -> dict:
+    """The expected captured (patch means) and per-pixel figures of a light set given by its LEDs and requested
+    levels, at the levels the sphere holds, and whether a requested level lies below the sphere's minimum."""
+    judge = captured_judge(spec)
+    W = np.zeros((len(leds), judge.n_leds))
+    for li, (ls, vs) in enumerate(zip(leds, levels, strict=True)):
+        W[li, np.asarray(ls) - 1] = vs
+    lowest = judge.capture.sphere.min_stable_level
+    below = [[int(k), float(v)] for row, ls in zip(levels, leds, strict=True) for k, v in zip(ls, row, strict=True)
+             if 0.0 < v < lowest]
+    tr, te = judge.expected_stats(W)
+    px = judge.pixel_stats(W)
+    return {"expected_train": tr.mean, "expected_test": te.mean, "per_pixel_train": px["train"]["mean"],
+            "per_pixel_test": px["test"]["mean"], "per_pixel_test_p90": px["test"]["p90"],
+            "below_min_level": below, "min_stable_level": lowest}
+
+
 def run_task(task: RunTask) -> dict:
-    """One configuration, one seed (a Dask task): errors, time, evaluations and the anytime trace."""
+    """One configuration, one seed (a Dask task): errors, CPU and wall time, evaluations and the anytime trace;
+    the best light set's expected captured and per-pixel figures."""
     ev = evaluator_for(task.spec)
     groups = light_pairs()
     if task.light_sets:
@@ -113,16 +150,19 @@ def run_task(task: RunTask) -> dict:
     traced = TracedEvaluator(ev)
     fn = OPTIMISERS[task.config.method]
     n0 = ev.evaluations
-    t0 = time.perf_counter()
+    load0 = os.getloadavg()[0]
+    t0, c0 = time.perf_counter(), time.process_time()
     out = fn(traced, groups, task.config.settings, task.seed)
-    seconds = time.perf_counter() - t0
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    load = [round(load0, 2), round(os.getloadavg()[0], 2)]
     refine_top(ev, out, 1)
     best = out.best
+    levels = [list(src.levels) for src in best.sources]
     return {"method": task.config.method, "label": task.config.label, "seed": task.seed,
-            "seconds": seconds, "evaluations": ev.evaluations - n0, "train_cost": best.train_cost,
-            "train": best.train_errors.mean, "test": best.test_errors.mean,
-            "best": {**best.to_dict(), "levels_exact": {str(i + 1): list(src.levels)
-                                                        for i, src in enumerate(best.sources)}},
+            "cpu_seconds": cpu, "seconds": seconds, "load": load, "evaluations": ev.evaluations - n0,
+            "train_cost": best.train_cost, "train": best.train_errors.mean, "test": best.test_errors.mean,
+            **captured_figures(task.spec, levels, [list(src.leds) for src in best.sources]),
+            "best": {**best.to_dict(), "levels_exact": {str(i + 1): lv for i, lv in enumerate(levels)}},
             "trace": traced.trace.to_dict()}
 
 
@@ -154,12 +194,18 @@ def summarise(runs: list[dict], order: list[str]) -> list[dict]:
             continue
         pairs = {(tuple(r["best"]["source1"]), tuple(r["best"]["source2"])) for r in rs}
         rows.append({"label": label, "method": rs[0]["method"],
+                     "cpu_seconds": median_spread([r["cpu_seconds"] for r in rs]),
                      "seconds": median_spread([r["seconds"] for r in rs]),
+                     "load": median_spread([v for r in rs for v in r["load"]]),
                      "evaluations": median_spread([r["evaluations"] for r in rs]),
-                     "train": median_spread([r["train"] for r in rs]),
-                     "test": median_spread([r["test"] for r in rs]),
+                     **{k: median_spread([r[k] for r in rs]) for k in FIGURES},
+                     "below_min_level_runs": sum(bool(r["below_min_level"]) for r in rs),
                      "distinct_best_pairs": len(pairs)})
     return rows
+
+
+FIGURES = ("train", "test", "expected_train", "expected_test", "per_pixel_train", "per_pixel_test",
+           "per_pixel_test_p90")
 
 
 def speed_accuracy(spec: SetupSpec = SetupSpec(), *, seeds: int = 3, budget: str = "default",
@@ -187,7 +233,7 @@ def speed_accuracy(spec: SetupSpec = SetupSpec(), *, seeds: int = 3, budget: str
                                  elapsed_s=time.perf_counter() - t0)
     result.summary = summarise(runs, [c.label for c in cfgs])
     for key, attr in (("train", "pareto_train"), ("test", "pareto_test")):
-        pts = [(r["seconds"]["median"], r[key]["median"]) for r in result.summary]
+        pts = [(r["cpu_seconds"]["median"], r[key]["median"]) for r in result.summary]
         setattr(result, attr, [result.summary[i]["label"] for i in pareto_front(pts)])
     return result
 
@@ -198,33 +244,59 @@ _COLOURS = {"exhaustive": "black", "pso": "tab:blue", "ga": "tab:orange", "halvi
 _MARKERS = {"exhaustive": "s", "pso": "o", "ga": "^", "halving": "D", "pyswarms": "v", "de": "P", "lbfgs": "X"}
 
 
+def _spread(row: dict, key: str) -> tuple[float, list[list[float]]]:
+    v = row[key]
+    return v["median"], [[v["median"] - v["min"]], [v["max"] - v["median"]]]
+
+
 def pareto_chart(result: SpeedAccuracyResult):
-    fig, axes = new_figure(11.0, 4.6, ncols=2)
-    for ax, key, front in ((axes[0], "train", result.pareto_train), (axes[1], "test", result.pareto_test)):
-        seen = set()
-        for row in result.summary:
-            m = row["method"]
-            x, y = row["seconds"], row[key]
-            ax.errorbar(x["median"], y["median"],
-                        xerr=[[x["median"] - x["min"]], [x["max"] - x["median"]]],
-                        yerr=[[y["median"] - y["min"]], [y["max"] - y["median"]]],
-                        fmt=_MARKERS.get(m, "o"), color=_COLOURS.get(m, "grey"), ms=6, capsize=2, lw=0.8,
-                        label=None if m in seen else LABELS.get(m, m))
-            seen.add(m)
-            if m == "pso":
-                ax.annotate(row["label"].replace("pso ", "").replace(" (thesis)", "*"), (x["median"], y["median"]),
-                            textcoords="offset points", xytext=(4, 3), fontsize=7, color=_COLOURS["pso"])
-        rows = {r["label"]: r for r in result.summary}
-        fx = [rows[label]["seconds"]["median"] for label in front]
-        fy = [rows[label][key]["median"] for label in front]
-        ax.step(fx, fy, where="post", color="grey", lw=1, ls="--", label="Pareto front (medians)")
+    """CPU seconds (median, min-max over seeds) against the best light set's training figures: left the noise-free
+    cost the search minimised (filled) beside the same light set's expected captured error (hollow, joined by a
+    line), right its per-pixel error (filled: training, hollow: test); a ring marks a configuration whose best light
+    set asked for a level below the sphere's minimum (what the sphere holds is scored)."""
+    fig, axes = new_figure(11.0, 5.6, ncols=2)
+    left, right = axes
+    seen = set()
+    for row in result.summary:
+        m = row["method"]
+        style = dict(color=_COLOURS.get(m, "grey"), ms=6, capsize=2, lw=0.8, fmt=_MARKERS.get(m, "o"))
+        x, xerr = _spread(row, "cpu_seconds")
+        for ax, filled, hollow in ((left, "train", "expected_train"), (right, "per_pixel_train", "per_pixel_test")):
+            y, yerr = _spread(row, filled)
+            ax.errorbar(x, y, xerr=xerr, yerr=yerr, label=None if m in seen else LABELS.get(m, m), **style)
+            y2, yerr2 = _spread(row, hollow)
+            ax.errorbar(x, y2, yerr=yerr2, mfc="none", **style)
+            ax.plot([x, x], [y, y2], color=style["color"], lw=0.6, alpha=0.6)
+            if row["below_min_level_runs"]:
+                ax.plot([x, x], [y, y2], "o", ms=13, mfc="none", mec="red", mew=1.2)
+        seen.add(m)
+        if m == "pso":
+            left.annotate(row["label"].replace("pso ", "").replace(" (thesis)", "*"), (x, row["train"]["median"]),
+                          textcoords="offset points", xytext=(4, 3), fontsize=7, color=_COLOURS["pso"])
+    rows = {r["label"]: r for r in result.summary}
+    front = result.pareto_train
+    left.step([rows[k]["cpu_seconds"]["median"] for k in front], [rows[k]["train"]["median"] for k in front],
+              where="post", color="grey", lw=1, ls="--", label="Pareto front (noise-free medians)")
+    left.plot([], [], "s", mfc="none", color="grey", label="hollow: expected captured")
+    left.plot([], [], "o", ms=11, mfc="none", mec="red", label="a level below the sphere's minimum")
+    right.plot([], [], "o", mfc="none", color="grey", label="hollow: test")
+    left.set_ylabel("best light set: training mean dE00 (patch means)")
+    right.set_ylabel("same light set: per-pixel mean dE00 (expected)")
+    medians = [row[k]["median"] for row in result.summary for k in ("per_pixel_train", "per_pixel_test")]
+    if medians:
+        right.set_ylim(0.0, 1.35 * max(medians))             # a seed's bar may run far above: clipped, in the JSON
+    load = result.summary[0]["load"]["median"] if result.summary else float("nan")
+    for ax, title in ((left, "noise-free (filled) and expected captured"), (right, "per pixel: train and test")):
         ax.set_xscale("log")
-        ax.set_xlabel("wall time per run, s (median, min-max over seeds)")
-        ax.set_ylabel(f"best {key} mean dE00")
-        ax.set_title(f"{key}: {result.light_sets} light sets, {len(result.seeds)} seeds")
+        ax.set_xlabel("CPU seconds per run (median, min-max over seeds)")
+        ax.set_title(f"{title}: {result.light_sets} light sets, {len(result.seeds)} seeds", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=7, loc="upper right")
-    fig.suptitle("Speed vs accuracy (* = thesis PSO 200 particles x 10 iterations)", fontsize=10)
+    handles, labels = left.get_legend_handles_labels()
+    more = [(h, lab) for h, lab in zip(*right.get_legend_handles_labels(), strict=True) if lab not in labels]
+    fig.legend(handles + [h for h, _ in more], labels + [lab for _, lab in more], loc="outside lower center",
+               ncol=4, fontsize=7)
+    fig.suptitle(f"Speed vs accuracy (* = thesis PSO 200 particles x 10 iterations; load average {load:.1f} during "
+                 "the runs, wall times in the JSON)", fontsize=10)
     return fig
 
 
@@ -281,23 +353,28 @@ def write_outputs(result: SpeedAccuracyResult, out: StudyOutput) -> None:
     best_train = min(r["train"]["median"] for r in rows)
     lines = [f"Setup: {result.spec.label()}; {result.light_sets} binned light sets; budget '{result.budget}'; "
              f"seeds {result.seeds}; runner {result.runner.get('runner', 'serial')}; total "
-             f"{result.elapsed_s:.0f} s.", "",
-             "| configuration | time s (median) | evaluations | best train dE00 (median [min-max]) | "
-             "test dE00 (median) | distinct best pairs |",
-             "|---|---:|---:|---|---:|---:|"]
+             f"{result.elapsed_s:.0f} s wall.", "",
+             "| configuration | CPU s (median) | evaluations | wall s (load) | best train dE00 (median [min-max]) | "
+             "test | expected captured train / test | per pixel train / test (p90) | below min. level |",
+             "|---|---:|---:|---:|---|---:|---|---|---:|"]
     for r in rows:
         tr = r["train"]
-        lines.append(f"| {r['label']} | {r['seconds']['median']:.2f} | {r['evaluations']['median']:.0f} | "
-                     f"{tr['median']:.4f} [{tr['min']:.4f}-{tr['max']:.4f}] | {r['test']['median']:.4f} | "
-                     f"{r['distinct_best_pairs']} |")
+        med = {k: r[k]["median"] for k in FIGURES}
+        lines.append(f"| {r['label']} | {r['cpu_seconds']['median']:.2f} | {r['evaluations']['median']:.0f} | "
+                     f"{r['seconds']['median']:.2f} ({r['load']['median']:.1f}) | "
+                     f"{tr['median']:.4f} [{tr['min']:.4f}-{tr['max']:.4f}] | {med['test']:.4f} | "
+                     f"{med['expected_train']:.3f} / {med['expected_test']:.3f} | {med['per_pixel_train']:.3f} / "
+                     f"{med['per_pixel_test']:.3f} ({med['per_pixel_test_p90']:.3f}) | "
+                     f"{r['below_min_level_runs']} of {len(result.seeds)} |")
     near = [r for r in rows if r["train"]["median"] <= best_train + 0.01]
-    fastest = min(near, key=lambda r: r["seconds"]["median"])
-    lines += ["", f"Pareto front (train): {', '.join(result.pareto_train)}.",
-              f"Pareto front (test): {', '.join(result.pareto_test)}.",
-              f"Lowest median training error: {best_train:.4f}; fastest configuration within 0.01 of it: "
-              f"**{fastest['label']}** ({fastest['seconds']['median']:.2f} s, "
+    fastest = min(near, key=lambda r: r["cpu_seconds"]["median"])
+    lines += ["", f"Pareto front (train, CPU seconds): {', '.join(result.pareto_train)}.",
+              f"Pareto front (test, CPU seconds): {', '.join(result.pareto_test)}.",
+              f"Lowest median training error: {best_train:.4f}; cheapest configuration within 0.01 of it: "
+              f"**{fastest['label']}** ({fastest['cpu_seconds']['median']:.2f} CPU s, "
               f"{fastest['evaluations']['median']:.0f} evaluations).",
               "", "pyswarms, differential evolution and L-BFGS-B optimise one light set at a time in a Python "
               "loop over the sets (L-BFGS-B only on the best sets of a random screen); PSO, GA and "
-              "successive halving are vectorised over sets. Times are wall-clock on this machine."]
+              "successive halving are vectorised over sets. CPU seconds are the process's (all its threads); wall "
+              "times move with the machine's load (the load average beside them)."]
     out.write_summary("Speed vs accuracy", lines)

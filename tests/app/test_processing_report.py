@@ -74,7 +74,9 @@ def test_build_report_writes_json_and_figures(tmp_path):
         assert key in on_disk
     for s in ("train", "test"):
         assert set(on_disk[s]) == {"mean", "median", "p90", "max"}
-    assert set(on_disk["methods"]) == {"least-squares", "de2000"}
+    assert set(on_disk["methods"]) == {"least-squares", "de2000", "root-polynomial-2", "root-polynomial-3"}
+    assert [r["model"] for r in on_disk["models"]] == list(on_disk["methods"])
+    assert sum(r["chosen"] for r in on_disk["models"]) == 1 and on_disk["noise_gain"]["Y"] >= 1.0
     assert on_disk["standards"]["evaluated_on"] == "test"
     assert set(on_disk["standards"]["results"]) == set(STANDARDS)
     assert 11 in on_disk["dn_validation"]["outlier_patches"]

@@ -42,7 +42,8 @@ def test_the_defaults_and_where_they_come_from(user_data_dir):
     assert (d.dark_frames, d.flat_frames) == (cam.dark_frames, cam.flat_frames) == (10, 3)
     entry = packaged["modes"]["reflective"]                           # dualrgb-parsimony/2: one entry per mode
     assert d.hdr_exposures == entry["hdr_exposures"] == 2
-    assert d.optimise_matrix is (entry["characterisation_model"] != "linear")
+    assert d.optimise_matrix is True and defaults.workflow_defaults("transmissive").optimise_matrix is True
+    assert entry["characterisation_model"] in ("linear", "de-optimised")     # evidence only (issue 40)
     assert d.spectral_grid == (entry["spectral_start_nm"], entry["spectral_end_nm"], entry["spectral_step_nm"])
     film = packaged["modes"]["transmissive"]
     assert defaults.workflow_defaults("transmissive").spectral_grid == (
@@ -180,4 +181,7 @@ def test_preset_figures_are_what_simulate_reports_for_those_lights(mode, tmp_pat
                                                          best["expected_test_de00_mean"])
     recommended = preset_figures(load_preset(defaults.default_preset_path(mode)))
     assert recommended.train < fig.train and recommended.test < fig.test   # the default is the better choice
-    assert recommended.text() == f"expected ΔE00 {recommended.train:.2f} / {recommended.test:.2f}"
+    assert recommended.text() == (f"expected ΔE00 {recommended.train:.2f} / {recommended.test:.2f}, per pixel "
+                                  f"{recommended.pixel_test:.2f}")
+    assert fig.pixel_test is not None and round(fig.pixel_test, 4) == best["per_pixel_test_de00_mean"]
+    assert recommended.pixel_test is not None and recommended.pixel_test < fig.pixel_test    # per pixel too

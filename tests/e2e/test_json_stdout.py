@@ -100,6 +100,20 @@ def test_json_to_stdout_in_every_command(stand):
         docs[name] = strict(r.stdout, name)
     assert not (root / "-").exists()
     assert docs["calibrate"]["format"] == "dualrgb-calibration/1" and docs["calibrate"]["charts"]["train"]["packaged"]
+    stats = docs["calibrate"]["statistics"]             # issue 40: per pixel beside the patch means, the model table
+    for target in ("train", "test"):
+        px = stats["per_pixel_de00"][target]
+        assert px["p90"] > px["mean"] > stats["methods"][stats["best"]][target]["mean"]
+    models = {row["model"]: row for row in stats["models"]}
+    assert {"least-squares", "root-polynomial-2"} <= set(models) and models[stats["best"]]["chosen"]
+    assert models["root-polynomial-2"]["terms"] == 21 and models["root-polynomial-2"]["per_pixel_de00_mean"] > 0
+    assert 1 < stats["condition_number"] < 1e3 and 1 < stats["condition_number_planned"] < 1e3
+    assert docs["calibration show"]["statistics"]["models"] == stats["models"]
+    assert docs["capture"]["qa"]["calibration_test_per_pixel_de00"] == stats["per_pixel_de00"]["test"]
+    assert f"per pixel test {stats['per_pixel_de00']['test']['mean']:.2f}" in docs["capture"]["qa"]["text"]
+    sidecar = json.loads((root / docs["capture"]["sidecar"]).read_text(encoding="utf-8"))
+    assert sidecar["calibration"]["per_pixel_de00"] == {k: stats["per_pixel_de00"][k] for k in ("train", "test")}
+    assert sidecar["calibration"]["model"]["method"] == stats["best"] and sidecar["calibration"]["noise_gain"]
     assert docs["capture"]["original"]["identifier"] == "J-1" and docs["process"]["originals"]
     assert docs["calibration show"]["check"]["refusals"] == []
     assert docs["verify"]["ok"] and docs["bag"]["originals"] == ["J-1"] and docs["cube"]["samples"] == 160

@@ -11,6 +11,7 @@ from PySide6.QtCore import QPoint, QPointF, Qt
 from PySide6.QtGui import QWheelEvent
 from PySide6.QtWidgets import QApplication
 
+from dualrgb.app.gui.panels.results import METHOD_NAMES
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.workflow.day import DayStep, StepState
 from dualrgb.app.workflow.delivery import Original
@@ -168,16 +169,18 @@ def test_calibration_loaded_shows_its_exposures_and_calibrate_again_asks(qtbot, 
 def test_results_grade_the_delivered_matrix(qtbot, make_window):
     w = make_window()
     connect_devices(qtbot, w)
-    quick_calibrate(qtbot, w)                                     # least squares only: what the deliveries use
+    quick_calibrate(qtbot, w)                # no ΔE00 fit: least squares or a root-polynomial is what is delivered
     res = w.results
-    assert res.delivered_method() == "least-squares" and not res.optimise.isChecked()
-    assert res.comparison_note("least-squares") == ""
-    assert "comparison" in res.comparison_note("de2000") and "least squares" in res.comparison_note("de2000")
+    delivered = res.delivered_method()
+    assert delivered in ("least-squares", "root-polynomial-2", "root-polynomial-3") and not res.optimise.isChecked()
+    assert res.comparison_note(delivered) == ""
+    assert "comparison" in res.comparison_note("de2000") and METHOD_NAMES[delivered] in res.comparison_note("de2000")
     qtbot.waitUntil(lambda: res.train_subject.count() > 0, timeout=LONG)
     click(qtbot, res.process_button)
     qtbot.waitUntil(lambda: res.result is not None, timeout=LONG)
     wait_idle(qtbot, w, LONG)
-    assert "least-squares" in res.summary.text() and "comparison" not in res.summary.text()
+    assert delivered in res.summary.text() and "comparison" not in res.summary.text()
+    assert "per pixel, test: mean" in res.summary.text()           # issue 40: beside the patch means
     assert all("comparison" not in b.text() for b in res.badge_labels.values())
 
 

@@ -136,7 +136,10 @@ def test_run_reports_both_figures_and_realised_levels():
     d = best.to_dict()
     assert d["expected_train_de00_mean"] >= d["train_de00_mean"] - 1e-3
     preset = res.preset()
-    assert set(preset.errors) == {"train", "test", "expected_captured"}
+    assert set(preset.errors) == {"train", "test", "expected_captured", "per_pixel"}
+    # per pixel (the matrix on single pixels) well above the patch means, as a master shows it
+    assert preset.errors["per_pixel"]["test"]["mean"] > 1.5 * preset.errors["expected_captured"]["test"]["mean"]
+    assert d["per_pixel_test_de00_mean"] == preset.errors["per_pixel"]["test"]["mean"]
     nf = run(setup, "exhaustive", top=2, objective="noise-free")
     assert [s.leds for s in nf.outcome.best.sources] == [(2, 5, 9), (2, 6, 9)]
     assert nf.outcome.best.expected_train.mean > 3 * best.expected_train.mean

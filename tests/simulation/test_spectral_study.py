@@ -3,6 +3,7 @@ the docs' figures rest on."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -88,3 +89,21 @@ def test_the_docs_spectral_section_is_the_one_made_from_the_committed_study():
         f"docs/data/study_spectral.json --doc {DOC_PAGE}` writes"
     reflective = next(m for m in doc["modes"] if m["mode"] == "reflective")
     assert all(r["wavelengths"]["measured"] == [410.0, 730.0] for r in reflective["rows"])
+
+
+def test_the_docs_tables_say_each_light_sets_own_seen_window():
+    """'RMSE seen' is over the measured wavelengths *that light set* sees (issue 40: the 3-channel row's 0.0359 is
+    over 410-680 nm, its own window, not the 410-660 nm of the colour-chosen pair the table printed for every row)."""
+    from dualrgb.simulation.studies.spectral import load_study, summary_lines
+
+    doc = load_study(Path(__file__).resolve().parents[2] / "docs" / "data" / "study_spectral.json")
+    lines = summary_lines(doc["modes"])
+    for m in doc["modes"]:
+        for r in m["rows"]:
+            lo, hi = r["wavelengths"]["seen"]
+            assert any(line.startswith(f"| {m['mode']} | {r['lights']} | {r['channels']} | {r['chosen']} |")
+                       and f"{r['rmse_seen']:.4f} ({lo:g}-{hi:g} nm)" in line for line in lines)
+            bound = next(line for line in lines if line.startswith(f"| {m['mode']} | {r['lights']} | packaged |"))
+            assert bound.split(" | ")[4] == f"{lo:g}-{hi:g} nm", bound
+    three = next(r for r in doc["modes"][0]["rows"] if r["lights"] == "3-channel" and r["method"] == "pinv")
+    assert three["wavelengths"]["seen"] == [410.0, 680.0]

@@ -130,13 +130,34 @@ def test_speed_accuracy_tiny_writes_outputs(tmp_path):
     assert methods == {"exhaustive", "pso", "ga", "halving", "pyswarms", "de", "lbfgs"}
     rows = {c["label"]: c for c in data["configurations"]}
     for key in ("pareto_train", "pareto_test"):
-        pts = [(rows[label]["seconds"]["median"], rows[label][key.split("_")[1]]["median"]) for label in data[key]]
+        pts = [(rows[label]["cpu_seconds"]["median"], rows[label][key.split("_")[1]]["median"])
+               for label in data[key]]
         assert all(a[0] <= b[0] and b[1] < a[1] for a, b in pairwise(pts))
     for r in data["runs"]:
-        assert r["evaluations"] > 0 and r["train"] > 0 and r["test"] > 0
+        assert r["evaluations"] > 0 and r["train"] > 0 and r["test"] > 0 and r["cpu_seconds"] > 0
         assert r["trace"]["best"] == sorted(r["trace"]["best"], reverse=True)
+        # what the light set is worth captured: patch means, and per pixel well above them
+        assert r["expected_train"] > 0.9 * r["train"] and r["per_pixel_train"] > r["expected_train"]
+        assert r["per_pixel_test_p90"] > r["per_pixel_test"] and len(r["load"]) == 2
+        lowest = r["min_stable_level"]
+        assert r["below_min_level"] == [[k, v] for src, lv in zip((r["best"]["source1"], r["best"]["source2"]),
+                                                                 r["best"]["levels_exact"].values(), strict=True)
+                                        for k, v in zip(src, lv, strict=True) if 0 < v < lowest]
     with pytest.raises(ValueError):
         configs("huge")
+
+
+def test_a_level_below_the_spheres_minimum_is_marked_and_scored_as_the_sphere_holds_it():
+    """The noise-free optimum's LED 1 at a trace level: the sphere holds 0 there, so the expected captured and
+    per-pixel figures are those of the light without it, and the run says which level was below the minimum."""
+    from dualrgb.simulation.studies.speed_accuracy import captured_figures
+
+    trace = captured_figures(SPEC, [[0.0017, 1.0, 1.0], [1.0, 1.0, 1.0]], [[1, 6, 8], [3, 5, 9]])
+    without = captured_figures(SPEC, [[0.0, 1.0, 1.0], [1.0, 1.0, 1.0]], [[1, 6, 8], [3, 5, 9]])
+    assert trace["below_min_level"] == [[1, 0.0017]] and without["below_min_level"] == []
+    assert trace["min_stable_level"] == 0.01
+    for key in ("expected_train", "per_pixel_train", "per_pixel_test"):
+        assert trace[key] == pytest.approx(without[key], rel=1e-9)
 
 
 def test_speed_accuracy_dask_equals_serial(dask_runner):

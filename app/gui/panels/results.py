@@ -34,7 +34,7 @@ from dualrgb.app.gui.results_plots import PatchSpectra, TargetPlots, TargetView
 from dualrgb.app.gui.units import with_unit
 from dualrgb.app.gui.widgets import PathLabel, side_by_side
 from dualrgb.app.gui.workers import TaskHandle
-from dualrgb.app.processing.characterise import DE2000, LEAST_SQUARES
+from dualrgb.app.processing.characterise import DE2000, LEAST_SQUARES, ROOT_POLYNOMIAL_2, ROOT_POLYNOMIAL_3
 from dualrgb.app.protocols import Session
 from dualrgb.app.workflow.session_processing import light_sets, subject_entries
 from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
@@ -45,7 +45,9 @@ log = logging.getLogger(__name__)
 BADGE_COLOURS = {True: "#2e7d32", False: "#c62828"}
 REFERENCE_METHODS = (("eq 4.2 (thesis: the sum the simulation uses)", "eq-4.2"),
                      ("ASTM E308 (measured spectra at their own wavelengths)", "astm-e308"))
-METHOD_NAMES = {LEAST_SQUARES: "least squares", DE2000: "the ΔE00-optimised matrix"}
+METHOD_NAMES = {LEAST_SQUARES: "least squares", DE2000: "the ΔE00-optimised matrix",
+                ROOT_POLYNOMIAL_2: "the root-polynomial of degree 2",
+                ROOT_POLYNOMIAL_3: "the root-polynomial of degree 3"}
 METRIC_NAMES = {"colour_mean_de00": "colour mean", "colour_p90_de00": "colour p90", "colour_max_de00": "colour max",
                 "tone_max_abs_dl": "tone (ΔL* of the greys)", "white_balance_max_de": "white balance",
                 "noise_max_lstar": "noise (L*)", "illuminance_nonuniformity_pct": "uniformity after flat field"}
@@ -349,9 +351,14 @@ class ResultsPanel(QWidget):
                             for m, v in rep["methods"].items())
         note = self.comparison_note(rep["best_method"])
         label = f"<span style='color:#b26a00; font-weight:bold'>{note}</span><br>" if note else ""
+        px = rep.get("per_pixel_de00") or {}
+        pixel = "".join(f"<br>per pixel, {k}: mean <b>{v['mean']:.2f}</b>, {with_unit('90', '%')} {v['p90']:.2f}"
+                        for k, v in px.items())
+        gain = (rep.get("noise_gain") or {}).get("Y")
+        pixel += f" (noise gain {gain}, condition number {rep.get('condition_number')})" if px and gain else ""
         self.summary.setText(f"{label}{len(rep['channels'])} channels, matrix <b>{rep['best_method']}</b> "
                              f"({html.escape(rep['best_reason'])})<br>training: {stats(rep['train'])}<br>"
-                             f"test: {stats(rep['test'])}<br><small>{methods}</small>")
+                             f"test: {stats(rep['test'])}{pixel}<br><small>{methods}</small>")
         self._badges(rep["standards"], "comparison, " if note else "")
         self.quality.setText("\n".join(quality_lines(rep)))
         self.files_label.set_path(f"{len(result.files)} files + {len(rep['figures'])} figures in {out_dir}")

@@ -149,7 +149,9 @@ class SimulatePanel(QWidget):
         self.objective.setToolTip("expected-captured (default): the error a capture will have (camera noise at the "
                                   "exposures the sequence uses, the sphere's level grid). noise-free: the thesis' "
                                   "simulation. robust: the mean over plausible worlds (LEDs, camera, reference "
-                                  "off by a few nm / %), 8x slower.")
+                                  "off by a few nm / %), 8x slower. expected-per-pixel: the expected captured error "
+                                  "of one pixel of each patch, the matrix's noise amplification counted (as a master "
+                                  "is judged).")
         self.seed = QSpinBox()
         self.seed.setRange(0, 2**31 - 1)
         self.seed.setToolTip("Random seed: the same seed gives the same result.")
