@@ -203,3 +203,14 @@ def geometry_for(layout: tuple[int, int], count: int, names: Sequence[str] = (),
     if count == 288 and rows * cols >= 288 and (cols == 22 or _it8_names(names)):
         return it8((rows, cols))
     return grid(rows, cols, count, gap)
+
+
+def geometry_of(chart: object) -> ChartGeometry:
+    """The geometry of a :class:`simulation.charts.Chart` as the virtual lab draws it and the detector looks for
+    it: from every cell of its layout as it lies on the stand (``Chart.render_target``)."""
+    from dualrgb.simulation.charts import Chart
+
+    if not isinstance(chart, Chart):
+        raise TypeError(f"geometry_of needs a simulation.charts.Chart, not {type(chart).__name__}")
+    target = chart.render_target()
+    return geometry_for(chart.layout, len(target), list(target.patch_names))

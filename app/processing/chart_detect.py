@@ -18,7 +18,8 @@ How (the same idea as ArgyllCMS ``scanin``'s recognition, written for numpy):
    (and both directions): the best match gives the patch area's extent along that axis; both axis assignments
    are tried (a chart lying at 90 degrees);
 5. the four corners refined by maximising the gradient along every patch edge (Powell, 8 parameters: any
-   perspective), on the image at its own resolution;
+   perspective), on the image at its own resolution; a match whose patch edges are not clearly sharper than its
+   patches' insides (:data:`MIN_CONTRAST`) is no chart;
 6. of the orientations the edges cannot tell apart (a ColorChecker looks the same turned by 180 degrees), the one
    whose sampled values fit the reference XYZ best (a linear fit, app.processing.placement); a mirrored chart is
    refused there.
@@ -49,7 +50,8 @@ MIN_EXTENT = 0.12            # the chart's patch area spans at least this fracti
 MIN_PATCH_PX = 3.0           # below this many pixels a patch cannot be sampled
 EDGE_POINTS = (0.25, 0.5, 0.75)      # where along each patch edge the refinement looks
 SEARCH_BINS = 200            # the 1-D search runs on edge profiles summed into at most this many bins
-SHIFTS = (0, -1, 1, -2, 2)   # patch pitches a coarse match may be off (periodic rows of patches)
+SHIFTS = (0, -1, 1, -2, 2, -3, 3)   # patch pitches a coarse match may be off (periodic rows of patches)
+MIN_CONTRAST = 1.5           # patch edges at least this much sharper than patch centres (a chart: 2 to hundreds)
 MIN_EDGE_SCORE = 0.6         # the matched edges must stand this many sd above the profile around them
 
 
@@ -353,25 +355,36 @@ def _edge_points(geometry: ChartGeometry) -> np.ndarray:
     return np.vstack(pts)
 
 
-def refine(grid: PatchGrid, geometry: ChartGeometry, lum: np.ndarray, sigma: float = 1.0) -> PatchGrid:
+def refine(grid: PatchGrid, geometry: ChartGeometry, lum: np.ndarray, sigma: float = 1.0
+           ) -> tuple[PatchGrid, float]:
     """Step 5: the corners moved (Powell, 8 parameters) to maximise the smoothed gradient's magnitude along every
-    patch edge."""
+    patch edge; with the edge contrast there: the mean magnitude on the patch edges over the mean at the patch
+    centres (hundreds on a chart, about 1 where there is none)."""
     gx, gy = gradients(lum, sigma)
     mag = np.hypot(gx, gy)
     uv1 = np.c_[_edge_points(geometry), np.ones(len(_edge_points(geometry)))]
     unit = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
     start = grid.corners.copy()
 
-    def cost(p: np.ndarray) -> float:
-        q = uv1 @ homography(unit, start + p.reshape(4, 2)).T
+    def at(h: np.ndarray, pts: np.ndarray) -> np.ndarray:
+        q = pts @ h.T
         xy = q[:, :2] / q[:, 2:3]
-        return -float(ndimage.map_coordinates(mag, [xy[:, 1], xy[:, 0]], order=1, mode="constant").mean())
+        return ndimage.map_coordinates(mag, [xy[:, 1], xy[:, 0]], order=1, mode="constant")
+
+    def cost(p: np.ndarray) -> float:
+        return -float(at(homography(unit, start + p.reshape(4, 2)), uv1).mean())
     res = optimize.minimize(cost, np.zeros(8), method="Powell", options={"xtol": 0.05, "ftol": 1e-5})
     try:
-        return PatchGrid(start + res.x.reshape(4, 2), grid.rows, grid.cols, grid.fraction,
-                         cell_boxes=grid.cell_boxes)
+        out = PatchGrid(start + res.x.reshape(4, 2), grid.rows, grid.cols, grid.fraction,
+                        cell_boxes=grid.cell_boxes)
     except ValueError:
-        return grid
+        out = grid
+    x0, y0, x1, y1 = geometry.patch_area
+    c = geometry.centres()
+    inner = np.c_[(c[:, 0] - x0) / (x1 - x0), (c[:, 1] - y0) / (y1 - y0), np.ones(len(c))]
+    h = homography(unit, out.corners)
+    contrast = float(at(h, uv1).mean()) / max(float(at(h, inner).mean()), 1e-12)
+    return out, contrast
 
 
 def quick_values(grid: PatchGrid, image: np.ndarray, cells: Sequence[int]) -> np.ndarray:
@@ -388,6 +401,19 @@ def quick_values(grid: PatchGrid, image: np.ndarray, cells: Sequence[int]) -> np
     return out.reshape(5, len(cells), img.shape[2]).mean(axis=0)
 
 
+def _ranked_residual(grid: PatchGrid, image: np.ndarray, reference: np.ndarray, cells: Sequence[int]) -> float:
+    """The reference fit's residual (app.processing.placement.fit_residual) of a candidate placement from
+    :func:`quick_values`; infinite when a tenth of its patches fall outside the image (a fit on the few left
+    would look good by chance)."""
+    from dualrgb.app.processing.placement import fit_residual
+
+    values = quick_values(grid, image, cells)
+    if np.isfinite(values).all(axis=1).mean() < 0.9:
+        return float("inf")
+    r = fit_residual(values, reference)
+    return r if np.isfinite(r) else float("inf")
+
+
 def _upright(grid: PatchGrid) -> float:
     """How square to the frame a grid lies: the cosine between its top edge and the image's x axis."""
     d = grid.corners[1] - grid.corners[0]
@@ -398,11 +424,9 @@ def _choose(cands: list[Candidate], image: np.ndarray, reference: np.ndarray | N
             what: str) -> Candidate:
     """Step 6: the placement whose values fit the reference best (a mirrored best refused); without a reference
     the best edge match among the unmirrored, the most upright of equals."""
-    from dualrgb.app.processing.placement import fit_residual
-
     if reference is not None and cells is not None:
-        res = np.array([fit_residual(quick_values(c.grid, image, cells), reference) for c in cands])
-        best = cands[int(np.argmin(np.nan_to_num(res, nan=np.inf)))]
+        res = np.array([_ranked_residual(c.grid, image, reference, cells) for c in cands])
+        best = cands[int(np.argmin(res))]
         if best.mirrored:
             raise ChartNotFound(f"{what} is seen mirrored (its patches match the reference only read from the other "
                                 "side): turn it over on the stand")
@@ -442,8 +466,13 @@ def detect_chart(image: np.ndarray, geometry: ChartGeometry, *, reference: np.nd
     down = max(1, int(math.ceil(max(fine.shape) / COARSE_SIZE)))
     grid = _rescaled(best, up)
     if down > 1:
-        grid = refine(grid, geometry, fine, sigma=0.8 * down)
-    grid = _rescaled(refine(grid, geometry, fine), 1 / up)
+        grid, _ = refine(grid, geometry, fine, sigma=0.8 * down)
+    grid, contrast = refine(grid, geometry, fine)
+    if contrast < MIN_CONTRAST:
+        raise ChartNotFound(f"{what} is not in the frame (the best match's patch edges are only {contrast:.1f} times "
+                            f"as sharp as its patches' insides; a chart's are over {MIN_CONTRAST:g}); check the frame "
+                            "and the chart's layout, or place its corners by hand (--train-corners / --test-corners)")
+    grid = _rescaled(grid, 1 / up)
     x0, y0, x1, y1 = geometry.patch_area
     side = min(np.linalg.norm(grid.corners[1] - grid.corners[0]) / (x1 - x0),
                np.linalg.norm(grid.corners[3] - grid.corners[0]) / (y1 - y0))

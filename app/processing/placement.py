@@ -125,6 +125,9 @@ def check_placement(grid: PatchGrid, image: np.ndarray, reference: np.ndarray | 
     if reference is None:
         return place
     place.residual = fit_residual(used, reference)
+    if not np.isfinite(place.residual):             # too few patches, or a reference without spread: unchecked
+        place.residual = None
+        return place
     place.alternatives = _orientations(grid, image, reference, cells)
     better = {k: v for k, v in place.alternatives.items() if v < ORIENTATION_RATIO * place.residual}
     if better:

@@ -25,6 +25,8 @@ from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
 from dualrgb.simulation.lightsource import LightSource
 
 if TYPE_CHECKING:
+    from dualrgb.app.processing.patches import PatchGrid
+    from dualrgb.app.processing.placement import Placement
     from dualrgb.app.processing.spectral import SpectralCharacterisation
     from dualrgb.app.protocols import Session
     from dualrgb.app.session.manifest import SessionEntry
@@ -141,19 +143,43 @@ class SessionResult:
     stand: StandResult | None = None                        # the stand model fitted to the captures
 
 
-def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None
-                  ) -> tuple[np.ndarray, np.ndarray, ChannelStack]:
-    """Patch values (n, C), their standard deviations (n, C) and the stack of a captured target."""
-    from dualrgb.app.processing.patches import detect_cc24
+@dataclass
+class SampledTarget:
+    """A captured target's patch values (n, C), their standard deviations, its stack, the grid they were sampled
+    with (given, or found: app.processing.chart_detect) and what the placement checks found
+    (app.processing.placement)."""
+
+    values: np.ndarray
+    std: np.ndarray
+    stack: ChannelStack
+    grid: PatchGrid
+    placement: Placement
+
+
+def _target_grid(spec: TargetSpec, stack: ChannelStack) -> tuple[PatchGrid, str]:
+    """The spec's grid, else the chart found in the stack (its layout and geometry alone, the reference deciding
+    which way up): with how it was placed."""
+    from dualrgb.app.processing.chart_detect import detect_chart
+
+    if spec.grid is not None:
+        return spec.grid, "given"
+    if spec.geometry is None:
+        raise ValueError(f"{spec.subject.label}: no patch grid given and the chart's layout is not known; place the "
+                         "grid")
+    grid = detect_chart(stack.data, spec.geometry, reference=spec.xyz, cells=spec.cell_indices(),
+                        label=spec.subject.label)
+    return grid, "detected"
+
+
+def sample_target_placed(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None,
+                         cancel=None) -> SampledTarget:
+    """A captured target's stack, its grid (``spec.grid`` or found in the stack), the placement checked
+    (app.processing.placement: refused in one line when a window spans two patches or the chart fits its
+    reference better turned or mirrored) and the patch values."""
+    from dualrgb.app.processing.placement import check_placement
 
     stack = proc.stack(frames, progress=progress, cancel=cancel)
-    grid = spec.grid
-    if grid is None:
-        det = detect_cc24(stack.rgb(0)) if len(spec.names) == 24 else None
-        if det is None:
-            raise ValueError(f"{spec.subject.label}: no patch grid given and no chart detected (automatic detection "
-                             "exists for the 24-patch ColorChecker Classic only); place the grid")
-        grid = det.grid
+    grid, method = _target_grid(spec, stack)
     cells = spec.cell_indices()
     # patches fill the grid row by row (a partly filled last row is fine: 190 patches on 12 x 17 cells), or each
     # lies in the cell its chart names (simulation.charts)
@@ -164,7 +190,17 @@ def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames,
                          f"but the target {len(spec.names)} patches"
                          + (f" on {spec.layout[0]} x {spec.layout[1]} cells" if spec.layout else ""))
     sampled = grid.sample(stack.data)
-    return sampled.mean[cells], sampled.std[cells], stack
+    placement = check_placement(grid, stack.data, spec.xyz, cells, spec.names, label=spec.subject.label,
+                                method=method, means=sampled.mean)
+    return SampledTarget(sampled.mean[cells], sampled.std[cells], stack, grid, placement)
+
+
+def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None
+                  ) -> tuple[np.ndarray, np.ndarray, ChannelStack]:
+    """Patch values (n, C), their standard deviations (n, C) and the stack of a captured target
+    (:func:`sample_target_placed`)."""
+    t = sample_target_placed(proc, spec, frames, progress, cancel)
+    return t.values, t.std, t.stack
 
 
 def process_session(session: Session, out_dir: Path, train: TargetSpec, test: TargetSpec | None = None, *,
@@ -184,7 +220,7 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     check before (nominal, ``dn_validation``) and after (``stand_model``).
     """
     from dualrgb.app.processing.quality import CalibrationFrames
-    from dualrgb.app.processing.report import TargetData, build_report
+    from dualrgb.app.processing.report import Placed, TargetData, build_report
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -193,12 +229,14 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     names = list(train_frames)
     proc = build_processor(frames, names, white_level=white_level, linear_limit=linear_limit,
                            progress=sub_progress(progress, 0.0, 0.15), cancel=cancel, mode=mode)
-    vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel)
+    placed = {"train": sample_target_placed(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel)}
+    vt, st, stack = placed["train"].values, placed["train"].std, placed["train"].stack
     channels = stack.channels
-    vs = ss = stack_t = None
+    vs = stack_t = None
     if test is not None:
         test_frames = select_lights(frames.subject(test.subject), names, exposures)
-        vs, ss, stack_t = sample_target(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel)
+        placed["test"] = sample_target_placed(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel)
+        vs, stack_t = placed["test"].values, placed["test"].stack
     white = reference_white() if white_xyz is None else np.asarray(white_xyz, dtype=float)
     c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
                      optimise=optimise, progress=sub_progress(progress, 0.55, 0.8), cancel=cancel)
@@ -206,8 +244,10 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     spectral = _spectral(session, train, test, (vt, st, vs), channels, c.matrix.matrix, names, cancel)
     stand = fit_session_stand(session, frames, proc, names, (train, vt, st, stack), (test, vs, stack_t), c, stand_start)
     files = _patch_files(out_dir, c, channels, ((train, vt), (test, vs)))
-    data = [TargetData(s.names, s.xyz, v, s.layout, s.label or lbl, std=sd)
-            for s, v, sd, lbl in ((train, vt, st, "train"), (test, vs, ss, "test")) if s is not None and v is not None]
+    data = [TargetData(s.names, s.xyz, placed[lbl].values, s.layout, s.label or lbl, std=placed[lbl].std,
+                       placement=Placed(placed[lbl].grid, placed[lbl].stack.rgb(0), placed[lbl].placement.to_dict(),
+                                        s.cell_indices()))
+            for s, lbl in ((train, "train"), (test, "test")) if s is not None and lbl in placed]
     calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
     simulated, extra = _stand_report(stand, train, out_dir, channels)
     rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=simulated,

@@ -1,7 +1,6 @@
 """A stand's own chart on a real stand (issue 27): the grid is placed by its four corners for any rows x columns
 (the layout gives them when the grid file does not), the chart's patches are sampled in the cells their names
-give, and a chart without a grid is refused before anything is shot unless it is a 24-patch Classic (the only
-chart a detector exists for)."""
+give, and a chart without a grid is found in the frames later (app.processing.chart_detect, from its geometry)."""
 from __future__ import annotations
 
 import json
@@ -37,11 +36,11 @@ def test_the_grid_takes_the_charts_layout(tmp_path, charts):
 
 
 @pytest.mark.fault("input")
-def test_a_chart_without_grid_is_refused_unless_a_detector_exists(charts):
-    with pytest.raises(ValueError, match="automatic detection exists for the 24-patch ColorChecker Classic only"):
-        target_spec("reflective", Subject.target("train"), None, chart=charts["train"])
-    spec = target_spec("reflective", Subject.target("test"), None, chart=charts["test"])     # detection later
-    assert spec.grid is None and len(spec.names) == 24
+def test_a_chart_without_grid_is_found_later_and_a_wrong_grid_refused(charts):
+    sg = target_spec("reflective", Subject.target("train"), None, chart=charts["train"])     # detection later
+    assert sg.grid is None and sg.geometry is not None and sg.geometry.name == "ColorChecker Digital SG"
+    spec = target_spec("reflective", Subject.target("test"), None, chart=charts["test"])
+    assert spec.grid is None and len(spec.names) == 24 and spec.geometry.name == "ColorChecker Classic"
     wrong = PatchGrid(np.array([[0, 0], [60, 0], [60, 40], [0, 40]]), 6, 4)
     with pytest.raises(ValueError, match="the grid has 24 cells but the target 138 patches|chart's layout is 10 x 14"):
         target_spec("reflective", Subject.target("train"), wrong, chart=charts["train"])
