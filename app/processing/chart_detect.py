@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize
 
-from dualrgb.app.processing.patches import PatchGrid, homography
+from dualrgb.app.processing.patches import ChartNotFound, PatchGrid, grid_on, homography
 from dualrgb.simulation.chart_geometry import ChartGeometry
 
 log = logging.getLogger(__name__)
@@ -53,10 +53,6 @@ SEARCH_BINS = 200            # the 1-D search runs on edge profiles summed into 
 SHIFTS = (0, -1, 1, -2, 2, -3, 3)   # patch pitches a coarse match may be off (periodic rows of patches)
 MIN_CONTRAST = 1.5           # patch edges at least this much sharper than patch centres (a chart: 2 to hundreds)
 MIN_EDGE_SCORE = 0.6         # the matched edges must stand this many sd above the profile around them
-
-
-class ChartNotFound(ValueError):
-    """The chart is not in the frame (one line: what was looked for and why it was not found)."""
 
 
 @dataclass
@@ -152,7 +148,7 @@ def edge_profiles(gx: np.ndarray, gy: np.ndarray, angle_deg: float) -> tuple[np.
     a = math.radians(angle_deg)
     c, s = math.cos(a), math.sin(a)
     yy, xx = np.indices(gx.shape, dtype=float)
-    out = []
+    out: list[tuple[np.ndarray, float]] = []
     for coord, weight in ((xx * c + yy * s, np.abs(gx * c + gy * s)), (-xx * s + yy * c, np.abs(-gx * s + gy * c))):
         lo = float(coord.min())
         pos = (coord - lo).ravel()
@@ -160,9 +156,9 @@ def edge_profiles(gx: np.ndarray, gy: np.ndarray, angle_deg: float) -> tuple[np.
         f = pos - i
         wv = weight.ravel()
         n = int(i.max()) + 2
-        prof = np.bincount(i, wv * (1 - f), n) + np.bincount(i + 1, wv * f, n)
-        out += [prof, lo]
-    return out[0], out[1], out[2], out[3]
+        out.append((np.bincount(i, wv * (1 - f), n) + np.bincount(i + 1, wv * f, n), lo))
+    (pu, u0), (pv, v0) = out
+    return pu, u0, pv, v0
 
 
 def _interp(profile: np.ndarray, pos: np.ndarray) -> np.ndarray:
@@ -239,13 +235,6 @@ class Candidate:
     grid: PatchGrid
     edge_score: float
     mirrored: bool
-
-
-def grid_on(corners: np.ndarray, geometry: ChartGeometry, fraction: float = 0.5) -> PatchGrid:
-    """The patch grid of ``geometry`` on the four corners of its patch area (TL, TR, BR, BL of the chart, image
-    x, y): the chart's layout as rows x cols, each cell where the chart's patch is (PatchGrid.cell_boxes)."""
-    rows, cols = geometry.layout
-    return PatchGrid(corners, rows, cols, fraction, cell_boxes=geometry.unit_boxes())
 
 
 def _normalised(profile: np.ndarray) -> np.ndarray:
@@ -442,17 +431,10 @@ def _rescaled(grid: PatchGrid, factor: float) -> PatchGrid:
                      cell_boxes=grid.cell_boxes)
 
 
-def detect_chart(image: np.ndarray, geometry: ChartGeometry, *, reference: np.ndarray | None = None,
-                 cells: Sequence[int] | None = None, fraction: float = 0.5, label: str = "") -> PatchGrid:
-    """The patch grid of the chart ``geometry`` describes, found in ``image`` (module docstring); ``reference``
-    (len(cells), 3) the XYZ of the chart's patches in grid cells ``cells`` (decides which way up); raises
-    :class:`ChartNotFound` (one line) when it is not there. A small image is searched repeated ``up`` times in
-    each direction (as many as fit :data:`COARSE_SIZE`), so its one-pixel gaps survive the smoothing."""
-    rows, cols = geometry.layout
-    what = f"{label + ': ' if label else ''}the {geometry.name} chart ({rows}x{cols}, {geometry.count} patches)"
-    img = np.asarray(image, dtype=float)
-    if img.ndim not in (2, 3) or min(img.shape[:2]) < 16:
-        raise ChartNotFound(f"{what}: an image of shape {img.shape} is too small to search")
+def _own_search(img: np.ndarray, geometry: ChartGeometry, reference: np.ndarray | None,
+                cells: Sequence[int] | None, what: str) -> PatchGrid:
+    """Steps 1-6 (module docstring) on ``img``; a small image is searched repeated ``up`` times in each direction
+    (as many as fit :data:`COARSE_SIZE`), so its one-pixel gaps survive the smoothing."""
     lum = luminance(img)
     up = max(1, COARSE_SIZE // max(lum.shape))
     fine = np.repeat(np.repeat(lum, up, axis=0), up, axis=1) if up > 1 else lum
@@ -462,9 +444,8 @@ def detect_chart(image: np.ndarray, geometry: ChartGeometry, *, reference: np.nd
         raise ChartNotFound(f"{what} is not in the frame (no match of its patch edges stands out); check the "
                             "frame and the chart's layout, or place its corners by hand (--train-corners / "
                             "--test-corners)")
-    best = _choose(cands, img, reference, cells, what).grid
+    grid = _rescaled(_choose(cands, img, reference, cells, what).grid, up)
     down = max(1, int(math.ceil(max(fine.shape) / COARSE_SIZE)))
-    grid = _rescaled(best, up)
     if down > 1:
         grid, _ = refine(grid, geometry, fine, sigma=0.8 * down)
     grid, contrast = refine(grid, geometry, fine)
@@ -472,7 +453,45 @@ def detect_chart(image: np.ndarray, geometry: ChartGeometry, *, reference: np.nd
         raise ChartNotFound(f"{what} is not in the frame (the best match's patch edges are only {contrast:.1f} times "
                             f"as sharp as its patches' insides; a chart's are over {MIN_CONTRAST:g}); check the frame "
                             "and the chart's layout, or place its corners by hand (--train-corners / --test-corners)")
-    grid = _rescaled(grid, 1 / up)
+    return _rescaled(grid, 1 / up)
+
+
+def _by_scanin(img: np.ndarray, geometry: ChartGeometry, reference: np.ndarray | None,
+               cells: Sequence[int] | None, what: str) -> PatchGrid | None:
+    """ArgyllCMS scanin's find (app.processing.scanin), turned the way the reference fits best; None when scanin
+    is not installed, has no template for the chart or finds nothing."""
+    from dualrgb.app.processing.scanin import ScaninUnavailable, scanin_grid
+
+    try:
+        g = scanin_grid(img, geometry)
+    except (ScaninUnavailable, ChartNotFound) as exc:
+        log.info("%s: no second opinion from scanin (%s)", what, exc)
+        return None
+    orders = {(0, 1, 2, 3): False, (2, 3, 0, 1): False, (1, 0, 3, 2): True, (3, 2, 1, 0): True}
+    cands = [Candidate(PatchGrid(g.corners[list(o)], g.rows, g.cols, g.fraction, cell_boxes=g.cell_boxes), 1.0, m)
+             for o, m in orders.items()]
+    return _choose(cands if reference is not None else cands[:1], img, reference, cells, what).grid
+
+
+def detect_chart(image: np.ndarray, geometry: ChartGeometry, *, reference: np.ndarray | None = None,
+                 cells: Sequence[int] | None = None, fraction: float = 0.5, label: str = "") -> PatchGrid:
+    """The patch grid of the chart ``geometry`` describes, found in ``image`` (module docstring); ``reference``
+    (len(cells), 3) the XYZ of the chart's patches in grid cells ``cells`` (decides which way up); raises
+    :class:`ChartNotFound` (one line) when it is not there. Where the own search finds nothing ArgyllCMS scanin
+    is asked (when installed and it has a template for the chart)."""
+    rows, cols = geometry.layout
+    what = f"{label + ': ' if label else ''}the {geometry.name} chart ({rows}x{cols}, {geometry.count} patches)"
+    img = np.asarray(image, dtype=float)
+    if img.ndim not in (2, 3) or min(img.shape[:2]) < 16:
+        raise ChartNotFound(f"{what}: an image of shape {img.shape} is too small to search")
+    try:
+        grid = _own_search(img, geometry, reference, cells, what)
+    except ChartNotFound as own:
+        found = None if "mirrored" in str(own) else _by_scanin(img, geometry, reference, cells, what)
+        if found is None:
+            raise
+        log.info("%s: found by ArgyllCMS scanin (the own search: %s)", what, own)
+        grid = found
     x0, y0, x1, y1 = geometry.patch_area
     side = min(np.linalg.norm(grid.corners[1] - grid.corners[0]) / (x1 - x0),
                np.linalg.norm(grid.corners[3] - grid.corners[0]) / (y1 - y0))

@@ -32,6 +32,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from dualrgb.simulation.chart_geometry import ChartGeometry
+
 log = logging.getLogger(__name__)
 
 TRIM = 0.10
@@ -189,6 +191,18 @@ class PatchGrid:
             log.warning("patch grid: %d cells have no usable pixels (outside the image or all NaN): %s",
                         empty.size, ", ".join(str(i + 1) for i in empty[:10]))
         return PatchValues(mean, std, count, list(self.names))
+
+
+class ChartNotFound(ValueError):
+    """A chart is not in the frame (one line: what was looked for and why it was not found;
+    app.processing.chart_detect, app.processing.scanin)."""
+
+
+def grid_on(corners: np.ndarray, geometry: ChartGeometry, fraction: float = 0.5) -> PatchGrid:
+    """The patch grid of ``geometry`` on the four corners of its patch area (TL, TR, BR, BL of the chart, image
+    x, y): the chart's layout as rows x cols, each cell where the chart's patch is (PatchGrid.cell_boxes)."""
+    rows, cols = geometry.layout
+    return PatchGrid(corners, rows, cols, fraction, cell_boxes=geometry.unit_boxes())
 
 
 @dataclass

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from dualrgb.app.processing.patches import PatchGrid, homography
+from dualrgb.app.processing.patches import ChartNotFound, PatchGrid, grid_on, homography
 from dualrgb.simulation.chart_geometry import ARGYLL_REF, ChartGeometry
 
 log = logging.getLogger(__name__)
@@ -137,7 +137,6 @@ def _fit(geometry: ChartGeometry, index: np.ndarray, centroids: np.ndarray) -> n
 def scanin_grid(image: np.ndarray, geometry: ChartGeometry, *, fraction: float = 0.5) -> PatchGrid:
     """The chart found by ArgyllCMS scanin (module docstring), as a patch grid on ``image``'s pixels; raises
     ScaninUnavailable when scanin or the template is missing, ValueError (one line) when scanin finds no chart."""
-    from dualrgb.app.processing.chart_detect import ChartNotFound, grid_on
     from dualrgb.app.processing.placement import display_rgb
 
     template = template_for(geometry)

@@ -220,7 +220,7 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     check before (nominal, ``dn_validation``) and after (``stand_model``).
     """
     from dualrgb.app.processing.quality import CalibrationFrames
-    from dualrgb.app.processing.report import Placed, TargetData, build_report
+    from dualrgb.app.processing.report import build_report
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -230,13 +230,12 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     proc = build_processor(frames, names, white_level=white_level, linear_limit=linear_limit,
                            progress=sub_progress(progress, 0.0, 0.15), cancel=cancel, mode=mode)
     placed = {"train": sample_target_placed(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel)}
-    vt, st, stack = placed["train"].values, placed["train"].std, placed["train"].stack
-    channels = stack.channels
-    vs = stack_t = None
     if test is not None:
         test_frames = select_lights(frames.subject(test.subject), names, exposures)
         placed["test"] = sample_target_placed(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel)
-        vs, stack_t = placed["test"].values, placed["test"].stack
+    vt, st, stack = placed["train"].values, placed["train"].std, placed["train"].stack
+    vs, stack_t = (placed["test"].values, placed["test"].stack) if "test" in placed else (None, None)
+    channels = stack.channels
     white = reference_white() if white_xyz is None else np.asarray(white_xyz, dtype=float)
     c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
                      optimise=optimise, progress=sub_progress(progress, 0.55, 0.8), cancel=cancel)
@@ -244,10 +243,7 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     spectral = _spectral(session, train, test, (vt, st, vs), channels, c.matrix.matrix, names, cancel)
     stand = fit_session_stand(session, frames, proc, names, (train, vt, st, stack), (test, vs, stack_t), c, stand_start)
     files = _patch_files(out_dir, c, channels, ((train, vt), (test, vs)))
-    data = [TargetData(s.names, s.xyz, placed[lbl].values, s.layout, s.label or lbl, std=placed[lbl].std,
-                       placement=Placed(placed[lbl].grid, placed[lbl].stack.rgb(0), placed[lbl].placement.to_dict(),
-                                        s.cell_indices()))
-            for s, lbl in ((train, "train"), (test, "test")) if s is not None and lbl in placed]
+    data = [_target_data(s, placed[lbl], lbl) for s, lbl in ((train, "train"), (test, "test")) if s and lbl in placed]
     calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
     simulated, extra = _stand_report(stand, train, out_dir, channels)
     rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=simulated,
@@ -257,6 +253,15 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names,
                          spectral, stand)
+
+
+def _target_data(spec: TargetSpec, placed: SampledTarget, label: str):
+    """The report's data of one sampled target, its grid drawn over the first light's frame."""
+    from dualrgb.app.processing.report import Placed, TargetData
+
+    return TargetData(spec.names, spec.xyz, placed.values, spec.layout, spec.label or label, std=placed.std,
+                      placement=Placed(placed.grid, placed.stack.rgb(0), placed.placement.to_dict(),
+                                       spec.cell_indices()))
 
 
 def _stand_report(stand: StandResult | None, train: TargetSpec, out_dir: Path, channels: list[str]

@@ -128,10 +128,11 @@ class Placement:
         b = self.geometry.boxes
         out = []
         for (cx, cy), (x0, y0, x1, y1) in zip(centres, b, strict=True):
-            half = min(x1 - x0, y1 - y0) * self.scale / 2 / (c + s) - 0.5     # the inscribed upright square
-            half = max(half, 0.5)
-            out.append((int(math.ceil(cy - half)), int(math.floor(cy + half)),
-                        int(math.ceil(cx - half)), int(math.floor(cx + half))))
+            w, h = (x1 - x0) * self.scale / 2, (y1 - y0) * self.scale / 2      # half sizes in pixels
+            k = min(w / (w * c + h * s), h / (w * s + h * c))                    # the inscribed upright box
+            hx, hy = max(w * k - 0.5, 0.5), max(h * k - 0.5, 0.5)
+            out.append((int(math.ceil(cy - hy)), int(math.floor(cy + hy)),
+                        int(math.ceil(cx - hx)), int(math.floor(cx + hx))))
         return out
 
     def nd_box(self) -> tuple[float, float, float, float]:

@@ -29,7 +29,8 @@ key                      meaning (default: the nominal model)
 =======================  ===============================================================================
 
 Keys left out keep the nominal value; an unknown key or a bad value is a :class:`WorldError` naming the file,
-the key and what was expected. The nominal world renders bit for bit what the lab rendered before worlds.
+the key and what was expected. The nominal world renders bit for bit what the lab rendered before worlds (save the
+ColorChecker Classic, drawn in its real geometry since issue 36: drivers/virtual/scene.py).
 Packaged worlds live in resources/worlds/ (``packaged_worlds()``); ``load_world`` takes a packaged name or a
 file. The world's LEDs are rendered by :class:`drivers.virtual.sphere_light.SphereLight` (the sphere emulator's
 drift stays on top), its camera by the virtual camera (``VirtualCamera.camera_sensitivities``), its flare in the

@@ -117,3 +117,20 @@ def test_scanin_patch_names_map_to_the_geometry():
     g = it8()
     assert patch_index(g, "A01") == 0 and patch_index(g, "L22") == 263 and patch_index(g, "GS23") == 287
     assert patch_index(g, "M01") is None and patch_index(g, "GS24") is None
+
+
+def test_scanin_is_asked_when_the_own_search_finds_nothing(monkeypatch):
+    from dualrgb.app.processing import chart_detect
+
+    c = chart("it87-1")
+    _scanin_or_skip(geometry_of(c))
+    _scene, img, truth = shoot(c, POSE)
+
+    def nothing(*args, **kwargs):
+        raise ChartNotFound("the own search found nothing")
+    monkeypatch.setattr(chart_detect, "_own_search", nothing)
+    grid = _detect(c, img)
+    assert np.linalg.norm(grid.corners - truth, axis=1).max() < 2.0
+    monkeypatch.setattr("shutil.which", lambda name: None)                   # and without scanin: the own line
+    with pytest.raises(ChartNotFound, match="the own search found nothing"):
+        _detect(c, img)
