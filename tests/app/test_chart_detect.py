@@ -1,13 +1,14 @@
 """Patches found as at a physical stand (issue 36): app.processing.chart_detect finds the ColorChecker Classic, the
 Digital SG, the IT8.7/1 (film) and IT8.7/2 and the lab's generic grid in the virtual camera's frames from the
 chart's layout alone, wherever the chart lies, within a fraction of a pixel of the scene's own corners; ArgyllCMS
-scanin, run as the external program it is, agrees where it recognises the chart; a mirrored chart, an empty frame
-and the wrong layout are refused in one line."""
+scanin, run as the external program it is, agrees where it recognises the chart; a real photograph of a Classic
+(tests/data/photos) is found with every sampling window inside the patch its author labelled by hand; a mirrored
+chart, an empty frame and the wrong layout are refused in one line."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from chart_frames import POSE, chart, shoot
+from chart_frames import CHARTS, POSE, chart, shoot
 
 from dualrgb.app.processing.chart_detect import ChartNotFound, detect_chart
 from dualrgb.app.processing.placement import fit_residual
@@ -134,3 +135,20 @@ def test_scanin_is_asked_when_the_own_search_finds_nothing(monkeypatch):
     monkeypatch.setattr("shutil.which", lambda name: None)                   # and without scanin: the own line
     with pytest.raises(ChartNotFound, match="the own search found nothing"):
         _detect(c, img)
+
+
+def test_a_photograph_of_a_real_classic_is_found():
+    """A ColorChecker Classic photographed in perspective on a dotted backdrop (B. Llanos, Boost licence; see
+    tests/data/photos/README.md), display-encoded (taken as gamma 2.2): every sampling window lies inside the patch
+    the photograph's author labelled by hand (scanin does not recognise this one)."""
+    from PIL import Image
+
+    photos = CHARTS.parent / "photos"
+    rgb = np.asarray(Image.open(photos / "colorchecker_classic_llanos.png"), dtype=float)
+    labels = np.asarray(Image.open(photos / "colorchecker_classic_llanos_labels.png"))
+    c = chart("cc24")
+    grid = _detect(c, (rgb / 255) ** 2.2, label="photo")
+    inside = [float((labels[rs, cs][m] == k + 1).mean()) for k, (rs, cs, m) in enumerate(grid.masks(labels.shape))]
+    print(f"photograph: corners {np.round(grid.corners, 1).tolist()}; window pixels in their labelled patch: "
+          f"{min(inside):.3f} at worst")
+    assert min(inside) == 1.0
