@@ -5,7 +5,8 @@ check_placement(grid, image, reference, cells, names) -> Placement, or Placement
 
 * a patch's sampling window spans more than one tone: the spread of its pixels (10th to 90th percentile, what the
   trimmed mean keeps) over :data:`SPREAD_LIMIT` of the chart's range of patch values in some channel: the grid is
-  off the patches (a corner misplaced, the wrong rows or columns);
+  off the patches (a corner misplaced, the wrong rows or columns); windows of fewer than :data:`MIN_WINDOW_PX`
+  pixels (a tiny frame) are not judged, said in a warning;
 * the chart fits its reference clearly better turned by 180 degrees or mirrored: the reference XYZ fitted linearly
   from the sampled values (least squares with an offset) leaves a residual under :data:`ORIENTATION_RATIO` times the
   grid's own when the grid is turned or mirrored (patch 1 is not where the grid says);
@@ -29,6 +30,7 @@ from dualrgb.app.processing.patches import PatchGrid
 log = logging.getLogger(__name__)
 
 SPREAD_LIMIT = 0.12          # a window's 10-90 % pixel spread, as a fraction of the chart's range of patch values
+MIN_WINDOW_PX = 9            # windows of fewer pixels (median) are too small to judge their spread (a 96 x 64 frame)
 ORIENTATION_RATIO = 0.6      # another orientation fitting with this fraction of the residual wins
 FIT_LIMIT = 0.35             # residual above which the values do not follow the reference at all
 ALTERNATIVES = {"turned by 180 degrees": (2, 3, 0, 1), "mirrored left to right": (1, 0, 3, 2),
@@ -52,7 +54,8 @@ class Placement:
     alternatives: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {"corners": self.corners, "method": self.method, "max_spread": round(self.spread, 4),
+        return {"corners": self.corners, "method": self.method,
+                "max_spread": round(self.spread, 4) if np.isfinite(self.spread) else None,
                 "max_spread_patch": self.spread_patch, "spread_limit": SPREAD_LIMIT,
                 "fit_residual": None if self.residual is None else round(self.residual, 4),
                 "alternatives": {k: round(v, 4) for k, v in self.alternatives.items()}}
@@ -75,21 +78,24 @@ def fit_residual(values: np.ndarray, reference: np.ndarray) -> float:
     return float(np.linalg.norm(x - a @ m) / spread) if spread > 0 else float("nan")
 
 
-def window_spread(grid: PatchGrid, image: np.ndarray, cells: Sequence[int]) -> np.ndarray:
-    """(len(cells), C) the 10th-to-90th percentile spread of every used cell's sampled pixels."""
+def window_spread(grid: PatchGrid, image: np.ndarray, cells: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """(len(cells), C) the 10th-to-90th percentile spread of every used cell's sampled pixels, and (len(cells),)
+    how many pixels each window holds."""
     img = image if image.ndim == 3 else image[..., None]
     masks = grid.masks(img.shape[:2])
     out = np.full((len(cells), img.shape[2]), np.nan)
+    count = np.zeros(len(cells), dtype=int)
     for i, k in enumerate(cells):
         rs, cs, mask = masks[k]
         if mask.size == 0:
             continue
         px = img[rs, cs][mask].astype(float)
         px = px[np.isfinite(px).all(axis=1)]
+        count[i] = len(px)
         if len(px):
             lo, hi = np.percentile(px, [10, 90], axis=0)
             out[i] = hi - lo
-    return out
+    return out, count
 
 
 def _orientations(grid: PatchGrid, image: np.ndarray, reference: np.ndarray, cells: Sequence[int]
@@ -112,13 +118,18 @@ def check_placement(grid: PatchGrid, image: np.ndarray, reference: np.ndarray | 
     are known already. Raises PlacementError naming ``label`` and what to do."""
     means = grid.sample(image).mean if means is None else means
     used = np.asarray(means, dtype=float)[list(cells)]
-    spread = window_spread(grid, image, cells)
+    spread, count = window_spread(grid, image, cells)
     span = np.nanmax(used, axis=0) - np.nanmin(used, axis=0)
     rel = np.nanmax(spread / np.where(span > 0, span, np.inf), axis=1)
     worst = int(np.nanargmax(rel)) if np.isfinite(rel).any() else 0
     corners = [[round(float(x), 2), round(float(y), 2)] for x, y in grid.corners]
     place = Placement(corners, method, float(np.nan_to_num(rel[worst])), names[worst] if names else str(worst), None)
-    if place.spread > SPREAD_LIMIT:
+    if np.median(count) < MIN_WINDOW_PX:
+        place.spread, place.spread_patch = float("nan"), ""
+        log.warning("%s: the sampling windows hold %d pixels (median; at least %d to check them): the patches are too "
+                    "small on this frame to tell whether a window spans two of them", label, int(np.median(count)),
+                    MIN_WINDOW_PX)
+    elif place.spread > SPREAD_LIMIT:
         raise PlacementError(f"{label}: patch {place.spread_patch}'s sampling window spans more than one tone (spread "
                              f"{place.spread:.0%} of the chart's range, limit {SPREAD_LIMIT:.0%}): the grid is off "
                              "the patches; place its corners on the outer edges of the corner patches")
