@@ -10,19 +10,23 @@ detect_chart(image, geometry, reference=..., cells=...) -> PatchGrid
 How (the same idea as ArgyllCMS ``scanin``'s recognition, written for numpy):
 
 1. the luminance (channels normalised, log-compressed so a film's dense patches still show edges), smoothed, and
-   its gradient (Sobel);
+   its gradient (Sobel); a small image is searched enlarged, so its one-pixel gaps survive the smoothing;
 2. the chart's rotation modulo 90 degrees: the angle whose gradient projections (step 3) peak most sharply, searched
    around the peak of the gradient directions;
 3. the gradient projected onto the two turned axes: two edge profiles, peaked where patch edges run;
 4. each profile matched against the chart's list of patch edges (ChartGeometry.edges) over every scale and offset
-   (and both directions): the best match gives the patch area's extent along that axis; both axis assignments
-   are tried (a chart lying at 90 degrees);
-5. the four corners refined by maximising the gradient along every patch edge (Powell, 8 parameters: any
-   perspective), on the image at its own resolution; a match whose patch edges are not clearly sharper than its
-   patches' insides (:data:`MIN_CONTRAST`) is no chart;
-6. of the orientations the edges cannot tell apart (a ColorChecker looks the same turned by 180 degrees), the one
-   whose sampled values fit the reference XYZ best (a linear fit, app.processing.placement); a mirrored chart is
-   refused there.
+   (and both directions), scored by how far the profile at those edges stands above the profile around them: the
+   patch area's extent along that axis; both axis assignments are tried (a chart lying at 90 degrees);
+5. the placements the edges allow (a ColorChecker looks the same turned by 180 degrees; with a reference also each
+   moved by up to three patch pitches: an IT8's contiguous patches match nearly as well a pitch off) ranked by how
+   well their values fit the reference XYZ (a linear fit, app.processing.placement); a mirrored best is refused;
+   without a reference the best edge match, the most upright of equals;
+6. the chosen one's corners refined by maximising the gradient along every patch edge (Powell, 8 parameters: any
+   perspective); a match whose patch edges are not clearly sharper than its patches' insides (:data:`MIN_CONTRAST`)
+   is no chart.
+
+Where this finds nothing ArgyllCMS scanin is asked (app.processing.scanin, when installed and it has a template
+for the chart), its find turned the way the reference fits best.
 
 Why a detector of our own: ``scanin`` (app.processing.scanin) is an external program (Debian ``argyll``), works on
 TIFF files, returns patch values rather than positions and knows only the charts it has templates for (not a

@@ -192,5 +192,5 @@ def placement_figure(path: Path, image: np.ndarray, grid: PatchGrid, title: str,
     ax.set_ylim(h - 0.5, -0.5)
     ax.set_xticks([])
     ax.set_yticks([])
-    ax.set_title(f"{title}: patch placement (red dot: the chart's top-left corner)", fontsize=9)
+    ax.set_title(f"{title}\npatch placement (red dot: the chart's top-left corner)", fontsize=8)
     return save_tight(fig, path)
