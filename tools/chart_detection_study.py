@@ -126,7 +126,7 @@ def _corner_study() -> dict[str, Any]:
                     row["scanin_px"] = round(float(np.linalg.norm(g.corners - truth, axis=1).max()), 3)
                 except (ValueError, RuntimeError) as exc:
                     row["scanin"] = str(exc)
-                out[f"{kind}.{size[0]}x{size[1]}.{label}"] = row
+                out.setdefault(kind, {}).setdefault(f"{size[0]}x{size[1]}", {})[label] = row
                 print(kind, size, label, row, flush=True)
     return out
 
