@@ -12,7 +12,7 @@ Two parts:
   stand is built without the lab, which only serves the devices and holds the charts), square and posed, for the
   four layouts: train and test mean dE00 and the detected corners' error.
 
-:func:`calibrate_found` is what tests/e2e/test_chart_pose.py runs too.
+:func:`calibrate_found` is what tests/e2e/test_posed_calibration.py runs too.
 """
 from __future__ import annotations
 

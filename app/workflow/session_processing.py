@@ -141,6 +141,7 @@ class SessionResult:
     lights: list[str]
     spectral: SpectralCharacterisation | None = None      # the spectral estimate (known target spectra)
     stand: StandResult | None = None                        # the stand model fitted to the captures
+    grids: dict[str, PatchGrid] = field(default_factory=dict)   # 'train' / 'test': the grid sampled (found or given)
 
 
 @dataclass
@@ -252,7 +253,7 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     files["report"] = out_dir / "report.json"
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names,
-                         spectral, stand)
+                         spectral, stand, {k: p.grid for k, p in placed.items()})
 
 
 def _target_data(spec: TargetSpec, placed: SampledTarget, label: str):

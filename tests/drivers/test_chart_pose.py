@@ -103,7 +103,10 @@ def test_the_world_puts_its_pose_on_every_chart_it_places(tmp_path):
     world = load_world(path)
     assert world.chart_pose == POSE and world.to_dict()["chart_pose"] == POSE.to_dict()
     assert "chart_pose" not in load_world("nominal").to_dict()             # other worlds keep their identity
-    assert load_world(path).identity != load_world(tmp_path / "posed.json").identity.replace("posed", "x")
+    assert load_world("posed-charts").chart_pose == POSE and load_world("posed-charts").leds_nominal
+    square = tmp_path / "square.json"
+    square.write_text(json.dumps({"name": "posed"}))
+    assert load_world(square).identity != world.identity                   # sessions in the two are never mixed
     with VirtualLab(frame_size=(240, 160), world=world) as lab:
         assert lab.place("test").pose == POSE and lab.scene_for("train").pose == POSE
         assert lab.place("open-gate").kind == "open_gate"
