@@ -87,10 +87,12 @@ def capture_model(setup: SimulationSetup, *, width: int = 600, height: int = 400
 
 
 def _patch_grid(scene: Scene) -> PatchGrid:
-    """The scene's patch grid on the superpixel stack (scene corners are (row, col) on the sensor)."""
+    """The scene's patch grid on the superpixel stack (scene corners are (row, col) on the sensor; a chart drawn
+    in its real geometry has each cell where its patch is: an IT8's grey scale below its patches)."""
     rows, cols = scene.layout
     corners = np.array([[c / 2.0 - 0.5, r / 2.0 - 0.5] for r, c in scene.corners()])
-    return PatchGrid(corners, rows, cols, GRID_FRACTION)
+    boxes = scene.geometry.unit_boxes() if scene.placement is not None and scene.geometry is not None else None
+    return PatchGrid(corners, rows, cols, GRID_FRACTION, cell_boxes=boxes)
 
 
 def _process(setup, lights, darks, whites, frames, scenes, sensor, pixels=None) -> dict[str, np.ndarray]:

@@ -12,6 +12,10 @@ data colour-science ships (tests/data/charts/README.md says where each spectrum 
 * ``tests/data/charts/cc24_test.cie``: a 24-patch ColorChecker Classic test reference (Ohta's measurement, 380-780
   nm by 5 nm) written as ArgyllCMS writes spectral files: ``SPECTRAL_START_NM`` / ``SPECTRAL_END_NM`` /
   ``SPECTRAL_BANDS``, fields ``SPEC_380`` ..., ``SAMPLE_ID`` A1 .. D6 (rows A-D, columns 1-6), DEVICE_CLASS OUTPUT.
+* ``tests/data/charts/it872_layout.cie``: a 288-patch reflective chart in the IT8.7/2 layout (rows A-L x columns
+  01-22, then the grey scale GS00 .. GS23), ArgyllCMS style like the CC24 file, 380-730 nm by 10 nm: the 190
+  rawtoaces training reflectances, the 24 ISO 17321-1 ColorChecker spectra and 50 mixtures of rawtoaces pairs
+  (the geometric mean of two reflectances, as two inks overprinted), then 24 near-flat greys from 3 % to 88 %.
 """
 from __future__ import annotations
 
@@ -82,9 +86,34 @@ def write_cc24(path: Path) -> Path:
                                descriptor="ColorChecker Classic, Ohta (1997), test chart (tools/make_test_charts.py)")
 
 
+def it872_spectra(wavelengths: np.ndarray) -> tuple[list[str], np.ndarray]:
+    """(names A01 .. L22 row by row then GS00 .. GS23, spectra (288, n_wl)) of the IT8.7/2-layout chart."""
+    shape = colour.SpectralShape(float(wavelengths[0]), float(wavelengths[-1]), float(wavelengths[1] - wavelengths[0]))
+    iso = _iso_spectra(wavelengths)
+    raw = np.asarray(colour.characterisation.read_training_data_rawtoaces_v1().copy().align(shape).values).T
+    raw = np.clip(raw, 1e-3, None)
+    rng = np.random.default_rng(872)
+    pairs = rng.choice(len(raw), size=(50, 2), replace=False if len(raw) >= 100 else True)
+    mixes = [np.sqrt(raw[a] * raw[b]) for a, b in pairs]
+    colours = [*raw, *(iso[n] for n in list(iso)[:24]), *mixes]
+    tilt = 1.0 + 0.03 * (wavelengths - wavelengths.mean()) / np.ptp(wavelengths)        # greys are never flat
+    greys = [g * tilt for g in np.geomspace(0.88, 0.03, 24)]
+    names = [f"{chr(ord('A') + r)}{c + 1:02d}" for r in range(12) for c in range(22)]
+    names += [f"GS{k:02d}" for k in range(24)]
+    return names, np.clip(np.asarray([*colours, *greys]), 0.0, None)
+
+
+def write_it872(path: Path) -> Path:
+    wl = np.arange(380.0, 731.0, 10.0)
+    names, spectra = it872_spectra(wl)
+    return write_cgats_spectra(path, wl, spectra.T, names, file_id="CTI3", device_class="OUTPUT", fmt="%.4f",
+                               descriptor="IT8.7/2 layout, reflective test chart (tools/make_test_charts.py)")
+
+
 def main() -> None:
     OUT.mkdir(parents=True, exist_ok=True)
-    for path in (write_sg(OUT / "sg140_layout.txt"), write_cc24(OUT / "cc24_test.cie")):
+    for path in (write_sg(OUT / "sg140_layout.txt"), write_cc24(OUT / "cc24_test.cie"),
+                 write_it872(OUT / "it872_layout.cie")):
         print(f"wrote {path.relative_to(ROOT)}")
 
 

@@ -3,6 +3,10 @@
     dualrgb calibrate [--session DIR] [--preset P] [--hdr auto|off] (--virtual-lab | --port P --camera C) [--json J]
                       [--train-target FILE [--train-layout ROWSxCOLS] [--train-leave-out NAMES]]
                       [--test-target FILE [--test-layout ROWSxCOLS] [--test-leave-out NAMES]]
+                      [--train-corners X1,Y1,...,X4,Y4|FILE] [--test-corners X1,Y1,...,X4,Y4|FILE]
+
+Each chart's patches are found in its frames (app.processing.chart_detect) unless its grid is given: by its four
+corners (``--train-corners`` / ``--test-corners``, the raw frame's pixels) or a grid JSON (``--train-grid``).
 
 The charts' reference files are read (app.workflow.charts) before any device opens; without them the mode's
 packaged targets are used. The session is the day's (app.workflow.defaults.DAY_WORKFLOW): `capture --session`
@@ -61,11 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "deliverables carry half); default: from the test target's size")
     p.add_argument("--target-width-mm", type=number(above=0.0),
                    help="test target width (outer corners of its corner patches)")
-    p.add_argument("--train-grid", type=input_file,
-                   help="patch grid JSON of the training target (real stands): its four corners (and rows / cols, "
-                        "else the chart's layout)")
-    p.add_argument("--test-grid", type=input_file, help="patch grid JSON of the test target (real stands; automatic "
-                                                        "detection for a 24-patch ColorChecker Classic otherwise)")
+    _add_placement_options(p)
     add_chart_options(p)
     p.add_argument("--no-de-fit", action="store_true",
                    help="leave the ΔE00-optimised matrix out (default: every model the processing delivers - least "
@@ -81,6 +81,23 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "captures starts from them instead of the nominal curves")
     add_device_options(p)
     p.set_defaults(func=main)
+
+
+def _add_placement_options(p: argparse.ArgumentParser) -> None:
+    """``--train-grid / --test-grid`` and ``--train-corners / --test-corners``: a chart placed by hand."""
+    p.add_argument("--train-grid", type=input_file,
+                   help="patch grid JSON of the training target (real stands): its four corners (and rows / cols, "
+                        "else the chart's layout)")
+    p.add_argument("--test-grid", type=input_file, help="patch grid JSON of the test target (real stands; else "
+                                                        "the chart is found in its frames)")
+    for role in ("train", "test"):
+        what = "training" if role == "train" else "test"
+        p.add_argument(f"--{role}-corners", metavar="X1,Y1,...,X4,Y4|FILE",
+                       help=f"the {what} chart placed by hand, when it is not found in its frames: "
+                            "its four corners in the raw frame's pixels (column x, row y), the outer corners of its "
+                            "outermost patches, the chart's top-left first, then top-right, bottom-right, "
+                            "bottom-left; or a JSON file {\"corners\": [[x, y], ...]}; the patches are placed from "
+                            "the chart's layout")
 
 
 def find_preset(name: str | None, mode: str | None):
@@ -130,6 +147,21 @@ def _stand_start(args: argparse.Namespace) -> Any:
     return measured_start(args.camera_csv, args.stand_dir)
 
 
+def _corner_grids(args: argparse.Namespace, mode: str, charts: dict) -> dict:
+    """The grids ``--train-corners`` / ``--test-corners`` place (app.workflow.targets.corners_grid)."""
+    from dualrgb.app.workflow.targets import corners_grid, parse_corners
+
+    out = {}
+    for role in ("train", "test"):
+        text = getattr(args, f"{role}_corners", None)
+        if text is None:
+            continue
+        if getattr(args, f"{role}_grid", None):
+            raise ValueError(f"--{role}-grid and --{role}-corners both place the {role} target: give one")
+        out[role] = corners_grid(parse_corners(text, f"--{role}-corners"), mode, role, charts.get(role))
+    return out
+
+
 def main(args: argparse.Namespace) -> int:
     check_device_options(args)                # before the heavy imports below
     from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
@@ -150,6 +182,7 @@ def main(args: argparse.Namespace) -> int:
     charts = day_charts.load_charts(chart_choices(args), mode)          # before any device opens
     grids = {k: load_grid(v, charts[k].layout if k in charts else None)
              for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
+    grids.update(_corner_grids(args, mode, charts))
     settings = StandSettings(settle_s=args.settle, dark_frames=darks, flat_frames=flats,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
                              target_width_mm=args.target_width_mm, stand_start=stand_start, charts=charts)

@@ -7,6 +7,10 @@ PatchGrid
     central ``fraction`` of each cell (in both directions) is used, away from edges, gaps and mis-registration.
     The cell layout is mapped with the homography of the unit square onto the quadrilateral, i.e. the exact
     image of a flat target under a pinhole camera (any rotation, tilt or perspective, not only rectangles).
+    ``cell_boxes`` (optional, ``rows * cols`` x 4: u0, v0, u1, v1 in the unit square, NaN for a cell with no patch)
+    puts each cell where the chart's patch really is instead of on the regular grid: a chart whose patches are not
+    one regular grid (an IT8.7's grey scale below its 12 x 22 patches: simulation.chart_geometry); the corners are
+    then those of the chart's patch area (the outer edges of its outermost patches).
     ``sample(image)`` gives per-patch robust means for every channel: a trimmed mean (10 % cut at each end per
     channel, ``scipy.stats.trim_mean``) that ignores dust, scratches and hot pixels without the variance of a
     median; NaN pixels (no usable flat field) are left out.
@@ -27,6 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
+
+from dualrgb.simulation.chart_geometry import ChartGeometry
 
 log = logging.getLogger(__name__)
 
@@ -66,11 +72,16 @@ class PatchGrid:
     cols: int
     fraction: float = 0.5               # central part of each cell that is sampled (0 < f <= 1)
     names: list[str] = field(default_factory=list)
+    cell_boxes: np.ndarray | None = None  # (rows * cols, 4) u0, v0, u1, v1 per cell; None: the regular grid
 
     def __post_init__(self) -> None:
         self.corners = np.asarray(self.corners, dtype=float).reshape(4, 2)
         if self.rows < 1 or self.cols < 1:
             raise ValueError(f"patch grid needs at least 1 x 1 cells, got {self.rows} x {self.cols}")
+        if self.cell_boxes is not None:
+            self.cell_boxes = np.asarray(self.cell_boxes, dtype=float).reshape(-1, 4)
+            if len(self.cell_boxes) != self.rows * self.cols:
+                raise ValueError(f"patch grid: {len(self.cell_boxes)} cell boxes for {self.rows} x {self.cols} cells")
         if not 0 < self.fraction <= 1:
             raise ValueError(f"sampling fraction must be in (0, 1], got {self.fraction}")
         c = self.corners
@@ -94,50 +105,66 @@ class PatchGrid:
     def to_target(self, xy: np.ndarray) -> np.ndarray:
         return _apply_h(self._h_inv, np.atleast_2d(xy))
 
+    def boxes(self) -> np.ndarray:
+        """(n, 4) u0, v0, u1, v1 of every cell in the unit square (``cell_boxes``, else the regular grid's);
+        a row of NaN is a cell with no patch."""
+        if self.cell_boxes is not None:
+            return self.cell_boxes
+        r, c = np.divmod(np.arange(self.n_patches), self.cols)
+        return np.c_[c / self.cols, r / self.rows, (c + 1) / self.cols, (r + 1) / self.rows]
+
+    def present(self) -> np.ndarray:
+        """Boolean per cell: the cell has a patch (always, on the regular grid)."""
+        return np.isfinite(self.boxes()).all(axis=1)
+
+    def _sampled_boxes(self) -> np.ndarray:
+        """The central ``fraction`` of every cell's box (unit square)."""
+        b = self.boxes()
+        h = (1 - self.fraction) / 2
+        du, dv = (b[:, 2] - b[:, 0]) * h, (b[:, 3] - b[:, 1]) * h
+        return np.c_[b[:, 0] + du, b[:, 1] + dv, b[:, 2] - du, b[:, 3] - dv]
+
     def centres(self) -> np.ndarray:
-        """(n, 2) image x, y of every cell centre, row by row."""
-        v, u = np.mgrid[0:self.rows, 0:self.cols]
-        uv = np.c_[(u.ravel() + 0.5) / self.cols, (v.ravel() + 0.5) / self.rows]
-        return self.to_image(uv)
+        """(n, 2) image x, y of every cell centre, row by row (NaN for a cell with no patch)."""
+        b = self.boxes()
+        return self.to_image(np.c_[(b[:, 0] + b[:, 2]) / 2, (b[:, 1] + b[:, 3]) / 2])
 
     def sample_polygons(self) -> np.ndarray:
-        """(n, 4, 2) image corners of each cell's sampled area (for drawing the grid over a preview)."""
-        out = []
-        h = (1 - self.fraction) / 2
-        for r in range(self.rows):
-            for c in range(self.cols):
-                u0, u1 = (c + h) / self.cols, (c + 1 - h) / self.cols
-                v0, v1 = (r + h) / self.rows, (r + 1 - h) / self.rows
-                out.append(self.to_image(np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]])))
-        return np.asarray(out)
+        """(n, 4, 2) image corners of each cell's sampled area (for drawing the grid over a preview; NaN for a
+        cell with no patch)."""
+        b = self._sampled_boxes()
+        uv = np.stack([b[:, [0, 1]], b[:, [2, 1]], b[:, [2, 3]], b[:, [0, 3]]], axis=1)       # (n, 4, 2)
+        return self.to_image(uv.reshape(-1, 2)).reshape(-1, 4, 2)
 
     def scaled(self, factor: float) -> PatchGrid:
         """The same grid for an image scaled by ``factor`` (0.5: full mosaic -> superpixel image).
 
         Pixel centres at integer coordinates: x_scaled = (x + 0.5) * factor - 0.5.
         """
-        return PatchGrid((self.corners + 0.5) * factor - 0.5, self.rows, self.cols, self.fraction, list(self.names))
+        return PatchGrid((self.corners + 0.5) * factor - 0.5, self.rows, self.cols, self.fraction, list(self.names),
+                         self.cell_boxes)
 
     def masks(self, shape: tuple[int, int]) -> list[tuple[slice, slice, np.ndarray]]:
         """For each cell, the bounding box (row slice, column slice) and the boolean mask inside it."""
         out = []
-        h = (1 - self.fraction) / 2
+        sampled = self._sampled_boxes()
         polys = self.sample_polygons()
         H, W = shape
-        for k, poly in enumerate(polys):
-            r, c = divmod(k, self.cols)
+        empty = (slice(0, 0), slice(0, 0), np.zeros((0, 0), bool))
+        for poly, (u0, v0, u1, v1) in zip(polys, sampled, strict=True):
+            if not np.isfinite(poly).all():
+                out.append(empty)
+                continue
             x0 = max(int(np.floor(poly[:, 0].min())), 0)
             x1 = min(int(np.ceil(poly[:, 0].max())) + 1, W)
             y0 = max(int(np.floor(poly[:, 1].min())), 0)
             y1 = min(int(np.ceil(poly[:, 1].max())) + 1, H)
             if x1 <= x0 or y1 <= y0:
-                out.append((slice(0, 0), slice(0, 0), np.zeros((0, 0), bool)))
+                out.append(empty)
                 continue
             yy, xx = np.mgrid[y0:y1, x0:x1]
             uv = self.to_target(np.c_[xx.ravel(), yy.ravel()])
-            u = uv[:, 0] * self.cols - c
-            v = uv[:, 1] * self.rows - r
-            inside = (u >= h) & (u <= 1 - h) & (v >= h) & (v <= 1 - h)
+            inside = (uv[:, 0] >= u0) & (uv[:, 0] <= u1) & (uv[:, 1] >= v0) & (uv[:, 1] <= v1)
             out.append((slice(y0, y1), slice(x0, x1), inside.reshape(yy.shape)))
         return out
 
@@ -159,11 +186,23 @@ class PatchGrid:
                 continue
             mean[k] = stats.trim_mean(px, trim, axis=0)
             std[k] = px.std(axis=0)
-        empty = np.flatnonzero(count == 0)
+        empty = np.flatnonzero((count == 0) & self.present())
         if empty.size:
             log.warning("patch grid: %d cells have no usable pixels (outside the image or all NaN): %s",
                         empty.size, ", ".join(str(i + 1) for i in empty[:10]))
         return PatchValues(mean, std, count, list(self.names))
+
+
+class ChartNotFound(ValueError):
+    """A chart is not in the frame (one line: what was looked for and why it was not found;
+    app.processing.chart_detect, app.processing.scanin)."""
+
+
+def grid_on(corners: np.ndarray, geometry: ChartGeometry, fraction: float = 0.5) -> PatchGrid:
+    """The patch grid of ``geometry`` on the four corners of its patch area (TL, TR, BR, BL of the chart, image
+    x, y): the chart's layout as rows x cols, each cell where the chart's patch is (PatchGrid.cell_boxes)."""
+    rows, cols = geometry.layout
+    return PatchGrid(corners, rows, cols, fraction, cell_boxes=geometry.unit_boxes())
 
 
 @dataclass

@@ -53,6 +53,7 @@ from dualrgb.simulation.objective import ErrorStats
 from dualrgb.simulation.versions import output_header
 
 if TYPE_CHECKING:                                   # pragma: no cover
+    from dualrgb.app.processing.patches import PatchGrid
     from dualrgb.app.processing.quality import CalibrationFrames
     from dualrgb.app.processing.spectral import SpectralCharacterisation
 
@@ -285,7 +286,8 @@ def dn_validation_figure(path: Path, simulated: np.ndarray, captured: np.ndarray
 # ---------------------------------------------------------------- the report
 @dataclass
 class TargetData:
-    """Patch data of one target for the report: names, reference XYZ, camera values, layout (rows, cols)."""
+    """Patch data of one target for the report: names, reference XYZ, camera values, layout (rows, cols), and
+    where the values came from (``placement``: the grid over the frame, drawn in the report)."""
 
     names: list[str]
     xyz: np.ndarray
@@ -293,6 +295,18 @@ class TargetData:
     layout: tuple[int, int] | None = None
     label: str = ""
     std: np.ndarray | None = None          # (n, C) per-patch standard deviation of the camera values
+    placement: Placed | None = None
+
+
+@dataclass
+class Placed:
+    """A target's patch grid over its frame (H, W, 3: the first light's RGB), the placement checks' record
+    (app.processing.placement.Placement.to_dict) and the grid cells the patches are in."""
+
+    grid: PatchGrid
+    frame: np.ndarray
+    record: dict
+    cells: list[int]
 
 
 def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors: np.ndarray, label: str,
@@ -326,9 +340,17 @@ def _target_figures(out_dir: Path, c: Characterisation, label: str, data: Target
     layout = layout_for(len(data.names), data.layout)
     name = data.label or label
     pred = res.matrix.apply(data.values)
-    return [heatmap_figure(out_dir / f"heatmap_{label}.png", errors, layout, f"{name}: ΔE00 per patch ({best})").name,
-            lab_scatter_figure(out_dir / f"lab_scatter_{label}.png", data.xyz, errors, white, name).name,
-            patch_mosaic_figure(out_dir / f"patches_{label}.png", data.xyz, pred, white, layout, name).name]
+    heat = f"{name}: ΔE00 per patch ({best})"
+    figures = [heatmap_figure(out_dir / f"heatmap_{label}.png", errors, layout, heat).name,
+               lab_scatter_figure(out_dir / f"lab_scatter_{label}.png", data.xyz, errors, white, name).name,
+               patch_mosaic_figure(out_dir / f"patches_{label}.png", data.xyz, pred, white, layout, name).name]
+    if data.placement is not None:
+        from dualrgb.app.processing.placement import placement_figure
+
+        p = data.placement
+        figures.append(placement_figure(out_dir / f"placement_{label}.png", p.frame, p.grid,
+                                        f"{name} ({p.record.get('method', 'given')})", p.cells).name)
+    return figures
 
 
 def _targets_section(out_dir: Path, c: Characterisation, targets: list[tuple[str, TargetData]]
@@ -413,6 +435,7 @@ def build_report(out_dir: Path, characterisation: Characterisation, train: Targe
         "quality": quality,
         **sections,
         "per_patch": per_patch,
+        "placement": {label: data.placement.record for label, data in targets if data.placement is not None},
         "figures": figures,
         **(extra or {}),
     }

@@ -25,6 +25,8 @@ from dualrgb.common.progress import CancelToken, ProgressCallback, check, report
 from dualrgb.simulation.lightsource import LightSource
 
 if TYPE_CHECKING:
+    from dualrgb.app.processing.patches import PatchGrid
+    from dualrgb.app.processing.placement import Placement
     from dualrgb.app.processing.spectral import SpectralCharacterisation
     from dualrgb.app.protocols import Session
     from dualrgb.app.session.manifest import SessionEntry
@@ -139,23 +141,48 @@ class SessionResult:
     lights: list[str]
     spectral: SpectralCharacterisation | None = None      # the spectral estimate (known target spectra)
     stand: StandResult | None = None                        # the stand model fitted to the captures
+    grids: dict[str, PatchGrid] = field(default_factory=dict)   # 'train' / 'test': the grid sampled (found or given)
 
 
-def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None,
-                  pixels: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, ChannelStack]:
-    """Patch values (n, C), their standard deviations (n, C) and the stack of a captured target; ``pixels``, when
-    given, gets each patch's (m, C) pixel values (at most simulation.pixel_error.MAX_PIXELS_PER_PATCH, a regular
-    subsample) for the per-pixel colour error."""
-    from dualrgb.app.processing.patches import detect_cc24
+@dataclass
+class SampledTarget:
+    """A captured target's patch values (n, C), their standard deviations, its stack, the grid they were sampled
+    with (given, or found: app.processing.chart_detect) and what the placement checks found
+    (app.processing.placement)."""
+
+    values: np.ndarray
+    std: np.ndarray
+    stack: ChannelStack
+    grid: PatchGrid
+    placement: Placement
+
+
+def _target_grid(spec: TargetSpec, stack: ChannelStack) -> tuple[PatchGrid, str]:
+    """The spec's grid, else the chart found in the stack (its layout and geometry alone, the reference deciding
+    which way up): with how it was placed."""
+    from dualrgb.app.processing.chart_detect import detect_chart
+
+    if spec.grid is not None:
+        return spec.grid, "given"
+    if spec.geometry is None:
+        raise ValueError(f"{spec.subject.label}: no patch grid given and the chart's layout is not known; place the "
+                         "grid")
+    grid = detect_chart(stack.data, spec.geometry, reference=spec.xyz, cells=spec.cell_indices(),
+                        label=spec.subject.label)
+    return grid, "detected"
+
+
+def sample_target_placed(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None,
+                         cancel=None, pixels: list[np.ndarray] | None = None) -> SampledTarget:
+    """A captured target's stack, its grid (``spec.grid`` or found in the stack), the placement checked
+    (app.processing.placement: refused in one line when a window spans two patches or the chart fits its
+    reference better turned or mirrored) and the patch values; ``pixels``, when given, gets each patch's (m, C)
+    pixel values (at most simulation.pixel_error.MAX_PIXELS_PER_PATCH, a regular subsample) for the per-pixel
+    colour error."""
+    from dualrgb.app.processing.placement import check_placement
 
     stack = proc.stack(frames, progress=progress, cancel=cancel)
-    grid = spec.grid
-    if grid is None:
-        det = detect_cc24(stack.rgb(0)) if len(spec.names) == 24 else None
-        if det is None:
-            raise ValueError(f"{spec.subject.label}: no patch grid given and no chart detected (automatic detection "
-                             "exists for the 24-patch ColorChecker Classic only); place the grid")
-        grid = det.grid
+    grid, method = _target_grid(spec, stack)
     cells = spec.cell_indices()
     # patches fill the grid row by row (a partly filled last row is fine: 190 patches on 12 x 17 cells), or each
     # lies in the cell its chart names (simulation.charts)
@@ -168,7 +195,17 @@ def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames,
     sampled = grid.sample(stack.data)
     if pixels is not None:
         pixels.extend(patch_pixels(grid, stack.data, cells))
-    return sampled.mean[cells], sampled.std[cells], stack
+    placement = check_placement(grid, stack.data, spec.xyz, cells, spec.names, label=spec.subject.label,
+                                method=method, means=sampled.mean)
+    return SampledTarget(sampled.mean[cells], sampled.std[cells], stack, grid, placement)
+
+
+def sample_target(proc: CaptureProcessor, spec: TargetSpec, frames: LightFrames, progress=None, cancel=None,
+                  pixels: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray, ChannelStack]:
+    """Patch values (n, C), their standard deviations (n, C) and the stack of a captured target
+    (:func:`sample_target_placed`)."""
+    t = sample_target_placed(proc, spec, frames, progress, cancel, pixels)
+    return t.values, t.std, t.stack
 
 
 def patch_pixels(grid, image: np.ndarray, cells: Sequence[int]) -> list[np.ndarray]:
@@ -196,7 +233,7 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     check before (nominal, ``dn_validation``) and after (``stand_model``).
     """
     from dualrgb.app.processing.quality import CalibrationFrames
-    from dualrgb.app.processing.report import TargetData, build_report
+    from dualrgb.app.processing.report import build_report
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -206,10 +243,10 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     proc = build_processor(frames, names, white_level=white_level, linear_limit=linear_limit,
                            progress=sub_progress(progress, 0.0, 0.15), cancel=cancel, mode=mode)
     pixels: dict[str, list[np.ndarray]] = {"train": [], "test": []}     # each patch's, for the per-pixel dE00
-    vt, st, stack = sample_target(proc, train, train_frames, sub_progress(progress, 0.15, 0.4), cancel, pixels["train"])
+    placed = _sample_targets(proc, frames, (train, train_frames), test, names, exposures, pixels, progress, cancel)
+    vt, st, stack = placed["train"].values, placed["train"].std, placed["train"].stack
+    vs, stack_t = (placed["test"].values, placed["test"].stack) if "test" in placed else (None, None)
     channels = stack.channels
-    vs, ss, stack_t = _sample_test(proc, frames, test, names, exposures, sub_progress(progress, 0.4, 0.55), cancel,
-                                   pixels["test"])
     white = reference_white() if white_xyz is None else np.asarray(white_xyz, dtype=float)
     c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
                      optimise=optimise, pixels={k: v for k, v in pixels.items() if v},
@@ -218,8 +255,7 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     spectral = _spectral(session, train, test, (vt, st, vs), channels, c.linear_matrix.matrix, names, cancel)
     stand = fit_session_stand(session, frames, proc, names, (train, vt, st, stack), (test, vs, stack_t), c, stand_start)
     files = _patch_files(out_dir, c, channels, ((train, vt), (test, vs)))
-    data = [TargetData(s.names, s.xyz, v, s.layout, s.label or lbl, std=sd)
-            for s, v, sd, lbl in ((train, vt, st, "train"), (test, vs, ss, "test")) if s is not None and v is not None]
+    data = [_target_data(s, placed[lbl], lbl) for s, lbl in ((train, "train"), (test, "test")) if s and lbl in placed]
     calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
     simulated, extra = _stand_report(stand, train, out_dir, channels)
     rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=simulated,
@@ -228,17 +264,32 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     files["report"] = out_dir / "report.json"
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names,
-                         spectral, stand)
+                         spectral, stand, {k: p.grid for k, p in placed.items()})
 
 
-def _sample_test(proc: CaptureProcessor, frames: SessionFrames, test: TargetSpec | None, names: Sequence[str],
-                 exposures: Mapping[str, Sequence[float]] | None, progress: ProgressCallback | None,
-                 cancel: CancelToken | None, pixels: list[np.ndarray]) -> tuple:
-    """The test target's (means, per-pixel sd, stack), or three None without one; ``pixels`` gets its patches'."""
-    if test is None:
-        return None, None, None
-    test_frames = select_lights(frames.subject(test.subject), names, exposures)
-    return sample_target(proc, test, test_frames, progress, cancel, pixels)
+def _sample_targets(proc: CaptureProcessor, frames: SessionFrames, train: tuple[TargetSpec, LightFrames],
+                    test: TargetSpec | None, names: Sequence[str], exposures: Mapping[str, Sequence[float]] | None,
+                    pixels: dict[str, list[np.ndarray]], progress: ProgressCallback | None,
+                    cancel: CancelToken | None) -> dict[str, SampledTarget]:
+    """The training and (when given) test targets sampled: 'train' / 'test' -> SampledTarget; ``pixels`` gets
+    their patches' pixels."""
+    spec, train_frames = train
+    placed = {"train": sample_target_placed(proc, spec, train_frames, sub_progress(progress, 0.15, 0.4), cancel,
+                                            pixels["train"])}
+    if test is not None:
+        test_frames = select_lights(frames.subject(test.subject), names, exposures)
+        placed["test"] = sample_target_placed(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel,
+                                              pixels["test"])
+    return placed
+
+
+def _target_data(spec: TargetSpec, placed: SampledTarget, label: str):
+    """The report's data of one sampled target, its grid drawn over the first light's frame."""
+    from dualrgb.app.processing.report import Placed, TargetData
+
+    return TargetData(spec.names, spec.xyz, placed.values, spec.layout, spec.label or label, std=placed.std,
+                      placement=Placed(placed.grid, placed.stack.rgb(0), placed.placement.to_dict(),
+                                       spec.cell_indices()))
 
 
 def _stand_report(stand: StandResult | None, train: TargetSpec, out_dir: Path, channels: list[str]

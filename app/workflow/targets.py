@@ -18,6 +18,7 @@ import numpy as np
 
 from dualrgb.app.processing.patches import PatchGrid
 from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
+from dualrgb.simulation.chart_geometry import ChartGeometry, geometry_of
 from dualrgb.simulation.charts import Chart, ChartError, packaged_chart
 from dualrgb.simulation.colorimetry import white_point
 
@@ -33,7 +34,8 @@ class TargetSpec:
     """A colour target captured in the session: where its patches are and what they should be.
 
     ``grid`` is in the stack's (superpixel, half-size) pixel coordinates; use ``PatchGrid.scaled(0.5)`` for a
-    grid placed on the full mosaic. None tries ``detect_cc24`` on the first light's RGB (24-patch targets).
+    grid placed on the full mosaic. None: the patches are found in the captured stack (app.processing.chart_detect,
+    from ``geometry``: where the chart's patches lie on it).
     ``simulated`` (n, C) are the simulated camera values for the thesis Fig 7.4 check (optional).
     """
 
@@ -49,6 +51,7 @@ class TargetSpec:
     mode: str = ""                        # the packaged data (grid, CMFs, LEDs, camera) the spectra belong to
     cells: list[int] | None = None        # the grid cell of each patch (None: the patches fill the cells in order)
     chart: Chart | None = None            # the chart the reference data come from (the profile records it)
+    geometry: ChartGeometry | None = None  # where its patches lie (simulation.chart_geometry), for detection
 
     def cell_indices(self) -> list[int]:
         return list(range(len(self.names))) if self.cells is None else list(self.cells)
@@ -123,10 +126,13 @@ def reference_white(mode: str = "reflective", method: str | None = None) -> np.n
 
 
 def scene_grid(scene: Any, fraction: float = 0.5) -> PatchGrid:
-    """The patch grid of a virtual-lab scene in stack (superpixel) coordinates."""
+    """The patch grid of a virtual-lab scene in stack (superpixel) coordinates (a chart drawn in its real geometry
+    or a pose: its patch area's corners and each cell where its patch is)."""
     corners_rc = np.asarray(scene.corners(), dtype=float)
     rows, cols = scene.layout
-    return PatchGrid(corners_rc[:, ::-1], rows, cols, fraction=fraction).scaled(0.5)   # (row, col) -> (x, y)
+    boxes = scene.geometry.unit_boxes() if scene.placement is not None else None
+    return PatchGrid(corners_rc[:, ::-1], rows, cols, fraction=fraction,                 # (row, col) -> (x, y)
+                     cell_boxes=boxes).scaled(0.5)
 
 
 def virtual_target_spec(lab: VirtualLab, subject: Subject, *, simulated: np.ndarray | None = None,
@@ -145,15 +151,17 @@ def virtual_target_spec(lab: VirtualLab, subject: Subject, *, simulated: np.ndar
     layout = (int(scene.layout[0]), int(scene.layout[1]))
     return TargetSpec(subject, xyz, names, grid or scene_grid(scene), layout, simulated,
                       label or f"{subject.name} ({chart.target.name})", nd_mask,
-                      reference_spectra(lab.mode, subject.name, nd_scale, chart), lab.mode, cells, chart)
+                      reference_spectra(lab.mode, subject.name, nd_scale, chart), lab.mode, cells, chart,
+                      geometry_of(chart))
 
 
 def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: VirtualLab | None = None,
                 label: str = "", method: str | None = None, chart: Chart | None = None) -> TargetSpec:
     """The TargetSpec the GUI and the CLI use: the virtual lab's scene when there is one (ND included), else the
     chart (``chart``: the stand's own; None: the packaged target of ``mode``) with the grid placed by hand (None:
-    automatic detection, which exists for the 24-patch ColorChecker Classic only). ``method``: how the reference
-    XYZ is integrated (simulation.datasets.target_xyz: 'eq-4.2' or 'astm-e308')."""
+    found in the captured frames, app.processing.chart_detect: a ColorChecker Classic, a Digital SG, an IT8.7/1
+    or /2, or a generic grid of patches, from the chart's layout). ``method``: how the reference XYZ is integrated
+    (simulation.datasets.target_xyz: 'eq-4.2' or 'astm-e308')."""
     if lab is not None:
         return virtual_target_spec(lab, subject, grid=grid, label=label, method=method, chart=chart)
     if subject.nd:
@@ -161,9 +169,6 @@ def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Vir
     chart = chart_of(mode, subject.name, {subject.name: chart} if chart is not None else None)
     xyz, names = reference_xyz(mode, subject.name, method=method, chart=chart)
     rows, cols = chart.layout
-    if grid is None and not (len(names) == 24 and (rows, cols) in ((4, 6), (6, 4))):
-        raise ValueError(f"{subject.label}: place the patch grid on it first ({chart.label()}; automatic "
-                         "detection exists for the 24-patch ColorChecker Classic only)")
     if grid is not None and (grid.rows, grid.cols) != (rows, cols) and chart.cells != list(range(len(chart.cells))):
         raise ValueError(f"{subject.label}: the grid has {grid.rows} x {grid.cols} cells but the chart's layout is "
                          f"{rows} x {cols}; set rows and columns")
@@ -172,7 +177,7 @@ def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: Vir
                          "patches; set rows and columns")
     return TargetSpec(subject, xyz, names, grid, (rows, cols), None, label or f"{subject.name} ({chart.target.name})",
                       spectra=reference_spectra(mode, subject.name, chart=chart), mode=mode, cells=chart.used_cells,
-                      chart=chart)
+                      chart=chart, geometry=geometry_of(chart))
 
 
 def load_grid(path: Path, layout: tuple[int, int] | None = None) -> PatchGrid:
@@ -188,3 +193,46 @@ def load_grid(path: Path, layout: tuple[int, int] | None = None) -> PatchGrid:
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f"{path}: not a patch grid ({exc}); expected {{\"corners\": [[x, y], ...4], \"rows\": R, "
                          "\"cols\": C}") from None
+
+
+def parse_corners(text: str, what: str = "corners") -> np.ndarray:
+    """A chart's four corners from the command line: ``x1,y1,x2,y2,x3,y3,x4,y4`` or a JSON file holding
+    ``{"corners": [[x, y], [x, y], [x, y], [x, y]]}`` (at most :data:`MAX_GRID_BYTES`); (4, 2) x, y. One line
+    naming the value or the file when it is neither."""
+    from dualrgb.simulation.spectral_io import read_json_file
+
+    cells = [c.strip() for c in str(text).split(",")]
+    if len(cells) > 1:
+        try:
+            values = [float(c) for c in cells]
+        except ValueError:
+            values = []
+        if len(values) != 8 or not all(np.isfinite(values)):
+            raise ValueError(f"{what} {text!r}: expected 8 numbers x1,y1,x2,y2,x3,y3,x4,y4 (the chart's top-left, "
+                             "top-right, bottom-right, bottom-left corner) or a JSON file")
+        return np.asarray(values, dtype=float).reshape(4, 2)
+    path = Path(text)
+    doc = read_json_file(path, f"{what} JSON", ValueError, MAX_GRID_BYTES)
+    try:
+        corners = np.asarray(doc["corners"], dtype=float).reshape(4, 2)
+        if not np.isfinite(corners).all():
+            raise ValueError("not finite")
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"{path}: not a list of corners; expected {{\"corners\": [[x, y], [x, y], [x, y], [x, y]]}} "
+                         "(top-left, top-right, bottom-right, bottom-left)") from None
+    return corners
+
+
+def corners_grid(corners: np.ndarray, mode: str, name: str, chart: Chart | None = None,
+                 fraction: float = 0.5) -> PatchGrid:
+    """The patch grid of a target placed by its four corners in the frame's pixels (the raw frame's column x and
+    row y, as a raw viewer shows them; top-left, top-right, bottom-right, bottom-left *of the chart*: the outer
+    corners of its outermost patches), each patch where the chart's geometry puts it (simulation.chart_geometry);
+    in the stack's (superpixel) coordinates. ``chart``: the stand's own, else the packaged target of ``mode``."""
+    from dualrgb.app.processing.chart_detect import grid_on
+
+    geometry = geometry_of(chart_of(mode, name, {name: chart} if chart is not None else None))
+    try:
+        return grid_on(np.asarray(corners, dtype=float), geometry, fraction).scaled(0.5)
+    except ValueError as exc:
+        raise ValueError(f"the {name} target's corners {np.asarray(corners).tolist()}: {exc}") from None

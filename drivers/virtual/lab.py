@@ -131,7 +131,8 @@ class VirtualLab:
         elif what == "lens-cap":
             scene = Scene.lens_cap(**size)
         else:
-            scene = Scene.with_target(self.true_target(what), **size, nd_filter=nd, name=what)
+            scene = Scene.with_target(self.true_target(what), **size, nd_filter=nd, name=what,
+                                      pose=self.world.chart_pose)
         self._started_camera().scene = scene
         self.placed = what + (" + ND" if nd else "")
         return scene
@@ -139,7 +140,8 @@ class VirtualLab:
     def scene_for(self, what: str, nd: bool = False) -> Scene:
         """The scene ``place(what, nd)`` would put on the stand (for patch geometry) without placing it."""
         if what in ("train", "test"):
-            return Scene.with_target(self.true_target(what), width=self.width, height=self.height, nd_filter=nd)
+            return Scene.with_target(self.true_target(what), width=self.width, height=self.height, nd_filter=nd,
+                                     pose=self.world.chart_pose)
         if what.startswith(ORIGINAL_PREFIX):
             return original_scene(what, self.width, self.height, grid=self.setup.grid, nd_filter=nd)
         return dataclasses.replace(self._started_camera().scene)

@@ -16,6 +16,11 @@ Geometry (pixel coordinates of the full sensor, rows then columns, half-open box
   separator, split evenly on both sides;
 * the ND filter covers the left half of the columns (``cols // 2`` of them) over the grid's height, up to the
   middle of the gap after the last covered column;
+* a chart the lab knows physically (a ColorChecker Classic, a Digital SG, an IT8.7: simulation.chart_geometry)
+  is drawn as it is instead: its body (dark) with its patches at their sizes, gaps and borders (the IT8's grey scale
+  below its 12 x 22 patches), fitted inside the ``margin``; and any chart may lie in a ``pose`` (turned, moved,
+  scaled: drivers/virtual/chart_pose.py). Such scenes classify every pixel through the chart's coordinates; the
+  generic grid without a pose keeps the separable rows-then-columns classification above (bit for bit as before);
 * vignetting is a smooth radial falloff ``exp(-a r^2)`` (r = 1 at the frame corners) losing ``vignetting``
   at the corners; it is separable, so it is applied as two 1-D profiles and never stored per pixel.
 """
@@ -29,7 +34,9 @@ from functools import cached_property
 
 import numpy as np
 
+from dualrgb.drivers.virtual.chart_pose import ChartPose, Placement
 from dualrgb.drivers.virtual.originals import Original, original, original_name
+from dualrgb.simulation.chart_geometry import OUTSIDE, SURROUND, ChartGeometry, geometry_for
 from dualrgb.simulation.datasets import Target
 from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid
 
@@ -85,6 +92,7 @@ class Scene:
     name: str = ""
     original: Original | None = None    # required for kind 'original'
     field: FieldLight | None = None     # required for kind 'field'
+    pose: ChartPose | None = None       # how a chart lies (a world's chart_pose); None: square and centred
 
     def __post_init__(self) -> None:
         if self.kind not in SCENE_KINDS:
@@ -113,7 +121,8 @@ class Scene:
             rows, cols = self.layout
             if rows < 1 or cols < 1 or rows * cols < len(self.shown_target):
                 raise ValueError(f"grid {rows}x{cols} cannot hold {len(self.shown_target)} patches")
-            if self.pitch[0] < 4 or self.pitch[1] < 4:
+            small = (self.placement.min_patch_px() < 4) if self.placement is not None else min(self.pitch) < 4
+            if small:
                 raise ValueError(
                     f"a {self.width}x{self.height} frame is too small for a {rows}x{cols} grid (patches under 4 px)")
 
@@ -192,6 +201,27 @@ class Scene:
         return int(math.ceil(n / cols)), cols
 
     @cached_property
+    def geometry(self) -> ChartGeometry | None:
+        """The chart's physical geometry (simulation.chart_geometry.geometry_for: a known chart, else the generic
+        grid); None without a target."""
+        if self.kind != "target":
+            return None
+        t = self.shown_target
+        return geometry_for(self.layout, len(t), list(t.patch_names), gap=self.gap)
+
+    @cached_property
+    def placement(self) -> Placement | None:
+        """Where the chart lies in the frame (drivers.virtual.chart_pose), for a known chart or a posed one; None
+        for the generic grid square and centred, which the separable classification draws (module docstring)."""
+        geometry = self.geometry
+        if geometry is None:
+            return None
+        pose = self.pose or ChartPose()
+        if geometry.name == "grid" and pose.identity:
+            return None
+        return Placement(geometry, self.width, self.height, self.margin, pose)
+
+    @cached_property
     def _grid_box(self) -> tuple[float, float, float, float]:
         """(top, left, pitch_y, pitch_x) of the grid in pixels (float)."""
         rows, cols = self.layout
@@ -217,6 +247,8 @@ class Scene:
         """(row0, row1, col0, col1), half-open, per patch in target order; [] without a target."""
         if self.kind != "target":
             return []
+        if self.placement is not None:
+            return self.placement.patch_boxes()
         rows, cols = self.layout
         top, left, py, px = self._grid_box
         r0, r1 = self._edges(top, py, rows)
@@ -228,10 +260,13 @@ class Scene:
         """(row, col) of the grid's 4 outer corners: top-left, top-right, bottom-right, bottom-left.
 
         These are the outer edges of the corner patches (the outermost half-gap excluded), where a
-        technician would click to register the grid; [] without a target.
+        technician would click to register the grid; for a known or posed chart the corners of its patch area
+        (ChartGeometry.patch_area) wherever the pose put them; [] without a target.
         """
         if self.kind != "target":
             return []
+        if self.placement is not None:
+            return self.placement.corners()
         rows, cols = self.layout
         top, left, py, px = self._grid_box
         g = self.gap * py / 2
@@ -243,6 +278,11 @@ class Scene:
         """Boolean per patch: under the ND filter (left ``cols // 2`` columns) when the filter is on."""
         if self.kind != "target":
             return np.zeros(0, dtype=bool)
+        if self.placement is not None:
+            x0, y0, x1, y1 = self.placement.nd_box()
+            c = self.placement.geometry.centres()[:self.n_patches]
+            inside = (c[:, 0] >= x0) & (c[:, 0] < x1) & (c[:, 1] >= y0) & (c[:, 1] < y1)
+            return np.asarray(self.nd_filter & inside, dtype=bool)
         cols = self.layout[1]
         return np.array([self.nd_filter and (i % cols) < cols // 2 for i in range(self.n_patches)], dtype=bool)
 
@@ -300,6 +340,8 @@ class Scene:
             return self.shown_original.labels(row_idx, col_idx, self.height, self.width)
         if self.kind != "target":
             return np.zeros((len(row_idx), len(col_idx)), dtype=np.uint16)
+        if self.placement is not None:
+            return self._placed_labels(self.placement, row_idx, col_idx)
         n = self.n_patches
         rows, cols = self.layout
         top, left, py, px = self._grid_box
@@ -320,6 +362,16 @@ class Scene:
                 lab += ((nd_rows[:, None] & nd_cols[None, :]) * (n + 2)).astype(np.uint16)
         return lab
 
+    def _placed_labels(self, placement: Placement, row_idx: np.ndarray, col_idx: np.ndarray) -> np.ndarray:
+        """labels() of a known or posed chart: each pixel centre's class in the chart's coordinates."""
+        n = self.n_patches
+        k = placement.classify_pixels(row_idx, col_idx)
+        lab = np.where(k >= 0, k, np.where(k == SURROUND, n + 1, n)).astype(np.uint16)
+        if self.nd_filter:
+            under = placement.inside(row_idx, col_idx, placement.nd_box()) & (k != OUTSIDE)
+            lab += (under * (n + 2)).astype(np.uint16)
+        return lab
+
     def vignetting_profiles(self, row_idx: np.ndarray, col_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Separable falloff: multiply pixel (r, c) by ``vy[r] * vx[c]`` (float32); both 1 without vignetting."""
         if self.vignetting <= 0:
@@ -335,6 +387,10 @@ class Scene:
         d: dict[str, object] = {"kind": self.kind, "name": self.name, "size": f"{self.width}x{self.height}"}
         if self.kind == "target":
             d.update(patches=self.n_patches, grid="{}x{}".format(*self.layout), nd_filter=self.nd_filter)
+            if self.geometry is not None and self.geometry.name != "grid":
+                d.update(chart=self.geometry.name)
+            if self.pose is not None and not self.pose.identity:
+                d.update(pose=self.pose.to_dict())
         elif self.kind == "original":
             d.update(self.shown_original.describe())
         return d

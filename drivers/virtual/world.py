@@ -22,14 +22,20 @@ key                      meaning (default: the nominal model)
 ``flare``                veiling glare: this fraction of the frame's mean signal added to every pixel, 0..0.2
 ``reference_error_sd``   relative sd of each target patch's true spectrum against the packaged reference data
                          the calibration uses (a gain per patch, as a spectrophotometer's error), 0..0.2
+``chart_pose``           {``rotation_deg``, ``shift_x``, ``shift_y``, ``scale``}: how the charts lie on the stand
+                         (drivers.virtual.chart_pose.ChartPose): turned counter-clockwise by -180..180 degrees,
+                         moved by -0.5..0.5 of the frame's width (right) and height (down), scaled 0.2..2 about
+                         their centre; keys left out keep square, centred, full size
 =======================  ===============================================================================
 
 Keys left out keep the nominal value; an unknown key or a bad value is a :class:`WorldError` naming the file,
-the key and what was expected. The nominal world renders bit for bit what the lab rendered before worlds.
+the key and what was expected. The nominal world renders bit for bit what the lab rendered before worlds (save the
+ColorChecker Classic, drawn in its real geometry since issue 36: drivers/virtual/scene.py).
 Packaged worlds live in resources/worlds/ (``packaged_worlds()``); ``load_world`` takes a packaged name or a
 file. The world's LEDs are rendered by :class:`drivers.virtual.sphere_light.SphereLight` (the sphere emulator's
 drift stays on top), its camera by the virtual camera (``VirtualCamera.camera_sensitivities``), its flare in the
-camera's render and its reference error on the targets the lab places (:meth:`World.true_target`).
+camera's render, its reference error on the targets the lab places (:meth:`World.true_target`) and its chart pose
+on every chart scene the lab places.
 """
 from __future__ import annotations
 
@@ -48,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from dualrgb import resources
+from dualrgb.drivers.virtual.chart_pose import ChartPose
 from dualrgb.simulation.datasets import Target, load_camera
 from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid
 from dualrgb.simulation.sphere import LowLevelResponse
@@ -85,6 +92,7 @@ class World:
     led_low_level: LowLevelResponse = LowLevelResponse()
     flare: float = 0.0
     reference_error_sd: float = 0.0
+    chart_pose: ChartPose = ChartPose()
     source: str = ""                                  # the file it was read from ('' = built in)
 
     @property
@@ -108,12 +116,14 @@ class World:
         return dataclasses.replace(target, spectra=spectra, measured=None)
 
     def to_dict(self) -> dict[str, Any]:
-        """The world as its JSON file states it (``camera_csv`` as written)."""
+        """The world as its JSON file states it (``camera_csv`` as written; ``chart_pose`` only when the charts are
+        not square and centred, so the worlds without one keep their identity)."""
+        pose = {} if self.chart_pose.identity else {"chart_pose": self.chart_pose.to_dict()}
         return {"format": WORLD_FORMAT, "name": self.name, "description": self.description, "seed": self.seed,
                 "camera_csv": self.camera_csv, "led_peak_shift_nm": list(self.led_peak_shift_nm),
                 "led_width_scale": list(self.led_width_scale), "led_output_scale": list(self.led_output_scale),
                 "led_low_level": self.led_low_level.to_dict(), "flare": self.flare,
-                "reference_error_sd": self.reference_error_sd}
+                "reference_error_sd": self.reference_error_sd, **pose}
 
     @cached_property
     def identity(self) -> str:
@@ -189,11 +199,24 @@ def _low_level(source: str, key: str, value: Any) -> LowLevelResponse:
     return resp
 
 
+_POSE = {"rotation_deg": _number(-180.0, 180.0, " degrees"), "shift_x": _number(-0.5, 0.5, " of the frame's width"),
+         "shift_y": _number(-0.5, 0.5, " of the frame's height"), "scale": _number(0.2, 2.0)}
+
+
+def _chart_pose(source: str, key: str, value: Any) -> ChartPose:
+    if not isinstance(value, dict):
+        raise _fail(source, key, "an object with rotation_deg, shift_x, shift_y, scale", value)
+    for k in value:
+        if k not in _POSE:
+            raise WorldError(f"{source}: unknown key '{key}.{k}'; expected one of {', '.join(_POSE)}")
+    return ChartPose(**{k: _POSE[k](source, f"{key}.{k}", v) for k, v in value.items()})
+
+
 _KEYS: dict[str, Callable[[str, str, Any], Any]] = {
     "format": _format, "name": _text(64), "description": _text(1000), "seed": _seed, "camera_csv": _text(300),
     "led_peak_shift_nm": _per_led(-20.0, 20.0, " nm"), "led_width_scale": _per_led(0.5, 2.0),
     "led_output_scale": _per_led(0.0, 2.0), "led_low_level": _low_level, "flare": _number(0.0, 0.2),
-    "reference_error_sd": _number(0.0, 0.2),
+    "reference_error_sd": _number(0.0, 0.2), "chart_pose": _chart_pose,
 }
 
 

@@ -193,6 +193,24 @@ class TargetPanel(QWidget):
             return layout_for(len(target), target.layout)
         return layout_for(n_default)
 
+    def reference_geometry(self):
+        """Where the chart's patches lie on it (simulation.chart_geometry), when it is a chart the lab draws in its
+        real geometry (a ColorChecker Classic, Digital SG, IT8.7); None for the generic grid or no target."""
+        from dualrgb.simulation.chart_geometry import geometry_of
+
+        tag, vl = self.tag(), self.lab.virtual_lab
+        if tag not in ("train", "test"):
+            return None
+        chart = self.ws.charts.get(tag)
+        if chart is not None:
+            geometry = geometry_of(chart)
+        elif vl is not None:
+            geometry = vl.scene_for(tag).geometry
+        else:
+            from dualrgb.app.workflow.targets import chart_of
+            geometry = geometry_of(chart_of(self.lab.mode, tag))
+        return None if geometry is None or geometry.name == "grid" else geometry
+
     # ------------------------------------------------------------------ frame
     def load_frame(self) -> None:
         key, light = self.key(), self.light.currentText()
@@ -273,7 +291,11 @@ class TargetPanel(QWidget):
             self.info.setText(f"{Subject.parse(self.key()).label}: shown as captured (no patch grid: not a target)")
             return
         try:
-            grid = PatchGrid(self.corners(), self.rows.value(), self.cols.value(), self.fraction.value())
+            geometry = self.reference_geometry()          # a known chart: each cell where its patch is (an IT8)
+            boxes = geometry.unit_boxes() if geometry is not None and geometry.layout == (
+                self.rows.value(), self.cols.value()) else None
+            grid = PatchGrid(self.corners(), self.rows.value(), self.cols.value(), self.fraction.value(),
+                             cell_boxes=boxes)
         except ValueError as exc:
             self.info.setText(f"Grid not usable: {exc}")
             self.cells.setData([], [])
