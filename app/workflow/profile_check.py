@@ -202,12 +202,16 @@ def _check_statistics(stats: dict[str, Any], channels: list[str], refuse: Any) -
         refuse("statistics.channels", f"{', '.join(stats['channels'])}, the matrix {', '.join(channels)}")
     for name, method in stats["methods"].items():
         fitted = method.get("matrix")
-        if fitted is not None and len(fitted["matrix"]) != len(fitted.get("channels", channels)):
-            refuse(f"statistics.methods.{name}.matrix", f"{len(fitted['matrix'])} rows for "
-                                                        f"{len(fitted.get('channels', channels))} channels")
-        if fitted is not None and len(fitted["matrix"]) != len(channels):
-            refuse(f"statistics.methods.{name}.matrix", f"{len(fitted['matrix'])} rows, the matrix "
-                                                        f"{len(channels)} channels")
+        if fitted is None:
+            continue
+        own = fitted.get("channels", channels)
+        want = n_terms(len(own), fitted.get("degree", 1))     # a root-polynomial: one row per term
+        if len(fitted["matrix"]) != want:
+            refuse(f"statistics.methods.{name}.matrix", f"{len(fitted['matrix'])} rows for {len(own)} channels "
+                                                        f"(degree {fitted.get('degree', 1)}: {want} terms)")
+        if own != channels:
+            refuse(f"statistics.methods.{name}.matrix", f"channels {', '.join(own)}, the matrix "
+                                                        f"{', '.join(channels)}")
 
 
 def _check_estimator(estimator: dict[str, Any], channels: list[str], refuse: Any) -> None:

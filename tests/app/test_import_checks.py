@@ -142,12 +142,14 @@ def test_a_folder_that_holds_other_files_is_no_session(tmp_path):
                                "folder"]
 
 
-def test_the_training_grid_is_needed_before_anything_is_written(tmp_path):
-    """Without corners the 190-patch training target cannot be placed (detection exists for a CC24 only)."""
-    folder, roles = make_folder(tmp_path)
-    lines = refused(tmp_path, folder, roles, grids={})
-    assert lines == ["training target: place the patch grid on it first (reflective_train_rawtoaces190.csv (190 "
-                     "patches, 12x17); automatic detection exists for the 24-patch ColorChecker Classic only)"]
+def test_no_grid_is_needed_before_writing_the_charts_are_found_in_their_frames(tmp_path):
+    """Without corners the targets' specs carry no grid: the calibration finds every chart in its frames
+    (app.processing.chart_detect), so the checks before writing ask for none (issue 36)."""
+    from dualrgb.app.workflow.import_checks import ImportSettings, target_specs
+
+    specs, problems = target_specs(ImportSettings("reflective", grids={}, session=tmp_path / "session"))
+    assert problems == [] and {n: s.grid for n, s in specs.items()} == {"train": None, "test": None}
+    assert specs["train"].geometry is not None and specs["test"].geometry is not None
 
 
 def test_the_originals_metadata_are_read_as_in_a_queue_csv(tmp_path):

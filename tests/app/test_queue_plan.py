@@ -4,6 +4,7 @@ lists every row to shoot, kept (delivered in the session) or refused with its re
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -30,8 +31,9 @@ def test_the_mode_rule_refuses_unless_forced():
 
 
 class _Session:
-    def __init__(self, originals: dict):
+    def __init__(self, originals: dict, path: Path):
         self.settings = {"originals": originals}
+        self.path = path
 
 
 def test_the_plan_lists_rows_to_shoot_kept_and_refused(tmp_path):
@@ -40,7 +42,7 @@ def test_the_plan_lists_rows_to_shoot_kept_and_refused(tmp_path):
                     encoding="utf-8")
     sidecar = tmp_path / "K-1.json"
     sidecar.write_text(json.dumps({"format": "dualrgb-delivery/1", "original": {"identifier": "K-1"}}))
-    plan = plan_queue(read_queue_csv(path), PROFILE, session=_Session({"K-1": {"sidecar": str(sidecar)}}))
+    plan = plan_queue(read_queue_csv(path), PROFILE, session=_Session({"K-1": {"sidecar": str(sidecar)}}, tmp_path))
     states = [(r.row, r.identifier, r.state) for r in plan.rows]
     assert states == [(2, "A-1", SHOOT), (3, "F-1", REFUSED), (4, "B-2", REFUSED), (5, "K-1", KEPT)]
     assert plan.summary() == "q.csv: 4 rows with calibration cal-1: 1 to shoot, 1 kept, 2 refused"
