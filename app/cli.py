@@ -49,6 +49,7 @@ COMMAND_MODULES = (
     "dualrgb.app.commands.calibration",
     "dualrgb.app.commands.study",
     "dualrgb.app.commands.measure",
+    "dualrgb.app.commands.lab",
 )
 
 

@@ -1,0 +1,143 @@
+"""The virtual lab as devices: its instruments served each on its own address, in a process of their own
+(`dualrgb lab serve`), so the program that drives the stand opens them exactly as it opens a physical stand's.
+
+* ``sphere``: the sphere emulator (drivers/virtual/sphere_emulator.py) on ``socket://127.0.0.1:PORT``: the LED
+  sphere's protocol (docs/led-sphere-protocol.md), its watchdog and on-time limit its own;
+* ``camera``: the virtual camera (drivers/virtual/camera.py) behind a camera bridge (drivers.camera.bridge) on
+  ``tcp://127.0.0.1:PORT``; it renders what this process's sphere emulator emits at the moment of each exposure and
+  what lies on the stand;
+* ``stand``: the sample changer (drivers/virtual/changer_emulator.py) on ``socket://``: it puts targets, the open
+  gate, the lens cap and the originals' stand-ins on the virtual stand;
+* ``monochromator``: the Cornerstone 130 emulator (drivers/virtual/monochromator_emulator.py) on ``socket://``.
+
+``light_record``: a file where every lit period of the sphere is written as one JSON line when it ends (``t_on``,
+``t_off`` on the emulator's clock, ``time.monotonic``; ``levels``; ``ended_by``: a request, 'on-time limit',
+'watchdog', 'power off'), so what happened to the light can be read from outside, e.g. after its client was
+killed. :meth:`LabServer.dark` says whether the sphere emits nothing now.
+
+    server = LabServer(LabSettings(mode="reflective", frame_size=(600, 400)))
+    for name, address in server.start().items(): print(name, address)
+    ...; server.stop()
+"""
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from dualrgb.drivers.camera.bridge import CameraBridge
+from dualrgb.drivers.virtual.changer_emulator import ChangerEmulator
+from dualrgb.drivers.virtual.lab import VirtualLab
+from dualrgb.drivers.virtual.monochromator_emulator import MonochromatorEmulator
+from dualrgb.drivers.virtual.sphere_emulator import LightInterval
+from dualrgb.simulation.datasets import Target
+
+log = logging.getLogger(__name__)
+
+INSTRUMENTS = ("sphere", "camera", "stand", "monochromator")
+DEFAULT_STAND_INS = {"reflective": "painting", "transmissive": "film"}
+RECORD_POLL_S = 0.02
+
+
+@dataclass
+class LabSettings:
+    """What the lab is: its mode (the packaged targets it holds), frame size, noise seed, world, the sphere's
+    watchdog, the shutter's bumps, the stand's own charts (``'train'`` / ``'test'`` -> a rendered Target) and the
+    stand-in shown for an original (default: the mode's virtual original)."""
+
+    mode: str = "reflective"
+    frame_size: tuple[int, int] = (600, 400)
+    seed: int = 0
+    world: Any = None
+    watchdog_s: float = 30.0
+    bumps: bool = False
+    charts: dict[str, Target] = field(default_factory=dict)
+    stand_in: str = ""
+
+
+class LabServer:
+    """The instruments of one virtual lab, served (module docstring)."""
+
+    def __init__(self, settings: LabSettings, light_record: Path | None = None):
+        self.settings = settings
+        self.lab = VirtualLab(mode=settings.mode, frame_size=settings.frame_size, seed=settings.seed,
+                              watchdog_s=settings.watchdog_s, bumps=settings.bumps, world=settings.world,
+                              transport="socket")
+        self.bridge: CameraBridge | None = None
+        self.changer: ChangerEmulator | None = None
+        self.monochromator = MonochromatorEmulator(transport="socket")
+        self.addresses: dict[str, str] = {}
+        self._record_path = Path(light_record) if light_record else None
+        self._written = 0
+        self._stop = threading.Event()
+        self._recorder: threading.Thread | None = None
+
+    def start(self) -> dict[str, str]:
+        """Start every instrument; returns name -> address (in :data:`INSTRUMENTS` order)."""
+        lab = self.lab.start(connect=False)
+        for role, chart in self.settings.charts.items():
+            lab.use_chart(role, chart)
+        camera = lab.camera
+        assert camera is not None
+        self.bridge = CameraBridge(camera)
+        bridge = self.bridge
+
+        def place(what: str, nd: bool) -> str:
+            with bridge.lock:                    # never while the camera renders an exposure
+                lab.place(what, nd)
+            return lab.placed
+        self.changer = ChangerEmulator(place, self.settings.stand_in or DEFAULT_STAND_INS.get(lab.mode, "painting"),
+                                       transport="socket")
+        self.addresses = {"sphere": lab.port, "camera": bridge.start(), "stand": self.changer.start(),
+                          "monochromator": self.monochromator.start()}
+        if self._record_path is not None:
+            self._record_path.parent.mkdir(parents=True, exist_ok=True)
+            self._record_path.write_text("")
+            self._recorder = threading.Thread(target=self._record_loop, name="light record", daemon=True)
+            self._recorder.start()
+        return dict(self.addresses)
+
+    def dark(self) -> bool:
+        """Whether the sphere emits nothing now."""
+        return not bool(self.lab.emulator.snapshot().levels.any())
+
+    def light_record(self) -> list[LightInterval]:
+        return self.lab.emulator.light_record()
+
+    def stop(self) -> None:
+        """Stop every instrument (the sphere powered off: its last lit period, if any, ends 'power off')."""
+        self._stop.set()
+        for part in (self.changer, self.bridge, self.monochromator):
+            if part is not None:
+                try:
+                    part.close() if isinstance(part, CameraBridge) else part.stop()
+                except Exception as exc:  # noqa: BLE001 - stopping the others matters more; logged
+                    log.warning("lab: stopping %s: %s", type(part).__name__, exc)
+        self.lab.stop()
+        if self._recorder is not None:
+            self._recorder.join(timeout=5)
+        self._write_record(final=True)
+
+    def _record_loop(self) -> None:
+        while not self._stop.wait(RECORD_POLL_S):
+            self._write_record()
+
+    def _write_record(self, final: bool = False) -> None:
+        """Append the lit periods that have ended since the last call (``final``: every one left)."""
+        if self._record_path is None:
+            return
+        done = [i for i in self.light_record() if i.t_off is not None or final]
+        new, self._written = done[self._written:], len(done)
+        if new:
+            with self._record_path.open("a") as f:
+                for i in new:
+                    f.write(json.dumps({"t_on": i.t_on, "t_off": i.t_off, "levels": list(i.levels),
+                                        "ended_by": i.ended_by}) + "\n")
+
+
+def read_light_record(path: Path) -> list[dict[str, Any]]:
+    """The lit periods a lab wrote to ``path`` (:class:`LabServer`'s ``light_record``)."""
+    return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
