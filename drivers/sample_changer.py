@@ -12,6 +12,10 @@ ends read): ASCII lines, ``\\n``-terminated, one reply line per request, ``OK <K
 * ``PLACED?`` -> ``OK PLACED <nd> <what>`` (``-`` for nothing yet)
 * ``LOAD <slot> <identifier>`` -> ``OK LOAD <slot> <identifier>``: the original ``identifier`` is in magazine slot
   ``slot`` (``*`` for any original not loaded by name)
+* ``CHART <role> <layout> <leave-out> <file>`` -> ``OK CHART <role>``: the virtual lab's changer only (a physical
+  one holds the charts that were put in it): hold the chart of reference ``file`` (layout ``ROWSxCOLS``, patches
+  left out comma-separated, ``-`` for none or the file's own) as the training (``train``) or test (``test``)
+  target; ``CHART <role> - - -`` the packaged one again
 
 The transport is a pyserial URL (a USB-serial port, or ``socket://HOST:PORT`` as `dualrgb lab serve` prints).
 
@@ -35,6 +39,7 @@ MAX_LINE = 160
 TIMEOUT_S = 30.0                        # moving a chart takes the changer a few seconds at most
 COMMANDS = {                            # keyword -> the reply's keyword (one table for both ends)
     "IDN?": "IDN", "PLACE": "PLACE", "PLACED?": "PLACED", "LOAD": "LOAD",
+    "CHART": "CHART",                   # the virtual lab's changer only: which chart it holds (module docstring)
 }
 PLACES = ("train", "test", "open-gate", "lens-cap")
 ORIGINAL_PREFIX = "original:"
@@ -105,6 +110,10 @@ class SampleChanger:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    def request(self, keyword: str, *fields: object) -> list[str]:
+        """One request (:data:`COMMANDS`) and the fields of its reply."""
+        return self._ask(keyword, *fields)
 
     def _ask(self, keyword: str, *fields: object) -> list[str]:
         with self._lock:

@@ -30,6 +30,7 @@ from dualrgb.drivers.virtual.transport import line_server
 log = logging.getLogger(__name__)
 
 Place = Callable[[str, bool], Any]
+LoadChart = Callable[[str, str, str, str], None]        # role, layout, leave-out, file ('-': none / packaged)
 CHART_STAND_INS = ("train", "test")
 
 
@@ -40,8 +41,9 @@ class ChangerEmulator:
     version = "1.0.0"
     serial = "EMU-0001"
 
-    def __init__(self, place: Place, stand_in: str, transport: str | None = None):
+    def __init__(self, place: Place, stand_in: str, transport: str | None = None, load_chart: LoadChart | None = None):
         self._place = place
+        self._load_chart = load_chart
         self.stand_in = stand_in
         self.magazine: dict[str, str] = {}
         self.placed: tuple[str, bool] | None = None
@@ -71,6 +73,17 @@ class ChangerEmulator:
             return chart, bool(plus) or nd
         return ORIGINAL_PREFIX + name, nd
 
+    def _chart(self, rest: str) -> list[str]:
+        role, layout, leave_out, file = (rest.split(" ", 3) + ["", "", "", ""])[:4]
+        if role not in CHART_STAND_INS or not file:
+            raise ValueError("CHART <train|test> <layout|-> <leave-out|-> <file|->")
+        if self._load_chart is None:
+            raise RuntimeError("this changer holds the charts it was loaded with")
+        with self._lock:
+            self._load_chart(role, layout, leave_out, file)
+            self.placed = None                  # what lies there is placed again, as the new chart
+        return [role]
+
     def _on_line(self, line: bytes, too_long: bool = False) -> None:
         if too_long:
             self._server.respond(f"ERR {ERR_TOO_LONG} request longer than {MAX_LINE} bytes\n".encode())
@@ -98,6 +111,8 @@ class ChangerEmulator:
         if keyword == "PLACED?":
             placed = self.placed
             return ["0", NOTHING] if placed is None else [str(int(placed[1])), placed[0]]
+        if keyword == "CHART":
+            return self._chart(rest)
         if keyword == "LOAD":
             slot, _, identifier = rest.partition(" ")
             if not slot or not identifier:

@@ -10,10 +10,15 @@
   gate, the lens cap and the originals' stand-ins on the virtual stand;
 * ``monochromator``: the Cornerstone 130 emulator (drivers/virtual/monochromator_emulator.py) on ``socket://``.
 
-``light_record``: a file where every lit period of the sphere is written as one JSON line when it ends (``t_on``,
-``t_off`` on the emulator's clock, ``time.monotonic``; ``levels``; ``ended_by``: a request, 'on-time limit',
-'watchdog', 'power off'), so what happened to the light can be read from outside, e.g. after its client was
-killed. :meth:`LabServer.dark` says whether the sphere emits nothing now.
+``read_chart(role, layout, leave_out, file)``: how the sample changer's ``CHART`` request reads a chart's reference
+file into the target the lab renders (`dualrgb lab serve` gives app.workflow.charts' reader).
+
+``light_record``: a file where every lit period of the sphere is written as JSON lines: ``{"event": "on", "t_on",
+"levels"}`` when it begins and ``{"event": "off", "t_on", "t_off", "levels", "ended_by"}`` when it ends (times on
+the emulator's clock, ``time.monotonic``; ``ended_by``: a request, 'on-time limit', 'watchdog', 'power off'), so
+what happens to the light can be watched from outside without a word to the sphere (a request would restart its
+watchdog), e.g. after its client was killed (:func:`lit_now`, :func:`lit_periods`). :meth:`LabServer.dark` says
+whether the sphere emits nothing now.
 
     server = LabServer(LabSettings(mode="reflective", frame_size=(600, 400)))
     for name, address in server.start().items(): print(name, address)
@@ -24,6 +29,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -61,8 +67,10 @@ class LabSettings:
 class LabServer:
     """The instruments of one virtual lab, served (module docstring)."""
 
-    def __init__(self, settings: LabSettings, light_record: Path | None = None):
+    def __init__(self, settings: LabSettings, light_record: Path | None = None,
+                 read_chart: Callable[[str, str, str, str], Target] | None = None):
         self.settings = settings
+        self._read_chart = read_chart
         self.lab = VirtualLab(mode=settings.mode, frame_size=settings.frame_size, seed=settings.seed,
                               watchdog_s=settings.watchdog_s, bumps=settings.bumps, world=settings.world,
                               transport="socket")
@@ -71,7 +79,8 @@ class LabServer:
         self.monochromator = MonochromatorEmulator(transport="socket")
         self.addresses: dict[str, str] = {}
         self._record_path = Path(light_record) if light_record else None
-        self._written = 0
+        self._written = 0                       # lit periods whose 'off' line is written
+        self._begun = 0                         # ... whose 'on' line is written
         self._stop = threading.Event()
         self._recorder: threading.Thread | None = None
 
@@ -90,7 +99,7 @@ class LabServer:
                 lab.place(what, nd)
             return lab.placed
         self.changer = ChangerEmulator(place, self.settings.stand_in or DEFAULT_STAND_INS.get(lab.mode, "painting"),
-                                       transport="socket")
+                                       transport="socket", load_chart=self._chart if self._read_chart else None)
         self.addresses = {"sphere": lab.port, "camera": bridge.start(), "stand": self.changer.start(),
                           "monochromator": self.monochromator.start()}
         if self._record_path is not None:
@@ -99,6 +108,14 @@ class LabServer:
             self._recorder = threading.Thread(target=self._record_loop, name="light record", daemon=True)
             self._recorder.start()
         return dict(self.addresses)
+
+    def _chart(self, role: str, layout: str, leave_out: str, file: str) -> None:
+        """The changer's CHART: hold the chart of ``file`` as ``role`` ('-': the packaged target again)."""
+        assert self._read_chart is not None
+        target = None if file == "-" else self._read_chart(role, "" if layout == "-" else layout,
+                                                          "" if leave_out == "-" else leave_out, file)
+        with self.bridge.lock if self.bridge is not None else threading.Lock():
+            self.lab.use_chart(role, target)
 
     def dark(self) -> bool:
         """Whether the sphere emits nothing now."""
@@ -119,25 +136,43 @@ class LabServer:
         self.lab.stop()
         if self._recorder is not None:
             self._recorder.join(timeout=5)
-        self._write_record(final=True)
+        self._write_record()
 
     def _record_loop(self) -> None:
         while not self._stop.wait(RECORD_POLL_S):
             self._write_record()
 
-    def _write_record(self, final: bool = False) -> None:
-        """Append the lit periods that have ended since the last call (``final``: every one left)."""
+    def _write_record(self) -> None:
+        """Append an ``on`` line for every lit period begun and an ``off`` line for every one ended since the last
+        call (after :meth:`stop`'s power-off every period has ended)."""
         if self._record_path is None:
             return
-        done = [i for i in self.light_record() if i.t_off is not None or final]
-        new, self._written = done[self._written:], len(done)
-        if new:
+        record = self.light_record()
+        lines = [{"event": "on", "t_on": i.t_on, "levels": list(i.levels)} for i in record[self._begun:]]
+        self._begun = len(record)
+        while self._written < len(record) and record[self._written].t_off is not None:
+            i = record[self._written]
+            lines.append({"event": "off", "t_on": i.t_on, "t_off": i.t_off, "levels": list(i.levels),
+                          "ended_by": i.ended_by})
+            self._written += 1
+        if lines:
             with self._record_path.open("a") as f:
-                for i in new:
-                    f.write(json.dumps({"t_on": i.t_on, "t_off": i.t_off, "levels": list(i.levels),
-                                        "ended_by": i.ended_by}) + "\n")
+                f.writelines(json.dumps(line) + "\n" for line in lines)
 
 
 def read_light_record(path: Path) -> list[dict[str, Any]]:
-    """The lit periods a lab wrote to ``path`` (:class:`LabServer`'s ``light_record``)."""
+    """The lines a lab wrote to ``path`` (:class:`LabServer`'s ``light_record``): ``on`` and ``off`` events."""
     return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+
+
+def lit_periods(path: Path) -> list[dict[str, Any]]:
+    """The lit periods that have ended (``t_on``, ``t_off``, ``levels``, ``ended_by``), in order."""
+    return [e for e in read_light_record(path) if e.get("event") == "off"]
+
+
+def lit_now(path: Path) -> dict[str, Any] | None:
+    """The lit period begun and not ended yet (its ``on`` event), None when the sphere is dark."""
+    events = read_light_record(path)
+    ended = {e["t_on"] for e in events if e.get("event") == "off"}
+    begun = [e for e in events if e.get("event") == "on" and e["t_on"] not in ended]
+    return begun[-1] if begun else None
