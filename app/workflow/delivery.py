@@ -9,9 +9,8 @@ every file is written while the next band is encoded (:func:`write_images`). The
 format tag and software versions (dualrgb, numpy, numba, colour-science, rawpy, LibRaw: dualrgb.simulation.versions),
 the original, the calibration, the resolution and demosaic, exposures, light dose, QA, the spectral estimate and
 the map that makes the cube from the channel files (app.processing.cube_map), the files, and their fixity (size and
-SHA-256 of every deliverable, computed as it is written: ``dualrgb verify`` checks them, app.workflow.fixity); on
-the virtual lab the figures against the virtual original's truth (app.workflow.virtual_truth). Its JSON Schema is
-resources/schemas/dualrgb-delivery-1.schema.json.
+SHA-256 of every deliverable, computed as it is written: ``dualrgb verify`` checks them, app.workflow.fixity). Its
+JSON Schema is resources/schemas/dualrgb-delivery-1.schema.json.
 
 Every TIFF carries resolution (ppi), Make/Model, DateTime, Software with the dualrgb version, an
 ImageDescription, a PageName and XMP (identifier, title, description, operator, notes, extra fields, calibration
@@ -55,7 +54,6 @@ from dualrgb.app.workflow.delivery_folder import SIDECAR_FORMAT, read_sidecar, s
 from dualrgb.app.workflow.fixity import FIXITY_ALGORITHM, file_fixity, fixity_section
 from dualrgb.app.workflow.metadata import MODES, Original, ascii_text, xmp_property
 from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity
-from dualrgb.app.workflow.virtual_truth import OriginalTruth, assess, qa_text
 from dualrgb.common.progress import CancelToken, check
 from dualrgb.simulation.versions import dualrgb_version, output_header
 
@@ -91,7 +89,6 @@ class QaLine:
     hdr: bool = False
     warnings: list[str] = field(default_factory=list)
     spectral_rmse: float | None = None      # the calibration's spectral RMSE on its test target (None: no spectra)
-    truth: dict | None = None               # virtual lab: the figures against the original's truth
     overrides: list[str] = field(default_factory=list)   # rules the user overrode (--force), said first
 
     def text(self) -> str:
@@ -103,15 +100,14 @@ class QaLine:
                 f"{self.underexposed_pct:.2f} %, light dose {self.dose.lux_h:.3g} lux.h ({self.dose.lux_s:.3g} "
                 f"lux.s), calibration dE00 train "
                 f"{de(self.train_mean)} / test {de(self.test_mean)}{spectral}" + (", HDR" if self.hdr else "")
-                + (f"; {qa_text(self.truth)}" if self.truth else "") + "".join(f"; {w}" for w in self.warnings))
+                + "".join(f"; {w}" for w in self.warnings))
 
     def to_dict(self) -> dict:
         return {"text": self.text(), "clipped_pct": round(self.clipped_pct, 4),
                 "underexposed_pct": round(self.underexposed_pct, 4), "invalid_pct": round(self.invalid_pct, 4),
                 "light_dose": self.dose.to_dict(), "calibration_train_de00_mean": self.train_mean,
                 "calibration_test_de00_mean": self.test_mean, "calibration_test_spectral_rmse": self.spectral_rmse,
-                "hdr": self.hdr, "warnings": self.warnings, "overrides": self.overrides,
-                **({"virtual_truth": self.truth} if self.truth else {})}
+                "hdr": self.hdr, "warnings": self.warnings, "overrides": self.overrides}
 
 
 @dataclass
@@ -306,15 +302,14 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
             camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
             exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
             extra: dict | None = None, render_illuminant: str = DEFAULT_RENDER_ILLUMINANT,
-            truth: OriginalTruth | None = None, overrides: list[str] | None = None, cancel: CancelToken | None = None
-            ) -> Delivery:
+            overrides: list[str] | None = None, cancel: CancelToken | None = None) -> Delivery:
     """Encode the channels of ``source`` (a full-resolution MasterStack or a half-resolution ChannelStack) with the
     calibration's matrix (and spectral estimator: the rendering under ``render_illuminant``, and the cube at half
     resolution) and write every deliverable of ``original``: into a fresh folder, swapped in whole when complete
     (a re-delivery keeps the previous set in ``<stem>/previous/``; a folder of another original is refused:
     app.workflow.delivery_folder). ``ppi``: the delivered files' sampling (None: the calibration's, at this
-    resolution). ``truth``: the virtual lab's, compared in the sidecar and QA line. ``overrides``: rules the user
-    overrode for it (app.workflow.mode_rule), said in the sidecar and QA line. ``cancel``: checked per band."""
+    resolution). ``overrides``: rules the user overrode for it (app.workflow.mode_rule), said in the sidecar and QA
+    line. ``cancel``: checked per band."""
     warnings = list(warnings or [])
     resolution = source.resolution
     ppi = ppi or delivered_ppi(profile, resolution)
@@ -341,9 +336,6 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
             fixity["spectral_header"] = file_fixity(header)
         qa = _qa(source, written.invalid, profile, original, dose,
                  any(len(v) > 1 for v in (exposures or {}).values()), warnings)
-        if truth is not None:
-            qa.truth = assess(truth, files, float(profile.white_xyz[1]),
-                              spectral.estimator if spectral is not None else None)
         qa.overrides = list(overrides or [])
         doc = _sidecar(source, profile, original, camera, now, ppi, exposures, dose, qa, files, fixity, spectral)
         atomic_write(folder / f"{stem}.json",
@@ -377,7 +369,6 @@ def _sidecar(source: ChannelSource, profile: CalibrationProfile, original: Origi
             "qa": qa.to_dict(), "encoding": {"rgb": "display-encoded, white = 65535", "linear_one": LINEAR_ONE,
                                              "channels": source.channels},
             **({"spectral": spectral_section(spectral, profile, files)} if spectral is not None else {}),
-            **({"virtual_truth": qa.truth} if qa.truth else {}),
             "files": {k: p.name for k, p in files.items()},
             "fixity": fixity_section({files[k].name: v for k, v in fixity.items()})}
 
