@@ -28,7 +28,6 @@ from dualrgb.app.commands.stand_options import (
     open_devices,
     open_session,
     progress_printer,
-    virtual_world,
 )
 from dualrgb.app.json_output import text_stream, write_json
 from dualrgb.app.workflow import defaults as day
@@ -118,6 +117,15 @@ def _stand_start(args: argparse.Namespace) -> Any:
     return measured_start(args.camera_csv, args.stand_dir)
 
 
+def _lab_placement(args: argparse.Namespace, mode: str, charts: dict, grids: dict) -> tuple[dict, float | None]:
+    """``--virtual-lab``: the targets' patch grids as the lab lays them and its test target's width, where the
+    options do not give them - what a person at the lab's stand would place by hand and type (app.lab.targets)."""
+    from dualrgb.app.lab.targets import LAB_TARGET_WIDTH_MM, lab_grids
+
+    placed = lab_grids(mode, args.frame_size, charts)
+    return {**placed, **grids}, args.target_width_mm or LAB_TARGET_WIDTH_MM
+
+
 def main(args: argparse.Namespace) -> int:
     check_device_options(args)                # before the heavy imports below
     from dualrgb.app.workflow import charts as day_charts
@@ -135,15 +143,19 @@ def main(args: argparse.Namespace) -> int:
     charts = day_charts.load_charts(chart_choices(args), mode)          # before any device opens
     grids = {k: load_grid(v, charts[k].layout if k in charts else None)
              for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
+    width_mm = args.target_width_mm
+    if args.virtual_lab:                      # the shorthand: what a person would give for the lab's targets
+        grids, width_mm = _lab_placement(args, mode, charts, grids)
     settings = StandSettings(settle_s=args.settle, dark_frames=darks, flat_frames=flats,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
-                             target_width_mm=args.target_width_mm, stand_start=_stand_start(args), charts=charts)
+                             target_width_mm=width_mm, stand_start=_stand_start(args), charts=charts)
     definition = {"workflow": DAY_WORKFLOW, "mode": mode, "preset": preset.name, "hdr": hdr,
-                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle, **virtual_world(args),
+                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle,
                   **day_charts.definition(charts)}
     text = text_stream(args.json_path)
-    with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
-        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
+    with open_devices(args, mode, charts=chart_choices(args)) as dev, \
+            open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
+        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
                           progress=progress_printer(), prompt=ask_person)
         profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
     from dualrgb.app.workflow.profile import describe

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import signal
 import sys
 import threading
@@ -28,6 +29,7 @@ from dualrgb.app.json_output import add_json_option
 log = logging.getLogger(__name__)
 
 SCORE_FORMAT = "dualrgb-lab-score/1"
+LIGHT_RECORD_ENV = "DUALRGB_LAB_LIGHT_RECORD"     # a lab started by a window or --virtual-lab writes its record there
 MODES = ("reflective", "transmissive")
 
 
@@ -51,7 +53,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     serve.add_argument("--watchdog-s", type=number(0.1, 3600, unit=" s"), default=30.0,
                        help="the sphere's watchdog (30 s)")
     serve.add_argument("--light-record", type=Path, metavar="FILE",
-                       help="write every lit period of the sphere to FILE as it ends (JSON lines)")
+                       default=os.environ.get(LIGHT_RECORD_ENV) or None,
+                       help="write every lit period of the sphere to FILE as it begins and ends (JSON lines; "
+                            f"default ${LIGHT_RECORD_ENV})")
     serve.add_argument("--with-parent", action="store_true",
                        help="stop when standard input closes (the program that started it ended), once the "
                             "sphere is dark")
@@ -70,6 +74,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def serve_main(args: argparse.Namespace) -> int:
     from dualrgb.app.commands.options import chart_choices
+    from dualrgb.app.lab.targets import chart_reader
     from dualrgb.app.workflow.charts import load_charts
     from dualrgb.drivers.virtual.lab_server import LabServer, LabSettings
 
@@ -77,7 +82,7 @@ def serve_main(args: argparse.Namespace) -> int:
     settings = LabSettings(mode=args.mode, frame_size=args.frame_size, seed=args.seed, world=args.world,
                            watchdog_s=args.watchdog_s, bumps=args.bumps, stand_in=args.original,
                            charts={role: c.render_target() for role, c in charts.items()})
-    server = LabServer(settings, light_record=args.light_record)
+    server = LabServer(settings, light_record=args.light_record, read_chart=chart_reader(args.mode))
     stop = threading.Event()
     if args.with_parent:
         threading.Thread(target=_until_stdin_closes, args=(server, stop), name="parent", daemon=True).start()
