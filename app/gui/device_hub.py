@@ -1,8 +1,10 @@
 """The devices and the capture session the window works with, behind one QObject.
 
 Every device call is submitted to the runner's ``devices`` pool (one thread, in order); results and errors come
-back on the GUI thread as signals. The virtual lab (drivers.virtual.lab.VirtualLab: the sphere emulator on a pty,
-the LedSphere driver over it, the virtual camera) is started on first use of a virtual device.
+back on the GUI thread as signals. The virtual lab is `dualrgb lab serve` started as the window's child process
+(app.lab.running) on first use of a virtual device; its sphere and camera are opened by their addresses like a
+physical stand's, and its sample changer places what the runs ask for. Killing the window leaves its sphere to
+its own watchdog and on-time limit, as a physical sphere's firmware.
 """
 from __future__ import annotations
 
@@ -17,22 +19,15 @@ from dualrgb.app.gui.viewmodel import DoseFeed, light_from_levels
 from dualrgb.app.gui.workers import TaskHandle, TaskRunner
 from dualrgb.app.session.log import SessionLog
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE
-from dualrgb.app.workflow.stand_devices import (
-    open_camera,
-    open_sphere,
-    stand_definition,
-    virtual_lab,
-    virtual_stand,
-)
+from dualrgb.app.workflow.stand_devices import open_camera, open_sphere, stand_definition
 from dualrgb.drivers.camera.base import Camera, CameraError
 from dualrgb.drivers.led_sphere import LedSphere, SphereError
 from dualrgb.drivers.led_sphere.driver import DEFAULT_MAX_ON_S
 from dualrgb.simulation.lightsource import LightSource
 
 if TYPE_CHECKING:
+    from dualrgb.app.lab.running import RunningLab
     from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.drivers.virtual.lab import VirtualLab
-    from dualrgb.drivers.virtual.world import World
 
 Device = TypeVar("Device")
 
@@ -78,8 +73,10 @@ class Lab(QObject):
         self.mode = mode
         self.seed = seed
         self.shutter_bumps = shutter_bumps         # virtual lab: the D610's exposure-time bumps (appendix A)
-        self.world: str | World | None = None      # virtual lab: its world (name, file or World; None nominal)
-        self.virtual_lab: VirtualLab | None = None
+        self.world: str | None = None              # virtual lab: its world (a packaged name or a file; None nominal)
+        self.virtual_lab: RunningLab | None = None
+        self._lab_devices: tuple[Camera, LedSphere] | None = None     # the lab's, opened by their addresses
+        self.lab_in_process = False               # tests: serve the lab's instruments from this process
         self.sphere: LedSphere | None = None
         self.sphere_port: str = ""
         self.camera: Camera | None = None
@@ -137,19 +134,38 @@ class Lab(QObject):
     def is_virtual(self) -> bool:
         return self.virtual_lab is not None
 
-    def _ensure_virtual_lab(self) -> VirtualLab:      # devices thread
+    def _ensure_virtual_lab(self) -> RunningLab:      # devices thread
         if self.virtual_lab is None:
-            lab = virtual_lab(self.mode, self.frame_size, self.seed, self.world, self.shutter_bumps).start()
+            from dualrgb.app.lab.process import LabOptions
+            from dualrgb.app.lab.running import RunningLab
+
+            options = LabOptions(mode=self.mode, frame_size=self.frame_size, seed=self.seed, world=self.world,
+                                 bumps=self.shutter_bumps)
+            lab = RunningLab(options, in_process=self.lab_in_process).start()
             self.virtual_lab = lab
-            log.info("virtual lab started: sphere emulator on %s, %dx%d frames", lab.port, *self.frame_size)
+            log.info("virtual lab started: sphere on %s, camera on %s, %dx%d frames", lab.port,
+                     lab.addresses["camera"], *self.frame_size)
         return self.virtual_lab
+
+    def _virtual_devices(self) -> tuple[Camera, LedSphere]:      # devices thread
+        """The virtual lab's camera and sphere, opened by their addresses once (kept open while the lab runs)."""
+        lab = self._ensure_virtual_lab()
+        if self._lab_devices is None:
+            sphere = open_sphere(lab.addresses["sphere"])
+            try:
+                camera = open_camera(lab.addresses["camera"])
+            except BaseException:
+                sphere.close()
+                raise
+            self._lab_devices = (camera, sphere)
+        return self._lab_devices
 
     # ------------------------------------------------------------------ virtual lab
     def start_virtual_lab(self, on_done: Callable[[], None] | None = None) -> TaskHandle:
         """Start the virtual lab and connect both its devices."""
         def work() -> tuple[str, Any, Any]:
-            lab = self._ensure_virtual_lab()
-            return lab.port, lab.sphere, lab.camera
+            camera, sphere = self._virtual_devices()
+            return self._ensure_virtual_lab().port, sphere, camera
 
         def done(result: tuple[str, Any, Any]) -> None:
             port, sphere, camera = result
@@ -164,9 +180,7 @@ class Lab(QObject):
     def place(self, what: str, nd: bool = False, on_done: Callable[[], None] | None = None) -> TaskHandle:
         """Virtual lab only: put a target / the open gate / the lens cap on the copy stand."""
         def work() -> str:
-            lab = self._ensure_virtual_lab()
-            lab.place(what, nd=nd)
-            return lab.placed
+            return self._ensure_virtual_lab().place(what, nd=nd)
         def placed(what_is_placed: str) -> None:
             self.message.emit(f"on the copy stand: {what_is_placed}")
             if on_done:
@@ -177,7 +191,7 @@ class Lab(QObject):
     def connect_sphere(self, port: str, on_done: Callable[[bool], None] | None = None) -> TaskHandle:
         def work() -> LedSphere:
             if port == VIRTUAL_SPHERE:
-                return self._ensure_virtual_lab().devices()[1]
+                return self._virtual_devices()[1]
             return open_sphere(port)            # identified, every LED 0, light off (read back)
 
         return self._connect(work, "Connect the LED sphere", self._set_sphere, port, port == VIRTUAL_SPHERE, on_done)
@@ -284,7 +298,7 @@ class Lab(QObject):
     def connect_camera(self, choice: str, on_done: Callable[[bool], None] | None = None) -> TaskHandle:
         def work() -> Camera:
             if choice == VIRTUAL_CAMERA:
-                return self._ensure_virtual_lab().devices()[0]
+                return self._virtual_devices()[0]
             return open_camera(choice)
 
         return self._connect(work, "Connect the camera", self._set_camera, choice, choice == VIRTUAL_CAMERA, on_done)
@@ -308,10 +322,16 @@ class Lab(QObject):
 
     # ------------------------------------------------------------------ copy stand
     def stand(self, stand_in: str = "") -> Callable[[str, bool], Any] | None:
-        """What places things on the stand: the virtual lab (an original is shown as its virtual stand-in, e.g.
-        'shadow'; app.workflow.stand_devices.virtual_stand, as the CLI), or None on a real stand (the sequences
-        then ask the technician)."""
-        return virtual_stand(self.virtual_lab, stand_in) if self.virtual_lab is not None else None
+        """What places things on the stand: the virtual lab's sample changer (an original is shown as its virtual
+        stand-in, e.g. 'shadow', loaded in the changer's magazine under its identifier), or None on a real stand
+        (the sequences then ask the technician)."""
+        lab = self.virtual_lab
+        if lab is None:
+            return None
+
+        def place(what: str, nd: bool = False) -> str:
+            return lab.place(what, nd, stand_in)
+        return place
 
     def copy_stand(self, settings: Any, hooks: Any = None, stand_in: str = "") -> Any:
         """An app.workflow.copystand.CopyStand on these devices and the current session (``hooks``: the
@@ -322,8 +342,23 @@ class Lab(QObject):
             raise ValueError("connect the LED sphere and the camera in Devices first")
         if self.session is None:
             raise ValueError("no session: one is made when a calibration, a run or an original starts")
-        return CopyStand(self.camera, self.sphere, self.session, stand=self.stand(stand_in), lab=self.virtual_lab,
-                         settings=settings, **(hooks.stand_kwargs() if hooks is not None else {}))
+        return CopyStand(self.camera, self.sphere, self.session, stand=self.stand(stand_in), settings=settings,
+                         **(hooks.stand_kwargs() if hooks is not None else {}))
+
+    def lab_charts(self, charts: dict[str, Any]) -> None:
+        """Virtual lab only (devices or worker thread): its stand holds ``charts`` (the stand's own; {}: the
+        packaged targets), as a technician puts the day's charts on a physical stand."""
+        if self.virtual_lab is not None:
+            self.virtual_lab.use_charts(dict(charts))
+
+    def lab_grids(self, charts: dict[str, Any]) -> dict[str, Any]:
+        """Virtual lab only: the targets' patch grids (subject key -> PatchGrid) as the lab lays ``charts``, what a
+        technician would place by hand in Target ({} on a physical stand)."""
+        from dualrgb.app.workflow.vocabulary import Subject
+
+        if self.virtual_lab is None:
+            return {}
+        return {Subject.target(role).key: grid for role, grid in self.virtual_lab.grids(charts).items()}
 
     @staticmethod
     def virtual_originals() -> list[str]:
@@ -334,9 +369,9 @@ class Lab(QObject):
     # ------------------------------------------------------------------ session
     def session_definition(self) -> dict:
         """What defines the frames of a session made here (app.session: reopening with anything else is
-        refused, naming the difference): the mode, the camera, and the virtual lab's frame size
-        (app.workflow.stand_devices.stand_definition)."""
-        return stand_definition(self.mode, self.camera, self.virtual_lab)
+        refused, naming the difference): the mode (the virtual lab's when it runs), the camera, its world and image
+        area (app.workflow.stand_devices.stand_definition)."""
+        return stand_definition(self.virtual_lab.mode if self.virtual_lab is not None else self.mode, self.camera)
 
     def set_session(self, session: CaptureSession | None, note: str = "") -> None:
         """Make ``session`` the current one; ``note`` says why it was made when it was made for the technician
@@ -357,18 +392,18 @@ class Lab(QObject):
 
     def shutdown(self) -> None:
         """Window closing: LEDs off, ports closed, the virtual lab stopped (on the devices thread)."""
-        sphere, lab, cam = self.sphere, self.virtual_lab, self.camera
+        sphere, lab, cam, owned = self.sphere, self.virtual_lab, self.camera, self._lab_devices
         self.sphere = self.camera = None
-        self.virtual_lab = None
-        if sphere is not None:
-            report = sphere.ensure_off()
+        self.virtual_lab, self._lab_devices = None, None
+        lab_camera, lab_sphere = owned if owned is not None else (None, None)
+        for s in {id(x): x for x in (sphere, lab_sphere) if x is not None}.values():
+            report = s.ensure_off()
             if not report.off:
                 log.error("switching the sphere off at exit: %s", report.message)
-            if lab is None or sphere is not lab.sphere:
-                sphere.close(leave_on=True)
-        if cam is not None and (lab is None or cam is not lab.camera):
+            s.close(leave_on=True)
+        for c in {id(x): x for x in (cam, lab_camera) if x is not None}.values():
             try:
-                cam.close()
+                c.close()
             except CameraError as exc:
                 log.warning("closing the camera: %s", exc)
         if lab is not None:
