@@ -156,8 +156,12 @@ class CameraBridge:
     def _hello(self, request: dict[str, Any]) -> Reply:
         if request.get("protocol") != PROTOCOL:
             raise ValueError(f"protocol {request.get('protocol')!r}: this bridge speaks {PROTOCOL}")
+        sensor = getattr(self.camera, "sensor", None)          # raw levels, where the camera knows them
+        levels = ({"black_level": int(sensor.black_level), "white_level": int(sensor.white_level)}
+                  if sensor is not None else None)
         return {"protocol": PROTOCOL, "name": str(getattr(self.camera, "name", "camera")),
-                "latency_s": float(self.camera.latency_s), "config": _plain(self.camera.config_summary())}, b""
+                "latency_s": float(self.camera.latency_s), "config": _plain(self.camera.config_summary()),
+                "raw_levels": levels}, b""
 
     def _settings(self, _request: dict[str, Any]) -> Reply:
         return {"settings": settings_dict(self.camera.settings())}, b""

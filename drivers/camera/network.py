@@ -16,6 +16,7 @@ import logging
 import socket
 import threading
 import time
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -55,6 +56,7 @@ class NetworkCamera(Camera):
         self._latencies: dict[float, float] = {}
         self._speeds: list[float] | None = None
         self._open = False
+        self.sensor: Any = None            # black and white level of the raw data, where the bridge says them
 
     # ---- connection ----
     def open(self) -> None:
@@ -80,6 +82,8 @@ class NetworkCamera(Camera):
         reply, _ = self._exchange_locked({"op": "hello", "protocol": PROTOCOL}, self.timeout_s)
         self.name = str(reply.get("name") or self.name)
         self._latency = float(reply.get("latency_s", DEFAULT_LATENCY_S))
+        levels = reply.get("raw_levels")
+        self.sensor = SimpleNamespace(**levels) if isinstance(levels, dict) else None
         log.info("camera bridge %s: %s", self.address, self.name)
 
     def _disconnect(self) -> None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import io
 import json
 import socket
+import time
 
 import numpy as np
 import pytest
@@ -101,6 +102,7 @@ def test_a_bridged_camera_is_the_camera(bridged, tmp_path):
     (tmp_path / via.filename).write_bytes(via.data)
     assert load_raw(tmp_path / via.filename).mosaic.shape == (64, 96)
     assert np.array_equal(camera.preview(), direct.preview())
+    assert (camera.sensor.black_level, camera.sensor.white_level) == (600, 15520)      # the raw levels it says
 
 
 def test_an_exposure_is_fetched_once(bridged):
@@ -151,6 +153,10 @@ def test_a_bridge_that_hangs_or_vanishes_is_a_one_line_error_and_the_next_call_r
     bridge.camera.inject("hang")                                                   # type: ignore[attr-defined]
     hung = threading.Thread(target=other.expose, args=(1 / 60,), daemon=True)
     hung.start()
+    for _ in range(1000):                                   # until the hung exposure holds the camera (hang guard)
+        if bridge.lock.locked():
+            break
+        time.sleep(0.01)
     with pytest.raises(CameraError, match=r"settings: no answer within 0.5 s; check the bridge") as info:
         camera.settings()
     assert info.value.code == -10 and camera._sock is None
