@@ -3,12 +3,13 @@ target, the open gate, the lens cap, an original), so that nobody has to when a 
 
 Its serial protocol (docs/sample-changer-protocol.md; the command table is :data:`COMMANDS`, the one place both
 ends read): ASCII lines, ``\\n``-terminated, one reply line per request, ``OK <KEYWORD> [fields]`` or
-``ERR <code> <message>``.
+``ERR <code> <message>``. A thing's name and an identifier travel percent-encoded UTF-8 (:func:`encode`: ``東博 7``
+is ``%E6%9D%B1%E5%8D%9A%207``), so a field is one word of ASCII whatever the original is called.
 
 * ``IDN?`` -> ``OK IDN <model> <version> <serial>``
-* ``PLACE <nd> <what>`` -> ``OK PLACE <nd> <what>`` once ``what`` lies under the camera (``nd`` 1: with the ND
-  filter laid over it as the changer's ND setting says); ``what``: ``train``, ``test``, ``open-gate``,
-  ``lens-cap`` or ``original:<identifier>``
+* ``PLACE <nd> <what>`` -> ``OK PLACE <nd> <what>`` once ``what`` (percent-encoded) lies under the camera (``nd``
+  1: with the ND filter laid over it as the changer's ND setting says); ``what``: ``train``, ``test``,
+  ``open-gate``, ``lens-cap`` or ``original:<identifier>``
 * ``PLACED?`` -> ``OK PLACED <nd> <what>`` (``-`` for nothing yet)
 * ``LOAD <slot> <identifier>`` -> ``OK LOAD <slot> <identifier>``: the original ``identifier`` is in magazine slot
   ``slot`` (``*`` for any original not loaded by name)
@@ -28,6 +29,7 @@ import logging
 import re
 import threading
 from typing import Any
+from urllib.parse import quote, unquote
 
 import serial
 
@@ -35,7 +37,7 @@ from dualrgb.common.errors import ReportedError
 
 log = logging.getLogger(__name__)
 
-MAX_LINE = 160
+MAX_LINE = 512                          # a request: an identifier of 40 CJK characters, percent-encoded, fits
 TIMEOUT_S = 30.0                        # moving a chart takes the changer a few seconds at most
 COMMANDS = {                            # keyword -> the reply's keyword (one table for both ends)
     "IDN?": "IDN", "PLACE": "PLACE", "PLACED?": "PLACED", "LOAD": "LOAD",
@@ -45,7 +47,7 @@ PLACES = ("train", "test", "open-gate", "lens-cap")
 ORIGINAL_PREFIX = "original:"
 ANY_ORIGINAL = "*"
 NOTHING = "-"
-_TOKEN = re.compile(r"^[!-~]+$")        # printable ASCII without spaces
+_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 ERR_UNKNOWN, ERR_ARGUMENT, ERR_CANNOT, ERR_TOO_LONG = 1, 2, 3, 5
 
 
@@ -53,11 +55,21 @@ class ChangerError(ReportedError, RuntimeError):
     """The sample changer did not do what it was asked (one line saying what to do)."""
 
 
+def encode(text: str) -> str:
+    """A name as one field of the protocol: percent-encoded UTF-8 (``:`` and ``*`` kept)."""
+    return quote(str(text), safe=":*")
+
+
+def decode(field: str) -> str:
+    """:func:`encode` undone."""
+    return unquote(field)
+
+
 def check_thing(what: str) -> str:
     """``what`` when the changer can be asked to place it, else a one-line ValueError."""
     what = str(what).strip()
     ok = what in PLACES or (what.startswith(ORIGINAL_PREFIX) and len(what) > len(ORIGINAL_PREFIX))
-    if not ok or not _TOKEN.match(what.replace(" ", "_")) or len(what) > MAX_LINE - 16:
+    if not ok or _CONTROL.search(what) or len(encode(what)) > MAX_LINE - 16:
         raise ValueError(f"cannot place {what!r}: expected one of {', '.join(PLACES)} or {ORIGINAL_PREFIX}<identifier>")
     return what
 
@@ -67,7 +79,7 @@ def request_line(keyword: str, *fields: object) -> bytes:
     if keyword not in COMMANDS:
         raise ValueError(f"unknown sample changer command {keyword!r}")
     text = " ".join([keyword, *(str(f) for f in fields)])
-    if len(text) + 1 > MAX_LINE or not text.isascii():
+    if len(text) + 1 > MAX_LINE or not text.isascii() or _CONTROL.search(text):
         raise ValueError(f"sample changer request {text[:40]!r}...: at most {MAX_LINE} ASCII bytes")
     return text.encode() + b"\n"
 
@@ -136,17 +148,17 @@ class SampleChanger:
 
     def place(self, what: str, nd: bool = False) -> str:
         """Put ``what`` under the camera (``nd``: with the ND filter over it); returns when it lies there."""
-        fields = self._ask("PLACE", int(bool(nd)), check_thing(what))
+        fields = self._ask("PLACE", int(bool(nd)), encode(check_thing(what)))
         log.info("sample changer: %s%s placed", what, " + ND" if nd else "")
-        return fields[-1] if fields else what
+        return decode(fields[-1]) if fields else what
 
     def placed(self) -> tuple[str, bool] | None:
         """What lies under the camera now (None: nothing placed yet)."""
         nd, what = (self._ask("PLACED?") + ["0", NOTHING])[:2]
-        return None if what == NOTHING else (what, nd == "1")
+        return None if what == NOTHING else (decode(what), nd == "1")
 
     def load(self, identifier: str, slot: str) -> None:
         """Magazine slot ``slot`` holds the original ``identifier`` (:data:`ANY_ORIGINAL`: any not loaded by name)."""
-        if not _TOKEN.match(slot) or not (identifier == ANY_ORIGINAL or _TOKEN.match(identifier.replace(" ", "_"))):
-            raise ValueError(f"magazine slot {slot!r} for {identifier!r}: expected words without spaces")
-        self._ask("LOAD", slot, identifier)
+        if not slot.strip() or not identifier.strip() or _CONTROL.search(slot + identifier):
+            raise ValueError(f"magazine slot {slot!r} for {identifier!r}: expected a slot and an identifier")
+        self._ask("LOAD", encode(slot), encode(identifier))

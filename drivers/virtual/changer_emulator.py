@@ -24,6 +24,8 @@ from dualrgb.drivers.sample_changer import (
     NOTHING,
     ORIGINAL_PREFIX,
     check_thing,
+    decode,
+    encode,
 )
 from dualrgb.drivers.virtual.transport import line_server
 
@@ -110,21 +112,21 @@ class ChangerEmulator:
             return [self.model, self.version, self.serial]
         if keyword == "PLACED?":
             placed = self.placed
-            return ["0", NOTHING] if placed is None else [str(int(placed[1])), placed[0]]
+            return ["0", NOTHING] if placed is None else [str(int(placed[1])), encode(placed[0])]
         if keyword == "CHART":
             return self._chart(rest)
         if keyword == "LOAD":
             slot, _, identifier = rest.partition(" ")
-            if not slot or not identifier:
+            if not slot or not identifier or " " in identifier:
                 raise ValueError("LOAD <slot> <identifier>")
-            self.magazine[identifier] = slot
+            self.magazine[decode(identifier)] = decode(slot)
             return [slot, identifier]
-        nd, _, what = rest.partition(" ")
-        if nd not in ("0", "1"):
+        nd, _, field = rest.partition(" ")
+        if nd not in ("0", "1") or not field or " " in field:
             raise ValueError("PLACE <nd 0|1> <what>")
-        what = check_thing(what)
+        what = check_thing(decode(field))
         with self._lock:
             if self.placed != (what, nd == "1"):
                 self._place(*self.shown_as(what, nd == "1"))
                 self.placed = (what, nd == "1")
-        return [nd, what]
+        return [nd, encode(what)]

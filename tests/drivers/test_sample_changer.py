@@ -11,9 +11,11 @@ from dualrgb.drivers.virtual.changer_emulator import ChangerEmulator
 
 def test_requests_and_replies_byte_for_byte():
     assert sc.request_line("PLACE", 0, "test") == b"PLACE 0 test\n"
-    assert sc.request_line("PLACE", 1, "original:ACC 12") == b"PLACE 1 original:ACC 12\n"
+    assert sc.request_line("PLACE", 1, sc.encode("original:ACC 12+")) == b"PLACE 1 original:ACC%2012%2B\n"
+    assert sc.encode("original:東博-F-7") == "original:%E6%9D%B1%E5%8D%9A-F-7"
+    assert sc.decode("original:%E6%9D%B1%E5%8D%9A-F-7") == "original:東博-F-7"
     assert sc.request_line("LOAD", "shadow", "ACC-1") == b"LOAD shadow ACC-1\n"
-    assert sc.parse_reply("PLACE", b"OK PLACE 0 original:ACC 12\n") == ["0", "original:ACC 12"]
+    assert sc.parse_reply("PLACE", b"OK PLACE 0 original:ACC%2012\n") == ["0", "original:ACC%2012"]
     assert sc.parse_reply("IDN?", b"OK IDN DRGB-CHANGER-EMU 1.0.0 EMU-0001\n") == ["DRGB-CHANGER-EMU",
                                                                                     "1.0.0 EMU-0001"]
     with pytest.raises(sc.ChangerError, match="^sample changer: the tray is empty$"):
@@ -24,7 +26,7 @@ def test_requests_and_replies_byte_for_byte():
         sc.request_line("EJECT")
 
 
-@pytest.mark.parametrize("what", ["", "original:", "table", "original:a\tb"])
+@pytest.mark.parametrize("what", ["", "original:", "table", "original:a\tb", "original:" + "x" * 600])
 @pytest.mark.fault("input")
 def test_what_cannot_be_placed_is_refused_before_it_is_sent(what):
     with pytest.raises(ValueError, match="cannot place"):
@@ -63,6 +65,13 @@ def test_an_original_is_shown_as_what_its_magazine_slot_holds(changer, slot, exp
         client.load("ACC 1", slot)
     client.place("original:ACC 1")
     assert placed == [expected] and client.placed() == ("original:ACC 1", False)
+
+
+def test_an_identifier_in_any_script_with_spaces(changer):
+    client, _, placed = changer
+    client.load("東博 F-7", "shadow")
+    assert client.place("original:東博 F-7") == "original:東博 F-7"
+    assert placed == [("original:shadow", False)] and client.placed() == ("original:東博 F-7", False)
 
 
 def test_a_slot_for_any_original(changer):
