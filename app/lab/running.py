@@ -127,6 +127,8 @@ class RunningLab:
 
     def use_charts(self, charts: dict[str, Chart]) -> None:
         """Put the stand's own charts on the lab's stand (the packaged targets for a role not given)."""
+        from dualrgb.drivers.sample_changer import encode
+
         changer = self._changer()
         for role in ("train", "test"):
             chart = charts.get(role)
@@ -135,7 +137,7 @@ class RunningLab:
             fields: list[Any] = [role, "-", "-", "-"]
             if chart is not None:
                 layout = "{}x{}".format(*chart.layout)
-                fields = [role, layout, ",".join(chart.leave_out) or "-", str(Path(chart.file.path))]
+                fields = [role, layout, encode(",".join(chart.leave_out)) or "-", encode(str(Path(chart.file.path)))]
             changer.request(CHART_COMMAND, *fields)
         self.charts = {k: v for k, v in charts.items() if k in ("train", "test")}
 

@@ -76,7 +76,8 @@ class ChangerEmulator:
         return ORIGINAL_PREFIX + name, nd
 
     def _chart(self, rest: str) -> list[str]:
-        role, layout, leave_out, file = (rest.split(" ", 3) + ["", "", "", ""])[:4]
+        role, layout, leave_out, file = (rest.split(" ") + ["", "", "", ""])[:4]
+        leave_out, file = decode(leave_out), decode(file)
         if role not in CHART_STAND_INS or not file:
             raise ValueError("CHART <train|test> <layout|-> <leave-out|-> <file|->")
         if self._load_chart is None:
