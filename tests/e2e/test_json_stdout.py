@@ -69,6 +69,7 @@ def cases(port: str) -> dict[str, list[str]]:
         "raw-info": ["raw-info", "DNG"],
         "measure csrf": ["measure", "csrf", "--virtual-lab", "--start", "500", "--end", "600", "--step", "50",
                          "--frame-size", "96x64", "--out", "cam.csv"],
+        "lab score": ["lab", "score", "day"],
     }
 
 
@@ -98,6 +99,7 @@ def test_json_to_stdout_in_every_command(stand):
     assert docs["capture"]["original"]["identifier"] == "J-1" and docs["process"]["originals"]
     assert docs["calibration show"]["check"]["refusals"] == []
     assert docs["verify"]["ok"] and docs["bag"]["originals"] == ["J-1"] and docs["cube"]["samples"] == 160
+    assert [o["identifier"] for o in docs["lab score"]["originals"]] == ["J-1"]
 
 
 def test_queue_check_json_to_stdout(stand):
