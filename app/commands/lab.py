@@ -4,12 +4,13 @@
                       [--train-target FILE ...] [--light-record FILE] [--with-parent]
     dualrgb lab score SESSION [--original ID=NAME ...] [--json PATH]
 
-``serve`` starts the virtual sphere, camera, sample changer and monochromator in this process and prints one line
-per instrument, ``<name> <address>`` (``sphere socket://127.0.0.1:40123``, ``camera tcp://127.0.0.1:40125``,
-``stand socket://...``, ``monochromator socket://...``), then serves until it is killed (SIGTERM or Ctrl-C: the
-sphere is powered off). `dualrgb calibrate|capture --port SPHERE --camera CAMERA --stand STAND` then drive them
-exactly as a physical stand (drivers/virtual/lab_server.py; ``--virtual-lab`` is the shorthand that starts one as a
-child process: app.lab.process). ``score`` compares a session's deliverables with the lab's virtual originals
+``serve`` starts the virtual sphere, camera, sample changer, monochromator and spectroradiometer in this process and
+prints one line per instrument, ``<name> <address>`` (``sphere socket://127.0.0.1:40123``, ``camera
+tcp://127.0.0.1:40125``, ``stand socket://...``, ``monochromator socket://...``, ``spectroradiometer
+socket://...``), then serves until it is killed (SIGTERM or Ctrl-C: the sphere is powered off). `dualrgb
+calibrate|capture --port SPHERE --camera CAMERA --stand STAND` then drive them exactly as a physical stand
+(drivers/virtual/lab_server.py; ``--virtual-lab`` is the shorthand that starts one as a child process:
+app.lab.process). ``score`` compares a session's deliverables with the lab's virtual originals
 (app.lab.score): per-pixel dE00 and spectral RMSE.
 """
 from __future__ import annotations
@@ -39,7 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "session's deliverables against the lab's virtual originals (score).")
     verbs = p.add_subparsers(dest="verb", metavar="VERB")
     verbs.required = True
-    serve = verbs.add_parser("serve", help="serve the virtual sphere, camera, sample changer and monochromator",
+    serve = verbs.add_parser("serve", help="serve the virtual sphere, camera, sample changer, monochromator and "
+                                           "spectroradiometer",
                              description="Prints one line per instrument, '<name> <address>', then serves until "
                                          "killed.")
     serve.add_argument("--mode", choices=MODES, default="reflective", help="the targets it holds (reflective)")

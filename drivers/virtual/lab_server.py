@@ -8,7 +8,9 @@
   what lies on the stand;
 * ``stand``: the sample changer (drivers/virtual/changer_emulator.py) on ``socket://``: it puts targets, the open
   gate, the lens cap and the originals' stand-ins on the virtual stand;
-* ``monochromator``: the Cornerstone 130 emulator (drivers/virtual/monochromator_emulator.py) on ``socket://``.
+* ``monochromator``: the Cornerstone 130 emulator (drivers/virtual/monochromator_emulator.py) on ``socket://``;
+* ``spectroradiometer``: the virtual spectroradiometer pointed at this sphere (drivers/virtual/
+  spectroradiometer_server.py: ``MEAS?`` reads what the sphere emits now) on ``socket://``.
 
 ``read_chart(role, layout, leave_out, file)``: how the sample changer's ``CHART`` request reads a chart's reference
 file into the target the lab renders (`dualrgb lab serve` gives app.workflow.charts' reader).
@@ -38,12 +40,14 @@ from dualrgb.drivers.camera.bridge import CameraBridge
 from dualrgb.drivers.virtual.changer_emulator import ChangerEmulator
 from dualrgb.drivers.virtual.lab import VirtualLab
 from dualrgb.drivers.virtual.monochromator_emulator import MonochromatorEmulator
+from dualrgb.drivers.virtual.spectroradiometer import VirtualSpectroradiometer
+from dualrgb.drivers.virtual.spectroradiometer_server import SpectroradiometerServer
 from dualrgb.drivers.virtual.sphere_emulator import LightInterval
 from dualrgb.simulation.datasets import Target
 
 log = logging.getLogger(__name__)
 
-INSTRUMENTS = ("sphere", "camera", "stand", "monochromator")
+INSTRUMENTS = ("sphere", "camera", "stand", "monochromator", "spectroradiometer")
 DEFAULT_STAND_INS = {"reflective": "painting", "transmissive": "film"}
 RECORD_POLL_S = 0.02
 
@@ -77,6 +81,7 @@ class LabServer:
         self.bridge: CameraBridge | None = None
         self.changer: ChangerEmulator | None = None
         self.monochromator = MonochromatorEmulator(transport="socket")
+        self.spectroradiometer: SpectroradiometerServer | None = None
         self.addresses: dict[str, str] = {}
         self._record_path = Path(light_record) if light_record else None
         self._written = 0                       # lit periods whose 'off' line is written
@@ -100,8 +105,12 @@ class LabServer:
             return lab.placed
         self.changer = ChangerEmulator(place, self.settings.stand_in or DEFAULT_STAND_INS.get(lab.mode, "painting"),
                                        transport="socket", load_chart=self._chart if self._read_chart else None)
+        self.spectroradiometer = SpectroradiometerServer(
+            VirtualSpectroradiometer(lab.emulator.snapshot, camera.sphere_light, seed=self.settings.seed,
+                                     clock=lab.emulator.clock), transport="socket")
         self.addresses = {"sphere": lab.port, "camera": bridge.start(), "stand": self.changer.start(),
-                          "monochromator": self.monochromator.start()}
+                          "monochromator": self.monochromator.start(),
+                          "spectroradiometer": self.spectroradiometer.start()}
         if self._record_path is not None:
             self._record_path.parent.mkdir(parents=True, exist_ok=True)
             self._record_path.write_text("")
@@ -127,7 +136,7 @@ class LabServer:
     def stop(self) -> None:
         """Stop every instrument (the sphere powered off: its last lit period, if any, ends 'power off')."""
         self._stop.set()
-        for part in (self.changer, self.bridge, self.monochromator):
+        for part in (self.changer, self.bridge, self.monochromator, self.spectroradiometer):
             if part is not None:
                 try:
                     part.close() if isinstance(part, CameraBridge) else part.stop()

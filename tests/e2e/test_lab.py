@@ -34,14 +34,17 @@ def test_lab_serve_prints_one_line_per_instrument_and_stops_on_sigterm(tmp_path)
                           "--light-record", str(record)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          env=ENV)
     try:
-        lines = [p.stdout.readline().strip() for _ in range(4)]                  # type: ignore[union-attr]
+        lines = [p.stdout.readline().strip() for _ in range(5)]                  # type: ignore[union-attr]
         names = [line.split(" ", 1)[0] for line in lines]
-        assert names == ["sphere", "camera", "stand", "monochromator"], lines
+        assert names == ["sphere", "camera", "stand", "monochromator", "spectroradiometer"], lines
         addresses = dict(line.split(" ", 1) for line in lines)
         assert addresses["camera"].startswith("tcp://127.0.0.1:")
-        assert all(addresses[n].startswith("socket://127.0.0.1:") for n in ("sphere", "stand", "monochromator"))
+        assert all(addresses[n].startswith("socket://127.0.0.1:") for n in names if n != "camera")
         dualrgb("sphere", "--port", addresses["sphere"], "set", "4", "0.5")
-        dualrgb("sphere", "--port", addresses["sphere"], "on", "--max-on", "0.3")       # lit for 0.3 s at most
+        dark = _read(addresses["spectroradiometer"], b"MEAS?\n")
+        dualrgb("sphere", "--port", addresses["sphere"], "on", "--max-on", "5")          # lit for 5 s at most
+        lit = _read(addresses["spectroradiometer"], b"MEAS?\n")          # the spectroradiometer sees this sphere
+        dualrgb("sphere", "--port", addresses["sphere"], "on", "--max-on", "0.3")       # ...at most 0.3 s from now
         deadline = time.monotonic() + 60                                                 # a hang guard
         while not (record.exists() and lit_periods(record)) and time.monotonic() < deadline:
             time.sleep(0.05)                                 # the lab writes the period's end as it happens
@@ -49,8 +52,26 @@ def test_lab_serve_prints_one_line_per_instrument_and_stops_on_sigterm(tmp_path)
         p.send_signal(signal.SIGTERM)
         assert p.wait(60) == 0
     (period,) = lit_periods(record)
-    assert period["ended_by"] == "on-time limit" and period["t_off"] - period["t_on"] <= 0.3 + 0.06
-    assert period["levels"][3] == pytest.approx(0.5, abs=1e-4)
+    assert period["ended_by"] == "on-time limit" and period["levels"][3] == pytest.approx(0.5, abs=1e-4)
+    assert dark[:2] == ["OK", "MEAS"] and lit[:2] == ["OK", "MEAS"]
+    n = int(lit[3])
+    radiance = [float(v) for v in lit[4:]]
+    assert n == len(radiance) == 401 and max(radiance) > 50 * max(abs(float(v)) for v in dark[4:])
+    from dualrgb.drivers.virtual.sphere_light import SphereLight
+    from dualrgb.drivers.virtual.world import load_world
+
+    leds = SphereLight(load_world(None))
+    led4_peak = float(leds.wavelengths[int(leds.spectra(None).argmax(axis=1)[3])])   # the nominal world's LED 4
+    assert abs(380 + radiance.index(max(radiance)) - led4_peak) <= 2
+
+
+def _read(address: str, request: bytes) -> list[str]:
+    """One request to a line instrument of the lab and its reply's words."""
+    import serial
+
+    with serial.serial_for_url(address, timeout=10) as port:
+        port.write(request)
+        return port.read_until(b"\n").decode().split()
 
 
 @pytest.fixture(scope="module")
