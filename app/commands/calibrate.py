@@ -32,7 +32,6 @@ from dualrgb.app.commands.stand_options import (
     open_devices,
     open_session,
     progress_printer,
-    virtual_world,
 )
 from dualrgb.app.json_output import text_stream, write_json
 from dualrgb.app.workflow import defaults as day
@@ -183,16 +182,22 @@ def main(args: argparse.Namespace) -> int:
     grids = {k: load_grid(v, charts[k].layout if k in charts else None)
              for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
     grids.update(_corner_grids(args, mode, charts))
+    width_mm = args.target_width_mm
+    if args.virtual_lab and width_mm is None:  # the shorthand: the lab's test target's width, as a person types it
+        from dualrgb.app.lab.targets import LAB_TARGET_WIDTH_MM
+
+        width_mm = LAB_TARGET_WIDTH_MM
     settings = StandSettings(settle_s=args.settle, dark_frames=darks, flat_frames=flats,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
-                             target_width_mm=args.target_width_mm, stand_start=stand_start, charts=charts)
+                             target_width_mm=width_mm, stand_start=stand_start, charts=charts)
     definition = {"workflow": DAY_WORKFLOW, "mode": mode, "preset": preset.name, "hdr": hdr,
-                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle, **virtual_world(args),
+                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle,
                   **day_charts.definition(charts)}
     text = text_stream(args.json_path)
     ensure_kernels()                          # first run: compiled here, before any device opens
-    with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
-        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
+    with open_devices(args, mode, charts=chart_choices(args)) as dev, \
+            open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
+        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
                           progress=progress_printer(), prompt=ask_person)
         profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
     from dualrgb.app.processing.quality import grading_lines
