@@ -14,9 +14,9 @@ from collections.abc import Sequence
 from typing import Any
 
 from dualrgb.app.protocols import Session
-from dualrgb.app.sequences.shooter import LightSafetyError
 from dualrgb.app.session.manifest import definition_differences, normalise
 from dualrgb.app.workflow.charts import definition as chart_definition
+from dualrgb.app.workflow.light_safety import LightSafetyError
 from dualrgb.app.workflow.vocabulary import NamedLight, Role, Subject, role_of, subject_of
 
 log = logging.getLogger(__name__)

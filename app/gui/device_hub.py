@@ -412,6 +412,7 @@ class Lab(QObject):
         if self.virtual_lab is not None:
             self.virtual_lab.use_charts(dict(charts))
 
+    @staticmethod
     def virtual_originals() -> list[str]:
         from dualrgb.drivers.virtual.originals import ORIGINALS
 

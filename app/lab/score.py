@@ -76,7 +76,7 @@ def score_original(identifier: str, sidecar: Path, shown_as: str | None = None) 
     profile = load_profile(Path(doc["calibration"]["file"]))
     files = {k: sidecar.parent / v for k, v in (doc.get("files") or {}).items()}
     truth = original_truth(name, int(size["sensor_height"]), int(size["sensor_width"]), profile.mode)
-    figures = assess(truth, files, float(profile.white_xyz[1]), profile.estimator)
+    figures = assess(truth, files, list(profile.white_xyz), profile.estimator)
     log.info("%s (%s): %s", identifier, name, qa_text(figures))
     return OriginalScore(identifier, name, sidecar, figures)
 
