@@ -10,7 +10,7 @@ import pytest
 from dualrgb.app.processing.calibration import DarkFrame, FlatField, MasterDark
 from dualrgb.app.processing.colour_kernels import expand_row, expansion_scratch, terms_for
 from dualrgb.app.processing.demosaic import HALO
-from dualrgb.app.processing.encode import LINEAR_ONE, RGB_SPACES, XYZ_ONE, DeliveryEncoder, encode_deliverables
+from dualrgb.app.processing.encode import RGB_SPACES, XYZ_ONE, DeliveryEncoder, encode_deliverables
 from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
 from dualrgb.simulation.colour_models import expand, n_terms
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
