@@ -197,7 +197,8 @@ class CalibrationBox(QGroupBox):
         settings.stand_start = stand_start
         settings.charts = dict(charts or {})
         preset, lights, hdr = ws.preset, list(ws.lights), self.hdr_auto.isChecked()
-        grids = {n: ws.grids[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in ws.grids}
+        placed = {**lab.lab_placement(settings.charts), **ws.grids}     # by hand in Target; the lab: too small ones
+        grids = {n: placed[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in placed}
         if lab.virtual_lab is not None and not settings.ppi and not settings.target_width_mm:
             settings.target_width_mm = LAB_TARGET_WIDTH_MM          # what the technician would type for its target
         base_kept = kept_base(lab.session) if keep and lab.session is not None else {}

@@ -412,6 +412,18 @@ class Lab(QObject):
         if self.virtual_lab is not None:
             self.virtual_lab.use_charts(dict(charts))
 
+    def lab_placement(self, charts: dict[str, Any]) -> dict[str, Any]:
+        """Virtual lab only: the targets laid too small to be found in its frames (subject key -> PatchGrid, as the
+        lab lays them: what a technician would place by hand; app.lab.targets.too_small_to_find); {} otherwise."""
+        from dualrgb.app.lab.targets import too_small_to_find
+        from dualrgb.app.workflow.vocabulary import Subject
+
+        lab = self.virtual_lab
+        if lab is None:
+            return {}
+        return {Subject.target(role).key: grid
+                for role, (grid, _px) in too_small_to_find(lab.mode, (lab.width, lab.height), charts).items()}
+
     @staticmethod
     def virtual_originals() -> list[str]:
         from dualrgb.drivers.virtual.originals import ORIGINALS

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from dualrgb.app.lab.truth import assess, original_truth, qa_text
+from dualrgb.app.session.paths import deliverable
 
 log = logging.getLogger(__name__)
 
@@ -89,4 +90,10 @@ def score_session(session: Path, shown_as: dict[str, str] | None = None) -> list
     if unknown:
         raise ValueError(f"{session}: no delivered original {', '.join(unknown)} (delivered: "
                          f"{', '.join(sorted(originals)) or 'none'})")
-    return [score_original(ident, Path(entry["sidecar"]), shown_as.get(ident)) for ident, entry in originals.items()]
+    out = []
+    for ident, entry in originals.items():
+        sidecar = deliverable(Path(session), entry["sidecar"])      # recorded relative to the session folder
+        if sidecar is None or not sidecar.is_file():
+            raise ValueError(f"{session}: the delivery of {ident!r} ({entry['sidecar']}) is not there")
+        out.append(score_original(ident, sidecar, shown_as.get(ident)))
+    return out

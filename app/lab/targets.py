@@ -56,6 +56,28 @@ def lab_grids(mode: str, frame_size: tuple[int, int], charts: dict[str, Chart] |
     return {role: scene_grid(lab_scene(mode, role, frame_size, (charts or {}).get(role))) for role in ("train", "test")}
 
 
+def too_small_to_find(mode: str, frame_size: tuple[int, int], charts: dict[str, Chart] | None = None
+                      ) -> dict[str, tuple[PatchGrid, float]]:
+    """The targets whose patches the lab lays smaller than a finder can sample in a ``frame_size`` frame
+    (app.processing.chart_detect.MIN_PATCH_PX): role -> (the grid as the lab lays it, the smallest patch's size in
+    stack pixels). On a physical stand such a chart is placed by hand; the `--virtual-lab` shorthand and the window
+    hand the lab's grid over the same way, so tests may use tiny frames (larger frames: the patches are found)."""
+    from dualrgb.app.processing.chart_detect import MIN_PATCH_PX
+
+    out = {}
+    for role, grid in lab_grids(mode, frame_size, charts).items():
+        geometry = target_spec(mode, Subject.target(role), None, chart=(charts or {}).get(role)).geometry
+        if geometry is None:
+            continue
+        x0, y0, x1, y1 = geometry.patch_area
+        side = min(np.linalg.norm(grid.corners[1] - grid.corners[0]) / (x1 - x0),
+                   np.linalg.norm(grid.corners[3] - grid.corners[0]) / (y1 - y0))
+        smallest = float(side * min(min(b.size) for b in geometry.blocks))
+        if smallest < MIN_PATCH_PX:
+            out[role] = (grid, smallest)
+    return out
+
+
 def virtual_target_spec(lab: VirtualLab, subject: Subject, *, grid: PatchGrid | None = None, label: str = "",
                         method: str | None = None, chart: Chart | None = None) -> TargetSpec:
     """A target captured in the in-process lab ``lab`` (the demo's study): the lab's scene gives the grid and its ND

@@ -68,6 +68,7 @@ def process(lab: Lab, session: Session, grids: dict, train_subject: str, test_su
 
     mode = mode or (lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode)
     keys = {label: key for label, key in (("train", train_subject), ("test", test_subject)) if key}
+    grids = {**lab.lab_placement(charts or {}), **grids}       # the lab's charts laid too small to be found
     specs = {label: target_spec(mode, Subject.parse(key), grids.get(key), method=method,
                                 chart=(charts or {}).get(Subject.parse(key).name)) for label, key in keys.items()}
     for label, spec in specs.items():
