@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from dualrgb.app.lab.targets import scene_grid, virtual_target_spec
+from dualrgb.app.lab.targets import scene_grid, too_small_to_find, virtual_target_spec
 from dualrgb.app.processing.characterise import LEAST_SQUARES
 from dualrgb.app.processing.quality import quality_summary
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries
@@ -373,8 +373,12 @@ class DemoRun:
                 "spectral_method": res.spectral.selection.chosen.label() if res.spectral is not None else None}
 
     def process_variant(self, c: Condition, label: str, nd: bool, ts: dict[str, list[float]]) -> dict:
+        # the charts found in the image as the window and `dualrgb calibrate` find them; a chart laid too small to
+        # find, and the ND-filtered targets of the study, placed as the lab lays them
+        placed = too_small_to_find(self.s.mode, (self.lab.width, self.lab.height), self.s.charts)
         specs = {t: virtual_target_spec(self.lab, Subject.target(t, nd), label=f"{t} ({label})",
-                                        chart=self.s.charts.get(t)) for t in ("train", "test")}
+                                        chart=self.s.charts.get(t), find=not nd and t not in placed)
+                 for t in ("train", "test")}
         scene = self.lab.scene_for("train", nd=nd)
         specs["train"].simulated = self._simulated_values(
             c, nd_transmittance(specs["train"].nd_mask, scene.nd_transmittance, scene.n_patches))

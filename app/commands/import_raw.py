@@ -24,6 +24,7 @@ from dualrgb.app.commands.options import (
     add_chart_options,
     add_render_option,
     add_resolution_option,
+    corners,
     count,
     input_file,
     number,
@@ -36,20 +37,6 @@ from dualrgb.app.workflow import defaults as day
 log = logging.getLogger(__name__)
 
 IMPORT_FORMAT = "dualrgb-import/1"
-
-
-def corners(text: str) -> tuple[str, tuple[float, ...]]:
-    """``train=X,Y,X,Y,X,Y,X,Y`` (the target's four corners in the raw file's pixels) -> (name, 8 numbers)."""
-    from dualrgb.app.workflow.import_checks import parse_corners
-
-    name, sep, rest = text.partition("=")
-    name = name.strip().lower()
-    if not sep or name not in ("train", "test"):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected train=X,Y,X,Y,X,Y,X,Y or test=...")
-    try:
-        return name, parse_corners(rest)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def register(sub: argparse._SubParsersAction) -> None:

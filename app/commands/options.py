@@ -264,6 +264,20 @@ def chart_choices(args: argparse.Namespace) -> dict:
                               getattr(args, f"{role}_leave_out") or "") for role in ("train", "test")}
 
 
+def corners(text: str) -> tuple[str, tuple[float, ...]]:
+    """``train=X,Y,X,Y,X,Y,X,Y`` (the target's four corners in the raw file's pixels) -> (name, 8 numbers)."""
+    from dualrgb.app.workflow.import_checks import parse_corners
+
+    name, sep, rest = text.partition("=")
+    name = name.strip().lower()
+    if not sep or name not in ("train", "test"):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected train=X,Y,X,Y,X,Y,X,Y or test=...")
+    try:
+        return name, parse_corners(rest)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def key_value(text: str) -> tuple[str, str]:
     """``Key=Value``, e.g. a BagIt bag-info field (the key: letters, digits and dashes, as BagIt's are)."""
     key, sep, value = text.partition("=")

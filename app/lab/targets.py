@@ -56,14 +56,18 @@ def lab_grids(mode: str, frame_size: tuple[int, int], charts: dict[str, Chart] |
     return {role: scene_grid(lab_scene(mode, role, frame_size, (charts or {}).get(role))) for role in ("train", "test")}
 
 
+# the smallest patch the chart-detection study finds and samples (docs/data/chart_detection.json: the SG in a 240x160
+# frame, 5.2 px); app.processing.chart_detect.MIN_PATCH_PX (3 px) is where a found chart cannot be sampled at all, and
+# between the two a 3.4 px SG is found but its 4-pixel sampling windows cannot be checked
+FOUND_FROM_PX = 5.0
+
+
 def too_small_to_find(mode: str, frame_size: tuple[int, int], charts: dict[str, Chart] | None = None
                       ) -> dict[str, tuple[PatchGrid, float]]:
     """The targets whose patches the lab lays smaller than a finder can sample in a ``frame_size`` frame
-    (app.processing.chart_detect.MIN_PATCH_PX): role -> (the grid as the lab lays it, the smallest patch's size in
+    reliably (FOUND_FROM_PX): role -> (the grid as the lab lays it, the smallest patch's size in
     stack pixels). On a physical stand such a chart is placed by hand; the `--virtual-lab` shorthand and the window
     hand the lab's grid over the same way, so tests may use tiny frames (larger frames: the patches are found)."""
-    from dualrgb.app.processing.chart_detect import MIN_PATCH_PX
-
     out = {}
     for role, grid in lab_grids(mode, frame_size, charts).items():
         geometry = target_spec(mode, Subject.target(role), None, chart=(charts or {}).get(role)).geometry
@@ -73,17 +77,19 @@ def too_small_to_find(mode: str, frame_size: tuple[int, int], charts: dict[str, 
         side = min(np.linalg.norm(grid.corners[1] - grid.corners[0]) / (x1 - x0),
                    np.linalg.norm(grid.corners[3] - grid.corners[0]) / (y1 - y0))
         smallest = float(side * min(min(b.size) for b in geometry.blocks))
-        if smallest < MIN_PATCH_PX:
+        if smallest < FOUND_FROM_PX:
             out[role] = (grid, smallest)
     return out
 
 
 def virtual_target_spec(lab: VirtualLab, subject: Subject, *, grid: PatchGrid | None = None, label: str = "",
-                        method: str | None = None, chart: Chart | None = None) -> TargetSpec:
-    """A target captured in the in-process lab ``lab`` (the demo's study): the lab's scene gives the grid and its ND
-    filter's transmittance; the rest is the production path (app.workflow.targets.target_spec)."""
+                        method: str | None = None, chart: Chart | None = None, find: bool = False) -> TargetSpec:
+    """A target captured in the in-process lab ``lab`` (the demo's study): the lab's scene gives its ND filter's
+    transmittance and, unless ``find`` (the patches found in the image as on a physical stand), the grid; the rest
+    is the production path (app.workflow.targets.target_spec)."""
     scene = lab.scene_for(subject.name, nd=subject.nd)
-    return target_spec(lab.mode, subject, grid or scene_grid(scene), label=label, method=method, chart=chart,
+    placed = None if find else grid or scene_grid(scene)
+    return target_spec(lab.mode, subject, placed, label=label, method=method, chart=chart,
                        nd=NdFilter(scene.nd_transmittance))
 
 

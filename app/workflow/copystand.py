@@ -308,7 +308,8 @@ class CopyStand:
             base_exposures=base, matrix=c.matrix, statistics={**c.to_dict(), "report": str(result.files["report"]),
                                                               "quality": grading_summary(result.report["quality"]),
                                                               **self._planned()},
-            white_xyz=[float(v) for v in c.white], sources=sources, ppi=self._ppi(test),
+            white_xyz=[float(v) for v in c.white], sources=sources,
+            ppi=self._ppi(result.grids.get("test") or test.grid),
             raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
                  "linear_limit": proc.linear_limit, "shape": list(first.white.shape), "ppi_grid": "sensor"},
             targets={"train": result.report.get("train"), "test": result.report.get("test")},
@@ -322,13 +323,14 @@ class CopyStand:
             return {}
         return {"condition_number_planned": round(cond, 2) if np.isfinite(cond) else "inf"}
 
-    def _ppi(self, test: TargetSpec) -> float | None:
+    def _ppi(self, grid: PatchGrid | None) -> float | None:
+        """The sampling: as set, else from the test target's width and its grid (found in the image or placed)."""
         if self.settings.ppi:
             return float(self.settings.ppi)
         width_mm = self.settings.target_width_mm
-        if not width_mm or test.grid is None:
+        if not width_mm or grid is None:
             return None
-        tl, tr = np.asarray(test.grid.corners[0]), np.asarray(test.grid.corners[1])
+        tl, tr = np.asarray(grid.corners[0]), np.asarray(grid.corners[1])
         # the target's corners are on the 2x2-cell grid of the charts' superpixels: the sensor has twice the pixels
         return round(2.0 * float(np.hypot(*(tr - tl))) / (width_mm / 25.4), 2)
 

@@ -53,7 +53,7 @@ def test_every_device_action_comes_from_the_run_engine(tmp_path):
 
         def place(what: str, nd: bool = False):
             return lab.place("original:painting" if what.startswith("original:") else what, nd)
-        stand = CopyStand(camera, sphere, session, stand=place, lab=lab,
+        stand = CopyStand(camera, sphere, session, stand=place,
                           settings=StandSettings(settle_s=0.0, dark_frames=1, flat_frames=1, force=True))
 
         def calibration_plans() -> None:                 # CopyStand.calibrate's plans (its processing aside)

@@ -55,7 +55,7 @@ def test_the_workflow_refuses_it_on_the_virtual_lab_with_the_sphere_dark(lab, tm
     """The GUI's and the demo's path: CopyStand.calibrate refuses before auto-exposure, nothing recorded, the
     emulator never lit."""
     session = CaptureSession.create(tmp_path / "session", {"test": "conditioning"})
-    stand = CopyStand(lab.camera, lab.sphere, session, stand=lab.place, lab=lab, settings=StandSettings())
+    stand = CopyStand(lab.camera, lab.sphere, session, stand=lab.place, settings=StandSettings())
     since = lab.emulator.clock()
     with pytest.raises(ConditioningError, match=r"preset half: condition number infinite .* refused before any "
                                                 r"light"):

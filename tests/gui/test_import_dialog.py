@@ -33,11 +33,13 @@ def test_import_raw_files_from_the_window(qtbot, make_window, tmp_path):
         return {k: v for k, v in tree(tmp_path).items() if not k.startswith("config/")}
 
     before = written()
-    click(qtbot, dialog.check_button)                         # no corners: the training target cannot be placed
+    dialog.table.item(0, 1).setText("drak")                  # a typo in a role: one line naming it, nothing written
+    click(qtbot, dialog.check_button)
     qtbot.waitUntil(lambda: dialog.problems.count() > 0 and dialog.handle is None, timeout=HANG_GUARD_MS)
-    assert dialog.problems.item(0).text().startswith("training target: place the patch grid on it first")
+    assert "drak" in dialog.problems.item(0).text()
     assert "nothing was written" in dialog.message.text() and written() == before
-    assert not dialog.import_button.isEnabled()
+    assert dialog.plan is None and not dialog.import_button.isEnabled()
+    dialog.table.item(0, 1).setText("dark")
 
     for name in ("train", "test"):
         dialog.corners[name].setText(corners(PATCHED))
