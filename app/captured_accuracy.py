@@ -106,7 +106,7 @@ def _process(setup, lights, darks, whites, frames, scenes, sensor, pixels=None) 
         grid = _patch_grid(scene)
         out[key] = grid.sample(stack.data).mean[:scene.n_patches]
         if pixels is not None:
-            from dualrgb.app.workflow.session_processing import patch_pixels
+            from dualrgb.app.workflow.calibration.session_processing import patch_pixels
 
             pixels[key] = patch_pixels(grid, stack.data, range(scene.n_patches))
     return out

@@ -1,7 +1,7 @@
 """The whole workflow, headless, on the virtual lab (``dualrgb demo``; Qt-free so the GUI can run it too).
 
-It holds no processing of its own: captures run through app.workflow.copystand.CopyStand and the sequences,
-processing through app.workflow.session_processing.process_session, exactly as the GUI and the CLI do.
+It holds no processing of its own: captures run through app.workflow.stand.copystand.CopyStand and the sequences,
+processing through app.workflow.calibration.session_processing.process_session, exactly as the GUI and the CLI do.
 
 presets from the optimiser on the expected captured error of this capture (exhaustive = dual-RGB, the default
 successive-halving PSO = dual-RGB-PSO, realisable NNLS D65 mix = 3-channel baseline)
@@ -35,18 +35,18 @@ from dualrgb.app.processing.quality import quality_summary
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.hdr import HdrPlan
-from dualrgb.app.session.capture_session import CaptureSession, atomic_write
-from dualrgb.app.session.log import SessionLog
-from dualrgb.app.session.manifest import camera_definition, image_area_definition, light_definition
-from dualrgb.app.workflow.copystand import CopyStand, StandSettings
-from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS, workflow_defaults
-from dualrgb.app.workflow.folders import open_session
-from dualrgb.app.workflow.metering import HdrMetering
-from dualrgb.app.workflow.session_processing import process_session
-from dualrgb.app.workflow.targets import nd_transmittance, reference_white
-from dualrgb.app.workflow.vocabulary import NamedLight, Subject, lights_of
+from dualrgb.app.workflow.calibration.session_processing import process_session
+from dualrgb.app.workflow.calibration.targets import nd_transmittance, reference_white
+from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
+from dualrgb.app.workflow.stand.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRTUAL_ORIGINALS, workflow_defaults
+from dualrgb.app.workflow.stand.folders import open_session
+from dualrgb.app.workflow.stand.metering import HdrMetering
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report, scaled
 from dualrgb.common.strict_json import dumps as strict_dumps
+from dualrgb.core.session.capture_session import CaptureSession, atomic_write
+from dualrgb.core.session.log import SessionLog
+from dualrgb.core.session.manifest import camera_definition, image_area_definition, light_definition
+from dualrgb.core.vocabulary import NamedLight, Subject, lights_of
 from dualrgb.drivers.virtual.lab import VirtualLab
 from dualrgb.drivers.virtual.world import load_world
 from dualrgb.simulation.camera_model import channel_responses
@@ -79,14 +79,15 @@ class DemoSettings:
     hdr: bool = False
     frame_size: tuple[int, int] = VIRTUAL_FRAME_SIZE
     seed: int = 0
-    dark_frames: int = field(default_factory=_darks)       # app.workflow.defaults, as calibrate and the GUI
+    dark_frames: int = field(default_factory=_darks)       # app.workflow.stand.defaults, as calibrate and the GUI
     flat_frames: int = field(default_factory=_flats)
     settle_s: float = 0.05
     optimise_matrix: bool | None = None   # also fit the dE00-optimised matrix; None: the parsimony study's choice
     conditions: tuple[str, ...] = CONDITIONS
     new_session: bool = False                # a session made with other settings: use a new one, not refuse
     world: str | None = None                 # what the virtual lab renders (drivers.virtual.world; None nominal)
-    charts: dict[str, Any] = field(default_factory=dict)   # the stand's own charts (app.workflow.charts.load_charts)
+    charts: dict[str, Any] = field(default_factory=dict)   # the stand's own charts
+                                                           # (app.workflow.calibration.charts.load_charts)
 
     def optimise(self) -> bool:
         """Whether the dE00-optimised matrix is fitted too (``optimise_matrix``, else the mode's default)."""
@@ -95,8 +96,8 @@ class DemoSettings:
         return self.optimise_matrix
 
     def definition(self) -> dict:
-        """What defines this run's frames (app.session: a resume with anything else is refused)."""
-        from dualrgb.app.workflow.charts import definition as chart_definition
+        """What defines this run's frames (core.session: a resume with anything else is refused)."""
+        from dualrgb.app.workflow.calibration.charts import definition as chart_definition
 
         return {"workflow": "demo", "mode": self.mode, "frame_size": list(self.frame_size), "seed": self.seed,
                 "hdr": self.hdr, "dark_frames": self.dark_frames, "flat_frames": self.flat_frames,
@@ -209,8 +210,8 @@ def _predictions(ev, W: np.ndarray, de_matrix: bool | None) -> dict:
 
 
 def _planned_condition(lights: list, mode: str) -> float | str:
-    """The lights' condition number from the camera model (app.workflow.preflight), as the plan checks it."""
-    from dualrgb.app.workflow.preflight import light_set_conditioning
+    """The lights' condition number from the camera model (app.workflow.stand.preflight), as the plan checks it."""
+    from dualrgb.app.workflow.stand.preflight import light_set_conditioning
 
     cond, _ = light_set_conditioning(lights, mode)
     return round(cond, 2) if np.isfinite(cond) else "inf"
@@ -325,7 +326,8 @@ class DemoRun:
         report(self.progress, 1.0, f"report written: {s.out / 'report.json'}")
         return report_data
 
-    # ---- processing: app.workflow.session_processing.process_session, as the GUI and `dualrgb process` ----
+    # ---- processing: app.workflow.calibration.session_processing.process_session, as the GUI and `dualrgb process`
+    # ----
     def variants(self, c: Condition) -> list[tuple[str, bool, dict[str, list[float]]]]:
         """(label, ND subject, exposures per light): the plain capture, and with HDR the bracket and its single
         base exposure (the thesis 8.3 comparison)."""
@@ -353,8 +355,8 @@ class DemoRun:
         else on the 2x2 cells) through ``c``'s matrix and spectral estimator, per pixel against the original's truth
         (app.lab.truth)."""
         from dualrgb.app.lab.truth import compare, original_truth
-        from dualrgb.app.workflow.copystand import channels_of
-        from dualrgb.app.workflow.session_processing import select_lights, session_frames
+        from dualrgb.app.workflow.calibration.session_processing import select_lights, session_frames
+        from dualrgb.app.workflow.stand.copystand import channels_of
 
         subject = self.original_subject()
         frames = session_frames(self.session).subject(subject)

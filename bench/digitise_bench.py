@@ -74,8 +74,13 @@ def make_profile(folder: Path, spectral: bool = True) -> Path:
     ``spectral``, a spectral estimator), cached."""
     sys.path.insert(0, str(ROOT))
     from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
-    from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity, SphereIdentity, load_profile
-    from dualrgb.app.workflow.vocabulary import NamedLight
+    from dualrgb.app.workflow.calibration.profile import (
+        CalibrationProfile,
+        CameraIdentity,
+        SphereIdentity,
+        load_profile,
+    )
+    from dualrgb.core.vocabulary import NamedLight
     from dualrgb.simulation.lightsource import LightSource
     from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 
@@ -195,7 +200,7 @@ def _child_libraw(folder: str) -> dict:
 
 def _ready(folder_p: Path, spectral: bool = True):
     from dualrgb.app.warm_kernels import warm_delivery, warm_processing
-    from dualrgb.app.workflow.profile import load_profile
+    from dualrgb.app.workflow.calibration.profile import load_profile
 
     prof = load_profile(make_profile(folder_p, spectral))
     warm_processing()
@@ -220,8 +225,8 @@ def _child_digitise(folder: str, resolution: str, streaming: bool = True, keep: 
     if not sha256:
         _without_sha256()
     from dualrgb.app.processing.pipeline import ExposureRef
-    from dualrgb.app.workflow.copystand import begin_channels, profile_processor
-    from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.stand.copystand import begin_channels, profile_processor
 
     folder_p = Path(folder)
     t_load = time.perf_counter()
@@ -257,7 +262,7 @@ def _child_cube(folder: str) -> dict:
     import zlib
 
     sys.path.insert(0, str(ROOT))
-    from dualrgb.app.workflow.spectral_on_demand import make_cube
+    from dualrgb.app.workflow.delivery.spectral_on_demand import make_cube
 
     keep = Path(tempfile.mkdtemp(dir=folder))
     _child_digitise(folder, "full", True, str(keep))
@@ -288,7 +293,7 @@ def _child_stages(folder: str) -> dict:
     from dualrgb.app.processing.demosaic import HALO, demosaic_rows
     from dualrgb.app.processing.encode import DeliveryEncoder
     from dualrgb.app.processing.pipeline import ExposureRef
-    from dualrgb.app.workflow.copystand import begin_channels, profile_processor
+    from dualrgb.app.workflow.stand.copystand import begin_channels, profile_processor
 
     prof = _ready(Path(folder))
     frames = _scene_frames(Path(folder))
@@ -332,7 +337,7 @@ def _child_models(folder: str) -> dict:
     from dualrgb.app.processing.demosaic import HALO
     from dualrgb.app.processing.encode import DeliveryEncoder
     from dualrgb.app.processing.pipeline import ExposureRef
-    from dualrgb.app.workflow.copystand import begin_channels, profile_processor
+    from dualrgb.app.workflow.stand.copystand import begin_channels, profile_processor
     from dualrgb.simulation.colour_models import n_terms
 
     prof = _ready(Path(folder))
@@ -409,7 +414,7 @@ def _run_child(kind: str, folder: Path) -> dict:
 
 
 def _storage_table() -> dict:
-    from dualrgb.app.workflow.deliverables import storage
+    from dualrgb.app.workflow.delivery.deliverables import storage
 
     sizes = {"24mp": D610, "150mp": (14204, 10652)}
     return {k: {r: storage(w, h, 2, 38, r) for r in ("full", "half")} for k, (w, h) in sizes.items()}

@@ -1,6 +1,6 @@
 """Every input's memory bounded (issue 38): ``dualrgb capture --queue Q --check`` on a 1e6-row, 14 MB queue (under the
 16 MiB cap; refused in one line before any row is checked) and on a queue of exactly the stated maximum
-(app.workflow.queue_csv.MAX_QUEUE_ROWS, every row checked), each in its own process: wall and CPU seconds and peak
+(app.workflow.day.queue_csv.MAX_QUEUE_ROWS, every row checked), each in its own process: wall and CPU seconds and peak
 RSS. Before issue 38 the first ran past 300 s and 793 MB. Run alone: ``python -m bench.run input_bounds``.
 """
 from __future__ import annotations
@@ -43,7 +43,7 @@ def _check(queue: Path, profile: Path, work: Path) -> dict:
 
 
 def bench_input_bounds() -> dict:
-    from dualrgb.app.workflow.queue_csv import MAX_QUEUE_ROWS
+    from dualrgb.app.workflow.day.queue_csv import MAX_QUEUE_ROWS
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
     from workflow_profiles import make_profile

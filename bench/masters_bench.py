@@ -40,7 +40,7 @@ def _profile(folder: Path, shape: tuple[int, int]):
     from spectral_profiles import estimator
     from workflow_profiles import make_profile
 
-    from dualrgb.app.workflow.vocabulary import NamedLight
+    from dualrgb.core.vocabulary import NamedLight
     from dualrgb.simulation.lightsource import LightSource
     from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 
@@ -65,9 +65,9 @@ def _stack(width: int, height: int):
 
 
 def bench_size(width: int, height: int, work: Path) -> dict:
-    from dualrgb.app.workflow.bagging import make_day_bag
-    from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
-    from dualrgb.app.workflow.delivery_settings import DeliverySettings
+    from dualrgb.app.workflow.delivery.bagging import make_day_bag
+    from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.delivery.delivery_settings import DeliverySettings
 
     prof = _profile(work / "cal", (width, height))
     source = _stack(width, height)
@@ -105,9 +105,9 @@ def _access_times(d, prof, work: Path) -> dict:
     """Each access copy made again on its own from the delivered sRGB master (seconds)."""
     from datetime import UTC, datetime
 
-    from dualrgb.app.workflow.access_copies import make_access_copy
-    from dualrgb.app.workflow.deliverables import ACCESS_NAMES, Deliverable
-    from dualrgb.app.workflow.master_metadata import MasterContext
+    from dualrgb.app.workflow.delivery.access_copies import make_access_copy
+    from dualrgb.app.workflow.delivery.deliverables import ACCESS_NAMES, Deliverable
+    from dualrgb.app.workflow.delivery.master_metadata import MasterContext
 
     now = datetime.now(UTC)
     ctx = MasterContext(d.original, prof.id, prof.camera, 1.0, 300.0, now, now, white_xyz=list(prof.white_xyz))

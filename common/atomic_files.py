@@ -11,7 +11,7 @@ and a :class:`FileWriteError` (an ``OSError``) with one line naming the target f
     require_free_space(folder, needed_bytes, "the dark series")   # refuse up front what cannot fit
 
 It lives in ``common`` (below every layer, beside ``common.progress``) so that drivers/, simulation/ and app/
-share one implementation; ``app.session.capture_session.atomic_write`` wraps it to raise ``SessionError``.
+share one implementation; ``core.session.capture_session.atomic_write`` wraps it to raise ``SessionError``.
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ Every partial file and folder the product writes is named by the process that wr
 
 * temp files ``.<name>.<pid>.tmp`` (:func:`common.atomic_files.temp_path`): renamed over ``<name>`` when complete;
 * staging folders ``.<name>.<pid>.<token>.new`` (:func:`stage_name`): an original's deliverables, swapped in
-  whole when complete (app.workflow.delivery_folder).
+  whole when complete (app.workflow.delivery.delivery_folder).
 
 :func:`sweep` (called by every writer of a session folder and of a deliverables folder before it writes) removes
 those whose owner process is gone (killed, crashed, the machine restarted) and leaves alone those of a process

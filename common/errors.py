@@ -2,7 +2,7 @@
 
 :class:`ReportedError` is mixed into every device and workflow error whose message is one line saying what
 happened, to which device or file, and what to do (drivers.led_sphere.SphereError, drivers.camera.CameraError,
-drivers.monochromator.MonochromatorError, app.workflow.light_safety.LightSafetyError, ...): front ends (the CLI, the
+drivers.monochromator.MonochromatorError, core.light_safety.LightSafetyError, ...): front ends (the CLI, the
 GUI) show such an error as it is. Anything else that reaches a front end is a bug: :func:`write_crash_report`
 keeps its traceback in a file and the front end says, in one line, what failed and where that file is.
 

@@ -12,6 +12,6 @@ DEFAULT_SPECTRAL_WEIGHT = 0.1    # mixed: mean dE00 + weight x 100 x RMSE (1 % R
 N_SPHERE_LEDS = 10                                        # the sphere's LEDs, 1-based in LightSource (thesis Table 4.2)
 # the calibration's capture protocol: frames averaged into each master dark (thesis 8.2.1: 10) and each open-gate
 # white; simulation.capture_model's virtual-lab capture (so every preset's expected captured error) and the copy-stand
-# workflow's defaults (app.workflow.defaults: the GUI, the CLI, the demo) read them here
+# workflow's defaults (app.workflow.stand.defaults: the GUI, the CLI, the demo) read them here
 CALIBRATION_DARK_FRAMES = 10
 CALIBRATION_FLAT_FRAMES = 3

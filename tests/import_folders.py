@@ -33,8 +33,8 @@ def patches(shape: tuple[int, int], name: str) -> np.ndarray:
     """(h/2, w/2, 3) per-cell factors of a chart's patches filling the frame (row by row), as seen on the 2x2-cell
     stack: the packaged reflective chart's reference XYZ scaled into 0.1-0.9 (cells without a patch 0.05), so its
     patches follow their reference as a real chart's do (the calibration's placement check asks that)."""
-    from dualrgb.app.workflow.targets import target_spec
-    from dualrgb.app.workflow.vocabulary import Subject
+    from dualrgb.app.workflow.calibration.targets import target_spec
+    from dualrgb.core.vocabulary import Subject
 
     spec = target_spec("reflective", Subject.target(name), None)
     rows, cols = LAYOUTS[name]

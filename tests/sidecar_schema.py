@@ -8,7 +8,7 @@ from pathlib import Path
 
 import jsonschema
 
-from dualrgb.app.workflow.fixity import sidecar_schema
+from dualrgb.app.workflow.delivery.fixity import sidecar_schema
 
 
 def _no_constant(name: str):

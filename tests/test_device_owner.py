@@ -1,9 +1,10 @@
-"""One owner of every device action (issue 36): the run engine (app.workflow.engine and its hands,
-app.workflow.device_actions, .shooter, .shutter_shooter) alone switches the light, sets the LED levels, exposes,
+"""One owner of every device action (issue 36): the run engine (core.engine and its hands,
+core.device_actions, .shooter, .shutter_shooter) alone switches the light, sets the LED levels, exposes,
 downloads, moves the monochromator and reads the spectroradiometer; plans yield messages
-(app.workflow.messages). Two checks:
+(core.messages). Two checks:
 
-* an AST walk of every module in app/: a call that acts on a device (the sphere's light and levels, the camera's
+* an AST walk of every module in app/ and core/: a call that acts on a device (the sphere's light and levels, the
+camera's
   exposure, the monochromator's shutter and wavelength, the spectroradiometer's reading) appears only in the
   engine's modules, or in the few places listed below with the reason they stay outside it;
 * a recording run (tests/app/test_device_recorder.py): every action on the virtual lab's devices during a
@@ -17,11 +18,11 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-ENGINE = ("app/workflow/engine.py", "app/workflow/device_actions.py", "app/workflow/shooter.py",
-          "app/workflow/shutter_shooter.py")
+ENGINE = ("core/engine.py", "core/device_actions.py", "core/shooter.py",
+          "core/shutter_shooter.py")
 OUTSIDE = {       # what still acts on a device outside the engine, and why
-    "app/workflow/stand_devices.py": "opening and closing a device: identified, every LED 0 and the light off, read "
-                                     "back (open_sphere, close_sphere), the camera's ISO and aperture",
+    "app/workflow/stand/stand_devices.py": "opening and closing a device: identified, every LED 0 and the light off, "
+                                           "read back (open_sphere, close_sphere), the camera's ISO and aperture",
     "app/commands/sphere.py": "`dualrgb sphere`, the sphere's own device tool (set, apply, on with its cap, off): "
                               "its effect must outlast the command, so it is no run",
     "app/gui/panels/camera.py": "the Camera panel: settings, an unlit test shot and live view (the camera only)",
@@ -53,7 +54,7 @@ def device_calls(path: Path) -> list[str]:
 
 def violations(root: Path = ROOT) -> list[str]:
     bad = []
-    for path in sorted((root / "app").rglob("*.py")):
+    for path in sorted([*(root / "app").rglob("*.py"), *(root / "core").rglob("*.py")]):
         rel = path.relative_to(root).as_posix()
         if rel in ENGINE or rel in OUTSIDE:
             continue
@@ -88,8 +89,8 @@ def test_the_rule_catches_a_plan_acting_itself(tmp_path, source):
 def test_plans_hold_no_device():
     """The plans (app/sequences, the metering and light plans) import none of the engine's hands."""
     hands = tuple(f"dualrgb.app.workflow.{m}" for m in ("shooter", "shutter_shooter", "device_actions"))
-    plans = [*sorted((ROOT / "app" / "sequences").glob("*.py")), ROOT / "app/workflow/metering.py",
-             ROOT / "app/workflow/light_plans.py", ROOT / "app/workflow/plans.py"]
+    plans = [*sorted((ROOT / "app" / "sequences").glob("*.py")), ROOT / "app/workflow/stand/metering.py",
+             ROOT / "app/workflow/stand/light_plans.py", ROOT / "app/workflow/stand/plans.py"]
     for path in plans:
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.ImportFrom) and node.module:

@@ -58,7 +58,7 @@ CODE_REF = re.compile(r"`((?:dualrgb\.)?(?:app|drivers|simulation|common|resourc
 
 
 def _resolves(ref: str) -> bool:
-    """Whether ``ref`` (``app.workflow.engine.RunEngine``, with or without ``dualrgb.``) names a module of the
+    """Whether ``ref`` (``core.engine.RunEngine``, with or without ``dualrgb.``) names a module of the
     package or an attribute of one."""
     import importlib
 
@@ -77,14 +77,14 @@ def _resolves(ref: str) -> bool:
 
 
 def test_the_code_the_docs_name_exists():
-    """Every module, class or function the user docs and README name in backticks (``app.workflow.engine``,
+    """Every module, class or function the user docs and README name in backticks (``core.engine``,
     ``dualrgb.app.processing.encode.DeliveryEncoder``) is importable on main: a renamed or removed one is found
     here, not by a reader (the developer notes under docs/notes are a record and are left out)."""
     pages = [p for p in DOCS.rglob("*.md") if "notes" not in p.parts] + [README]
     stale = sorted({f"{p.relative_to(ROOT)}: {m}" for p in pages for m in CODE_REF.findall(p.read_text("utf-8"))
                     if not _resolves(m)})
     assert stale == []
-    assert not _resolves("app.workflow.runs.StandRun") and _resolves("app.workflow.engine.RunEngine")
+    assert not _resolves("app.workflow.runs.StandRun") and _resolves("core.engine.RunEngine")
 
 
 def test_the_json_role_reads_the_value_and_names_what_is_missing(tmp_path, jsonfigures):

@@ -1,11 +1,13 @@
 """The house's layers, enforced by an AST walk of every module (the rules: docs/explanation/architecture.md,
 "The layers").
 
-common/ imports no other dualrgb package; simulation/, drivers/ and resources/ import neither app/ nor Qt; only
+common/ imports no other dualrgb package; simulation/, drivers/ and resources/ import neither app/, core/ nor Qt;
+core/ (the vocabulary, the run engine, the light-on rule, the device protocols, the capture session) imports no
+app/ and no Qt; only
 app/gui imports Qt; a GUI panel imports no other panel and no concrete driver module (it goes through the Qt-free
 workflow layer). No two modules import each other, directly or through others (function-level and
 TYPE_CHECKING imports count: a circle is a design knot even where Python tolerates it). The production packages
-(app/workflow, app/processing, app/session, app/sequences) know nothing of the virtual lab: they import nothing
+(core/, app/workflow, app/processing, app/sequences) know nothing of the virtual lab: they import nothing
 from drivers.virtual, app.lab (the lab's front-end side) or the front ends, and do not even name drivers.virtual
 (issue 36: the lab is devices, reached by their addresses)."""
 from __future__ import annotations
@@ -19,8 +21,8 @@ ROOT = Path(__file__).resolve().parents[1]
 QT = ("PySide6", "pyqtgraph", "shiboken6")
 CONCRETE_DRIVERS = ("drivers.camera.gphoto", "drivers.led_sphere.driver", "drivers.virtual")
 NAMESPACE = "dualrgb."
-PACKAGES = ("app", "common", "drivers", "simulation", "resources")
-PRODUCTION = ("workflow", "processing", "session", "sequences")        # under app/
+PACKAGES = ("app", "common", "core", "drivers", "simulation", "resources")
+PRODUCTION = ("app/workflow", "app/processing", "app/sequences", "core")
 LAB_OR_FRONT_ENDS = ("drivers.virtual", "app.lab", "app.gui", "app.commands", "app.cli", "app.demo")
 
 
@@ -49,14 +51,16 @@ def violations(root: Path = ROOT) -> list[str]:
                 top = mod.split(".")[0]
                 if parts[0] == "common" and (top in PACKAGES or top in QT):
                     bad.append(f"{'/'.join(parts)}: imports {mod}")
-                if parts[0] in ("simulation", "drivers", "resources") and (top == "app" or top in QT):
+                if parts[0] in ("simulation", "drivers", "resources", "core") and (top == "app" or top in QT):
+                    bad.append(f"{'/'.join(parts)}: imports {mod}")
+                if parts[0] in ("simulation", "drivers", "resources") and top == "core":
                     bad.append(f"{'/'.join(parts)}: imports {mod}")
                 if parts[0] == "app" and top in QT and parts[1] != "gui":
                     bad.append(f"{'/'.join(parts)}: imports {mod} outside app/gui")
                 if parts[:3] == ("app", "gui", "panels") and (mod.startswith("app.gui.panels.")
                                                                or mod.startswith(CONCRETE_DRIVERS)):
                     bad.append(f"{'/'.join(parts)}: panel imports {mod}")
-            if parts[0] == "app" and len(parts) > 2 and parts[1] in PRODUCTION:
+            if any("/".join(parts).startswith(p + "/") for p in PRODUCTION):
                 hits = {m for m in imports(path, names=True)
                         if any(m == x or m.startswith(x + ".") for x in LAB_OR_FRONT_ENDS)}
                 bad += [f"{'/'.join(parts)}: production imports {m}" for m in sorted(hits)
@@ -133,12 +137,12 @@ def test_layers_hold():
 
 def test_production_does_not_name_the_virtual_lab():
     """The issue's own check, `grep -rn "drivers.virtual\\|drivers import virtual" app/workflow app/processing
-    app/session app/sequences` printing nothing (docstrings and comments included)."""
+    app/sequences core` printing nothing (docstrings and comments included)."""
     import re
 
     pattern = re.compile(r"drivers.virtual|drivers import virtual")
     hits = [f"{path.relative_to(ROOT)}:{n}: {line.strip()}" for pkg in PRODUCTION
-            for path in sorted((ROOT / "app" / pkg).rglob("*.py"))
+            for path in sorted((ROOT / pkg).rglob("*.py"))
             for n, line in enumerate(path.read_text().splitlines(), 1) if pattern.search(line)]
     assert hits == []
 
@@ -160,7 +164,7 @@ def test_import_circles_are_found(tmp_path):
 
 
 @pytest.mark.parametrize("rel, source, expected", [
-    ("simulation/x.py", "from dualrgb.app.session.capture_session import CaptureSession\n", "imports app.session"),
+    ("simulation/x.py", "from dualrgb.core.session.capture_session import CaptureSession\n", "imports core.session"),
     ("common/x.py", "from dualrgb.simulation.grid import DEFAULT_GRID\n", "common/x.py: imports simulation.grid"),
     ("drivers/x.py", "def f():\n    import PySide6.QtCore\n", "drivers/x.py: imports PySide6.QtCore"),
     ("app/processing/x.py", "import pyqtgraph as pg\n", "outside app/gui"),
@@ -170,7 +174,7 @@ def test_import_circles_are_found(tmp_path):
     ("app/workflow/x.py", "def f():\n    from dualrgb.drivers.virtual.lab import VirtualLab\n",
      "app/workflow/x.py: production imports drivers.virtual.lab"),
     ("app/sequences/x.py", "from dualrgb.app.lab.truth import compare\n", "production imports app.lab.truth"),
-    ("app/session/x.py", "from dualrgb.drivers import virtual\n", "production imports drivers.virtual"),
+    ("core/session/x.py", "from dualrgb.drivers import virtual\n", "production imports drivers.virtual"),
 ])
 def test_each_rule_catches_its_violation(tmp_path, rel, source, expected):
     for pkg in PACKAGES:

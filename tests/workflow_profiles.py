@@ -6,8 +6,8 @@ from datetime import UTC, datetime
 import numpy as np
 
 from dualrgb.app.processing.calibration import DarkFrame, FlatField, MasterDark
-from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity, SphereIdentity
-from dualrgb.app.workflow.vocabulary import NamedLight
+from dualrgb.app.workflow.calibration.profile import CalibrationProfile, CameraIdentity, SphereIdentity
+from dualrgb.core.vocabulary import NamedLight
 from dualrgb.simulation.lightsource import LightSource
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 

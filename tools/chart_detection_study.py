@@ -65,8 +65,8 @@ def calibrate_found(folder: Path, name: str, pose: ChartPose | None, seed: int =
     """Calibrate layout ``name`` on the virtual lab (its world posing the charts by ``pose``) with the patches found
     in the frames; train / test mean dE00, the placement records and the detected corners' error (superpixels)."""
     from dualrgb.app.commands.calibrate import find_preset
-    from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.workflow.copystand import CopyStand, StandSettings
+    from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
+    from dualrgb.core.session.capture_session import CaptureSession
     from dualrgb.drivers.virtual.lab import VirtualLab
 
     mode, _files, size = LAYOUTS[name]
@@ -103,7 +103,7 @@ def _corner_study() -> dict[str, Any]:
 
     from dualrgb.app.processing.chart_detect import detect_chart
     from dualrgb.app.processing.scanin import scanin_grid
-    from dualrgb.app.workflow.targets import reference_xyz
+    from dualrgb.app.workflow.calibration.targets import reference_xyz
     from dualrgb.simulation.chart_geometry import geometry_of
 
     out: dict[str, Any] = {}

@@ -42,7 +42,7 @@ def make_session(root: Path) -> Path:
     from workflow_profiles import make_profile
 
     from dualrgb.app.processing.pipeline import ChannelStack
-    from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
 
     session = root / "2026-03-14-day1"
     prof = make_profile(session / "calibration", shape=(192, 288))

@@ -1,6 +1,7 @@
 """Type-check the ``dualrgb`` namespace as it is installed: ``python -m tools.typecheck [mypy options]``.
 
-The checkout keeps app/, common/, drivers/, simulation/ and resources/ at the top while the wheel installs them as
+The checkout keeps app/, common/, core/, drivers/, simulation/ and resources/ at the top while the wheel installs them
+as
 ``dualrgb.app`` ... (pyproject.toml's package-dir). mypy finds modules by their folders and knows no such mapping, so
 this links the folders under ``build/typecheck/dualrgb/`` (pyproject's ``mypy_path``; copies where the OS refuses
 links), runs mypy with pyproject's settings, and prints each file by its own path (``app/cli.py``, not the link's).
@@ -16,7 +17,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TREE = ROOT / "build" / "typecheck" / "dualrgb"
-FOLDERS = ("app", "common", "drivers", "simulation", "resources")
+FOLDERS = ("app", "common", "core", "drivers", "simulation", "resources")
 LINKED_FILES = ("__init__.py", "__main__.py", "py.typed")
 PREFIX = re.compile(r"build[/\\]typecheck[/\\]dualrgb[/\\]")
 

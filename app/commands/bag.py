@@ -1,5 +1,5 @@
 """``dualrgb bag SOURCE --out BAG``: the current deliveries under SOURCE (a deliverables folder or a session) as a
-BagIt 1.0 bag for the transfer to the archive (app.workflow.bagging: the Library of Congress' bagit, SHA-256
+BagIt 1.0 bag for the transfer to the archive (app.workflow.delivery.bagging: the Library of Congress' bagit, SHA-256
 manifests checked against the sidecars; every delivery verified first; copies, reflinks where offered).
 
     dualrgb bag SESSION/deliverables --out /transfer/2026-03-14 [--organization "..."] [--info Key=Value] [--link]
@@ -40,8 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from dualrgb.app.workflow.bagging import make_day_bag
-    from dualrgb.app.workflow.delivery_settings import load
+    from dualrgb.app.workflow.delivery.bagging import make_day_bag
+    from dualrgb.app.workflow.delivery.delivery_settings import load
 
     info = {**load(args.delivery_settings).bag_info, **dict(args.info)}
     if args.organization:

@@ -8,12 +8,12 @@
 Each chart's patches are found in its frames (app.processing.chart_detect) unless its grid is given: by its four
 corners (``--train-corners`` / ``--test-corners``, the raw frame's pixels) or a grid JSON (``--train-grid``).
 
-The charts' reference files are read (app.workflow.charts) before any device opens; without them the mode's
-packaged targets are used. The session is the day's (app.workflow.defaults.DAY_WORKFLOW): `capture --session`
+The charts' reference files are read (app.workflow.calibration.charts) before any device opens; without them the mode's
+packaged targets are used. The session is the day's (app.workflow.stand.defaults.DAY_WORKFLOW): `capture --session`
 the same folder takes the day's originals with this calibration.
 
 Every default (lights per mode, HDR plan, darks and flats, matrix, the session folder) is the GUI's too:
-app.workflow.defaults.
+app.workflow.stand.defaults.
 """
 from __future__ import annotations
 
@@ -34,11 +34,12 @@ from dualrgb.app.commands.stand_options import (
     progress_printer,
 )
 from dualrgb.app.json_output import text_stream, write_json
-from dualrgb.app.workflow import defaults as day
+from dualrgb.app.workflow.stand import defaults as day
 
 log = logging.getLogger(__name__)
 
-CALIBRATE_FORMAT = "dualrgb-calibration/1"        # --json: the profile (app.workflow.profile.FORMAT) and its path
+CALIBRATE_FORMAT = "dualrgb-calibration/1"        # --json: the profile (app.workflow.calibration.profile.FORMAT) and
+                                                  # its path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -101,7 +102,7 @@ def _add_placement_options(p: argparse.ArgumentParser) -> None:
 
 def find_preset(name: str | None, mode: str | None):
     """A preset by file path or packaged file name (with or without .json); default: the mode's
-    (app.workflow.defaults.default_preset_name)."""
+    (app.workflow.stand.defaults.default_preset_name)."""
     from dualrgb.simulation.presets import load_preset, packaged_presets
 
     wanted = name or day.default_preset_name(mode)
@@ -116,10 +117,10 @@ def find_preset(name: str | None, mode: str | None):
 
 
 def resolve(args: argparse.Namespace) -> tuple[Any, str, int, int]:
-    """What the options (or their defaults, app.workflow.defaults) ask for: (the preset, its mode set to the
+    """What the options (or their defaults, app.workflow.stand.defaults) ask for: (the preset, its mode set to the
     run's, the HDR plan 'auto' / 'off', dark frames, flat frames)."""
-    from dualrgb.app.workflow.preflight import check_lights
-    from dualrgb.app.workflow.vocabulary import lights_of
+    from dualrgb.app.workflow.stand.preflight import check_lights
+    from dualrgb.core.vocabulary import lights_of
 
     preset = find_preset(args.preset, args.mode)
     preset.mode = args.mode or preset.mode
@@ -129,10 +130,10 @@ def resolve(args: argparse.Namespace) -> tuple[Any, str, int, int]:
 
 
 def conditioning(preset: Any, stand: Any) -> None:
-    """The preset's lights with the camera model (app.workflow.preflight.check_conditioning): refused above the
+    """The preset's lights with the camera model (app.workflow.stand.preflight.check_conditioning): refused above the
     limit (ConditioningError, one line), a warning on stderr in the band below it."""
-    from dualrgb.app.workflow.preflight import check_conditioning
-    from dualrgb.app.workflow.vocabulary import lights_of
+    from dualrgb.app.workflow.stand.preflight import check_conditioning
+    from dualrgb.core.vocabulary import lights_of
 
     _, warning = check_conditioning(lights_of(preset), preset.mode, f"preset {preset.name}", stand)
     if warning:
@@ -140,15 +141,15 @@ def conditioning(preset: Any, stand: Any) -> None:
 
 
 def _stand_start(args: argparse.Namespace) -> Any:
-    """The measured curves the stand fit starts from (app.workflow.stand_reoptimise.measured_start)."""
-    from dualrgb.app.workflow.stand_reoptimise import measured_start
+    """The measured curves the stand fit starts from (app.workflow.calibration.stand_reoptimise.measured_start)."""
+    from dualrgb.app.workflow.calibration.stand_reoptimise import measured_start
 
     return measured_start(args.camera_csv, args.stand_dir)
 
 
 def _corner_grids(args: argparse.Namespace, mode: str, charts: dict) -> dict:
-    """The grids ``--train-corners`` / ``--test-corners`` place (app.workflow.targets.corners_grid)."""
-    from dualrgb.app.workflow.targets import corners_grid, parse_corners
+    """The grids ``--train-corners`` / ``--test-corners`` place (app.workflow.calibration.targets.corners_grid)."""
+    from dualrgb.app.workflow.calibration.targets import corners_grid, parse_corners
 
     out = {}
     for role in ("train", "test"):
@@ -179,17 +180,17 @@ def _lab_shorthand(args: argparse.Namespace, mode: str, charts: dict, grids: dic
 def main(args: argparse.Namespace) -> int:
     check_device_options(args)                # before the heavy imports below
     from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
-    from dualrgb.app.workflow import charts as day_charts
-    from dualrgb.app.workflow.copystand import CopyStand, StandSettings
-    from dualrgb.app.workflow.defaults import DAY_WORKFLOW
-    from dualrgb.app.workflow.targets import load_grid
+    from dualrgb.app.workflow.calibration import charts as day_charts
+    from dualrgb.app.workflow.calibration.targets import load_grid
+    from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
+    from dualrgb.app.workflow.stand.defaults import DAY_WORKFLOW
 
     preset, hdr, darks, flats = resolve(args)
     mode = preset.mode
     stand_start = _stand_start(args)
     conditioning(preset, stand_start)                                     # before any device opens
     if args.stand_dir:
-        from dualrgb.app.workflow.led_stand import load_stand, unstable_levels
+        from dualrgb.app.workflow.calibration.led_stand import load_stand, unstable_levels
 
         for line in unstable_levels(preset.sources, load_stand(args.stand_dir)):
             print(f"warning: {line}", file=sys.stderr)
@@ -214,7 +215,7 @@ def main(args: argparse.Namespace) -> int:
                           progress=progress_printer(), prompt=ask_person)
         profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
     from dualrgb.app.processing.quality import grading_lines
-    from dualrgb.app.workflow.profile import describe
+    from dualrgb.app.workflow.calibration.profile import describe
 
     for line in describe(profile):
         print(line, file=text)

@@ -19,7 +19,8 @@ from dualrgb.app.json_output import text_stream, write_json
 
 log = logging.getLogger(__name__)
 
-SHOW_FORMAT = "dualrgb-calibration/1"       # --json: the profile (app.workflow.profile.FORMAT), its age and checks
+SHOW_FORMAT = "dualrgb-calibration/1"       # --json: the profile (app.workflow.calibration.profile.FORMAT), its age
+                                            # and checks
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,7 +37,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     if args.virtual_lab or args.port or args.camera:
         check_device_options(args)            # before the heavy imports below
-    from dualrgb.app.workflow.profile import CameraIdentity, SphereIdentity, check_reuse, describe, load_profile
+    from dualrgb.app.workflow.calibration.profile import (
+        CameraIdentity,
+        SphereIdentity,
+        check_reuse,
+        describe,
+        load_profile,
+    )
 
     profile = load_profile(args.file)
     check = None

@@ -9,8 +9,8 @@
 
 ``--calibration`` defaults to the session's newest (of the original's mode with ``--id --mode``): a session made by
 ``dualrgb calibrate --session DIR`` takes the day's originals. Every original's metadata, mode (the mode rule:
-app.workflow.mode_rule) and deliverables folder are checked before a device opens (app.workflow.metadata,
-app.workflow.delivery_folder); a queue's refused rows are listed one per line and nothing is shot while one is
+app.workflow.stand.mode_rule) and deliverables folder are checked before a device opens (core.metadata,
+app.workflow.delivery.delivery_folder); a queue's refused rows are listed one per line and nothing is shot while one is
 refused, unless ``--skip-invalid``; ``--check`` prints the plan (rows to shoot, kept, refused) and opens no device.
 An original of the queue already delivered in the session is kept and said so.
 """
@@ -44,7 +44,7 @@ from dualrgb.app.commands.stand_options import (
     reuse_limits,
 )
 from dualrgb.app.json_output import text_stream, write_json
-from dualrgb.app.workflow.defaults import DAY_WORKFLOW, MODES, VIRTUAL_ORIGINALS
+from dualrgb.app.workflow.stand.defaults import DAY_WORKFLOW, MODES, VIRTUAL_ORIGINALS
 
 log = logging.getLogger(__name__)
 
@@ -102,7 +102,7 @@ def _calibration(args: argparse.Namespace) -> Path:
     if not args.session or not (Path(args.session) / "calibration").is_dir():
         raise ValueError("name the calibration: --calibration FILE (or --session DAY holding one: `dualrgb calibrate "
                          "--session DAY` makes it)")
-    from dualrgb.app.workflow.profile import load_profile
+    from dualrgb.app.workflow.calibration.profile import load_profile
 
     found = sorted((Path(args.session) / "calibration").glob("cal-*.json"))
     if args.mode:
@@ -115,9 +115,9 @@ def _calibration(args: argparse.Namespace) -> Path:
 
 
 def _single(args: argparse.Namespace, mode: str, out_dir: Path | None, profile) -> list:
-    from dualrgb.app.workflow.delivery_folder import check_folder
-    from dualrgb.app.workflow.metadata import Original
-    from dualrgb.app.workflow.mode_rule import check_mode
+    from dualrgb.app.workflow.delivery.delivery_folder import check_folder
+    from dualrgb.app.workflow.stand.mode_rule import check_mode
+    from dualrgb.core.metadata import Original
 
     original = Original(args.identifier, args.title, args.operator, args.notes, mode)
     check_mode(original, profile, force=args.force)
@@ -127,16 +127,16 @@ def _single(args: argparse.Namespace, mode: str, out_dir: Path | None, profile) 
 
 
 def _plan(args: argparse.Namespace, mode: str, out_dir: Path | None, profile):
-    """The queue's plan (app.workflow.queue_plan): every row checked before a device opens."""
-    from dualrgb.app.workflow.queue_csv import read_queue_csv
-    from dualrgb.app.workflow.queue_plan import plan_queue
+    """The queue's plan (app.workflow.day.queue_plan): every row checked before a device opens."""
+    from dualrgb.app.workflow.day.queue_csv import read_queue_csv
+    from dualrgb.app.workflow.day.queue_plan import plan_queue
 
     if args.title or args.notes:
         raise ValueError("--title and --notes name one original (--id); a queue's come from its CSV")
     queue = read_queue_csv(Path(args.queue), columns=dict(args.column), default_mode=mode, out_dir=out_dir)
     session = None
     if args.session and (Path(args.session) / "session.json").is_file():
-        from dualrgb.app.workflow.folders import open_session
+        from dualrgb.app.workflow.stand.folders import open_session
 
         session = open_session(Path(args.session), readonly=True)
     plan = plan_queue(queue, profile, session=session, force=args.force, reshoot=args.reshoot)
@@ -149,7 +149,7 @@ def _plan(args: argparse.Namespace, mode: str, out_dir: Path | None, profile):
 def _queue_originals(args: argparse.Namespace, plan) -> list:
     """The originals of the plan to shoot (kept ones too: capture_queue says so); its refused rows listed, and
     refused whole while one is unless --skip-invalid."""
-    from dualrgb.app.workflow.queue_plan import REFUSED
+    from dualrgb.app.workflow.day.queue_plan import REFUSED
 
     name = Path(args.queue).name
     for line in plan.column_lines:
@@ -178,9 +178,9 @@ def main(args: argparse.Namespace) -> int:
         check_device_options(args)            # before the heavy imports below (--check opens no device)
     from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT
     from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
-    from dualrgb.app.workflow.copystand import CopyStand, StandSettings
-    from dualrgb.app.workflow.profile import load_profile
-    from dualrgb.app.workflow.queue_run import QueueOutcome, capture_queue
+    from dualrgb.app.workflow.calibration.profile import load_profile
+    from dualrgb.app.workflow.day.queue_run import QueueOutcome, capture_queue
+    from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
 
     profile = load_profile(_calibration(args))
     delivery = delivery_request(args, profile)          # before any device opens: refused in one line
@@ -216,7 +216,7 @@ def main(args: argparse.Namespace) -> int:
 def _check(args: argparse.Namespace, plan, single: list, profile) -> int:
     """``--check``: the plan printed (and with --json written), no device opened; exit 1 when the same command
     without --check would shoot nothing (a refused row without --skip-invalid, or no row to shoot)."""
-    from dualrgb.app.workflow.queue_plan import PLAN_FORMAT, REFUSED
+    from dualrgb.app.workflow.day.queue_plan import PLAN_FORMAT, REFUSED
 
     out = text_stream(args.json_path)
     if plan is None:

@@ -1,5 +1,5 @@
 """``dualrgb cube DELIVERY``: a delivery's spectral cube (ENVI) made from its camera-RGB TIFFs through the map its
-sidecar states, and with ``--render LIGHT`` its rendering under that light (app.workflow.spectral_on_demand).
+sidecar states, and with ``--render LIGHT`` its rendering under that light (app.workflow.delivery.spectral_on_demand).
 
     dualrgb cube SESSION/deliverables/ACC-1 [--out DIR] [--render A]
 
@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.terminal_progress import TerminalProgress
     from dualrgb.app.warm_kernels import ensure_ready
-    from dualrgb.app.workflow.spectral_on_demand import make_cube
+    from dualrgb.app.workflow.delivery.spectral_on_demand import make_cube
 
     ensure_ready()                                      # first run: compiled once here, said in one line
     with TerminalProgress("cube") as progress:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from dualrgb.app.commands.options import add_chart_options, add_world_option, chart_choices, count, frame_size, seed
 from dualrgb.app.terminal_progress import TerminalProgress
-from dualrgb.app.workflow.defaults import DARK_FRAMES, DEFAULT_MODE, MODES, VIRTUAL_FRAME_SIZE
+from dualrgb.app.workflow.stand.defaults import DARK_FRAMES, DEFAULT_MODE, MODES, VIRTUAL_FRAME_SIZE
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.demo import DemoSettings, run_demo  # heavy imports only when the demo runs
     from dualrgb.app.warm_kernels import ensure_ready
-    from dualrgb.app.workflow.charts import load_charts
+    from dualrgb.app.workflow.calibration.charts import load_charts
 
     settings = DemoSettings(out=args.out, mode=args.mode, hdr=args.hdr, frame_size=args.frame_size,
                             seed=args.seed, world=args.world, new_session=args.new_session,

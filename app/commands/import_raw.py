@@ -6,10 +6,11 @@
                    [--train-target FILE [--train-layout RxC]] [--test-target FILE [--test-layout RxC]]
                    [--ppi N | --target-width-mm W] [--out DIR] [--resolution full|half] [--json J]
 
-Everything is checked before anything is written (app.workflow.import_checks): each problem is one line on stderr
+Everything is checked before anything is written (app.workflow.raw_import.import_checks): each problem is one line on
+stderr
 naming the file or the roles file's row, and the command exits 1 having written nothing. Then the files are
 copied into the session, the calibration is made from its darks, flats and targets and every original is
-delivered, as ``calibrate`` and ``capture`` do on a stand (app.workflow.raw_import); ``dualrgb process DIR``
+delivered, as ``calibrate`` and ``capture`` do on a stand (app.workflow.raw_import.raw_import); ``dualrgb process DIR``
 delivers them again. Without ``--preset`` the lights are unknown (said in the profile and the sidecars).
 """
 from __future__ import annotations
@@ -32,7 +33,7 @@ from dualrgb.app.commands.options import (
 from dualrgb.app.commands.stand_options import add_session_option, progress_printer
 from dualrgb.app.json_output import HELP as JSON_HELP
 from dualrgb.app.json_output import text_stream, write_json
-from dualrgb.app.workflow import defaults as day
+from dualrgb.app.workflow.stand import defaults as day
 
 log = logging.getLogger(__name__)
 
@@ -78,11 +79,11 @@ def _settings(args: argparse.Namespace):
     """The import's settings from the options, checked before any file is read."""
     from dualrgb.app.commands.calibrate import find_preset
     from dualrgb.app.commands.options import chart_choices
-    from dualrgb.app.workflow import charts as day_charts
-    from dualrgb.app.workflow.import_checks import ImportSettings, corner_grid
-    from dualrgb.app.workflow.preflight import check_lights
-    from dualrgb.app.workflow.targets import load_grid
-    from dualrgb.app.workflow.vocabulary import lights_of
+    from dualrgb.app.workflow.calibration import charts as day_charts
+    from dualrgb.app.workflow.calibration.targets import load_grid
+    from dualrgb.app.workflow.raw_import.import_checks import ImportSettings, corner_grid
+    from dualrgb.app.workflow.stand.preflight import check_lights
+    from dualrgb.core.vocabulary import lights_of
 
     preset = None
     if args.preset:
@@ -100,7 +101,7 @@ def _settings(args: argparse.Namespace):
 
 
 def template(args: argparse.Namespace) -> int:
-    from dualrgb.app.workflow.import_template import write_template
+    from dualrgb.app.workflow.raw_import.import_template import write_template
 
     if not args.folder.is_dir():
         raise ValueError(f"{args.folder}: not a folder of raw files")
@@ -117,8 +118,8 @@ def template(args: argparse.Namespace) -> int:
 def main(args: argparse.Namespace) -> int:
     if args.roles_template:
         return template(args)
-    from dualrgb.app.workflow.import_roles import read_roles
-    from dualrgb.app.workflow.raw_import import ImportOptions, ImportRefused, plan_import, run_import
+    from dualrgb.app.workflow.raw_import.import_roles import read_roles
+    from dualrgb.app.workflow.raw_import.raw_import import ImportOptions, ImportRefused, plan_import, run_import
 
     settings = _settings(args)
     roles = read_roles(Path(args.roles), default_mode=settings.mode,

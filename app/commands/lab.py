@@ -77,7 +77,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def serve_main(args: argparse.Namespace) -> int:
     from dualrgb.app.commands.options import chart_choices
     from dualrgb.app.lab.targets import chart_reader
-    from dualrgb.app.workflow.charts import load_charts
+    from dualrgb.app.workflow.calibration.charts import load_charts
     from dualrgb.drivers.virtual.lab_server import LabServer, LabSettings
 
     charts = load_charts(chart_choices(args), args.mode)                # read before anything starts

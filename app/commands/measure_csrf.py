@@ -25,9 +25,9 @@ from dualrgb.app.commands.stand_options import ask_person, real_camera
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 if TYPE_CHECKING:                       # types only: the devices are imported when the command runs (fast --help)
-    from dualrgb.app.protocols import Monochromator
     from dualrgb.app.sequences.base import ProgressEvent
-    from dualrgb.app.workflow.csrf import CsrfMeasurement
+    from dualrgb.app.workflow.calibration.csrf import CsrfMeasurement
+    from dualrgb.core.protocols import Monochromator
     from dualrgb.drivers.camera.base import Camera
     from dualrgb.simulation.radiance_reference import RadianceReference
 

@@ -1,6 +1,6 @@
 """``dualrgb measure leds`` and ``dualrgb measure import-leds``: the sphere's LEDs from spectroradiometer readings
 (thesis 4.3): the spectra at full level, the level -> output curve (finely at the low end) and the warm-up drift,
-written as a stand folder (app/workflow/led_stand.py) that ``simulate --stand-dir`` takes.
+written as a stand folder (app/workflow/calibration/led_stand.py) that ``simulate --stand-dir`` takes.
 
     dualrgb measure leds --virtual-lab [--world W] --out DIR [--leds 1,2] [--warmup-leds all|none|1,4,10]
     dualrgb measure import-leds READINGS... --out DIR
@@ -77,7 +77,7 @@ def main(args: argparse.Namespace) -> int:
 
 
 def import_main(args: argparse.Namespace) -> int:
-    from dualrgb.app.workflow.led_stand import import_readings
+    from dualrgb.app.workflow.calibration.led_stand import import_readings
 
     result, _files = import_readings(args.readings, args.out, args.tolerance)
     _print(result, args.out)

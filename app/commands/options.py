@@ -120,7 +120,7 @@ def frame_size(text: str) -> tuple[int, int]:
 
 def identifier(text: str) -> str:
     """An original's identifier as given on the command line: something besides spaces (the full checks, on
-    every field, are app.workflow.metadata's, before a device opens)."""
+    every field, are core.metadata's, before a device opens)."""
     if not text.strip():
         raise _fail(text, "expected the original's identifier or accession number, e.g. ACC-123")
     return text
@@ -180,8 +180,8 @@ worlds.__name__ = "worlds"
 
 
 def column_option(text: str) -> tuple[str, str]:
-    """``FIELD=NAME``: the queue CSV's column that holds an original's field (app.workflow.queue_csv)."""
-    from dualrgb.app.workflow.queue_csv import column_option as parse
+    """``FIELD=NAME``: the queue CSV's column that holds an original's field (app.workflow.day.queue_csv)."""
+    from dualrgb.app.workflow.day.queue_csv import column_option as parse
 
     try:
         return parse(text)
@@ -219,11 +219,12 @@ def add_render_option(p: argparse.ArgumentParser) -> None:
 
 
 def delivery_request(args: argparse.Namespace, profiles: object = None):
-    """The delivery settings the options ask for (app.workflow.delivery_settings), checked before any device opens
+    """The delivery settings the options ask for (app.workflow.delivery.delivery_settings), checked before any device
+    opens
     or light goes on: a rendering asked for where none is written, or a cube from a calibration without a
     spectral estimator (``profiles``: one calibration or a dict of them), is one line."""
-    from dualrgb.app.workflow.deliverables import check_spectral_request
-    from dualrgb.app.workflow.delivery_settings import check_render_request, load
+    from dualrgb.app.workflow.delivery.deliverables import check_spectral_request
+    from dualrgb.app.workflow.delivery.delivery_settings import check_render_request, load
 
     settings = load(args.delivery_settings).with_spectral(args.spectral)
     check_render_request(settings, args.resolution, args.render_illuminant)
@@ -242,7 +243,7 @@ def layout(text: str) -> str:
 
 def add_chart_options(p: argparse.ArgumentParser) -> None:
     """``--train-target / --test-target FILE`` with ``--*-layout ROWSxCOLS`` and ``--*-leave-out NAMES``: the
-    stand's own charts (app.workflow.charts; README "Charts"); ``chart_choices(args)`` collects them."""
+    stand's own charts (app.workflow.calibration.charts; README "Charts"); ``chart_choices(args)`` collects them."""
     g = p.add_argument_group("charts (default: the mode's packaged targets)")
     for role, what in (("train", "training"), ("test", "test")):
         g.add_argument(f"--{role}-target", type=input_file, metavar="FILE",
@@ -258,7 +259,7 @@ def add_chart_options(p: argparse.ArgumentParser) -> None:
 
 def chart_choices(args: argparse.Namespace) -> dict:
     """``{"train": ChartChoice, "test": ChartChoice}`` from :func:`add_chart_options`' options."""
-    from dualrgb.app.workflow.charts import ChartChoice
+    from dualrgb.app.workflow.calibration.charts import ChartChoice
 
     return {role: ChartChoice(getattr(args, f"{role}_target") or "", getattr(args, f"{role}_layout") or "",
                               getattr(args, f"{role}_leave_out") or "") for role in ("train", "test")}
@@ -266,7 +267,7 @@ def chart_choices(args: argparse.Namespace) -> dict:
 
 def corners(text: str) -> tuple[str, tuple[float, ...]]:
     """``train=X,Y,X,Y,X,Y,X,Y`` (the target's four corners in the raw file's pixels) -> (name, 8 numbers)."""
-    from dualrgb.app.workflow.import_checks import parse_corners
+    from dualrgb.app.workflow.raw_import.import_checks import parse_corners
 
     name, sep, rest = text.partition("=")
     name = name.strip().lower()

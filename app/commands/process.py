@@ -4,9 +4,10 @@
                     [--render-illuminant A] [--resolution full|half] [--delivery-settings FILE]
                     [--jobs N | --scheduler ADDRESS] [--json J]
 
-The mode rule (app.workflow.mode_rule) as for ``capture``: without ``--calibration`` each original is delivered
+The mode rule (app.workflow.stand.mode_rule) as for ``capture``: without ``--calibration`` each original is delivered
 with its session's newest calibration of its own mode; with one, originals of the other mode are refused (listed,
-exit 1) unless ``--force``. Every original is one task (app.workflow.redelivery_jobs): in this process, on ``--jobs
+exit 1) unless ``--force``. Every original is one task (app.workflow.delivery.redelivery_jobs): in this process, on
+``--jobs
 N`` local worker processes or on a Dask cluster (``--scheduler``); a line per original as it ends. Every original
 that can be is delivered; those that cannot (a missing or damaged frame, a folder holding another original's
 files, a refused QA) are listed one per line, and the command ends with exit 1 (issue 28). Re-running a killed run
@@ -26,7 +27,7 @@ from dualrgb.app.commands.options import add_render_option, add_resolution_optio
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 if TYPE_CHECKING:
-    from dualrgb.app.workflow.redelivery_jobs import Executor, TaskResult
+    from dualrgb.app.workflow.delivery.redelivery_jobs import Executor, TaskResult
 
 log = logging.getLogger(__name__)
 
@@ -59,7 +60,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.warm_kernels import ensure_ready
-    from dualrgb.app.workflow.redelivery_jobs import RedeliveryOptions, plan_tasks, run_tasks, run_time
+    from dualrgb.app.workflow.delivery.redelivery_jobs import RedeliveryOptions, plan_tasks, run_tasks, run_time
 
     options = RedeliveryOptions(
         calibration=str(args.calibration) if args.calibration else None, out=str(args.out) if args.out else None,
@@ -84,7 +85,7 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _executor(args: argparse.Namespace) -> Executor:
-    from dualrgb.app.workflow.redelivery_jobs import DaskCluster, LocalProcesses, Serial
+    from dualrgb.app.workflow.delivery.redelivery_jobs import DaskCluster, LocalProcesses, Serial
 
     if args.scheduler:
         return DaskCluster(args.scheduler)

@@ -1,4 +1,5 @@
-"""``dualrgb report SESSION``: the session's QA report, one HTML page (app.workflow.session_report): per original a
+"""``dualrgb report SESSION``: the session's QA report, one HTML page (app.workflow.delivery.session_report): per
+original a
 thumbnail, identifier, QA line and grades; per calibration its figures and FADGI / ISO 19264 / Metamorfoze grading.
 
     dualrgb report SESSION [--out FILE] [--json J]
@@ -31,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from dualrgb.app.workflow.session_report import write_report
+    from dualrgb.app.workflow.delivery.session_report import write_report
 
     path, rows = write_report(args.session, args.out)
     bad = [r for r in rows if r.problems]

@@ -143,11 +143,11 @@ def _write(args: argparse.Namespace, result, preset) -> int:
 
 
 def _main_stand(args: argparse.Namespace) -> int:
-    """``--stand CAL.json``: the same search on the stand model (app.workflow.stand_reoptimise)."""
+    """``--stand CAL.json``: the same search on the stand model (app.workflow.calibration.stand_reoptimise)."""
     from dataclasses import replace
 
-    from dualrgb.app.workflow.profile import load_profile
-    from dualrgb.app.workflow.stand_reoptimise import (
+    from dualrgb.app.workflow.calibration.profile import load_profile
+    from dualrgb.app.workflow.calibration.stand_reoptimise import (
         Measurements,
         assemble,
         calibration_lights,
@@ -178,7 +178,7 @@ def _apply_stand(args: argparse.Namespace) -> None:
     """``--stand-dir``: the measured LED spectra and minimum stable level, where not given explicitly."""
     if args.stand_dir is None:
         return
-    from dualrgb.app.workflow.led_stand import load_stand
+    from dualrgb.app.workflow.calibration.led_stand import load_stand
 
     stand = load_stand(args.stand_dir)
     if args.leds_csv is None and stand.leds_csv is not None:

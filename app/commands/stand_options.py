@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING, Any
 
 from dualrgb.app.commands.options import add_world_option, count, frame_size, number, seed
 from dualrgb.app.json_output import HELP as JSON_HELP
-from dualrgb.app.workflow.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE
+from dualrgb.app.workflow.stand.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE
 
 if TYPE_CHECKING:                       # types only: a command imports its devices when it runs (fast --help)
-    from dualrgb.app.protocols import Sphere
-    from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.workflow.device_actions import Place as Stand
+    from dualrgb.core.device_actions import Place as Stand
+    from dualrgb.core.protocols import Sphere
+    from dualrgb.core.session.capture_session import CaptureSession
     from dualrgb.drivers.camera.base import Camera
     from dualrgb.drivers.sample_changer import SampleChanger
 
@@ -103,13 +103,13 @@ class Devices:
 @contextlib.contextmanager
 def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: str | None = None,
                  charts: dict | None = None) -> Iterator[Devices]:
-    """The sphere, the camera and the sample changer by their addresses (app.workflow.stand_devices, shared with
+    """The sphere, the camera and the sample changer by their addresses (app.workflow.stand.stand_devices, shared with
     the GUI); with ``--virtual-lab`` first the lab's (app.lab.process: started here, stopped at the end). LEDs off
     and ports closed on the way out, whatever happens.
 
     The virtual lab shows an original as ``original`` (``--virtual-original``: a virtual original's name, or a
     chart: 'test', 'test+nd' with the ND 2.0 filter over half) and holds ``charts`` (the stand's own, as
-    app.workflow.charts.ChartChoice per role) on its stand."""
+    app.workflow.calibration.charts.ChartChoice per role) on its stand."""
     if args.virtual_lab:
         with lab_addresses(args, mode, original, charts) as addresses:
             yield from _real_devices(argparse.Namespace(**{**vars(args), **addresses}))
@@ -137,8 +137,8 @@ def lab_addresses(args: argparse.Namespace, mode: str, original: str | None = No
 @contextlib.contextmanager
 def real_camera(args: argparse.Namespace) -> Iterator[Camera]:
     """The tethered camera ``args.camera`` ('MODEL @ PORT' or 'auto': the first found), ISO / aperture applied
-    (app.workflow.stand_devices.open_camera, as the GUI opens it)."""
-    from dualrgb.app.workflow.stand_devices import close_camera, open_camera
+    (app.workflow.stand.stand_devices.open_camera, as the GUI opens it)."""
+    from dualrgb.app.workflow.stand.stand_devices import close_camera, open_camera
 
     camera = open_camera(args.camera, args.iso, args.aperture)
     try:
@@ -148,10 +148,10 @@ def real_camera(args: argparse.Namespace) -> Iterator[Camera]:
 
 
 def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
-    """The sphere on ``--port`` (identified and switched off first: app.workflow.stand_devices.open_sphere) and
+    """The sphere on ``--port`` (identified and switched off first: app.workflow.stand.stand_devices.open_sphere) and
     the camera; whatever fails, the light is switched off on the way out (close_sphere) and the error carries a
     note saying what state it is in (read back, never assumed)."""
-    from dualrgb.app.workflow.stand_devices import close_sphere, open_sphere
+    from dualrgb.app.workflow.stand.stand_devices import close_sphere, open_sphere
     from dualrgb.drivers.led_sphere import SphereError
 
     sphere = open_sphere(args.port)
@@ -171,7 +171,7 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
 
 @contextlib.contextmanager
 def _changer(port: str | None) -> Iterator[SampleChanger | None]:
-    from dualrgb.app.workflow.stand_devices import open_changer
+    from dualrgb.app.workflow.stand.stand_devices import open_changer
 
     if not port:
         yield None
@@ -182,7 +182,7 @@ def _changer(port: str | None) -> Iterator[SampleChanger | None]:
 
 
 def _says_light_off(message: str) -> bool:
-    """Whether an error already says the light was switched off (app.workflow.light_safety.restate)."""
+    """Whether an error already says the light was switched off (core.light_safety.restate)."""
     return "switched off" in message
 
 
@@ -194,9 +194,9 @@ def add_session_option(p: argparse.ArgumentParser) -> None:
 
 def open_session(folder: Path | None, definition: dict, camera: Camera, meta: dict | None = None) -> CaptureSession:
     """The session in ``folder``: new, or resumed when it was made with the same ``definition`` and camera
-    (app.workflow.folders.open_session; anything else is refused in one line naming the difference). No
+    (app.workflow.stand.folders.open_session; anything else is refused in one line naming the difference). No
     ``folder``: a new dated session in the captures folder, named on stderr."""
-    from dualrgb.app.workflow.folders import open_session as open_or_make
+    from dualrgb.app.workflow.stand.folders import open_session as open_or_make
 
     session = open_or_make(folder, definition, camera, meta,
                            hint="use the same options and camera, or another --session")
@@ -206,6 +206,6 @@ def open_session(folder: Path | None, definition: dict, camera: Camera, meta: di
 
 
 def reuse_limits(args: argparse.Namespace) -> Any:
-    from dualrgb.app.workflow.profile import ReuseLimits
+    from dualrgb.app.workflow.calibration.profile import ReuseLimits
 
     return ReuseLimits(temperature_drift_c=args.max_temperature_drift, max_age_h=args.max_age_h)

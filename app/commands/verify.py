@@ -1,5 +1,5 @@
 """``dualrgb verify DELIVERY_OR_SESSION``: check delivered files against the size and SHA-256 their sidecars
-recorded when they were written (app.workflow.fixity).
+recorded when they were written (app.workflow.delivery.fixity).
 
     dualrgb verify SESSION/deliverables/ACC-1       one delivery (or its sidecar)
     dualrgb verify SESSION                          every delivery of a session, previous sets included
@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from dualrgb.app.workflow.fixity import verify
+    from dualrgb.app.workflow.delivery.fixity import verify
 
     report = verify(args.path)
     quiet = args.json == "-"

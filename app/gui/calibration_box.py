@@ -1,5 +1,5 @@
 """The current calibration in Calibrate & capture: make it in one run (auto-exposure, darks and flats at every
-planned exposure, the training and test targets, the matrix: app.workflow.copystand.CopyStand.calibrate), show it
+planned exposure, the training and test targets, the matrix: app.workflow.stand.copystand.CopyStand.calibrate), show it
 (age, camera, ISO, lights, target errors), save it elsewhere, load one, and check it against the stand now - a
 mismatch is shown here, in the guide and in Originals before anything is captured.
 """
@@ -31,14 +31,9 @@ from dualrgb.app.gui.stand_options import CalibrationSampling
 from dualrgb.app.gui.viewmodel import calibration_lines
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.lab.targets import LAB_TARGET_WIDTH_MM
-from dualrgb.app.protocols import Session
 from dualrgb.app.sequences.base import ProgressEvent
-from dualrgb.app.workflow.charts import charts_of_profile, load_charts
-from dualrgb.app.workflow.copystand import StandSettings
-from dualrgb.app.workflow.defaults import workflow_defaults
-from dualrgb.app.workflow.engine import Run, RunHooks
-from dualrgb.app.workflow.plans import StandPlanner
-from dualrgb.app.workflow.profile import (
+from dualrgb.app.workflow.calibration.charts import charts_of_profile, load_charts
+from dualrgb.app.workflow.calibration.profile import (
     CalibrationProfile,
     CameraIdentity,
     ReuseLimits,
@@ -46,7 +41,12 @@ from dualrgb.app.workflow.profile import (
     check_reuse,
     load_profile,
 )
-from dualrgb.app.workflow.vocabulary import Role, Subject, role_of
+from dualrgb.app.workflow.stand.copystand import StandSettings
+from dualrgb.app.workflow.stand.defaults import workflow_defaults
+from dualrgb.app.workflow.stand.plans import StandPlanner
+from dualrgb.core.engine import Run, RunHooks
+from dualrgb.core.protocols import Session
+from dualrgb.core.vocabulary import Role, Subject, role_of
 from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)

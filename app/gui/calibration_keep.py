@@ -13,11 +13,11 @@ import logging
 from collections.abc import Sequence
 from typing import Any
 
-from dualrgb.app.protocols import Session
-from dualrgb.app.session.manifest import definition_differences, normalise
-from dualrgb.app.workflow.charts import definition as chart_definition
-from dualrgb.app.workflow.light_safety import LightSafetyError
-from dualrgb.app.workflow.vocabulary import NamedLight, Role, Subject, role_of, subject_of
+from dualrgb.app.workflow.calibration.charts import definition as chart_definition
+from dualrgb.core.light_safety import LightSafetyError
+from dualrgb.core.protocols import Session
+from dualrgb.core.session.manifest import definition_differences, normalise
+from dualrgb.core.vocabulary import NamedLight, Role, Subject, role_of, subject_of
 
 log = logging.getLogger(__name__)
 

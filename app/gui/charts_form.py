@@ -1,6 +1,7 @@
 """The calibration box's *Charts*: per target, the stand's own chart - its reference file (spectral CGATS or CSV),
 its layout (ROWSxCOLS) and the patches to leave out - or nothing for the mode's packaged target. The same choice
-as ``dualrgb calibrate --train-target FILE --train-layout 10x14 --train-leave-out A2,...`` (app.workflow.charts,
+as ``dualrgb calibrate --train-target FILE --train-layout 10x14 --train-leave-out A2,...``
+(app.workflow.calibration.charts,
 which reads the files for both). Only wiring: the choices are kept in the settings.
 """
 from __future__ import annotations
@@ -10,7 +11,7 @@ import logging
 from PySide6.QtWidgets import QFileDialog, QFormLayout, QHBoxLayout, QLineEdit, QPushButton, QWidget
 
 from dualrgb.app.gui.context import AppContext
-from dualrgb.app.workflow.charts import ROLES, ChartChoice
+from dualrgb.app.workflow.calibration.charts import ROLES, ChartChoice
 
 log = logging.getLogger(__name__)
 

@@ -15,9 +15,9 @@ from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.widgets import Asker, ErrorReporter
 from dualrgb.app.gui.workers import TaskRunner
 from dualrgb.app.gui.workspace import Workspace
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.defaults import captures_dir
-from dualrgb.app.workflow.folders import open_session
+from dualrgb.app.workflow.stand.defaults import captures_dir
+from dualrgb.app.workflow.stand.folders import open_session
+from dualrgb.core.session.capture_session import CaptureSession
 
 log = logging.getLogger(__name__)
 
@@ -117,14 +117,14 @@ class AppContext:
 
     @property
     def captures_dir(self) -> Path:
-        """The folder chosen in Devices, else the day's default (app.workflow.defaults.captures_dir: the per-user
+        """The folder chosen in Devices, else the day's default (app.workflow.stand.defaults.captures_dir: the per-user
         data folder, not the settings folder)."""
         return self.path_setting("paths/captures", captures_dir())
 
     # ---- the session rule: starting without one makes one ----
     def with_session(self, then: Callable[[], None], reason: str) -> None:
         """Call ``then`` once there is a session: the current one, or a new dated one made in the captures folder
-        first (app.workflow.folders.open_session, on the devices thread; the status bar and the guide say so).
+        first (app.workflow.stand.folders.open_session, on the devices thread; the status bar and the guide say so).
         Calls arriving while it is being made wait for it."""
         lab = self.lab
         if lab.session is not None:

@@ -1,5 +1,5 @@
 """The day survives a restart: the originals queue and the calibration in use are written into the session folder
-as they change (app.workflow.day_file, atomically, on a writer thread of its own so a busy pool never delays a
+as they change (app.workflow.day.day_file, atomically, on a writer thread of its own so a busy pool never delays a
 save), and on start the last session (dualrgb.ini's ``capture/last_session``) is opened again with its queue and
 calibration, said in one line. Quitting with originals waiting or a run going on asks first."""
 from __future__ import annotations
@@ -12,11 +12,11 @@ from PySide6.QtCore import QObject, QTimer
 from PySide6.QtWidgets import QMessageBox, QWidget
 
 from dualrgb.app.gui.context import AppContext
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.day import OriginalsQueue
-from dualrgb.app.workflow.day_file import day_path, day_rows, read_day, restore_day, restored_line, write_day
-from dualrgb.app.workflow.folders import open_session
-from dualrgb.app.workflow.profile import CalibrationProfile, load_profile
+from dualrgb.app.workflow.calibration.profile import CalibrationProfile, load_profile
+from dualrgb.app.workflow.day.day import OriginalsQueue
+from dualrgb.app.workflow.day.day_file import day_path, day_rows, read_day, restore_day, restored_line, write_day
+from dualrgb.app.workflow.stand.folders import open_session
+from dualrgb.core.session.capture_session import CaptureSession
 
 log = logging.getLogger(__name__)
 

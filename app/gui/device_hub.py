@@ -1,9 +1,9 @@
 """The devices and the capture session the window works with, behind one QObject.
 
 Every device call is submitted to the runner's ``devices`` pool (one thread, in order); results and errors come
-back on the GUI thread as signals. The light is switched only by plans of the run engine (app.workflow.engine):
+back on the GUI thread as signals. The light is switched only by plans of the run engine (core.engine):
 a sequence's run (app.gui.sequence_view), and the light held by hand - the manual light and the framing light
-(app.workflow.light_plans) - run here in the runner's ``light`` pool (``run_light``). The virtual lab is
+(app.workflow.stand.light_plans) - run here in the runner's ``light`` pool (``run_light``). The virtual lab is
 `dualrgb lab serve` started as the window's child process (app.lab.running) on first use of a virtual device; its
 sphere and camera are opened by their addresses like a physical stand's, and its sample changer places what the
 runs ask for. Killing the window leaves its sphere to its own watchdog and on-time limit, as a physical sphere's
@@ -21,12 +21,18 @@ from PySide6.QtCore import QObject, QTimer, Signal
 from dualrgb.app.gui.viewmodel import DoseFeed, light_from_levels
 from dualrgb.app.gui.workers import TaskHandle, TaskRunner
 from dualrgb.app.sequences.base import Sequence
-from dualrgb.app.session.log import SessionLog
-from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE
-from dualrgb.app.workflow.engine import Run, RunEngine, StandDevices, owning
-from dualrgb.app.workflow.light_plans import Dark, HeldLight
-from dualrgb.app.workflow.stand_devices import close_camera, close_sphere, open_camera, open_sphere, stand_definition
+from dualrgb.app.workflow.stand.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE
+from dualrgb.app.workflow.stand.light_plans import Dark, HeldLight
+from dualrgb.app.workflow.stand.stand_devices import (
+    close_camera,
+    close_sphere,
+    open_camera,
+    open_sphere,
+    stand_definition,
+)
 from dualrgb.common.progress import Cancelled
+from dualrgb.core.engine import Run, RunEngine, StandDevices, owning
+from dualrgb.core.session.log import SessionLog
 from dualrgb.drivers.camera.base import Camera
 from dualrgb.drivers.led_sphere import LedSphere, SphereError
 from dualrgb.drivers.led_sphere.driver import DEFAULT_MAX_ON_S
@@ -34,7 +40,7 @@ from dualrgb.simulation.lightsource import LightSource
 
 if TYPE_CHECKING:
     from dualrgb.app.lab.running import RunningLab
-    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.core.session.capture_session import CaptureSession
 
 Device = TypeVar("Device")
 
@@ -62,7 +68,7 @@ def discover_cameras() -> tuple[list[str], list[str]]:
 class Lab(QObject):
     sphereChanged = Signal()
     cameraChanged = Signal()
-    sphereStatus = Signal(object)          # dict: LedSphere.status() plus 'dose' (app.session.light_dose.LightDose)
+    sphereStatus = Signal(object)          # dict: LedSphere.status() plus 'dose' (core.session.light_dose.LightDose)
     sessionChanged = Signal()
     lightApplied = Signal(object)          # LightSource now on the sphere
     virtualLabChanged = Signal()
@@ -256,7 +262,8 @@ class Lab(QObject):
     # ------------------------------------------------------------------ the light, by hand
     def run_light(self, plan: Sequence, title: str, *, on_finished: Callable[[str], None] | None = None,
                   on_error: Callable[[BaseException], None] | None = None) -> TaskHandle | None:
-        """Run a light plan (app.workflow.light_plans) through the run engine on the sphere, in the ``light`` pool;
+        """Run a light plan (app.workflow.stand.light_plans) through the run engine on the sphere, in the ``light``
+        pool;
         ``on_finished(outcome)`` ('done', 'cancelled' or 'failed') on the GUI thread; an error is a dialog titled
         ``title``. :meth:`stop_light` cancels it (within one tick)."""
         sphere = self.sphere
@@ -342,7 +349,7 @@ class Lab(QObject):
 
     def plan_run(self, seq: Sequence, settings: Any) -> Run:
         """A run of one plan on the copy stand's run engine (these devices, the current session; ``settings``: an
-        app.workflow.copystand.StandSettings)."""
+        app.workflow.stand.copystand.StandSettings)."""
         return Run.of(seq, lambda hooks: self.copy_stand(settings, hooks).engine)
 
     # ------------------------------------------------------------------ camera
@@ -392,11 +399,11 @@ class Lab(QObject):
 
     def copy_stand(self, settings: Any, hooks: Any = None, stand_in: str | Mapping[str, str] = "", *,
                    unlit: bool = False) -> Any:
-        """An app.workflow.copystand.CopyStand on these devices and the current session (``hooks``: the
-        callbacks of an app.workflow.engine.Run: progress, cancel, prompts, events, its control); ``unlit``: its
+        """An app.workflow.stand.copystand.CopyStand on these devices and the current session (``hooks``: the
+        callbacks of an core.engine.Run: progress, cancel, prompts, events, its control); ``unlit``: its
         sphere refuses to switch on (a Keep run takes only what the session holds: app.gui.calibration_keep)."""
         from dualrgb.app.gui.calibration_keep import UnlitSphere
-        from dualrgb.app.workflow.copystand import CopyStand
+        from dualrgb.app.workflow.stand.copystand import CopyStand
 
         if self.camera is None or self.sphere is None:
             raise ValueError("connect the LED sphere and the camera in Devices first")
@@ -416,7 +423,7 @@ class Lab(QObject):
         """Virtual lab only: the targets laid too small to be found in its frames (subject key -> PatchGrid, as the
         lab lays them: what a technician would place by hand; app.lab.targets.too_small_to_find); {} otherwise."""
         from dualrgb.app.lab.targets import too_small_to_find
-        from dualrgb.app.workflow.vocabulary import Subject
+        from dualrgb.core.vocabulary import Subject
 
         lab = self.virtual_lab
         if lab is None:
@@ -432,9 +439,9 @@ class Lab(QObject):
 
     # ------------------------------------------------------------------ session
     def session_definition(self) -> dict:
-        """What defines the frames of a session made here (app.session: reopening with anything else is
+        """What defines the frames of a session made here (core.session: reopening with anything else is
         refused, naming the difference): the mode (the virtual lab's when it runs), the camera, its world and image
-        area (app.workflow.stand_devices.stand_definition)."""
+        area (app.workflow.stand.stand_devices.stand_definition)."""
         return stand_definition(self.virtual_lab.mode if self.virtual_lab is not None else self.mode, self.camera)
 
     def set_session(self, session: CaptureSession | None, note: str = "") -> None:

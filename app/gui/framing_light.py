@@ -1,7 +1,7 @@
 """The framing light in the window: a low light while the technician frames and focuses in live view, so the view
 does not go black when a lit period reaches its cap (issue 30).
 
-The light itself is a plan of the run engine (app.workflow.light_plans.FramingLight, run by
+The light itself is a plan of the run engine (app.workflow.stand.light_plans.FramingLight, run by
 app.gui.device_hub.Lab.run_light in the ``light`` pool): it never switches the sphere itself. The rule
 (docs/notes/issue-30-tools.md):
 * level: at most :data:`MAX_FRAMING_LEVEL` (5 %) of full on every LED: the day's first light scaled so that its
@@ -31,7 +31,7 @@ from PySide6.QtWidgets import QCheckBox, QDoubleSpinBox, QGroupBox, QHBoxLayout,
 
 from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.workspace import Workspace
-from dualrgb.app.workflow.light_plans import (
+from dualrgb.app.workflow.stand.light_plans import (
     DEFAULT_FRAMING_LEVEL,
     MAX_FRAMING_LEVEL,
     MAX_FRAMING_S,
@@ -39,7 +39,7 @@ from dualrgb.app.workflow.light_plans import (
     FramingPeriod,
     framing_light,
 )
-from dualrgb.app.workflow.light_plans import FramingLight as FramingPlan
+from dualrgb.app.workflow.stand.light_plans import FramingLight as FramingPlan
 from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)

@@ -3,7 +3,8 @@ with what is done (coverage such as "darks 2/4 exposures", the calibration's age
 warning when something needs attention (a new HDR plan the calibration does not cover, a calibration that does
 not match the stand, a failed original). Clicking a step brings its panel forward.
 
-The state comes from dualrgb.app.workflow.day.day_checklist (Qt-free); this widget only draws it, refreshed (coalesced)
+The state comes from dualrgb.app.workflow.day.day.day_checklist (Qt-free); this widget only draws it, refreshed
+(coalesced)
 whenever the devices, the session, the workspace or a running sequence change.
 """
 from __future__ import annotations
@@ -14,7 +15,7 @@ from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import QFrame, QLabel, QPushButton, QVBoxLayout, QWidget
 
 from dualrgb.app.gui.context import AppContext
-from dualrgb.app.workflow.day import DayState, DayStep, GuideStep, StepState, day_checklist
+from dualrgb.app.workflow.day.day import DayState, DayStep, GuideStep, StepState, day_checklist
 
 log = logging.getLogger(__name__)
 

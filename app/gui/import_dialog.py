@@ -1,7 +1,8 @@
 """*File -> Import raw files...*: ``dualrgb import`` in the window (issue 37), a thin view over the Qt-free import
-(app.workflow.raw_import, import_roles, import_template).
+(app.workflow.raw_import.raw_import, import_roles, import_template).
 
-The folder's files fill the roles table (*Guess roles*: the roles template, app.workflow.import_template; or *Open
+The folder's files fill the roles table (*Guess roles*: the roles template, app.workflow.raw_import.import_template; or
+*Open
 roles file...*: a ROLES.csv); every cell can be edited. *Check* runs every check the command runs (one line per
 problem, below the table; nothing is written); *Import* copies, calibrates and delivers into the session (a new
 dated one in the captures folder unless one is chosen), on the compute thread with progress and Cancel. The preset
@@ -48,7 +49,7 @@ class ImportDialog(QDialog):
         self.setWindowTitle(TITLE)
         self.ctx = ctx
         self.handle: TaskHandle | None = None
-        self.plan = None                       # the last checked plan (app.workflow.raw_import.ImportPlan)
+        self.plan = None                       # the last checked plan (app.workflow.raw_import.raw_import.ImportPlan)
         self.imported = None                   # the last import's ImportResult
         self.header: list[str] = []
         self._build()
@@ -56,7 +57,7 @@ class ImportDialog(QDialog):
 
     # ------------------------------------------------------------------ building
     def _build(self) -> None:
-        from dualrgb.app.workflow.defaults import MODES
+        from dualrgb.app.workflow.stand.defaults import MODES
         from dualrgb.simulation.presets import packaged_presets
 
         self.folder, self.session = QLineEdit(), QLineEdit()
@@ -153,7 +154,7 @@ class ImportDialog(QDialog):
         return [[text(r, c) for c in range(len(self.header))] for r in range(self.table.rowCount())]
 
     def open_roles(self, path: Path) -> None:
-        from dualrgb.app.workflow.import_roles import read_records
+        from dualrgb.app.workflow.raw_import.import_roles import read_records
 
         try:
             records = read_records(path)
@@ -163,7 +164,7 @@ class ImportDialog(QDialog):
         self.set_table(records[0], records[1:])
 
     def guess(self) -> None:
-        from dualrgb.app.workflow.import_template import template_table
+        from dualrgb.app.workflow.raw_import.import_template import template_table
 
         folder = Path(self.folder.text())
         if not self.folder.text().strip() or not folder.is_dir():
@@ -179,8 +180,8 @@ class ImportDialog(QDialog):
     # ------------------------------------------------------------------ check and import
     def settings(self):
         """The import's settings from the window's choices (ValueError, one line, for a bad one)."""
-        from dualrgb.app.workflow.folders import dated_name
-        from dualrgb.app.workflow.import_checks import ImportSettings, corner_grid, parse_corners
+        from dualrgb.app.workflow.raw_import.import_checks import ImportSettings, corner_grid, parse_corners
+        from dualrgb.app.workflow.stand.folders import dated_name
         from dualrgb.simulation.presets import load_preset
 
         preset = load_preset(Path(self.preset.currentData())) if self.preset.currentData() else None
@@ -193,7 +194,7 @@ class ImportDialog(QDialog):
         return ImportSettings(mode, preset, {}, grids, session)
 
     def check(self) -> None:
-        from dualrgb.app.workflow.raw_import import plan_table
+        from dualrgb.app.workflow.raw_import.raw_import import plan_table
 
         try:
             folder, settings = Path(self.folder.text()), self.settings()
@@ -219,7 +220,7 @@ class ImportDialog(QDialog):
             self.message.setText(f"{len(lines)} problem{'s' if len(lines) > 1 else ''}: nothing was written")
 
     def start(self) -> None:
-        from dualrgb.app.workflow.raw_import import ImportOptions, run_import
+        from dualrgb.app.workflow.raw_import.raw_import import ImportOptions, run_import
 
         plan = self.plan
         if plan is None:
@@ -242,7 +243,7 @@ class ImportDialog(QDialog):
         self.ctx.errors.clear(TITLE)
 
     def _failed(self, exc: BaseException) -> None:
-        from dualrgb.app.workflow.import_checks import ImportRefused
+        from dualrgb.app.workflow.raw_import.import_checks import ImportRefused
 
         if isinstance(exc, ImportRefused):
             self.show_problems(exc.lines)

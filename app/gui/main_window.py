@@ -21,7 +21,7 @@ from dualrgb.app.gui.widgets import Asker, ErrorReporter, LogView
 from dualrgb.app.gui.window_menus import WheelGuard, build_menus
 from dualrgb.app.gui.workers import TaskRunner
 from dualrgb.app.gui.workspace import Workspace
-from dualrgb.app.workflow.defaults import VIRTUAL_FRAME_SIZE
+from dualrgb.app.workflow.stand.defaults import VIRTUAL_FRAME_SIZE
 
 log = logging.getLogger(__name__)
 

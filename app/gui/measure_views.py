@@ -41,8 +41,8 @@ from dualrgb.app.lab.csrf_bench import VIRTUAL
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.csrf import CsrfSettings
 from dualrgb.app.workflow.csrf_bench import CORNERSTONE, MANUAL, CsrfBench, CsrfOutcome
-from dualrgb.app.workflow.engine import Run, RunHooks
-from dualrgb.app.workflow.vocabulary import EventKind, Role
+from dualrgb.core.engine import Run, RunHooks
+from dualrgb.core.vocabulary import EventKind, Role
 
 log = logging.getLogger(__name__)
 
@@ -348,7 +348,7 @@ class LedMeasureView(MeasureView):
             self.import_readings([Path(p) for p in paths])
 
     def import_readings(self, paths: list[Path]) -> None:
-        from dualrgb.app.workflow.led_stand import import_readings
+        from dualrgb.app.workflow.calibration.led_stand import import_readings
 
         out = self.out_path()
         self.ctx.runner.submit(lambda: import_readings(list(paths), out), name="import LED readings",

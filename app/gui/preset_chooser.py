@@ -1,8 +1,9 @@
 """The lights of the day (Calibrate & capture): a list of presets, packaged and the technician's own, each with its
 expected captured error, the mode's recommended one marked and chosen unless the technician chose another.
 
-The recommended preset is the one ``dualrgb calibrate`` uses by default (app.workflow.defaults); the figures are
-what ``dualrgb simulate`` reports for those lights (app.workflow.preset_figures), computed off the GUI thread
+The recommended preset is the one ``dualrgb calibrate`` uses by default (app.workflow.stand.defaults); the figures are
+what ``dualrgb simulate`` reports for those lights (app.workflow.calibration.preset_figures), computed off the GUI
+thread
 and filled in when ready. A choice from the list is remembered (for its mode); switching the mode goes back to
 that mode's recommended preset unless one of its own was chosen.
 """
@@ -15,8 +16,8 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QComboBox, QLabel, QVBoxLayout, QWidget
 
 from dualrgb.app.gui.context import AppContext
-from dualrgb.app.workflow.defaults import default_preset_path
-from dualrgb.app.workflow.preset_figures import PresetFigures, figures_of
+from dualrgb.app.workflow.calibration.preset_figures import PresetFigures, figures_of
+from dualrgb.app.workflow.stand.defaults import default_preset_path
 from dualrgb.simulation.presets import Preset, PresetError, load_preset, packaged_presets
 
 log = logging.getLogger(__name__)

@@ -1,10 +1,11 @@
 """Re-deliver a session's originals with another calibration: ``dualrgb process SESSION [--calibration FILE]
 [--force] [--ppi N] [--render-illuminant L] [--resolution full|half]`` in the window (issue 30).
 
-It calls what the command calls (app.workflow.redelivery: ``newest_by_mode`` without a calibration, the mode rule
+It calls what the command calls (app.workflow.delivery.redelivery: ``newest_by_mode`` without a calibration, the mode
+rule
 and ``force`` with one; every original's current deliverables move to its ``previous/`` folder as its new set is
 swapped in) on the compute thread, with progress and Cancel (checked between originals and between the bands of
-one: an original cut short keeps its previous set, app.workflow.delivery_folder.staged). The session is opened
+one: an original cut short keeps its previous set, app.workflow.delivery.delivery_folder.staged). The session is opened
 read-only, as the command does; it does not start while a sequence is writing to the session. The results are
 listed one row per original: delivered (its QA line), not delivered (why) or refused by the mode rule.
 """
@@ -33,8 +34,8 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.stand_options import MAX_PPI, PPI_KEY, given, number_spin, render_combo, resolution_combo
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.gui.workers import TaskHandle
-from dualrgb.app.workflow.delivery import Delivery
-from dualrgb.app.workflow.redelivery import Undelivered
+from dualrgb.app.workflow.delivery.delivery import Delivery
+from dualrgb.app.workflow.delivery.redelivery import Undelivered
 from dualrgb.common.progress import Cancelled, CancelToken, ProgressCallback
 
 log = logging.getLogger(__name__)
@@ -79,9 +80,9 @@ def run_redelivery(request: RedeliveryRequest, current: object, progress: Progre
                    cancel: CancelToken | None) -> RedeliveryResult:
     """The work ``dualrgb process`` does (app.commands.process.main without the printing); on the compute
     thread. ``current``: the window's calibration (a CalibrationProfile) when ``request.use_current``."""
-    from dualrgb.app.workflow.folders import open_session
-    from dualrgb.app.workflow.profile import CalibrationProfile, load_profile
-    from dualrgb.app.workflow.redelivery import newest_by_mode, redeliver
+    from dualrgb.app.workflow.calibration.profile import CalibrationProfile, load_profile
+    from dualrgb.app.workflow.delivery.redelivery import newest_by_mode, redeliver
+    from dualrgb.app.workflow.stand.folders import open_session
 
     profiles: CalibrationProfile | dict[str, CalibrationProfile]
     out = RedeliveryResult()

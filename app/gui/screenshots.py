@@ -17,7 +17,7 @@ from PySide6.QtCore import QBuffer, QIODevice, QObject, QTimer
 from PySide6.QtWidgets import QApplication
 
 from dualrgb.app.gui.screenshot_tools import tool_steps
-from dualrgb.app.workflow.day import OriginalState
+from dualrgb.app.workflow.day.day import OriginalState
 from dualrgb.common.atomic_files import atomic_write
 
 log = logging.getLogger(__name__)

@@ -1,8 +1,8 @@
-"""Running one capture sequence (app.sequences contract) or a whole CopyStand call (app.workflow.engine.Run) from
+"""Running one capture sequence (app.sequences contract) or a whole CopyStand call (core.engine.Run) from
 the GUI: its plan (frames and estimated time; frames already in the session ticked), a progress bar with time
 left, pause / resume, cancel, 'continue' for steps that need a person, and the last frame saved.
 
-The run is executed by the run engine (app.workflow.engine.Run.execute) in the runner's ``sequences`` thread; every
+The run is executed by the run engine (core.engine.Run.execute) in the runner's ``sequences`` thread; every
 ProgressEvent comes back as a queued signal. A 'prompt' event pauses the run in the worker before it is shown, so
 the next step waits for Continue. Starting a run ends the light held by hand (the manual and the framing light);
 the engine starts the run from dark and ends it with the light off (read back).
@@ -34,9 +34,9 @@ from dualrgb.app.gui.units import shutter, time_left_s
 from dualrgb.app.gui.viewmodel import format_duration
 from dualrgb.app.gui.workers import TaskHandle
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
-from dualrgb.app.workflow.engine import RUN_PROGRESS
-from dualrgb.app.workflow.engine import Run as EngineRun
-from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.core.engine import RUN_PROGRESS
+from dualrgb.core.engine import Run as EngineRun
+from dualrgb.core.vocabulary import EventKind
 from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)

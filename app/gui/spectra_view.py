@@ -1,6 +1,6 @@
 """Spectra in the GUI: a plot of factor spectra (estimated against reference, or one pixel's), and the delivered
 original's view (its cube rendered under a chosen light; a click shows that pixel's spectrum from the delivered
-cube). Wiring only: the cube is read and rendered by app.workflow.delivered_view, in the compute pool."""
+cube). Wiring only: the cube is read and rendered by app.workflow.delivery.delivered_view, in the compute pool."""
 from __future__ import annotations
 
 import logging
@@ -16,7 +16,7 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.widgets import image_widget, plot_widget
 
 if TYPE_CHECKING:                                   # imported where a cube is opened: the GUI starts fast
-    from dualrgb.app.workflow.delivered_view import DeliveredView as Cube
+    from dualrgb.app.workflow.delivery.delivered_view import DeliveredView as Cube
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +64,7 @@ class DeliveredView(QWidget):
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
-        from dualrgb.app.workflow.delivered_view import render_lights
+        from dualrgb.app.workflow.delivery.delivered_view import render_lights
 
         self.ctx = ctx
         self.view: Cube | None = None
@@ -100,7 +100,7 @@ class DeliveredView(QWidget):
 
     def show_delivery(self, sidecar: Path | None) -> None:
         """Load the delivered cube of ``sidecar`` in the compute pool and show it."""
-        from dualrgb.app.workflow.delivered_view import open_delivered
+        from dualrgb.app.workflow.delivery.delivered_view import open_delivered
 
         if sidecar is None:
             return

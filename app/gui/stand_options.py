@@ -3,8 +3,8 @@ deliverables' sampling (``capture`` / ``process --ppi``), the calibration's samp
 ``--target-width-mm``) and the resolution (``--resolution full|half``).
 
 Each is a widget whose value is remembered in the GUI's settings (``dualrgb.ini``, key under ``options/``) and is
-handed to the workflow through the same fields of app.workflow.copystand.StandSettings (and the same arguments of
-app.workflow.redelivery.redeliver) that the CLI fills from its options: nothing here interprets them.
+handed to the workflow through the same fields of app.workflow.stand.copystand.StandSettings (and the same arguments of
+app.workflow.delivery.redelivery.redeliver) that the CLI fills from its options: nothing here interprets them.
 """
 from __future__ import annotations
 
@@ -140,11 +140,11 @@ class CalibrationSampling(QWidget):
     def measured(self, lights: Any = ()) -> StandModel | None:
         """The stand model the fit starts from (None: nominal), read and checked now (ValueError naming the
         file); LEDs of ``lights`` set below the stand folder's minimum stable level are logged as warnings."""
-        from dualrgb.app.workflow.stand_reoptimise import measured_start
+        from dualrgb.app.workflow.calibration.stand_reoptimise import measured_start
 
         camera, stand = self.camera_csv.text().strip(), self.stand_dir.text().strip()
         if stand:
-            from dualrgb.app.workflow.led_stand import load_stand, unstable_levels
+            from dualrgb.app.workflow.calibration.led_stand import load_stand, unstable_levels
 
             for line in unstable_levels(lights, load_stand(stand)):
                 log.warning("%s", line)

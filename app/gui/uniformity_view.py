@@ -1,5 +1,6 @@
 """The open gate's light field from the flats of one light, as percent of its mean over a block grid
-(app.workflow.frame_checks.flat_uniformity, the illuminance non-uniformity metric of app.processing.quality):
+(app.workflow.calibration.frame_checks.flat_uniformity, the illuminance non-uniformity metric of
+app.processing.quality):
 what the flat field divides out, so a hot spot or a vignetted corner is seen before the targets are shot."""
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QPushButton, QVBox
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.units import shutter, with_unit
 from dualrgb.app.gui.widgets import image_widget
-from dualrgb.app.workflow.frame_checks import UniformityMap, flat_uniformity
+from dualrgb.app.workflow.calibration.frame_checks import UniformityMap, flat_uniformity
 
 log = logging.getLogger(__name__)
 

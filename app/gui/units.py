@@ -6,8 +6,8 @@ import math
 import re
 from collections.abc import Sequence
 
-from dualrgb.app.workflow.vocabulary import format_exposure
 from dualrgb.common.formatting import format_level, format_temperature
+from dualrgb.core.vocabulary import format_exposure
 from dualrgb.simulation.lightsource import LightSource
 
 NBSP = "\u00a0"          # between a number and its unit: a wrapping label never splits "90 %"

@@ -15,8 +15,8 @@ import numpy as np
 
 from dualrgb.app.gui.units import dn, light_pct, percent, shutters
 from dualrgb.app.processing.hdr import LINEAR_LIMIT_DN  # the one linear limit (thesis 4.1), used everywhere
-from dualrgb.app.session.light_dose import LightDose
 from dualrgb.common.formatting import format_duration  # noqa: F401 - one formatting, shared with the CLI
+from dualrgb.core.session.light_dose import LightDose
 from dualrgb.simulation.lightsource import LightSource
 
 
@@ -67,7 +67,7 @@ def raw_histogram(planes: dict[str, np.ndarray], white_level: float, linear_limi
 
 
 class DoseFeed:
-    """Feeds app.session.light_dose.LightDose from the panel's status polls (levels and light switch as the sphere
+    """Feeds core.session.light_dose.LightDose from the panel's status polls (levels and light switch as the sphere
     reports them): the light shown between two polls is counted for the time between them."""
 
     def __init__(self) -> None:
@@ -100,7 +100,7 @@ def display_rgb(linear: np.ndarray, full_scale: float | None = None, gamma: floa
 @dataclass
 class RawView:
     """One raw frame as the panels show it: picture, DN histogram, what the camera recorded, and its check (dark,
-    clipped: app.workflow.frame_checks)."""
+    clipped: app.workflow.calibration.frame_checks)."""
 
     image: np.ndarray                  # (H/2, W/2, 3) uint8
     histogram: RawHistogram
@@ -108,12 +108,12 @@ class RawView:
     exposure_s: float | None
     iso: float | None
     camera: str
-    check: Any = None                  # app.workflow.frame_checks.FrameCheck
+    check: Any = None                  # app.workflow.calibration.frame_checks.FrameCheck
 
 
 def raw_view(path) -> RawView:
     """Load a raw file (drivers.raw) and make its picture and DN histogram (run in a worker)."""
-    from dualrgb.app.workflow.frame_checks import check_frame
+    from dualrgb.app.workflow.calibration.frame_checks import check_frame
     from dualrgb.drivers.raw import load_raw, superpixel
 
     frame = load_raw(path)

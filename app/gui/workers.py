@@ -9,8 +9,8 @@ Four pools keep the work apart:
 * ``devices``   one thread: every device call from the panels that is not a run (connect, status, camera
                 settings, live view), in order (gphoto2 is not re-entrant);
 * ``compute``   one thread: simulations, processing, figure data;
-* ``sequences`` one thread: the runs of the run engine (app.workflow.engine.Run.execute), one at a time;
-* ``light``     one thread: the light held by hand (app.workflow.light_plans: the manual and the framing light),
+* ``sequences`` one thread: the runs of the run engine (core.engine.Run.execute), one at a time;
+* ``light``     one thread: the light held by hand (app.workflow.stand.light_plans: the manual and the framing light),
                 a run of the engine too; a state more than work: ``busy()`` without a pool leaves it out. The
                 engine lets one run at a time act on a device, so a sequence starting waits for it to end.
 """

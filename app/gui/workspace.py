@@ -13,11 +13,11 @@ from PySide6.QtCore import QObject, Signal
 
 from dualrgb.app.gui.units import light_pct
 from dualrgb.app.processing.patches import PatchGrid
-from dualrgb.app.protocols import Session
-from dualrgb.app.workflow.day import OriginalsQueue
-from dualrgb.app.workflow.plans import calibration_exposures
-from dualrgb.app.workflow.profile import CalibrationProfile, ReuseCheck
-from dualrgb.app.workflow.vocabulary import NamedLight
+from dualrgb.app.workflow.calibration.profile import CalibrationProfile, ReuseCheck
+from dualrgb.app.workflow.day.day import OriginalsQueue
+from dualrgb.app.workflow.stand.plans import calibration_exposures
+from dualrgb.core.protocols import Session
+from dualrgb.core.vocabulary import NamedLight
 from dualrgb.simulation.lightsource import N_SPHERE_LEDS
 
 log = logging.getLogger(__name__)
@@ -83,7 +83,7 @@ class Workspace(QObject):
     def planned_exposures(self, session: Session | None) -> dict[str, list[float]]:
         """Per light: every exposure the captures use (the base exposures, HDR brackets, a running calibration's
         plan, the current calibration's exposures for these lights, what the session holds): what darks and flats
-        must cover (app.workflow.plans)."""
+        must cover (app.workflow.stand.plans)."""
         base = {n: [t] for n, t in self.base_exposures.items()}
         made = self.calibration.exposures if self.calibration is not None else {}
         for plan in (self.run_plan, made):

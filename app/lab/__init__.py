@@ -1,5 +1,5 @@
 """The virtual lab's front-end side: what the `dualrgb lab` commands, the `--virtual-lab` shorthand, the window
-and the demo use, and nothing of the production workflow (app.workflow, app.processing, app.session,
+and the demo use, and nothing of the production workflow (app.workflow, app.processing, core.session,
 app.sequences) ever imports (tests/test_layers.py holds it).
 
 * :mod:`app.lab.process` - `dualrgb lab serve` as a child process, its instruments' addresses;

@@ -1,7 +1,7 @@
 """The LED measurement on the virtual lab (`dualrgb measure leds --virtual-lab`, the window's *Measure the LEDs*,
 the stand study): the sequence (app.sequences.led_measurement) run on an in-process lab with the virtual
 spectroradiometer on a skippable clock (an hour of warm-up takes moments), its files read back like a real
-instrument's and analysed by the production path (app.workflow.led_stand).
+instrument's and analysed by the production path (app.workflow.calibration.led_stand).
 """
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from dualrgb.app.workflow.led_stand import StandMeasurement, analyse, write_stand
+from dualrgb.app.workflow.calibration.led_stand import StandMeasurement, analyse, write_stand
 
 if TYPE_CHECKING:
     from dualrgb.app.sequences.led_measurement import LedMeasurementPlan
@@ -28,9 +28,9 @@ def measure_virtual(out_dir: str | Path, world: str | Path | World | None = None
     moments), read the instrument's files back like a real instrument's, analyse, and write the stand folder
     ``out_dir`` (instrument files under ``readings/``)."""
     from dualrgb.app.sequences.led_measurement import LedMeasurement
-    from dualrgb.app.workflow.engine import RunEngine, StandDevices
-    from dualrgb.app.workflow.led_readings import read_readings
+    from dualrgb.app.workflow.calibration.led_readings import read_readings
     from dualrgb.common.progress import report
+    from dualrgb.core.engine import RunEngine, StandDevices
     from dualrgb.drivers.virtual.clock import SkippableClock
     from dualrgb.drivers.virtual.lab import VirtualLab
     from dualrgb.drivers.virtual.spectroradiometer import VirtualSpectroradiometer

@@ -44,7 +44,7 @@ class RunningLab:
         self.charts: dict[str, Chart] = {}
 
     def start(self) -> RunningLab:
-        from dualrgb.app.workflow.stand_devices import open_changer
+        from dualrgb.app.workflow.stand.stand_devices import open_changer
 
         self.addresses = self.process.start() if self.process is not None else self._serve_here()
         try:

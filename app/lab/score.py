@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from dualrgb.app.lab.truth import assess, original_truth, qa_text
-from dualrgb.app.session.paths import deliverable
+from dualrgb.core.session.paths import deliverable
 
 log = logging.getLogger(__name__)
 
@@ -67,8 +67,8 @@ def delivered(session: Path) -> dict[str, dict[str, Any]]:
 
 def score_original(identifier: str, sidecar: Path, shown_as: str | None = None) -> OriginalScore:
     """One delivery (its sidecar) against the virtual original ``shown_as`` (None: the mode's)."""
-    from dualrgb.app.workflow.delivery_folder import read_sidecar
-    from dualrgb.app.workflow.profile import load_profile
+    from dualrgb.app.workflow.calibration.profile import load_profile
+    from dualrgb.app.workflow.delivery.delivery_folder import read_sidecar
 
     doc = read_sidecar(sidecar)
     mode = str((doc.get("original") or {}).get("mode") or "reflective")

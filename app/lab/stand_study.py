@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from dualrgb.app.workflow.profile import CalibrationProfile
+from dualrgb.app.workflow.calibration.profile import CalibrationProfile
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report, scaled
 from dualrgb.simulation.capture_model import CaptureModel
 from dualrgb.simulation.presets import Preset
@@ -55,7 +55,7 @@ class StandStudyConfig:
     mode: str = "reflective"
     frame_size: tuple[int, int] = (600, 400)
     seeds: tuple[int, ...] = (0, 1, 2)
-    preset: str | None = None                 # the nominal preset (default: the mode's, app.workflow.defaults)
+    preset: str | None = None                 # the nominal preset (default: the mode's, app.workflow.stand.defaults)
     csrf_step_nm: float = 10.0
     csrf_frame_size: tuple[int, int] = (240, 160)
     compare: tuple[str, ...] = ("mismatched-d700",)   # worlds where every model is compared (module docstring)
@@ -118,8 +118,8 @@ def calibrate_in_world(cfg: StandStudyConfig, world: str, preset: Preset, seed: 
                        folder: Path) -> CalibrationProfile:
     """A calibration (``hdr off``) in ``world`` with ``preset``'s lights, in session ``folder``."""
     from dualrgb.app.lab.targets import LAB_TARGET_WIDTH_MM
-    from dualrgb.app.workflow.copystand import CopyStand, StandSettings
-    from dualrgb.app.workflow.folders import open_session
+    from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
+    from dualrgb.app.workflow.stand.folders import open_session
     from dualrgb.drivers.virtual.clock import SkippableClock
     from dualrgb.drivers.virtual.lab import VirtualLab
     from dualrgb.drivers.virtual.world import load_world
@@ -144,8 +144,8 @@ def calibrate_in_world(cfg: StandStudyConfig, world: str, preset: Preset, seed: 
 def measure_camera(cfg: StandStudyConfig, world: str, folder: Path) -> Path:
     """The camera CSV the monochromator sweep measures in ``world`` (thesis 4.2)."""
     from dualrgb.app.sequences.csrf import CsrfSettings
-    from dualrgb.app.workflow.csrf import measure_csrf
-    from dualrgb.app.workflow.folders import open_session
+    from dualrgb.app.workflow.calibration.csrf import measure_csrf
+    from dualrgb.app.workflow.stand.folders import open_session
     from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench
     from dualrgb.simulation.radiance_reference import read_radiance_reference
 
@@ -193,7 +193,7 @@ def lights_of(profile: CalibrationProfile) -> np.ndarray:
 
 def calibration_capture(profile: CalibrationProfile) -> CaptureModel:
     """The expected-captured model of the profile's calibration (its patch sizes and frame counts)."""
-    from dualrgb.app.workflow.stand_calibration import calibration_capture as capture_of
+    from dualrgb.app.workflow.calibration.stand_calibration import calibration_capture as capture_of
 
     c = profile.stand.get("capture") or {}
     return capture_of(profile.mode, np.array([c.get("train_pixels", 56)]), np.array([c.get("test_pixels", 462)]),
@@ -267,10 +267,11 @@ def preset_of(lights: np.ndarray, name: str, mode: str) -> Preset:
 
 def reoptimised_lights(models: dict[str, StandModel], mode: str, incumbent: Any = None,
                        progress: ProgressCallback | None = None) -> dict[str, np.ndarray]:
-    """The lights (L, n_leds) re-optimised on each model (app.workflow.stand_reoptimise.reoptimise: the default
+    """The lights (L, n_leds) re-optimised on each model (app.workflow.calibration.stand_reoptimise.reoptimise: the
+    default
     optimiser and objective on the model's sphere, the calibration's lights ``incumbent`` kept where nothing
     better is found, as ``simulate --stand`` does), keyed 're-optimised: <model>'."""
-    from dualrgb.app.workflow.stand_reoptimise import reoptimise
+    from dualrgb.app.workflow.calibration.stand_reoptimise import reoptimise
 
     out = {}
     for i, (name, model) in enumerate(models.items()):
@@ -302,7 +303,7 @@ def capture_lights(cfg: StandStudyConfig, world: str, lights: dict[str, np.ndarr
 
 def nominal_preset(cfg: StandStudyConfig) -> Preset:
     """The study's nominal preset: ``cfg.preset`` (a packaged name or a file), else the mode's default."""
-    from dualrgb.app.workflow.defaults import default_preset_name
+    from dualrgb.app.workflow.stand.defaults import default_preset_name
     from dualrgb.simulation.presets import load_preset, packaged_presets
 
     name = cfg.preset or default_preset_name(cfg.mode)
@@ -314,7 +315,7 @@ def nominal_preset(cfg: StandStudyConfig) -> Preset:
 def world_study(cfg: StandStudyConfig, name: str, folder: Path, progress: ProgressCallback | None = None,
                 cancel: CancelToken | None = None) -> WorldStudy:
     """The study (module docstring) in one world, its sessions and measurements in ``folder``."""
-    from dualrgb.app.workflow.stand_reoptimise import Measurements, assemble, calibration_lights
+    from dualrgb.app.workflow.calibration.stand_reoptimise import Measurements, assemble, calibration_lights
     from dualrgb.drivers.virtual.world import load_world
 
     t0, world, preset = time.perf_counter(), load_world(name), nominal_preset(cfg)

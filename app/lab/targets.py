@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dualrgb.app.processing.patches import PatchGrid
-from dualrgb.app.workflow.targets import NdFilter, TargetSpec, target_spec
-from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.app.workflow.calibration.targets import NdFilter, TargetSpec, target_spec
+from dualrgb.core.vocabulary import Subject
 
 if TYPE_CHECKING:
     from dualrgb.drivers.virtual.lab import VirtualLab
@@ -86,7 +86,7 @@ def virtual_target_spec(lab: VirtualLab, subject: Subject, *, grid: PatchGrid | 
                         method: str | None = None, chart: Chart | None = None, find: bool = False) -> TargetSpec:
     """A target captured in the in-process lab ``lab`` (the demo's study): the lab's scene gives its ND filter's
     transmittance and, unless ``find`` (the patches found in the image as on a physical stand), the grid; the rest
-    is the production path (app.workflow.targets.target_spec)."""
+    is the production path (app.workflow.calibration.targets.target_spec)."""
     scene = lab.scene_for(subject.name, nd=subject.nd)
     placed = None if find else grid or scene_grid(scene)
     return target_spec(lab.mode, subject, placed, label=label, method=method, chart=chart,
@@ -94,9 +94,10 @@ def virtual_target_spec(lab: VirtualLab, subject: Subject, *, grid: PatchGrid | 
 
 
 def chart_reader(mode: str) -> Callable[[str, str, str, str], Any]:
-    """What the lab's sample changer's CHART request reads a chart with (app.workflow.charts, as calibrate)."""
+    """What the lab's sample changer's CHART request reads a chart with (app.workflow.calibration.charts, as
+    calibrate)."""
     def read(role: str, layout: str, leave_out: str, file: str):
-        from dualrgb.app.workflow.charts import ChartChoice, load_charts
+        from dualrgb.app.workflow.calibration.charts import ChartChoice, load_charts
 
         return load_charts({role: ChartChoice(file, layout, leave_out)}, mode)[role].render_target()
     return read

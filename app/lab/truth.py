@@ -63,7 +63,7 @@ def original_truth(name: str, height: int, width: int, mode: str = "reflective")
     """The truth of virtual original ``name`` in a ``width`` x ``height`` frame; its spectra on the mode's grid
     (simulation.defaults: the grid the calibration's spectral estimate delivers by default; a cube on other bands
     is compared on those, :meth:`OriginalTruth.on_wavelengths`)."""
-    from dualrgb.app.workflow.targets import reference_white
+    from dualrgb.app.workflow.calibration.targets import reference_white
     from dualrgb.drivers.virtual.originals import ground_truth_xyz
 
     spectral = _spectral_truth(name, height, width, default_grid(mode))

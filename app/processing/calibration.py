@@ -141,7 +141,7 @@ class MasterDark:
 
     ``add(exposure_s, frames)`` builds one from N dark mosaics; ``get(exposure_s)`` returns the float32 mosaic
     for an exposure time (matched within 2 %); ``put(frame)`` adds one made earlier (a calibration profile
-    keeps them, app.workflow.profile, so darks are shot once per setting).
+    keeps them, app.workflow.calibration.profile, so darks are shot once per setting).
     """
 
     def __init__(self) -> None:

@@ -265,7 +265,7 @@ class Characterisation:
     """Every fitted model with its per-patch (and per-pixel) errors; ``best`` is the delivered one, chosen on the
     training target (``selection``); test errors are reported, never used to choose. ``condition_number``: of the
     captured training values (simulation.colour_models.condition_number), the figure the plan checked before
-    the light (app.workflow.preflight.check_conditioning) from the camera model."""
+    the light (app.workflow.stand.preflight.check_conditioning) from the camera model."""
 
     results: dict[str, MethodResult]
     white: np.ndarray

@@ -30,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from dualrgb.app.protocols import Session
-from dualrgb.app.workflow.vocabulary import Role, exposure_key, format_exposure
+from dualrgb.core.protocols import Session
+from dualrgb.core.vocabulary import Role, exposure_key, format_exposure
 from dualrgb.drivers.raw import RawFrame, load_raw
 from dualrgb.simulation.datasets import CAMERA_UNCERTAINTY_COLUMNS
 from dualrgb.simulation.radiance_reference import RadianceReference

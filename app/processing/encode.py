@@ -6,7 +6,7 @@ x 6 float32 stack. In numpy each step (matrix, adaptation, clip, the piecewise p
 encoding, rounding, casting) is a separate pass with temporaries, and colour-science's encoding functions alone
 took longer than decoding the raw files (bench/digitise_bench.py). One numba pass reads the stack once and writes
 each output once, a row at a time in short loops over the pixels that vectorise (0.15 CPU-s for 24 MP where a
-loop per pixel took 0.5 s; same bits), into row bands that app.workflow.delivery streams to the files while
+loop per pixel took 0.5 s; same bits), into row bands that app.workflow.delivery.delivery streams to the files while
 the next band is encoded (:class:`DeliveryEncoder`). A full-resolution original's rows are demosaiced in the same
 pass (:meth:`DeliveryEncoder.encode_mosaic`): each row's channel planes are made and encoded while in the cache,
 so no N-channel float band is written and read (24 MP: the demosaic and encodings 0.51 CPU-s, against 0.23 +
@@ -299,7 +299,8 @@ def band_source(stack: np.ndarray | None, r0: int, rows: int, band: np.ndarray |
 
 class DeliveryEncoder:
     """The delivery encodings of one (H, W, N) float32 image with the characterisation model, row band by row
-    band (app.workflow.delivery streams each band to the files while the next one is encoded); the QA counts add
+    band (app.workflow.delivery.delivery streams each band to the files while the next one is encoded); the QA counts
+    add
     up over the bands. ``stack``: the whole image, or its (H, W, N) shape when each ``encode`` call brings its
     band. ``matrix``: (N, 3) for a linear model (``degree`` 1), (T, 3) for the T root-polynomial terms of
     ``degree`` 2 or 3 (simulation.colour_models), applied to every pixel."""

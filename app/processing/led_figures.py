@@ -1,4 +1,5 @@
-"""Figures of a stand measurement (app.workflow.led_stand): each LED's level -> output curve near the bottom,
+"""Figures of a stand measurement (app.workflow.calibration.led_stand): each LED's level -> output curve near the
+bottom,
 and its peak shift against time on (thesis Fig 4.10), measured points with the fitted models."""
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ lights' RGBs side by side (R1 G1 B1 R2 G2 B2 ...), one row band at a time.
 
 Memory: the exposures as LibRaw decoded them (2 bytes per pixel each, no copy) and a few row bands; the master
 darks and whites are read one band at a time (from the calibration's file when it keeps them there:
-app.workflow.profile maps large calibrations instead of loading them), so memory grows with the band and the
+app.workflow.calibration.profile maps large calibrations instead of loading them), so memory grows with the band and the
 number of exposures, not with the frame's float images. Nothing frame-sized is computed before the delivery
 asks for its first band (the half-resolution path, app.processing.pipeline.StackBuilder, merges each exposure
 as it lands instead).
@@ -80,7 +80,8 @@ def check_resolution(value: str) -> str:
 
 def band_of(array: np.ndarray, y0: int, y1: int, buffers: dict, key: str) -> np.ndarray:
     """Rows ``y0`` .. ``y1`` of a frame-size calibration array: a view of one in memory; of one mapped from its
-    file (np.memmap: app.workflow.profile maps large calibrations) read into a reused buffer, so its pages are
+    file (np.memmap: app.workflow.calibration.profile maps large calibrations) read into a reused buffer, so its pages
+    are
     never mapped into the process and memory stays one band (a view of the map would keep every page read)."""
     if not isinstance(array, np.memmap) or not array.filename:
         return array[y0:y1]

@@ -14,7 +14,7 @@ LittleCMS' built-in sRGB that Pillow's ImageCms creates is v4.4, so none comes f
     * the linear XYZ master: :func:`xyz_icc`, the same kind of profile with X/Xn, Y/Yn, Z/Zn as its "R, G, B"
       (colorants the Bradford adaptation of the reference white to D50; linear curves), so an RGB TIFF of XYZ is
       read by colour-managed software as the colours it holds - in LittleCMS's default path too;
-    * the camera-RGB masters: :func:`camera_icc`, a linear input profile (app.workflow.camera_profiles).
+    * the camera-RGB masters: :func:`camera_icc`, a linear input profile (app.workflow.delivery.camera_profiles).
 
 XMP
     An XMP packet (tag 700) with Dublin Core ``dc:identifier`` / ``dc:title`` / ``dc:description`` (the exact
@@ -159,7 +159,8 @@ def camera_icc(matrix: np.ndarray, white_xyz: Sequence[float], linear_one: float
     flat field's white): linear curves, colorants ``matrix`` (3, 3) (row c: the XYZ, on the calibration's scale,
     of channel c at 1.0) relative to ``white_xyz`` and adapted to the D50 PCS (Bradford).
 
-    It is an approximation (app.workflow.camera_profiles says how the 3x3 is fitted): the calibrated colours are
+    It is an approximation (app.workflow.delivery.camera_profiles says how the 3x3 is fitted): the calibrated colours
+    are
     in the XYZ and RGB masters; this only keeps colour-managed software from showing linear camera data as sRGB."""
     white = np.asarray(white_xyz, dtype=float)
     M = _bradford(white / white[1], ICC_D50) @ (np.asarray(matrix, dtype=float).T / white[1])
@@ -259,7 +260,7 @@ def tiff_datetime(when: datetime | None = None) -> str:
 
 
 _XML_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*")
-# XML 1.0 Char: tab, LF, CR, U+0020-U+D7FF, U+E000-U+FFFD, U+10000-U+10FFFF (app.workflow.metadata refuses these
+# XML 1.0 Char: tab, LF, CR, U+0020-U+D7FF, U+E000-U+FFFD, U+10000-U+10FFFF (core.metadata refuses these
 # and more before anything is captured; this is the last guard, so no packet is ever ill-formed)
 _NOT_XML_CHAR = re.compile("[^\t\n\r\u0020-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
 

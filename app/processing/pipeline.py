@@ -19,7 +19,7 @@ API for the sequences and the demo::
     stack = proc.stack({"light 1": [ExposureRef(...), ...], "light 2": [...]})  # ChannelStack
     train = grid.sample(stack.data)                                          # PatchGrid -> PatchValues
 
-A whole session (frames grouped by subject and light) is processed by app.workflow.session_processing.
+A whole session (frames grouped by subject and light) is processed by app.workflow.calibration.session_processing.
 """
 from __future__ import annotations
 

@@ -120,7 +120,7 @@ def _spectral_rows(stack, r0, M, off, lo, hi, scale, ignore, wts, m_rgb, lut, cu
 
 
 class SpectralEncoder:
-    """The cube and the rendering of one (H, W, N) float32 stack, row band by row band (app.workflow.delivery
+    """The cube and the rendering of one (H, W, N) float32 stack, row band by row band (app.workflow.delivery.delivery
     streams each band while the next is encoded).
 
     ``matrix`` (n_wl, N), ``offset`` (n_wl,; None: none) and ``bounds``: the spectral estimator's map and clip;

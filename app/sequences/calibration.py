@@ -16,10 +16,10 @@ import numpy as np
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
-from dualrgb.app.workflow.light_safety import StandFacts
-from dualrgb.app.workflow.messages import Place, PlanSteps, ReadBack, ReadFrame, Shot
-from dualrgb.app.workflow.vocabulary import NamedLight, Role, step_id
 from dualrgb.common.formatting import format_exposure
+from dualrgb.core.light_safety import StandFacts
+from dualrgb.core.messages import Place, PlanSteps, ReadBack, ReadFrame, Shot
+from dualrgb.core.vocabulary import NamedLight, Role, step_id
 from dualrgb.drivers.raw import RawFrame
 
 log = logging.getLogger(__name__)

@@ -7,10 +7,10 @@ from collections.abc import Mapping, Sequence
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
-from dualrgb.app.workflow.light_safety import StandFacts
-from dualrgb.app.workflow.messages import Place, PlanSteps, Shot
-from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Subject, step_id
 from dualrgb.common.formatting import format_exposure
+from dualrgb.core.light_safety import StandFacts
+from dualrgb.core.messages import Place, PlanSteps, Shot
+from dualrgb.core.vocabulary import EventKind, NamedLight, Subject, step_id
 
 log = logging.getLogger(__name__)
 

@@ -15,9 +15,9 @@ import numpy as np
 from dualrgb.app.processing.crf_analysis import CrfResult, analyse_crf
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
-from dualrgb.app.workflow.light_safety import StandFacts
-from dualrgb.app.workflow.messages import Place, PlanSteps, ReadFrame, Shot
-from dualrgb.app.workflow.vocabulary import EventKind, exposure_key
+from dualrgb.core.light_safety import StandFacts
+from dualrgb.core.messages import Place, PlanSteps, ReadFrame, Shot
+from dualrgb.core.vocabulary import EventKind, exposure_key
 from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)

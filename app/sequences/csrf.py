@@ -2,7 +2,7 @@
 frames, then darks at every exposure the sweep used.
 
     seq = CsrfSweep(engine.facts, CsrfSettings(380, 780, 10))
-    engine.run_plan(seq)                 # app.workflow.engine; a hand-set monochromator's prompts go to ``prompt``
+    engine.run_plan(seq)                 # core.engine; a hand-set monochromator's prompts go to ``prompt``
     seq.exposures                        # wavelength -> exposure
 
 Per wavelength: the monochromator is set (a Tune message; the engine asks the person first for a
@@ -12,7 +12,7 @@ converge_exposure, the auto-exposure of the calibration; snapped down to a full 
 least half of it, and never clipped), then ``frames`` frames are taken. After the sweep the shutter is closed and
 ``dark_frames`` darks are taken at every exposure used (exposures are only known once metered; one closed-shutter
 period, one prompt for a hand-set instrument). Light safety: the shutter is opened for each exposure and closed as
-soon as the camera reports it over, before the download (a ShutterShot: app.workflow.shutter_shooter); on every
+soon as the camera reports it over, before the download (a ShutterShot: core.shutter_shooter); on every
 error, cancel and at the end the engine closes it. Every frame is in the session before the next step; a resumed
 sweep skips wavelengths already done.
 """
@@ -27,9 +27,9 @@ from typing import Any
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
 from dualrgb.app.sequences.calibration import LINEAR_LIMIT_DN, converge_exposure, metered_level, snap_down
-from dualrgb.app.workflow.light_safety import StandFacts
-from dualrgb.app.workflow.messages import CloseShutter, Entries, Instrument, PlanSteps, ReadFrame, ShutterShot, Tune
-from dualrgb.app.workflow.vocabulary import EventKind, Role, format_exposure, monochromatic_light, step_id
+from dualrgb.core.light_safety import StandFacts
+from dualrgb.core.messages import CloseShutter, Entries, Instrument, PlanSteps, ReadFrame, ShutterShot, Tune
+from dualrgb.core.vocabulary import EventKind, Role, format_exposure, monochromatic_light, step_id
 
 log = logging.getLogger(__name__)
 

@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dualrgb.app.sequences.calibration import LINEAR_LIMIT_DN, snap_down
-from dualrgb.app.workflow.light_safety import StandFacts
-from dualrgb.app.workflow.messages import Checkpoint, Place, PlanSteps, ProgressEvent, ReadFrame, Shot
-from dualrgb.app.workflow.vocabulary import NamedLight, Role, Subject, step_id
+from dualrgb.core.light_safety import StandFacts
+from dualrgb.core.messages import Checkpoint, Place, PlanSteps, ProgressEvent, ReadFrame, Shot
+from dualrgb.core.vocabulary import NamedLight, Role, Subject, step_id
 from dualrgb.drivers.raw import RawFrame
 
 log = logging.getLogger(__name__)
@@ -104,7 +104,7 @@ def meter_and_plan(facts: StandFacts, lights: Sequence[NamedLight], base_exposur
     """A plan answering each light's HDR plan: one metering frame per light at its open-gate exposure (kept in the
     session, role 'metering'), then ``plan_hdr`` for each; checkpoints between lights (the engine switches the
     light off after the plan). Darks and flats can then be taken at the planned exposures before the bracket itself
-    is shot with app.sequences.capture.SubjectCapture (app.workflow.metering.HdrMetering wraps this as a plan)."""
+    is shot with app.sequences.capture.SubjectCapture (app.workflow.stand.metering.HdrMetering wraps this as a plan)."""
     plans: dict[str, HdrPlan] = {}
     yield Place(subject.place, subject.nd, f"Place the {subject.label}, then continue")
     for i, nl in enumerate(lights):

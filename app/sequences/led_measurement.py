@@ -13,11 +13,12 @@ apply is stated before anything is switched on (the first event) and holds on ev
   cancel or any error (``_cleanup``: the driver's ``ensure_off``).
 
 The plan holds no device: it yields messages (SetLight, LightOn with its cap, Wait, Measure, LightOff,
-SaveReadings) and the run engine (app.workflow.engine) applies them. Time passes through Wait: on the virtual lab
+SaveReadings) and the run engine (core.engine) applies them. Time passes through Wait: on the virtual lab
 the engine moves the emulator's clock (its ``sleep`` is the clock's skip: the drift model on its own clock, never
 a wall-clock wait); on a real stand it sleeps. Either way the sphere hears from the host at least every
 ``KEEPALIVE_S`` (its watchdog). Each LED's readings are written by the instrument as one series
-(``levels_LED<n>`` / ``warmup_LED<n>``, a spectral CSV and a CGATS .ti3; app.workflow.led_readings names them).
+(``levels_LED<n>`` / ``warmup_LED<n>``, a spectral CSV and a CGATS .ti3; app.workflow.calibration.led_readings names
+them).
 """
 from __future__ import annotations
 
@@ -29,8 +30,8 @@ from pathlib import Path
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.base import Sequence as BaseSequence
-from dualrgb.app.workflow.led_readings import level_id, warmup_id
-from dualrgb.app.workflow.messages import (
+from dualrgb.app.workflow.calibration.led_readings import level_id, warmup_id
+from dualrgb.core.messages import (
     LightOff,
     LightOn,
     Measure,
@@ -39,7 +40,7 @@ from dualrgb.app.workflow.messages import (
     SetLight,
     Wait,
 )
-from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.core.vocabulary import EventKind
 from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)

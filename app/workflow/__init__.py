@@ -1,12 +1,15 @@
-"""The copy-stand workflow (Qt-free): the one layer the GUI, the CLI and the demo call.
+"""The copy-stand workflow (Qt-free): the one layer the GUI, the CLI and the demo call, split by subject.
 
-* :mod:`app.workflow.vocabulary` - roles, subjects, light names, step ids, event kinds (and old sessions' strings);
-* :mod:`app.workflow.targets` - colour targets: reference XYZ (with the stand's ND filter), TargetSpec;
-* :mod:`app.workflow.coverage` - which exposures have darks and flats ("darks 2/4 exposures");
-* :mod:`app.workflow.session_processing` - a session's frames grouped by subject and light, processed;
-* :mod:`app.workflow.profile` - the calibration profile (versioned JSON + .npz) and its reuse checks;
-* :mod:`app.workflow.delivery` - the deliverables of an original (TIFFs with tags, ICC and XMP, sidecar, QA);
-* :mod:`app.workflow.copystand` - :class:`CopyStand`: calibrate once, capture and deliver many originals.
+* :mod:`app.workflow.stand` - the devices opened, sessions made, the rules before the light, and
+  :class:`~app.workflow.stand.copystand.CopyStand`: calibrate once, capture and deliver many originals;
+* :mod:`app.workflow.calibration` - the profile (checked on every load and reuse), the targets and the stand's own
+  charts, the one processing path of a session's frames, the stand model;
+* :mod:`app.workflow.delivery` - the deliverables of an original (masters, sidecar, fixity), re-delivery, bags;
+* :mod:`app.workflow.day` - the day's queue and the day file that brings a session back after a restart;
+* :mod:`app.workflow.raw_import` - raw files shot by another program, checked, copied and delivered.
+
+Below it, :mod:`core` holds the vocabulary (roles, subjects, light names, step ids), the run engine (the only code
+that acts on a device), the light-on rule, the device protocols and the capture session.
 
 Import the submodules themselves; this package imports nothing so its vocabulary stays cheap to load.
 """

@@ -1,6 +1,7 @@
 """Where ``dualrgb measure csrf`` and the GUI's *Measure the camera* run on a real bench: the devices (a camera with
 a Cornerstone on a serial port, or a monochromator set by hand), the session and the radiance reference (a file, or
-a function that measures it after the sweep). The measurement itself is app.workflow.csrf.measure_csrf; the CLI
+a function that measures it after the sweep). The measurement itself is app.workflow.calibration.csrf.measure_csrf; the
+CLI
 and the GUI differ only in how they ask the person (``prompt``) and show progress (``on_event``). The virtual lab's
 bench is a front end's (app.lab.csrf_bench), which calls :func:`measure_on_bench` with its own devices.
 """
@@ -15,12 +16,12 @@ from typing import TYPE_CHECKING, Any
 
 from dualrgb.app.sequences.base import ProgressEvent
 from dualrgb.app.sequences.csrf import CsrfSettings
-from dualrgb.app.workflow.csrf import CsrfMeasurement, measure_csrf
+from dualrgb.app.workflow.calibration.csrf import CsrfMeasurement, measure_csrf
 from dualrgb.common.progress import CancelToken
 from dualrgb.simulation.radiance_reference import RadianceReference
 
 if TYPE_CHECKING:
-    from dualrgb.app.protocols import Monochromator
+    from dualrgb.core.protocols import Monochromator
     from dualrgb.drivers.camera.base import Camera
 
 log = logging.getLogger(__name__)
@@ -79,7 +80,7 @@ def measure_on_bench(camera: Camera, mono: Monochromator, settings: CsrfSettings
     write the camera CSV ``out``. ``radiance``: the monochromator's radiance reference, or a function that measures
     it after the sweep (at the sweep's wavelengths); ``definition``: what else defines the session (a bench's
     identity)."""
-    from dualrgb.app.workflow.folders import open_session
+    from dualrgb.app.workflow.stand.folders import open_session
 
     if radiance is None:
         raise ValueError("a real monochromator needs its radiance: a spectroradiometer file, or a photodiode's "

@@ -2,7 +2,7 @@
 
 A capture has two phases, so that the light can go off as soon as the shutter has closed, before the slow
 download: :meth:`Camera.expose` returns once the exposure is over (an :class:`Exposure`), :meth:`Camera.fetch`
-then downloads that frame (a :class:`RawCapture`: the raw file's bytes and name; the caller, app.session, writes
+then downloads that frame (a :class:`RawCapture`: the raw file's bytes and name; the caller, core.session, writes
 them to disk first thing, so nothing downloaded is held only in memory for long). ``capture()`` does both.
 
 Camera calls can hang (USB, a camera busy in its menus): :func:`call_with_deadline` runs one on a helper thread

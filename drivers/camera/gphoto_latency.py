@@ -1,6 +1,6 @@
 """Measure a camera's latency: how long after the end of an exposure :meth:`Camera.expose` returns.
 
-That is the time the light must be allowed beyond settle + exposure (app.workflow.light_safety.SafetySettings): a
+That is the time the light must be allowed beyond settle + exposure (core.light_safety.SafetySettings): a
 camera slower than its allowance gets every frame rejected (the light is cut before the camera reported the
 shutter closed). Run it once on the copy stand, lens cap on (no light is switched on; the frames are downloaded
 and discarded, and deleted from the card):

@@ -13,7 +13,7 @@
   spectroradiometer_server.py: ``MEAS?`` reads what the sphere emits now) on ``socket://``.
 
 ``read_chart(role, layout, leave_out, file)``: how the sample changer's ``CHART`` request reads a chart's reference
-file into the target the lab renders (`dualrgb lab serve` gives app.workflow.charts' reader).
+file into the target the lab renders (`dualrgb lab serve` gives app.workflow.calibration.charts' reader).
 
 ``light_record``: a file where every lit period of the sphere is written as JSON lines: ``{"event": "on", "t_on",
 "levels"}`` when it begins and ``{"event": "off", "t_on", "t_off", "levels", "ended_by"}`` when it ends (times on

@@ -1,6 +1,6 @@
 """The virtual spectroradiometer on a serial transport of its own (drivers.virtual.line_server), so `dualrgb lab
 serve` serves it beside the sphere: a minimal line protocol of the lab's (no physical instrument's; a real one's
-readings come into dualrgb as the files it writes, app.workflow.led_readings), one reply line per request:
+readings come into dualrgb as the files it writes, app.workflow.calibration.led_readings), one reply line per request:
 
 * ``IDN?`` -> ``OK IDN <model> <version> <serial>``
 * ``RANGE?`` -> ``OK RANGE <start_nm> <end_nm> <step_nm>``

@@ -13,7 +13,7 @@ simulation.studies.noise (patch means), and the captured training error is set a
 
 Conditioning (``conditioning``, per mode): the condition number of each of the 630 binned pairs at full level
 (simulation.colour_models.condition_number, on the training reflectances) beside its expected per-pixel test error,
-the evidence for the limits the calibration refuses and warns at (app.workflow.preflight.CONDITION_LIMIT / _WARN).
+the evidence for the limits the calibration refuses and warns at (app.workflow.stand.preflight.CONDITION_LIMIT / _WARN).
 
 The worked example is the transmissive full-intensity pair (2, 5, 9) + (2, 6, 9): the best noise-free choice
 (0.45 dE00) shares LEDs 2 and 9 between its lights, so its six channels are nearly collinear, the fitted matrix

@@ -31,8 +31,8 @@ from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
 from dualrgb.app.processing.pipeline import ChannelStack
-from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
-from dualrgb.app.workflow.delivery_settings import DeliverySettings
+from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
+from dualrgb.app.workflow.delivery.delivery_settings import DeliverySettings
 
 INSTITUTION = dict(creator=("Example Museum, Imaging Studio",), rights="CC BY 4.0, Example Museum")
 QUALITY = {"measured": {"colour_mean_de00": 0.8},
@@ -204,7 +204,7 @@ def test_a_rendering_that_would_not_be_written_is_refused_before_the_light(tmp_p
 
 
 def test_delivery_settings_are_checked_naming_file_and_key(tmp_path):
-    from dualrgb.app.workflow.delivery_settings import load
+    from dualrgb.app.workflow.delivery.delivery_settings import load
 
     f = tmp_path / "delivery.toml"
     f.write_text('[delivery]\nmasters = ["eciRGB v3"]\n')

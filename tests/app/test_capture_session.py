@@ -1,4 +1,4 @@
-"""dualrgb.app.session: durable writes, manifest, resume, verify, SIGKILL mid-writes and disk-full behaviour."""
+"""dualrgb.core.session: durable writes, manifest, resume, verify, SIGKILL mid-writes and disk-full behaviour."""
 from __future__ import annotations
 
 import errno
@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from dualrgb.app.session import capture_session as session_mod
-from dualrgb.app.session.capture_session import MANIFEST, CaptureSession
-from dualrgb.app.session.manifest import SessionError
+from dualrgb.core.session import capture_session as session_mod
+from dualrgb.core.session.capture_session import MANIFEST, CaptureSession
+from dualrgb.core.session.manifest import SessionError
 from dualrgb.drivers.camera.base import RawCapture
 from dualrgb.simulation.lightsource import LightSource
 
@@ -142,7 +142,7 @@ def test_disk_full_while_appending_manifest(tmp_path, monkeypatch):
 WRITER = textwrap.dedent("""
     import sys
     sys.path.insert(0, {root!r})
-    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.core.session.capture_session import CaptureSession
     from dualrgb.drivers.camera.base import RawCapture
     s = CaptureSession.open({path!r})
     i = 0

@@ -13,7 +13,7 @@ from chart_frames import CHARTS, POSE, chart, shoot
 from dualrgb.app.processing.chart_detect import ChartNotFound, detect_chart
 from dualrgb.app.processing.placement import fit_residual
 from dualrgb.app.processing.scanin import ScaninUnavailable, patch_index, scanin_grid, template_for
-from dualrgb.app.workflow.targets import reference_xyz
+from dualrgb.app.workflow.calibration.targets import reference_xyz
 from dualrgb.drivers.virtual.chart_pose import ChartPose
 from dualrgb.simulation.chart_geometry import classic24, digital_sg, geometry_of, it8
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from dualrgb.app.processing.patches import PatchGrid
-from dualrgb.app.workflow.charts import ChartChoice, load_charts
-from dualrgb.app.workflow.targets import load_grid, target_spec
-from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.app.workflow.calibration.charts import ChartChoice, load_charts
+from dualrgb.app.workflow.calibration.targets import load_grid, target_spec
+from dualrgb.core.vocabulary import Subject
 
 CHARTS = Path(__file__).resolve().parents[1] / "data" / "charts"
 
@@ -47,7 +47,7 @@ def test_a_chart_without_grid_is_found_later_and_a_wrong_grid_refused(charts):
 
 
 def test_corners_place_the_chart_from_its_geometry(tmp_path, charts):
-    from dualrgb.app.workflow.targets import corners_grid, parse_corners
+    from dualrgb.app.workflow.calibration.targets import corners_grid, parse_corners
 
     sensor = parse_corners("100,60,500,60,500,340,100,340")
     assert sensor.tolist() == [[100, 60], [500, 60], [500, 340], [100, 340]]

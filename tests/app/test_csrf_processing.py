@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from dualrgb.app.processing.csrf import compute_csrf, session_signals, write_camera_csv
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.session.manifest import DamagedFramesError
-from dualrgb.app.workflow.vocabulary import Role, monochromatic_light, step_id
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.session.manifest import DamagedFramesError
+from dualrgb.core.vocabulary import Role, monochromatic_light, step_id
 from dualrgb.drivers.camera.base import RawCapture
 from dualrgb.drivers.virtual.dng import DngInfo, dng_bytes
 from dualrgb.simulation.datasets import load_camera

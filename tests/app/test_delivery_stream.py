@@ -25,7 +25,7 @@ from dualrgb.app.processing.outputs import (
     xyz_to_rgb_matrix,
 )
 from dualrgb.app.processing.pipeline import ChannelStack
-from dualrgb.app.workflow.deliverables import deliverable_files
+from dualrgb.app.workflow.delivery.deliverables import deliverable_files
 from dualrgb.common.atomic_files import FileWriteError
 
 D65 = [95.047, 100.0, 108.883]
@@ -118,14 +118,14 @@ def test_streamed_tiff_is_byte_for_byte_tifffiles(tmp_path, direct, shape, band_
 def test_delivered_files_are_the_old_paths_byte_for_byte(tmp_path):
     """Before streaming, deliver encoded whole arrays and wrote each with tifffile.imwrite (outputs.tiff_kwargs
     holds those arguments): same pixels, tags, XMP and ICC (no EXIF here: it follows the pixels, tested apart)."""
-    from dualrgb.app.workflow import delivery
-    from dualrgb.app.workflow.camera_profiles import camera_rgb_icc
+    from dualrgb.app.workflow.delivery import delivery
+    from dualrgb.app.workflow.delivery.camera_profiles import camera_rgb_icc
 
     prof = _profile(tmp_path)
     iccs = {s: icc_profile(s) for s in RGB_SPACES}                  # the profiles carry their creation time
     iccs.update(XYZ=xyz_icc(prof.white_xyz), camera=camera_rgb_icc(prof, 0, "P light 1"))
 
-    class Context:                          # what app.workflow.master_metadata.MasterContext gives the writer
+    class Context:                          # what app.workflow.delivery.master_metadata.MasterContext gives the writer
         def meta(self, im):
             return META
 
@@ -180,7 +180,7 @@ def test_a_write_failing_mid_stream_keeps_the_previous_file_and_names_it(tmp_pat
 def test_a_failed_delivery_leaves_no_partial_deliverable(tmp_path, monkeypatch):
     """The files of a delivery are written into a fresh folder and swapped in only when all are complete: a disk
     filling up mid-delivery leaves no folder for the original (and no staging folder) behind."""
-    from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
 
     prof = _profile(tmp_path)
     stack = ChannelStack(np.full((300, 200, 3), 0.5, np.float32), ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})
@@ -192,7 +192,7 @@ def test_a_failed_delivery_leaves_no_partial_deliverable(tmp_path, monkeypatch):
 
 @pytest.mark.fault("session integrity")
 def test_a_failed_redelivery_keeps_the_previous_set_untouched(tmp_path, monkeypatch):
-    from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
 
     prof = _profile(tmp_path)
     stack = ChannelStack(np.full((300, 200, 3), 0.5, np.float32), ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})

@@ -11,12 +11,12 @@ from typing import Any
 
 from workflow_profiles import make_profile
 
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.copystand import CopyStand, StandSettings
-from dualrgb.app.workflow.engine import RunEngine, StandDevices
-from dualrgb.app.workflow.light_plans import Dark, FramingLight, HeldLight, framing_light
-from dualrgb.app.workflow.metadata import Original
-from dualrgb.app.workflow.vocabulary import NamedLight
+from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
+from dualrgb.app.workflow.stand.light_plans import Dark, FramingLight, HeldLight, framing_light
+from dualrgb.core.engine import RunEngine, StandDevices
+from dualrgb.core.metadata import Original
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.vocabulary import NamedLight
 from dualrgb.drivers.virtual.lab import VirtualLab
 from dualrgb.simulation.lightsource import LightSource
 

@@ -22,8 +22,8 @@ from sidecar_schema import assert_valid_sidecar
 from spectral_profiles import spectral_profile, stack
 
 from dualrgb.app.cli import main
-from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
-from dualrgb.app.workflow.delivery_settings import DeliverySettings
+from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
+from dualrgb.app.workflow.delivery.delivery_settings import DeliverySettings
 
 
 def full(s):
@@ -218,7 +218,7 @@ def test_a_full_disk_while_bagging_leaves_nothing_and_says_so(delivered, tmp_pat
     """Issue 38: ENOSPC in the middle of the copies: exit 1, one line, no bag and no partial folder."""
     import errno
 
-    from dualrgb.app.workflow import bagging
+    from dualrgb.app.workflow.delivery import bagging
 
     _, d = delivered
     calls = {"n": 0}

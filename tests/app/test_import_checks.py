@@ -1,4 +1,5 @@
-"""What an import checks before it writes anything (app.workflow.import_checks, raw_import.plan_import): each problem
+"""What an import checks before it writes anything (app.workflow.raw_import.import_checks, raw_import.plan_import):
+each problem
 one line naming the file or the roles file's row, all at once, and nothing written (the tree compared before and
 after). Small DNGs (tests/app/import_folders.py) and the real public files of tests/data/raw."""
 from __future__ import annotations
@@ -9,9 +10,9 @@ from pathlib import Path
 import pytest
 from import_folders import SHOTS, T1, make_folder, shoot, tree, write_rows
 
-from dualrgb.app.workflow.import_checks import ImportRefused, ImportSettings, corner_grid
-from dualrgb.app.workflow.import_roles import read_roles
-from dualrgb.app.workflow.raw_import import plan_import
+from dualrgb.app.workflow.raw_import.import_checks import ImportRefused, ImportSettings, corner_grid
+from dualrgb.app.workflow.raw_import.import_roles import read_roles
+from dualrgb.app.workflow.raw_import.raw_import import plan_import
 from dualrgb.simulation.presets import load_preset, packaged_presets
 
 RAW = Path(__file__).resolve().parents[1] / "data" / "raw"
@@ -145,7 +146,7 @@ def test_a_folder_that_holds_other_files_is_no_session(tmp_path):
 def test_no_grid_is_needed_before_writing_the_charts_are_found_in_their_frames(tmp_path):
     """Without corners the targets' specs carry no grid: the calibration finds every chart in its frames
     (app.processing.chart_detect), so the checks before writing ask for none (issue 36)."""
-    from dualrgb.app.workflow.import_checks import ImportSettings, target_specs
+    from dualrgb.app.workflow.raw_import.import_checks import ImportSettings, target_specs
 
     specs, problems = target_specs(ImportSettings("reflective", grids={}, session=tmp_path / "session"))
     assert problems == [] and {n: s.grid for n, s in specs.items()} == {"train": None, "test": None}

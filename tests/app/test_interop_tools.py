@@ -24,7 +24,7 @@ from workflow_profiles import make_profile
 
 from dualrgb.app.processing.outputs import icc_profile, xyz_icc
 from dualrgb.app.processing.pipeline import ChannelStack
-from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
 
 TITLE = "Stillleben mit Äpfeln – 静物"
 

@@ -160,7 +160,8 @@ def test_demosaicing_while_encoding_is_the_banded_path_bit_for_bit(scene, cfa, b
 
 
 def test_calibration_arrays_mapped_from_a_file_give_the_same_bands(scene, tmp_path):
-    """A large calibration's darks and whites are np.memmap views of the .npz (app.workflow.profile_arrays): the
+    """A large calibration's darks and whites are np.memmap views of the .npz
+    (app.workflow.calibration.profile_arrays): the
     bands read from the file equal the bands of the arrays in memory."""
     dark, frames, whites = scene
     maps, mapped_whites = {}, {}
@@ -221,8 +222,8 @@ def test_a_full_resolution_delivery_has_the_raw_frames_size(tmp_path):
     from synthetic_frames import write_dng
     from workflow_profiles import make_profile
 
-    from dualrgb.app.workflow.copystand import channels_of, profile_processor
-    from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.stand.copystand import channels_of, profile_processor
 
     prof = make_profile(tmp_path / "cal", shape=(24, 36))      # one light
     rng = np.random.default_rng(4)

@@ -17,10 +17,10 @@ from workflow_profiles import make_profile
 from xmp_check import EXIFTOOL, NO_EXIFTOOL, exiftool_text, read_xmp
 
 from dualrgb.app.processing.pipeline import ChannelStack
-from dualrgb.app.workflow.delivery import LightDoseRecord, deliver, read_sidecar
-from dualrgb.app.workflow.delivery_folder import PREVIOUS, DeliveryFolderError, previous_sets
-from dualrgb.app.workflow.metadata import MetadataError, Original, ascii_text, file_stem, xmp_property
-from dualrgb.app.workflow.vocabulary import Role, Subject, split_take, step_id
+from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, deliver, read_sidecar
+from dualrgb.app.workflow.delivery.delivery_folder import PREVIOUS, DeliveryFolderError, previous_sets
+from dualrgb.core.metadata import MetadataError, Original, ascii_text, file_stem, xmp_property
+from dualrgb.core.vocabulary import Role, Subject, split_take, step_id
 
 # (identifier, title, operator, notes, ImageDescription's ASCII rendering of "<identifier> - <title>")
 WORLD = [
@@ -249,7 +249,7 @@ def test_identifiers_cannot_break_step_ids_or_subject_keys(ident):
 
 
 def test_frames_of_acc_and_acc_slash_1_are_not_mixed():
-    from dualrgb.app.workflow.copystand import original_dose
+    from dualrgb.app.workflow.stand.copystand import original_dose
 
     def dose(ident, on_s):
         sid = step_id(Role.ORIGINAL, subject=Subject.original(ident), light="L light 1", exposure_s=0.5)

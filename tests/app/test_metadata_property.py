@@ -16,14 +16,14 @@ from workflow_profiles import make_profile
 from xmp_check import read_xmp
 
 from dualrgb.app.processing.pipeline import ChannelStack
-from dualrgb.app.workflow.delivery import (
+from dualrgb.app.workflow.delivery.delivery import (
     LightDoseRecord,
     deliver,
     exact_description,
     image_description,
     read_sidecar,
 )
-from dualrgb.app.workflow.metadata import FIELD_RULES, MetadataError, Original
+from dualrgb.core.metadata import FIELD_RULES, MetadataError, Original
 
 NASTY = ["\x00", "\x01", "\t", "\n", "\r", "\r\n", "\x0b", "\x0c", "\x1f", "\x7f", "\x85", "\u00a0", "\u200b",
          "\u200d", "\u2028", "\u2029", "\ufeff", "\ufffe", "\uffff", "\ud800", "\udfff", "\U0010ffff", "\ufdd0",

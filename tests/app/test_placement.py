@@ -9,7 +9,7 @@ from chart_frames import POSE, chart, shoot
 
 from dualrgb.app.processing.chart_detect import grid_on
 from dualrgb.app.processing.placement import PlacementError, check_placement, placement_figure
-from dualrgb.app.workflow.targets import reference_xyz
+from dualrgb.app.workflow.calibration.targets import reference_xyz
 from dualrgb.simulation.chart_geometry import geometry_of
 
 

@@ -11,11 +11,11 @@ from synthetic_frames import dark_frames, expose, mosaic_scene, vignette, write_
 
 from dualrgb.app.processing.mosaic import mosaic_from_rgb
 from dualrgb.app.processing.patches import PatchGrid
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.session_processing import process_session
-from dualrgb.app.workflow.targets import TargetSpec
-from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.app.workflow.calibration.session_processing import process_session
+from dualrgb.app.workflow.calibration.targets import TargetSpec
 from dualrgb.common.progress import Cancelled, CancelToken
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.vocabulary import Subject
 from dualrgb.drivers.camera.base import RawCapture
 from dualrgb.simulation.camera_model import channel_responses
 from dualrgb.simulation.datasets import default_setup
@@ -144,7 +144,7 @@ def test_cancel_stops_processing(session_dir, tmp_path):
 def test_partly_filled_last_grid_row_is_accepted_and_a_wrong_grid_is_not():
     from dualrgb.app.processing.patches import PatchGrid
     from dualrgb.app.processing.pipeline import ChannelStack
-    from dualrgb.app.workflow.session_processing import sample_target
+    from dualrgb.app.workflow.calibration.session_processing import sample_target
 
     class FakeProcessor:
         def stack(self, scenes, progress=None, cancel=None):

@@ -11,8 +11,8 @@ from workflow_profiles import make_profile
 
 from dualrgb import resources
 from dualrgb.app.processing.spectral import SpectralInputs, characterise_spectra, fitted_gain, model_sensitivities
-from dualrgb.app.workflow.profile import ProfileError, describe, load_profile
-from dualrgb.app.workflow.profile_check import seal
+from dualrgb.app.workflow.calibration.profile import ProfileError, describe, load_profile
+from dualrgb.app.workflow.calibration.profile_check import seal
 from dualrgb.simulation.datasets import default_setup
 from dualrgb.simulation.presets import load_preset
 from dualrgb.simulation.spectral_estimation import SpectralEstimator

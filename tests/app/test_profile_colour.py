@@ -1,11 +1,12 @@
-"""`calibration show`'s colour lines (app.workflow.profile_colour): the delivered model and why, the models' table with
+"""`calibration show`'s colour lines (app.workflow.calibration.profile_colour): the delivered model and why, the
+models' table with
 the root-polynomials, the per-pixel figures beside the patch means; a profile made before says so."""
 from __future__ import annotations
 
 import numpy as np
 
 from dualrgb.app.processing.characterise import characterise
-from dualrgb.app.workflow.profile_colour import colour_lines
+from dualrgb.app.workflow.calibration.profile_colour import colour_lines
 from dualrgb.simulation.datasets import default_setup
 from dualrgb.simulation.lightsource import LightSource
 from dualrgb.simulation.objective import PatchSet

@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 from queue_rows import BAD, good_identifiers, write_queue_csv
 
-from dualrgb.app.workflow.day import OriginalsQueue
-from dualrgb.app.workflow.metadata import Original, xmp_property
-from dualrgb.app.workflow.queue_csv import column_option, read_queue_csv
+from dualrgb.app.workflow.day.day import OriginalsQueue
+from dualrgb.app.workflow.day.queue_csv import column_option, read_queue_csv
+from dualrgb.core.metadata import Original, xmp_property
 
 ROOT = Path(__file__).resolve().parents[2]
 COLUMNS = {"identifier": "Inventarnummer"}

@@ -9,10 +9,10 @@ from types import SimpleNamespace
 
 import pytest
 
-from dualrgb.app.workflow.metadata import Original
-from dualrgb.app.workflow.mode_rule import ModeMismatch, check_mode
-from dualrgb.app.workflow.queue_csv import read_queue_csv
-from dualrgb.app.workflow.queue_plan import KEPT, REFUSED, SHOOT, plan_queue
+from dualrgb.app.workflow.day.queue_csv import read_queue_csv
+from dualrgb.app.workflow.day.queue_plan import KEPT, REFUSED, SHOOT, plan_queue
+from dualrgb.app.workflow.stand.mode_rule import ModeMismatch, check_mode
+from dualrgb.core.metadata import Original
 
 PROFILE = SimpleNamespace(mode="reflective", id="cal-1")
 

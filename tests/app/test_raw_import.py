@@ -1,4 +1,5 @@
-"""app.workflow.raw_import run whole on small DNGs whose targets show their charts' patches: the session it makes,
+"""app.workflow.raw_import.raw_import run whole on small DNGs whose targets show their charts' patches: the session it
+makes,
 an import run again into it (resumed: nothing copied twice), a file changed after its check, the roles template, the
 linear limit of another camera."""
 from __future__ import annotations
@@ -10,11 +11,11 @@ from pathlib import Path
 import pytest
 from import_folders import PATCHED, corners, make_folder, tree
 
-from dualrgb.app.workflow.import_checks import ImportRefused, ImportSettings, corner_grid, parse_corners
-from dualrgb.app.workflow.import_roles import read_roles
-from dualrgb.app.workflow.import_session import check_copy
-from dualrgb.app.workflow.import_template import template_table
-from dualrgb.app.workflow.raw_import import ImportOptions, linear_limit, plan_import, run_import
+from dualrgb.app.workflow.raw_import.import_checks import ImportRefused, ImportSettings, corner_grid, parse_corners
+from dualrgb.app.workflow.raw_import.import_roles import read_roles
+from dualrgb.app.workflow.raw_import.import_session import check_copy
+from dualrgb.app.workflow.raw_import.import_template import template_table
+from dualrgb.app.workflow.raw_import.raw_import import ImportOptions, linear_limit, plan_import, run_import
 
 RAW = Path(__file__).resolve().parents[1] / "data" / "raw"
 

@@ -1,10 +1,10 @@
-"""The session lock (app.session.lock) through filelock: shared within a process, released by the last holder,
+"""The session lock (core.session.lock) through filelock: shared within a process, released by the last holder,
 and safe against a CaptureSession's finaliser run by a garbage collection inside the lock's own bookkeeping."""
 from __future__ import annotations
 
 import threading
 
-from dualrgb.app.session import lock
+from dualrgb.core.session import lock
 
 
 def test_shared_within_the_process_and_released_by_the_last(tmp_path):

@@ -1,12 +1,12 @@
-"""dualrgb.app.session.log: each session folder gets session.log with the app's records while it was open."""
+"""dualrgb.core.session.log: each session folder gets session.log with the app's records while it was open."""
 from __future__ import annotations
 
 import logging
 
 import pytest
 
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.session.log import LOG_NAME, SessionLog
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.session.log import LOG_NAME, SessionLog
 
 log = logging.getLogger("dualrgb.app.test_session_log")
 

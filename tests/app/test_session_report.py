@@ -15,7 +15,7 @@ from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
 from dualrgb.app.processing.pipeline import ChannelStack
-from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
 
 QUALITY = {"measured": {"colour_mean_de00": 0.81, "colour_max_de00": 2.4},
            "grading": {"FADGI 4-star": {"verdict": "pass (measured criteria)", "scope": "colour accuracy only",

@@ -10,7 +10,7 @@ import jsonschema
 from session_schema import SCHEMA_FILE, problems, session_problems, session_schema
 
 from dualrgb import resources
-from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.core.session.capture_session import CaptureSession
 
 
 def test_the_schema_is_packaged_and_valid():

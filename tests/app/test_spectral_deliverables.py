@@ -19,7 +19,7 @@ from dualrgb.app.processing import tiff_stream
 from dualrgb.app.processing.envi import IGNORE_VALUE, SCALE_FACTOR, open_cube, read_header
 from dualrgb.app.processing.render import check_illuminant, rendering
 from dualrgb.app.processing.spectral_cube import SpectralEncoder, encode_spectral
-from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
 from dualrgb.common.atomic_files import FileWriteError
 from dualrgb.simulation.grid import DEFAULT_GRID
 from dualrgb.simulation.other_lights import OTHER_LIGHTS, light_keys
@@ -170,7 +170,7 @@ def test_a_profile_without_an_estimator_delivers_colour_and_says_so(tmp_path):
 
 def test_redelivery_keeps_the_previous_cube(tmp_path):
     """The cube and rendering are deliverables like the TIFFs: a re-delivery moves the whole previous set, cube
-    included, to previous/ (app.workflow.delivery_folder)."""
+    included, to previous/ (app.workflow.delivery.delivery_folder)."""
     prof = spectral_profile(tmp_path)
     first = deliver(stack(), prof, Original("ACC-1"), tmp_path / "out", camera=prof.camera, dose=LightDoseRecord())
     old = first.files["spectral"].read_bytes()

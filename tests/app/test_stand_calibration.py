@@ -1,5 +1,6 @@
-"""The stand model in the calibration profile and for re-optimisation (app.workflow.stand_calibration,
-app.workflow.stand_reoptimise, ``simulate --stand``), on captures computed by hand (tests/simulation/stand_data.py)."""
+"""The stand model in the calibration profile and for re-optimisation (app.workflow.calibration.stand_calibration,
+app.workflow.calibration.stand_reoptimise, ``simulate --stand``), on captures computed by hand
+(tests/simulation/stand_data.py)."""
 from __future__ import annotations
 
 import json
@@ -9,9 +10,9 @@ import numpy as np
 import pytest
 
 from dualrgb.app.cli import main
-from dualrgb.app.workflow.profile import ProfileError, describe, load_profile
-from dualrgb.app.workflow.stand_calibration import StandResult, centre_level
-from dualrgb.app.workflow.stand_reoptimise import Measurements, assemble
+from dualrgb.app.workflow.calibration.profile import ProfileError, describe, load_profile
+from dualrgb.app.workflow.calibration.stand_calibration import StandResult, centre_level
+from dualrgb.app.workflow.calibration.stand_reoptimise import Measurements, assemble
 from dualrgb.simulation.capture_model import CaptureModel
 from dualrgb.simulation.stand_fit import fit_stand
 from dualrgb.simulation.stand_model import StandModel

@@ -15,9 +15,8 @@ from xmp_check import read_xmp
 
 from dualrgb.app.processing.encode import LINEAR_ONE, encode_deliverables
 from dualrgb.app.processing.pipeline import ChannelStack
-from dualrgb.app.workflow.coverage import coverage
-from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver, read_sidecar
-from dualrgb.app.workflow.profile import (
+from dualrgb.app.workflow.calibration.coverage import coverage
+from dualrgb.app.workflow.calibration.profile import (
     CameraIdentity,
     ProfileError,
     ReuseLimits,
@@ -25,7 +24,8 @@ from dualrgb.app.workflow.profile import (
     check_reuse,
     load_profile,
 )
-from dualrgb.app.workflow.vocabulary import (
+from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver, read_sidecar
+from dualrgb.core.vocabulary import (
     NamedLight,
     Role,
     Subject,

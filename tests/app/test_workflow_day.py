@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
-from dualrgb.app.workflow.coverage import plan_coverage
-from dualrgb.app.workflow.day import DayState, DayStep, OriginalsQueue, OriginalState, StepState, day_checklist
-from dualrgb.app.workflow.delivery import Original
-from dualrgb.app.workflow.engine import RUN_PROGRESS, Run
-from dualrgb.app.workflow.frame_checks import DARK_FRACTION, check_frame
-from dualrgb.app.workflow.vocabulary import EventKind, NamedLight, Role, step_id
+from dualrgb.app.workflow.calibration.coverage import plan_coverage
+from dualrgb.app.workflow.calibration.frame_checks import DARK_FRACTION, check_frame
+from dualrgb.app.workflow.day.day import DayState, DayStep, OriginalsQueue, OriginalState, StepState, day_checklist
+from dualrgb.app.workflow.delivery.delivery import Original
 from dualrgb.common.progress import Cancelled
+from dualrgb.core.engine import RUN_PROGRESS, Run
+from dualrgb.core.vocabulary import EventKind, NamedLight, Role, step_id
 from dualrgb.drivers.raw import RawFrame
 from dualrgb.simulation.lightsource import LightSource
 
@@ -30,9 +30,9 @@ LIGHTS = [NamedLight("p light 1", LightSource((1, 6, 8), name="p light 1")),
 # ---------------------------------------------------------------- metering sequences on the virtual lab
 @pytest.fixture
 def stand(tmp_path):
-    from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.workflow.engine import RunEngine, StandDevices
-    from dualrgb.app.workflow.light_safety import SafetySettings
+    from dualrgb.core.engine import RunEngine, StandDevices
+    from dualrgb.core.light_safety import SafetySettings
+    from dualrgb.core.session.capture_session import CaptureSession
     from dualrgb.drivers.virtual.lab import VirtualLab
 
     with VirtualLab(frame_size=FRAME) as lab:
@@ -43,7 +43,7 @@ def stand(tmp_path):
 
 
 def test_auto_exposure_sequence_meters_each_light(stand):
-    from dualrgb.app.workflow.metering import AutoExposure
+    from dualrgb.app.workflow.stand.metering import AutoExposure
 
     lab, session, engine = stand
     seq = AutoExposure(engine.facts, LIGHTS)
@@ -56,7 +56,7 @@ def test_auto_exposure_sequence_meters_each_light(stand):
 
 
 def test_metering_cancelled_between_lights_ends_dark(stand):
-    from dualrgb.app.workflow.metering import AutoExposure
+    from dualrgb.app.workflow.stand.metering import AutoExposure
 
     lab, _session, engine = stand
     seq = AutoExposure(engine.facts, LIGHTS)
@@ -69,8 +69,8 @@ def test_metering_cancelled_between_lights_ends_dark(stand):
 
 
 def test_hdr_metering_plans_a_bracket_for_the_nd_target(stand):
-    from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
-    from dualrgb.app.workflow.vocabulary import Subject
+    from dualrgb.app.workflow.stand.metering import AutoExposure, HdrMetering
+    from dualrgb.core.vocabulary import Subject
 
     lab, session, engine = stand
     auto = AutoExposure(engine.facts, LIGHTS)
@@ -206,9 +206,9 @@ def test_plan_coverage_against_a_calibration():
 def test_planned_steps_done_and_next_take():
     from dualrgb.app.sequences.calibration import DarkSeries
     from dualrgb.app.sequences.capture import SubjectCapture
-    from dualrgb.app.workflow.light_safety import StandFacts
-    from dualrgb.app.workflow.plans import next_take, planned_steps, steps_done
-    from dualrgb.app.workflow.vocabulary import Subject
+    from dualrgb.app.workflow.stand.plans import next_take, planned_steps, steps_done
+    from dualrgb.core.light_safety import StandFacts
+    from dualrgb.core.vocabulary import Subject
 
     darks = DarkSeries(None, [0.01, 0.5], frames=2)
     steps = planned_steps(darks)
@@ -238,7 +238,7 @@ def test_check_frame_dark_and_clipped():
 
 def test_flat_uniformity_shows_the_vignetting(stand):
     from dualrgb.app.sequences.calibration import FlatSeries
-    from dualrgb.app.workflow.frame_checks import flat_uniformity
+    from dualrgb.app.workflow.calibration.frame_checks import flat_uniformity
 
     lab, session, engine = stand
     engine.run_plan(FlatSeries(engine.facts, LIGHTS[:1], {LIGHTS[0].name: [0.01]}, frames=2))
@@ -254,7 +254,7 @@ def test_flat_uniformity_shows_the_vignetting(stand):
 
 # ---------------------------------------------------------------- the day kept in its session (issue 30)
 def test_the_day_file_keeps_waiting_rows_and_the_calibration(tmp_path):
-    from dualrgb.app.workflow.day_file import DAY_FORMAT, day_path, restore_day, restored_line, save_day
+    from dualrgb.app.workflow.day.day_file import DAY_FORMAT, day_path, restore_day, restored_line, save_day
 
     session_dir = tmp_path / "s"
     (session_dir / "calibration").mkdir(parents=True)
@@ -289,8 +289,8 @@ def test_the_day_file_keeps_waiting_rows_and_the_calibration(tmp_path):
 
 
 def test_raw_frames_of_an_original_carry_its_file_stem(tmp_path):
-    from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.app.workflow.vocabulary import Subject
+    from dualrgb.core.session.capture_session import CaptureSession
+    from dualrgb.core.vocabulary import Subject
     from dualrgb.drivers.camera.base import RawCapture
 
     with CaptureSession.create(tmp_path / "s", {}) as session:

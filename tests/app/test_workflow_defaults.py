@@ -1,4 +1,4 @@
-"""Issue 22: one set of defaults (app.workflow.defaults) that the CLI, the GUI and the demo read; sessions made
+"""Issue 22: one set of defaults (app.workflow.stand.defaults) that the CLI, the GUI and the demo read; sessions made
 under a dated name in the captures folder (the per-user data folder, not the settings folder); the old default
 captures folder found and moved without losing a session; each preset's expected captured error as `dualrgb
 simulate` reports it for those lights."""
@@ -17,11 +17,11 @@ import pytest
 from dualrgb import resources
 from dualrgb.app.cli import build_parser, main
 from dualrgb.app.commands import calibrate, stand_options
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow import defaults
-from dualrgb.app.workflow.day import OriginalsQueue, OriginalState
-from dualrgb.app.workflow.folders import dated_name, legacy_captures, move_sessions, new_session, sessions_in
-from dualrgb.app.workflow.preset_figures import preset_figures
+from dualrgb.app.workflow.calibration.preset_figures import preset_figures
+from dualrgb.app.workflow.day.day import OriginalsQueue, OriginalState
+from dualrgb.app.workflow.stand import defaults
+from dualrgb.app.workflow.stand.folders import dated_name, legacy_captures, move_sessions, new_session, sessions_in
+from dualrgb.core.session.capture_session import CaptureSession
 from dualrgb.simulation.presets import load_preset
 
 DAY = dt.date(2026, 11, 24)
@@ -66,7 +66,7 @@ def test_calibrate_resolves_its_defaults_from_the_one_place(monkeypatch):
     preset, hdr, darks, flats = cli_choice()                                      # ... and the CLI follows
     assert (preset.name, hdr, darks, flats) == ("dual-RGB reflective", "off", 4, 3)
     from dualrgb.app.demo import DemoSettings
-    from dualrgb.app.workflow.copystand import StandSettings
+    from dualrgb.app.workflow.stand.copystand import StandSettings
 
     assert StandSettings().dark_frames == DemoSettings(out=Path("x")).dark_frames == 4
 
@@ -113,7 +113,7 @@ def test_a_day_session_takes_calibrate_and_capture_alike(tmp_path, made_by):
             assert s.definition["workflow"] == made_by
     demo = CaptureSession.create(tmp_path / "demo", {}, definition={"workflow": "demo"})
     demo.close()
-    from dualrgb.app.session.manifest import DefinitionMismatch
+    from dualrgb.core.session.manifest import DefinitionMismatch
 
     with pytest.raises(DefinitionMismatch, match="workflow: session 'demo', this run 'copy-stand'"):
         stand_options.open_session(tmp_path / "demo", {"workflow": defaults.DAY_WORKFLOW}, _Camera())
@@ -155,7 +155,7 @@ def test_the_old_default_captures_folder_is_found_and_moved_whole(tmp_path, user
 def test_a_session_another_program_holds_is_not_moved(tmp_path):
     old, new = tmp_path / "old", tmp_path / "new"
     held = _old_session(old, "held")
-    code = ("import sys, time; from dualrgb.app.session import lock; lock.acquire(sys.argv[1]); print('locked', "
+    code = ("import sys, time; from dualrgb.core.session import lock; lock.acquire(sys.argv[1]); print('locked', "
             "flush=True); time.sleep(60)")
     proc = subprocess.Popen([sys.executable, "-c", code, str(held)], stdout=subprocess.PIPE, text=True,
                             cwd=Path(__file__).resolve().parents[2], env={**os.environ})

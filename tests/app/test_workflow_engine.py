@@ -1,4 +1,4 @@
-"""The one run engine (app.workflow.engine): plans yield typed messages (app.workflow.messages) and the engine alone
+"""The one run engine (core.engine): plans yield typed messages (core.messages) and the engine alone
 applies them to the devices; one RunControl per run owns cancel and pause; one cancel exception
 (common.progress.Cancelled); every run starts and ends dark, read back, whichever front end starts it (a CopyStand
 call for the CLI and the demo, a Run for the window, a light plan), and an error gets the read-back as a note;
@@ -14,11 +14,11 @@ import pytest
 
 import dualrgb.app.sequences as sequences
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent, Sequence
-from dualrgb.app.workflow import messages as M
-from dualrgb.app.workflow.engine import Run, RunControl, RunEngine, StandDevices
-from dualrgb.app.workflow.light_plans import MAX_FRAMING_LEVEL, Dark, FramingLight, HeldLight, framing_light
-from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.app.workflow.stand.light_plans import MAX_FRAMING_LEVEL, Dark, FramingLight, HeldLight, framing_light
 from dualrgb.common.progress import Cancelled, CancelToken
+from dualrgb.core import messages as M
+from dualrgb.core.engine import Run, RunControl, RunEngine, StandDevices
+from dualrgb.core.vocabulary import EventKind
 from dualrgb.drivers.led_sphere.errors import LightReport, SphereError
 from dualrgb.drivers.led_sphere.supervisor import LitPeriod
 from dualrgb.simulation.lightsource import LightSource
@@ -190,7 +190,7 @@ def test_nested_calls_are_one_run():
 def test_copy_stand_runs_its_plans_through_its_engine():
     """CopyStand's cancel token and control are its engine's (one owner), whichever it was given; its devices
     are the engine's."""
-    from dualrgb.app.workflow.copystand import CopyStand
+    from dualrgb.app.workflow.stand.copystand import CopyStand
 
     camera, sphere = SimpleNamespace(latency_s=0.0), Sphere()
     token = CancelToken()

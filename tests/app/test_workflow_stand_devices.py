@@ -1,4 +1,4 @@
-"""Device and session set-up written once for the CLI and the GUI (app.workflow.stand_devices): both front ends
+"""Device and session set-up written once for the CLI and the GUI (app.workflow.stand.stand_devices): both front ends
 call these functions (checked here by what they import), the camera choice (a camera bridge's address too), the
 sphere opened dark or closed with its light state said."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from dualrgb.app.workflow import stand_devices
+from dualrgb.app.workflow.stand import stand_devices
 from dualrgb.drivers.camera.base import CameraError
 from dualrgb.drivers.led_sphere import SphereError
 
@@ -21,12 +21,12 @@ def imported_names(path: Path, module: str) -> set[str]:
 
 
 def test_both_front_ends_set_up_through_the_workflow():
-    cli = imported_names(ROOT / "app/commands/stand_options.py", "dualrgb.app.workflow.stand_devices")
-    gui = imported_names(ROOT / "app/gui/device_hub.py", "dualrgb.app.workflow.stand_devices")
+    cli = imported_names(ROOT / "app/commands/stand_options.py", "dualrgb.app.workflow.stand.stand_devices")
+    gui = imported_names(ROOT / "app/gui/device_hub.py", "dualrgb.app.workflow.stand.stand_devices")
     assert "open_sphere" in cli and "open_sphere" in gui, (cli, gui)
     assert "open_camera" in cli, cli
-    sessions = imported_names(ROOT / "app/workflow/folders.py", "dualrgb.app.workflow.stand_devices")
-    assert "open_camera" in gui and "camera_definition_of" in sessions      # sessions: app.workflow.folders
+    sessions = imported_names(ROOT / "app/workflow/stand/folders.py", "dualrgb.app.workflow.stand.stand_devices")
+    assert "open_camera" in gui and "camera_definition_of" in sessions      # sessions: app.workflow.stand.folders
 
 
 def test_a_camera_choice_names_model_and_port():

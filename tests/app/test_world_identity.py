@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from dualrgb.app.cli import build_parser
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.session.manifest import DefinitionMismatch, camera_definition
-from dualrgb.app.workflow.profile import CameraIdentity, check_reuse, load_profile
-from dualrgb.app.workflow.profile_check import seal
+from dualrgb.app.workflow.calibration.profile import CameraIdentity, check_reuse, load_profile
+from dualrgb.app.workflow.calibration.profile_check import seal
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.session.manifest import DefinitionMismatch, camera_definition
 from dualrgb.drivers.virtual.camera import StaticLight, VirtualCamera
 from dualrgb.drivers.virtual.world import load_world
 from tests.workflow_profiles import make_profile

@@ -9,8 +9,8 @@ import threading
 import pytest
 from gphoto_fake import BULB, FakeGPhoto2, open_scripted
 
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.light_safety import SafetySettings
+from dualrgb.core.light_safety import SafetySettings
+from dualrgb.core.session.capture_session import CaptureSession
 from dualrgb.drivers.camera.base import CameraError, CameraSettings
 from dualrgb.drivers.camera.gphoto import GPhotoCamera
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from gphoto_fake import FakeGPhoto2, open_scripted
 
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.light_safety import LightSafetyError, SafetySettings
-from dualrgb.app.workflow.shooter import Shooter
+from dualrgb.core.light_safety import LightSafetyError, SafetySettings
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.shooter import Shooter
 from dualrgb.drivers.camera.base import DEFAULT_LATENCY_S, CameraError
 from dualrgb.drivers.camera.gphoto import DEFAULT_GPHOTO_LATENCY_S, LATENCY_ENV, GPhotoCamera
 from dualrgb.drivers.camera.gphoto_latency import measure_latency, suggested_allowance

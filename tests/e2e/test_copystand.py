@@ -19,7 +19,7 @@ import tifffile
 from sidecar_schema import assert_valid_sidecar
 from xmp_check import read_xmp
 
-from dualrgb.app.workflow.profile_check import seal
+from dualrgb.app.workflow.calibration.profile_check import seal
 
 FRAME = ["--frame-size", "240x160", "--settle", "0"]
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -82,7 +82,7 @@ def test_calibration_profile_written_once(day):
 def test_calibration_carries_the_spectral_estimate(day):
     """Issue 21: the calibration fits the spectral estimator on the captured training target and its JSON carries
     the test target's spectral RMSE (mean, p90), GFC and mean dE00 under every other light; the profile loads it."""
-    from dualrgb.app.workflow.profile import load_profile
+    from dualrgb.app.workflow.calibration.profile import load_profile
 
     _, cal, _ = day
     sp = cal["spectral"]
@@ -140,7 +140,7 @@ def test_painting_xyz_against_ground_truth(day):
     optical blur: a 2-pixel line is a worst case for any demosaic), which the sidecar reports apart."""
     from dualrgb.app.lab.ground_truth import compare_to_ground_truth, write_de_map_png
     from dualrgb.app.processing.encode import xyz_from_codes
-    from dualrgb.app.workflow.targets import reference_white
+    from dualrgb.app.workflow.calibration.targets import reference_white
     from dualrgb.drivers.virtual.originals import ground_truth_xyz
 
     root, cal, captures = day

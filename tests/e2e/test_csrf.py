@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 from dualrgb.app.sequences.csrf import CsrfSettings, CsrfSweep
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.csrf import measure_csrf, run_sweep, sweep_engine
-from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.app.workflow.calibration.csrf import measure_csrf, run_sweep, sweep_engine
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.vocabulary import EventKind
 from dualrgb.drivers.camera.base import CameraError
 from dualrgb.drivers.monochromator.errors import MonochromatorError
 from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench

@@ -126,7 +126,7 @@ def test_demo_takes_the_stands_own_charts(tmp_path):
     spectra, the virtual lab renders them, the report names the files; the capture follows the prediction."""
     from pathlib import Path
 
-    from dualrgb.app.workflow.charts import ChartChoice, load_charts
+    from dualrgb.app.workflow.calibration.charts import ChartChoice, load_charts
 
     charts_dir = Path(__file__).resolve().parents[1] / "data" / "charts"
     charts = load_charts({"train": ChartChoice(str(charts_dir / "sg140_layout.txt"), "10x14"),

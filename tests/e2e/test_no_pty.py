@@ -125,12 +125,12 @@ def test_calibrate_and_capture_on_the_virtual_lab_without_a_pty(no_pty):
 def test_the_session_lock_refuses_a_second_writer_without_fcntl(no_pty):
     root, run, _, env = no_pty
     session = root / "locked"
-    holder = ("import sys, time\nfrom dualrgb.app.session.capture_session import CaptureSession\n"
+    holder = ("import sys, time\nfrom dualrgb.core.session.capture_session import CaptureSession\n"
               f"s = CaptureSession.create({str(session)!r})\nprint('holding', flush=True)\ntime.sleep(600)")
     proc = subprocess.Popen([sys.executable, "-c", holder], stdout=subprocess.PIPE, text=True, cwd=ROOT, env=env)
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == "holding"
-        r = run(code=f"from dualrgb.app.session.capture_session import CaptureSession\n"
+        r = run(code=f"from dualrgb.core.session.capture_session import CaptureSession\n"
                      f"CaptureSession.open({str(session)!r})")
         assert r.returncode != 0 and f"in use by another writer (pid {proc.pid}" in r.stderr, r.stderr[-2000:]
     finally:

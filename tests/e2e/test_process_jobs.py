@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from dualrgb.app.workflow.redelivery_jobs import (
+from dualrgb.app.workflow.delivery.redelivery_jobs import (
     RedeliveryOptions,
     RedeliveryTask,
     TaskResult,

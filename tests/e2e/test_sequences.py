@@ -8,12 +8,12 @@ import pytest
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, NamedLight, auto_exposure, channel_levels
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.crf_sweep import CrfSweep
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.session.manifest import SessionError
-from dualrgb.app.workflow.engine import RunEngine, StandDevices
-from dualrgb.app.workflow.light_safety import LightSafetyError, SafetySettings
-from dualrgb.app.workflow.messages import Shot
-from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.core.engine import RunEngine, StandDevices
+from dualrgb.core.light_safety import LightSafetyError, SafetySettings
+from dualrgb.core.messages import Shot
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.session.manifest import SessionError
+from dualrgb.core.vocabulary import Subject
 from dualrgb.drivers.camera.base import CameraError
 from dualrgb.drivers.led_sphere import SphereError
 from dualrgb.drivers.virtual.lab import VirtualLab

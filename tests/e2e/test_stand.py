@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from dualrgb.app.cli import main
-from dualrgb.app.workflow.profile import load_profile
+from dualrgb.app.workflow.calibration.profile import load_profile
 from dualrgb.simulation.stand_fit import predict
 from dualrgb.simulation.stand_model import StandModel
 

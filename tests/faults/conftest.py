@@ -6,8 +6,8 @@ import pytest
 from fault_rigs import CountingCamera, CountingSphere
 from light_record import FAST
 
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.shooter import Shooter
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.shooter import Shooter
 from dualrgb.drivers.virtual.lab import VirtualLab
 
 

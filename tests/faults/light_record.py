@@ -6,7 +6,7 @@ import time
 from dataclasses import dataclass
 
 from dualrgb.app.sequences.calibration import NamedLight
-from dualrgb.app.workflow.light_safety import SafetySettings
+from dualrgb.core.light_safety import SafetySettings
 from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
 from dualrgb.simulation.lightsource import LightSource
 

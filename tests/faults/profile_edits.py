@@ -10,7 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from dualrgb.app.workflow.profile_check import seal
+from dualrgb.app.workflow.calibration.profile_check import seal
 
 PROFILES = Path(__file__).resolve().parents[1] / "data" / "profiles"
 PROFILE = next(PROFILES.glob("cal-*.json"))

@@ -13,12 +13,12 @@ from light_record import lit_spans
 from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.copystand import CopyStand, StandSettings
-from dualrgb.app.workflow.light_safety import LightSafetyError
-from dualrgb.app.workflow.metadata import Original
-from dualrgb.app.workflow.queue_run import capture_queue
+from dualrgb.app.workflow.day.queue_run import capture_queue
+from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
 from dualrgb.common.atomic_files import InsufficientSpaceError
+from dualrgb.core.light_safety import LightSafetyError
+from dualrgb.core.metadata import Original
+from dualrgb.core.session.capture_session import CaptureSession
 
 LAB_SHAPE = (64, 96)            # the fault suite's virtual lab (tests/faults/conftest.py)
 
@@ -55,7 +55,7 @@ def test_an_exposure_plan_over_the_cap_with_the_settle_time_is_refused_before_me
 def test_no_room_for_the_deliverables_is_refused_before_the_first_frame(lab, stand, tmp_path, monkeypatch, queue):
     profile = make_profile(tmp_path / "cal", shape=LAB_SHAPE)
     copy_stand = stand(settle_s=0.0)
-    from dualrgb.app.workflow import preflight
+    from dualrgb.app.workflow.stand import preflight
 
     frames = preflight.capture_frames(profile, 1, copy_stand.hdr_exposures(profile.mode)) * lab.camera.frame_bytes()
     room = int(1.1 * frames * queue) + 1024                        # the frames fit, the deliverables do not

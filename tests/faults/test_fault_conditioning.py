@@ -14,15 +14,15 @@ import pytest
 from light_record import lit_spans
 
 from dualrgb.app.cli import main
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.copystand import CopyStand, StandSettings
-from dualrgb.app.workflow.preflight import (
+from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
+from dualrgb.app.workflow.stand.preflight import (
     CONDITION_LIMIT,
     CONDITION_WARN,
     ConditioningError,
     check_conditioning,
 )
-from dualrgb.app.workflow.vocabulary import NamedLight
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.vocabulary import NamedLight
 from dualrgb.simulation.lightsource import LightSource
 from dualrgb.simulation.presets import load_preset
 

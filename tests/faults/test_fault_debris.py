@@ -15,8 +15,8 @@ from fault_rigs import ROOT
 from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
-from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.common.debris import stage_name, sweep
+from dualrgb.core.session.capture_session import CaptureSession
 
 pytestmark = pytest.mark.fault("session integrity")
 

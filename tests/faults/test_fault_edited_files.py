@@ -1,6 +1,7 @@
 """Edited files (issue 28 item 2-3, 8): a calibration profile changed by hand (or damaged) is refused when it is
 loaded, in one line naming the field, before any device opens or a frame is shot: it is checked like a frame
-(app/workflow/profile_check.py: size, finite numbers, schema, value ranges, the digest stored in it, the .npz's
+(app/workflow/calibration/profile_check.py: size, finite numbers, schema, value ranges, the digest stored in it, the
+.npz's
 size, sha256 and arrays)."""
 from __future__ import annotations
 
@@ -15,8 +16,8 @@ import pytest
 from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
-from dualrgb.app.workflow.profile import load_profile
-from dualrgb.app.workflow.profile_check import MAX_JSON_BYTES, seal
+from dualrgb.app.workflow.calibration.profile import load_profile
+from dualrgb.app.workflow.calibration.profile_check import MAX_JSON_BYTES, seal
 
 pytestmark = pytest.mark.fault("edited files")
 
@@ -142,7 +143,7 @@ def test_damaged_profile_files_are_refused_in_one_line(profile_path, tmp_path, c
 
 
 def test_what_the_product_writes_validates_and_a_nan_profile_is_never_written(tmp_path):
-    from dualrgb.app.workflow.profile_check import check_document
+    from dualrgb.app.workflow.calibration.profile_check import check_document
 
     prof = make_profile(tmp_path / "ok")
     check_document(json.loads(prof.path.read_text()), prof.path)          # schema, ranges and digest
@@ -167,7 +168,7 @@ BLANK = {
 @pytest.mark.parametrize("case", list(BLANK))
 def test_the_qa_refuses_an_output_that_holds_nothing(tmp_path, case):
     from dualrgb.app.processing.pipeline import ChannelStack
-    from dualrgb.app.workflow.delivery import DeliveryQaError, LightDoseRecord, Original, deliver
+    from dualrgb.app.workflow.delivery.delivery import DeliveryQaError, LightDoseRecord, Original, deliver
 
     prof = make_profile(tmp_path / "cal")
     stack = ChannelStack(np.full((10, 14, 3), 0.5, np.float32), ["R1", "G1", "B1"], ["P light 1"], {"P light 1": 0.0})

@@ -1,7 +1,7 @@
 """Paths in session.json are relative to the session folder and never resolved outside it (issue 38 item 4): a copy
 of a session whose calibration arrays were removed was processed with the *original* session's calibration (exit 0,
 its sidecar naming the original's file). Now a session records its own files relative to its folder
-(app.session.paths), a copy uses only its own, and a calibration outside the folder is passed explicitly."""
+(core.session.paths), a copy uses only its own, and a calibration outside the folder is passed explicitly."""
 from __future__ import annotations
 
 import json
@@ -12,8 +12,8 @@ import pytest
 from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.session.paths import deliverable, inside, record
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.session.paths import deliverable, inside, record
 
 LAB_SHAPE = (64, 96)
 

@@ -9,7 +9,7 @@ import pytest
 from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
-from dualrgb.app.session.capture_session import CaptureSession
+from dualrgb.core.session.capture_session import CaptureSession
 
 pytestmark = pytest.mark.fault("session integrity")
 

@@ -9,8 +9,8 @@ import pytest
 from workflow_profiles import make_profile
 
 from dualrgb.app.cli import main
-from dualrgb.app.workflow import queue_csv
-from dualrgb.app.workflow.queue_csv import MAX_QUEUE_BYTES, MAX_QUEUE_ROWS, read_queue_csv
+from dualrgb.app.workflow.day import queue_csv
+from dualrgb.app.workflow.day.queue_csv import MAX_QUEUE_BYTES, MAX_QUEUE_ROWS, read_queue_csv
 
 
 @pytest.mark.fault("input")

@@ -1,6 +1,7 @@
 """Re-sealed profile edits (issue 38 item 5): the digest is a plain SHA-256 anyone can recompute, so a calibration
 profile is checked field by field against its JSON Schema (resources/schemas/dualrgb-calibration-1.schema.json:
-types, ranges, array lengths) and the cross-checks between fields (app/workflow/profile_check.py) before any use.
+types, ranges, array lengths) and the cross-checks between fields (app/workflow/calibration/profile_check.py) before
+any use.
 An edit is refused in one line naming the field whether or not the digest was recomputed, and `calibration show`
 never crashes on an edited profile (it did on 12 of 250 in the issue, e.g. ``stand_model.r2.start.train[0]=null``).
 
@@ -14,8 +15,8 @@ import pytest
 from profile_edits import EDITS, PROFILE, edits, write
 
 from dualrgb.app.cli import main
-from dualrgb.app.workflow.profile import describe, load_profile
-from dualrgb.app.workflow.profile_check import ProfileError, seal
+from dualrgb.app.workflow.calibration.profile import describe, load_profile
+from dualrgb.app.workflow.calibration.profile_check import ProfileError, seal
 
 
 def test_the_profile_calibrate_wrote_is_shown(tmp_path, capsys):

@@ -15,20 +15,20 @@ from fault_rigs import ROOT
 
 from dualrgb.app.demo import DemoSettings
 from dualrgb.app.sequences.calibration import DarkSeries
-from dualrgb.app.session import capture_session as session_mod
-from dualrgb.app.session.capture_session import MANIFEST, CaptureSession
-from dualrgb.app.session.manifest import (
+from dualrgb.common.atomic_files import InsufficientSpaceError
+from dualrgb.core.engine import RunEngine, StandDevices
+from dualrgb.core.light_safety import SafetySettings
+from dualrgb.core.session import capture_session as session_mod
+from dualrgb.core.session.capture_session import MANIFEST, CaptureSession
+from dualrgb.core.session.manifest import (
     DamagedFramesError,
     DefinitionMismatch,
     SessionEntry,
     SessionLockedError,
     light_definition,
 )
-from dualrgb.app.workflow.engine import RunEngine, StandDevices
-from dualrgb.app.workflow.light_safety import SafetySettings
-from dualrgb.app.workflow.shooter import Shooter
-from dualrgb.app.workflow.vocabulary import EventKind
-from dualrgb.common.atomic_files import InsufficientSpaceError
+from dualrgb.core.shooter import Shooter
+from dualrgb.core.vocabulary import EventKind
 from dualrgb.simulation.lightsource import LightSource
 
 pytestmark = pytest.mark.fault("session integrity")
@@ -39,7 +39,7 @@ DEFINITION = {"mode": "reflective", "frame_size": [600, 400], "seed": 0,
 
 
 def shooter_for(session, rig) -> Shooter:
-    """The run engine's frame action (app.workflow.shooter) on the counting rig."""
+    """The run engine's frame action (core.shooter) on the counting rig."""
     camera, sphere = rig
     return Shooter(camera, sphere, session, safety=SafetySettings(settle_s=0.0))
 
@@ -108,7 +108,7 @@ def test_demo_resume_with_other_options_is_refused_before_anything_runs(tmp_path
 HOLDER = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, {root!r})
-    from dualrgb.app.session.capture_session import CaptureSession
+    from dualrgb.core.session.capture_session import CaptureSession
     s = CaptureSession.open({path!r})
     print("holding", flush=True)
     time.sleep(120)
@@ -211,7 +211,7 @@ def test_damaged_frame_refuses_processing_naming_the_file(tmp_path, rig, damage)
         victim.write_bytes(bytes(data[:500]))
     else:
         victim.unlink()
-    from dualrgb.app.workflow.session_processing import session_frames
+    from dualrgb.app.workflow.calibration.session_processing import session_frames
     with pytest.raises(DamagedFramesError) as info:
         session_frames(s)
     assert str(info.value).startswith(str(victim)) and "\n" not in str(info.value)
@@ -259,7 +259,7 @@ WRITERS = {
                    "save_figure(fig, path)"),
     "spectral csv": ("import numpy as np; from dualrgb.simulation.spectral_io import write_spectral_csv; "
                      "write_spectral_csv(path, np.arange(20000.), np.ones((20000, 8)), list('abcdefgh'), {})"),
-    "session settings": ("from dualrgb.app.session.capture_session import CaptureSession; "
+    "session settings": ("from dualrgb.core.session.capture_session import CaptureSession; "
                          "s = CaptureSession.open(path.parent); s.update_settings(notes='n' * 300000)"),
 }
 FULL_DISK = textwrap.dedent("""

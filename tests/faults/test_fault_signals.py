@@ -34,7 +34,7 @@ HOST_ENDED = ("on-time limit", "watchdog", "power off")       # what the sphere 
 HARNESS = r"""
 import signal, sys
 from dualrgb.app.cli import main
-from dualrgb.app.workflow.shooter import Shooter
+from dualrgb.core.shooter import Shooter
 from dualrgb.drivers.led_sphere.driver import LedSphere
 
 argv = sys.argv[1:]

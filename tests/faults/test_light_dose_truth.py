@@ -6,9 +6,9 @@ from __future__ import annotations
 import pytest
 from light_record import LS1, lit_spans
 
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.light_safety import SafetySettings
-from dualrgb.app.workflow.shooter import Shooter
+from dualrgb.core.light_safety import SafetySettings
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.shooter import Shooter
 
 
 @pytest.mark.fault("light safety")

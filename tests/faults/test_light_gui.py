@@ -2,7 +2,7 @@
 said "no reply" while the sphere stayed lit as long as the window was open (its 1 Hz status poll fed the
 watchdog). Now the light is off within its limit + 0.5 s on the emulator's own clock, while the GUI keeps
 polling, and the dialog says truthfully what state the light was left in. 'Light ON' is a plan of the run engine
-(app.workflow.light_plans.HeldLight): a sphere whose switch-off is not confirmed is never switched on."""
+(app.workflow.stand.light_plans.HeldLight): a sphere whose switch-off is not confirmed is never switched on."""
 from __future__ import annotations
 
 import pytest

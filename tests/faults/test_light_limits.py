@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 from light_record import FAST, LS1, assert_dark_within, lit_spans, wait_dark
 
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.light_safety import LightSafetyError
-from dualrgb.app.workflow.shooter import Shooter
+from dualrgb.core.light_safety import LightSafetyError
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.shooter import Shooter
 from dualrgb.drivers.camera.base import CameraError
 from dualrgb.drivers.led_sphere import LedSphere, SphereError
 from dualrgb.drivers.virtual.lab import VirtualLab

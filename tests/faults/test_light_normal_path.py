@@ -1,7 +1,7 @@
 """The normal path, guarded (issue 9, "Must show"): over every sequence on the virtual lab (dark series, flats,
 auto-exposure, target capture, HDR metering + bracket, CRF sweep) the sphere emulator's own record shows light
 only while a frame is exposed (per frame at most exposure + settle + 0.2 s), dark between frames and at the end.
-Deleting the switch-off after each shot (app/workflow/shooter.py) makes this test fail."""
+Deleting the switch-off after each shot (core/shooter.py) makes this test fail."""
 from __future__ import annotations
 
 import pytest
@@ -11,10 +11,10 @@ from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries, auto_expos
 from dualrgb.app.sequences.capture import SubjectCapture
 from dualrgb.app.sequences.crf_sweep import CrfSweep
 from dualrgb.app.sequences.hdr import meter_and_plan
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.engine import RunEngine, StandDevices
-from dualrgb.app.workflow.light_safety import SafetySettings
-from dualrgb.app.workflow.vocabulary import Subject
+from dualrgb.core.engine import RunEngine, StandDevices
+from dualrgb.core.light_safety import SafetySettings
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.vocabulary import Subject
 
 SETTLE_S = 0.05
 SLACK_S = 0.2           # issue 9: per frame, light on at most exposure + settle + 0.2 s

@@ -10,11 +10,11 @@ import pytest
 from light_record import lit_spans
 from workflow_profiles import make_profile
 
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.copystand import CopyStand, StandSettings
-from dualrgb.app.workflow.delivery_folder import DeliveryFolderError
-from dualrgb.app.workflow.metadata import MetadataError, Original
-from dualrgb.app.workflow.queue_run import capture_queue
+from dualrgb.app.workflow.day.queue_run import capture_queue
+from dualrgb.app.workflow.delivery.delivery_folder import DeliveryFolderError
+from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
+from dualrgb.core.metadata import MetadataError, Original
+from dualrgb.core.session.capture_session import CaptureSession
 
 
 @pytest.fixture

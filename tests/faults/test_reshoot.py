@@ -9,9 +9,9 @@ import pytest
 from light_record import FAST, LS1, assert_dark_within, lit_spans
 
 from dualrgb.app.sequences.capture import SubjectCapture
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.engine import RunEngine, StandDevices
-from dualrgb.app.workflow.vocabulary import EventKind, Role, Subject
+from dualrgb.core.engine import RunEngine, StandDevices
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.vocabulary import EventKind, Role, Subject
 
 
 def run_capture(lab, tmp_path, exposure_s, on_notice):

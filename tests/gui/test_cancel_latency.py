@@ -138,9 +138,9 @@ def test_cancel_in_processing_keeps_the_calibration_and_a_delivery(qtbot, make_w
     """Calibrate & capture: Cancel during a calibration's processing stops it at the next work unit and never
     replaces the current calibration; Cancel during an original's delivery stops before the next band and delivers
     nothing. Measured as work units begun after the cancel (the first unit waits inside for the click)."""
-    import dualrgb.app.workflow.copystand as copystand
+    import dualrgb.app.workflow.stand.copystand as copystand
     from dualrgb.app.processing.encode import DeliveryEncoder
-    from dualrgb.app.workflow.day import OriginalState
+    from dualrgb.app.workflow.day.day import OriginalState
 
     w = make_window(frame_size=(96, 200))                  # 200 rows: four delivery bands of 64
     cap, box = _start(qtbot, w)

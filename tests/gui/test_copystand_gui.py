@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from PySide6.QtCore import Qt
 
-from dualrgb.app.workflow.day import OriginalState
+from dualrgb.app.workflow.day.day import OriginalState
 from dualrgb.simulation.lightsource import LightSource
 from tests.gui.conftest import HANG_GUARD_MS, wait_idle
 

@@ -13,8 +13,8 @@ from PySide6.QtWidgets import QApplication
 
 from dualrgb.app.gui.panels.results import METHOD_NAMES
 from dualrgb.app.gui.widgets import PathLabel
-from dualrgb.app.workflow.day import DayStep, StepState
-from dualrgb.app.workflow.delivery import Original
+from dualrgb.app.workflow.day.day import DayStep, StepState
+from dualrgb.app.workflow.delivery.delivery import Original
 from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, quick_calibrate, wait_idle
 
 LONG = HANG_GUARD_MS
@@ -186,7 +186,7 @@ def test_results_grade_the_delivered_matrix(qtbot, make_window):
 
 def test_the_target_tab_opens_on_a_target_not_an_original(qtbot, make_window):
     from dualrgb.app.gui.panels.target import target_first
-    from dualrgb.app.workflow.vocabulary import Subject
+    from dualrgb.core.vocabulary import Subject
 
     keys = [Subject.original("AAA-1").key, Subject.target("train").key, Subject.target("test").key]
     assert sorted(keys, key=target_first) == [keys[2], keys[1], keys[0]]

@@ -12,10 +12,10 @@ from PySide6.QtCore import QSettings
 
 from dualrgb.app.cli import build_parser
 from dualrgb.app.commands import calibrate
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow import defaults
-from dualrgb.app.workflow.preset_figures import preset_figures
-from dualrgb.app.workflow.vocabulary import lights_of
+from dualrgb.app.workflow.calibration.preset_figures import preset_figures
+from dualrgb.app.workflow.stand import defaults
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.vocabulary import lights_of
 from dualrgb.simulation.presets import load_preset
 from tests.gui.conftest import DEVICE_TIMEOUT_MS, HANG_GUARD_MS, click, connect_devices, wait_idle
 
@@ -99,7 +99,7 @@ def test_changing_the_one_place_changes_the_window_and_the_cli(qtbot, make_windo
 
 
 def _old_captures(fresh):
-    from dualrgb.app.workflow.folders import legacy_captures_dir
+    from dualrgb.app.workflow.stand.folders import legacy_captures_dir
 
     old = legacy_captures_dir(Path(fresh.fileName()).parent)
     CaptureSession.create(old / "session-20260101-090000", {}, definition={"mode": "reflective"}).close()

@@ -1,5 +1,5 @@
 """`dualrgb demo` and the GUI give the same report numbers from the same session: both process it through
-app.workflow.session_processing.process_session (the demo holds no processing code of its own)."""
+app.workflow.calibration.session_processing.process_session (the demo holds no processing code of its own)."""
 from __future__ import annotations
 
 from PySide6.QtCore import Qt

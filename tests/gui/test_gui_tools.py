@@ -18,7 +18,7 @@ from workflow_profiles import make_profile
 from dualrgb.app.cli import main
 from dualrgb.app.gui.focus_aid import brightened, tenengrad
 from dualrgb.app.gui.framing_light import MAX_FRAMING_LEVEL
-from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.core.vocabulary import EventKind
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
 from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, wait_idle
 
@@ -81,7 +81,7 @@ def test_redeliver_with_another_calibration(qtbot, make_window, captured_session
 
 def test_redeliver_applies_the_mode_rule_and_force(qtbot, make_window, captured_session, tmp_path):
     session, first, _other = captured_session
-    from dualrgb.app.workflow.profile import load_profile
+    from dualrgb.app.workflow.calibration.profile import load_profile
 
     film = dataclasses.replace(load_profile(first), id="cal-film", mode="transmissive")
     film.save(tmp_path / "film")

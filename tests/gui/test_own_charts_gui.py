@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 
 from dualrgb.app.gui.panels.originals import ADD_VALID, LEAVE, OVERRIDE
-from dualrgb.app.workflow.charts import ChartChoice
-from dualrgb.app.workflow.day import OriginalState
-from dualrgb.app.workflow.vocabulary import Role, role_of
+from dualrgb.app.workflow.calibration.charts import ChartChoice
+from dualrgb.app.workflow.day.day import OriginalState
+from dualrgb.core.vocabulary import Role, role_of
 from tests.gui.conftest import wait_idle
 from tests.gui.test_copystand_gui import click, start
 

@@ -11,8 +11,8 @@ import numpy as np
 import tifffile
 from xmp_check import read_xmp
 
-from dualrgb.app.workflow.day import DayStep, OriginalState, StepState
-from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.app.workflow.day.day import DayStep, OriginalState, StepState
+from dualrgb.core.vocabulary import EventKind
 from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
 

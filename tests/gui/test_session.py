@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from dualrgb.app.gui.units import parse_exposure
-from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.core.vocabulary import EventKind
 from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
 

@@ -8,8 +8,8 @@ from PySide6.QtCore import QPointF, Qt
 from spectral_profiles import estimator, spectral_profile, stack
 
 from dualrgb.app.gui.results_plots import CELL, PatchSpectra, TargetPlots, TargetView
-from dualrgb.app.workflow.delivered_view import open_delivered
-from dualrgb.app.workflow.delivery import LightDoseRecord, Original, deliver
+from dualrgb.app.workflow.delivery.delivered_view import open_delivered
+from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
 from tests.gui.conftest import HANG_GUARD_MS, wait_idle
 
 WL = np.arange(410.0, 790.0, 10.0)

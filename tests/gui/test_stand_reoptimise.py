@@ -1,5 +1,5 @@
 """The simulate panel's "Re-optimise for this stand": the loaded calibration's stand model, off the GUI thread,
-the same result as ``dualrgb simulate --stand`` (app.workflow.stand_reoptimise)."""
+the same result as ``dualrgb simulate --stand`` (app.workflow.calibration.stand_reoptimise)."""
 from __future__ import annotations
 
 import pytest
@@ -9,8 +9,8 @@ from tests.gui.conftest import HANG_GUARD_MS, click, wait_idle
 
 @pytest.fixture
 def stand_profile(tmp_path):
-    from dualrgb.app.workflow.profile import load_profile
-    from dualrgb.app.workflow.stand_calibration import StandResult
+    from dualrgb.app.workflow.calibration.profile import load_profile
+    from dualrgb.app.workflow.calibration.stand_calibration import StandResult
     from dualrgb.simulation.capture_model import CaptureModel
     from dualrgb.simulation.stand_fit import fit_stand
     from dualrgb.simulation.stand_model import StandModel
@@ -25,7 +25,7 @@ def stand_profile(tmp_path):
 
 
 def test_reoptimise_for_the_loaded_calibrations_stand(qtbot, make_window, stand_profile):
-    from dualrgb.app.workflow.stand_reoptimise import assemble, reoptimise
+    from dualrgb.app.workflow.calibration.stand_reoptimise import assemble, reoptimise
 
     w = make_window()
     sim = w.simulate

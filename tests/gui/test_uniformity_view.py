@@ -8,7 +8,7 @@ import numpy as np
 from PySide6.QtGui import QImage, QPainter
 
 from dualrgb.app.gui.uniformity_view import CellLabels
-from dualrgb.app.workflow.frame_checks import UniformityMap
+from dualrgb.app.workflow.calibration.frame_checks import UniformityMap
 
 
 def _render(item: CellLabels, scale: float, size: tuple[int, int]) -> QImage:

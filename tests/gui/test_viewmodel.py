@@ -107,8 +107,8 @@ def test_calibration_lines_name_what_matters():
     from types import SimpleNamespace
 
     from dualrgb.app.gui.viewmodel import calibration_lines
-    from dualrgb.app.workflow.profile import CameraIdentity, ReuseCheck
-    from dualrgb.app.workflow.vocabulary import NamedLight
+    from dualrgb.app.workflow.calibration.profile import CameraIdentity, ReuseCheck
+    from dualrgb.core.vocabulary import NamedLight
     from dualrgb.simulation.lightsource import LightSource
 
     prof = SimpleNamespace(id="cal-1", preset="p", mode="reflective", age_h=lambda: 1.25,

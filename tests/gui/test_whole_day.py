@@ -9,8 +9,8 @@ import json
 from pathlib import Path
 
 from dualrgb.app.gui.day_keeper import QUIT, STAY
-from dualrgb.app.workflow.day import OriginalState
-from dualrgb.app.workflow.day_file import day_path
+from dualrgb.app.workflow.day.day import OriginalState
+from dualrgb.app.workflow.day.day_file import day_path
 from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, quick_calibrate, wait_idle
 
 LONG = HANG_GUARD_MS

@@ -179,7 +179,7 @@ def test_a_chart_that_cannot_be_used_is_one_line(kwargs, says):
     options = {"role": "test", "mode": "reflective", **kwargs}
     grid = default_setup(options["mode"]).grid
     if kwargs.get("mode") == "transmissive":
-        from dualrgb.app.workflow.targets import chart_of
+        from dualrgb.app.workflow.calibration.targets import chart_of
 
         chart = read_chart(CC24, GRID, role="test", mode="reflective")
         with pytest.raises(ChartError, match=says):

@@ -28,7 +28,7 @@ def test_the_packaged_absolute_table_is_what_the_tool_writes(tmp_path):
 
 
 def test_light_dose_and_the_spectroradiometers_unit_are_the_same_sphere():
-    from dualrgb.app.session.light_dose import lux_per_led
+    from dualrgb.core.session.light_dose import lux_per_led
     from dualrgb.drivers.virtual.sphere_light import radiance_per_relative_unit
 
     assert np.isclose(radiance_per_relative_unit(), LED2_ABSOLUTE_PEAK, rtol=1e-7)

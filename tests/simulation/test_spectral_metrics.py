@@ -101,8 +101,8 @@ def test_a_stands_own_chart_keeps_its_measured_range_to_the_calibration():
     the calibration's TargetSpec, so the calibration's spectral figures count 410-730 nm only."""
     from pathlib import Path
 
-    from dualrgb.app.workflow.targets import TargetSpec
-    from dualrgb.app.workflow.vocabulary import Subject
+    from dualrgb.app.workflow.calibration.targets import TargetSpec
+    from dualrgb.core.vocabulary import Subject
     from dualrgb.simulation.charts import read_chart
 
     s = default_setup("reflective")

@@ -26,8 +26,8 @@ from dualrgb.app.gui.frame_preview import WARNING_STYLE, HistogramPlot
 from dualrgb.app.gui.framing_light import FramingBox, FramingLight
 from dualrgb.app.gui.viewmodel import RawView, preview_histogram, raw_view
 from dualrgb.app.gui.widgets import PathLabel, image_widget, side_by_side
-from dualrgb.app.session.capture_session import atomic_write
-from dualrgb.app.workflow.vocabulary import format_exposure as format_shutter
+from dualrgb.core.session.capture_session import atomic_write
+from dualrgb.core.vocabulary import format_exposure as format_shutter
 from dualrgb.drivers.camera.base import CameraSettings
 
 log = logging.getLogger(__name__)

@@ -37,15 +37,15 @@ from dualrgb.app.gui.units import light_pct, parse_exposure, shutter
 from dualrgb.app.gui.widgets import PathLabel, side_by_side
 from dualrgb.app.sequences.base import Sequence
 from dualrgb.app.sequences.capture import SubjectCapture
-from dualrgb.app.session.capture_session import CaptureSession
-from dualrgb.app.workflow.copystand import StandSettings, plans_only
-from dualrgb.app.workflow.defaults import workflow_defaults
-from dualrgb.app.workflow.engine import Run
-from dualrgb.app.workflow.folders import open_session
-from dualrgb.app.workflow.light_safety import SafetySettings
-from dualrgb.app.workflow.metering import AutoExposure, HdrMetering
-from dualrgb.app.workflow.plans import StandPlanner, next_take, planned_steps, steps_done
-from dualrgb.app.workflow.vocabulary import NamedLight, SequenceKind, Subject, lights_of
+from dualrgb.app.workflow.stand.copystand import StandSettings, plans_only
+from dualrgb.app.workflow.stand.defaults import workflow_defaults
+from dualrgb.app.workflow.stand.folders import open_session
+from dualrgb.app.workflow.stand.metering import AutoExposure, HdrMetering
+from dualrgb.app.workflow.stand.plans import StandPlanner, next_take, planned_steps, steps_done
+from dualrgb.core.engine import Run
+from dualrgb.core.light_safety import SafetySettings
+from dualrgb.core.session.capture_session import CaptureSession
+from dualrgb.core.vocabulary import NamedLight, SequenceKind, Subject, lights_of
 from dualrgb.simulation.presets import Preset
 
 log = logging.getLogger(__name__)
@@ -234,20 +234,20 @@ class CapturePanel(QWidget):
 
     # ------------------------------------------------------------------ session
     def new_session(self, folder: Path | None = None, meta: dict | None = None) -> None:
-        """A new session in ``folder``, or under a dated name in the captures folder (app.workflow.folders)."""
+        """A new session in ``folder``, or under a dated name in the captures folder (app.workflow.stand.folders)."""
         root = self.ctx.captures_dir
         info = {"operator": self.ctx.get("originals/operator", "", str), "virtual_lab": self.lab.is_virtual,
                 **(meta or {})}
         lab = self.lab
 
-        def work() -> CaptureSession:            # app.workflow.folders.open_session: the one way
+        def work() -> CaptureSession:            # app.workflow.stand.folders.open_session: the one way
             return open_session(folder, lab.session_definition(), meta=info, root=root)
         self.ctx.runner.submit(work, pool="devices", name="new session", on_result=self.lab.set_session,
                                on_error=lambda exc: self.ctx.errors.report("New session", exc))
 
     def open_session(self, folder: Path) -> None:
         """Resume a session: its definition (mode, camera, frame size) must match the stand's; missing or damaged
-        frames are set aside so their steps are shot again (app.session)."""
+        frames are set aside so their steps are shot again (core.session)."""
         lab = self.lab
 
         def work() -> tuple[CaptureSession, int]:
@@ -368,7 +368,7 @@ class CapturePanel(QWidget):
         return {n: [t] for n, t in have.items()}
 
     def all_exposures(self) -> dict[str, list[float]]:
-        """Per light: every exposure the captures use (app.workflow.plans.calibration_exposures)."""
+        """Per light: every exposure the captures use (app.workflow.stand.plans.calibration_exposures)."""
         self.exposures()
         return self.ws.planned_exposures(self.lab.session)
 
@@ -382,7 +382,7 @@ class CapturePanel(QWidget):
         return plans_only(self.lab.camera, self.stand_settings())
 
     def planner(self) -> StandPlanner:
-        """The single steps on the copy stand (app.workflow.copystand.CopyStand.planner), to run."""
+        """The single steps on the copy stand (app.workflow.stand.copystand.CopyStand.planner), to run."""
         self._require_devices()
         if self.lab.session is None:
             raise ValueError("no session yet (one is made when a run starts)")
@@ -396,7 +396,7 @@ class CapturePanel(QWidget):
 
     def build(self, stand: StandPlanner | None, take: int = 1) -> Sequence:
         """The selected sequence (with ``stand=None`` only for its plan), built by the workflow
-        (app.workflow.plans.StandPlanner)."""
+        (app.workflow.stand.plans.StandPlanner)."""
         kind = SEQUENCE_KINDS[self.kind.currentText()]
         st = stand or self.plans()
         if kind in (SequenceKind.DARKS, SequenceKind.FLATS):

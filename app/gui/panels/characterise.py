@@ -28,10 +28,10 @@ from dualrgb.app.gui.units import dn, light_pct, shutter, shutters
 from dualrgb.app.gui.viewmodel import LINEAR_LIMIT_DN, light_from_levels
 from dualrgb.app.gui.widgets import plot_widget, side_by_side
 from dualrgb.app.sequences.crf_sweep import CrfSweep
-from dualrgb.app.workflow.copystand import StandSettings, plans_only
-from dualrgb.app.workflow.defaults import SETTLE_S
-from dualrgb.app.workflow.plans import StandPlanner
-from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.app.workflow.stand.copystand import StandSettings, plans_only
+from dualrgb.app.workflow.stand.defaults import SETTLE_S
+from dualrgb.app.workflow.stand.plans import StandPlanner
+from dualrgb.core.vocabulary import EventKind
 from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
@@ -161,7 +161,7 @@ class CharacterisePanel(QWidget):
                              latency_s=latency if latency > 0 else None)
 
     def build(self, stand: StandPlanner) -> CrfSweep:
-        """The sweep, built by the workflow on ``stand`` (app.workflow.plans.StandPlanner)."""
+        """The sweep, built by the workflow on ``stand`` (app.workflow.stand.plans.StandPlanner)."""
         speeds = stand.facts.shutters                      # the camera's, as the run engine read them
         exposures = [t for t in (speeds or _NIKON_THIRDS) if self.min_t.value() * 0.999 <= t <= self.max_t.value()]
         return stand.crf_sweep(self.chosen_light(), self.level_values(), exposures, self.min_t.value())

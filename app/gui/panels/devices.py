@@ -20,9 +20,9 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.device_hub import VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
 from dualrgb.app.gui.units import temperature
 from dualrgb.app.gui.widgets import PathLabel, StatusLight
-from dualrgb.app.workflow.defaults import DEFAULT_MODE, MODES
-from dualrgb.app.workflow.folders import LegacyCaptures, folder_summary, legacy_captures, move_sessions
-from dualrgb.app.workflow.stand_devices import NO_CAMERA_ADVICE
+from dualrgb.app.workflow.stand.defaults import DEFAULT_MODE, MODES
+from dualrgb.app.workflow.stand.folders import LegacyCaptures, folder_summary, legacy_captures, move_sessions
+from dualrgb.app.workflow.stand.stand_devices import NO_CAMERA_ADVICE
 
 log = logging.getLogger(__name__)
 
@@ -132,7 +132,7 @@ class DevicesPanel(QWidget):
         for r, (key, title, tip) in enumerate((
                 ("paths/captures", "Captures", "Where sessions (raw frames, calibrations, deliverables) and test "
                                                "shots are saved, with the free space there; default: the per-user "
-                                               "data folder (app.workflow.defaults)."),
+                                               "data folder (app.workflow.stand.defaults)."),
                 ("paths/presets", "Your presets", "Where your own light presets are saved (the packaged ones "
                                                   "are always listed too)."))):
             label = PathLabel()

@@ -1,5 +1,5 @@
 """Originals: the day's queue of artworks, prints and films, captured with the current calibration and delivered
-in one run of the workflow's queue loop (app.workflow.queue_run.capture_queue, as ``capture --queue``: per
+in one run of the workflow's queue loop (app.workflow.day.queue_run.capture_queue, as ``capture --queue``: per
 original metering, an HDR bracket only when metering asks, the archival TIFFs, sidecar and QA line).
 
 Each row shows its state (waiting / capturing / captured / delivered / failed) and QA line; the delivered TIFF
@@ -7,9 +7,9 @@ and its folder open from here, and the *Delivered* tab shows the selected origin
 light of choice, with the spectrum of a clicked pixel (app.gui.spectra_view). An original already in the
 session asks "re-shoot / keep" and reports "0 new, 2 kept". The calibration's check against the stand is shown
 above the Capture button, before anything is shot. *Import CSV...* adds a day's originals from the collection
-database through app.workflow.queue_csv.read_queue_csv (the CLI's ``--queue``) and shows the plan ``capture --queue
---check`` prints (app.workflow.queue_plan): its bad rows are listed, one line each, and only added on request is
-the rest. The mode rule (app.workflow.mode_rule): an original of another mode than the calibration's is marked and
+database through app.workflow.day.queue_csv.read_queue_csv (the CLI's ``--queue``) and shows the plan ``capture --queue
+--check`` prints (app.workflow.day.queue_plan): its bad rows are listed, one line each, and only added on request is
+the rest. The mode rule (app.workflow.stand.mode_rule): an original of another mode than the calibration's is marked and
 not shot unless the technician chooses "Capture anyway" (said in its sidecar and QA line).
 """
 from __future__ import annotations
@@ -47,17 +47,17 @@ from dualrgb.app.gui.stand_options import DeliveryOptions
 from dualrgb.app.gui.widgets import side_by_side
 from dualrgb.app.processing.masters import RESOLUTION_CHOICES
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
-from dualrgb.app.workflow.copystand import StandSettings, original_takes
-from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
-from dualrgb.app.workflow.day_file import restore_queue
-from dualrgb.app.workflow.defaults import SETTLE_S
-from dualrgb.app.workflow.engine import Run, RunHooks
-from dualrgb.app.workflow.metadata import MODES, Original
-from dualrgb.app.workflow.mode_rule import mode_problem
-from dualrgb.app.workflow.queue_csv import QueueImport, column_options, read_queue_csv
-from dualrgb.app.workflow.queue_plan import KEPT, plan_queue
-from dualrgb.app.workflow.queue_run import QUEUE_EVENT, QueueOutcome, capture_queue, original_plan
-from dualrgb.app.workflow.vocabulary import EventKind
+from dualrgb.app.workflow.day.day import OriginalsQueue, OriginalState, QueueRow
+from dualrgb.app.workflow.day.day_file import restore_queue
+from dualrgb.app.workflow.day.queue_csv import QueueImport, column_options, read_queue_csv
+from dualrgb.app.workflow.day.queue_plan import KEPT, plan_queue
+from dualrgb.app.workflow.day.queue_run import QUEUE_EVENT, QueueOutcome, capture_queue, original_plan
+from dualrgb.app.workflow.stand.copystand import StandSettings, original_takes
+from dualrgb.app.workflow.stand.defaults import SETTLE_S
+from dualrgb.app.workflow.stand.mode_rule import mode_problem
+from dualrgb.core.engine import Run, RunHooks
+from dualrgb.core.metadata import MODES, Original
+from dualrgb.core.vocabulary import EventKind
 
 log = logging.getLogger(__name__)
 
@@ -299,7 +299,7 @@ class OriginalsPanel(QWidget):
                            default=CANCEL)
 
     def _plan_lines(self, imported: QueueImport) -> list[str]:
-        """What `dualrgb capture --queue --check` prints (app.workflow.queue_plan) under the current calibration
+        """What `dualrgb capture --queue --check` prints (app.workflow.day.queue_plan) under the current calibration
         (without one: the rows read, the bad rows, those delivered in the session already, the column lines)."""
         plan = plan_queue(imported, self.ws.calibration, session=self.lab.session)
         if self.ws.calibration is not None:
@@ -366,7 +366,7 @@ class OriginalsPanel(QWidget):
                     queue.rows.append(row)
             self.ws.queue = queue
             self.ws.queue_changed()
-        # the session's delivered originals and its saved queue (app.workflow.day_file)
+        # the session's delivered originals and its saved queue (app.workflow.day.day_file)
         self.ctx.runner.submit(lambda: restore_queue(session), pool="compute", name="list originals",
                                on_result=done, on_error=lambda exc: self.ctx.errors.report("Originals", exc))
 
@@ -439,7 +439,7 @@ class OriginalsPanel(QWidget):
 
     def capture(self, identifiers: list[str]) -> None:
         """Ask what must be decided before anything is lit (another mode, already in the session), then capture
-        and deliver the chosen originals in one run of the workflow's queue (app.workflow.queue_run)."""
+        and deliver the chosen originals in one run of the workflow's queue (app.workflow.day.queue_run)."""
         why = self._why_not(bool(self.ws.running))
         if why:
             self.ctx.errors.report("Capture originals", why)
@@ -468,7 +468,8 @@ class OriginalsPanel(QWidget):
             self._start([self.ws.queue.row(i) for i in chosen])
 
     def _refused_mode(self, row: QueueRow) -> bool:
-        """The mode rule (app.workflow.mode_rule): an original of another mode than the calibration's is marked and
+        """The mode rule (app.workflow.stand.mode_rule): an original of another mode than the calibration's is marked
+        and
         not shot, unless the technician overrides it (said in its sidecar and QA line)."""
         profile = self.ws.calibration
         problem = mode_problem(row.original.mode, profile.mode, profile.id) if profile is not None else ""
@@ -502,7 +503,7 @@ class OriginalsPanel(QWidget):
         self.ctx.asker.ask("Already in the session", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
 
     def _start(self, rows: list[QueueRow]) -> None:
-        """One run: the workflow's queue loop (app.workflow.queue_run.capture_queue) on the copy stand."""
+        """One run: the workflow's queue loop (app.workflow.day.queue_run.capture_queue) on the copy stand."""
         profile, lab = self.ws.calibration, self.lab
         if profile is None:
             self.ctx.errors.report("Capture originals", "no calibration is loaded: calibrate, or load one")
@@ -523,7 +524,7 @@ class OriginalsPanel(QWidget):
         self.view.start(self.run)
 
     def _plan(self) -> list[PlannedFrame]:
-        """The queue's frames: each original's (app.workflow.queue_run.original_plan), with its HDR bracket once
+        """The queue's frames: each original's (app.workflow.day.queue_run.original_plan), with its HDR bracket once
         metered."""
         profile = self.ws.calibration
         if profile is None:
@@ -552,7 +553,7 @@ class OriginalsPanel(QWidget):
             self.ws.queue_changed()
 
     def _queue_event(self, what: str, ev: ProgressEvent) -> None:
-        """The queue's own events (app.workflow.queue_run): an original starts, or it is delivered."""
+        """The queue's own events (app.workflow.day.queue_run): an original starts, or it is delivered."""
         row = self.ws.queue.row(ev.data["original"])
         if what == "start":
             self.current, row.state, row.qa = row, OriginalState.CAPTURING, ""

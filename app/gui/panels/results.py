@@ -1,4 +1,5 @@
-"""Results: process the session (app.workflow.session_processing.process_session: darks, HDR whites, flat field,
+"""Results: process the session (app.workflow.calibration.session_processing.process_session: darks, HDR whites, flat
+field,
 patch values, the matrices, outputs, report) and show the report: ΔE00 per patch on a fixed traffic-light scale
 with the patch names, reference -> capture vectors on a*b* and L*C*, the reference | capture mosaic, summary
 statistics, the FADGI / ISO 19264 / Metamorfoze badges ("colour accuracy only") with the criteria graded per
@@ -35,10 +36,10 @@ from dualrgb.app.gui.units import with_unit
 from dualrgb.app.gui.widgets import PathLabel, side_by_side
 from dualrgb.app.gui.workers import TaskHandle
 from dualrgb.app.processing.characterise import DE2000, LEAST_SQUARES, ROOT_POLYNOMIAL_2, ROOT_POLYNOMIAL_3
-from dualrgb.app.protocols import Session
-from dualrgb.app.workflow.session_processing import light_sets, subject_entries
-from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
+from dualrgb.app.workflow.calibration.session_processing import light_sets, subject_entries
 from dualrgb.common.progress import CancelToken, ProgressCallback
+from dualrgb.core.protocols import Session
+from dualrgb.core.vocabulary import Subject, SubjectKind
 
 log = logging.getLogger(__name__)
 
@@ -57,13 +58,14 @@ def process(lab: Lab, session: Session, grids: dict, train_subject: str, test_su
             progress: ProgressCallback, cancel: CancelToken, lights: list[str] | None = None, method: str | None = None,
             charts: dict | None = None, delivered: str = "", mode: str = "",
             ) -> tuple[object, dict[str, TargetView], Path]:
-    """Worker: the TargetSpecs (app.workflow.targets: reference XYZ integrated by ``method``; ``charts``: the
+    """Worker: the TargetSpecs (app.workflow.calibration.targets: reference XYZ integrated by ``method``; ``charts``:
+    the
     calibration's own, :func:`calibration_charts`), the one processing path, the plot data of the ``delivered``
     matrix family (the calibration's) when it was fitted, else of the one chosen here. The grids are those placed
     in Target; where none was placed, the charts are found in their frames (app.processing.chart_detect)."""
     from dualrgb.app.processing.report import xyz_to_srgb8
-    from dualrgb.app.workflow.session_processing import process_session
-    from dualrgb.app.workflow.targets import reference_white, target_spec
+    from dualrgb.app.workflow.calibration.session_processing import process_session
+    from dualrgb.app.workflow.calibration.targets import reference_white, target_spec
     from dualrgb.simulation.colorimetry import xyz_to_lab
 
     mode = mode or (lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode)
@@ -93,9 +95,10 @@ def process(lab: Lab, session: Session, grids: dict, train_subject: str, test_su
 
 def calibration_charts(profile: object | None, chosen: dict) -> tuple[dict, str]:
     """(charts, mode) Results grades with: the calibration's own (its recorded chart files read again and checked
-    by their sha256: app.workflow.charts.charts_of_profile; {}: it used the packaged targets) when there is a
+    by their sha256: app.workflow.calibration.charts.charts_of_profile; {}: it used the packaged targets) when there is
+    a
     calibration, else the ones chosen in the calibration box."""
-    from dualrgb.app.workflow.charts import charts_of_profile
+    from dualrgb.app.workflow.calibration.charts import charts_of_profile
 
     if profile is None:
         return dict(chosen), ""
@@ -179,7 +182,7 @@ class ResultsPanel(QWidget):
         for label, key in REFERENCE_METHODS:
             self.reference.addItem(label, key)
         self.reference.setToolTip("How the targets' reference XYZ are integrated from their spectra "
-                                  "(app.workflow.targets; they differ by 0.08 mean ΔE00 on the CC24).")
+                                  "(app.workflow.calibration.targets; they differ by 0.08 mean ΔE00 on the CC24).")
         self.optimise = QCheckBox("also fit the ΔE00-optimised matrix")
         self.optimise.setChecked(self.ctx.get("results/optimise", True, bool))
         self.optimise.toggled.connect(lambda on: self.ctx.set("results/optimise", on))

@@ -1,7 +1,7 @@
 """Simulate & optimise: choose the sphere's two lights in simulation (exhaustive / PSO / GA), watch the search
 converge, look at the chosen lights and the six channel sensitivities, save the result as a preset. "Re-optimise
 for this stand" runs the same search on the stand model the loaded calibration fitted
-(app.workflow.stand_reoptimise, as ``dualrgb simulate --stand``)."""
+(app.workflow.calibration.stand_reoptimise, as ``dualrgb simulate --stand``)."""
 from __future__ import annotations
 
 import logging
@@ -77,9 +77,10 @@ def partial_result(setup, tap: ConvergenceTap, method: str, seed: int, top: int,
 
 def _stand_search(profile, mode: str, method: str, seed: int, top: int, objective: str, progress, cancel, emit,
                   **settings) -> RunResult | None:
-    """The search on a calibration's stand model (app.workflow.stand_reoptimise), with the live plot's tap; a
+    """The search on a calibration's stand model (app.workflow.calibration.stand_reoptimise), with the live plot's tap;
+    a
     cancelled search keeps its best so far, as the plain search does."""
-    from dualrgb.app.workflow.stand_reoptimise import assemble, calibration_lights, reoptimise
+    from dualrgb.app.workflow.calibration.stand_reoptimise import assemble, calibration_lights, reoptimise
     from dualrgb.simulation.runner import make_evaluator
 
     model, notes = assemble(profile)

@@ -25,8 +25,8 @@ from dualrgb.app.gui.viewmodel import display_rgb
 from dualrgb.app.gui.widgets import image_widget, side_by_side
 from dualrgb.app.processing.patches import PatchGrid, detect_cc24
 from dualrgb.app.processing.report import layout_for
-from dualrgb.app.workflow.session_processing import subject_entries
-from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
+from dualrgb.app.workflow.calibration.session_processing import subject_entries
+from dualrgb.core.vocabulary import Subject, SubjectKind
 
 log = logging.getLogger(__name__)
 
@@ -207,7 +207,7 @@ class TargetPanel(QWidget):
         elif vl is not None:
             geometry = vl.scene_for(tag).geometry
         else:
-            from dualrgb.app.workflow.targets import chart_of
+            from dualrgb.app.workflow.calibration.targets import chart_of
             geometry = geometry_of(chart_of(self.lab.mode, tag))
         return None if geometry is None or geometry.name == "grid" else geometry
 
