@@ -141,8 +141,14 @@ class ScreenshotRun(QObject):
         return lambda: tgt.subject.findData("target:test") >= 0
 
     def _place_grid(self, key: str):
-        self.w.target.select_subject(key)
-        return lambda: key in self.w.ctx.workspace.grids
+        tgt = self.w.target
+        tgt.select_subject(key)
+
+        def placed() -> bool:                   # once its frame is shown: placed as a technician would
+            if key not in self.w.ctx.workspace.grids and tgt.grid is not None and tgt.key() == key:
+                tgt.place_button.click()
+            return key in self.w.ctx.workspace.grids
+        return placed
 
     def _process(self):
         res = self.w.results

@@ -41,7 +41,10 @@ def place_grid(qtbot, w, subject):
     tgt = w.target
     qtbot.waitUntil(lambda: subject in tgt.subjects, timeout=LONG)
     tgt.select_subject(subject)
-    qtbot.waitUntil(lambda: subject in w.ctx.workspace.grids, timeout=LONG)
+    qtbot.waitUntil(lambda: tgt.grid is not None and tgt.key() == subject, timeout=LONG)
+    assert subject not in w.ctx.workspace.grids            # shown, not placed (found in its frames if left so)
+    click(qtbot, tgt.place_button)
+    assert subject in w.ctx.workspace.grids
     wait_idle(qtbot, w)
 
 
@@ -120,8 +123,10 @@ def test_whole_session_on_the_virtual_lab(qtbot, make_window, tmp_path):
     assert labels == ["test target", "training target"]             # no internal keys shown (issue 11 item 10)
     for key in ("target:train", "target:test"):
         tgt.select_subject(key)
-        qtbot.waitUntil(lambda k=key: tgt.grid is not None and k in w.ctx.workspace.grids, timeout=LONG)
+        qtbot.waitUntil(lambda k=key: tgt.grid is not None and tgt.key() == k, timeout=LONG)
         wait_idle(qtbot, w)
+        click(qtbot, tgt.place_button)
+        assert key in w.ctx.workspace.grids
     assert (tgt.grid.rows, tgt.grid.cols) == (4, 6)
     start = tgt.corners().copy()
     tgt.move_handle(2, start[2, 0] - 5, start[2, 1] - 4)

@@ -106,12 +106,18 @@ class TargetPanel(QWidget):
         self.detect_button.setToolTip("Find a 24-patch ColorChecker automatically (needs the optional "
                                       "colour-checker-detection package).")
         self.detect_button.clicked.connect(self.detect)
+        self.place_button = QPushButton("Use this grid")
+        self.place_button.setToolTip("Sample this target with the grid as shown. A grid is used only once you "
+                                     "place it (drag a corner, change rows or columns, or this button); a "
+                                     "target without one is found in its frames when it is processed.")
+        self.place_button.clicked.connect(lambda: self.update_grid(place=True))
         gf.addRow("Rows", self.rows)
         gf.addRow("Columns", self.cols)
         gf.addRow("Sampled part", self.fraction)
         row = QHBoxLayout()
         row.addWidget(self.reset_button)
         row.addWidget(self.detect_button)
+        row.addWidget(self.place_button)
         gf.addRow(row)
         return box
 
@@ -243,8 +249,8 @@ class TargetPanel(QWidget):
             w.blockSignals(False)
         if saved is not None:
             self.set_corners(saved.corners)
-        else:
-            self.set_corners(self.default_corners())
+        else:                                            # shown, not placed: found in its frames when processed
+            self.set_corners(self.default_corners(), place=False)
 
     def default_corners(self) -> np.ndarray:
         """Where the handles start: the virtual lab's target corners, else 10 % inside the frame."""
@@ -256,7 +262,7 @@ class TargetPanel(QWidget):
         return np.array([[0.1 * w, 0.1 * h], [0.9 * w, 0.1 * h], [0.9 * w, 0.9 * h], [0.1 * w, 0.9 * h]])
 
     # ------------------------------------------------------------------ grid
-    def set_corners(self, corners) -> None:
+    def set_corners(self, corners, place: bool = True) -> None:
         corners = np.asarray(corners, dtype=float).reshape(4, 2)
         if self.roi is not None:
             self.viewbox.removeItem(self.roi)
@@ -266,7 +272,7 @@ class TargetPanel(QWidget):
                             "the whole grid.")
         self.roi.sigRegionChanged.connect(lambda _r: self.update_grid())
         self.viewbox.addItem(self.roi)
-        self.update_grid()
+        self.update_grid(place=place)
 
     def corners(self) -> np.ndarray:
         if self.roi is None:
@@ -281,7 +287,9 @@ class TargetPanel(QWidget):
         handle = self.roi.getHandles()[index]
         self.roi.movePoint(handle, self.roi.mapFromParent(QPointF(x, y)))
 
-    def update_grid(self) -> None:
+    def update_grid(self, place: bool = True) -> None:
+        """Draw the grid; ``place``: the technician placed it (a drag, rows or columns, Detect, *Use this grid*),
+        so this target is sampled with it (the workspace's grid) instead of being found in its frames."""
         original = bool(self.key()) and not self.tag()
         if self.roi is not None:
             self.roi.setVisible(not original)
@@ -313,11 +321,14 @@ class TargetPanel(QWidget):
         ln = np.concatenate(lines)
         self.outline.setData(ln[:, 0], ln[:, 1])
         key = self.key()
-        if key:
+        if key and (place or key in self.ws.grids):
             self.ws.set_grid(key, grid)
         where = Subject.parse(key).label if key else "the frame"
+        placed = key in self.ws.grids if key else True
         self.info.setText(f"{grid.rows} x {grid.cols} = {grid.n_patches} patches on the {where}; "
-                          f"measuring the middle {100 * grid.fraction:.0f}\u00a0% of each.")
+                          f"measuring the middle {100 * grid.fraction:.0f}\u00a0% of each"
+                          + ("." if placed else " - not placed: found in its frames when processed "
+                             "(drag a corner or Use this grid to place it)."))
 
     def detect(self) -> None:
         if self.image is None:
