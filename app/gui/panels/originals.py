@@ -556,10 +556,11 @@ class OriginalsPanel(QWidget):
         row = self.ws.queue.row(ev.data["original"])
         if what == "start":
             self.current, row.state, row.qa = row, OriginalState.CAPTURING, ""
-        elif ev.data.get("outcome") is not None and ev.data["outcome"].report is not None:
-            row.delivered(ev.data["outcome"].report)
+        elif (outcome := ev.data.get("outcome")) is not None and (outcome.report is not None or outcome.error):
+            row.delivered(outcome.report) if outcome.report else setattr(row, "state", OriginalState.FAILED)
+            row.qa = outcome.summary() if outcome.error else row.qa      # a failed delivery: the queue went on
             self.view.message.setText(row.qa)
-            self.current = None
+            self.current = None if self.current is row else self.current     # N+1 may be shot by now (issue 41)
         self.ws.queue_changed()
         self.ctx.bus.sessionUpdated.emit()
 
