@@ -6,6 +6,8 @@ frame (a sequential day would never give it one: the hang guard then fails the t
 from __future__ import annotations
 
 import hashlib
+import os
+import sys
 import threading
 from pathlib import Path
 
@@ -86,9 +88,13 @@ def test_n_is_delivered_while_n_plus_1_is_shot_and_never_more_than_two_in_flight
     stand.on_event = on_event
     real = stand.deliver_shot
 
+    niceness: list[int] = []
+
     def deliver(shot):
         ident = shot.original.identifier
         log.append(("deliver", ident))
+        if hasattr(os, "getpriority"):
+            niceness.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
         nxt = IDS.index(ident) + 1
         if nxt < len(IDS):          # the next original's first frame lands while this one is being delivered
             assert first_frame[IDS[nxt]].wait(HANG_GUARD_S), f"{IDS[nxt]} was not shot while {ident} was delivered"
@@ -101,6 +107,9 @@ def test_n_is_delivered_while_n_plus_1_is_shot_and_never_more_than_two_in_flight
     assert all(o.report is not None for o in outcomes)
     for n, ident in enumerate(IDS[:-2]):                 # N delivered before N+2's first frame: two in flight
         assert log.index(("delivered", ident)) < log.index(("frame", IDS[n + 2])), log
+    base = os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) if hasattr(os, "getpriority") else 19
+    if sys.platform == "linux" and base < 19:            # the worker below the run's thread (nice is per thread)
+        assert niceness and min(niceness) > base
 
 
 def test_a_failed_delivery_is_reported_against_its_original_and_the_next_is_delivered(lab, tmp_path, monkeypatch):

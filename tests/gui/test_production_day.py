@@ -17,7 +17,6 @@ from tests.gui.conftest import HANG_GUARD_MS, click, connect_devices, wait_idle
 from tests.gui.watchdog import StallWatchdog
 
 LONG = HANG_GUARD_MS
-STALL_LIMIT_S = 0.1
 
 
 def finish(qtbot, w, view):
@@ -210,8 +209,7 @@ def test_production_day_through_the_gui(qtbot, make_window, tmp_path):
     dog.phase = "PSO"
     run_pso(qtbot, w)
     dog.stop()
-    print("watchdog:", dog.summary())
+    dog.record("production_day")          # a benchmark figure (bench/gui_stall.py), never a timed assertion
     assert dog.ticks > 100
-    assert dog.max_stall < STALL_LIMIT_S, f"the GUI thread stalled: {dog.summary()}"
     assert [t for t, _ in w.errors.history] == [], w.errors.history
     assert not w.lab.virtual_lab.emulator.snapshot().light_on
