@@ -209,7 +209,6 @@ class VirtualCamera(Camera):
         setup = default_setup(mode, grid)                       # grid None: the mode's default grid
         self.grid = setup.grid
         self.world = load_world(world)
-        self.timing = self.world.camera_timing                   # a real body's lag and download (none: nominal)
         # (n_wl, 3) on the grid: what every frame is rendered with (the world's camera, or ``camera_csv``)
         self.camera_sensitivities = load_camera(camera_csv or self.world.camera_path, self.grid)
         self.sphere_light = SphereLight(self.world, leds_csv)   # the world's LEDs (shape, output, low end)
@@ -318,7 +317,7 @@ class VirtualCamera(Camera):
         s = self._settings                                       # frozen: the exposure keeps what it was taken with
         t = float(s.shutter_s)
         started = self._clock()
-        self.timing.lag()
+        self.world.camera_timing.lag()                         # a real body's shutter lag (none: nominal)
         if "latency" in self._faults:
             time.sleep(float(self._faults["latency"].get("delay_s", 1.0)))
         if "hang" in self._faults:
@@ -361,7 +360,7 @@ class VirtualCamera(Camera):
                                          black_level=self.sensor.black_level, white_level=self.sensor.white_level,
                                          color_matrix=self._cm, as_shot_neutral=neutral, model=CAMERA_NAME))
         self._counter += 1
-        self.timing.download(t0)                                 # at least the body's download time
+        self.world.camera_timing.download(t0)                    # at least the body's download time
         name = f"VIRT_{self._counter:04d}.DNG"
         log.info("virtual capture %s: %s, %.6g s%s, ISO %d, f/%g, %.2f s", name, scene.kind, t,
                  " (bulb)" if t > BULB_ABOVE_S else "", s.iso, s.aperture, time.perf_counter() - t0)
