@@ -163,3 +163,15 @@ def test_cancel_stops_the_shooting_and_the_delivery(lab, tmp_path, monkeypatch):
     assert _frames_of(stand, "ACC-3") == []                       # nothing shot after the cancel
     assert all(s.t_off is not None for s in lit_spans(lab.emulator, since))     # the light is off
     assert not (stand.session.settings.get("originals") or {})
+
+
+def test_capture_json_says_a_failed_original_with_its_error_and_timings():
+    from dualrgb.app.commands.capture import _outcome_json
+    from dualrgb.app.workflow.queue_run import QueueOutcome
+
+    failed = _outcome_json(QueueOutcome(Original("ACC-1"), error="No space left on device", capture_s=6.81,
+                                        deliver_s=0.2, stand_wait_s=0.0612))
+    assert failed["state"] == "failed" and failed["error"] == "No space left on device"
+    assert (failed["capture_s"], failed["deliver_s"], failed["stand_wait_s"]) == (6.81, 0.2, 0.061)
+    kept = _outcome_json(QueueOutcome(Original("ACC-2"), kept=Path("ACC-2.json")))
+    assert kept["state"] == "kept" and "stand_wait_s" not in kept
