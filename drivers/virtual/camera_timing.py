@@ -73,10 +73,10 @@ def parse_timing(source: str, key: str, value: Any) -> CameraTiming:
     for k in value:
         if k not in _FIELDS:
             raise ValueError(f"{source}: unknown key '{key}.{k}'; expected one of {', '.join(_FIELDS)}")
-    seconds = {}
+    seconds: dict[str, float] = {}
     for k, v in value.items():
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not 0 <= v <= MAX_S:
             raise ValueError(f"{source}: key '{key}.{k}': expected a number of seconds from 0 to {MAX_S:g}, "
                              f"found {v!r}")
         seconds[k] = float(v)
-    return CameraTiming(**seconds)
+    return CameraTiming(shutter_lag_s=seconds.get("shutter_lag_s", 0.0), download_s=seconds.get("download_s", 0.0))
