@@ -24,6 +24,9 @@ BENCHES = {
     "process": ("bench.process_bench", "bench_process", {}),
     "input_bounds": ("bench.input_bounds", "bench_input_bounds", {}),
     "masters": ("bench.masters_bench", "bench_masters", {}),
+    "stand_wait": ("bench.stand_wait", "bench_stand_wait", {}),
+    "gui_stall": ("bench.gui_stall", "bench_gui_stall", {}),
+    "light_gaps_load": ("bench.light_gaps_load", "bench_light_gaps_load", {}),
 }
 
 

@@ -148,10 +148,11 @@ class DeviceActions:
     def _place(self, msg: M.Place) -> None:
         if self.shooter.placed == (msg.what, msg.nd):
             return
-        if self.devices.stand is not None:
-            self.devices.stand(msg.what, msg.nd)
-        else:
-            self.ask(msg.prompt(), {"place": msg.what, "nd": msg.nd})
+        with self.shooter.timeline.busy("place"):         # the stand's (or a person's) time, not the computer's
+            if self.devices.stand is not None:
+                self.devices.stand(msg.what, msg.nd)
+            else:
+                self.ask(msg.prompt(), {"place": msg.what, "nd": msg.nd})
         self.shooter.placed = (msg.what, msg.nd)
 
     def _read_frame(self, msg: M.ReadFrame) -> Any:

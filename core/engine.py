@@ -302,7 +302,8 @@ class RunEngine:
             self.control.checkpoint(item.what or name)
             return None
         if isinstance(item, Prompt):
-            self._ask(item.message, dict(item.data))
+            with self.actions.shooter.timeline.busy("prompt"):      # a person's time (the queue's stand wait)
+                self._ask(item.message, dict(item.data))
             return None
         return self.actions.apply(item)
 

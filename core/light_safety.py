@@ -44,6 +44,10 @@ class SafetySettings:
     expose_timeout_s: float = 30.0  # host-side deadline of an exposure beyond its exposure time
     fetch_timeout_s: float = 120.0  # host-side deadline of a download
     camera_latency: Callable[[float], float] | None = field(default=None, repr=False, compare=False)
+    # how late after the settle time the host may trigger the camera once the light is on (a host starved by other
+    # work); None: half the camera's latency allowance, so the exposure can still end within the light's limit.
+    # A later trigger is not sent: the light goes off at once and the frame is shot again (core.shooter)
+    trigger_slack_s: float | None = None
 
     def for_camera(self, camera: Camera | None) -> SafetySettings:
         """These settings with the camera's own latency allowance (unless one was given, or the camera - a
@@ -75,6 +79,15 @@ class SafetySettings:
     def light_limit_s(self, exposure_s: float) -> float:
         """How long the light may stay on for one exposure."""
         return self.settle_s + float(exposure_s) + self.latency_for(float(exposure_s))
+
+    def slack_s(self, exposure_s: float) -> float:
+        """How late the host may be at either end of a lit exposure (``trigger_slack_s``): the camera's trigger
+        after switch-on + settle, and the switch-off after the camera reported the exposure's end."""
+        return float(self.trigger_slack_s if self.trigger_slack_s is not None else self.latency_for(exposure_s) / 2)
+
+    def trigger_bound_s(self, exposure_s: float) -> float:
+        """The longest the camera's trigger may follow the light's switch-on: settle + the slack."""
+        return self.settle_s + self.slack_s(exposure_s)
 
     def check(self, exposure_s: float) -> None:
         idle = self.settle_s + self.latency_for(0.0)

@@ -88,7 +88,7 @@ def test_the_rule_catches_a_plan_acting_itself(tmp_path, source):
 
 def test_plans_hold_no_device():
     """The plans (app/sequences, the metering and light plans) import none of the engine's hands."""
-    hands = tuple(f"dualrgb.app.workflow.{m}" for m in ("shooter", "shutter_shooter", "device_actions"))
+    hands = tuple(f"dualrgb.core.{m}" for m in ("shooter", "shutter_shooter", "device_actions"))
     plans = [*sorted((ROOT / "app" / "sequences").glob("*.py")), ROOT / "app/workflow/stand/metering.py",
              ROOT / "app/workflow/stand/light_plans.py", ROOT / "app/workflow/stand/plans.py"]
     for path in plans:

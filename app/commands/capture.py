@@ -210,7 +210,7 @@ def main(args: argparse.Namespace) -> int:
     write_json(args.json_path, CAPTURE_FORMAT, {"queue": str(args.queue), "calibration": profile.id,
                                                 "bad_rows": plan.refused_lines(), "plan": plan.to_dict(),
                                                 "originals": [_outcome_json(o) for o in outcomes]}, default=str)
-    return 0
+    return 1 if any(o.error for o in outcomes) else 0        # a failed delivery: said against its original
 
 
 def _check(args: argparse.Namespace, plan, single: list, profile) -> int:
@@ -248,11 +248,14 @@ def _print_outcome(outcome, out=None) -> None:
 
 def _outcome_json(outcome) -> dict:
     r = outcome.report
+    if outcome.error:           # issue 41: captured, its delivery failed (its frames are in the session)
+        return {"original": outcome.original.to_dict(), "state": "failed", "error": outcome.error,
+                **outcome.timings()}
     if r is None:
         return {"original": outcome.original.to_dict(), "state": "kept", "sidecar": str(outcome.kept)}
     return {"original": outcome.original.to_dict(), "state": "delivered", "new": r.new, "kept": r.kept,
             "qa": r.delivery.qa.to_dict(), "files": {k: str(v) for k, v in r.delivery.files.items()},
-            "sidecar": str(r.delivery.sidecar)}
+            "sidecar": str(r.delivery.sidecar), **outcome.timings()}
 
 
 def _single_json(args: argparse.Namespace, result, profile) -> int:

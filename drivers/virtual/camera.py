@@ -17,16 +17,16 @@ It renders what the real camera would record, with the same simulation the optim
 * sensor: Bayer RGGB, 14-bit, DN = black + gain * t * ISO/100 * response; shot noise on electrons, read noise,
   dark current, a few hot pixels; linear to ~11 000 DN then a soft knee up to the white level 15520 where
   it clips (thesis 4.1); optional exposure-time "bumps" of the mechanical shutter (appendix A);
-* file: an uncompressed 16-bit DNG (14-bit data; drivers.virtual.dng, tifffile) that rawpy reads back
-  bit-exact.
+* file: an uncompressed 16-bit DNG (14-bit data; drivers.virtual.dng, tifffile) that rawpy reads back bit-exact.
 
 ``expose()`` takes the light as it is then and lasts the exposure time while the sphere is lit (dose = exposure;
 ``realtime=True``: unlit too); ``fetch()`` renders and writes the DNG, so the light is off during the "download" as
 on the real camera. Every exposure is logged in ``exposure_log`` on the camera's ``clock`` (the virtual lab gives it
 the sphere emulator's, so tests can set exposures against the emulator's record of lit periods). Faults for
 tests (:meth:`VirtualCamera.inject`): ``latency`` (the exposure starts ``delay_s`` late: shutter lag, a slow
-USB), ``hang`` (``expose()`` blocks until the faults are cleared), ``slow_fetch`` (``delay_s``), ``error``
-(``expose()`` raises a CameraError).
+USB), ``hang`` (``expose()`` blocks until the faults are cleared), ``slow_fetch`` (``delay_s``), ``error`` (``expose()``
+raises a CameraError). A world's ``camera_timing`` (drivers.virtual.camera_timing) adds a real body's shutter lag
+and download time, in real time.
 
 The radiometric scale is calibrated so that the open gate under the full-intensity light (1, 6, 8) of
 Table 7.1 reaches ``SensorModel.open_gate_dn`` (~10 500 DN, just under the knee) in its brightest channel
@@ -82,11 +82,8 @@ CAMERA_FAULTS = ("latency", "hang", "slow_fetch", "error")
 
 def parse_shutter(label: str) -> float:
     """'1/60' -> 0.01667, '2.5' -> 2.5, '30,0000s' -> 30.0 (localised gphoto2 strings accepted)."""
-    text = label.strip().rstrip("s").replace(",", ".")
-    if "/" in text:
-        num, den = text.split("/", 1)
-        return float(num) / float(den)
-    return float(text)
+    num, _, den = label.strip().rstrip("s").replace(",", ".").partition("/")
+    return float(num) / float(den) if den else float(num)
 
 
 SHUTTER_SPEEDS: tuple[float, ...] = tuple(parse_shutter(s) for s in SHUTTER_LABELS)
@@ -320,6 +317,7 @@ class VirtualCamera(Camera):
         s = self._settings                                       # frozen: the exposure keeps what it was taken with
         t = float(s.shutter_s)
         started = self._clock()
+        self.world.camera_timing.lag()                         # a real body's shutter lag (none: nominal)
         if "latency" in self._faults:
             time.sleep(float(self._faults["latency"].get("delay_s", 1.0)))
         if "hang" in self._faults:
@@ -362,6 +360,7 @@ class VirtualCamera(Camera):
                                          black_level=self.sensor.black_level, white_level=self.sensor.white_level,
                                          color_matrix=self._cm, as_shot_neutral=neutral, model=CAMERA_NAME))
         self._counter += 1
+        self.world.camera_timing.download(t0)                    # at least the body's download time
         name = f"VIRT_{self._counter:04d}.DNG"
         log.info("virtual capture %s: %s, %.6g s%s, ISO %d, f/%g, %.2f s", name, scene.kind, t,
                  " (bulb)" if t > BULB_ABOVE_S else "", s.iso, s.aperture, time.perf_counter() - t0)

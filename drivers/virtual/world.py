@@ -26,6 +26,8 @@ key                      meaning (default: the nominal model)
                          (drivers.virtual.chart_pose.ChartPose): turned counter-clockwise by -180..180 degrees,
                          moved by -0.5..0.5 of the frame's width (right) and height (down), scaled 0.2..2 about
                          their centre; keys left out keep square, centred, full size
+``camera_timing``        ``"d610"`` or {``shutter_lag_s``, ``download_s``}: the camera's shutter lag and USB
+                         download, waited in real time (drivers.virtual.camera_timing); default none
 =======================  ===============================================================================
 
 Keys left out keep the nominal value; an unknown key or a bad value is a :class:`WorldError` naming the file,
@@ -54,6 +56,7 @@ from typing import Any
 import numpy as np
 
 from dualrgb import resources
+from dualrgb.drivers.virtual.camera_timing import CameraTiming, parse_timing
 from dualrgb.drivers.virtual.chart_pose import ChartPose
 from dualrgb.simulation.datasets import Target, load_camera
 from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid
@@ -93,6 +96,7 @@ class World:
     flare: float = 0.0
     reference_error_sd: float = 0.0
     chart_pose: ChartPose = ChartPose()
+    camera_timing: CameraTiming = CameraTiming()
     source: str = ""                                  # the file it was read from ('' = built in)
 
     @property
@@ -118,7 +122,9 @@ class World:
     def to_dict(self) -> dict[str, Any]:
         """The world as its JSON file states it (``camera_csv`` as written; ``chart_pose`` only when the charts are
         not square and centred, so the worlds without one keep their identity)."""
-        pose = {} if self.chart_pose.identity else {"chart_pose": self.chart_pose.to_dict()}
+        pose: dict[str, Any] = {} if self.chart_pose.identity else {"chart_pose": self.chart_pose.to_dict()}
+        if not self.camera_timing.identity:
+            pose["camera_timing"] = self.camera_timing.to_dict()
         return {"format": WORLD_FORMAT, "name": self.name, "description": self.description, "seed": self.seed,
                 "camera_csv": self.camera_csv, "led_peak_shift_nm": list(self.led_peak_shift_nm),
                 "led_width_scale": list(self.led_width_scale), "led_output_scale": list(self.led_output_scale),
@@ -212,11 +218,18 @@ def _chart_pose(source: str, key: str, value: Any) -> ChartPose:
     return ChartPose(**{k: _POSE[k](source, f"{key}.{k}", v) for k, v in value.items()})
 
 
+def _timing(source: str, key: str, value: Any) -> CameraTiming:
+    try:
+        return parse_timing(source, key, value)
+    except ValueError as exc:
+        raise WorldError(str(exc)) from None
+
+
 _KEYS: dict[str, Callable[[str, str, Any], Any]] = {
     "format": _format, "name": _text(64), "description": _text(1000), "seed": _seed, "camera_csv": _text(300),
     "led_peak_shift_nm": _per_led(-20.0, 20.0, " nm"), "led_width_scale": _per_led(0.5, 2.0),
     "led_output_scale": _per_led(0.0, 2.0), "led_low_level": _low_level, "flare": _number(0.0, 0.2),
-    "reference_error_sd": _number(0.0, 0.2), "chart_pose": _chart_pose,
+    "reference_error_sd": _number(0.0, 0.2), "chart_pose": _chart_pose, "camera_timing": _timing,
 }
 
 

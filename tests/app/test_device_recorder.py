@@ -20,7 +20,7 @@ from dualrgb.core.vocabulary import NamedLight
 from dualrgb.drivers.virtual.lab import VirtualLab
 from dualrgb.simulation.lightsource import LightSource
 
-ENGINE = {f"dualrgb.app.workflow.{m}" for m in ("engine", "device_actions", "shooter", "shutter_shooter")}
+ENGINE = {f"dualrgb.core.{m}" for m in ("engine", "device_actions", "shooter", "shutter_shooter")}
 ACTS = {"apply", "set_levels", "on", "off", "ensure_off", "shutdown", "all_off", "keepalive", "exposure_done",
         "expose", "fetch", "capture", "preview"}
 LIGHTS = [NamedLight("P light 1", LightSource((1, 6, 7), (0.0, 0.42, 1.0), "P light 1"))]

@@ -121,6 +121,9 @@ def test_queue_csv_three_bad_rows_then_skip_invalid_then_resume(cal):
     done = json.loads((root / "q.json").read_text())
     assert [o["original"]["identifier"] for o in done["originals"]] == good_identifiers()
     assert all(o["state"] == "delivered" and o["new"] == 2 for o in done["originals"]) and len(done["bad_rows"]) == 3
+    waits = [o["stand_wait_s"] for o in done["originals"]]          # issue 41: the pipelined day's timings
+    assert waits[0] is None and all(w is not None and w >= 0 for w in waits[1:])
+    assert all(o["capture_s"] > 0 and o["deliver_s"] > 0 for o in done["originals"])
     for o in done["originals"]:
         xmp = read_xmp(Path(o["files"]["srgb"]))
         assert xmp.identifier == o["original"]["identifier"] and xmp.extra["Standort"].startswith("Depot ")

@@ -1,16 +1,15 @@
-"""Originals: the day's queue of artworks, prints and films, captured with the current calibration and delivered
-in one run of the workflow's queue loop (app.workflow.day.queue_run.capture_queue, as ``capture --queue``: per
-original metering, an HDR bracket only when metering asks, the archival TIFFs, sidecar and QA line).
+"""Originals: the day's queue, captured and delivered in one run of app.workflow.day.queue_run.capture_queue (as
+``capture --queue``: metering, an HDR bracket when metering asks, the archival TIFFs, sidecar and QA line).
 
-Each row shows its state (waiting / capturing / captured / delivered / failed) and QA line; the delivered TIFF
-and its folder open from here, and the *Delivered* tab shows the selected original's spectral cube seen under a
-light of choice, with the spectrum of a clicked pixel (app.gui.spectra_view). An original already in the
-session asks "re-shoot / keep" and reports "0 new, 2 kept". The calibration's check against the stand is shown
-above the Capture button, before anything is shot. *Import CSV...* adds a day's originals from the collection
-database through app.workflow.day.queue_csv.read_queue_csv (the CLI's ``--queue``) and shows the plan ``capture --queue
---check`` prints (app.workflow.day.queue_plan): its bad rows are listed, one line each, and only added on request is
-the rest. The mode rule (app.workflow.stand.mode_rule): an original of another mode than the calibration's is marked and
-not shot unless the technician chooses "Capture anyway" (said in its sidecar and QA line).
+Each row shows its state (waiting / capturing / captured / delivered / failed) and QA line; the delivered TIFF and
+its folder open from here, and the *Delivered* tab shows the selected original's spectral cube seen under a light of
+choice, with the spectrum of a clicked pixel (app.gui.spectra_view). An original already in the session asks "re-shoot
+/ keep" and reports "0 new, 2 kept". The calibration's check against the stand is shown above the Capture
+button, before anything is shot. *Import CSV...* adds a day's originals from the collection database through
+app.workflow.day.queue_csv.read_queue_csv (the CLI's ``--queue``) and shows the plan ``capture --queue --check``
+prints (app.workflow.day.queue_plan): its bad rows are listed, one line each; the rest is added only on request. The
+mode rule (app.workflow.stand.mode_rule): an original of another mode than the calibration's is marked and not shot
+unless the technician chooses "Capture anyway" (said in its sidecar and QA line).
 """
 from __future__ import annotations
 
@@ -557,10 +556,11 @@ class OriginalsPanel(QWidget):
         row = self.ws.queue.row(ev.data["original"])
         if what == "start":
             self.current, row.state, row.qa = row, OriginalState.CAPTURING, ""
-        elif ev.data.get("outcome") is not None and ev.data["outcome"].report is not None:
-            row.delivered(ev.data["outcome"].report)
+        elif (outcome := ev.data.get("outcome")) is not None and (outcome.report is not None or outcome.error):
+            row.delivered(outcome.report) if outcome.report else setattr(row, "state", OriginalState.FAILED)
+            row.qa = outcome.summary() if outcome.error else row.qa      # a failed delivery: the queue went on
             self.view.message.setText(row.qa)
-            self.current = None
+            self.current = None if self.current is row else self.current     # N+1 may be shot by now (issue 41)
         self.ws.queue_changed()
         self.ctx.bus.sessionUpdated.emit()
 

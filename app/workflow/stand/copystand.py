@@ -19,6 +19,7 @@ under the next take) or kept (False).
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable, Mapping, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field
@@ -148,6 +149,29 @@ class CaptureReport:
 
     def summary(self) -> str:
         return f"{self.original.identifier}: {self.new} new, {self.kept} kept; {self.delivery.qa.text()}"
+
+
+@dataclass
+class ShotOriginal:
+    """An original whose frames are all in the session and taken into its channels (``builder``), not yet
+    delivered: what :meth:`CopyStand.shoot` hands to :meth:`CopyStand.deliver_shot`. ``capture_s``: the seconds
+    from its checks to its last frame."""
+
+    original: Original
+    profile: CalibrationProfile
+    take: int
+    exposures: dict[str, list[float]]
+    warnings: list[str]
+    checked: ReuseCheck
+    override: str
+    builder: MasterFrames | StackBuilder
+    dose: LightDoseRecord
+    new: int
+    kept: int
+    steps: list[str]
+    out_dir: Path
+    capture_s: float
+    camera: CameraIdentity                 # read in the run's thread: the delivery touches no device
 
 
 class CopyStand:
@@ -419,6 +443,15 @@ class CopyStand:
 
     def _capture(self, original: Original, profile: CalibrationProfile, reshoot: bool | None,
                  out_dir: Path | None, frames: int | None) -> CaptureReport:
+        shot = self.shoot(original, profile, reshoot, out_dir, frames)
+        return self.finish(shot, self.deliver_shot(shot))
+
+    def shoot(self, original: Original, profile: CalibrationProfile, reshoot: bool | None = None,
+              out_dir: Path | None = None, frames: int | None = None) -> ShotOriginal:
+        """The device half of :meth:`capture` (inside a run): checks, metering and the frames, each taken into
+        the original's channels as it lands; :meth:`deliver_shot` (no device: any thread) and :meth:`finish`
+        (the session's record, the run's thread) do the rest."""
+        t0 = time.monotonic()
         override = self.preflight(original, out_dir, profile)
         self.check_before_light(profile, out_dir)
         checked = self.check(profile)
@@ -438,22 +471,37 @@ class CopyStand:
         outer, self.on_event = self.on_event, _chain(self.on_event, landed)
         try:
             self.run_sequence(seq, 0.1, 0.8)
-            source = builder.result()
+        except BaseException:
+            builder.close()
+            raise
         finally:
             self.on_event = outer
-            builder.close()
-        dose = original_dose(self.session, original.subject)
+        return ShotOriginal(original, profile, take, exposures, warnings, checked, override, builder,
+                            original_dose(self.session, original.subject), seq.new, seq.kept, seq.steps(),
+                            self.deliverables(out_dir), time.monotonic() - t0, CameraIdentity.of(self.camera))
+
+    def deliver_shot(self, shot: ShotOriginal) -> Delivery:
+        """The deliverables of a shot original (no device, no session write: a delivery worker may run it while
+        the run shoots the next original); its frames are released on every path."""
+        try:
+            source = shot.builder.result()
+        finally:
+            shot.builder.close()
         with closing(source):
-            delivery = deliver(source, profile, original, self.deliverables(out_dir),
-                               camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
-                               exposures=exposures, warnings=checked.warnings + warnings,
-                               extra={"session": str(self.session.path), "take": take, "frames": seq.steps()},
-                               render_illuminant=self.settings.render_illuminant,
-                               overrides=[override] if override else [], cancel=self.cancel,
-                               settings=self.settings.delivery)
-        self._remember(original, dose, delivery, take, profile)
-        report(self.progress, 1.0, f"{original.identifier}: {seq.new} new, {seq.kept} kept; delivered")
-        return CaptureReport(original, seq.new, seq.kept, exposures, delivery, checked, warnings)
+            return deliver(source, shot.profile, shot.original, shot.out_dir,
+                           camera=shot.camera, dose=shot.dose, ppi=self.settings.ppi,
+                           exposures=shot.exposures, warnings=shot.checked.warnings + shot.warnings,
+                           extra={"session": str(self.session.path), "take": shot.take, "frames": shot.steps},
+                           render_illuminant=self.settings.render_illuminant,
+                           overrides=[shot.override] if shot.override else [], cancel=self.cancel,
+                           settings=self.settings.delivery)
+
+    def finish(self, shot: ShotOriginal, delivery: Delivery) -> CaptureReport:
+        """A delivered original recorded in the session (the run's thread) and reported."""
+        self._remember(shot.original, shot.dose, delivery, shot.take, shot.profile)
+        report(self.progress, 1.0, f"{shot.original.identifier}: {shot.new} new, {shot.kept} kept; delivered")
+        return CaptureReport(shot.original, shot.new, shot.kept, shot.exposures, delivery, shot.checked,
+                             shot.warnings)
 
     def _remember(self, original: Original, total: LightDoseRecord, delivery: Delivery, take: int,
                   profile: CalibrationProfile) -> None:
