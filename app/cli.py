@@ -70,8 +70,23 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, but an unknown option is refused by the subcommand that was given (its usage, not the
+    top level's) with the closest of that subcommand's options: ``--sesion`` -> "did you mean --session?"
+    (app.cli_refusals.unrecognised)."""
+
+    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                   namespace: argparse.Namespace | None = None) -> argparse.Namespace:
+        from dualrgb.app.cli_refusals import innermost_parser, unrecognised
+
+        found, extras = self.parse_known_args(args, namespace)
+        if extras:
+            innermost_parser(self, found).error(unrecognised(innermost_parser(self, found), extras))
+        return found
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="dualrgb", description="Dual-RGB multispectral capture and simulation")
+    parser = Parser(prog="dualrgb", description="Dual-RGB multispectral capture and simulation")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
     parser.add_argument("--version", action=_VersionAction, nargs=0, help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
