@@ -412,8 +412,8 @@ def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: P
     parameters = _fitted(vec, res.x, cov, where)
     correlations, lines = _identifiability(parameters, cov)
     warnings += lines
-    for line in warnings:
-        log.warning("%s", line)
+    for line in warnings:              # the fit's statistics (calibration show, -v): nothing for the operator to do
+        log.info("%s", line)
     model = start.with_params(vec.params(start.params, res.x))
     fit = _finish(obs, start, model, parameters, warnings, s2, int(res.nfev), priors, k)
     fit.correlations, fit.weak_directions = correlations, _weak_directions(parameters, cov)
