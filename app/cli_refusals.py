@@ -76,3 +76,26 @@ def _mode_of(profile: Path) -> str | None:
     except (OSError, ValueError):
         return None
     return doc.get("mode") if isinstance(doc, dict) else None
+
+
+def check_sessions(sessions: Sequence[Path], calibration: Path | None) -> None:
+    """``process``'s inputs, read without any heavy import: each SESSION a session folder, and a calibration for
+    it (``--calibration``, else one in the session: its calibration/ folder or named by its originals)."""
+    for session in sessions:
+        folder = Path(session)
+        if not folder.is_dir():
+            raise ValueError(f"{session}: no such session folder")
+        if not (folder / "session.json").is_file():
+            raise ValueError(f"{session}: not a capture session (no session.json)")
+        if calibration is None and not calibrations_of(folder) and not _named_calibrations(folder):
+            raise ValueError(f"{session}: no calibration in it or named by its originals; pass --calibration FILE")
+
+
+def _named_calibrations(session: Path) -> list[str]:
+    """The calibrations the session's originals were delivered with (session.json), as recorded."""
+    try:
+        doc = json.loads((session / "session.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return ["?"]                     # unreadable: opening the session says why
+    originals = doc.get("originals") if isinstance(doc, dict) else None
+    return [str(o["calibration"]) for o in (originals or {}).values() if isinstance(o, dict) and o.get("calibration")]
