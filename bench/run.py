@@ -24,6 +24,7 @@ BENCHES = {
     "process": ("bench.process_bench", "bench_process", {}),
     "input_bounds": ("bench.input_bounds", "bench_input_bounds", {}),
     "masters": ("bench.masters_bench", "bench_masters", {}),
+    "refusals": ("bench.refusals", "bench_refusals", {}),
 }
 
 
