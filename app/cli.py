@@ -85,6 +85,20 @@ class Parser(argparse.ArgumentParser):
         return found
 
 
+class _ConsoleFormat(logging.Formatter):
+    """The terminal's log lines: without -v a warning reads as the commands' own do (``warning: ...``, one
+    style); with -v every record names its level and logger."""
+
+    def __init__(self, verbose: int) -> None:
+        super().__init__("%(levelname)s %(name)s: %(message)s")
+        self.verbose = verbose
+
+    def format(self, record: logging.LogRecord) -> str:
+        if self.verbose or record.levelno < logging.WARNING:
+            return super().format(record)
+        return f"{'warning' if record.levelno == logging.WARNING else 'error'}: {record.getMessage()}"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="dualrgb", description="Dual-RGB multispectral capture and simulation")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
@@ -112,8 +126,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     with interrupts.handled():          # SIGINT, SIGTERM, SIGHUP: every open sphere off, read back (app.interrupts)
         parser = build_parser()
         args = parser.parse_args(argv)
-        logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
-                            format="%(levelname)s %(name)s: %(message)s")
+        if not logging.getLogger().handlers:            # the terminal's handler (not one a host set up)
+            console = logging.StreamHandler()
+            console.setFormatter(_ConsoleFormat(args.verbose))
+            logging.getLogger().addHandler(console)
+            logging.getLogger().setLevel([logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)])
         try:
             return int(args.func(args) or 0)
         except KeyboardInterrupt as exc:
