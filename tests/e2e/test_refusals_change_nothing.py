@@ -90,7 +90,7 @@ def test_every_refusal_leaves_the_session_as_it_was(day):
     assert "did you mean --session?" in ran["capture: an unknown option"].stderr
     assert "--camera auto with --virtual-lab" in ran["capture: a camera with the virtual lab"].stderr
     assert "128x96 px but calibration" in ran["capture: frames of another size"].stderr
-    assert "image_area" in ran["calibrate: frames of another size"].stderr
+    assert "the session was made with other settings" in ran["calibrate: frames of another size"].stderr
 
 
 def test_a_refused_capture_then_the_corrected_one_delivers_in_the_same_session(day):
