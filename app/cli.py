@@ -129,6 +129,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not logging.getLogger().handlers:            # the terminal's handler (not one a host set up)
             console = logging.StreamHandler()
             console.setFormatter(_ConsoleFormat(args.verbose))
+            console.addFilter(lambda record: not getattr(record, "session_only", False))   # app.session.log
             logging.getLogger().addHandler(console)
             logging.getLogger().setLevel([logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)])
         try:

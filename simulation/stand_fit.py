@@ -411,9 +411,11 @@ def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: P
     where, warnings = _bound_warnings(vec, res.x)
     parameters = _fitted(vec, res.x, cov, where)
     correlations, lines = _identifiability(parameters, cov)
-    warnings += lines
-    for line in warnings:              # the fit's statistics (calibration show, -v): nothing for the operator to do
+    for line in warnings:              # a parameter on its bound: the stand is not what the model allows
+        log.warning("%s", line)
+    for line in lines:                 # what the captures say little about: statistics (calibration show, -v)
         log.info("%s", line)
+    warnings += lines
     model = start.with_params(vec.params(start.params, res.x))
     fit = _finish(obs, start, model, parameters, warnings, s2, int(res.nfev), priors, k)
     fit.correlations, fit.weak_directions = correlations, _weak_directions(parameters, cov)
