@@ -179,6 +179,7 @@ def _lab_shorthand(args: argparse.Namespace, mode: str, charts: dict, grids: dic
 
 def main(args: argparse.Namespace) -> int:
     check_device_options(args)                # before the heavy imports below
+    preset, hdr, darks, flats = resolve(args)       # an unknown preset: refused before them too
     from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
     from dualrgb.app.workflow import charts as day_charts
     from dualrgb.app.workflow.copystand import CopyStand, StandSettings
@@ -186,7 +187,6 @@ def main(args: argparse.Namespace) -> int:
     from dualrgb.app.workflow.run_gate import check_session_run
     from dualrgb.app.workflow.targets import load_grid
 
-    preset, hdr, darks, flats = resolve(args)
     mode = preset.mode
     stand_start = _stand_start(args)
     conditioning(preset, stand_start)                                     # before any device opens
@@ -208,6 +208,7 @@ def main(args: argparse.Namespace) -> int:
     definition = {"workflow": DAY_WORKFLOW, "mode": mode, "preset": preset.name, "hdr": hdr,
                   "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle,
                   **day_charts.definition(charts)}
+    check_session_run(args.session, definition, None)       # another day's session: refused before the lab starts
     ensure_kernels()                          # first run: compiled here, before any device opens
     with open_devices(args, mode, charts=chart_choices(args)) as dev:
         check_session_run(args.session, definition, dev.camera)         # another day's session: nothing written
