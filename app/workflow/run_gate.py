@@ -74,6 +74,7 @@ def check_capture_run(camera: Camera, sphere: Sphere, profile: CalibrationProfil
     from dualrgb.app.workflow.profile import CameraIdentity, SphereIdentity, check_reuse
     from dualrgb.app.workflow.profile_check import ProfileError
 
+    check_session_run(folder, definition, camera)        # a session resumed at another size says so first
     check_lights(profile.lights, f"calibration {profile.id}")
     check_frame_shape(camera, profile)
     check_exposures(facts_of(camera, safety_of(settings)).safety, profile)
@@ -81,7 +82,6 @@ def check_capture_run(camera: Camera, sphere: Sphere, profile: CalibrationProfil
                          settings.limits)
     if not result.ok and not settings.force:
         raise ProfileError(f"calibration {profile.id} refused: {result.message()} (--force to use it anyway)")
-    check_session_run(folder, definition, camera)
     if folder is not None:
         _check_space(camera, profile, settings, Path(folder), out_dir or Path(folder) / "deliverables", originals)
     return result
