@@ -1,10 +1,10 @@
 """``dualrgb capture``: one original, or a day's queue from a CSV, with a saved calibration, to the deliverables.
 
-    dualrgb capture [--session DIR] [--calibration FILE] --id ACC-123 [--title ..] [--operator ..] [--notes ..]
+    dualrgb capture [--session DIR] [--calibration FILE|DIR] --id ACC-123 [--title ..] [--operator ..] [--notes ..]
                     [--mode reflective|transmissive] [--reshoot] [--force] [--render-illuminant A]
                     [--resolution full|half]
                     (--virtual-lab | --port P --camera C)
-    dualrgb capture --session DIR [--calibration FILE] --queue originals.csv [--column identifier="Accession No."]
+    dualrgb capture --session DIR [--calibration FILE|DIR] --queue originals.csv [--column identifier="Accession No."]
                     [--skip-invalid] [--operator ..] [--reshoot] [--check] ...
 
 ``--calibration`` defaults to the session's newest (of the original's mode with ``--id --mode``): a session made by

@@ -1,6 +1,6 @@
 """``dualrgb process``: deliver sessions' originals again, e.g. with a newer calibration, on one machine or many.
 
-    dualrgb process SESSION [SESSION ...] [--calibration FILE] [--force] [--out DIR] [--spectral]
+    dualrgb process SESSION [SESSION ...] [--calibration FILE|SESSION] [--force] [--out DIR] [--spectral]
                     [--render-illuminant A] [--resolution full|half] [--delivery-settings FILE]
                     [--jobs N | --scheduler ADDRESS] [--json J]
 
