@@ -81,7 +81,8 @@ class Parser(argparse.ArgumentParser):
 
         found, extras = self.parse_known_args(args, namespace)
         if extras:
-            innermost_parser(self, found).error(unrecognised(innermost_parser(self, found), extras))
+            given = innermost_parser(self, found)
+            given.error(unrecognised(given, extras))
         return found
 
 
