@@ -70,8 +70,38 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, but an unknown option is refused by the subcommand that was given (its usage, not the
+    top level's) with the closest of that subcommand's options: ``--sesion`` -> "did you mean --session?"
+    (app.cli_refusals.unrecognised)."""
+
+    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                   namespace: argparse.Namespace | None = None) -> argparse.Namespace:
+        from dualrgb.app.cli_refusals import innermost_parser, unrecognised
+
+        found, extras = self.parse_known_args(args, namespace)
+        if extras:
+            given = innermost_parser(self, found)
+            given.error(unrecognised(given, extras))
+        return found
+
+
+class _ConsoleFormat(logging.Formatter):
+    """The terminal's log lines: without -v a warning reads as the commands' own do (``warning: ...``, one
+    style); with -v every record names its level and logger."""
+
+    def __init__(self, verbose: int) -> None:
+        super().__init__("%(levelname)s %(name)s: %(message)s")
+        self.verbose = verbose
+
+    def format(self, record: logging.LogRecord) -> str:
+        if self.verbose or record.levelno < logging.WARNING:
+            return super().format(record)
+        return f"{'warning' if record.levelno == logging.WARNING else 'error'}: {record.getMessage()}"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="dualrgb", description="Dual-RGB multispectral capture and simulation")
+    parser = Parser(prog="dualrgb", description="Dual-RGB multispectral capture and simulation")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
     parser.add_argument("--version", action=_VersionAction, nargs=0, help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -97,8 +127,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     with interrupts.handled():          # SIGINT, SIGTERM, SIGHUP: every open sphere off, read back (app.interrupts)
         parser = build_parser()
         args = parser.parse_args(argv)
-        logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)],
-                            format="%(levelname)s %(name)s: %(message)s")
+        if not logging.getLogger().handlers:            # the terminal's handler (not one a host set up)
+            console = logging.StreamHandler()
+            console.setFormatter(_ConsoleFormat(args.verbose))
+            console.addFilter(lambda record: not getattr(record, "session_only", False))   # core.session.log
+            logging.getLogger().addHandler(console)
+            logging.getLogger().setLevel([logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)])
         try:
             return int(args.func(args) or 0)
         except KeyboardInterrupt as exc:

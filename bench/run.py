@@ -27,6 +27,7 @@ BENCHES = {
     "stand_wait": ("bench.stand_wait", "bench_stand_wait", {}),
     "gui_stall": ("bench.gui_stall", "bench_gui_stall", {}),
     "light_gaps_load": ("bench.light_gaps_load", "bench_light_gaps_load", {}),
+    "refusals": ("bench.refusals", "bench_refusals", {}),
 }
 
 

@@ -368,6 +368,15 @@ def _covariance(jac: np.ndarray, n_data: int, residuals: np.ndarray, prior_sd: n
     return np.linalg.pinv(info), s2
 
 
+def _log_notes(bounds: list[str], identifiability: list[str]) -> None:
+    """A parameter on its bound is a warning (the stand is not what the model allows); what the captures say little
+    about is the fit's statistics (INFO: ``calibration show``, ``-v``), nothing for the operator to do."""
+    for line in bounds:
+        log.warning("%s", line)
+    for line in identifiability:
+        log.info("%s", line)
+
+
 def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: Priors | None = None,
               camera_shape: bool | None = None) -> StandFit:
     """Fit the stand model to a calibration's captures (module docstring).
@@ -411,9 +420,8 @@ def fit_stand(obs: StandObservations, start: StandModel | None = None, priors: P
     where, warnings = _bound_warnings(vec, res.x)
     parameters = _fitted(vec, res.x, cov, where)
     correlations, lines = _identifiability(parameters, cov)
+    _log_notes(warnings, lines)
     warnings += lines
-    for line in warnings:
-        log.warning("%s", line)
     model = start.with_params(vec.params(start.params, res.x))
     fit = _finish(obs, start, model, parameters, warnings, s2, int(res.nfev), priors, k)
     fit.correlations, fit.weak_directions = correlations, _weak_directions(parameters, cov)

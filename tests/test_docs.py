@@ -189,3 +189,79 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     for page in ("tutorial/first-day", "how-to/queue", "reference/schemas", "explanation/architecture", "gui"):
         assert (html / f"{page}.html").is_file(), page
     assert "dualrgb-session" in (html / "reference" / "schemas.html").read_text(encoding="utf-8")
+
+
+# ---------------------------------------------------------------------------------- blocks that run as written
+SHELL_FENCE = re.compile(r"^```(sh|bash|shell|console)\s*$")
+PLACEHOLDER = re.compile(r"--[\w-]+ (?:[A-Z]|[A-Z]{2,}[A-Z_]*)(?:\s|$)")     # --world W, --out DIR
+# the command blocks no test runs, and why (a block is otherwise marked <!-- test: NAME --> and run by a test)
+NOT_RUN = {
+    ("README.md", "make run"): "the whole set-up and the GUI: `make test` itself runs it",
+    ("README.md", "dualrgb calibrate --session day1 --virtual-lab"): "its lines are the tutorial's "
+                                                                       "(test_readmes_first_day_is_the_tutorials)",
+    ("docs/how-to/install.md", "make run"): "the whole set-up and the GUI: `make test` itself runs it",
+    ("docs/how-to/install.md", "# Debian / Ubuntu"): "system packages: needs root on the user's machine",
+    ("docs/first-session-d610.md", "sudo apt-get install libgphoto2-6"): "udev rules: needs root and a USB camera",
+    ("docs/first-session-d610.md", "gio mount -s gphoto2"): "a desktop's gvfs: nothing to stop on a test machine",
+    ("docs/first-session-d610.md", "killall -9 ptpcamerad"): "macOS only",
+    ("docs/how-to/measure-stand.md", "dualrgb measure csrf --virtual-lab --start 380 --end 780 --step 10 --out "
+                                     "d610_csrf.csv"):
+        "a monochromator and a camera on their ports (lines 2 and 3); line 1 is the measure-stand block's step 2",
+}
+
+
+def shell_blocks() -> list[tuple[str, int, str, str | None]]:
+    """Every shell code block of README and the docs site (not docs/notes): (page, line, text, its test name)."""
+    out = []
+    for page in [README, *sorted(p for p in DOCS.rglob("*.md") if "notes" not in p.relative_to(DOCS).parts)]:
+        lines = page.read_text(encoding="utf-8").splitlines()
+        for i, line in enumerate(lines):
+            if not SHELL_FENCE.match(line):
+                continue
+            end = next(j for j in range(i + 1, len(lines)) if lines[j].startswith("```"))
+            before = next((lines[j] for j in range(i - 1, -1, -1) if lines[j].strip()), "")
+            marker = re.fullmatch(r"<!-- test: ([\w.-]+) -->", before.strip())
+            out.append((str(page.relative_to(ROOT)), i + 1, "\n".join(lines[i + 1:end]),
+                        marker.group(1) if marker else None))
+    return out
+
+
+def _first(block: str) -> str:
+    """A block's first line without its comment (the key of NOT_RUN)."""
+    line = block.splitlines()[0] if block.strip() else ""
+    return line.strip() if line.strip().startswith("#") else line.split("#", 1)[0].strip()
+
+
+def test_every_command_block_is_run_by_a_test_or_says_why_not():
+    tests = "\n".join(p.read_text(encoding="utf-8") for p in (ROOT / "tests").rglob("*.py"))
+    unaccounted, unrun = [], []
+    for page, line, text, name in shell_blocks():
+        if name is None and (page, _first(text)) not in NOT_RUN:
+            unaccounted.append(f"{page}:{line}")
+        if name is not None and f'"{name}"' not in tests:
+            unrun.append(f"{page}:{line} ({name})")
+    assert unaccounted == [], "shell blocks neither marked <!-- test: NAME --> nor in NOT_RUN"
+    assert unrun == [], "marked blocks no test names"
+    firsts = {(page, _first(text)) for page, _, text, _ in shell_blocks()}
+    assert [k for k in NOT_RUN if k not in firsts] == []              # no stale exemption
+
+
+def test_no_command_block_has_a_glob_that_can_match_two_files_or_a_placeholder():
+    """A command as written must be the command to type: no `cal-*.json` (two calibrations: two arguments), no
+    `--world W` / `--out DIR` typed literally."""
+    found = []
+    for page, line, text, _ in shell_blocks():
+        for k, command in enumerate(text.splitlines()):
+            words = command.split("#", 1)[0].split()
+            if not words or words[0] != "dualrgb":
+                continue
+            if any(c in w for w in words for c in "*?"):
+                found.append(f"{page}:{line + k + 1}: a glob: {command.strip()}")
+            if PLACEHOLDER.search(command.split("#", 1)[0].replace("--render-illuminant A", "")):
+                found.append(f"{page}:{line + k + 1}: a placeholder: {command.strip()}")
+    assert found == []
+
+
+def test_a_glob_or_a_placeholder_is_found():
+    assert PLACEHOLDER.search("dualrgb demo --world W --out x") and PLACEHOLDER.search("dualrgb x --out DIR")
+    assert not PLACEHOLDER.search("dualrgb capture --id ACC-123 --session d --operator \"J. Doe\"")

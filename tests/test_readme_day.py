@@ -25,6 +25,7 @@ TUTORIAL = ROOT / "docs" / "tutorial" / "first-day.md"
 OWN_CHARTS = ROOT / "docs" / "how-to" / "own-charts.md"
 REDELIVERY = ROOT / "docs" / "how-to" / "redelivery.md"
 VERIFY_BAG = ROOT / "docs" / "how-to" / "verify-bag.md"
+ARCHIVE_MASTERS = ROOT / "docs" / "how-to" / "archive-masters.md"
 FRAME = "240x160"
 
 
@@ -98,6 +99,7 @@ def test_readme_copy_stand_day_runs_as_written(workdir):
     assert "checks: ok" in ran[10].stdout                # calibration show
     for session in ("day1", "films1"):                    # session.json as its JSON Schema says (reference page)
         assert session_problems(root / session) == [], session
+        assert "capture" in (root / session / "session.log").read_text(encoding="utf-8")   # the pages promise it
     _how_tos_run_on_the_day(root, env, delivered)
 
 
@@ -115,6 +117,8 @@ def _how_tos_run_on_the_day(root: Path, env: dict[str, str], delivered: set[str]
     assert ran[0].stdout.strip().endswith("all match") and ran[1].stdout.strip().endswith("all match")
     assert "Contact-Name: J. Doe" in (root / "day1-archive" / "bag-info.txt").read_text(encoding="utf-8")
     assert len(strict_json_files(root)) > 20
+    run_block(ARCHIVE_MASTERS, "session-report", root, env=env, prelude=dualrgb_prelude(FRAME))
+    assert (root / "day1" / "report.html").is_file()
 
 
 def test_readme_own_charts_block_runs_as_written(workdir):

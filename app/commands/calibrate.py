@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from dualrgb.app.commands.calibrate_summary import say_calibrated
 from dualrgb.app.commands.options import add_chart_options, chart_choices, count, input_file, number, stand_dir
 from dualrgb.app.commands.stand_options import (
     add_device_options,
@@ -30,8 +31,8 @@ from dualrgb.app.commands.stand_options import (
     ask_person,
     check_device_options,
     open_devices,
-    open_session,
     progress_printer,
+    session_of_run,
 )
 from dualrgb.app.json_output import text_stream, write_json
 from dualrgb.app.workflow.stand import defaults as day
@@ -179,13 +180,14 @@ def _lab_shorthand(args: argparse.Namespace, mode: str, charts: dict, grids: dic
 
 def main(args: argparse.Namespace) -> int:
     check_device_options(args)                # before the heavy imports below
+    preset, hdr, darks, flats = resolve(args)       # an unknown preset: refused before them too
     from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
     from dualrgb.app.workflow.calibration import charts as day_charts
     from dualrgb.app.workflow.calibration.targets import load_grid
     from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
     from dualrgb.app.workflow.stand.defaults import DAY_WORKFLOW
+    from dualrgb.app.workflow.stand.run_gate import check_session_run
 
-    preset, hdr, darks, flats = resolve(args)
     mode = preset.mode
     stand_start = _stand_start(args)
     conditioning(preset, stand_start)                                     # before any device opens
@@ -207,21 +209,14 @@ def main(args: argparse.Namespace) -> int:
     definition = {"workflow": DAY_WORKFLOW, "mode": mode, "preset": preset.name, "hdr": hdr,
                   "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle,
                   **day_charts.definition(charts)}
-    text = text_stream(args.json_path)
+    check_session_run(args.session, definition, None)       # another day's session: refused before the lab starts
     ensure_kernels()                          # first run: compiled here, before any device opens
-    with open_devices(args, mode, charts=chart_choices(args)) as dev, \
-            open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
-        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
-                          progress=progress_printer(), prompt=ask_person)
-        profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
-    from dualrgb.app.processing.quality import grading_lines
-    from dualrgb.app.workflow.calibration.profile import describe
-
-    for line in describe(profile):
-        print(line, file=text)
-    for line in grading_lines(profile.statistics.get("quality")):
-        print(f"grade {line}", file=text)
-    print(f"calibration: {profile.path}", file=text)
+    with open_devices(args, mode, charts=chart_choices(args)) as dev:
+        check_session_run(args.session, definition, dev.camera)         # another day's session: nothing written
+        with session_of_run(args.session, definition, dev.camera, {"mode": mode}) as session:
+            stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
+                              progress=progress_printer(), prompt=ask_person)
+            profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
+    say_calibrated(args, profile, text_stream(args.json_path))
     write_json(args.json_path, CALIBRATE_FORMAT, {"calibration": str(profile.path), **profile.to_dict()})
-    print(f"dualrgb: calibration {profile.id} written", file=sys.stderr)
     return 0

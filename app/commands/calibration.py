@@ -1,6 +1,7 @@
-"""``dualrgb calibration show FILE``: what a calibration profile is, and (with devices) whether it fits the stand.
+"""``dualrgb calibration show FILE|SESSION``: what a calibration profile is (a session folder: its newest), and
+(with devices) whether it fits the stand.
 
-    dualrgb calibration show FILE [--virtual-lab | --port P --camera C] [--json J]
+    dualrgb calibration show FILE|SESSION [--virtual-lab | --port P --camera C] [--json J]
 """
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import argparse
 import logging
 from pathlib import Path
 
+from dualrgb.app.commands.options import calibration_source
 from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_reuse_options,
@@ -28,7 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     verbs = p.add_subparsers(dest="verb", metavar="VERB")
     verbs.required = True
     show = verbs.add_parser("show", help="what the calibration is; with devices, its reuse checks")
-    show.add_argument("file", type=Path)
+    show.add_argument("file", type=calibration_source, metavar="FILE|SESSION",
+                      help="a calibration profile (.json), or a session folder: its newest calibration")
     add_reuse_options(show)
     add_device_options(show)
     show.set_defaults(func=main)
@@ -37,6 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     if args.virtual_lab or args.port or args.camera:
         check_device_options(args)            # before the heavy imports below
+    from dualrgb.app.cli_refusals import newest_calibration
     from dualrgb.app.workflow.calibration.profile import (
         CameraIdentity,
         SphereIdentity,
@@ -45,7 +49,8 @@ def main(args: argparse.Namespace) -> int:
         load_profile,
     )
 
-    profile = load_profile(args.file)
+    path = Path(args.file)
+    profile = load_profile(newest_calibration(path) if path.is_dir() else path)
     check = None
     if args.virtual_lab or args.port or args.camera:
         with open_devices(args, profile.mode) as dev:

@@ -1,10 +1,10 @@
 """``dualrgb capture``: one original, or a day's queue from a CSV, with a saved calibration, to the deliverables.
 
-    dualrgb capture [--session DIR] [--calibration FILE] --id ACC-123 [--title ..] [--operator ..] [--notes ..]
+    dualrgb capture [--session DIR] [--calibration FILE|DIR] --id ACC-123 [--title ..] [--operator ..] [--notes ..]
                     [--mode reflective|transmissive] [--reshoot] [--force] [--render-illuminant A]
                     [--resolution full|half]
                     (--virtual-lab | --port P --camera C)
-    dualrgb capture --session DIR [--calibration FILE] --queue originals.csv [--column identifier="Accession No."]
+    dualrgb capture --session DIR [--calibration FILE|DIR] --queue originals.csv [--column identifier="Accession No."]
                     [--skip-invalid] [--operator ..] [--reshoot] [--check] ...
 
 ``--calibration`` defaults to the session's newest (of the original's mode with ``--id --mode``): a session made by
@@ -25,6 +25,7 @@ from pathlib import Path
 from dualrgb.app.commands.options import (
     add_render_option,
     add_resolution_option,
+    calibration_source,
     column_option,
     count,
     delivery_request,
@@ -39,9 +40,10 @@ from dualrgb.app.commands.stand_options import (
     ask_person,
     check_device_options,
     open_devices,
-    open_session,
     progress_printer,
     reuse_limits,
+    said_redelivery,
+    session_of_run,
 )
 from dualrgb.app.json_output import text_stream, write_json
 from dualrgb.app.workflow.stand.defaults import DAY_WORKFLOW, MODES, VIRTUAL_ORIGINALS
@@ -57,8 +59,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "sphere temperature, age), meters the original, captures it (an HDR bracket "
                                    "only when metering asks) and writes its deliverables.")
     add_session_option(p)
-    p.add_argument("--calibration", type=input_file,
-                   help="calibration profile (.json); default with --session: the session's newest (of --mode's)")
+    p.add_argument("--calibration", type=calibration_source, metavar="FILE|SESSION",
+                   help="calibration profile (.json), or a session folder: its newest; default with --session: the "
+                        "session's newest (of --mode's)")
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--id", dest="identifier", type=identifier,
                       help="identifier / accession number (names the files)")
@@ -96,22 +99,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _calibration(args: argparse.Namespace) -> Path:
-    """--calibration, else the session's newest calibration (of ``--mode``'s when given)."""
-    if args.calibration:
-        return Path(args.calibration)
-    if not args.session or not (Path(args.session) / "calibration").is_dir():
-        raise ValueError("name the calibration: --calibration FILE (or --session DAY holding one: `dualrgb calibrate "
-                         "--session DAY` makes it)")
-    from dualrgb.app.workflow.calibration.profile import load_profile
+    """--calibration (a file, or a session folder: its newest), else the session's newest calibration (of
+    ``--mode``'s when given; app.cli_refusals.newest_calibration: no heavy import, a refusal comes at once)."""
+    from dualrgb.app.cli_refusals import newest_calibration
 
-    found = sorted((Path(args.session) / "calibration").glob("cal-*.json"))
-    if args.mode:
-        found = [f for f in found if load_profile(f, arrays=False).mode == args.mode] or found
-    if not found:
-        raise ValueError(f"{args.session}: no calibration in it yet (dualrgb calibrate --session {args.session}); or "
-                         "pass --calibration FILE")
-    print(f"dualrgb: calibration {found[-1]} (the session's newest)", file=sys.stderr)
-    return found[-1]
+    given = Path(args.calibration) if args.calibration else None
+    if given is not None and not given.is_dir():
+        return given
+    found = newest_calibration(given or args.session, args.mode)
+    print(f"dualrgb: calibration {found} (the session's newest)", file=sys.stderr)
+    return found
 
 
 def _single(args: argparse.Namespace, mode: str, out_dir: Path | None, profile) -> list:
@@ -176,13 +173,13 @@ def _queue_originals(args: argparse.Namespace, plan) -> list:
 def main(args: argparse.Namespace) -> int:
     if not args.check:
         check_device_options(args)            # before the heavy imports below (--check opens no device)
+    calibration = _calibration(args)          # a missing calibration or session: refused before the imports
     from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT
     from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
     from dualrgb.app.workflow.calibration.profile import load_profile
-    from dualrgb.app.workflow.day.queue_run import QueueOutcome, capture_queue
-    from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
+    from dualrgb.app.workflow.stand.copystand import StandSettings
 
-    profile = load_profile(_calibration(args))
+    profile = load_profile(calibration)
     delivery = delivery_request(args, profile)          # before any device opens: refused in one line
     mode = args.mode or profile.mode
     out_dir = Path(args.out) if args.out else args.session / "deliverables" if args.session else None
@@ -194,19 +191,32 @@ def main(args: argparse.Namespace) -> int:
                              original_frames=args.frames, resolution=args.resolution, delivery=delivery,
                              render_illuminant=args.render_illuminant or delivery.render_illuminant
                              or DEFAULT_RENDER_ILLUMINANT)
-    definition = {"workflow": DAY_WORKFLOW}
     ensure_kernels()                          # first run: compiled here, before any device opens
-    with open_devices(args, mode, args.virtual_original) as dev, \
-            open_session(args.session, definition, dev.camera) as session:
-        out_dir = out_dir or session.path / "deliverables"
-        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
-                          progress=progress_printer(), prompt=ask_person, reshoot=lambda _o, _n: args.reshoot)
-        if plan is None:                    # one original: shot, or its frames kept and delivered again
-            result = stand.capture(originals[0], profile, reshoot=args.reshoot, out_dir=out_dir)
-            _print_outcome(QueueOutcome(originals[0], report=result), text_stream(args.json_path))
-            return _single_json(args, result, profile)
-        outcomes = capture_queue(stand, originals, profile, reshoot=args.reshoot, out_dir=out_dir,
-                                 on_outcome=lambda o: _print_outcome(o, text_stream(args.json_path)))
+    return _run(args, profile, settings, originals, plan, mode, out_dir)
+
+
+def _run(args: argparse.Namespace, profile, settings, originals: list, plan, mode: str, out_dir: Path | None) -> int:
+    """The devices opened, every check before the light made (app.workflow.stand.run_gate), then only the session
+    opened and the originals shot: a refused run leaves the session folder as it was."""
+    from dualrgb.app.workflow.day.queue_run import QueueOutcome, capture_queue
+    from dualrgb.app.workflow.stand.copystand import CopyStand
+    from dualrgb.app.workflow.stand.run_gate import check_capture_run
+
+    definition = {"workflow": DAY_WORKFLOW}
+    with open_devices(args, mode, args.virtual_original) as dev:
+        check_capture_run(dev.camera, dev.sphere, profile, settings, args.session, definition, out_dir,
+                          len(originals))
+        with session_of_run(args.session, definition, dev.camera) as session:
+            out_dir = out_dir or session.path / "deliverables"
+            stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
+                              progress=progress_printer(), prompt=ask_person, reshoot=lambda _o, _n: args.reshoot)
+            if plan is None:                # one original: shot, or its frames kept and delivered again
+                said_redelivery(session, originals[0], args.reshoot)
+                result = stand.capture(originals[0], profile, reshoot=args.reshoot, out_dir=out_dir)
+                _print_outcome(QueueOutcome(originals[0], report=result), text_stream(args.json_path))
+                return _single_json(args, result, profile)
+            outcomes = capture_queue(stand, originals, profile, reshoot=args.reshoot, out_dir=out_dir,
+                                     on_outcome=lambda o: _print_outcome(o, text_stream(args.json_path)))
     write_json(args.json_path, CAPTURE_FORMAT, {"queue": str(args.queue), "calibration": profile.id,
                                                 "bad_rows": plan.refused_lines(), "plan": plan.to_dict(),
                                                 "originals": [_outcome_json(o) for o in outcomes]}, default=str)

@@ -2,7 +2,7 @@
 
     dualrgb import FOLDER --roles-template ROLES.csv              # a roles file to start from, for checking
     dualrgb import FOLDER --roles ROLES.csv --session DIR [--preset P] [--mode M]
-                   [--target-corners train=X,Y,X,Y,X,Y,X,Y] [--target-corners test=...]
+                   [--train-corners X1,Y1,...,X4,Y4|FILE] [--test-corners X1,Y1,...,X4,Y4|FILE]
                    [--train-target FILE [--train-layout RxC]] [--test-target FILE [--test-layout RxC]]
                    [--ppi N | --target-width-mm W] [--out DIR] [--resolution full|half] [--json J]
 
@@ -16,6 +16,7 @@ delivers them again. Without ``--preset`` the lights are unknown (said in the pr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
 from pathlib import Path
@@ -58,9 +59,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                                                   "without it the lights are unknown")
     p.add_argument("--mode", choices=day.MODES, default=None, help=f"default: the preset's ({day.DEFAULT_MODE})")
     p.add_argument("--lights", type=count(1, 8), default=2, help="--roles-template: lights per subject (2)")
+    for role, what in (("train", "training"), ("test", "test")):
+        p.add_argument(f"--{role}-corners", metavar="X1,Y1,...,X4,Y4|FILE",
+                       help=f"the {what} chart placed by hand, as calibrate's option: its four corners (outer corners "
+                            "of its corner patches: top-left, top-right, bottom-right, bottom-left) in the raw file's "
+                            "pixels, or a JSON file {\"corners\": [[x, y], ...]}; without it the chart is found in "
+                            "its frames")
     p.add_argument("--target-corners", type=corners, action="append", default=[], metavar="NAME=X,Y,...",
-                   help="a target's four corners (outer corners of its corner patches: top-left, top-right, "
-                        "bottom-right, bottom-left) in the raw file's pixels; repeat for train and test")
+                   help="the older spelling of --train-corners / --test-corners: NAME=train or test")
     p.add_argument("--train-grid", type=input_file, help="patch grid JSON of the training target (stack pixels)")
     p.add_argument("--test-grid", type=input_file, help="patch grid JSON of the test target (stack pixels)")
     add_chart_options(p)
@@ -94,10 +100,27 @@ def _settings(args: argparse.Namespace):
     charts = day_charts.load_charts(chart_choices(args), mode)
     grids = {k: load_grid(v, charts[k].layout if k in charts else None)
              for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
-    for name, values in args.target_corners:
+    for name, values in _corner_options(args):
         grids[name] = corner_grid(mode, name, values, charts)
     return ImportSettings(mode, preset, charts, grids, args.session.absolute() if args.session else None,
                           args.out.absolute() if args.out else None)
+
+
+def _corner_options(args: argparse.Namespace) -> list[tuple[str, tuple[float, ...]]]:
+    """``--train-corners`` / ``--test-corners`` (numbers or a JSON file, as calibrate takes them) and the older
+    ``--target-corners NAME=...``; a chart placed twice is refused in one line."""
+    from dualrgb.app.workflow.calibration.targets import parse_corners
+
+    out = list(args.target_corners)
+    for role in ("train", "test"):
+        text = getattr(args, f"{role}_corners", None)
+        if text is None:
+            continue
+        if any(name == role for name, _ in out):
+            raise ValueError(f"--{role}-corners and --target-corners {role}=... both place the {role} target: "
+                             "give one")
+        out.append((role, tuple(float(v) for v in parse_corners(text, f"--{role}-corners").ravel())))
+    return out
 
 
 def template(args: argparse.Namespace) -> int:
@@ -134,7 +157,10 @@ def main(args: argparse.Namespace) -> int:
         print(f"note: {note}", file=sys.stderr)
     options = ImportOptions(False if args.no_de_fit else None, args.ppi, args.target_width_mm, args.resolution,
                             args.render_illuminant)
-    result = run_import(plan, options, progress=progress_printer())
+    from dualrgb.core.session.log import SessionLog
+
+    with SessionLog(settings.session) if settings.session else contextlib.nullcontext():
+        result = run_import(plan, options, progress=progress_printer())        # the run's log in its session.log
     text = text_stream(args.json_path)
     for d in result.deliveries:
         print(d.qa.text(), file=text)

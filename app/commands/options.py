@@ -140,6 +140,16 @@ def input_file(text: str) -> str:
     return text
 
 
+def calibration_source(text: str) -> str:
+    """A calibration profile (an existing .json file) or a session folder holding one (its newest is used)."""
+    if os.path.isdir(text):
+        if not os.path.isdir(os.path.join(text, "calibration")):
+            raise _fail(text, "a folder without calibration/; expected a calibration file (.json) or a session "
+                              "folder made by `dualrgb calibrate --session`")
+        return text
+    return input_file(text)
+
+
 def stand_dir(text: str) -> str:
     """A stand folder (holding stand.json, as ``dualrgb measure`` writes it)."""
     if not os.path.isdir(text):
@@ -307,6 +317,7 @@ def add_world_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) 
                              "(default nominal)")
 
 
-__all__ = ["MAX_FRAME_SIDE", "add_chart_options", "add_render_option", "add_world_option", "chart_choices",
+__all__ = ["MAX_FRAME_SIDE", "add_chart_options", "add_render_option", "add_world_option", "calibration_source",
+           "chart_choices",
            "column_option", "count", "frame_size", "input_file", "layout", "leds", "number", "numbers", "positive",
            "render_illuminant", "seconds", "seed", "stand_dir", "world", "worlds"]

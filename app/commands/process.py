@@ -1,6 +1,6 @@
 """``dualrgb process``: deliver sessions' originals again, e.g. with a newer calibration, on one machine or many.
 
-    dualrgb process SESSION [SESSION ...] [--calibration FILE] [--force] [--out DIR] [--spectral]
+    dualrgb process SESSION [SESSION ...] [--calibration FILE|SESSION] [--force] [--out DIR] [--spectral]
                     [--render-illuminant A] [--resolution full|half] [--delivery-settings FILE]
                     [--jobs N | --scheduler ADDRESS] [--json J]
 
@@ -23,7 +23,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from dualrgb.app.cli import UserError
-from dualrgb.app.commands.options import add_render_option, add_resolution_option, count, delivery_request, number
+from dualrgb.app.commands.options import (
+    add_render_option,
+    add_resolution_option,
+    calibration_source,
+    count,
+    delivery_request,
+    number,
+)
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 if TYPE_CHECKING:
@@ -39,7 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Delivers every original in each SESSION again from its raw frames (latest takes), "
                                    "with --calibration or each session's newest calibration.")
     p.add_argument("sessions", type=Path, nargs="+", metavar="SESSION")
-    p.add_argument("--calibration", type=Path, help="calibration profile (.json); default: each session's newest")
+    p.add_argument("--calibration", type=calibration_source, metavar="FILE|SESSION",
+                   help="calibration profile (.json), or a session folder: its newest; default: each session's newest")
     p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables; with several "
                                              "sessions, one folder per session below it)")
     p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
@@ -59,11 +67,18 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from dualrgb.app.cli_refusals import check_sessions, newest_calibration
+
+    calibration = Path(args.calibration) if args.calibration else None
+    check_sessions(args.sessions, calibration)          # a missing session or calibration: refused at once
+    if calibration is not None and calibration.is_dir():
+        calibration = newest_calibration(calibration)
+    _check_render(args)
     from dualrgb.app.warm_kernels import ensure_ready
     from dualrgb.app.workflow.delivery.redelivery_jobs import RedeliveryOptions, plan_tasks, run_tasks, run_time
 
     options = RedeliveryOptions(
-        calibration=str(args.calibration) if args.calibration else None, out=str(args.out) if args.out else None,
+        calibration=str(calibration) if calibration else None, out=str(args.out) if args.out else None,
         ppi=args.ppi, render_illuminant=args.render_illuminant, resolution=args.resolution, force=args.force,
         delivered_at=run_time(), out_per_session=len(args.sessions) > 1)
     tasks, profiles = plan_tasks(args.sessions, options)   # every session read and checked before any delivery
@@ -82,6 +97,15 @@ def main(args: argparse.Namespace) -> int:
     results = run_tasks(tasks, executor, on_result=said)
     write_json(args.json, PROCESS_FORMAT, _document(results), default=str)
     return _exit_code(results, len(args.sessions))
+
+
+def _check_render(args: argparse.Namespace) -> None:
+    """A rendering asked for where none is written (at full resolution without --spectral): refused before the
+    sessions are read (app.workflow.delivery.delivery_settings.check_render_request)."""
+    from dualrgb.app.workflow.delivery.delivery_settings import check_render_request, load
+
+    check_render_request(load(args.delivery_settings).with_spectral(args.spectral), args.resolution,
+                         args.render_illuminant)
 
 
 def _executor(args: argparse.Namespace) -> Executor:

@@ -6,7 +6,7 @@ import logging
 import sys
 from pathlib import Path
 
-from dualrgb.app.commands.options import count, input_file, number, seed, stand_dir
+from dualrgb.app.commands.options import calibration_source, count, input_file, number, seed, stand_dir
 from dualrgb.app.json_output import add_json_option, write_json
 from dualrgb.app.terminal_progress import TerminalProgress
 from dualrgb.simulation.choices import DEFAULT_SPECTRAL_WEIGHT, METHODS, MODES, OBJECTIVES
@@ -85,8 +85,9 @@ def _add_data_options(p: argparse.ArgumentParser) -> None:
                    help="a stand folder from `dualrgb measure leds` / `measure import-leds`: its measured LED "
                         "spectra (leds.csv), level -> output curves and minimum stable level replace the nominal ones "
                         "(an explicit --leds-csv / --min-level wins)")
-    p.add_argument("--stand", type=input_file, metavar="CAL.json",
-                   help="re-optimise for the stand a calibration profile fitted (its stand model: the nominal "
+    p.add_argument("--stand", type=calibration_source, metavar="CAL.json|SESSION",
+                   help="re-optimise for the stand a calibration profile (or a session folder: its newest) fitted "
+                        "(its stand model: the nominal "
                         "curves, the measurements given by --camera-csv / --leds-csv / --stand-dir / --min-level, and "
                         "the parameters fitted to its captures; refitted when the measurements differ from its own)")
     p.add_argument("--train-csv", type=input_file,
@@ -146,6 +147,7 @@ def _main_stand(args: argparse.Namespace) -> int:
     """``--stand CAL.json``: the same search on the stand model (app.workflow.calibration.stand_reoptimise)."""
     from dataclasses import replace
 
+    from dualrgb.app.cli_refusals import newest_calibration
     from dualrgb.app.workflow.calibration.profile import load_profile
     from dualrgb.app.workflow.calibration.stand_reoptimise import (
         Measurements,
@@ -156,7 +158,7 @@ def _main_stand(args: argparse.Namespace) -> int:
     )
     from dualrgb.simulation.defaults import default_grid
 
-    profile = load_profile(args.stand)
+    profile = load_profile(newest_calibration(Path(args.stand)) if Path(args.stand).is_dir() else args.stand)
     model, notes = assemble(profile, Measurements.of(args.camera_csv, args.leds_csv, args.stand_dir, args.min_level))
     for line in notes:
         print(f"stand: {line}", file=sys.stderr)

@@ -53,6 +53,10 @@ def check_device_options(args: argparse.Namespace) -> None:
     """What the device options must say, answered before anything heavy is imported: the virtual lab, or the
     sphere's port AND the camera (``ValueError``, one line)."""
     if getattr(args, "virtual_lab", False):
+        given = [f"--{o} {getattr(args, o)}" for o in ("port", "camera", "stand") if getattr(args, o, None)]
+        if given:
+            raise ValueError(f"{' and '.join(given)} with --virtual-lab: the virtual lab brings its own sphere, "
+                             "camera and sample changer; drop one or the other")
         return
     port, camera = getattr(args, "port", None), getattr(args, "camera", None)
     if port and not camera:
@@ -203,6 +207,37 @@ def open_session(folder: Path | None, definition: dict, camera: Camera, meta: di
     if folder is None:
         print(f"dualrgb: new session {session.path}", file=sys.stderr, flush=True)
     return session
+
+
+@contextlib.contextmanager
+def session_of_run(folder: Path | None, definition: dict, camera: Camera,
+                   meta: dict | None = None) -> Iterator[CaptureSession]:
+    """:func:`open_session` for a run whose checks before the light have passed, with its ``session.log`` (every
+    dualrgb record of the run, core.session.log) and, should the run still be refused before its first frame, the
+    folder put back as it was (app.workflow.stand.run_gate.undone_if_refused)."""
+    from dualrgb.app.workflow.stand.run_gate import undone_if_refused
+    from dualrgb.core.session.log import SessionLog
+
+    with undone_if_refused(folder), open_session(folder, definition, camera, meta) as session, \
+            SessionLog(session.path):
+        yield session
+
+
+def said_redelivery(session: CaptureSession, original: Any, reshoot: bool) -> None:
+    """One line when ``original`` is already in the session: delivered again from its frames, or (``--reshoot``)
+    shot again; never silently."""
+    from dualrgb.app.workflow.stand.copystand import original_takes
+
+    takes = original_takes(session, original)
+    if not takes:
+        return
+    if reshoot:
+        print(f"{original.identifier}: already in the session (take {max(takes)}): shooting it again (--reshoot); "
+              "its previous deliverables move to previous/", file=sys.stderr, flush=True)
+    else:
+        print(f"{original.identifier}: already in the session (take {max(takes)}): delivering it again from its "
+              "frames, the previous deliverables moved to previous/; --reshoot shoots it again",
+              file=sys.stderr, flush=True)
 
 
 def reuse_limits(args: argparse.Namespace) -> Any:

@@ -29,6 +29,8 @@ SESSION_MARKER = "session.json"          # core.session.capture_session.SETTINGS
 NAMESPACE = "dualrgb"
 FORMAT = "%(asctime)s.%(msecs)03dZ %(levelname)-7s %(threadName)s %(name)s: %(message)s"
 MAX_EARLY_RECORDS = 10000                # held until the folder becomes a session
+SESSION_ONLY = "session_only"            # a record's attribute: for the session's file, not the terminal (the front
+                                         # end says the error itself)
 
 
 class _PackageFilter(logging.Filter):
@@ -166,5 +168,5 @@ class SessionLog:
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         if exc is not None and self._handler is not None:
-            log.error("session ended by %s: %s", type(exc).__name__, exc)
+            log.error("session ended by %s: %s", type(exc).__name__, exc, extra={SESSION_ONLY: True})
         self.stop()

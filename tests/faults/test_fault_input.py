@@ -294,10 +294,12 @@ def test_every_numeric_option_uses_a_shared_validator():
     """No command parses a number with bare int/float: those accept inf, nan, 0 and negative counts."""
     from dualrgb.app import cli as cli_mod
     from dualrgb.app.commands import options
+    from dualrgb.app.commands.import_raw import corners
 
     shared = {f.__name__ for f in (options.frame_size, options.input_file, options.world, options.worlds,
                                    options.stand_dir, options.column_option, options.render_illuminant,
-                                   options.layout, options.identifier, options.key_value, options.corners)} | {
+                                   options.layout, options.identifier, options.key_value,
+                                   options.calibration_source, corners)} | {
         "number", "count", "numbers", "leds"}
     raw = [a.dest for a in _all_actions(cli_mod.build_parser()) if getattr(a, "type", None) in (int, float)]
     allowed_raw = {"led", "level"}               # `sphere set`: checked by LedSphere, with the light switched off
