@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 from dualrgb.common.errors import ReportedError
+from dualrgb.core.light_timing import SETTLE_S
 from dualrgb.core.vocabulary import Role
 from dualrgb.drivers.camera.base import DEFAULT_LATENCY_S, CameraError
 from dualrgb.drivers.led_sphere.errors import SphereError
@@ -25,7 +26,6 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 REJECTED_ROLE = Role.REJECTED.value      # frames kept aside, never used (lit for less than the exposure)
-SETTLE_S = 0.2                  # light on -> shutter: the default wait (app.workflow.stand.defaults shows it)
 NO_CAMERA = "no camera is connected (connect one: Devices, or --camera)"
 
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dualrgb import resources
-from dualrgb.core.light_safety import SETTLE_S
+from dualrgb.core.light_timing import SETTLE_S
 from dualrgb.simulation.choices import CALIBRATION_DARK_FRAMES, CALIBRATION_FLAT_FRAMES, MODES
 
 log = logging.getLogger(__name__)
