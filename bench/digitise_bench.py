@@ -103,7 +103,7 @@ def make_profile(folder: Path, spectral: bool = True) -> Path:
         preset="bench", lights=lights, exposures=exposures, base_exposures={k: v[0] for k, v in exposures.items()},
         matrix=CharacterisationMatrix(np.vstack([np.eye(3) * 50, np.eye(3) * 50]),
                                       ["R1", "G1", "B1", "R2", "G2", "B2"]),
-        statistics={"best": "least-squares", "methods": {}}, white_xyz=[95.047, 100.0, 108.883],
+        statistics={"best": "least-squares", "methods": {"least-squares": {}}}, white_xyz=[95.047, 100.0, 108.883],
         raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
              "linear_limit": proc.linear_limit, "shape": list(white.shape), "ppi_grid": "sensor"}, sources={},
         ppi=800.0, darks=proc.darks, whites=dict(proc._whites),
