@@ -222,25 +222,27 @@ def test_a_write_failing_in_the_pipeline_names_the_file_and_delivers_nothing(tmp
 
 
 def test_a_cancel_while_the_first_band_is_encoded_stops_the_pipeline_after_it(tmp_path, monkeypatch):
-    """The other worker merges the next band meanwhile, but encodes no band begun after the cancel; nothing is
-    delivered."""
+    """The other worker merges the next band meanwhile, but begins no encoding before the first band's has ended,
+    so none after the cancel; nothing is delivered."""
     token = CancelToken()
-    started, after, lock = threading.Event(), [], threading.Lock()
+    events, lock = [], threading.Lock()
     real = DeliveryEncoder.encode_mosaic
 
     def encode_mosaic(self, r0, *args, **kwargs):
-        if not started.is_set():
-            started.set()
+        with lock:
+            first = not events
+            events.append(("begin", r0, token.cancelled))
+        if first:
             token.cancel()
             threading.Event().wait(0.05)              # the other worker has time to reach its band's encoding
-        elif token.cancelled:
-            with lock:
-                after.append(r0)
-        return real(self, r0, *args, **kwargs)
+        out = real(self, r0, *args, **kwargs)
+        with lock:
+            events.append(("end", r0, token.cancelled))
+        return out
     monkeypatch.setattr(DeliveryEncoder, "encode_mosaic", encode_mosaic)
     with pytest.raises(Cancelled):
         _deliver(tmp_path, "out", False, cancel=token)
-    assert started.is_set() and after == []
+    assert events == [("begin", 0, False), ("end", 0, True)]
     assert list((tmp_path / "out").iterdir()) == []
 
 
