@@ -55,15 +55,20 @@ BLOCK = 4096                              # O_DIRECT alignment of offsets, lengt
 O_DIRECT = getattr(os, "O_DIRECT", 0)     # Linux only; 0 elsewhere = through the page cache
 
 
-def aligned_empty(nbytes: int) -> np.ndarray:
-    """A uint8 buffer of ``nbytes`` (rounded up to BLOCK) starting on a BLOCK boundary, its pages already mapped.
+def aligned_empty(nbytes: int, touch: bool = True) -> np.ndarray:
+    """A uint8 buffer of ``nbytes`` (rounded up to BLOCK) starting on a BLOCK boundary, its pages already mapped
+    (``touch``).
 
-    Every page is touched here, before any write is in flight: a page first touched by the encoder while an
-    O_DIRECT write pins the other buffer's pages waits for the process's memory-map lock, which made the first
-    two bands of a delivery 2-5x slower (with 256-row bands, the spectral cube's 59 MB each: +0.25 s at 24 MP)."""
+    Touched here, every page is mapped before any write is in flight: a page first touched by the encoder while an
+    O_DIRECT write pins the other buffer's pages waited for the process's memory-map lock, which made the first
+    two bands of a delivery 2-5x slower (with 256-row bands, the spectral cube's 59 MB each: +0.25 s at 24 MP).
+    The ring mode's slots are not touched (``touch=False``): their first bands are encoded on both cores, where
+    the page faults cost less wall time than ~10 MB per file mapped by one thread before the first band (24 MP,
+    kernel 6.18: no slower bands measured)."""
     n = -(-nbytes // BLOCK) * BLOCK
     raw = np.empty(n + BLOCK, np.uint8)
-    raw[::BLOCK] = 0
+    if touch:
+        raw[::BLOCK] = 0
     skip = (-raw.ctypes.data) % BLOCK
     return raw[skip: skip + n]
 
@@ -169,7 +174,7 @@ class TiffStream:
             raise
         self._pos = self._offset - len(head)                 # the file position of buffer byte 0
         size = max(len(head), BLOCK) + BLOCK + self.band_rows * self.row_bytes
-        self._buffers = [aligned_empty(size) for _ in range(max(2, slots))]
+        self._buffers = [aligned_empty(size, slots == 2) for _ in range(max(2, slots))]
         self._current = 0
         self._buffers[0][:len(head)] = np.frombuffer(head, np.uint8)
         self._carry = len(head)                             # bytes at the front of the current buffer
