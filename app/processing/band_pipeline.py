@@ -27,6 +27,8 @@ from contextlib import ExitStack
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from dualrgb.app.processing.demosaic import HALO
 from dualrgb.app.processing.tiff_stream import TiffStream
 from dualrgb.common.progress import CancelToken, check
@@ -38,6 +40,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 SLOTS = 4                 # band buffers per file: 2 being computed, 1-2 being hashed or written
+PAGE = 4096
 
 
 @dataclass
@@ -47,6 +50,7 @@ class BandWork:
 
     prepare: Callable[[int, dict], Any]
     encode: Callable[[int, Any], None]
+    touch: Callable[[int], None] | None = None      # map band k's slot pages (while it waits for the first band)
 
 
 @dataclass
@@ -159,6 +163,8 @@ class BandPipeline:
         check(cancel)
         prepared = self.work.prepare(k, scratch)
         if k:
+            if self.work.touch is not None and not st.first_encoded.is_set():
+                self.work.touch(k)                  # the page faults its encoding would take, while it waits
             st.first_encoded.wait()
             if st.error is not None:
                 return
@@ -237,5 +243,9 @@ def encode_master(stack: MasterStack, enc: DeliveryEncoder, xyz: TiffStream, rgb
     def encode(k: int, mosaic: Any) -> None:
         enc.encode_mosaic(k * rows, xyz.ring_band(k), [s.ring_band(k) for s in rgb], [s.ring_band(k) for s in chans],
                           mosaic=mosaic, p0=HALO, cfa=stack.cfa_index, in_thread=True)
-    BandPipeline(-(-H // rows), streams, BandWork(prepare, encode), io=io, workers=workers or enc.threads).run(cancel)
+    def touch(k: int) -> None:
+        for s in streams:
+            s.ring_band(k).reshape(-1).view(np.uint8)[::PAGE] = 0
+    work = BandWork(prepare, encode, touch)
+    BandPipeline(-(-H // rows), streams, work, io=io, workers=workers or enc.threads).run(cancel)
     close_all(streams, io)
