@@ -11,7 +11,7 @@ inside a band: a worker takes the next band whole (its merge and encodings in th
 the GIL) or, first, the next band of a file whose turn it is to be hashed (SHA-256 is sequential within a file;
 hashlib releases the GIL). Only the positional O_DIRECT writes, which wait on the disk and not on a core, go to
 I/O threads. A band's slot is reused once that band is written in every file (``slots`` per file, bounded
-memory).
+memory: :func:`ring_slots`).
 
 Cancel: checked before every band and again just before its encoding (common.progress.Cancelled); the bands
 after the first start their encoding only once the first is encoded, so a cancel while the first is encoded is
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-SLOTS = 4                 # band buffers per file: 2 being computed, 1-2 being hashed or written
+SPARE_SLOTS = 2           # band buffers per file beyond one per worker: being hashed or written
 PAGE = 4096
 
 
@@ -199,6 +199,12 @@ class BandPipeline:
         with st.cond:
             st.wrote(f, k)
             st.cond.notify_all()
+
+
+def ring_slots(workers: int) -> int:
+    """Band buffers per file for ``workers``: one band being computed per worker, SPARE_SLOTS being sealed or
+    written (fewer and the workers wait for the disk; 24 MP: 2.3 MB each)."""
+    return max(1, workers) + SPARE_SLOTS
 
 
 def open_all(openers: dict[str, Callable[[], TiffStream]], io: Executor, opened: ExitStack) -> dict[str, TiffStream]:

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from dualrgb.app.json_output import dumps
-from dualrgb.app.processing.band_pipeline import SLOTS, encode_master, open_all
+from dualrgb.app.processing.band_pipeline import encode_master, open_all, ring_slots
 from dualrgb.app.processing.cube_map import spectral_map
 from dualrgb.app.processing.demosaic import DEMOSAIC
 from dualrgb.app.processing.encode import LINEAR_ONE, XYZ_ONE, DeliveryEncoder
@@ -201,7 +201,7 @@ def write_images(source: ChannelSource, profile: CalibrationProfile, images: dic
     with DeliveryEncoder((H, W, N), profile.matrix.matrix, profile.white_xyz, [images[k].space or "" for k in rgb_keys],
                          degree=profile.matrix.degree) as enc, spec as cube_enc, \
             ThreadPoolExecutor(len(streamed), thread_name_prefix="deliver") as pool, ExitStack() as opened:
-        slots = SLOTS if master else 2
+        slots = ring_slots(enc.threads) if master else 2
         out = open_all({k: partial(open_deliverable, im, H, W, ctx, band_rows, pool, direct, slots)
                         for k, im in streamed.items()}, pool, opened)
         rgb, chans = [out[k] for k in rgb_keys], [out[k] for k in ch_keys]
