@@ -53,6 +53,7 @@ COMMAND_MODULES = (
     "dualrgb.app.commands.calibration",
     "dualrgb.app.commands.study",
     "dualrgb.app.commands.measure",
+    "dualrgb.app.commands.lab",
 )
 
 

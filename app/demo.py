@@ -14,7 +14,7 @@ figures) -> report.json, and per condition a folder with its report.json, PNG fi
 virtual original (the painting, or the film) is captured too, under the default lights (dual-RGB-PSO), and its
 stack, mapped by that condition's matrix and spectral estimator, is compared per pixel with the original's truth:
 report.json's ``original`` holds dE00 and spectral RMSE (mean, p90, per material, over edges and flat regions;
-app.workflow.virtual_truth) at half resolution (2x2 cells), ``original_full`` the same at the sensor's full
+app.lab.truth) at half resolution (2x2 cells), ``original_full`` the same at the sensor's full
 resolution (the frames demosaiced: app.processing.masters), from the same frames.
 """
 from __future__ import annotations
@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from dualrgb.app.lab.targets import scene_grid, virtual_target_spec
 from dualrgb.app.processing.characterise import LEAST_SQUARES
 from dualrgb.app.processing.quality import quality_summary
 from dualrgb.app.sequences.calibration import DarkSeries, FlatSeries
@@ -42,7 +43,7 @@ from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE, VIRT
 from dualrgb.app.workflow.folders import open_session
 from dualrgb.app.workflow.metering import HdrMetering
 from dualrgb.app.workflow.session_processing import process_session
-from dualrgb.app.workflow.targets import nd_transmittance, reference_white, scene_grid, virtual_target_spec
+from dualrgb.app.workflow.targets import nd_transmittance, reference_white
 from dualrgb.app.workflow.vocabulary import NamedLight, Subject, lights_of
 from dualrgb.common.progress import CancelToken, ProgressCallback, check, report, scaled
 from dualrgb.common.strict_json import dumps as strict_dumps
@@ -253,7 +254,7 @@ class DemoRun:
                                               for c in conds})
             for role, chart in s.charts.items():                # the stand's own charts on the virtual stand
                 lab.use_chart(role, chart.render_target())
-            stand = CopyStand(camera, sphere, session, stand=lab.place, lab=lab, cancel=self.cancel,
+            stand = CopyStand(camera, sphere, session, stand=lab.place, cancel=self.cancel,
                               settings=StandSettings(settle_s=s.settle_s, dark_frames=s.dark_frames,
                                                      flat_frames=s.flat_frames, optimise_matrix=s.optimise_matrix,
                                                      charts=dict(s.charts)),
@@ -350,10 +351,10 @@ class DemoRun:
     def assess_original(self, c: Condition, res, full: bool = False) -> dict:
         """The virtual original's channels (captured under ``c``'s lights; ``full``: at the sensor's resolution,
         else on the 2x2 cells) through ``c``'s matrix and spectral estimator, per pixel against the original's truth
-        (app.workflow.virtual_truth)."""
+        (app.lab.truth)."""
+        from dualrgb.app.lab.truth import compare, original_truth
         from dualrgb.app.workflow.copystand import channels_of
         from dualrgb.app.workflow.session_processing import select_lights, session_frames
-        from dualrgb.app.workflow.virtual_truth import compare, original_truth
 
         subject = self.original_subject()
         frames = session_frames(self.session).subject(subject)

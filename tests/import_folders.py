@@ -30,10 +30,17 @@ LAYOUTS = {"train": (12, 17), "test": (4, 6)}
 
 
 def patches(shape: tuple[int, int], name: str) -> np.ndarray:
-    """(h/2, w/2, 3) per-cell factors 0.1-0.9 of a chart's patches filling the frame (row by row), as seen on the
-    2x2-cell stack."""
+    """(h/2, w/2, 3) per-cell factors of a chart's patches filling the frame (row by row), as seen on the 2x2-cell
+    stack: the packaged reflective chart's reference XYZ scaled into 0.1-0.9 (cells without a patch 0.05), so its
+    patches follow their reference as a real chart's do (the calibration's placement check asks that)."""
+    from dualrgb.app.workflow.targets import target_spec
+    from dualrgb.app.workflow.vocabulary import Subject
+
+    spec = target_spec("reflective", Subject.target(name), None)
     rows, cols = LAYOUTS[name]
-    values = np.random.default_rng(len(name)).uniform(0.1, 0.9, (rows * cols, 3))
+    values = np.full((rows * cols, 3), 0.05)
+    xyz = np.asarray(spec.xyz, dtype=float)
+    values[spec.cell_indices()] = 0.1 + 0.8 * xyz / xyz.max()
     h, w = shape[0] // 2, shape[1] // 2
     r = np.arange(h)[:, None] * rows // h
     c = np.arange(w)[None, :] * cols // w

@@ -4,7 +4,10 @@
 common/ imports no other dualrgb package; simulation/, drivers/ and resources/ import neither app/ nor Qt; only
 app/gui imports Qt; a GUI panel imports no other panel and no concrete driver module (it goes through the Qt-free
 workflow layer). No two modules import each other, directly or through others (function-level and
-TYPE_CHECKING imports count: a circle is a design knot even where Python tolerates it)."""
+TYPE_CHECKING imports count: a circle is a design knot even where Python tolerates it). The production packages
+(app/workflow, app/processing, app/session, app/sequences) know nothing of the virtual lab: they import nothing
+from drivers.virtual, app.lab (the lab's front-end side) or the front ends, and do not even name drivers.virtual
+(issue 36: the lab is devices, reached by their addresses)."""
 from __future__ import annotations
 
 import ast
@@ -17,6 +20,8 @@ QT = ("PySide6", "pyqtgraph", "shiboken6")
 CONCRETE_DRIVERS = ("drivers.camera.gphoto", "drivers.led_sphere.driver", "drivers.virtual")
 NAMESPACE = "dualrgb."
 PACKAGES = ("app", "common", "drivers", "simulation", "resources")
+PRODUCTION = ("workflow", "processing", "session", "sequences")        # under app/
+LAB_OR_FRONT_ENDS = ("drivers.virtual", "app.lab", "app.gui", "app.commands", "app.cli", "app.demo")
 
 
 def imports(path: Path, *, names: bool = False) -> list[str]:
@@ -51,6 +56,11 @@ def violations(root: Path = ROOT) -> list[str]:
                 if parts[:3] == ("app", "gui", "panels") and (mod.startswith("app.gui.panels.")
                                                                or mod.startswith(CONCRETE_DRIVERS)):
                     bad.append(f"{'/'.join(parts)}: panel imports {mod}")
+            if parts[0] == "app" and len(parts) > 2 and parts[1] in PRODUCTION:
+                hits = {m for m in imports(path, names=True)
+                        if any(m == x or m.startswith(x + ".") for x in LAB_OR_FRONT_ENDS)}
+                bad += [f"{'/'.join(parts)}: production imports {m}" for m in sorted(hits)
+                        if not any(m.startswith(h + ".") for h in hits)]      # a module, not also its names
     return bad
 
 
@@ -121,6 +131,18 @@ def test_layers_hold():
     assert violations() == []
 
 
+def test_production_does_not_name_the_virtual_lab():
+    """The issue's own check, `grep -rn "drivers.virtual\\|drivers import virtual" app/workflow app/processing
+    app/session app/sequences` printing nothing (docstrings and comments included)."""
+    import re
+
+    pattern = re.compile(r"drivers.virtual|drivers import virtual")
+    hits = [f"{path.relative_to(ROOT)}:{n}: {line.strip()}" for pkg in PRODUCTION
+            for path in sorted((ROOT / "app" / pkg).rglob("*.py"))
+            for n, line in enumerate(path.read_text().splitlines(), 1) if pattern.search(line)]
+    assert hits == []
+
+
 def test_no_import_circles():
     assert import_circles(module_graph()) == []
 
@@ -145,6 +167,10 @@ def test_import_circles_are_found(tmp_path):
     ("app/gui/panels/x.py", "from dualrgb.app.gui.panels.camera import image_widget\n", "panel imports app.gui.panels"),
     ("app/gui/panels/y.py", "from dualrgb.drivers.camera.gphoto import format_shutter\n",
      "panel imports drivers.camera"),
+    ("app/workflow/x.py", "def f():\n    from dualrgb.drivers.virtual.lab import VirtualLab\n",
+     "app/workflow/x.py: production imports drivers.virtual.lab"),
+    ("app/sequences/x.py", "from dualrgb.app.lab.truth import compare\n", "production imports app.lab.truth"),
+    ("app/session/x.py", "from dualrgb.drivers import virtual\n", "production imports drivers.virtual"),
 ])
 def test_each_rule_catches_its_violation(tmp_path, rel, source, expected):
     for pkg in PACKAGES:

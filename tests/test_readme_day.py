@@ -73,7 +73,9 @@ def test_readmes_first_day_is_the_tutorials():
 def test_readme_copy_stand_day_runs_as_written(workdir):
     root, env = workdir
     ran = run_block(TUTORIAL, "copy-stand-day", root, env=env, prelude=dualrgb_prelude(FRAME))
-    assert len(ran) == 10
+    assert len(ran) == 11
+    score = ran[8].stdout.splitlines()                       # `dualrgb lab score day1`
+    assert len(score) == 6 and all(": virtual truth (painting, full): dE00 mean " in line for line in score), score
     day = root / "day1" / "deliverables"
     for stem in ("ACC-123", "MBA-2003.4.1"):
         assert (day / stem / f"{stem}_srgb_16bit.tif").is_file() and (day / stem / f"{stem}.json").is_file()
@@ -93,7 +95,7 @@ def test_readme_copy_stand_day_runs_as_written(workdir):
     assert ran[7].stdout.strip().endswith("all match"), ran[7].stdout         # verify: exit 0 said so
     bagged = {p.parent.name for p in (root / "day1-bag" / "data").glob("*/*.json")}
     assert (root / "day1-bag" / "bagit.txt").is_file() and len(bagged) == len(delivered)
-    assert "checks: ok" in ran[9].stdout
+    assert "checks: ok" in ran[10].stdout                # calibration show
     for session in ("day1", "films1"):                    # session.json as its JSON Schema says (reference page)
         assert session_problems(root / session) == [], session
     _how_tos_run_on_the_day(root, env, delivered)

@@ -67,20 +67,20 @@ def calibrate_found(folder: Path, name: str, pose: ChartPose | None, seed: int =
     from dualrgb.app.commands.calibrate import find_preset
     from dualrgb.app.session.capture_session import CaptureSession
     from dualrgb.app.workflow.copystand import CopyStand, StandSettings
-    from dualrgb.app.workflow.stand_devices import virtual_lab, virtual_stand
+    from dualrgb.drivers.virtual.lab import VirtualLab
 
     mode, _files, size = LAYOUTS[name]
     charts = layout_charts(name)
     folder.mkdir(parents=True, exist_ok=True)
-    with virtual_lab(mode, size, seed, _world(folder, pose)) as lab:
+    with VirtualLab(mode=mode, frame_size=size, seed=seed, world=_world(folder, pose)) as lab:
         camera, sphere = lab.devices()
         for role, chart in charts.items():
             lab.use_chart(role, chart.render_target())
         truth = {role: [[c / 2 - 0.5, r / 2 - 0.5] for r, c in lab.scene_for(role).corners()]
                  for role in ("train", "test")}
         session = CaptureSession.create(folder / "session", {"mode": mode})
-        # lab=None: the production path of a physical stand; the lab only serves the devices and places the charts
-        stand = CopyStand(camera, sphere, session, stand=virtual_stand(lab), lab=None,
+        # the production path of a physical stand: the lab only serves the devices and places the charts
+        stand = CopyStand(camera, sphere, session, stand=lab.place,
                           settings=StandSettings(settle_s=0.0, dark_frames=3, flat_frames=4, optimise_matrix=False,
                                                  charts=charts))
         preset = find_preset(None, mode)

@@ -32,7 +32,6 @@ from dualrgb.app.commands.stand_options import (
     open_devices,
     open_session,
     progress_printer,
-    virtual_world,
 )
 from dualrgb.app.json_output import text_stream, write_json
 from dualrgb.app.workflow import defaults as day
@@ -162,6 +161,21 @@ def _corner_grids(args: argparse.Namespace, mode: str, charts: dict) -> dict:
     return out
 
 
+def _lab_shorthand(args: argparse.Namespace, mode: str, charts: dict, grids: dict) -> tuple[dict, float]:
+    """``--virtual-lab``: the lab's test target's width (as a person types it) unless given, and for a chart laid
+    too small to be found in frames this size, its placement (as a person places it by hand), said in one line."""
+    from dualrgb.app.lab.targets import LAB_TARGET_WIDTH_MM, too_small_to_find
+
+    placed = dict(grids)
+    for role, (grid, px) in too_small_to_find(mode, args.frame_size, charts).items():
+        if role not in placed:
+            placed[role] = grid
+            print(f"note: the {'training' if role == 'train' else 'test'} chart's patches are {px:.1f} px across in "
+                  f"{args.frame_size[0]}x{args.frame_size[1]} frames, too small to find: placed as the lab lays it",
+                  file=sys.stderr)
+    return placed, args.target_width_mm or LAB_TARGET_WIDTH_MM
+
+
 def main(args: argparse.Namespace) -> int:
     check_device_options(args)                # before the heavy imports below
     from dualrgb.app.warm_kernels import ensure_ready as ensure_kernels
@@ -183,16 +197,20 @@ def main(args: argparse.Namespace) -> int:
     grids = {k: load_grid(v, charts[k].layout if k in charts else None)
              for k, v in (("train", args.train_grid), ("test", args.test_grid)) if v}
     grids.update(_corner_grids(args, mode, charts))
+    width_mm = args.target_width_mm
+    if args.virtual_lab:                      # the shorthand: what a person at the lab's stand would give
+        grids, width_mm = _lab_shorthand(args, mode, charts, grids)
     settings = StandSettings(settle_s=args.settle, dark_frames=darks, flat_frames=flats,
                              optimise_matrix=False if args.no_de_fit else None, ppi=args.ppi,
-                             target_width_mm=args.target_width_mm, stand_start=stand_start, charts=charts)
+                             target_width_mm=width_mm, stand_start=stand_start, charts=charts)
     definition = {"workflow": DAY_WORKFLOW, "mode": mode, "preset": preset.name, "hdr": hdr,
-                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle, **virtual_world(args),
+                  "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle,
                   **day_charts.definition(charts)}
     text = text_stream(args.json_path)
     ensure_kernels()                          # first run: compiled here, before any device opens
-    with open_devices(args, mode) as dev, open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
-        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
+    with open_devices(args, mode, charts=chart_choices(args)) as dev, \
+            open_session(args.session, definition, dev.camera, {"mode": mode}) as session:
+        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
                           progress=progress_printer(), prompt=ask_person)
         profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
     from dualrgb.app.processing.quality import grading_lines

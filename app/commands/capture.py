@@ -42,7 +42,6 @@ from dualrgb.app.commands.stand_options import (
     open_session,
     progress_printer,
     reuse_limits,
-    virtual_world,
 )
 from dualrgb.app.json_output import text_stream, write_json
 from dualrgb.app.workflow.defaults import DAY_WORKFLOW, MODES, VIRTUAL_ORIGINALS
@@ -195,12 +194,12 @@ def main(args: argparse.Namespace) -> int:
                              original_frames=args.frames, resolution=args.resolution, delivery=delivery,
                              render_illuminant=args.render_illuminant or delivery.render_illuminant
                              or DEFAULT_RENDER_ILLUMINANT)
-    definition = {"workflow": DAY_WORKFLOW, **virtual_world(args)}
+    definition = {"workflow": DAY_WORKFLOW}
     ensure_kernels()                          # first run: compiled here, before any device opens
     with open_devices(args, mode, args.virtual_original) as dev, \
             open_session(args.session, definition, dev.camera) as session:
         out_dir = out_dir or session.path / "deliverables"
-        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, lab=dev.lab, settings=settings,
+        stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
                           progress=progress_printer(), prompt=ask_person, reshoot=lambda _o, _n: args.reshoot)
         if plan is None:                    # one original: shot, or its frames kept and delivered again
             result = stand.capture(originals[0], profile, reshoot=args.reshoot, out_dir=out_dir)

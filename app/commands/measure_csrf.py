@@ -18,7 +18,7 @@ import logging
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from dualrgb.app.commands.options import add_world_option, count, frame_size, input_file, number, seconds, seed
 from dualrgb.app.commands.stand_options import ask_person, real_camera
@@ -29,7 +29,6 @@ if TYPE_CHECKING:                       # types only: the devices are imported w
     from dualrgb.app.sequences.base import ProgressEvent
     from dualrgb.app.workflow.csrf import CsrfMeasurement
     from dualrgb.drivers.camera.base import Camera
-    from dualrgb.drivers.virtual.monochromator_bench import MonochromatorBench
     from dualrgb.simulation.radiance_reference import RadianceReference
 
 log = logging.getLogger(__name__)
@@ -109,22 +108,38 @@ def _reference(args: argparse.Namespace) -> RadianceReference:
 
 
 @contextlib.contextmanager
-def _devices(args: argparse.Namespace) -> Iterator[tuple[Camera, Monochromator, MonochromatorBench | None]]:
-    """(camera, monochromator, bench or None) (app.workflow.csrf_bench.bench_devices); the virtual camera set to
-    --iso / --aperture; the shutter closed and ports closed on the way out."""
-    from dualrgb.app.workflow.csrf_bench import CORNERSTONE, MANUAL, VIRTUAL, CsrfBench, bench_devices
+def _devices(args: argparse.Namespace) -> Iterator[tuple[Camera, Monochromator]]:
+    """(camera, monochromator) of a real bench (app.workflow.csrf_bench.bench_devices); the shutter closed and
+    ports closed on the way out."""
+    from dualrgb.app.workflow.csrf_bench import CORNERSTONE, MANUAL, CsrfBench, bench_devices
 
-    kind = VIRTUAL if args.virtual_lab else MANUAL if args.manual else CORNERSTONE
-    bench = CsrfBench(kind, port=args.monochromator or "", world=args.world, frame_size=args.frame_size,
-                      seed=args.seed, timeout_s=args.timeout)
+    bench = CsrfBench(MANUAL if args.manual else CORNERSTONE, port=args.monochromator or "", timeout_s=args.timeout)
     with contextlib.ExitStack() as stack:
-        camera = None if args.virtual_lab else stack.enter_context(real_camera(args))
-        camera, mono, virtual = stack.enter_context(bench_devices(bench, camera))
-        if virtual is not None and (args.iso or args.aperture):
-            from dualrgb.drivers.camera.base import CameraSettings
+        camera = stack.enter_context(real_camera(args))
+        yield stack.enter_context(bench_devices(bench, camera))
 
-            camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
-        yield camera, mono, virtual
+
+def _measure(args: argparse.Namespace, settings: Any, reference: RadianceReference | None) -> Any:
+    """The measurement on the virtual lab's bench (app.lab.csrf_bench: the virtual camera set to --iso /
+    --aperture) or on the real one."""
+    from dualrgb.simulation.radiance_reference import read_radiance_reference
+
+    def read(p: Path) -> RadianceReference:
+        return read_radiance_reference(p, method=args.radiance_method, window_nm=args.window)
+    if args.virtual_lab:
+        from dualrgb.app.lab.csrf_bench import VirtualBench, measure_on_virtual_bench, virtual_bench
+        from dualrgb.drivers.camera.base import CameraSettings
+
+        with virtual_bench(VirtualBench(args.world, args.frame_size, args.seed, args.timeout)) as bench:
+            if bench.camera is not None and (args.iso or args.aperture):
+                bench.camera.apply(CameraSettings(iso=args.iso, aperture=args.aperture))
+            return measure_on_virtual_bench(bench, settings, args.out, args.session, reference=reference,
+                                            read_radiance=read, prompt=ask_person, on_event=_printer)
+    from dualrgb.app.workflow.csrf_bench import measure_on_bench
+
+    with _devices(args) as (camera, mono):
+        return measure_on_bench(camera, mono, settings, args.out, args.session, radiance=reference,
+                                prompt=ask_person, on_event=_printer)
 
 
 def _printer(event: ProgressEvent) -> None:
@@ -133,18 +148,12 @@ def _printer(event: ProgressEvent) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from dualrgb.app.sequences.csrf import CsrfSettings
-    from dualrgb.app.workflow.csrf_bench import measure_on_bench
-    from dualrgb.simulation.radiance_reference import read_radiance_reference
 
     _check_options(args)
     settings = CsrfSettings(args.start, args.end, args.step, frames=args.frames, dark_frames=args.dark_frames,
                             target_fraction=args.target, max_exposure_s=args.max_exposure, region=args.region)
     reference = _reference(args) if (args.radiance or args.photodiode) else None     # bad files before any device
-    with _devices(args) as (camera, mono, bench):
-        outcome = measure_on_bench(
-            camera, mono, bench, settings, args.out, args.session, reference=reference, prompt=ask_person,
-            read_radiance=lambda p: read_radiance_reference(p, method=args.radiance_method, window_nm=args.window),
-            on_event=_printer)
+    outcome = _measure(args, settings, reference)
     if outcome.radiance_file is not None:
         print(f"virtual spectroradiometer: {outcome.radiance_file}", file=sys.stderr)
     if outcome.measurement is None:

@@ -57,9 +57,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from dualrgb.app.lab.led_bench import measure_virtual
     from dualrgb.app.sequences.led_measurement import DEFAULT_LEVELS, LedMeasurementPlan
     from dualrgb.app.terminal_progress import TerminalProgress
-    from dualrgb.app.workflow.led_stand import measure_virtual
     from dualrgb.drivers.virtual.spectroradiometer import RadiometerSettings
 
     if not args.virtual_lab:

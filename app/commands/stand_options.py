@@ -1,5 +1,6 @@
-"""What ``dualrgb calibrate``, ``capture``, ``process`` and ``calibration show`` share: device options (the
-virtual lab or --port / --camera), progress on stderr, the ``--json`` option (written by app.json_output, the
+"""What ``dualrgb calibrate``, ``capture``, ``process`` and ``calibration show`` share: device options (--port /
+--camera / --stand, or --virtual-lab: the shorthand that starts `dualrgb lab serve` as a child process and uses its
+instruments' addresses, app.lab.process), progress on stderr, the ``--json`` option (written by app.json_output, the
 one writer), the reuse limits. Not a command itself.
 """
 from __future__ import annotations
@@ -22,19 +23,24 @@ if TYPE_CHECKING:                       # types only: a command imports its devi
     from dualrgb.app.session.capture_session import CaptureSession
     from dualrgb.app.workflow.device_actions import Place as Stand
     from dualrgb.drivers.camera.base import Camera
-    from dualrgb.drivers.virtual.lab import VirtualLab
+    from dualrgb.drivers.sample_changer import SampleChanger
 
 log = logging.getLogger(__name__)
 
 
 def add_device_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("devices")
-    g.add_argument("--virtual-lab", action="store_true", help="the built-in virtual lab (sphere emulator + camera)")
-    g.add_argument("--port", help="the LED sphere's serial port (e.g. /dev/ttyACM0)")
-    g.add_argument("--camera", help="the camera as 'MODEL @ PORT' (from `dualrgb devices`), or 'auto' (the first)")
+    g.add_argument("--virtual-lab", action="store_true",
+                   help="start the built-in virtual lab (`dualrgb lab serve`, a child process) and use its sphere, "
+                        "camera and sample changer")
+    g.add_argument("--port", help="the LED sphere's serial port or URL (e.g. /dev/ttyACM0, socket://HOST:PORT)")
+    g.add_argument("--camera", help="the camera as 'MODEL @ PORT' (from `dualrgb devices`), 'auto' (the first), or "
+                                    "a camera bridge's tcp://HOST:PORT")
+    g.add_argument("--stand", help="an automated sample changer's serial port or URL: it places the targets and "
+                                   "originals (without one, the prompts ask you)")
     g.add_argument("--frame-size", type=frame_size, default=VIRTUAL_FRAME_SIZE,
-                   help="virtual lab frames WxH ({}x{})".format(*VIRTUAL_FRAME_SIZE))
-    g.add_argument("--seed", type=seed, default=0, help="virtual lab noise seed")
+                   help="--virtual-lab: its frames WxH ({}x{})".format(*VIRTUAL_FRAME_SIZE))
+    g.add_argument("--seed", type=seed, default=0, help="--virtual-lab: its noise seed")
     add_world_option(g)
     g.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
     g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
@@ -80,7 +86,8 @@ def progress_printer() -> Callable[[float, str], None]:
 def ask_person(message: str) -> None:
     """A prompt from a sequence: say it and wait for Enter (a terminal is needed)."""
     if not sys.stdin or not sys.stdin.isatty():
-        raise ValueError(f"{message}: needs a person at the stand (run in a terminal, or use --virtual-lab)")
+        raise ValueError(f"{message}: needs a person at the stand (run in a terminal), or a sample changer (--stand, "
+                         "or --virtual-lab)")
     print(f">>> {message} (Enter)", file=sys.stderr, flush=True)
     sys.stdin.readline()
 
@@ -89,28 +96,42 @@ def ask_person(message: str) -> None:
 class Devices:
     camera: Camera
     sphere: Sphere
-    stand: Stand | None
-    lab: VirtualLab | None = None
+    stand: Stand | None                   # what places things: the sample changer's (None: a person, prompted)
+    changer: SampleChanger | None = None
 
 
 @contextlib.contextmanager
-def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: str | None = None
-                 ) -> Iterator[Devices]:
-    """The virtual lab or the real sphere + camera (app.workflow.stand_devices, shared with the GUI); LEDs off and
-    ports closed on the way out, whatever happens.
+def open_devices(args: argparse.Namespace, mode: str = DEFAULT_MODE, original: str | None = None,
+                 charts: dict | None = None) -> Iterator[Devices]:
+    """The sphere, the camera and the sample changer by their addresses (app.workflow.stand_devices, shared with
+    the GUI); with ``--virtual-lab`` first the lab's (app.lab.process: started here, stopped at the end). LEDs off
+    and ports closed on the way out, whatever happens.
 
-    In the virtual lab an original is placed as its virtual stand-in ``original`` (``--virtual-original``: a
-    virtual original's name, or a chart: 'test', 'test+nd' with the ND 2.0 filter over half)."""
-    from dualrgb.app.workflow.stand_devices import apply_settings, virtual_lab, virtual_stand
-
+    The virtual lab shows an original as ``original`` (``--virtual-original``: a virtual original's name, or a
+    chart: 'test', 'test+nd' with the ND 2.0 filter over half) and holds ``charts`` (the stand's own, as
+    app.workflow.charts.ChartChoice per role) on its stand."""
     if args.virtual_lab:
-        with virtual_lab(mode, args.frame_size, args.seed, args.world) as lab:
-            camera, sphere = lab.devices()
-            apply_settings(camera, args.iso, args.aperture)
-            yield Devices(camera, sphere, virtual_stand(lab, original or ""), lab)
+        with lab_addresses(args, mode, original, charts) as addresses:
+            yield from _real_devices(argparse.Namespace(**{**vars(args), **addresses}))
         return
     check_device_options(args)
     yield from _real_devices(args)
+
+
+@contextlib.contextmanager
+def lab_addresses(args: argparse.Namespace, mode: str, original: str | None = None,
+                  charts: dict | None = None) -> Iterator[dict[str, str]]:
+    """``{"port", "camera", "stand"}``: the addresses of a virtual lab started for this command (`dualrgb lab
+    serve` as a child process), stopped on the way out."""
+    from dualrgb.app.lab.process import LabOptions, LabProcess
+
+    given = {role: (c.file, c.layout, c.leave_out) for role, c in (charts or {}).items() if c.given}
+    options = LabOptions(mode=mode, frame_size=args.frame_size, seed=args.seed, world=args.world,
+                         stand_in=original or "", charts=given,
+                         verbose=int(getattr(args, "verbose", 0) or 0))
+    with LabProcess(options) as lab:
+        found = lab.addresses
+        yield {"port": found["sphere"], "camera": found["camera"], "stand": found["stand"]}
 
 
 @contextlib.contextmanager
@@ -135,8 +156,8 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
 
     sphere = open_sphere(args.port)
     try:
-        with real_camera(args) as camera:
-            yield Devices(camera, sphere, None, None)
+        with real_camera(args) as camera, _changer(getattr(args, "stand", None)) as changer:
+            yield Devices(camera, sphere, changer.place if changer is not None else None, changer)
     except BaseException as exc:
         report = close_sphere(sphere)
         if not (isinstance(exc, SphereError) and exc.light is not None) and (
@@ -146,6 +167,18 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
     report = close_sphere(sphere)           # every LED 0, light off, read back
     if not report.off:
         raise SphereError(f"closing the devices: {report.message}", kind="unconfirmed", light="unknown")
+
+
+@contextlib.contextmanager
+def _changer(port: str | None) -> Iterator[SampleChanger | None]:
+    from dualrgb.app.workflow.stand_devices import open_changer
+
+    if not port:
+        yield None
+        return
+    changer = open_changer(port)
+    with contextlib.closing(changer):
+        yield changer
 
 
 def _says_light_off(message: str) -> bool:
@@ -170,16 +203,6 @@ def open_session(folder: Path | None, definition: dict, camera: Camera, meta: di
     if folder is None:
         print(f"dualrgb: new session {session.path}", file=sys.stderr, flush=True)
     return session
-
-
-def virtual_world(args: argparse.Namespace) -> dict[str, str]:
-    """``{"world": identity}`` for a virtual-lab run (a session shot in one world is never resumed in another;
-    drivers.virtual.world.World.identity), ``{}`` on a real stand."""
-    if not args.virtual_lab:
-        return {}
-    from dualrgb.drivers.virtual.world import load_world
-
-    return {"world": load_world(args.world).identity}
 
 
 def reuse_limits(args: argparse.Namespace) -> Any:

@@ -14,7 +14,7 @@ summary into an output folder (logic in simulation.studies; this module only par
                                [--seeds N] [--scheduler local|ADDRESS]
   dualrgb study stand          [--out DIR] [--world W[,W...]|all] [--compare W,...|all|none] [--seeds N]
                                [--frame-size WxH] [--doc PAGE] [--from-json STAND.json]
-                               (app.workflow.stand_study)
+                               (app.lab.stand_study)
 
 ``--out`` defaults to ``studies/<study>`` in the per-user data folder (resources.user_path), where the GUI lists
 the charts. ``--scheduler`` runs a study's tasks through Dask: ``local`` starts a LocalCluster of worker processes
@@ -89,7 +89,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _stand_study(ss: argparse._SubParsersAction) -> None:
-    """stand: the workflow's stand model against captures in virtual-lab worlds (app.workflow.stand_study)."""
+    """stand: the workflow's stand model against captures in virtual-lab worlds (app.lab.stand_study)."""
     q = ss.add_parser("stand", help="the stand model against calibration captures in virtual-lab worlds: the "
                                     "measurement workflow's predicted vs captured dE00 (3 seeds), models' R^2, lights "
                                     "re-optimised on them vs the nominal preset and the world's optimum")
@@ -112,7 +112,7 @@ def _stand_study(ss: argparse._SubParsersAction) -> None:
 
 
 def stand_main(args: argparse.Namespace) -> int:
-    from dualrgb.app.workflow.stand_study import StandStudyConfig, stand_study
+    from dualrgb.app.lab.stand_study import StandStudyConfig, stand_study
     from dualrgb.app.workflow.stand_study_report import (
         load_study,
         readme_section,

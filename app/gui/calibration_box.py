@@ -23,15 +23,17 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from dualrgb.app.gui.calibration_keep import keep_refusal, kept_base
 from dualrgb.app.gui.charts_form import ChartsForm
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.stand_options import CalibrationSampling
 from dualrgb.app.gui.viewmodel import calibration_lines
 from dualrgb.app.gui.widgets import PathLabel
+from dualrgb.app.lab.targets import LAB_TARGET_WIDTH_MM
 from dualrgb.app.protocols import Session
 from dualrgb.app.sequences.base import ProgressEvent
-from dualrgb.app.workflow.charts import load_charts
+from dualrgb.app.workflow.charts import charts_of_profile, load_charts
 from dualrgb.app.workflow.copystand import StandSettings
 from dualrgb.app.workflow.defaults import workflow_defaults
 from dualrgb.app.workflow.engine import Run, RunHooks
@@ -162,12 +164,15 @@ class CalibrationBox(QGroupBox):
     def _ask_reshoot(self, plan: list, charts: dict, start: StandModel | None) -> None:
         """The session holds calibration frames: re-shoot them (in a new dated session: this one keeps its frames
         and delivered originals, the waiting ones move along), keep them (a calibration computed again from them,
-        nothing lit), or cancel."""
+        nothing lit; offered only where the session allows it: app.gui.calibration_keep), or cancel."""
         session = self.ctx.lab.session
         n = len(calibration_frames(session)) if session is not None else 0
+        refusal = keep_refusal(session, charts, list(self.ws.lights)) if session is not None else "no session"
+        choices = (RESHOOT, CANCEL) if refusal else (RESHOOT, KEEP, CANCEL)
         text = (f"This session already holds {n} calibration frames (darks, flats, targets). Re-shoot them in a new "
-                "session (this one keeps its frames and delivered originals; waiting originals move along), keep "
-                "them and compute the calibration again (nothing is lit), or cancel?")
+                "session (this one keeps its frames and delivered originals; waiting originals move along), "
+                + (f"or cancel? They cannot be kept: {refusal}." if refusal else
+                   "keep them and compute the calibration again (nothing is lit), or cancel?"))
 
         def answer(choice: str) -> None:
             if choice == RESHOOT:
@@ -177,10 +182,13 @@ class CalibrationBox(QGroupBox):
                     old.close()                      # its writer lock given back: it can be opened again
                 self.ctx.with_session(lambda: self._start(plan, charts, start), "the re-shot calibration")
             elif choice == KEEP:
-                self._start(plan, charts, start)
-        self.ctx.asker.ask("Calibrate again?", text, (RESHOOT, KEEP, CANCEL), answer, default=CANCEL)
+                self._start(plan, charts, start, keep=True)
+        self.ctx.asker.ask("Calibrate again?", text, choices, answer, default=CANCEL)
 
-    def _start(self, plan: list, charts: dict | None = None, stand_start: StandModel | None = None) -> None:
+    def _start(self, plan: list, charts: dict | None = None, stand_start: StandModel | None = None,
+               keep: bool = False) -> None:
+        """The calibration run; ``keep``: computed again from the session's frames at their exposures, nothing lit
+        (app.gui.calibration_keep)."""
         ws, lab = self.ws, self.ctx.lab
         settings = self.stand_settings()
         settings.dark_frames, settings.flat_frames = self.dark_frames.value(), self.flat_frames.value()
@@ -188,11 +196,20 @@ class CalibrationBox(QGroupBox):
         settings.ppi, settings.target_width_mm = (self.sampling.stand_fields()[k] for k in ("ppi", "target_width_mm"))
         settings.stand_start = stand_start
         settings.charts = dict(charts or {})
-        preset, hdr = ws.preset, self.hdr_auto.isChecked()
-        grids = {n: ws.grids[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in ws.grids}
+        preset, lights, hdr = ws.preset, list(ws.lights), self.hdr_auto.isChecked()
+        placed = {**lab.lab_placement(settings.charts), **ws.grids}     # by hand in Target; the lab: too small ones
+        grids = {n: placed[Subject.target(n).key] for n in ("train", "test") if Subject.target(n).key in placed}
+        if lab.virtual_lab is not None and not settings.ppi and not settings.target_width_mm:
+            settings.target_width_mm = LAB_TARGET_WIDTH_MM          # what the technician would type for its target
+        base_kept = kept_base(lab.session) if keep and lab.session is not None else {}
 
         def work(hooks: RunHooks) -> CalibrationProfile:      # one run (its plans' event: 'plan', 'base', ...)
-            return lab.copy_stand(settings, hooks).calibrate(preset, hdr_auto=hdr, grids=grids)
+            lab.lab_charts(settings.charts)                         # the virtual lab's stand holds these charts
+            if not keep:
+                return lab.copy_stand(settings, hooks).calibrate(preset, hdr_auto=hdr, grids=grids)
+            stand = lab.copy_stand(settings, hooks, unlit=True)     # Keep: the session's frames, nothing lit
+            return stand.calibrate_at(preset, {nl.name: base_kept[nl.name] for nl in lights}, hdr_auto=hdr,
+                                      grids=grids)
         try:
             lab.copy_stand(settings)                                # refuses early: devices, session
         except ValueError as exc:
@@ -245,12 +262,19 @@ class CalibrationBox(QGroupBox):
             self.load(Path(path))
 
     def load(self, path: Path) -> None:
-        def loaded(profile: CalibrationProfile) -> None:
+        """Use a saved calibration, and the charts it was made with (Target and Results grade with them)."""
+        def read() -> tuple[CalibrationProfile, dict]:
+            profile = load_profile(path)
+            return profile, charts_of_profile(profile)
+
+        def loaded(result: tuple[CalibrationProfile, dict]) -> None:
+            profile, charts = result
+            self.ws.set_charts(charts)
             self.ws.set_calibration(profile)
             self.ctx.set("calibration/last", str(path))
             self.ctx.errors.clear("Load the calibration")
             self.check()
-        self.ctx.runner.submit(lambda: load_profile(path), pool="compute", name="load calibration",
+        self.ctx.runner.submit(read, pool="compute", name="load calibration",
                                on_result=loaded,
                                on_error=lambda exc: self.ctx.errors.report("Load the calibration", exc))
 

@@ -3,9 +3,11 @@
 Every device call is submitted to the runner's ``devices`` pool (one thread, in order); results and errors come
 back on the GUI thread as signals. The light is switched only by plans of the run engine (app.workflow.engine):
 a sequence's run (app.gui.sequence_view), and the light held by hand - the manual light and the framing light
-(app.workflow.light_plans) - run here in the runner's ``light`` pool (``run_light``). The virtual lab
-(drivers.virtual.lab.VirtualLab: the sphere emulator on a pty, the LedSphere driver over it, the virtual camera)
-is started on first use of a virtual device.
+(app.workflow.light_plans) - run here in the runner's ``light`` pool (``run_light``). The virtual lab is
+`dualrgb lab serve` started as the window's child process (app.lab.running) on first use of a virtual device; its
+sphere and camera are opened by their addresses like a physical stand's, and its sample changer places what the
+runs ask for. Killing the window leaves its sphere to its own watchdog and on-time limit, as a physical sphere's
+firmware.
 """
 from __future__ import annotations
 
@@ -23,15 +25,7 @@ from dualrgb.app.session.log import SessionLog
 from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_FRAME_SIZE
 from dualrgb.app.workflow.engine import Run, RunEngine, StandDevices, owning
 from dualrgb.app.workflow.light_plans import Dark, HeldLight
-from dualrgb.app.workflow.stand_devices import (
-    close_camera,
-    close_sphere,
-    open_camera,
-    open_sphere,
-    stand_definition,
-    virtual_lab,
-    virtual_stand,
-)
+from dualrgb.app.workflow.stand_devices import close_camera, close_sphere, open_camera, open_sphere, stand_definition
 from dualrgb.common.progress import Cancelled
 from dualrgb.drivers.camera.base import Camera
 from dualrgb.drivers.led_sphere import LedSphere, SphereError
@@ -39,9 +33,8 @@ from dualrgb.drivers.led_sphere.driver import DEFAULT_MAX_ON_S
 from dualrgb.simulation.lightsource import LightSource
 
 if TYPE_CHECKING:
+    from dualrgb.app.lab.running import RunningLab
     from dualrgb.app.session.capture_session import CaptureSession
-    from dualrgb.drivers.virtual.lab import VirtualLab
-    from dualrgb.drivers.virtual.world import World
 
 Device = TypeVar("Device")
 
@@ -87,8 +80,10 @@ class Lab(QObject):
         self.mode = mode
         self.seed = seed
         self.shutter_bumps = shutter_bumps         # virtual lab: the D610's exposure-time bumps (appendix A)
-        self.world: str | World | None = None      # virtual lab: its world (name, file or World; None nominal)
-        self.virtual_lab: VirtualLab | None = None
+        self.world: str | None = None              # virtual lab: its world (a packaged name or a file; None nominal)
+        self.virtual_lab: RunningLab | None = None
+        self._lab_devices: tuple[Camera, LedSphere] | None = None     # the lab's, opened by their addresses
+        self.lab_in_process = False               # tests: serve the lab's instruments from this process
         self.sphere: LedSphere | None = None
         self.sphere_port: str = ""
         self.camera: Camera | None = None
@@ -134,19 +129,38 @@ class Lab(QObject):
     def is_virtual(self) -> bool:
         return self.virtual_lab is not None
 
-    def _ensure_virtual_lab(self) -> VirtualLab:      # devices thread
+    def _ensure_virtual_lab(self) -> RunningLab:      # devices thread
         if self.virtual_lab is None:
-            lab = virtual_lab(self.mode, self.frame_size, self.seed, self.world, self.shutter_bumps).start()
+            from dualrgb.app.lab.process import LabOptions
+            from dualrgb.app.lab.running import RunningLab
+
+            options = LabOptions(mode=self.mode, frame_size=self.frame_size, seed=self.seed, world=self.world,
+                                 bumps=self.shutter_bumps)
+            lab = RunningLab(options, in_process=self.lab_in_process).start()
             self.virtual_lab = lab
-            log.info("virtual lab started: sphere emulator on %s, %dx%d frames", lab.port, *self.frame_size)
+            log.info("virtual lab started: sphere on %s, camera on %s, %dx%d frames", lab.port,
+                     lab.addresses["camera"], *self.frame_size)
         return self.virtual_lab
+
+    def _virtual_devices(self) -> tuple[Camera, LedSphere]:      # devices thread
+        """The virtual lab's camera and sphere, opened by their addresses once (kept open while the lab runs)."""
+        lab = self._ensure_virtual_lab()
+        if self._lab_devices is None:
+            sphere = open_sphere(lab.addresses["sphere"])
+            try:
+                camera = open_camera(lab.addresses["camera"])
+            except BaseException:
+                sphere.close()
+                raise
+            self._lab_devices = (camera, sphere)
+        return self._lab_devices
 
     # ------------------------------------------------------------------ virtual lab
     def start_virtual_lab(self, on_done: Callable[[], None] | None = None) -> TaskHandle:
         """Start the virtual lab and connect both its devices."""
         def work() -> tuple[str, Any, Any]:
-            lab = self._ensure_virtual_lab()
-            return lab.port, lab.sphere, lab.camera
+            camera, sphere = self._virtual_devices()
+            return self._ensure_virtual_lab().port, sphere, camera
 
         def done(result: tuple[str, Any, Any]) -> None:
             port, sphere, camera = result
@@ -161,9 +175,7 @@ class Lab(QObject):
     def place(self, what: str, nd: bool = False, on_done: Callable[[], None] | None = None) -> TaskHandle:
         """Virtual lab only: put a target / the open gate / the lens cap on the copy stand."""
         def work() -> str:
-            lab = self._ensure_virtual_lab()
-            lab.place(what, nd=nd)
-            return lab.placed
+            return self._ensure_virtual_lab().place(what, nd=nd)
         def placed(what_is_placed: str) -> None:
             self.message.emit(f"on the copy stand: {what_is_placed}")
             if on_done:
@@ -174,7 +186,7 @@ class Lab(QObject):
     def connect_sphere(self, port: str, on_done: Callable[[bool], None] | None = None) -> TaskHandle:
         def work() -> LedSphere:
             if port == VIRTUAL_SPHERE:
-                return self._ensure_virtual_lab().devices()[1]
+                return self._virtual_devices()[1]
             return open_sphere(port)            # identified, every LED 0, light off (read back)
 
         return self._connect(work, "Connect the LED sphere", self._set_sphere, port, port == VIRTUAL_SPHERE, on_done)
@@ -341,7 +353,7 @@ class Lab(QObject):
     def connect_camera(self, choice: str, on_done: Callable[[bool], None] | None = None) -> TaskHandle:
         def work() -> Camera:
             if choice == VIRTUAL_CAMERA:
-                return self._ensure_virtual_lab().devices()[0]
+                return self._virtual_devices()[0]
             return open_camera(choice)
 
         return self._connect(work, "Connect the camera", self._set_camera, choice, choice == VIRTUAL_CAMERA, on_done)
@@ -365,31 +377,52 @@ class Lab(QObject):
 
     # ------------------------------------------------------------------ copy stand
     def stand(self, stand_in: str | Mapping[str, str] = "") -> Callable[[str, bool], Any] | None:
-        """What places things on the stand: the virtual lab (an original is shown as its virtual stand-in, e.g.
-        'shadow', or per original identifier; app.workflow.stand_devices.virtual_stand, as the CLI), or None on a
-        real stand (the run engine then asks the technician)."""
+        """What places things on the stand: the virtual lab's sample changer (an original is shown as its virtual
+        stand-in, e.g. 'shadow' - one for all, or per original identifier - loaded in the changer's magazine under
+        its identifier), or None on a real stand (the run engine then asks the technician)."""
         lab = self.virtual_lab
         if lab is None:
             return None
-        if isinstance(stand_in, str):
-            return virtual_stand(lab, stand_in)
-        stand_ins = dict(stand_in)
+        default = stand_in if isinstance(stand_in, str) else ""
+        stand_ins = {} if isinstance(stand_in, str) else dict(stand_in)
 
-        def place(what: str, nd: bool = False) -> Any:
-            return virtual_stand(lab, stand_ins.get(what.removeprefix("original:"), ""))(what, nd)
+        def place(what: str, nd: bool = False) -> str:
+            return lab.place(what, nd, stand_ins.get(what.removeprefix("original:"), default))
         return place
 
-    def copy_stand(self, settings: Any, hooks: Any = None, stand_in: str | Mapping[str, str] = "") -> Any:
+    def copy_stand(self, settings: Any, hooks: Any = None, stand_in: str | Mapping[str, str] = "", *,
+                   unlit: bool = False) -> Any:
         """An app.workflow.copystand.CopyStand on these devices and the current session (``hooks``: the
-        callbacks of an app.workflow.engine.Run: progress, cancel, prompts, events, its control)."""
+        callbacks of an app.workflow.engine.Run: progress, cancel, prompts, events, its control); ``unlit``: its
+        sphere refuses to switch on (a Keep run takes only what the session holds: app.gui.calibration_keep)."""
+        from dualrgb.app.gui.calibration_keep import UnlitSphere
         from dualrgb.app.workflow.copystand import CopyStand
 
         if self.camera is None or self.sphere is None:
             raise ValueError("connect the LED sphere and the camera in Devices first")
         if self.session is None:
             raise ValueError("no session: one is made when a calibration, a run or an original starts")
-        return CopyStand(self.camera, self.sphere, self.session, stand=self.stand(stand_in), lab=self.virtual_lab,
-                         settings=settings, **(hooks.stand_kwargs() if hooks is not None else {}))
+        sphere = UnlitSphere(self.sphere) if unlit else self.sphere
+        return CopyStand(self.camera, sphere, self.session, stand=self.stand(stand_in), settings=settings,
+                         **(hooks.stand_kwargs() if hooks is not None else {}))
+
+    def lab_charts(self, charts: dict[str, Any]) -> None:
+        """Virtual lab only (devices or worker thread): its stand holds ``charts`` (the stand's own; {}: the
+        packaged targets), as a technician puts the day's charts on a physical stand."""
+        if self.virtual_lab is not None:
+            self.virtual_lab.use_charts(dict(charts))
+
+    def lab_placement(self, charts: dict[str, Any]) -> dict[str, Any]:
+        """Virtual lab only: the targets laid too small to be found in its frames (subject key -> PatchGrid, as the
+        lab lays them: what a technician would place by hand; app.lab.targets.too_small_to_find); {} otherwise."""
+        from dualrgb.app.lab.targets import too_small_to_find
+        from dualrgb.app.workflow.vocabulary import Subject
+
+        lab = self.virtual_lab
+        if lab is None:
+            return {}
+        return {Subject.target(role).key: grid
+                for role, (grid, _px) in too_small_to_find(lab.mode, (lab.width, lab.height), charts).items()}
 
     @staticmethod
     def virtual_originals() -> list[str]:
@@ -400,9 +433,9 @@ class Lab(QObject):
     # ------------------------------------------------------------------ session
     def session_definition(self) -> dict:
         """What defines the frames of a session made here (app.session: reopening with anything else is
-        refused, naming the difference): the mode, the camera, and the virtual lab's frame size
-        (app.workflow.stand_devices.stand_definition)."""
-        return stand_definition(self.mode, self.camera, self.virtual_lab)
+        refused, naming the difference): the mode (the virtual lab's when it runs), the camera, its world and image
+        area (app.workflow.stand_devices.stand_definition)."""
+        return stand_definition(self.virtual_lab.mode if self.virtual_lab is not None else self.mode, self.camera)
 
     def set_session(self, session: CaptureSession | None, note: str = "") -> None:
         """Make ``session`` the current one; ``note`` says why it was made when it was made for the technician
@@ -424,16 +457,17 @@ class Lab(QObject):
     def shutdown(self) -> None:
         """Window closing: LEDs off, ports closed, the virtual lab stopped (on the devices thread)."""
         self.stop_light()
-        sphere, lab, cam = self.sphere, self.virtual_lab, self.camera
+        sphere, lab, cam, owned = self.sphere, self.virtual_lab, self.camera, self._lab_devices
         self.sphere = self.camera = None
-        self.virtual_lab = None
-        if sphere is not None:
-            with owning(StandDevices(sphere=sphere), "shutdown"):       # after the light held by hand has ended
-                report = close_sphere(sphere, keep_open=lab is not None and sphere is lab.sphere)
+        self.virtual_lab, self._lab_devices = None, None
+        lab_camera, lab_sphere = owned if owned is not None else (None, None)
+        for s in {id(x): x for x in (sphere, lab_sphere) if x is not None}.values():
+            with owning(StandDevices(sphere=s), "shutdown"):            # after the light held by hand has ended
+                report = close_sphere(s)
             if not report.off:
                 log.error("switching the sphere off at exit: %s", report.message)
-        if cam is not None and (lab is None or cam is not lab.camera):
-            close_camera(cam)
+        for c in {id(x): x for x in (cam, lab_camera) if x is not None}.values():
+            close_camera(c)
         if lab is not None:
             lab.stop()
         if self.session_log is not None:

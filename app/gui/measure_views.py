@@ -8,7 +8,7 @@ virtual monochromator bench and the result is compared with the curves the virtu
 stand it is the camera connected in Devices with a Cornerstone on a serial port, or a monochromator set by hand,
 and a radiance file. The result: the camera CSV's path, the session, and a plot of R, G, B.
 
-*Measure the LEDs* runs app.workflow.led_stand.measure_virtual (the virtual lab's sphere and spectroradiometer, on
+*Measure the LEDs* runs app.lab.led_bench.measure_virtual (the virtual lab's sphere and spectroradiometer, on
 a skippable clock: the hour of warm-up takes moments; Cancel is checked at every reading) or, for a real
 instrument's files, import_readings; the result: the stand folder's files and a plot of each LED's spectrum.
 """
@@ -37,9 +37,10 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.stand_options import CAMERA_CSV_KEY, STAND_DIR_KEY
 from dualrgb.app.gui.widgets import PathLabel, plot_widget
+from dualrgb.app.lab.csrf_bench import VIRTUAL
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.sequences.csrf import CsrfSettings
-from dualrgb.app.workflow.csrf_bench import CORNERSTONE, MANUAL, VIRTUAL, CsrfBench, CsrfOutcome
+from dualrgb.app.workflow.csrf_bench import CORNERSTONE, MANUAL, CsrfBench, CsrfOutcome
 from dualrgb.app.workflow.engine import Run, RunHooks
 from dualrgb.app.workflow.vocabulary import EventKind, Role
 
@@ -231,12 +232,13 @@ class CameraMeasureView(MeasureView):
                             frames=self.frames.value())
 
     def prepare(self) -> tuple[list[PlannedFrame], Any]:
+        from dualrgb.app.lab.csrf_bench import VirtualBench, measure_on_virtual_bench, virtual_bench
         from dualrgb.app.workflow.csrf_bench import bench_devices, measure_on_bench
         from dualrgb.simulation.radiance_reference import read_radiance_reference
 
         kind = str(self.bench.currentData())
-        bench = CsrfBench(kind, port=self.port.text().strip(), world=self.world.currentText(),
-                          frame_size=self.ctx.lab.frame_size)
+        bench = None if kind == VIRTUAL else CsrfBench(kind, port=self.port.text().strip())
+        virtual = VirtualBench(self.world.currentText(), self.ctx.lab.frame_size)
         settings = self.settings()
         camera = None if kind == VIRTUAL else self.ctx.lab.camera
         if kind != VIRTUAL and camera is None:
@@ -253,9 +255,13 @@ class CameraMeasureView(MeasureView):
             def on_event(ev: ProgressEvent) -> None:
                 hooks.on_event(ev)
                 hooks.progress(ev.fraction, ev.message)
-            with bench_devices(bench, camera) as (cam, mono, virtual):
-                return measure_on_bench(cam, mono, virtual, settings, out, None, reference=reference,
-                                        read_radiance=read_radiance_reference, prompt=hooks.prompt,
+            if bench is None:
+                with virtual_bench(virtual) as started:
+                    return measure_on_virtual_bench(started, settings, out, None, reference=reference,
+                                                    read_radiance=read_radiance_reference, prompt=hooks.prompt,
+                                                    on_event=on_event, cancel=hooks.cancel)
+            with bench_devices(bench, camera) as (cam, mono):
+                return measure_on_bench(cam, mono, settings, out, None, radiance=reference, prompt=hooks.prompt,
                                         on_event=on_event, cancel=hooks.cancel)
         plan = [PlannedFrame(Role.CSRF.value, 0.0, f"{nm:g} nm", "metered, shutter open")
                 for nm in settings.wavelengths()]
@@ -317,8 +323,8 @@ class LedMeasureView(MeasureView):
         self.lay_out()
 
     def prepare(self) -> tuple[list[PlannedFrame], Any]:
+        from dualrgb.app.lab.led_bench import measure_virtual
         from dualrgb.app.sequences.led_measurement import LedMeasurementPlan
-        from dualrgb.app.workflow.led_stand import measure_virtual
 
         warmup_s = 60.0 * self.warmup_min.value()
         plan = LedMeasurementPlan(warmup_s=warmup_s, interval_s=min(60.0, warmup_s / WARMUP_READINGS))

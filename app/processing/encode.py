@@ -347,10 +347,12 @@ class DeliveryEncoder:
                              f"({rows}, 3), N = 3 per light")
         # a root-polynomial goes in as arrays (rp), the linear matrix as a tuple of N rows: the kernels' types are the
         # same for every model of N channels (one compile), the linear pixel loop keeps N a compile-time constant
-        self._rp = (terms, np.ascontiguousarray(A if len(terms) else np.zeros((0, 3), np.float32)))
+        white = np.asarray(white_xyz, dtype=np.float64)
+        # (the root-polynomial's columns divided by the white too: the kernels' x, y, z are X / Xn, Y / Yn, Z / Zn)
+        self._rp = (terms, np.ascontiguousarray((A / white).astype(np.float32) if len(terms)
+                                                else np.zeros((0, 3), np.float32)))
         A = A if not len(terms) else np.zeros((N, 3), np.float32)
         self.spaces = tuple(spaces)
-        white = np.asarray(white_xyz, dtype=np.float64)
         # the kernels' x, y, z are X / Xn, Y / Yn, Z / Zn: the matrix's columns divided by the white, and the RGB
         # matrices (of XYZ / Yn) multiplied by it, so the RGB values are the same
         self._A = tuple(tuple(np.float32(v) for v in row)                           # N: a compile-time constant

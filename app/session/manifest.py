@@ -351,8 +351,8 @@ def image_area_definition(camera: Camera) -> dict:
 
 
 def camera_definition(camera: Camera) -> dict:
-    """A camera's identity and the settings that change its frames (model, ISO, aperture, quality; a virtual
-    camera's world: drivers.virtual.world)."""
+    """A camera's identity and the settings that change its frames (model, ISO, aperture, quality; the world a
+    simulated camera reports it renders)."""
     s = camera.settings()
     summary = {}
     try:

@@ -1,7 +1,7 @@
 """The copy-stand workflow (Qt-free): the one layer the GUI, the CLI and the demo call.
 
 * :mod:`app.workflow.vocabulary` - roles, subjects, light names, step ids, event kinds (and old sessions' strings);
-* :mod:`app.workflow.targets` - colour targets: reference XYZ (with the virtual lab's ND filter), TargetSpec;
+* :mod:`app.workflow.targets` - colour targets: reference XYZ (with the stand's ND filter), TargetSpec;
 * :mod:`app.workflow.coverage` - which exposures have darks and flats ("darks 2/4 exposures");
 * :mod:`app.workflow.session_processing` - a session's frames grouped by subject and light, processed;
 * :mod:`app.workflow.profile` - the calibration profile (versioned JSON + .npz) and its reuse checks;

@@ -63,3 +63,23 @@ def definition(charts: dict[str, Any]) -> dict[str, Any]:
         return "packaged" if c is None else {"file": c.file.name, "sha256": c.file.sha256, "layout": list(c.layout),
                                              "left_out": list(c.leave_out)}
     return {"charts": {role: of(role) for role in ROLES}}
+
+
+def charts_of_profile(profile: Any) -> dict[str, Any]:
+    """The stand's own charts a calibration profile was made with (its ``charts`` records), read again from the files
+    they name and checked against the recorded sha256 ({}: it used the packaged targets); a file that is gone or
+    changed is a one-line ValueError naming it."""
+    records = dict(getattr(profile, "charts", None) or {})
+    choices = {}
+    for role, rec in records.items():
+        if not isinstance(rec, dict) or rec.get("packaged"):
+            continue
+        layout = "x".join(str(int(v)) for v in rec.get("layout") or ())
+        choices[role] = ChartChoice(str(rec.get("path") or rec.get("file") or ""), layout,
+                                    ",".join(rec.get("left_out") or ()))
+    charts = load_charts(choices, profile.mode) if choices else {}
+    for role, chart in charts.items():
+        if chart.file.sha256 != records[role].get("sha256"):
+            raise ValueError(f"{chart.file.path}: not the {role} chart calibration {profile.id} was made with (its "
+                             "sha256 differs); put that file back, or calibrate again")
+    return charts

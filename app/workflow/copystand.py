@@ -1,6 +1,6 @@
 """The copy-stand day, Qt-free: calibrate once, then capture and deliver originals with that calibration.
 
-    stand = CopyStand(camera, sphere, session, stand=lab.place, lab=lab, progress=print_progress)
+    stand = CopyStand(camera, sphere, session, stand=changer.place, progress=print_progress)
     profile = stand.calibrate(preset, hdr_auto=True)                  # darks, flats, targets, matrix, profile
     report = stand.capture(Original("ACC-123", title="Portrait"), profile)   # metering, HDR if needed, deliver
     print(report.qa.text())
@@ -12,8 +12,9 @@ message)`` and ``on_event(ProgressEvent)`` (every frame saved / kept, every prom
 common.progress.CancelToken) or ``control`` (the run's RunControl: cancel and pause) stops between frames with
 the LEDs off and between the processing's work units, raising common.progress.Cancelled. Hooks for a person:
 ``prompt(message)`` returns when they have done what it asks (place the target, cap the lens; never called when
-a ``stand`` callback places things, as in the virtual lab) and ``reshoot(original, n_frames)`` answers whether an
-original already in the session is shot again (True: new frames under the next take) or kept (False).
+a ``stand`` callback places things: an automated sample changer's, drivers.sample_changer) and
+``reshoot(original, n_frames)`` answers whether an original already in the session is shot again (True: new frames
+under the next take) or kept (False).
 """
 from __future__ import annotations
 
@@ -69,8 +70,7 @@ from dualrgb.app.workflow.profile import (
     new_profile_id,
 )
 from dualrgb.app.workflow.session_processing import SessionResult, process_session
-from dualrgb.app.workflow.targets import TargetSpec, reference_white, target_spec
-from dualrgb.app.workflow.virtual_truth import placed_truth
+from dualrgb.app.workflow.targets import NdFilter, TargetSpec, reference_white, target_spec
 from dualrgb.app.workflow.vocabulary import (
     EventKind,
     NamedLight,
@@ -89,7 +89,6 @@ if TYPE_CHECKING:
     from dualrgb.app.processing.pipeline import ChannelSource, StackBuilder
     from dualrgb.app.protocols import Session, Sphere
     from dualrgb.drivers.camera.base import Camera
-    from dualrgb.drivers.virtual.lab import VirtualLab
     from dualrgb.simulation.charts import Chart
     from dualrgb.simulation.presets import Preset
     from dualrgb.simulation.stand_model import StandModel
@@ -99,7 +98,6 @@ log = logging.getLogger(__name__)
 Prompt = Callable[[str], None]
 ReshootQuestion = Callable[[Original, int], bool]
 EventCallback = Callable[[ProgressEvent], None]
-VIRTUAL_TARGET_WIDTH_MM = 280.0     # the virtual lab's test target, outer corners of its corner patches
 
 
 def _dark_frames() -> int:
@@ -134,6 +132,7 @@ class StandSettings:
     charts: dict[str, Chart] = field(default_factory=dict)   # 'train' / 'test' -> the stand's own chart
                                               # (simulation.charts.Chart); absent: the mode's packaged target
     delivery: DeliverySettings | None = None  # what a delivery holds (app.workflow.delivery_settings; None: the file's)
+    nd_filter: NdFilter = field(default_factory=NdFilter)   # the stand's ND filter over a target (thesis 8.3)
 
 
 @dataclass
@@ -154,11 +153,11 @@ class CopyStand:
     """Devices + session + the rules of the copy-stand day (see the module docstring)."""
 
     def __init__(self, camera: Camera, sphere: Sphere, session: Session, *, stand: Place | None = None,
-                 lab: VirtualLab | None = None, settings: StandSettings | None = None,
+                 settings: StandSettings | None = None,
                  progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
                  prompt: Prompt | None = None, reshoot: ReshootQuestion | None = None,
                  on_event: EventCallback | None = None, control: RunControl | None = None):
-        self.camera, self.sphere, self.session, self.lab = camera, sphere, session, lab
+        self.camera, self.sphere, self.session = camera, sphere, session
         self.settings = settings or StandSettings()
         self.engine = RunEngine("copy stand", StandDevices(camera, sphere, session, stand),
                                 safety=safety_of(self.settings), control=control or RunControl(cancel),
@@ -285,15 +284,11 @@ class CopyStand:
         return profile
 
     def target_specs(self, mode: str, grids: Mapping[str, PatchGrid | None] | None = None) -> dict[str, TargetSpec]:
-        """The training and test targets' specs: the stand's own charts (``settings.charts``, put on the virtual
-        lab's stand too) or the mode's packaged targets, with the grids placed by hand (``grids``)."""
+        """The training and test targets' specs: the stand's own charts (``settings.charts``) or the mode's
+        packaged targets, with the grids placed by hand (``grids``)."""
         charts = self.settings.charts or {}
-        if self.lab is not None:
-            for name in ("train", "test"):
-                chart = charts.get(name)
-                self.lab.use_chart(name, chart.render_target() if chart is not None else None)
-        return {name: target_spec(mode, Subject.target(name), (grids or {}).get(name), lab=self.lab,
-                                  chart=charts.get(name)) for name in ("train", "test")}
+        return {name: target_spec(mode, Subject.target(name), (grids or {}).get(name), chart=charts.get(name),
+                                  nd=self.settings.nd_filter) for name in ("train", "test")}
 
     def _profile(self, preset: Preset, lights: list[NamedLight], plan: dict[str, list[float]], base: dict[str, float],
                  result: SessionResult, test: TargetSpec) -> CalibrationProfile:
@@ -330,7 +325,7 @@ class CopyStand:
     def _ppi(self, test: TargetSpec) -> float | None:
         if self.settings.ppi:
             return float(self.settings.ppi)
-        width_mm = self.settings.target_width_mm or (VIRTUAL_TARGET_WIDTH_MM if self.lab is not None else None)
+        width_mm = self.settings.target_width_mm
         if not width_mm or test.grid is None:
             return None
         tl, tr = np.asarray(test.grid.corners[0]), np.asarray(test.grid.corners[1])
@@ -450,7 +445,7 @@ class CopyStand:
                                camera=CameraIdentity.of(self.camera), dose=dose, ppi=self.settings.ppi,
                                exposures=exposures, warnings=checked.warnings + warnings,
                                extra={"session": str(self.session.path), "take": take, "frames": seq.steps()},
-                               render_illuminant=self.settings.render_illuminant, truth=placed_truth(self.lab),
+                               render_illuminant=self.settings.render_illuminant,
                                overrides=[override] if override else [], cancel=self.cancel,
                                settings=self.settings.delivery)
         self._remember(original, dose, delivery, take, profile)

@@ -9,9 +9,8 @@ every file is written while the next band is encoded (:func:`write_images`). The
 format tag and software versions (dualrgb, numpy, numba, colour-science, rawpy, LibRaw: dualrgb.simulation.versions),
 the original, the calibration, the resolution and demosaic, exposures, light dose, QA, the spectral estimate and
 the map that makes the cube from the channel files (app.processing.cube_map), the files, and their fixity (size and
-SHA-256 of every deliverable, computed as it is written: ``dualrgb verify`` checks them, app.workflow.fixity); on
-the virtual lab the figures against the virtual original's truth (app.workflow.virtual_truth). Its JSON Schema is
-resources/schemas/dualrgb-delivery-1.schema.json.
+SHA-256 of every deliverable, computed as it is written: ``dualrgb verify`` checks them, app.workflow.fixity). Its
+JSON Schema is resources/schemas/dualrgb-delivery-1.schema.json.
 
 Every TIFF carries resolution (ppi), Make/Model, DateTime, Software with the dualrgb version, an
 ImageDescription, a DocumentName, Copyright, an EXIF IFD, an ICC profile and XMP (app.workflow.master_metadata
@@ -58,7 +57,6 @@ from dualrgb.app.workflow.fixity import FIXITY_ALGORITHM, file_fixity, fixity_se
 from dualrgb.app.workflow.master_metadata import MasterContext, exact_description, image_description
 from dualrgb.app.workflow.metadata import MODES, Original, ascii_text
 from dualrgb.app.workflow.profile import CalibrationProfile, CameraIdentity
-from dualrgb.app.workflow.virtual_truth import OriginalTruth, assess, qa_text
 from dualrgb.common.clock import output_time
 from dualrgb.common.progress import CancelToken, check
 from dualrgb.simulation.versions import dualrgb_version, output_header
@@ -95,7 +93,6 @@ class QaLine:
     hdr: bool = False
     warnings: list[str] = field(default_factory=list)
     spectral_rmse: float | None = None      # the calibration's spectral RMSE on its test target (None: no spectra)
-    truth: dict | None = None               # virtual lab: the figures against the original's truth
     overrides: list[str] = field(default_factory=list)   # rules the user overrode (--force), said first
     per_pixel: dict | None = None           # the calibration's per-pixel test dE00 {mean, p90} (None: not measured)
     noise_gain: float | str | None = None   # the delivered model's noise gain (Y) at the white
@@ -111,7 +108,7 @@ class QaLine:
                 f"{self.underexposed_pct:.2f} %, light dose {self.dose.lux_h:.3g} lux.h ({self.dose.lux_s:.3g} "
                 f"lux.s), calibration dE00 train "
                 f"{de(self.train_mean)} / test {de(self.test_mean)}{pixel}{spectral}" + (", HDR" if self.hdr else "")
-                + (f"; {qa_text(self.truth)}" if self.truth else "") + "".join(f"; {w}" for w in self.warnings))
+                + "".join(f"; {w}" for w in self.warnings))
 
     def to_dict(self) -> dict:
         return {"text": self.text(), "clipped_pct": round(self.clipped_pct, 4),
@@ -119,8 +116,7 @@ class QaLine:
                 "light_dose": self.dose.to_dict(), "calibration_train_de00_mean": self.train_mean,
                 "calibration_test_de00_mean": self.test_mean, "calibration_test_spectral_rmse": self.spectral_rmse,
                 "calibration_test_per_pixel_de00": self.per_pixel, "calibration_noise_gain_y": self.noise_gain,
-                "hdr": self.hdr, "warnings": self.warnings, "overrides": self.overrides,
-                **({"virtual_truth": self.truth} if self.truth else {})}
+                "hdr": self.hdr, "warnings": self.warnings, "overrides": self.overrides}
 
 
 @dataclass
@@ -297,7 +293,7 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
             camera: CameraIdentity, dose: LightDoseRecord, ppi: float | None = None,
             exposures: dict[str, list[float]] | None = None, warnings: list[str] | None = None,
             extra: dict | None = None, render_illuminant: str | None = None,
-            truth: OriginalTruth | None = None, overrides: list[str] | None = None, cancel: CancelToken | None = None,
+            overrides: list[str] | None = None, cancel: CancelToken | None = None,
             settings: DeliverySettings | None = None, captured_at: datetime | None = None,
             now: datetime | None = None) -> Delivery:
     """Encode the channels of ``source`` (a full-resolution MasterStack or a half-resolution ChannelStack) with the
@@ -305,10 +301,10 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
     delivery ``settings`` ask for them; None: the settings file's, app.workflow.delivery_settings) and write every
     deliverable of ``original``: into a fresh folder, swapped in whole when complete (a re-delivery keeps the
     previous set in ``<stem>/previous/``; a folder of another original is refused: app.workflow.delivery_folder).
-    ``ppi``: the delivered files' sampling (None: the calibration's, at this resolution). ``truth``: the virtual
-    lab's, compared in the sidecar and QA line. ``overrides``: rules the user overrode for it
-    (app.workflow.mode_rule), said in the sidecar and QA line. ``captured_at``: the capture's time (EXIF; default
-    ``now``: the time written into every file, default common.clock's). ``cancel``: checked per band."""
+    ``ppi``: the delivered files' sampling (None: the calibration's, at this resolution). ``overrides``: rules the
+    user overrode for it (app.workflow.mode_rule), said in the sidecar and QA line. ``captured_at``: the capture's
+    time (EXIF; default ``now``: the time written into every file, default common.clock's). ``cancel``: checked
+    per band."""
     settings, illuminant = _request(profile, settings, render_illuminant)
     warnings = list(warnings or []) + ([] if all(nl.light.leds for nl in profile.lights) else [LIGHTS_UNKNOWN])
     ppi = ppi or delivered_ppi(profile, source.resolution)
@@ -332,9 +328,6 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
         _finish_files(images, files, fixity, spectral, original, profile, source, ctx)
         qa = _qa(source, written.invalid, profile, original, dose,
                  any(len(v) > 1 for v in (exposures or {}).values()), warnings)
-        if truth is not None:
-            qa.truth = assess(truth, files, list(profile.white_xyz),
-                              spectral.estimator if spectral is not None else None)
         qa.overrides = list(overrides or [])
         doc = _sidecar(source, profile, original, camera, now, ppi, exposures, dose, qa, files, fixity, spectral)
         doc.update(captured_at=ctx.captured.isoformat(timespec="seconds"), delivery_settings=settings.describe())
@@ -464,7 +457,6 @@ def _sidecar(source: ChannelSource, profile: CalibrationProfile, original: Origi
                                              "xyz_one * white_xyz", "xyz_one": XYZ_ONE,
                                              "white_xyz": [float(v) for v in profile.white_xyz]},
             **({"spectral": spectral_section(spectral, profile, files)} if spectral is not None else {}),
-            **({"virtual_truth": qa.truth} if qa.truth else {}),
             "files": {k: p.name for k, p in files.items()},
             "fixity": fixity_section({files[k].name: v for k, v in fixity.items()})}
 

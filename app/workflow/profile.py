@@ -19,8 +19,8 @@ the nominal and the fitted model against the captured patch means, the captured 
 model predicts; the observations it was fitted to are ``stand_*`` arrays in the .npz (a refit from other
 measurements needs only the profile). A profile without it loads and says the stand model was not fitted.
 
-Reuse (:func:`check_reuse`): a different camera serial, camera model, ISO, aperture, virtual-lab world
-(drivers.virtual.world: a calibration made in one world is refused in another), light levels, or a sphere
+Reuse (:func:`check_reuse`): a different camera serial, camera model, ISO, aperture, world (what a simulated
+camera reports it renders: a calibration made in one world is refused in another), light levels, or a sphere
 temperature more than ``ReuseLimits.temperature_drift_c`` away from the calibration's is a refusal (one line
 naming each mismatch; ``force`` turns it into a warning). The age is always reported; past
 ``ReuseLimits.max_age_h`` (default 8 h) it warns. The temperature limit: LED output and peak wavelength follow
@@ -73,11 +73,11 @@ class CameraIdentity:
     lens: str = ""
     iso: int | None = None
     aperture: float | None = None
-    world: str = ""                  # the virtual lab's world identity ('' for a real camera)
+    world: str = ""                  # the world a simulated camera reports it renders ('' for a real camera)
 
     @classmethod
     def of(cls, camera: Camera) -> CameraIdentity:
-        """What the camera reports about itself (gphoto2: serialnumber / lensname config; virtual: its own)."""
+        """What the camera reports about itself (gphoto2: serialnumber / lensname config; others: their summary)."""
         summary = camera.config_summary()
         settings = camera.settings()
         get = getattr(camera, "get_config_value", None)

@@ -1,34 +1,29 @@
 """Opening the copy stand's devices and describing them to a session: written once, for the CLI
 (app.commands.stand_options) and the GUI (app.gui.device_hub).
 
-    lab = virtual_lab(mode, frame_size, seed=0, world=None).start()      # the virtual lab (emulator + camera)
-    place = virtual_stand(lab, "shadow")          # what puts targets, the open gate and the original's stand-in
     sphere = open_sphere("/dev/ttyACM0")          # identified, every LED off (read back), closed on failure
-    camera = open_camera("Nikon DSC D610 @ usb:001,004", iso=100)      # or 'auto': the first camera found
+    camera = open_camera("Nikon DSC D610 @ usb:001,004", iso=100)      # or 'auto', or a bridge 'tcp://HOST:PORT'
+    changer = open_changer("socket://127.0.0.1:40125")                 # an automated sample changer, if any
     close_sphere(sphere)                          # every LED off (read back), then the port closed
     close_camera(camera)
     session.extend_definition(**camera_definition_of(camera))          # what a resumed session must match
 
 These are the only ways the front ends open and close a device; everything in between - every light switched, every
-frame - is the run engine's (app.workflow.engine). Both front ends thus start from the same state: a real sphere is
+frame - is the run engine's (app.workflow.engine). Both front ends thus start from the same state: a sphere is
 switched off (and its answer read) before anything else, a camera named without its port is refused with the same
-advice, the virtual original stands in for an original, and a session records the same camera identity and image
-area.
+advice, and a session records the same camera identity and image area. Every device is named by its address: a
+serial port or a pyserial URL for the sphere and the sample changer, 'MODEL @ PORT' or a camera bridge's ``tcp://``
+address for the camera (drivers.camera.network; `dualrgb lab serve` serves the virtual lab's instruments so).
 """
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
-
-from dualrgb.app.workflow.defaults import DEFAULT_MODE, VIRTUAL_ORIGINALS
 
 if TYPE_CHECKING:
     from dualrgb.drivers.camera.base import Camera
     from dualrgb.drivers.led_sphere import LedSphere, LightReport
-    from dualrgb.drivers.virtual.lab import VirtualLab
-    from dualrgb.drivers.virtual.world import World
+    from dualrgb.drivers.sample_changer import SampleChanger
 
 log = logging.getLogger(__name__)
 
@@ -36,32 +31,6 @@ AUTO_CAMERA = "auto"
 NO_CAMERA_ADVICE = ("no camera found: connect the camera by USB, switch it on (mode dial to M) and look for it "
                     "again (`dualrgb devices`, or 'Detect' in Devices); on a desktop, close photo programs that grab "
                     "it (gvfs on Linux, ptpcamerad on macOS)")
-Place = Callable[[str, bool], Any]
-
-
-def virtual_lab(mode: str = DEFAULT_MODE, frame_size: tuple[int, int] = (600, 400), seed: int = 0,
-                world: World | str | Path | None = None, bumps: bool = False) -> VirtualLab:
-    """The virtual lab, not started yet (``start()`` or a with-block)."""
-    from dualrgb.drivers.virtual.lab import VirtualLab
-
-    return VirtualLab(mode=mode, frame_size=frame_size, seed=seed, world=world, bumps=bumps)
-
-
-def virtual_stand(lab: VirtualLab, stand_in: str = "") -> Place:
-    """What places things on the virtual stand: targets, the open gate, the lens cap, and an original as its
-    virtual stand-in ``stand_in`` (a virtual original's name, or a chart: 'test', 'test+nd' with the ND 2.0 filter
-    over half; default: the mode's virtual original)."""
-    default = VIRTUAL_ORIGINALS.get(lab.mode, VIRTUAL_ORIGINALS[DEFAULT_MODE])
-
-    def place(what: str, nd: bool = False) -> Any:
-        if what.startswith("original:"):
-            name = stand_in or default
-            chart, plus, _ = name.partition("+nd")
-            if chart in ("train", "test"):
-                return lab.place(chart, bool(plus) or nd)
-            what = f"original:{name}"
-        return lab.place(what, nd)
-    return place
 
 
 def open_sphere(port: str) -> LedSphere:
@@ -122,12 +91,20 @@ def camera_choice(choice: str) -> tuple[str | None, str | None]:
 
 
 def open_camera(choice: str, iso: int | None = None, aperture: float | None = None) -> Camera:
-    """The tethered camera ``choice`` (:func:`camera_choice`), opened, with ISO / aperture applied when given
-    (closed again when that fails)."""
-    from dualrgb.drivers.camera.gphoto import GPhotoCamera
+    """The tethered camera ``choice`` (:func:`camera_choice`; a camera bridge's ``tcp://HOST:PORT``:
+    drivers.camera.network), opened, with ISO / aperture applied when given (closed again when that fails)."""
+    from dualrgb.drivers.camera.bridge_protocol import is_address
 
-    model, port = camera_choice(choice)
-    camera = GPhotoCamera(model=model, port=port)
+    camera: Camera
+    if is_address(choice):
+        from dualrgb.drivers.camera.network import NetworkCamera
+
+        camera = NetworkCamera(choice)
+    else:
+        from dualrgb.drivers.camera.gphoto import GPhotoCamera
+
+        model, port = camera_choice(choice)
+        camera = GPhotoCamera(model=model, port=port)
     camera.open()
     try:
         apply_settings(camera, iso, aperture)
@@ -135,6 +112,21 @@ def open_camera(choice: str, iso: int | None = None, aperture: float | None = No
         camera.close()
         raise
     return camera
+
+
+def open_changer(port: str) -> SampleChanger:
+    """The automated sample changer on ``port`` (a serial port or pyserial URL), identified (closed again when
+    it does not answer)."""
+    from dualrgb.drivers.sample_changer import SampleChanger
+
+    changer = SampleChanger(port).open()
+    try:
+        info = changer.identify()
+    except BaseException:
+        changer.close()
+        raise
+    log.info("sample changer on %s: %s %s", port, info.get("model"), info.get("version"))
+    return changer
 
 
 def apply_settings(camera: Camera, iso: int | None = None, aperture: float | None = None) -> None:
@@ -152,13 +144,10 @@ def camera_definition_of(camera: Camera) -> dict[str, Any]:
     return {"camera": camera_definition(camera), **image_area_definition(camera)}
 
 
-def stand_definition(mode: str, camera: Camera | None = None, lab: VirtualLab | None = None) -> dict[str, Any]:
-    """A session's definition from the stand: the mode, the virtual lab's frame size and world (as the CLI's
-    ``world``: a session shot in one world is never resumed in another), the camera (:func:`camera_definition_of`)."""
-    out: dict[str, Any] = {"mode": lab.mode if lab is not None else mode}
-    if lab is not None:
-        out["frame_size"] = [lab.width, lab.height]
-        out["world"] = lab.world.identity
+def stand_definition(mode: str, camera: Camera | None = None) -> dict[str, Any]:
+    """A session's definition from the stand: the mode and the camera (:func:`camera_definition_of`: its identity,
+    the world a simulated camera reports, its image area)."""
+    out: dict[str, Any] = {"mode": mode}
     if camera is not None:
         out.update(camera_definition_of(camera))
     return out

@@ -1,4 +1,4 @@
-"""``dualrgb study stand``'s outputs (app/workflow/stand_study.py), made from its JSON document so that they can be
+"""``dualrgb study stand``'s outputs (app/lab/stand_study.py), made from its JSON document so that they can be
 made again from a saved ``stand.json`` (``study stand --from-json``) without running the study: the Markdown tables
 (SUMMARY.md, and the docs page's generated section between ``<!-- stand:start -->`` and ``<!-- stand:end -->``), the
 charts.

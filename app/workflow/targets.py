@@ -2,8 +2,9 @@
 
 The reference data are a chart's (simulation.charts): the stand's own chart files when the calibration names
 them (``calibrate --train-target / --test-target``, the GUI's calibration box), else the packaged targets of the
-mode. The reference XYZ of a target captured under the virtual lab's ND 2.0 filter (thesis 8.3) is the target's
-XYZ with the patches under the filter scaled by its transmittance: that is what the camera saw. Grids are in the
+mode. The reference XYZ of a target captured under the stand's ND filter (thesis 8.3: ND 2.0 over half the chart) is
+the target's XYZ with the patches under the filter scaled by its transmittance: that is what the camera saw. Which
+patches the filter covers and its transmittance are a setting of the stand (:class:`NdFilter`). Grids are in the
 processed stack's (superpixel, half-size) pixel coordinates.
 """
 from __future__ import annotations
@@ -12,7 +13,7 @@ import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -21,9 +22,6 @@ from dualrgb.app.workflow.vocabulary import Subject, SubjectKind
 from dualrgb.simulation.chart_geometry import ChartGeometry, geometry_of
 from dualrgb.simulation.charts import Chart, ChartError, packaged_chart
 from dualrgb.simulation.colorimetry import white_point
-
-if TYPE_CHECKING:
-    from dualrgb.drivers.virtual.lab import VirtualLab
 
 log = logging.getLogger(__name__)
 MAX_GRID_BYTES = 1 << 20          # a patch grid is a few hundred bytes; checked before reading
@@ -46,7 +44,7 @@ class TargetSpec:
     layout: tuple[int, int] | None = None
     simulated: np.ndarray | None = None
     label: str = ""
-    nd_mask: np.ndarray | None = None     # patches under the ND filter (virtual lab)
+    nd_mask: np.ndarray | None = None     # patches under the ND filter (an ND capture)
     spectra: np.ndarray | None = None     # (n, n_wl) reference spectra on the simulation grid (ND included)
     mode: str = ""                        # the packaged data (grid, CMFs, LEDs, camera) the spectra belong to
     cells: list[int] | None = None        # the grid cell of each patch (None: the patches fill the cells in order)
@@ -83,6 +81,31 @@ def chart_of(mode: str, name: str, charts: dict[str, Chart] | None = None) -> Ch
             raise ChartError(f"{chart.file.path}: a {chart.kind} chart for a {mode} calibration")
         return chart
     return packaged_chart(mode, name, default_setup(mode).grid)
+
+
+ND_2_TRANSMITTANCE = 0.01                 # optical density 2.0 (thesis 8.3)
+
+
+@dataclass(frozen=True)
+class NdFilter:
+    """The stand's ND filter as it lies over a target in an ND capture (thesis 8.3): its ``transmittance`` and the
+    patches it covers, the ``columns`` leftmost columns of the chart's layout over its whole height (None: half of
+    them, ``cols // 2``: the stand's filter holder lays it over the left half)."""
+
+    transmittance: float = ND_2_TRANSMITTANCE
+    columns: int | None = None
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.transmittance <= 1.0:
+            raise ValueError(f"ND filter transmittance {self.transmittance}: expected 0 < T <= 1")
+        if self.columns is not None and self.columns < 0:
+            raise ValueError(f"ND filter columns {self.columns}: expected 0 or more")
+
+    def mask(self, layout: tuple[int, int], cells: list[int]) -> np.ndarray:
+        """Per used patch (its grid cell in ``cells``): whether the filter covers it."""
+        cols = int(layout[1])
+        covered = cols // 2 if self.columns is None else min(int(self.columns), cols)
+        return np.array([(int(c) % cols) < covered for c in cells], dtype=bool)
 
 
 def nd_transmittance(nd_mask: np.ndarray | None, transmittance: float, n: int) -> np.ndarray:
@@ -125,59 +148,31 @@ def reference_white(mode: str = "reflective", method: str | None = None) -> np.n
     return np.asarray(target_xyz(setup, setup.test, method)[1], dtype=float)
 
 
-def scene_grid(scene: Any, fraction: float = 0.5) -> PatchGrid:
-    """The patch grid of a virtual-lab scene in stack (superpixel) coordinates (a chart drawn in its real geometry
-    or a pose: its patch area's corners and each cell where its patch is)."""
-    corners_rc = np.asarray(scene.corners(), dtype=float)
-    rows, cols = scene.layout
-    boxes = scene.geometry.unit_boxes() if scene.placement is not None else None
-    return PatchGrid(corners_rc[:, ::-1], rows, cols, fraction=fraction,                 # (row, col) -> (x, y)
-                     cell_boxes=boxes).scaled(0.5)
-
-
-def virtual_target_spec(lab: VirtualLab, subject: Subject, *, simulated: np.ndarray | None = None,
-                        grid: PatchGrid | None = None, label: str = "", method: str | None = None,
-                        chart: Chart | None = None) -> TargetSpec:
-    """A TargetSpec for a target captured in the virtual lab: its scene gives the grid and the ND patches; the
-    reference data are ``chart``'s (the lab renders the same chart: VirtualLab.use_chart), else the packaged."""
+def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, label: str = "", method: str | None = None,
+                chart: Chart | None = None, nd: NdFilter | None = None) -> TargetSpec:
+    """The TargetSpec the GUI and the CLI use: the chart (``chart``: the stand's own; None: the packaged target of
+    ``mode``) with the grid placed by hand (None: found in the captured frames, app.processing.chart_detect: a
+    ColorChecker Classic, a Digital SG, an IT8.7/1 or /2, or a generic grid of patches, from the chart's layout).
+    ``method``: how the reference XYZ is integrated (simulation.datasets.target_xyz: 'eq-4.2' or 'astm-e308'). A
+    target captured under the ND filter (``subject.nd``) has the patches ``nd`` covers scaled by its transmittance
+    (default :class:`NdFilter`: ND 2.0 over the left half)."""
     if subject.kind is not SubjectKind.TARGET:
         raise ValueError(f"{subject.label}: not a colour target")
-    chart = chart_of(lab.mode, subject.name, {subject.name: chart} if chart is not None else None)
-    scene = lab.scene_for(subject.name, nd=subject.nd)
-    cells = chart.used_cells
-    nd_mask = scene.nd_patches()[cells]
-    nd_scale = nd_transmittance(nd_mask, scene.nd_transmittance, len(cells))
-    xyz, names = reference_xyz(lab.mode, subject.name, nd_scale, method, chart)
-    layout = (int(scene.layout[0]), int(scene.layout[1]))
-    return TargetSpec(subject, xyz, names, grid or scene_grid(scene), layout, simulated,
-                      label or f"{subject.name} ({chart.target.name})", nd_mask,
-                      reference_spectra(lab.mode, subject.name, nd_scale, chart), lab.mode, cells, chart,
-                      geometry_of(chart))
-
-
-def target_spec(mode: str, subject: Subject, grid: PatchGrid | None, *, lab: VirtualLab | None = None,
-                label: str = "", method: str | None = None, chart: Chart | None = None) -> TargetSpec:
-    """The TargetSpec the GUI and the CLI use: the virtual lab's scene when there is one (ND included), else the
-    chart (``chart``: the stand's own; None: the packaged target of ``mode``) with the grid placed by hand (None:
-    found in the captured frames, app.processing.chart_detect: a ColorChecker Classic, a Digital SG, an IT8.7/1
-    or /2, or a generic grid of patches, from the chart's layout). ``method``: how the reference XYZ is integrated
-    (simulation.datasets.target_xyz: 'eq-4.2' or 'astm-e308')."""
-    if lab is not None:
-        return virtual_target_spec(lab, subject, grid=grid, label=label, method=method, chart=chart)
-    if subject.nd:
-        raise ValueError(f"{subject.label}: the ND filter's coverage is known only in the virtual lab")
     chart = chart_of(mode, subject.name, {subject.name: chart} if chart is not None else None)
-    xyz, names = reference_xyz(mode, subject.name, method=method, chart=chart)
     rows, cols = chart.layout
+    cells = chart.used_cells
+    nd_mask = (nd or NdFilter()).mask((rows, cols), cells) if subject.nd else None
+    nd_scale = nd_transmittance(nd_mask, (nd or NdFilter()).transmittance, len(cells)) if subject.nd else None
+    xyz, names = reference_xyz(mode, subject.name, nd_scale, method=method, chart=chart)
     if grid is not None and (grid.rows, grid.cols) != (rows, cols) and chart.cells != list(range(len(chart.cells))):
         raise ValueError(f"{subject.label}: the grid has {grid.rows} x {grid.cols} cells but the chart's layout is "
                          f"{rows} x {cols}; set rows and columns")
-    if grid is not None and grid.n_patches <= max(chart.used_cells):
+    if grid is not None and grid.n_patches <= max(cells):
         raise ValueError(f"{subject.label}: the grid has {grid.n_patches} cells but the target {len(names)} "
                          "patches; set rows and columns")
     return TargetSpec(subject, xyz, names, grid, (rows, cols), None, label or f"{subject.name} ({chart.target.name})",
-                      spectra=reference_spectra(mode, subject.name, chart=chart), mode=mode, cells=chart.used_cells,
-                      chart=chart, geometry=geometry_of(chart))
+                      nd_mask, reference_spectra(mode, subject.name, nd_scale, chart=chart), mode, cells, chart,
+                      geometry_of(chart))
 
 
 def load_grid(path: Path, layout: tuple[int, int] | None = None) -> PatchGrid:

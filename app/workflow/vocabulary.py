@@ -3,7 +3,7 @@
 What ties a capture to its processing lives here and nowhere else:
 
 * :class:`Role` - why a frame was taken (dark, flat, target, original, crf, metering);
-* :class:`Subject` - what lay on the stand (the training / test target, with or without the virtual lab's ND 2.0
+* :class:`Subject` - what lay on the stand (the training / test target, with or without the stand's ND
   filter, or an original by its identifier); ``Subject.key`` is the one string form (``"target:train"``,
   ``"target:test+nd"``, ``"original:ACC-123"``); in it an identifier's ``% / : # +`` are written ``%25 %2F %3A
   %23 %2B`` (:func:`key_name`), so no identifier can reach into the separators of keys and step ids (``ACC/1``
@@ -84,7 +84,7 @@ class Subject:
 
     kind: SubjectKind
     name: str
-    nd: bool = False           # the virtual lab's ND 2.0 filter over half the target (thesis 8.3)
+    nd: bool = False           # under the stand's ND filter (thesis 8.3: ND 2.0 over half the target)
 
     def __post_init__(self) -> None:
         if not self.name or not self.name.strip():

@@ -37,13 +37,14 @@ class VirtualLab:
 
     def __init__(self, mode: str = "reflective", frame_size: tuple[int, int] = (600, 400), seed: int = 0,
                  watchdog_s: float = 30.0, bumps: bool = False, timeout_s: float = 1.0,
-                 world: World | str | Path | None = None, clock: Callable[[], float] = time.monotonic):
+                 world: World | str | Path | None = None, clock: Callable[[], float] = time.monotonic,
+                 transport: str | None = None):
         self.mode = mode
         self.width, self.height = (int(frame_size[0]) // 2 * 2, int(frame_size[1]) // 2 * 2)
         self.seed = seed
         self.world = load_world(world)
         self.setup = default_setup(mode)            # the packaged reference data the calibration uses
-        self.emulator = SphereEmulator(watchdog_s=watchdog_s, clock=clock)
+        self.emulator = SphereEmulator(watchdog_s=watchdog_s, clock=clock, transport=transport)
         self._timeout = timeout_s
         self._bumps = bumps
         self.sphere: LedSphere | None = None
@@ -52,10 +53,13 @@ class VirtualLab:
         self.charts: dict[str, Target] = {}         # a stand's own charts on the stand (use_chart)
 
     # ---- lifecycle ----
-    def start(self) -> VirtualLab:
+    def start(self, connect: bool = True) -> VirtualLab:
+        """Start the emulator and the camera; ``connect``: also open the LedSphere driver on the emulator's port
+        (False: the port is left to clients of its own, as `dualrgb lab serve` serves it)."""
         port = self.emulator.start()
         log.info("virtual sphere emulator on %s", port)
-        self.sphere = LedSphere(port, timeout=self._timeout).open()
+        if connect:
+            self.sphere = LedSphere(port, timeout=self._timeout).open()
         self.camera = VirtualCamera(self.emulator.snapshot, mode=self.mode, seed=self.seed,
                                     bumps_enabled=self._bumps, clock=self.emulator.clock, world=self.world)
         self.camera.open()
@@ -73,7 +77,9 @@ class VirtualLab:
         self.emulator.stop()
 
     def _started_camera(self) -> VirtualCamera:
-        return self.devices()[0]
+        if self.camera is None:
+            raise RuntimeError("the virtual lab is not started: call start() (or use it in a with-block) first")
+        return self.camera
 
     def devices(self) -> tuple[VirtualCamera, LedSphere]:
         """The started lab's camera and sphere."""
@@ -150,7 +156,7 @@ class VirtualLab:
         """(height, width, 3) float32 per-pixel XYZ of original ``name`` ('painting' or 'original:painting') at
         sensor resolution (default: this lab's frame): eq 4.2, D65, CIE 1931 2 degree, Y of a perfect white
         (clear film) = 100; rows down, columns right as the raw mosaic. Each 2x2 Bayer cell is one material, so
-        ``app.processing.ground_truth.bin_to_superpixels`` gives the superpixel grid the processing delivers."""
+        ``app.lab.ground_truth.bin_to_superpixels`` gives the superpixel grid the processing delivers."""
         return ground_truth_xyz(original_name(name), self.height if height is None else height,
                                 self.width if width is None else width, self.setup.grid,
                                 self.setup.illuminant, self.setup.cmfs)

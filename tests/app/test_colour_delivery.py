@@ -15,7 +15,7 @@ from dualrgb.app.processing.colour_kernels import (
     terms_for,
 )
 from dualrgb.app.processing.demosaic import HALO
-from dualrgb.app.processing.encode import LINEAR_ONE, RGB_SPACES, DeliveryEncoder, encode_deliverables
+from dualrgb.app.processing.encode import RGB_SPACES, XYZ_ONE, DeliveryEncoder, encode_deliverables
 from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
 from dualrgb.simulation.colour_models import expand, n_terms
 from dualrgb.simulation.matrix_fit import CharacterisationMatrix
@@ -72,7 +72,7 @@ def test_delivered_xyz_is_the_model_per_pixel(degree):
     m = _model(degree)
     enc = encode_deliverables(stack, m.matrix, D65, degree=degree)
     clean = np.nan_to_num(stack.astype(np.float64))
-    want = np.clip(np.round(m.apply(clean) * (LINEAR_ONE / D65[1])), 0, 65535)
+    want = np.clip(np.round(m.apply(clean) / np.asarray(D65) * XYZ_ONE), 0, 65535)     # X / Xn, Y / Yn, Z / Zn
     assert np.abs(enc.xyz.astype(np.int64) - want).max() <= 1
     assert enc.invalid_fraction == pytest.approx(np.isnan(stack).any(axis=2).mean())
     linear = encode_deliverables(stack, m.matrix[:6], D65)          # the channel images do not depend on the model

@@ -1,6 +1,6 @@
 """Delivery measured against per-pixel ground truth: the virtual originals captured as DNGs, processed like
 any capture (master darks, eq 7.1 flats, a least-squares matrix fitted on the captured training chart) and
-compared with app.processing.ground_truth; the shadow original's range needs the HDR bracket (thesis 8)."""
+compared with app.lab.ground_truth; the shadow original's range needs the HDR bracket (thesis 8)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from dualrgb.app.processing.ground_truth import bin_to_superpixels, block_max, compare_to_ground_truth, write_de_map_png
+from dualrgb.app.lab.ground_truth import bin_to_superpixels, block_max, compare_to_ground_truth, write_de_map_png
 from dualrgb.app.processing.patches import PatchGrid
 from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
 from dualrgb.app.sequences.hdr import plan_hdr

@@ -16,10 +16,11 @@ import pytest
 from scipy.optimize import brentq
 
 from dualrgb.app.cli import main as cli
+from dualrgb.app.lab.led_bench import measure_virtual
 from dualrgb.app.sequences.led_measurement import LedMeasurement, LedMeasurementPlan
 from dualrgb.app.workflow.engine import RunEngine, StandDevices
 from dualrgb.app.workflow.led_readings import parse_reading_id, read_readings
-from dualrgb.app.workflow.led_stand import import_readings, load_stand, measure_virtual, unstable_levels
+from dualrgb.app.workflow.led_stand import import_readings, load_stand, unstable_levels
 from dualrgb.drivers.virtual.clock import SkippableClock
 from dualrgb.drivers.virtual.lab import VirtualLab
 from dualrgb.drivers.virtual.led_physics import MAX_SHIFT_NM, fade_factor, peak_shift_nm

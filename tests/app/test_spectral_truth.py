@@ -1,4 +1,4 @@
-"""Per-pixel spectral RMSE against a ground truth (app.processing.spectral_truth), checked by hand: a constant
+"""Per-pixel spectral RMSE against a ground truth (app.lab.spectral_truth), checked by hand: a constant
 offset d at every wavelength is an RMSE of d; zero-mean noise that alternates between the pixels of a material
 costs its amplitude per pixel and nothing per material; NaN spectra are counted, not compared."""
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dualrgb.app.processing.spectral_truth import SpectralTruth, compare_spectra_to_ground_truth, write_rmse_map_png
+from dualrgb.app.lab.spectral_truth import SpectralTruth, compare_spectra_to_ground_truth, write_rmse_map_png
 
 WL = np.arange(410.0, 790.0, 10.0)
 

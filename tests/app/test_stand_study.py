@@ -1,4 +1,4 @@
-"""``dualrgb study stand``'s parts that need no virtual lab (app.workflow.stand_study, stand_study_report): the world
+"""``dualrgb study stand``'s parts that need no virtual lab (app.lab.stand_study, stand_study_report): the world
 as a stand model, light sets that are the lights in use reuse their calibrations, the tables and the docs page's section
 made from a saved document (the whole study runs in tests/e2e/test_stand.py)."""
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from dualrgb.app.cli import main
-from dualrgb.app.workflow import stand_study
+from dualrgb.app.lab import stand_study
 from dualrgb.app.workflow.stand_study_report import load_study, summary_lines, workflow_table
 from dualrgb.drivers.virtual.world import load_world
 from dualrgb.simulation.studies.common import replace_marked

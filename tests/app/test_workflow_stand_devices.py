@@ -1,6 +1,6 @@
 """Device and session set-up written once for the CLI and the GUI (app.workflow.stand_devices): both front ends
-call these functions (checked here by what they import), the virtual stand-in, the camera choice, the sphere
-opened dark or closed with its light state said."""
+call these functions (checked here by what they import), the camera choice (a camera bridge's address too), the
+sphere opened dark or closed with its light state said."""
 from __future__ import annotations
 
 import ast
@@ -23,35 +23,10 @@ def imported_names(path: Path, module: str) -> set[str]:
 def test_both_front_ends_set_up_through_the_workflow():
     cli = imported_names(ROOT / "app/commands/stand_options.py", "dualrgb.app.workflow.stand_devices")
     gui = imported_names(ROOT / "app/gui/device_hub.py", "dualrgb.app.workflow.stand_devices")
-    shared = {"virtual_lab", "virtual_stand", "open_sphere"}
-    assert shared <= cli and shared <= gui, (cli, gui)
+    assert "open_sphere" in cli and "open_sphere" in gui, (cli, gui)
+    assert "open_camera" in cli, cli
     sessions = imported_names(ROOT / "app/workflow/folders.py", "dualrgb.app.workflow.stand_devices")
     assert "open_camera" in gui and "camera_definition_of" in sessions      # sessions: app.workflow.folders
-
-
-class Lab:
-    mode = "reflective"
-
-    def __init__(self):
-        self.placed = []
-
-    def place(self, what, nd=False):
-        self.placed.append((what, nd))
-        return what
-
-
-@pytest.mark.parametrize("stand_in, expected", [
-    ("", ("original:painting", False)),
-    ("shadow", ("original:shadow", False)),
-    ("test", ("test", False)),
-    ("test+nd", ("test", True)),
-])
-def test_an_original_is_placed_as_its_virtual_stand_in(stand_in, expected):
-    lab = Lab()
-    place = stand_devices.virtual_stand(lab, stand_in)      # type: ignore[arg-type]
-    place("original:ACC-1", False)
-    place("train", True)
-    assert lab.placed == [expected, ("train", True)]
 
 
 def test_a_camera_choice_names_model_and_port():
@@ -98,15 +73,35 @@ def test_a_sphere_that_fails_to_open_is_closed_and_says_the_light_state(monkeypa
     assert made[0].closed is True and "switched off" in " ".join(info.value.__notes__)
 
 
-def test_a_virtual_session_records_the_world_as_the_cli_does():
-    """The GUI's session definition names the virtual lab's world under the key the CLI's uses (virtual_world),
-    so neither front end resumes a session of one world in another."""
+def test_a_session_records_the_world_the_camera_reports():
+    """The session's definition from the stand names the world a simulated camera reports (the virtual lab's
+    camera, through its bridge as any other), so no front end resumes a session of one world in another."""
     from types import SimpleNamespace
 
-    from dualrgb.drivers.virtual.world import load_world
+    from dualrgb.drivers.camera.base import CameraSettings
 
-    world = load_world(None)
-    lab = SimpleNamespace(mode="transmissive", width=96, height=64, world=world)
-    out = stand_devices.stand_definition("reflective", None, lab)          # type: ignore[arg-type]
-    assert out == {"mode": "transmissive", "frame_size": [96, 64], "world": world.identity}
+    camera = SimpleNamespace(settings=lambda: CameraSettings(iso=50, aperture=8.0),
+                             config_summary=lambda: {"camera": "sim", "serial": "S1", "world": "aged (abc)"},
+                             image_area=lambda: "96x64 px")
+    out = stand_devices.stand_definition("transmissive", camera)          # type: ignore[arg-type]
+    assert out["mode"] == "transmissive" and out["camera"]["world"] == "aged (abc)"
+    assert out["image_area"] == "96x64 px"
     assert stand_devices.stand_definition("reflective") == {"mode": "reflective"}
+
+
+def test_a_camera_bridge_address_opens_a_network_camera(monkeypatch):
+    """'tcp://HOST:PORT' is a camera bridge (drivers.camera.network), anything else a gphoto2 choice."""
+    import dualrgb.drivers.camera.network as network
+
+    opened = []
+
+    class Fake:
+        def __init__(self, address):
+            self.address = address
+
+        def open(self):
+            opened.append(self.address)
+
+    monkeypatch.setattr(network, "NetworkCamera", Fake)
+    camera = stand_devices.open_camera("tcp://127.0.0.1:5050")
+    assert isinstance(camera, Fake) and opened == ["tcp://127.0.0.1:5050"]

@@ -3,7 +3,6 @@ in one world is never resumed in another, a calibration made in one world is ref
 camera serial); the shared --world option on demo, calibrate, capture and gui."""
 from __future__ import annotations
 
-import argparse
 import json
 from dataclasses import replace
 
@@ -11,7 +10,6 @@ import numpy as np
 import pytest
 
 from dualrgb.app.cli import build_parser
-from dualrgb.app.commands.stand_options import virtual_world
 from dualrgb.app.session.capture_session import CaptureSession
 from dualrgb.app.session.manifest import DefinitionMismatch, camera_definition
 from dualrgb.app.workflow.profile import CameraIdentity, check_reuse, load_profile
@@ -60,16 +58,13 @@ def test_profile_without_a_world_still_loads(tmp_path):
 
 
 def test_session_shot_in_one_world_is_not_resumed_in_another(tmp_path):
-    def args(world: str) -> argparse.Namespace:
-        return argparse.Namespace(virtual_lab=True, world=world)
-
+    """The camera's definition carries the world it reports (the virtual camera's, through its bridge too)."""
     folder = tmp_path / "session"
-    definition = {"workflow": "calibrate", "mode": "reflective", **virtual_world(args("nominal"))}
+    definition = {"workflow": "calibrate", "mode": "reflective", "camera": camera_definition(_camera("nominal"))}
     CaptureSession.resume(folder, definition, {}).close()
     CaptureSession.resume(folder, definition, {}).close()                    # same world: resumed
     with pytest.raises(DefinitionMismatch, match=r"world: session 'nominal \(.*this run 'aged-leds \("):
-        CaptureSession.resume(folder, {**definition, **virtual_world(args("aged-leds"))}, {})
-    assert virtual_world(argparse.Namespace(virtual_lab=False, world="aged-leds")) == {}
+        CaptureSession.resume(folder, {**definition, "camera": camera_definition(_camera("aged-leds"))}, {})
 
 
 @pytest.mark.parametrize("command", [["demo", "--out", "o"], ["calibrate", "--session", "s", "--virtual-lab"],

@@ -60,6 +60,15 @@ def day(tmp_path_factory):
             "--render-illuminant", "A", "--resolution", "half", "--json", str(root / "FILM-2.json"), *FRAME)
     captures["FILM-2"] = json.loads((root / "FILM-2.json").read_text())
     captures["FILM-2"]["calibration_profile"] = cal_film
+    # the virtual truth is a separate step: `dualrgb lab score` per session, each original named by what it was
+    # shown as (its --virtual-original)
+    shown = {"PAINT-1": "painting", "FILM-1": "film", "SHADOW-1": "shadow", "PAINT-H": "painting", "FILM-2": "film"}
+    for session in ("originals", "originals-half", "film"):
+        idents = [i for i in shown if Path(captures[i]["sidecar"]).is_relative_to(root / session)]
+        dualrgb("lab", "score", str(root / session), *(f"--original={i}={shown[i]}" for i in idents),
+                "--json", str(root / f"score-{session}.json"))
+        for o in json.loads((root / f"score-{session}.json").read_text())["originals"]:
+            captures[o["identifier"]]["score"] = o
     return root, cal, captures
 
 
@@ -129,14 +138,14 @@ def test_painting_xyz_against_ground_truth(day):
     means are), the mean dE00 is within 0.3 of the calibration's test-target mean. At full resolution the same holds
     in the flat regions; at the edges between materials the demosaic mixes neighbours (the virtual painting has no
     optical blur: a 2-pixel line is a worst case for any demosaic), which the sidecar reports apart."""
+    from dualrgb.app.lab.ground_truth import compare_to_ground_truth, write_de_map_png
     from dualrgb.app.processing.encode import xyz_from_codes
-    from dualrgb.app.processing.ground_truth import compare_to_ground_truth, write_de_map_png
     from dualrgb.app.workflow.targets import reference_white
     from dualrgb.drivers.virtual.originals import ground_truth_xyz
 
     root, cal, captures = day
     test_mean = cal["statistics"]["methods"][cal["statistics"]["best"]]["test"]["mean"]
-    full = json.loads(Path(captures["PAINT-1"]["sidecar"]).read_text())["virtual_truth"]
+    full = captures["PAINT-1"]["score"]                            # `dualrgb lab score`
     print(f"painting, full resolution: dE00 flat {full['xyz']['flat']}, edges {full['xyz']['edges']}")
     assert full["resolution"] == "full" and full["xyz"]["n_pixels"] == 160 * 240
     assert abs(full["xyz"]["flat"]["mean"] - test_mean) < 0.3 and full["xyz"]["flat"]["n_pixels"] > 0
@@ -158,10 +167,10 @@ def test_spectral_cube_against_ground_truth(day, ident, name):
     """Issue 21: the delivered spectral cube (ENVI, opened by Spectral Python) of the virtual painting and film
     against the originals' measured spectra per pixel (drivers/virtual/originals.py), as the XYZ above: per
     pixel (the sensor noise, 8 frames averaged per exposure, carried through the spectral map) and per material
-    (noise averaged out), beside the calibration's test-target RMSE; the capture's sidecar and QA line carry the
-    same per-pixel figures (app.workflow.virtual_truth)."""
+    (noise averaged out), beside the calibration's test-target RMSE; `dualrgb lab score` gives the same per-pixel
+    figures (app.lab.truth), which no production sidecar or QA line carries."""
     spy = pytest.importorskip("spectral")
-    from dualrgb.app.processing.spectral_truth import SpectralTruth, compare_spectra_to_ground_truth, write_rmse_map_png
+    from dualrgb.app.lab.spectral_truth import SpectralTruth, compare_spectra_to_ground_truth, write_rmse_map_png
     from dualrgb.drivers.virtual.originals import original
     from dualrgb.simulation.defaults import default_grid
 
@@ -186,10 +195,10 @@ def test_spectral_cube_against_ground_truth(day, ident, name):
     assert abs(result.material_mean - test) < 0.02 and result.mean < result.material_mean + 0.01
     assert (cal["spectral"]["selection"]["chosen"].startswith(("pinv+offset", "wiener+offset"))) == (name == "film")
     side = json.loads(Path(c["sidecar"]).read_text())
-    figures = side["virtual_truth"]
+    assert "virtual_truth" not in side and "virtual truth" not in c["qa"]["text"]
+    figures = c["score"]
     assert figures["original"] == name and figures["spectral"]["rmse_mean"] == pytest.approx(result.mean, abs=1e-4)
     assert figures["xyz"]["n_invalid"] == 0 and 0 < figures["xyz"]["mean"] < 2.0
-    assert f"spectral RMSE mean {result.mean:.3f}" in c["qa"]["text"] and "virtual truth" in c["qa"]["text"]
 
 
 def test_cube_on_demand_of_the_full_resolution_painting(day):
@@ -202,8 +211,7 @@ def test_cube_on_demand_of_the_full_resolution_painting(day):
     made = json.loads(dualrgb("cube", str(folder), "--render", "D50", "--json", "-").stdout)
     img = spy.envi.open(made["files"]["header"], made["files"]["cube"])
     assert img.shape == (160, 240, 38) and Path(made["files"]["render"]).name == "PAINT-1_under_D50_prophoto_16bit.tif"
-    full = json.loads((folder / "PAINT-1.json").read_text())["virtual_truth"]["spectral"]
-    half = json.loads(Path(captures["PAINT-H"]["sidecar"]).read_text())["virtual_truth"]["spectral"]
+    full, half = captures["PAINT-1"]["score"]["spectral"], captures["PAINT-H"]["score"]["spectral"]
     print(f"painting spectral RMSE: full flat {full['flat']}, edges {full['edges']}; half flat {half['flat']}")
     assert abs(full["flat"]["rmse_mean"] - half["flat"]["rmse_mean"]) < 0.01
     ok = dualrgb("verify", str(root / "originals"))

@@ -74,6 +74,7 @@ def cases(port: str) -> dict[str, list[str]]:
         "raw-info": ["raw-info", "DNG"],
         "measure csrf": ["measure", "csrf", "--virtual-lab", "--start", "500", "--end", "600", "--step", "50",
                          "--frame-size", "96x64", "--out", "cam.csv"],
+        "lab score": ["lab", "score", "day"],
     }
 
 
@@ -119,6 +120,7 @@ def test_json_to_stdout_in_every_command(stand):
     assert docs["verify"]["ok"] and docs["bag"]["originals"] == ["J-1"] and docs["cube"]["samples"] == 160
     assert docs["report"]["originals"][0]["identifier"] == "J-1" and docs["report"]["originals"][0]["problems"] == []
     assert docs["import"]["originals"][0]["identifier"] == "ACC-1" and docs["import"]["copied"] == 14
+    assert [o["identifier"] for o in docs["lab score"]["originals"]] == ["J-1"]
 
 
 def test_queue_check_json_to_stdout(stand):

@@ -3,9 +3,10 @@ shift_x: 0.04, shift_y: -0.03, scale: 0.92} finds the patches itself and its tes
 run's, with the ColorChecker Classic (the packaged reflective targets), a Digital SG (tests/data/charts), the IT8.7/1
 film target (packaged) and an IT8.7/2 (tests/data/charts).
 
-Each calibration takes the path of a physical stand: the CopyStand is built without the lab (``lab=None``), so no
-grid comes from the scene; the lab only serves the sphere and the camera and holds the charts. The patches are found
-in the captured stacks (app.processing.chart_detect) and their corners are compared with the scene's own. One class
+Each calibration takes the path of a physical stand: the CopyStand is built on the lab's devices alone (it takes no
+lab), so no grid comes from the scene; the lab only serves the sphere and the camera and holds the charts. The
+patches are found in the captured stacks (app.processing.chart_detect) and their corners are compared with the
+scene's own. One class
 per layout, so pytest-xdist (--dist loadscope) runs the four on separate workers; tools/chart_detection_study.py
 runs the same calibrations for docs/data/chart_detection.json."""
 from __future__ import annotations

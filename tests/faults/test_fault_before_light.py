@@ -31,7 +31,7 @@ def stand(lab, tmp_path):
 
         def place(what: str, nd: bool = False):
             return lab.place("original:painting" if what.startswith("original:") else what, nd)
-        return CopyStand(lab.camera, lab.sphere, session, stand=place, lab=lab,
+        return CopyStand(lab.camera, lab.sphere, session, stand=place,
                          settings=StandSettings(force=True, **settings))
     made: list = []
     yield make

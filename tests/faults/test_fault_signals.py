@@ -3,12 +3,12 @@ the sphere is lit switches it off at once and reads it back (app.interrupts), th
 how to resume, and `dualrgb sphere status` right after shows the light off with trip=0 (the host switched it off,
 not the sphere's own on-time limit or watchdog).
 
-The command runs as its own process (the real CLI, ``dualrgb.app.cli.main``) under a small harness that only
-watches: when the first lit exposure begins (the light is on, the shooter waits for the camera) it says LIT and
-waits for the signal the test sends; lit periods get a 60 s limit so that only the signal can end this one. The
-virtual lab lives in the command's process, so the harness records, at the first moment of the unwinding and
-before the lab stops, what the sphere emulator's own record says (who switched the light off, whether it was
-still lit), and runs `dualrgb sphere status` as a separate process on the emulator's port.
+The virtual lab runs in its own process (`dualrgb lab serve`, as a physical stand's devices: app.lab.process), its
+light watched from outside through its light record; the command drives it by its addresses (`--port --camera
+--stand`) as its own process (the real CLI, ``dualrgb.app.cli.main``) under a small harness that only watches:
+when the first lit exposure begins (the light is on, the shooter waits for the camera) it says LIT and waits for
+the signal the test sends; lit periods get a 60 s limit so that only the signal can end this one. Then `dualrgb
+sphere status` runs as a separate process on the lab's sphere.
 """
 from __future__ import annotations
 
@@ -29,53 +29,40 @@ from dualrgb.app.interrupts import Interrupted, LightRead, interrupted_line
 
 LAB_SHAPE = (64, 96)
 LINE = "dualrgb: interrupted; light off (read back); run the same command again to resume"
+HOST_ENDED = ("on-time limit", "watchdog", "power off")       # what the sphere ends by itself (not the host)
 
 HARNESS = r"""
-import json, signal, subprocess, sys
+import signal, sys
 from dualrgb.app.cli import main
 from dualrgb.app.workflow.shooter import Shooter
 from dualrgb.drivers.led_sphere.driver import LedSphere
-from dualrgb.drivers.virtual.sphere_emulator import SphereEmulator
 
-record_path, argv = sys.argv[1], sys.argv[2:]
-record, emulators = {}, []
-real_on, real_expose, real_start, real_stop = LedSphere.on, Shooter._expose, SphereEmulator.start, SphereEmulator.stop
-
-def start(self, *a, **k):
-    emulators.append(self)
-    return real_start(self, *a, **k)
+argv = sys.argv[1:]
+real_on, real_expose = LedSphere.on, Shooter._expose
+waited = []
 
 def on(self, max_on_s=None):
     return real_on(self, max_on_s=60.0)               # only the signal ends a lit period
 
 def expose(self, exposure_s):                          # the first lit exposure waits for the test's signal
-    if "lit_at_signal" in record:
+    if waited:
         return real_expose(self, exposure_s)
-    record["lit_at_signal"] = emulators[-1].snapshot().light_on
-    try:
-        print("LIT", flush=True)                       # (inside the try: the signal may land in print)
-        while True:
-            signal.pause()                             # the handler raises out of here
-    finally:
-        record["lit_when_unwinding_began"] = emulators[-1].snapshot().light_on
+    waited.append(True)
+    print("LIT", flush=True)
+    while True:
+        signal.pause()                                 # the handler raises out of here
 
-def stop(self):
-    status = subprocess.run([sys.executable, "-m", "dualrgb", "sphere", "--port", self.port, "status", "--json", "-"],
-                            capture_output=True, text=True, timeout=120)
-    record["status"] = json.loads(status.stdout) if status.returncode == 0 else status.stderr
-    record["spans"] = [[i.t_on, i.t_off, i.ended_by] for i in self.light_record()]
-    with open(record_path, "w") as fh:
-        json.dump(record, fh)
-    real_stop(self)
-
-LedSphere.on, Shooter._expose, SphereEmulator.start, SphereEmulator.stop = on, expose, start, stop
+LedSphere.on, Shooter._expose = on, expose
 sys.exit(main(argv))
 """
 
 
 def _signalled_run(argv: list[str], signum: int, record: Path) -> tuple[int, list[str]]:
-    """Run ``dualrgb argv`` under the harness, send ``signum`` once it is lit; (exit code, stderr lines)."""
-    proc = subprocess.Popen([sys.executable, "-c", HARNESS, str(record), *argv], cwd=ROOT, stdout=subprocess.PIPE,
+    """Run ``dualrgb argv`` under the harness, send ``signum`` once the lab's record shows it lit and the harness
+    says so; (exit code, stderr lines)."""
+    from dualrgb.drivers.virtual.lab_server import lit_now
+
+    proc = subprocess.Popen([sys.executable, "-c", HARNESS, *argv], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONWARNINGS": "ignore"})
     try:
         deadline = time.monotonic() + 600             # a hang guard only
@@ -83,6 +70,9 @@ def _signalled_run(argv: list[str], signum: int, record: Path) -> tuple[int, lis
         for line in proc.stdout:
             if line.strip() == "LIT" or time.monotonic() > deadline:
                 break
+        while not lit_now(record) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert lit_now(record), "the sphere was not lit when the signal was to be sent"
         proc.send_signal(signum)
         _, err = proc.communicate(timeout=600)
     finally:
@@ -92,31 +82,45 @@ def _signalled_run(argv: list[str], signum: int, record: Path) -> tuple[int, lis
     return proc.returncode, err.strip().splitlines()
 
 
-def _check_dark_and_said(rc: int, lines: list[str], record: Path, signum: int) -> None:
+def _check_dark_and_said(rc: int, lines: list[str], record: Path, sphere: str, signum: int) -> None:
+    from dualrgb.drivers.virtual.lab_server import lit_now, lit_periods
+
     assert rc == 128 + signum, (rc, lines[-5:])
     assert lines and lines[-1] == LINE, lines[-5:]
     assert not any("Traceback" in line for line in lines), lines
-    seen = json.loads(record.read_text())
-    assert seen["lit_at_signal"] is True                         # the signal came while the sphere was lit
-    assert seen["lit_when_unwinding_began"] is False             # switched off by the handler, before any clean-up
-    t_on, t_off, ended_by = seen["spans"][-1]
-    assert t_off is not None and ended_by in ("ALLOFF", "LIGHT 0"), seen["spans"]      # the host, not the sphere
-    status = seen["status"]
-    assert isinstance(status, dict), status
-    assert status["light_on"] is False and status["watchdog_tripped"] is False, status   # off, trip=0
-    print(f"[light safety] {signal.Signals(signum).name}: lit {t_off - t_on:.3f} s, ended by {ended_by}; "
-          f"{lines[-1]}")
+    assert lit_now(record) is None
+    last = lit_periods(record)[-1]
+    assert last["ended_by"] not in HOST_ENDED, last              # the host switched it off, not the sphere
+    status = subprocess.run([sys.executable, "-m", "dualrgb", "sphere", "--port", sphere, "status", "--json", "-"],
+                            capture_output=True, text=True, timeout=120)
+    assert status.returncode == 0, status.stderr
+    state = json.loads(status.stdout)
+    assert state["light_on"] is False and state["watchdog_tripped"] is False, state   # off, trip=0
+    print(f"[light safety] {signal.Signals(signum).name}: lit {last['t_off'] - last['t_on']:.3f} s, ended by "
+          f"{last['ended_by']}; {lines[-1]}")
+
+
+def _lab(frame: tuple[int, int], record: Path):
+    from dualrgb.app.lab.process import LabOptions, LabProcess
+
+    return LabProcess(LabOptions(frame_size=frame, light_record=record))
+
+
+def _devices(lab) -> list[str]:
+    a = lab.addresses
+    return ["--port", a["sphere"], "--camera", a["camera"], "--stand", a["stand"]]
 
 
 @pytest.mark.fault("light safety")
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT], ids=lambda s: s.name)
 def test_a_signal_during_a_lit_capture_ends_dark_and_says_so(tmp_path, signum):
     profile = make_profile(tmp_path / "cal", shape=LAB_SHAPE).path
-    session = tmp_path / "session"
-    argv = ["capture", "--virtual-lab", "--calibration", str(profile), "--id", "ACC-1", "--session", str(session),
-            "--force", "--settle", "0", "--frame-size", "96x64"]
-    rc, lines = _signalled_run(argv, signum, tmp_path / "record.json")
-    _check_dark_and_said(rc, lines, tmp_path / "record.json", signum)
+    session, record = tmp_path / "session", tmp_path / "light.jsonl"
+    with _lab((96, 64), record) as lab:
+        argv = ["capture", *_devices(lab), "--calibration", str(profile), "--id", "ACC-1", "--session", str(session),
+                "--force", "--settle", "0"]
+        rc, lines = _signalled_run(argv, signum, record)
+        _check_dark_and_said(rc, lines, record, lab.addresses["sphere"], signum)
     doses = [json.loads(line) for line in (session / "manifest.jsonl").read_text().splitlines()
              if line.strip() and json.loads(line).get("kind") == "dose"]
     assert doses and doses[-1]["on_s"] < 60.0                      # the interrupted lit period is counted
@@ -124,10 +128,18 @@ def test_a_signal_during_a_lit_capture_ends_dark_and_says_so(tmp_path, signum):
 
 @pytest.mark.fault("light safety")
 def test_sigterm_during_a_lit_calibration_ends_dark_and_says_so(tmp_path):
-    argv = ["calibrate", "--virtual-lab", "--session", str(tmp_path / "session"), "--settle", "0",
-            "--frame-size", "96x64"]
-    rc, lines = _signalled_run(argv, signal.SIGTERM, tmp_path / "record.json")
-    _check_dark_and_said(rc, lines, tmp_path / "record.json", signal.SIGTERM)
+    from dualrgb.app.lab.targets import lab_grids
+
+    record, frame = tmp_path / "light.jsonl", (240, 160)
+    grids = []
+    for role, grid in lab_grids("reflective", frame).items():            # placed by hand (frames this small)
+        path = tmp_path / f"{role}.json"
+        path.write_text(json.dumps({"corners": grid.corners.tolist(), "rows": grid.rows, "cols": grid.cols}))
+        grids += [f"--{role}-grid", str(path)]
+    with _lab(frame, record) as lab:
+        argv = ["calibrate", *_devices(lab), "--session", str(tmp_path / "session"), "--settle", "0", *grids]
+        rc, lines = _signalled_run(argv, signal.SIGTERM, record)
+        _check_dark_and_said(rc, lines, record, lab.addresses["sphere"], signal.SIGTERM)
 
 
 # ---- the line says what was read back, truthfully ------------------------------------------------------------

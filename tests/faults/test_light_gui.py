@@ -33,6 +33,7 @@ def window(qtbot, tmp_path):
     settings = QSettings(str(tmp_path / "dualrgb.ini"), QSettings.IniFormat)
     settings.setValue("paths/captures", str(tmp_path / "captures"))
     w = MainWindow(settings, frame_size=(96, 64), show_dialogs=False)
+    w.lab.lab_in_process = True               # its emulator in reach, to inject the faults
     qtbot.addWidget(w)
     w.show()
     yield w

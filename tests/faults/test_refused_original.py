@@ -23,7 +23,7 @@ def stand(lab, tmp_path):
 
     def place(what: str, nd: bool = False):          # every original stands in as the virtual painting
         return lab.place("original:painting" if what.startswith("original:") else what, nd)
-    stand = CopyStand(lab.camera, lab.sphere, session, stand=place, lab=lab,
+    stand = CopyStand(lab.camera, lab.sphere, session, stand=place,
                       settings=StandSettings(settle_s=0.0, force=True))        # the calibration is not checked
     yield stand, make_profile(tmp_path / "cal")
     session.close()

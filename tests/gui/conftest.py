@@ -33,8 +33,10 @@ def make_window(qtbot, settings):
     made = []
 
     def make(**kw):
+        in_process = kw.pop("lab_in_process", True)       # the lab's emulator in reach (its own process: test_lab)
         w = MainWindow(kw.pop("settings", settings), frame_size=kw.pop("frame_size", (120, 80)),
                        show_dialogs=False, **kw)
+        w.lab.lab_in_process = in_process
         qtbot.addWidget(w)
         w.show()
         made.append(w)

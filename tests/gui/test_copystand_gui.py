@@ -121,7 +121,7 @@ def test_reopened_session_checks_its_definition_and_sets_damaged_frames_aside(qt
     title, message = w.errors.history[-1]
     assert title == "Open the session" and "1 missing or damaged frame(s) set aside" in message
     assert w.lab.session.has_step(darks[1].step_id) and not w.lab.session.has_step(darks[0].step_id)
-    # the same folder with another frame size (another virtual lab) is refused, naming the difference
+    # the same folder with another frame size (another virtual lab: its camera's image area) is refused, naming it
     w2 = make_window(frame_size=(120, 80))
     w2.lab.start_virtual_lab()
     wait_idle(qtbot, w2)
@@ -130,4 +130,4 @@ def test_reopened_session_checks_its_definition_and_sets_damaged_frames_aside(qt
     wait_idle(qtbot, w2)
     assert w2.lab.session is None
     title, message = w2.errors.history[-1]
-    assert title == "Open the session" and "frame_size" in message and "\n" not in message
+    assert title == "Open the session" and "image_area" in message and "\n" not in message

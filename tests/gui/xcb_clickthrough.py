@@ -90,7 +90,7 @@ def plan(w, report: dict) -> list:
         report["test_mean_de00"] = res.result.report["test"]["mean"]
         report["badges"] = [b.text() for b in res.badge_labels.values()]
         report["errors"] = list(w.errors.history)
-        report["light_on"] = w.lab.virtual_lab.emulator.snapshot().light_on
+        report["light_on"] = w.lab.sphere.status()["light_on"]        # read back, as the window does
         return None
 
     def connect():

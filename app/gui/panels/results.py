@@ -55,18 +55,21 @@ METRIC_NAMES = {"colour_mean_de00": "colour mean", "colour_p90_de00": "colour p9
 
 def process(lab: Lab, session: Session, grids: dict, train_subject: str, test_subject: str | None, optimise: bool,
             progress: ProgressCallback, cancel: CancelToken, lights: list[str] | None = None, method: str | None = None,
-            charts: dict | None = None, delivered: str = "") -> tuple[object, dict[str, TargetView], Path]:
-    """Worker: the TargetSpecs (app.workflow.targets: reference XYZ integrated by ``method``; the stand's own
-    ``charts`` when the calibration box names them), the one processing path, the plot data of the ``delivered``
-    matrix family (the calibration's) when it was fitted, else of the one chosen here."""
+            charts: dict | None = None, delivered: str = "", mode: str = "",
+            ) -> tuple[object, dict[str, TargetView], Path]:
+    """Worker: the TargetSpecs (app.workflow.targets: reference XYZ integrated by ``method``; ``charts``: the
+    calibration's own, :func:`calibration_charts`), the one processing path, the plot data of the ``delivered``
+    matrix family (the calibration's) when it was fitted, else of the one chosen here. The grids are those placed
+    in Target; where none was placed, the charts are found in their frames (app.processing.chart_detect)."""
     from dualrgb.app.processing.report import xyz_to_srgb8
     from dualrgb.app.workflow.session_processing import process_session
     from dualrgb.app.workflow.targets import reference_white, target_spec
     from dualrgb.simulation.colorimetry import xyz_to_lab
 
-    mode = lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode
+    mode = mode or (lab.virtual_lab.mode if lab.virtual_lab is not None else lab.mode)
     keys = {label: key for label, key in (("train", train_subject), ("test", test_subject)) if key}
-    specs = {label: target_spec(mode, Subject.parse(key), grids.get(key), lab=lab.virtual_lab, method=method,
+    grids = {**lab.lab_placement(charts or {}), **grids}       # the lab's charts laid too small to be found
+    specs = {label: target_spec(mode, Subject.parse(key), grids.get(key), method=method,
                                 chart=(charts or {}).get(Subject.parse(key).name)) for label, key in keys.items()}
     for label, spec in specs.items():
         spec.label = f"{label}: {spec.label}"                 # e.g. "train: test (CC24 on film)"
@@ -86,6 +89,17 @@ def process(lab: Lab, session: Session, grids: dict, train_subject: str, test_su
                                   xyz_to_srgb8(pred, c.white), spec.layout or (1, len(spec.names)),
                                   patch_spectra(result.spectral, label))
     return result, views, out_dir
+
+
+def calibration_charts(profile: object | None, chosen: dict) -> tuple[dict, str]:
+    """(charts, mode) Results grades with: the calibration's own (its recorded chart files read again and checked
+    by their sha256: app.workflow.charts.charts_of_profile; {}: it used the packaged targets) when there is a
+    calibration, else the ones chosen in the calibration box."""
+    from dualrgb.app.workflow.charts import charts_of_profile
+
+    if profile is None:
+        return dict(chosen), ""
+    return charts_of_profile(profile), str(getattr(profile, "mode", "") or "")
 
 
 def patch_spectra(sc, target: str) -> PatchSpectra | None:
@@ -293,17 +307,22 @@ class ResultsPanel(QWidget):
         if not train:
             self.ctx.errors.report("Process", "no captured target to fit on: capture one in Calibrate & capture")
             return
-        grids, charts = dict(self.ctx.workspace.grids), dict(self.ctx.workspace.charts)
+        grids, chosen = dict(self.ctx.workspace.grids), dict(self.ctx.workspace.charts)
+        profile = self.ctx.workspace.calibration
         optimise, method = self.optimise.isChecked(), self.reference.currentData()
         lights = self.light_sets.get(self.lights.currentText())
         lab, delivered = self.lab, self.delivered_method()
+
+        def work(progress: ProgressCallback, cancel: CancelToken) -> tuple[object, dict[str, TargetView], Path]:
+            charts, mode = calibration_charts(profile, chosen)
+            return process(lab, session, grids, train, test, optimise, progress, cancel, lights, method, charts,
+                           delivered, mode)
         self.process_button.setEnabled(False)
         self.cancel_button.setEnabled(True)
         self.status.setText("processing …")
         self.progress.setValue(0)
         self.handle = self.ctx.runner.submit(
-            lambda progress, cancel: process(lab, session, grids, train, test, optimise, progress, cancel, lights,
-                                             method, charts, delivered),
+            work,
             pool="compute", name="process session", pass_progress=True, pass_cancel=True,
             on_progress=self._progress,
             on_result=self.show_result, on_error=self._failed, on_finished=self._finished)

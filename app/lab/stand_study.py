@@ -117,6 +117,7 @@ def world_level_curves(world: Any) -> LevelCurves:
 def calibrate_in_world(cfg: StandStudyConfig, world: str, preset: Preset, seed: int,
                        folder: Path) -> CalibrationProfile:
     """A calibration (``hdr off``) in ``world`` with ``preset``'s lights, in session ``folder``."""
+    from dualrgb.app.lab.targets import LAB_TARGET_WIDTH_MM
     from dualrgb.app.workflow.copystand import CopyStand, StandSettings
     from dualrgb.app.workflow.folders import open_session
     from dualrgb.drivers.virtual.clock import SkippableClock
@@ -131,9 +132,10 @@ def calibrate_in_world(cfg: StandStudyConfig, world: str, preset: Preset, seed: 
                     clock=SkippableClock()) as lab:
         session = open_session(folder, definition, meta={"mode": cfg.mode})
         try:
-            stand = CopyStand(*lab.devices(), session, stand=lab.place, lab=lab,
-                              settings=StandSettings(settle_s=0.0, optimise_matrix=False))
-            profile: CalibrationProfile = stand.calibrate(preset, hdr_auto=False)
+            stand = CopyStand(*lab.devices(), session, stand=lab.place,
+                              settings=StandSettings(settle_s=0.0, optimise_matrix=False,
+                                                     target_width_mm=LAB_TARGET_WIDTH_MM))
+            profile: CalibrationProfile = stand.calibrate(preset, hdr_auto=False)     # the charts found in frames
             return profile
         finally:
             session.close()
@@ -167,8 +169,8 @@ def measure_camera(cfg: StandStudyConfig, world: str, folder: Path) -> Path:
 
 def measure_leds(world: str, folder: Path) -> Path:
     """The stand folder ``dualrgb measure leds --warmup-leds none`` writes in ``world`` (thesis 4.3)."""
+    from dualrgb.app.lab.led_bench import measure_virtual
     from dualrgb.app.sequences.led_measurement import LedMeasurementPlan
-    from dualrgb.app.workflow.led_stand import measure_virtual
 
     out = folder / "stand"
     measure_virtual(out, world, LedMeasurementPlan(warmup_leds=()))

@@ -1,31 +1,26 @@
-"""On the virtual lab, an original's deliverables against what lies on the stand: the delivered XYZ and the
-delivered spectral cube compared per pixel with the virtual original's ground truth (drivers/virtual/
+"""The virtual lab's truth: an original's deliverables against what lay on the virtual stand, the delivered XYZ
+and the delivered spectral cube compared per pixel with the virtual original's ground truth (drivers/virtual/
 originals.py: measured spectra per class, each 2x2 Bayer cell one class).
 
-``dualrgb capture --virtual-lab`` (and the GUI on the virtual lab) put the figures in the sidecar's
-``virtual_truth`` section and on the QA line: per-pixel dE00 (app.processing.ground_truth) and per-pixel
-spectral RMSE (app.processing.spectral_truth), each with its per-material figure (noise averaged out), at the
-delivery's resolution (full: per sensor pixel; half: per 2x2 cell), and each split into *edges* and *flat*
-regions: edges are the Bayer cells with another material among their 8 neighbours, i.e. every pixel whose 5x5
-demosaic support (app.processing.demosaic) reaches a boundary between materials; the same object areas at both
-resolutions, so the figures compare. On a real stand there is no truth and nothing is added.
+A separate step, never part of a delivery: ``dualrgb lab score SESSION`` (app.lab.score) and the demo compute it:
+per-pixel dE00 (app.lab.ground_truth) and per-pixel spectral RMSE (app.lab.spectral_truth), each with its
+per-material figure (noise averaged out), at the delivery's resolution (full: per sensor pixel; half: per 2x2
+cell), and each split into *edges* and *flat* regions: edges are the Bayer cells with another material among
+their 8 neighbours, i.e. every pixel whose 5x5 demosaic support (app.processing.demosaic) reaches a boundary
+between materials; the same object areas at both resolutions, so the figures compare.
 """
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dualrgb.app.processing.spectral_truth import SpectralTruth
+from dualrgb.app.lab.spectral_truth import SpectralTruth
 from dualrgb.simulation.defaults import default_grid
 from dualrgb.simulation.grid import SpectralGrid
 from dualrgb.simulation.spectral_estimation import SpectralEstimator
-
-if TYPE_CHECKING:
-    from dualrgb.drivers.virtual.lab import VirtualLab
 
 log = logging.getLogger(__name__)
 
@@ -75,16 +70,6 @@ def original_truth(name: str, height: int, width: int, mode: str = "reflective")
     return OriginalTruth(name, ground_truth_xyz(name, height, width), spectral, reference_white(mode))
 
 
-def placed_truth(lab: VirtualLab | None) -> OriginalTruth | None:
-    """The truth of the virtual original the lab has on the stand now (None: a chart, or not a virtual lab)."""
-    from dualrgb.drivers.virtual.originals import ORIGINAL_PREFIX, original_name
-
-    placed = str(getattr(lab, "placed", "") or "")
-    if lab is None or not placed.startswith(ORIGINAL_PREFIX) or "+" in placed:      # a chart, or under ND
-        return None
-    return original_truth(original_name(placed), lab.height, lab.width, getattr(lab, "mode", "reflective"))
-
-
 def edge_cells(cells: np.ndarray) -> np.ndarray:
     """(h, w) bool: the cells of the class map ``cells`` with another class among their 8 neighbours."""
     h, w = cells.shape
@@ -123,11 +108,11 @@ def regions(values: np.ndarray, edges: np.ndarray, prefix: str = "") -> dict:
 
 
 def compare(truth: OriginalTruth, xyz: np.ndarray, spectra=None) -> dict:
-    """The ``virtual_truth`` figures of a delivered ``xyz`` image (H, W, 3, the white's scale; the sensor's size or
+    """The truth figures of a delivered ``xyz`` image (H, W, 3, the white's scale; the sensor's size or
     half of it) and, when given, its ``spectra`` ((H, W, n_wl) or a function (r0, r1) -> those rows;
-    app.processing.spectral_truth), each also over the edges and the flat regions (:func:`regions`)."""
-    from dualrgb.app.processing.ground_truth import compare_to_ground_truth
-    from dualrgb.app.processing.spectral_truth import compare_spectra_to_ground_truth
+    app.lab.spectral_truth), each also over the edges and the flat regions (:func:`regions`)."""
+    from dualrgb.app.lab.ground_truth import compare_to_ground_truth
+    from dualrgb.app.lab.spectral_truth import compare_spectra_to_ground_truth
 
     resolution, spectral, edges = on_grid(truth, xyz.shape[:2])
     de = compare_to_ground_truth(xyz, truth.xyz, truth.white)
@@ -157,7 +142,7 @@ def delivered_spectra(files: dict[str, Path], estimator: SpectralEstimator | Non
 
 def assess(truth: OriginalTruth, files: dict[str, Path], white_xyz: list[float],
            estimator: SpectralEstimator | None = None) -> dict:
-    """The sidecar's ``virtual_truth`` section: the delivered XYZ TIFF (``files['xyz']``) and the delivered spectra
+    """The figures of one delivery: the delivered XYZ TIFF (``files['xyz']``) and the delivered spectra
     (:func:`delivered_spectra`) against ``truth``; ``white_xyz``: the XYZ TIFF's white."""
     import tifffile
 

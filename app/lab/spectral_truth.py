@@ -6,7 +6,7 @@ class with one measured spectrum, so on the superpixel grid the processing deliv
 a palette of spectra (:class:`SpectralTruth`), exact, and no 24 MP truth cube is ever built. The comparison
 reads the delivered cube in row bands (app.processing.envi.CubeFile.rows, or an in-memory (H, W, n_wl) array).
 
-As for XYZ (app.processing.ground_truth), two figures answer two questions: per pixel (mean, p90, max, the map)
+As for XYZ (app.lab.ground_truth), two figures answer two questions: per pixel (mean, p90, max, the map)
 what a user of the delivered cube sees, the estimate's error *plus* the sensor noise carried through the spectral
 map; per material (the mean delivered spectrum of all pixels of a class against its truth, area-weighted) the
 estimate's error with the noise averaged out, comparable with the calibration's test-target RMSE.
@@ -157,8 +157,8 @@ def compare_spectra_to_ground_truth(cube: np.ndarray | Rows, truth: SpectralTrut
 
 
 def write_rmse_map_png(path, rmse_map: np.ndarray, *, title: str = "", vmax: float = RMSE_MAP_MAX):
-    """A PNG of the spectral RMSE map on a fixed 0..``vmax`` scale (app.processing.ground_truth's figure)."""
-    from dualrgb.app.processing.ground_truth import write_de_map_png
+    """A PNG of the spectral RMSE map on a fixed 0..``vmax`` scale (app.lab.ground_truth's figure)."""
+    from dualrgb.app.lab.ground_truth import write_de_map_png
 
     return write_de_map_png(path, rmse_map, title=title or "spectral RMSE against ground truth", vmax=vmax,
                             label="spectral RMSE (factor)")
