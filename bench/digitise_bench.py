@@ -453,7 +453,7 @@ def _summary(runs: dict[str, list[dict]], width: int, height: int, repeats: int,
         for kind, key, model in (("full", "delivery", "linear"),
                                  ("full_rp2", "delivery_root_polynomial_2", "root-polynomial-2")):
             if kind in out:
-                out[key] = floor_summary(dec, stages, out[kind], model)
+                out[key] = floor_summary(best["decode"], stages, out[kind], model)
     full = best.get("full", {})
     out.update({"peak_rss_mb": out.get("full", {}).get("peak_rss_mb"),
                 "load_profile_and_warm_up_s": round(full.get("load_profile_and_warm_up_s", 0.0), 2),
