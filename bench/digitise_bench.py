@@ -21,13 +21,19 @@ darks). Each measurement runs in a fresh process (peak RSS = ru_maxrss):
   full_without_sha256  a diagnostic, not a product mode: ``full`` with the TIFFs' SHA-256 switched off (what the
                   fixity costs in the pipelined delivery; the sidecar then holds no digests)
   cube_on_demand  ``dualrgb cube``: the full-resolution delivery's cube (ENVI) made from its camera-RGB TIFFs
-  full_stages     where the full-resolution delivery's CPU time goes, stage by stage, single-threaded
+  full_rp2        ``full`` with a root-polynomial of degree 2 delivered (what the virtual lab's default dual-RGB
+                  calibration delivers; the bench calibration's own matrix is least squares, linear)
+  full_stages     where the full-resolution delivery's CPU time goes, stage by stage, single-threaded, and the
+                  two-core floor they give (bench/delivery_stages.py); the summary's ``delivery`` compares the
+                  measured ``full`` with it (``delivery_root_polynomial_2``: ``full_rp2``)
   models          the demosaic + colour encodings of every band (DeliveryEncoder.encode_mosaic), single-threaded,
                   with each characterisation model the calibration may deliver: the linear matrix (least squares
                   or dE00-optimised), root-polynomial degree 2 (21 terms) and 3 (71 terms) (issue 40): CPU seconds
                   and ns per delivered pixel, and what each adds over the linear matrix
 
-Targets (issue 31): full <= 2.0 x decode at 24 MP; at 150 MP (``--size 14204x10652``) peak RSS <= 4 GB and time
+Every run records the 1-minute load average before and after it (``load_1min``); ``--quiet-below L`` waits (up to
+10 minutes) before each run until the load is below L. Targets (issues 31 and 41): full <= 2.0 x decode at 24 MP, its
+CPU time <= 1.25 x the stages' sum; at 150 MP (``--size 14204x10652``) peak RSS <= 4 GB and time
 per pixel within 1.3 x of the 24 MP case. Loading the profile and the numba kernels happen before the capture
 starts and are reported separately.
 
@@ -47,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.child import cpu_s, run_in_child
+from bench.delivery_stages import summary_lines
 
 ROOT = Path(__file__).resolve().parents[1]
 LIGHT_NAMES = {"light 1": "bench light 1", "light 2": "bench light 2"}
@@ -108,7 +115,7 @@ def make_profile(folder: Path, spectral: bool = True) -> Path:
         preset="bench", lights=lights, exposures=exposures, base_exposures={k: v[0] for k, v in exposures.items()},
         matrix=CharacterisationMatrix(np.vstack([np.eye(3) * 50, np.eye(3) * 50]),
                                       ["R1", "G1", "B1", "R2", "G2", "B2"]),
-        statistics={"best": "least-squares", "methods": {}}, white_xyz=[95.047, 100.0, 108.883],
+        statistics={"best": "least-squares", "methods": {"least-squares": {}}}, white_xyz=[95.047, 100.0, 108.883],
         raw={"white_level": proc.white_level, "black_level": proc.black_level, "cfa": proc.cfa,
              "linear_limit": proc.linear_limit, "shape": list(white.shape), "ppi_grid": "sensor"}, sources={},
         ppi=800.0, darks=proc.darks, whites=dict(proc._whites),
@@ -205,6 +212,7 @@ def _ready(folder_p: Path, spectral: bool = True):
     prof = load_profile(make_profile(folder_p, spectral))
     warm_processing()
     warm_delivery((2,))                                # the full-resolution row kernels: 2 exposures per light
+    import tifffile  # noqa: F401 - imported as a stand's process has it after its first original (~10 ms)
     return prof
 
 
@@ -219,19 +227,22 @@ def _without_sha256() -> None:
     tiff_stream.TiffStream.__init__ = no_digest  # type: ignore[method-assign]
 
 
-def _child_digitise(folder: str, resolution: str, streaming: bool = True, keep: str = "", sha256: bool = True
-                    ) -> dict:
+def _child_digitise(folder: str, resolution: str, streaming: bool = True, keep: str = "", sha256: bool = True,
+                    model: str = "linear") -> dict:
     sys.path.insert(0, str(ROOT))
     if not sha256:
         _without_sha256()
+    from bench.delivery_stages import with_model
     from dualrgb.app.processing.pipeline import ExposureRef
+    from dualrgb.app.workflow.delivery import delivery
     from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, Original, deliver
     from dualrgb.app.workflow.stand.copystand import begin_channels, profile_processor
 
     folder_p = Path(folder)
     t_load = time.perf_counter()
-    prof = _ready(folder_p)
+    prof = with_model(_ready(folder_p), model)
     t_ready = time.perf_counter()
+    images = _timed_write_images(delivery)
     frames = _scene_frames(folder_p)
     builder = begin_channels(profile_processor(prof), [nl.name for nl in prof.lights], resolution)
     t0, c0 = time.perf_counter(), cpu_s()
@@ -254,7 +265,24 @@ def _child_digitise(folder: str, resolution: str, streaming: bool = True, keep: 
         shutil.rmtree(out, ignore_errors=True)
     return {"seconds": seconds, "cpu_s": cpu, "load_profile_and_warm_up_s": t_ready - t_load,
             "deliverables_bytes": sizes, "delivered_pixels": int(np.prod(source.shape)),
-            "phases_s": {"frames_added": t_added - t0, "deliver": seconds - (t_added - t0)}}
+            "phases_s": {"frames_added": t_added - t0, "deliver": seconds - (t_added - t0),
+                         "write_images": images["wall"], "write_images_cpu": images["cpu"],
+                         "deliver_rest": seconds - (t_added - t0) - images["wall"]}}
+
+
+def _timed_write_images(delivery) -> dict:
+    """Wrap delivery.write_images to time it (wall and process CPU) in the measured run."""
+    real, spent = delivery.write_images, {"wall": 0.0, "cpu": 0.0}
+
+    def timed(*args, **kwargs):
+        t, c = time.perf_counter(), cpu_s()
+        try:
+            return real(*args, **kwargs)
+        finally:
+            spent["wall"] += time.perf_counter() - t
+            spent["cpu"] += cpu_s() - c
+    delivery.write_images = timed
+    return spent
 
 
 def _child_cube(folder: str) -> dict:
@@ -280,53 +308,6 @@ def _child_cube(folder: str) -> dict:
     shutil.rmtree(keep, ignore_errors=True)
     return {"seconds": seconds, "cpu_s": cpu, "cube_bytes": size, "deflate_ratio": len(sample) / packed,
             "deflate_mb_s": mb_s}
-
-
-def _child_stages(folder: str) -> dict:
-    """Where the full-resolution delivery's processor time goes, stage by stage, single-threaded (CPU seconds): the
-    last frame's decode, the merge + flat field of every band, the demosaic and colour encodings of every band
-    (one pass, as the delivery runs them: DeliveryEncoder.encode_mosaic), and the SHA-256 of as many bytes as the
-    TIFFs hold."""
-    import hashlib
-
-    sys.path.insert(0, str(ROOT))
-    from dualrgb.app.processing.demosaic import HALO, demosaic_rows
-    from dualrgb.app.processing.encode import DeliveryEncoder
-    from dualrgb.app.processing.pipeline import ExposureRef
-    from dualrgb.app.workflow.stand.copystand import begin_channels, profile_processor
-
-    prof = _ready(Path(folder))
-    frames = _scene_frames(Path(folder))
-    builder = begin_channels(profile_processor(prof), [nl.name for nl in prof.lights], "full")
-    for light, path, t in frames[:-1]:
-        builder.add(light, ExposureRef(path, t, path.name))
-    c0 = cpu_s()
-    builder.add(frames[-1][0], ExposureRef(frames[-1][1], frames[-1][2], frames[-1][1].name))
-    out: dict = {"decode_last_frame": cpu_s() - c0}
-    stack = builder.result(threads=1)
-    H, W = stack.shape
-    enc = DeliveryEncoder((H, W, 6), prof.matrix.matrix, prof.white_xyz, ["ProPhoto RGB", "sRGB"], threads=1)
-    bands = [np.empty((64, W, 3), np.uint16) for _ in range(5)]
-    merge = encode = 0.0
-    for r0 in range(0, H, 64):
-        rows = min(64, H - r0)
-        c0 = cpu_s()
-        mosaic = stack.mosaic_band(r0, rows)
-        c1 = cpu_s()
-        enc.encode_mosaic(r0, bands[0][:rows], [b[:rows] for b in bands[1:3]], [b[:rows] for b in bands[3:5]],
-                          mosaic=mosaic, p0=HALO, cfa=stack.cfa_index)
-        merge, encode = merge + c1 - c0, encode + cpu_s() - c1
-    band = np.empty((rows, W, 6), np.float32)                         # the last band's channels, for _render_cost
-    for li in range(2):
-        demosaic_rows(mosaic[li], HALO, r0, stack.cfa_index, band, 0, rows, 3 * li)
-    stack.close()
-    data = np.zeros(5 * H * W * 3 * 2 // 8, np.uint64)
-    c0 = cpu_s()
-    hashlib.sha256(memoryview(data)).hexdigest()
-    out.update(merge_flat=merge, demosaic_colour_encodings=encode, sha256_of_the_tiffs_bytes=cpu_s() - c0)
-    total = sum(out.values())
-    out["rendering_under_a_light_not_delivered"] = _render_cost(prof, H, W, band)
-    return {"seconds": total, "cpu_s": total, "stages_cpu_s": out}
 
 
 def _child_models(folder: str) -> dict:
@@ -371,23 +352,6 @@ def _child_models(folder: str) -> dict:
     return {"seconds": total, "cpu_s": total, "models_cpu": out, "delivered_pixels": H * W}
 
 
-def _render_cost(prof, H: int, W: int, band: np.ndarray) -> float:
-    """CPU seconds of the spectral rendering under A for every band of an H x W image (a delivered band's values):
-    what a full-resolution delivery would add with its rendering as a file."""
-    from dualrgb.app.processing.render import rendering
-    from dualrgb.app.processing.spectral_cube import SpectralEncoder
-
-    est = prof.spectral_estimator()
-    out = np.empty((64, W, 3), np.uint16)
-    full = np.ascontiguousarray(np.resize(band, (64, W, band.shape[2])))
-    with SpectralEncoder((H, W, 6), est.matrix, est.bounds, rendering("A", est.wavelengths), offset=est.offset,
-                         threads=1) as enc:
-        c0 = cpu_s()
-        for r0 in range(0, H - 64, 64):
-            enc.encode(r0, None, out, band=full)
-        return cpu_s() - c0
-
-
 def _child_warm() -> dict:
     """Compile the kernels into numba's on-disk cache once, so no measured run pays (or counts the memory of)
     LLVM compiling them."""
@@ -405,12 +369,13 @@ def _run_child(kind: str, folder: Path) -> dict:
     if kind == "cube_on_demand":
         return run_in_child("bench.digitise_bench", "_child_cube", str(folder))
     if kind == "full_stages":
-        return run_in_child("bench.digitise_bench", "_child_stages", str(folder))
+        return run_in_child("bench.delivery_stages", "child_stages", str(folder))
     if kind == "models":
         return run_in_child("bench.digitise_bench", "_child_models", str(folder))
     resolution = "half" if kind == "half" else "full"
     return run_in_child("bench.digitise_bench", "_child_digitise", str(folder), resolution,
-                        kind != "full_all_frames", "", kind != "full_without_sha256")
+                        kind != "full_all_frames", "", kind != "full_without_sha256",
+                        "root-polynomial-2" if kind == "full_rp2" else "linear")
 
 
 def _storage_table() -> dict:
@@ -434,33 +399,48 @@ def _child_prepare(folder: str, height: int, width: int) -> dict:
 
 
 def bench_digitise(height: int = D610[1], width: int = D610[0], cache: str | None = None, repeats: int = 3,
-                   kinds: list[str] | None = None) -> dict:
+                   kinds: list[str] | None = None, quiet_below: float | None = None) -> dict:
     large = height * width > LARGE_PIXELS
     folder = Path(cache or Path(tempfile.gettempdir()) / f"dualrgb_bench_set_{width}x{height}")
     run_in_child("bench.digitise_bench", "_child_prepare", str(folder), height, width)
     run_in_child("bench.digitise_bench", "_child_warm")
-    kinds = kinds or (["decode", "full"] if large else ["decode", "full", "full_without_sha256", "half", "libraw",
-                                                       "full_all_frames",
-                                                       "cube_on_demand", "full_stages", "models"])
+    kinds = kinds or (["decode", "full"] if large else ["decode", "full", "full_rp2", "full_without_sha256", "half",
+                                                       "libraw", "full_all_frames", "cube_on_demand", "full_stages",
+                                                       "models"])
     runs: dict[str, list[dict]] = {k: [] for k in kinds}
     loads = [os.getloadavg()[0]]
     for _ in range(repeats):                      # interleaved, so load from other processes hits all alike
         for kind in kinds:
-            runs[kind].append(_run_child(kind, folder))
-            loads.append(os.getloadavg()[0])
+            before = _wait_quiet(quiet_below)
+            run = _run_child(kind, folder)
+            run["load_1min"] = [round(before, 2), round(os.getloadavg()[0], 2)]
+            runs[kind].append(run)
+            loads += run["load_1min"]
     return _summary(runs, width, height, repeats, loads)
+
+
+def _wait_quiet(below: float | None, patience_s: float = 600.0) -> float:
+    """The 1-minute load average, after waiting (at most ``patience_s``) for it to drop below ``below``."""
+    end = time.monotonic() + patience_s
+    while below is not None and os.getloadavg()[0] >= below and time.monotonic() < end:
+        time.sleep(5.0)
+    return os.getloadavg()[0]
 
 
 def _summary(runs: dict[str, list[dict]], width: int, height: int, repeats: int, loads: list[float]) -> dict:
     best = {k: min(v, key=lambda r: r["seconds"]) for k, v in runs.items()}
     dec = best["decode"]["seconds"]
     out: dict = {"frame": f"{width}x{height}", "megapixels": round(width * height / 1e6, 1), "original_frames": 4,
-                 "repeats": repeats, "decode_s": round(dec, 3), "cpu_decode_s": round(best["decode"]["cpu_s"], 3)}
+                 "repeats": repeats, "decode_s": round(dec, 3), "cpu_decode_s": round(best["decode"]["cpu_s"], 3),
+                 "decode_load_1min": best["decode"]["load_1min"],
+                 "decode_runs_s": [round(x["seconds"], 3) for x in runs["decode"]]}
     for kind, r in best.items():
         if kind == "decode":
             continue
         entry = {"seconds": round(r["seconds"], 3), "vs_decode": round(r["seconds"] / dec, 2),
-                 "cpu_s": round(r["cpu_s"], 3), "peak_rss_mb": round(max(x["peak_rss_mb"] for x in runs[kind]))}
+                 "cpu_s": round(r["cpu_s"], 3), "peak_rss_mb": round(max(x["peak_rss_mb"] for x in runs[kind])),
+                 "load_1min": r["load_1min"], "runs_s": [round(x["seconds"], 3) for x in runs[kind]],
+                 "runs_cpu_s": [round(x["cpu_s"], 3) for x in runs[kind]]}
         if "models_cpu" in r:
             entry["models_cpu"] = {k: {m: round(v, 3) for m, v in row.items()} for k, row in r["models_cpu"].items()}
         for extra in ("deliverables_bytes", "phases_s", "cube_bytes", "deflate_ratio", "deflate_mb_s", "stages_cpu_s"):
@@ -471,6 +451,14 @@ def _summary(runs: dict[str, list[dict]], width: int, height: int, repeats: int,
             entry["ns_per_sensor_pixel"] = round(1e9 * r["seconds"] / (width * height), 2)
             entry["delivered_pixels"] = r["delivered_pixels"]
         out[kind] = entry
+    if "full_stages" in best:
+        from bench.delivery_stages import floor_summary
+
+        stages = best["full_stages"]["stages_cpu_s"]
+        for kind, key, model in (("full", "delivery", "linear"),
+                                 ("full_rp2", "delivery_root_polynomial_2", "root-polynomial-2")):
+            if kind in out:
+                out[key] = floor_summary(best["decode"], stages, out[kind], model)
     full = best.get("full", {})
     out.update({"peak_rss_mb": out.get("full", {}).get("peak_rss_mb"),
                 "load_profile_and_warm_up_s": round(full.get("load_profile_and_warm_up_s", 0.0), 2),
@@ -487,10 +475,13 @@ def main(argv=None) -> int:
     p.add_argument("--cache", help="folder for the generated DNGs and the profile")
     p.add_argument("--json", help="where to write the result (default bench/results/digitise.json)")
     p.add_argument("--kinds", help="comma-separated runs (default: all for the size; decode and full are needed)")
+    p.add_argument("--quiet-below", type=float, help="before each run, wait (up to 10 min) for the 1-minute load "
+                   "average to drop below this")
     a = p.parse_args(argv)
     w, h = (1520, 1008) if a.small else (int(v) for v in a.size.lower().split("x"))
-    res = bench_digitise(h, w, a.cache, a.repeats, a.kinds.split(",") if a.kinds else None)
+    res = bench_digitise(h, w, a.cache, a.repeats, a.kinds.split(",") if a.kinds else None, a.quiet_below)
     print(json.dumps(res, indent=2))
+    print("\n".join(summary_lines(res)))
     dest = Path(a.json) if a.json else ROOT / "bench" / "results" / "digitise.json"
     dest.parent.mkdir(parents=True, exist_ok=True)
     dest.write_text(json.dumps(res, indent=2) + "\n")

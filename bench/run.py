@@ -56,6 +56,9 @@ def main(argv=None) -> int:
         result = {"benchmark": name, "machine": machine(), "wall_s": round(time.perf_counter() - t, 2), **result}
         (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n")
         print(json.dumps(result, indent=2), flush=True)
+        lines = getattr(importlib.import_module(mod), "summary_lines", None)       # a bench's own short summary
+        if lines is not None:
+            print("\n".join(lines(result)), flush=True)
     return 1 if failed else 0
 
 

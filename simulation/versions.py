@@ -23,6 +23,7 @@ DISTRIBUTION = "dualrgb"
 SOFTWARE = ("numpy", "numba", "colour-science", "rawpy")
 
 
+@functools.lru_cache(maxsize=16)      # ~1 ms a question (the metadata file parsed): a delivery asks 15 times
 def _version(distribution: str) -> str | None:
     from importlib import metadata  # ~50 ms: only when a version is asked for
 

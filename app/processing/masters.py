@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -216,6 +217,7 @@ class MasterStack:
         self.threads = max(1, threads or numba.get_num_threads())
         self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="master")
         self._buffers: dict[str, np.ndarray] = {}
+        self._lock = threading.Lock()  # the QA counts, when a pipeline's workers compute bands at once
         self._clipped = dict.fromkeys(self.lights, 0)
         self._fused = True          # the fused variance kernel where it applies (False: always the general one)
         self._weak = 0
@@ -235,10 +237,12 @@ class MasterStack:
         """Photosites whose every exposure under every light stayed below the minimum signal."""
         return self._weak / max(self._rows_done * self.width, 1)
 
-    def _buffer(self, key: str, shape: tuple[int, ...], dtype: Any) -> np.ndarray:
-        buf = self._buffers.get(key)
+    def _buffer(self, key: str, shape: tuple[int, ...], dtype: Any, buffers: dict | None = None) -> np.ndarray:
+        """A reused buffer of ``buffers`` (default this stack's own) of at least ``shape``'s rows."""
+        buffers = self._buffers if buffers is None else buffers
+        buf = buffers.get(key)
         if buf is None or buf.shape[0] < shape[0] or buf.shape[1:] != shape[1:]:
-            buf = self._buffers[key] = np.empty(shape, dtype)
+            buf = buffers[key] = np.empty(shape, dtype)
         return buf[: shape[0]]
 
     def _chunks(self, n: int) -> list[tuple[int, int]]:
@@ -246,53 +250,74 @@ class MasterStack:
         return [(int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
 
     def _flat_band(self, li: int, lt: _Light, y0: int, y1: int, out: np.ndarray, core: tuple[int, int],
-                   weak: np.ndarray) -> None:
+                   weak: np.ndarray, buffers: dict, parallel: bool) -> int:
         """Light ``lt``'s flat-fielded mosaic for image rows y0 .. y1 (inside the frame) into ``out`` (y1 - y0,
-        W + 2 HALO), mirrored at the columns; counts its clipped photosites in rows ``core`` (of the band)."""
+        W + 2 HALO), mirrored at the columns (``buffers``: where mapped calibration rows are read; ``parallel``: in
+        row pieces on the stack's threads, else in this thread); returns its clipped photosites in rows ``core``
+        (of the band)."""
         from dualrgb.app.processing.master_kernels import flat_rows, flat_rows_variance
 
         raws = tuple(np.ascontiguousarray(m[y0:y1]) for m in lt.mosaics)
-        placeholder = self._buffer("nodark", (1, self.width), np.float32)
-        darks = tuple(np.ascontiguousarray(band_of(d, y0, y1, self._buffers, f"dark{li}_{k}"), np.float32)
+        placeholder = self._buffer("nodark", (1, self.width), np.float32, buffers)
+        darks = tuple(np.ascontiguousarray(band_of(d, y0, y1, buffers, f"dark{li}_{k}"), np.float32)
                       if isinstance(d, np.ndarray) else placeholder for k, d in enumerate(lt.darks))
         use = np.array([isinstance(d, np.ndarray) for d in lt.darks], np.bool_)
         values = np.array([0.0 if isinstance(d, np.ndarray) else d for d in lt.darks], np.float32)
-        white = np.ascontiguousarray(band_of(lt.white, y0, y1, self._buffers, f"white{li}"), np.float32)
+        white = np.ascontiguousarray(band_of(lt.white, y0, y1, buffers, f"white{li}"), np.float32)
+        pieces = self._chunks(y1 - y0) if parallel else [(0, y1 - y0)]
+        run = self._pool.map if parallel else map
         m = self._merge
         gain, var = np.float32(1.0 / m.noise.electrons_per_dn), np.float32(m.noise.read_variance)
         limit, white_level, threshold = np.float32(self._limit), np.float32(m.white_level), np.float32(lt.threshold)
         if self._fused and self._method == HDR_METHOD_CODES["variance"] and bool(lt.first_in_slot.all()):
             fargs = (raws, darks, values, use, lt.ts, gain, var, limit, white_level, white, threshold, self._floor,
                      out, weak, li == 0)
-            done = self._pool.map(lambda ab: flat_rows_variance(*fargs, ab[0], ab[1], core[0], core[1]),
-                                  self._chunks(y1 - y0))
+            done = run(lambda ab: flat_rows_variance(*fargs, ab[0], ab[1], core[0], core[1]), pieces)
         else:
             args = (raws, darks, values, use, lt.slots, lt.first_in_slot, int(lt.slots.max()) + 1, lt.order, lt.ts,
                     (np.float32(1.0) / lt.ts).astype(np.float32), self._method,
                     np.float32(1.0 / (m.white_level - m.black_level)), gain, var, limit, white_level, white,
                     threshold, self._floor, out, weak, li == 0)
-            done = self._pool.map(lambda ab: flat_rows(*args, ab[0], ab[1], core[0], core[1]), self._chunks(y1 - y0))
-        self._clipped[lt.name] += sum(int(c) for c in done)
+            done = run(lambda ab: flat_rows(*args, ab[0], ab[1], core[0], core[1]), pieces)
+        return sum(int(c) for c in done)
 
     def mosaic_band(self, r0: int, rows: int) -> np.ndarray:
         """Rows ``r0`` .. ``r0 + rows`` of every light's flat-fielded mosaic before the demosaic: (L, rows + 2 HALO,
         W + 2 HALO) float32, HALO mirrored rows and columns around (row HALO + r is image row r0 + r; valid until
         the next call); bands come in order, each once (the QA counts add up over them). :meth:`band` demosaics
         it; app.processing.encode.DeliveryEncoder.encode_mosaic demosaics and encodes it in one pass."""
+        if r0 != self._rows_done:
+            raise ValueError(f"band of rows {r0}..{r0 + rows} after {self._rows_done} of {self.height} (in order, "
+                             "each once)")
+        return self._mosaic(r0, rows, self._buffers, True)
+
+    def mosaic_band_into(self, r0: int, rows: int, scratch: dict) -> np.ndarray:
+        """:meth:`mosaic_band` for one of several threads computing bands at once (app.processing.band_pipeline):
+        any band, each once, in any order, computed in the calling thread into ``scratch`` (a dict of that
+        thread's buffers; the result is valid until its next call with it)."""
+        return self._mosaic(r0, rows, scratch, False)
+
+    def _mosaic(self, r0: int, rows: int, buffers: dict, parallel: bool) -> np.ndarray:
         H, W = self.shape
-        if r0 != self._rows_done or rows < 1 or r0 + rows > H:
-            raise ValueError(f"band of rows {r0}..{r0 + rows} after {self._rows_done} of {H} (in order, each once)")
+        if rows < 1 or r0 < 0 or r0 + rows > H:
+            raise ValueError(f"band of rows {r0}..{r0 + rows} of {H}")
         top = r0 - HALO                                       # image row of the padded band's first row
         y0, y1 = max(top, 0), min(r0 + rows + HALO, H)        # the rows inside the frame
-        weak = self._buffer("weak", (y1 - y0, W), np.bool_)
-        padded = self._buffer("padded", (len(self._lights), rows + 2 * HALO, W + 2 * HALO), np.float32)
+        weak = self._buffer("weak", (y1 - y0, W), np.bool_, buffers)
+        padded = self._buffer("padded", (len(self._lights), rows + 2 * HALO, W + 2 * HALO), np.float32, buffers)
+        clipped = []
         for li, lt in enumerate(self._lights):
             p = padded[li]
-            self._flat_band(li, lt, y0, y1, p[y0 - top: y1 - top], (r0 - y0, r0 + rows - y0), weak)
+            clipped.append(self._flat_band(li, lt, y0, y1, p[y0 - top: y1 - top], (r0 - y0, r0 + rows - y0), weak,
+                                           buffers, parallel))
             for y in [*range(top, 0), *range(H, r0 + rows + HALO)]:     # outside the frame: mirrored rows
                 p[y - top] = p[(-y if y < 0 else 2 * (H - 1) - y) - top]
-        self._weak += int(np.count_nonzero(weak[r0 - y0: r0 - y0 + rows]))
-        self._rows_done += rows
+        n_weak = int(np.count_nonzero(weak[r0 - y0: r0 - y0 + rows]))
+        with self._lock:
+            for lt, c in zip(self._lights, clipped, strict=True):
+                self._clipped[lt.name] += c
+            self._weak += n_weak
+            self._rows_done += rows
         return padded
 
     @property

@@ -381,15 +381,15 @@ def tiff_kwargs(meta: TiffMetadata, *, photometric: str = "minisblack", icc: byt
 
 def open_tiff(path: Path, shape: tuple[int, ...], meta: TiffMetadata, *, dtype=np.uint16,
               photometric: str = "minisblack", icc: bytes | None = None, band_rows: int = 64, executor=None,
-              direct: bool = True, digest: str | None = None):
-    """A TIFF of ``shape`` to fill band by band (app.processing.tiff_stream.TiffStream), written atomically
-    (``digest``: also the file's checksum, e.g. "sha256", computed as it is written)."""
+              direct: bool = True, digest: str | None = None, slots: int = 2):
+    """A TIFF of ``shape`` to fill band by band (app.processing.tiff_stream.TiffStream, ``slots`` band buffers),
+    written atomically (``digest``: also the file's checksum, e.g. "sha256", computed as it is written)."""
     from dualrgb.app.processing.tiff_stream import TiffStream
 
     strip = rows_per_strip(shape, np.dtype(dtype).itemsize)
     return TiffStream(path, shape, dtype, tiff_kwargs(meta, photometric=photometric, icc=icc, rowsperstrip=strip),
                       band_rows=band_rows, executor=executor, direct=direct, digest=digest,
-                      exif=meta.exif.ifd if meta.exif is not None else None)
+                      exif=meta.exif.ifd if meta.exif is not None else None, slots=slots)
 
 
 def write_tiff(path: Path, image: np.ndarray, meta: TiffMetadata, *, photometric: str = "minisblack",

@@ -25,7 +25,7 @@ import numba
 import numpy as np
 from numba import njit
 
-from dualrgb.app.processing.encode import band_source, encoding_slopes, encoding_table, rgb_row, stack_or_shape
+from dualrgb.app.processing.encode import band_source, encoding_pairs, rgb_row, rgb_scratch, stack_or_shape
 from dualrgb.app.processing.envi import IGNORE_VALUE, SCALE_FACTOR
 from dualrgb.app.processing.render import Rendering
 
@@ -106,8 +106,7 @@ def _spectral_rows(stack, r0, M, off, lo, hi, scale, ignore, wts, m_rgb, lut, cu
     x = np.empty(W, np.float32)
     y = np.empty(W, np.float32)
     z = np.empty(W, np.float32)
-    lin = np.empty(W, np.float64)
-    idx = np.empty(W, np.int64)
+    rs = rgb_scratch(W)
     none = np.empty((M.shape[0], 0), np.uint16)
     store = cube.shape[0] > 0
     bad = 0
@@ -115,7 +114,7 @@ def _spectral_rows(stack, r0, M, off, lo, hi, scale, ignore, wts, m_rgb, lut, cu
         bad += _planes(stack[r0 + r].reshape(W * C), planes, valid)
         _cube_row(planes, valid, M, off, lo, hi, scale, ignore, wts, acc, x, y, z, cube[r] if store else none, store)
         if rgb.shape[0] > 0:
-            rgb_row(x, y, z, m_rgb, lut[0], lut[1], lin, idx, rgb[r].reshape(W * 3))
+            rgb_row(x, y, z, m_rgb, lut, rs, rgb[r].reshape(W * 3))
     return bad
 
 
@@ -149,7 +148,7 @@ class SpectralEncoder:
         self._m_rgb = (np.eye(3, dtype=np.float32) if rendering is None
                        else np.ascontiguousarray(rendering.rgb_matrix, dtype=np.float32))
         space = rendering.space if rendering is not None else "sRGB"
-        self._lut = np.stack([encoding_table(space), encoding_slopes(space)])     # values, steps (rgb_row)
+        self._lut = encoding_pairs(space)                       # values and steps (rgb_row)
         self.invalid = 0
         self.threads = max(1, threads or numba.get_num_threads())
         self.chunks_per_thread = 4

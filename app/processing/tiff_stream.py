@@ -19,6 +19,11 @@ page cache costs about as much CPU as the encoding itself (~1 GB/s on the 2-core
 :class:`RawStream` streams a headerless raw file the same way (the data file of an ENVI spectral cube:
 app.processing.envi_cube).
 
+Ring mode (``slots`` > 2, :meth:`TiffStream.ring_band` / :meth:`TiffStream.ring_seal`): several threads fill
+bands of one file in any order, each in a slot of its own, and a scheduler (app.processing.band_pipeline) seals
+them in file order (the digest, the carried tail) and writes them where it likes; the bytes and the digest are
+those of the double-buffered mode.
+
 Fixity: with ``digest="sha256"`` the file's SHA-256 is computed from the bytes as they are written (the header
 when tifffile has written it, then each write in file order: the writes of one file never overlap in time, each
 band waits for the one before), so the checksum costs no second read of the file; :attr:`TiffStream.sha256` and
@@ -50,15 +55,20 @@ BLOCK = 4096                              # O_DIRECT alignment of offsets, lengt
 O_DIRECT = getattr(os, "O_DIRECT", 0)     # Linux only; 0 elsewhere = through the page cache
 
 
-def aligned_empty(nbytes: int) -> np.ndarray:
-    """A uint8 buffer of ``nbytes`` (rounded up to BLOCK) starting on a BLOCK boundary, its pages already mapped.
+def aligned_empty(nbytes: int, touch: bool = True) -> np.ndarray:
+    """A uint8 buffer of ``nbytes`` (rounded up to BLOCK) starting on a BLOCK boundary, its pages already mapped
+    (``touch``).
 
-    Every page is touched here, before any write is in flight: a page first touched by the encoder while an
-    O_DIRECT write pins the other buffer's pages waits for the process's memory-map lock, which made the first
-    two bands of a delivery 2-5x slower (with 256-row bands, the spectral cube's 59 MB each: +0.25 s at 24 MP)."""
+    Touched here, every page is mapped before any write is in flight: a page first touched by the encoder while an
+    O_DIRECT write pins the other buffer's pages waited for the process's memory-map lock, which made the first
+    two bands of a delivery 2-5x slower (with 256-row bands, the spectral cube's 59 MB each: +0.25 s at 24 MP).
+    The ring mode's slots are not touched (``touch=False``): their first bands are encoded on both cores, where
+    the page faults cost less wall time than ~10 MB per file mapped by one thread before the first band (24 MP,
+    kernel 6.18: no slower bands measured)."""
     n = -(-nbytes // BLOCK) * BLOCK
     raw = np.empty(n + BLOCK, np.uint8)
-    raw[::BLOCK] = 0
+    if touch:
+        raw[::BLOCK] = 0
     skip = (-raw.ctypes.data) % BLOCK
     return raw[skip: skip + n]
 
@@ -135,8 +145,9 @@ class TiffStream:
 
     def __init__(self, path: Path, shape: tuple[int, ...], dtype: Any, tifffile_kwargs: dict, *, band_rows: int,
                  executor: Executor | None = None, direct: bool = True, digest: str | None = None,
-                 exif: Callable[[int], bytes] | None = None):
+                 exif: Callable[[int], bytes] | None = None, slots: int = 2):
         self.path = Path(path)
+        self._closed = False
         self._exif = exif                         # the EXIF IFD at an offset (app.processing.exif), after the pixels
         self._trailer = b""                       # what follows the pixels: padding and the EXIF IFD
         self._hash = hashlib.new(digest) if digest else None
@@ -162,11 +173,16 @@ class TiffStream:
                 raise write_error(exc, self.path) from exc
             raise
         self._pos = self._offset - len(head)                 # the file position of buffer byte 0
-        size = len(head) + BLOCK + self.band_rows * self.row_bytes
-        self._buffers = [aligned_empty(size), aligned_empty(size)]
+        size = max(len(head), BLOCK) + BLOCK + self.band_rows * self.row_bytes
+        self._buffers = [aligned_empty(size, slots == 2) for _ in range(max(2, slots))]
         self._current = 0
         self._buffers[0][:len(head)] = np.frombuffer(head, np.uint8)
         self._carry = len(head)                             # bytes at the front of the current buffer
+
+    @property
+    def slots(self) -> int:
+        """Band buffers (2: double-buffered; more in ring mode)."""
+        return len(self._buffers)
 
     @property
     def direct(self) -> bool:
@@ -240,6 +256,49 @@ class TiffStream:
         self._carry = end - whole
         self._current = nxt
 
+    def ring_band(self, k: int) -> np.ndarray:
+        """Ring mode: band ``k``'s rows (from ``k * band_rows``) to fill, in slot ``k % slots``, from any thread, once
+        the slot is free (the band ``slots`` before it written, the one before it sealed: the caller's schedule)."""
+        r0 = k * self.band_rows
+        rows = min(self.band_rows, self.shape[0] - r0)
+        if rows < 1:
+            raise ValueError(f"{self.path}: band {k} starts after the last of {self.shape[0]} rows")
+        front = (self._offset + r0 * self.row_bytes) % BLOCK    # the previous band's tail goes before it
+        buf = self._buffers[k % len(self._buffers)]
+        return buf[front: front + rows * self.row_bytes].view(self.dtype).reshape((rows,) + self.shape[1:])
+
+    def ring_seal(self, k: int) -> tuple[memoryview, int] | None:
+        """Ring mode, in band order: band ``k`` (filled) is added to the digest up to its last whole block, its tail
+        carried to the front of the next slot; returns (the bytes, their file position) to write with
+        :meth:`ring_write` (None: no whole block yet)."""
+        r0 = k * self.band_rows
+        if r0 != self._rows_done:
+            raise ValueError(f"{self.path}: band {k} sealed after {self._rows_done} of {self.shape[0]} rows")
+        rows = min(self.band_rows, self.shape[0] - r0)
+        n = len(self._buffers)
+        buf, nxt = self._buffers[k % n], self._buffers[(k + 1) % n]
+        end = self._carry + rows * self.row_bytes
+        whole = end - end % BLOCK
+        nxt[:end - whole] = buf[whole:end]
+        pos = self._pos
+        self._rows_done += rows
+        self._pos += whole
+        self._carry = end - whole
+        self._current = (k + 1) % n
+        if not whole:
+            return None
+        data = buf[:whole].data
+        if self._hash is not None:
+            self._hash.update(data)
+        return data, pos
+
+    def ring_write(self, data: memoryview, pos: int) -> None:
+        """Ring mode: write what :meth:`ring_seal` returned (from any thread; errors name the file)."""
+        try:
+            self._output().pwrite(data, pos)
+        except OSError as exc:
+            raise write_error(exc, self.path) from exc
+
     def _output(self) -> _Output:
         if self._out is None:                   # only after abort(): a closed stream takes no more rows
             raise ValueError(f"{self.path}: the TIFF stream was aborted")
@@ -270,7 +329,10 @@ class TiffStream:
             raise write_error(exc, self.path) from exc
 
     def close(self) -> Path:
-        """Write the last block, truncate to the TIFF's size, fsync, rename over the target, fsync the folder."""
+        """Write the last block, truncate to the TIFF's size, fsync, rename over the target, fsync the folder (once:
+        a second call returns the path)."""
+        if self._closed:
+            return self.path
         if self._rows_done != self.shape[0]:
             self.abort()
             raise ValueError(f"{self.path}: {self._rows_done} of {self.shape[0]} rows written")
@@ -295,6 +357,7 @@ class TiffStream:
             os.replace(self._tmp, self.path)
             fsync_dir(self.path.parent)
         self._guard(finish)
+        self._closed = True
         self.size = size
         self.sha256 = self._hash.hexdigest() if self._hash is not None else None
         return self.path

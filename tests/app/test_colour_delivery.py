@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 from dualrgb.app.processing.calibration import DarkFrame, FlatField, MasterDark
-from dualrgb.app.processing.colour_kernels import expand_row, expansion_scratch, terms_for
+from dualrgb.app.processing.colour_kernels import (
+    expand_row,
+    expansion_scratch,
+    root_polynomial_xyz_row,
+    terms_for,
+)
 from dualrgb.app.processing.demosaic import HALO
 from dualrgb.app.processing.encode import RGB_SPACES, XYZ_ONE, DeliveryEncoder, encode_deliverables
 from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
@@ -37,6 +42,26 @@ def test_the_row_expansion_is_the_float64_expansion(degree):
     want = expand(np.nan_to_num(S.T.astype(np.float64)), degree).T
     assert E[1, 7] == 0.0 and np.isfinite(E).all()         # a NaN channel is 0, as the linear encoder takes it
     assert np.allclose(E, want, rtol=2e-6, atol=1e-30)
+
+
+@pytest.mark.parametrize("degree", [2, 3])
+def test_the_row_model_adds_the_terms_in_order_bit_for_bit(degree):
+    """The kernel adds two terms per pass over the row: each pixel's X, Y, Z are still the float32 sums of the
+    terms (expand_row, one at a time) times the matrix, in term order, bit for bit (numpy, one term at a time)."""
+    rng = np.random.default_rng(20 + degree)
+    S = rng.uniform(-0.05, 2.0, (6, 333)).astype(np.float32)
+    S[4, 9] = np.nan
+    terms = terms_for(6, degree)
+    A = rng.normal(0.0, 20.0, (len(terms), 3)).astype(np.float32)
+    ex = expansion_scratch(terms, 6, 333)
+    E = np.empty((len(terms), 333), np.float32)
+    expand_row(S, terms, ex[1], ex[2], E)
+    want = np.zeros((3, 333), np.float32)
+    for t in range(len(terms)):
+        want = want + E[t] * A[t][:, None]
+    got = np.empty((3, 333), np.float32)
+    assert root_polynomial_xyz_row(S, terms, A, ex, got[0], got[1], got[2]) == 1
+    assert np.array_equal(got, want)
 
 
 @pytest.mark.parametrize("degree", [2, 3])

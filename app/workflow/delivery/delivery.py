@@ -27,13 +27,15 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, nullcontext
 from dataclasses import asdict, dataclass, field
 from datetime import datetime
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from dualrgb.app.json_output import dumps
+from dualrgb.app.processing.band_pipeline import encode_master, open_all, ring_slots
 from dualrgb.app.processing.cube_map import spectral_map
-from dualrgb.app.processing.demosaic import DEMOSAIC, HALO
+from dualrgb.app.processing.demosaic import DEMOSAIC
 from dualrgb.app.processing.encode import LINEAR_ONE, XYZ_ONE, DeliveryEncoder
 from dualrgb.app.processing.envi import DTYPE, IGNORE_VALUE, INTERLEAVE, SCALE_FACTOR, EnviHeader
 from dualrgb.app.processing.masters import FULL, MasterStack
@@ -159,25 +161,27 @@ class Written:
 
 
 def open_deliverable(im: Deliverable, height: int, width: int, ctx: MasterContext, band_rows: int,
-                     pool: ThreadPoolExecutor | None, direct: bool) -> TiffStream:
+                     pool: ThreadPoolExecutor | None, direct: bool, slots: int = 2) -> TiffStream:
     """The streamed file of deliverable ``im`` (its SHA-256 computed as it is written; tags, XMP, EXIF and ICC from
-    ``ctx``)."""
+    ``ctx``; ``slots``: band buffers, more than 2 for app.processing.band_pipeline)."""
     if im.kind == "cube":                                     # the cube's data: band-interleaved by line
         return RawStream(im.path, (height, im.samples, width), DTYPE, band_rows=band_rows, executor=pool,
                          direct=direct, digest=FIXITY_ALGORITHM)
     return open_tiff(im.path, (height, width, im.samples), ctx.meta(im), photometric=im.photometric,
-                     icc=ctx.icc(im), band_rows=band_rows, executor=pool, direct=direct, digest=FIXITY_ALGORITHM)
+                     icc=ctx.icc(im), band_rows=band_rows, executor=pool, direct=direct, digest=FIXITY_ALGORITHM,
+                     slots=slots)
 
 
 def write_images(source: ChannelSource, profile: CalibrationProfile, images: dict[str, Deliverable],
                  ctx: MasterContext, *, spectral: SpectralPlan | None = None,
                  band_rows: int = BAND_ROWS, direct: bool = True, cancel: CancelToken | None = None) -> Written:
-    """Encode the channels band by band straight into the open files (app.processing.tiff_stream): while one band
-    is encoded (both cores, nogil), the writer threads put the previous one on disk and add it to the file's
-    SHA-256; nothing image-sized is held but what ``source`` holds. The spectral cube (when it is a file) and the
-    rendering come from the same bands (``spectral``; the cube's header is written by :func:`deliver`); ``cancel``
-    is checked before every band (common.progress.Cancelled: nothing is delivered). A matrix or
-    white point that is not finite, or images that come out blank, are refused (:class:`DeliveryQaError`)."""
+    """Encode the channels band by band straight into the open files (app.processing.tiff_stream), each file's
+    SHA-256 computed from the bytes as they are written; nothing image-sized is held but what ``source`` holds. A
+    full-resolution original is demosaiced as it is encoded, a band per core (app.processing.band_pipeline). The
+    spectral cube (when it is a file) and the rendering come from the same bands (``spectral``; the cube's header
+    is written by :func:`deliver`); ``cancel`` is checked before every band (common.progress.Cancelled: nothing is
+    delivered). A matrix or white point that is not finite, or images that come out blank, are refused
+    (:class:`DeliveryQaError`)."""
     H, W = source.shape
     N = len(source.channels)
     if not (np.isfinite(profile.matrix.matrix).all() and np.isfinite(profile.white_xyz).all()):
@@ -190,29 +194,42 @@ def write_images(source: ChannelSource, profile: CalibrationProfile, images: dic
     est = spectral.estimator if spectral is not None and "spectral" in streamed else None
     spec = (SpectralEncoder((H, W, N), est.matrix, est.bounds, spectral.rendering, offset=est.offset)
             if spectral is not None and est is not None else nullcontext())
+    master = source if isinstance(source, MasterStack) and est is None else None   # the one pass, every core
     with DeliveryEncoder((H, W, N), profile.matrix.matrix, profile.white_xyz, [images[k].space or "" for k in rgb_keys],
                          degree=profile.matrix.degree) as enc, spec as cube_enc, \
             ThreadPoolExecutor(len(streamed), thread_name_prefix="deliver") as pool, ExitStack() as opened:
-        out = {k: opened.enter_context(open_deliverable(im, H, W, ctx, band_rows, pool, direct))
-               for k, im in streamed.items()}
+        slots = ring_slots(enc.threads) if master else 2
+        out = open_all({k: partial(open_deliverable, im, H, W, ctx, band_rows, pool, direct, slots)
+                        for k, im in streamed.items()}, pool, opened)
         rgb, chans = [out[k] for k in rgb_keys], [out[k] for k in ch_keys]
-        for r0 in range(0, H, band_rows):
-            check(cancel)
-            rows = min(band_rows, H - r0)
-            bands = (out["xyz"].band(rows), [o.band(rows) for o in rgb], [o.band(rows) for o in chans])
-            if isinstance(source, MasterStack) and cube_enc is None:     # demosaiced as it is encoded: one pass
-                enc.encode_mosaic(r0, *bands, mosaic=source.mosaic_band(r0, rows), p0=HALO, cfa=source.cfa_index)
-            else:
-                band = source.band(r0, rows)
-                enc.encode(r0, *bands, band=band)
-                if cube_enc is not None:
-                    cube_enc.encode(r0, out["spectral"].band(rows), out["render"].band(rows), band=band)
-            for o in out.values():
-                o.commit()
+        if master is not None:
+            encode_master(master, enc, out["xyz"], rgb, chans, io=pool, cancel=cancel)
+        else:
+            _encode_bands(source, enc, cube_enc, out, band_rows, cancel, [rgb, chans])
         invalid = enc.invalid_fraction
         refuse_blank(invalid, enc.lit, profile)
     return Written({k: im.path for k, im in streamed.items()},
                    {k: {"bytes": o.size, FIXITY_ALGORITHM: o.sha256} for k, o in out.items()}, invalid)
+
+
+def _encode_bands(source: ChannelSource, enc: DeliveryEncoder, cube_enc: SpectralEncoder | None,
+                  out: dict[str, TiffStream], band_rows: int, cancel: CancelToken | None,
+                  streams: list[list[TiffStream]]) -> None:
+    """The bands of ``source`` (N channels each) encoded into ``out`` in order (``streams``: the RGB ones and the
+    lights' ones), the cube's and the rendering's too with ``cube_enc``: each band in pieces on both cores while
+    the writer threads put the previous one on disk and hash it."""
+    H = source.shape[0]
+    rgb, chans = streams
+    for r0 in range(0, H, band_rows):
+        check(cancel)
+        rows = min(band_rows, H - r0)
+        bands = (out["xyz"].band(rows), [o.band(rows) for o in rgb], [o.band(rows) for o in chans])
+        band = source.band(r0, rows)
+        enc.encode(r0, *bands, band=band)
+        if cube_enc is not None:
+            cube_enc.encode(r0, out["spectral"].band(rows), out["render"].band(rows), band=band)
+        for o in out.values():
+            o.commit()
 
 
 class DeliveryQaError(ValueError):
