@@ -33,9 +33,7 @@ class PresetChooser(QWidget):
         self.presets: list[tuple[Path, Preset]] = []
         self.figures: list[PresetFigures | None] = []      # per preset, once computed
         self.combo = QComboBox()
-        self.combo.setToolTip("The preset whose lights this session uses (one preset per session), each with its "
-                              "expected captured error; the mode's recommended one is chosen unless you choose "
-                              "another.")
+        self.combo.setToolTip(COMBO_TIP)
         self.combo.currentIndexChanged.connect(self._changed)
         self.combo.activated.connect(self._picked)
         self.note = QLabel("")
@@ -156,6 +154,11 @@ class PresetChooser(QWidget):
         self.note.setText(text + ". Expected ΔE00: the expected captured mean error dualrgb simulate reports for "
                                  "these lights.")
         self.combo.view().setMinimumWidth(self.combo.view().sizeHintForColumn(0) + 24)   # the list shows it all
+        self.combo.setToolTip(f"{self.combo.currentText()}\n\n{COMBO_TIP}")     # the whole text of a narrow combo
+
+
+COMBO_TIP = ("The preset whose lights this session uses (one preset per session), each with its expected captured "
+             "error; the mode's recommended one is chosen unless you choose another.")
 
 
 def _key(path: Path | str) -> str:

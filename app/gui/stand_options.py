@@ -115,11 +115,12 @@ class CalibrationSampling(QWidget):
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
-        self.camera_csv = path_edit(ctx, CAMERA_CSV_KEY, "nominal curves (or a camera CSV: Tools > Measure the "
-                                    "camera)", "dualrgb calibrate --camera-csv: the stand model fitted to the "
-                                    "captures starts from the camera's measured sensitivities.")
-        self.stand_dir = path_edit(ctx, STAND_DIR_KEY, "nominal LEDs (or a stand folder: Tools > Measure the LEDs)",
-                                   "dualrgb calibrate --stand-dir: the LEDs' measured spectra and level curves are "
+        self.camera_csv = path_edit(ctx, CAMERA_CSV_KEY, "nominal camera curves", "Empty: the nominal camera curves. A camera "
+                                    "CSV (Tools > Measure the camera): the stand model fitted to the captures "
+                                    "starts from the camera's measured sensitivities.")
+        self.stand_dir = path_edit(ctx, STAND_DIR_KEY, "nominal LEDs",
+                                   "Empty: the nominal LEDs. A stand folder (Tools > Measure the LEDs): the LEDs' "
+                                   "measured spectra and level curves are "
                                    "the stand model's starting curves; an LED set below the measured minimum "
                                    "stable level is warned about.")
         self.target_width = number_spin(ctx, TARGET_WIDTH_KEY, MAX_TARGET_MM, "\u00a0mm", "not measured",

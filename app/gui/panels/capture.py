@@ -90,7 +90,10 @@ class CapturePanel(QWidget):
         self.view.start_button.clicked.connect(self.start)
         self.view.finished.connect(self._finished)
         self.calibration = CalibrationBox(ctx, self.view, self.stand_settings, self.plans)
-        boxes = (self._session_box(), self._lights_box(), self.calibration, self._sequence_box())
+        self.view.start_button.setText("Run single step")    # secondary: Calibrate is the primary action (issue 42)
+        self.view.start_button.setToolTip("Run the step chosen under Single steps (darks, flats, a target, ...); "
+                                          "Calibrate runs them all.")
+        boxes = (self.calibration, self._session_box(), self._lights_box(), self._sequence_box())
         self._layout(boxes)
         self._connect()
         self._kind_changed()
