@@ -115,8 +115,8 @@ class CalibrationSampling(QWidget):
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
-        self.camera_csv = path_edit(ctx, CAMERA_CSV_KEY, "nominal camera curves", "Empty: the nominal camera curves. A camera "
-                                    "CSV (Tools > Measure the camera): the stand model fitted to the captures "
+        self.camera_csv = path_edit(ctx, CAMERA_CSV_KEY, "nominal camera curves",
+                                    "Empty: the nominal camera curves. A camera CSV (Tools > Measure the camera): the stand model fitted to the captures "
                                     "starts from the camera's measured sensitivities.")
         self.stand_dir = path_edit(ctx, STAND_DIR_KEY, "nominal LEDs",
                                    "Empty: the nominal LEDs. A stand folder (Tools > Measure the LEDs): the LEDs' "

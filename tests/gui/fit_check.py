@@ -7,8 +7,7 @@ whole text. Word-wrapped labels wrap and are not checked.
 from __future__ import annotations
 
 from PySide6.QtGui import QTextDocument
-from PySide6.QtWidgets import (QAbstractButton, QComboBox, QLabel, QLineEdit, QPushButton, QTabBar, QTabWidget,
-                               QWidget)
+from PySide6.QtWidgets import QAbstractButton, QComboBox, QLabel, QLineEdit, QPushButton, QTabBar, QTabWidget, QWidget
 
 SLACK = 2          # px: rounding between a font's advance and a style's metrics
 
