@@ -116,8 +116,9 @@ class CalibrationSampling(QWidget):
         super().__init__(parent)
         self.ctx = ctx
         self.camera_csv = path_edit(ctx, CAMERA_CSV_KEY, "nominal camera curves",
-                                    "Empty: the nominal camera curves. A camera CSV (Tools > Measure the camera): the stand model fitted to the captures "
-                                    "starts from the camera's measured sensitivities.")
+                                    "Empty: the nominal camera curves. A camera CSV (Tools > Measure the camera): the "
+                                    "stand model fitted to the captures starts from the camera's measured "
+                                    "sensitivities.")
         self.stand_dir = path_edit(ctx, STAND_DIR_KEY, "nominal LEDs",
                                    "Empty: the nominal LEDs. A stand folder (Tools > Measure the LEDs): the LEDs' "
                                    "measured spectra and level curves are "
