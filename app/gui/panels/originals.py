@@ -41,6 +41,7 @@ from dualrgb.app.gui.original_form import form_box, options_widget
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
 from dualrgb.app.gui.widgets import side_by_side
+from dualrgb.app.gui.wording import in_window_words
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.copystand import StandSettings, original_takes
 from dualrgb.app.workflow.day import OriginalsQueue, OriginalState, QueueRow
@@ -401,7 +402,8 @@ class OriginalsPanel(QWidget):
             return False
         row.state, row.qa = OriginalState.FAILED, f"not shot: {problem}"
         self.ws.queue_changed()
-        text = (f"{row.identifier}: {problem.replace(', or --force to use this one', '')}.\n\nCapture it anyway with "
+        said = in_window_words(problem).removesuffix(", or choose Capture anyway")
+        text = (f"{row.identifier}: {said}.\n\nCapture it anyway with "
                 "this calibration (its sidecar and QA line will say so), or leave it for a calibration of its mode?")
 
         def answer(choice: str) -> None:
