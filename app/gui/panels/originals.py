@@ -37,6 +37,7 @@ from PySide6.QtWidgets import (
 )
 
 from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.image_viewer import ImageViewer
 from dualrgb.app.gui.original_form import form_box, options_widget
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
@@ -90,6 +91,8 @@ class OriginalsPanel(QWidget):
         self.tabs = QTabWidget()
         self.tabs.addTab(self.view, "Capture")
         self.tabs.addTab(self.delivered, "Delivered")
+        self.viewer = ImageViewer(ctx)                # the delivered master at full resolution (issue 42)
+        self.tabs.addTab(self.viewer, "Viewer")
         left = QWidget()
         lv = QVBoxLayout(left)
         lv.addWidget(form_box(self))
@@ -342,6 +345,8 @@ class OriginalsPanel(QWidget):
                                             or "channels_1" in delivered[0].files)   # (full resolution: on demand)
         if spectral and delivered[0].sidecar != self._shown:
             self.show_delivered(delivered[0])
+        if len(delivered) == 1 and delivered[0].sidecar is not None:
+            self.viewer.show_master(delivered[0].sidecar)
         self.force.setEnabled(not running)
         why = self._why_not(running)
         self.capture_button.setToolTip(why or "Meter, capture (an HDR bracket when metering asks) and deliver the "
