@@ -50,8 +50,8 @@ class ImageViewer(QWidget):
         self.zoom_label = QLabel("")
         self.clipping = QCheckBox("clipping")
         self.clipping.setChecked(True)
-        self.clipping.setToolTip("Red: clipped (nothing brighter can be told apart); blue: under-exposed (noise, "
-                                 "not tone). docs: gui, the viewer.")
+        self.clipping.setToolTip("Red: clipped (nothing brighter can be told apart); blue: under-exposed (a frame) "
+                                 "or near black, L* < 3 (a delivered master).")
         self.clipping.toggled.connect(self.overlay.setVisible)
         self.zoom_buttons: dict[str, QPushButton] = {}
         self._build()
@@ -129,7 +129,7 @@ class ImageViewer(QWidget):
         self.image.setImage(picture.display, levels=(0, 255), autoLevels=False)
         self.overlay.setImage(picture.overlay(), levels=(0, 255), autoLevels=False)
         clipped, under = picture.fractions()
-        self.title.setText(f"{picture.title}; clipped {percent(clipped, 2)}, under-exposed {percent(under, 2)}")
+        self.title.setText(f"{picture.title}; clipped {percent(clipped, 2)}, {picture.under_name} {percent(under, 2)}")
         self.fit()
 
     # ------------------------------------------------------------------ zoom and pan

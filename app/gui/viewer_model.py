@@ -6,7 +6,9 @@ the screen, the values under a pixel, and where it is clipped or under-exposed. 
   (``<id>_light<n>_cameraRGB_16bit.tif``: 1.0 = the white), CIE XYZ (``<id>_XYZ_16bit.tif``, decoded by the
   sidecar's ``encoding``: XYZ = code / xyz_one * white_xyz) and CIE L*a*b* of it relative to the calibration's
   white, all at the delivered resolution. *Clipped*: a camera channel at the encoding's ceiling (65535, twice the
-  white: nothing brighter can be told apart); *under-exposed*: L* below :data:`UNDER_L` (noise, not tone).
+  white: nothing brighter can be told apart); *near black*: L* below :data:`UNDER_L` (a master's exposures were
+  planned by metering, with an HDR bracket where the shadows needed one: the raw frames' under-exposure is in the
+  QA line; here the overlay shows where the tones are too deep to hold detail).
 * **A raw frame** (DNG / NEF): one pixel per 2x2 Bayer cell (R, the greens' mean, B in raw DN; no interpolation,
   so nothing shown is invented), the camera RGB only (XYZ needs both lights' frames and a calibration).
   *Clipped*: a channel at or above the linear limit (app.processing.hdr.LINEAR_LIMIT_DN, raw DN as the sensor
@@ -27,8 +29,8 @@ log = logging.getLogger(__name__)
 
 UNDER_L = 3.0                    # L* below which a master's pixel is marked under-exposed
 UNDER_FRACTION = 0.01            # a frame's pixel: every channel below 1 % of (linear limit - black)
-CLIP_RGBA = (230, 20, 20, 200)   # the overlay's colours: clipped red, under-exposed blue
-UNDER_RGBA = (30, 90, 255, 200)
+CLIP_RGBA = (255, 0, 0, 220)     # the overlay's colours: clipped red, under-exposed / near black blue (the
+UNDER_RGBA = (40, 110, 255, 120)  # picture stays readable under it)
 ZOOMS = (1.0, 2.0, 4.0)          # the viewer's fixed zooms besides Fit: 100, 200, 400 %
 
 
@@ -43,6 +45,7 @@ class ViewImage:
     camera_unit: str                            # 'DN' (a frame) or '' (a master: 1.0 = the white)
     clipped: np.ndarray                         # (H, W) bool
     under: np.ndarray                           # (H, W) bool
+    under_name: str = "under-exposed"           # a master: 'near black (L* < 3)' (its exposure was HDR-planned)
     xyz: np.ndarray | None = None               # (H, W, 3) float32, Y = Yn for the white (a master)
     white_xyz: tuple[float, float, float] = (0.9642, 1.0, 0.8251)
     notes: list[str] = field(default_factory=list)
@@ -80,7 +83,7 @@ class ViewImage:
         if self.clipped[y, x]:
             parts.append("clipped")
         elif self.under[y, x]:
-            parts.append("under-exposed")
+            parts.append(self.under_name)
         return "; ".join(parts)
 
 
@@ -116,7 +119,7 @@ def load_master(sidecar: Path) -> ViewImage:
     lab_l = 116.0 * np.where(y_rel > (6 / 29) ** 3, np.cbrt(y_rel), y_rel / (3 * (6 / 29) ** 2) + 4 / 29) - 16.0
     ident = doc.get("original", {}).get("identifier", folder.name)
     return ViewImage(f"{ident} (delivered, {display.shape[1]} x {display.shape[0]} px)", display, camera, names, "",
-                     (codes >= 65535).any(axis=2), lab_l < UNDER_L, xyz, white)
+                     (codes >= 65535).any(axis=2), lab_l < UNDER_L, f"near black (L* < {UNDER_L:g})", xyz, white)
 
 
 def load_frame(path: Path) -> ViewImage:
