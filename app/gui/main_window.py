@@ -17,6 +17,7 @@ from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.guide import WorkflowGuide
 from dualrgb.app.gui.next_action import NextAction
 from dualrgb.app.gui.panels.placeholder import NotAvailablePanel
+from dualrgb.app.gui.session_watch import SessionWatch
 from dualrgb.app.gui.units import temperature
 from dualrgb.app.gui.widgets import Asker, ErrorReporter, LogView
 from dualrgb.app.gui.window_menus import WheelGuard, build_menus
@@ -70,6 +71,7 @@ class MainWindow(QMainWindow):
         self._build_persistence()
         self.day = DayKeeper(self.ctx, self)       # the queue and calibration kept in the session; restored now
         self.day.restore()
+        self.session_watch = SessionWatch(self.ctx, self.capture_new_session, self)   # a gone folder said at once
 
     def _build_log_dock(self) -> None:
         self.log_view = LogView()
@@ -167,6 +169,11 @@ class MainWindow(QMainWindow):
         for dock in (self.log_dock, self.guide_dock):
             dock.dockLocationChanged.connect(lambda *_: self._save_timer.start())
             dock.visibilityChanged.connect(lambda *_: self._save_timer.start())
+
+    def capture_new_session(self) -> None:
+        new_session = getattr(self.panels.get("capture"), "new_session", None)
+        if new_session is not None:
+            new_session()
 
     def _open_session(self, folder) -> None:
         open_session = getattr(self.panels.get("capture"), "open_session", None)
