@@ -87,7 +87,7 @@ class ImageViewer(QWidget):
     def show_last_frame(self) -> None:
         session = self.ctx.lab.session
         entries = session.entries() if session is not None else []
-        if entries:
+        if session is not None and entries:
             self.show_frame(session.file_path(entries[-1]))
 
     def _load(self, source: Path, work: Callable[[], ViewImage], what: str) -> None:

@@ -106,7 +106,8 @@ def load_master(sidecar: Path) -> ViewImage:
     doc = json.loads(Path(sidecar).read_text(encoding="utf-8"))
     folder, files, enc = Path(sidecar).parent, doc.get("files", {}), doc.get("encoding", {})
     display = (_tiff(folder / files["srgb"]) >> 8).astype(np.uint8)[..., :3]
-    white = tuple(float(v) for v in enc.get("white_xyz", (0.9642, 1.0, 0.8251)))
+    wx, wy, wz = (float(v) for v in enc.get("white_xyz", (0.9642, 1.0, 0.8251)))
+    white = (wx, wy, wz)
     xyz = _tiff(folder / files["xyz"])[..., :3].astype(np.float32) / float(enc.get("xyz_one", 65535.0))
     xyz *= np.asarray(white, np.float32)
     light_keys = sorted((k for k in files if k.startswith("channels_")), key=lambda k: int(k.split("_")[1]))
@@ -118,8 +119,9 @@ def load_master(sidecar: Path) -> ViewImage:
     y_rel = xyz[..., 1] / white[1]                         # L* (CIE 15), vectorised for the whole picture
     lab_l = 116.0 * np.where(y_rel > (6 / 29) ** 3, np.cbrt(y_rel), y_rel / (3 * (6 / 29) ** 2) + 4 / 29) - 16.0
     ident = doc.get("original", {}).get("identifier", folder.name)
+    clipped = np.asarray((codes >= 65535).any(axis=2), bool)
     return ViewImage(f"{ident} (delivered, {display.shape[1]} x {display.shape[0]} px)", display, camera, names, "",
-                     (codes >= 65535).any(axis=2), lab_l < UNDER_L, f"near black (L* < {UNDER_L:g})", xyz, white)
+                     clipped, np.asarray(lab_l < UNDER_L, bool), f"near black (L* < {UNDER_L:g})", xyz, white)
 
 
 def load_frame(path: Path) -> ViewImage:
@@ -131,7 +133,7 @@ def load_frame(path: Path) -> ViewImage:
     raw = superpixel(frame, subtract_black=False)
     black = float(np.mean(frame.black_levels))
     display = display_rgb(np.maximum(raw - black, 0.0), full_scale=frame.white_level - black)
-    under = (raw - black < UNDER_FRACTION * (LINEAR_LIMIT_DN - black)).all(axis=2)
+    under = np.asarray((raw - black < UNDER_FRACTION * (LINEAR_LIMIT_DN - black)).all(axis=2), bool)
+    clipped = np.asarray((raw >= LINEAR_LIMIT_DN).any(axis=2), bool)
     return ViewImage(f"{Path(path).name} (raw frame, one pixel per 2x2 cell: {raw.shape[1]} x {raw.shape[0]})",
-                     display, raw.astype(np.float32), ["R", "G", "B"], "DN", (raw >= LINEAR_LIMIT_DN).any(axis=2),
-                     under)
+                     display, raw.astype(np.float32), ["R", "G", "B"], "DN", clipped, under)

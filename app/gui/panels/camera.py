@@ -138,11 +138,11 @@ class CameraPanel(QWidget):
         aids.addWidget(self.peaking)
         aids.addWidget(self.grid)
         aids.addStretch(1)
-        for w in (self.capture_button, self.live_button):
-            cl.addWidget(w)
+        cl.addWidget(self.capture_button)
+        cl.addWidget(self.live_button)
         cl.addLayout(aids)
-        for w in (self.capture_label, self.warning_label):
-            cl.addWidget(w)
+        cl.addWidget(self.capture_label)
+        cl.addWidget(self.warning_label)
         return box
 
     def _picture(self) -> QSplitter:

@@ -22,13 +22,16 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (
     QCheckBox,
+    QComboBox,
     QFileDialog,
     QGroupBox,
     QHBoxLayout,
     QHeaderView,
     QLabel,
+    QLineEdit,
     QPushButton,
     QScrollArea,
+    QSpinBox,
     QTableWidget,
     QTableWidgetItem,
     QTabWidget,
@@ -41,6 +44,7 @@ from dualrgb.app.gui.image_viewer import ImageViewer
 from dualrgb.app.gui.original_form import form_box, options_widget
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
+from dualrgb.app.gui.stand_options import DeliveryOptions
 from dualrgb.app.gui.widgets import side_by_side
 from dualrgb.app.gui.wording import in_window_words
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
@@ -70,6 +74,21 @@ OVERRIDE, LEAVE = "Capture anyway", "Leave it"
 
 class OriginalsPanel(QWidget):
     title = "Originals"
+    # made by app.gui.original_form (form_box, options_widget)
+    identifier: QLineEdit
+    title_edit: QLineEdit
+    operator: QLineEdit
+    notes: QLineEdit
+    mode: QComboBox
+    stand_in: QComboBox
+    stand_in_label: QLabel
+    add_button: QPushButton
+    import_button: QPushButton
+    import_report: QLabel
+    frames: QSpinBox
+    resolution: QComboBox
+    csv_columns: QLineEdit
+    delivery_options: DeliveryOptions
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
