@@ -89,6 +89,10 @@ class OriginalsPanel(QWidget):
     resolution: QComboBox
     csv_columns: QLineEdit
     delivery_options: DeliveryOptions
+    next_button: QPushButton
+    template: QLineEdit
+    collection: QLineEdit
+    counter: QSpinBox
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
