@@ -26,12 +26,17 @@ U+xFFFE / U+xFFFF): a superset of what XML 1.0 forbids, so an XMP packet made of
 identifier also refuses invisible format characters (Unicode Cf: zero-width joiners, bidi marks, soft hyphen),
 maps other spaces (no-break space ...) to U+0020 and needs a letter or a digit.
 
-File names (:func:`file_stem`): deterministic from the identifier alone, portable (only ``A-Z a-z 0-9 . _ -``, no
-Windows reserved name, no leading or trailing dot, at most 57 characters). An identifier that is its own safe
-rendering (upper case, those characters only, not reserved, short) is used as it is (``ACC-123``); any other gets
-its ASCII rendering plus ``_`` and 8 hex digits of the SHA-256 of its exact UTF-8 text (``ACC 1`` ->
-``ACC_1_8f7b...``). Distinct identifiers never share a name, also on case-insensitive file systems: kept names
-have no lower case and never end like a hash suffix; hashed names differ in the hash.
+File names (:func:`file_stem`): deterministic from the identifier alone; Unicode NFC, keeping every letter, digit
+and combining mark of any script (``東博-A-1`` stays ``東博-A-1``), other characters as ``_`` (only letters, digits,
+marks and ``. _ -``: nothing a Windows, macOS or Linux file system refuses), no Windows reserved name (also
+``COM¹``), no leading or trailing dot, at most 57 characters. An identifier that is its own rendering (no lower
+case, those characters only, not reserved, short) is used as it is (``ACC-123``, ``東博-A-1``); any other gets its
+rendering plus ``_`` and 8 hex digits of the SHA-256 of its exact UTF-8 text (``ACC 1`` -> ``ACC_1_8f7b...``).
+Distinct identifiers never share a name, also on case-insensitive file systems: kept names have no lower case and
+never end like a hash suffix; hashed names differ in the hash. Where a file system takes ASCII names only (an old
+Samba share, ISO 9660), :func:`ascii_stem` gives the documented, reversible transliteration: the stem as it is when
+ASCII, else ``xn--`` + its Punycode (RFC 3492, as IDNA writes host names: ``東博-A-1`` -> ``xn---A-1-...``);
+:func:`stem_of_ascii` reads it back. :func:`unicode_names_work` tells which a folder takes.
 
 TIFF ASCII tags (:func:`ascii_text`): TIFF 6.0 allows 7-bit ASCII only, so they carry a transliteration (NFKD,
 combining marks dropped, a few letters spelled out, typographic quotes and dashes as ASCII, '?' for the rest); the
@@ -41,11 +46,14 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import os
 import re
 import unicodedata
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
+from itertools import groupby
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -287,7 +295,6 @@ STEM_CHARS = 48                 # of the ASCII rendering; + "_" + 8 hex digits w
 HASH_DIGITS = 8
 WINDOWS_RESERVED = frozenset({"CON", "PRN", "AUX", "NUL", *(f"COM{i}" for i in range(10)),
                               *(f"LPT{i}" for i in range(10))})
-_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 _HASH_TAIL = re.compile(rf"_[0-9a-f]{{{HASH_DIGITS}}}$", re.IGNORECASE)
 
 
@@ -295,13 +302,50 @@ def _hash(text: str) -> str:
     return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()[:HASH_DIGITS]
 
 
+def _name_char(ch: str) -> bool:
+    """Whether a file name may hold ``ch`` on every common file system (a letter, digit or mark of any script,
+    '.', '_', '-')."""
+    return ch in "._-" or unicodedata.category(ch)[0] in "LNM"
+
+
+def _reserved(base: str) -> bool:
+    return unicodedata.normalize("NFKC", base).upper() in WINDOWS_RESERVED     # 'COM¹' is 'COM1' to Windows
+
+
 def _rendering(identifier: str) -> str:
-    text = _UNSAFE.sub("_", ascii_text(identifier).replace("?", "_")).strip("._-")
+    runs = groupby(unicodedata.normalize("NFC", identifier), key=_name_char)     # each run of others: one '_'
+    text = "".join("".join(chars) if kept else "_" for kept, chars in runs).strip("._-")
     text = text[:STEM_CHARS].strip("._-")
     base, dot, rest = text.partition(".")
-    if base.upper() in WINDOWS_RESERVED:         # 'CON', 'nul.txt': reserved with any extension
+    if _reserved(base):                          # 'CON', 'nul.txt': reserved with any extension
         text = f"{base}_{rest}".rstrip("_")
     return text or "original"
+
+
+def ascii_stem(stem: str) -> str:
+    """The reversible ASCII form of a file stem, for a file system that takes ASCII names only: ``stem`` when it
+    is ASCII, else ``xn--`` + its Punycode (RFC 3492); :func:`stem_of_ascii` is its inverse."""
+    return stem if stem.isascii() else "xn--" + stem.encode("punycode").decode("ascii")
+
+
+def stem_of_ascii(name: str) -> str:
+    """The file stem :func:`ascii_stem` made ``name`` from."""
+    return name[4:].encode("ascii").decode("punycode") if name.startswith("xn--") else name
+
+
+def unicode_names_work(folder: Path) -> bool:
+    """Whether ``folder``'s file system keeps a non-ASCII name (a CJK letter and an accented one) as written,
+    up to Unicode normalisation (HFS+ stores NFD): a probe file made and removed."""
+    probe = f".dualrgb-name-東é-{os.getpid()}"
+    try:
+        (folder / probe).touch(exist_ok=False)
+    except (OSError, UnicodeError):
+        return False
+    try:
+        names = {unicodedata.normalize("NFC", n) for n in os.listdir(folder)}
+        return probe in names
+    finally:
+        (folder / probe).unlink(missing_ok=True)
 
 
 def frame_stem(subject_key: object) -> str:
@@ -329,12 +373,12 @@ def file_stem(identifier: str) -> str:
     Returns
     -------
     str
-        ``identifier`` itself when it is its own portable rendering, else the rendering + ``_`` + 8 hex digits of
-        the identifier's SHA-256.
+        ``identifier`` itself (NFC, any script) when it is its own portable rendering, else the rendering + ``_``
+        + 8 hex digits of the identifier's SHA-256.
     """
     rendering = _rendering(identifier)
     faithful = (rendering == identifier and identifier == identifier.upper() and not _HASH_TAIL.search(identifier)
-                and rendering.partition(".")[0].upper() not in WINDOWS_RESERVED)
+                and not _reserved(rendering.partition(".")[0]))
     return rendering if faithful else f"{rendering}_{_hash(identifier)}"
 
 
@@ -352,5 +396,6 @@ def xmp_property(column: str) -> str:
 
 
 __all__ = ["COLUMN_RULE", "EXTRA_RULE", "FIELD_RULES", "MAX_EXTRA", "MODES", "FieldRule", "MetadataError", "Original",
-           "Whitespace", "ascii_text", "check_original", "file_stem", "frame_stem", "normalise", "normalise_extra",
+           "Whitespace", "ascii_text", "check_original", "file_stem", "ascii_stem", "stem_of_ascii",
+           "unicode_names_work", "frame_stem", "normalise", "normalise_extra",
            "normalise_identifier", "normalise_mode", "xmp_property"]

@@ -119,6 +119,8 @@ class CalibrationBox(QGroupBox):
         row = QHBoxLayout()
         for w in (self.calibrate_button, self.save_button, self.load_button, self.check_button):
             row.addWidget(w)
+        form.addRow(row)                                  # the primary action first (issue 42)
+        form.addRow(self.summary)
         self.charts = ChartsForm(self.ctx)
         form.addRow(self.charts)
         form.addRow(self.hdr_auto)
@@ -126,8 +128,6 @@ class CalibrationBox(QGroupBox):
         form.addRow("Flats per exposure", self.flat_frames)
         form.addRow(self.de_fit)
         form.addRow(self.sampling)
-        form.addRow(row)
-        form.addRow(self.summary)
         self.path_label = PathLabel("")
         form.addRow(self.path_label)
 

@@ -1,7 +1,6 @@
 """The calibration box's *Charts*: per target, the stand's own chart - its reference file (spectral CGATS or CSV),
 its layout (ROWSxCOLS) and the patches to leave out - or nothing for the mode's packaged target. The same choice
-as ``dualrgb calibrate --train-target FILE --train-layout 10x14 --train-leave-out A2,...``
-(app.workflow.calibration.charts,
+as the command line's training and test chart options (app.workflow.calibration.charts,
 which reads the files for both). Only wiring: the choices are kept in the settings.
 """
 from __future__ import annotations
@@ -16,8 +15,11 @@ from dualrgb.app.workflow.calibration.charts import ROLES, ChartChoice
 log = logging.getLogger(__name__)
 
 FIELDS = ("file", "layout", "leave_out")
-PLACEHOLDERS = {"file": "packaged target (no file)", "layout": "ROWSxCOLS, e.g. 10x14 (default: the file's)",
-                "leave_out": "patches to leave out, e.g. A2,A3"}
+PLACEHOLDERS = {"file": "packaged target", "layout": "10x14", "leave_out": "A2,A3"}
+TIPS = {"file": "The chart's reference file (the vendor's CGATS, ArgyllCMS .cie / .ti3, or a spectral CSV); empty: "
+                "the mode's packaged target (no file).",
+        "layout": "The chart's layout as ROWSxCOLS, e.g. 10x14; empty: the reference file's own layout.",
+        "leave_out": "Patches to leave out of the fit and the check, e.g. A2,A3; empty: none."}
 FILE_FILTER = "Chart references (*.txt *.cie *.ti3 *.sp *.cgats *.csv);;All files (*)"
 
 
@@ -48,7 +50,8 @@ class ChartsForm(QWidget):
     def _edit(self, role: str, field: str) -> QLineEdit:
         edit = QLineEdit(self.ctx.get(f"calibration/charts/{role}/{field}", "", str))
         edit.setPlaceholderText(PLACEHOLDERS[field])
-        edit.setToolTip("The stand's own chart (docs: how-to, own charts); empty: the mode's packaged target.")
+        edit.setToolTip(TIPS[field] + " The stand's own chart: docs, how-to, own charts.")
+        edit.setMinimumWidth(edit.fontMetrics().horizontalAdvance(PLACEHOLDERS[field]) + 16)
         edit.textChanged.connect(lambda text, r=role, f=field: self.ctx.set(f"calibration/charts/{r}/{f}", text))
         return edit
 

@@ -1,5 +1,5 @@
-"""Focus aid for live view (issue 30): a zoom box on the live picture shown at 100 % (one screen pixel per
-live-view pixel) and a focus measure of that region plotted over time.
+"""Focus aid for live view (issue 30): a zoom box on the live picture shown at 100, 200 or 400 % (one live-view
+pixel on 1, 2 or 4 screen pixels, issue 42) and a focus measure of that region plotted over time.
 
 The measure is Tenengrad (Krotkov 1987; Pertuz et al. 2013 compare it with 35 others): the mean squared Sobel
 gradient magnitude of the region's grey levels, divided by the region's mean squared (so a brighter light or a
@@ -20,9 +20,10 @@ from collections import deque
 import numpy as np
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QImage, QPixmap
-from PySide6.QtWidgets import QLabel, QScrollArea, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QComboBox, QLabel, QScrollArea, QVBoxLayout, QWidget
 from scipy import ndimage
 
+from dualrgb.app.gui.live_aids import MAGNIFICATIONS, magnified
 from dualrgb.app.gui.widgets import plot_widget
 
 log = logging.getLogger(__name__)
@@ -89,6 +90,11 @@ class FocusAid(QWidget):
         self.times: deque[float] = deque(maxlen=HISTORY)
         self.best = 0.0
         self._t0 = time.monotonic()
+        self.magnification = QComboBox()
+        for m in MAGNIFICATIONS:
+            self.magnification.addItem(f"{100 * m}\u00a0%", m)
+        self.magnification.setToolTip("The zoom box's magnification: one live-view pixel on 1, 2 or 4 screen "
+                                      "pixels (repeated, nothing interpolated).")
         self.zoom = QLabel("live view off")
         self.zoom.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.zoom.setToolTip("The zoom box at 100 %: one screen pixel per live-view pixel. Drag the box on the live "
@@ -104,6 +110,7 @@ class FocusAid(QWidget):
         self.label = QLabel("")
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.magnification)
         layout.addWidget(scroll, 2)
         layout.addWidget(self.label)
         layout.addWidget(self.plot, 2)
@@ -152,7 +159,8 @@ class FocusAid(QWidget):
             roi.setVisible(True)
         crop = frame[y:y + h, x:x + w]
         value = tenengrad(crop)
-        self.zoom.setPixmap(to_pixmap(crop if shown is None else shown[y:y + h, x:x + w]))
+        factor = int(self.magnification.currentData() or 1)
+        self.zoom.setPixmap(to_pixmap(magnified(crop if shown is None else shown[y:y + h, x:x + w], factor)))
         self.values.append(value)
         self.times.append(time.monotonic() - self._t0)
         self.best = max(self.best, value)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 
-from PySide6.QtCore import Qt, QTimer
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import QFrame, QLabel, QPushButton, QVBoxLayout, QWidget
 
 from dualrgb.app.gui.context import AppContext
@@ -66,6 +66,8 @@ class StepCard(QFrame):
 
 
 class WorkflowGuide(QWidget):
+    refreshed = Signal()                       # the steps were drawn again (app.gui.next_action follows them)
+
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
@@ -114,6 +116,7 @@ class WorkflowGuide(QWidget):
         for i, step in enumerate(self.steps, start=1):
             self.cards[step.step].show_step(step, i)
         self.open_button.setEnabled(self.ctx.lab.session is not None)
+        self.refreshed.emit()
 
     def step(self, which: DayStep) -> GuideStep:
         return next(s for s in self.steps if s.step is which)

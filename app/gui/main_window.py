@@ -15,7 +15,9 @@ from dualrgb.app.gui.context import AppContext, Bus, default_settings
 from dualrgb.app.gui.day_keeper import DayKeeper
 from dualrgb.app.gui.device_hub import Lab
 from dualrgb.app.gui.guide import WorkflowGuide
+from dualrgb.app.gui.next_action import NextAction
 from dualrgb.app.gui.panels.placeholder import NotAvailablePanel
+from dualrgb.app.gui.session_watch import SessionWatch
 from dualrgb.app.gui.units import temperature
 from dualrgb.app.gui.widgets import Asker, ErrorReporter, LogView
 from dualrgb.app.gui.window_menus import WheelGuard, build_menus
@@ -38,6 +40,7 @@ PANELS = (
     ("characterise", "dualrgb.app.gui.panels.characterise", "CharacterisePanel", "CRF sweep sequence"),
     ("tools", "dualrgb.app.gui.panels.tools", "ToolsPanel", "the copy-stand tools (app.workflow)"),
 )
+GUIDE_WIDTH = 270           # px: the workflow dock's fixed width; the panels get the rest of a 1280 px window
 PANEL_TITLES = {"devices": "Devices", "light": "Light source", "camera": "Camera", "capture": "Calibrate && capture",
                 "originals": "Originals", "target": "Target", "results": "Results",
                 "simulate": "Simulate && optimise", "characterise": "Characterise", "tools": "Tools"}
@@ -68,6 +71,7 @@ class MainWindow(QMainWindow):
         self._build_persistence()
         self.day = DayKeeper(self.ctx, self)       # the queue and calibration kept in the session; restored now
         self.day.restore()
+        self.session_watch = SessionWatch(self.ctx, self.capture_new_session, self)   # a gone folder said at once
 
     def _build_log_dock(self) -> None:
         self.log_view = LogView()
@@ -103,9 +107,12 @@ class MainWindow(QMainWindow):
         dock.setObjectName("guide_dock")
         dock.setWidget(scroll)
         dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable)
-        dock.setMinimumWidth(250)
+        dock.setFixedWidth(GUIDE_WIDTH)          # never moves the panels' buttons under the pointer (issue 42)
         self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dock)
         self.guide_dock = dock
+        self.next_action = NextAction(self.panels, lambda: self.lab.sphere is not None)
+        self.guide.refreshed.connect(lambda: self.next_action.show(self.guide.steps))
+        self.next_action.show(self.guide.steps)
 
     def _build_status_bar(self) -> None:
         self.sphere_state = QLabel("sphere: —")
@@ -162,6 +169,11 @@ class MainWindow(QMainWindow):
         for dock in (self.log_dock, self.guide_dock):
             dock.dockLocationChanged.connect(lambda *_: self._save_timer.start())
             dock.visibilityChanged.connect(lambda *_: self._save_timer.start())
+
+    def capture_new_session(self) -> None:
+        new_session = getattr(self.panels.get("capture"), "new_session", None)
+        if new_session is not None:
+            new_session()
 
     def _open_session(self, folder) -> None:
         open_session = getattr(self.panels.get("capture"), "open_session", None)

@@ -61,7 +61,7 @@ def world_combo(ctx: AppContext) -> QComboBox:
     combo.addItems(packaged_worlds())
     own = ctx.lab.world if isinstance(ctx.lab.world, str) else "nominal"
     combo.setCurrentText(own)
-    combo.setToolTip("The world the virtual lab renders (dualrgb measure --world).")
+    combo.setToolTip("The world the virtual lab renders.")
     return combo
 
 
@@ -91,8 +91,8 @@ class MeasureView(QWidget):
         self.result_label.setWordWrap(True)
         self.files_label = PathLabel("")
         self.use_button = QPushButton("Use in the next calibration")
-        self.use_button.setToolTip("The calibration box's measured curves (dualrgb calibrate --camera-csv / "
-                                   "--stand-dir): the stand model fitted to the captures starts from them.")
+        self.use_button.setToolTip("The calibration box's measured curves (Measured camera / "
+                                   "Measured LEDs): the stand model fitted to the captures starts from them.")
         self.use_button.setEnabled(False)
         self.use_button.clicked.connect(self.use_result)
         self.plot = plot_widget(bottom="wavelength (nm)", left="relative")
@@ -199,10 +199,13 @@ class CameraMeasureView(MeasureView):
         self.frames.setRange(1, 50)
         self.frames.setValue(2)
         self.radiance = QLineEdit()
-        self.radiance.setPlaceholderText("spectroradiometer readings (CSV or CGATS); the virtual lab measures its own")
+        self.radiance.setPlaceholderText("radiance CSV or CGATS")
+        self.radiance.setToolTip("The spectroradiometer's readings (CSV or CGATS); empty with the virtual lab: it "
+                                 "measures its own.")
         browse = QPushButton("…")
         browse.clicked.connect(lambda: self._browse(self.radiance, "Radiance readings"))
-        self.out.setPlaceholderText("<captures folder>/measurements/camera_csrf.csv")
+        self.out.setPlaceholderText("measurements/camera_csrf.csv")
+        self.out.setToolTip("Where the camera CSV is written; empty: <captures folder>/measurements/camera_csrf.csv.")
         self.form.addRow("Monochromator", self.bench)
         self.form.addRow("Serial port", self.port)
         self.form.addRow("World (virtual lab)", self.world)
@@ -310,7 +313,7 @@ class LedMeasureView(MeasureView):
         self.warmup_min.setToolTip("Warm-up per LED at full level (the virtual lab's clock skips the waiting).")
         self.out.setPlaceholderText("<captures folder>/measurements/leds")
         self.import_button = QPushButton("Import a real instrument's readings…")
-        self.import_button.setToolTip("dualrgb measure import-leds: spectroradiometer files (CGATS .ti3, .sp or "
+        self.import_button.setToolTip("Spectroradiometer files (CGATS .ti3, .sp or "
                                       "CSV) named LED<n>_level<x> / LED<n>_t<seconds>, analysed into the folder.")
         self.import_button.clicked.connect(self._ask_import)
         self.form.addRow("World (virtual lab)", self.world)
@@ -366,7 +369,7 @@ class LedMeasureView(MeasureView):
         level = measurement.min_stable_level
         stable = f"minimum stable level {level:.4g}" if level is not None else "minimum stable level not measured"
         self.result_label.setText(f"{len(measurement.leds)} LEDs measured, {stable}; {len(files)} files written "
-                                  "(simulate --stand-dir takes the folder)")
+                                  "(Simulate & optimise on the measured stand takes the folder)")
         self.files_label.set_path(str(self.out_path()))
         self.use_button.setEnabled(bool(files))
         self.written = files

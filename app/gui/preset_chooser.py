@@ -34,9 +34,7 @@ class PresetChooser(QWidget):
         self.presets: list[tuple[Path, Preset]] = []
         self.figures: list[PresetFigures | None] = []      # per preset, once computed
         self.combo = QComboBox()
-        self.combo.setToolTip("The preset whose lights this session uses (one preset per session), each with its "
-                              "expected captured error; the mode's recommended one is chosen unless you choose "
-                              "another.")
+        self.combo.setToolTip(COMBO_TIP)
         self.combo.currentIndexChanged.connect(self._changed)
         self.combo.activated.connect(self._picked)
         self.note = QLabel("")
@@ -150,13 +148,18 @@ class PresetChooser(QWidget):
         fig, best = self._figure(i), self._figure(rec)
         here = f"{fig.text()} on the training / test target" if fig is not None else "expected ΔE00 being computed"
         if rec is None or i == rec:
-            text = f"The recommended lights for {mode} originals (as dualrgb calibrate): {here}"
+            text = f"The recommended lights for {mode} originals (what Calibrate uses): {here}"
         else:
             text = (f"Not the recommended lights for {mode}: {here}; {self.presets[rec][1].name} (recommended)"
                     + (f": {best.text()}" if best is not None else ""))
-        self.note.setText(text + ". Expected ΔE00: the expected captured mean error dualrgb simulate reports for "
+        self.note.setText(text + ". Expected ΔE00: the expected captured mean error the simulation reports for "
                                  "these lights.")
         self.combo.view().setMinimumWidth(self.combo.view().sizeHintForColumn(0) + 24)   # the list shows it all
+        self.combo.setToolTip(f"{self.combo.currentText()}\n\n{COMBO_TIP}")     # the whole text of a narrow combo
+
+
+COMBO_TIP = ("The preset whose lights this session uses (one preset per session), each with its expected captured "
+             "error; the mode's recommended one is chosen unless you choose another.")
 
 
 def _key(path: Path | str) -> str:

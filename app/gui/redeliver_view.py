@@ -128,16 +128,16 @@ class RedeliverView(QWidget):
         self.calibration.addItem("the session's newest of each original's mode", NEWEST)
         self.calibration.addItem("the calibration loaded in the window", CURRENT)
         self.calibration.addItem("a calibration file…", FILE)
-        self.calibration.setToolTip("dualrgb process without --calibration: each original with the session's newest "
+        self.calibration.setToolTip("None chosen: each original with the session's newest "
                                     "calibration of its mode; with one, originals of its other mode are refused "
-                                    "unless 'also the other mode' is ticked (--force).")
+                                    "unless 'also the other mode' is ticked.")
         self.calibration.activated.connect(self._calibration_chosen)
         self.calibration.currentIndexChanged.connect(lambda _i: self._update())
         self.file_label = PathLabel("")
-        self.force = QCheckBox("also originals of the other mode (--force; said in the sidecar and QA line)")
+        self.force = QCheckBox("also originals of the other mode (said in the sidecar and QA line)")
         self.resolution, self.render_light = resolution_combo(self.ctx), render_combo(self.ctx)
         self.ppi = number_spin(self.ctx, PPI_KEY, MAX_PPI, "\u00a0ppi", "the calibration's",
-                               "Sampling written into the deliverables (dualrgb process --ppi).")
+                               "Sampling written into the deliverables.")
         self.start_button = QPushButton("Re-deliver")
         self.start_button.clicked.connect(self.start)
         self.cancel_button = QPushButton("Cancel")
@@ -168,7 +168,7 @@ class RedeliverView(QWidget):
         buttons.addWidget(self.cancel_button)
         buttons.addWidget(self.progress, 1)
         layout = QVBoxLayout(self)
-        note = QLabel("Every original of the session is delivered again from its raw frames (dualrgb process); its "
+        note = QLabel("Every original of the session is delivered again from its raw frames; its "
                       "current deliverables move to its previous/ folder.")
         note.setWordWrap(True)
         layout.addWidget(note)

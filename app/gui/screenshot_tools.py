@@ -18,6 +18,9 @@ def tool_steps(run: Any) -> list[Step]:
         w.show_panel("camera")
         w.camera.live_button.setChecked(True)
         w.camera.framing_box.check.setChecked(True)
+        w.camera.peaking.setChecked(True)                  # issue 42: focus peaking, the grid, the box at 200 %
+        w.camera.grid.setChecked(True)
+        w.camera.focus.magnification.setCurrentIndex(1)
         return lambda: len(w.camera.focus.values) >= 8
 
     def live_off() -> None:
@@ -51,3 +54,29 @@ def tool_steps(run: Any) -> list[Step]:
             ("measure the camera", camera), ("screenshot camera measurement", lambda: run.shoot("tools",
                                                                                                "tools-camera")),
             ("measure the LEDs", leds), ("screenshot LED measurement", lambda: run.shoot("tools", "tools-leds"))]
+
+
+def viewer_steps(run: Any) -> list[Step]:
+    """The viewer (issue 42): the shadow original's delivered master at 400 % with the clipping and
+    under-exposure overlay, centred where the overlay marks most."""
+    w = run.w
+    org = w.originals
+
+    def load() -> Callable[[], bool]:
+        w.show_panel("originals")
+        org.tabs.setCurrentWidget(org.viewer)
+        org.select("ACC-1902-03")
+        return lambda: org.viewer.picture is not None and "ACC-1902-03" in org.viewer.picture.title
+
+    def zoom() -> None:
+        import numpy as np
+        from PySide6.QtCore import QPointF
+
+        pic = org.viewer.picture
+        marked = np.argwhere(pic.clipped | pic.under) if pic is not None else np.zeros((0, 2))
+        h, wd = pic.shape if pic is not None else (0, 0)
+        y, x = marked.mean(axis=0) if len(marked) else (h / 2, wd / 2)
+        org.viewer.set_zoom(4.0, QPointF(float(x), float(y)))
+
+    return [("viewer: the shadow original", load), ("viewer at 400 %", zoom),
+            ("screenshot viewer", lambda: run.shoot("originals", "viewer-400"))]

@@ -16,7 +16,7 @@ from pathlib import Path
 from PySide6.QtCore import QBuffer, QIODevice, QObject, QTimer
 from PySide6.QtWidgets import QApplication
 
-from dualrgb.app.gui.screenshot_tools import tool_steps
+from dualrgb.app.gui.screenshot_tools import tool_steps, viewer_steps
 from dualrgb.app.workflow.day.day import OriginalState
 from dualrgb.common.atomic_files import atomic_write
 
@@ -71,6 +71,7 @@ class ScreenshotRun(QObject):
             ("screenshot delivered", lambda: self.shoot("originals", "delivered")),
             ("screenshot guide", lambda: self.shoot_widget(w.guide_dock, "guide")),
             *tool_steps(self),                          # issue 30's panels (app.gui.screenshot_tools)
+            *viewer_steps(self),                        # issue 42's viewer
             ("list targets", self._list_targets),
             ("grid on the training target", lambda: self._place_grid("target:train")),
             ("grid on the test target", lambda: self._place_grid("target:test")),

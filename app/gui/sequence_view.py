@@ -32,6 +32,7 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.frame_preview import FramePreview
 from dualrgb.app.gui.units import shutter, time_left_s
 from dualrgb.app.gui.viewmodel import format_duration
+from dualrgb.app.gui.wording import in_window_words
 from dualrgb.app.gui.workers import TaskHandle
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.core.engine import RUN_PROGRESS
@@ -217,6 +218,7 @@ class SequenceView(QWidget):
         self.show_plan(seq.plan(), seq.name, done)
         self.progress.setValue(0)
         self.time_left.setText("")
+        self.ctx.errors.clear()                     # an earlier run's error is not this one's (issue 42)
         self.message.setText(f"{seq.name}: starting …")
         self._t_start = time.monotonic()
         self._frame_times = [(self._t_start, 0.0)]
@@ -279,7 +281,7 @@ class SequenceView(QWidget):
     def _on_error(self, exc: BaseException) -> None:
         self.outcome = "failed"
         name = self.seq.name if self.seq else "sequence"
-        self.message.setText(f"{name} stopped: {exc} (lights off)")
+        self.message.setText(f"{name} stopped: {in_window_words(str(exc))} (lights off)")
         self.ctx.errors.report(f"{name[:1].upper()}{name[1:]} stopped", exc)
 
     def _on_finished(self) -> None:
@@ -288,6 +290,7 @@ class SequenceView(QWidget):
             self.outcome = "done"
             self._done_message(seq)
         self._set_running(False)
+        self.time_left.setText("")                 # never a stale time left after a run ends or is cancelled
         self.continue_button.hide()
         self.pause_button.setChecked(False)
         self.ctx.workspace.set_running("")

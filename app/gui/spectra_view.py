@@ -77,7 +77,7 @@ class DeliveredView(QWidget):
         for key, name in render_lights().items():
             self.illuminant.addItem(key if key == name else f"{key} ({name})", key)
         self.illuminant.setToolTip("The light the cube is rendered under here (the delivered rendering's light is "
-                                   "chosen with --render-illuminant / the default D65).")
+                                   "chosen in Originals > Options, D65 by default).")
         self.illuminant.currentIndexChanged.connect(lambda _i: self.render_light())
         self.info = QLabel("no delivered original selected")
         self.info.setWordWrap(True)

@@ -38,9 +38,9 @@ def render_combo(ctx: AppContext) -> QComboBox:
     for key, name in light_keys().items():
         combo.addItem(key if key == name else f"{key} ({name})", key)
     combo.setCurrentIndex(max(0, combo.findData(ctx.get(RENDER_KEY, DEFAULT_RENDER_ILLUMINANT, str))))
-    combo.setToolTip("The light the spectral cube's rendering is seen under (dualrgb capture / process "
-                     "--render-illuminant): <id>_under_<LIGHT>_prophoto_16bit.tif at half resolution, named in the "
-                     "sidecar for `dualrgb cube` at full resolution. The colorimetric masters are D50/D65 as always.")
+    combo.setToolTip("The light the spectral cube's rendering is seen under: <id>_under_<LIGHT>_prophoto_16bit.tif "
+                     "at half resolution, named in the sidecar for the cube made on demand at full resolution. The "
+                     "colorimetric masters are D50/D65 as always.")
     combo.currentIndexChanged.connect(lambda _i: ctx.set(RENDER_KEY, combo.currentData()))
     return combo
 
@@ -51,7 +51,7 @@ def resolution_combo(ctx: AppContext) -> QComboBox:
     for key, label in RESOLUTION_CHOICES.items():
         combo.addItem(label, key)
     combo.setCurrentIndex(max(0, combo.findData(ctx.get(RESOLUTION_KEY, "full", str))))
-    combo.setToolTip("Full: the sensor's pixels; half: one pixel per 2x2 Bayer cell (--resolution half).")
+    combo.setToolTip("Full: the sensor's pixels; half: one pixel per 2x2 Bayer cell (no interpolation).")
     combo.currentIndexChanged.connect(lambda _i: ctx.set(RESOLUTION_KEY, combo.currentData()))
     return combo
 
@@ -99,7 +99,7 @@ class DeliveryOptions(QWidget):
         super().__init__(parent)
         self.render_light = render_combo(ctx)
         self.ppi = number_spin(ctx, PPI_KEY, MAX_PPI, "\u00a0ppi", "the calibration's",
-                               "Sampling written into the deliverables (dualrgb capture --ppi); leave at the "
+                               "Sampling written into the deliverables; leave at the "
                                "calibration's (from its test target) unless the stand's scale is known otherwise.")
         rows(self, ("Rendering light", self.render_light), ("Sampling", self.ppi))
 
@@ -115,18 +115,20 @@ class CalibrationSampling(QWidget):
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
         self.ctx = ctx
-        self.camera_csv = path_edit(ctx, CAMERA_CSV_KEY, "nominal curves (or a camera CSV: Tools > Measure the "
-                                    "camera)", "dualrgb calibrate --camera-csv: the stand model fitted to the "
-                                    "captures starts from the camera's measured sensitivities.")
-        self.stand_dir = path_edit(ctx, STAND_DIR_KEY, "nominal LEDs (or a stand folder: Tools > Measure the LEDs)",
-                                   "dualrgb calibrate --stand-dir: the LEDs' measured spectra and level curves are "
+        self.camera_csv = path_edit(ctx, CAMERA_CSV_KEY, "nominal camera curves",
+                                    "Empty: the nominal camera curves. A camera CSV (Tools > Measure the camera): the "
+                                    "stand model fitted to the captures starts from the camera's measured "
+                                    "sensitivities.")
+        self.stand_dir = path_edit(ctx, STAND_DIR_KEY, "nominal LEDs",
+                                   "Empty: the nominal LEDs. A stand folder (Tools > Measure the LEDs): the LEDs' "
+                                   "measured spectra and level curves are "
                                    "the stand model's starting curves; an LED set below the measured minimum "
                                    "stable level is warned about.")
         self.target_width = number_spin(ctx, TARGET_WIDTH_KEY, MAX_TARGET_MM, "\u00a0mm", "not measured",
-                                        "The test target's width, outer corners of its corner patches (dualrgb "
-                                        "calibrate --target-width-mm): the calibration's ppi follows from it.")
+                                        "The test target's width, outer corners of its corner patches: the"
+                                        " calibration's ppi follows from it.")
         self.ppi = number_spin(ctx, CAL_PPI_KEY, MAX_PPI, "\u00a0ppi", "from the target",
-                               "The sensor's sampling at the object plane (dualrgb calibrate --ppi); it overrides "
+                               "The sensor's sampling at the object plane; it overrides "
                                "the target's width.")
         rows(self, ("Test target width", self.target_width), ("Sampling", self.ppi),
              ("Measured camera", self.camera_csv), ("Measured LEDs", self.stand_dir))

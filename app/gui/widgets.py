@@ -21,6 +21,7 @@ from PySide6.QtWidgets import (
 )
 
 from dualrgb.app.gui.de_scale import DeBand, de_bands
+from dualrgb.app.gui.wording import in_window_words
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +91,7 @@ class LogView(QWidget):
 
     @Slot(str, int)
     def append(self, line: str, level: int = logging.INFO) -> None:
+        line = in_window_words(line)                # the workflow's lines in the window's words (issue 42)
         self.lines.append(line)
         if level >= logging.ERROR:
             line = f"<span style='color:#c62828'>{_html(line)}</span>"
@@ -138,12 +140,17 @@ class ErrorReporter(QObject):
         self.current: tuple[str, str] | None = None
 
     def report(self, title: str, error: object, level: int = logging.ERROR) -> None:
-        message = str(error) or type(error).__name__
+        message = in_window_words(str(error) or type(error).__name__)
         log.log(level, "%s: %s", title, message)
         self.history.append((title, message))
         self.current = (title, message)
         self.shown.emit(title, message)
         if not self.show_dialogs:
+            return
+        same = next((b for b in self.dialogs if b.windowTitle() == title), None)
+        if same is not None:                       # one message per error: the open box says the latest
+            same.setText(message)
+            same.raise_()
             return
         box = QMessageBox(QMessageBox.Icon.Warning if level < logging.ERROR else QMessageBox.Icon.Critical,
                           title, message, QMessageBox.StandardButton.Ok, self._parent)
@@ -184,6 +191,7 @@ class Asker(QObject):
             default: str) -> None:
         if default not in choices:
             raise ValueError(f"default answer {default!r} is not one of {list(choices)}")
+        text = in_window_words(text)
         self.history.append((title, text))
         self.asked.emit(title, text)
         log.info("asked: %s: %s", title, text)

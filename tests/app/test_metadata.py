@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 import re
+import unicodedata
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -19,7 +20,16 @@ from xmp_check import EXIFTOOL, NO_EXIFTOOL, exiftool_text, read_xmp
 from dualrgb.app.processing.pipeline import ChannelStack
 from dualrgb.app.workflow.delivery.delivery import LightDoseRecord, deliver, read_sidecar
 from dualrgb.app.workflow.delivery.delivery_folder import PREVIOUS, DeliveryFolderError, previous_sets
-from dualrgb.core.metadata import MetadataError, Original, ascii_text, file_stem, xmp_property
+from dualrgb.core.metadata import (
+    MetadataError,
+    Original,
+    ascii_stem,
+    ascii_text,
+    file_stem,
+    stem_of_ascii,
+    unicode_names_work,
+    xmp_property,
+)
 from dualrgb.core.vocabulary import Role, Subject, split_take, step_id
 
 # (identifier, title, operator, notes, ImageDescription's ASCII rendering of "<identifier> - <title>")
@@ -67,7 +77,9 @@ def test_world_text_delivers_and_reads_back_exactly(prof, tmp_path, ident, title
                                 "mode": "reflective", "extra": {"Standort": "Depot 3 – Regal 7"}}
     raw = d.sidecar.read_bytes().decode("utf-8")
     assert title in raw and "\\u" not in raw                                       # UTF-8, not \\u escapes
-    assert d.sidecar.parent.name.isascii() and all(p.name.isascii() for p in d.files.values())
+    stem = file_stem(ident)                                                  # the identifier's letters kept (#42)
+    assert d.sidecar.parent.name == stem and all(p.name.startswith(stem + "_") for p in d.files.values())
+    assert unicodedata.normalize("NFC", stem) == stem and stem.split("_")[0] == ident.split("/")[0].split(" ")[0]
 
 
 @pytest.mark.parametrize("ident, title, operator, notes, described", WORLD, ids=["de", "fr", "ja"])
@@ -179,12 +191,37 @@ HARD_IDENTIFIERS = ["ACC-1", "acc-1", "Acc-1", "ACC 1", "ACC/1", "ACC\\1", "ACC_
 def test_file_stems_are_portable_and_deterministic():
     for ident in HARD_IDENTIFIERS:
         stem = file_stem(ident)
-        assert re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", stem), (ident, stem)
+        assert re.fullmatch(r"[^\W_][\w.-]*", stem) and stem == unicodedata.normalize("NFC", stem), (ident, stem)
+        assert not set(stem) & set('<>:"/\\|?* '), (ident, stem)              # nothing a file system refuses
         assert not stem.endswith((".", " ")) and len(stem) <= 57, (ident, stem)
-        assert stem.partition(".")[0].upper() not in {"CON", "PRN", "AUX", "NUL", "COM1", "LPT9"}, (ident, stem)
+        base = unicodedata.normalize("NFKC", stem.partition(".")[0]).upper()
+        assert base not in {"CON", "PRN", "AUX", "NUL", "COM1", "LPT9"}, (ident, stem)
         assert file_stem(ident) == stem                                        # from the identifier alone
     assert file_stem("ACC-123") == "ACC-123" and file_stem("1987.12.3") == "1987.12.3"     # faithful: unchanged
     assert file_stem("ACC 1") == "ACC_1_" + hashlib.sha256(b"ACC 1").hexdigest()[:8]
+    assert file_stem("東博-A-1") == "東博-A-1" and file_stem("ACC-É") == "ACC-É"          # any script, kept whole
+    assert file_stem("Öl auf Holz") == "Öl_auf_Holz_" + hashlib.sha256("Öl auf Holz".encode()).hexdigest()[:8]
+
+
+def test_the_ascii_transliteration_is_reversible():
+    for ident in [*HARD_IDENTIFIERS, "東博-A-1", "Öl auf Holz", "INV-é/12"]:
+        stem = file_stem(ident)
+        name = ascii_stem(stem)
+        assert name.isascii() and re.fullmatch(r"[A-Za-z0-9._-]+", name), (ident, name)
+        assert stem_of_ascii(name) == stem
+    assert ascii_stem("ACC-1") == "ACC-1" and ascii_stem("東博-A-1").startswith("xn--")
+
+
+def test_this_file_system_takes_unicode_names(tmp_path):
+    assert unicode_names_work(tmp_path)                  # ext4, tmpfs, APFS, NTFS: yes
+    assert not unicode_names_work(tmp_path / "missing")  # a folder gone: no (nothing made)
+
+
+def test_a_delivery_of_a_japanese_identifier_keeps_its_characters(prof, tmp_path):
+    d = run(prof, Original("東博-A-1", title="富嶽三十六景"), tmp_path / "out")
+    assert d.sidecar.parent.name == "東博-A-1" and d.sidecar.name == "東博-A-1.json"
+    assert all(p.name.startswith("東博-A-1_") for p in d.files.values()), sorted(p.name for p in d.files.values())
+    assert read_xmp(d.files["srgb"]).identifier == "東博-A-1"
 
 
 def test_distinct_identifiers_never_share_a_name_even_ignoring_case():

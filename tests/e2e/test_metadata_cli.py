@@ -60,6 +60,8 @@ def test_world_originals_deliver_exactly_and_process_keeps_the_previous_set(cal)
         done = json.loads((root / "w.json").read_text())
         side = json.loads(Path(done["sidecar"]).read_text(encoding="utf-8"))
         assert side["original"]["identifier"] == ident and side["original"]["title"] == title
+        if ident == "東博-A-1":                                          # the CLI keeps its letters too (issue 42)
+            assert Path(done["sidecar"]).parent.name == side["file_stem"] == ident
         for path in (p for p in done["files"].values() if p.endswith(".tif")):
             xmp = read_xmp(Path(path))
             assert (xmp.identifier, xmp.title, xmp.dualrgb["Operator"], xmp.dualrgb["Notes"]) == \

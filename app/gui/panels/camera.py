@@ -7,12 +7,14 @@ import logging
 from pathlib import Path
 
 import numpy as np
+import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QGridLayout,
     QGroupBox,
+    QHBoxLayout,
     QLabel,
     QPushButton,
     QSplitter,
@@ -24,6 +26,7 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.focus_aid import FocusAid, brightened
 from dualrgb.app.gui.frame_preview import WARNING_STYLE, HistogramPlot
 from dualrgb.app.gui.framing_light import FramingBox, FramingLight
+from dualrgb.app.gui.live_aids import live_overlay
 from dualrgb.app.gui.viewmodel import RawView, preview_histogram, raw_view
 from dualrgb.app.gui.widgets import PathLabel, image_widget, side_by_side
 from dualrgb.core.session.capture_session import atomic_write
@@ -126,8 +129,20 @@ class CameraPanel(QWidget):
         self.warning_label = QLabel("")
         self.warning_label.setWordWrap(True)
         self.warning_label.setStyleSheet(WARNING_STYLE)
-        for w in (self.capture_button, self.live_button, self.capture_label, self.warning_label):
-            cl.addWidget(w)
+        self.peaking = QCheckBox("Focus peaking")
+        self.peaking.setToolTip("Mark the sharpest edges of the live picture in green (app.gui.live_aids): turn the "
+                                "focus ring until the marks crowd on the subject's edges.")
+        self.grid = QCheckBox("Grid")
+        self.grid.setToolTip("Thirds over the live picture, to square the original on the stand.")
+        aids = QHBoxLayout()
+        aids.addWidget(self.peaking)
+        aids.addWidget(self.grid)
+        aids.addStretch(1)
+        cl.addWidget(self.capture_button)
+        cl.addWidget(self.live_button)
+        cl.addLayout(aids)
+        cl.addWidget(self.capture_label)
+        cl.addWidget(self.warning_label)
         return box
 
     def _picture(self) -> QSplitter:
@@ -336,8 +351,20 @@ class CameraPanel(QWidget):
         self.view_title.setText(f"live view {frame.shape[1]}x{frame.shape[0]}"
                                 + (f", brightened x{gain:.2g} for the framing light" if gain > 1 else ""))
         self.focus.feed(frame, shown)
+        self._show_aids(frame)
         if hist is not None:
             self.show_histogram(hist, "live view (estimated from the preview)")
+
+    def _show_aids(self, frame) -> None:
+        """Focus peaking and the grid over the live picture (app.gui.live_aids)."""
+        if not hasattr(self, "aid_overlay"):
+            self.aid_overlay = pg.ImageItem(axisOrder="row-major")
+            self.viewbox.addItem(self.aid_overlay)
+        on = self.peaking.isChecked() or self.grid.isChecked()
+        self.aid_overlay.setVisible(on)
+        if on:
+            overlay = live_overlay(frame, peaking=self.peaking.isChecked(), grid=3 if self.grid.isChecked() else 0)
+            self.aid_overlay.setImage(overlay, autoLevels=False, levels=(0, 255))
 
     def shutdown(self) -> None:
         self._live_timer.stop()

@@ -30,6 +30,7 @@ from PySide6.QtWidgets import (
 
 from dualrgb.app.gui.calibration_box import CalibrationBox
 from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.image_viewer import ImageViewer
 from dualrgb.app.gui.preset_chooser import PresetChooser
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.uniformity_view import UniformityView
@@ -90,8 +91,8 @@ class CapturePanel(QWidget):
         self.view.start_button.clicked.connect(self.start)
         self.view.finished.connect(self._finished)
         self.calibration = CalibrationBox(ctx, self.view, self.stand_settings, self.plans)
-        boxes = (self._session_box(), self._lights_box(), self.calibration, self._sequence_box())
-        self._layout(boxes)
+        self.view.start_button.setText("Run single step")    # secondary: Calibrate is the primary action (issue 42)
+        self._layout((self.calibration, self._session_box(), self._lights_box(), self._sequence_box()))
         self._connect()
         self._kind_changed()
         self.chooser.load()
@@ -221,6 +222,8 @@ class CapturePanel(QWidget):
         self.right = QTabWidget()
         self.right.addTab(self.view, "Run")
         self.right.addTab(self.uniformity, "Flat-field uniformity")
+        self.viewer = ImageViewer(self.ctx, follow_frames=True)     # the last frame, full size (issue 42)
+        self.right.addTab(self.viewer, "Viewer")
         side_by_side(self, scroll, self.right, sizes=[470, 800])
 
     def _connect(self) -> None:

@@ -77,7 +77,7 @@ class DevicesPanel(QWidget):
         self.sphere_light = StatusLight("not connected")
         self.sphere_message = QLabel("")
         self.sphere_message.setWordWrap(True)
-        _device_grid(box, "Port", self.port_combo, self.refresh_ports, self.sphere_button, self.sphere_light,
+        _device_grid(box, "Port", self.port_combo, self.sphere_button, self.refresh_ports, self.sphere_light,
                      self.sphere_message)
         return box
 
@@ -94,7 +94,7 @@ class DevicesPanel(QWidget):
         self.camera_light = StatusLight("not connected")
         self.camera_message = QLabel("")
         self.camera_message.setWordWrap(True)
-        _device_grid(box, "Camera", self.camera_combo, self.detect_button, self.camera_button, self.camera_light,
+        _device_grid(box, "Camera", self.camera_combo, self.camera_button, self.detect_button, self.camera_light,
                      self.camera_message)
         return box
 
@@ -375,11 +375,12 @@ class DevicesPanel(QWidget):
             self._camera_changed()
 
 
-def _device_grid(box: QGroupBox, label: str, combo: QComboBox, find: QPushButton, connect: QPushButton,
+def _device_grid(box: QGroupBox, label: str, combo: QComboBox, connect: QPushButton, find: QPushButton,
                  light: StatusLight, message: QLabel) -> None:
-    """One device's row: its choice, the find and connect buttons, then its status light and message."""
+    """One device's row: its choice, the connect button (the primary action first) and the find one, then its
+    status light and message."""
     grid = QGridLayout(box)
-    for col, w in enumerate((QLabel(label), combo, find, connect)):
+    for col, w in enumerate((QLabel(label), combo, connect, find)):
         grid.addWidget(w, 0, col)
     grid.addWidget(light, 1, 0, 1, 4)
     grid.addWidget(message, 2, 0, 1, 4)

@@ -23,7 +23,6 @@ from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QFileDialog,
-    QFormLayout,
     QGroupBox,
     QHBoxLayout,
     QHeaderView,
@@ -40,11 +39,13 @@ from PySide6.QtWidgets import (
 )
 
 from dualrgb.app.gui.context import AppContext
+from dualrgb.app.gui.image_viewer import ImageViewer
+from dualrgb.app.gui.original_form import form_box, options_widget
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
 from dualrgb.app.gui.stand_options import DeliveryOptions
 from dualrgb.app.gui.widgets import side_by_side
-from dualrgb.app.processing.masters import RESOLUTION_CHOICES
+from dualrgb.app.gui.wording import in_window_words
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.day.day import OriginalsQueue, OriginalState, QueueRow
 from dualrgb.app.workflow.day.day_file import restore_queue
@@ -55,7 +56,7 @@ from dualrgb.app.workflow.stand.copystand import StandSettings, original_takes
 from dualrgb.app.workflow.stand.defaults import SETTLE_S
 from dualrgb.app.workflow.stand.mode_rule import mode_problem
 from dualrgb.core.engine import Run, RunHooks
-from dualrgb.core.metadata import MODES, Original
+from dualrgb.core.metadata import Original
 from dualrgb.core.vocabulary import EventKind
 
 log = logging.getLogger(__name__)
@@ -72,6 +73,25 @@ OVERRIDE, LEAVE = "Capture anyway", "Leave it"
 
 class OriginalsPanel(QWidget):
     title = "Originals"
+    # made by app.gui.original_form (form_box, options_widget)
+    identifier: QLineEdit
+    title_edit: QLineEdit
+    operator: QLineEdit
+    notes: QLineEdit
+    mode: QComboBox
+    stand_in: QComboBox
+    stand_in_label: QLabel
+    add_button: QPushButton
+    import_button: QPushButton
+    import_report: QLabel
+    frames: QSpinBox
+    resolution: QComboBox
+    csv_columns: QLineEdit
+    delivery_options: DeliveryOptions
+    next_button: QPushButton
+    template: QLineEdit
+    collection: QLineEdit
+    counter: QSpinBox
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
         super().__init__(parent)
@@ -93,16 +113,21 @@ class OriginalsPanel(QWidget):
         self.tabs = QTabWidget()
         self.tabs.addTab(self.view, "Capture")
         self.tabs.addTab(self.delivered, "Delivered")
+        self.viewer = ImageViewer(ctx)                # the delivered master at full resolution (issue 42)
+        self.tabs.addTab(self.viewer, "Viewer")
         left = QWidget()
         lv = QVBoxLayout(left)
-        lv.addWidget(self._form_box())
+        lv.addWidget(form_box(self))
         lv.addWidget(self._calibration_box())
         lv.addWidget(self._queue_box(), 1)
+        self.left_tabs = QTabWidget()              # the day's options apart: the queue's buttons stay in view
+        self.left_tabs.addTab(left, "Queue")
+        self.left_tabs.addTab(options_widget(self), "Options")
         scroll = QScrollArea()                      # a short screen scrolls the column; no row is squeezed
-        scroll.setWidget(left)
+        scroll.setWidget(self.left_tabs)
         scroll.setWidgetResizable(True)
         scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-        scroll.setMinimumWidth(left.minimumSizeHint().width())
+        scroll.setMinimumWidth(self.left_tabs.minimumSizeHint().width())
         side_by_side(self, scroll, self.tabs, stretch=(3, 2), sizes=[560, 540])
         self._connect()
         self._virtual_changed()
@@ -110,79 +135,6 @@ class OriginalsPanel(QWidget):
         self.fill_table()
 
     # ------------------------------------------------------------------ builders
-    def _form_box(self) -> QGroupBox:
-        box = QGroupBox("Add an original")
-        form = QFormLayout(box)
-        self.identifier = QLineEdit()
-        self.identifier.setPlaceholderText("required: accession number, e.g. ACC-123 (names every file)")
-        self.identifier.textChanged.connect(lambda _t: self._update_enabled())
-        self.identifier.returnPressed.connect(self.add_original)
-        self.title_edit = QLineEdit()
-        self.operator = QLineEdit(self.ctx.get("originals/operator", "", str))
-        self.operator.setToolTip("Remembered for the next originals and the next session.")
-        self.operator.textChanged.connect(lambda t: self.ctx.set("originals/operator", t))
-        self.notes = QLineEdit()
-        self.mode = QComboBox()
-        self.mode.addItems(MODES)
-        self.mode.setToolTip("Reflective: paintings, prints on the stand. Transmissive: film on the light box.")
-        self.stand_in = QComboBox()
-        self.stand_in.addItems(self.lab.virtual_originals())
-        self.stand_in.setToolTip("Virtual lab: which virtual original lies on the stand for this one (the shadow "
-                                 "needs an HDR bracket).")
-        self.frames = QSpinBox()
-        self.frames.setRange(1, 32)
-        self.frames.setToolTip("Frames averaged per exposure: noise / sqrt(N), light dose x N.")
-        self.resolution = QComboBox()
-        for key, label in RESOLUTION_CHOICES.items():
-            self.resolution.addItem(label, key)
-        self.resolution.setCurrentIndex(max(0, self.resolution.findData(self.ctx.get("originals/resolution", "full",
-                                                                                     str))))
-        self.resolution.setToolTip("Full: the sensor's pixels (each light's frames demosaiced, Malvar-He-Cutler, "
-                                   "linear). Half: one pixel per 2x2 Bayer cell, no interpolation (a quarter of the "
-                                   "pixels, as dualrgb capture --resolution half). Remembered.")
-        self.resolution.currentIndexChanged.connect(
-            lambda _i: self.ctx.set("originals/resolution", self.resolution.currentData()))
-        self.add_button = QPushButton("Add to the queue")
-        self.add_button.clicked.connect(self.add_original)
-        form.addRow("Identifier *", self.identifier)
-        form.addRow("Title", self.title_edit)
-        form.addRow("Operator", self.operator)
-        form.addRow("Notes", self.notes)
-        form.addRow("Mode", self.mode)
-        self.stand_in_label = QLabel("Virtual stand-in")
-        form.addRow(self.stand_in_label, self.stand_in)
-        form.addRow("Frames per exposure", self.frames)
-        form.addRow("Deliver at", self.resolution)
-        self.delivery_options = DeliveryOptions(self.ctx)      # --render-illuminant, --ppi (app.gui.stand_options)
-        form.addRow(self.delivery_options)
-        self._import_rows(form)
-        box.setMinimumHeight(box.sizeHint().height())       # on a short screen the queue gives way, not a row
-        return box
-
-    def _import_rows(self, form: QFormLayout) -> None:
-        """Add / Import CSV... buttons, the CSV's column names, the last import's bad rows."""
-        self.import_button = QPushButton("Import CSV…")
-        self.import_button.setToolTip("Add a day's originals from a CSV exported from the collection database "
-                                      "(UTF-8; columns identifier, title, operator, notes, mode; other columns are "
-                                      "kept as extra metadata). Every row is checked first; bad rows are listed.")
-        self.import_button.clicked.connect(self.choose_csv)
-        self.csv_columns = QLineEdit(self.ctx.get("originals/csv_columns", "", str))
-        self.csv_columns.setPlaceholderText("only if the header differs: identifier=Accession No.; title=Titel")
-        self.csv_columns.setToolTip("Which column of the collection database's CSV holds a field, when its header does "
-                                    "not name it identifier, title, operator, notes or mode (as --column does on the "
-                                    "command line). Remembered.")
-        self.csv_columns.textChanged.connect(lambda t: self.ctx.set("originals/csv_columns", t))
-        buttons = QHBoxLayout()
-        buttons.addWidget(self.add_button)
-        buttons.addWidget(self.import_button)
-        form.addRow(buttons)
-        form.addRow("CSV columns", self.csv_columns)
-        self.import_report = QLabel("")
-        self.import_report.setWordWrap(True)
-        self.import_report.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        self.import_report.setToolTip("The last CSV import: its bad rows, one line each (row, column, problem).")
-        form.addRow(self.import_report)
-
     def _calibration_box(self) -> QGroupBox:
         box = QGroupBox("Calibration used")
         lay = QVBoxLayout(box)
@@ -415,6 +367,8 @@ class OriginalsPanel(QWidget):
                                             or "channels_1" in delivered[0].files)   # (full resolution: on demand)
         if spectral and delivered[0].sidecar != self._shown:
             self.show_delivered(delivered[0])
+        if len(delivered) == 1 and delivered[0].sidecar is not None:
+            self.viewer.show_master(delivered[0].sidecar)
         self.force.setEnabled(not running)
         why = self._why_not(running)
         self.capture_button.setToolTip(why or "Meter, capture (an HDR bracket when metering asks) and deliver the "
@@ -476,7 +430,8 @@ class OriginalsPanel(QWidget):
             return False
         row.state, row.qa = OriginalState.FAILED, f"not shot: {problem}"
         self.ws.queue_changed()
-        text = (f"{row.identifier}: {problem.replace(', or --force to use this one', '')}.\n\nCapture it anyway with "
+        said = in_window_words(problem).removesuffix(", or choose Capture anyway")
+        text = (f"{row.identifier}: {said}.\n\nCapture it anyway with "
                 "this calibration (its sidecar and QA line will say so), or leave it for a calibration of its mode?")
 
         def answer(choice: str) -> None:

@@ -44,8 +44,7 @@ from dualrgb.core.vocabulary import Subject, SubjectKind
 log = logging.getLogger(__name__)
 
 BADGE_COLOURS = {True: "#2e7d32", False: "#c62828"}
-REFERENCE_METHODS = (("eq 4.2 (thesis: the sum the simulation uses)", "eq-4.2"),
-                     ("ASTM E308 (measured spectra at their own wavelengths)", "astm-e308"))
+REFERENCE_METHODS = (("eq 4.2 (as simulated)", "eq-4.2"), ("ASTM E308", "astm-e308"))
 METHOD_NAMES = {LEAST_SQUARES: "least squares", DE2000: "the ΔE00-optimised matrix",
                 ROOT_POLYNOMIAL_2: "the root-polynomial of degree 2",
                 ROOT_POLYNOMIAL_3: "the root-polynomial of degree 3"}
@@ -181,8 +180,9 @@ class ResultsPanel(QWidget):
         self.reference = QComboBox()
         for label, key in REFERENCE_METHODS:
             self.reference.addItem(label, key)
-        self.reference.setToolTip("How the targets' reference XYZ are integrated from their spectra "
-                                  "(app.workflow.calibration.targets; they differ by 0.08 mean ΔE00 on the CC24).")
+        self.reference.setToolTip("How the targets' reference XYZ are integrated from their spectra: eq 4.2 "
+                                  "(the thesis' sum, as the simulation uses) or ASTM E308 (the measured spectra at "
+                                  "their own wavelengths); they differ by 0.08 mean ΔE00 on the CC24.")
         self.optimise = QCheckBox("also fit the ΔE00-optimised matrix")
         self.optimise.setChecked(self.ctx.get("results/optimise", True, bool))
         self.optimise.toggled.connect(lambda on: self.ctx.set("results/optimise", on))

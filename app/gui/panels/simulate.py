@@ -192,7 +192,7 @@ class SimulatePanel(QWidget):
         self.stand_button = QPushButton("Re-optimise for this stand")
         self.stand_button.setToolTip("The same search on the stand model the current calibration fitted to its "
                                      "captures (LED outputs and peaks, camera gains and curves, flare), as "
-                                     "`dualrgb simulate --stand`; load or make a calibration first.")
+                                     "the command line's simulate on the stand; load or make a calibration first.")
         self.stand_button.clicked.connect(self.start_for_stand)
         self.ctx.workspace.calibrationChanged.connect(self._stand_changed)
         self.save_button = QPushButton("Save as preset…")
@@ -258,7 +258,8 @@ class SimulatePanel(QWidget):
         studies = QWidget()
         sl = QVBoxLayout(studies)
         self.figure_combo = QComboBox()
-        self.figure_combo.setToolTip("Charts of your 'dualrgb study' runs and the packaged reference runs.")
+        self.figure_combo.setToolTip("Charts of your studies (run from the command line) and the packaged "
+                                     "reference runs.")
         self.figure_combo.currentIndexChanged.connect(self._show_figure)
         self.figure_label = QLabel("")
         self.figure_label.setAlignment(Qt.AlignmentFlag.AlignCenter)
@@ -531,11 +532,11 @@ class SimulatePanel(QWidget):
             self.figure_combo.addItems([n for n, _ in images])
             self.figure_combo.blockSignals(False)
             if images:
-                self.figures_info.setText(f"{len(images)} chart(s); 'dualrgb study' adds yours in "
+                self.figures_info.setText(f"{len(images)} chart(s); studies run from the command line add yours in "
                                           f"{resources.user_path('studies')}")
                 self._show_figure(0)
             else:
-                self.figures_info.setText(f"no study charts yet: run 'dualrgb study' to make them in "
+                self.figures_info.setText(f"no study charts yet: a study run from the command line makes them in "
                                           f"{resources.user_path('studies')}")
                 self.figure_label.clear()
         self.ctx.runner.submit(work, pool="compute", name="load study charts", on_result=done,
