@@ -24,6 +24,11 @@ from types import TracebackType
 
 log = logging.getLogger(__name__)
 
+
+def _shown(path: Path) -> str:
+    """A path as a log line can carry: a folder named in another encoding (lone surrogates) escaped as \\udcfc."""
+    return str(path).encode("utf-8", "backslashreplace").decode("utf-8")
+
 LOG_NAME = "session.log"
 SESSION_MARKER = "session.json"          # core.session.capture_session.SETTINGS
 NAMESPACE = "dualrgb"
@@ -53,7 +58,8 @@ class _SessionLogHandler(logging.Handler):
 
     def _target(self) -> logging.FileHandler | None:
         if self._file is None and (self.folder / SESSION_MARKER).is_file():
-            self._file = logging.FileHandler(self.folder / LOG_NAME, encoding="utf-8")
+            self._file = logging.FileHandler(self.folder / LOG_NAME, encoding="utf-8",
+                                             errors="backslashreplace")   # a path in another encoding: \xfc
             self._file.setFormatter(self.formatter)
             for early in self._early:
                 self._file.emit(early)
@@ -150,13 +156,13 @@ class SessionLog:
         self._handler = _SessionLogHandler(self.folder, self.level)
         _ROOT.lower(self.level)
         logging.getLogger().addHandler(self._handler)
-        log.info("session log %s opened", self.path)
+        log.info("session log %s opened", _shown(self.path))
         return self
 
     def stop(self) -> None:
         if self._handler is None:
             return
-        log.info("session log %s closed", self.path)
+        log.info("session log %s closed", _shown(self.path))
         logging.getLogger().removeHandler(self._handler)
         self._handler.close()
         self._handler = None

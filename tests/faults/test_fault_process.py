@@ -64,3 +64,4 @@ def test_a_session_folder_whose_name_is_not_utf8_captures_and_processes(tmp_path
     assert main(["process", str(root / "s"), *args]) == 0
     sidecar = root / "s" / "deliverables" / "ACC-1" / "ACC-1.json"
     assert json.loads(sidecar.read_bytes())["session"] == str(root / "s")         # the exact path, escaped
+    assert "sitzung-\\udcfc" in (root / "s" / "session.log").read_text(encoding="utf-8")   # named, escaped
