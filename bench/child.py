@@ -25,3 +25,11 @@ def run_in_child(module: str, function: str, *args: object) -> dict:
             "r['peak_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024; print(json.dumps(r))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def write_result(result: dict, json_path: Path | None) -> dict:
+    """A bench's JSON written (its folder made) where ``json_path`` names one; the result returned."""
+    if json_path is not None:
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        json_path.write_text(json.dumps(result, indent=2) + "\n")
+    return result

@@ -16,6 +16,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from bench.child import write_result
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS_JSON = ROOT / "docs" / "data" / "bench" / "gui_stall.json"
 TESTS = ("tests/gui/test_session.py::test_whole_session_on_the_virtual_lab",
@@ -37,10 +39,7 @@ def bench_gui_stall(json_path: Path | None = DOCS_JSON) -> dict:
     worst = max(f["max_stall_ms"] for f in figures.values())
     result = {"target_ms": TARGET_MS, "max_stall_ms": worst, "meets_target": worst < TARGET_MS,
               "load_1min": [round(load_before, 2), round(load_after, 2)], "days": figures}
-    if json_path is not None:
-        json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(result, indent=2) + "\n")
-    return result
+    return write_result(result, json_path)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -17,6 +17,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench.child import write_result
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS_JSON = ROOT / "docs" / "data" / "bench" / "light_gaps_load.json"
 
@@ -66,10 +68,7 @@ def bench_light_gaps_load(busy: int = 8, json_path: Path | None = DOCS_JSON) -> 
     result = {"busy_loops": busy, "cpus": os.cpu_count(), "load_1min": [round(load_before, 2), round(load_after, 2)],
               "calibrated": run.returncode == 0, "wall_s": round(wall, 1),
               "last_line": (run.stderr.strip().splitlines() or [""])[-1] if run.returncode else "", **gaps}
-    if json_path is not None:
-        json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(result, indent=2) + "\n")
-    return result
+    return write_result(result, json_path)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -24,6 +24,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from bench.child import write_result
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS_JSON = ROOT / "docs" / "data" / "bench" / "stand_wait.json"
 FRAME = "600x400"
@@ -104,10 +106,7 @@ def bench_stand_wait(repeats: int = 2, json_path: Path | None = DOCS_JSON, frame
               "max_on_to_trigger_s": max(r["max_on_to_trigger_s"] or 0 for rs in runs.values() for r in rs),
               "reshot_host_late": sum(r["reshot_host_late"] for rs in runs.values() for r in rs),
               "runs": runs}
-    if json_path is not None:
-        json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(result, indent=2) + "\n")
-    return result
+    return write_result(result, json_path)
 
 
 def main(argv: list[str] | None = None) -> int:

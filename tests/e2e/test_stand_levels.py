@@ -41,7 +41,10 @@ def test_a_captured_led_below_the_minimum_is_predicted_lit(tmp_path, capsys):
     assert 0.0 < emitted[0, 0] < 0.2 * preset[0, 0]                      # lit, at what its measured curve says
     led1 = next(p for p in profile.stand["parameters"] if p["key"] == "led_output_scale[0]")
     assert abs(led1["value"] - 1.0) < 3 * led1["sd"]                      # the curve is not folded into its output
-    assert "with their measured level curves" in out and "  determined by (posterior sd / prior sd" in out
+    assert "details: dualrgb calibration show" in out              # quiet: the stand model is in `calibration show`
+    assert main(["calibration", "show", str(profile.path)]) == 0
+    shown = capsys.readouterr().out
+    assert "with their measured level curves" in shown and "  determined by (posterior sd / prior sd" in shown
 
     assert main(["simulate", "--stand", str(profile.path), "--top", "60", "--json", str(tmp_path / "sim.json")]) == 0
     in_use = [c for c in json.loads((tmp_path / "sim.json").read_text())["results"] if c.get("in_use")]
