@@ -63,6 +63,7 @@ from dualrgb.simulation.hdr_estimators import (
 
 log = logging.getLogger(__name__)
 _CLIPPED_SAID: set[float] = set()                 # shortest exposures whose clipping was said (once each)
+CLIPPED_WARN_FRACTION = 1e-4                       # 0.01 % of the frame clipped in every exposure: worth a warning
 
 LINEAR_LIMIT_DN = 11000.0   # thesis 4.1.2 / Fig 4.2: the D610 is linear up to ~11 000 DN
 MAX_EXPOSURE_TIMES = 16     # distinct exposure times per merge (one slot of float32 + uint8 per pixel each)
@@ -212,12 +213,15 @@ class HdrMerge:
         if not clipped:
             return
         shortest = float(min(self.exposures))
-        level = logging.DEBUG if shortest in _CLIPPED_SAID else logging.WARNING
+        # a few hot or specular pixels (under CLIPPED_WARN_FRACTION of the frame) are nothing to act on: logged
+        # at INFO; more are a light whose shortest exposure is too long (issue 43: warnings only with an action)
+        matters = clipped / size >= CLIPPED_WARN_FRACTION
+        level = logging.DEBUG if shortest in _CLIPPED_SAID else logging.WARNING if matters else logging.INFO
         _CLIPPED_SAID.add(shortest)
-        log.log(level, "HDR: %d pixels (%.3f %%) exceed the linear limit in every exposure (shortest %s used): "
-                "give that light a shorter exposure (Calibrate & capture: type it in the lights table or run "
-                "Auto-exposure on the open gate; dualrgb calibrate meters it) and calibrate again; said once",
-                clipped, 100.0 * clipped / size, format_exposure(shortest))
+        log.log(level, "HDR: %d pixels (%.3f %%) exceed the linear limit in every exposure (shortest %s used)%s",
+                clipped, 100.0 * clipped / size, format_exposure(shortest),
+                ": give that light a shorter exposure and calibrate again; said once" if matters else
+                " (too few to matter)")
 
     def _done(self) -> None:
         self._sums = self._counts = None

@@ -94,6 +94,19 @@ def test_pixels_clipped_in_every_exposure_use_the_shortest(caplog):
     assert np.allclose(res.radiance[1:], 1000.0, rtol=0.01)
 
 
+def test_a_few_clipped_pixels_are_no_warning(caplog):
+    """Issue 43: 2 pixels in 40 000 (0.005 %; 0.01 % is the limit) are hot or specular pixels: INFO, no action."""
+    L = np.full((200, 200), 1000.0)
+    L[0, :2] = 1e6
+    d = np.full((200, 200), 600.0)
+    with caplog.at_level(logging.INFO):
+        res = HdrMerge.merge([expose(L, 0.1, d), expose(L, 1.0, d)], [0.1, 1.0], [d, d],
+                             white_level=WHITE, black_level=BLACK)
+    said = [r for r in caplog.records if "exceed the linear limit" in r.getMessage()]
+    assert res.clipped == 2 and [r.levelno for r in said] == [logging.INFO]
+    assert "too few to matter" in said[0].getMessage() and "shorter exposure" not in said[0].getMessage()
+
+
 def test_hdr_rejects_bad_input_and_cancels():
     m = HdrMerge(WHITE)
     with pytest.raises(ValueError, match="exposure time must be positive"):
