@@ -18,7 +18,7 @@ import os
 import stat
 import struct
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Union
@@ -241,6 +241,25 @@ def _read_head(path: Path) -> bytes:
     return head
 
 
+@contextlib.contextmanager
+def libraw_open(p: Path, head: bytes) -> Iterator[Any]:
+    """The open rawpy file of ``p`` (LibRaw's stderr kept for the debug log); whatever LibRaw, the OS or rawpy raise
+    on a bad file becomes one RawFileError naming ``p`` (``head``: its first bytes, to tell a truncated TIFF)."""
+    import rawpy
+
+    try:
+        with _libraw_stderr(p), rawpy.imread(libraw_source(p)) as raw:
+            yield raw
+    except RawFileError:
+        raise
+    except rawpy.LibRawError as exc:
+        raise RawFileError(p, _libraw_problem(exc, head)) from exc
+    except OSError as exc:
+        raise RawFileError(p, f"cannot read: {exc.strerror or exc}") from exc
+    except (ValueError, TypeError, MemoryError, OverflowError) as exc:    # rawpy on nonsense sizes/values
+        raise RawFileError(p, f"damaged raw data ({type(exc).__name__}: {exc})") from exc
+
+
 def _libraw_problem(exc: Exception, head: bytes) -> str:
     import rawpy
 
@@ -262,8 +281,6 @@ def _libraw_problem(exc: Exception, head: bytes) -> str:
 
 def load_raw(path: PathLike) -> RawFrame:
     """Read a Bayer raw file into a :class:`RawFrame` (mosaic copied out; the file is closed on return)."""
-    import rawpy
-
     p = Path(path)
     head = _read_head(p)
     with _quiet_tiff_log():
@@ -271,7 +288,7 @@ def load_raw(path: PathLike) -> RawFrame:
         size = p.stat().st_size
         if data_end is not None and data_end > size:
             raise RawFileError(p, f"truncated or damaged: {size} bytes, but its image data runs to byte {data_end}")
-        return _load(p, head, rawpy)
+        return _load(p, head)
 
 
 def _cfa_problem(pattern) -> str:
@@ -311,25 +328,16 @@ def bayer_pattern(raw: Any, p: Path) -> tuple[np.ndarray, str]:
     return pattern, color_desc
 
 
-def _load(p: Path, head: bytes, rawpy) -> RawFrame:
-    try:
-        with _libraw_stderr(p), rawpy.imread(libraw_source(p)) as raw:
-            pattern, color_desc = bayer_pattern(raw, p)
-            mosaic = np.array(raw.raw_image_visible, dtype=np.uint16, copy=True)
-            black = tuple(int(b) for b in raw.black_level_per_channel)
-            white = int(raw.white_level)
-            other = raw.other
-            exposure = float(other.shutter_speed) if other.shutter_speed and other.shutter_speed > 0 else None
-            iso = float(other.iso_speed) if other.iso_speed and other.iso_speed > 0 else None
-            sizes = raw.sizes
-    except RawFileError:
-        raise
-    except rawpy.LibRawError as exc:
-        raise RawFileError(p, _libraw_problem(exc, head)) from exc
-    except OSError as exc:
-        raise RawFileError(p, f"cannot read: {exc.strerror or exc}") from exc
-    except (ValueError, TypeError, MemoryError, OverflowError) as exc:    # rawpy on nonsense sizes/values
-        raise RawFileError(p, f"damaged raw data ({type(exc).__name__}: {exc})") from exc
+def _load(p: Path, head: bytes) -> RawFrame:
+    with libraw_open(p, head) as raw:
+        pattern, color_desc = bayer_pattern(raw, p)
+        mosaic = np.array(raw.raw_image_visible, dtype=np.uint16, copy=True)
+        black = tuple(int(b) for b in raw.black_level_per_channel)
+        white = int(raw.white_level)
+        other = raw.other
+        exposure = float(other.shutter_speed) if other.shutter_speed and other.shutter_speed > 0 else None
+        iso = float(other.iso_speed) if other.iso_speed and other.iso_speed > 0 else None
+        sizes = raw.sizes
     if mosaic.ndim != 2 or mosaic.size == 0:
         raise RawFileError(p, f"raw image has shape {mosaic.shape}, expected a 2-D mosaic")
     if white <= max(black):

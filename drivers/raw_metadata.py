@@ -35,14 +35,12 @@ from dualrgb.drivers.raw import (
     RawFileError,
     _detect_format,
     _letter,
-    _libraw_problem,
-    _libraw_stderr,
     _quiet_tiff_log,
     _read_head,
     _tiff_data_end,
     _tiff_make_model,
     bayer_pattern,
-    libraw_source,
+    libraw_open,
 )
 
 log = logging.getLogger(__name__)
@@ -111,30 +109,19 @@ def _tiff_serial(path: Path, head: bytes) -> str:
 
 
 def _libraw_fields(p: Path, head: bytes) -> dict[str, Any]:
-    import rawpy
-
-    try:
-        with _libraw_stderr(p), rawpy.imread(libraw_source(p)) as raw:
-            pattern, color_desc = bayer_pattern(raw, p)
-            other, sizes = raw.other, raw.sizes
-            black, white = float(np.mean(raw.black_level_per_channel)), float(raw.white_level)
-            sample = raw.raw_image_visible
-            signal = (float(sample.mean(dtype=np.float64)) - black) / max(white - black, 1.0) if sample.size else 0.0
-            stamp = other.timestamp if isinstance(other.timestamp, datetime) else None
-            return {"cfa": "".join(_letter(color_desc, int(i)) for i in pattern.ravel()),
-                    "black_levels": tuple(int(b) for b in raw.black_level_per_channel),
-                    "white_level": int(raw.white_level), "exposure_s": _positive(other.shutter_speed),
-                    "iso": _positive(other.iso_speed), "aperture": _positive(other.aperture),
-                    "captured_at": stamp if stamp is not None and stamp.year > 1970 else None,
-                    "width": int(sizes.width), "height": int(sizes.height), "extra": {"signal": signal}}
-    except RawFileError:
-        raise
-    except rawpy.LibRawError as exc:
-        raise RawFileError(p, _libraw_problem(exc, head)) from exc
-    except OSError as exc:
-        raise RawFileError(p, f"cannot read: {exc.strerror or exc}") from exc
-    except (ValueError, TypeError, MemoryError, OverflowError) as exc:    # rawpy on nonsense sizes/values
-        raise RawFileError(p, f"damaged raw data ({type(exc).__name__}: {exc})") from exc
+    with libraw_open(p, head) as raw:
+        pattern, color_desc = bayer_pattern(raw, p)
+        other, sizes = raw.other, raw.sizes
+        black, white = float(np.mean(raw.black_level_per_channel)), float(raw.white_level)
+        sample = raw.raw_image_visible
+        signal = (float(sample.mean(dtype=np.float64)) - black) / max(white - black, 1.0) if sample.size else 0.0
+        stamp = other.timestamp if isinstance(other.timestamp, datetime) else None
+        return {"cfa": "".join(_letter(color_desc, int(i)) for i in pattern.ravel()),
+                "black_levels": tuple(int(b) for b in raw.black_level_per_channel),
+                "white_level": int(raw.white_level), "exposure_s": _positive(other.shutter_speed),
+                "iso": _positive(other.iso_speed), "aperture": _positive(other.aperture),
+                "captured_at": stamp if stamp is not None and stamp.year > 1970 else None,
+                "width": int(sizes.width), "height": int(sizes.height), "extra": {"signal": signal}}
 
 
 def exif_time(text: Any, subsec: Any = None) -> datetime | None:
