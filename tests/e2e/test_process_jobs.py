@@ -4,7 +4,6 @@ byte for byte the serial run's; a killed run resumed keeps what it finished and 
 transiently is tried once more, one that fails for its own reason is reported without stopping the others."""
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
@@ -16,6 +15,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from import_folders import tree
 
 from dualrgb.app.workflow.delivery.redelivery_jobs import (
     RedeliveryOptions,
@@ -36,11 +36,6 @@ def dualrgb(*args: str, ok: bool = True, env: dict | None = None) -> subprocess.
     if ok:
         assert r.returncode == 0, r.stderr[-3000:]
     return r
-
-
-def digests(folder: Path) -> dict[str, str]:
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 @pytest.fixture(scope="module")
@@ -79,7 +74,7 @@ def test_jobs_2_delivers_the_serial_bytes(sessions):
     root, s1, s2 = sessions
     r = dualrgb("process", str(s1), str(s2), *calibrated(root), "--out", str(root / "jobs2"), "--jobs", "2",
                 "--json", str(root / "jobs2.json"))
-    assert digests(root / "jobs2") == digests(root / "serial")
+    assert tree(root / "jobs2") == tree(root / "serial")
     workers = {o["worker"] for o in json.loads((root / "jobs2.json").read_text())["originals"]}
     assert len(workers) >= 1 and all(str(os.getpid()) not in w for w in workers)
     assert "stderr" not in r.stdout
@@ -124,7 +119,7 @@ def test_dask_cluster_delivers_the_serial_bytes(sessions, dask_cluster):
     root, s1, s2 = sessions
     dualrgb("process", str(s1), str(s2), *calibrated(root), "--out", str(root / "dask"), "--scheduler", dask_cluster,
             "--json", str(root / "dask.json"))
-    assert digests(root / "dask") == digests(root / "serial")
+    assert tree(root / "dask") == tree(root / "serial")
     workers = {o["worker"] for o in json.loads((root / "dask.json").read_text())["originals"]}
     assert len(workers) == 2                                  # both workers took originals
 
@@ -146,7 +141,7 @@ def test_a_killed_run_resumes_with_what_is_left(sessions):
     assert [k["identifier"] for k in doc["kept"]] == ["A-1"]
     assert sorted(o["identifier"] for o in doc["originals"]) == ["A-2", "B-1", "B-2"]
     assert "already delivered with this calibration and options, kept" in r.stdout
-    assert digests(out) == digests(root / "serial")
+    assert tree(out) == tree(root / "serial")
 
 
 def test_a_changed_file_is_delivered_again_not_kept(sessions):
@@ -162,7 +157,7 @@ def test_a_changed_file_is_delivered_again_not_kept(sessions):
     doc = json.loads((root / "changed.json").read_text())
     assert [o["identifier"] for o in doc["originals"]] == [changed]
     assert len(doc["kept"]) == 3
-    assert digests(out / "s1" / tif.parent.name / "previous") != {}            # the damaged set kept aside
+    assert tree(out / "s1" / tif.parent.name / "previous") != {}            # the damaged set kept aside
 
 
 def test_a_session_without_frames_is_refused_before_any_delivery(sessions, tmp_path):
