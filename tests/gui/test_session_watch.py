@@ -22,6 +22,7 @@ def test_a_deleted_session_folder_is_said_at_once_and_a_new_one_offered(qtbot, m
     old = w.lab.session
     first = old.path
     w.asker.scripted = [NEW]
+    w.day.flush()                  # the queue's write into <session>/day/ is done before the folder goes
     shutil.rmtree(first)
     qtbot.waitUntil(lambda: any(t == TITLE for t, _ in w.errors.history), timeout=60_000)   # no capture needed
     said = [m for t, m in w.errors.history if t == TITLE]
