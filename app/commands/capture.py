@@ -77,6 +77,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--check", action="store_true",
                    help="validate and print the plan (rows to shoot, kept, refused with the reason) and stop: no "
                         "device is opened, nothing is shot")
+    p.add_argument("--collection", default="", metavar="NAME",
+                   help="the collection whose metadata preset (creator, rights, default extra fields) is applied to "
+                        "the original (with --queue: to the rows whose 'collection' column is empty)")
+    p.add_argument("--collections", type=Path, default=None, metavar="DIR",
+                   help="the collection presets' folder (default: presets/collections in the per-user data folder)")
     p.add_argument("--title", default="")
     p.add_argument("--operator", default="", help="with --queue: for the rows that name none")
     p.add_argument("--notes", default="")
@@ -116,11 +121,25 @@ def _single(args: argparse.Namespace, mode: str, out_dir: Path | None, profile) 
     from dualrgb.app.workflow.stand.mode_rule import check_mode
     from dualrgb.core.metadata import Original
 
-    original = Original(args.identifier, args.title, args.operator, args.notes, mode)
+    original = _in_collection(args, Original(args.identifier, args.title, args.operator, args.notes, mode))
     check_mode(original, profile, force=args.force)
     if out_dir is not None:
         check_folder(out_dir, original)
     return [original]
+
+
+def _in_collection(args: argparse.Namespace, original):
+    """``original`` under ``--collection``'s preset (app.workflow.day.collection_presets, as the window's form);
+    a named collection without a preset file is refused in one line (also with ``original`` None: the check)."""
+    from dualrgb.app.workflow.day.collection_presets import apply_preset, find_preset, preset_path
+
+    if not args.collection:
+        return original
+    preset = find_preset(args.collection, args.collections)
+    if preset is None:
+        where = preset_path(args.collection, args.collections)
+        raise ValueError(f"--collection {args.collection}: no preset file {where}")
+    return original if original is None else apply_preset(original, preset)
 
 
 def _plan(args: argparse.Namespace, mode: str, out_dir: Path | None, profile):
@@ -130,7 +149,10 @@ def _plan(args: argparse.Namespace, mode: str, out_dir: Path | None, profile):
 
     if args.title or args.notes:
         raise ValueError("--title and --notes name one original (--id); a queue's come from its CSV")
-    queue = read_queue_csv(Path(args.queue), columns=dict(args.column), default_mode=mode, out_dir=out_dir)
+    if args.collection:
+        _in_collection(args, None)              # a named collection without a preset: refused before the rows
+    queue = read_queue_csv(Path(args.queue), columns=dict(args.column), default_mode=mode, out_dir=out_dir,
+                           collection=args.collection, presets=args.collections)
     session = None
     if args.session and (Path(args.session) / "session.json").is_file():
         from dualrgb.app.workflow.stand.folders import open_session

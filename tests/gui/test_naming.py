@@ -7,7 +7,7 @@ import datetime
 import pytest
 from PySide6.QtCore import Qt
 
-from dualrgb.app.gui.naming import TemplateError, expand
+from dualrgb.app.workflow.day.naming import TemplateError, expand
 
 DAY = datetime.date(2026, 11, 28)
 
