@@ -151,3 +151,13 @@ def test_a_queue_csvs_collection_column_picks_the_same_preset(tmp_path):
     write(default_folder(), "FILM", {"format": "dualrgb-collection/1", "rights": ["x"]})
     with pytest.raises(ValueError, match=r"^.*q\.csv: collection 'film': .*FILM\.json: rights: \['x'\] is not"):
         read_queue_csv(csv)
+
+
+def test_the_docs_example_preset_is_a_valid_preset():
+    """docs/gui.md's example file, as written, is read as the preset it describes."""
+    text = (Path(__file__).resolve().parents[2] / "docs" / "gui.md").read_text(encoding="utf-8")
+    block = text.split("<!-- collection-preset-example -->\n```json\n", 1)[1].split("```", 1)[0]
+    preset = load_preset(write(default_folder(), "GEM", block))
+    assert (preset.credits.rights, preset.credits.credit, dict(preset.extra), preset.identifier_template) == \
+        ("CC BY 4.0, Example Museum", "Gemäldegalerie, Example Museum",
+         {"collection": "Gemäldegalerie", "department": "Paintings"}, "GEM-{date}-{counter:04}")
