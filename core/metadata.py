@@ -93,6 +93,11 @@ FIELD_RULES = {
     "notes": FieldRule("notes", 4000, Whitespace.KEEP, Whitespace.KEEP),
 }
 EXTRA_RULE = FieldRule("extra", 1000, Whitespace.KEEP, Whitespace.KEEP)
+COLLECTION_RULE = FieldRule("collection", 100, Whitespace.REFUSE, Whitespace.REFUSE)
+CREDIT_RULES = {"creator": FieldRule("creator", 200, Whitespace.SPACE, Whitespace.SPACE),
+                "rights": FieldRule("rights", 1000, Whitespace.SPACE, Whitespace.SPACE),
+                "credit": FieldRule("credit", 500, Whitespace.SPACE, Whitespace.SPACE),
+                "source": FieldRule("source", 500, Whitespace.SPACE, Whitespace.SPACE)}
 COLUMN_RULE = FieldRule("column name", 100, Whitespace.REFUSE, Whitespace.REFUSE)
 MAX_EXTRA = 10_000          # extra fields of one original: any export's columns (a sanity bound, not a policy)
 
@@ -210,6 +215,45 @@ def normalise_extra(extra: Mapping[str, object] | None) -> dict[str, str]:
 
 # ---------------------------------------------------------------- the original
 @dataclass(frozen=True)
+class Credits:
+    """Who made an original's files and on what terms, from its collection's preset
+    (app.workflow.day.collection_presets): XMP ``dc:creator``, ``dc:rights`` (and the TIFF Copyright tag),
+    ``photoshop:Credit`` (the credit line), ``photoshop:Source`` (the institution). An empty field: the delivery
+    settings' (app.workflow.delivery.delivery_settings). Normalised on construction (:data:`CREDIT_RULES`)."""
+
+    creator: tuple[str, ...] = ()
+    rights: str = ""
+    credit: str = ""
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        creators = (self.creator,) if isinstance(self.creator, str) else tuple(self.creator or ())
+        rule = CREDIT_RULES["creator"]
+        object.__setattr__(self, "creator", tuple(t for t in (normalise(rule, c) for c in creators) if t))
+        for k in ("rights", "credit", "source"):
+            object.__setattr__(self, k, normalise(CREDIT_RULES[k], getattr(self, k)))
+
+    def __bool__(self) -> bool:
+        return bool(self.creator or self.rights or self.credit or self.source)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fields that are set (``creator`` a list)."""
+        out: dict[str, Any] = {"creator": list(self.creator)} if self.creator else {}
+        return out | {k: getattr(self, k) for k in ("rights", "credit", "source") if getattr(self, k)}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any] | Credits | None) -> Credits:
+        if isinstance(data, Credits):
+            return data
+        if data is not None and not isinstance(data, Mapping):
+            raise MetadataError("credits", f"expected a table of creator, rights, credit, source, got {data!r}")
+        unknown = sorted(set(data or {}) - set(cls.__dataclass_fields__))
+        if unknown:
+            raise MetadataError(unknown[0], "unknown credit field (expected creator, rights, credit or source)")
+        return cls(**dict(data or {}))
+
+
+@dataclass(frozen=True)
 class Original:
     """An object to digitise; every field normalised on construction (MetadataError, one line, otherwise). The
     identifier (accession number) is required and names every file (:attr:`file_stem`)."""
@@ -220,11 +264,15 @@ class Original:
     notes: str = ""
     mode: str = "reflective"
     extra: Mapping[str, str] = field(default_factory=dict)
+    collection: str = ""                    # the collection whose preset was applied (its name)
+    credits: Credits = field(default_factory=Credits)
 
     def __post_init__(self) -> None:
         values = {"identifier": normalise_identifier(self.identifier),
                   **{k: normalise(FIELD_RULES[k], getattr(self, k)) for k in ("title", "operator", "notes")},
-                  "mode": normalise_mode(self.mode), "extra": normalise_extra(self.extra)}
+                  "mode": normalise_mode(self.mode), "extra": normalise_extra(self.extra),
+                  "collection": normalise(COLLECTION_RULE, self.collection),
+                  "credits": Credits.from_dict(self.credits)}
         for k, v in values.items():
             object.__setattr__(self, k, v)
 
@@ -239,8 +287,11 @@ class Original:
         return file_stem(self.identifier)
 
     def to_dict(self) -> dict[str, Any]:
+        """The fields (``collection`` and ``credits`` only when set: sidecars without them read as before)."""
         return {"identifier": self.identifier, "title": self.title, "operator": self.operator, "notes": self.notes,
-                "mode": self.mode, "extra": dict(self.extra)}
+                "mode": self.mode, "extra": dict(self.extra),
+                **({"collection": self.collection} if self.collection else {}),
+                **({"credits": self.credits.to_dict()} if self.credits else {})}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], **over: Any) -> Original:
@@ -395,7 +446,7 @@ def xmp_property(column: str) -> str:
     return f"Extra_{rendering}_{_hash(column)}" if rendering else f"Extra_{_hash(column)}"
 
 
-__all__ = ["COLUMN_RULE", "EXTRA_RULE", "FIELD_RULES", "MAX_EXTRA", "MODES", "FieldRule", "MetadataError", "Original",
-           "Whitespace", "ascii_text", "check_original", "file_stem", "ascii_stem", "stem_of_ascii",
-           "unicode_names_work", "frame_stem", "normalise", "normalise_extra",
-           "normalise_identifier", "normalise_mode", "xmp_property"]
+__all__ = ["COLLECTION_RULE", "COLUMN_RULE", "CREDIT_RULES", "EXTRA_RULE", "FIELD_RULES", "MAX_EXTRA", "MODES",
+           "Credits", "FieldRule", "MetadataError", "Original", "Whitespace", "ascii_stem", "ascii_text",
+           "check_original", "file_stem", "frame_stem", "normalise", "normalise_extra", "normalise_identifier",
+           "normalise_mode", "stem_of_ascii", "unicode_names_work", "xmp_property"]

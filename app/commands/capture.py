@@ -5,14 +5,15 @@
                     [--resolution full|half]
                     (--virtual-lab | --port P --camera C)
     dualrgb capture --session DIR [--calibration FILE|DIR] --queue originals.csv [--column identifier="Accession No."]
-                    [--skip-invalid] [--operator ..] [--reshoot] [--check] ...
+                    [--skip-invalid] [--operator ..] [--reshoot] [--check] [--collection NAME] ...
 
 ``--calibration`` defaults to the session's newest (of the original's mode with ``--id --mode``): a session made by
 ``dualrgb calibrate --session DIR`` takes the day's originals. Every original's metadata, mode (the mode rule:
 app.workflow.stand.mode_rule) and deliverables folder are checked before a device opens (core.metadata,
 app.workflow.delivery.delivery_folder); a queue's refused rows are listed one per line and nothing is shot while one is
 refused, unless ``--skip-invalid``; ``--check`` prints the plan (rows to shoot, kept, refused) and opens no device.
-An original of the queue already delivered in the session is kept and said so.
+An original of the queue already delivered in the session is kept and said so. ``--collection`` (or a queue's
+``collection`` column) applies that collection's metadata preset (app.workflow.day.collection_presets).
 """
 from __future__ import annotations
 
@@ -77,6 +78,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--check", action="store_true",
                    help="validate and print the plan (rows to shoot, kept, refused with the reason) and stop: no "
                         "device is opened, nothing is shot")
+    p.add_argument("--collection", default="", metavar="NAME",
+                   help="the collection whose metadata preset (creator, rights, default extra fields) is applied to "
+                        "the original (with --queue: to the rows whose 'collection' column is empty)")
+    p.add_argument("--collections", type=Path, default=None, metavar="DIR",
+                   help="the collection presets' folder (default: presets/collections in the per-user data folder)")
     p.add_argument("--title", default="")
     p.add_argument("--operator", default="", help="with --queue: for the rows that name none")
     p.add_argument("--notes", default="")
@@ -112,15 +118,30 @@ def _calibration(args: argparse.Namespace) -> Path:
 
 
 def _single(args: argparse.Namespace, mode: str, out_dir: Path | None, profile) -> list:
+    from dualrgb.app.workflow.day.collection_presets import apply_preset
     from dualrgb.app.workflow.delivery.delivery_folder import check_folder
     from dualrgb.app.workflow.stand.mode_rule import check_mode
     from dualrgb.core.metadata import Original
 
-    original = Original(args.identifier, args.title, args.operator, args.notes, mode)
+    original = apply_preset(Original(args.identifier, args.title, args.operator, args.notes, mode), _preset(args))
     check_mode(original, profile, force=args.force)
     if out_dir is not None:
         check_folder(out_dir, original)
     return [original]
+
+
+def _preset(args: argparse.Namespace):
+    """``--collection``'s metadata preset (app.workflow.day.collection_presets, as the window's form; None: no
+    --collection); a named collection without a preset file is refused in one line."""
+    from dualrgb.app.workflow.day.collection_presets import find_preset, preset_path
+
+    if not args.collection:
+        return None
+    preset = find_preset(args.collection, args.collections)
+    if preset is None:
+        where = preset_path(args.collection, args.collections)
+        raise ValueError(f"--collection {args.collection}: no preset file {where}")
+    return preset
 
 
 def _plan(args: argparse.Namespace, mode: str, out_dir: Path | None, profile):
@@ -130,7 +151,9 @@ def _plan(args: argparse.Namespace, mode: str, out_dir: Path | None, profile):
 
     if args.title or args.notes:
         raise ValueError("--title and --notes name one original (--id); a queue's come from its CSV")
-    queue = read_queue_csv(Path(args.queue), columns=dict(args.column), default_mode=mode, out_dir=out_dir)
+    _preset(args)                               # a named collection without a preset: refused before the rows
+    queue = read_queue_csv(Path(args.queue), columns=dict(args.column), default_mode=mode, out_dir=out_dir,
+                           collection=args.collection, presets=args.collections)
     session = None
     if args.session and (Path(args.session) / "session.json").is_file():
         from dualrgb.app.workflow.stand.folders import open_session

@@ -2,8 +2,10 @@
 original* holds what changes per original - identifier (a barcode scanner types it and its Enter adds the
 original), title, operator (remembered), notes, mode - *Next* fills the identifier from the template - and the
 Add / Import CSV... buttons; *Options* holds what is set once a day (frames per exposure, resolution, rendering
-light, sampling, the CSV's column names, the identifier template, collection and next number). Only
-building: the panel (app.gui.panels.originals) owns the widgets and their actions."""
+light, sampling, the CSV's column names, the identifier template, collection and next number). The collection's
+metadata preset (app.workflow.day.collection_presets: creator, rights, default extra fields, its identifier
+template) is shown under it and applied to each original added (:func:`form_original`). Only building: the panel
+(app.gui.panels.originals) owns the widgets and their actions."""
 from __future__ import annotations
 
 from typing import Any
@@ -21,10 +23,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from dualrgb.app.gui.naming import TemplateError, expand
 from dualrgb.app.gui.stand_options import DeliveryOptions
 from dualrgb.app.processing.masters import RESOLUTION_CHOICES
-from dualrgb.core.metadata import MODES
+from dualrgb.app.workflow.day.collection_presets import PresetError, default_folder, find_preset, with_collection
+from dualrgb.app.workflow.day.naming import TemplateError, expand
+from dualrgb.core.metadata import MODES, Original
 
 OPERATOR_KEY = "originals/operator"
 TEMPLATE_KEY, COLLECTION_KEY, COUNTER_KEY = "originals/id_template", "originals/collection", "originals/counter"
@@ -112,8 +115,12 @@ def options_widget(panel: Any) -> QWidget:
     panel.template = remembered_edit(panel.ctx, TEMPLATE_KEY, "{collection}-{date}-{counter:04}",
                                      "Identifier template for Next: {counter} (e.g. {counter:04}), {date} (e.g. "
                                      "{date:%Y-%m-%d}), {operator}, {collection}. Remembered.")
-    panel.collection = remembered_edit(panel.ctx, COLLECTION_KEY, "e.g. GEM", "The collection, for {collection}. "
-                                       "Remembered.")
+    panel.collection = remembered_edit(panel.ctx, COLLECTION_KEY, "e.g. GEM", "The collection, for {collection}; "
+                                       "its metadata preset (creator, rights, extra fields; a JSON file in "
+                                       f"{default_folder()}) is applied to each original added. Remembered.")
+    panel.collection_note = QLabel("")
+    panel.collection_note.setWordWrap(True)
+    panel.collection.textChanged.connect(lambda _t: show_collection(panel))
     panel.counter = QSpinBox()
     panel.counter.setRange(1, 999_999)
     panel.counter.setValue(panel.ctx.get(COUNTER_KEY, 1, int))
@@ -121,8 +128,35 @@ def options_widget(panel: Any) -> QWidget:
     panel.counter.valueChanged.connect(lambda v: panel.ctx.set(COUNTER_KEY, v))
     form.addRow("Identifier template", panel.template)
     form.addRow("Collection", panel.collection)
+    form.addRow(panel.collection_note)
     form.addRow("Next number", panel.counter)
+    show_collection(panel)
     return page
+
+
+def show_collection(panel: Any) -> None:
+    """Say under *Collection* what its preset sets (or that it has none, or what is wrong with its file); a
+    preset's identifier template becomes the template."""
+    name = panel.collection.text().strip()
+    try:
+        preset = find_preset(name)
+    except PresetError as exc:
+        panel.collection_note.setText(f"preset not used: {exc}")
+        return
+    if preset is None:
+        panel.collection_note.setText(f"no preset for {name} (a JSON file in {default_folder()})" if name else "")
+        return
+    panel.collection_note.setText(preset.summary())
+    if preset.identifier_template:
+        panel.template.setText(preset.identifier_template)
+
+
+def form_original(panel: Any) -> Original:
+    """The original the form describes, under its collection's preset (the preset's extra fields and credits; the
+    form's own values win): app.workflow.day.collection_presets.with_collection, as ``capture --queue``."""
+    original = Original(panel.identifier.text(), panel.title_edit.text().strip(), panel.operator.text().strip(),
+                        panel.notes.text().strip(), panel.mode.currentText())
+    return with_collection(original, panel.collection.text().strip())
 
 
 def remembered_edit(ctx: Any, key: str, placeholder: str, tip: str) -> QLineEdit:
@@ -134,7 +168,7 @@ def remembered_edit(ctx: Any, key: str, placeholder: str, tip: str) -> QLineEdit
 
 
 def next_identifier(panel: Any) -> None:
-    """The identifier field from the template and the counter; the counter counts on (app.gui.naming)."""
+    """The identifier field from the template and the counter; the counter counts on (app.workflow.day.naming)."""
     template = panel.template.text().strip() or panel.template.placeholderText()
     try:
         text = expand(template, counter=panel.counter.value(), operator=panel.operator.text().strip(),

@@ -283,13 +283,15 @@ def _xml_name(name: str) -> str:
 class DublinCore:
     """The XMP's Dublin Core and provenance beyond identifier / title / description: creators, rights statement,
     the capture's date, the file's MIME type, and the processing history (xmpMM:History events: action, when,
-    softwareAgent, parameters)."""
+    softwareAgent, parameters); the IPTC Core credit line and source (``photoshop:Credit``, ``photoshop:Source``)."""
 
     creator: Sequence[str] = ()
     rights: str = ""
     date: datetime | None = None
     format: str = ""
     history: Sequence[Mapping[str, str]] = ()
+    credit: str = ""
+    source: str = ""
 
     def properties(self) -> list[str]:
         props = []
@@ -309,6 +311,9 @@ class DublinCore:
                 f"<stEvt:{_xml_name(k)}>{_xml_text(k, v)}</stEvt:{k}>" for k, v in ev.items()) + "</rdf:li>"
                 for ev in self.history)
             props.append(f"<xmpMM:History><rdf:Seq>{events}</rdf:Seq></xmpMM:History>")
+        for key, value in (("Credit", self.credit), ("Source", self.source)):
+            if value:
+                props.append(f"<photoshop:{key}>{_xml_text(f'photoshop:{key}', value)}</photoshop:{key}>")
         return props
 
 
@@ -354,6 +359,7 @@ def _xmp_wrap(props: list[str]) -> bytes:
             '  <rdf:Description rdf:about="" xmlns:dc="http://purl.org/dc/elements/1.1/"\n'
             '    xmlns:xmp="http://ns.adobe.com/xap/1.0/"\n'
             '    xmlns:xmpMM="http://ns.adobe.com/xap/1.0/mm/"\n'
+            '    xmlns:photoshop="http://ns.adobe.com/photoshop/1.0/"\n'
             '    xmlns:stEvt="http://ns.adobe.com/xap/1.0/sType/ResourceEvent#"\n'
             f'    xmlns:dualrgb="{XMP_NAMESPACE}">\n    {body}\n  </rdf:Description>\n </rdf:RDF>\n'
             '</x:xmpmeta>\n<?xpacket end="w"?>')

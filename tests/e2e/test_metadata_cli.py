@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 import tifffile
 from queue_rows import BAD, good_identifiers, write_queue_csv
-from xmp_check import EXIFTOOL, exiftool_text, read_xmp
+from xmp_check import EXIFTOOL, exiftool_text, read_xmp, xmp_bytes
 
 from dualrgb.app.processing.envi import read_header
 
@@ -136,3 +136,26 @@ def test_queue_csv_three_bad_rows_then_skip_invalid_then_resume(cal):
     assert [line for line in again.stdout.splitlines() if line.endswith("already delivered, kept")] == \
         [f"{i}: already delivered, kept" for i in good_identifiers()]
     assert sorted(session.glob("*.DNG")) == frames                # nothing shot again
+
+
+def test_capture_under_a_collection_delivers_its_preset(cal):
+    """Issue 42: ``--collection`` picks the collection's metadata preset by the window's function; its rights and
+    creator are in the delivered XMP, the original's extra fields from the preset; a collection without a preset
+    file is refused in one line before anything opens."""
+    root, calibration = cal
+    presets = root / "collections"
+    presets.mkdir()
+    (presets / "GEM.json").write_text(json.dumps({"format": "dualrgb-collection/1", "creator": "Example Museum",
+                                                  "rights": "CC BY 4.0, Example Museum",
+                                                  "extra": {"department": "Paintings"}}), encoding="utf-8")
+    session = root / "collection"
+    capture(calibration, session, "GEM-1", "--collection", "gem", "--collections", str(presets),
+            "--json", str(root / "c.json"))
+    done = json.loads((root / "c.json").read_text())
+    assert done["original"]["collection"] == "GEM" and done["original"]["extra"] == {"department": "Paintings"}
+    packet = xmp_bytes(Path(done["files"]["srgb"])).decode("utf-8")
+    assert "CC BY 4.0, Example Museum" in packet and "<rdf:li>Example Museum</rdf:li>" in packet
+    r = capture(calibration, root / "none", "GEM-2", "--collection", "NOPE", "--collections", str(presets), ok=False)
+    assert r.returncode == 1 and r.stderr.strip().splitlines()[-1] == \
+        f"dualrgb: error: --collection NOPE: no preset file {presets / 'NOPE.json'}"
+    assert not (root / "none").exists()

@@ -7,7 +7,7 @@ import datetime
 import pytest
 from PySide6.QtCore import Qt
 
-from dualrgb.app.gui.naming import TemplateError, expand
+from dualrgb.app.workflow.day.naming import TemplateError, expand
 
 DAY = datetime.date(2026, 11, 28)
 
@@ -41,3 +41,35 @@ def test_a_barcode_scanner_adds_with_its_enter_and_the_operator_stays(qtbot, mak
     qtbot.keyClick(org.identifier, Qt.Key_Return)
     assert [r.identifier for r in w.ctx.workspace.queue.rows] == ["ACC-1902-07"]
     assert org.identifier.text() == "" and org.operator.text() == "J. Doe"
+
+
+def test_a_collections_preset_applies_to_each_original_added(qtbot, make_window):
+    """Issue 42: choosing a collection with a metadata preset says what it sets, takes its identifier template, and
+    each original added carries its extra fields (the form's own values win) and credits; a bad preset file is one
+    line naming the file and the field, and nothing is added."""
+    from dualrgb.app.workflow.day.collection_presets import CollectionPreset, save_preset
+    from dualrgb.core.metadata import Credits
+
+    path = save_preset(CollectionPreset("GEM", Credits(("Example Museum",), "CC BY 4.0"),
+                                        {"department": "Paintings"}, "GEM-{counter:03}"))
+    w = make_window()
+    org = w.originals
+    org.collection.setText("GEM")
+    assert "creator Example Museum" in org.collection_note.text() and "rights CC BY 4.0" in org.collection_note.text()
+    assert org.template.text() == "GEM-{counter:03}"
+    org.counter.setValue(4)
+    qtbot.mouseClick(org.next_button, Qt.LeftButton)
+    qtbot.mouseClick(org.add_button, Qt.LeftButton)
+    (row,) = w.ctx.workspace.queue.rows
+    assert row.identifier == "GEM-004" and row.original.collection == "GEM"
+    assert row.original.credits == Credits(("Example Museum",), "CC BY 4.0")
+    assert row.original.extra == {"department": "Paintings"}
+    path.write_text('{"format": "dualrgb-collection/1", "rights": 5}', encoding="utf-8")
+    org.collection.setText("gem")
+    assert org.collection_note.text().startswith(f"preset not used: {path}: rights:")
+    org.identifier.setText("GEM-005")
+    qtbot.mouseClick(org.add_button, Qt.LeftButton)
+    assert len(w.ctx.workspace.queue.rows) == 1                                   # refused: nothing added
+    title, said = w.ctx.errors.current
+    assert title == "Add an original" and said.startswith(f"{path}: rights: 5 is not of type 'string'")
+    assert "\n" not in said

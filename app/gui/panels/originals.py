@@ -40,7 +40,7 @@ from PySide6.QtWidgets import (
 
 from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.image_viewer import ImageViewer
-from dualrgb.app.gui.original_form import form_box, options_widget
+from dualrgb.app.gui.original_form import form_box, form_original, options_widget
 from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
 from dualrgb.app.gui.stand_options import DeliveryOptions
@@ -56,7 +56,6 @@ from dualrgb.app.workflow.stand.copystand import StandSettings, original_takes
 from dualrgb.app.workflow.stand.defaults import SETTLE_S
 from dualrgb.app.workflow.stand.mode_rule import mode_problem
 from dualrgb.core.engine import Run, RunHooks
-from dualrgb.core.metadata import Original
 from dualrgb.core.vocabulary import EventKind
 
 log = logging.getLogger(__name__)
@@ -91,6 +90,7 @@ class OriginalsPanel(QWidget):
     next_button: QPushButton
     template: QLineEdit
     collection: QLineEdit
+    collection_note: QLabel
     counter: QSpinBox
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None):
@@ -205,8 +205,7 @@ class OriginalsPanel(QWidget):
     # ------------------------------------------------------------------ queue
     def add_original(self) -> QueueRow | None:
         try:
-            original = Original(self.identifier.text(), self.title_edit.text().strip(), self.operator.text().strip(),
-                                self.notes.text().strip(), self.mode.currentText())
+            original = form_original(self)          # under the collection's metadata preset
             row = self.ws.queue.add(original, self.stand_in.currentText() if self.lab.is_virtual else "",
                                     self.frames.value())
         except ValueError as exc:
@@ -231,7 +230,7 @@ class OriginalsPanel(QWidget):
         session = self.lab.session
         try:
             imported = read_queue_csv(Path(path), columns=column_options(self.csv_columns.text()),
-                                      default_mode=self.mode.currentText(),
+                                      default_mode=self.mode.currentText(), collection=self.collection.text().strip(),
                                       out_dir=session.path / "deliverables" if session is not None else None)
         except ValueError as exc:
             self.ctx.errors.report("Import CSV", exc)

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 from dualrgb.app.workflow.calibration.coverage import Coverage, coverage, plan_coverage
 from dualrgb.app.workflow.calibration.profile import CalibrationProfile, ReuseCheck
 from dualrgb.app.workflow.delivery.delivery import Original
+from dualrgb.app.workflow.delivery.delivery_folder import sidecar_of
 from dualrgb.core.vocabulary import Role, latest_takes, role_of, subject_of
 
 if TYPE_CHECKING:
@@ -135,7 +136,7 @@ def _sidecar(session: Session, original: Original, recorded: str | None) -> Path
     path = deliverable(Path(session.path), recorded)       # never another session's (core.session.paths)
     if path is not None and path.is_file():
         return path
-    moved = Path(session.path) / "deliverables" / original.file_stem / f"{original.file_stem}.json"
+    moved = sidecar_of(Path(session.path) / "deliverables", original)
     return moved if moved.is_file() or path is None else path
 
 

@@ -17,6 +17,12 @@ longer one truncated with a marker (``[… 3565 characters, truncated]``), one h
 100 characters) or a value beyond the header's last column is left out. Each such column gets one summary line
 (:meth:`QueueImport.column_lines`). The mapped fields keep their strict checks (a bad value refuses its row).
 
+Collections
+    A row's ``collection`` column (matched ignoring case; else ``collection=``, ``--collection``) names the
+    collection whose metadata preset is applied to it (app.workflow.day.collection_presets.with_collection, as the
+    window's Originals form: the preset's extra fields with the row's own values winning, its creator and rights in
+    the XMP); a collection without a preset file adds nothing; a bad preset file refuses the queue in one line.
+
 Rows
     Numbered as a spreadsheet shows them: the header is row 1, a quoted field's line breaks stay within its row.
     Empty rows are skipped. Each field is normalised by core.metadata (the GUI's and the CLI's rules); an
@@ -37,6 +43,7 @@ import logging
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from dualrgb.app.workflow.delivery.delivery_folder import DeliveryFolderError, check_folder
 from dualrgb.core.metadata import (
@@ -306,7 +313,7 @@ def _row(number: int, cells: list[str], names: list[str | None], index: dict[str
             notes[_letter(i)] = ColumnNote(_letter(i), whole="beyond the header's last named column")
     cells = cells + [""] * (len(names) - len(cells))
     fields = {j: k for k, j in index.items()}
-    problems, values, extra = [], {}, {}
+    problems, extra, values = [], {}, dict[str, Any]()
     for i, column in enumerate(names):
         if column is None:
             if cells[i].strip() and _letter(i) not in notes:
@@ -330,7 +337,7 @@ def _row(number: int, cells: list[str], names: list[str | None], index: dict[str
 
 
 def read_queue_csv(path: Path, *, columns: Mapping[str, str] | None = None, default_mode: str = "reflective",
-                   out_dir: Path | None = None) -> QueueImport:
+                   out_dir: Path | None = None, collection: str = "", presets: Path | None = None) -> QueueImport:
     """Read and validate a queue CSV (the module docstring says the format).
 
     Parameters
@@ -343,29 +350,33 @@ def read_queue_csv(path: Path, *, columns: Mapping[str, str] | None = None, defa
         The mode of rows whose mode is empty (or of a CSV without a mode column): the calibration's.
     out_dir
         The deliverables folder: a row whose folder there holds another original's files is a bad row.
+    collection, presets
+        The collection of rows whose ``collection`` column is empty or missing, and the presets' folder (None: the
+        default, app.workflow.day.collection_presets).
 
     Returns
     -------
     QueueImport
-        The good rows' originals in order, and one problem per bad cell (``bad_lines``: one line per bad row).
-        A file that is not a readable queue (not UTF-8, not CSV, no identifier column) raises ValueError, one line.
+        The good rows' originals in order, and one problem per bad cell (``bad_lines``: one line per bad row); a
+        file that is not a readable queue (not UTF-8, not CSV, no identifier column): ValueError, one line.
     """
     path = Path(path)
-    header, records = _opened(path)
-    notes: dict[str, ColumnNote] = {}
+    (header, records), notes = _opened(path), dict[str, ColumnNote]()
     names = _header(path, header, dict(columns or {}), notes)
     index = _field_columns(path, names, dict(columns or {}))
     default_mode = normalise_mode(default_mode)
     out = QueueImport(path, columns={k: str(names[i]) for k, i in index.items()}, notes=notes,
                       extra_columns=[n for i, n in enumerate(names) if n is not None and i not in index.values()])
-    seen: dict[str, int] = {}
-    stems: dict[str, int] = {}
+    seen: dict[str, int] = {}                   # identifier -> row
+    stems: dict[str, int] = {}                  # file stem -> row
+    read: dict[str, Any] = {}                   # collection -> its preset (None: none)
     id_column = str(names[index["identifier"]])
     for number, cells in enumerate(records, start=2):
         if not any(c.strip() for c in cells):
             continue
         original, problems = _row(number, cells, names, index, default_mode, notes)
         if original is not None:
+            original = _in_collection(path, original, collection, presets, read)
             problems = _duplicate(number, original, seen, stems, id_column, out_dir)
         if original is None or problems:
             out.problems += problems
@@ -374,10 +385,29 @@ def read_queue_csv(path: Path, *, columns: Mapping[str, str] | None = None, defa
             continue
         seen[original.identifier] = stems[original.file_stem.casefold()] = number
         out.entries.append(QueueEntry(number, original))
+    return _logged(out)
+
+
+def _logged(out: QueueImport) -> QueueImport:
     log.info("%s", out.summary())
     for line in out.column_lines():
-        log.info("%s: %s", path.name, line)
+        log.info("%s: %s", out.path.name, line)
     return out
+
+
+def _in_collection(path: Path, original: Original, default: str, presets: Path | None, read: dict[str, Any]
+                   ) -> Original:
+    """``original`` under its row's collection's preset (the ``collection`` column, else ``default``; each preset
+    read once per queue, in ``read``)."""
+    from dualrgb.app.workflow.day.collection_presets import apply_preset, find_preset
+
+    name = next((v for k, v in original.extra.items() if k.casefold() == "collection"), "") or default
+    if name.casefold() not in read:
+        try:
+            read[name.casefold()] = find_preset(name, presets)
+        except ValueError as exc:               # a bad preset file: the queue is refused, naming the file
+            raise ValueError(f"{path}: collection {name!r}: {exc}") from None
+    return apply_preset(original, read[name.casefold()])
 
 
 def _duplicate(number: int, original: Original, seen: dict[str, int], stems: dict[str, int], column: str,

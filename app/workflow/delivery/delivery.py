@@ -52,7 +52,7 @@ from dualrgb.app.workflow.delivery.deliverables import (
     check_spectral_request,
     deliverable_files,
 )
-from dualrgb.app.workflow.delivery.delivery_folder import SIDECAR_FORMAT, read_sidecar, staged
+from dualrgb.app.workflow.delivery.delivery_folder import SIDECAR_FORMAT, read_sidecar, staged, stem_of
 from dualrgb.app.workflow.delivery.delivery_settings import DeliverySettings
 from dualrgb.app.workflow.delivery.fixity import FIXITY_ALGORITHM, file_fixity, fixity_section
 from dualrgb.app.workflow.delivery.master_metadata import MasterContext, exact_description, image_description
@@ -319,7 +319,7 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
                         (captured_at or now).astimezone(),
                         dict(exposures or {}), list(source.lights), settings, _processing(profile, source),
                         list(profile.white_xyz), profile)
-    stem = original.file_stem
+    stem = stem_of(Path(out_dir), original)        # the ASCII form where the file system refuses Unicode
     with staged(Path(out_dir), original) as folder:
         images = deliverable_files(folder, stem, source.channels, spectral, source.lights, settings.masters,
                                    settings.access)
@@ -333,7 +333,8 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
                  any(len(v) > 1 for v in (exposures or {}).values()), warnings)
         qa.overrides = list(overrides or [])
         doc = _sidecar(source, profile, original, camera, now, ppi, exposures, dose, qa, files, fixity, spectral)
-        doc.update(captured_at=ctx.captured.isoformat(timespec="seconds"), delivery_settings=settings.describe())
+        doc.update(file_stem=stem, captured_at=ctx.captured.isoformat(timespec="seconds"),
+                   delivery_settings=settings.describe())
         doc["qa"]["grading"] = calibration_grades(profile)
         write_sidecar(folder / f"{stem}.json", {**doc, **(extra or {})})
     log.info("delivered %s: %s", original.identifier, qa.text())

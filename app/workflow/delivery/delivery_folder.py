@@ -2,7 +2,10 @@
 
 * ``<out>/<stem>/`` holds one original's current deliverables (``stem``: core.metadata.file_stem, distinct
   for distinct identifiers, also on case-insensitive file systems), its sidecar ``<stem>.json`` naming the
-  identifier.
+  identifier. Where ``<out>``'s file system refuses Unicode names (core.metadata.unicode_names_work, probed once
+  per deliverables folder: :func:`stem_of`), the stem is its documented reversible ASCII form
+  (core.metadata.ascii_stem, ``xn--`` + Punycode), said in one log line; the sidecar and the XMP keep the
+  exact identifier.
 * :func:`check_folder` (run before the light goes on, and again just before a delivery lands) refuses in one line
   a folder whose sidecar names another identifier, a folder without a sidecar that holds files (not ours to
   write into), and a file where the folder should be.
@@ -27,7 +30,7 @@ from typing import Any
 
 from dualrgb.common.atomic_files import fsync_dir
 from dualrgb.common.debris import stage_name, sweep
-from dualrgb.core.metadata import Original
+from dualrgb.core.metadata import Original, ascii_stem, unicode_names_work
 
 log = logging.getLogger(__name__)
 
@@ -61,12 +64,41 @@ def sidecar_identifier(path: Path) -> str | None:
     return ident
 
 
+_UNICODE_NAMES: dict[Path, bool] = {}       # deliverables folder -> whether its file system keeps Unicode names
+
+
+def unicode_names(out_dir: Path) -> bool:
+    """Whether ``out_dir``'s file system keeps Unicode file names: probed once per folder (the nearest existing
+    folder while it is not made yet; a folder that cannot be written is not probed: its write fails and says so)."""
+    key = Path(out_dir).absolute()
+    if key in _UNICODE_NAMES:
+        return _UNICODE_NAMES[key]
+    probe = key
+    while not probe.is_dir() and probe != probe.parent:
+        probe = probe.parent
+    if not os.access(probe, os.W_OK | os.X_OK):
+        return True
+    works = _UNICODE_NAMES[key] = unicode_names_work(probe)
+    if not works:
+        log.warning("%s: this file system refuses Unicode file names; an identifier that is not ASCII names its "
+                    "folder and files by its reversible ASCII form (xn-- + Punycode, RFC 3492); the sidecar and "
+                    "XMP keep the exact identifier", out_dir)
+    return works
+
+
+def stem_of(out_dir: Path, original: Original) -> str:
+    """The stem of ``original``'s deliverables in ``out_dir``: its file stem (core.metadata.file_stem), or that
+    stem's reversible ASCII form where the file system refuses Unicode names (:func:`unicode_names`)."""
+    stem = original.file_stem
+    return stem if stem.isascii() or unicode_names(out_dir) else ascii_stem(stem)
+
+
 def folder_of(out_dir: Path, original: Original) -> Path:
-    return Path(out_dir) / original.file_stem
+    return Path(out_dir) / stem_of(out_dir, original)
 
 
 def sidecar_of(out_dir: Path, original: Original) -> Path:
-    return folder_of(out_dir, original) / f"{original.file_stem}.json"
+    return folder_of(out_dir, original) / f"{stem_of(out_dir, original)}.json"
 
 
 def check_folder(out_dir: Path, original: Original) -> None:
@@ -81,7 +113,7 @@ def check_folder(out_dir: Path, original: Original) -> None:
     owner = sidecar_identifier(sidecar_of(out_dir, original))
     if owner is None:
         if any(p.name != PREVIOUS for p in folder.iterdir()):
-            raise DeliveryFolderError(f"{folder}: holds files but no sidecar {original.file_stem}.json (not a "
+            raise DeliveryFolderError(f"{folder}: holds files but no sidecar {folder.name}.json (not a "
                                       f"delivery of {original.identifier!r}); move it away or choose another --out")
         return
     if owner != original.identifier:
@@ -111,7 +143,7 @@ def staged(out_dir: Path, original: Original) -> Iterator[Path]:
     except OSError as exc:
         raise DeliveryFolderError(f"{out_dir}: cannot create the deliverables folder ({exc.strerror or exc})") from exc
     sweep(Path(out_dir), depth=2)                   # what a killed delivery left (common.debris)
-    stage = Path(out_dir) / stage_name(original.file_stem)
+    stage = Path(out_dir) / stage_name(stem_of(out_dir, original))
     stage.mkdir()                                   # (not tempfile.mkdtemp: its 0700 would stay on the folder)
     try:
         yield stage
@@ -165,4 +197,4 @@ def previous_sets(out_dir: Path, original: Original) -> list[Path]:
 
 
 __all__ = ["PREVIOUS", "SIDECAR_FORMAT", "DeliveryFolderError", "check_folder", "folder_of", "prepare",
-           "previous_sets", "read_sidecar", "sidecar_identifier", "sidecar_of", "staged"]
+           "previous_sets", "read_sidecar", "sidecar_identifier", "sidecar_of", "staged", "stem_of", "unicode_names"]

@@ -2,12 +2,13 @@
 
 * TIFF tags (baseline and registered only, as SLUB's checkit_tiff baseline whitelist allows): ImageDescription
   (what the file holds, 7-bit ASCII), DocumentName (the original), Make / Model, Software, DateTime (when the file
-  was made), Copyright (the settings' rights), resolution;
+  was made), Copyright (the rights, as the XMP's), resolution;
 * EXIF IFD (app.processing.exif): exposure time, f-number, ISO, capture time with its UTC offset, focal length,
   body serial, lens, colour space;
-* XMP: Dublin Core identifier, title, description (the exact Unicode), creator and rights (the delivery
-  settings), date (the capture), format (MIME type); ``xmpMM:History`` (captured by the camera, converted by
-  dualrgb with the calibration); ``dualrgb:`` fields (operator, calibration id, lights, exposures, light dose, the
+* XMP: Dublin Core identifier, title, description (the exact Unicode), creator and rights (the original's
+  collection preset's, else the delivery settings'), IPTC credit line and source (the preset's), date (the
+  capture), format (MIME type); ``xmpMM:History`` (captured by the camera, converted by dualrgb with the
+  calibration); ``dualrgb:`` fields (operator, calibration id, lights, exposures, light dose, the
   queue's extra columns by their exact names);
 * ICC: the space's matrix/TRC profile, the XYZ one, or the camera-RGB one (app.workflow.delivery.camera_profiles).
 """
@@ -66,6 +67,12 @@ class MasterContext:
         times = self.exposures.get(name) or next(iter(self.exposures.values()), [])
         return min(times) if times else None
 
+    @property
+    def rights(self) -> str:
+        """The rights statement: the original's collection preset's, else the delivery settings' (XMP dc:rights,
+        TIFF Copyright)."""
+        return self.original.credits.rights or self.settings.rights
+
     def exif(self, im: Deliverable) -> CaptureExif:
         cam = self.camera
         return CaptureExif(self.captured, self.exposure(im), cam.aperture, cam.iso, focal_length_mm(cam.lens),
@@ -82,8 +89,10 @@ class MasterContext:
     def xmp(self, im: Deliverable) -> bytes:
         o = self.original
         extra = {xmp_property(name): value for name, value in o.extra.items()}
-        dc = DublinCore(self.settings.creator, self.settings.rights, self.captured,
-                        MIME.get(im.path.suffix.lower(), "image/tiff"), self.history())
+        credits = o.credits
+        dc = DublinCore(credits.creator or self.settings.creator, self.rights, self.captured,
+                        MIME.get(im.path.suffix.lower(), "image/tiff"), self.history(), credits.credit,
+                        credits.source)
         fields = {"Operator": o.operator, "CalibrationID": self.calibration_id, "Mode": o.mode,
                   "Lights": "; ".join(self.lights), "LightDoseLuxHours": f"{self.dose_lux_s / 3600.0:.6g}",
                   "LightDoseLuxSeconds": f"{self.dose_lux_s:.6g}", "Content": im.what, "Notes": o.notes, **extra}
@@ -100,7 +109,7 @@ class MasterContext:
                             ascii_text(make or self.camera.model), ascii_text(model or self.camera.model), self.ppi,
                             tiff_datetime(self.now.astimezone()), self.xmp(im),
                             ascii_text(o.identifier + (f" - {o.title}" if o.title else "")).strip(),
-                            ascii_text(self.settings.rights).strip(), self.exif(im))
+                            ascii_text(self.rights).strip(), self.exif(im))
 
     def icc(self, im: Deliverable) -> bytes | None:
         """The ICC profile ``im`` embeds (None: it has none)."""

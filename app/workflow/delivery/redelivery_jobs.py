@@ -241,9 +241,10 @@ def out_folder(task: RedeliveryTask) -> Path:
 def _already(out: Path, original: Any, key: str) -> Path | None:
     """The sidecar of ``original``'s delivery in ``out`` when it carries ``key`` and its files still match their
     recorded SHA-256 (a killed run's finished originals); None otherwise."""
+    from dualrgb.app.workflow.delivery.delivery_folder import sidecar_of
     from dualrgb.app.workflow.delivery.fixity import VerifyReport, verify_sidecar
 
-    sidecar = out / original.file_stem / f"{original.file_stem}.json"
+    sidecar = sidecar_of(out, original)
     try:
         doc = json.loads(sidecar.read_text(encoding="utf-8"))
     except (OSError, ValueError):
