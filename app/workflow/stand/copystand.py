@@ -445,6 +445,7 @@ class CopyStand:
     def _capture(self, original: Original, profile: CalibrationProfile, reshoot: bool | None,
                  out_dir: Path | None, frames: int | None) -> CaptureReport:
         shot = self.shoot(original, profile, reshoot, out_dir, frames)
+        report(self.progress, 0.8, f"{original.identifier}: merging its frames, writing its deliverables")
         return self.finish(shot, self.deliver_shot(shot))
 
     def shoot(self, original: Original, profile: CalibrationProfile, reshoot: bool | None = None,
