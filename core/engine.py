@@ -442,7 +442,10 @@ class Run(Controlled, Generic[T]):
             return self._execute(emit)
         finally:
             if clock is not None:
-                clock.finish(self.outcome if self.outcome in ("done", "cancelled") else "failed")
+                try:
+                    clock.finish(self.outcome if self.outcome in ("done", "cancelled") else "failed")
+                except Exception:  # a time estimate never masks the run's own outcome; logged loudly
+                    log.exception("%s: its phase times were not recorded", self.name)
 
     def _execute(self, emit: Emit) -> T | None:
         clock = self.clock
