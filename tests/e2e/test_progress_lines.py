@@ -1,6 +1,7 @@
 """`dualrgb calibrate`'s progress lines move (issue 42 point 3): every report figure is a line of its own ("report:
 figure 3 of 14, ..."), the processing's long steps say what they do, the lines carry the time left from the phase
-costs, and the run's phases are recorded in the per-user data folder for the next run (the window's too)."""
+costs, and the run's phases are recorded in the per-user data folder for the next run (the window's too); an
+original shot alone says when it writes its deliverables."""
 from __future__ import annotations
 
 import json
@@ -26,3 +27,7 @@ def test_calibrate_prints_each_report_figure_with_the_time_left(tmp_path, capsys
         assert step in err, step
     runs = json.loads((user_data_dir / "phase_costs.json").read_text())["runs"]
     assert {"darks", "flats", "processing: report", "saving"} <= set(runs["calibration"])
+    assert main(["capture", "--virtual-lab", "--session", str(tmp_path / "day"), "--id", "PROG-1", "--settle",
+                 "0"]) == 0
+    err = capsys.readouterr().err
+    assert re.search(r"^\[ 80%\] PROG-1: merging its frames, writing its deliverables$", err, re.M), err[-2000:]
