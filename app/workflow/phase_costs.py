@@ -69,6 +69,7 @@ class PhaseCosts:
         self.path = Path(path) if path is not None else default_path()
         self.keep = keep
         self._lock = threading.Lock()
+        self._said: set[str] = set()           # what was said of a bad file already (once per store)
 
     def load(self) -> dict[str, dict[str, list[dict[str, Any]]]]:
         """Run -> phase -> its last durations ({"seconds", "size"}); {} when there is no file or it is damaged."""
@@ -77,7 +78,7 @@ class PhaseCosts:
         except FileNotFoundError:
             return {}
         except OSError as exc:
-            log.warning("%s: not readable (%s); time left from the plan's estimates", self.path, exc)
+            self._say(f"{self.path}: not readable ({exc}); time left from the plan's estimates")
             return {}
         try:
             data = json.loads(text)
@@ -87,8 +88,13 @@ class PhaseCosts:
             return {run: {name: [_sample(s) for s in samples] for name, samples in phases.items()}
                     for run, phases in runs.items()}
         except (ValueError, TypeError, KeyError, AttributeError) as exc:
-            log.warning("%s: damaged phase costs ignored (%s); time left from the plan's estimates", self.path, exc)
+            self._say(f"{self.path}: damaged phase costs ignored ({exc}); time left from the plan's estimates")
             return {}
+
+    def _say(self, line: str) -> None:
+        if line not in self._said:
+            self._said.add(line)
+            log.warning("%s", line)
 
     def expected(self, run: str, phase: Phase, runs: dict | None = None) -> float | None:
         """The measured cost of ``phase`` in ``run`` (seconds), or None when none is measured: the median of its

@@ -57,11 +57,12 @@ def test_a_damaged_file_is_ignored_with_one_log_line_and_written_again(tmp_path,
     store = PhaseCosts(tmp_path / "phase_costs.json")
     store.path.write_text(text)
     with caplog.at_level(logging.WARNING, logger="dualrgb.app.workflow.phase_costs"):
-        assert store.load() == {}
+        clock = PhaseClock("calibration", PHASES[1:], store)          # read when a run starts ...
+        assert store.load() == {} and clock.expected_total_s() is None
+        run_through(clock, [(0.6, 1.0), (0.8, 5.0)])                 # ... and again when it records
     lines = [r.getMessage() for r in caplog.records]
-    assert len(lines) == 1 and str(store.path) in lines[0] and "ignored" in lines[0]
-    store.record("calibration", [(PHASES[1], 4.0)])
-    assert store.load() == {"calibration": {"process": [{"seconds": 4.0}]}}
+    assert len(lines) == 1 and str(store.path) in lines[0] and "ignored" in lines[0], lines
+    assert store.load() == {"calibration": {"process": [{"seconds": 5.0}], "report": [{"seconds": 0.0}]}}
 
 
 def test_time_left_falls_back_to_the_plan_and_the_run_pace_when_nothing_is_measured(tmp_path):
