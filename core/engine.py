@@ -62,8 +62,8 @@ RUN_PROGRESS = "run_progress"     # data key of the events that carry the whole 
 Prompter = Callable[[str], None]
 Emit = Callable[[ProgressEvent], None]
 
-__all__ = ["RUN_PROGRESS", "Controlled", "Plan", "PlannedFrame", "ProgressEvent", "Run", "RunControl", "RunEngine",
-           "RunHooks", "StandDevices", "facts_of", "owning", "states_light"]
+__all__ = ["RUN_PROGRESS", "Controlled", "Plan", "PlannedFrame", "ProgressEvent", "Run", "RunClock", "RunControl",
+           "RunEngine", "RunHooks", "StandDevices", "facts_of", "owning", "states_light"]
 
 
 def states_light(error: BaseException) -> bool:
@@ -384,19 +384,35 @@ class RunHooks:
                          progress=self.progress, prompt=self.prompt, on_event=self.on_event)
 
 
+class RunClock(Protocol):
+    """What times a run's progress (app.workflow.phase_costs.PhaseClock: the time left from measured phase costs):
+    told when the run begins, asked the time left at each fraction, shown the run's events (a new plan), told how
+    it ended."""
+
+    def begin(self) -> None: ...
+
+    def time_left(self, fraction: float) -> float | None: ...
+
+    def saw(self, event: ProgressEvent) -> None: ...
+
+    def finish(self, outcome: str) -> None: ...
+
+
 class Run(Controlled, Generic[T]):
     """One front-end run: ``work(hooks)`` (a CopyStand call, or one plan: :meth:`of`) with sequence-like control.
     Its devices are acted on by the engine ``work`` makes from the hooks (RunEngine.run: dark at start and end).
     Progress comes as 'progress' events marked ``data[RUN_PROGRESS]`` whose ``step``/``total`` are per mille of the
-    run; the events of the plans inside come as they are."""
+    run (their time left from ``clock`` when there is one); the events of the plans inside come as they are."""
 
     progress_events = True           # a progress bar follows the RUN_PROGRESS events only
 
-    def __init__(self, name: str, plan: list[PlannedFrame], work: Callable[[RunHooks], T], *, source: Any = None):
+    def __init__(self, name: str, plan: list[PlannedFrame], work: Callable[[RunHooks], T], *, source: Any = None,
+                 clock: RunClock | None = None):
         self.name = name
         self._plan = list(plan)
         self._work = work
         self.source = source          # the plan object of a one-plan run (its results, its summary)
+        self.clock = clock
         self.control = RunControl()
         self.result: T | None = None
         self.outcome = ""
@@ -418,11 +434,30 @@ class Run(Controlled, Generic[T]):
     # ---- worker side ----
     def execute(self, emit: Emit) -> T | None:
         """Run it in the calling (worker) thread. A cancel ends with a 'cancelled' event (never an error) and no
-        result; anything else propagates."""
+        result; anything else propagates. The clock (if any) hears how it ended."""
+        clock = self.clock
+        if clock is not None:
+            clock.begin()
+        try:
+            return self._execute(emit)
+        finally:
+            if clock is not None:
+                try:
+                    clock.finish(self.outcome if self.outcome in ("done", "cancelled") else "failed")
+                except Exception:  # a time estimate never masks the run's own outcome; logged loudly
+                    log.exception("%s: its phase times were not recorded", self.name)
+
+    def _execute(self, emit: Emit) -> T | None:
+        clock = self.clock
+
         def progress(fraction: float, message: str) -> None:
-            emit(ProgressEvent(int(round(1000 * fraction)), 1000, message, data={RUN_PROGRESS: True}))
+            left = clock.time_left(fraction) if clock is not None else None
+            emit(ProgressEvent(int(round(1000 * fraction)), 1000, message, time_left_s=left,
+                               data={RUN_PROGRESS: True}))
 
         def on_event(ev: ProgressEvent) -> None:
+            if clock is not None:
+                clock.saw(ev)
             if ev.kind is EventKind.CANCELLED:        # a plan inside stopped at the cancel and said so
                 self.outcome = "cancelled"
             if ev.kind is not EventKind.PROMPT:       # prompts are announced by ``prompt``

@@ -1,4 +1,5 @@
 import os
+import tempfile
 
 import pytest
 from hypothesis import settings
@@ -11,6 +12,11 @@ os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 # with them. numba's parallel kernels keep their threads. A developer's own setting wins.
 for _blas in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_blas, "1")
+# the per-user data folder of CLI subprocesses whose environment is taken before a test's own folder is set (a
+# module fixture's, an ENV copied at import): this run's temp folder, never the real one (a calibration records its
+# phase costs there: app.workflow.phase_costs)
+_USER_DATA = tempfile.TemporaryDirectory(prefix="dualrgb-tests-user-data-")
+os.environ.setdefault("DUALRGB_DATA_DIR", _USER_DATA.name)
 
 # the sphere_backend fixture (emulator | firmware on a simulated chip), the firmware mark, --firmware-check;
 # pytest loads it after this module ran, so after the BLAS setting above

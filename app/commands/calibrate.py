@@ -33,6 +33,7 @@ from dualrgb.app.commands.stand_options import (
     open_devices,
     progress_printer,
     session_of_run,
+    timed,
 )
 from dualrgb.app.json_output import text_stream, write_json
 from dualrgb.app.workflow.stand import defaults as day
@@ -187,6 +188,7 @@ def main(args: argparse.Namespace) -> int:
     from dualrgb.app.workflow.stand.copystand import CopyStand, StandSettings
     from dualrgb.app.workflow.stand.defaults import DAY_WORKFLOW
     from dualrgb.app.workflow.stand.run_gate import check_session_run
+    from dualrgb.app.workflow.stand.run_phases import calibration_clock
 
     mode = preset.mode
     stand_start = _stand_start(args)
@@ -214,9 +216,11 @@ def main(args: argparse.Namespace) -> int:
     with open_devices(args, mode, charts=chart_choices(args)) as dev:
         check_session_run(args.session, definition, dev.camera)         # another day's session: nothing written
         with session_of_run(args.session, definition, dev.camera, {"mode": mode}) as session:
+            clock = calibration_clock([], args.settle)           # time left from the measured phase costs
             stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
-                              progress=progress_printer(), prompt=ask_person)
-            profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
+                              progress=progress_printer(clock), prompt=ask_person, on_event=clock.saw)
+            with timed(clock):
+                profile = stand.calibrate(preset, hdr_auto=hdr == "auto", grids=grids)
     say_calibrated(args, profile, text_stream(args.json_path))
     write_json(args.json_path, CALIBRATE_FORMAT, {"calibration": str(profile.path), **profile.to_dict()})
     return 0

@@ -17,8 +17,11 @@ from typing import TYPE_CHECKING, Any
 from dualrgb.app.commands.options import add_world_option, count, frame_size, number, seed
 from dualrgb.app.json_output import HELP as JSON_HELP
 from dualrgb.app.workflow.stand.defaults import DEFAULT_MODE, SETTLE_S, VIRTUAL_FRAME_SIZE
+from dualrgb.common.formatting import format_duration
+from dualrgb.common.progress import Cancelled
 
 if TYPE_CHECKING:                       # types only: a command imports its devices when it runs (fast --help)
+    from dualrgb.app.workflow.phase_costs import PhaseClock
     from dualrgb.core.device_actions import Place as Stand
     from dualrgb.core.protocols import Sphere
     from dualrgb.core.session.capture_session import CaptureSession
@@ -76,15 +79,35 @@ def add_reuse_options(p: argparse.ArgumentParser) -> None:
                    help="refuse when the sphere is this many C from the calibration's temperature (5)")
 
 
-def progress_printer() -> Callable[[float, str], None]:
+def progress_printer(clock: PhaseClock | None = None) -> Callable[[float, str], None]:
+    """Progress lines on stderr ('[ 88%] report: figure 3 of 11, ...'); with a ``clock``
+    (app.workflow.phase_costs) each line ends with the time left from the measured phase costs."""
     last: list[str | None] = [None]
 
     def progress(f: float, msg: str) -> None:
         line = f"[{int(100 * f):3d}%] {msg}"
-        if line != last[0]:
-            last[0] = line
-            print(line, file=sys.stderr, flush=True)
+        if line == last[0]:
+            return
+        last[0] = line
+        left = clock.time_left(f) if clock is not None else None
+        print(line + (f" (time left {format_duration(left)})" if left is not None and f < 1.0 else ""),
+              file=sys.stderr, flush=True)
     return progress
+
+
+@contextlib.contextmanager
+def timed(clock: PhaseClock) -> Iterator[PhaseClock]:
+    """A CLI run timed by ``clock``: begun here, its phases recorded when it ends (all of them when it is done)."""
+    clock.begin()
+    outcome = "failed"
+    try:
+        yield clock
+        outcome = "done"
+    except (KeyboardInterrupt, Cancelled):
+        outcome = "cancelled"
+        raise
+    finally:
+        clock.finish(outcome)
 
 
 def ask_person(message: str) -> None:

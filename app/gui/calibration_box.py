@@ -44,6 +44,7 @@ from dualrgb.app.workflow.calibration.profile import (
 from dualrgb.app.workflow.stand.copystand import StandSettings
 from dualrgb.app.workflow.stand.defaults import workflow_defaults
 from dualrgb.app.workflow.stand.plans import StandPlanner
+from dualrgb.app.workflow.stand.run_phases import CALIBRATION_RUN, calibration_clock
 from dualrgb.core.engine import Run, RunHooks
 from dualrgb.core.protocols import Session
 from dualrgb.core.vocabulary import Role, Subject, role_of
@@ -51,7 +52,6 @@ from dualrgb.simulation.stand_model import StandModel
 
 log = logging.getLogger(__name__)
 
-CALIBRATION_RUN = "calibration"
 RESHOOT, KEEP, CANCEL = "Re-shoot", "Keep", "Cancel"
 
 
@@ -215,7 +215,8 @@ class CalibrationBox(QGroupBox):
         except ValueError as exc:
             self.ctx.errors.report("Calibrate", exc)
             return
-        self.run = Run(CALIBRATION_RUN, plan, work)
+        clock = calibration_clock(plan, settings.settle_s, self.view.overhead_s, record=not keep)   # time left
+        self.run = Run(CALIBRATION_RUN, plan, work, clock=clock)
         self.view.start(self.run)
 
     def _run_event(self, ev: ProgressEvent) -> None:

@@ -35,6 +35,8 @@ from dualrgb.app.gui.viewmodel import format_duration
 from dualrgb.app.gui.wording import in_window_words
 from dualrgb.app.gui.workers import TaskHandle
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.workflow.phase_costs import PhaseClock
+from dualrgb.app.workflow.stand.run_phases import DEFAULT_OVERHEAD_S, plan_seconds
 from dualrgb.core.engine import RUN_PROGRESS
 from dualrgb.core.engine import Run as EngineRun
 from dualrgb.core.vocabulary import EventKind
@@ -42,7 +44,6 @@ from dualrgb.simulation.lightsource import LightSource
 
 log = logging.getLogger(__name__)
 
-DEFAULT_OVERHEAD_S = 1.5          # per frame beyond the exposure (download, write) until one has been measured
 OVERHEAD_KEY = "runs/frame_overhead_s"     # the last measured one, for every view and the next start
 Run = EngineRun
 DONE_MARK = "✓"
@@ -57,11 +58,6 @@ def frame_overhead_s(times: list[tuple[float, float]], settle_s: float) -> float
         return None
     steps = sorted(t1 - t0 - exp - settle_s for (t0, _), (t1, exp) in zip(times, times[1:], strict=False))
     return max(0.05, steps[len(steps) // 2])
-
-
-def estimate_s(plan: list[PlannedFrame], settle_s: float, overhead_s: float) -> float:
-    """Rough time for a plan: every exposure, the light settling before lit frames, and a per-frame overhead."""
-    return sum(f.exposure_s + (settle_s if f.light else 0.0) + overhead_s for f in plan)
 
 
 class SequenceView(QWidget):
@@ -165,13 +161,23 @@ class SequenceView(QWidget):
             if r < len(done) and done[r]:
                 self.tick(r, "in the session")
         self.table.resizeColumnsToContents()
-        total = estimate_s(plan, self.settle_s, self.overhead_s)
+        total, measured = self._expected_total(plan)
         lit = sum(f.exposure_s + self.settle_s for f in plan if f.light)
         n_done = sum(bool(d) for d in done)
         already = f"; {n_done} already in the session" if n_done else ""
         self.summary.setText(f"{title + ': ' if title else ''}{len(plan)} frames{already}, about "
-                             f"{format_duration(total)} (light on about {format_duration(lit)} in all)")
+                             f"{format_duration(total)}{' as measured on earlier runs' if measured else ''} (light on "
+                             f"about {format_duration(lit)} in all)")
         self.planned = plan
+
+    def _expected_total(self, plan: list[PlannedFrame]) -> tuple[float, bool]:
+        """The run's time and whether it is measured: its phases' costs when its clock has them all
+        (app.workflow.phase_costs: processing included), else the plan's frames' rough time."""
+        clock = getattr(self.seq, "clock", None)
+        measured = clock.expected_total_s() if isinstance(clock, PhaseClock) else None
+        if measured is not None:
+            return measured, True
+        return plan_seconds(plan, self.settle_s, self.overhead_s), False
 
     def replan(self, plan: list[PlannedFrame]) -> None:
         """The plan changed while running (an HDR bracket metered): rows already done stay ticked."""

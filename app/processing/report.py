@@ -44,8 +44,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dualrgb.app.processing.characterise import Characterisation
-from dualrgb.app.processing.figure_files import new_figure, save_figure, save_tight
+from dualrgb.app.processing.figure_files import (
+    FigureJob,
+    FigureProgress,
+    draw_figures,
+    new_figure,
+    save_figure,
+    save_tight,
+)
 from dualrgb.common.atomic_files import atomic_write
+from dualrgb.common.progress import CancelToken
 from dualrgb.common.strict_json import dumps as strict_dumps
 from dualrgb.common.strict_json import finite_or_none
 from dualrgb.simulation.colorimetry import xyz_to_lab
@@ -60,6 +68,7 @@ if TYPE_CHECKING:                                   # pragma: no cover
 log = logging.getLogger(__name__)
 
 REPORT_FORMAT = "dualrgb-report/1"
+TARGET_WORDS = {"train": "training target", "test": "test target"}     # the figures' progress lines
 
 
 # ---------------------------------------------------------------- standards
@@ -310,8 +319,8 @@ class Placed:
 
 
 def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors: np.ndarray, label: str,
-                    calibration: CalibrationFrames | None) -> tuple[dict, list[str]]:
-    """The quality metrics of one target (app.processing.quality) and their figures."""
+                    calibration: CalibrationFrames | None) -> tuple[dict, list[FigureJob]]:
+    """The quality metrics of one target (app.processing.quality) and their figures (to draw)."""
     from dualrgb.app.processing.quality import STANDARD_LIMITS, assess
     from dualrgb.app.processing.quality_figures import lab_components_figure, tone_figure, uniformity_figure
 
@@ -320,102 +329,116 @@ def quality_section(out_dir: Path, c: Characterisation, data: TargetData, errors
     lab_cap = xyz_to_lab(m.apply(data.values), c.white)
     q = assess(lab_ref, lab_cap, data.names, errors, values=data.values, std=data.std,
                matrix=m.matrix if m.degree == 1 else m.jacobian(data.values), white=c.white, calibration=calibration)
-    name = data.label or label
+    name, short = data.label or label, TARGET_WORDS.get(label, label)
     comp = q["lab_differences"]["per_patch"]
-    figures = [lab_components_figure(out_dir / f"lab_components_{label}.png", data.names, comp, name).name]
+    jobs = [FigureJob(f"{short}: ΔL*, ΔC*, ΔH* per patch", lambda: lab_components_figure(
+        out_dir / f"lab_components_{label}.png", data.names, comp, name))]
     if q["neutral_patches"]["patches"]:
         limit = STANDARD_LIMITS["ISO 19264-1:2021 A"]["tone_max_abs_dl"].value
-        figures.append(tone_figure(out_dir / f"tone_{label}.png", q["neutral_patches"], limit, name).name)
+        neutral = q["neutral_patches"]
+        jobs.append(FigureJob(f"{short}: tone response",
+                              lambda: tone_figure(out_dir / f"tone_{label}.png", neutral, limit, name)))
     if q.get("uniformity"):
-        figures.append(uniformity_figure(out_dir / "uniformity.png", q["uniformity"]).name)
+        uniformity = q["uniformity"]
+        jobs.append(FigureJob("illuminance non-uniformity",
+                              lambda: uniformity_figure(out_dir / "uniformity.png", uniformity)))
     q["target"] = label
-    return q, figures
+    return q, jobs
 
 
-def _target_figures(out_dir: Path, c: Characterisation, label: str, data: TargetData) -> list[str]:
-    """The chosen matrix on one target: dE00 heat map, Lab scatter and the patch mosaic (file names)."""
+def _target_figures(out_dir: Path, c: Characterisation, label: str, data: TargetData) -> list[FigureJob]:
+    """The chosen matrix on one target: dE00 heat map, Lab scatter and the patch mosaic (to draw)."""
     best, white = c.best, c.white
     res = c.results[best]
     errors = res.errors(label)
     layout = layout_for(len(data.names), data.layout)
-    name = data.label or label
+    name, short = data.label or label, TARGET_WORDS.get(label, label)
     pred = res.matrix.apply(data.values)
     heat = f"{name}: ΔE00 per patch ({best})"
-    figures = [heatmap_figure(out_dir / f"heatmap_{label}.png", errors, layout, heat).name,
-               lab_scatter_figure(out_dir / f"lab_scatter_{label}.png", data.xyz, errors, white, name).name,
-               patch_mosaic_figure(out_dir / f"patches_{label}.png", data.xyz, pred, white, layout, name).name]
-    if data.placement is not None:
+    jobs = [FigureJob(f"{short}: ΔE00 per patch",
+                      lambda: heatmap_figure(out_dir / f"heatmap_{label}.png", errors, layout, heat)),
+            FigureJob(f"{short}: a*b* and L*C* scatter",
+                      lambda: lab_scatter_figure(out_dir / f"lab_scatter_{label}.png", data.xyz, errors, white, name)),
+            FigureJob(f"{short}: patches, ground truth and prediction",
+                      lambda: patch_mosaic_figure(out_dir / f"patches_{label}.png", data.xyz, pred, white, layout,
+                                                  name))]
+    p = data.placement
+    if p is not None:
         from dualrgb.app.processing.placement import placement_figure
 
-        p = data.placement
-        figures.append(placement_figure(out_dir / f"placement_{label}.png", p.frame, p.grid,
-                                        f"{name} ({p.record.get('method', 'given')})", p.cells).name)
-    return figures
+        title = f"{name} ({p.record.get('method', 'given')})"
+        jobs.append(FigureJob(f"{short}: patch grid over the frame", lambda: placement_figure(
+            out_dir / f"placement_{label}.png", p.frame, p.grid, title, p.cells)))
+    return jobs
 
 
 def _targets_section(out_dir: Path, c: Characterisation, targets: list[tuple[str, TargetData]]
-                     ) -> tuple[list[str], dict]:
-    """Per target ('train', 'test'): its figures, and every fitted matrix's dE00 per patch (names alongside)."""
-    figures: list[str] = []
+                     ) -> tuple[list[FigureJob], dict]:
+    """Per target ('train', 'test'): its figures (to draw), and every fitted matrix's dE00 per patch (names
+    alongside)."""
+    jobs: list[FigureJob] = []
     per_patch: dict = {}
     for label, data in targets:
-        figures += _target_figures(out_dir, c, label, data)
+        jobs += _target_figures(out_dir, c, label, data)
         per_patch[label] = {"names": list(data.names),
                             "de00": {m: [round(float(v), 4) for v in r.errors(label)] for m, r in c.results.items()}}
-    return figures, per_patch
+    return jobs, per_patch
 
 
 def _dn_validation(out_dir: Path, c: Characterisation, simulated_train: np.ndarray, train: TargetData
-                   ) -> tuple[dict, str]:
+                   ) -> tuple[dict, FigureJob]:
     """Simulated against captured training values per channel (thesis Fig 7.4): the section and its figure."""
     fits = dn_validation(simulated_train, train.values, c.channels)
-    figure = dn_validation_figure(out_dir / "dn_validation.png", simulated_train, train.values, fits).name
+    job = FigureJob("simulated against captured values (Fig 7.4)", lambda: dn_validation_figure(
+        out_dir / "dn_validation.png", simulated_train, train.values, fits))
     union = sorted({i for f in fits for i in f.outliers})
     return ({"channels": [f.to_dict(train.names) for f in fits], "outlier_patches": union,
              "outlier_names": [train.names[i] for i in union],
              "min_r2": finite_or_none(min(f.r2 for f in fits)),
-             "min_r2_without_outliers": finite_or_none(min(f.r2_clean for f in fits))}, figure)
+             "min_r2_without_outliers": finite_or_none(min(f.r2_clean for f in fits))}, job)
 
 
 def _model_sections(out_dir: Path, c: Characterisation, train: TargetData, test: TargetData | None,
                     simulated_train: np.ndarray | None, spectral: SpectralCharacterisation | None
-                    ) -> tuple[dict, list[str]]:
+                    ) -> tuple[dict, list[FigureJob]]:
     """The simulated-vs-captured check (Fig 7.4) and the spectral estimate, when there are data for them."""
     sections: dict = {"dn_validation": None, "spectral": None}
-    figures: list[str] = []
+    jobs: list[FigureJob] = []
     if simulated_train is not None:
-        sections["dn_validation"], figure = _dn_validation(out_dir, c, np.asarray(simulated_train), train)
-        figures.append(figure)
+        sections["dn_validation"], job = _dn_validation(out_dir, c, np.asarray(simulated_train), train)
+        jobs.append(job)
     if spectral is not None:
         from dualrgb.app.processing.spectral import spectral_section
 
         names = {"train": train.names, "test": test.names if test is not None else []}
         sections["spectral"], more = spectral_section(out_dir, spectral, names)
-        figures += more
-    return sections, figures
+        jobs += more
+    return sections, jobs
 
 
 def build_report(out_dir: Path, characterisation: Characterisation, train: TargetData,
                  test: TargetData | None = None, *, simulated_train: np.ndarray | None = None,
                  title: str = "dual-RGB capture", extra: dict | None = None,
                  calibration: CalibrationFrames | None = None,
-                 spectral: SpectralCharacterisation | None = None) -> dict:
+                 spectral: SpectralCharacterisation | None = None, more_figures: Sequence[FigureJob] = (),
+                 progress: FigureProgress | None = None, cancel: CancelToken | None = None) -> dict:
     """Write report.json and the PNG figures into ``out_dir``; returns the JSON dict. ``calibration`` (the
     session's processor, darks and flats) adds sensor noise and illuminance non-uniformity to the quality
-    metrics (app.processing.quality); ``spectral`` (app.processing.spectral) the spectral estimate's figures
-    (RMSE, GFC, dE00 under other lights) and a spectra figure."""
+    metrics (app.processing.quality); ``spectral`` (app.processing.spectral) a spectra figure and its section.
+    ``more_figures``: figures of ``extra``'s sections (drawn last, named there). Every figure is listed before
+    the first is drawn; ``progress(k, n, what)`` after each (figure_files.draw_figures); a cancel between them."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     c, best = characterisation, characterisation.best
     targets = [("train", train)] + ([("test", test)] if test is not None else [])
-    figures, per_patch = _targets_section(out_dir, c, targets)
+    jobs, per_patch = _targets_section(out_dir, c, targets)
     sections, more = _model_sections(out_dir, c, train, test, simulated_train, spectral)
-    figures += more
     graded_set = "test" if test is not None else "train"
     graded, graded_errors = c.results[best].stats(graded_set), c.results[best].errors(graded_set)
-    quality, qfigs = quality_section(out_dir, c, test if test is not None else train, graded_errors, graded_set,
+    quality, qjobs = quality_section(out_dir, c, test if test is not None else train, graded_errors, graded_set,
                                      calibration)
-    figures += qfigs
+    jobs += more + qjobs
+    figures = draw_figures([*jobs, *more_figures], progress, cancel)[:len(jobs)]
     report = {
         **output_header(REPORT_FORMAT),
         "title": title,

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dualrgb.app.processing.figure_files import FigureJob
 from dualrgb.common.progress import CancelToken
 from dualrgb.simulation.lightsource import LightSource
 from dualrgb.simulation.spectral_estimation import SpectralEstimator, SpectralTraining, quantity_of
@@ -169,8 +170,10 @@ def spectra_figure(path: Path, sc: SpectralCharacterisation, names: Sequence[str
 
 
 def spectral_section(out_dir: Path, sc: SpectralCharacterisation, names: Mapping[str, Sequence[str]]
-                     ) -> tuple[dict, list[str]]:
-    """The report's "spectral" section and its figure file names."""
+                     ) -> tuple[dict, list[FigureJob]]:
+    """The report's "spectral" section and its figure (to draw: app.processing.figure_files.draw_figures)."""
     target = "test" if sc.test is not None else "train"
-    figure = spectra_figure(Path(out_dir) / f"spectra_{target}.png", sc, names.get(target, []), target)
-    return {**sc.to_dict(), "summary": sc.summary()}, [figure.name]
+    path, patches = Path(out_dir) / f"spectra_{target}.png", names.get(target, [])
+    job = FigureJob(f"estimated against reference spectra ({target})",
+                    lambda: spectra_figure(path, sc, patches, target))
+    return {**sc.to_dict(), "summary": sc.summary()}, [job]

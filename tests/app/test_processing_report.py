@@ -87,3 +87,26 @@ def test_build_report_writes_json_and_figures(tmp_path):
         assert p.exists() and p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 5000
     assert {"heatmap_train.png", "heatmap_test.png", "lab_scatter_test.png", "patches_test.png",
             "dn_validation.png"} <= set(on_disk["figures"])
+
+
+def test_the_report_says_each_figure_as_it_is_written(tmp_path):
+    """Every figure is one sub-step of the report's progress (issue 42: the bar sat at 88 % while 11 figures were
+    written): ``progress(k, n, what)`` once per figure, k counting 1..n, each after its file is on disk."""
+    setup = default_setup("reflective")
+    train, test = PatchSet(setup, setup.train), PatchSet(setup, setup.test)
+    W = np.stack([LightSource((1, 6, 8)).weights(), LightSource((3, 5, 9)).weights()])
+    vt, vs = train.camera_values(W) * 5000, test.camera_values(W) * 5000
+    c = characterise(vt, train.xyz, train.white, vs, test.xyz, ["R1", "G1", "B1", "R2", "G2", "B2"], optimise=False)
+    calls = []
+
+    def progress(done: int, total: int, what: str) -> None:
+        calls.append((done, total, what, len(list(tmp_path.glob("*.png")))))
+    rep = build_report(tmp_path, c, TargetData(setup.train.patch_names, train.xyz, vt, setup.train.layout, "train"),
+                       TargetData(setup.test.patch_names, test.xyz, vs, setup.test.layout, "CC24"),
+                       simulated_train=train.camera_values(W), progress=progress)
+    written = sorted(p.name for p in tmp_path.glob("*.png"))
+    assert sorted(rep["figures"]) == written and len(written) >= 8
+    assert [k for k, *_ in calls] == list(range(1, len(written) + 1))          # once per figure, in order
+    assert {n for _, n, *_ in calls} == {len(written)}                          # the total known from the first
+    assert [files for *_, files in calls] == list(range(1, len(written) + 1))  # said after its file is written
+    assert all(what for _, _, what, _ in calls) and any("ΔE00 per patch" in what for _, _, what, _ in calls)

@@ -25,6 +25,7 @@ from dualrgb.core.vocabulary import Role, Subject, latest_takes, light_of, role_
 from dualrgb.simulation.lightsource import LightSource
 
 if TYPE_CHECKING:
+    from dualrgb.app.processing.figure_files import FigureJob
     from dualrgb.app.processing.patches import PatchGrid
     from dualrgb.app.processing.placement import Placement
     from dualrgb.app.processing.spectral import SpectralCharacterisation
@@ -36,6 +37,13 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 LightFrames = dict[str, list[ExposureRef]]          # light name -> exposures (one subject or the flats)
+
+# the share of process_session's progress each of its steps fills, in order (every step longer than a moment says
+# what it does; the report's figures are its sub-steps); the calibration's phases (app.workflow.phase_costs) are
+# these steps, timed
+PROCESSING_STEPS: dict[str, tuple[float, float]] = {
+    "whites": (0.0, 0.15), "training target": (0.15, 0.4), "test target": (0.4, 0.55), "fitting": (0.55, 0.75),
+    "spectral estimate": (0.75, 0.8), "stand model": (0.8, 0.85), "report": (0.85, 1.0)}
 
 
 @dataclass
@@ -181,7 +189,9 @@ def sample_target_placed(proc: CaptureProcessor, spec: TargetSpec, frames: Light
     colour error."""
     from dualrgb.app.processing.placement import check_placement
 
-    stack = proc.stack(frames, progress=progress, cancel=cancel)
+    stack = proc.stack(frames, progress=sub_progress(progress, 0.0, 0.6), cancel=cancel)
+    report(progress, 0.6, f"{spec.subject.label}: " + ("placing the grid" if spec.grid is not None
+                                                       else "finding the chart in the frame"))
     grid, method = _target_grid(spec, stack)
     cells = spec.cell_indices()
     # patches fill the grid row by row (a partly filled last row is fine: 190 patches on 12 x 17 cells), or each
@@ -195,6 +205,7 @@ def sample_target_placed(proc: CaptureProcessor, spec: TargetSpec, frames: Light
     sampled = grid.sample(stack.data)
     if pixels is not None:
         pixels.extend(patch_pixels(grid, stack.data, cells))
+    report(progress, 0.85, f"{spec.subject.label}: checking the placement of the patches")
     placement = check_placement(grid, stack.data, spec.xyz, cells, spec.names, label=spec.subject.label,
                                 method=method, means=sampled.mean)
     return SampledTarget(sampled.mean[cells], sampled.std[cells], stack, grid, placement)
@@ -232,16 +243,13 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     stand_calibration; from ``stand_start``: nominal, or with measurements) and the report shows the thesis Fig 7.4
     check before (nominal, ``dn_validation``) and after (``stand_model``).
     """
-    from dualrgb.app.processing.quality import CalibrationFrames
-    from dualrgb.app.processing.report import build_report
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     frames = session_frames(session)
     train_frames = select_lights(frames.subject(train.subject), lights, exposures)
     names = list(train_frames)
     proc = build_processor(frames, names, white_level=white_level, linear_limit=linear_limit,
-                           progress=sub_progress(progress, 0.0, 0.15), cancel=cancel, mode=mode)
+                           progress=step_progress(progress, "whites"), cancel=cancel, mode=mode)
     pixels: dict[str, list[np.ndarray]] = {"train": [], "test": []}     # each patch's, for the per-pixel dE00
     placed = _sample_targets(proc, frames, (train, train_frames), test, names, exposures, pixels, progress, cancel)
     vt, st, stack = placed["train"].values, placed["train"].std, placed["train"].stack
@@ -250,21 +258,53 @@ def process_session(session: Session, out_dir: Path, train: TargetSpec, test: Ta
     white = reference_white() if white_xyz is None else np.asarray(white_xyz, dtype=float)
     c = characterise(vt, train.xyz, white, vs, test.xyz if test is not None else None, channels,
                      optimise=optimise, pixels={k: v for k, v in pixels.items() if v},
-                     progress=sub_progress(progress, 0.55, 0.8), cancel=cancel)
+                     progress=step_progress(progress, "fitting"), cancel=cancel)
     check(cancel)
+    step_start(progress, "spectral estimate", "spectral estimate: fitting and choosing the estimator")
     spectral = _spectral(session, train, test, (vt, st, vs), channels, c.linear_matrix.matrix, names, cancel)
+    step_start(progress, "stand model", "stand model: fitting it to the captures")
     stand = fit_session_stand(session, frames, proc, names, (train, vt, st, stack), (test, vs, stack_t), c, stand_start)
+    check(cancel)
     files = _patch_files(out_dir, c, channels, ((train, vt), (test, vs)))
     data = [_target_data(s, placed[lbl], lbl) for s, lbl in ((train, "train"), (test, "test")) if s and lbl in placed]
-    calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
-    simulated, extra = _stand_report(stand, train, out_dir, channels)
-    rep = build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=simulated,
-                       title=title, extra={"session": str(session.path), "darks": proc.darks.exposures,
-                                           "lights": names, **extra}, calibration=calibration, spectral=spectral)
+    rep = _report(out_dir, c, data, stand, train, (session, proc, frames, names, spectral, title), progress, cancel)
     files["report"] = out_dir / "report.json"
     report(progress, 1.0, "processing done")
     return SessionResult(c, rep, files, {"train": vt, **({"test": vs} if vs is not None else {})}, proc, names,
                          spectral, stand, {k: p.grid for k, p in placed.items()})
+
+
+def step_progress(progress: ProgressCallback | None, step: str) -> ProgressCallback | None:
+    """``progress`` for one of :data:`PROCESSING_STEPS` (its share of the whole)."""
+    return sub_progress(progress, *PROCESSING_STEPS[step])
+
+
+def step_start(progress: ProgressCallback | None, step: str, message: str) -> None:
+    """Say that ``step`` (of :data:`PROCESSING_STEPS`) begins: the bar at its start, the message what it does."""
+    report(progress, PROCESSING_STEPS[step][0], message)
+
+
+def _report(out_dir: Path, c: Characterisation, data: list, stand: StandResult | None, train: TargetSpec,
+            what: tuple, progress: ProgressCallback | None, cancel: CancelToken | None) -> dict:
+    """report.json and its figures (app.processing.report.build_report), each figure one sub-step of the
+    'report' step ("report: figure 3 of 11, ..."). ``what``: (session, processor, frames, lights, spectral,
+    title)."""
+    from dualrgb.app.processing.figure_files import figure_message
+    from dualrgb.app.processing.quality import CalibrationFrames
+    from dualrgb.app.processing.report import build_report
+
+    session, proc, frames, names, spectral, title = what
+    simulated, extra, stand_figures = _stand_report(stand, train, out_dir, list(c.channels))
+    lo, hi = PROCESSING_STEPS["report"]
+    report(progress, lo, "report: listing its figures")
+
+    def figure_done(k: int, n: int, shown: str) -> None:
+        report(progress, lo + (hi - lo) * k / max(n, 1), figure_message(k, n, shown))
+    calibration = CalibrationFrames(proc, frames.darks, {n: frames.flats[n] for n in names})
+    return build_report(out_dir, c, data[0], data[1] if len(data) > 1 else None, simulated_train=simulated,
+                        title=title, extra={"session": str(session.path), "darks": proc.darks.exposures,
+                                            "lights": names, **extra}, calibration=calibration, spectral=spectral,
+                        more_figures=stand_figures, progress=figure_done, cancel=cancel)
 
 
 def _sample_targets(proc: CaptureProcessor, frames: SessionFrames, train: tuple[TargetSpec, LightFrames],
@@ -274,12 +314,12 @@ def _sample_targets(proc: CaptureProcessor, frames: SessionFrames, train: tuple[
     """The training and (when given) test targets sampled: 'train' / 'test' -> SampledTarget; ``pixels`` gets
     their patches' pixels."""
     spec, train_frames = train
-    placed = {"train": sample_target_placed(proc, spec, train_frames, sub_progress(progress, 0.15, 0.4), cancel,
-                                            pixels["train"])}
+    placed = {"train": sample_target_placed(proc, spec, train_frames, step_progress(progress, "training target"),
+                                            cancel, pixels["train"])}
     if test is not None:
         test_frames = select_lights(frames.subject(test.subject), names, exposures)
-        placed["test"] = sample_target_placed(proc, test, test_frames, sub_progress(progress, 0.4, 0.55), cancel,
-                                              pixels["test"])
+        placed["test"] = sample_target_placed(proc, test, test_frames, step_progress(progress, "test target"),
+                                              cancel, pixels["test"])
     return placed
 
 
@@ -293,15 +333,17 @@ def _target_data(spec: TargetSpec, placed: SampledTarget, label: str):
 
 
 def _stand_report(stand: StandResult | None, train: TargetSpec, out_dir: Path, channels: list[str]
-                  ) -> tuple[np.ndarray | None, dict]:
-    """The report's simulated training values for Fig 7.4 (the target's own, else the nominal stand model's) and
-    its ``stand_model`` section (the fitted model's check, app.workflow.calibration.stand_calibration)."""
+                  ) -> tuple[np.ndarray | None, dict, list[FigureJob]]:
+    """The report's simulated training values for Fig 7.4 (the target's own, else the nominal stand model's), its
+    ``stand_model`` section (the fitted model's check, app.workflow.calibration.stand_calibration) and that
+    section's figure (to draw with the report's)."""
     if stand is None:
-        return train.simulated, {}
+        return train.simulated, {}, []
     from dualrgb.app.workflow.calibration.stand_calibration import report_section
 
     simulated = train.simulated if train.simulated is not None else stand.values("start")
-    return simulated, {"stand_model": report_section(stand, out_dir, channels, train.names)}
+    section, job = report_section(stand, out_dir, channels, train.names)
+    return simulated, {"stand_model": section}, [job]
 
 
 def _patch_files(out_dir: Path, c: Characterisation, channels: list[str],

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from dualrgb.app.processing.characterise import LEAST_SQUARES, Characterisation
+from dualrgb.app.processing.figure_files import FigureJob
 from dualrgb.simulation.capture_model import CaptureModel
 from dualrgb.simulation.defaults import default_grid
 from dualrgb.simulation.grid import DEFAULT_GRID, SpectralGrid
@@ -217,10 +218,12 @@ def fit_processed(proc: Any, frames: Any, names: list[str], lights: list[LightSo
 
 
 # ---- the report ---------------------------------------------------------------------------------------------
-def report_section(result: StandResult, out_dir: Path, channels: list[str], patch_names: list[str]) -> dict:
+def report_section(result: StandResult, out_dir: Path, channels: list[str], patch_names: list[str]
+                   ) -> tuple[dict, FigureJob]:
     """The report's ``stand_model`` section: the fitted model's Fig 7.4 check (line R^2 and outliers, as the
     report's ``dn_validation`` of the starting model), both models' R^2 against the captures, the parameters and
-    CIEDE2000, and a figure of captured against predicted DN for both."""
+    CIEDE2000, and a figure of captured against predicted DN for both (named in the section; the job draws it:
+    the report draws it with its own, app.processing.report.build_report's ``more_figures``)."""
     from dualrgb.app.processing.report import dn_validation
 
     fits = dn_validation(result.values("fitted"), result.captured("train"), channels)
@@ -230,8 +233,10 @@ def report_section(result: StandResult, out_dir: Path, channels: list[str], patc
                                  "outlier_names": [patch_names[i] for i in union],
                                  "min_r2": min(f.r2 for f in fits),
                                  "min_r2_without_outliers": min(f.r2_clean for f in fits)},
-               "figures": [stand_figure(Path(out_dir) / FIGURE, result, channels).name]}
-    return section
+               "figures": [FIGURE]}
+    job = FigureJob("stand model: captured against predicted values",
+                    lambda: stand_figure(Path(out_dir) / FIGURE, result, channels))
+    return section, job
 
 
 def stand_figure(path: Path, result: StandResult, channels: list[str]) -> Path:

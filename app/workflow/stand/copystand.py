@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dualrgb.app.processing.masters import FULL, check_resolution
-from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef
+from dualrgb.app.processing.pipeline import CaptureProcessor, ExposureRef, sub_progress
 from dualrgb.app.processing.quality import grading_summary
 from dualrgb.app.processing.render import DEFAULT_RENDER_ILLUMINANT, check_illuminant
 from dualrgb.app.sequences.base import ProgressEvent
@@ -67,6 +67,7 @@ from dualrgb.app.workflow.stand.preflight import (
     check_lights,
     deliverable_bytes,
 )
+from dualrgb.app.workflow.stand.run_phases import AUTO_EXPOSURE, DARKS, FLATS, PROCESSING, TARGET_FRAMES
 from dualrgb.common.progress import CancelToken, ProgressCallback, report
 from dualrgb.core.device_actions import Place, StandDevices
 from dualrgb.core.engine import RunControl, RunEngine, facts_of
@@ -239,7 +240,7 @@ class CopyStand:
     def auto_expose(self, lights: Sequence[NamedLight]) -> dict[str, float]:
         """Per light, the open-gate exposure (app.workflow.stand.metering.AutoExposure: cancellable between lights)."""
         seq = AutoExposure(self.facts, lights)
-        self.run_sequence(seq, 0.0, 0.1)
+        self.run_sequence(seq, *AUTO_EXPOSURE)
         return dict(seq.exposures)
 
     def calibration_sequences(self, lights: Sequence[NamedLight], plan: dict[str, list[float]],
@@ -249,11 +250,11 @@ class CopyStand:
         targets at the base exposures."""
         facts, s = self.facts, self.settings
         out: list[tuple[BaseSequence, float, float]] = [
-            (DarkSeries(facts, sorted({t for ts in plan.values() for t in ts}), s.dark_frames), .1, .35),
-            (FlatSeries(facts, lights, plan, s.flat_frames), .35, .5)]
-        for i, name in enumerate(("train", "test")):
+            (DarkSeries(facts, sorted({t for ts in plan.values() for t in ts}), s.dark_frames), *DARKS),
+            (FlatSeries(facts, lights, plan, s.flat_frames), *FLATS)]
+        for name, band in TARGET_FRAMES.items():
             out.append((SubjectCapture(facts, lights, {n: [t] for n, t in base.items()}, Subject.target(name)),
-                        .5 + .05 * i, .55 + .05 * i))
+                        *band))
         return out
 
     def calibrate(self, preset: Preset, *, hdr_auto: bool | None = None,
@@ -299,7 +300,7 @@ class CopyStand:
         result = process_session(self.session, out, specs["train"], specs["test"], lights=[nl.name for nl in lights],
                                  exposures={n: [t] for n, t in base.items()}, optimise=optimise,
                                  white_xyz=reference_white(preset.mode), title=f"calibration, {preset.name}",
-                                 progress=lambda f, m: report(self.progress, 0.6 + 0.35 * f, m), cancel=self.cancel,
+                                 progress=sub_progress(self.progress, *PROCESSING), cancel=self.cancel,
                                  mode=preset.mode, stand_start=self.settings.stand_start)
         profile = self._profile(preset, lights, plan, base, result, specs["test"])
         profile.charts = {k: spec.chart.record() for k, spec in specs.items() if spec.chart is not None}
@@ -444,6 +445,7 @@ class CopyStand:
     def _capture(self, original: Original, profile: CalibrationProfile, reshoot: bool | None,
                  out_dir: Path | None, frames: int | None) -> CaptureReport:
         shot = self.shoot(original, profile, reshoot, out_dir, frames)
+        report(self.progress, 0.8, f"{original.identifier}: merging its frames, writing its deliverables")
         return self.finish(shot, self.deliver_shot(shot))
 
     def shoot(self, original: Original, profile: CalibrationProfile, reshoot: bool | None = None,
