@@ -6,6 +6,7 @@
     format_exposure(1 / 60)       # '1/60 s';  format_exposure(0.7727) -> '0.7727 s'; format_exposure(8) -> '8 s'
     format_temperature(24.0045)   # '24 °C'
     format_duration(220.4)        # '3 min 40 s'
+    counted(1, "frame")           # '1 frame';  counted(6, "frame") -> '6 frames'; counted(2, "delivery", "deliveries")
 
 Four digits because retyping a printed LED level must reproduce the light (simulation.lightsource.format_level's
 reasoning); the rest follows so a number reads the same in every place.
@@ -60,4 +61,11 @@ def format_duration(seconds: float | None) -> str:
     return f"{s // 3600} h {(s % 3600) // 60:02d} min"
 
 
-__all__ = ["SIGNIFICANT", "format_duration", "format_exposure", "format_level", "format_temperature", "significant"]
+def counted(n: int, noun: str, plural: str | None = None) -> str:
+    """``n`` and its noun, singular for one: '1 frame', '0 frames', '6 frames' (``plural``: an irregular one,
+    'deliveries'). The one plural rule of the window and the command line ('1 frames' was a bug, issue 42)."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
+__all__ = ["SIGNIFICANT", "counted", "format_duration", "format_exposure", "format_level", "format_temperature",
+           "significant"]

@@ -78,7 +78,11 @@ class ImageViewer(QWidget):
         lay.addWidget(self.values)
 
     # ------------------------------------------------------------------ loading
-    def show_master(self, sidecar: Path) -> None:
+    def show_master(self, sidecar: Path, *, again: bool = False) -> None:
+        """The delivered master of ``sidecar``; ``again``: loaded again although it is the one shown (delivered
+        again in place)."""
+        if again:
+            self.source = None
         self._load(Path(sidecar), lambda: load_master(sidecar), f"delivered original {Path(sidecar).parent.name}")
 
     def show_frame(self, path: Path) -> None:

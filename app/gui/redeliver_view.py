@@ -7,7 +7,9 @@ and ``force`` with one; every original's current deliverables move to its ``prev
 swapped in) on the compute thread, with progress and Cancel (checked between originals and between the bands of
 one: an original cut short keeps its previous set, app.workflow.delivery.delivery_folder.staged). The session is opened
 read-only, as the command does; it does not start while a sequence is writing to the session. The results are
-listed one row per original: delivered (its QA line), not delivered (why) or refused by the mode rule.
+listed one row per original: delivered (its QA line), not delivered (why), refused by the mode rule, or - after
+Cancel - not done (it keeps its previous set); the rows delivered before Cancel stay listed. The Originals queue
+takes the new QA lines and calibration of the current session's originals delivered again (issue 42).
 """
 from __future__ import annotations
 
@@ -34,15 +36,15 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.stand_options import MAX_PPI, PPI_KEY, given, number_spin, render_combo, resolution_combo
 from dualrgb.app.gui.widgets import PathLabel
 from dualrgb.app.gui.workers import TaskHandle
-from dualrgb.app.workflow.delivery.delivery import Delivery
-from dualrgb.app.workflow.delivery.redelivery import Undelivered
+from dualrgb.app.workflow.delivery.redelivery import Redelivered
 from dualrgb.common.progress import Cancelled, CancelToken, ProgressCallback
 
 log = logging.getLogger(__name__)
 
 NEWEST, CURRENT, FILE = "newest", "current", "file"
 COLUMNS = ("identifier", "result", "QA line / reason")
-DELIVERED, NOT_DELIVERED, REFUSED = "delivered", "not delivered", "refused (mode)"
+DELIVERED, NOT_DELIVERED, REFUSED, NOT_DONE = "delivered", "not delivered", "refused (mode)", "not done"
+NOT_DONE_WHY = "cancelled before it was delivered again: it keeps its previous deliverables"
 RUN_NAME = "re-delivery"
 
 
@@ -62,30 +64,39 @@ class RedeliveryRequest:
 
 @dataclass
 class RedeliveryResult:
-    delivered: list[Delivery] = field(default_factory=list)
-    undelivered: list[Undelivered] = field(default_factory=list)
-    refused: list[str] = field(default_factory=list)
+    """What the re-delivery did (filled as it goes on the compute thread, read when it has ended): a cancelled one
+    still lists the originals delivered again, and the rest as not done."""
+
+    done: Redelivered = field(default_factory=Redelivered)
+    cancelled: bool = False
 
     def rows(self) -> list[tuple[str, str, str]]:
-        return ([(d.original.identifier, DELIVERED, d.qa.text()) for d in self.delivered]
-                + [(u.identifier, NOT_DELIVERED, u.reason) for u in self.undelivered]
-                + [(line.partition(":")[0], REFUSED, line) for line in self.refused])
+        d = self.done
+        rows = ([(x.original.identifier, DELIVERED, x.qa.text()) for x in d.delivered]
+                + [(u.identifier, NOT_DELIVERED, u.reason) for u in d.undelivered]
+                + [(line.partition(":")[0], REFUSED, line) for line in d.refused])
+        return rows + ([(i, NOT_DONE, NOT_DONE_WHY) for i in d.not_done()] if self.cancelled else [])
 
     def summary(self) -> str:
-        return (f"{len(self.delivered)} delivered, {len(self.undelivered)} not delivered, {len(self.refused)} "
-                "refused by the mode rule")
+        d = self.done
+        text = (f"{len(d.delivered)} delivered, {len(d.undelivered)} not delivered, {len(d.refused)} refused by the "
+                "mode rule")
+        if self.cancelled:
+            return f"cancelled: {text}, {len(d.not_done())} not done (they keep their previous deliverables)"
+        return text
 
 
 def run_redelivery(request: RedeliveryRequest, current: object, progress: ProgressCallback | None,
-                   cancel: CancelToken | None) -> RedeliveryResult:
+                   cancel: CancelToken | None, out: RedeliveryResult | None = None) -> RedeliveryResult:
     """The work ``dualrgb process`` does (app.commands.process.main without the printing); on the compute
-    thread. ``current``: the window's calibration (a CalibrationProfile) when ``request.use_current``."""
+    thread. ``current``: the window's calibration (a CalibrationProfile) when ``request.use_current``; ``out``
+    is filled as it goes (what a cancelled run did)."""
     from dualrgb.app.workflow.calibration.profile import CalibrationProfile, load_profile
     from dualrgb.app.workflow.delivery.redelivery import newest_by_mode, redeliver
     from dualrgb.app.workflow.stand.folders import open_session
 
     profiles: CalibrationProfile | dict[str, CalibrationProfile]
-    out = RedeliveryResult()
+    out = out if out is not None else RedeliveryResult()
     with open_session(request.session, readonly=True) as session:
         if request.use_current:
             if not isinstance(current, CalibrationProfile):
@@ -93,11 +104,10 @@ def run_redelivery(request: RedeliveryRequest, current: object, progress: Progre
             profiles = current
         else:
             profiles = load_profile(request.calibration) if request.calibration else newest_by_mode(session)
-        out.delivered, out.undelivered = redeliver(
-            session, profiles, session.path / "deliverables", ppi=request.ppi, progress=progress, cancel=cancel,
-            render_illuminant=request.render_illuminant, force=request.force, refused=out.refused,
-            resolution=request.resolution)
-    if not (out.delivered or out.undelivered or out.refused):
+        redeliver(session, profiles, session.path / "deliverables", ppi=request.ppi, progress=progress,
+                  cancel=cancel, render_illuminant=request.render_illuminant, force=request.force,
+                  resolution=request.resolution, tally=out.done)
+    if not (out.done.delivered or out.done.undelivered or out.done.refused):
         raise ValueError(f"{request.session}: no originals to deliver again")
     return out
 
@@ -112,6 +122,7 @@ class RedeliverView(QWidget):
         self.calibration_file: Path | None = None
         self.handle: TaskHandle | None = None
         self.result: RedeliveryResult | None = None
+        self.request_running: RedeliveryRequest | None = None
         self.outcome = ""                           # '' while running / before; 'done' | 'cancelled' | 'failed'
         self._build()
         self.lab.sessionChanged.connect(self._update)
@@ -250,13 +261,13 @@ class RedeliverView(QWidget):
         except ValueError as exc:
             self.ctx.errors.report("Re-deliver", exc)
             return
-        current = self.ws.calibration
-        self.outcome, self.result = "", None
+        current, result = self.ws.calibration, RedeliveryResult()
+        self.outcome, self.result, self.request_running = "", result, request
         self.table.setRowCount(0)
         self.progress.setValue(0)
         self.message.setText(f"re-delivering {request.session.name} …")
         self.handle = self.ctx.runner.submit(
-            lambda progress, cancel: run_redelivery(request, current, progress, cancel), pool="compute",
+            lambda progress, cancel: run_redelivery(request, current, progress, cancel, result), pool="compute",
             name="re-deliver", pass_progress=True, pass_cancel=True, on_result=self._done, on_error=self._failed,
             on_progress=self._progress, on_finished=self._finished)
         self.ws.set_running(RUN_NAME)            # the session's deliverables are being written: sequences wait
@@ -267,7 +278,22 @@ class RedeliverView(QWidget):
         self.message.setText(message)
 
     def _done(self, result: RedeliveryResult) -> None:
-        self.result, self.outcome = result, "done"
+        self.outcome = "done"
+        self._show(result)
+        self.ctx.errors.clear("Re-deliver")
+
+    def _failed(self, exc: BaseException) -> None:
+        if isinstance(exc, Cancelled) and self.result is not None:
+            self.outcome, self.result.cancelled = "cancelled", True
+            self._show(self.result)              # the originals delivered before Cancel keep their new files
+            return
+        self.outcome = "failed"
+        self.message.setText(f"failed: {exc}")
+        self.ctx.errors.report("Re-deliver", exc)
+
+    def _show(self, result: RedeliveryResult) -> None:
+        """The table (one row per original: delivered, not delivered, refused, not done) and the summary; the
+        Originals queue takes the new QA lines of the current session's originals delivered again."""
         self.table.setRowCount(0)
         for row in result.rows():
             r = self.table.rowCount()
@@ -275,18 +301,16 @@ class RedeliverView(QWidget):
             for c, text in enumerate(row):
                 self.table.setItem(r, c, QTableWidgetItem(text))
         self.message.setText(result.summary())
-        self.ctx.errors.clear("Re-deliver")
         log.info("re-delivered: %s", result.summary())
-
-    def _failed(self, exc: BaseException) -> None:
-        if isinstance(exc, Cancelled):
-            self.outcome = "cancelled"
-            self.message.setText("cancelled: the originals delivered before keep their new files; the one in "
-                                 "progress keeps its previous set")
-            return
-        self.outcome = "failed"
-        self.message.setText(f"failed: {exc}")
-        self.ctx.errors.report("Re-deliver", exc)
+        session, request = self.lab.session, self.request_running
+        if session is None or request is None or Path(session.path).resolve() != request.session.resolve():
+            return                               # another session's originals: not the queue's
+        for delivery in result.done.delivered:
+            try:
+                self.ws.queue.row(delivery.original.identifier).redelivered(delivery)
+            except KeyError:
+                continue
+        self.ws.queue_changed()
 
     def _finished(self) -> None:
         self.handle = None

@@ -5,11 +5,14 @@ The workflow's messages name what a CLI user types ("or --force to use this one"
 --port"); the window shows them through :func:`in_window_words`, which says what to press instead (*Capture
 anyway*, *Devices*) or leaves the clause out where the window has nothing to press. A flag no rule knows is named
 as an option in words, never as ``--flag``. tests/gui/test_words.py runs every message the workflow can raise
-through it.
+through it. The window's own questions whose words depend on a count or a state (the re-shoot question, the
+*Import CSV…* button) are made here too, with the one plural rule (common.formatting.counted).
 """
 from __future__ import annotations
 
 import re
+
+from dualrgb.common.formatting import counted
 
 # (pattern, replacement), in order: the specific sentences first, the generic flag last
 REWRITES: tuple[tuple[str, str], ...] = (
@@ -70,3 +73,24 @@ def in_window_words(message: str) -> str:
 def has_cli_flag(text: str) -> bool:
     """Whether ``text`` names a CLI flag (``--force``)."""
     return CLI_FLAG.search(text) is not None
+
+
+# ---------------------------------------------------------------- the window's own questions, counted right
+def reshoot_question(identifier: str, takes: list[int], delivered: bool) -> str:
+    """The question for an original already in the session (``takes``: the take of each of its frames there): the
+    frames of its last take counted, 'deliver it again' only when it was delivered (a take cut short was not)."""
+    take = max(takes)
+    n = takes.count(take)
+    its, old = ("its frame", "the old frame stays") if n == 1 else ("its frames", "the old frames stay")
+    if delivered:
+        return (f"{identifier} is already delivered in this session ({counted(n, 'frame')}, take {take}). Re-shoot "
+                f"it (a new take; {old} in the session), keep {its} and deliver it again, or cancel (nothing is "
+                "lit)?")
+    return (f"{identifier}: {counted(n, 'frame')} already captured (take {take}), never delivered. Re-shoot it (a "
+            f"new take; {old} in the session), keep {its} and shoot only what is missing, or cancel (nothing is "
+            "lit)?")
+
+
+def add_valid(n: int) -> str:
+    """The *Import CSV…* question's button: 'Add the valid row', 'Add the 6 valid rows'."""
+    return "Add the valid row" if n == 1 else f"Add the {counted(n, 'valid row')}"

@@ -26,7 +26,7 @@ def test_twenty_rows_three_bad_named_by_row_column_and_problem(tmp_path, bom, cr
     for line, (row, (column, problem)) in zip(lines, sorted(BAD.items()), strict=True):
         assert line == f"row {row}, column {column!r}: {problem}", line
     assert [o.identifier for o in q.originals] == good_identifiers() and len(q.originals) == 17
-    assert q.summary() == "q.csv: 20 rows, 17 to shoot, 3 bad (rows 6, 11, 17)"
+    assert q.summary() == "q.csv: 20 rows, 17 valid, 3 bad (rows 6, 11, 17)"
 
 
 def test_rows_keep_their_text_and_extra_columns(tmp_path):

@@ -1,14 +1,15 @@
 """The first real day in the window (issue 27): the calibration box takes the stand's own charts (the SG-layout
 training reference with its layout, the CC24 test reference) and the profile names them; *Import CSV…* shows the
-plan `capture --check` prints; a film under the reflective calibration is marked and not shot, and captured only
-when the technician overrides it, which its QA line says."""
+plan `capture --check` prints (the film it refuses is not queued); a film queued by hand under the reflective
+calibration is marked and not shot, and captured only when the technician overrides it, which its QA line says."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
 
-from dualrgb.app.gui.panels.originals import ADD_VALID, LEAVE, OVERRIDE
+from dualrgb.app.gui.panels.originals import LEAVE, OVERRIDE
+from dualrgb.app.gui.wording import add_valid
 from dualrgb.app.workflow.calibration.charts import ChartChoice
 from dualrgb.app.workflow.day.day import OriginalState
 from dualrgb.core.vocabulary import Role, role_of
@@ -39,11 +40,16 @@ def test_own_charts_plan_and_the_mode_rule_in_the_window(qtbot, make_window):
     wait_idle(qtbot, w)
 
     org = w.originals
-    w.asker.scripted = [ADD_VALID]
+    w.asker.scripted = [add_valid(5)]
     org.import_csv(ROOT / "docs" / "queue-example.csv")
-    qtbot.waitUntil(lambda: len(ws.queue.rows) == 6, timeout=LONG)
+    qtbot.waitUntil(lambda: len(ws.queue.rows) == 5, timeout=LONG)
     report = org.import_report.text()
-    assert "5 to shoot, 0 kept, 1 refused" in report and "row 7: 東博-F-7: refused (transmissive original" in report
+    assert "5 to shoot, 0 kept, 1 refused; 5 added" in report
+    assert "row 7: 東博-F-7: refused (transmissive original" in report
+    assert "東博-F-7" not in [r.identifier for r in ws.queue.rows]            # a refused row is not queued (issue 42)
+    org.identifier.setText("東博-F-7")                  # the technician queues the film by hand
+    org.mode.setCurrentText("transmissive")
+    org.add_original()
     film = ws.queue.row("東博-F-7")
     w.asker.scripted = [LEAVE]                          # the film under the reflective calibration: marked, not shot
     org.capture([film.identifier])

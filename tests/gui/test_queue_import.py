@@ -1,11 +1,11 @@
 """The Originals step's *Import CSV...* (issue 19): the collection database's CSV goes through the workflow's
-read_queue_csv (the CLI's --queue); its bad rows are listed one per line (row, column, problem), and the valid rows
-are added only when the technician asks for it."""
+read_queue_csv (the CLI's --queue) and its plan (capture --queue --check); its refused rows are listed one per line
+(row, column, problem) and never queued, and the valid rows are added only when the technician asks for it."""
 from __future__ import annotations
 
 from queue_rows import BAD, good_identifiers, write_queue_csv
 
-from dualrgb.app.gui.panels.originals import ADD_VALID, CANCEL
+from dualrgb.app.gui.panels.originals import CANCEL, add_valid
 
 
 def test_import_lists_bad_rows_and_adds_the_valid_ones_on_request(qtbot, make_window, tmp_path):
@@ -19,9 +19,11 @@ def test_import_lists_bad_rows_and_adds_the_valid_ones_on_request(qtbot, make_wi
     qtbot.waitUntil(lambda: not w.asker.scripted)
     qtbot.wait(50)
     title, text = w.asker.history[-1]
-    assert title == "Bad rows in the CSV" and all(line in text for line in bad)
-    assert queue.rows == [] and all(line in org.import_report.text() for line in bad)      # cancelled: none added
-    w.asker.scripted = [ADD_VALID]
+    assert title == "Refused rows in the CSV" and all(line in text for line in bad)
+    assert "Add the 17 valid rows and leave the 3 refused ones out" in text
+    listed = [f"row {row}: " for row in BAD] + [problem for _column, problem in BAD.values()]
+    assert queue.rows == [] and all(part in org.import_report.text() for part in listed)      # cancelled: none added
+    w.asker.scripted = [add_valid(17)]
     org.import_csv(path)
     qtbot.waitUntil(lambda: len(w.ctx.workspace.queue.rows) == 17)
     rows = w.ctx.workspace.queue.rows
@@ -29,7 +31,7 @@ def test_import_lists_bad_rows_and_adds_the_valid_ones_on_request(qtbot, make_wi
     assert rows[1].original.title == "Stillleben, mit Äpfeln 3" and rows[1].original.notes == "Zeile 1\nligne 2 (3)"
     assert rows[1].original.extra == {"Standort": "Depot 3; Regal 3"}
     assert org.table.rowCount() == 17 and "17 added" in org.import_report.text()
-    assert all(line in org.import_report.text() for line in bad)
+    assert all(part in org.import_report.text() for part in listed)
 
 
 def test_a_file_that_is_not_a_queue_is_reported_in_one_line(make_window, tmp_path):

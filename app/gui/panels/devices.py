@@ -20,6 +20,7 @@ from dualrgb.app.gui.context import AppContext
 from dualrgb.app.gui.device_hub import VIRTUAL_CAMERA, VIRTUAL_SPHERE, serial_ports
 from dualrgb.app.gui.units import temperature
 from dualrgb.app.gui.widgets import PathLabel, StatusLight
+from dualrgb.app.gui.wording import in_window_words
 from dualrgb.app.workflow.stand.defaults import DEFAULT_MODE, MODES
 from dualrgb.app.workflow.stand.folders import LegacyCaptures, folder_summary, legacy_captures, move_sessions
 from dualrgb.app.workflow.stand.stand_devices import NO_CAMERA_ADVICE
@@ -364,7 +365,7 @@ class DevicesPanel(QWidget):
             self.virtual_label.setText("not started: Start virtual lab, or connect the virtual sphere or camera")
 
     def _failed(self, title: str, exc: object) -> None:
-        text = str(exc)
+        text = in_window_words(str(exc))            # what the error box and status bar say: the port once, no shell
         if "sphere" in title.lower():
             self.sphere_light.set_state("error", "problem (see below)")
             self.sphere_message.setText(text)

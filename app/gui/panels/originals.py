@@ -7,7 +7,8 @@ choice, with the spectrum of a clicked pixel (app.gui.spectra_view). An original
 / keep" and reports "0 new, 2 kept". The calibration's check against the stand is shown above the Capture
 button, before anything is shot. *Import CSV...* adds a day's originals from the collection database through
 app.workflow.day.queue_csv.read_queue_csv (the CLI's ``--queue``) and shows the plan ``capture --queue --check``
-prints (app.workflow.day.queue_plan): its bad rows are listed, one line each; the rest is added only on request. The
+prints (app.workflow.day.queue_plan): its refused rows (bad, or of another mode than the calibration's) are listed,
+one line each, and never queued; the rows to shoot are added only on request when any row is refused. The
 mode rule (app.workflow.stand.mode_rule): an original of another mode than the calibration's is marked and not shot
 unless the technician chooses "Capture anyway" (said in its sidecar and QA line).
 """
@@ -45,13 +46,19 @@ from dualrgb.app.gui.sequence_view import SequenceView
 from dualrgb.app.gui.spectra_view import DeliveredView
 from dualrgb.app.gui.stand_options import DeliveryOptions
 from dualrgb.app.gui.widgets import side_by_side
-from dualrgb.app.gui.wording import in_window_words
+from dualrgb.app.gui.wording import add_valid, in_window_words, reshoot_question
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.day.day import OriginalsQueue, OriginalState, QueueRow
 from dualrgb.app.workflow.day.day_file import restore_queue
 from dualrgb.app.workflow.day.queue_csv import QueueImport, column_options, read_queue_csv
-from dualrgb.app.workflow.day.queue_plan import KEPT, plan_queue
-from dualrgb.app.workflow.day.queue_run import QUEUE_EVENT, QueueOutcome, capture_queue, original_plan
+from dualrgb.app.workflow.day.queue_plan import KEPT, REFUSED, SHOOT, plan_queue
+from dualrgb.app.workflow.day.queue_run import (
+    QUEUE_EVENT,
+    QueueOutcome,
+    capture_queue,
+    delivered_sidecar,
+    original_plan,
+)
 from dualrgb.app.workflow.stand.copystand import StandSettings, original_takes
 from dualrgb.app.workflow.stand.defaults import SETTLE_S
 from dualrgb.app.workflow.stand.mode_rule import mode_problem
@@ -66,8 +73,14 @@ STATE_COLOURS = {OriginalState.WAITING: "#fafafa", OriginalState.CAPTURING: "#e3
                  OriginalState.FAILED: "#ffebee"}
 RESHOOT, KEEP, CANCEL = "Re-shoot", "Keep", "Cancel"
 QA_WIDTH = 180
-ADD_VALID = "Add the valid rows"
 OVERRIDE, LEAVE = "Capture anyway", "Leave it"
+
+
+def qa_text(row: QueueRow) -> str:
+    """The selected original under the table: its state, the calibration it was delivered with, its QA line and
+    warnings."""
+    made = f", calibration {row.calibration}" if row.calibration else ""
+    return "\n".join([f"{row.identifier} ({row.state.value}{made}): {row.qa or '—'}", *row.warnings])
 
 
 class OriginalsPanel(QWidget):
@@ -109,7 +122,7 @@ class OriginalsPanel(QWidget):
         self.view.run_event.connect(self._run_event)
         self.view.finished.connect(self._run_finished)
         self.delivered = DeliveredView(ctx)
-        self._shown: Path | None = None              # the sidecar the Delivered tab shows
+        self._shown: tuple[Path | None, str] = (None, "")   # the sidecar and QA line the Delivered tab shows
         self.tabs = QTabWidget()
         self.tabs.addTab(self.view, "Capture")
         self.tabs.addTab(self.delivered, "Delivered")
@@ -225,8 +238,9 @@ class OriginalsPanel(QWidget):
             self.import_csv(Path(path))
 
     def import_csv(self, path: Path) -> None:
-        """Read and check a queue CSV (the workflow's read_queue_csv); bad rows are listed, and the valid rows
-        are added at once when there are none, else when the technician asks for it."""
+        """Read and check a queue CSV (the workflow's read_queue_csv) and plan it as ``capture --queue --check`` does
+        (app.workflow.day.queue_plan): a refused row (bad, or another mode than the calibration's) is listed and
+        never queued; the rows to shoot are added at once when none is refused, else when the technician asks."""
         session = self.lab.session
         try:
             imported = read_queue_csv(Path(path), columns=column_options(self.csv_columns.text()),
@@ -237,41 +251,34 @@ class OriginalsPanel(QWidget):
             return
         self.ctx.errors.clear("Import CSV")
         self.ctx.set("originals/csv_folder", str(Path(path).parent))
-        bad = imported.bad_lines()
-        self.import_report.setText("\n".join(self._plan_lines(imported)))
-        if not bad:
+        plan = plan_queue(imported, self.ws.calibration, session=session)
+        self.import_report.setText("\n".join(plan.lines()))
+        refused, valid = len(plan.of(REFUSED)), len(plan.of(SHOOT))
+        if not refused or not valid:                 # nothing to decide: the report lists what is refused
             self._add_imported(imported)
             return
-        text = (f"{imported.summary()}:\n" + "\n".join(bad) + f"\n\nAdd the {len(imported.entries)} valid rows "
-                "and leave the bad ones out, or cancel and fix the file?")
-        self.ctx.asker.ask("Bad rows in the CSV", text, (ADD_VALID, CANCEL),
-                           lambda choice: self._add_imported(imported) if choice == ADD_VALID else None,
-                           default=CANCEL)
-
-    def _plan_lines(self, imported: QueueImport) -> list[str]:
-        """What `dualrgb capture --queue --check` prints (app.workflow.day.queue_plan) under the current calibration
-        (without one: the rows read, the bad rows, those delivered in the session already, the column lines)."""
-        plan = plan_queue(imported, self.ws.calibration, session=self.lab.session)
-        if self.ws.calibration is not None:
-            return plan.lines()
-        kept = plan.of(KEPT)
-        return [imported.summary() + (f", {len(kept)} delivered in the session already" if kept else ""),
-                *imported.bad_lines(), *(r.line() for r in kept), *imported.column_lines()]
+        add = add_valid(valid)
+        text = (f"{plan.summary()}:\n" + "\n".join(plan.refused_lines()) + f"\n\n{add} and leave "
+                f"{'the refused one' if refused == 1 else f'the {refused} refused ones'} out, or cancel and fix the "
+                "file?")
+        self.ctx.asker.ask("Refused rows in the CSV", text, (add, CANCEL),
+                           lambda choice: self._add_imported(imported) if choice == add else None, default=CANCEL)
 
     def _add_imported(self, imported: QueueImport) -> None:
-        """Add the valid rows; a row delivered in the session already is counted as delivered (the queue plan's
-        'kept'), not added again."""
+        """Add the rows the plan shoots (under the calibration in use now): a refused row never, a row delivered in
+        the session already (the plan's 'kept') is counted as delivered, not added again. The report and the log
+        say the plan's counts and how many were added."""
         operator = self.operator.text().strip()
         plan = plan_queue(imported, self.ws.calibration, session=self.lab.session)
-        kept = {r.identifier for r in plan.of(KEPT)}
-        originals = [o if o.operator or not operator else replace(o, operator=operator) for o in imported.originals
-                     if o.identifier not in kept]
+        originals = [o if o.operator or not operator else replace(o, operator=operator) for o in plan.to_shoot]
         left_out = self.ws.queue.add_many(originals, self.stand_in.currentText() if self.lab.is_virtual else "",
                                           self.frames.value())
-        added = len(originals) - len(left_out)
-        lines = self._plan_lines(imported)
-        done = f", {len(kept)} delivered already" if kept else ""
-        self.import_report.setText("\n".join([f"{lines[0]}; {added} added{done}", *lines[1:], *left_out]))
+        kept = plan.of(KEPT)
+        lines = plan.lines()
+        head = f"{lines[0]}; {len(originals) - len(left_out)} added" + (f", {len(kept)} delivered already"
+                                                                           if kept else "")
+        log.info("%s", head)
+        self.import_report.setText("\n".join([head, *lines[1:], *left_out]))
         self.ws.queue_changed()
 
     def selected(self) -> list[str]:
@@ -353,8 +360,7 @@ class OriginalsPanel(QWidget):
               and not running
               and (not self.ws.calibration_refused or self.force.isChecked()))
         sel = [self.ws.queue.row(i) for i in self.selected()]
-        self.qa_label.setText("\n".join([f"{r.identifier} ({r.state.value}): {r.qa or '—'}"] + r.warnings)
-                              if (r := sel[0] if len(sel) == 1 else None) else "")
+        self.qa_label.setText(qa_text(sel[0]) if len(sel) == 1 else "")
         self.capture_button.setEnabled(ok and bool(sel))
         self.capture_all_button.setEnabled(ok and bool(self.ws.queue.waiting()))
         self.remove_button.setEnabled(bool(sel) and not running)
@@ -362,12 +368,8 @@ class OriginalsPanel(QWidget):
         delivered = [r for r in sel if r.state is OriginalState.DELIVERED]
         self.open_tiff_button.setEnabled(len(delivered) == 1)
         self.open_folder_button.setEnabled(len(delivered) == 1)
-        spectral = len(delivered) == 1 and ("spectral" in delivered[0].files          # the cube, or its channels
-                                            or "channels_1" in delivered[0].files)   # (full resolution: on demand)
-        if spectral and delivered[0].sidecar != self._shown:
-            self.show_delivered(delivered[0])
         if len(delivered) == 1 and delivered[0].sidecar is not None:
-            self.viewer.show_master(delivered[0].sidecar)
+            self.show_delivered(delivered[0])
         self.force.setEnabled(not running)
         why = self._why_not(running)
         self.capture_button.setToolTip(why or "Meter, capture (an HDR bracket when metering asks) and deliver the "
@@ -442,9 +444,9 @@ class OriginalsPanel(QWidget):
         return True
 
     def _ask_reshoot(self, row: QueueRow, takes: list[int]) -> None:
-        text = (f"{row.identifier} is already in the session ({len(takes)} frames, take {max(takes)}). Re-shoot it "
-                "(a new take; the old frames stay in the session), keep its frames and deliver them again, or "
-                "cancel (nothing is lit)?")
+        session = self.lab.session
+        text = reshoot_question(row.identifier, takes, session is not None
+                                and delivered_sidecar(session, row.original) is not None)
 
         def answer(choice: str) -> None:
             if choice == CANCEL:
@@ -533,9 +535,15 @@ class OriginalsPanel(QWidget):
         self.ctx.bus.sessionUpdated.emit()
 
     def show_delivered(self, row: QueueRow) -> None:
-        """The Delivered tab: ``row``'s cube under the chosen light (loaded in the compute pool)."""
-        self._shown = row.sidecar
-        self.delivered.show_delivery(row.sidecar)
+        """The Delivered tab (``row``'s cube under the chosen light, loaded in the compute pool) and the Viewer (its
+        master); both loaded again when the row was delivered again (Tools -> Re-deliver: the same sidecar path, a
+        new QA line)."""
+        again = (row.sidecar, row.qa) != self._shown
+        if again and ("spectral" in row.files or "channels_1" in row.files):     # the cube, or its channels (full
+            self.delivered.show_delivery(row.sidecar)                            # resolution: made on demand)
+        self._shown = (row.sidecar, row.qa)
+        if row.sidecar is not None:
+            self.viewer.show_master(row.sidecar, again=again)
 
     def _open(self, what: str) -> None:
         sel = [self.ws.queue.row(i) for i in self.selected()]

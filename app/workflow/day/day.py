@@ -52,6 +52,7 @@ class QueueRow:
     files: dict[str, Path] = field(default_factory=dict)
     sidecar: Path | None = None
     warnings: list[str] = field(default_factory=list)
+    calibration: str = ""                   # the id of the calibration its deliverables were made with
 
     @property
     def identifier(self) -> str:
@@ -70,8 +71,15 @@ class QueueRow:
         """It was captured and delivered (``report``: app.workflow.stand.copystand.CaptureReport)."""
         d = report.delivery
         self.state, self.qa = OriginalState.DELIVERED, report.summary()
-        self.files, self.sidecar = dict(d.files), d.sidecar
+        self.files, self.sidecar, self.calibration = dict(d.files), d.sidecar, d.calibration
         self.warnings = list(report.check.warnings) + list(report.warnings)
+
+    def redelivered(self, delivery: Any) -> None:
+        """Its frames were delivered again (``delivery``: app.workflow.delivery.delivery.Delivery, e.g. Tools ->
+        Re-deliver with another calibration): the new QA line, files and calibration replace the old ones."""
+        self.state, self.qa = OriginalState.DELIVERED, delivery.qa.text()
+        self.files, self.sidecar, self.calibration = dict(delivery.files), delivery.sidecar, delivery.calibration
+        self.warnings = list(delivery.qa.warnings)
 
 
 class OriginalsQueue:
@@ -150,6 +158,7 @@ def _read_delivery(row: QueueRow, sidecar: Path) -> None:
     row.files = {k: sidecar.parent / name for k, name in (doc.get("files") or {}).items()}
     row.qa = str((doc.get("qa") or {}).get("text", ""))
     row.warnings = list((doc.get("qa") or {}).get("warnings", []))
+    row.calibration = str((doc.get("calibration") or {}).get("id", ""))
     row.state = OriginalState.DELIVERED
 
 

@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from dualrgb.app.workflow.delivery.delivery_folder import DeliveryFolderError, check_folder
+from dualrgb.common.formatting import counted
 from dualrgb.core.metadata import (
     COLUMN_RULE,
     EXTRA_RULE,
@@ -156,8 +157,10 @@ class QueueImport:
         return out
 
     def summary(self) -> str:
+        """``q.csv: 20 rows, 17 valid, 3 bad (rows 6, 11, 17)``: the file's own count. What is shot is the queue
+        plan's (app.workflow.day.queue_plan: to shoot, kept, refused under a calibration and a session)."""
         bad = self.bad_rows
-        return (f"{self.path.name}: {len(self.entries) + len(bad)} rows, {len(self.entries)} to shoot"
+        return (f"{self.path.name}: {counted(len(self.entries) + len(bad), 'row')}, {len(self.entries)} valid"
                 + (f", {len(bad)} bad (rows {', '.join(map(str, bad))})" if bad else ""))
 
 

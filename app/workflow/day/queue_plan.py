@@ -15,6 +15,7 @@ from typing import Any
 
 from dualrgb.app.workflow.day.queue_csv import QueueImport
 from dualrgb.app.workflow.stand.mode_rule import mode_problem, override_text
+from dualrgb.common.formatting import counted
 from dualrgb.core.metadata import Original
 
 log = logging.getLogger(__name__)
@@ -58,7 +59,7 @@ class QueuePlan:
     def summary(self) -> str:
         n = {s: len(self.of(s)) for s in (SHOOT, KEPT, REFUSED)}
         under = f"with calibration {self.calibration}" if self.calibration else "(no calibration yet: modes unchecked)"
-        return (f"{self.source.name}: {len(self.rows)} rows {under}: {n[SHOOT]} to shoot, {n[KEPT]} kept, "
+        return (f"{self.source.name}: {counted(len(self.rows), 'row')} {under}: {n[SHOOT]} to shoot, {n[KEPT]} kept, "
                 f"{n[REFUSED]} refused")
 
     def lines(self) -> list[str]:

@@ -126,6 +126,7 @@ class Delivery:
     files: dict[str, Path]
     sidecar: Path
     qa: QaLine
+    calibration: str = ""                   # the id of the calibration it was delivered with
 
 
 def _qa(stack: ChannelSource, invalid: float, profile: CalibrationProfile, original: Original,
@@ -339,7 +340,7 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
         write_sidecar(folder / f"{stem}.json", {**doc, **(extra or {})})
     log.info("delivered %s: %s", original.identifier, qa.text())
     final = Path(out_dir) / stem
-    return Delivery(original, {k: final / p.name for k, p in files.items()}, final / f"{stem}.json", qa)
+    return Delivery(original, {k: final / p.name for k, p in files.items()}, final / f"{stem}.json", qa, profile.id)
 
 
 LIGHTS_UNKNOWN = ("lights unknown (raw files imported without a preset): no stand-model prediction, no model-based "

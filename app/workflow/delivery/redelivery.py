@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import logging
 from contextlib import closing
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -39,26 +39,45 @@ class Undelivered:
     reason: str
 
 
+@dataclass
+class Redelivered:
+    """A re-delivery as it goes, filled in place so that a cancelled one still says what it did: the originals it
+    takes in order (``planned``), those delivered again, those it could not deliver (why), the mode rule's refusals
+    (one line each, the identifier first) and every original it finished with (``finished``)."""
+
+    planned: list[str] = field(default_factory=list)
+    delivered: list[Delivery] = field(default_factory=list)
+    undelivered: list[Undelivered] = field(default_factory=list)
+    refused: list[str] = field(default_factory=list)
+    finished: list[str] = field(default_factory=list)
+
+    def not_done(self) -> list[str]:
+        """The planned originals it did not get to (a cancelled re-delivery: they keep their deliverables)."""
+        finished = set(self.finished)
+        return [i for i in self.planned if i not in finished]
+
+
 def redeliver(session: Any, profiles: CalibrationProfile | dict[str, CalibrationProfile], out_dir: Path, *,
               ppi: float | None = None, progress: ProgressCallback | None = None, cancel: CancelToken | None = None,
-              render_illuminant: str | None = None, force: bool = False,
-              refused: list[str] | None = None, resolution: str = FULL, settings: DeliverySettings | None = None
+              render_illuminant: str | None = None, force: bool = False, resolution: str = FULL,
+              settings: DeliverySettings | None = None, tally: Redelivered | None = None
               ) -> tuple[list[Delivery], list[Undelivered]]:
     """Deliver every original of a session again (``dualrgb process``) at ``resolution``: with ``profiles`` (one
     calibration, or one per mode), the mode rule applied to each (app.workflow.stand.mode_rule: an original without a
-    calibration of its mode is left out, its line appended to ``refused``, unless ``force`` with one calibration);
+    calibration of its mode is left out, its line in ``tally.refused``, unless ``force`` with one calibration);
     each original's current deliverables move to its ``previous/`` folder. Every original that can be is
     delivered; one whose frames are missing or damaged, whose folder is another's or whose delivery fails is
     listed with its reason (issue 28). The spectral rendering is seen under ``render_illuminant``; ``settings``:
-    the delivery settings (None: the settings file's, app.workflow.delivery.delivery_settings)."""
+    the delivery settings (None: the settings file's, app.workflow.delivery.delivery_settings). ``tally`` is filled
+    as it goes (:class:`Redelivered`: what a cancelled run did before it stopped)."""
     from dualrgb.app.workflow.calibration.session_processing import session_frames
 
     frames = session_frames(session, intact=False)
     damaged = {e.file: problem for e, problem in session.damaged()}
     known = session.settings.get("originals", {})
-    done: list[Delivery] = []
-    failed: list[Undelivered] = []
+    out = tally if tally is not None else Redelivered()
     subjects = [s for s in frames.subjects if s.role is Role.ORIGINAL]
+    out.planned[:] = [s.name for s in subjects]
     for i, subject in enumerate(subjects):
         if cancel is not None:
             cancel.check()
@@ -66,15 +85,16 @@ def redeliver(session: Any, profiles: CalibrationProfile | dict[str, Calibration
             original = _known_original(session, known, subject.name)
             profile, override = _profile_for(original, profiles, force)
             if profile is None:
-                (refused if refused is not None else []).append(override)
-                continue
-            done.append(_redeliver_one(session, frames, subject, original, profile, damaged, out_dir, ppi, cancel,
-                                       render_illuminant, override, resolution, settings))
+                out.refused.append(override)
+            else:
+                out.delivered.append(_redeliver_one(session, frames, subject, original, profile, damaged, out_dir,
+                                                    ppi, cancel, render_illuminant, override, resolution, settings))
         except (ValueError, OSError, ReportedError) as exc:
             log.warning("%s: not delivered: %s", subject.name, exc)
-            failed.append(Undelivered(subject.name, one_line(exc)))
+            out.undelivered.append(Undelivered(subject.name, one_line(exc)))
+        out.finished.append(subject.name)
         report(progress, (i + 1) / len(subjects), f"{subject.name} done")
-    return done, failed
+    return out.delivered, out.undelivered
 
 
 def _profile_for(original: Original, profiles: CalibrationProfile | dict[str, CalibrationProfile],
