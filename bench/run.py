@@ -25,6 +25,7 @@ BENCHES = {
     "input_bounds": ("bench.input_bounds", "bench_input_bounds", {}),
     "masters": ("bench.masters_bench", "bench_masters", {}),
     "stand_wait": ("bench.stand_wait", "bench_stand_wait", {}),
+    "stand_wait_24mp": ("bench.stand_wait", "bench_stand_wait_24mp", {}),
     "gui_stall": ("bench.gui_stall", "bench_gui_stall", {}),
     "light_gaps_load": ("bench.light_gaps_load", "bench_light_gaps_load", {}),
     "refusals": ("bench.refusals", "bench_refusals", {}),
