@@ -19,6 +19,11 @@ a bad file is one line naming the file and the field. Applying a preset (:func:`
 merged, the original's own values winning; the creator, rights, credit line and source become the original's
 ``credits`` (core.metadata.Credits: in its sidecar, session and XMP; an empty one falls back to the delivery
 settings'), unless the original has its own; the collection's name is recorded as ``original.collection``.
+
+Making or editing a preset without writing JSON: the window's *Edit preset…* (app.gui.preset_editor) and ``dualrgb
+collection set`` build it with :func:`make_preset` - the fields as typed, checked by the same code that reads a
+file (the schema, then the rules; a PresetError naming the field, nothing written) - and write it with
+:func:`save_preset` (checked again, then written atomically).
 """
 from __future__ import annotations
 
@@ -26,11 +31,11 @@ import dataclasses
 import json
 import logging
 import unicodedata
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from dualrgb import resources
 from dualrgb.app.workflow.day.naming import expand
@@ -42,10 +47,18 @@ PRESET_FORMAT = "dualrgb-collection/1"
 SCHEMA_FILE = "dualrgb-collection-1.schema.json"
 FOLDER = ("presets", "collections")
 MAX_PRESET_BYTES = 1024 * 1024        # a preset is a few hundred bytes; whatever the file says: never read more
+FIELDS = ("creator", "rights", "credit", "source", "extra", "identifier_template")      # a preset's fields, in order
+T = TypeVar("T")
 
 
 class PresetError(ValueError):
-    """A collection preset that cannot be used: ``str()`` is one line naming the file and the field."""
+    """A collection preset that cannot be used: ``str()`` is one line naming the file (when it was read from one)
+    and the field; :attr:`field` is that field (one of :data:`FIELDS`, ``name`` for the collection's name, or
+    another key the file should not have; empty: the whole file)."""
+
+    def __init__(self, message: str, field: str = ""):
+        super().__init__(message)
+        self.field = field
 
 
 @dataclass(frozen=True)
@@ -83,11 +96,11 @@ def check_name(name: str) -> str:
     try:
         text = normalise(COLLECTION_RULE, name)
     except MetadataError as exc:
-        raise PresetError(f"collection {name!r}: {exc.problem}") from None
+        raise PresetError(f"collection {name!r}: {exc.problem}", "name") from None
     bad = [ch for ch in text if not (ch in " ._-&(),'" or unicodedata.category(ch)[0] in "LNM")]
     if not text or text.startswith(".") or bad:
         why = f"{bad[0]!r} cannot be in a file name" if bad else "empty" if not text else "starts with a dot"
-        raise PresetError(f"collection {text!r}: {why} (the preset file is named after the collection)")
+        raise PresetError(f"collection {text!r}: {why} (the preset file is named after the collection)", "name")
     return text
 
 
@@ -122,46 +135,87 @@ def _validator() -> Any:
     return jsonschema.Draft202012Validator(schema)
 
 
-def _document(path: Path) -> dict[str, Any]:
-    """The preset file's JSON, checked against its schema (PresetError naming the file and the field)."""
-    import jsonschema
-
+def _read(path: Path) -> Any:
+    """The preset file's JSON (PresetError naming the file when it cannot be read)."""
     try:
         if path.stat().st_size > MAX_PRESET_BYTES:
             raise PresetError(f"{path}: {path.stat().st_size} bytes is not a collection preset (at most "
                               f"{MAX_PRESET_BYTES})")
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        return json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise PresetError(f"{path}: not a readable JSON file ({exc})") from None
+
+
+def _check_schema(doc: Any, prefix: str) -> dict[str, Any]:
+    """``doc`` checked against the preset's JSON Schema; PresetError ``prefix`` + the field otherwise."""
+    import jsonschema
+
     error = jsonschema.exceptions.best_match(_validator().iter_errors(doc))
     if error is not None and error.validator == "additionalProperties" and isinstance(error.instance, dict):
         known = error.schema.get("properties", {})
         unknown = sorted(k for k in error.instance if k not in known)[:1] or ["?"]
-        raise PresetError(f"{path}: {unknown[0]}: unknown field (expected {', '.join(known)})")
+        raise PresetError(f"{prefix}{unknown[0]}: unknown field (expected {', '.join(known)})", unknown[0])
     if error is not None:
         where = ".".join(str(p) for p in error.absolute_path) or "the file"
         message = " ".join(error.message.split())
-        raise PresetError(f"{path}: {where}: {message[:160]} (a {PRESET_FORMAT} preset: see "
-                          f"resources/schemas/{SCHEMA_FILE})")
+        raise PresetError(f"{prefix}{where}: {message[:160]} (a {PRESET_FORMAT} preset: see "
+                          f"resources/schemas/{SCHEMA_FILE})", str(next(iter(error.absolute_path), "")))
     return dict(doc)
+
+
+def _field(field: str, prefix: str, make: Callable[[], T]) -> T:
+    """``make()``; its ValueError (core.metadata's MetadataError, naming.TemplateError, a PresetError) as a
+    PresetError naming ``field``, its one line after ``prefix``."""
+    try:
+        return make()
+    except MetadataError as exc:
+        if field == "extra" and exc.field not in ("column name", "extra fields"):
+            raise PresetError(f"{prefix}extra.{exc}", field) from None          # a value: extra.department: ...
+        if field == "extra":                                                    # a name, the count
+            what = "field name" if exc.field == "column name" else exc.field
+            raise PresetError(f"{prefix}extra: {what}: {exc.problem}", field) from None
+        raise PresetError(f"{prefix}{exc}", exc.field if field == "credits" else field) from None
+    except ValueError as exc:
+        raise PresetError(f"{prefix}{exc}", getattr(exc, "field", "") or field) from None
+
+
+def _from_document(name: str, doc: Any, prefix: str = "", path: Path | None = None) -> CollectionPreset:
+    """The preset ``doc`` (a preset file's content) describes for collection ``name``: the schema, then
+    core.metadata's rules and the template's tokens; PresetError (``prefix`` + the field) at the first problem."""
+    doc = _check_schema(doc, prefix)
+    name = _field("name", prefix, lambda: check_name(name))
+    credits = _field("credits", prefix,
+                     lambda: Credits(**{k: doc[k] for k in ("creator", "rights", "credit", "source") if k in doc}))
+    extra = _field("extra", prefix, lambda: normalise_extra(doc.get("extra")))
+    template = str(doc.get("identifier_template", "")).strip()
+    if template:                               # an unknown token, a bad format: 'identifier template: ...'
+        _field("identifier_template", prefix,
+               lambda: expand(template, counter=1, operator="operator", collection=name))
+    return CollectionPreset(name, credits, extra, template, path)
 
 
 def load_preset(path: Path) -> CollectionPreset:
     """The preset in ``path`` (its name: the file's stem); PresetError, one line naming the file and the field."""
     path = Path(path)
-    doc = _document(path)
-    try:
-        name = check_name(path.stem)
-        credits = Credits(**{k: doc[k] for k in ("creator", "rights", "credit", "source") if k in doc})
-        extra = normalise_extra(doc.get("extra"))
-        template = str(doc.get("identifier_template", "")).strip()
-        if template:
-            expand(template, counter=1, operator="operator", collection=name)      # an unknown token, a bad format
-    except (MetadataError, PresetError) as exc:
-        raise PresetError(f"{path}: {exc}") from None
-    except ValueError as exc:                  # naming.TemplateError: 'identifier template: unknown token {x}'
-        raise PresetError(f"{path}: {exc}") from None
-    return CollectionPreset(name, credits, extra, template, path)
+    return _from_document(path.stem, _read(path), f"{path}: ", path)
+
+
+def make_preset(name: str, *, creator: Sequence[str] = (), rights: str = "", credit: str = "", source: str = "",
+                extra: Iterable[tuple[str, str]] = (), identifier_template: str = "") -> CollectionPreset:
+    """The preset of collection ``name`` these fields describe (as typed: the window's editor, ``collection
+    set``), checked by the code that reads a preset file; nothing is written (:func:`save_preset` writes it).
+
+    ``extra`` is (name, value) pairs: a name given twice is refused, a pair with an empty value is left out.
+    PresetError (one line naming the field; :attr:`PresetError.field`) at the first problem.
+    """
+    pairs = [(str(k).strip(), v) for k, v in extra]
+    names = [k for k, _ in pairs]
+    twice = next((k for i, k in enumerate(names) if k in names[:i]), None)
+    if twice is not None:
+        raise PresetError(f"extra.{twice}: named twice (one value per extra field)", "extra")
+    doc = {"format": PRESET_FORMAT, "creator": list(creator), "rights": rights, "credit": credit, "source": source,
+           "extra": dict(pairs), "identifier_template": identifier_template}
+    return _from_document(name, doc)
 
 
 def find_preset(name: str, folder: Path | None = None) -> CollectionPreset | None:
@@ -176,10 +230,12 @@ def find_preset(name: str, folder: Path | None = None) -> CollectionPreset | Non
 
 def save_preset(preset: CollectionPreset, folder: Path | None = None) -> Path:
     """Write ``preset`` into ``folder`` (None: :func:`default_folder`; made when missing) as ``<name>.json``
-    (replacing the collection's file), checked by reading it back; returns the path."""
+    (replacing the collection's file, atomically); checked as a file is read before anything is written
+    (PresetError, nothing written) and by reading it back; returns the path."""
     from dualrgb.common.atomic_files import atomic_write
     from dualrgb.simulation.versions import output_header
 
+    preset = _from_document(preset.name, {"format": PRESET_FORMAT, **preset.to_dict()})    # before anything is written
     path = preset_path(preset.name, folder)
     path.parent.mkdir(parents=True, exist_ok=True)
     text = json.dumps({**output_header(PRESET_FORMAT), **preset.to_dict()}, indent=2, ensure_ascii=False)
@@ -206,6 +262,6 @@ def with_collection(original: Original, collection: str, folder: Path | None = N
     return apply_preset(original, find_preset(collection, folder))
 
 
-__all__ = ["FOLDER", "PRESET_FORMAT", "CollectionPreset", "PresetError", "apply_preset", "check_name",
-           "collection_names", "default_folder", "find_preset", "load_preset", "preset_path", "save_preset",
-           "with_collection"]
+__all__ = ["FIELDS", "FOLDER", "PRESET_FORMAT", "CollectionPreset", "PresetError", "apply_preset", "check_name",
+           "collection_names", "default_folder", "find_preset", "load_preset", "make_preset", "preset_path",
+           "save_preset", "with_collection"]
