@@ -4,8 +4,9 @@ original), title, operator (remembered), notes, mode - *Next* fills the identifi
 Add / Import CSV... buttons; *Options* holds what is set once a day (frames per exposure, resolution, rendering
 light, sampling, the CSV's column names, the identifier template, collection and next number). The collection's
 metadata preset (app.workflow.day.collection_presets: creator, rights, default extra fields, its identifier
-template) is shown under it and applied to each original added (:func:`form_original`). Only building: the panel
-(app.gui.panels.originals) owns the widgets and their actions."""
+template) is shown under it and applied to each original added (:func:`form_original`); *Edit preset…* beside it
+makes or changes the preset (app.gui.preset_editor). Only building: the panel (app.gui.panels.originals) owns the
+widgets and their actions."""
 from __future__ import annotations
 
 from typing import Any
@@ -116,18 +117,26 @@ def options_widget(panel: Any) -> QWidget:
                                      "Identifier template for Next: {counter} (e.g. {counter:04}), {date} (e.g. "
                                      "{date:%Y-%m-%d}), {operator}, {collection}. Remembered.")
     panel.collection = remembered_edit(panel.ctx, COLLECTION_KEY, "e.g. GEM", "The collection, for {collection}; "
-                                       "its metadata preset (creator, rights, extra fields; a JSON file in "
-                                       f"{default_folder()}) is applied to each original added. Remembered.")
+                                       "its metadata preset (creator, rights, extra fields; Edit preset… makes or "
+                                       f"changes it, a file in {default_folder()}) is applied to each original "
+                                       "added. Remembered.")
     panel.collection_note = QLabel("")
     panel.collection_note.setWordWrap(True)
     panel.collection.textChanged.connect(lambda _t: show_collection(panel))
+    panel.preset_button = QPushButton("Edit preset…")
+    panel.preset_button.setToolTip("Make or change this collection's metadata preset: creators, rights, credit "
+                                   "line, source, default extra fields, identifier template.")
+    panel.preset_button.clicked.connect(lambda: edit_preset(panel))
+    collection_row = QHBoxLayout()
+    collection_row.addWidget(panel.collection, 1)
+    collection_row.addWidget(panel.preset_button)
     panel.counter = QSpinBox()
     panel.counter.setRange(1, 999_999)
     panel.counter.setValue(panel.ctx.get(COUNTER_KEY, 1, int))
     panel.counter.setToolTip("The number {counter} gives next; Next counts on. Remembered.")
     panel.counter.valueChanged.connect(lambda v: panel.ctx.set(COUNTER_KEY, v))
     form.addRow("Identifier template", panel.template)
-    form.addRow("Collection", panel.collection)
+    form.addRow("Collection", collection_row)
     form.addRow(panel.collection_note)
     form.addRow("Next number", panel.counter)
     show_collection(panel)
@@ -144,11 +153,31 @@ def show_collection(panel: Any) -> None:
         panel.collection_note.setText(f"preset not used: {exc}")
         return
     if preset is None:
-        panel.collection_note.setText(f"no preset for {name} (a JSON file in {default_folder()})" if name else "")
+        panel.collection_note.setText(f"no preset for {name} (Edit preset… makes one)" if name else "")
         return
     panel.collection_note.setText(preset.summary())
     if preset.identifier_template:
         panel.template.setText(preset.identifier_template)
+
+
+def edit_preset(panel: Any) -> QWidget:
+    """*Edit preset…*: the collection's preset in its dialog (app.gui.preset_editor), one per form, shown again;
+    after a save the *Collection* line says what it sets and the next original added gets it."""
+    from dualrgb.app.gui.preset_editor import PresetEditor
+
+    def saved(preset: Any) -> None:
+        if panel.collection.text().strip() != preset.name:
+            panel.collection.setText(preset.name)                       # show_collection runs on the change
+        else:
+            show_collection(panel)
+
+    dialog = panel.findChild(PresetEditor)
+    if dialog is None:
+        dialog = PresetEditor(saved, panel)
+    dialog.load(panel.collection.text())
+    dialog.show()
+    dialog.raise_()
+    return dialog
 
 
 def form_original(panel: Any) -> Original:
