@@ -44,6 +44,7 @@ COMMAND_MODULES = (
     "dualrgb.app.commands.demo",
     "dualrgb.app.commands.calibrate",
     "dualrgb.app.commands.capture",
+    "dualrgb.app.commands.collection",
     "dualrgb.app.commands.process",
     "dualrgb.app.commands.import_raw",
     "dualrgb.app.commands.cube",
