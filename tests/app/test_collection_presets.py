@@ -161,3 +161,31 @@ def test_the_docs_example_preset_is_a_valid_preset():
     assert (preset.credits.rights, preset.credits.credit, dict(preset.extra), preset.identifier_template) == \
         ("CC BY 4.0, Example Museum", "Gemäldegalerie, Example Museum",
          {"collection": "Gemäldegalerie", "department": "Paintings"}, "GEM-{date}-{counter:04}")
+
+
+def test_make_preset_checks_as_a_file_is_read_and_save_writes_nothing_bad():
+    """The editor's and the CLI's preset (make_preset) is the one a file with those fields reads as; a bad field
+    is a PresetError naming it (its .field for the window's focus and the CLI's option); save_preset checks before
+    it writes."""
+    from dualrgb.app.workflow.day.collection_presets import make_preset
+
+    made = make_preset("GEM", creator=list(GEM.credits.creator), rights=GEM.credits.rights, credit=GEM.credits.credit,
+                       source=GEM.credits.source, extra=list(GEM.extra.items()) + [("empty", "")],
+                       identifier_template=GEM.identifier_template)
+    assert made == GEM
+    for kw, field, says in ((dict(rights="CC\x01"), "rights", "rights: control character U+0001"),
+                            (dict(creator=["A", "B\x00"]), "creator", "creator: control character U+0000"),
+                            (dict(extra=[("a", "1"), ("a", "2")]), "extra", "extra.a: named twice"),
+                            (dict(extra=[("", "x")]), "extra", "extra: field name: empty"),
+                            (dict(extra=[("box", "\x02")]), "extra", "extra.box: control character U+0002"),
+                            (dict(identifier_template="{room}"), "identifier_template", "identifier template: "
+                                                                                        "unknown token {room}")):
+        with pytest.raises(PresetError) as caught:
+            make_preset("GEM", **kw)
+        assert caught.value.field == field and str(caught.value).startswith(says), str(caught.value)
+    with pytest.raises(PresetError) as caught:
+        make_preset("a/b")
+    assert caught.value.field == "name"
+    with pytest.raises(PresetError, match=r"^identifier template: unknown token \{room\}"):
+        save_preset(CollectionPreset("GEM", identifier_template="{room}"))
+    assert not default_folder().exists()                                    # nothing written
