@@ -116,20 +116,7 @@ def options_widget(panel: Any) -> QWidget:
     panel.template = remembered_edit(panel.ctx, TEMPLATE_KEY, "{collection}-{date}-{counter:04}",
                                      "Identifier template for Next: {counter} (e.g. {counter:04}), {date} (e.g. "
                                      "{date:%Y-%m-%d}), {operator}, {collection}. Remembered.")
-    panel.collection = remembered_edit(panel.ctx, COLLECTION_KEY, "e.g. GEM", "The collection, for {collection}; "
-                                       "its metadata preset (creator, rights, extra fields; Edit preset… makes or "
-                                       f"changes it, a file in {default_folder()}) is applied to each original "
-                                       "added. Remembered.")
-    panel.collection_note = QLabel("")
-    panel.collection_note.setWordWrap(True)
-    panel.collection.textChanged.connect(lambda _t: show_collection(panel))
-    panel.preset_button = QPushButton("Edit preset…")
-    panel.preset_button.setToolTip("Make or change this collection's metadata preset: creators, rights, credit "
-                                   "line, source, default extra fields, identifier template.")
-    panel.preset_button.clicked.connect(lambda: edit_preset(panel))
-    collection_row = QHBoxLayout()
-    collection_row.addWidget(panel.collection, 1)
-    collection_row.addWidget(panel.preset_button)
+    collection_row = collection_widgets(panel)
     panel.counter = QSpinBox()
     panel.counter.setRange(1, 999_999)
     panel.counter.setValue(panel.ctx.get(COUNTER_KEY, 1, int))
@@ -141,6 +128,25 @@ def options_widget(panel: Any) -> QWidget:
     form.addRow("Next number", panel.counter)
     show_collection(panel)
     return page
+
+
+def collection_widgets(panel: Any) -> QHBoxLayout:
+    """*Collection* (remembered), *Edit preset…* beside it and the line under it, set on ``panel``."""
+    panel.collection = remembered_edit(panel.ctx, COLLECTION_KEY, "e.g. GEM", "The collection, for {collection}; "
+                                       "its metadata preset (creator, rights, extra fields; Edit preset… makes or "
+                                       f"changes it, a file in {default_folder()}) is applied to each original "
+                                       "added. Remembered.")
+    panel.collection_note = QLabel("")
+    panel.collection_note.setWordWrap(True)
+    panel.collection.textChanged.connect(lambda _t: show_collection(panel))
+    panel.preset_button = QPushButton("Edit preset…")
+    panel.preset_button.setToolTip("Make or change this collection's metadata preset: creators, rights, credit "
+                                   "line, source, default extra fields, identifier template.")
+    panel.preset_button.clicked.connect(lambda: edit_preset(panel))
+    row = QHBoxLayout()
+    row.addWidget(panel.collection, 1)
+    row.addWidget(panel.preset_button)
+    return row
 
 
 def show_collection(panel: Any) -> None:

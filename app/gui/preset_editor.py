@@ -131,11 +131,12 @@ class PresetEditor(QDialog):
     def add_extra(self, name: str, value: str, *, edit: bool = False) -> None:
         r = self.extra.rowCount()
         self.extra.insertRow(r)
-        self.extra.setItem(r, 0, QTableWidgetItem(name))
+        first = QTableWidgetItem(name)
+        self.extra.setItem(r, 0, first)
         self.extra.setItem(r, 1, QTableWidgetItem(value))
         if edit:
             self.extra.setCurrentCell(r, 0)
-            self.extra.editItem(self.extra.item(r, 0))
+            self.extra.editItem(first)
 
     def remove_extra(self) -> None:
         """The selected rows out (none selected: the current one)."""
@@ -146,8 +147,11 @@ class PresetEditor(QDialog):
 
     def extra_pairs(self) -> list[tuple[str, str]]:
         """The table's (field, value) rows, as typed; wholly empty rows left out."""
-        cells = [[(self.extra.item(r, c).text() if self.extra.item(r, c) else "") for c in (0, 1)]
-                 for r in range(self.extra.rowCount())]
+        def text(r: int, c: int) -> str:
+            item = self.extra.item(r, c)
+            return item.text() if item is not None else ""
+
+        cells = [(text(r, 0), text(r, 1)) for r in range(self.extra.rowCount())]
         return [(name, value) for name, value in cells if name.strip() or value.strip()]
 
     def show_preset(self, preset: CollectionPreset) -> None:

@@ -70,7 +70,8 @@ REFUSED = [
     (["--rights", "CC BY\x01"], "dualrgb: error: --rights 'CC BY\\x01': rights: control character U+0001"),
     (["--template", "{room}-{counter}"], "dualrgb: error: --template '{room}-{counter}': identifier template: "
                                          "unknown token {room}"),
-    (["--creator", "A", "--creator", "B\x00"], "dualrgb: error: --creator 'A, B\\x00': creator: control character U+0000"),
+    (["--creator", "A", "--creator", "B\x00"], "dualrgb: error: --creator 'A, B\\x00': creator: control "
+                                               "character U+0000"),
     (["--extra", "a=1", "--extra", "a=2"], "dualrgb: error: --extra: extra.a: named twice"),
     (["--extra", "=x"], "argument --extra: '=x': expected FIELD=VALUE, e.g. department=Paintings"),
     (["--extra", "department"], "argument --extra: 'department': expected FIELD=VALUE"),
@@ -83,9 +84,9 @@ def test_a_bad_value_is_one_line_and_nothing_is_written(capsys, given, says):
     path = default_folder() / "GEM.json"
     before = path.read_bytes()
     try:
-        rc, out, err = run(capsys, "collection", "set", "GEM", *given)
+        rc, _, err = run(capsys, "collection", "set", "GEM", *given)
     except SystemExit as exc:                                       # argparse: its usage, then the one line
-        rc, (out, err) = int(exc.code or 0), capsys.readouterr()
+        rc, err = int(exc.code or 0), capsys.readouterr().err
         err = err.splitlines()[-1]
     assert rc in (1, 2) and says in err and len(err.strip().splitlines()) == 1, err
     assert path.read_bytes() == before and sorted(p.name for p in default_folder().iterdir()) == ["GEM.json"]
