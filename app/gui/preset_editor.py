@@ -36,6 +36,7 @@ from dualrgb.app.workflow.day.collection_presets import (
     CollectionPreset,
     PresetError,
     find_preset,
+    load_preset,
     make_preset,
     preset_path,
     save_preset,
@@ -219,7 +220,10 @@ class PresetEditor(QDialog):
             self._say(f"not saved: {exc}", error=True)
             return None
         log.info("collection preset %s saved from the window: %s", preset.name, path)
-        saved = find_preset(preset.name, self.folder) or preset
+        try:
+            saved = load_preset(path)                     # its name as the file spells it (GEM.json for 'gem')
+        except PresetError:                               # changed under us since: the form says so when it reads it
+            saved = preset
         self.loaded = saved.name
         self._say(f"saved: {path}")
         self.on_saved(saved)

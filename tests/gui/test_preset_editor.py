@@ -131,3 +131,20 @@ def test_the_dialog_fits_a_small_screen(qtbot, make_window):
     size = dialog.frameGeometry().size()
     assert size.width() <= 1366 and size.height() <= 700, size          # 768 less a panel
     assert clipped_texts(dialog) == []
+
+
+def test_another_name_opens_that_collections_preset_and_a_new_one_keeps_the_typed_fields(qtbot, make_window):
+    save_preset(GEM)
+    w = make_window()
+    dialog = open_editor(qtbot, w, "")
+    assert dialog.name.text() == "" and dialog.message.text() == "name the collection"
+    dialog.rights.setText("film rights")
+    dialog.name.setText("FILM")
+    dialog.name.editingFinished.emit()                      # a collection without a preset: the typed fields stay
+    assert dialog.rights.text() == "film rights" and dialog.message.text().startswith("a new preset")
+    dialog.name.setText("gem")
+    dialog.name.editingFinished.emit()                      # one with a preset: its fields
+    assert dialog.name.text() == "GEM" and dialog.rights.text() == GEM.credits.rights
+    assert dialog.extra_pairs() == list(GEM.extra.items())
+    click(qtbot, dialog.cancel_button)
+    assert not dialog.isVisible() and find_preset("FILM") is None                   # Cancel writes nothing
