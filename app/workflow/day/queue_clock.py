@@ -202,7 +202,7 @@ class QueueClock:
         with self._lock:
             o = self._originals.get(self._current) if self._current is not None else None
             if o is not None:
-                o.clock.time_left(min(f, ORIGINAL_FRAMES[1]))               # its metering and frames phases
+                o.clock.time_left(min(f, ORIGINAL_FRAMES[1] - 1e-6))   # metering, frames (delivery: shot())
                 self._within = max(self._within, min(max(f, 0.0) / ORIGINAL_FRAMES[1], 1.0))
             n = max(self.total, 1)
             done = len(self._shot) + (self._within if self._current is not None else 0.0)
