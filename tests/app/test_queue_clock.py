@@ -60,6 +60,7 @@ def test_a_queue_of_two_from_measured_costs_corrected_by_its_pace(tmp_path):
     clock = QueueClock([PLAN, PLAN], costs, now=now)
     clock.begin()
     assert clock.shoot_cost(0) == pytest.approx(2 * 1.0 + 2 * 2.0)          # 6 s to shoot, 5 s to deliver
+    assert clock.expected_total_s() == pytest.approx(6 + 6 + 5)             # the plan's "about ..., as measured"
     assert clock.time_left(0.0) == pytest.approx(6 + 6 + 5)
     clock.started(0)
     now.t += 2.0
@@ -113,6 +114,7 @@ def test_without_a_measured_delivery_the_queue_learns_from_its_own(tmp_path):
     costs, now = PhaseCosts(tmp_path / "none.json"), FakeTime()
     clock = QueueClock([PLAN, PLAN, PLAN], costs, now=now, overhead_s=1.0)
     assert clock.time_left(0.0) is None                      # nothing measured: no delivery cost to say
+    assert clock.expected_total_s() is None                  # and no "as measured" estimate
     clock.started(0)
     now.t += 3.0
     clock.shot(0)

@@ -155,6 +155,15 @@ class QueueClock:
             return measured
         return sum(self._delivered_s) / len(self._delivered_s) if self._delivered_s else None
 
+    def expected_total_s(self) -> float | None:
+        """The whole queue before it starts (the plan's estimate) when every phase of its originals has been
+        measured; None otherwise."""
+        with self._lock:
+            if any(self.costs.expected(ORIGINAL_RUN, p, self._measured) is None for ps in self._phases for p in ps):
+                return None
+            return queue_time_left([self.shoot_cost(i) for i in range(self.total)], self.deliver_cost(), self.total,
+                                   pipelined=self.pipelined)
+
     # ------------------------------------------------------------------ the queue's loop
     def started(self, i: int) -> None:
         """Original ``i`` starts (its checks and metering)."""
