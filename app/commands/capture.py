@@ -45,6 +45,7 @@ from dualrgb.app.commands.stand_options import (
     reuse_limits,
     said_redelivery,
     session_of_run,
+    timed,
 )
 from dualrgb.app.json_output import text_stream, write_json
 from dualrgb.app.workflow.stand.defaults import DAY_WORKFLOW, MODES, VIRTUAL_ORIGINALS
@@ -222,6 +223,7 @@ def _run(args: argparse.Namespace, profile, settings, originals: list, plan, mod
     """The devices opened, every check before the light made (app.workflow.stand.run_gate), then only the session
     opened and the originals shot: a refused run leaves the session folder as it was."""
     from dualrgb.app.workflow.day.queue_run import QueueOutcome, capture_queue
+    from dualrgb.app.workflow.phase_costs import PhaseClock
     from dualrgb.app.workflow.stand.copystand import CopyStand
     from dualrgb.app.workflow.stand.run_gate import check_capture_run
 
@@ -231,19 +233,40 @@ def _run(args: argparse.Namespace, profile, settings, originals: list, plan, mod
                           len(originals))
         with session_of_run(args.session, definition, dev.camera) as session:
             out_dir = out_dir or session.path / "deliverables"
+            clock, computer = _clock(args, profile, originals, single=plan is None)   # time left from the costs
             stand = CopyStand(dev.camera, dev.sphere, session, stand=dev.stand, settings=settings,
-                              progress=progress_printer(), prompt=ask_person, reshoot=lambda _o, _n: args.reshoot)
-            if plan is None:                # one original: shot, or its frames kept and delivered again
+                              progress=progress_printer(clock), prompt=ask_person,
+                              reshoot=lambda _o, _n: args.reshoot)
+            if isinstance(clock, PhaseClock):   # one original: shot, or its frames kept and delivered again
                 said_redelivery(session, originals[0], args.reshoot)
-                result = stand.capture(originals[0], profile, reshoot=args.reshoot, out_dir=out_dir)
+                computer.on_stand(stand)                                # a person's placements left out
+                with timed(clock):
+                    result = stand.capture(originals[0], profile, reshoot=args.reshoot, out_dir=out_dir)
                 _print_outcome(QueueOutcome(originals[0], report=result), text_stream(args.json_path))
                 return _single_json(args, result, profile)
-            outcomes = capture_queue(stand, originals, profile, reshoot=args.reshoot, out_dir=out_dir,
-                                     on_outcome=lambda o: _print_outcome(o, text_stream(args.json_path)))
+            with timed(clock):
+                outcomes = capture_queue(stand, originals, profile, reshoot=args.reshoot, out_dir=out_dir,
+                                         on_outcome=lambda o: _print_outcome(o, text_stream(args.json_path)),
+                                         clock=clock)
     write_json(args.json_path, CAPTURE_FORMAT, {"queue": str(args.queue), "calibration": profile.id,
                                                 "bad_rows": plan.refused_lines(), "plan": plan.to_dict(),
                                                 "originals": [_outcome_json(o) for o in outcomes]}, default=str)
     return 1 if any(o.error for o in outcomes) else 0        # a failed delivery: said against its original
+
+
+def _clock(args: argparse.Namespace, profile, originals: list, *, single: bool):
+    """The run's clock (app.workflow.phase_costs): one original's phases, or the queue's (app.workflow.day.queue_clock),
+    from the measured costs of an original; and the computer's time it runs on."""
+    from dualrgb.app.workflow.day.queue_clock import ComputerTime, QueueClock
+    from dualrgb.app.workflow.day.queue_run import original_plan
+    from dualrgb.app.workflow.stand.run_phases import original_clock
+
+    plans = [original_plan(profile, o.identifier, args.frames or 1) for o in originals]
+    if single:
+        computer = ComputerTime()
+        return original_clock(plans[0], args.settle, now=computer), computer
+    clock = QueueClock(plans, settle_s=args.settle)
+    return clock, clock.time
 
 
 def _check(args: argparse.Namespace, plan, single: list, profile) -> int:

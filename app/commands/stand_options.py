@@ -21,8 +21,8 @@ from dualrgb.common.formatting import format_duration
 from dualrgb.common.progress import Cancelled
 
 if TYPE_CHECKING:                       # types only: a command imports its devices when it runs (fast --help)
-    from dualrgb.app.workflow.phase_costs import PhaseClock
     from dualrgb.core.device_actions import Place as Stand
+    from dualrgb.core.engine import RunClock
     from dualrgb.core.protocols import Sphere
     from dualrgb.core.session.capture_session import CaptureSession
     from dualrgb.drivers.camera.base import Camera
@@ -79,7 +79,7 @@ def add_reuse_options(p: argparse.ArgumentParser) -> None:
                    help="refuse when the sphere is this many C from the calibration's temperature (5)")
 
 
-def progress_printer(clock: PhaseClock | None = None) -> Callable[[float, str], None]:
+def progress_printer(clock: RunClock | None = None) -> Callable[[float, str], None]:
     """Progress lines on stderr ('[ 88%] report: figure 3 of 11, ...'); with a ``clock``
     (app.workflow.phase_costs) each line ends with the time left from the measured phase costs."""
     last: list[str | None] = [None]
@@ -96,7 +96,7 @@ def progress_printer(clock: PhaseClock | None = None) -> Callable[[float, str], 
 
 
 @contextlib.contextmanager
-def timed(clock: PhaseClock) -> Iterator[PhaseClock]:
+def timed(clock: RunClock) -> Iterator[RunClock]:
     """A CLI run timed by ``clock``: begun here, its phases recorded when it ends (all of them when it is done)."""
     clock.begin()
     outcome = "failed"

@@ -35,6 +35,7 @@ from dualrgb.app.gui.viewmodel import format_duration
 from dualrgb.app.gui.wording import in_window_words
 from dualrgb.app.gui.workers import TaskHandle
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
+from dualrgb.app.workflow.day.queue_clock import QueueClock
 from dualrgb.app.workflow.phase_costs import PhaseClock
 from dualrgb.app.workflow.stand.run_phases import DEFAULT_OVERHEAD_S, plan_seconds
 from dualrgb.core.engine import RUN_PROGRESS
@@ -172,9 +173,10 @@ class SequenceView(QWidget):
 
     def _expected_total(self, plan: list[PlannedFrame]) -> tuple[float, bool]:
         """The run's time and whether it is measured: its phases' costs when its clock has them all
-        (app.workflow.phase_costs: processing included), else the plan's frames' rough time."""
+        (app.workflow.phase_costs: processing included; a queue's: app.workflow.day.queue_clock), else the plan's
+        frames' rough time."""
         clock = getattr(self.seq, "clock", None)
-        measured = clock.expected_total_s() if isinstance(clock, PhaseClock) else None
+        measured = clock.expected_total_s() if isinstance(clock, (PhaseClock, QueueClock)) else None
         if measured is not None:
             return measured, True
         return plan_seconds(plan, self.settle_s, self.overhead_s), False

@@ -50,6 +50,7 @@ from dualrgb.app.gui.wording import add_valid, in_window_words, reshoot_question
 from dualrgb.app.sequences.base import PlannedFrame, ProgressEvent
 from dualrgb.app.workflow.day.day import OriginalsQueue, OriginalState, QueueRow
 from dualrgb.app.workflow.day.day_file import restore_queue
+from dualrgb.app.workflow.day.queue_clock import QueueClock
 from dualrgb.app.workflow.day.queue_csv import QueueImport, column_options, read_queue_csv
 from dualrgb.app.workflow.day.queue_plan import KEPT, REFUSED, SHOOT, plan_queue
 from dualrgb.app.workflow.day.queue_run import (
@@ -470,12 +471,15 @@ class OriginalsPanel(QWidget):
         originals, reshoot = [r.original for r in rows], dict(self._reshoot)
         frames, stand_ins = {r.identifier: r.frames for r in rows}, {r.identifier: r.stand_in for r in rows}
 
+        self.current, self._rows, self._brackets = None, rows, {}
+        clock = QueueClock([original_plan(profile, r.identifier, r.frames) for r in rows], settle_s=settings.settle_s,
+                           overhead_s=self.view.overhead_s)           # one bar and its time left for the queue
+
         def work(hooks: RunHooks) -> list[QueueOutcome]:
             stand = lab.copy_stand(settings, hooks, stand_in=stand_ins)
-            return capture_queue(stand, originals, profile, reshoot=reshoot, frames=frames)
-        self.current, self._rows, self._brackets = None, rows, {}
+            return capture_queue(stand, originals, profile, reshoot=reshoot, frames=frames, clock=clock)
         name = rows[0].identifier if len(rows) == 1 else f"{len(rows)} originals"
-        self.run = Run(name, self._plan(), work)
+        self.run = Run(name, self._plan(), work, clock=clock)
         self.view.start(self.run)
 
     def _plan(self) -> list[PlannedFrame]:

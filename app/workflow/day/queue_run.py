@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from dualrgb.app.workflow.day.queue_clock import QueueClock
 from dualrgb.app.workflow.delivery.delivery import Delivery, Original
 from dualrgb.app.workflow.delivery.delivery_folder import sidecar_identifier
 from dualrgb.app.workflow.stand.copystand import CaptureReport, CopyStand, ShotOriginal
@@ -129,20 +130,36 @@ def capture_queue(stand: CopyStand, originals: Sequence[Original], profile: Cali
                   reshoot: bool | Mapping[str, bool] = False, out_dir: Path | None = None,
                   frames: Mapping[str, int] | None = None,
                   on_outcome: Callable[[QueueOutcome], None] | None = None,
-                  pipelined: bool = True) -> list[QueueOutcome]:
+                  pipelined: bool = True, clock: QueueClock | None = None) -> list[QueueOutcome]:
     """Capture and deliver ``originals`` in order, in one run (module docstring). ``reshoot`` True: every one is
     shot again; False: one already delivered in the session is kept and said so; a mapping (the technician's
     answers, by identifier): True shoots it again (a new take), False delivers its frames again (nothing lit for
     frames it has). ``frames``: frames per exposure by identifier (else the stand's setting). ``pipelined``:
-    original N delivered while N+1 is shot (False: each delivered before the next is metered)."""
+    original N delivered while N+1 is shot (False: each delivered before the next is metered). ``clock``
+    (app.workflow.day.queue_clock): the queue's one progress and its time left, its originals' phases recorded."""
     for original in originals:
         stand.preflight(original, out_dir, profile)
     stand.check_before_light(profile, out_dir, len(originals))
-    day = _Day(stand, profile, reshoot, out_dir, frames or {}, on_outcome, len(originals))
+    if clock is not None:
+        clock.pipelined = pipelined
+        timed_by(stand, clock)
+    day = _Day(stand, profile, reshoot, out_dir, frames or {}, on_outcome, len(originals), clock)
     if not pipelined:
         return stand.engine.run(lambda: day.run(originals, None))
     with ThreadPoolExecutor(1, thread_name_prefix="delivery", initializer=lower_priority) as worker:
         return stand.engine.run(lambda: day.run(originals, worker))
+
+
+def timed_by(stand: CopyStand, clock: QueueClock) -> None:
+    """The stand's progress as the whole queue's (QueueClock.fraction), the clock on the stand's timeline (a
+    person's placements and prompts left out of the computer's time)."""
+    clock.time.on_stand(stand)
+    inner = stand.progress
+
+    def progress(fraction: float, message: str) -> None:
+        if inner is not None:
+            inner(clock.fraction(fraction), message)
+    stand.progress = stand.engine.progress = progress
 
 
 def lower_priority() -> None:
@@ -170,9 +187,9 @@ class _Day:
 
     def __init__(self, stand: CopyStand, profile: CalibrationProfile, reshoot: bool | Mapping[str, bool],
                  out_dir: Path | None, frames: Mapping[str, int],
-                 on_outcome: Callable[[QueueOutcome], None] | None, total: int):
+                 on_outcome: Callable[[QueueOutcome], None] | None, total: int, clock: QueueClock | None = None):
         self.stand, self.profile, self.reshoot, self.out_dir = stand, profile, reshoot, out_dir
-        self.frames, self.on_outcome, self.total = frames, on_outcome, total
+        self.frames, self.on_outcome, self.total, self.clock = frames, on_outcome, total, clock
         self.timeline = stand.engine.actions.shooter.timeline
         self.last_end: float | None = None            # the end of the previous original's last exposure
 
@@ -183,8 +200,14 @@ class _Day:
             for i, original in enumerate(originals):
                 self.stand._check_cancel()
                 _say(self.stand, i, self.total, original, "start", f"{original.identifier}: capturing")
+                if self.clock is not None:
+                    self.clock.started(i)
                 outcome, shot = self._shoot(original)
                 outcomes.append(outcome)
+                if self.clock is not None and shot is None:
+                    self.clock.kept(i)
+                elif self.clock is not None:
+                    self.clock.shot(i)
                 if shot is None:
                     self._done(outcome, i + 1, "kept")
                     continue
@@ -252,10 +275,16 @@ class _Day:
         except Exception as exc:  # noqa: BLE001 - reported against its original, the queue goes on
             log.error("%s: delivery failed: %s", outcome.original.identifier, exc)
             outcome.error = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            self._timed(flight.step - 1, None)
             self._done(outcome, flight.step, "failed")
             return
+        self._timed(flight.step - 1, outcome.deliver_s)
         outcome.report = self.stand.finish(flight.shot, delivery)
         self._done(outcome, flight.step, "delivered")
+
+    def _timed(self, i: int, deliver_s: float | None) -> None:
+        if self.clock is not None:
+            self.clock.delivered(i, deliver_s)
 
     def _settle(self, flight: _InFlight) -> None:
         """After a cancel or an error in the run's thread: the delivery in flight ends (a cancel stops it too) and

@@ -1,12 +1,14 @@
-"""The phases of a calibration run, in one place: the share of the run's progress each fills (CopyStand.calibrate
-reports through these bands) and the frames the plan puts in each, for its time left
-(app.workflow.phase_costs.PhaseClock).
+"""The phases of a calibration run and of one original, in one place: the share of the run's progress each fills
+(CopyStand.calibrate and CopyStand.capture report through these bands) and the frames the plan puts in each, for its
+time left (app.workflow.phase_costs.PhaseClock).
 
     clock = calibration_clock(plan, settle_s=0.2, overhead_s=1.5)      # the window's and the CLI's calibration
+    clock = original_clock(original_plan(profile, "ACC-1"), 0.2)      # one original: metering, frames, delivery
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 
 from dualrgb.app.workflow.calibration.session_processing import PROCESSING_STEPS
 from dualrgb.app.workflow.phase_costs import Phase, PhaseClock, PhaseCosts
@@ -21,6 +23,12 @@ FLATS = (0.35, 0.5)
 TARGET_FRAMES = {"train": (0.5, 0.55), "test": (0.55, 0.6)}
 PROCESSING = (0.6, 0.95)            # app.workflow.calibration.session_processing.process_session, its steps inside
 SAVING = (0.95, 1.0)
+# one original's phases (CopyStand.shoot: metering, then its frames; CopyStand.capture: its delivery); the queue
+# (app.workflow.day.queue_clock) records each of its originals' under the same run name
+ORIGINAL_RUN = "original"
+METERING = (0.0, 0.1)
+ORIGINAL_FRAMES = (0.1, 0.8)
+DELIVERY = (0.8, 1.0)
 DEFAULT_OVERHEAD_S = 1.5            # per frame beyond the exposure (download, write) until one has been measured
 
 
@@ -79,3 +87,25 @@ def calibration_clock(plan: Sequence[PlannedFrame], settle_s: float = 0.2, overh
         return calibration_phases([*metering, *rest], settle_s, overhead_s)
     return PhaseClock(CALIBRATION_RUN, calibration_phases(plan, settle_s, overhead_s), costs, record=record,
                       replan=replan)
+
+
+def original_phases(plan: Sequence[PlannedFrame], settle_s: float = 0.2,
+                    overhead_s: float = DEFAULT_OVERHEAD_S) -> list[Phase]:
+    """One original's phases: its metering frames and its frames (each measured per frame, the plan's rough time
+    until measured) and its delivery (one cost; none of its own until measured)."""
+    metering = [f for f in plan if f.role == Role.METERING.value]
+    frames = [f for f in plan if f.role != Role.METERING.value]
+
+    def shooting(name: str, band: tuple[float, float], mine: list[PlannedFrame]) -> Phase:
+        return Phase(name, *band, size=len(mine) or None,
+                     plan_s=plan_seconds(mine, settle_s, overhead_s) if mine else None)
+    return [shooting("metering", METERING, metering), shooting("frames", ORIGINAL_FRAMES, frames),
+            Phase("delivery", *DELIVERY)]
+
+
+def original_clock(plan: Sequence[PlannedFrame], settle_s: float = 0.2, overhead_s: float = DEFAULT_OVERHEAD_S,
+                   *, costs: PhaseCosts | None = None, now: Callable[[], float] | None = None) -> PhaseClock:
+    """One original's clock (a single shot: the window's and ``dualrgb capture --id``): its phases from ``plan``
+    (app.workflow.day.queue_run.original_plan), their measured costs from ``costs`` (default: the user's); ``now``:
+    the computer's time (app.workflow.day.queue_clock.ComputerTime: a person's placements left out)."""
+    return PhaseClock(ORIGINAL_RUN, original_phases(plan, settle_s, overhead_s), costs, now=now or time.monotonic)
