@@ -19,6 +19,7 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from dualrgb.app.commands.options import field_value
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 if TYPE_CHECKING:
@@ -28,14 +29,6 @@ log = logging.getLogger(__name__)
 
 OPTION = {"creator": "--creator", "rights": "--rights", "credit": "--credit", "source": "--source",
           "extra": "--extra", "identifier_template": "--template", "name": "NAME"}    # a preset's field: its option
-
-
-def extra_pair(text: str) -> tuple[str, str]:
-    """``FIELD=VALUE`` (argparse ``type=``): the pair; the value may be empty (the field removed)."""
-    name, sep, value = text.partition("=")
-    if not sep or not name.strip():
-        raise argparse.ArgumentTypeError(f"{text!r}: expected FIELD=VALUE, e.g. department=Paintings")
-    return name.strip(), value
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -58,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                       ("--template", "the identifier template: {counter} (e.g. {counter:04}), {date}, {operator}, "
                                      "{collection}")):
         put.add_argument(opt, metavar="TEXT", help=f"{what}; \"\" clears it")
-    put.add_argument("--extra", action="append", type=extra_pair, default=[], metavar="FIELD=VALUE",
+    put.add_argument("--extra", action="append", type=field_value, default=[], metavar="FIELD=VALUE",
                      help="a default extra field of each original (FIELD=: removes it); repeat for more")
     put.add_argument("--replace", action="store_true",
                      help="start from an empty preset: the fields not given are left out (replaces a bad file)")

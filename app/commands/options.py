@@ -297,6 +297,15 @@ def key_value(text: str) -> tuple[str, str]:
     return key.strip(), value.strip()
 
 
+def field_value(text: str) -> tuple[str, str]:
+    """``FIELD=VALUE``, an original's extra field (any name core.metadata accepts; the value may be empty: the field
+    removed), e.g. ``collection set --extra department=Paintings``."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: expected FIELD=VALUE, e.g. department=Paintings")
+    return name.strip(), value
+
+
 RESOLUTION_HELP = ("full: the sensor's pixels, each light's frames demosaiced (Malvar-He-Cutler, linear); half: one "
                    "pixel per 2x2 Bayer cell, no interpolation (a quarter of the pixels). Default full")
 

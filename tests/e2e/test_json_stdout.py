@@ -75,6 +75,7 @@ def cases(port: str) -> dict[str, list[str]]:
         "measure csrf": ["measure", "csrf", "--virtual-lab", "--start", "500", "--end", "600", "--step", "50",
                          "--frame-size", "96x64", "--out", "cam.csv"],
         "lab score": ["lab", "score", "day"],
+        "collection show": ["collection", "show", "GEM", "--collections", "collections"],
     }
 
 
@@ -89,6 +90,9 @@ def run(root: Path, env: dict, args: list[str]) -> subprocess.CompletedProcess:
 
 def test_json_to_stdout_in_every_command(stand):
     root, env, port = stand
+    from dualrgb.app.workflow.day.collection_presets import make_preset, save_preset
+
+    save_preset(make_preset("GEM", rights="CC BY 4.0", extra=[("department", "Paintings")]), root / "collections")
     docs = {}
     for name, args in cases(port).items():          # in order: calibrate first, the others use its session
         if "CAL" in args:
@@ -121,6 +125,8 @@ def test_json_to_stdout_in_every_command(stand):
     assert docs["report"]["originals"][0]["identifier"] == "J-1" and docs["report"]["originals"][0]["problems"] == []
     assert docs["import"]["originals"][0]["identifier"] == "ACC-1" and docs["import"]["copied"] == 14
     assert [o["identifier"] for o in docs["lab score"]["originals"]] == ["J-1"]
+    assert docs["collection show"]["rights"] == "CC BY 4.0"
+    assert docs["collection show"]["extra"] == {"department": "Paintings"}
 
 
 def test_queue_check_json_to_stdout(stand):

@@ -298,7 +298,7 @@ def test_every_numeric_option_uses_a_shared_validator():
 
     shared = {f.__name__ for f in (options.frame_size, options.input_file, options.world, options.worlds,
                                    options.stand_dir, options.column_option, options.render_illuminant,
-                                   options.layout, options.identifier, options.key_value,
+                                   options.layout, options.identifier, options.key_value, options.field_value,
                                    options.calibration_source, corners)} | {
         "number", "count", "numbers", "leds"}
     raw = [a.dest for a in _all_actions(cli_mod.build_parser()) if getattr(a, "type", None) in (int, float)]
