@@ -18,6 +18,7 @@ from queue_rows import BAD, good_identifiers, write_queue_csv
 from xmp_check import EXIFTOOL, exiftool_text, read_xmp, xmp_bytes
 
 from dualrgb.app.processing.envi import read_header
+from dualrgb.core.light_safety import REJECTED_ROLE
 
 FRAME = ["--frame-size", "96x64", "--settle", "0"]
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -131,7 +132,9 @@ def test_queue_csv_three_bad_rows_then_skip_invalid_then_resume(cal):
         assert xmp.identifier == o["original"]["identifier"] and xmp.extra["Standort"].startswith("Depot ")
         assert xmp.dualrgb["Operator"] in ("Jürgen Weiß", "E2E")      # --operator fills the rows naming none
     frames = sorted(session.glob("*.DNG"))
-    assert len(frames) == 4 * 17                                  # metering + capture, two lights each
+    # a frame cut at the light's cap on a busy host is kept aside as rejected and shot again (said in one line)
+    used = [f for f in frames if f"_{REJECTED_ROLE}_" not in f.name]
+    assert len(used) == 4 * 17, [f.name for f in frames]
     again = dualrgb(*args, "--skip-invalid")
     assert [line for line in again.stdout.splitlines() if line.endswith("already delivered, kept")] == \
         [f"{i}: already delivered, kept" for i in good_identifiers()]
