@@ -31,6 +31,8 @@ from pathlib import Path
 from typing import Any
 
 from dualrgb.common.atomic_files import atomic_write
+from dualrgb.common.strict_json import dumps as strict_dumps
+from dualrgb.simulation.versions import stamped
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +61,14 @@ def default_path() -> Path:
     from dualrgb import resources
 
     return resources.user_path(FILE_NAME)
+
+
+def pace_scale(took: float, cost: float, min_basis_s: float = 0.0) -> float:
+    """How a run's finished parts compare with their measured costs: ``took / cost`` within SCALE_LIMITS; 1 when
+    the costs are nothing or worth less than ``min_basis_s`` (too little to say anything of the pace)."""
+    if cost <= 0 or cost < min_basis_s:
+        return 1.0
+    return min(max(took / cost, SCALE_LIMITS[0]), SCALE_LIMITS[1])
 
 
 class PhaseCosts:
@@ -118,8 +128,8 @@ class PhaseCosts:
                 phases[phase.name] = [*phases.get(phase.name, []), sample][-self.keep:]
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
-                atomic_write(self.path, json.dumps({"format": FORMAT, "runs": runs}, indent=1))
-            except OSError as exc:          # a time estimate is never worth stopping a run for
+                atomic_write(self.path, strict_dumps(stamped(FORMAT, {"runs": runs}), indent=1))
+            except (OSError, ValueError) as exc:    # a time estimate is never worth stopping a run for
                 log.warning("%s: phase costs not saved (%s)", self.path, exc)
 
 
@@ -229,9 +239,7 @@ class PhaseClock:
             c, start, stop = self._cost[i], self._entered.get(i), self._entered.get(i + 1)
             if c is not None and start is not None and stop is not None:
                 took, cost = took + (stop - start), cost + c
-        if cost < MIN_SCALE_BASIS_S:
-            return 1.0
-        return min(max(took / cost, SCALE_LIMITS[0]), SCALE_LIMITS[1])
+        return pace_scale(took, cost, MIN_SCALE_BASIS_S)
 
     def _left(self, t: float) -> float | None:
         if not self.phases or self._t0 is None:

@@ -25,7 +25,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from dualrgb.app.workflow.phase_costs import SCALE_LIMITS, Phase, PhaseClock, PhaseCosts
+from dualrgb.app.workflow.phase_costs import Phase, PhaseClock, PhaseCosts, pace_scale
 from dualrgb.app.workflow.stand.run_phases import (
     DEFAULT_OVERHEAD_S,
     ORIGINAL_FRAMES,
@@ -76,9 +76,7 @@ class Pace:
             self.took, self.cost = self.took + took, self.cost + cost
 
     def scale(self) -> float:
-        if self.cost <= 0:
-            return 1.0
-        return min(max(self.took / self.cost, SCALE_LIMITS[0]), SCALE_LIMITS[1])
+        return pace_scale(self.took, self.cost)
 
 
 def queue_time_left(shoot_left: Sequence[float], deliver_s: float | None, deliveries: int, *,
