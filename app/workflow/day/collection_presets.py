@@ -233,12 +233,13 @@ def save_preset(preset: CollectionPreset, folder: Path | None = None) -> Path:
     (replacing the collection's file, atomically); checked as a file is read before anything is written
     (PresetError, nothing written) and by reading it back; returns the path."""
     from dualrgb.common.atomic_files import atomic_write
-    from dualrgb.simulation.versions import output_header
+    from dualrgb.common.strict_json import dumps as strict_dumps
+    from dualrgb.simulation.versions import stamped
 
     preset = _from_document(preset.name, {"format": PRESET_FORMAT, **preset.to_dict()})    # before anything is written
     path = preset_path(preset.name, folder)
     path.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps({**output_header(PRESET_FORMAT), **preset.to_dict()}, indent=2, ensure_ascii=False)
+    text = strict_dumps(stamped(PRESET_FORMAT, preset.to_dict()), indent=2, ensure_ascii=False)
     atomic_write(path, text + "\n")
     log.info("collection preset %s saved: %s", preset.name, path)
     return load_preset(path).path or path
