@@ -112,9 +112,17 @@ class SphereBackend:
             time.sleep(POLL_S)
 
     def wait_dark(self, since: float) -> list[fw.Span]:
-        """Wait until the light that came on since ``since`` is off; its spans (the last one ended)."""
+        """Wait until the light that came on since ``since`` is off; its spans (the last one ended).
+
+        It returns ``settle_s`` after the switch-off, on the sphere's clock, so that what :meth:`emitted` reads next
+        (the firmware: the pins' duty over the last two PWM periods) lies wholly after it; a poll that found the
+        switch-off within those periods read the end of the lit span as light still emitted."""
         self.wait_until(lambda: not self.spans(since) or self.spans(since)[-1].t_off is not None, "the light off")
-        return self.spans(since)
+        spans = self.spans(since)
+        if spans and spans[-1].t_off is not None:
+            settled = spans[-1].t_off + self.settle_s
+            self.wait_until(lambda: self.clock() >= settled, "the pins settled after the switch-off")
+        return spans
 
     def wait_lit(self, since: float) -> list[fw.Span]:
         self.wait_until(lambda: bool(self.spans(since)), "the light on")
