@@ -29,6 +29,7 @@ from dualrgb.app.commands.stand_options import (
     add_device_options,
     add_session_option,
     ask_person,
+    check_camera_request,
     check_device_options,
     open_devices,
     progress_printer,
@@ -212,6 +213,7 @@ def main(args: argparse.Namespace) -> int:
                   "dark_frames": darks, "flat_frames": flats, "settle_s": args.settle,
                   **day_charts.definition(charts)}
     check_session_run(args.session, definition, None)       # another day's session: refused before the lab starts
+    check_camera_request(args, args.session)                # --iso / --aperture: before the camera is set
     ensure_kernels()                          # first run: compiled here, before any device opens
     with open_devices(args, mode, charts=chart_choices(args)) as dev:
         check_session_run(args.session, definition, dev.camera)         # another day's session: nothing written

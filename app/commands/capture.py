@@ -39,6 +39,7 @@ from dualrgb.app.commands.stand_options import (
     add_reuse_options,
     add_session_option,
     ask_person,
+    check_camera_request,
     check_device_options,
     open_devices,
     progress_printer,
@@ -211,6 +212,7 @@ def main(args: argparse.Namespace) -> int:
     if args.check:
         return _check(args, plan, _single(args, mode, out_dir, profile) if plan is None else [], profile)
     originals = _queue_originals(args, plan) if plan is not None else _single(args, mode, out_dir, profile)
+    check_camera_request(args, args.session, None if args.force else profile)   # before the camera is set
     settings = StandSettings(settle_s=args.settle, limits=reuse_limits(args), force=args.force, ppi=args.ppi,
                              original_frames=args.frames, resolution=args.resolution, delivery=delivery,
                              render_illuminant=args.render_illuminant or delivery.render_illuminant

@@ -70,6 +70,38 @@ def check_device_options(args: argparse.Namespace) -> None:
                          "/dev/ttyACM0), or use --virtual-lab")
     if not port:
         raise ValueError("name the devices: --port SERIAL_PORT --camera 'MODEL @ PORT' (or --virtual-lab)")
+    lab_only = [f"--{flag} {text}" for flag, text, given in (
+        ("frame-size", "{}x{}".format(*getattr(args, "frame_size", VIRTUAL_FRAME_SIZE)),
+         tuple(getattr(args, "frame_size", VIRTUAL_FRAME_SIZE)) != tuple(VIRTUAL_FRAME_SIZE)),
+        ("seed", getattr(args, "seed", 0), getattr(args, "seed", 0) != 0),
+        ("world", getattr(args, "world", "nominal"), getattr(args, "world", "nominal") != "nominal")) if given]
+    if lab_only:
+        it = "them" if len(lab_only) > 1 else "it"
+        raise ValueError(f"{' and '.join(lab_only)} without --virtual-lab: only the virtual lab takes {it} (a "
+                         f"lab of your own: `dualrgb lab serve` with {it}); drop {it} or use --virtual-lab")
+
+
+def check_camera_request(args: argparse.Namespace, folder: Path | None, profile: Any = None) -> None:
+    """``--iso`` / ``--aperture`` against what the session in ``folder`` was shot with and what ``profile`` (a
+    capture's calibration, unless ``--force``) was made at, answered before a device opens: the camera is set only
+    for a run that will be accepted, so a refused run leaves it as it was and the corrected run is not refused for
+    a setting the refused one made (ValueError, one line)."""
+    asked = {"iso": getattr(args, "iso", None), "aperture": getattr(args, "aperture", None)}
+    if all(v is None for v in asked.values()):
+        return
+    from dualrgb.app.workflow.stand.folders import stored_definition
+
+    known = []
+    if folder is not None:
+        known.append((f"session {folder} was shot", dict(stored_definition(Path(folder)).get("camera") or {}), ""))
+    if profile is not None:
+        known.append((f"calibration {profile.id} was made", vars(profile.camera), ", or --force"))
+    for key, flag, unit in (("iso", "--iso", "ISO "), ("aperture", "--aperture", "f/")):
+        for what, camera, force in known:
+            value, have = asked[key], camera.get(key)
+            if value is not None and have not in (None, "") and abs(float(have) - float(value)) > 1e-6:
+                raise ValueError(f"{flag} {value:g}: {what} at {unit}{float(have):g}; nothing was set on the camera: "
+                                 f"leave {flag} out, give {flag} {float(have):g}{force}, or use another --session")
 
 
 def add_reuse_options(p: argparse.ArgumentParser) -> None:

@@ -121,3 +121,19 @@ def test_lab_score_names_an_original_the_session_did_not_deliver(tmp_path):
     assert r.returncode == 1 and "no delivered original ACC-9 (delivered: none)" in r.stderr
     r = dualrgb("lab", "score", str(tmp_path), "--original", "ACC-9", ok=False)
     assert r.returncode == 1 and "expected ID=NAME" in r.stderr
+
+
+def test_a_capture_refused_for_its_iso_leaves_the_camera_and_the_plain_one_delivers(lab, tmp_path):
+    """Over a lab served as a physical stand's devices (one camera across runs, as a tethered body): a capture asking
+    for another ISO and aperture than the session was shot with is refused before the camera is set, so the run
+    without them is not refused for what the refused one would have set."""
+    stand = ["--port", lab["sphere"], "--camera", lab["camera"], "--stand", lab["stand"], "--settle", "0"]
+    day = str(tmp_path / "day")
+    dualrgb("calibrate", "--session", day, "--hdr", "off", "--dark-frames", "1", "--flat-frames", "1",
+            "--no-de-fit", *_grid_files(tmp_path), *stand)
+    refused = dualrgb("capture", "--session", day, "--id", "ACC-1", *stand, "--iso", "800", "--aperture", "11",
+                      ok=False)
+    assert refused.returncode == 1, refused.stderr[-3000:]
+    dualrgb("capture", "--session", day, "--id", "ACC-1", *stand, "--resolution", "half")     # not refused
+    assert (tmp_path / "day" / "deliverables" / "ACC-1" / "ACC-1.json").is_file()
+    assert "--iso 800: session" in refused.stderr and "ISO 50; nothing was set on the camera" in refused.stderr
