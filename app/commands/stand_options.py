@@ -220,7 +220,7 @@ def _real_devices(args: argparse.Namespace) -> Iterator[Devices]:
     except BaseException as exc:
         report = close_sphere(sphere)
         if not (isinstance(exc, SphereError) and exc.light is not None) and (
-                not report.off or not _says_light_off(str(exc))):
+                not report.off or not _says_light_off(exc)):
             exc.add_note(report.message)
         raise
     report = close_sphere(sphere)           # every LED 0, light off, read back
@@ -240,9 +240,10 @@ def _changer(port: str | None) -> Iterator[SampleChanger | None]:
         yield changer
 
 
-def _says_light_off(message: str) -> bool:
-    """Whether an error already says the light was switched off (core.light_safety.restate)."""
-    return "switched off" in message
+def _says_light_off(exc: BaseException) -> bool:
+    """Whether an error already says the light was switched off (core.light_safety.restate: in its message, or in
+    a note it added to an error of another type)."""
+    return any("switched off" in text for text in (str(exc), *getattr(exc, "__notes__", ())))
 
 
 def add_session_option(p: argparse.ArgumentParser) -> None:

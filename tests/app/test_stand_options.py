@@ -1,6 +1,6 @@
-"""What the device commands share (app.commands.stand_options): the virtual lab's own options are refused with a
-physical stand's devices, not ignored; ``--iso`` / ``--aperture`` that a session or its calibration would refuse are
-refused before the camera is set."""
+"""What the device commands share (app.commands.stand_options): an error that already says the light was switched
+off is not told so twice; the virtual lab's own options are refused with a physical stand's devices, not ignored;
+``--iso`` / ``--aperture`` that a session or its calibration would refuse are refused before the camera is set."""
 from __future__ import annotations
 
 import argparse
@@ -10,12 +10,30 @@ import pytest
 
 from dualrgb.app.commands import stand_options
 from dualrgb.app.workflow.stand.defaults import VIRTUAL_FRAME_SIZE
+from dualrgb.drivers.led_sphere.switch_off import LightReport
+
+OFF = "all LEDs and the light were switched off"
 
 
 def _args(**given) -> argparse.Namespace:
     base = {"virtual_lab": False, "port": "socket://127.0.0.1:1", "camera": "tcp://127.0.0.1:2", "stand": None,
             "frame_size": VIRTUAL_FRAME_SIZE, "seed": 0, "world": "nominal", "iso": None, "aperture": None}
     return argparse.Namespace(**{**base, **given})
+
+
+def test_an_error_that_says_the_light_is_off_is_not_told_twice(monkeypatch):
+    import contextlib
+
+    import dualrgb.app.workflow.stand.stand_devices as stand_devices
+
+    monkeypatch.setattr(stand_devices, "open_sphere", lambda port: object())
+    monkeypatch.setattr(stand_devices, "close_sphere", lambda sphere: LightReport(True, OFF))
+    monkeypatch.setattr(stand_options, "real_camera", lambda args: contextlib.nullcontext(object()))
+    exc = ValueError("training target: the grid is off the patches")
+    exc.add_note(OFF)                                   # as core.light_safety.restate says it for a ValueError
+    with pytest.raises(ValueError) as info, stand_options.open_devices(_args()):
+        raise exc
+    assert info.value.__notes__ == [OFF]
 
 
 @pytest.mark.parametrize("given, said", [
