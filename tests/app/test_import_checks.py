@@ -56,6 +56,17 @@ def test_a_good_folder_is_planned_in_capture_order(tmp_path):
     assert [o.identifier for o in plan.originals] == ["ACC-1"] and plan.originals[0].title == "A painting"
 
 
+def test_a_raw_file_the_roles_file_does_not_list_is_named_not_skipped_silently(tmp_path):
+    folder, roles = make_folder(tmp_path)
+    shutil.copy(folder / "Capture_0001.dng", folder / "Test_shot.NEF")
+    shutil.copy(folder / "Capture_0002.dng", folder / "Capture_0999.dng")
+    (folder / "notes.txt").write_text("not a raw file")
+    plan = plan_import(folder, read_roles(roles), settings(tmp_path))
+    assert f"2 raw files in {folder} not in the roles file, left out of the import: Capture_0999.dng, " \
+           "Test_shot.NEF" in plan.notes
+    assert "Test_shot.NEF" not in [f.row.file for f in plan.frames]
+
+
 @pytest.mark.fault("input")
 def test_a_scanner_nef_a_missing_dark_and_a_duplicate_give_one_line_each(tmp_path):
     """The issue's case: a real Coolscan NEF, no darks at 1/60 s, the same file twice: three lines, each naming its

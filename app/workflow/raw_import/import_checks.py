@@ -108,6 +108,19 @@ def _named(files: Sequence[str]) -> str:
     return ", ".join(files[:MAX_NAMED]) + more
 
 
+def unlisted_files(folder: Path, rows: Sequence[RoleRow]) -> list[str]:
+    """A note naming the folder's raw files that no row of the roles file lists: left out of the import, said (a test
+    shot, or a row forgotten), never skipped silently."""
+    from dualrgb.app.workflow.raw_import.import_template import raw_files
+
+    listed = {row.file for row in rows}
+    left = [p.name for p in raw_files(folder) if p.name not in listed]
+    if not left:
+        return []
+    return [f"{len(left)} raw file{'s' if len(left) > 1 else ''} in {folder} not in the roles file, left out of the "
+            f"import: {_named(left)}"]
+
+
 def read_frames(folder: Path, rows: Sequence[RoleRow], where: Callable[[int], str],
                 progress: Callable[[float, str], None] | None = None) -> tuple[list[ImportFrame], list[str]]:
     """Each row's file read (metadata and sha256) and the problems: missing, listed twice, unreadable or not a
@@ -264,7 +277,7 @@ def mode_problems(roles: RolesTable, mode: str) -> list[str]:
 __all__ = ["DOSE_UNKNOWN", "ImportFrame", "ImportRefused", "ImportSettings", "UNKNOWN_PRESET", "capture_order",
            "corner_grid", "dark_problems",
            "parse_corners", "import_lights", "imported_warnings", "light_problems", "lights_known",
-           "mode_problems", "read_frames", "sha256_of", "shot_problems", "target_specs"]
+           "mode_problems", "read_frames", "sha256_of", "shot_problems", "target_specs", "unlisted_files"]
 
 
 def parse_corners(text: str) -> tuple[float, ...]:

@@ -53,6 +53,7 @@ from dualrgb.app.workflow.raw_import.import_checks import (
     sha256_of,
     shot_problems,
     target_specs,
+    unlisted_files,
 )
 from dualrgb.app.workflow.raw_import.import_roles import RolesTable, roles_from_table
 from dualrgb.app.workflow.raw_import.import_session import (
@@ -123,7 +124,7 @@ def plan_import(folder: Path, roles: RolesTable, settings: ImportSettings,
     specs, found = target_specs(settings)
     problems += found + mode_problems(roles, settings.mode)
     plan = ImportPlan(folder, roles, settings, frames, frame_steps(frames, lights), lights, specs, camera_of(frames),
-                      notes + roles.notes)
+                      notes + roles.notes + unlisted_files(folder, roles.rows))
     if not problems:
         problems += session_problems(plan)
     if problems:
