@@ -291,6 +291,6 @@ def test_frames_of_acc_and_acc_slash_1_are_not_mixed():
     def dose(ident, on_s):
         sid = step_id(Role.ORIGINAL, subject=Subject.original(ident), light="L light 1", exposure_s=0.5)
         return SimpleNamespace(step_id=sid, light={"leds": [1], "levels": [1.0]}, on_s=on_s)
-    session = SimpleNamespace(doses=lambda: [dose("ACC", 1.0), dose("ACC/1", 2.0), dose("ACC 1", 4.0)])
+    session = SimpleNamespace(settings={}, doses=lambda: [dose("ACC", 1.0), dose("ACC/1", 2.0), dose("ACC 1", 4.0)])
     got = {i: original_dose(session, Subject.original(i)).on_s for i in ("ACC", "ACC/1", "ACC 1")}
     assert got == {"ACC": 1.0, "ACC/1": 2.0, "ACC 1": 4.0}

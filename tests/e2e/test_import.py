@@ -138,6 +138,26 @@ def test_the_files_are_copied_named_and_hashed_never_changed(day):
     assert "light dose unknown" in imp["originals"][0]["qa"]["text"]
 
 
+def _xmp(tiff: str | Path) -> str:
+    with tifffile.TiffFile(tiff) as tif:
+        return bytes(tif.pages[0].tags["XMP"].value).decode()
+
+
+def test_the_dose_of_frames_another_program_shot_is_unknown_never_zero(day):
+    """No lit period of an imported frame was recorded: the sidecar, the session's originals and the master's XMP
+    hold no dose figure (null / left out) and the QA line says not recorded; the captured delivery holds its own."""
+    root, _cal, cap, imp, _ = day
+    side = assert_valid_sidecar(Path(imp["originals"][0]["sidecar"]))
+    assert side["light_dose"] == side["qa"]["light_dose"] == {"lux_s": None, "lux_h": None, "on_s": None}
+    assert "light dose not recorded" in side["qa"]["text"] and "lux.h" not in side["qa"]["text"]
+    session = json.loads((root / "imported" / "session.json").read_text())
+    assert session["originals"]["PAINT-1"]["light_dose"]["lux_s"] is None
+    assert "LightDose" not in _xmp(imp["originals"][0]["files"]["prophoto"])
+    captured = assert_valid_sidecar(Path(cap["sidecar"]))
+    assert captured["light_dose"]["lux_s"] > 0
+    assert "<dualrgb:LightDoseLuxSeconds>" in _xmp(cap["files"]["prophoto"])
+
+
 def test_process_delivers_it_again(day):
     root, _cal, _cap, imp, _ = day
     r = dualrgb("process", str(root / "imported"), "--json", str(root / "process.json"))
@@ -145,6 +165,7 @@ def test_process_delivers_it_again(day):
     assert [o["identifier"] for o in out["originals"]] == ["PAINT-1"], r.stderr
     side = assert_valid_sidecar(Path(out["originals"][0]["sidecar"]))
     assert side["reprocessed"] is True and "light dose unknown" in side["qa"]["text"]
+    assert side["light_dose"]["lux_s"] is None                  # re-delivered: still unknown, never a zero
     assert (root / "imported" / "deliverables" / "PAINT-1" / "previous").is_dir()
 
 

@@ -69,16 +69,32 @@ BAND_ROWS = 64          # rows encoded and written at a time: 24 MP full resolut
 
 @dataclass
 class LightDoseRecord:
-    """The light an original received while it was captured (metering included)."""
+    """The light an original received while it was captured (metering included).
+
+    ``recorded`` False: no lit period was recorded (frames another program shot, issue 37); the figures are then
+    unknown, written as null and never as a zero dose."""
 
     lux_s: float = 0.0
     on_s: float = 0.0
+    recorded: bool = True
+
+    @classmethod
+    def unknown(cls) -> LightDoseRecord:
+        return cls(recorded=False)
 
     @property
     def lux_h(self) -> float:
         return self.lux_s / 3600.0
 
+    def text(self) -> str:
+        """The QA line's words for it."""
+        if not self.recorded:
+            return "light dose not recorded"
+        return f"light dose {self.lux_h:.3g} lux.h ({self.lux_s:.3g} lux.s)"
+
     def to_dict(self) -> dict:
+        if not self.recorded:
+            return {"lux_s": None, "lux_h": None, "on_s": None}
         return {"lux_s": round(self.lux_s, 4), "lux_h": round(self.lux_h, 8), "on_s": round(self.on_s, 4)}
 
 
@@ -106,8 +122,7 @@ class QaLine:
         pixel = "" if not self.per_pixel else (f", per pixel test {de(self.per_pixel.get('mean'))} / p90 "
                                                f"{de(self.per_pixel.get('p90'))} (noise gain {self.noise_gain})")
         return (f"{self.identifier}: {forced}clipped {self.clipped_pct:.2f} %, under-exposed "
-                f"{self.underexposed_pct:.2f} %, light dose {self.dose.lux_h:.3g} lux.h ({self.dose.lux_s:.3g} "
-                f"lux.s), calibration dE00 train "
+                f"{self.underexposed_pct:.2f} %, {self.dose.text()}, calibration dE00 train "
                 f"{de(self.train_mean)} / test {de(self.test_mean)}{pixel}{spectral}" + (", HDR" if self.hdr else "")
                 + "".join(f"; {w}" for w in self.warnings))
 
@@ -316,8 +331,8 @@ def deliver(source: ChannelSource, profile: CalibrationProfile, original: Origin
     spectral = SpectralPlan.of(profile, illuminant, settings.writes_spectral(source.resolution))
     if spectral is None:
         warnings.append(f"no spectral cube: calibration {profile.id} has no spectral estimator (calibrate again)")
-    ctx = MasterContext(original, profile.id, camera, dose.lux_s, ppi, (now := now or output_time()),
-                        (captured_at or now).astimezone(),
+    ctx = MasterContext(original, profile.id, camera, dose.lux_s if dose.recorded else None, ppi,
+                        (now := now or output_time()), (captured_at or now).astimezone(),
                         dict(exposures or {}), list(source.lights), settings, _processing(profile, source),
                         list(profile.white_xyz), profile)
     stem = stem_of(Path(out_dir), original)        # the ASCII form where the file system refuses Unicode

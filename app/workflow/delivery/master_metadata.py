@@ -31,6 +31,11 @@ log = logging.getLogger(__name__)
 MIME = {".tif": "image/tiff", ".jp2": "image/jp2"}
 
 
+def _figure(lux_s: float | None, per: float) -> str:
+    """A dose figure for the XMP, empty (the field left out) where the dose was not recorded: never a zero dose."""
+    return "" if lux_s is None else f"{lux_s / per:.6g}"
+
+
 def exact_description(original: Original, what: str) -> str:
     """``<identifier> - <title>; <what>`` exactly (the XMP's dc:description)."""
     return original.identifier + (f" - {original.title}" if original.title else "") + f"; {what}"
@@ -50,7 +55,7 @@ class MasterContext:
     original: Original
     calibration_id: str
     camera: CameraIdentity
-    dose_lux_s: float
+    dose_lux_s: float | None                      # None: not recorded (another program shot the frames)
     ppi: float | None
     now: datetime                                 # when the files are made (aware)
     captured: datetime                            # when the original was captured (aware)
@@ -94,8 +99,8 @@ class MasterContext:
                         MIME.get(im.path.suffix.lower(), "image/tiff"), self.history(), credits.credit,
                         credits.source)
         fields = {"Operator": o.operator, "CalibrationID": self.calibration_id, "Mode": o.mode,
-                  "Lights": "; ".join(self.lights), "LightDoseLuxHours": f"{self.dose_lux_s / 3600.0:.6g}",
-                  "LightDoseLuxSeconds": f"{self.dose_lux_s:.6g}", "Content": im.what, "Notes": o.notes, **extra}
+                  "Lights": "; ".join(self.lights), "LightDoseLuxHours": _figure(self.dose_lux_s, 3600.0),
+                  "LightDoseLuxSeconds": _figure(self.dose_lux_s, 1.0), "Content": im.what, "Notes": o.notes, **extra}
         software = f"dualrgb {dualrgb_version()}"
         return xmp_packet(fields, identifier=o.identifier, title=o.title, tool=software, created=self.now,
                           columns={xmp_property(name): name for name in o.extra},

@@ -34,6 +34,12 @@ class OnDemand:
     shape: tuple[int, int]
 
 
+def _lux_s(doc: dict) -> float | None:
+    """The sidecar's dose in lux.s, None where it was not recorded (an imported session's)."""
+    value = (doc.get("light_dose") or {}).get("lux_s")
+    return None if value is None else float(value)
+
+
 def _sidecar_of(delivery: Path) -> Path:
     delivery = Path(delivery)
     if delivery.is_file():
@@ -172,5 +178,5 @@ def context_of(doc: dict):
     exposures = {str(k): [float(t) for t in v] for k, v in (doc.get("exposures") or {}).items()}
     cal = doc.get("calibration") or {}
     return MasterContext(Original.from_dict(doc["original"]), str(cal.get("id", "")), CameraIdentity(**doc["camera"]),
-                         float(doc["light_dose"]["lux_s"]), doc.get("ppi"), now, captured, exposures, list(exposures),
+                         _lux_s(doc), doc.get("ppi"), now, captured, exposures, list(exposures),
                          load(), f"made on demand from the camera-RGB files (calibration {cal.get('id', '')})")

@@ -550,9 +550,11 @@ def original_takes(session: Session, original: Original) -> list[int]:
 
 
 def original_dose(session: Session, subject: Subject) -> LightDoseRecord:
-    """Every lit period of an original (metering, every take) from the session manifest's dose lines."""
+    """Every lit period of an original (metering, every take) from the dose lines; unknown if imported (none kept)."""
     from dualrgb.core.session.light_dose import LightDose, light_from_record
 
+    if session.settings.get("imported"):
+        return LightDoseRecord.unknown()
     total = LightDose()
     marker = f"/{subject.key}/"
     for d in session.doses():
