@@ -16,8 +16,10 @@ keeps what it finished (the sidecar records each task's key) and does the rest.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -34,7 +36,7 @@ from dualrgb.app.commands.options import (
 from dualrgb.app.json_output import add_json_option, text_stream, write_json
 
 if TYPE_CHECKING:
-    from dualrgb.app.workflow.delivery.redelivery_jobs import Executor, TaskResult
+    from dualrgb.app.workflow.delivery.redelivery_jobs import Executor, RedeliveryTask, TaskResult
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +78,7 @@ def main(args: argparse.Namespace) -> int:
     _check_render(args)
     from dualrgb.app.warm_kernels import ensure_ready
     from dualrgb.app.workflow.delivery.redelivery_jobs import RedeliveryOptions, plan_tasks, run_tasks, run_time
+    from dualrgb.core.session.log import SESSION_ONLY
 
     options = RedeliveryOptions(
         calibration=str(calibration) if calibration else None, out=str(args.out) if args.out else None,
@@ -90,11 +93,13 @@ def main(args: argparse.Namespace) -> int:
     out = text_stream(args.json)
 
     def said(result: TaskResult) -> None:          # a line per original as it ends: the run's progress
-        print(result.line(len(args.sessions)), file=sys.stderr if result.status in ("refused", "failed") else out,
-              flush=True)
+        line = result.line(len(args.sessions))
+        print(line, file=sys.stderr if result.status in ("refused", "failed") else out, flush=True)
+        log.info("%s", line, extra={SESSION_ONLY: True})        # and in the sessions' logs, not twice on screen
 
-    log.info("process: %d originals of %d sessions on %s", len(tasks), len(args.sessions), executor.name)
-    results = run_tasks(tasks, executor, on_result=said)
+    with _session_logs(tasks):
+        log.info("process: %d originals of %d sessions on %s", len(tasks), len(args.sessions), executor.name)
+        results = run_tasks(tasks, executor, on_result=said)
     write_json(args.json, PROCESS_FORMAT, _document(results), default=str)
     return _exit_code(results, len(args.sessions))
 
@@ -131,6 +136,19 @@ def _document(results: list[TaskResult]) -> dict:
                            "files": r.files, "sidecar": r.sidecar, "sha256": r.sha256, "seconds": r.seconds,
                            "cpu_s": r.cpu_s, "worker": r.worker, "attempts": r.attempts}
                           for r in results if r.status == "delivered"]}
+
+
+@contextlib.contextmanager
+def _session_logs(tasks: list[RedeliveryTask]) -> Iterator[None]:
+    """Each session a task delivers from gets the run in its ``session.log`` (core.session.log), as calibrate,
+    capture and import do; opened once every check has passed, so a refused run writes nothing. A run over several
+    sessions logs its lines (each naming its session) in each of them."""
+    from dualrgb.core.session.log import SessionLog
+
+    with contextlib.ExitStack() as stack:
+        for folder in dict.fromkeys(str(t.session) for t in tasks):
+            stack.enter_context(SessionLog(folder))
+        yield
 
 
 def _exit_code(results: list[TaskResult], sessions: int) -> int:

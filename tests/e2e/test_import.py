@@ -166,6 +166,8 @@ def test_process_delivers_it_again(day):
     side = assert_valid_sidecar(Path(out["originals"][0]["sidecar"]))
     assert side["reprocessed"] is True and "light dose unknown" in side["qa"]["text"]
     assert side["light_dose"]["lux_s"] is None                  # re-delivered: still unknown, never a zero
+    logged = (root / "imported" / "session.log").read_text(encoding="utf-8").split("dualrgb.app.commands.process")
+    assert len(logged) >= 3 and "PAINT-1" in logged[-1], logged[1:]     # the run in the session's own log
     assert (root / "imported" / "deliverables" / "PAINT-1" / "previous").is_dir()
 
 
