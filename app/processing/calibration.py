@@ -110,7 +110,8 @@ def combine_darks(frames: Iterable[FrameLike], *, reject_high: int = 1, reject_l
         raise ValueError("no dark frames given")
     k_hi, k_lo = reject_high, reject_low
     if n < k_hi + k_lo + 2:
-        log.warning("only %d dark frames: plain mean without outlier rejection (need >= %d)", n, k_hi + k_lo + 2)
+        log.warning("only %d dark frames: plain mean without outlier rejection; shoot %d or more dark frames to "
+                    "reject hot pixels and cosmic-ray hits", n, k_hi + k_lo + 2)
         k_hi = k_lo = 0
     mean = np.empty(shape, dtype=np.float32)
     dark_finish(total, hi, lo, k_hi, k_lo, float(n - k_hi - k_lo), mean)
@@ -216,7 +217,8 @@ class FlatField:
         bad = ~(self.white > self.threshold)
         self.n_invalid = int(np.count_nonzero(bad))
         if self.n_invalid:
-            log.warning("flat field: %d pixels (%.3f %%) have no usable white (<= %.4g); they become NaN",
+            log.warning("flat field: %d pixels (%.3f %%) have no usable white (<= %.4g); they become NaN (invalid, "
+                        "counted on the QA line): check that the white card fills the frame and is evenly lit",
                         self.n_invalid, 100.0 * self.n_invalid / self.white.size, self.threshold)
 
     def apply(self, image: np.ndarray, *, rows: slice | None = None, out: np.ndarray | None = None) -> np.ndarray:
