@@ -4,7 +4,8 @@ given (``--train-corners``, ``--train-grid``, the window's corners), before its 
 check_placement(grid, image, reference, cells, names) -> Placement, or PlacementError (one line) when
 
 * a patch's sampling window spans more than one tone: the spread of its pixels (10th to 90th percentile, what the
-  trimmed mean keeps) over :data:`SPREAD_LIMIT` of the chart's range of patch values in some channel: the grid is
+  trimmed mean keeps, less what the window's own noise spreads) over :data:`SPREAD_LIMIT` of the chart's range of
+  patch values in some channel: the grid is
   off the patches (a corner misplaced, the wrong rows or columns); windows of fewer than :data:`MIN_WINDOW_PX`
   pixels (a tiny frame) are not judged, said in a warning;
 * the chart fits its reference clearly better turned by 180 degrees or mirrored: the reference XYZ fitted linearly
@@ -33,6 +34,8 @@ SPREAD_LIMIT = 0.12          # a window's 10-90 % pixel spread, as a fraction of
 MIN_WINDOW_PX = 9            # windows of fewer pixels (median) are too small to judge their spread (a 96 x 64 frame)
 ORIENTATION_RATIO = 0.6      # another orientation fitting with this fraction of the residual wins
 FIT_LIMIT = 0.35             # residual above which the values do not follow the reference at all
+NORMAL_10_90 = 2.5631      # the 10-90 % width of a normal distribution, in sigma (scipy.stats.norm.ppf(0.9) * 2)
+NORMAL_MAD = 1.4826        # sigma / median absolute deviation of a normal distribution
 ALTERNATIVES = {"turned by 180 degrees": (2, 3, 0, 1), "mirrored left to right": (1, 0, 3, 2),
                 "mirrored top to bottom": (3, 2, 1, 0)}
 
@@ -78,9 +81,25 @@ def fit_residual(values: np.ndarray, reference: np.ndarray) -> float:
     return float(np.linalg.norm(x - a @ m) / spread) if spread > 0 else float("nan")
 
 
+def window_noise(box: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """(C,) the pixel noise (sigma) in a window, from differences of pixels two apart along its rows: a robust
+    (median) estimate, so the few pairs across an edge between two tones do not raise it; two apart because a
+    demosaic correlates neighbours. NaN where the window has no such pair."""
+    pair = mask[:, 2:] & mask[:, :-2]
+    d = (box[:, 2:] - box[:, :-2])[pair].astype(float)
+    d = d[np.isfinite(d).all(axis=1)]
+    if not len(d):
+        return np.full(box.shape[2], np.nan)
+    return NORMAL_MAD * np.median(np.abs(d), axis=0) / np.sqrt(2.0)
+
+
 def window_spread(grid: PatchGrid, image: np.ndarray, cells: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
-    """(len(cells), C) the 10th-to-90th percentile spread of every used cell's sampled pixels, and (len(cells),)
-    how many pixels each window holds."""
+    """(len(cells), C) the 10th-to-90th percentile spread of every used cell's sampled pixels beyond what the
+    window's own noise gives, and (len(cells),) how many pixels each window holds.
+
+    Noise alone spreads a uniform patch's pixels over :data:`NORMAL_10_90` sigma; that much is taken off (in
+    quadrature, the window's noise from :func:`window_noise`), so a noisy frame (high ISO, a dark patch) is not
+    taken for a grid off the patches, while a window over two tones keeps their difference."""
     img = image if image.ndim == 3 else image[..., None]
     masks = grid.masks(img.shape[:2])
     out = np.full((len(cells), img.shape[2]), np.nan)
@@ -89,12 +108,14 @@ def window_spread(grid: PatchGrid, image: np.ndarray, cells: Sequence[int]) -> t
         rs, cs, mask = masks[k]
         if mask.size == 0:
             continue
-        px = img[rs, cs][mask].astype(float)
+        box = img[rs, cs]
+        px = box[mask].astype(float)
         px = px[np.isfinite(px).all(axis=1)]
         count[i] = len(px)
         if len(px):
             lo, hi = np.percentile(px, [10, 90], axis=0)
-            out[i] = hi - lo
+            noise = np.nan_to_num(NORMAL_10_90 * window_noise(box, mask))
+            out[i] = np.sqrt(np.maximum((hi - lo) ** 2 - noise ** 2, 0.0))
     return out, count
 
 

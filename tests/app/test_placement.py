@@ -59,3 +59,30 @@ def test_another_chart_than_the_one_named_is_refused(frame):
     other = rng.uniform(2, 90, (24, 3))                                      # a reference with no relation
     with pytest.raises(PlacementError, match="do not follow the chart's reference|fits its reference better"):
         check_placement(grid_on(truth, geometry_of(c)), img, other, c.used_cells, names, label="test target")
+
+
+def _noisy(img: np.ndarray, truth, c, sigma_of_range: float) -> np.ndarray:
+    """The frame with white noise of ``sigma_of_range`` of the chart's range of patch values (a high ISO)."""
+    means = grid_on(truth, geometry_of(c)).sample(img).mean[list(c.used_cells)]
+    span = np.nanmax(means, axis=0) - np.nanmin(means, axis=0)
+    return img + np.random.default_rng(7).normal(0.0, 1.0, img.shape) * sigma_of_range * span
+
+
+def test_a_noisy_frame_of_a_well_placed_grid_passes(frame):
+    """Noise alone spreads a window's pixels over 2.56 sigma: at sigma 6 % of the chart's range that is 15 %, over
+    the 12 % limit; the window's own noise is taken off, so the grid on the patches passes."""
+    c, img, truth, xyz, names = frame
+    noisy = _noisy(img, truth, c, 0.06)
+    grid = grid_on(truth, geometry_of(c))
+    place = check_placement(grid, noisy, xyz, c.used_cells, names, label="test target")
+    assert place.spread < 0.10                      # noise alone spread 0.154 of the range before
+
+
+@pytest.mark.fault("input")
+def test_a_grid_off_the_patches_is_refused_on_a_noisy_frame_too(frame):
+    c, img, truth, xyz, names = frame
+    noisy = _noisy(img, truth, c, 0.06)
+    pitch = (truth[1] - truth[0]) / 6
+    with pytest.raises(PlacementError, match="sampling window spans more than one tone"):
+        check_placement(grid_on(truth + 0.5 * pitch, geometry_of(c)), noisy, xyz, c.used_cells, names,
+                        label="test target")
