@@ -191,6 +191,30 @@ def test_cube_refuses_an_edited_or_damaged_sidecar_naming_it(delivered, capsys, 
     assert not (folder / "ACC-1_spectral.img").exists()
 
 
+@pytest.mark.fault("edited files")
+@pytest.mark.parametrize("damage", ["deleted", "truncated"])
+def test_a_delivery_whose_sidecar_is_gone_is_named_not_dropped(tmp_path, capsys, damage):
+    """A deleted or damaged sidecar does not make its delivery drop out unsaid: verify names the folder (exit 1),
+    bag refuses and leaves nothing, the session report lists it with the problem."""
+    prof = spectral_profile(tmp_path / "cal")
+    out = tmp_path / "deliverables"
+    for ident in ("ACC-1", "ACC-2"):
+        deliver(full(stack()), prof, Original(ident), out, camera=prof.camera, dose=LightDoseRecord())
+    sidecar = out / "ACC-1" / "ACC-1.json"
+    if damage == "deleted":
+        sidecar.unlink()
+    else:
+        sidecar.write_text('{"format": ', encoding="utf-8")
+    assert main(["verify", str(out)]) == 1
+    said = capsys.readouterr().out
+    assert f"{out / 'ACC-1'}: " in said and "no readable dualrgb sidecar" in said
+    assert main(["bag", str(out), "--out", str(tmp_path / "bag")]) == 1
+    err = capsys.readouterr().err
+    assert "not bagged" in err and str(out / "ACC-1") in err and not (tmp_path / "bag").exists()
+    assert main(["report", str(out), "--out", str(tmp_path / "qa.html")]) == 1
+    assert "no readable dualrgb sidecar" in (tmp_path / "qa.html").read_text(encoding="utf-8")
+
+
 def test_verify_names_debris_and_bag_leaves_it_out(delivered, tmp_path, capsys):
     """Issue 39: files GDAL, the Finder and Explorer leave beside a delivery are named as such, not problems; the
     bag leaves them out with a line."""
