@@ -134,13 +134,12 @@ def resolve(args: argparse.Namespace) -> tuple[Any, str, int, int]:
 
 def conditioning(preset: Any, stand: Any) -> None:
     """The preset's lights with the camera model (app.workflow.stand.preflight.check_conditioning): refused above the
-    limit (ConditioningError, one line), a warning on stderr in the band below it."""
+    limit (ConditioningError, one line) before any device opens; the band's warning is said once, by the
+    workflow's own check (CopyStand.calibrate) before the light."""
     from dualrgb.app.workflow.stand.preflight import check_conditioning
     from dualrgb.core.vocabulary import lights_of
 
-    _, warning = check_conditioning(lights_of(preset), preset.mode, f"preset {preset.name}", stand)
-    if warning:
-        print(f"warning: {warning}", file=sys.stderr)
+    check_conditioning(lights_of(preset), preset.mode, f"preset {preset.name}", stand, say=False)
 
 
 def _stand_start(args: argparse.Namespace) -> Any:

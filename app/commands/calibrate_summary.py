@@ -22,6 +22,9 @@ def summary_lines(profile: Any) -> list[str]:
     accuracy = f"test chart mean dE00 {test:.2f}" if isinstance(test, float | int) else "test chart dE00 not measured"
     if isinstance(train, float | int):
         accuracy += f" (training chart {train:.2f})"
+    pixel = (stats.get("per_pixel_de00") or {}).get("test") or {}        # issue 40: beside every patch mean
+    if isinstance(pixel.get("mean"), float | int) and isinstance(pixel.get("p90"), float | int):
+        accuracy += f", per pixel test {pixel['mean']:.2f} / p90 {pixel['p90']:.2f}"
     lines = [f"calibration {profile.id}: {accuracy}, {profile.matrix.method} matrix"]
     grading = (stats.get("quality") or {}).get("grading") or {}
     if not grading:

@@ -172,6 +172,49 @@ def test_cube_refuses_a_tampered_channel_file_naming_it(delivered, capsys):
     assert not (folder / "ACC-1_spectral.img").exists()
 
 
+@pytest.mark.fault("edited files")
+@pytest.mark.parametrize("damage", ["map edited", "truncated"])
+def test_cube_refuses_an_edited_or_damaged_sidecar_naming_it(delivered, capsys, damage):
+    """Issue 38: the sidecar is checked against its schema before its map is used: an edited spectral section or a
+    truncated sidecar gives one line naming the sidecar (not a crash), exit 1; nothing is made."""
+    _, d = delivered
+    folder = d.sidecar.parent
+    if damage == "map edited":
+        doc = json.loads(d.sidecar.read_text(encoding="utf-8"))
+        doc["spectral"] = {"map": [[1]]}
+        d.sidecar.write_text(json.dumps(doc), encoding="utf-8")
+    else:
+        d.sidecar.write_bytes(d.sidecar.read_bytes()[:40])
+    assert main(["cube", str(d.sidecar)]) == 1
+    err = capsys.readouterr().err
+    assert f"not made: {d.sidecar}" in err and "a bug in dualrgb" not in err and len(err.strip().splitlines()) == 1
+    assert not (folder / "ACC-1_spectral.img").exists()
+
+
+@pytest.mark.fault("edited files")
+@pytest.mark.parametrize("damage", ["deleted", "truncated"])
+def test_a_delivery_whose_sidecar_is_gone_is_named_not_dropped(tmp_path, capsys, damage):
+    """A deleted or damaged sidecar does not make its delivery drop out unsaid: verify names the folder (exit 1),
+    bag refuses and leaves nothing, the session report lists it with the problem."""
+    prof = spectral_profile(tmp_path / "cal")
+    out = tmp_path / "deliverables"
+    for ident in ("ACC-1", "ACC-2"):
+        deliver(full(stack()), prof, Original(ident), out, camera=prof.camera, dose=LightDoseRecord())
+    sidecar = out / "ACC-1" / "ACC-1.json"
+    if damage == "deleted":
+        sidecar.unlink()
+    else:
+        sidecar.write_text('{"format": ', encoding="utf-8")
+    assert main(["verify", str(out)]) == 1
+    said = capsys.readouterr().out
+    assert f"{out / 'ACC-1'}: " in said and "no readable dualrgb sidecar" in said
+    assert main(["bag", str(out), "--out", str(tmp_path / "bag")]) == 1
+    err = capsys.readouterr().err
+    assert "not bagged" in err and str(out / "ACC-1") in err and not (tmp_path / "bag").exists()
+    assert main(["report", str(out), "--out", str(tmp_path / "qa.html")]) == 1
+    assert "no readable dualrgb sidecar" in (tmp_path / "qa.html").read_text(encoding="utf-8")
+
+
 def test_verify_names_debris_and_bag_leaves_it_out(delivered, tmp_path, capsys):
     """Issue 39: files GDAL, the Finder and Explorer leave beside a delivery are named as such, not problems; the
     bag leaves them out with a line."""

@@ -94,3 +94,27 @@ def test_chromium_renders_the_page(session, tmp_path):
     with Image.open(png) as im:
         pixels = np.asarray(im.convert("RGB"))
     assert pixels.shape[:2] == (900, 1200) and pixels.std() > 10          # something was drawn, not a blank page
+
+
+@pytest.mark.fault("edited files")
+def test_an_edited_sidecar_or_profile_is_named_not_shown(session, capsys):
+    """Nothing unverified is shown: a sidecar edited against its schema is a row with its problem (no crash, exit
+    1); a calibration profile edited after it was written is named with the check's one line instead of figures."""
+    import json
+
+    sidecar = session / "deliverables" / "ACC-2" / "ACC-2.json"
+    doc = json.loads(sidecar.read_text(encoding="utf-8"))
+    doc["qa"] = 5
+    sidecar.write_text(json.dumps(doc), encoding="utf-8")
+    cal = next((session / "calibration").glob("*.json"))
+    prof = json.loads(cal.read_text(encoding="utf-8"))
+    prof["mode"] = "transmissive" if prof["mode"] == "reflective" else "reflective"
+    cal.write_text(json.dumps(prof), encoding="utf-8")
+    assert main(["report", str(session)]) == 1
+    err = capsys.readouterr().err
+    assert "a bug in dualrgb" not in err and "ACC-2:" in err
+    page = Page()
+    page.feed((session / "report.html").read_text(encoding="utf-8"))
+    words = "".join(page.text)
+    assert "qa: 5 is not of type 'object'" in words and "edited after it was written" in words
+    assert "mean dE00 train 0.4, test 0.3" not in words

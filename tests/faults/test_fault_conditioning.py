@@ -82,3 +82,15 @@ def test_near_collinear_lights_are_refused_and_a_band_below_is_warned(caplog):
         cond, warning = check_conditioning(_lights(*(LightSource(p) for p in pair)), "transmissive", "P")
         assert 1.0 < cond < CONDITION_WARN and warning is None
     assert np.isnan(check_conditioning(_lights(l1), "reflective", "P")[0])          # one light: 3 channels
+
+
+def test_the_band_warning_is_said_once_per_run(tmp_path, capsys, caplog):
+    """The command's pre-check (before any device opens) refuses above the limit but leaves the band's warning to
+    the workflow's own check before the light, so a run says it once (it was printed three times)."""
+    from dualrgb.app.commands.calibrate import conditioning
+
+    band = [{"leds": [1, 6, 8], "levels": [1.0, 1.0, 1.0]}, {"leds": [2, 6, 8], "levels": [1.0, 1.0, 1.0]}]
+    conditioning(load_preset(_preset(tmp_path / "band.json", band, name="band")), None)
+    assert capsys.readouterr().err == "" and not any("condition number" in r.getMessage() for r in caplog.records)
+    with pytest.raises(ConditioningError):
+        conditioning(load_preset(_preset(tmp_path / "half.json", HALF)), None)

@@ -35,6 +35,7 @@ from dualrgb.app.workflow.delivery.fixity import (
     VerifyReport,
     debris_kind,
     find_sidecars,
+    unsealed_deliveries,
     verify_sidecar,
 )
 
@@ -132,6 +133,8 @@ def make_day_bag(source: Path, out: Path, *, info: dict[str, str] | None = None,
     report = VerifyReport()
     for sidecar in sidecars:
         verify_sidecar(sidecar, report)
+    if source.is_dir():                          # a delivery whose sidecar is gone is not left out unsaid
+        report.problems.extend(line for _, line in unsealed_deliveries(source, sidecars))
     if report.problems:
         raise ValueError(f"not bagged: {len(report.problems)} problem(s), the first: {report.problems[0]} "
                          f"(dualrgb verify {source} lists them)")

@@ -185,6 +185,28 @@ def verify_sidecar(sidecar: Path, report: VerifyReport) -> None:
             report.problems.append(f"{path}: not listed in the sidecar {sidecar.name}")
 
 
+DELIVERED_SUFFIXES = (".tif", ".tiff", ".img", ".jp2")
+
+
+def unsealed_deliveries(where: Path, sidecars: list[Path]) -> list[tuple[Path, str]]:
+    """(the folder, one line) per delivery folder under ``where`` (``<id>/<id>_....tif``, the names a delivery
+    writes) beside which no readable sidecar was found: a sidecar deleted or damaged must not make its files drop
+    out of verify and bag unsaid."""
+    sealed = {p.parent.resolve() for p in sidecars}
+    out = []
+    for folder in sorted({where, *(d for d in where.rglob("*") if d.is_dir())}):
+        rel = folder.relative_to(where).parts
+        if folder.resolve() in sealed or any(part.startswith(".") for part in rel):
+            continue
+        files = [p for p in folder.iterdir() if p.is_file() and p.name.startswith(f"{folder.name}_")
+                 and p.suffix.lower() in DELIVERED_SUFFIXES]
+        if files:
+            out.append((folder, f"{folder}: {len(files)} delivered file(s) ({files[0].name}, ...) but no readable "
+                                f"dualrgb sidecar beside them ({folder.name}.json missing or damaged): they cannot "
+                                "be checked"))
+    return out
+
+
 def check_file(path: Path, want: dict, report: VerifyReport) -> None:
     """One file against its recorded size and digest (a problem line, or one more match, into ``report``)."""
     if not path.is_file():
@@ -211,6 +233,8 @@ def verify(where: Path) -> VerifyReport:
         return report
     for sidecar in find_sidecars(where):
         verify_sidecar(sidecar, report)
+    if where.is_dir():
+        report.problems.extend(line for _, line in unsealed_deliveries(where, report.sidecars))
     if not report.sidecars:
         report.problems.append(f"{where}: no dualrgb delivery sidecar ({SIDECAR_FORMAT}) found")
     return report

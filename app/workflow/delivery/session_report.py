@@ -23,7 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from dualrgb.app.workflow.delivery.bagging import current_sidecars
-from dualrgb.app.workflow.delivery.fixity import VerifyReport, verify_sidecar
+from dualrgb.app.workflow.delivery.fixity import (
+    VerifyReport,
+    schema_problems,
+    unsealed_deliveries,
+    verify_sidecar,
+)
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +69,9 @@ def original_row(sidecar: Path) -> OriginalRow:
     """One original's row: verified first, the thumbnail only from a verified sRGB master."""
     report = VerifyReport()
     verify_sidecar(sidecar, report)
-    doc = json.loads(sidecar.read_text(encoding="utf-8"))
+    doc = _sidecar_doc(sidecar)
+    if doc is None:                         # verify named why; nothing else of it is shown
+        return OriginalRow(sidecar.stem, "", "", {}, problems=list(report.problems), files=report.files_ok)
     orig = doc.get("original") or {}
     grading = ((doc.get("qa") or {}).get("grading") or {}).get("standards") or {}
     row = OriginalRow(str(orig.get("identifier", sidecar.stem)), str(orig.get("title") or ""),
@@ -77,19 +84,41 @@ def original_row(sidecar: Path) -> OriginalRow:
     return row
 
 
+def _sidecar_doc(sidecar: Path) -> dict | None:
+    """The sidecar's JSON when it is readable and follows its schema; None otherwise (verify_sidecar says why)."""
+    try:
+        doc = json.loads(sidecar.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) and not schema_problems(doc) else None
+
+
+def _checked_profile(path: Path) -> tuple[dict | None, str]:
+    """(the calibration JSON, "") when it passes the profile's checks (schema, ranges, digest), else (None, why)."""
+    from dualrgb.app.workflow.calibration.profile_check import check_document, read_document
+
+    try:
+        doc = read_document(path)
+        check_document(doc, path)
+    except (OSError, ValueError) as exc:
+        return None, str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return doc, ""
+
+
 def _calibrations(session: Path, sidecars: list[Path]) -> list[dict]:
-    """The calibrations the deliveries name (their JSON read as it is; missing ones said)."""
+    """The calibrations the deliveries name (each checked as a profile is before use; missing or failing ones
+    said)."""
     seen: dict[str, dict] = {}
     for sidecar in sidecars:
-        cal = json.loads(sidecar.read_text(encoding="utf-8")).get("calibration") or {}
+        cal = (_sidecar_doc(sidecar) or {}).get("calibration") or {}
         cid = str(cal.get("id", ""))
-        if cid in seen:
+        if not cid or cid in seen:          # a sidecar that fails its checks names no calibration to show
             continue
         path = Path(str(cal.get("file") or ""))
         candidates = [path, session / "calibration" / f"{cid}.json"]
         found = next((p for p in candidates if str(p) not in ("", ".") and p.is_file()), None)
-        seen[cid] = {"id": cid, "doc": json.loads(found.read_text(encoding="utf-8")) if found else None,
-                     "path": found}
+        doc, problem = _checked_profile(found) if found else (None, "")
+        seen[cid] = {"id": cid, "doc": doc, "path": found, "problem": problem}
     return list(seen.values())
 
 
@@ -107,7 +136,8 @@ def calibration_html(cal: dict) -> str:
     e = html.escape
     doc = cal["doc"]
     if doc is None:
-        return f"<h3>Calibration {e(cal['id'])}</h3><p class=bad>its profile is not in the session</p>"
+        why = cal.get("problem") or "its profile is not in the session"
+        return f"<h3>Calibration {e(cal['id'])}</h3><p class=bad>{e(why)}</p>"
     stats = doc.get("statistics") or {}
     best = (stats.get("methods") or {}).get(stats.get("best", ""), {})
     de = {k: (best.get(k) or {}).get("mean") for k in ("train", "test")}
@@ -156,6 +186,8 @@ def write_report(session: Path, out: Path | None = None) -> tuple[Path, list[Ori
     if not sidecars:
         raise ValueError(f"{session}: no delivered original to report on (no dualrgb delivery sidecar under it)")
     rows = [original_row(s) for s in sidecars]
+    rows += [OriginalRow(folder.name, "", "", {}, problems=[line])
+             for folder, line in unsealed_deliveries(where, sidecars)]      # a sidecar gone: its row says so
     cals = _calibrations(session, sidecars)
     e = html.escape
     page = (f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>dualrgb QA: {e(session.name)}</title>"

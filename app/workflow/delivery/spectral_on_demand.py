@@ -4,14 +4,16 @@ delivered camera-RGB TIFFs through the map its sidecar states (app.processing.cu
 A full-resolution delivery states its cube instead of writing it (app.workflow.delivery.deliverables says why); this
 writes it, streamed in row bands, memory bounded by the band: ``<stem>_spectral.img`` / ``.hdr`` (ENVI, BIL,
 16-bit x 10000, as a half-resolution delivery's) and with ``render`` ``<stem>_under_<light>_prophoto_16bit.tif``.
-Nothing unverified is used: the channel files are checked against the sidecar's size and SHA-256 first (a
-changed byte stops it, naming the file). By default into the delivery's folder, and then the files it made are
+Nothing unverified is used: the sidecar is read as JSON and checked against its schema, and the channel files
+against the sidecar's size and SHA-256, first (an edited sidecar or a changed byte stops it in one line, naming the
+file). By default into the delivery's folder, and then the files it made are
 added to the sidecar's ``files`` and ``fixity`` (``dualrgb verify`` checks them, ``dualrgb bag`` packs them); a
 delivery whose cube is a delivered file is not written over (another ``out`` folder is needed, and a cube made
 there is not part of the delivery).
 """
 from __future__ import annotations
 
+import json
 import logging
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -56,10 +58,9 @@ def make_cube(delivery: Path, out: Path | None = None, render: str | None = None
     with ``render`` (a light's command-line name) its rendering under that light."""
     from dualrgb.app.processing.render import check_illuminant
     from dualrgb.app.workflow.delivery.deliverables import render_name
-    from dualrgb.app.workflow.delivery.delivery_folder import read_sidecar
 
     sidecar = _sidecar_of(delivery)
-    doc = read_sidecar(sidecar)
+    doc = checked_sidecar(sidecar)
     sp = doc.get("spectral")
     if not sp or "map" not in sp:
         raise ValueError(f"{sidecar}: this delivery has no spectral map (its calibration had no spectral estimator, "
@@ -88,6 +89,23 @@ def make_cube(delivery: Path, out: Path | None = None, render: str | None = None
                               **({f"render_{light}": rendered} if rendered is not None else {})})
     log.info("cube of %s made on demand: %s", doc["original"]["identifier"], data)
     return OnDemand(data, header, rendered, (lines, samples))
+
+
+def checked_sidecar(sidecar: Path) -> dict:
+    """The sidecar's JSON, refused in one line naming it when it is not JSON or does not follow the delivery schema
+    (app.workflow.delivery.fixity.schema_problems, as ``dualrgb verify`` reads it): an edited map is never used."""
+    from dualrgb.app.workflow.delivery.delivery_folder import read_sidecar
+    from dualrgb.app.workflow.delivery.fixity import schema_problems
+
+    try:
+        doc = read_sidecar(sidecar)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"not made: {sidecar}: not UTF-8 JSON ({exc}); the sidecar is damaged") from None
+    problems = schema_problems(doc)
+    if problems:
+        raise ValueError(f"not made: {sidecar}: {problems[0]} (the sidecar was edited or damaged; dualrgb verify "
+                         f"{sidecar.parent} lists every problem)")
+    return doc
 
 
 def check_inputs(sidecar: Path, doc: dict, files: list[Path]) -> None:

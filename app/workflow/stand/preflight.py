@@ -71,10 +71,11 @@ def light_set_conditioning(lights: Sequence[NamedLight], mode: str, stand: Stand
     return condition_number(values), [names[i] for i in np.flatnonzero(w >= 0.25 * w.max())]
 
 
-def check_conditioning(lights: Sequence[NamedLight], mode: str, what: str, stand: StandModel | None = None
-                       ) -> tuple[float, str | None]:
+def check_conditioning(lights: Sequence[NamedLight], mode: str, what: str, stand: StandModel | None = None,
+                       *, say: bool = True) -> tuple[float, str | None]:
     """ConditioningError (one line, naming the condition number, the limit and each light's LEDs) above
-    :data:`CONDITION_LIMIT`; above :data:`CONDITION_WARN` the warning line (also logged); else (value, None)."""
+    :data:`CONDITION_LIMIT`; above :data:`CONDITION_WARN` the warning line (logged with ``say``: a pre-check whose
+    run checks again passes False, so the line is said once); else (value, None)."""
     if len(lights) < 2:
         return float("nan"), None                # one light: the camera's own 3 channels, nothing to tie
     cond, tied = light_set_conditioning(lights, mode, stand)
@@ -91,7 +92,8 @@ def check_conditioning(lights: Sequence[NamedLight], mode: str, what: str, stand
     if cond > CONDITION_WARN:
         line = (f"{said} is above {CONDITION_WARN:g} (limit {CONDITION_LIMIT:g}): expect per-pixel colour noise; "
                 "lights with fewer LEDs in common do better")
-        log.warning("%s", line)
+        if say:
+            log.warning("%s", line)
         return cond, line
     return cond, None
 
