@@ -59,3 +59,22 @@ def pytest_collection_modifyitems(config, items):
     tests = os.path.dirname(__file__)
     rank = {os.path.join(tests, *name.split("/")): i for i, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(str(item.path), len(LONGEST_FIRST)))       # stable: the rest as collected
+
+
+def _utf8(text: str) -> str:
+    return text.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A report's captured output and logs made UTF-8: a test of a folder named in another encoding logs its path
+    with surrogate escapes (os.fsdecode), and pytest-xdist, which ships every report to the controller as UTF-8,
+    lost its worker on them (the test reported as crashed, the run an INTERNALERROR). Surrogates become visible
+    backslash escapes; nothing else changes."""
+    outcome = yield
+    report = outcome.get_result()
+    report.sections = [(key, _utf8(text)) for key, text in report.sections]
+    if report.longrepr is not None and not isinstance(report.longrepr, tuple):
+        text = str(report.longrepr)
+        if _utf8(text) != text:
+            report.longrepr = _utf8(text)
