@@ -237,7 +237,8 @@ def test_wrong_iso_or_serial_refused_in_one_line(day, tmp_path):
     r = dualrgb(*args, "--session", str(tmp_path / "s1"), "--calibration", cal["calibration"], "--iso", "100", ok=False)
     assert r.returncode == 1
     line = r.stderr.strip().splitlines()[-1]
-    assert "ISO 100 differs from the calibration's 50" in line and line.startswith("dualrgb: error:")
+    assert "--iso 100: calibration" in line and "made at ISO 50" in line and line.startswith("dualrgb: error:")
+    assert "nothing was set on the camera" in line                 # refused before the camera is set
     doc = json.loads(Path(cal["calibration"]).read_text())
     doc["camera"]["serial"] = "3021999"                        # a calibration made on another body
     other = tmp_path / "other.json"
