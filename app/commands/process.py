@@ -46,13 +46,17 @@ PROCESS_FORMAT = "dualrgb-process/1"
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("process", help="re-process sessions' originals (optionally with another calibration)",
                        description="Delivers every original in each SESSION again from its raw frames (latest takes), "
-                                   "with --calibration or each session's newest calibration.")
+                                   "with --calibration or each session's newest calibration; what --delivery-settings, "
+                                   "--spectral and --ppi do not name is as each original's last delivery asked (its "
+                                   "extra masters, access copies, creator, rights and ppi).")
     p.add_argument("sessions", type=Path, nargs="+", metavar="SESSION")
     p.add_argument("--calibration", type=calibration_source, metavar="FILE|SESSION",
                    help="calibration profile (.json), or a session folder: its newest; default: each session's newest")
     p.add_argument("--out", type=Path, help="deliverables folder (default <session>/deliverables; with several "
                                              "sessions, one folder per session below it)")
-    p.add_argument("--ppi", type=number(above=0.0), help="sampling of the deliverables (pixels per inch)")
+    p.add_argument("--ppi", type=number(above=0.0),
+                   help="sampling of the deliverables (pixels per inch; default: the original's last delivery's, "
+                        "else the calibration's)")
     p.add_argument("--force", action="store_true",
                    help="with --calibration: deliver originals of the other mode with it too (said in the sidecar "
                         "and QA line)")
@@ -86,6 +90,8 @@ def main(args: argparse.Namespace) -> int:
         delivered_at=run_time(), out_per_session=len(args.sessions) > 1)
     tasks, profiles = plan_tasks(args.sessions, options)   # every session read and checked before any delivery
     delivery = delivery_request(args, dict(enumerate(profiles)))     # what is asked for, checked before too
+    if args.delivery_settings is None and args.spectral is None:
+        delivery = None                                 # each original as its last delivery asked (or the file's)
     tasks = [replace(t, options=replace(options, delivery=delivery)) for t in tasks]
     if not (args.scheduler or (args.jobs or 1) > 1):
         ensure_ready()                                  # first run: compiled once here (workers warm up their own)

@@ -182,7 +182,9 @@ def test_bagit_validates_a_bag_with_cube_jpeg2000_and_pyramid(deliveries, tmp_pa
 def test_the_sidecar_says_what_was_asked_and_the_grades(deliveries):
     doc = json.loads(deliveries["reflective"].sidecar.read_text())
     assert doc["delivery_settings"] == {"spectral": True, "masters": ["eciRGB v2", "Adobe RGB (1998)"],
-                                        "access": ["jp2", "pyramid"], "settings_file": ""}
+                                        "access": ["jp2", "pyramid"], "render_illuminant": "",
+                                        "creator": ["Example Museum, Imaging Studio"],
+                                        "rights": "CC BY 4.0, Example Museum", "settings_file": ""}
     assert doc["qa"]["grading"]["standards"]["FADGI 4-star"]["verdict"] == "pass (measured criteria)"
     assert set(doc["fixity"]["files"]) == {p.name for p in deliveries["reflective"].files.values()}
 
@@ -240,6 +242,41 @@ def test_process_render_illuminant_at_full_resolution_is_refused_then_honoured(t
     doc = json.loads(sidecar.read_text())
     assert doc["spectral"]["cube"]["delivery"] == "file" and doc["resolution"]["mode"] == "full"
     assert {"ACC-1_spectral.img", "ACC-1_under_A_prophoto_16bit.tif"} <= set(doc["fixity"]["files"])
+
+
+def _xmp_of(path: Path) -> str:
+    with tifffile.TiffFile(path) as tif:
+        return bytes(tif.pages[0].tags["XMP"].value).decode()
+
+
+def test_process_delivers_again_what_the_last_delivery_asked_for(tmp_path):
+    """`process` with no delivery options gave masters without the creator and rights, without the extra masters
+    and access copies, and with no ppi where the capture gave 150: a re-delivery now asks for what the original's
+    last delivery asked for (its sidecar), and options named on the command line win."""
+    prof = make_profile(tmp_path / "cal", shape=(64, 96), estimator=estimator())
+    asked = tmp_path / "museum.toml"
+    asked.write_text('[delivery]\nmasters = ["eciRGB v2"]\naccess = ["jp2"]\n[institution]\n'
+                     'creator = ["Example Museum, Imaging Studio"]\nrights = "CC BY 4.0, Example Museum"\n')
+    session = tmp_path / "session"
+    assert main(["capture", "--virtual-lab", "--calibration", str(prof.path), "--id", "ACC-1", "--session",
+                 str(session), "--force", "--settle", "0", "--frame-size", "96x64", "--delivery-settings",
+                 str(asked), "--ppi", "150"]) == 0
+    sidecar = session / "deliverables" / "ACC-1" / "ACC-1.json"
+    first = json.loads(sidecar.read_text())
+    assert main(["process", str(session), "--calibration", str(prof.path)]) == 0
+    again = json.loads(sidecar.read_text())
+    assert again["reprocessed"] is True and again["ppi"] == first["ppi"] == 150.0
+    assert {k: v for k, v in again["delivery_settings"].items() if k != "settings_file"} == \
+        {k: v for k, v in first["delivery_settings"].items() if k != "settings_file"}
+    assert {"ecirgb", "access_jp2"} <= set(again["files"])
+    xmp = _xmp_of(sidecar.parent / again["files"]["prophoto"])
+    assert "Example Museum, Imaging Studio" in xmp and "CC BY 4.0, Example Museum" in xmp
+    plain = tmp_path / "plain.toml"
+    plain.write_text("[delivery]\nmasters = []\n")
+    assert main(["process", str(session), "--calibration", str(prof.path), "--delivery-settings", str(plain),
+                 "--ppi", "300"]) == 0
+    named = json.loads(sidecar.read_text())
+    assert named["ppi"] == 300.0 and "ecirgb" not in named["files"] and named["delivery_settings"]["creator"] == []
 
 
 def test_the_grading_kept_in_the_profile_and_printed():

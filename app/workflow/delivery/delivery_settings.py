@@ -65,9 +65,23 @@ class DeliverySettings:
         return self.spectral if self.spectral is not None else resolution == "half"
 
     def describe(self) -> dict:
-        """For the sidecar: what was asked for."""
+        """For the sidecar: what was asked for (all :func:`from_record` needs to ask for it again)."""
         return {"spectral": "auto" if self.spectral is None else self.spectral, "masters": list(self.masters),
-                "access": list(self.access), "settings_file": self.source}
+                "access": list(self.access), "render_illuminant": self.render_illuminant,
+                "creator": list(self.creator), "rights": self.rights, "settings_file": self.source}
+
+
+def from_record(record: dict, where: Path, fallback: DeliverySettings) -> DeliverySettings:
+    """The settings a sidecar's ``delivery_settings`` (:meth:`DeliverySettings.describe`) record, checked as the
+    file is (ValueError naming ``where`` and the key); what an older sidecar did not record (the institution, the
+    rendering light) and the bag's fields come from ``fallback`` (the settings file's)."""
+    asked = {k: record[k] for k in ("spectral", "render_illuminant", "masters", "access") if k in record}
+    institution = {k: record[k] for k in ("creator", "rights") if k in record}
+    got = _parse({"delivery": asked, "institution": institution}, where)
+    return replace(got, render_illuminant=got.render_illuminant if "render_illuminant" in record
+                   else fallback.render_illuminant, creator=got.creator if "creator" in record else fallback.creator,
+                   rights=got.rights if "rights" in record else fallback.rights, bag_info=fallback.bag_info,
+                   source=f"{where} (as delivered before)")
 
 
 def check_render_request(settings: DeliverySettings, resolution: str, render_illuminant: str | None) -> None:

@@ -118,7 +118,14 @@ def _redeliver_one(session: Any, frames: Any, subject: Subject, original: Origin
                    settings: DeliverySettings | None = None, *, extra: dict | None = None,
                    now: datetime | None = None) -> Delivery:
     from dualrgb.app.workflow.calibration.session_processing import select_lights
+    from dualrgb.app.workflow.delivery.previous_request import previous_request
 
+    if settings is None or ppi is None:             # what is not asked for now: as the last delivery asked
+        record = (session.settings.get("originals") or {}).get(original.identifier) or {}
+        before = previous_request(session.path, record, resolution)
+        if before is not None:
+            settings, ppi = settings or before.settings, ppi or before.ppi
+            log.info("%s: delivered again %s", original.identifier, before.said())
     prepare(Path(out_dir), original)
     light_frames = select_lights(frames.subject(subject), [nl.name for nl in profile.lights])
     for refs in light_frames.values():
