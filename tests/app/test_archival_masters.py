@@ -63,6 +63,17 @@ def deliveries(tmp_path_factory):
     return out
 
 
+def test_a_master_without_ppi_is_said_to_fail_the_baseline_and_does(tmp_path):
+    """No sampling known: the QA line says checkit_tiff's baseline refuses the TIFFs, and it does (ResolutionUnit
+    none), even with the ppi rule relaxed."""
+    prof = replace(make_profile(tmp_path / "cal", shape=(48, 64)), ppi=None)
+    d = deliver(patches(5), prof, Original("NOPPI-1"), tmp_path / "out", camera=prof.camera,
+                dose=LightDoseRecord(1.0, 0.1))
+    assert "no resolution: the TIFFs carry no ppi" in d.qa.text() and "checkit_tiff" in d.qa.text()
+    ok, report = checkit(slub_config(tmp_path, True), d.files["prophoto"])
+    assert not ok and any("(EE)" in line and "ResolutionUnit" in line for line in report.splitlines()), report
+
+
 def masters_of(d) -> list:
     return [p for p in tiffs_of(d.sidecar.parent) if not p.name.endswith("_access_pyramid.tif")]
 

@@ -423,7 +423,8 @@ PPI_BASELINE = (300.0, 4000.0)      # SLUB's TIFF baseline (checkit_tiff cit_tif
 def ppi_warnings(ppi: float | None) -> list[str]:
     """The QA line's words about the sampling: none known, or outside what SLUB's TIFF baseline accepts."""
     if not ppi:
-        return ["no resolution: set the sampling (ppi) or calibrate with the target's size"]
+        return ["no resolution: the TIFFs carry no ppi (ResolutionUnit none), which SLUB's TIFF baseline "
+                "(checkit_tiff) refuses; set the sampling (ppi) or calibrate with the target's size"]
     lo, hi = PPI_BASELINE
     if not lo <= ppi <= hi:
         return [f"{ppi:.0f} ppi: the stand's sampling is outside the {lo:.0f}-{hi:.0f} ppi of SLUB's TIFF baseline "
