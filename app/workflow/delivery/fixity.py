@@ -152,21 +152,25 @@ def on_demand(doc: dict, name: str) -> bool:
             or fnmatch.fnmatchcase(name, f"{glob.escape(stem)}_under_*_prophoto_16bit.tif"))
 
 
-def verify_sidecar(sidecar: Path, report: VerifyReport) -> None:
-    """Check one delivery's files against its sidecar (problems and matches into ``report``)."""
+def verify_sidecar(sidecar: Path, report: VerifyReport) -> dict | None:
+    """Check one delivery's files against its sidecar (problems and matches into ``report``); the sidecar's JSON
+    when it is readable and follows its schema (None otherwise: ``report`` says why), so that a caller showing it
+    neither reads nor checks it again."""
     report.sidecars.append(sidecar)
     try:
         doc = json.loads(sidecar.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         report.problems.append(f"{sidecar}: cannot read the sidecar ({exc})")
-        return
-    report.problems.extend(f"{sidecar}: schema {SCHEMA_FILE}: {line}" for line in schema_problems(doc))
+        return None
+    schema = schema_problems(doc)
+    report.problems.extend(f"{sidecar}: schema {SCHEMA_FILE}: {line}" for line in schema)
+    valid = doc if isinstance(doc, dict) and not schema else None
     section = doc.get("fixity") if isinstance(doc, dict) else None
     files = section.get("files") if isinstance(section, dict) else None
     if not isinstance(section, dict) or not isinstance(files, dict) or section.get("algorithm") != FIXITY_ALGORITHM:
         report.problems.append(f"{sidecar}: no {FIXITY_ALGORITHM} fixity recorded (delivered before dualrgb "
                                "recorded it): its files cannot be checked")
-        return
+        return valid
     folder = sidecar.parent
     for name, want in files.items():
         check_file(folder / name, want, report)
@@ -183,6 +187,7 @@ def verify_sidecar(sidecar: Path, report: VerifyReport) -> None:
                                    "(made by an older dualrgb: run dualrgb cube again to record it)")
         else:
             report.problems.append(f"{path}: not listed in the sidecar {sidecar.name}")
+    return valid
 
 
 DELIVERED_SUFFIXES = (".tif", ".tiff", ".img", ".jp2")

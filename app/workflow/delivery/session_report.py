@@ -14,7 +14,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import json
 import logging
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -23,12 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from dualrgb.app.workflow.delivery.bagging import current_sidecars
-from dualrgb.app.workflow.delivery.fixity import (
-    VerifyReport,
-    schema_problems,
-    unsealed_deliveries,
-    verify_sidecar,
-)
+from dualrgb.app.workflow.delivery.fixity import VerifyReport, unsealed_deliveries, verify_sidecar
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +44,7 @@ class OriginalRow:
     problems: list[str] = field(default_factory=list)
     calibration: str = ""
     files: int = 0
+    calibration_file: str = ""                # as the sidecar records it ("": not recorded)
 
 
 def thumbnail(path: Path, width: int = THUMB_PX) -> str:
@@ -68,8 +63,7 @@ def thumbnail(path: Path, width: int = THUMB_PX) -> str:
 def original_row(sidecar: Path) -> OriginalRow:
     """One original's row: verified first, the thumbnail only from a verified sRGB master."""
     report = VerifyReport()
-    verify_sidecar(sidecar, report)
-    doc = _sidecar_doc(sidecar)
+    doc = verify_sidecar(sidecar, report)
     if doc is None:                         # verify named why; nothing else of it is shown
         return OriginalRow(sidecar.stem, "", "", {}, problems=list(report.problems), files=report.files_ok)
     orig = doc.get("original") or {}
@@ -77,20 +71,11 @@ def original_row(sidecar: Path) -> OriginalRow:
     row = OriginalRow(str(orig.get("identifier", sidecar.stem)), str(orig.get("title") or ""),
                       str((doc.get("qa") or {}).get("text", "")), {s: g["verdict"] for s, g in grading.items()},
                       problems=list(report.problems), calibration=str((doc.get("calibration") or {}).get("id", "")),
-                      files=report.files_ok)
+                      files=report.files_ok, calibration_file=str((doc.get("calibration") or {}).get("file") or ""))
     srgb = (doc.get("files") or {}).get("srgb")
     if srgb and not report.problems:
         row.thumbnail = thumbnail(sidecar.parent / srgb)
     return row
-
-
-def _sidecar_doc(sidecar: Path) -> dict | None:
-    """The sidecar's JSON when it is readable and follows its schema; None otherwise (verify_sidecar says why)."""
-    try:
-        doc = json.loads(sidecar.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    return doc if isinstance(doc, dict) and not schema_problems(doc) else None
 
 
 def _checked_profile(path: Path) -> tuple[dict | None, str]:
@@ -105,16 +90,15 @@ def _checked_profile(path: Path) -> tuple[dict | None, str]:
     return doc, ""
 
 
-def _calibrations(session: Path, sidecars: list[Path]) -> list[dict]:
-    """The calibrations the deliveries name (each checked as a profile is before use; missing or failing ones
-    said)."""
+def _calibrations(session: Path, rows: list[OriginalRow]) -> list[dict]:
+    """The calibrations the delivered originals' rows name (each checked as a profile is before use; missing or
+    failing ones said)."""
     seen: dict[str, dict] = {}
-    for sidecar in sidecars:
-        cal = (_sidecar_doc(sidecar) or {}).get("calibration") or {}
-        cid = str(cal.get("id", ""))
+    for row in rows:
+        cid = row.calibration
         if not cid or cid in seen:          # a sidecar that fails its checks names no calibration to show
             continue
-        path = Path(str(cal.get("file") or ""))
+        path = Path(row.calibration_file)
         candidates = [path, session / "calibration" / f"{cid}.json"]
         found = next((p for p in candidates if str(p) not in ("", ".") and p.is_file()), None)
         doc, problem = _checked_profile(found) if found else (None, "")
@@ -188,7 +172,7 @@ def write_report(session: Path, out: Path | None = None) -> tuple[Path, list[Ori
     rows = [original_row(s) for s in sidecars]
     rows += [OriginalRow(folder.name, "", "", {}, problems=[line])
              for folder, line in unsealed_deliveries(where, sidecars)]      # a sidecar gone: its row says so
-    cals = _calibrations(session, sidecars)
+    cals = _calibrations(session, rows)
     e = html.escape
     page = (f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>dualrgb QA: {e(session.name)}</title>"
             f"<style>{STYLE}</style></head><body><h1>Session {e(session.name)}: quality report</h1>"
