@@ -31,6 +31,12 @@ if TYPE_CHECKING:                       # types only: a command imports its devi
 log = logging.getLogger(__name__)
 
 
+#: the options only the virtual lab takes, with their defaults as shown (check_device_options refuses any other
+#: value with --port / --camera: a physical stand would silently ignore it)
+LAB_ONLY_DEFAULTS: dict[str, object] = {"frame_size": "{}x{}".format(*VIRTUAL_FRAME_SIZE), "seed": 0,
+                                        "world": "nominal"}
+
+
 def add_device_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("devices")
     g.add_argument("--virtual-lab", action="store_true",
@@ -42,9 +48,9 @@ def add_device_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--stand", help="an automated sample changer's serial port or URL: it places the targets and "
                                    "originals (without one, the prompts ask you)")
     g.add_argument("--frame-size", type=frame_size, default=VIRTUAL_FRAME_SIZE,
-                   help="--virtual-lab: its frames WxH ({}x{})".format(*VIRTUAL_FRAME_SIZE))
-    g.add_argument("--seed", type=seed, default=0, help="--virtual-lab: its noise seed")
-    add_world_option(g)
+                   help="--virtual-lab: its frames WxH ({})".format(LAB_ONLY_DEFAULTS["frame_size"]))
+    g.add_argument("--seed", type=seed, default=LAB_ONLY_DEFAULTS["seed"], help="--virtual-lab: its noise seed")
+    add_world_option(g)                 # its default: LAB_ONLY_DEFAULTS["world"]
     g.add_argument("--iso", type=count(25, 409600), help="set the camera's ISO first")
     g.add_argument("--aperture", type=number(0.5, 128), help="set the camera's f-number first")
     g.add_argument("--settle", type=number(0.0, 5.0, unit=" s"), default=SETTLE_S,
@@ -70,11 +76,12 @@ def check_device_options(args: argparse.Namespace) -> None:
                          "/dev/ttyACM0), or use --virtual-lab")
     if not port:
         raise ValueError("name the devices: --port SERIAL_PORT --camera 'MODEL @ PORT' (or --virtual-lab)")
-    lab_only = [f"--{flag} {text}" for flag, text, given in (
-        ("frame-size", "{}x{}".format(*getattr(args, "frame_size", VIRTUAL_FRAME_SIZE)),
-         tuple(getattr(args, "frame_size", VIRTUAL_FRAME_SIZE)) != tuple(VIRTUAL_FRAME_SIZE)),
-        ("seed", getattr(args, "seed", 0), getattr(args, "seed", 0) != 0),
-        ("world", getattr(args, "world", "nominal"), getattr(args, "world", "nominal") != "nominal")) if given]
+    lab_only = []
+    for name, default in LAB_ONLY_DEFAULTS.items():
+        value = getattr(args, name, None)
+        shown = "{}x{}".format(*value) if name == "frame_size" and value is not None else value
+        if value is not None and shown != default:
+            lab_only.append(f"--{name.replace('_', '-')} {shown}")
     if lab_only:
         it = "them" if len(lab_only) > 1 else "it"
         raise ValueError(f"{' and '.join(lab_only)} without --virtual-lab: only the virtual lab takes {it} (a "
